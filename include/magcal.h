@@ -1,0 +1,17 @@
+/**
+ * @file magcal.h
+ * @brief Umbrella header of magcal: includes every module header and holds the version.
+ */
+#ifndef MAGCAL_H
+#define MAGCAL_H
+
+#define MAGCAL_VERSION_MAJOR 0
+#define MAGCAL_VERSION_MINOR 1
+#define MAGCAL_VERSION_PATCH 0
+#define MAGCAL_VERSION_STRING "0.1.0"
+
+#include "magcal/config.h"
+#include "magcal/status.h"
+#include "magcal/types.h"
+
+#endif /* MAGCAL_H */

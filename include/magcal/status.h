@@ -1,0 +1,67 @@
+/**
+ * @file status.h
+ * @brief Status codes shared by every magcal module.
+ *
+ * `MAGCAL_OK` is 0; every failure is a specific negative code whose value is stable across
+ * releases (firmware may log or store it). Fallible functions return a status and write their
+ * results through out-pointers; on failure they leave caller-owned results untouched unless the
+ * function's documentation says otherwise.
+ */
+#ifndef MAGCAL_STATUS_H
+#define MAGCAL_STATUS_H
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/** Result of a magcal call. Values are stable: append new codes, never renumber. */
+typedef enum {
+    MAGCAL_OK = 0,                    /**< success */
+    MAGCAL_ERR_NULL = -1,             /**< a required pointer argument is NULL */
+    MAGCAL_ERR_ARG = -2,              /**< an argument or config value is out of its documented range */
+    MAGCAL_ERR_WORKSPACE = -3,        /**< caller workspace/buffer smaller than the size macro requires */
+    MAGCAL_ERR_NONFINITE = -4,        /**< input contains NaN or +/-Inf */
+    MAGCAL_ERR_TOO_FEW_POINTS = -5,   /**< fewer samples than the model needs */
+    MAGCAL_ERR_DEGENERATE = -6,       /**< degenerate geometry: identical or collinear points, rank deficient system */
+    MAGCAL_ERR_COVERAGE = -7,         /**< arc coverage below the configured minimum */
+    MAGCAL_ERR_HYPERBOLA = -8,        /**< fitted conic is a hyperbola (4B - A^2 < 0) */
+    MAGCAL_ERR_PARABOLA = -9,         /**< fitted conic is a parabola (4B - A^2 == 0 within tolerance) */
+    MAGCAL_ERR_IMAGINARY = -10,       /**< fitted conic is an imaginary or point ellipse (K <= 0) */
+    MAGCAL_ERR_ILL_CONDITIONED = -11, /**< normal equations too badly conditioned for float32 (pivot test) */
+    MAGCAL_ERR_BUFFER_FULL = -12,     /**< sample buffer at capacity; sample not stored */
+    MAGCAL_ERR_ALL_NOISE = -13,       /**< density filter found no cluster (every point is noise) */
+    MAGCAL_ERR_TOO_MANY_OUTLIERS = -14, /**< outlier stages rejected more than the configured fraction */
+    MAGCAL_ERR_RADIUS_RANGE = -15,    /**< fitted field radius outside the configured plausible range */
+    MAGCAL_ERR_AXIS_RATIO = -16,      /**< ellipse axis ratio beyond the configured limit */
+    MAGCAL_ERR_RESIDUAL = -17,        /**< fit residual RMS relative to radius above the configured limit */
+    MAGCAL_ERR_NOT_BETTER = -18,      /**< new calibration passed the gates but the adoption rule kept the old one */
+    MAGCAL_ERR_PORT = -19,            /**< the HAL port reported a read error */
+    MAGCAL_ERR_TIMEOUT = -20,         /**< the HAL port timed out (no data ready) */
+    MAGCAL_ERR_NO_DATA = -21,         /**< no more data (end of a replayed dump) */
+    MAGCAL_ERR_STATE = -22,           /**< call not allowed in the object's current state */
+    MAGCAL_ERR_NOT_INITIALISED = -23, /**< object not initialised (or corrupted) */
+    MAGCAL_ERR_FREE_FALL = -24,       /**< accelerometer norm near zero: no gravity reference */
+    MAGCAL_ERR_ACCEL_NORM = -25,      /**< accelerometer norm too far from 1 g: not quasi-static */
+    MAGCAL_ERR_GIMBAL = -26,          /**< pitch too close to +/-90 deg: heading ill-conditioned */
+    MAGCAL_ERR_SPREAD = -27,          /**< reference headings too few or too badly spread for the model */
+    MAGCAL_ERR_THRESHOLD = -28,       /**< adaptive model reached its maximum order without meeting the threshold */
+    MAGCAL_ERR_OUT_OF_VALIDITY = -29, /**< date (or position) outside the geomagnetic model's validity */
+    MAGCAL_ERR_NOT_ELLIPSOID = -30,   /**< fitted quadric is not an ellipsoid */
+    MAGCAL_ERR_UNOBSERVABLE = -31,    /**< excitation too poor: part of the model is unobservable */
+    MAGCAL_ERR_NOT_CONVERGED = -32,   /**< iterative solver did not converge within its bound */
+    MAGCAL_ERR_ZERO_FIELD = -33,      /**< field vector too small to define a heading */
+    MAGCAL_ERR_GATED = -34            /**< epoch rejected by a gate (field magnitude, DOP, rate) */
+} magcal_status_t;
+
+/**
+ * @brief Short, constant, human-readable name of a status ("ok", "hyperbola", ...).
+ * @param[in] status any value; unknown values give "unknown".
+ * @return pointer to a static string, never NULL.
+ */
+const char *magcal_status_str(magcal_status_t status);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* MAGCAL_STATUS_H */

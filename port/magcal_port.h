@@ -1,0 +1,57 @@
+/**
+ * @file magcal_port.h
+ * @brief The hardware seam of magcal: plain C prototypes each platform implements once.
+ *
+ * The library calls these functions and nothing else that touches hardware. A firmware links
+ * exactly one implementation (chosen at link time): copy port/template/magcal_port_template.c,
+ * fill in the I2C/SPI reads, and link it. Shipped implementations: port/replay (host, serves
+ * recorded or generated samples), port/fake (scriptable test double), port/template (skeleton).
+ *
+ * Conventions every implementation must honour:
+ * - axes: body frame x right, y forward, z up (rotate/negate raw sensor axes in the port);
+ * - magnetometer: any fixed unit documented by the port (raw LSB, uT, gauss); the calibration is
+ *   valid in that unit only;
+ * - accelerometer: in g (1 g = 9.80665 m/s^2), reading about +1 on z when level and at rest;
+ * - functions are called from one thread (the calibration loop) and must not block longer than
+ *   one sensor sample period.
+ */
+#ifndef MAGCAL_PORT_H
+#define MAGCAL_PORT_H
+
+#include <stdint.h>
+
+#include "magcal/status.h"
+#include "magcal/types.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/**
+ * @brief Read one magnetometer sample.
+ * @param[out] out field in the port's documented unit, body frame x right / y forward / z up.
+ *                 Written only on MAGCAL_OK.
+ * @return MAGCAL_OK; MAGCAL_ERR_TIMEOUT when no new sample is ready (data-ready not set within
+ *         the port's wait budget); MAGCAL_ERR_PORT on a bus or device error; MAGCAL_ERR_NO_DATA
+ *         when the source is exhausted (replay ports only); MAGCAL_ERR_NULL for out == NULL.
+ */
+magcal_status_t magcal_port_mag_read(magcal_vec3_t *out);
+
+/**
+ * @brief Read one accelerometer sample.
+ * @param[out] out specific force in g, body frame x right / y forward / z up. Written only on OK.
+ * @return as magcal_port_mag_read().
+ */
+magcal_status_t magcal_port_accel_read(magcal_vec3_t *out);
+
+/**
+ * @brief Monotonic millisecond clock (wraps at 2^32 ms, about 49.7 days; compare with
+ *        unsigned subtraction).
+ */
+uint32_t magcal_port_millis(void);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* MAGCAL_PORT_H */

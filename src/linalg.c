@@ -1,0 +1,134 @@
+/* Small dense float32 kernels shared by the fitting modules (algorithms.md section 3). */
+#include <math.h>
+
+#include "magcal_internal.h"
+
+magcal_status_t magcal_ldlt_solve(float *a, float *b, size_t n, float tau, float *min_pivot)
+{
+    float scale[MAGCAL_LDLT_MAX_N];
+    float d[MAGCAL_LDLT_MAX_N];
+    float minp = 1.0f;
+    size_t i;
+    size_t j;
+    size_t k;
+
+    if (a == NULL || b == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (n == 0u || n > MAGCAL_LDLT_MAX_N || !(tau >= 0.0f)) {
+        return MAGCAL_ERR_ARG;
+    }
+    /* Equilibrate: a'_ij = a_ij / sqrt(a_ii a_jj), b'_i = b_i / sqrt(a_ii). */
+    for (i = 0u; i < n; ++i) {
+        float dii = a[i * n + i];
+        if (!magcal_isfinite_f(dii) || !magcal_isfinite_f(b[i])) {
+            return MAGCAL_ERR_NONFINITE;
+        }
+        if (!(dii > 0.0f)) {
+            return MAGCAL_ERR_DEGENERATE;
+        }
+        scale[i] = 1.0f / sqrtf(dii);
+    }
+    for (i = 0u; i < n; ++i) {
+        for (j = 0u; j <= i; ++j) {
+            float v = a[i * n + j];
+            if (!magcal_isfinite_f(v)) {
+                return MAGCAL_ERR_NONFINITE;
+            }
+            a[i * n + j] = v * scale[i] * scale[j];
+        }
+        b[i] *= scale[i];
+    }
+    /* LDL^T on the lower triangle: L stored below the diagonal, D in d[]. */
+    for (j = 0u; j < n; ++j) {
+        float dj = a[j * n + j];
+        for (k = 0u; k < j; ++k) {
+            float ljk = a[j * n + k];
+            dj -= ljk * ljk * d[k];
+        }
+        if (!(dj > tau)) {
+            if (min_pivot != NULL) {
+                *min_pivot = dj;
+            }
+            return MAGCAL_ERR_ILL_CONDITIONED;
+        }
+        if (dj < minp) {
+            minp = dj;
+        }
+        d[j] = dj;
+        for (i = j + 1u; i < n; ++i) {
+            float s = a[i * n + j];
+            for (k = 0u; k < j; ++k) {
+                s -= a[i * n + k] * a[j * n + k] * d[k];
+            }
+            a[i * n + j] = s / dj;
+        }
+    }
+    /* Forward L z = b, scale by D^-1, back L^T x = z. */
+    for (i = 0u; i < n; ++i) {
+        float s = b[i];
+        for (k = 0u; k < i; ++k) {
+            s -= a[i * n + k] * b[k];
+        }
+        b[i] = s;
+    }
+    for (i = 0u; i < n; ++i) {
+        b[i] /= d[i];
+    }
+    for (i = n; i-- > 0u;) {
+        float s = b[i];
+        for (k = i + 1u; k < n; ++k) {
+            s -= a[k * n + i] * b[k];
+        }
+        b[i] = s;
+    }
+    for (i = 0u; i < n; ++i) {
+        b[i] *= scale[i];
+        if (!magcal_isfinite_f(b[i])) {
+            return MAGCAL_ERR_ILL_CONDITIONED;
+        }
+    }
+    if (min_pivot != NULL) {
+        *min_pivot = minp;
+    }
+    return MAGCAL_OK;
+}
+
+float magcal_wrap180_deg(float a)
+{
+    float r = fmodf(a, 360.0f); /* (-360, 360) */
+    if (r > 180.0f) {
+        r -= 360.0f;
+    } else if (r <= -180.0f) {
+        r += 360.0f;
+    }
+    return r;
+}
+
+float magcal_wrap360_deg(float a)
+{
+    float r = fmodf(a, 360.0f);
+    if (r < 0.0f) {
+        r += 360.0f;
+    }
+    if (r >= 360.0f) { /* -tiny + 360 rounds to 360 */
+        r = 0.0f;
+    }
+    return r;
+}
+
+uint32_t magcal_prng_next(uint32_t *state, uint32_t bound)
+{
+    uint32_t x = *state;
+    if (x == 0u) {
+        x = 0x9E3779B9u;
+    }
+    x ^= x << 13;
+    x ^= x >> 17;
+    x ^= x << 5;
+    *state = x;
+    if (bound == 0u) {
+        return 0u;
+    }
+    return (uint32_t)(((uint64_t)x * (uint64_t)bound) >> 32);
+}

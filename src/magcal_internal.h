@@ -1,0 +1,65 @@
+/*
+ * Cross-module internals of magcal. Not installed, not part of the public API.
+ * Tests may include it (tests/ adds src/ to their include path).
+ */
+#ifndef MAGCAL_INTERNAL_H
+#define MAGCAL_INTERNAL_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "magcal/config.h"
+#include "magcal/status.h"
+#include "magcal/types.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define MAGCAL_PI_F 3.14159265358979323846f
+#define MAGCAL_DEG_PER_RAD_F 57.29577951308232f
+#define MAGCAL_RAD_PER_DEG_F 0.017453292519943295f
+
+/** Largest system order solved by magcal_ldlt_solve (10 for the general quadric). */
+#define MAGCAL_LDLT_MAX_N 12u
+
+/**
+ * Solve the symmetric positive definite system N x = r in place (float32, LDL^T).
+ * The matrix is equilibrated first (N' = D^-1/2 N D^-1/2) so the relative pivot test
+ * `d_j < tau` detects rank deficiency regardless of column scaling (algorithms.md 3.2).
+ *
+ * @param[in,out] a   n*n row-major matrix; only the lower triangle is read; destroyed.
+ * @param[in,out] b   right-hand side of length n; overwritten with the solution.
+ * @param n           order, 1..MAGCAL_LDLT_MAX_N.
+ * @param tau         relative pivot threshold (1e-6f is a good float32 default).
+ * @param[out] min_pivot optional (may be NULL): smallest equilibrated pivot, a cheap
+ *                    reciprocal-condition indicator.
+ * @return MAGCAL_OK, MAGCAL_ERR_ARG (n out of range), MAGCAL_ERR_NONFINITE,
+ *         MAGCAL_ERR_DEGENERATE (zero diagonal: a column of zeros), MAGCAL_ERR_ILL_CONDITIONED
+ *         (a pivot below tau).
+ */
+magcal_status_t magcal_ldlt_solve(float *a, float *b, size_t n, float tau, float *min_pivot);
+
+/** True when v is neither NaN nor +/-Inf (works with -ffast-math off, no libm needed). */
+static inline int magcal_isfinite_f(float v)
+{
+    return (v == v) && (v - v == 0.0f);
+}
+
+/** Wrap an angle in degrees to (-180, 180]. Input must be finite. */
+float magcal_wrap180_deg(float a);
+
+/** Wrap an angle in degrees to [0, 360). Input must be finite. */
+float magcal_wrap360_deg(float a);
+
+/**
+ * Deterministic PRNG (xorshift32). State must be non-zero; 0 is replaced by a fixed constant.
+ * Returns a value uniformly distributed in [0, bound) for bound >= 1 (bound 0 gives 0).
+ */
+uint32_t magcal_prng_next(uint32_t *state, uint32_t bound);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* MAGCAL_INTERNAL_H */

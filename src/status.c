@@ -1,0 +1,44 @@
+/* Status code names. */
+#include "magcal/status.h"
+
+const char *magcal_status_str(magcal_status_t status)
+{
+    switch (status) {
+    case MAGCAL_OK: return "ok";
+    case MAGCAL_ERR_NULL: return "null pointer";
+    case MAGCAL_ERR_ARG: return "invalid argument";
+    case MAGCAL_ERR_WORKSPACE: return "workspace too small";
+    case MAGCAL_ERR_NONFINITE: return "non-finite input";
+    case MAGCAL_ERR_TOO_FEW_POINTS: return "too few points";
+    case MAGCAL_ERR_DEGENERATE: return "degenerate geometry";
+    case MAGCAL_ERR_COVERAGE: return "arc coverage too small";
+    case MAGCAL_ERR_HYPERBOLA: return "not an ellipse (hyperbola)";
+    case MAGCAL_ERR_PARABOLA: return "not an ellipse (parabola)";
+    case MAGCAL_ERR_IMAGINARY: return "imaginary or degenerate ellipse";
+    case MAGCAL_ERR_ILL_CONDITIONED: return "ill-conditioned";
+    case MAGCAL_ERR_BUFFER_FULL: return "buffer full";
+    case MAGCAL_ERR_ALL_NOISE: return "every point is noise";
+    case MAGCAL_ERR_TOO_MANY_OUTLIERS: return "too many outliers";
+    case MAGCAL_ERR_RADIUS_RANGE: return "radius out of range";
+    case MAGCAL_ERR_AXIS_RATIO: return "axis ratio too large";
+    case MAGCAL_ERR_RESIDUAL: return "residual too large";
+    case MAGCAL_ERR_NOT_BETTER: return "not better than current calibration";
+    case MAGCAL_ERR_PORT: return "port read error";
+    case MAGCAL_ERR_TIMEOUT: return "port timeout";
+    case MAGCAL_ERR_NO_DATA: return "no more data";
+    case MAGCAL_ERR_STATE: return "wrong state";
+    case MAGCAL_ERR_NOT_INITIALISED: return "not initialised";
+    case MAGCAL_ERR_FREE_FALL: return "free fall";
+    case MAGCAL_ERR_ACCEL_NORM: return "accelerometer norm out of range";
+    case MAGCAL_ERR_GIMBAL: return "pitch near +/-90 deg";
+    case MAGCAL_ERR_SPREAD: return "reference headings badly spread";
+    case MAGCAL_ERR_THRESHOLD: return "threshold not met at maximum order";
+    case MAGCAL_ERR_OUT_OF_VALIDITY: return "outside model validity";
+    case MAGCAL_ERR_NOT_ELLIPSOID: return "not an ellipsoid";
+    case MAGCAL_ERR_UNOBSERVABLE: return "unobservable";
+    case MAGCAL_ERR_NOT_CONVERGED: return "not converged";
+    case MAGCAL_ERR_ZERO_FIELD: return "field too small";
+    case MAGCAL_ERR_GATED: return "rejected by gate";
+    default: return "unknown";
+    }
+}
