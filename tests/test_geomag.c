@@ -121,12 +121,12 @@ static void test_eval_wmm_report_table_matches_official(void)
     run_table(geomag_tv_wmm_report, GEOMAG_TV_WMM_REPORT_N, &magcal_geomag_wmm2025, &off, &ref);
     print_err("WMM2025 report table vs official", &off);
     print_err("WMM2025 report table vs double ref", &ref);
-    TEST_ASSERT_TRUE(off.comp <= 0.08);
-    TEST_ASSERT_TRUE(off.ang <= 0.007);
-    TEST_ASSERT_TRUE(off.rate <= 0.06);
-    TEST_ASSERT_TRUE(off.arate <= 0.0055);
-    TEST_ASSERT_TRUE(ref.comp <= 0.03);
-    TEST_ASSERT_TRUE(ref.ang <= 0.0005);
+    TEST_ASSERT_DOUBLE_WITHIN(0.08, 0.0, off.comp);
+    TEST_ASSERT_DOUBLE_WITHIN(0.007, 0.0, off.ang);
+    TEST_ASSERT_DOUBLE_WITHIN(0.06, 0.0, off.rate);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0055, 0.0, off.arate);
+    TEST_ASSERT_DOUBLE_WITHIN(0.03, 0.0, ref.comp);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0005, 0.0, ref.ang);
 }
 
 static void test_eval_wmm_highprec_points_match_official(void)
@@ -137,11 +137,11 @@ static void test_eval_wmm_highprec_points_match_official(void)
               &ref);
     print_err("WMM2025 100 high-prec vs official", &off);
     print_err("WMM2025 100 high-prec vs double ref", &ref);
-    TEST_ASSERT_TRUE(off.comp <= 0.03);
-    TEST_ASSERT_TRUE(off.ang <= 0.0055);
-    TEST_ASSERT_TRUE(off.rate <= 0.005);
-    TEST_ASSERT_TRUE(ref.comp <= 0.03);
-    TEST_ASSERT_TRUE(ref.ang <= 0.0005);
+    TEST_ASSERT_DOUBLE_WITHIN(0.03, 0.0, off.comp);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0055, 0.0, off.ang);
+    TEST_ASSERT_DOUBLE_WITHIN(0.005, 0.0, off.rate);
+    TEST_ASSERT_DOUBLE_WITHIN(0.03, 0.0, ref.comp);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0005, 0.0, ref.ang);
 }
 
 static void test_eval_extra_points_match_double_reference(void)
@@ -151,9 +151,9 @@ static void test_eval_extra_points_match_double_reference(void)
     max_err_t ref;
     run_table(geomag_tv_extra, GEOMAG_TV_EXTRA_N, NULL, &off, &ref);
     print_err("extra points vs double ref", &ref);
-    TEST_ASSERT_TRUE(ref.comp <= 0.03);
-    TEST_ASSERT_TRUE(ref.ang <= 0.0005);
-    TEST_ASSERT_TRUE(ref.rate <= 0.005);
+    TEST_ASSERT_DOUBLE_WITHIN(0.03, 0.0, ref.comp);
+    TEST_ASSERT_DOUBLE_WITHIN(0.0005, 0.0, ref.ang);
+    TEST_ASSERT_DOUBLE_WITHIN(0.005, 0.0, ref.rate);
 }
 
 static void test_eval_geocentric_igrf_bgs_points_match_official(void)
@@ -179,8 +179,8 @@ static void test_eval_geocentric_igrf_bgs_points_match_official(void)
     }
     printf("  IGRF-14 BGS (12) X'Y'Z' max |err|: vs official %.4f nT, vs double ref %.4f nT\n",
            e_off, e_ref);
-    TEST_ASSERT_TRUE(e_off <= 0.03);
-    TEST_ASSERT_TRUE(e_ref <= 0.03);
+    TEST_ASSERT_DOUBLE_WITHIN(0.03, 0.0, e_off);
+    TEST_ASSERT_DOUBLE_WITHIN(0.03, 0.0, e_ref);
 }
 
 static void test_eval_pole_is_continuous_with_nearby_latitude(void)
