@@ -13,5 +13,6 @@
 #include "magcal/config.h"
 #include "magcal/status.h"
 #include "magcal/types.h"
+#include "magcal/geomag.h"
 
 #endif /* MAGCAL_H */
