@@ -166,9 +166,10 @@ typedef struct {
     magcal_swing_cfg_t fit;  /**< options of the final least-squares fit */
 } magcal_swing_cog_cfg_t;
 
-/** Defaults: 3 m/s, 1 deg/s, 3 deg, 2 s gap, 10 s legs of >= 10 epochs, 6 bins, trim 2. */
+/** Defaults: 3 m/s, 3 deg/s (COG noise of 0.5 deg at 1 Hz passes, turns do not), 3 deg, 2 s gap,
+ *  10 s legs of >= 10 epochs, 6 bins, trim 2. */
 #define MAGCAL_SWING_COG_CFG_DEFAULT                                                               \
-    {3.0f, 1.0f, 3.0f, 2.0f, 10.0f, 10u, 6u, 2u, MAGCAL_SWING_CFG_DEFAULT}
+    {3.0f, 3.0f, 3.0f, 2.0f, 10.0f, 10u, 6u, 2u, MAGCAL_SWING_CFG_DEFAULT}
 
 /** One heading bin: a weighted mean of per-leg (psi_c, delta) pairs. Private. */
 typedef struct {
@@ -182,19 +183,20 @@ typedef struct {
 typedef struct {
     magcal_swing_cog_cfg_t cfg;
     magcal_swing_bin_t bins[MAGCAL_SWING_COG_BINS];
-    /* current leg */
-    float leg_ref_cog_deg;  /* COG of the first accepted epoch of the leg (offset origin) */
-    float leg_ref_psi_deg;  /* psi_c of the first accepted epoch (offset origin) */
-    float sum_cog_off;      /* sum of wrap(psi_ref - leg_ref_cog) */
-    float sum_psi_off;      /* sum of wrap(psi_c - leg_ref_psi) */
-    float leg_t0_s;
-    float last_t_s;
-    float last_cog_deg;
+    /* current leg (offsets are taken from the leg's first accepted epoch so averaging is wrap-safe) */
+    float leg_org_ref_deg;  /* psi_ref = COG - decl of the first accepted epoch */
+    float leg_org_psi_deg;  /* psi_c of the first accepted epoch */
+    float sum_ref_off;      /* sum of wrap(psi_ref - leg_org_ref) */
+    float sum_psi_off;      /* sum of wrap(psi_c - leg_org_psi) */
+    float leg_t0_s;         /* time of the first accepted epoch */
+    float leg_t1_s;         /* time of the last accepted epoch */
+    float last_t_s;         /* time of the previous epoch (any) */
+    float last_cog_deg;     /* COG of the previous epoch */
     uint32_t leg_n;         /* epochs accumulated in the leg */
     uint32_t leg_seen;      /* straight epochs seen in the leg, including trimmed ones */
     uint32_t legs_total;    /* committed legs */
     uint32_t magic;         /* init marker */
-    uint8_t have_last;
+    uint8_t have_last;      /* last_t_s/last_cog_deg valid */
 } magcal_swing_cog_t;
 
 /**
