@@ -548,6 +548,45 @@ static void test_swing_cog_marked_directions_fit_and_gates(void)
     }
 }
 
+
+static void test_swing_cog_table_has_36_bins_and_merges_within_a_bin(void)
+{
+    /* One pair per 10-deg bin fills MAGCAL_SWING_COG_BINS bins; two pairs in one bin merge into
+     * their weighted mean (psi_c 101 w1 and 107 w3 -> 105.5, delta 1 and 3 -> 2.5). */
+    magcal_swing_cog_cfg_t cfg = MAGCAL_SWING_COG_CFG_DEFAULT;
+    magcal_swing_cog_t acc;
+    magcal_swing_model_t m;
+    magcal_swing_epoch_t ep = {0.0f, 10.0f, 10.0f, 10.0f, 0.0f};
+    size_t nb = 0u, nl = 0u;
+    float d = 0.0f;
+    int k;
+    TEST_ASSERT_EQUAL_UINT32(36u, MAGCAL_SWING_COG_BINS);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_swing_cog_init(&acc, &cfg));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_swing_cog_add_pair(&acc, 101.0f, 102.0f, 1.0f));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_swing_cog_add_pair(&acc, 107.0f, 110.0f, 3.0f));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_swing_cog_count(&acc, &nb, &nl));
+    TEST_ASSERT_EQUAL_UINT32(1u, (uint32_t)nb);
+    TEST_ASSERT_EQUAL_UINT32(0u, (uint32_t)nl); /* pairs are not legs */
+    TEST_ASSERT_FLOAT_WITHIN(1e-4f, 0.5f, acc.bins[10].psi_c_off_deg); /* centre 105 */
+    TEST_ASSERT_FLOAT_WITHIN(1e-4f, 2.5f, acc.bins[10].delta_deg);
+    for (k = 0; k < 36; ++k) {
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_swing_cog_add_pair(&acc, 10.0f * k + 5.0f, 10.0f * k + 5.0f + 2.5f, 1.0f));
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_swing_cog_count(&acc, &nb, &nl));
+    TEST_ASSERT_EQUAL_UINT32(36u, (uint32_t)nb);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_swing_cog_fit(&acc, &m, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_swing_deviation(&m, 200.0f, &d));
+    TEST_ASSERT_FLOAT_WITHIN(1e-3f, 2.5f, d); /* constant deviation everywhere */
+    /* epochs: NaN closes the leg and is reported; uninitialised accumulator refused */
+    ep.cog_deg = NAN;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_swing_cog_add(&acc, &ep));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_swing_cog_add(&acc, NULL));
+    memset(&acc, 0, sizeof acc);
+    ep.cog_deg = 10.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NOT_INITIALISED, magcal_swing_cog_add(&acc, &ep));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NOT_INITIALISED, magcal_swing_cog_flush(&acc));
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -561,5 +600,6 @@ int main(void)
     RUN_TEST(test_swing_ellipse_plus_swing_removes_mounting_rotation_to_floor);
     RUN_TEST(test_swing_cog_drive_recovers_coefficients_and_rejects_turns);
     RUN_TEST(test_swing_cog_marked_directions_fit_and_gates);
+    RUN_TEST(test_swing_cog_table_has_36_bins_and_merges_within_a_bin);
     return UNITY_END();
 }
