@@ -156,6 +156,9 @@ magcal_status_t magcal_swing_fit(const magcal_swing_cfg_t *cfg, const float *psi
     }
     st = magcal_ldlt_solve(ata, atb, SWING_N, cfg->pivot_tau, NULL);
     if (st == MAGCAL_ERR_ILL_CONDITIONED || st == MAGCAL_ERR_DEGENERATE) {
+        if (stats != NULL) {
+            stats->min_spread_pivot = pivot;
+        }
         return MAGCAL_ERR_SPREAD;
     }
     if (st != MAGCAL_OK) {
