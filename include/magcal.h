@@ -14,5 +14,8 @@
 #include "magcal/status.h"
 #include "magcal/types.h"
 #include "magcal/geomag.h"
+#include "magcal/tilt.h"
+#include "magcal/swing.h"
+#include "magcal/errmodel.h"
 
 #endif /* MAGCAL_H */
