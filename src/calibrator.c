@@ -8,9 +8,8 @@
 #include <string.h>
 
 #include "magcal_internal.h"
-#include "magcal_port.h"
 
-#define CAL_MAGIC 0x4D43414Cu /* "MCAL" */
+#define CAL_MAGIC MAGCAL_CALIBRATOR_MAGIC
 #define CAL_BIN_DEG (360.0f / (float)MAGCAL_COVERAGE_BINS)
 #define CAL_SHIFT_STEPS 72u   /* heading shift evaluated every 5 degrees */
 #define CAL_COLLINEAR_TOL 1.0e-6f
@@ -287,26 +286,6 @@ magcal_status_t magcal_calibrator_push(magcal_calibrator_t *cal, magcal_vec2_t p
         cal_update_state(cal);
     }
     return MAGCAL_OK;
-}
-
-magcal_status_t magcal_calibrator_poll(magcal_calibrator_t *cal)
-{
-    magcal_vec3_t v;
-    magcal_vec2_t p;
-    magcal_status_t st;
-    if (cal == NULL) {
-        return MAGCAL_ERR_NULL;
-    }
-    if (!cal_ok(cal)) {
-        return MAGCAL_ERR_NOT_INITIALISED;
-    }
-    st = magcal_port_mag_read(&v);
-    if (st != MAGCAL_OK) {
-        return st;
-    }
-    p.x = v.x;
-    p.y = v.y;
-    return magcal_calibrator_push(cal, p);
 }
 
 /* ------------------------------------------------------------------ run() stages */
