@@ -881,6 +881,11 @@ magcal_calibrator_state_t magcal_calibrator_state(const magcal_calibrator_t *cal
     return cal_ok(cal) ? cal->state : MAGCAL_CALIBRATOR_FAILED;
 }
 
+magcal_status_t magcal_calibrator_last_status(const magcal_calibrator_t *cal)
+{
+    return cal_ok(cal) ? cal->last_status : MAGCAL_ERR_NOT_INITIALISED;
+}
+
 size_t magcal_calibrator_count(const magcal_calibrator_t *cal)
 {
     return cal_ok(cal) ? cal->n : 0u;

@@ -310,6 +310,13 @@ magcal_status_t magcal_calibrator_classify(const magcal_calibrator_t *cal, magca
 /** @brief Current state (MAGCAL_CALIBRATOR_FAILED also for a NULL or uninitialised cal). */
 magcal_calibrator_state_t magcal_calibrator_state(const magcal_calibrator_t *cal);
 
+/**
+ * @brief Reason of the current state: the status of the last run() (MAGCAL_OK before any run or
+ *        after an adoption; e.g. MAGCAL_ERR_COVERAGE in state FAILED). MAGCAL_ERR_NOT_INITIALISED
+ *        for a NULL or uninitialised cal.
+ */
+magcal_status_t magcal_calibrator_last_status(const magcal_calibrator_t *cal);
+
 /** @brief Number of stored samples (0 for NULL). */
 size_t magcal_calibrator_count(const magcal_calibrator_t *cal);
 
