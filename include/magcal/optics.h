@@ -94,11 +94,12 @@ typedef enum {
 
 /**
  * Workspace bytes for magcal_optics_run() on n points: seed heap/list uint16[n], heap position
- * map uint16[n], spatial index, rounded up to a multiple of 4. About 8 bytes per sample; the
- * outputs (order 2 + reach 4 + core 4 bytes per sample) are separate caller arrays.
+ * map uint16[n], spatial index, one "processed" bit per point, rounded up to a multiple of 4.
+ * About 8.1 bytes per sample (n <= MAGCAL_GRID_MAX_CELLS); the outputs (order 2 + reach 4 +
+ * core 4 bytes per sample) are separate caller arrays.
  */
 #define MAGCAL_OPTICS_WORKSPACE_LEN(n) \
-    ((4u * (size_t)(n) + MAGCAL_NEIGHBORS_WORKSPACE_LEN(n) + 3u) & ~(size_t)3u)
+    ((4u * (size_t)(n) + MAGCAL_NEIGHBORS_WORKSPACE_LEN(n) + ((size_t)(n) + 7u) / 8u + 3u) & ~(size_t)3u)
 
 /**
  * Workspace bytes for magcal_optics_filter() and magcal_optics_auto_params() on n points:
