@@ -567,7 +567,7 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
             idx[m++] = (uint16_t)i;
         }
     }
-    if (m < AUTO_MIN_N) {
+    if (m < 2u * AUTO_WIN + 2u) { /* the cyclic windows need distinct neighbours */
         return MAGCAL_ERR_DEGENERATE;
     }
     heapsort_idx(idx, a, m);

@@ -210,7 +210,7 @@ magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, v
  * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_ARG (misaligned work);
  *         MAGCAL_ERR_TOO_FEW_POINTS (n < 16); MAGCAL_ERR_ARG also for n > MAGCAL_MAX_SAMPLES;
  *         MAGCAL_ERR_NONFINITE; MAGCAL_ERR_WORKSPACE; MAGCAL_ERR_DEGENERATE (median radius 0 or
- *         fewer than 8 points in the ring band). Outputs untouched on failure.
+ *         fewer than 10 points in the ring band). Outputs untouched on failure.
  */
 magcal_status_t magcal_optics_auto_params(const magcal_vec2_t *pts, size_t n, void *work, size_t work_len,
                                           float *eps, uint16_t *min_pts, float *eps_prime);
