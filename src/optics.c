@@ -445,6 +445,8 @@ magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, v
 #define AUTO_SAFETY 1.5f  /* eps' = 1.5 * measured requirement */
 #define AUTO_CORE_Q 0.9f  /* quantile of the per-point core requirement */
 #define AUTO_WIN 4u       /* angular neighbours looked at on each side */
+#define AUTO_TRIM 3.0f    /* centre passes after the first use points within 3 R */
+#define AUTO_TRIM_PASSES 2u
 #define AUTO_MIN_REL (1.0f / 256.0f)
 #define AUTO_MAX_REL 1.0f
 
@@ -539,23 +541,51 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
     uint16_t *idx = (uint16_t *)(void *)(w + 4u * n);
     float *b = (float *)(void *)(w + 8u * n);
     float cx, cy, rad, lo, hi, link1 = 0.0f, link2 = 0.0f, coreq, e;
+    float ncx, ncy;
     size_t i, m = 0u;
+    unsigned pass;
 
-    for (i = 0; i < n; ++i) {
-        a[i] = pts[i].x;
-    }
-    cx = select_kth(a, n, n / 2u);
-    for (i = 0; i < n; ++i) {
-        a[i] = pts[i].y;
-    }
-    cy = select_kth(a, n, n / 2u);
-    for (i = 0; i < n; ++i) {
-        float dx = pts[i].x - cx, dy = pts[i].y - cy;
-        a[i] = sqrtf(dx * dx + dy * dy);
-    }
-    rad = select_kth(a, n, n / 2u);
-    if (!(rad > 0.0f) || !magcal_isfinite_f(rad)) {
-        return MAGCAL_ERR_DEGENERATE;
+    /* Pass 0 uses every point; passes 1..AUTO_TRIM_PASSES only the points within
+     * AUTO_TRIM * R of the previous centre, so a far cluster (e.g. 23 % driver glitches 36 R
+     * away) cannot drag the median centre off the ring. */
+    cx = 0.0f;
+    cy = 0.0f;
+    rad = INFINITY;
+    for (pass = 0; pass <= AUTO_TRIM_PASSES; ++pass) {
+        float lim2 = (AUTO_TRIM * rad) * (AUTO_TRIM * rad);
+        size_t k = 0u;
+        for (i = 0; i < n; ++i) {
+            float dx = pts[i].x - cx, dy = pts[i].y - cy;
+            if (pass == 0u || dx * dx + dy * dy <= lim2) {
+                a[k++] = pts[i].x;
+            }
+        }
+        if (k < AUTO_MIN_N) {
+            break; /* keep the previous estimate */
+        }
+        ncx = select_kth(a, k, k / 2u);
+        k = 0u;
+        for (i = 0; i < n; ++i) {
+            float dx = pts[i].x - cx, dy = pts[i].y - cy;
+            if (pass == 0u || dx * dx + dy * dy <= lim2) {
+                a[k++] = pts[i].y;
+            }
+        }
+        ncy = select_kth(a, k, k / 2u);
+        k = 0u;
+        for (i = 0; i < n; ++i) {
+            float dx = pts[i].x - cx, dy = pts[i].y - cy;
+            if (pass == 0u || dx * dx + dy * dy <= lim2) {
+                float ex = pts[i].x - ncx, ey = pts[i].y - ncy;
+                a[k++] = sqrtf(ex * ex + ey * ey);
+            }
+        }
+        cx = ncx;
+        cy = ncy;
+        rad = select_kth(a, k, k / 2u);
+        if (!(rad > 0.0f) || !magcal_isfinite_f(rad)) {
+            return MAGCAL_ERR_DEGENERATE;
+        }
     }
     lo = rad - AUTO_BAND * rad;
     hi = rad + AUTO_BAND * rad;
