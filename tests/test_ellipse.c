@@ -383,6 +383,36 @@ static void test_ellipse_fit_full_int16_range_is_accurate(void)
     check_within(1e-4, 0.0, rel_err_vs_ref(&e, &ref), "rel. error vs double");
 }
 
+static void test_ellipse_fit_matches_numpy_golden_values(void)
+{
+    /* Golden values from tools/ref/ellipse_ref.py: numpy lstsq (QR/SVD, double) on the same rings,
+     * regenerated bit for bit in Python from test_util.c's generator. Tolerances: a few float32
+     * ulps of the coordinate magnitude. */
+    magcal_ellipse_t e;
+    test_distortion_t d = make_dist(0.35, 1.15, 0.80, 25.0, -10.0, 0.42, -0.27);
+    test_make_ring(&d, 400, 0.0, 360.0, 1e-4, 11u, g_pts, NULL);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_fit(g_pts, 400, NULL, &e));
+    check_within(2e-7, 0.419989822, e.center.x, "2.3 x0");
+    check_within(2e-7, -0.270003584, e.center.y, "2.3 y0");
+    check_within(2e-7, 0.279994714, e.semi_minor, "2.3 r1");
+    check_within(2e-7, 0.402489356, e.semi_major, "2.3 r2");
+    check_within(1e-4, -64.9986147, e.angle_rad * DEG_D, "2.3 theta");
+    d = make_dist(300.0, 1.0, 1.0, 0.0, 0.0, 6000.0, -5000.0);
+    test_make_ring(&d, 2000, 0.0, 360.0, 2.0, 21u, g_pts, NULL);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_fit(g_pts, 2000, NULL, &e));
+    check_within(2e-3, 6000.01737, e.center.x, "20x x0");
+    check_within(2e-3, -5000.00576, e.center.y, "20x y0");
+    check_within(2e-3, 299.974704, e.semi_minor, "20x r1");
+    check_within(2e-3, 300.151143, e.semi_major, "20x r2");
+    d = make_dist(5000.0, 1.0, 1.0, 0.0, 0.0, 20000.0, -15000.0);
+    test_make_ring(&d, 2000, 0.0, 360.0, 2.0, 22u, g_pts, NULL);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_fit(g_pts, 2000, NULL, &e));
+    check_within(5e-3, 19999.972, e.center.x, "5x x0");
+    check_within(5e-3, -15000.1671, e.center.y, "5x y0");
+    check_within(5e-3, 4999.88881, e.semi_minor, "5x r1");
+    check_within(5e-3, 5000.02329, e.semi_major, "5x r2");
+}
+
 /* --------------------------------------------------------- failure statuses */
 
 static void test_ellipse_fit_60deg_arc_returns_hyperbola(void)
@@ -790,6 +820,7 @@ int main(void)
     RUN_TEST(test_ellipse_fit_offset20_float32_matches_double_seed_fails);
     RUN_TEST(test_ellipse_fit_offset5_counts25000_meets_1e4_seed_does_not);
     RUN_TEST(test_ellipse_fit_full_int16_range_is_accurate);
+    RUN_TEST(test_ellipse_fit_matches_numpy_golden_values);
     RUN_TEST(test_ellipse_fit_60deg_arc_returns_hyperbola);
     RUN_TEST(test_ellipse_fit_bad_input_returns_specific_status);
     RUN_TEST(test_ellipse_fit_degenerate_points_return_degenerate);
