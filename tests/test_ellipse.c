@@ -724,6 +724,30 @@ static void test_ellipse_to_cal_all_forms_map_onto_circle(void)
     check_within(0.0, e.center.x, sym.offset.x, "offset = centre");
 }
 
+static void test_ellipse_to_cal_noise_free_ring_is_circle_to_float_precision(void)
+{
+    /* Noise-free ring at raw-count scale with a 10x offset: every form maps it onto a circle to
+     * float32 precision (radius spread < 1e-5 relative) with the documented radius. */
+    test_distortion_t d = make_dist(600.0, 1.3, 0.75, -55.0, 20.0, 4000.0, 5000.0);
+    static const magcal_corr_form_t forms[3] = {MAGCAL_CORR_SYMMETRIC, MAGCAL_CORR_KX1, MAGCAL_CORR_TRIANGULAR};
+    magcal_ellipse_t e;
+    magcal_cal2d_t cal;
+    double spread, mean;
+    size_t i;
+    test_make_ring(&d, 500, 0.0, 360.0, 0.0, 61u, g_pts, NULL);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_fit(g_pts, 500, NULL, &e));
+    check_within(1e-5 * 780.0, 450.0, e.semi_minor, "r1 = 0.75 * 600");
+    check_within(1e-5 * 780.0, 780.0, e.semi_major, "r2 = 1.3 * 600");
+    for (i = 0; i < 3; ++i) {
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_to_cal(&e, forms[i], 0.0f, &cal));
+        cal_spread(&cal, g_pts, 500, &spread, &mean);
+        check_within(1e-5, 0.0, spread, "noise-free radius spread");
+        check_within(1e-5 * mean, cal.radius, mean, "radius field = mean corrected radius");
+        /* rho <= 0: sqrt(r1 r2) for symmetric and triangular, r1 for kx1 */
+        check_within(1e-5 * mean, forms[i] == MAGCAL_CORR_KX1 ? 450.0 : sqrt(450.0 * 780.0), mean, "default radius");
+    }
+}
+
 static void test_ellipse_to_cal_symmetric_offset_is_phis_plus_phip(void)
 {
     /* algorithms.md 1.3 / 2.4: T = R(25) diag(1.15, 0.8) R(-10): the symmetric form leaves a
@@ -832,6 +856,7 @@ int main(void)
     RUN_TEST(test_ellipse_fit_idx_and_mask_equal_compacted_fit);
     RUN_TEST(test_ellipse_residual_is_radial_distance);
     RUN_TEST(test_ellipse_to_cal_all_forms_map_onto_circle);
+    RUN_TEST(test_ellipse_to_cal_noise_free_ring_is_circle_to_float_precision);
     RUN_TEST(test_ellipse_to_cal_symmetric_offset_is_phis_plus_phip);
     RUN_TEST(test_ellipse_to_cal_symmetric_offset_noisy_mean_is_15deg);
     RUN_TEST(test_ellipse_to_cal_pure_soft_iron_recovers_heading);
