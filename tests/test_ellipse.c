@@ -413,6 +413,24 @@ static void test_ellipse_fit_matches_numpy_golden_values(void)
     check_within(5e-3, 5000.02329, e.semi_major, "5x r2");
 }
 
+static void test_ellipse_fit_half_turn_at_offset20_matches_double_reference(void)
+{
+    /* 180 deg of arc (the least rotation a calibrator should accept), offset/radius 20: the
+     * bounding-box centre is then about r/2 off the true centre; still 1e-4 relative. */
+    test_distortion_t d = make_dist(300.0, 1.1, 0.9, 15.0, 0.0, -6000.0, -3000.0);
+    magcal_ellipse_t e;
+    ref_ellipse_t ref;
+    double rel;
+    test_make_ring(&d, 700, 100.0, 180.0, 0.5, 24u, g_pts, NULL);
+    TEST_ASSERT_EQUAL_INT(0, ref_fit(g_pts, 700, 1, &ref));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_fit(g_pts, 700, NULL, &e));
+    rel = rel_err_vs_ref(&e, &ref);
+    printf("half turn, offset/radius 20: rel. err %.2e, min pivot %.3g\n", rel, (double)e.min_pivot);
+    check_within(1e-4, 0.0, rel, "rel. error vs double");
+    check_within(2.0, -6000.0, e.center.x, "x0 truth (noise-limited on a half turn)");
+    check_within(2.0, -3000.0, e.center.y, "y0 truth");
+}
+
 /* --------------------------------------------------------- failure statuses */
 
 static void test_ellipse_fit_60deg_arc_returns_hyperbola(void)
@@ -844,6 +862,7 @@ int main(void)
     RUN_TEST(test_ellipse_fit_offset20_float32_matches_double_seed_fails);
     RUN_TEST(test_ellipse_fit_offset5_counts25000_meets_1e4_seed_does_not);
     RUN_TEST(test_ellipse_fit_full_int16_range_is_accurate);
+    RUN_TEST(test_ellipse_fit_half_turn_at_offset20_matches_double_reference);
     RUN_TEST(test_ellipse_fit_matches_numpy_golden_values);
     RUN_TEST(test_ellipse_fit_60deg_arc_returns_hyperbola);
     RUN_TEST(test_ellipse_fit_bad_input_returns_specific_status);
