@@ -156,9 +156,10 @@ static void test_run_every_scenario_default_within_1p2_floor(void)
         const magcal_test_dump_t *d = g_scen[s];
         run_t r;
         run_dump(d, &cfg, &r);
-        printf("%-34s %6d %8.4f %8.4f %6.3f %7.3f %7.4f %5u %5u\n", d->name, (int)r.st, r.rms_deg,
+        printf("%-34s %6d %8.4f %8.4f %6.3f %7.3f %7.4f %5u %5u%s\n", d->name, (int)r.st, r.rms_deg,
                (double)d->truth->floor_deg, r.ratio, recall(&r), false_rate(&r),
-               (unsigned)r.rep.rejected_filter, (unsigned)r.rep.rejected_consensus);
+               (unsigned)r.rep.rejected_filter, (unsigned)r.rep.rejected_consensus,
+               r.rep.filter_fragmented ? " (filter split the ring: consensus drew from all)" : "");
     }
     for (s = 0; s < N_SCEN; ++s) {
         const magcal_test_dump_t *d = g_scen[s];
