@@ -204,6 +204,31 @@ static void test_run_outlier_scenarios_plain_ls_fails(void)
     }
 }
 
+/* Every filter choice (OPTICS classic, DBSCAN with automatic eps', none) followed by the consensus
+ * meets the same targets on the burst and spike dumps. */
+static void test_run_every_filter_choice_within_1p2_floor(void)
+{
+    static const magcal_test_dump_t *const dumps[] = {&dump_synthetic_outliers_25, &dump_synthetic_outliers_35,
+                                                      &dump_synthetic_near_ring, &dump_synthetic_spikes};
+    static const magcal_calibrator_filter_t filters[] = {MAGCAL_FILTER_OPTICS_CLASSIC, MAGCAL_FILTER_DBSCAN,
+                                                         MAGCAL_FILTER_NONE};
+    size_t s, f;
+    for (f = 0; f < sizeof filters / sizeof filters[0]; ++f) {
+        for (s = 0; s < sizeof dumps / sizeof dumps[0]; ++s) {
+            magcal_calibrator_cfg_t cfg = MAGCAL_CALIBRATOR_CFG_DEFAULT;
+            run_t r;
+            cfg.filter = filters[f];
+            run_dump(dumps[s], &cfg, &r);
+            printf("filter %d %-34s ratio %.3f recall %.3f false %.4f\n", (int)filters[f], dumps[s]->name, r.ratio,
+                   recall(&r), false_rate(&r));
+            TEST_ASSERT_EQUAL_INT_MESSAGE(MAGCAL_OK, r.st, dumps[s]->name);
+            TEST_ASSERT_TRUE_MESSAGE(r.ratio <= 1.2, dumps[s]->name);
+            TEST_ASSERT_TRUE_MESSAGE(recall(&r) >= 0.90, dumps[s]->name);
+            TEST_ASSERT_TRUE_MESSAGE(false_rate(&r) <= 0.05, dumps[s]->name);
+        }
+    }
+}
+
 /* ---------------------------------------------------------------- bad input keeps the old calibration */
 
 /* A valid, non-identity calibration to protect. */
@@ -690,6 +715,7 @@ int main(void)
     RUN_TEST(test_truth_floor_recomputes_in_c);
     RUN_TEST(test_run_every_scenario_default_within_1p2_floor);
     RUN_TEST(test_run_outlier_scenarios_plain_ls_fails);
+    RUN_TEST(test_run_every_filter_choice_within_1p2_floor);
     RUN_TEST(test_push_nonfinite_returns_nonfinite_not_stored);
     RUN_TEST(test_run_identical_points_returns_degenerate_keeps_cal);
     RUN_TEST(test_run_collinear_points_returns_degenerate_keeps_cal);
