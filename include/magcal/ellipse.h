@@ -163,6 +163,27 @@ magcal_status_t magcal_ellipse_fit_seed(const magcal_vec2_t *pts, size_t n, cons
                                         magcal_ellipse_t *out);
 
 /**
+ * @brief Geometry of a conic given by its coefficients (the last step of every fit, exposed for
+ *        fits done elsewhere, e.g. a direct ellipse-specific fit, and for tests).
+ *
+ * The conic x~^2 + A x~y~ + B y~^2 + C x~ + D y~ + E = 0 is given in coordinates
+ * x~ = (x - norm_center.x)/norm_scale, y~ = (y - norm_center.y)/norm_scale (use {0,0} and 1 for
+ * input units). Note: a least-squares fit cannot return K < 0 in exact arithmetic (E is free, so
+ * the algebraic residuals have zero mean); MAGCAL_ERR_IMAGINARY from a fit means rounding on a
+ * point-like data set.
+ * @param[in]  coef        A..E.
+ * @param[in]  norm_center normalisation centre, input units.
+ * @param[in]  norm_scale  normalisation scale, > 0.
+ * @param[out] out         geometry, coef, norm_*, qform set; residual_rms = 0, n_used = 0,
+ *                         min_pivot = 1. Untouched on failure.
+ * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_NONFINITE (an input is NaN/Inf);
+ *         MAGCAL_ERR_ARG (norm_scale <= 0); MAGCAL_ERR_HYPERBOLA; MAGCAL_ERR_PARABOLA;
+ *         MAGCAL_ERR_IMAGINARY (K <= 0); MAGCAL_ERR_ILL_CONDITIONED (geometry over/underflows).
+ */
+magcal_status_t magcal_ellipse_from_conic(const float coef[5], magcal_vec2_t norm_center, float norm_scale,
+                                          magcal_ellipse_t *out);
+
+/**
  * @brief Signed approximate geometric distance of p to the ellipse, input units.
  *
  * Radial distance along the ray from the centre: |u| - rho(u) with u = p - center and rho(u) the
