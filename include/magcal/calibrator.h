@@ -113,6 +113,9 @@ extern "C" {
              MAGCAL_CALIBRATOR_MAX_(MAGCAL_DBSCAN_WORKSPACE_LEN(cap),                              \
                                     MAGCAL_OPTICS_LARGEST_WORKSPACE_LEN(cap))))
 
+/** Private: value of magcal_calibrator_t::magic in an initialised instance ("MCAL"). */
+#define MAGCAL_CALIBRATOR_MAGIC 0x4D43414Cu
+
 /** Per-sample flag bits (magcal_calibrator_flags()). */
 #define MAGCAL_CALIBRATOR_FLAG_FILTER 0x01u   /**< rejected by the density filter */
 #define MAGCAL_CALIBRATOR_FLAG_RESIDUAL 0x02u /**< rejected by the residual threshold (final) */
