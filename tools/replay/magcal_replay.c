@@ -321,7 +321,7 @@ int main(int argc, char **argv)
     size_t i, n;
     magcal_vec3_t *fed = NULL;
     double *raw_rad = NULL, *cor_rad = NULL, *err_deg = NULL, *hdg = NULL, *raw_hdg = NULL;
-    unsigned char *flag = NULL, *use = NULL;
+    unsigned char *flag = NULL, *use = NULL, *fedmask = NULL;
     const double *ref;
     static const double k_nan = NAN;
 
@@ -371,8 +371,9 @@ int main(int argc, char **argv)
     raw_hdg = (double *)calloc(n, sizeof(double));
     flag = (unsigned char *)calloc(n, 1u);
     use = (unsigned char *)calloc(n, 1u);
+    fedmask = (unsigned char *)calloc(n, 1u);
     res.flags = (unsigned char *)calloc(r.n_fed, 1u);
-    if (!fed || !raw_rad || !cor_rad || !err_deg || !hdg || !raw_hdg || !flag || !use || !res.flags) {
+    if (!fed || !raw_rad || !cor_rad || !err_deg || !hdg || !raw_hdg || !flag || !use || !fedmask || !res.flags) {
         fprintf(stderr, "magcal-replay: out of memory\n");
         rc = REPLAY_EXIT_INTERNAL;
         goto done;
@@ -424,7 +425,13 @@ int main(int argc, char **argv)
         }
     }
     if (rc == REPLAY_EXIT_OK) {
+        /* raw spread over the samples used (same set as the corrected one), and over every
+         * fed calibration sample (outliers included) */
         r.spread_raw = spread(raw_rad, use, n);
+        for (i = r.cal_first; i < r.cal_end; i += r.decimation) {
+            fedmask[i] = 1u;
+        }
+        r.spread_raw_all = spread(raw_rad, fedmask, n);
         r.spread_corrected = spread(cor_rad, use, n);
         heading_metrics(&r, ref != NULL ? ref : &k_nan, err_deg, flag, ref != NULL ? n : 0u);
     }
@@ -496,6 +503,7 @@ done:
     free(raw_hdg);
     free(flag);
     free(use);
+    free(fedmask);
     free(res.flags);
     magcal_replay_csv_free(&d);
     return rc;

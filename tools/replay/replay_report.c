@@ -77,6 +77,7 @@ int replay_print_json(const replay_report_t *r)
         cJSON_AddNumberToObject(o, "radius", sig7(r->radius));
         cJSON_AddNumberToObject(o, "residual_rms", sig7(r->residual_rms));
         cJSON_AddNumberToObject(o, "radius_spread_raw", sig7(r->spread_raw));
+        cJSON_AddNumberToObject(o, "radius_spread_raw_all", sig7(r->spread_raw_all));
         cJSON_AddNumberToObject(o, "radius_spread_corrected", sig7(r->spread_corrected));
     }
     if (r->truth_column != NULL) {
@@ -168,9 +169,13 @@ void replay_print_table(const replay_report_t *r)
     printf("  radius            %.6g dump units (corrected field magnitude)\n", r->radius);
     printf("  residual RMS      %.6g dump units (%.2f %% of radius)\n", r->residual_rms,
            r->radius > 0.0 ? 100.0 * r->residual_rms / r->radius : NAN);
-    printf("  radius spread     raw %.2f %% -> corrected %.2f %% (std/mean; %.1fx smaller)\n",
+    printf("  radius spread     raw %.2f %% -> corrected %.2f %% over the samples used (std/mean; %.1fx smaller)\n",
            100.0 * r->spread_raw, 100.0 * r->spread_corrected,
            r->spread_corrected > 0.0 ? r->spread_raw / r->spread_corrected : INFINITY);
+    if (r->n_outliers > 0u) {
+        printf("                    raw %.2f %% over every fed calibration sample, outliers included\n",
+               100.0 * r->spread_raw_all);
+    }
     if (r->n_heading == 0u) {
         printf("  heading vs ref    no reference headings outside the calibration rows\n");
         return;

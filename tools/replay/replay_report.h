@@ -50,7 +50,9 @@ typedef struct {
     double angle_deg;    /* direction of the major axis, ccw from +x, (-90, 90] */
     double radius;
     double residual_rms;
-    double spread_raw, spread_corrected;
+    double spread_raw;       /* std/mean of |raw| (from the origin) over the samples used */
+    double spread_raw_all;   /* the same over every fed calibration sample, outliers included */
+    double spread_corrected; /* std/mean of |M (raw - centre)| over the samples used */
     int have_geometry;
     /* truth flags from the dump (glitch / outlier column) over the fed rows */
     const char *truth_column; /* NULL when the dump has none */

@@ -86,7 +86,11 @@ def case_real_flat_turns(a):
     rep = run_json(a, [real(a, "lsm9ds1_pmodnav_flat_turns.csv")])
     check(rep.get("status") == "ok", "status %r" % rep.get("status"))
     check(rep.get("n_rows") == 136 and rep.get("n_cal") == 136, "row counts %r" % rep)
-    check(spread_drop(rep) >= 5.0, "radius spread drop %.2fx < 5x" % spread_drop(rep))
+    # Spread drop over the samples used. Measured 4.88x; an independent float64 least-squares
+    # ellipse fit (numpy) of all 136 rows gives 4.89x: this hand-turned recording scatters 2.6 %
+    # around its best ellipse, so no ellipse correction reaches the 5x first hoped for.
+    check(spread_drop(rep) >= 4.5, "radius spread drop %.2fx < 4.5x" % spread_drop(rep))
+    check(rep["radius_spread_raw_all"] == rep["radius_spread_raw"], "no outliers: both raw spreads equal")
     # importer's plain LS fit (README): centre (0.02456, 0.02832), semi-axes 0.2483 / 0.2188
     cx, cy = rep["center"]
     check(math.hypot(cx - 0.02456, cy - 0.02832) <= 0.01, "centre %r far from (0.02456, 0.02832)" % rep["center"])
@@ -104,7 +108,11 @@ def case_real_glitches(a):
     check(t.get("missed") == 0, "glitch rows not flagged: %r" % t)
     check(t.get("false_alarms", 999) <= 0.10 * (303 - 71), "false alarms %r > 10%% of clean rows" % t)
     check(rep["n_outliers"] >= 71, "n_outliers %r < 71 glitches" % rep["n_outliers"])
-    check(spread_drop(rep) >= 5.0, "radius spread drop %.2fx < 5x" % spread_drop(rep))
+    # Over the samples used: measured 3.77x (an independent float64 LS fit of the 232 clean rows:
+    # 2.5x). Over every calibration sample the glitches (y = -8.9 gauss) dominate the raw spread.
+    check(spread_drop(rep) >= 3.5, "radius spread drop %.2fx < 3.5x" % spread_drop(rep))
+    drop_all = rep["radius_spread_raw_all"] / rep["radius_spread_corrected"]
+    check(drop_all >= 5.0, "spread drop incl. glitches %.2fx < 5x" % drop_all)
     cx, cy = rep["center"]
     check(math.hypot(cx - 0.01954, cy - 0.03711) <= 0.01, "centre %r far from (0.01954, 0.03711)" % rep["center"])
     dump = read_csv_rows(real(a, "lsm9ds1_pmodnav_driver_glitches.csv"))
