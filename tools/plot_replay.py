@@ -224,12 +224,13 @@ def main(argv=None):
         for i in idx:
             u, v = mx[i] - cx, my[i] - cy
             rr.append(math.hypot(m[0][0] * u + m[0][1] * v, m[1][0] * u + m[1][1] * v) / r)
-        lo, hi = 0.5, 1.5
+        w = max(0.15, 6.0 * rep["radius_spread_corrected"])  # ~ +/-6 sigma of the inliers
+        lo, hi = max(0.0, 1.0 - w), 1.0 + w
         ax.plot(idx, [min(max(x, lo), hi) for x in rr], ".", ms=3, color=C_IN, label="|h| / radius")
         ax.plot(fl, [min(max(rr[i], lo), hi) for i in fl], "x", ms=5, color=C_OUT, label="flagged outlier")
         ax.axhline(1.0, color=C_FIT, lw=1.5)
         ax.set_ylim(lo - 0.02, hi + 0.02)
-        ax.set_ylabel("corrected radius / calibrated radius (clipped to [0.5, 1.5])")
+        ax.set_ylabel("|h| / calibrated radius (clipped to the frame)")
         ax.set_title("4. Corrected radius over rows (no heading reference in this dump)")
     ax.set_xlabel("row")
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, fontsize=8, markerscale=2)
