@@ -147,8 +147,9 @@ int replay_calibrate(const replay_options_t *o, const magcal_replay_csv_t *d, si
     }
     st = magcal_calibrator_init(&g_cal, &cfg, g_buf, REPLAY_CAP, g_work, sizeof g_work);
     if (st == MAGCAL_ERR_ARG) {
-        fprintf(stderr, "magcal-replay: the calibrator rejects the options (eps %g, min_pts %ld): %s\n",
-                o->eps, o->min_pts, magcal_status_str(st));
+        fprintf(stderr, "magcal-replay: the calibrator rejects the options (eps %s, min_pts %ld; 0 = "
+                        "automatic): %s\n",
+                isfinite(o->eps) ? "given" : "automatic", o->min_pts, magcal_status_str(st));
         return REPLAY_EXIT_USAGE;
     }
     if (st != MAGCAL_OK) {
