@@ -195,6 +195,47 @@ static void test_parse_100kB_lines_error_or_parse_correctly(void)
     free(text);
 }
 
+static void test_parse_random_mutations_never_crash_and_always_explain(void)
+{
+    /* 3000 deterministic single/multi-byte mutations of a valid dump (xorshift32): each parse
+     * either succeeds with at most the original row count, or fails with a "dump.csv:" message.
+     * Run under ASan/UBSan in the host-asan preset. */
+    static const char base[] = "# c\nt,mx,my,mz,heading_ref_deg,glitch\n0.0,-0.17,0.06,nan,,0\n"
+                               "0.4,-0.18,0.02,nan,90,1\r\n0.8,1e-3,-2.5E+2,1,45.5,0\n";
+    static const char alphabet[] = ",\n\r#\"e.-+0123456789nan \t\0x";
+    uint32_t s = 12345u;
+    size_t k, len = sizeof base - 1u, ok = 0u;
+    for (k = 0u; k < 3000u; ++k) {
+        char *buf = (char *)malloc(len);
+        size_t m, nmut;
+        magcal_status_t st;
+        TEST_ASSERT_NOT_NULL(buf);
+        memcpy(buf, base, len);
+        s ^= s << 13;
+        s ^= s >> 17;
+        s ^= s << 5;
+        nmut = 1u + s % 4u;
+        for (m = 0u; m < nmut; ++m) {
+            s ^= s << 13;
+            s ^= s >> 17;
+            s ^= s << 5;
+            buf[s % len] = alphabet[(s >> 8) % (sizeof alphabet - 1u)];
+        }
+        st = magcal_replay_csv_parse(buf, (size_t)(s >> 20) % (len + 1u), "dump.csv", REQ_XY, &g_d,
+                                     g_err, sizeof g_err);
+        if (st == MAGCAL_OK) {
+            TEST_ASSERT_TRUE(g_d.n_rows >= 1u && g_d.n_rows <= 3u);
+            TEST_ASSERT_EQUAL_STRING("", g_err);
+            ok++;
+        } else {
+            TEST_ASSERT_EQUAL_STRING_LEN("dump.csv:", g_err, 9);
+        }
+        magcal_replay_csv_free(&g_d);
+        free(buf);
+    }
+    TEST_ASSERT_TRUE(ok > 0u);
+}
+
 static void test_parse_binary_and_empty_input_fail_cleanly(void)
 {
     static const char bin[] = {'m', 'x', ',', 'm', 'y', '\n', '1', '\0', ',', '2', '\n'};
@@ -322,6 +363,7 @@ int main(void)
     RUN_TEST(test_parse_field_count_mismatch_reports_truncation);
     RUN_TEST(test_parse_truncated_file_at_every_byte_never_crashes);
     RUN_TEST(test_parse_100kB_lines_error_or_parse_correctly);
+    RUN_TEST(test_parse_random_mutations_never_crash_and_always_explain);
     RUN_TEST(test_parse_binary_and_empty_input_fail_cleanly);
     RUN_TEST(test_parse_bom_and_tiny_error_buffer_are_safe);
     RUN_TEST(test_read_missing_file_names_it);
