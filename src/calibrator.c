@@ -83,7 +83,9 @@ static float cal_coverage_of(const uint16_t *bins, float *miss_start, float *mis
     if (miss_width != NULL) {
         *miss_width = (float)best_len * CAL_BIN_DEG;
     }
-    return (float)filled * CAL_BIN_DEG;
+    /* the arc is what the largest empty sector leaves: isolated empty bins between samples of a
+     * sparse recording are crossed, not missing */
+    return 360.0f - (float)best_len * CAL_BIN_DEG;
 }
 
 static int cal_finite_cfg_f(float v)
@@ -562,6 +564,32 @@ static void cal_shift(const magcal_cal2d_t *cur, const magcal_cal2d_t *next, flo
     *rms_deg = cnt > 0u ? sqrtf(ss / (float)cnt) : NAN;
 }
 
+/* Mean corrected radius of the masked samples under c, and mean(d^2) with d = rho/mean - 1. */
+static void cal_radius_stats(const magcal_vec2_t *p, size_t n, const uint8_t *mask, const magcal_cal2d_t *c,
+                             float *mean, float *var_rel)
+{
+    float sum = 0.0f;
+    float sum2 = 0.0f;
+    size_t k = 0u;
+    size_t i;
+    for (i = 0u; i < n; ++i) {
+        magcal_vec2_t h;
+        if (mask[i] != 0u && magcal_correct_apply(c, p[i], &h) == MAGCAL_OK) {
+            float rho = sqrtf(h.x * h.x + h.y * h.y);
+            sum += rho;
+            sum2 += rho * rho;
+            ++k;
+        }
+    }
+    if (k == 0u || !(sum > 0.0f)) {
+        *mean = 0.0f;
+        *var_rel = 0.0f;
+        return;
+    }
+    *mean = sum / (float)k;
+    *var_rel = (sum2 / (float)k) / (*mean * *mean) - 1.0f;
+}
+
 static void cal_set_flags(magcal_calibrator_t *cal, int with_residual)
 {
     size_t i;
@@ -768,31 +796,19 @@ magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *
     cur_usable = (magcal_cal2d_validate(current) == MAGCAL_OK && current->radius > 0.0f) ? 1 : 0;
     cal_shift(cur_usable ? current : NULL, &next, &rep.shift_max_deg, &rep.shift_rms_deg);
     if (cur_usable) {
-        float sum = 0.0f;
-        float sum2 = 0.0f;
-        size_t k = 0u;
-        float mean;
-        float var_rel;
-        float noise = rep.residual_rel * rep.residual_rel;
-        for (i = 0u; i < n; ++i) {
-            magcal_vec2_t h;
-            if (cal->mask_b[i] != 0u && magcal_correct_apply(current, cal->buf[i], &h) == MAGCAL_OK) {
-                float rho = sqrtf(h.x * h.x + h.y * h.y);
-                sum += rho;
-                sum2 += rho * rho;
-                ++k;
-            }
-        }
-        if (k == 0u || !(sum > 0.0f)) {
+        float var_cur;
+        float var_new;
+        float mean_cur;
+        float mean_new;
+        cal_radius_stats(cal->buf, n, cal->mask_b, current, &mean_cur, &var_cur);
+        cal_radius_stats(cal->buf, n, cal->mask_b, &next, &mean_new, &var_new);
+        if (!(mean_cur > 0.0f) || !(mean_new > 0.0f)) {
             rep.current_err_deg = INFINITY;
-            mean = 0.0f;
         } else {
-            mean = sum / (float)k;
-            var_rel = (sum2 / (float)k) / (mean * mean) - 1.0f; /* mean(d^2) with d = rho/mean - 1 */
-            rep.current_err_deg = MAGCAL_DEG_PER_RAD_F * sqrtf(fmaxf(var_rel - noise, 0.0f));
+            rep.current_err_deg = MAGCAL_DEG_PER_RAD_F * sqrtf(fmaxf(var_cur - var_new, 0.0f));
         }
         if (!(rep.est_heading_err_deg <= rep.current_err_deg)) {
-            float change = mean > 0.0f ? fabsf(mean / current->radius - 1.0f) : INFINITY;
+            float change = mean_cur > 0.0f ? fabsf(mean_cur / current->radius - 1.0f) : INFINITY;
             if (!(change <= cal->cfg.max_radius_change)) {
                 return cal_finish(cal, MAGCAL_ERR_NOT_BETTER, &rep, report);
             }

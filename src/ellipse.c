@@ -130,8 +130,9 @@ static void kahan_add(float *sum, float *comp, float v)
     *sum = t;
 }
 
-/* Pass 2: Kahan-compensated power sums of the normalised points. */
-static void src_moments(const fit_src_t *src, const fit_norm_t *nm, float mom[S_COUNT])
+/* Pass 2: power sums of the normalised points, Kahan-compensated unless plain != 0 (the seed's
+ * plain float32 accumulation, kept only for magcal_ellipse_fit_seed()). */
+static void src_moments(const fit_src_t *src, const fit_norm_t *nm, int plain, float mom[S_COUNT])
 {
     float comp[S_COUNT];
     float v[S_COUNT];
@@ -165,7 +166,11 @@ static void src_moments(const fit_src_t *src, const fit_norm_t *nm, float mom[S_
         v[S13] = v[S11] * v[S02];
         v[S04] = v[S02] * v[S02];
         for (j = 0u; j < (size_t)S_COUNT; ++j) {
-            kahan_add(&mom[j], &comp[j], v[j]);
+            if (plain) {
+                mom[j] += v[j];
+            } else {
+                kahan_add(&mom[j], &comp[j], v[j]);
+            }
         }
     }
 }
@@ -349,7 +354,7 @@ static magcal_status_t fit_normal(const fit_src_t *src, magcal_ellipse_t *out)
     if (st != MAGCAL_OK) {
         return st;
     }
-    src_moments(src, &nm, mom);
+    src_moments(src, &nm, 0, mom);
     if (moments_collinear(mom, (float)cnt)) {
         return MAGCAL_ERR_DEGENERATE;
     }
@@ -555,7 +560,7 @@ magcal_status_t magcal_ellipse_fit_seed(const magcal_vec2_t *pts, size_t n, cons
     nm.my = 0.0f;
     nm.isx = 1.0f / sx;
     nm.isy = 1.0f / sy;
-    src_moments(&src, &nm, mom);
+    src_moments(&src, &nm, 1, mom);
     if (moments_collinear(mom, (float)cnt)) {
         return MAGCAL_ERR_DEGENERATE;
     }

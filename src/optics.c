@@ -444,8 +444,11 @@ magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, v
 #define AUTO_BAND 0.5f    /* ring band: | |p-c| - R | <= 0.5 R */
 #define AUTO_SAFETY 1.5f  /* eps' = 1.5 * measured requirement */
 #define AUTO_CORE_Q 0.9f  /* quantile of the per-point core requirement */
+#define AUTO_WIN 4u       /* angular neighbours looked at on each side */
+#define AUTO_TRIM 3.0f    /* centre passes after the first use points within 3 R */
+#define AUTO_TRIM_PASSES 2u
 #define AUTO_MIN_REL (1.0f / 256.0f)
-#define AUTO_MAX_REL 0.5f
+#define AUTO_MAX_REL 1.0f
 
 /* k-th smallest of a[0..n-1] (a is permuted). Iterative Hoare selection, no recursion. */
 static float select_kth(float *a, size_t n, size_t k)
@@ -538,23 +541,51 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
     uint16_t *idx = (uint16_t *)(void *)(w + 4u * n);
     float *b = (float *)(void *)(w + 8u * n);
     float cx, cy, rad, lo, hi, link1 = 0.0f, link2 = 0.0f, coreq, e;
-    size_t i, m = 0u, h = (AUTO_MIN_PTS) / 2u; /* ceil((MinPts-1)/2) = 2 for MinPts = 4 */
+    float ncx, ncy;
+    size_t i, m = 0u;
+    unsigned pass;
 
-    for (i = 0; i < n; ++i) {
-        a[i] = pts[i].x;
-    }
-    cx = select_kth(a, n, n / 2u);
-    for (i = 0; i < n; ++i) {
-        a[i] = pts[i].y;
-    }
-    cy = select_kth(a, n, n / 2u);
-    for (i = 0; i < n; ++i) {
-        float dx = pts[i].x - cx, dy = pts[i].y - cy;
-        a[i] = sqrtf(dx * dx + dy * dy);
-    }
-    rad = select_kth(a, n, n / 2u);
-    if (!(rad > 0.0f) || !magcal_isfinite_f(rad)) {
-        return MAGCAL_ERR_DEGENERATE;
+    /* Pass 0 uses every point; passes 1..AUTO_TRIM_PASSES only the points within
+     * AUTO_TRIM * R of the previous centre, so a far cluster (e.g. 23 % driver glitches 36 R
+     * away) cannot drag the median centre off the ring. */
+    cx = 0.0f;
+    cy = 0.0f;
+    rad = INFINITY;
+    for (pass = 0; pass <= AUTO_TRIM_PASSES; ++pass) {
+        float lim2 = (AUTO_TRIM * rad) * (AUTO_TRIM * rad);
+        size_t k = 0u;
+        for (i = 0; i < n; ++i) {
+            float dx = pts[i].x - cx, dy = pts[i].y - cy;
+            if (pass == 0u || dx * dx + dy * dy <= lim2) {
+                a[k++] = pts[i].x;
+            }
+        }
+        if (k < AUTO_MIN_N) {
+            break; /* keep the previous estimate */
+        }
+        ncx = select_kth(a, k, k / 2u);
+        k = 0u;
+        for (i = 0; i < n; ++i) {
+            float dx = pts[i].x - cx, dy = pts[i].y - cy;
+            if (pass == 0u || dx * dx + dy * dy <= lim2) {
+                a[k++] = pts[i].y;
+            }
+        }
+        ncy = select_kth(a, k, k / 2u);
+        k = 0u;
+        for (i = 0; i < n; ++i) {
+            float dx = pts[i].x - cx, dy = pts[i].y - cy;
+            if (pass == 0u || dx * dx + dy * dy <= lim2) {
+                float ex = pts[i].x - ncx, ey = pts[i].y - ncy;
+                a[k++] = sqrtf(ex * ex + ey * ey);
+            }
+        }
+        cx = ncx;
+        cy = ncy;
+        rad = select_kth(a, k, k / 2u);
+        if (!(rad > 0.0f) || !magcal_isfinite_f(rad)) {
+            return MAGCAL_ERR_DEGENERATE;
+        }
     }
     lo = rad - AUTO_BAND * rad;
     hi = rad + AUTO_BAND * rad;
@@ -566,27 +597,41 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
             idx[m++] = (uint16_t)i;
         }
     }
-    if (m < 2u * AUTO_MIN_PTS) {
+    if (m < 2u * AUTO_WIN + 2u) { /* the cyclic windows need distinct neighbours */
         return MAGCAL_ERR_DEGENERATE;
     }
     heapsort_idx(idx, a, m);
     for (i = 0; i < m; ++i) {
         const magcal_vec2_t *p0 = &pts[idx[i]];
-        const magcal_vec2_t *pm = &pts[idx[(i + m - 1u) % m]];
-        const magcal_vec2_t *p1 = &pts[idx[(i + 1u) % m]];
-        const magcal_vec2_t *p2 = &pts[idx[(i + 2u) % m]];
-        float l = dist(p0, p1), t = dist(pm, p1), u = dist(p0, p2);
-        float ca = dist(p0, &pts[idx[(i + m - h) % m]]);
-        float cb = dist(p0, &pts[idx[(i + h) % m]]);
-        l = t < l ? t : l;
-        l = u < l ? u : l;
+        float near[2u * AUTO_WIN];
+        float l = INFINITY;
+        size_t q, t, u;
+        /* shortest way across the step i -> i+1 that bypasses up to AUTO_WIN - 1 points */
+        for (q = 0; q < AUTO_WIN; ++q) {
+            for (t = 1u; q + t <= AUTO_WIN; ++t) {
+                float dd = dist(&pts[idx[(i + m - q) % m]], &pts[idx[(i + t) % m]]);
+                l = dd < l ? dd : l;
+            }
+        }
         if (l > link1) {
             link2 = link1;
             link1 = l;
         } else if (l > link2) {
             link2 = l;
         }
-        b[i] = ca > cb ? ca : cb;
+        /* core requirement: (MinPts-1)-th nearest of the AUTO_WIN angular neighbours each side */
+        for (q = 1u; q <= AUTO_WIN; ++q) {
+            near[2u * q - 2u] = dist(p0, &pts[idx[(i + m - q) % m]]);
+            near[2u * q - 1u] = dist(p0, &pts[idx[(i + q) % m]]);
+        }
+        for (t = 1u; t < 2u * AUTO_WIN; ++t) { /* insertion sort of 8 values */
+            float v = near[t];
+            for (u = t; u > 0u && near[u - 1u] > v; --u) {
+                near[u] = near[u - 1u];
+            }
+            near[u] = v;
+        }
+        b[i] = near[AUTO_MIN_PTS - 2u];
     }
     coreq = select_kth(b, m, (size_t)(AUTO_CORE_Q * (float)(m - 1u)));
     e = AUTO_SAFETY * (link2 > coreq ? link2 : coreq);

@@ -37,9 +37,10 @@
  *    (360 / coverage_deg)^2 (extrapolation of the fit over the gap):
  *        est_heading_err_deg = 57.2958 * sigma_rel * sqrt(5 / N) * (360 / coverage_deg)^2
  *  - current calibration on the new inliers: a wrong centre or soft-iron matrix modulates the
- *    corrected radius with the same relative amplitude as the heading error it causes, so with
- *    rho_i = |current(p_i)| and d_i = rho_i / mean(rho) - 1:
- *        current_err_deg = 57.2958 * sqrt(max(0, mean(d_i^2) - sigma_rel^2))
+ *    corrected radius with the same relative amplitude as the heading error it causes. With
+ *    V(c) = mean(d_i^2), d_i = |c(p_i)| / mean_j |c(p_j)| - 1 over the new inliers, the excess
+ *    modulation of `current` over the new calibration (which removes the common noise) is
+ *        current_err_deg = 57.2958 * sqrt(max(0, V(current) - V(new)))
  *  - heading shift if adopted: for headings psi = 0, 5, ..., 355 deg the raw point of the new
  *    ellipse that the new calibration maps to psi is corrected with `current` (identity when
  *    `current` is unusable); max and RMS of wrap(psi_current - psi).

@@ -24,6 +24,7 @@
  * with a fixed amount of stack.
  *
  * @code
+ * #include "magcal/config.h"   // MAGCAL_MAX_SAMPLES
  * #include "magcal/ellipse.h"
  *
  * static magcal_vec2_t samples[MAGCAL_MAX_SAMPLES];
@@ -152,7 +153,10 @@ magcal_status_t magcal_ellipse_fit_idx(const magcal_vec2_t *pts, size_t n_pts, c
  *
  * Kept for comparison tests and documentation: with a hard-iron offset much larger than the
  * radius it loses accuracy (offset/radius 5 at 25000 counts) and positive definiteness
- * (offset/radius 20). In the result coef[] are in input units (norm_center = 0, norm_scale = 1).
+ * (offset/radius 20). Like the seed it accumulates plain float32 sums (no Kahan); the solver is
+ * the same. Its uncentred moments cannot resolve collinearity, so degenerate inputs may give
+ * MAGCAL_ERR_ILL_CONDITIONED instead of MAGCAL_ERR_DEGENERATE. In the result coef[] are in input
+ * units (norm_center = 0, norm_scale = 1).
  * @param[in]  pts  samples.
  * @param[in]  n    number of entries.
  * @param[in]  mask NULL or selection mask as in magcal_ellipse_fit().

@@ -20,23 +20,27 @@
  * (declare it as `uint32_t` or `float`) and at least the size macro's length in bytes.
  *
  * Automatic parameters (magcal_optics_auto_params, used by magcal_optics_filter when cfg->eps <= 0):
- *  1. centre c = (median x, median y); radius R = median |p - c|. Unit-free: everything below is a
- *     multiple of distances measured on the data, so raw counts and microtesla behave identically.
- *  2. the "ring band" = points with |(|p - c|) - R| <= 0.5 R, sorted by angle around c.
- *  3. along that angular order, link_i = shortest way across the step i -> i+1:
- *     min(|p_i p_i+1|, |p_i-1 p_i+1|, |p_i p_i+2|) (a lone point off the ring is bypassed), and
- *     core_i = max(|p_i p_i-h|, |p_i p_i+h|), h = ceil((MinPts-1)/2) (the symmetric window that
- *     makes p_i a core point).
- *  4. eps' = 1.5 * max(second largest link, 90th percentile of core) (one cut in the cyclic chain
- *     leaves an arc, i.e. still one cluster, so the largest step does not need bridging: a 300 deg
- *     arc is not forced to bridge its 60 deg hole). eps' is clamped to [R/256, R/2].
- *     eps = eps' (nothing beyond eps' is needed by the extraction), MinPts = 4.
+ *  1. centre c = (median x, median y), radius R = median |p - c|; then twice more over only the
+ *     points within 3 R of the previous centre (a far cluster, e.g. 23 % driver glitches 36 R
+ *     away, cannot drag the centre). Everything below is a multiple of distances measured on the
+ *     data, so raw counts and microtesla behave identically (scale invariant).
+ *  2. the "ring band" = points with | |p - c| - R | <= 0.5 R, sorted by angle around c.
+ *  3. along that angular order (cyclic), link_i = the shortest distance between a point at or
+ *     before i and a point after i, bypassing at most 3 points (|p_i-a p_i+b|, a >= 0, b >= 1,
+ *     a + b <= 4): the gap the chain must jump there, with isolated off-ring points skipped;
+ *     core_i = 3rd smallest distance from p_i to its 4 angular neighbours on each side (the
+ *     radius that makes p_i a core point for MinPts = 4).
+ *  4. eps' = 1.5 * max(second largest link_i, 90th percentile of core_i), clamped to
+ *     [R/256, R]; eps = eps'; MinPts = 4. One cut in the cyclic chain leaves an arc, which is
+ *     still one cluster, so only the second largest gap must be bridged (a 300 deg arc is not
+ *     forced to bridge its 60 deg hole).
  *  Why: algorithms.md 4.3 measured that eps' from local spacing alone (3 x median core distance)
  *  fragments random rings; eps' must bridge the largest gap between consecutive ring samples,
- *  which this rule measures directly instead of guessing from n. Far outliers (spikes, a
- *  different field) are further than R/2 from every ring point and end up noise or in a smaller
- *  cluster. Bursts of displaced samples close to the ring are NOT rejected here (they merge with
- *  an arc); a model-residual stage after this filter handles them. Details: docs/optics.md.
+ *  which this rule measures directly instead of guessing it from n. The cap R keeps points more
+ *  than R away from every ring point out (driver glitches, a different field); the factor 1.5
+ *  absorbs radial noise between the sampled links. Bursts of displaced samples close to the
+ *  ring are NOT rejected here (they leave gaps the rule must bridge, so they merge with the
+ *  ring); a model-residual stage after this filter handles them. Measurements: docs/optics.md.
  *
  * @code
  * static magcal_vec2_t pts[512];                       // filled by the caller
@@ -94,11 +98,12 @@ typedef enum {
 
 /**
  * Workspace bytes for magcal_optics_run() on n points: seed heap/list uint16[n], heap position
- * map uint16[n], spatial index, rounded up to a multiple of 4. About 8 bytes per sample; the
- * outputs (order 2 + reach 4 + core 4 bytes per sample) are separate caller arrays.
+ * map uint16[n], spatial index, one "processed" bit per point, rounded up to a multiple of 4.
+ * About 8.1 bytes per sample (n <= MAGCAL_GRID_MAX_CELLS); the outputs (order 2 + reach 4 +
+ * core 4 bytes per sample) are separate caller arrays.
  */
 #define MAGCAL_OPTICS_WORKSPACE_LEN(n) \
-    ((4u * (size_t)(n) + MAGCAL_NEIGHBORS_WORKSPACE_LEN(n) + 3u) & ~(size_t)3u)
+    ((4u * (size_t)(n) + MAGCAL_NEIGHBORS_WORKSPACE_LEN(n) + ((size_t)(n) + 7u) / 8u + 3u) & ~(size_t)3u)
 
 /**
  * Workspace bytes for magcal_optics_filter() and magcal_optics_auto_params() on n points:
@@ -209,7 +214,7 @@ magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, v
  * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_ARG (misaligned work);
  *         MAGCAL_ERR_TOO_FEW_POINTS (n < 16); MAGCAL_ERR_ARG also for n > MAGCAL_MAX_SAMPLES;
  *         MAGCAL_ERR_NONFINITE; MAGCAL_ERR_WORKSPACE; MAGCAL_ERR_DEGENERATE (median radius 0 or
- *         fewer than 8 points in the ring band). Outputs untouched on failure.
+ *         fewer than 10 points in the ring band). Outputs untouched on failure.
  */
 magcal_status_t magcal_optics_auto_params(const magcal_vec2_t *pts, size_t n, void *work, size_t work_len,
                                           float *eps, uint16_t *min_pts, float *eps_prime);
