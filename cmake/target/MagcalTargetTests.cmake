@@ -1,0 +1,52 @@
+# On-target Unity tests: every portable tests/test_*.c is cross-compiled for the QEMU
+# mps2-an386 board (Cortex-M4F) and run under qemu-system-arm with semihosting, one CTest test
+# per executable. Included by tests/CMakeLists.txt when cross-compiling with
+# MAGCAL_TARGET_TESTS=ON (preset `cortex-m4f-tests`). See docs/reliability.md and
+# docs/decisions/0004-on-target-tests-qemu.md.
+include_guard(GLOBAL)
+
+find_program(MAGCAL_QEMU_ARM qemu-system-arm REQUIRED)
+find_program(MAGCAL_TIMEOUT timeout REQUIRED)
+set(MAGCAL_TARGET_MACHINE "mps2-an386" CACHE STRING "QEMU machine for the on-target tests")
+set(MAGCAL_TARGET_TIMEOUT_S 120 CACHE STRING "Wall-clock limit (s) of one on-target test run")
+
+set(_tdir ${CMAKE_CURRENT_LIST_DIR})
+add_library(magcal_target_rt OBJECT ${_tdir}/startup_mps2_an386.c)
+set_target_properties(magcal_target_rt PROPERTIES C_STANDARD 99 C_EXTENSIONS OFF)
+target_compile_options(magcal_target_rt PRIVATE ${MAGCAL_WARNINGS})
+# Linking this OBJECT library adds the start-up object; its usage requirements add our linker script, newlib + rdimon
+# (semihosting stdio), and the _exit wrapper that reports the real exit status to QEMU.
+target_link_options(magcal_target_rt INTERFACE
+    -T${_tdir}/mps2_an386.ld -nostartfiles --specs=rdimon.specs -Wl,--wrap=_exit)
+
+# The QEMU command line (toolchain.md): -display none, not -nographic (which exits 1 with stdin
+# closed, as in CI); `timeout` turns a hang into a failure.
+set(MAGCAL_TARGET_RUN ${MAGCAL_TIMEOUT} ${MAGCAL_TARGET_TIMEOUT_S} ${MAGCAL_QEMU_ARM}
+    -M ${MAGCAL_TARGET_MACHINE} -display none -monitor none -serial null
+    -semihosting-config enable=on,target=native -kernel)
+
+# out_var <- TRUE when tests/<src> can run on the target. Excluded: test_shared_* (read
+# ../shared files), *replay* (load CSV files), test_mock_* (CMock is host-only), and any test
+# whose source contains the marker comment `magcal:host-only`.
+function(magcal_target_test_supported src out_var)
+    get_filename_component(name ${src} NAME_WE)
+    set(ok TRUE)
+    if(name MATCHES "^test_shared_" OR name MATCHES "replay" OR name MATCHES "^test_mock_")
+        set(ok FALSE)
+    else()
+        file(STRINGS ${src} marker REGEX "magcal:host-only" LIMIT_COUNT 1)
+        if(marker)
+            set(ok FALSE)
+        endif()
+    endif()
+    set(${out_var} ${ok} PARENT_SCOPE)
+endfunction()
+
+# Make executable `name` a target image and register it as CTest test `name` (label `target`).
+function(magcal_target_add_test name)
+    target_link_libraries(${name} PRIVATE magcal_target_rt)
+    target_link_options(${name} PRIVATE -Wl,-Map=$<TARGET_FILE:${name}>.map)
+    set_target_properties(${name} PROPERTIES SUFFIX ".elf")
+    add_test(NAME ${name} COMMAND ${MAGCAL_TARGET_RUN} $<TARGET_FILE:${name}>)
+    set_tests_properties(${name} PROPERTIES LABELS target TIMEOUT 300)
+endfunction()
