@@ -50,3 +50,11 @@ function(magcal_target_add_test name)
     add_test(NAME ${name} COMMAND ${MAGCAL_TARGET_RUN} $<TARGET_FILE:${name}>)
     set_tests_properties(${name} PROPERTIES LABELS target TIMEOUT 300)
 endfunction()
+
+# Worst-case stack per library function from this build's .su/.ci files (tools/stack/): fails on
+# recursion, dynamic frames, indirect calls, or a public entry point above the budget.
+set(MAGCAL_STACK_LIMIT 512 CACHE STRING "Worst-case stack budget (bytes) of one public magcal call")
+add_test(NAME stack_usage
+         COMMAND ${Python3_EXECUTABLE} ${PROJECT_SOURCE_DIR}/tools/stack/stack_usage.py
+                 ${PROJECT_BINARY_DIR} --limit ${MAGCAL_STACK_LIMIT})
+set_tests_properties(stack_usage PROPERTIES LABELS "target;stack")
