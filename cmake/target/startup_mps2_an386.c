@@ -74,7 +74,8 @@ void __wrap__exit(int code)
  * the fault may have come from inside it. */
 void magcal_target_fault(void)
 {
-    (void)semihost_call(SEMIHOST_SYS_WRITE0, "\n*** magcal target: unexpected exception (fault) ***\n");
+    (void)semihost_call(SEMIHOST_SYS_WRITE0,
+                        "\n*** magcal target: unexpected exception (fault) ***\n");
     __wrap__exit(MAGCAL_TARGET_FAULT_EXIT);
 }
 
@@ -118,7 +119,10 @@ __attribute__((section(".isr_vector"), used)) static const magcal_vector_t g_vec
     magcal_target_fault, /* MemManage */
     magcal_target_fault, /* BusFault */
     magcal_target_fault, /* UsageFault */
-    0, 0, 0, 0,          /* reserved */
+    0,                   /* reserved */
+    0,                   /* reserved */
+    0,                   /* reserved */
+    0,                   /* reserved */
     magcal_target_fault, /* SVCall */
     magcal_target_fault, /* DebugMonitor */
     0,                   /* reserved */
