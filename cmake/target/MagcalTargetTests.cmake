@@ -49,6 +49,39 @@ function(magcal_target_add_test name)
     set_target_properties(${name} PROPERTIES SUFFIX ".elf")
     add_test(NAME ${name} COMMAND ${MAGCAL_TARGET_RUN} $<TARGET_FILE:${name}>)
     set_tests_properties(${name} PROPERTIES LABELS target TIMEOUT 300)
+    if(name MATCHES "^test_xcheck")
+        magcal_target_add_xcheck(${name})
+    endif()
+endfunction()
+
+# Host/target agreement for test_xcheck*: build the same program for the host with the host C
+# compiler (same sources, -O2 like the host preset) and register `<name>_host_vs_target`, which
+# runs both and compares their `XCHECK name value` lines (tools/target/xcheck_compare.py).
+find_program(MAGCAL_HOST_CC NAMES cc gcc clang)
+function(magcal_target_add_xcheck name)
+    if(NOT MAGCAL_HOST_CC)
+        message(WARNING "no host C compiler: ${name}_host_vs_target not registered")
+        return()
+    endif()
+    get_target_property(_support magcal_test_support SOURCES)
+    file(GLOB _lib CONFIGURE_DEPENDS ${PROJECT_SOURCE_DIR}/src/*.c)
+    set(_srcs ${CMAKE_CURRENT_SOURCE_DIR}/${name}.c ${_lib} ${_support}
+        ${PROJECT_SOURCE_DIR}/port/fake/magcal_port_fake.c ${MAGCAL_UNITY_SOURCE_DIR}/src/unity.c)
+    set(_out ${CMAKE_CURRENT_BINARY_DIR}/${name}_host)
+    add_custom_command(OUTPUT ${_out}
+        COMMAND ${MAGCAL_HOST_CC} -std=c99 -O2 -DUNITY_INCLUDE_DOUBLE -DUNITY_SUPPORT_64
+                -DMAGCAL_SHARED_DIR="${MAGCAL_SHARED_DIR}" -DMAGCAL_SOURCE_DIR="${PROJECT_SOURCE_DIR}"
+                -I${PROJECT_SOURCE_DIR}/include -I${PROJECT_SOURCE_DIR}/src -I${PROJECT_SOURCE_DIR}/port
+                -I${PROJECT_SOURCE_DIR}/port/fake -I${CMAKE_CURRENT_SOURCE_DIR}/support
+                -I${CMAKE_CURRENT_BINARY_DIR}/gen -I${MAGCAL_UNITY_SOURCE_DIR}/src
+                ${_srcs} -lm -o ${_out}
+        DEPENDS ${_srcs}
+        COMMENT "host twin of ${name} for the host/target cross-check" VERBATIM)
+    add_custom_target(${name}_host ALL DEPENDS ${_out})
+    add_test(NAME ${name}_host_vs_target
+             COMMAND ${Python3_EXECUTABLE} ${PROJECT_SOURCE_DIR}/tools/target/xcheck_compare.py
+                     --abs-tol 1e-3 --run ${_out} -- ${MAGCAL_TARGET_RUN} $<TARGET_FILE:${name}>)
+    set_tests_properties(${name}_host_vs_target PROPERTIES LABELS "target;xcheck" TIMEOUT 300)
 endfunction()
 
 # Worst-case stack per library function from this build's .su/.ci files (tools/stack/): fails on
