@@ -13,6 +13,10 @@ Calls that leave the library (libm: sqrtf, fmodf, atan2f, ...) are costed from t
 archives of the same multilib: the prologue of each function in `objdump -dr` (push, vpush,
 sub sp) plus, recursively, its callees found through R_ARM_THM_CALL/JUMP24 relocations.
 
+Assumptions (--assume, default tools/stack/assumptions.txt): `caller callee  # reason` lines
+remove call edges that the library's arguments provably never take (e.g. libm's huge-argument
+range reduction); each needs its reason, and the table marks pruned paths.
+
 Errors (exit 1): a cycle in the call graph, a dynamic or dynamic,bounded frame, an indirect
 call, an external function that cannot be costed, or (with --limit) a public entry point whose
 worst case exceeds the limit. Standard library only (plus arm-none-eabi-objdump / -gcc).
@@ -149,11 +153,28 @@ def main(argv):
     ap.add_argument("--limit", type=int, default=0, help="fail if a public entry point needs more (bytes)")
     ap.add_argument("--public-only", action="store_true", help="list only functions declared in include/")
     ap.add_argument("--src-root", default=os.path.join(os.path.dirname(__file__), "..", ".."))
+    ap.add_argument("--assume", default=os.path.join(os.path.dirname(__file__), "assumptions.txt"))
     args = ap.parse_args(argv[1:])
 
     g = load_library(args.build_dir)
     errors = []
     ext = load_newlib() if g.external else {}
+    pruned = set()
+    if args.assume and os.path.exists(args.assume):
+        with open(args.assume) as f:
+            for ln in f:
+                body, _, reason = ln.partition("#")
+                parts = body.split()
+                if not parts:
+                    continue
+                if len(parts) != 2 or not reason.strip():
+                    sys.exit("stack_usage: bad assumption line (need `caller callee # reason`): " + ln)
+                pruned.add((parts[0], parts[1]))
+    for caller, callee in pruned:
+        if caller in ext and callee in ext[caller][1]:
+            ext[caller][1].discard(callee)
+        elif callee in g.calls.get(caller, set()):
+            g.calls[caller].discard(callee)
 
     public = set()
     for h in glob.glob(os.path.join(args.src_root, "include", "**", "*.h"), recursive=True):
@@ -218,6 +239,8 @@ def main(argv):
         if pubs:
             top = max(pubs, key=lambda r: r[2])
             print("worst public entry point: %s, %d bytes (limit %d)" % (top[0], top[2], args.limit))
+    for caller, callee in sorted(pruned):
+        print("assumed never called: %s -> %s" % (caller, callee))
     for e in sorted(set(errors)):
         print("ERROR: " + e, file=sys.stderr)
     return 1 if errors else 0
