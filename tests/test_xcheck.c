@@ -30,7 +30,7 @@ static void xcheck_emit(const char *name, float value)
 
 /* Circle (hard-iron) fit with the library's LDL^T solver: |m|^2 = 2 bx x + 2 by y + c,
  * normal equations accumulated in float32 on centred data, then headings through the fit. */
-static void test_xcheck_hard_iron_ring_headings_match_truth(void)
+static void test_ldlt_solve_circle_fit_headings_match_truth(void)
 {
     static const test_distortion_t dist = {45.0f, {{1.0f, 0.0f}, {0.0f, 1.0f}}, 12.5f, -30.25f};
     magcal_vec2_t m[XCHECK_RING_N];
@@ -90,7 +90,7 @@ static void test_xcheck_hard_iron_ring_headings_match_truth(void)
 
 /* Hard + soft iron (symmetric T, so the symmetric whitening recovers the true heading exactly):
  * magcal_ellipse_fit -> magcal_ellipse_to_cal -> magcal_heading_compute on every sample. */
-static void test_xcheck_ellipse_headings_match_truth(void)
+static void test_heading_compute_fitted_ellipse_ring_matches_truth(void)
 {
     static const test_distortion_t dist = {40.0f, {{1.2f, 0.15f}, {0.15f, 0.85f}}, -210.0f, 95.5f};
     magcal_vec2_t m[XCHECK_RING_N];
@@ -130,7 +130,7 @@ static void test_xcheck_ellipse_headings_match_truth(void)
 }
 
 /* A fixed 6x6 SPD system with a known solution (N = A^T A, b = N x_true). */
-static void test_xcheck_ldlt_spd6_solution_matches_truth(void)
+static void test_ldlt_solve_spd6_matches_known_solution(void)
 {
     static const float x_true[6] = {0.5f, -1.25f, 2.0f, 3.5f, -0.75f, 1.0f};
     float a[36];
@@ -166,8 +166,8 @@ static void test_xcheck_ldlt_spd6_solution_matches_truth(void)
 int main(void)
 {
     UNITY_BEGIN();
-    RUN_TEST(test_xcheck_hard_iron_ring_headings_match_truth);
-    RUN_TEST(test_xcheck_ellipse_headings_match_truth);
-    RUN_TEST(test_xcheck_ldlt_spd6_solution_matches_truth);
+    RUN_TEST(test_ldlt_solve_circle_fit_headings_match_truth);
+    RUN_TEST(test_heading_compute_fitted_ellipse_ring_matches_truth);
+    RUN_TEST(test_ldlt_solve_spd6_matches_known_solution);
     return UNITY_END();
 }
