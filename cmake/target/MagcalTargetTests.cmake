@@ -91,3 +91,15 @@ add_test(NAME stack_usage
          COMMAND ${Python3_EXECUTABLE} ${PROJECT_SOURCE_DIR}/tools/stack/stack_usage.py
                  ${PROJECT_BINARY_DIR} --limit ${MAGCAL_STACK_LIMIT})
 set_tests_properties(stack_usage PROPERTIES LABELS "target;stack")
+
+# Validation of the static numbers: tests/target/stack_watermark.c measures the stack the public
+# calls really use on the target (painted stack) and the script checks measured <= static.
+add_executable(stack_watermark ${PROJECT_SOURCE_DIR}/tests/target/stack_watermark.c)
+set_target_properties(stack_watermark PROPERTIES C_STANDARD 99 C_EXTENSIONS OFF SUFFIX ".elf")
+target_compile_options(stack_watermark PRIVATE ${MAGCAL_WARNINGS})
+target_link_libraries(stack_watermark PRIVATE magcal_test_support magcal_target_rt)
+add_test(NAME stack_static_vs_measured
+         COMMAND ${Python3_EXECUTABLE} ${PROJECT_SOURCE_DIR}/tools/stack/stack_usage.py
+                 ${PROJECT_BINARY_DIR} --ci-dir ${CMAKE_CURRENT_BINARY_DIR}/CMakeFiles/stack_watermark.dir
+                 --measured-run ${MAGCAL_TARGET_RUN} $<TARGET_FILE:stack_watermark>)
+set_tests_properties(stack_static_vs_measured PROPERTIES LABELS "target;stack")

@@ -44,13 +44,17 @@ class Graph:
         self.external = set()
 
 
-def load_library(build_dir):
+def load_library(build_dir, extra_dirs=()):
     g = Graph()
     root = os.path.join(build_dir, "CMakeFiles", "magcal.dir")
     cis = sorted(glob.glob(os.path.join(root, "**", "*.ci"), recursive=True))
     if not cis:
         sys.exit("stack_usage: no .ci files under %s (build with cmake/toolchain-cortex-m4f.cmake)" % root)
+    g.library = set()
+    for d in extra_dirs:
+        cis += sorted(glob.glob(os.path.join(d, "**", "*.ci"), recursive=True))
     for ci in cis:
+        in_lib = ci.startswith(root)
         local_defs = {}
         edges = []
         with open(ci) as f:
@@ -69,6 +73,8 @@ def load_library(build_dir):
                         g.kind[name] = fm.group(2)
                         g.where[name] = label.split("\\n")[1] if "\\n" in label else ci
                         g.calls.setdefault(name, set())
+                        if in_lib:
+                            g.library.add(name)
                     continue
                 m = EDGE_RE.search(line)
                 if m:
@@ -154,9 +160,14 @@ def main(argv):
     ap.add_argument("--public-only", action="store_true", help="list only functions declared in include/")
     ap.add_argument("--src-root", default=os.path.join(os.path.dirname(__file__), "..", ".."))
     ap.add_argument("--assume", default=os.path.join(os.path.dirname(__file__), "assumptions.txt"))
+    ap.add_argument("--ci-dir", action="append", default=[],
+                    help="also read .su/.ci below this directory (e.g. the stack_watermark target)")
+    ap.add_argument("--measured-run", nargs=argparse.REMAINDER,
+                    help="run this command (last option); its `STACK fn bytes` lines must not exceed "
+                         "the static worst case of fn")
     args = ap.parse_args(argv[1:])
 
-    g = load_library(args.build_dir)
+    g = load_library(args.build_dir, args.ci_dir)
     errors = []
     ext = load_newlib() if g.external else {}
     pruned = set()
@@ -221,7 +232,7 @@ def main(argv):
         return memo[name]
 
     rows = []
-    for name in sorted(g.frame):
+    for name in sorted(g.library):
         if args.public_only and name not in public:
             continue
         total, path = worst(name)
@@ -241,6 +252,24 @@ def main(argv):
             print("worst public entry point: %s, %d bytes (limit %d)" % (top[0], top[2], args.limit))
     for caller, callee in sorted(pruned):
         print("assumed never called: %s -> %s" % (caller, callee))
+    if args.measured_run:
+        p = subprocess.run(args.measured_run, capture_output=True, text=True)
+        if p.returncode != 0:
+            sys.stdout.write(p.stdout)
+            errors.append("measured run failed with status %d" % p.returncode)
+        meas = re.findall(r"^STACK (\S+) (\d+)$", p.stdout, re.M)
+        if not meas:
+            errors.append("measured run printed no STACK lines")
+        print("\n%-*s %8s %8s" % (w, "measured call", "measured", "static"))
+        for name, val in meas:
+            if name not in g.frame:
+                errors.append("%s: measured but unknown to the call graph (pass --ci-dir)" % name)
+                continue
+            total = worst(name)[0]
+            flag = "" if int(val) <= total else "  <-- static bound too small"
+            print("%-*s %8d %8d%s" % (w, name, int(val), total, flag))
+            if int(val) > total:
+                errors.append("%s: measured %s bytes > static %d" % (name, val, total))
     for e in sorted(set(errors)):
         print("ERROR: " + e, file=sys.stderr)
     return 1 if errors else 0
