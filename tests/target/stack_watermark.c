@@ -37,7 +37,10 @@ static void wm_check(magcal_status_t st)
     }
 }
 
-static void call_ellipse_fit(void) { wm_check(magcal_ellipse_fit(g_ring, WM_RING_N, NULL, &g_ell)); }
+static void call_ellipse_fit(void)
+{
+    wm_check(magcal_ellipse_fit(g_ring, WM_RING_N, NULL, &g_ell));
+}
 
 static void call_ellipse_fit_idx(void)
 {
