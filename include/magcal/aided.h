@@ -18,15 +18,19 @@
  *   These are numerically the INS's FRD/NED yaw, pitch, roll (C_FRD^NED = R_z(psi) R_y(theta) R_x(phi)).
  *   The attitude, yaw in particular, must NOT come from this magnetometer.
  *
- * Gates (algorithms.md 7.8), checked in this order, each counted: DOP > max_dop; before an estimate
- * exists (fewer than min_epochs accepted) the raw magnitude gate `| |m| - |B_ref| | > gate_raw_rel*|B_ref|`;
- * afterwards `| |G(m - V)| - F | > gate_field_rel*F` and `|C_b^n G(m - V) - B_ref| > gate_vector_rel*F`.
+ * Gates (algorithms.md 7.8), checked in this order, each counted: DOP > max_dop; until a fully
+ * observed estimate exists (>= min_epochs accepted and no direction frozen at the prior) the raw
+ * magnitude gate through the prior, `| |G0(m - V0)| - |B_ref| | > gate_raw_rel*|B_ref|` (loose: V is
+ * unknown); afterwards `| |G(m - V)| - |B_ref| | > gate_field_rel*|B_ref|` and
+ * `|C_b^n G(m - V) - B_ref| > gate_vector_rel*|B_ref|`.
  *
  * Observability (algorithms.md 7.7): exactly level yaw-only motion leaves three parameters (the z
  * scale and cross terms against the z offset) unobservable. The module eigen-decomposes the
- * per-epoch information matrix; a direction whose predicted parameter standard deviation
- * `sigma / sqrt(N_eff * mu_k)` exceeds `max_weak_std` is frozen at the prior (cfg.prior, e.g. the
- * factory calibration) and reported (MAGCAL_ERR_UNOBSERVABLE, MAGCAL_AIDED_FLAG_PRIOR_USED).
+ * per-epoch information matrix of the normalised regressor [(m - V0)/|B|; 1]; a direction whose
+ * eigenvalue mu_k is below `min_eig` (sensor noise alone also excites it, so this test does not
+ * improve with N) or whose predicted parameter standard deviation `sigma / sqrt(N_eff * mu_k)`
+ * exceeds `max_weak_std` is frozen at the prior (cfg.prior, e.g. the factory calibration) and
+ * reported (MAGCAL_ERR_UNOBSERVABLE, MAGCAL_AIDED_FLAG_PRIOR_USED).
  *
  * The result is a magcal_ellipsoid_cal_t: `h = G (m - V)` in body axes, then tilt compensation
  * (algorithms.md 6) gives the heading. G includes the magnetometer-to-INS misalignment.
@@ -59,7 +63,7 @@ typedef struct {
 typedef enum {
     MAGCAL_AIDED_GATE_NONE = 0,   /**< accepted */
     MAGCAL_AIDED_GATE_DOP = 1,    /**< dop > max_dop */
-    MAGCAL_AIDED_GATE_RAW = 2,    /**< raw magnitude gate (before an estimate exists) */
+    MAGCAL_AIDED_GATE_RAW = 2,    /**< raw magnitude gate through the prior (no fully observed estimate yet) */
     MAGCAL_AIDED_GATE_FIELD = 3,  /**< calibrated magnitude gate */
     MAGCAL_AIDED_GATE_VECTOR = 4, /**< calibrated vector (direction) gate */
     MAGCAL_AIDED_GATE_COUNT = 5
@@ -74,11 +78,17 @@ typedef enum {
 typedef struct {
     float lambda;          /**< forgetting factor in [0.9, 1]; 1 = growing-memory least squares (default 1) */
     float max_dop;         /**< DOP gate (default 3) */
-    float gate_raw_rel;    /**< raw magnitude gate, fraction of |B_ref| (default 0.5; large: V unknown yet) */
+    float gate_raw_rel;    /**< raw gate, fraction of |B_ref| (default 1.0: a sanity check only, V may be as large as F) */
     float gate_field_rel;  /**< calibrated magnitude gate, fraction of F (default 0.05) */
     float gate_vector_rel; /**< calibrated vector gate, fraction of F (default 0.15) */
     float sigma_rel;       /**< assumed vector residual std / F: noise + attitude error (default 0.005) */
     float max_weak_std;    /**< largest predicted std of a parameter direction (G units) (default 0.03) */
+    float min_eig;         /**< smallest usable eigenvalue of the per-epoch information matrix of [m/|B|; 1]
+                                (default 2e-5: about 0.6 deg RMS tilt at 66 deg inclination, 20x the
+                                level-driving value of a 0.05 uT-noise sensor at 50 uT) */
+    float noise_rel;       /**< magnetometer white noise std per axis / |B| (e.g. 0.05 uT / 48 uT = 0.001);
+                                removes the errors-in-variables shrinkage of weakly excited directions
+                                (bias-compensated least squares); 0 = off (default 0) */
     uint32_t min_epochs;   /**< accepted epochs before an estimate exists (>= 8, default 50) */
     uint32_t conv_window;  /**< accepted epochs per convergence window (>= 1, default 50) */
     float conv_dg;         /**< converged: max |dG_ij| over a window below this (default 2e-3) */
@@ -89,7 +99,7 @@ typedef struct {
 /** Defaults that work without tuning (prior: G0 = I, V0 = 0: raw data already in the B_ref unit). */
 #define MAGCAL_AIDED_CFG_DEFAULT                                                                    \
     {                                                                                               \
-        1.0f, 3.0f, 0.5f, 0.05f, 0.15f, 0.005f, 0.03f, 50u, 50u, 2e-3f, 2e-3f,                      \
+        1.0f, 3.0f, 1.0f, 0.05f, 0.15f, 0.005f, 0.03f, 2e-5f, 0.0f, 50u, 50u, 2e-3f, 2e-3f,                      \
         {{{1.0f, 0.0f, 0.0f}, {0.0f, 1.0f, 0.0f}, {0.0f, 0.0f, 1.0f}}, {0.0f, 0.0f, 0.0f}, 0.0f}    \
     }
 
