@@ -570,10 +570,10 @@ static float coverage_of(const magcal_vec3_t *m, size_t n, const float c[3], flo
 
 static magcal_status_t check_cfg(const magcal_ellipsoid_cfg_t *cfg)
 {
-    if ((int)cfg->model < 0 || (int)cfg->model > (int)MAGCAL_ELLIPSOID_MODEL_SPHERE) {
+    if ((unsigned)cfg->model > (unsigned)MAGCAL_ELLIPSOID_MODEL_SPHERE) {
         return MAGCAL_ERR_ARG;
     }
-    if ((int)cfg->sqrt_method < 0 || (int)cfg->sqrt_method > (int)MAGCAL_ELLIPSOID_SQRT_CHOLESKY) {
+    if ((unsigned)cfg->sqrt_method > (unsigned)MAGCAL_ELLIPSOID_SQRT_CHOLESKY) {
         return MAGCAL_ERR_ARG;
     }
     if (!magcal_isfinite_f(cfg->field) || cfg->field < 0.0f) {
