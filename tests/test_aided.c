@@ -8,6 +8,7 @@
 
 #include "magcal/aided.h"
 #include "magcal/ellipsoid.h"
+#include "magcal/geomag.h"
 #include "test_util.h"
 #include "unity.h"
 
@@ -132,6 +133,19 @@ static void field_at(double w[3][3], const double att[3], double m[3])
  * exactly level). Field noise sigma_m (uT); the INS attitude passed to the estimator has white errors
  * of 0.01 deg (roll, pitch) and 0.05 deg (yaw).
  */
+static int g_use_wmm; /* 1: B_ref from WMM2025 along a track (integration test), else B_NED */
+
+static void wmm_at(size_t k)
+{
+    magcal_geomag_result_t f;
+    /* Munich northwards-east, ~15 m per epoch, 0.5 km height, mid-2026 */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_geomag_eval(&magcal_geomag_wmm2025, 48.10f + 1e-4f * (float)k,
+                                                        11.60f + 1.5e-4f * (float)k, 0.5f, 2026.5f, &f));
+    B_NED[0] = f.x_nt * 1e-3; /* uT */
+    B_NED[1] = f.y_nt * 1e-3;
+    B_NED[2] = f.z_nt * 1e-3;
+}
+
 static void make_drive(double w[3][3], size_t n, double tilt_rms_deg, double sigma_m, uint32_t seed)
 {
     uint32_t rng = seed;
@@ -154,6 +168,9 @@ static void make_drive(double w[3][3], size_t n, double tilt_rms_deg, double sig
         g_ep[k].att[0] = roll;
         g_ep[k].att[1] = pitch;
         g_ep[k].att[2] = yaw + 2.0 * D2R * sin(0.1 * (double)k);
+        if (g_use_wmm) {
+            wmm_at(k);
+        }
         field_at(w, g_ep[k].att, m);
         for (i = 0; i < 3; ++i) {
             m[i] += sigma_m * test_rand_normal(&rng);
@@ -438,6 +455,26 @@ static void test_aided_gates_reject_disturbed_epochs_estimate_unchanged(void)
     TEST_ASSERT_TRUE(v_err(&rc.cal) > 3.0 * v_err(&ra.cal) || g_err(&rc.cal, w) > 3.0 * g_err(&ra.cal, w));
 }
 
+static void test_aided_wmm2025_reference_along_track_converges(void)
+{
+    /* Integration with geomag: B_ref per epoch from WMM2025 at the GNSS position (in uT), and the
+     * truth generated from the same field. */
+    static const double b_default[3] = {20.0, 1.2, 44.0};
+    double w[3][3];
+    magcal_aided_cfg_t cfg = MAGCAL_AIDED_CFG_DEFAULT;
+    magcal_aided_result_t res;
+    make_w_full(w);
+    g_use_wmm = 1;
+    make_drive(w, NEP, 1.5, 0.05, 99u);
+    g_use_wmm = 0;
+    memcpy(B_NED, b_default, sizeof(B_NED));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, run(&cfg, NEP, &g_inst, &res));
+    TEST_ASSERT_FLOAT_WITHIN(1.0f, 48.5f, res.cal.field); /* |B| near Munich, 2026: ~48.5 uT */
+    TEST_ASSERT_TRUE(g_err(&res.cal, w) < 0.02);
+    TEST_ASSERT_TRUE(v_err(&res.cal) < 1.5);
+    TEST_ASSERT_TRUE(res.resid_rms < 0.1f); /* 0.05 uT noise + 0.05 deg yaw error */
+}
+
 static void test_aided_dcm_matches_euler_definition_and_frd_ins(void)
 {
     static const double cases[4][3] = {{0, 0, 0}, {10, -20, 35}, {-30, 45, 200}, {5, 80, -120}};
@@ -516,6 +553,7 @@ int main(void)
     RUN_TEST(test_aided_noise_compensation_removes_weak_direction_shrinkage);
     RUN_TEST(test_aided_level_drive_reports_unobservable_and_uses_prior);
     RUN_TEST(test_aided_gates_reject_disturbed_epochs_estimate_unchanged);
+    RUN_TEST(test_aided_wmm2025_reference_along_track_converges);
     RUN_TEST(test_aided_dcm_matches_euler_definition_and_frd_ins);
     RUN_TEST(test_aided_bad_input_returns_status);
     return UNITY_END();
