@@ -362,6 +362,27 @@ static void test_ellipsoid_fit_outliers_rejected_by_residual_gate(void)
     TEST_ASSERT_TRUE(v_err(&rn.cal) > 5.0 * v_err(&r.cal));
 }
 
+static void test_ellipsoid_fit_rejections_above_limit_return_too_many_outliers(void)
+{
+    /* every 10th sample shifted by 10 uT (10 %): rejecting them exceeds a 5 % limit */
+    double w[3][3];
+    magcal_ellipsoid_cfg_t cfg = cfg_with_field();
+    magcal_ellipsoid_result_t r;
+    size_t k;
+    make_w_full(w);
+    make_set(w, NFIT, 180.0, 180.0, 0.05, 606u);
+    for (k = 0; k < NFIT; k += 10) {
+        g_m[k].x += 10.0f;
+    }
+    cfg.max_reject_frac = 0.05f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_MANY_OUTLIERS, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    cfg.max_reject_frac = 0.25f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    /* a shift nearly tangent to the sphere barely changes |h|: 58 of the 60 are caught */
+    TEST_ASSERT_TRUE(r.n_rejected >= NFIT / 10 - 4 && r.n_rejected <= NFIT / 10 + 6);
+    TEST_ASSERT_TRUE(v_err(&r.cal) < 0.03);
+}
+
 static void test_ellipsoid_fit_poor_coverage_falls_back_to_sphere(void)
 {
     /* hard iron only (W = 0.9 I), tilts limited to +-20 deg: only a band of directions */
@@ -513,6 +534,7 @@ int main(void)
     RUN_TEST(test_ellipsoid_fit_sqrt_variants_satisfy_gtg_equals_q);
     RUN_TEST(test_ellipsoid_fit_tilted_headings_within_1p2_of_floor);
     RUN_TEST(test_ellipsoid_fit_outliers_rejected_by_residual_gate);
+    RUN_TEST(test_ellipsoid_fit_rejections_above_limit_return_too_many_outliers);
     RUN_TEST(test_ellipsoid_fit_poor_coverage_falls_back_to_sphere);
     RUN_TEST(test_ellipsoid_fit_level_ring_auto_returns_coverage);
     RUN_TEST(test_ellipsoid_fit_hyperboloid_returns_not_ellipsoid);
