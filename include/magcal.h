@@ -20,6 +20,8 @@
 #include "magcal/consensus.h"
 #include "magcal/calibrator.h"
 #include "magcal/geomag.h"
+#include "magcal/ellipsoid.h"
+#include "magcal/aided.h"
 #include "magcal/tilt.h"
 #include "magcal/swing.h"
 #include "magcal/errmodel.h"
