@@ -165,7 +165,7 @@ def main(argv=None):
         ax.set_aspect("equal")
         ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=3, fontsize=8)
         ax.set_title("2. Corrected h = M (raw - centre): on a circle\nradius spread %.2f %% raw -> %.2f %% corrected"
-                     % (100 * rep["radius_spread_raw"], 100 * rep["radius_spread_corrected"]))
+                     % (100 * rep.get("radius_spread_raw_used", rep["radius_spread_raw"]), 100 * rep["radius_spread_corrected"]))
     else:
         ax.text(0.5, 0.5, "calibration failed:\n%s" % rep.get("reason", ""), ha="center", va="center",
                 wrap=True, transform=ax.transAxes)

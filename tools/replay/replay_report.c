@@ -76,8 +76,11 @@ int replay_print_json(const replay_report_t *r)
         cJSON_AddItemToObject(o, "ellipse", e);
         cJSON_AddNumberToObject(o, "radius", sig7(r->radius));
         cJSON_AddNumberToObject(o, "residual_rms", sig7(r->residual_rms));
-        cJSON_AddNumberToObject(o, "radius_spread_raw", sig7(r->spread_raw));
-        cJSON_AddNumberToObject(o, "radius_spread_raw_all", sig7(r->spread_raw_all));
+        /* The interface's radius_spread_raw is over every raw calibration sample (outliers
+         * included); radius_spread_raw_used is over the samples the fit used (same set as the
+         * corrected spread, so their ratio measures the correction alone). */
+        cJSON_AddNumberToObject(o, "radius_spread_raw", sig7(r->spread_raw_all));
+        cJSON_AddNumberToObject(o, "radius_spread_raw_used", sig7(r->spread_raw));
         cJSON_AddNumberToObject(o, "radius_spread_corrected", sig7(r->spread_corrected));
     }
     if (r->truth_column != NULL) {
