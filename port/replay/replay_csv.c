@@ -11,7 +11,8 @@
 
 static const char *const k_col_names[MAGCAL_REPLAY_COL_COUNT] = {
     "t", "mx", "my", "mz", "ax", "ay", "az", "heading_ref_deg", "cog_deg", "speed_mps", "glitch",
-    "outlier"};
+    "outlier", "roll_deg", "pitch_deg", "yaw_deg", "lat_deg", "lon_deg", "height_km",
+    "decimal_year", "dop"};
 
 const char *magcal_replay_csv_col_name(magcal_replay_col_t c)
 {

@@ -6,7 +6,9 @@
  * Format (docs/replay.md has the full description):
  * - the first line that is neither blank nor a comment is the header, naming the columns;
  * - recognised columns (case-insensitive, any order): `t` (s), `mx,my,mz` (field, any unit),
- *   `ax,ay,az` (accelerometer), `heading_ref_deg`, `cog_deg`, `speed_mps`, `glitch`, `outlier`;
+ *   `ax,ay,az` (accelerometer), `heading_ref_deg`, `cog_deg`, `speed_mps`, `glitch`, `outlier`,
+ *   and for the aided mode `roll_deg, pitch_deg, yaw_deg, lat_deg, lon_deg, height_km,
+ *   decimal_year, dop`;
  *   every other column is ignored (its cells are not even looked at);
  * - lines whose first non-blank character is `#`, and blank lines, are skipped anywhere;
  * - LF or CRLF line ends, an optional UTF-8 byte order mark, spaces/tabs around cells, and cells
@@ -63,6 +65,14 @@ typedef enum {
     MAGCAL_REPLAY_COL_SPEED,       /**< GNSS speed, m/s */
     MAGCAL_REPLAY_COL_GLITCH,      /**< importer's glitch flag on recorded dumps (1 = bad sample) */
     MAGCAL_REPLAY_COL_OUTLIER,     /**< truth flag on synthetic dumps (1 = injected outlier) */
+    MAGCAL_REPLAY_COL_ROLL,        /**< INS roll, degrees (aided.h convention: right side down +) */
+    MAGCAL_REPLAY_COL_PITCH,       /**< INS pitch, degrees (nose up +) */
+    MAGCAL_REPLAY_COL_YAW,         /**< INS yaw, degrees clockwise from true north */
+    MAGCAL_REPLAY_COL_LAT,         /**< WGS 84 geodetic latitude, degrees north + */
+    MAGCAL_REPLAY_COL_LON,         /**< longitude, degrees east + */
+    MAGCAL_REPLAY_COL_HEIGHT,      /**< height above the WGS 84 ellipsoid, km */
+    MAGCAL_REPLAY_COL_YEAR,        /**< decimal year (e.g. 2026.5) */
+    MAGCAL_REPLAY_COL_DOP,         /**< GNSS dilution of precision */
     MAGCAL_REPLAY_COL_COUNT
 } magcal_replay_col_t;
 

@@ -10,11 +10,14 @@
 #include <string.h>
 
 #include "magcal/calibrator.h"
+#include "magcal/ellipsoid.h"
 #include "magcal/heading.h"
 #include "magcal/status.h"
+#include "magcal/tilt.h"
 #include "magcal_port_replay.h"
 #include "replay_cal.h"
 #include "replay_csv.h"
+#include "replay_modes.h"
 #include "replay_report.h"
 
 static const char k_usage[] =
@@ -28,6 +31,15 @@ static const char k_usage[] =
     "  --plane XY|XZ|YZ    dump axes forming the horizontal plane (default XY; YX, ZX, ZY mirror)\n"
     "  --headings OUT.csv  per row: index,raw_heading_deg,heading_deg,outlier[,heading_ref_deg,error_deg]\n"
     "  --json              the report as one JSON object on stdout (default: a readable table)\n"
+    "  --mode 2d|3d|aided  2d (default): ellipse on the plane; 3d: ellipsoid on mx,my,mz;\n"
+    "                      aided: INS/GNSS-aided 3-D calibration (roll/pitch/yaw, lat/lon/height)\n"
+    "  --ref-rows A:B      rows [A,B) with heading_ref_deg fit a compass swing on the calibrated heading\n"
+    "  --swing-model M     smith (default, 5 coefficients A..E) | fourier (adaptive order)\n"
+    "  --tilt | --no-tilt  tilt compensation with ax,ay,az (default: on when ax,ay,az,mz exist)\n"
+    "  --accel-unit U      g | mps2 (default: detected from the median |a|)\n"
+    "  --inclination DEG   2d + tilt: inclination giving the level vertical field (default 0)\n"
+    "  --field-unit U      aided: unit of mx,my,mz: uT (default) | nT | gauss\n"
+    "  --year Y            aided: decimal year of the dump (default: decimal_year column, else t as Unix time)\n"
     "  -h, --help          this text\n"
     "exit status: 0 ok, 1 usage, 2 input error, 3 calibration failed, 4 output error, 5 internal error\n";
 
@@ -121,10 +133,12 @@ static void heading_metrics(replay_report_t *r, const double *ref, const double 
     r->n_heading = 0u;
     r->n_heading_flagged = 0u;
     r->n_groups = 0u;
+    r->by_ref_sectors = 0;
     /* distinct reference values (to 0.01 deg); too many -> 45-degree sectors */
     for (i = 0u; i < n_rows; ++i) {
         double key;
-        if ((i >= r->cal_first && i < r->cal_end) || !isfinite(ref[i]) || !isfinite(err[i])) {
+        if ((i >= r->cal_first && i < r->cal_end) || (i >= r->ref_first && i < r->ref_end) ||
+            !isfinite(ref[i]) || !isfinite(err[i])) {
             continue;
         }
         key = floor(wrap360(ref[i]) * 100.0 + 0.5) / 100.0;
@@ -163,7 +177,8 @@ static void heading_metrics(replay_report_t *r, const double *ref, const double 
     }
     for (i = 0u; i < n_rows; ++i) {
         double e, key;
-        if ((i >= r->cal_first && i < r->cal_end) || !isfinite(ref[i]) || !isfinite(err[i])) {
+        if ((i >= r->cal_first && i < r->cal_end) || (i >= r->ref_first && i < r->ref_end) ||
+            !isfinite(ref[i]) || !isfinite(err[i])) {
             continue;
         }
         r->n_heading_flagged += (size_t)(flag[i] != 0u); /* counted, not excluded */
@@ -213,6 +228,14 @@ typedef struct {
     const char *range;
     const char *plane_name;
     double declination;
+    const char *mode;        /* "2d" | "3d" | "aided" */
+    const char *ref_rows;    /* NULL = no swing */
+    int fourier;             /* --swing-model fourier */
+    int tilt;                /* -1 auto, 0 off, 1 on */
+    int accel_unit;          /* 0 detect, 1 g, 2 m/s^2 */
+    double inclination;      /* NaN = not given */
+    const char *field_unit;  /* aided */
+    double year;             /* NaN = from the dump */
 } cli_t;
 
 static int parse_args(int argc, char **argv, cli_t *c)
@@ -223,6 +246,11 @@ static int parse_args(int argc, char **argv, cli_t *c)
     c->cal.eps = NAN;
     c->cal.min_pts = 0;
     c->plane_name = "XY";
+    c->mode = "2d";
+    c->tilt = -1;
+    c->inclination = NAN;
+    c->field_unit = "uT";
+    c->year = NAN;
     for (i = 1; i < argc; ++i) {
         const char *a = argv[i];
         const char *v = (i + 1 < argc) ? argv[i + 1] : NULL;
@@ -231,6 +259,10 @@ static int parse_args(int argc, char **argv, cli_t *c)
             exit(REPLAY_EXIT_OK);
         } else if (strcmp(a, "--json") == 0) {
             c->json = 1;
+        } else if (strcmp(a, "--tilt") == 0) {
+            c->tilt = 1;
+        } else if (strcmp(a, "--no-tilt") == 0) {
+            c->tilt = 0;
         } else if (a[0] == '-' && a[1] == '-' && v == NULL) {
             return usage_error("option %s needs a value", a);
         } else if (strcmp(a, "--cal-range") == 0) {
@@ -266,6 +298,46 @@ static int parse_args(int argc, char **argv, cli_t *c)
         } else if (strcmp(a, "--headings") == 0) {
             c->headings_path = v;
             ++i;
+        } else if (strcmp(a, "--mode") == 0) {
+            if (strcmp(v, "2d") != 0 && strcmp(v, "3d") != 0 && strcmp(v, "aided") != 0) {
+                return usage_error("--mode must be 2d, 3d or aided, got \"%s\"", v);
+            }
+            c->mode = v;
+            ++i;
+        } else if (strcmp(a, "--ref-rows") == 0) {
+            c->ref_rows = v;
+            ++i;
+        } else if (strcmp(a, "--swing-model") == 0) {
+            if (strcmp(v, "smith") != 0 && strcmp(v, "fourier") != 0) {
+                return usage_error("--swing-model must be smith or fourier, got \"%s\"", v);
+            }
+            c->fourier = strcmp(v, "fourier") == 0;
+            ++i;
+        } else if (strcmp(a, "--accel-unit") == 0) {
+            if (strcmp(v, "g") == 0) {
+                c->accel_unit = 1;
+            } else if (strcmp(v, "mps2") == 0) {
+                c->accel_unit = 2;
+            } else {
+                return usage_error("--accel-unit must be g or mps2, got \"%s\"", v);
+            }
+            ++i;
+        } else if (strcmp(a, "--inclination") == 0) {
+            if (parse_double(v, &c->inclination) != 0 || fabs(c->inclination) >= 90.0) {
+                return usage_error("--inclination needs degrees in (-90, 90), got \"%s\"", v);
+            }
+            ++i;
+        } else if (strcmp(a, "--field-unit") == 0) {
+            if (strcmp(v, "uT") != 0 && strcmp(v, "nT") != 0 && strcmp(v, "gauss") != 0) {
+                return usage_error("--field-unit must be uT, nT or gauss, got \"%s\"", v);
+            }
+            c->field_unit = v;
+            ++i;
+        } else if (strcmp(a, "--year") == 0) {
+            if (parse_double(v, &c->year) != 0 || c->year < 1900.0 || c->year > 2100.0) {
+                return usage_error("--year needs a decimal year, got \"%s\"", v);
+            }
+            ++i;
         } else if (a[0] == '-' && a[1] != '\0') {
             return usage_error("unknown option %s", a);
         } else if (c->path != NULL) {
@@ -283,30 +355,81 @@ static int parse_args(int argc, char **argv, cli_t *c)
     if (magcal_replay_csv_plane(c->plane_name, &c->cal.plane) != MAGCAL_OK) {
         return usage_error("--plane must be XY, XZ or YZ (or YX, ZX, ZY), got \"%s\"", c->plane_name);
     }
+    if (strcmp(c->mode, "aided") == 0 && c->tilt == 1) {
+        return usage_error("%s", "--tilt: the aided mode levels the field with the INS roll and pitch");
+    }
+    if (isfinite(c->inclination) && strcmp(c->mode, "2d") != 0) {
+        return usage_error("%s", "--inclination is for the 2d mode (3d and aided calibrate z)");
+    }
     return -1; /* continue */
 }
 
 /* Parse "A:B", "A:", ":B" against n rows. 0 ok, -1 bad. */
-static int parse_range(const char *s, size_t n, size_t *a, size_t *b, char *msg, size_t msg_len)
+static int parse_range(const char *opt, const char *s, size_t n, size_t *a, size_t *b, char *msg,
+                       size_t msg_len)
 {
     const char *colon = strchr(s, ':');
     if (colon == NULL) {
-        (void)snprintf(msg, msg_len, "--cal-range must be A:B, got \"%s\"", s);
+        (void)snprintf(msg, msg_len, "%s must be A:B, got \"%s\"", opt, s);
         return -1;
     }
     *a = 0u;
     *b = n;
     if ((colon > s && parse_size(s, (size_t)(colon - s), a) != 0) ||
         (colon[1] != '\0' && parse_size(colon + 1, strlen(colon + 1), b) != 0)) {
-        (void)snprintf(msg, msg_len, "--cal-range must be A:B with row numbers, got \"%s\"", s);
+        (void)snprintf(msg, msg_len, "%s must be A:B with row numbers, got \"%s\"", opt, s);
         return -1;
     }
     if (*a >= *b || *b > n) {
-        (void)snprintf(msg, msg_len, "--cal-range %s is empty or beyond the dump's %lu rows", s,
+        (void)snprintf(msg, msg_len, "%s %s is empty or beyond the dump's %lu rows", opt, s,
                        (unsigned long)n);
         return -1;
     }
     return 0;
+}
+
+/* Median of |a| over the rows with a finite accelerometer sample (NaN when none). */
+static double median_accel_norm(const magcal_replay_csv_t *d)
+{
+    const double *ax = d->col[MAGCAL_REPLAY_COL_AX], *ay = d->col[MAGCAL_REPLAY_COL_AY];
+    const double *az = d->col[MAGCAL_REPLAY_COL_AZ];
+    double *v = (double *)malloc(d->n_rows * sizeof(double)), med;
+    size_t i, k = 0u, g;
+    if (v == NULL) {
+        return NAN;
+    }
+    for (i = 0u; i < d->n_rows; ++i) {
+        if (isfinite(ax[i]) && isfinite(ay[i]) && isfinite(az[i])) {
+            v[k++] = sqrt(ax[i] * ax[i] + ay[i] * ay[i] + az[i] * az[i]);
+        }
+    }
+    /* selection by partial sorting is not worth it here: a shell sort of k values */
+    for (g = k / 2u; g > 0u; g /= 2u) {
+        for (i = g; i < k; ++i) {
+            double t = v[i];
+            size_t j = i;
+            while (j >= g && v[j - g] > t) {
+                v[j] = v[j - g];
+                j -= g;
+            }
+            v[j] = t;
+        }
+    }
+    med = (k == 0u) ? NAN : (k % 2u) ? v[k / 2u] : 0.5 * (v[k / 2u - 1u] + v[k / 2u]);
+    free(v);
+    return med;
+}
+
+static int tilt_slot(magcal_status_t st)
+{
+    switch (st) {
+    case MAGCAL_OK: return REPLAY_TILT_OK;
+    case MAGCAL_ERR_FREE_FALL: return REPLAY_TILT_FREE_FALL;
+    case MAGCAL_ERR_ACCEL_NORM: return REPLAY_TILT_ACCEL_NORM;
+    case MAGCAL_ERR_GIMBAL: return REPLAY_TILT_GIMBAL;
+    case MAGCAL_ERR_ZERO_FIELD: return REPLAY_TILT_ZERO_FIELD;
+    default: return REPLAY_TILT_NO_ACCEL;
+    }
 }
 
 int main(int argc, char **argv)
@@ -315,30 +438,50 @@ int main(int argc, char **argv)
     magcal_replay_csv_t d;
     replay_report_t r;
     replay_result_t res;
+    replay_swing_t sw;
+    magcal_ellipsoid_cal_t cal3;
     char err[MAGCAL_REPLAY_CSV_ERR_LEN];
     uint32_t required;
-    int rc;
+    int rc, mode3d, aided;
     size_t i, n;
     magcal_vec3_t *fed = NULL;
     double *raw_rad = NULL, *cor_rad = NULL, *err_deg = NULL, *hdg = NULL, *raw_hdg = NULL;
-    unsigned char *flag = NULL, *use = NULL, *fedmask = NULL;
+    double *hmag = NULL, *hmag0 = NULL, *decl = NULL, *bned = NULL, *refmag = NULL;
+    unsigned char *flag = NULL, *use = NULL, *fedmask = NULL, *tstat = NULL;
     const double *ref;
+    double accel_scale = 1.0;
     static const double k_nan = NAN;
 
     rc = parse_args(argc, argv, &c);
     if (rc >= 0) {
         return rc;
     }
+    mode3d = strcmp(c.mode, "3d") == 0;
+    aided = strcmp(c.mode, "aided") == 0;
     memset(&d, 0, sizeof d);
     memset(&r, 0, sizeof r);
     memset(&res, 0, sizeof res);
+    memset(&sw, 0, sizeof sw);
+    memset(&cal3, 0, sizeof cal3);
     required = MAGCAL_REPLAY_COL_BIT(MAGCAL_REPLAY_COL_MX + c.cal.plane.src[0]) |
                MAGCAL_REPLAY_COL_BIT(MAGCAL_REPLAY_COL_MX + c.cal.plane.src[1]);
+    if (mode3d || aided) {
+        required |= MAGCAL_REPLAY_COL_BIT(MAGCAL_REPLAY_COL_MX + c.cal.plane.src[2]);
+    }
+    if (aided) {
+        required |= MAGCAL_REPLAY_COL_BIT(MAGCAL_REPLAY_COL_ROLL) | MAGCAL_REPLAY_COL_BIT(MAGCAL_REPLAY_COL_PITCH) |
+                    MAGCAL_REPLAY_COL_BIT(MAGCAL_REPLAY_COL_YAW) | MAGCAL_REPLAY_COL_BIT(MAGCAL_REPLAY_COL_LAT) |
+                    MAGCAL_REPLAY_COL_BIT(MAGCAL_REPLAY_COL_LON) | MAGCAL_REPLAY_COL_BIT(MAGCAL_REPLAY_COL_HEIGHT);
+    }
+    if (c.tilt == 1) {
+        required |= MAGCAL_REPLAY_COL_BIT(MAGCAL_REPLAY_COL_MX + c.cal.plane.src[2]);
+    }
     if (magcal_replay_csv_read(c.path, required, &d, err, sizeof err) != MAGCAL_OK) {
         fprintf(stderr, "magcal-replay: %s\n", err);
         return REPLAY_EXIT_INPUT;
     }
     n = d.n_rows;
+    r.mode = c.mode;
     r.file = c.path;
     r.filter = c.cal.filter;
     r.plane = c.plane_name;
@@ -348,15 +491,67 @@ int main(int argc, char **argv)
     r.n_rows = n;
     r.cal_first = 0u;
     r.cal_end = n;
-    if (c.range != NULL && parse_range(c.range, n, &r.cal_first, &r.cal_end, err, sizeof err) != 0) {
+    r.inclination_deg = c.inclination;
+    r.converged_at = -1;
+    r.converged_row = -1;
+    if (c.range != NULL &&
+        parse_range("--cal-range", c.range, n, &r.cal_first, &r.cal_end, err, sizeof err) != 0) {
         fprintf(stderr, "magcal-replay: %s\n", err);
         magcal_replay_csv_free(&d);
         return REPLAY_EXIT_INPUT;
     }
     r.n_cal = r.cal_end - r.cal_first;
+    if (c.ref_rows != NULL) {
+        if (parse_range("--ref-rows", c.ref_rows, n, &r.ref_first, &r.ref_end, err, sizeof err) != 0) {
+            fprintf(stderr, "magcal-replay: %s\n", err);
+            magcal_replay_csv_free(&d);
+            return REPLAY_EXIT_INPUT;
+        }
+        if (d.col[MAGCAL_REPLAY_COL_HEADING_REF] == NULL) {
+            fprintf(stderr, "magcal-replay: %s: --ref-rows needs a heading_ref_deg column\n", c.path);
+            magcal_replay_csv_free(&d);
+            return REPLAY_EXIT_INPUT;
+        }
+        r.swing_requested = 1;
+    }
 
-    /* Decimation: the calibrator holds at most `capacity` samples; feed every k-th row. */
-    r.capacity = replay_capacity();
+    /* Tilt compensation: auto-on when ax, ay, az and the third field axis are present. */
+    {
+        int have_acc = d.col[MAGCAL_REPLAY_COL_AX] != NULL && d.col[MAGCAL_REPLAY_COL_AY] != NULL &&
+                       d.col[MAGCAL_REPLAY_COL_AZ] != NULL;
+        int have_z = d.col[MAGCAL_REPLAY_COL_MX + c.cal.plane.src[2]] != NULL;
+        if (c.tilt == 1 && !have_acc) {
+            fprintf(stderr, "magcal-replay: %s: --tilt needs the columns ax, ay, az\n", c.path);
+            magcal_replay_csv_free(&d);
+            return REPLAY_EXIT_INPUT;
+        }
+        r.tilt_on = !aided && c.tilt != 0 && have_acc && have_z;
+    }
+    if (r.tilt_on) {
+        r.accel_median_norm = median_accel_norm(&d);
+        if (c.accel_unit != 0) {
+            r.accel_unit = (c.accel_unit == 1) ? "g" : "mps2";
+            r.accel_unit_source = "given";
+        } else if (r.accel_median_norm >= 0.5 && r.accel_median_norm <= 2.0) {
+            r.accel_unit = "g";
+            r.accel_unit_source = "detected";
+        } else if (r.accel_median_norm >= 4.9 && r.accel_median_norm <= 19.6) {
+            r.accel_unit = "mps2";
+            r.accel_unit_source = "detected";
+        } else {
+            fprintf(stderr,
+                    "magcal-replay: %s: cannot tell the accelerometer unit (median |a| = %g; about 1 "
+                    "means g, about 9.8 m/s^2): give --accel-unit g|mps2 or --no-tilt\n",
+                    c.path, r.accel_median_norm);
+            magcal_replay_csv_free(&d);
+            return REPLAY_EXIT_INPUT;
+        }
+        accel_scale = (strcmp(r.accel_unit, "g") == 0) ? 1.0 : 1.0 / 9.80665;
+    }
+
+    /* Decimation (2d): the calibrator holds at most `capacity` samples; feed every k-th row.
+     * The 3-D fit and the aided estimator take every calibration row. */
+    r.capacity = (mode3d || aided) ? r.n_cal : replay_capacity();
     r.decimation = (r.n_cal + r.capacity - 1u) / r.capacity;
     if (r.decimation < 1u) {
         r.decimation = 1u;
@@ -369,11 +564,18 @@ int main(int argc, char **argv)
     err_deg = (double *)calloc(n, sizeof(double));
     hdg = (double *)calloc(n, sizeof(double));
     raw_hdg = (double *)calloc(n, sizeof(double));
+    hmag = (double *)calloc(n, sizeof(double));
+    hmag0 = (double *)calloc(n, sizeof(double));
+    decl = (double *)calloc(n, sizeof(double));
+    refmag = (double *)calloc(n, sizeof(double));
+    bned = (double *)calloc(3u * n, sizeof(double));
     flag = (unsigned char *)calloc(n, 1u);
     use = (unsigned char *)calloc(n, 1u);
     fedmask = (unsigned char *)calloc(n, 1u);
+    tstat = (unsigned char *)calloc(n, 1u);
     res.flags = (unsigned char *)calloc(r.n_fed, 1u);
-    if (!fed || !raw_rad || !cor_rad || !err_deg || !hdg || !raw_hdg || !flag || !use || !fedmask || !res.flags) {
+    if (!fed || !raw_rad || !cor_rad || !err_deg || !hdg || !raw_hdg || !hmag || !hmag0 || !decl || !refmag ||
+        !bned || !flag || !use || !fedmask || !tstat || !res.flags) {
         fprintf(stderr, "magcal-replay: out of memory\n");
         rc = REPLAY_EXIT_INTERNAL;
         goto done;
@@ -384,33 +586,96 @@ int main(int argc, char **argv)
         rc = REPLAY_EXIT_INTERNAL;
         goto done;
     }
+    for (i = 0u; i < n; ++i) {
+        decl[i] = c.declination;
+    }
 
-    /* Calibrate: replay port serves the (decimated) calibration rows; the calibrator polls. */
-    rc = replay_calibrate(&c.cal, &d, r.cal_first, r.n_fed, r.decimation, &r, &res);
+    /* Calibrate. */
+    if (aided) {
+        replay_aided_opts_t ao;
+        ao.unit_per_nt = (strcmp(c.field_unit, "nT") == 0) ? 1.0 : (strcmp(c.field_unit, "gauss") == 0) ? 1e-5 : 1e-3;
+        ao.year = c.year;
+        r.field_unit = c.field_unit;
+        rc = replay_wmm_rows(&d, &ao, bned, decl, err, sizeof err);
+        if (rc != REPLAY_EXIT_OK) {
+            fprintf(stderr, "magcal-replay: %s: %s\n", c.path, err);
+            goto done;
+        }
+        rc = replay_aided_run(&d, fed, bned, r.cal_first, r.cal_end, &r, &cal3);
+        r.decl_first_deg = NAN;
+        for (i = r.cal_first; i < r.cal_end; ++i) {
+            if (isfinite(decl[i])) {
+                r.decl_first_deg = decl[i];
+                break;
+            }
+        }
+    } else if (mode3d) {
+        rc = replay_fit_3d(fed + r.cal_first, r.n_cal, &r, &cal3);
+    } else {
+        /* Replay port serves the (decimated) calibration rows; the calibrator polls. */
+        rc = replay_calibrate(&c.cal, &d, r.cal_first, r.n_fed, r.decimation, &r, &res);
+    }
     if (rc != REPLAY_EXIT_OK && rc != REPLAY_EXIT_CAL_FAILED) {
         goto done;
+    }
+    for (i = r.cal_first; i < r.cal_end; i += r.decimation) {
+        fedmask[i] = 1u;
+    }
+
+    /* 2d + tilt: the vertical component (approximation, docs/replay.md "Tilt compensation"). */
+    if (rc == REPLAY_EXIT_OK && r.tilt_on && !mode3d && !aided) {
+        double sz = 0.0;
+        size_t kz = 0u;
+        for (i = r.cal_first; i < r.cal_end; i += r.decimation) {
+            size_t k = (i - r.cal_first) / r.decimation;
+            if (!res.flags[k] && d.col[MAGCAL_REPLAY_COL_MX + c.cal.plane.src[2]] != NULL &&
+                isfinite(d.col[MAGCAL_REPLAY_COL_MX + c.cal.plane.src[2]][i])) {
+                sz += fed[i].z;
+                kz++;
+            }
+        }
+        r.tilt_z_offset = (kz > 0u) ? sz / (double)kz : 0.0;
+        r.tilt_hz_level = isfinite(c.inclination) ? -(double)res.cal.radius * tan(c.inclination * 3.14159265358979323846 / 180.0) : 0.0;
+        r.tilt_field = "2d: h = (M (raw_xy - centre), mz - z_offset + hz_level)";
+    } else if (r.tilt_on) {
+        r.tilt_field = "3d: h = G (m - V)";
     }
 
     /* Per-row headings and flags. */
     ref = d.col[MAGCAL_REPLAY_COL_HEADING_REF];
     for (i = 0u; i < n; ++i) {
         magcal_vec2_t raw = {fed[i].x, fed[i].y};
+        magcal_vec3_t h3 = {0.0f, 0.0f, 0.0f};
+        int have_h3 = 0;
         raw_rad[i] = sqrt((double)raw.x * raw.x + (double)raw.y * raw.y);
-        raw_hdg[i] = (raw_rad[i] > 0.0)
+        if (mode3d || aided) {
+            raw_rad[i] = sqrt((double)fed[i].x * fed[i].x + (double)fed[i].y * fed[i].y + (double)fed[i].z * fed[i].z);
+        }
+        raw_hdg[i] = (raw.x != 0.0f || raw.y != 0.0f)
                          ? wrap360(atan2(-(double)raw.x, (double)raw.y) * k_deg_per_rad + c.declination)
                          : NAN;
         hdg[i] = NAN;
+        hmag[i] = NAN;
         err_deg[i] = NAN;
         cor_rad[i] = NAN;
-        if (rc == REPLAY_EXIT_OK) {
+        refmag[i] = (ref != NULL && isfinite(ref[i]) && isfinite(decl[i])) ? ref[i] - decl[i] : NAN;
+        if (rc != REPLAY_EXIT_OK) {
+            continue;
+        }
+        if (!mode3d && !aided) {
             magcal_vec2_t h;
             float mag_deg = 0.0f, true_deg = 0.0f;
             if (magcal_correct_apply(&res.cal, raw, &h) == MAGCAL_OK) {
                 cor_rad[i] = sqrt((double)h.x * h.x + (double)h.y * h.y);
+                h3.x = h.x;
+                h3.y = h.y;
+                h3.z = (float)((double)fed[i].z - r.tilt_z_offset + r.tilt_hz_level);
+                have_h3 = 1;
             }
-            if (magcal_heading_compute(&res.cal, raw, (float)c.declination, &mag_deg, &true_deg) ==
-                MAGCAL_OK) {
+            if (!r.tilt_on && magcal_heading_compute(&res.cal, raw, (float)c.declination, &mag_deg, &true_deg) ==
+                                  MAGCAL_OK) {
                 hdg[i] = true_deg;
+                hmag[i] = mag_deg;
             }
             if (i >= r.cal_first && i < r.cal_end && (i - r.cal_first) % r.decimation == 0u) {
                 size_t k = (i - r.cal_first) / r.decimation;
@@ -419,21 +684,88 @@ int main(int argc, char **argv)
             } else {
                 flag[i] = (unsigned char)replay_classify(&res, raw);
             }
-            if (ref != NULL && isfinite(ref[i]) && isfinite(hdg[i])) {
-                err_deg[i] = wrap180(hdg[i] - ref[i]);
+        } else {
+            if (magcal_ellipsoid_apply(&cal3, &fed[i], &h3) == MAGCAL_OK) {
+                have_h3 = 1;
+                cor_rad[i] = sqrt((double)h3.x * h3.x + (double)h3.y * h3.y + (double)h3.z * h3.z);
             }
+            use[i] = fedmask[i];
+            if (have_h3 && aided) {
+                const double *ro = d.col[MAGCAL_REPLAY_COL_ROLL], *pi = d.col[MAGCAL_REPLAY_COL_PITCH];
+                magcal_tilt_t att;
+                magcal_vec3_t lv;
+                float psi = 0.0f;
+                att.roll_deg = (float)ro[i];
+                att.pitch_deg = (float)pi[i];
+                if (isfinite(ro[i]) && isfinite(pi[i]) && magcal_tilt_level_field(&att, &h3, &lv) == MAGCAL_OK) {
+                    magcal_vec2_t l2 = {lv.x, lv.y};
+                    if (magcal_heading_from_field(l2, &psi) == MAGCAL_OK) {
+                        hmag[i] = psi;
+                    }
+                }
+            } else if (have_h3 && !r.tilt_on) {
+                magcal_vec2_t l2 = {h3.x, h3.y};
+                float psi = 0.0f;
+                if (magcal_heading_from_field(l2, &psi) == MAGCAL_OK) {
+                    hmag[i] = psi; /* level assumption */
+                }
+            }
+        }
+        if (r.tilt_on) {
+            const magcal_tilt_cfg_t tcfg = MAGCAL_TILT_CFG_DEFAULT;
+            magcal_status_t st = MAGCAL_ERR_NONFINITE;
+            double a[3];
+            unsigned k;
+            int fin = have_h3;
+            for (k = 0u; k < 3u; ++k) {
+                a[k] = d.col[MAGCAL_REPLAY_COL_AX + c.cal.plane.src[k]][i] * accel_scale;
+                fin = fin && isfinite(a[k]);
+            }
+            if (fin) {
+                magcal_vec3_t acc = {(float)a[0], (float)a[1], (float)a[2]};
+                float psi = 0.0f;
+                st = magcal_tilt_heading(&tcfg, &acc, &h3, &psi, NULL);
+                if (st == MAGCAL_OK) {
+                    hmag[i] = psi;
+                }
+            }
+            tstat[i] = (unsigned char)tilt_slot(st);
+            r.tilt_counts[tstat[i]]++;
+        }
+        if (isfinite(hmag[i]) && !isfinite(hdg[i])) {
+            hdg[i] = wrap360(hmag[i] + decl[i]);
+        }
+        if (ref != NULL && isfinite(ref[i]) && isfinite(hdg[i])) {
+            err_deg[i] = wrap180(hdg[i] - ref[i]);
         }
     }
     if (rc == REPLAY_EXIT_OK) {
         /* raw spread over the samples used (same set as the corrected one), and over every
          * fed calibration sample (outliers included) */
         r.spread_raw = spread(raw_rad, use, n);
-        for (i = r.cal_first; i < r.cal_end; i += r.decimation) {
-            fedmask[i] = 1u;
-        }
         r.spread_raw_all = spread(raw_rad, fedmask, n);
         r.spread_corrected = spread(cor_rad, use, n);
         heading_metrics(&r, ref != NULL ? ref : &k_nan, err_deg, flag, ref != NULL ? n : 0u);
+        /* Compass swing on the reference rows, on the calibrated magnetic heading. */
+        if (r.swing_requested) {
+            rc = replay_swing_fit(hmag, refmag, r.ref_first, r.ref_end, c.fourier, &r, &sw);
+            if (rc != REPLAY_EXIT_OK) {
+                goto done;
+            }
+            r.n_heading_before = r.n_heading;
+            r.rms_before = r.heading_rms_deg;
+            r.bias_before = r.heading_bias_deg;
+            r.max_before = r.heading_max_abs_deg;
+            if (sw.ok) {
+                for (i = 0u; i < n; ++i) {
+                    hmag0[i] = hmag[i];
+                    hmag[i] = replay_swing_apply(&sw, hmag[i]);
+                    hdg[i] = isfinite(hmag[i]) ? wrap360(hmag[i] + decl[i]) : NAN;
+                    err_deg[i] = (ref != NULL && isfinite(ref[i]) && isfinite(hdg[i])) ? wrap180(hdg[i] - ref[i]) : NAN;
+                }
+                heading_metrics(&r, ref != NULL ? ref : &k_nan, err_deg, flag, ref != NULL ? n : 0u);
+            }
+        }
     }
     /* truth flags of the dump (glitch on recorded dumps, outlier on synthetic ones) */
     {
@@ -443,7 +775,7 @@ int main(int argc, char **argv)
             truth = d.col[MAGCAL_REPLAY_COL_OUTLIER];
             r.truth_column = "outlier";
         }
-        if (truth == NULL || rc != REPLAY_EXIT_OK) {
+        if (truth == NULL || rc != REPLAY_EXIT_OK || mode3d || aided) {
             r.truth_column = NULL;
         } else {
             for (i = r.cal_first; i < r.cal_end; i += r.decimation) {
@@ -457,15 +789,24 @@ int main(int argc, char **argv)
     }
 
     if (c.headings_path != NULL && rc == REPLAY_EXIT_OK) {
+        static const char *const k_tilt_names[REPLAY_TILT_COUNT] = {"ok", "free_fall", "accel_norm",
+                                                                   "gimbal", "zero_field", "no_accel"};
         FILE *f = fopen(c.headings_path, "w");
         int bad = (f == NULL);
         if (f != NULL) {
-            fprintf(f, "index,raw_heading_deg,heading_deg,outlier%s\n",
-                    ref != NULL ? ",heading_ref_deg,error_deg" : "");
+            fprintf(f, "index,raw_heading_deg,heading_deg,outlier%s%s%s\n",
+                    ref != NULL ? ",heading_ref_deg,error_deg" : "", r.tilt_on ? ",tilt" : "",
+                    sw.ok ? ",heading_before_swing_deg" : "");
             for (i = 0u; i < n; ++i) {
                 fprintf(f, "%lu,%.4f,%.4f,%d", (unsigned long)i, raw_hdg[i], hdg[i], flag[i]);
                 if (ref != NULL) {
                     fprintf(f, ",%.4f,%.4f", ref[i], err_deg[i]);
+                }
+                if (r.tilt_on) {
+                    fprintf(f, ",%s", k_tilt_names[tstat[i]]);
+                }
+                if (sw.ok) {
+                    fprintf(f, ",%.4f", isfinite(hmag0[i]) ? wrap360(hmag0[i] + decl[i]) : NAN);
                 }
                 fputc('\n', f);
             }
@@ -501,9 +842,15 @@ done:
     free(err_deg);
     free(hdg);
     free(raw_hdg);
+    free(hmag);
+    free(hmag0);
+    free(decl);
+    free(refmag);
+    free(bned);
     free(flag);
     free(use);
     free(fedmask);
+    free(tstat);
     free(res.flags);
     magcal_replay_csv_free(&d);
     return rc;

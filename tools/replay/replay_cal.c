@@ -17,7 +17,7 @@ static uint32_t g_work[(MAGCAL_CALIBRATOR_WORKSPACE_LEN(MAGCAL_MAX_SAMPLES) + 3u
 size_t replay_capacity(void) { return REPLAY_CAP; }
 
 /* Machine-readable status names for the JSON `status` field (enum name, lower case). */
-static const char *status_id(magcal_status_t st)
+const char *replay_status_id(magcal_status_t st)
 {
     switch (st) {
     case MAGCAL_OK: return "ok";
@@ -44,6 +44,17 @@ static const char *status_id(magcal_status_t st)
     case MAGCAL_ERR_NO_DATA: return "no_data";
     case MAGCAL_ERR_STATE: return "state";
     case MAGCAL_ERR_NOT_INITIALISED: return "not_initialised";
+    case MAGCAL_ERR_FREE_FALL: return "free_fall";
+    case MAGCAL_ERR_ACCEL_NORM: return "accel_norm";
+    case MAGCAL_ERR_GIMBAL: return "gimbal";
+    case MAGCAL_ERR_SPREAD: return "spread";
+    case MAGCAL_ERR_THRESHOLD: return "threshold";
+    case MAGCAL_ERR_OUT_OF_VALIDITY: return "out_of_validity";
+    case MAGCAL_ERR_NOT_ELLIPSOID: return "not_ellipsoid";
+    case MAGCAL_ERR_UNOBSERVABLE: return "unobservable";
+    case MAGCAL_ERR_NOT_CONVERGED: return "not_converged";
+    case MAGCAL_ERR_ZERO_FIELD: return "zero_field";
+    case MAGCAL_ERR_GATED: return "gated";
     default: return "error";
     }
 }
@@ -209,7 +220,7 @@ int replay_calibrate(const replay_options_t *o, const magcal_replay_csv_t *d, si
     free(t_ms);
     magcal_port_replay_start(NULL, NULL, NULL, 0u, 0u);
 
-    r->status = status_id(st);
+    r->status = replay_status_id(st);
     r->status_code = (int)st;
     r->n_used = rep.used;
     r->n_outliers = rep.outliers;

@@ -22,6 +22,9 @@ typedef struct {
     int have_fit;            /* classify() usable */
 } replay_result_t;
 
+/** Machine-readable status name (lower-case enum name without MAGCAL_ERR_; "ok"). */
+const char *replay_status_id(magcal_status_t st);
+
 /** Most samples one calibration run holds (the calibrator's capacity). */
 size_t replay_capacity(void);
 

@@ -30,6 +30,108 @@ static cJSON *pair(double a, double b)
     return arr;
 }
 
+static cJSON *vec3(const double *v)
+{
+    cJSON *arr = cJSON_CreateArray();
+    size_t k;
+    if (arr != NULL) {
+        for (k = 0u; k < 3u; ++k) {
+            cJSON_AddItemToArray(arr, cJSON_CreateNumber(sig7(v[k])));
+        }
+    }
+    return arr;
+}
+
+static const char *const k_tilt_keys[REPLAY_TILT_COUNT] = {"ok", "free_fall", "accel_norm", "gimbal",
+                                                          "zero_field", "no_accel"};
+
+/* Fields of the 3-D calibration (3d and aided modes). */
+static void add_3d(cJSON *o, const replay_report_t *r)
+{
+    cJSON *m = cJSON_CreateArray();
+    size_t i;
+    cJSON_AddItemToObject(o, "offset", vec3(r->off3));
+    for (i = 0u; i < 3u; ++i) {
+        cJSON_AddItemToArray(m, vec3(r->mat3[i]));
+    }
+    cJSON_AddItemToObject(o, "matrix", m);
+    cJSON_AddNumberToObject(o, "field", sig7(r->field3));
+}
+
+static void add_tilt(cJSON *o, const replay_report_t *r)
+{
+    cJSON *t = cJSON_CreateObject(), *g = cJSON_CreateObject();
+    size_t k;
+    cJSON_AddStringToObject(t, "accel_unit", r->accel_unit);
+    cJSON_AddStringToObject(t, "accel_unit_source", r->accel_unit_source);
+    cJSON_AddNumberToObject(t, "accel_median_norm", sig7(r->accel_median_norm));
+    cJSON_AddStringToObject(t, "field", r->tilt_field != NULL ? r->tilt_field : "");
+    if (r->mode[0] == '2') {
+        cJSON_AddNumberToObject(t, "z_offset", sig7(r->tilt_z_offset));
+        cJSON_AddNumberToObject(t, "hz_level", sig7(r->tilt_hz_level));
+        if (isfinite(r->inclination_deg)) {
+            cJSON_AddNumberToObject(t, "inclination_deg", r->inclination_deg);
+        }
+    }
+    for (k = 0u; k < REPLAY_TILT_COUNT; ++k) {
+        cJSON_AddNumberToObject(g, k_tilt_keys[k], (double)r->tilt_counts[k]);
+    }
+    cJSON_AddItemToObject(t, "gates", g);
+    cJSON_AddItemToObject(o, "tilt", t);
+}
+
+static void add_swing(cJSON *o, const replay_report_t *r)
+{
+    cJSON *s = cJSON_CreateObject();
+    size_t k;
+    cJSON_AddStringToObject(s, "status", r->swing_status != NULL ? r->swing_status : "error");
+    cJSON_AddNumberToObject(s, "status_code", r->swing_status_code);
+    cJSON_AddStringToObject(s, "model", r->swing_model != NULL ? r->swing_model : "smith");
+    cJSON_AddStringToObject(s, "method", r->swing_method != NULL ? r->swing_method : "pairs");
+    cJSON_AddItemToObject(s, "ref_rows", pair((double)r->ref_first, (double)r->ref_end));
+    cJSON_AddNumberToObject(s, "n_ref", (double)r->swing_n_ref);
+    cJSON_AddNumberToObject(s, "n_points", (double)r->swing_n_points);
+    if (r->swing_ncoef > 0u) {
+        cJSON *c = cJSON_CreateArray();
+        for (k = 0u; k < r->swing_ncoef; ++k) {
+            cJSON_AddItemToArray(c, cJSON_CreateNumber(sig7(r->swing_coef[k])));
+        }
+        cJSON_AddItemToObject(s, "coefficients_deg", c);
+        if (r->swing_model != NULL && r->swing_model[0] == 'f') {
+            cJSON_AddNumberToObject(s, "order", (double)r->swing_order);
+        }
+        cJSON_AddNumberToObject(s, "fit_rms_deg", sig7(r->swing_fit_rms_deg));
+        cJSON_AddNumberToObject(s, "fit_max_abs_deg", sig7(r->swing_fit_max_deg));
+    }
+    cJSON_AddItemToObject(o, "swing", s);
+}
+
+static void add_aided(cJSON *o, const replay_report_t *r)
+{
+    cJSON *a = cJSON_CreateObject(), *g = cJSON_CreateObject();
+    cJSON_AddStringToObject(a, "status", r->aided_status != NULL ? r->aided_status : "error");
+    cJSON_AddStringToObject(a, "field_unit", r->field_unit != NULL ? r->field_unit : "uT");
+    cJSON_AddItemToObject(a, "b_ref_ned_first", vec3(r->b_ref_first));
+    cJSON_AddNumberToObject(a, "declination_first_deg", sig7(r->decl_first_deg));
+    cJSON_AddNumberToObject(a, "n_seen", (double)r->aided_seen);
+    cJSON_AddNumberToObject(a, "n_accepted", (double)r->aided_accepted);
+    cJSON_AddNumberToObject(a, "n_skipped", (double)r->aided_skipped);
+    cJSON_AddNumberToObject(g, "dop", (double)r->aided_gated[1]);
+    cJSON_AddNumberToObject(g, "raw", (double)r->aided_gated[2]);
+    cJSON_AddNumberToObject(g, "field", (double)r->aided_gated[3]);
+    cJSON_AddNumberToObject(g, "vector", (double)r->aided_gated[4]);
+    cJSON_AddItemToObject(a, "gated", g);
+    if (r->have_aided) {
+        cJSON_AddNumberToObject(a, "converged_at", (double)r->converged_at);
+        cJSON_AddNumberToObject(a, "converged_row", (double)r->converged_row);
+        cJSON_AddNumberToObject(a, "n_prior_dirs", (double)r->n_prior_dirs);
+        cJSON_AddNumberToObject(a, "min_eig", sig7(r->min_eig));
+        cJSON_AddNumberToObject(a, "weak_std", sig7(r->weak_std));
+        cJSON_AddNumberToObject(a, "resid_rms", sig7(r->resid_rms_aided));
+    }
+    cJSON_AddItemToObject(o, "aided", a);
+}
+
 int replay_print_json(const replay_report_t *r)
 {
     cJSON *o = cJSON_CreateObject();
@@ -43,6 +145,7 @@ int replay_print_json(const replay_report_t *r)
         cJSON_AddStringToObject(o, "reason", r->reason);
     }
     cJSON_AddNumberToObject(o, "status_code", r->status_code);
+    cJSON_AddStringToObject(o, "mode", r->mode);
     cJSON_AddStringToObject(o, "file", r->file);
     cJSON_AddStringToObject(o, "filter", r->filter);
     if (isfinite(r->eps)) {
@@ -58,11 +161,32 @@ int replay_print_json(const replay_report_t *r)
     cJSON_AddNumberToObject(o, "n_cal", (double)r->n_cal);
     cJSON_AddNumberToObject(o, "n_fed", (double)r->n_fed);
     cJSON_AddNumberToObject(o, "decimation", (double)r->decimation);
-    cJSON_AddNumberToObject(o, "capacity", (double)r->capacity);
+    if (r->mode[0] == '2') {
+        cJSON_AddNumberToObject(o, "capacity", (double)r->capacity);
+    }
     /* reached by most failing runs too (0 where the run stopped earlier) */
     cJSON_AddNumberToObject(o, "n_used", (double)r->n_used);
     cJSON_AddNumberToObject(o, "n_outliers", (double)r->n_outliers);
-    cJSON_AddNumberToObject(o, "coverage_deg", sig7(r->coverage_deg));
+    if (r->mode[0] == '2') {
+        cJSON_AddNumberToObject(o, "coverage_deg", sig7(r->coverage_deg));
+    } else if (r->mode[0] == '3') {
+        cJSON_AddNumberToObject(o, "coverage", sig7(r->coverage3));
+    }
+    if (r->have_3d) {
+        add_3d(o, r);
+        if (r->mode[0] == '3') {
+            cJSON_AddStringToObject(o, "model", r->model3);
+            cJSON_AddNumberToObject(o, "residual_rms", sig7(r->residual_rms));
+        }
+        cJSON_AddNumberToObject(o, "radius_spread_raw", sig7(r->spread_raw_all));
+        cJSON_AddNumberToObject(o, "radius_spread_corrected", sig7(r->spread_corrected));
+    }
+    if (r->mode[0] == 'a') {
+        add_aided(o, r);
+    }
+    if (r->tilt_on) {
+        add_tilt(o, r);
+    }
     if (r->have_geometry) {
         cJSON *m = cJSON_CreateArray();
         cJSON *e = cJSON_CreateObject();
@@ -92,7 +216,16 @@ int replay_print_json(const replay_report_t *r)
         cJSON_AddNumberToObject(t, "false_alarms", (double)r->false_alarms);
         cJSON_AddItemToObject(o, "truth_flags", t);
     }
-    if (r->have_geometry && r->n_heading > 0u) {
+    if (r->swing_requested && (r->have_geometry || r->have_3d)) {
+        add_swing(o, r);
+        if (r->n_heading_before > 0u) {
+            cJSON_AddNumberToObject(o, "n_heading_before_swing", (double)r->n_heading_before);
+            cJSON_AddNumberToObject(o, "heading_rms_deg_before_swing", sig7(r->rms_before));
+            cJSON_AddNumberToObject(o, "heading_bias_deg_before_swing", sig7(r->bias_before));
+            cJSON_AddNumberToObject(o, "heading_max_abs_deg_before_swing", sig7(r->max_before));
+        }
+    }
+    if ((r->have_geometry || r->have_3d) && r->n_heading > 0u) {
         cJSON *arr = cJSON_CreateArray();
         cJSON_AddNumberToObject(o, "n_heading", (double)r->n_heading);
         cJSON_AddNumberToObject(o, "n_heading_flagged", (double)r->n_heading_flagged);

@@ -25,8 +25,23 @@ typedef struct {
     double max_abs_deg;
 } replay_ref_group_t;
 
+/** Tilt gate outcomes counted per row (index order of the JSON `tilt.gates` object). */
+enum {
+    REPLAY_TILT_OK = 0,
+    REPLAY_TILT_FREE_FALL,
+    REPLAY_TILT_ACCEL_NORM,
+    REPLAY_TILT_GIMBAL,
+    REPLAY_TILT_ZERO_FIELD,
+    REPLAY_TILT_NO_ACCEL, /* accelerometer cell missing (nan) or another non-finite input */
+    REPLAY_TILT_COUNT
+};
+
+/** Most coefficients a reported swing / Fourier model has. */
+#define REPLAY_MAX_SWING_COEF 12u
+
 typedef struct {
     /* run description */
+    const char *mode; /* "2d" | "3d" | "aided" */
     const char *file;
     const char *filter;
     const char *plane;
@@ -64,6 +79,58 @@ typedef struct {
     int by_ref_sectors; /* 1 when grouped in 45-degree sectors */
     size_t n_groups;
     replay_ref_group_t groups[REPLAY_MAX_REF_GROUPS];
+    /* rows excluded from the heading metrics besides the calibration rows (the swing's
+     * reference rows); ref_first == ref_end = none */
+    size_t ref_first, ref_end;
+
+    /* ---- compass swing (--ref-rows) */
+    int swing_requested;
+    const char *swing_status;     /* "ok" or the status name */
+    int swing_status_code;
+    const char *swing_model;      /* "smith" | "fourier" */
+    const char *swing_method;     /* "bins" (one point per 10-degree bin) | "pairs" (every row) */
+    size_t swing_n_ref;           /* reference rows with a finite heading and reference */
+    size_t swing_n_points;        /* points of the final fit (bins or rows) */
+    size_t swing_ncoef;           /* coefficients in swing_coef (0 when not fitted) */
+    double swing_coef[REPLAY_MAX_SWING_COEF];
+    unsigned swing_order;         /* Fourier order K */
+    double swing_fit_rms_deg, swing_fit_max_deg;
+    /* heading metrics before the swing (same rows) */
+    size_t n_heading_before;
+    double rms_before, bias_before, max_before;
+
+    /* ---- tilt compensation */
+    int tilt_on;
+    const char *accel_unit;        /* "g" | "mps2" */
+    const char *accel_unit_source; /* "detected" | "given" */
+    double accel_median_norm;      /* in the dump's unit */
+    const char *tilt_field;        /* how the 3-axis field was formed (text) */
+    double tilt_z_offset;          /* 2d mode: mean mz over the calibration rows */
+    double tilt_hz_level;          /* 2d mode: level vertical component used (calibrated units) */
+    double inclination_deg;        /* NaN = not given */
+    size_t tilt_counts[REPLAY_TILT_COUNT];
+
+    /* ---- 3-D ellipsoid calibration */
+    int have_3d;
+    double off3[3];
+    double mat3[3][3];
+    double field3;
+    const char *model3;
+    double coverage3;
+    size_t n_rejected3;
+
+    /* ---- aided */
+    int have_aided;               /* a result (G, V) exists */
+    const char *aided_status;
+    int aided_status_code;
+    const char *field_unit;       /* unit of the dump's field: "uT" | "nT" | "gauss" */
+    double b_ref_first[3];        /* B_ref (NED, dump unit) of the first epoch fed */
+    double decl_first_deg;        /* WMM declination of the first epoch fed */
+    size_t aided_seen, aided_accepted, aided_gated[5];
+    size_t aided_skipped;         /* rows not fed: a needed cell missing */
+    long converged_at, converged_row; /* -1 = not converged */
+    unsigned aided_flags, n_prior_dirs;
+    double min_eig, weak_std, resid_rms_aided;
 } replay_report_t;
 
 /** Print the report as a readable table. */

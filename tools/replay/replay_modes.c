@@ -1,0 +1,438 @@
+/* magcal-replay: 3-D, aided and swing modes (see replay_modes.h). */
+#include "replay_modes.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "magcal/aided.h"
+#include "magcal/geomag.h"
+#include "replay_cal.h"
+
+static const double k_pi = 3.14159265358979323846;
+
+static double wrap180d(double a)
+{
+    a = fmod(a + 180.0, 360.0);
+    if (a < 0.0) {
+        a += 360.0;
+    }
+    return a - 180.0;
+}
+
+static double wrap360d(double a)
+{
+    a = fmod(a, 360.0);
+    if (a < 0.0) {
+        a += 360.0;
+    }
+    return (a >= 360.0) ? 0.0 : a;
+}
+
+/* ------------------------------------------------------------------ 3-D */
+
+static const char *model_name(magcal_ellipsoid_model_t m)
+{
+    switch (m) {
+    case MAGCAL_ELLIPSOID_MODEL_QUADRIC9: return "quadric9";
+    case MAGCAL_ELLIPSOID_MODEL_QUADRIC10: return "quadric10";
+    case MAGCAL_ELLIPSOID_MODEL_SPHERE: return "sphere";
+    default: return "auto";
+    }
+}
+
+int replay_fit_3d(const magcal_vec3_t *m, size_t n, replay_report_t *r, magcal_ellipsoid_cal_t *cal)
+{
+    const magcal_ellipsoid_cfg_t cfg = MAGCAL_ELLIPSOID_CFG_DEFAULT;
+    magcal_ellipsoid_result_t res;
+    magcal_status_t st;
+    float cov = 0.0f;
+    int i, j;
+
+    memset(&res, 0, sizeof res);
+    st = magcal_ellipsoid_fit(m, n, &cfg, &res);
+    r->status = replay_status_id(st);
+    r->status_code = (int)st;
+    if (st != MAGCAL_OK) {
+        magcal_vec3_t c = {0.0f, 0.0f, 0.0f};
+        size_t k;
+        /* coverage around the sample mean, to explain a coverage failure */
+        for (k = 0u; k < n; ++k) {
+            c.x += m[k].x / (float)n;
+            c.y += m[k].y / (float)n;
+            c.z += m[k].z / (float)n;
+        }
+        if (magcal_ellipsoid_coverage(m, n, &c, &cov) == MAGCAL_OK) {
+            r->coverage3 = cov;
+        } else {
+            r->coverage3 = NAN;
+        }
+        (void)snprintf(r->reason, sizeof r->reason,
+                       "%s: %lu samples; direction coverage about the sample mean %.2f of the 72 cells "
+                       "(sphere needs %.2f, quadric %.2f)",
+                       magcal_status_str(st), (unsigned long)n, (double)cov, (double)cfg.min_coverage_sphere,
+                       (double)cfg.min_coverage_full);
+        r->have_3d = 0;
+        return (st == MAGCAL_ERR_NULL || st == MAGCAL_ERR_ARG) ? REPLAY_EXIT_INTERNAL : REPLAY_EXIT_CAL_FAILED;
+    }
+    *cal = res.cal;
+    r->have_3d = 1;
+    r->model3 = model_name(res.model);
+    r->coverage3 = res.coverage;
+    r->off3[0] = res.cal.v.x;
+    r->off3[1] = res.cal.v.y;
+    r->off3[2] = res.cal.v.z;
+    for (i = 0; i < 3; ++i) {
+        for (j = 0; j < 3; ++j) {
+            r->mat3[i][j] = res.cal.g[i][j];
+        }
+    }
+    r->field3 = res.cal.field;
+    r->residual_rms = res.residual_rms;
+    r->n_used = res.n_used;
+    r->n_outliers = res.n_rejected;
+    r->n_rejected3 = res.n_rejected;
+    return REPLAY_EXIT_OK;
+}
+
+/* ------------------------------------------------------------------ swing */
+
+int replay_swing_fit(const double *psi_c_deg, const double *psi_ref_deg, size_t first, size_t end,
+                     int fourier, replay_report_t *r, replay_swing_t *sw)
+{
+    size_t i, n = 0u, distinct = 0u, np = 0u, g;
+    double keys[MAGCAL_SWING_COG_BINS + 1u];
+    double off_sum[MAGCAL_SWING_COG_BINS + 1u];
+    size_t cnt[MAGCAL_SWING_COG_BINS + 1u];
+    float *pc = NULL, *pr = NULL;
+    magcal_status_t st;
+    int bunched;
+
+    memset(sw, 0, sizeof *sw);
+    sw->fourier = fourier;
+    r->swing_model = fourier ? "fourier" : "smith";
+    r->swing_ncoef = 0u;
+    r->swing_fit_rms_deg = NAN;
+    r->swing_fit_max_deg = NAN;
+    /* reference pairs; distinct reference values (to 0.01 deg), at most COG_BINS + 1 tracked */
+    for (i = first; i < end; ++i) {
+        double key;
+        if (!isfinite(psi_c_deg[i]) || !isfinite(psi_ref_deg[i])) {
+            continue;
+        }
+        n++;
+        key = floor(wrap360d(psi_ref_deg[i]) * 100.0 + 0.5) / 100.0;
+        for (g = 0u; g < distinct && keys[g] != key; ++g) {
+        }
+        if (g == distinct && distinct <= MAGCAL_SWING_COG_BINS) {
+            keys[distinct] = key;
+            off_sum[distinct] = 0.0;
+            cnt[distinct] = 0u;
+            distinct++;
+        }
+        if (g < distinct) {
+            off_sum[g] += wrap180d(psi_c_deg[i] - key);
+            cnt[g]++;
+        }
+    }
+    r->swing_n_ref = n;
+    /* reference rows bunched at a few headings (a swing at marked positions): each heading must
+     * count once, not by the time spent there */
+    bunched = distinct <= MAGCAL_SWING_COG_BINS && n > distinct;
+    r->swing_method = bunched ? "bins" : "pairs";
+
+    if (!fourier && bunched) {
+        magcal_swing_cog_t acc;
+        const magcal_swing_cog_cfg_t cfg = MAGCAL_SWING_COG_CFG_DEFAULT;
+        magcal_swing_stats_t stats;
+        size_t bins = 0u, legs = 0u;
+        st = magcal_swing_cog_init(&acc, &cfg);
+        for (i = first; i < end && st == MAGCAL_OK; ++i) {
+            if (isfinite(psi_c_deg[i]) && isfinite(psi_ref_deg[i])) {
+                st = magcal_swing_cog_add_pair(&acc, (float)psi_c_deg[i], (float)psi_ref_deg[i], 1.0f);
+            }
+        }
+        if (st == MAGCAL_OK) {
+            (void)magcal_swing_cog_count(&acc, &bins, &legs);
+            r->swing_n_points = bins;
+            memset(&stats, 0, sizeof stats);
+            st = magcal_swing_cog_fit(&acc, &sw->swing, &stats);
+            if (st == MAGCAL_OK) {
+                r->swing_fit_rms_deg = stats.rms_deg;
+                r->swing_fit_max_deg = stats.max_abs_deg;
+            }
+        }
+    } else {
+        /* pairs: every row, or (Fourier on bunched rows) one mean pair per reference heading */
+        pc = (float *)calloc(n + 1u, sizeof *pc);
+        pr = (float *)calloc(n + 1u, sizeof *pr);
+        if (pc == NULL || pr == NULL) {
+            free(pc);
+            free(pr);
+            return REPLAY_EXIT_INTERNAL;
+        }
+        if (bunched) {
+            for (g = 0u; g < distinct; ++g) {
+                pc[np] = (float)wrap360d(keys[g] + off_sum[g] / (double)cnt[g]);
+                pr[np] = (float)keys[g];
+                np++;
+            }
+        } else {
+            for (i = first; i < end; ++i) {
+                if (isfinite(psi_c_deg[i]) && isfinite(psi_ref_deg[i])) {
+                    pc[np] = (float)psi_c_deg[i];
+                    pr[np] = (float)psi_ref_deg[i];
+                    np++;
+                }
+            }
+        }
+        r->swing_n_points = np;
+        if (!fourier) {
+            const magcal_swing_cfg_t cfg = MAGCAL_SWING_CFG_DEFAULT;
+            magcal_swing_stats_t stats;
+            memset(&stats, 0, sizeof stats);
+            st = (np < MAGCAL_SWING_MIN_POINTS)
+                     ? MAGCAL_ERR_TOO_FEW_POINTS
+                     : magcal_swing_fit(&cfg, pc, pr, NULL, np, MAGCAL_SWING_REG_MEASURED, &sw->swing, &stats);
+            if (st == MAGCAL_OK) {
+                r->swing_fit_rms_deg = stats.rms_deg;
+                r->swing_fit_max_deg = stats.max_abs_deg;
+            }
+        } else {
+            const magcal_errmodel_cfg_t cfg = MAGCAL_ERRMODEL_CFG_DEFAULT;
+            magcal_errmodel_stats_t stats;
+            memset(&stats, 0, sizeof stats);
+            st = (np < 3u) ? MAGCAL_ERR_TOO_FEW_POINTS : magcal_errmodel_fit(&cfg, pc, pr, np, &sw->fmodel, &stats);
+            if (st == MAGCAL_OK || st == MAGCAL_ERR_THRESHOLD) {
+                r->swing_fit_rms_deg = stats.rms_deg;
+                r->swing_fit_max_deg = stats.max_abs_deg;
+                r->swing_order = stats.order;
+            }
+        }
+        free(pc);
+        free(pr);
+    }
+    r->swing_status = replay_status_id(st);
+    r->swing_status_code = (int)st;
+    if (st != MAGCAL_OK) {
+        return REPLAY_EXIT_OK; /* reported, the calibration itself stands */
+    }
+    sw->ok = 1;
+    if (!fourier) {
+        r->swing_ncoef = MAGCAL_SWING_NCOEF;
+        for (g = 0u; g < MAGCAL_SWING_NCOEF; ++g) {
+            r->swing_coef[g] = sw->swing.coef_deg[g];
+        }
+    } else {
+        r->swing_order = sw->fmodel.order;
+        r->swing_ncoef = 2u * (size_t)sw->fmodel.order + 1u;
+        for (g = 0u; g < r->swing_ncoef && g < REPLAY_MAX_SWING_COEF; ++g) {
+            r->swing_coef[g] = sw->fmodel.coef[g];
+        }
+    }
+    return REPLAY_EXIT_OK;
+}
+
+double replay_swing_apply(const replay_swing_t *sw, double psi_c_deg)
+{
+    float out = 0.0f;
+    magcal_status_t st;
+    if (!sw->ok || !isfinite(psi_c_deg)) {
+        return NAN;
+    }
+    st = sw->fourier ? magcal_errmodel_apply(&sw->fmodel, (float)psi_c_deg, &out)
+                     : magcal_swing_apply(&sw->swing, (float)psi_c_deg, &out);
+    return (st == MAGCAL_OK) ? wrap360d((double)out) : NAN;
+}
+
+/* ------------------------------------------------------------------ aided */
+
+/* Days since 1970-01-01 of a Gregorian date (H. Hinnant's days_from_civil). */
+static long days_from_civil(long y, long m, long dd)
+{
+    long era, yoe, doy, doe;
+    y -= (m <= 2) ? 1 : 0;
+    era = (y >= 0 ? y : y - 399) / 400;
+    yoe = y - era * 400;
+    doy = (153 * (m + (m > 2 ? -3 : 9)) + 2) / 5 + dd - 1;
+    doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
+    return era * 146097 + doe - 719468;
+}
+
+/* Decimal year of a Unix time (UTC): year + (t - start of year) / length of year. */
+static double unix_to_year(double t)
+{
+    long day = (long)floor(t / 86400.0);
+    long y = 1970 + (long)floor((double)day / 365.2425);
+    double y0, y1;
+    while (days_from_civil(y, 1, 1) > day) {
+        --y;
+    }
+    while (days_from_civil(y + 1, 1, 1) <= day) {
+        ++y;
+    }
+    y0 = 86400.0 * (double)days_from_civil(y, 1, 1);
+    y1 = 86400.0 * (double)days_from_civil(y + 1, 1, 1);
+    return (double)y + (t - y0) / (y1 - y0);
+}
+
+int replay_wmm_rows(const magcal_replay_csv_t *d, const replay_aided_opts_t *o, double *b_ned3,
+                    double *decl_deg, char *err, size_t err_len)
+{
+    const double *lat = d->col[MAGCAL_REPLAY_COL_LAT], *lon = d->col[MAGCAL_REPLAY_COL_LON];
+    const double *hgt = d->col[MAGCAL_REPLAY_COL_HEIGHT], *yr = d->col[MAGCAL_REPLAY_COL_YEAR];
+    const double *t = d->col[MAGCAL_REPLAY_COL_T];
+    double last[4] = {NAN, NAN, NAN, NAN};
+    magcal_geomag_result_t f;
+    magcal_status_t st = MAGCAL_ERR_ARG;
+    size_t i;
+    if (!isfinite(o->year) && yr == NULL && t == NULL) {
+        (void)snprintf(err, err_len, "no epoch: the dump has neither decimal_year nor t (Unix time); give --year");
+        return REPLAY_EXIT_INPUT;
+    }
+    memset(&f, 0, sizeof f);
+    for (i = 0u; i < d->n_rows; ++i) {
+        double y = isfinite(o->year) ? o->year : (yr != NULL) ? yr[i] : NAN;
+        if (!isfinite(o->year) && yr == NULL) {
+            if (isfinite(t[i]) && t[i] < 946684800.0) {
+                (void)snprintf(err, err_len,
+                               "row %lu: t = %g is not a Unix time (before 2000); add decimal_year or give --year",
+                               (unsigned long)i, t[i]);
+                return REPLAY_EXIT_INPUT;
+            }
+            y = isfinite(t[i]) ? unix_to_year(t[i]) : NAN;
+        }
+        b_ned3[3u * i] = b_ned3[3u * i + 1u] = b_ned3[3u * i + 2u] = NAN;
+        decl_deg[i] = NAN;
+        if (!isfinite(lat[i]) || !isfinite(lon[i]) || !isfinite(hgt[i]) || !isfinite(y)) {
+            continue;
+        }
+        /* the model is evaluated again only when the position or date moves (a fixed site: once);
+         * thresholds ~1 m and ~1 h change the field by far less than 1 nT */
+        if (!(fabs(lat[i] - last[0]) < 1e-5 && fabs(lon[i] - last[1]) < 1e-5 && fabs(hgt[i] - last[2]) < 1e-3 &&
+              fabs(y - last[3]) < 1e-4)) {
+            st = magcal_geomag_eval(&magcal_geomag_wmm2025, (float)lat[i], (float)lon[i], (float)hgt[i], (float)y, &f);
+            last[0] = lat[i];
+            last[1] = lon[i];
+            last[2] = hgt[i];
+            last[3] = y;
+            if (st == MAGCAL_ERR_OUT_OF_VALIDITY) {
+                (void)snprintf(err, err_len, "row %lu: epoch %.4f outside WMM2025 validity (2025.0-2030.0)",
+                               (unsigned long)i, y);
+                return REPLAY_EXIT_INPUT;
+            }
+            if (st != MAGCAL_OK) {
+                (void)snprintf(err, err_len, "row %lu: WMM2025 rejects lat %g lon %g height %g km: %s",
+                               (unsigned long)i, lat[i], lon[i], hgt[i], magcal_status_str(st));
+                return REPLAY_EXIT_INPUT;
+            }
+        }
+        b_ned3[3u * i] = (double)f.x_nt * o->unit_per_nt;
+        b_ned3[3u * i + 1u] = (double)f.y_nt * o->unit_per_nt;
+        b_ned3[3u * i + 2u] = (double)f.z_nt * o->unit_per_nt;
+        decl_deg[i] = f.decl_deg;
+    }
+    return REPLAY_EXIT_OK;
+}
+
+static magcal_aided_t g_aided;
+
+int replay_aided_run(const magcal_replay_csv_t *d, const magcal_vec3_t *m, const double *b_ned3,
+                     size_t first, size_t end, replay_report_t *r, magcal_ellipsoid_cal_t *cal)
+{
+    const magcal_aided_cfg_t cfg = MAGCAL_AIDED_CFG_DEFAULT;
+    const double *roll = d->col[MAGCAL_REPLAY_COL_ROLL], *pitch = d->col[MAGCAL_REPLAY_COL_PITCH];
+    const double *yaw = d->col[MAGCAL_REPLAY_COL_YAW], *dop = d->col[MAGCAL_REPLAY_COL_DOP];
+    const double d2r = k_pi / 180.0;
+    magcal_aided_result_t res;
+    magcal_status_t st;
+    size_t i, k;
+    int first_fed = 1;
+
+    st = magcal_aided_init(&g_aided, &cfg);
+    if (st != MAGCAL_OK) {
+        fprintf(stderr, "magcal-replay: magcal_aided_init: %s\n", magcal_status_str(st));
+        return REPLAY_EXIT_INTERNAL;
+    }
+    r->converged_at = -1;
+    r->converged_row = -1;
+    r->aided_skipped = 0u;
+    for (i = first; i < end; ++i) {
+        magcal_aided_epoch_t ep;
+        magcal_aided_gate_t why = MAGCAL_AIDED_GATE_NONE;
+        double dp = (dop != NULL) ? dop[i] : 0.0;
+        if (!isfinite(b_ned3[3u * i]) || !isfinite(roll[i]) || !isfinite(pitch[i]) || !isfinite(yaw[i]) ||
+            !isfinite(dp)) {
+            r->aided_skipped++;
+            continue;
+        }
+        ep.m = m[i];
+        ep.roll_rad = (float)(roll[i] * d2r);
+        ep.pitch_rad = (float)(pitch[i] * d2r);
+        ep.yaw_rad = (float)(yaw[i] * d2r);
+        ep.b_ref_ned.x = (float)b_ned3[3u * i];
+        ep.b_ref_ned.y = (float)b_ned3[3u * i + 1u];
+        ep.b_ref_ned.z = (float)b_ned3[3u * i + 2u];
+        ep.dop = (float)dp;
+        if (first_fed) {
+            first_fed = 0;
+            for (k = 0u; k < 3u; ++k) {
+                r->b_ref_first[k] = b_ned3[3u * i + k];
+            }
+        }
+        st = magcal_aided_update(&g_aided, &ep, &why);
+        if (st != MAGCAL_OK && st != MAGCAL_ERR_GATED) {
+            /* bad epoch content (|pitch| >= 90, dop < 0, ...): counted as skipped, reported */
+            r->aided_skipped++;
+            continue;
+        }
+        if (st == MAGCAL_OK && r->converged_row < 0 &&
+            magcal_aided_get(&g_aided, &res) != MAGCAL_ERR_TOO_FEW_POINTS &&
+            (res.flags & MAGCAL_AIDED_FLAG_CONVERGED) != 0u) {
+            r->converged_row = (long)i;
+        }
+    }
+    memset(&res, 0, sizeof res);
+    st = magcal_aided_get(&g_aided, &res);
+    r->aided_status = replay_status_id(st);
+    r->aided_status_code = (int)st;
+    r->status = r->aided_status;
+    r->status_code = (int)st;
+    r->aided_seen = res.n_seen;
+    r->aided_accepted = res.n_accepted;
+    for (k = 0u; k < 5u; ++k) {
+        r->aided_gated[k] = res.gated[k];
+    }
+    if (st != MAGCAL_OK && st != MAGCAL_ERR_UNOBSERVABLE && st != MAGCAL_ERR_NOT_CONVERGED) {
+        r->aided_seen = 0u;
+        (void)snprintf(r->reason, sizeof r->reason, "%s: no estimate (fewer than %u accepted epochs)",
+                       magcal_status_str(st), (unsigned)cfg.min_epochs);
+        r->have_aided = 0;
+        return REPLAY_EXIT_CAL_FAILED;
+    }
+    if (st != MAGCAL_OK) {
+        (void)snprintf(r->reason, sizeof r->reason, "%s", magcal_status_str(st));
+    }
+    r->have_aided = 1;
+    *cal = res.cal;
+    r->converged_at = res.converged_at > 0u ? (long)res.converged_at : -1;
+    r->aided_flags = res.flags;
+    r->n_prior_dirs = res.n_prior_dirs;
+    r->min_eig = res.min_eig;
+    r->weak_std = res.weak_std;
+    r->resid_rms_aided = res.resid_rms;
+    r->have_3d = 1;
+    r->model3 = "aided";
+    r->off3[0] = res.cal.v.x;
+    r->off3[1] = res.cal.v.y;
+    r->off3[2] = res.cal.v.z;
+    for (i = 0u; i < 3u; ++i) {
+        for (k = 0u; k < 3u; ++k) {
+            r->mat3[i][k] = res.cal.g[i][k];
+        }
+    }
+    r->field3 = res.cal.field;
+    r->n_used = res.n_accepted;
+    return REPLAY_EXIT_OK;
+}
