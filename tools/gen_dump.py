@@ -4,6 +4,11 @@
     /usr/bin/python3 tools/gen_dump.py --all [--out tests/data/synthetic]
     /usr/bin/python3 tools/gen_dump.py SCENARIO [--out DIR]
     /usr/bin/python3 tools/gen_dump.py --list
+    /usr/bin/python3 tools/gen_dump.py --extra [--out tools/replay/tests/data]
+
+--extra writes the harness-only scenarios (EXTRA below: a sensor mounted with a rotation, with
+reference rows for a compass swing); they are not in --all because tests/data/synthetic is
+checked against the plain floor, which a mounting rotation cannot meet without a swing.
 
 Each scenario writes DIR/<scenario>.csv and DIR/<scenario>.json (fixed seeds: reproducible).
 
@@ -44,7 +49,7 @@ import numpy as np
 HEADER = "t,mx,my,mz,heading_ref_deg,outlier"
 VER_HEADINGS = [0.0, 45.0, 90.0, 135.0, 180.0, 225.0, 270.0, 315.0]
 
-BASE = dict(h0=40.0, kx=1.15, ky=0.85, phi_s_deg=25.0, bx=12.0, by=-7.0, sigma=0.2, n_cal=600,
+BASE = dict(rot_deg=0.0, ref_per_heading=0, h0=40.0, kx=1.15, ky=0.85, phi_s_deg=25.0, bx=12.0, by=-7.0, sigma=0.2, n_cal=600,
             arc_deg=720.0, start_deg=17.0, ver_per_heading=10, scale=1.0, quantise=False,
             burst_frac=0.0, n_bursts=0, near_frac=0.0, spike_frac=0.0, seed=1)
 
@@ -65,6 +70,17 @@ SCENARIOS = {
     "near_ring": dict(burst_frac=0.20, n_bursts=5, near_frac=1.0, seed=111),
     "spikes": dict(spike_frac=0.05, seed=112),
 }
+
+
+# Harness-only scenarios (--extra): Hm = T R(rot) H + b, i.e. the sensor is mounted rotated by
+# rot_deg (R rotates counter-clockwise seen from above, so the raw heading reads rot_deg too high)
+# and rows [n_cal, n_cal + 8 * ref_per_heading) are reference rows at the 8 VER_HEADINGS for a
+# compass swing; the verification rows follow, at 16 headings 11.25 + 22.5 k (between the
+# reference headings).
+EXTRA = {
+    "mount_rot3": dict(rot_deg=3.0, ref_per_heading=20, ver_per_heading=10, seed=113),
+}
+VER_HEADINGS_16 = [11.25 + 22.5 * k for k in range(16)]
 
 
 def rot(a):
@@ -152,33 +168,46 @@ def make(name, p):
             outlier[i] = 1
             spikes.append(int(i))
 
+    # mounting rotation (identity unless rot_deg): the raw field is T R H + b
+    Rm = rot(math.radians(p["rot_deg"]))
+    TR = T @ Rm
+    if p["rot_deg"] != 0.0:
+        m_cal = m_cal - (field(h0, psi_cal) @ T.T) + field(h0, psi_cal) @ TR.T
+    # reference rows for a swing (harness-only scenarios)
+    nr = p["ref_per_heading"]
+    psi_ref = np.repeat(np.array(VER_HEADINGS), nr)
+    m_ref = field(h0, psi_ref) @ TR.T + b + sigma * rng.standard_normal((len(psi_ref), 2))
     # verification rows
     nv = p["ver_per_heading"]
-    psi_ver = np.repeat(np.array(VER_HEADINGS), nv)
-    m_ver = field(h0, psi_ver) @ T.T + b + sigma * rng.standard_normal((len(psi_ver), 2))
+    ver_h = VER_HEADINGS_16 if nr > 0 else VER_HEADINGS
+    psi_ver = np.repeat(np.array(ver_h), nv)
+    m_ver = field(h0, psi_ver) @ TR.T + b + sigma * rng.standard_normal((len(psi_ver), 2))
 
-    m = np.vstack([m_cal, m_ver])
+    m = np.vstack([m_cal, m_ref, m_ver])
     if p["quantise"]:
         m = np.round(m)
-    psi = np.concatenate([psi_cal, psi_ver])
-    out = np.concatenate([outlier, np.zeros(len(psi_ver), dtype=int)])
+    psi = np.concatenate([psi_cal, psi_ref, psi_ver])
+    out = np.concatenate([outlier, np.zeros(len(psi_ref) + len(psi_ver), dtype=int)])
     n = len(psi)
     t = np.arange(n) * 0.1
+    n_ver0 = n_cal + len(psi_ref)
 
-    M = np.linalg.inv(T)
-    h_true = (m[n_cal:] - b) @ M.T
+    M = np.linalg.inv(TR)
+    h_true = (m[n_ver0:] - b) @ M.T
     err = wrap180(heading_deg(h_true) - psi_ver)
     floor = float(math.sqrt(np.mean(err ** 2)))
     bias = float(np.mean(err))
     # raw (uncalibrated) heading error for reference
-    err_raw = wrap180(heading_deg(m[n_cal:]) - psi_ver)
+    err_raw = wrap180(heading_deg(m[n_ver0:]) - psi_ver)
 
     truth = dict(
         scenario=name, seed=p["seed"], h0=h0, T=T.tolist(), b=b.tolist(), sigma=sigma,
         kx=p["kx"], ky=p["ky"], phi_s_deg=p["phi_s_deg"], axis_ratio=min(p["kx"], p["ky"]) / max(p["kx"], p["ky"]),
         radius_mean=radius, scale=p["scale"], quantised=bool(p["quantise"]),
         arc_deg=p["arc_deg"], start_deg=p["start_deg"], n_cal=n_cal, n_rows=n,
-        verification=dict(rows=[n_cal, n], headings_deg=VER_HEADINGS, per_heading=nv),
+        verification=dict(rows=[n_ver0, n], headings_deg=list(ver_h), per_heading=nv),
+        rot_deg=p["rot_deg"],
+        reference=dict(rows=[n_cal, n_ver0], headings_deg=VER_HEADINGS if nr else [], per_heading=nr),
         n_outliers=int(outlier.sum()), bursts=bursts, spikes=spikes,
         true_correction=dict(M=M.tolist(), b=b.tolist(),
                              note="H = M (Hm - b); heading = atan2(-Hx, Hy); radius h0"),
@@ -206,19 +235,23 @@ def main(argv):
     if "--out" in argv:
         out = argv[argv.index("--out") + 1]
     if "--list" in argv:
-        print("\n".join(SCENARIOS))
+        print("\n".join(list(SCENARIOS) + list(EXTRA)))
         return 0
-    if "--all" in argv:
+    if "--extra" in argv:
+        if "--out" not in argv:
+            out = "tools/replay/tests/data"
+        names = list(EXTRA)
+    elif "--all" in argv:
         names = list(SCENARIOS)
     else:
-        names = [a for a in argv[1:] if a in SCENARIOS]
+        names = [a for a in argv[1:] if a in SCENARIOS or a in EXTRA]
         if not names:
             sys.stderr.write(__doc__)
             return 2
     os.makedirs(out, exist_ok=True)
     for nm in names:
         p = dict(BASE)
-        p.update(SCENARIOS[nm])
+        p.update(SCENARIOS[nm] if nm in SCENARIOS else EXTRA[nm])
         csv, truth = make(nm, p)
         with open(os.path.join(out, nm + ".csv"), "w") as f:
             f.write(csv)

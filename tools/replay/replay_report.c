@@ -259,10 +259,84 @@ int replay_print_json(const replay_report_t *r)
 
 /* ------------------------------------------------------------------ table */
 
+static void print_2d(const replay_report_t *r);
+static void print_headings(const replay_report_t *r);
+
+static void print_tilt(const replay_report_t *r)
+{
+    size_t k;
+    printf("  tilt              on: accelerometer in %s (%s; median |a| %.4g); %s\n", r->accel_unit,
+           r->accel_unit_source, r->accel_median_norm, r->tilt_field != NULL ? r->tilt_field : "");
+    if (r->mode[0] == '2') {
+        printf("                    z_offset %.6g (mean mz over the calibration inliers), hz_level %.6g (%s)\n",
+               r->tilt_z_offset, r->tilt_hz_level,
+               isfinite(r->inclination_deg) ? "from --inclination" : "no --inclination: taken as 0");
+    }
+    printf("                    gates:");
+    for (k = 0u; k < REPLAY_TILT_COUNT; ++k) {
+        static const char *const names[REPLAY_TILT_COUNT] = {"ok", "free_fall", "accel_norm", "gimbal",
+                                                            "zero_field", "no_accel"};
+        printf(" %s %lu", names[k], (unsigned long)r->tilt_counts[k]);
+    }
+    printf("\n");
+}
+
+static void print_3d(const replay_report_t *r)
+{
+    printf("  offset V          (%.6g, %.6g, %.6g) dump units\n", r->off3[0], r->off3[1], r->off3[2]);
+    printf("  matrix G          [%.6g %.6g %.6g; %.6g %.6g %.6g; %.6g %.6g %.6g]  h = G (m - V)\n",
+           r->mat3[0][0], r->mat3[0][1], r->mat3[0][2], r->mat3[1][0], r->mat3[1][1], r->mat3[1][2],
+           r->mat3[2][0], r->mat3[2][1], r->mat3[2][2]);
+    printf("  field F           %.6g\n", r->field3);
+    if (r->mode[0] == '3') {
+        printf("  model             %s; direction coverage %.3f of 72 cells; residual RMS %.6g (%.2f %% of F)\n",
+               r->model3, r->coverage3, r->residual_rms,
+               r->field3 > 0.0 ? 100.0 * r->residual_rms / r->field3 : NAN);
+    }
+    printf("  radius spread     raw %.2f %% -> corrected %.2f %% over every calibration row (3-D norms; %.1fx smaller)\n",
+           100.0 * r->spread_raw_all, 100.0 * r->spread_corrected,
+           r->spread_corrected > 0.0 ? r->spread_raw_all / r->spread_corrected : INFINITY);
+}
+
+static void print_aided(const replay_report_t *r)
+{
+    printf("  aided             %s; %lu epochs seen, %lu accepted, %lu skipped (missing cells); field unit %s\n",
+           r->aided_status != NULL ? r->aided_status : "error", (unsigned long)r->aided_seen,
+           (unsigned long)r->aided_accepted, (unsigned long)r->aided_skipped,
+           r->field_unit != NULL ? r->field_unit : "uT");
+    printf("  gated             dop %lu, raw %lu, field %lu, vector %lu\n", (unsigned long)r->aided_gated[1],
+           (unsigned long)r->aided_gated[2], (unsigned long)r->aided_gated[3], (unsigned long)r->aided_gated[4]);
+    printf("  B_ref (first)     NED (%.6g, %.6g, %.6g), declination %.3f deg (WMM2025)\n", r->b_ref_first[0],
+           r->b_ref_first[1], r->b_ref_first[2], r->decl_first_deg);
+    if (r->have_aided) {
+        printf("  convergence       at accepted epoch %ld (row %ld); %u directions from the prior; "
+               "min_eig %.3g, weak_std %.3g, residual RMS %.4g\n",
+               r->converged_at, r->converged_row, r->n_prior_dirs, r->min_eig, r->weak_std, r->resid_rms_aided);
+    }
+}
+
+static void print_swing(const replay_report_t *r)
+{
+    size_t k;
+    printf("  swing             rows [%lu, %lu): %s (%s, %s); %lu reference rows, %lu fit points\n",
+           (unsigned long)r->ref_first, (unsigned long)r->ref_end, r->swing_status, r->swing_model,
+           r->swing_method, (unsigned long)r->swing_n_ref, (unsigned long)r->swing_n_points);
+    if (r->swing_ncoef > 0u) {
+        printf("                    coefficients (deg):");
+        for (k = 0u; k < r->swing_ncoef; ++k) {
+            printf(" %+.4f", r->swing_coef[k]);
+        }
+        printf("; fit RMS %.3f deg, max %.3f deg\n", r->swing_fit_rms_deg, r->swing_fit_max_deg);
+    }
+    if (r->n_heading_before > 0u) {
+        printf("  before swing      %lu rows: RMS %.3f deg, bias %+.3f deg, max |e| %.3f deg\n",
+               (unsigned long)r->n_heading_before, r->rms_before, r->bias_before, r->max_before);
+    }
+}
+
 void replay_print_table(const replay_report_t *r)
 {
-    size_t g;
-    printf("magcal-replay %s\n", r->file);
+    printf("magcal-replay %s (mode %s)\n", r->file, r->mode);
     printf("  status            %s%s%s\n", r->status, r->reason[0] ? ": " : "", r->reason);
     printf("  rows              %lu; calibration rows [%lu, %lu) = %lu", (unsigned long)r->n_rows,
            (unsigned long)r->cal_first, (unsigned long)r->cal_end, (unsigned long)r->n_cal);
@@ -283,12 +357,45 @@ void replay_print_table(const replay_report_t *r)
         printf(")");
     }
     printf("; plane %s; declination %g deg\n", r->plane, r->declination_deg);
-    if (!r->have_geometry) {
+    if (r->mode[0] != '2') {
+        printf("  samples           %lu fed, %lu used, %lu rejected\n", (unsigned long)r->n_fed,
+               (unsigned long)r->n_used, (unsigned long)r->n_outliers);
+        if (r->mode[0] == 'a') {
+            print_aided(r);
+        }
+        if (r->have_3d) {
+            print_3d(r);
+        } else if (r->mode[0] == '3') {
+            printf("  coverage          %.3f of 72 direction cells (about the sample mean)\n", r->coverage3);
+        }
+        if (!r->have_3d) {
+            return;
+        }
+    } else if (!r->have_geometry) {
         printf("  samples           %lu fed, %lu used, %lu outliers; arc coverage %.0f deg\n",
                (unsigned long)r->n_fed, (unsigned long)r->n_used, (unsigned long)r->n_outliers,
                r->coverage_deg);
         return;
     }
+    if (r->mode[0] == '2') {
+        print_2d(r);
+    }
+    if (r->tilt_on) {
+        print_tilt(r);
+    }
+    if (r->swing_requested) {
+        print_swing(r);
+    }
+    if (r->n_heading == 0u) {
+        printf("  heading vs ref    no reference headings outside the calibration%s rows\n",
+               r->swing_requested ? " and reference" : "");
+        return;
+    }
+    print_headings(r);
+}
+
+static void print_2d(const replay_report_t *r)
+{
     printf("  samples used      %lu of %lu fed (%lu outliers)\n", (unsigned long)r->n_used,
            (unsigned long)r->n_fed, (unsigned long)r->n_outliers);
     if (r->truth_column != NULL) {
@@ -312,12 +419,13 @@ void replay_print_table(const replay_report_t *r)
         printf("                    raw %.2f %% over every fed calibration sample, outliers included\n",
                100.0 * r->spread_raw_all);
     }
-    if (r->n_heading == 0u) {
-        printf("  heading vs ref    no reference headings outside the calibration rows\n");
-        return;
-    }
-    printf("  heading vs ref    %lu rows: RMS %.3f deg, bias %+.3f deg, max |e| %.3f deg",
-           (unsigned long)r->n_heading, r->heading_rms_deg, r->heading_bias_deg,
+}
+
+static void print_headings(const replay_report_t *r)
+{
+    size_t g;
+    printf("  heading vs ref    %lu rows%s: RMS %.3f deg, bias %+.3f deg, max |e| %.3f deg",
+           (unsigned long)r->n_heading, r->swing_ncoef > 0u ? " (after the swing)" : "", r->heading_rms_deg, r->heading_bias_deg,
            r->heading_max_abs_deg);
     if (r->n_heading_flagged > 0u) {
         printf(" (%lu of them flagged as outliers, included)", (unsigned long)r->n_heading_flagged);
