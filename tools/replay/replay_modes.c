@@ -434,5 +434,6 @@ int replay_aided_run(const magcal_replay_csv_t *d, const magcal_vec3_t *m, const
     }
     r->field3 = res.cal.field;
     r->n_used = res.n_accepted;
+    r->n_outliers = res.gated[1] + res.gated[2] + res.gated[3] + res.gated[4];
     return REPLAY_EXIT_OK;
 }

@@ -18,6 +18,18 @@ Cases (one CTest test each):
   decimation       2500 calibration rows (> capacity): deterministic every-k-th decimation reported
   headings_csv     --headings file: one row per input row, columns, errors consistent with the JSON
   plot             tools/plot_replay.py writes a PNG (exit 77 = skipped when matplotlib is missing)
+  swing            mount_rot3 (gen_dump.py --extra): 3 deg mounting rotation; --ref-rows fits the
+                   swing: before ~3 deg, after <= 1.2 x floor; fourier model too; SPREAD and
+                   TOO_FEW_POINTS reported with exit 0
+  tilt_3d          tilt_tumble (gen_dump3d.py): --mode 3d + tilt: heading RMS <= 1.2 x floor on
+                   tilted rows, tilt gate counts equal the truth's
+  tilt_2d          level_tilted (gen_dump3d.py): 2d calibration + tilt with --inclination: <= 1.2 x
+                   floor; without it (vertical component 0) and without tilt: >= 5 x floor
+  real_3d          bundled 3-D tumbles: corrected spread within 5 % of an independent numpy
+                   ellipsoid fit (tools/ref_real_spread3d.py), drop factors, accelerometer unit
+  aided            aided_road (gen_aided_dump.py): G, V near truth (test_aided.c tolerances),
+                   converged, DOP gate count, WMM B_ref, heading RMS <= 1.2 x floor
+  modes_usage      errors of the new options and columns (exit 1 / 2)
 Exit status 0 = pass, 1 = fail (messages on stderr), 77 = skipped.
 """
 import argparse
@@ -320,6 +332,256 @@ def case_plot(a):
     check(head == b"\x89PNG\r\n\x1a\n", "not a PNG")
     check(os.path.getsize(png) > 20000, "PNG suspiciously small")
     return 0
+
+
+def extra_data(a, name):
+    return os.path.join(a.source_dir, "tools", "replay", "tests", "data", name)
+
+
+def load_truth(a, name):
+    with open(extra_data(a, name + ".json")) as f:
+        return json.load(f)
+
+
+def case_swing(a):
+    truth = load_truth(a, "mount_rot3")
+    path = extra_data(a, "mount_rot3.csv")
+    n_cal = truth["n_cal"]
+    r0, r1 = truth["reference"]["rows"]
+    floor = truth["floor_deg"]
+    # without the swing the 3 deg mounting rotation stays (the ellipse cannot see a rotation)
+    plain = run_json(a, ["--cal-range", "0:%d" % n_cal, path])
+    check("swing" not in plain and "heading_rms_deg_before_swing" not in plain, "swing fields without --ref-rows")
+    check(abs(plain.get("heading_bias_deg", 0) - truth["rot_deg"]) <= 0.3,
+          "plain bias %r, expected ~%g" % (plain.get("heading_bias_deg"), truth["rot_deg"]))
+    rep = run_json(a, ["--cal-range", "0:%d" % n_cal, "--ref-rows", "%d:%d" % (r0, r1), path])
+    sw = rep.get("swing", {})
+    sys.stdout.write("swing: before %.4f deg, after %.4f deg, floor %.4f deg (ratio %.3f); A..E %r\n" % (
+        rep.get("heading_rms_deg_before_swing", -1), rep.get("heading_rms_deg", -1), floor,
+        rep.get("heading_rms_deg", 99) / floor, sw.get("coefficients_deg")))
+    check(sw.get("status") == "ok" and sw.get("model") == "smith", "swing %r" % sw)
+    check(sw.get("method") == "bins" and sw.get("n_points") == 8 and sw.get("n_ref") == r1 - r0,
+          "8 reference headings x 20 rows must be binned: %r" % sw)
+    check(abs(rep.get("heading_rms_deg_before_swing", 0) - 3.0) <= 0.3, "before swing %r" % rep.get("heading_rms_deg_before_swing"))
+    check(rep.get("heading_rms_deg", 99) <= FLOOR_FACTOR * floor, "after swing %r > %.2f x floor %.4f" % (
+        rep.get("heading_rms_deg"), FLOOR_FACTOR, floor))
+    # verification rows only: the 16 headings between the reference ones
+    check(rep.get("n_heading") == truth["n_rows"] - r1 and rep.get("n_heading_before_swing") == truth["n_rows"] - r1,
+          "verification rows %r" % rep.get("n_heading"))
+    check([g["ref_deg"] for g in rep.get("heading_rms_by_ref", [])] == truth["verification"]["headings_deg"],
+          "per-ref table after swing")
+    coef = sw.get("coefficients_deg", [0] * 5)
+    check(abs(coef[0] + truth["rot_deg"]) <= 0.15 and all(abs(c) <= 0.15 for c in coef[1:]),
+          "A..E %r: expected (-%g, 0, 0, 0, 0) +- 0.15" % (coef, truth["rot_deg"]))
+    # the adaptive Fourier model on the same rows
+    fo = run_json(a, ["--cal-range", "0:%d" % n_cal, "--ref-rows", "%d:%d" % (r0, r1), "--swing-model", "fourier", path])
+    check(fo.get("swing", {}).get("status") == "ok" and fo["swing"].get("model") == "fourier", "fourier %r" % fo.get("swing"))
+    check(fo.get("heading_rms_deg", 99) <= FLOOR_FACTOR * floor, "fourier after %r" % fo.get("heading_rms_deg"))
+    # headings CSV carries the heading before the swing
+    hp = os.path.join(a.work_dir, "swing_headings.csv")
+    run(a, ["--cal-range", "0:%d" % n_cal, "--ref-rows", "%d:%d" % (r0, r1), "--headings", hp, path], 0)
+    rows = read_csv_rows(hp)
+    check("heading_before_swing_deg" in rows[0], "headings CSV lacks heading_before_swing_deg")
+    # reference rows at 3 headings (0, 45, 90): SPREAD (min pivot ~0); 3 rows: TOO_FEW_POINTS. Exit 0.
+    for ref_rows, status in (("%d:%d" % (r0, r0 + 60), "too_few_points"), ("%d:%d" % (r0, r0 + 3), "too_few_points")):
+        bad = run_json(a, ["--cal-range", "0:%d" % n_cal, "--ref-rows", ref_rows, path], 0)
+        check(bad.get("status") == "ok" and bad.get("swing", {}).get("status") == status,
+              "ref rows %s: swing %r, expected %s" % (ref_rows, bad.get("swing"), status))
+        check("coefficients_deg" not in bad.get("swing", {}), "coefficients of a failed swing")
+        check(bad.get("heading_rms_deg") == bad.get("heading_rms_deg_before_swing"),
+              "failed swing: heading_rms_deg must be the unswung value")
+    # five distinct headings on one half circle, one row each (pairs): the spread test refuses
+    lines = ["t,mx,my,heading_ref_deg"]
+    src = read_csv_rows(path)
+    for i, r in enumerate(src[:n_cal]):
+        lines.append("%s,%s,%s,nan" % (r["t"], r["mx"], r["my"]))
+    for k, psi in enumerate((0.0, 30.0, 60.0, 90.0, 120.0, 150.0)):
+        # the calibration rows nearest psi give a plausible compass heading
+        j = min(range(n_cal), key=lambda i: abs(((float(src[i]["heading_ref_deg"]) - psi) + 180) % 360 - 180))
+        lines.append("%d,%s,%s,%.1f" % (1000 + k, src[j]["mx"], src[j]["my"], psi))
+    hp2 = os.path.join(a.work_dir, "half_circle_refs.csv")
+    with open(hp2, "w") as f:
+        f.write("\n".join(lines) + "\n")
+    bad = run_json(a, ["--cal-range", "0:%d" % n_cal, "--ref-rows", "%d:%d" % (n_cal, n_cal + 6), hp2], 0)
+    check(bad.get("swing", {}).get("status") == "spread" and bad["swing"].get("method") == "pairs",
+          "half-circle references: swing %r, expected spread" % bad.get("swing"))
+
+
+def case_tilt_3d(a):
+    truth = load_truth(a, "tilt_tumble")
+    path = extra_data(a, "tilt_tumble.csv")
+    rep = run_json(a, ["--mode", "3d", "--cal-range", "0:%d" % truth["n_cal"], path])
+    check(rep.get("status") == "ok" and rep.get("mode") == "3d", "status %r" % rep.get("status"))
+    check(rep.get("model") == "quadric9" and rep.get("coverage", 0) >= 0.9, "model %r coverage %r" % (
+        rep.get("model"), rep.get("coverage")))
+    t = rep.get("tilt", {})
+    check(t.get("accel_unit") == "g" and t.get("accel_unit_source") == "detected", "accel unit %r" % t)
+    want = {k: truth["gates"].get(k, 0) for k in ("ok", "free_fall", "accel_norm", "gimbal", "zero_field")}
+    got = {k: t.get("gates", {}).get(k) for k in want}
+    check(got == want, "tilt gates %r, truth %r" % (got, want))
+    floor = truth["floor_deg"]
+    v0, v1 = truth["verification"]["rows"]
+    sys.stdout.write("tilt_3d: heading RMS %.4f deg, floor %.4f deg (ratio %.3f), gates %r\n" % (
+        rep.get("heading_rms_deg", -1), floor, rep.get("heading_rms_deg", 99) / floor, got))
+    check(rep.get("n_heading") == v1 - v0, "n_heading %r: the 7 gated rows have no heading" % rep.get("n_heading"))
+    check(rep.get("heading_rms_deg", 99) <= FLOOR_FACTOR * floor, "heading RMS %r > %.2f x floor %.4f" % (
+        rep.get("heading_rms_deg"), FLOOR_FACTOR, floor))
+    # offset: the ellipsoid's V is the true V
+    check(math.dist(rep.get("offset", [0, 0, 0]), truth["V"]) <= 0.01 * truth["F"], "offset %r vs %r" % (
+        rep.get("offset"), truth["V"]))
+    # --no-tilt: level headings of tilted rows are far off
+    nt = run_json(a, ["--mode", "3d", "--no-tilt", "--cal-range", "0:%d" % truth["n_cal"], path])
+    check("tilt" not in nt and nt.get("heading_rms_deg", 0) > 5 * floor, "--no-tilt: %r" % nt.get("heading_rms_deg"))
+    # explicit unit overrides detection (m/s^2 would make |a| ~ 0.1 g: every row free fall)
+    mp = run_json(a, ["--mode", "3d", "--accel-unit", "mps2", "--cal-range", "0:%d" % truth["n_cal"], path])
+    check(mp.get("tilt", {}).get("accel_unit_source") == "given" and
+          mp.get("tilt", {}).get("gates", {}).get("free_fall") == truth["n_rows"], "--accel-unit mps2: %r" % mp.get("tilt"))
+
+
+def case_tilt_2d(a):
+    truth = load_truth(a, "level_tilted")
+    path = extra_data(a, "level_tilted.csv")
+    floor = truth["floor_deg"]
+    base = ["--cal-range", "0:%d" % truth["n_cal"], path]
+    rep = run_json(a, ["--inclination", str(truth["inclination_deg"])] + base)
+    t = rep.get("tilt", {})
+    check(rep.get("status") == "ok" and t.get("gates", {}).get("ok") == truth["n_rows"], "tilt %r" % t)
+    # level vertical component: -H tan I (radius = H here: det T = 1)
+    hz = -truth["h_horizontal"] * math.tan(math.radians(truth["inclination_deg"]))
+    check(abs(t.get("hz_level", 0) - hz) <= 0.01 * abs(hz), "hz_level %r vs %g" % (t.get("hz_level"), hz))
+    # z_offset = mean mz over the level turn = V_z + vertical field
+    check(abs(t.get("z_offset", 0) - (truth["V"][2] + hz)) <= 0.05, "z_offset %r vs %g" % (t.get("z_offset"), truth["V"][2] + hz))
+    no_inc = run_json(a, base)
+    no_tilt = run_json(a, ["--no-tilt"] + base)
+    sys.stdout.write("tilt_2d: with --inclination %.4f deg, without %.4f deg, no tilt %.4f deg, floor %.4f deg\n" % (
+        rep.get("heading_rms_deg", -1), no_inc.get("heading_rms_deg", -1), no_tilt.get("heading_rms_deg", -1), floor))
+    check(rep.get("heading_rms_deg", 99) <= FLOOR_FACTOR * floor, "2d+tilt %r > %.2f x floor" % (rep.get("heading_rms_deg"), FLOOR_FACTOR))
+    check(no_inc.get("heading_rms_deg", 0) >= 5 * floor, "without --inclination the vertical component is missing")
+    check(no_tilt.get("heading_rms_deg", 0) >= 5 * floor, "without tilt compensation tilted rows are off")
+
+
+# independent numpy ellipsoid fit of every row (tools/ref_real_spread3d.py), measured 2026-11-22;
+# used when no numpy is available to recompute it
+REAL_3D = {
+    # name: (rows, accel unit, numpy raw spread, numpy corrected spread, min drop)
+    "lsm9ds1_pmodnav_tumble": (534, "mps2", 0.30559, 0.06189, 4.5),
+    "ellipsoid_fit_python_sample": (347, None, 0.36770, 0.02059, 15.0),
+}
+
+
+def case_real_3d(a):
+    py = a.python or sys.executable
+    have_np = subprocess.run([py, "-c", "import numpy"], capture_output=True).returncode == 0
+    for name, (rows, unit, raw_ref, cor_ref, min_drop) in sorted(REAL_3D.items()):
+        path = real(a, name + ".csv")
+        if have_np:
+            q = subprocess.run([py, os.path.join(a.source_dir, "tools", "ref_real_spread3d.py"), path, "--json"],
+                               capture_output=True, text=True)
+            ref = json.loads(q.stdout)
+            check(abs(ref["spread_corrected"] - cor_ref) <= 1e-4, "%s: numpy reference moved: %r" % (name, ref))
+            raw_ref, cor_ref = ref["spread_raw"], ref["spread_corrected"]
+        rep = run_json(a, ["--mode", "3d", path])
+        check(rep.get("status") == "ok" and rep.get("n_rows") == rows, "%s: status %r" % (name, rep.get("status")))
+        check(rep.get("model") == "quadric9", "%s: model %r" % (name, rep.get("model")))
+        raw, cor = rep.get("radius_spread_raw", 0), rep.get("radius_spread_corrected", 1)
+        sys.stdout.write("%s: spread raw %.4f -> corrected %.4f (%.1fx); numpy LS %.4f -> %.4f (%.1fx)\n" % (
+            name, raw, cor, raw / cor, raw_ref, cor_ref, raw_ref / cor_ref))
+        check(abs(raw - raw_ref) <= 1e-4, "%s: raw spread %r vs %r" % (name, raw, raw_ref))
+        check(cor <= 1.05 * cor_ref, "%s: corrected spread %.5f > 1.05 x numpy %.5f" % (name, cor, cor_ref))
+        check(raw / cor >= min_drop, "%s: drop %.2fx < %.1fx" % (name, raw / cor, min_drop))
+        if unit is None:
+            check("tilt" not in rep, "%s: no accelerometer, no tilt" % name)
+        else:
+            check(rep.get("tilt", {}).get("accel_unit") == unit, "%s: accel unit %r" % (name, rep.get("tilt")))
+            check(sum(rep["tilt"]["gates"].values()) == rows, "%s: gate counts cover every row" % name)
+
+
+def case_aided(a):
+    truth = load_truth(a, "aided_road")
+    path = extra_data(a, "aided_road.csv")
+    rep = run_json(a, ["--mode", "aided", "--cal-range", "0:%d" % truth["n_cal"], path])
+    ad = rep.get("aided", {})
+    check(rep.get("status") == "ok" and ad.get("status") == "ok", "status %r aided %r" % (rep.get("status"), ad))
+    b = ad.get("b_ref_ned_first", [0, 0, 0])
+    check(math.dist(b, truth["b_ref_ned_uT"]) <= 1e-3, "B_ref %r vs WMM CLI %r" % (b, truth["b_ref_ned_uT"]))
+    check(abs(ad.get("declination_first_deg", 0) - truth["declination_deg"]) <= 1e-3, "declination %r" % ad)
+    check(ad.get("gated", {}).get("dop") == truth["dop_gated"], "DOP gated %r, expected %d" % (ad.get("gated"), truth["dop_gated"]))
+    check(ad.get("n_accepted") == truth["n_cal"] - truth["dop_gated"], "accepted %r" % ad.get("n_accepted"))
+    check(0 < ad.get("converged_at", -1) < truth["n_cal"] and ad.get("converged_row", -1) >= ad.get("converged_at", 0),
+          "convergence %r / row %r" % (ad.get("converged_at"), ad.get("converged_row")))
+    check(ad.get("n_prior_dirs") == 0, "prior directions %r" % ad.get("n_prior_dirs"))
+    # tests/test_aided.c tolerances at 1 deg RMS tilt: relative G error < 2 %, |V error| < 1.5 uT
+    G, Gt = rep.get("matrix", [[0] * 3] * 3), truth["G_true"]
+    num = sum((G[i][j] - Gt[i][j]) ** 2 for i in range(3) for j in range(3))
+    den = sum(Gt[i][j] ** 2 for i in range(3) for j in range(3))
+    gerr, verr = math.sqrt(num / den), math.dist(rep.get("offset", [0, 0, 0]), truth["V"])
+    floor = truth["floor_deg"]
+    sys.stdout.write("aided: G error %.4f, V error %.3f uT, converged at %r (row %r), heading RMS %.4f deg, "
+                     "floor %.4f deg (ratio %.3f)\n" % (gerr, verr, ad.get("converged_at"), ad.get("converged_row"),
+                                                         rep.get("heading_rms_deg", -1), floor,
+                                                         rep.get("heading_rms_deg", 99) / floor))
+    check(gerr < 0.02, "G relative error %.4f >= 0.02" % gerr)
+    check(verr < 1.5, "V error %.3f uT >= 1.5" % verr)
+    check(rep.get("n_heading") == truth["n_rows"] - truth["n_cal"], "n_heading %r" % rep.get("n_heading"))
+    check(rep.get("heading_rms_deg", 99) <= FLOOR_FACTOR * floor, "heading RMS %r > %.2f x floor %.4f" % (
+        rep.get("heading_rms_deg"), FLOOR_FACTOR, floor))
+    # the same rows with the INS level (roll = pitch = 0 for all): no excitation of z -> unobservable
+    rows = read_csv_rows(path)
+    lvl = os.path.join(a.work_dir, "aided_level.csv")
+    with open(lvl, "w") as f:
+        cols = list(rows[0].keys())
+        f.write(",".join(cols) + "\n")
+        for r in rows[:truth["n_cal"]]:
+            f.write(",".join(("0" if c in ("roll_deg", "pitch_deg") else r[c]) for c in cols) + "\n")
+    lv = run_json(a, ["--mode", "aided", lvl], 0)
+    check(lv.get("aided", {}).get("status") in ("unobservable", "not_converged"),
+          "attitude-inconsistent level drive: %r" % lv.get("aided", {}).get("status"))
+    # too few epochs: no estimate, exit 3
+    short = run_json(a, ["--mode", "aided", "--cal-range", "0:20", path], 3)
+    check(short.get("status") == "too_few_points", "20 epochs: status %r" % short.get("status"))
+
+
+def case_modes_usage(a):
+    dump = real(a, "lsm9ds1_pmodnav_flat_turns.csv")
+    for args in (["--mode", "4d", dump], ["--swing-model", "poly", dump], ["--accel-unit", "furlong", dump],
+                 ["--inclination", "95", dump], ["--mode", "3d", "--inclination", "60", dump],
+                 ["--field-unit", "tesla", dump], ["--year", "x", dump], ["--mode", "aided", "--tilt", dump]):
+        p = run(a, args, 1)
+        check("usage: magcal-replay" in p.stderr, "%r: no usage text" % args)
+    # input errors (exit 2)
+    p = run(a, ["--mode", "3d", dump], 2)
+    check("column \"mz\" is required" in p.stderr, "3d on a 2-axis dump: %r" % p.stderr)
+    p = run(a, ["--ref-rows", "0:10", dump], 2)
+    check("--ref-rows needs a heading_ref_deg column" in p.stderr, "ref rows without reference: %r" % p.stderr)
+    p = run(a, ["--ref-rows", "10:5", dump], 2)
+    check("--ref-rows 10:5 is empty" in p.stderr, "ref rows range: %r" % p.stderr)
+    p = run(a, ["--tilt", real(a, "ellipsoid_fit_python_sample.csv")], 2)
+    check("--tilt needs the columns ax, ay, az" in p.stderr, "--tilt without accel: %r" % p.stderr)
+    p = run(a, ["--mode", "aided", real(a, "lsm9ds1_pmodnav_tumble.csv")], 2)
+    check("missing required column \"roll_deg\"" in p.stderr, "aided without INS: %r" % p.stderr)
+    # accelerometer unit that cannot be told (|a| ~ 3)
+    path = os.path.join(a.work_dir, "odd_accel.csv")
+    with open(path, "w") as f:
+        f.write("mx,my,mz,ax,ay,az\n")
+        for i in range(40):
+            ang = math.radians(9 * i)
+            f.write("%.4f,%.4f,-30,0,0,3\n" % (-20 * math.sin(ang), 20 * math.cos(ang)))
+    p = run(a, [path], 2)
+    check("cannot tell the accelerometer unit" in p.stderr, "odd accel: %r" % p.stderr)
+    # aided epoch source: t is not a Unix time and no decimal_year
+    rows = read_csv_rows(extra_data(a, "aided_road.csv"))
+    path = os.path.join(a.work_dir, "aided_no_year.csv")
+    with open(path, "w") as f:
+        cols = [c for c in rows[0].keys() if c != "decimal_year"]
+        f.write(",".join(cols) + "\n")
+        for r in rows[:100]:
+            f.write(",".join(r[c] for c in cols) + "\n")
+    p = run(a, ["--mode", "aided", path], 2)
+    check("is not a Unix time" in p.stderr, "aided without an epoch: %r" % p.stderr)
+    rep = run_json(a, ["--mode", "aided", "--year", "2026.5", path], 0)
+    check(rep.get("aided", {}).get("n_seen") == 100, "--year: %r" % rep.get("aided"))
+    p = run(a, ["--mode", "aided", "--year", "2031", path], 2)
+    check("outside WMM2025 validity" in p.stderr, "--year 2031: %r" % p.stderr)
 
 
 CASES = {n[5:]: f for n, f in globals().items() if n.startswith("case_")}
