@@ -178,6 +178,34 @@ int replay_swing_fit(const double *psi_c_deg, const double *psi_ref_deg, size_t 
                 pr[np] = (float)keys[g];
                 np++;
             }
+        } else if (fourier) {
+            /* the adaptive order stops on the max residual at the points: fit per-bin means (10-degree
+             * bins of psi_c), as the motion swing does, not every noisy row */
+            double bc[MAGCAL_SWING_COG_BINS], bd[MAGCAL_SWING_COG_BINS];
+            size_t bn[MAGCAL_SWING_COG_BINS];
+            const double w = 360.0 / (double)MAGCAL_SWING_COG_BINS;
+            r->swing_method = "bins";
+            for (g = 0u; g < MAGCAL_SWING_COG_BINS; ++g) {
+                bc[g] = bd[g] = 0.0;
+                bn[g] = 0u;
+            }
+            for (i = first; i < end; ++i) {
+                if (isfinite(psi_c_deg[i]) && isfinite(psi_ref_deg[i])) {
+                    double pcw = wrap360d(psi_c_deg[i]);
+                    g = (size_t)floor(pcw / w) % MAGCAL_SWING_COG_BINS;
+                    bc[g] += wrap180d(pcw - ((double)g + 0.5) * w);
+                    bd[g] += wrap180d(psi_ref_deg[i] - pcw);
+                    bn[g]++;
+                }
+            }
+            for (g = 0u; g < MAGCAL_SWING_COG_BINS; ++g) {
+                if (bn[g] > 0u) {
+                    double c0 = ((double)g + 0.5) * w + bc[g] / (double)bn[g];
+                    pc[np] = (float)wrap360d(c0);
+                    pr[np] = (float)wrap360d(c0 + bd[g] / (double)bn[g]);
+                    np++;
+                }
+            }
         } else {
             for (i = first; i < end; ++i) {
                 if (isfinite(psi_c_deg[i]) && isfinite(psi_ref_deg[i])) {
