@@ -117,7 +117,20 @@ magcal_status_t magcal_heading_compute(const magcal_cal2d_t *c, magcal_vec2_t ra
     }
     *magnetic_deg = mag;
     if (true_deg != NULL) {
-        *true_deg = magcal_wrap360_deg(mag + declination_deg);
+        /* mag in [0, 360), declination in [-180, 180]: one add or subtract reaches [0, 360)
+         * (no fmodf); a sum that rounds up to 360 reads 0. */
+        float t = mag + declination_deg;
+        if (t < 0.0f) {
+            t += 360.0f;
+        } else if (t >= 360.0f) {
+            t -= 360.0f;
+        } else {
+            /* already in range */
+        }
+        if (t >= 360.0f || t == 0.0f) {
+            t = 0.0f;
+        }
+        *true_deg = t;
     }
     return MAGCAL_OK;
 }

@@ -209,6 +209,13 @@ static void test_heading_compute_declination_gives_true_heading(void)
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_heading_compute(&c, field_at(180.0, 1.0), 180.0f, &mag, &tru));
     TEST_ASSERT_TRUE(tru >= 0.0f && tru < 360.0f);
     TEST_ASSERT_FLOAT_WITHIN(1e-4f, 0.0f, (float)test_angle_diff_deg(tru, 0.0));
+    /* a sum that rounds to 360 reads 0: magnetic 0, declination -1e-6 (and +tiny west of north) */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_heading_compute(&c, field_at(0.0, 1.0), -1e-6f, &mag, &tru));
+    TEST_ASSERT_TRUE(tru >= 0.0f && tru < 360.0f);
+    TEST_ASSERT_FLOAT_WITHIN(1e-4f, 0.0f, (float)test_angle_diff_deg(tru, 0.0));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_heading_compute(&c, field_at(359.99999, 1.0), 1e-6f, &mag, &tru));
+    TEST_ASSERT_TRUE(tru >= 0.0f && tru < 360.0f);
+    TEST_ASSERT_FLOAT_WITHIN(1e-4f, 0.0f, (float)test_angle_diff_deg(tru, 0.0));
     /* true_deg is optional */
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_heading_compute(&c, field_at(33.0, 1.0), 5.0f, &mag, NULL));
     TEST_ASSERT_FLOAT_WITHIN(1e-4f, 33.0f, mag);
