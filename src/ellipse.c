@@ -311,8 +311,9 @@ static float src_residual_rms(const fit_src_t *src, const magcal_ellipse_t *e, s
  * complete result. *out is written only once every check has passed; src (may be NULL: residual
  * RMS 0) is used for the residual RMS over the cnt used points.
  */
-static magcal_status_t conic_finish(const float coef[5], float mx, float my, float s, float min_pivot, size_t cnt,
-                                    const fit_src_t *src, magcal_ellipse_t *out)
+static magcal_status_t conic_finish(const float coef[5], float mx, float my, float s,
+                                    float min_pivot, size_t cnt, const fit_src_t *src,
+                                    magcal_ellipse_t *out)
 {
     float ca = coef[0];
     float cb = coef[1];
@@ -343,12 +344,13 @@ static magcal_status_t conic_finish(const float coef[5], float mx, float my, flo
     }
     l1 = 0.5f * (1.0f + cb) + 0.5f * sqrtf((1.0f - cb) * (1.0f - cb) + ca * ca);
     r1 = sqrtf(kk / l1) * s;
-    r2 = sqrtf(kk / ((0.25f * delta) / l1)) * s; /* l2 = det/l1: no cancellation for thin ellipses */
+    /* l2 = det/l1: no cancellation for thin ellipses */
+    r2 = sqrtf(kk / ((0.25f * delta) / l1)) * s;
     cx = mx + s * x0;
     cy = my + s * y0;
     q11 = 1.0f / (kk * s * s);
-    if (!magcal_isfinite_f(cx) || !magcal_isfinite_f(cy) || !magcal_isfinite_f(r2) || !magcal_isfinite_f(q11) ||
-        !(q11 > 0.0f) || !(r1 > 0.0f)) {
+    if (!magcal_isfinite_f(cx) || !magcal_isfinite_f(cy) || !magcal_isfinite_f(r2) ||
+        !magcal_isfinite_f(q11) || !(q11 > 0.0f) || !(r1 > 0.0f)) {
         return MAGCAL_ERR_ILL_CONDITIONED; /* under/overflow of a nearly singular conic */
     }
     out->center.x = cx;
@@ -372,7 +374,8 @@ static magcal_status_t conic_finish(const float coef[5], float mx, float my, flo
 }
 
 /* Pass 1 and the centred normalisation, in a frame of their own. */
-static magcal_status_t prepare_centred(const fit_src_t *src, size_t *count, fit_norm_t *nm, float *scale)
+static magcal_status_t prepare_centred(const fit_src_t *src, size_t *count, fit_norm_t *nm,
+                                       float *scale)
 {
     float bb[4];
     float amax[2];
@@ -409,7 +412,8 @@ static magcal_status_t fit_normal(const fit_src_t *src, magcal_ellipse_t *out)
     return conic_finish(mom, nm.mx, nm.my, s, minp, cnt, src, out);
 }
 
-magcal_status_t magcal_ellipse_fit(const magcal_vec2_t *pts, size_t n, const uint8_t *mask, magcal_ellipse_t *out)
+magcal_status_t magcal_ellipse_fit(const magcal_vec2_t *pts, size_t n, const uint8_t *mask,
+                                   magcal_ellipse_t *out)
 {
     fit_src_t src;
 
@@ -514,8 +518,8 @@ static ELLIPSE_NOINLINE magcal_status_t fit_five(const fit_src_t *src, magcal_el
     return conic_finish(coef, nm.mx, nm.my, s, minp, 5u, src, out);
 }
 
-magcal_status_t magcal_ellipse_fit_idx(const magcal_vec2_t *pts, size_t n_pts, const uint16_t *idx, size_t m,
-                                       magcal_ellipse_t *out)
+magcal_status_t magcal_ellipse_fit_idx(const magcal_vec2_t *pts, size_t n_pts, const uint16_t *idx,
+                                       size_t m, magcal_ellipse_t *out)
 {
     fit_src_t src;
     size_t k;
@@ -627,8 +631,9 @@ magcal_status_t magcal_ellipse_to_cal(const magcal_ellipse_t *e, magcal_corr_for
     }
     r1 = e->semi_minor;
     r2 = e->semi_major;
-    if (!magcal_isfinite_f(r2) || !magcal_isfinite_f(e->angle_rad) || !magcal_isfinite_f(e->center.x) ||
-        !magcal_isfinite_f(e->center.y) || !(r1 > 0.0f) || !(r1 <= r2)) {
+    if (!magcal_isfinite_f(r2) || !magcal_isfinite_f(e->angle_rad) ||
+        !magcal_isfinite_f(e->center.x) || !magcal_isfinite_f(e->center.y) || !(r1 > 0.0f) ||
+        !(r1 <= r2)) {
         return MAGCAL_ERR_ARG;
     }
     c = cosf(e->angle_rad);
@@ -669,21 +674,21 @@ magcal_status_t magcal_ellipse_to_cal(const magcal_ellipse_t *e, magcal_corr_for
         cal.m[1][1] = out_r / (r1 * r2 * sq);
         break;
     }
-    default:
-        return MAGCAL_ERR_ARG;
+    default: return MAGCAL_ERR_ARG;
     }
     cal.offset = e->center;
     cal.radius = out_r;
     cal.magic = MAGCAL_CAL2D_MAGIC;
-    if (!magcal_isfinite_f(cal.m[0][0]) || !magcal_isfinite_f(cal.m[0][1]) || !magcal_isfinite_f(cal.m[1][1])) {
+    if (!magcal_isfinite_f(cal.m[0][0]) || !magcal_isfinite_f(cal.m[0][1]) ||
+        !magcal_isfinite_f(cal.m[1][1])) {
         return MAGCAL_ERR_ARG;
     }
     *out = cal;
     return MAGCAL_OK;
 }
 
-magcal_status_t magcal_ellipse_from_conic(const float coef[5], magcal_vec2_t norm_center, float norm_scale,
-                                          magcal_ellipse_t *out)
+magcal_status_t magcal_ellipse_from_conic(const float coef[5], magcal_vec2_t norm_center,
+                                          float norm_scale, magcal_ellipse_t *out)
 {
     size_t i;
 
@@ -695,7 +700,8 @@ magcal_status_t magcal_ellipse_from_conic(const float coef[5], magcal_vec2_t nor
             return MAGCAL_ERR_NONFINITE;
         }
     }
-    if (!magcal_isfinite_f(norm_center.x) || !magcal_isfinite_f(norm_center.y) || !magcal_isfinite_f(norm_scale)) {
+    if (!magcal_isfinite_f(norm_center.x) || !magcal_isfinite_f(norm_center.y) ||
+        !magcal_isfinite_f(norm_scale)) {
         return MAGCAL_ERR_NONFINITE;
     }
     if (!(norm_scale > 0.0f)) {
