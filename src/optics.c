@@ -23,6 +23,8 @@ typedef struct {
     uint8_t *done;   /* processed bits */
     size_t n_seeds;
     size_t n_done;
+    uint16_t *live; /* brute force only: unprocessed points (reuses the unused grid index) */
+    size_t n_live;
     uint16_t *order; /* optional outputs */
     float *core;
     uint16_t *pred;
@@ -149,6 +151,68 @@ static void extract_step(optics_ctx_t *c, size_t p, float core_p)
     c->labels[p] = lab;
 }
 
+/*
+ * Reach decrease of unprocessed neighbour j of core point p to r (algorithms.md 4.2): callers
+ * computed r = max(core(p), d) and checked r < reach[j] (strict: the first value set keeps ties).
+ */
+static void update_one(optics_ctx_t *c, size_t p, size_t j, float r)
+{
+    float old = c->reach[j];
+    c->reach[j] = r;
+    if (c->pred != NULL) {
+        c->pred[j] = (uint16_t)p;
+    }
+    if (c->mode == MAGCAL_OPTICS_CLASSIC) {
+        if (c->pos[j] == POS_NONE) {
+            c->seeds[c->n_seeds] = (uint16_t)j;
+            c->n_seeds++;
+            heap_sift_up(c, c->n_seeds - 1u);
+        } else {
+            heap_sift_up(c, c->pos[j]);
+        }
+    } else if (old == INFINITY) {
+        c->seeds[c->n_seeds] = (uint16_t)j;
+        c->n_seeds++;
+    }
+}
+
+/*
+ * r = max(core, sqrt(d2)) without the square root when d2 <= core^2 (then r = core exactly:
+ * sqrtf is monotone and core = sqrtf(core2)), so most reach candidates cost no sqrt and no bit of
+ * the result changes.
+ */
+#define REACH_OF(d2, core_p, core2) ((d2) <= (core2) ? (core_p) : sqrtf(d2))
+
+/*
+ * Brute-force pass 2 over the compact list of unprocessed points (the point processed last is
+ * dropped as it is met, so the k-th pass costs n - k instead of n).
+ */
+static void live_pass(optics_ctx_t *c, size_t p, float core_p, float core2)
+{
+    const magcal_vec2_t *pts = c->pts;
+    const float px = pts[p].x, py = pts[p].y, eps2 = c->eps2;
+    uint16_t *live = c->live;
+    size_t k, w = 0u, nl = c->n_live;
+    for (k = 0; k < nl; ++k) {
+        size_t j = live[k];
+        if (j == p) {
+            continue; /* the only point processed since the last pass */
+        }
+        live[w++] = (uint16_t)j;
+        if (core_p < INFINITY) {
+            float dx = pts[j].x - px, dy = pts[j].y - py;
+            float d2 = dx * dx + dy * dy;
+            if (d2 <= eps2) {
+                float r = REACH_OF(d2, core_p, core2);
+                if (r < c->reach[j]) {
+                    update_one(c, p, j, r);
+                }
+            }
+        }
+    }
+    c->n_live = w;
+}
+
 static void process(optics_ctx_t *c, size_t p)
 {
     float best[MAGCAL_MAX_MIN_PTS];
@@ -164,11 +228,32 @@ static void process(optics_ctx_t *c, size_t p)
     }
     c->n_done++;
 
-    /* Pass 1: core distance = MinPts-th smallest d^2 (p itself included, d = 0). */
+    /* Pass 1: core distance = MinPts-th smallest d^2 (p itself included, d = 0), kept in a
+     * sorted insertion buffer; once it holds m values only d^2 < best[m-1] (<= eps^2) enters. */
     magcal_nbr_query(&c->nb, p, &rg);
-    for (ri = 0; ri < rg.n_ranges; ++ri) {
+    if (rg.idx == NULL) {
+        /* brute force: plain sweep; lim = eps^2 until m values are held, then best[m-1] */
+        float lim = eps2;
+        size_t n = c->n;
+        for (k = 0; k < n; ++k) {
+            float dx = pts[k].x - px, dy = pts[k].y - py;
+            float d2 = dx * dx + dy * dy;
+            if (d2 <= lim && (cnt < m || d2 < lim)) {
+                size_t t = cnt < m ? cnt++ : m - 1u;
+                while (t > 0u && best[t - 1u] > d2) {
+                    best[t] = best[t - 1u];
+                    --t;
+                }
+                best[t] = d2;
+                if (cnt == m) {
+                    lim = best[m - 1u];
+                }
+            }
+        }
+    }
+    for (ri = 0; rg.idx != NULL && ri < rg.n_ranges; ++ri) {
         for (k = rg.begin[ri]; k < rg.end[ri]; ++k) {
-            size_t j = rg.idx != NULL ? rg.idx[k] : k;
+            size_t j = rg.idx[k];
             float dx = pts[j].x - px, dy = pts[j].y - py;
             float d2 = dx * dx + dy * dy;
             if (d2 <= eps2 && (cnt < m || d2 < best[m - 1u])) {
@@ -190,40 +275,24 @@ static void process(optics_ctx_t *c, size_t p)
     if (c->labels != NULL) {
         extract_step(c, p, core_p);
     }
+    if (c->live != NULL) {
+        live_pass(c, p, cnt >= m ? core_p : INFINITY, cnt >= m ? best[m - 1u] : INFINITY);
+        return;
+    }
     if (cnt < m) {
         return;
     }
-    /* Pass 2: reachability updates of the unprocessed neighbours. */
+    /* Pass 2 (grid): reachability updates of the unprocessed neighbours. */
     for (ri = 0; ri < rg.n_ranges; ++ri) {
         for (k = rg.begin[ri]; k < rg.end[ri]; ++k) {
             size_t j = rg.idx != NULL ? rg.idx[k] : k;
             float dx = pts[j].x - px, dy = pts[j].y - py;
             float d2 = dx * dx + dy * dy;
-            float r, old;
-            if (d2 > eps2 || is_done(c, j)) {
-                continue;
-            }
-            r = sqrtf(d2);
-            r = r > core_p ? r : core_p;
-            old = c->reach[j];
-            if (!(r < old)) {
-                continue;
-            }
-            c->reach[j] = r;
-            if (c->pred != NULL) {
-                c->pred[j] = (uint16_t)p;
-            }
-            if (c->mode == MAGCAL_OPTICS_CLASSIC) {
-                if (c->pos[j] == POS_NONE) {
-                    c->seeds[c->n_seeds] = (uint16_t)j;
-                    c->n_seeds++;
-                    heap_sift_up(c, c->n_seeds - 1u);
-                } else {
-                    heap_sift_up(c, c->pos[j]);
+            if (d2 <= eps2 && !is_done(c, j)) {
+                float r = REACH_OF(d2, core_p, best[m - 1u]);
+                if (r < c->reach[j]) {
+                    update_one(c, p, j, r);
                 }
-            } else if (old == INFINITY) {
-                c->seeds[c->n_seeds] = (uint16_t)j;
-                c->n_seeds++;
             }
         }
     }
@@ -242,6 +311,14 @@ static void optics_loop(optics_ctx_t *c)
         }
     }
     memset(c->done, 0, (c->n + 7u) / 8u);
+    if (!c->nb.use_grid) {
+        c->live = c->nb.idx;
+        for (i = 0; i < c->n; ++i) {
+            c->live[i] = (uint16_t)i;
+        }
+        c->n_live = c->n;
+    }
+
     c->n_seeds = 0u;
     c->n_done = 0u;
     for (s = 0; s < c->n; ++s) {
