@@ -81,13 +81,16 @@ typedef enum {
 /** Neighbour search used for the eps-queries; outputs are identical. */
 typedef enum {
     MAGCAL_NEIGHBORS_BRUTE = 0, /**< test every point, O(n) per query */
-    MAGCAL_NEIGHBORS_GRID = 1   /**< uniform grid, counting sort, 3x3 cell query (brute if eps = inf) */
+    MAGCAL_NEIGHBORS_GRID = 1   /**< uniform grid, counting sort, 3x3 cell query (brute if eps = inf
+                                     or all points equal) */
 } magcal_neighbors_t;
 
 /**
- * Grid cells the spatial index may use for n points: min(MAGCAL_GRID_MAX_CELLS, max(n, 16)).
- * The cell side is eps*(1+2^-20), enlarged (still correct, only less selective) when the bounding
- * box would need more cells than this.
+ * Buckets G of the spatial index for n points: min(MAGCAL_GRID_MAX_CELLS, max(n, 16)).
+ * The grid has cell side eps*(1+2^-6) over the points' bounding box; a grid of at most G cells
+ * is stored densely (algorithms.md 4.4), a larger one (far outliers stretching the box) folds its
+ * row-major cell number modulo G, so distant cells share buckets and the distance test drops the
+ * extra candidates. Results never depend on G; only the speed does.
  */
 #define MAGCAL_OPTICS_GRID_CELLS(n) \
     ((size_t)(n) < 16u ? (size_t)16u \
