@@ -70,13 +70,9 @@ static void heap_sift_down(optics_ctx_t *c, size_t k)
 {
     uint16_t v = c->seeds[k];
     size_t m = c->n_seeds;
-    for (;;) {
+    while (2u * k + 1u < m) { /* k at least doubles: <= log2(m) rounds */
         size_t child = 2u * k + 1u;
-        uint16_t cv;
-        if (child >= m) {
-            break;
-        }
-        cv = c->seeds[child];
+        uint16_t cv = c->seeds[child];
         if (child + 1u < m && key_less(c->reach, c->seeds[child + 1u], cv)) {
             ++child;
             cv = c->seeds[child];
@@ -533,8 +529,8 @@ static float select_kth(float *a, size_t n, size_t k)
     size_t lo = 0u, hi = n - 1u;
     while (lo < hi) {
         float pivot = a[lo + (hi - lo) / 2u];
-        size_t i = lo, j = hi;
-        for (;;) {
+        size_t i = lo, j = hi, guard;
+        for (guard = lo; guard <= hi; ++guard) { /* i grows by >= 1 per round: <= hi-lo+1 rounds */
             float t;
             while (a[i] < pivot) {
                 ++i;
@@ -570,11 +566,8 @@ static int sort_less(const float *key, uint16_t a, uint16_t b)
 static void sort_sift(uint16_t *idx, const float *key, size_t k, size_t m)
 {
     uint16_t v = idx[k];
-    for (;;) {
+    while (2u * k + 1u < m) {
         size_t child = 2u * k + 1u;
-        if (child >= m) {
-            break;
-        }
         if (child + 1u < m && sort_less(key, idx[child], idx[child + 1u])) {
             ++child;
         }
