@@ -62,6 +62,7 @@ set(MAGCAL_UNITY_SOURCE_DIR "${_unity_dir}" CACHE INTERNAL "")
 
 add_library(unity STATIC "${_unity_dir}/src/unity.c")
 target_include_directories(unity SYSTEM PUBLIC "${_unity_dir}/src")
-# Doubles are used by some test assertions on the host; enable Unity's double support.
-target_compile_definitions(unity PUBLIC UNITY_INCLUDE_DOUBLE UNITY_SUPPORT_64)
+# Test code asserts on doubles (references computed in double); enable Unity's double support.
+# Defined empty: Debian's Unity 2.4.3 tree also defines it (empty) in examples/unity_config.h.
+target_compile_definitions(unity PUBLIC UNITY_INCLUDE_DOUBLE= UNITY_SUPPORT_64)
 set_target_properties(unity PROPERTIES C_STANDARD 99 C_EXTENSIONS OFF)

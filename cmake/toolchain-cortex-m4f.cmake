@@ -10,7 +10,9 @@ set(CMAKE_RANLIB arm-none-eabi-ranlib)
 set(MAGCAL_SIZE_PROGRAM arm-none-eabi-size)
 
 set(MAGCAL_M4F_FLAGS "-mcpu=cortex-m4 -mthumb -mfloat-abi=hard -mfpu=fpv4-sp-d16")
-set(CMAKE_C_FLAGS_INIT "${MAGCAL_M4F_FLAGS} -ffunction-sections -fdata-sections -fstack-usage")
+# -fstack-usage writes <obj>.su (frame per function) and -fcallgraph-info=su writes <obj>.ci (call
+# graph with frames): tools/stack/stack_usage.py sums them into a worst case per API function.
+set(CMAKE_C_FLAGS_INIT "${MAGCAL_M4F_FLAGS} -ffunction-sections -fdata-sections -fstack-usage -fcallgraph-info=su")
 set(CMAKE_C_FLAGS_MINSIZEREL_INIT "-Os -DNDEBUG")
 set(CMAKE_EXE_LINKER_FLAGS_INIT "${MAGCAL_M4F_FLAGS} -Wl,--gc-sections")
 

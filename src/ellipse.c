@@ -1,0 +1,711 @@
+/*
+ * 5-parameter least-squares conic fit x^2 + A xy + B y^2 + C x + D y + E = 0 in float32
+ * (algorithms.md 2.1-2.5, 3.1-3.2), and the ellipse-to-circle corrections of 2.4.
+ *
+ * Pipeline of a fit (no workspace, three passes over the caller's samples):
+ *   1. scan: count the used points, reject NaN/Inf, bounding box;
+ *   2. normalise on the bounding-box mid-range and half-diagonal (|x~|, |y~| <= 1), accumulate
+ *      the 13 power sums S_pq (p + q <= 4) with Kahan summation, test collinearity on the 2x2
+ *      covariance, assemble W^T W and W^T Y, solve with the equilibrated LDL^T and its pivot test;
+ *   3. geometry (centre, axes, angle) in normalised coordinates, mapped back by
+ *      c = m + s c~, r = s r~ (angles unchanged), then the RMS radial residual.
+ * The 5-point exact path (RANSAC minimal sets) replaces step 2's normal equations by Gaussian
+ * elimination with partial pivoting on the 5x5 system itself.
+ */
+#include "magcal/ellipse.h"
+
+#include <math.h>
+
+#include "magcal_internal.h"
+
+/* Keep the 5-point path (its 5x6 tableau) out of magcal_ellipse_fit_idx's frame, which also sits
+ * on the deepest path fit_normal -> moments_solve -> magcal_ldlt_solve. Plain C99 elsewhere. */
+#if defined(__GNUC__)
+#define ELLIPSE_NOINLINE __attribute__((noinline))
+#else
+#define ELLIPSE_NOINLINE
+#endif
+
+/* Power sums S_pq = sum x~^p y~^q kept by the accumulator (indices into mom[]). */
+#define S10 0u
+#define S01 1u
+#define S20 2u
+#define S11 3u
+#define S02 4u
+#define S30 5u
+#define S21 6u
+#define S12 7u
+#define S03 8u
+#define S31 9u
+#define S22 10u
+#define S13 11u
+#define S04 12u
+#define S_COUNT 13u
+
+/* The points a fit uses: pts[idx[k]] for k < n when idx is set, else pts[k] where mask[k] != 0. */
+typedef struct {
+    const magcal_vec2_t *pts;
+    size_t n;
+    const uint8_t *mask;
+    const uint16_t *idx;
+} fit_src_t;
+
+/* Affine normalisation x~ = (x - mx) * isx, y~ = (y - my) * isy. */
+typedef struct {
+    float mx;
+    float my;
+    float isx;
+    float isy;
+} fit_norm_t;
+
+static int src_point(const fit_src_t *src, size_t k, magcal_vec2_t *p)
+{
+    if (src->idx != NULL) {
+        *p = src->pts[src->idx[k]];
+        return 1;
+    }
+    if (src->mask != NULL && src->mask[k] == 0u) {
+        return 0;
+    }
+    *p = src->pts[k];
+    return 1;
+}
+
+/* Pass 1: number of used points, finiteness, bounding box (bb = xmin, xmax, ymin, ymax) and the
+ * largest magnitude per axis (amax = max|x|, max|y|, for the seed's scaling). */
+static magcal_status_t src_scan(const fit_src_t *src, size_t *count, float bb[4], float amax[2])
+{
+    size_t k;
+    size_t cnt = 0u;
+    magcal_vec2_t p;
+
+    bb[0] = 0.0f;
+    bb[1] = 0.0f;
+    bb[2] = 0.0f;
+    bb[3] = 0.0f;
+    amax[0] = 0.0f;
+    amax[1] = 0.0f;
+    for (k = 0u; k < src->n; ++k) {
+        if (src_point(src, k, &p) == 0) {
+            continue;
+        }
+        if (!magcal_isfinite_f(p.x) || !magcal_isfinite_f(p.y)) {
+            return MAGCAL_ERR_NONFINITE;
+        }
+        if (cnt == 0u) {
+            bb[0] = p.x;
+            bb[1] = p.x;
+            bb[2] = p.y;
+            bb[3] = p.y;
+        } else {
+            bb[0] = (p.x < bb[0]) ? p.x : bb[0];
+            bb[1] = (p.x > bb[1]) ? p.x : bb[1];
+            bb[2] = (p.y < bb[2]) ? p.y : bb[2];
+            bb[3] = (p.y > bb[3]) ? p.y : bb[3];
+        }
+        amax[0] = (fabsf(p.x) > amax[0]) ? fabsf(p.x) : amax[0];
+        amax[1] = (fabsf(p.y) > amax[1]) ? fabsf(p.y) : amax[1];
+        ++cnt;
+    }
+    if (cnt > MAGCAL_ELLIPSE_MAX_POINTS) {
+        return MAGCAL_ERR_ARG;
+    }
+    if (cnt < MAGCAL_ELLIPSE_MIN_POINTS) {
+        return MAGCAL_ERR_TOO_FEW_POINTS;
+    }
+    *count = cnt;
+    return MAGCAL_OK;
+}
+
+/* Centred normalisation: mid-range of the bounding box, isotropic scale = half its diagonal. */
+static magcal_status_t norm_centred(const float bb[4], fit_norm_t *nm, float *scale)
+{
+    float wx = bb[1] - bb[0];
+    float wy = bb[3] - bb[2];
+    float big = (wx > wy) ? wx : wy;
+    float small = (wx > wy) ? wy : wx;
+    float s;
+    float r;
+
+    if (!magcal_isfinite_f(wx) || !magcal_isfinite_f(wy)) {
+        return MAGCAL_ERR_NONFINITE; /* range overflows float32 */
+    }
+    if (!(big > 0.0f)) {
+        return MAGCAL_ERR_DEGENERATE; /* all points identical */
+    }
+    r = small / big;
+    s = 0.5f * big * sqrtf(1.0f + r * r);
+    nm->mx = 0.5f * bb[0] + 0.5f * bb[1];
+    nm->my = 0.5f * bb[2] + 0.5f * bb[3];
+    nm->isx = 1.0f / s;
+    nm->isy = nm->isx;
+    *scale = s;
+    return MAGCAL_OK;
+}
+
+static void kahan_add(float *sum, float *comp, float v)
+{
+    float y = v - *comp;
+    float t = *sum + y;
+    *comp = (t - *sum) - y;
+    *sum = t;
+}
+
+/* Pass 2: power sums of the normalised points, Kahan-compensated unless plain != 0 (the seed's
+ * plain float32 accumulation, kept only for magcal_ellipse_fit_seed()). */
+static void src_moments(const fit_src_t *src, const fit_norm_t *nm, int plain, float mom[S_COUNT])
+{
+    float comp[S_COUNT];
+    float v[S_COUNT];
+    size_t k;
+    size_t j;
+    magcal_vec2_t p;
+
+    for (j = 0u; j < S_COUNT; ++j) {
+        mom[j] = 0.0f;
+        comp[j] = 0.0f;
+    }
+    for (k = 0u; k < src->n; ++k) {
+        float x;
+        float y;
+        if (src_point(src, k, &p) == 0) {
+            continue;
+        }
+        x = (p.x - nm->mx) * nm->isx;
+        y = (p.y - nm->my) * nm->isy;
+        v[S10] = x;
+        v[S01] = y;
+        v[S20] = x * x;
+        v[S11] = x * y;
+        v[S02] = y * y;
+        v[S30] = v[S20] * x;
+        v[S21] = v[S20] * y;
+        v[S12] = x * v[S02];
+        v[S03] = y * v[S02];
+        v[S31] = v[S20] * v[S11];
+        v[S22] = v[S20] * v[S02];
+        v[S13] = v[S11] * v[S02];
+        v[S04] = v[S02] * v[S02];
+        for (j = 0u; j < S_COUNT; ++j) {
+            if (plain != 0) {
+                mom[j] += v[j];
+            } else {
+                kahan_add(&mom[j], &comp[j], v[j]);
+            }
+        }
+    }
+}
+
+/* Collinear (or nearly) points: smaller covariance eigenvalue below a fraction of the larger.
+ * det/tr^2 = l1 l2 / (l1 + l2)^2 is the eigenvalue ratio when that ratio is small. Reads only
+ * mom[S10..S02] (the first five entries). */
+static int moments_collinear(const float *mom, float cnt)
+{
+    float inv = 1.0f / cnt;
+    float mu = mom[S10] * inv;
+    float mv = mom[S01] * inv;
+    float cxx = mom[S20] * inv - mu * mu;
+    float cxy = mom[S11] * inv - mu * mv;
+    float cyy = mom[S02] * inv - mv * mv;
+    float tr = cxx + cyy;
+    float det = cxx * cyy - cxy * cxy;
+
+    return !(tr > 0.0f) || !(det > MAGCAL_ELLIPSE_COLLINEAR_TOL * tr * tr);
+}
+
+/* Normal equations of the rows w = [xy, y^2, x, y, 1], Y = -x^2, solved by equilibrated LDL^T.
+ * On success the coefficients A..E overwrite mom[0..4] (the moments are dead by then; sharing the
+ * array keeps the deepest stack path, through magcal_ldlt_solve, short). */
+static magcal_status_t moments_solve(float mom[S_COUNT], float cnt, float *min_pivot)
+{
+    float a[25];
+    float b[5];
+    magcal_status_t st;
+    size_t i;
+
+    a[0] = mom[S22];
+    a[5] = mom[S13];
+    a[6] = mom[S04];
+    a[10] = mom[S21];
+    a[11] = mom[S12];
+    a[12] = mom[S20];
+    a[15] = mom[S12];
+    a[16] = mom[S03];
+    a[17] = mom[S11];
+    a[18] = mom[S02];
+    a[20] = mom[S11];
+    a[21] = mom[S02];
+    a[22] = mom[S10];
+    a[23] = mom[S01];
+    a[24] = cnt;
+    /* upper triangle is not read by magcal_ldlt_solve; fill it anyway for a defined matrix */
+    a[1] = a[5];
+    a[2] = a[10];
+    a[3] = a[15];
+    a[4] = a[20];
+    a[7] = a[11];
+    a[8] = a[16];
+    a[9] = a[21];
+    a[13] = a[17];
+    a[14] = a[22];
+    a[19] = a[23];
+    b[0] = -mom[S31];
+    b[1] = -mom[S22];
+    b[2] = -mom[S30];
+    b[3] = -mom[S21];
+    b[4] = -mom[S20];
+    st = magcal_ldlt_solve(a, b, 5u, MAGCAL_ELLIPSE_PIVOT_TOL, min_pivot);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    for (i = 0u; i < 5u; ++i) {
+        mom[i] = b[i];
+    }
+    return MAGCAL_OK;
+}
+
+float magcal_ellipse_residual(const magcal_ellipse_t *e, magcal_vec2_t p)
+{
+    float ux;
+    float uy;
+    float a;
+    float n2;
+    float nrm;
+
+    if (e == NULL || !magcal_isfinite_f(p.x) || !magcal_isfinite_f(p.y)) {
+        return NAN;
+    }
+    ux = p.x - e->center.x;
+    uy = p.y - e->center.y;
+    a = (e->qform[0] * ux + 2.0f * e->qform[1] * uy) * ux + e->qform[2] * uy * uy;
+    n2 = ux * ux + uy * uy;
+    if (!(a > 0.0f) || !(n2 > 0.0f)) {
+        return -e->semi_minor; /* at the centre */
+    }
+    nrm = sqrtf(n2);
+    return nrm - nrm / sqrtf(a);
+}
+
+/* Pass 3: RMS of the radial residual over the used points. */
+static float src_residual_rms(const fit_src_t *src, const magcal_ellipse_t *e, size_t cnt)
+{
+    float sum = 0.0f;
+    float comp = 0.0f;
+    size_t k;
+    magcal_vec2_t p;
+
+    for (k = 0u; k < src->n; ++k) {
+        float r;
+        if (src_point(src, k, &p) == 0) {
+            continue;
+        }
+        r = magcal_ellipse_residual(e, p);
+        kahan_add(&sum, &comp, r * r);
+    }
+    return sqrtf(sum / (float)cnt);
+}
+
+/*
+ * Geometry of x^2 + A xy + B y^2 + C x + D y + E = 0 given in coordinates x~ = (x - mx)/s
+ * (isotropic s, so angles are unchanged and lengths scale by s; algorithms.md 2.3), then the
+ * complete result. *out is written only once every check has passed; src (may be NULL: residual
+ * RMS 0) is used for the residual RMS over the cnt used points.
+ */
+static magcal_status_t conic_finish(const float coef[5], float mx, float my, float s,
+                                    float min_pivot, size_t cnt, const fit_src_t *src,
+                                    magcal_ellipse_t *out)
+{
+    float ca = coef[0];
+    float cb = coef[1];
+    float delta = 4.0f * cb - ca * ca;
+    float fro = 1.0f + 0.5f * ca * ca + cb * cb;
+    float x0;
+    float y0;
+    float kk;
+    float l1;
+    float r1;
+    float r2;
+    float cx;
+    float cy;
+    float q11;
+    size_t i;
+
+    if (fabsf(delta) <= MAGCAL_ELLIPSE_PARABOLA_TOL * fro) {
+        return MAGCAL_ERR_PARABOLA;
+    }
+    if (delta < 0.0f) {
+        return MAGCAL_ERR_HYPERBOLA;
+    }
+    x0 = (ca * coef[3] - 2.0f * cb * coef[2]) / delta;
+    y0 = (ca * coef[2] - 2.0f * coef[3]) / delta;
+    kk = -(coef[4] + 0.5f * (coef[2] * x0 + coef[3] * y0));
+    if (!(kk > 0.0f)) {
+        return MAGCAL_ERR_IMAGINARY;
+    }
+    l1 = 0.5f * (1.0f + cb) + 0.5f * sqrtf((1.0f - cb) * (1.0f - cb) + ca * ca);
+    r1 = sqrtf(kk / l1) * s;
+    /* l2 = det/l1: no cancellation for thin ellipses */
+    r2 = sqrtf(kk / ((0.25f * delta) / l1)) * s;
+    cx = mx + s * x0;
+    cy = my + s * y0;
+    q11 = 1.0f / (kk * s * s);
+    if (!magcal_isfinite_f(cx) || !magcal_isfinite_f(cy) || !magcal_isfinite_f(r2) ||
+        !magcal_isfinite_f(q11) || !(q11 > 0.0f) || !(r1 > 0.0f)) {
+        return MAGCAL_ERR_ILL_CONDITIONED; /* under/overflow of a nearly singular conic */
+    }
+    out->center.x = cx;
+    out->center.y = cy;
+    out->semi_minor = r1;
+    out->semi_major = r2;
+    out->angle_rad = 0.5f * atan2f(ca, 1.0f - cb);
+    for (i = 0u; i < 5u; ++i) {
+        out->coef[i] = coef[i];
+    }
+    out->norm_center.x = mx;
+    out->norm_center.y = my;
+    out->norm_scale = s;
+    out->min_pivot = min_pivot;
+    out->qform[0] = q11;
+    out->qform[1] = 0.5f * ca * q11;
+    out->qform[2] = cb * q11;
+    out->n_used = (uint16_t)cnt;
+    out->residual_rms = (src != NULL) ? src_residual_rms(src, out, cnt) : 0.0f;
+    return MAGCAL_OK;
+}
+
+/* Pass 1 and the centred normalisation, in a frame of their own. */
+static magcal_status_t prepare_centred(const fit_src_t *src, size_t *count, fit_norm_t *nm,
+                                       float *scale)
+{
+    float bb[4];
+    float amax[2];
+    magcal_status_t st = src_scan(src, count, bb, amax);
+
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    return norm_centred(bb, nm, scale);
+}
+
+/* Centred fit through the normal equations (any count >= 5). */
+static magcal_status_t fit_normal(const fit_src_t *src, magcal_ellipse_t *out)
+{
+    float mom[S_COUNT];
+    float s = 1.0f;
+    float minp = 0.0f;
+    size_t cnt = 0u;
+    fit_norm_t nm;
+    magcal_status_t st;
+
+    st = prepare_centred(src, &cnt, &nm, &s);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    src_moments(src, &nm, 0, mom);
+    if (moments_collinear(mom, (float)cnt) != 0) {
+        return MAGCAL_ERR_DEGENERATE;
+    }
+    st = moments_solve(mom, (float)cnt, &minp);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    return conic_finish(mom, nm.mx, nm.my, s, minp, cnt, src, out);
+}
+
+magcal_status_t magcal_ellipse_fit(const magcal_vec2_t *pts, size_t n, const uint8_t *mask,
+                                   magcal_ellipse_t *out)
+{
+    fit_src_t src;
+
+    if (pts == NULL || out == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    src.pts = pts;
+    src.n = n;
+    src.mask = mask;
+    src.idx = NULL;
+    return fit_normal(&src, out);
+}
+
+/* Exact conic through 5 points: Gaussian elimination with partial pivoting on W X = Y. */
+static ELLIPSE_NOINLINE magcal_status_t fit_five(const fit_src_t *src, magcal_ellipse_t *out)
+{
+    float w[5][6];
+    float coef[5];
+    float mom[5];
+    float s = 1.0f;
+    float minp = 1.0f;
+    float ptol = sqrtf(MAGCAL_ELLIPSE_PIVOT_TOL);
+    size_t cnt = 0u;
+    size_t i;
+    size_t j;
+    size_t k;
+    fit_norm_t nm;
+    magcal_status_t st;
+
+    for (i = 0u; i < 5u; ++i) {
+        for (j = i + 1u; j < 5u; ++j) {
+            if (src->idx[i] == src->idx[j]) {
+                return MAGCAL_ERR_DEGENERATE;
+            }
+        }
+    }
+    st = prepare_centred(src, &cnt, &nm, &s);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    for (i = 0u; i < 5u; ++i) {
+        mom[i] = 0.0f;
+    }
+    /* Rows [xy, y^2, x, y, 1 | -x^2]: |entries| <= 1 and the constant column makes each row's
+     * max-abs exactly 1, so the rows are already equilibrated. mom[] gets S10, S01, S20, S11, S02
+     * (the first five moment indices) for the collinearity test. */
+    for (i = 0u; i < 5u; ++i) {
+        magcal_vec2_t p = src->pts[src->idx[i]];
+        float x = (p.x - nm.mx) * nm.isx;
+        float y = (p.y - nm.my) * nm.isy;
+        w[i][0] = x * y;
+        w[i][1] = y * y;
+        w[i][2] = x;
+        w[i][3] = y;
+        w[i][4] = 1.0f;
+        w[i][5] = -x * x;
+        mom[S10] += x;
+        mom[S01] += y;
+        mom[S20] += x * x;
+        mom[S11] += x * y;
+        mom[S02] += y * y;
+    }
+    if (moments_collinear(mom, 5.0f) != 0) {
+        return MAGCAL_ERR_DEGENERATE;
+    }
+    for (k = 0u; k < 5u; ++k) {
+        size_t piv = k;
+        float best = fabsf(w[k][k]);
+        for (i = k + 1u; i < 5u; ++i) {
+            if (fabsf(w[i][k]) > best) {
+                best = fabsf(w[i][k]);
+                piv = i;
+            }
+        }
+        if (!(best > ptol)) {
+            return MAGCAL_ERR_ILL_CONDITIONED;
+        }
+        minp = (best < minp) ? best : minp;
+        if (piv != k) {
+            for (j = k; j < 6u; ++j) {
+                float t = w[k][j];
+                w[k][j] = w[piv][j];
+                w[piv][j] = t;
+            }
+        }
+        for (i = k + 1u; i < 5u; ++i) {
+            float f = w[i][k] / w[k][k];
+            for (j = k + 1u; j < 6u; ++j) {
+                w[i][j] -= f * w[k][j];
+            }
+        }
+    }
+    for (i = 0u; i < 5u; ++i) { /* back substitution, k = 4 .. 0 */
+        float acc;
+        k = 4u - i;
+        acc = w[k][5];
+        for (j = k + 1u; j < 5u; ++j) {
+            acc -= w[k][j] * coef[j];
+        }
+        coef[k] = acc / w[k][k];
+    }
+    return conic_finish(coef, nm.mx, nm.my, s, minp, 5u, src, out);
+}
+
+magcal_status_t magcal_ellipse_fit_idx(const magcal_vec2_t *pts, size_t n_pts, const uint16_t *idx,
+                                       size_t m, magcal_ellipse_t *out)
+{
+    fit_src_t src;
+    size_t k;
+
+    if (pts == NULL || idx == NULL || out == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (m > MAGCAL_ELLIPSE_MAX_POINTS) {
+        return MAGCAL_ERR_ARG;
+    }
+    if (m < MAGCAL_ELLIPSE_MIN_POINTS) {
+        return MAGCAL_ERR_TOO_FEW_POINTS;
+    }
+    for (k = 0u; k < m; ++k) {
+        if ((size_t)idx[k] >= n_pts) {
+            return MAGCAL_ERR_ARG;
+        }
+    }
+    src.pts = pts;
+    src.n = m;
+    src.mask = NULL;
+    src.idx = idx;
+    if (m == MAGCAL_ELLIPSE_MIN_POINTS) {
+        return fit_five(&src, out);
+    }
+    return fit_normal(&src, out);
+}
+
+/* Pass 1 and the seed's max-abs normalisation (no centring), in a frame of their own. */
+static magcal_status_t prepare_seed(const fit_src_t *src, size_t *count, fit_norm_t *nm)
+{
+    float bb[4];
+    float amax[2];
+    magcal_status_t st = src_scan(src, count, bb, amax);
+
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    if (!(amax[0] > 0.0f) || !(amax[1] > 0.0f)) {
+        return MAGCAL_ERR_DEGENERATE; /* a whole axis is zero: collinear */
+    }
+    nm->mx = 0.0f;
+    nm->my = 0.0f;
+    nm->isx = 1.0f / amax[0];
+    nm->isy = 1.0f / amax[1];
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_ellipse_fit_seed(const magcal_vec2_t *pts, size_t n, const uint8_t *mask,
+                                        magcal_ellipse_t *out)
+{
+    fit_src_t src;
+    float mom[S_COUNT];
+    float cu[5];
+    float sx;
+    float sy;
+    float rx;
+    float minp = 0.0f;
+    size_t cnt = 0u;
+    fit_norm_t nm;
+    magcal_status_t st;
+
+    if (pts == NULL || out == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    src.pts = pts;
+    src.n = n;
+    src.mask = mask;
+    src.idx = NULL;
+    st = prepare_seed(&src, &cnt, &nm);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    src_moments(&src, &nm, 1, mom);
+    if (moments_collinear(mom, (float)cnt) != 0) {
+        return MAGCAL_ERR_DEGENERATE;
+    }
+    st = moments_solve(mom, (float)cnt, &minp);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    /* Back to input units (algorithms.md 2.2 with mx = my = 0); geometry extracted there. */
+    sx = 1.0f / nm.isx;
+    sy = 1.0f / nm.isy;
+    rx = sx / sy;
+    cu[0] = mom[0] * rx;
+    cu[1] = mom[1] * rx * rx;
+    cu[2] = mom[2] * sx;
+    cu[3] = mom[3] * sx * rx;
+    cu[4] = mom[4] * sx * sx;
+    return conic_finish(cu, 0.0f, 0.0f, 1.0f, minp, cnt, &src, out);
+}
+
+magcal_status_t magcal_ellipse_to_cal(const magcal_ellipse_t *e, magcal_corr_form_t form, float rho,
+                                      magcal_cal2d_t *out)
+{
+    float r1;
+    float r2;
+    float c;
+    float sn;
+    float out_r;
+    magcal_cal2d_t cal;
+
+    if (e == NULL || out == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (!magcal_isfinite_f(rho)) {
+        return MAGCAL_ERR_NONFINITE;
+    }
+    r1 = e->semi_minor;
+    r2 = e->semi_major;
+    if (!magcal_isfinite_f(r2) || !magcal_isfinite_f(e->angle_rad) ||
+        !magcal_isfinite_f(e->center.x) || !magcal_isfinite_f(e->center.y) || !(r1 > 0.0f) ||
+        !(r1 <= r2)) {
+        return MAGCAL_ERR_ARG;
+    }
+    c = cosf(e->angle_rad);
+    sn = sinf(e->angle_rad);
+    switch (form) {
+    case MAGCAL_CORR_SYMMETRIC:
+    case MAGCAL_CORR_KX1: {
+        /* M = rho R(theta) diag(1/r1, 1/r2) R(theta)^T; KX1 with rho <= 0 is rho = r1. */
+        float i1;
+        float i2;
+        if (rho > 0.0f) {
+            out_r = rho;
+        } else if (form == MAGCAL_CORR_KX1) {
+            out_r = r1;
+        } else {
+            out_r = sqrtf(r1) * sqrtf(r2);
+        }
+        i1 = out_r / r1;
+        i2 = out_r / r2;
+        cal.m[0][0] = c * c * i1 + sn * sn * i2;
+        cal.m[0][1] = c * sn * (i1 - i2);
+        cal.m[1][0] = cal.m[0][1];
+        cal.m[1][1] = sn * sn * i1 + c * c * i2;
+        break;
+    }
+    case MAGCAL_CORR_TRIANGULAR: {
+        /* Upper-triangular T with T^T T = rho^2 Q, Q = R diag(1/r1^2, 1/r2^2) R^T (Cholesky of Q
+         * from its geometry; det Q = 1/(r1 r2)^2 avoids the cancelling q22 - q12^2/q11). */
+        float a1 = 1.0f / (r1 * r1);
+        float a2 = 1.0f / (r2 * r2);
+        float q11 = c * c * a1 + sn * sn * a2;
+        float q12 = c * sn * (a1 - a2);
+        float sq = sqrtf(q11);
+        out_r = (rho > 0.0f) ? rho : sqrtf(r1) * sqrtf(r2);
+        cal.m[0][0] = out_r * sq;
+        cal.m[0][1] = out_r * q12 / sq;
+        cal.m[1][0] = 0.0f;
+        cal.m[1][1] = out_r / (r1 * r2 * sq);
+        break;
+    }
+    default: return MAGCAL_ERR_ARG;
+    }
+    cal.offset = e->center;
+    cal.radius = out_r;
+    cal.magic = MAGCAL_CAL2D_MAGIC;
+    if (!magcal_isfinite_f(cal.m[0][0]) || !magcal_isfinite_f(cal.m[0][1]) ||
+        !magcal_isfinite_f(cal.m[1][1])) {
+        return MAGCAL_ERR_ARG;
+    }
+    *out = cal;
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_ellipse_from_conic(const float coef[5], magcal_vec2_t norm_center,
+                                          float norm_scale, magcal_ellipse_t *out)
+{
+    size_t i;
+
+    if (coef == NULL || out == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    for (i = 0u; i < 5u; ++i) {
+        if (!magcal_isfinite_f(coef[i])) {
+            return MAGCAL_ERR_NONFINITE;
+        }
+    }
+    if (!magcal_isfinite_f(norm_center.x) || !magcal_isfinite_f(norm_center.y) ||
+        !magcal_isfinite_f(norm_scale)) {
+        return MAGCAL_ERR_NONFINITE;
+    }
+    if (!(norm_scale > 0.0f)) {
+        return MAGCAL_ERR_ARG;
+    }
+    return conic_finish(coef, norm_center.x, norm_center.y, norm_scale, 1.0f, 0u, NULL, out);
+}
