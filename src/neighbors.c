@@ -48,8 +48,8 @@ static size_t nbr_cell(const magcal_nbr_t *nb, size_t i)
     return nbr_bucket(nb, cx, cy);
 }
 
-void magcal_nbr_build(magcal_nbr_t *nb, const magcal_vec2_t *pts, size_t n, float eps, magcal_neighbors_t mode,
-                      void *mem, const float *window)
+void magcal_nbr_build(magcal_nbr_t *nb, const magcal_vec2_t *pts, size_t n, float eps,
+                      magcal_neighbors_t mode, void *mem, const float *window)
 {
     float xmin, xmax, ymin, ymax, w, hgt, h, fw, fh;
     size_t i, c, g, cells, cap = MAGCAL_OPTICS_GRID_CELLS(n);

@@ -47,8 +47,8 @@ typedef struct {
  * falling back to brute force. A query visits the (deduplicated) buckets of the 3x3 cells.
  * Falls back to brute force when mode is BRUTE, eps is not finite, or the points are all equal.
  */
-void magcal_nbr_build(magcal_nbr_t *nb, const magcal_vec2_t *pts, size_t n, float eps, magcal_neighbors_t mode,
-                      void *mem, const float *window);
+void magcal_nbr_build(magcal_nbr_t *nb, const magcal_vec2_t *pts, size_t n, float eps,
+                      magcal_neighbors_t mode, void *mem, const float *window);
 
 /* Candidate ranges for a query at point index p (every point within eps of p is in them). */
 void magcal_nbr_query(const magcal_nbr_t *nb, size_t p, magcal_nbr_ranges_t *r);

@@ -361,8 +361,8 @@ static magcal_status_t check_cfg(const magcal_optics_cfg_t *cfg)
 }
 
 /* Carve the run workspace (uint16 seeds, pos, neighbour index, done bits) and build the index. */
-static void ctx_setup(optics_ctx_t *c, const magcal_optics_cfg_t *cfg, const magcal_vec2_t *pts, size_t n,
-                      uint8_t *w, const float *window)
+static void ctx_setup(optics_ctx_t *c, const magcal_optics_cfg_t *cfg, const magcal_vec2_t *pts,
+                      size_t n, uint8_t *w, const float *window)
 {
     memset(c, 0, sizeof *c);
     c->pts = pts;
@@ -378,7 +378,8 @@ static void ctx_setup(optics_ctx_t *c, const magcal_optics_cfg_t *cfg, const mag
     magcal_nbr_build(&c->nb, pts, n, cfg->eps, cfg->neighbors, w + 4u * n, window);
 }
 
-static void fill_info(magcal_optics_result_t *info, const optics_ctx_t *c, float eps, float eps_prime)
+static void fill_info(magcal_optics_result_t *info, const optics_ctx_t *c, float eps,
+                      float eps_prime)
 {
     if (info == NULL) {
         return;
@@ -391,13 +392,15 @@ static void fill_info(magcal_optics_result_t *info, const optics_ctx_t *c, float
     info->largest_id = MAGCAL_OPTICS_NOISE;
 }
 
-magcal_status_t magcal_optics_run(const magcal_optics_cfg_t *cfg, const magcal_vec2_t *pts, size_t n,
-                                  void *work, size_t work_len, uint16_t *order, float *reach,
-                                  float *core, uint16_t *pred, magcal_optics_result_t *info)
+magcal_status_t magcal_optics_run(const magcal_optics_cfg_t *cfg, const magcal_vec2_t *pts,
+                                  size_t n, void *work, size_t work_len, uint16_t *order,
+                                  float *reach, float *core, uint16_t *pred,
+                                  magcal_optics_result_t *info)
 {
     optics_ctx_t c;
     magcal_status_t st;
-    if (cfg == NULL || pts == NULL || work == NULL || order == NULL || reach == NULL || core == NULL) {
+    if (cfg == NULL || pts == NULL || work == NULL || order == NULL || reach == NULL ||
+        core == NULL) {
         return MAGCAL_ERR_NULL;
     }
     st = check_cfg(cfg);
@@ -424,9 +427,9 @@ magcal_status_t magcal_optics_run(const magcal_optics_cfg_t *cfg, const magcal_v
     return MAGCAL_OK;
 }
 
-magcal_status_t magcal_optics_extract_dbscan(const uint16_t *order, const float *reach, const float *core,
-                                             size_t n, float eps, float eps_prime, int16_t *labels,
-                                             uint16_t *n_clusters)
+magcal_status_t magcal_optics_extract_dbscan(const uint16_t *order, const float *reach,
+                                             const float *core, size_t n, float eps,
+                                             float eps_prime, int16_t *labels, uint16_t *n_clusters)
 {
     size_t k;
     int32_t id = -1;
@@ -461,8 +464,9 @@ magcal_status_t magcal_optics_extract_dbscan(const uint16_t *order, const float 
     return MAGCAL_OK;
 }
 
-magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, void *work, size_t work_len,
-                                              uint8_t *inlier_mask, int16_t *cluster_id, uint16_t *count)
+magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, void *work,
+                                              size_t work_len, uint8_t *inlier_mask,
+                                              int16_t *cluster_id, uint16_t *count)
 {
     uint16_t *cnt;
     size_t i, best_count = 0u;
@@ -514,11 +518,11 @@ magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, v
 
 #define AUTO_MIN_N 16u
 #define AUTO_MIN_PTS 4u
-#define AUTO_BAND 0.5f    /* ring band: | |p-c| - R | <= 0.5 R */
-#define AUTO_SAFETY 1.5f  /* eps' = 1.5 * measured requirement */
-#define AUTO_CORE_Q 0.9f  /* quantile of the per-point core requirement */
-#define AUTO_WIN 4u       /* angular neighbours looked at on each side */
-#define AUTO_TRIM 3.0f    /* centre passes after the first use points within 3 R */
+#define AUTO_BAND 0.5f   /* ring band: | |p-c| - R | <= 0.5 R */
+#define AUTO_SAFETY 1.5f /* eps' = 1.5 * measured requirement */
+#define AUTO_CORE_Q 0.9f /* quantile of the per-point core requirement */
+#define AUTO_WIN 4u      /* angular neighbours looked at on each side */
+#define AUTO_TRIM 3.0f   /* centre passes after the first use points within 3 R */
 #define AUTO_TRIM_PASSES 2u
 #define AUTO_MIN_REL (1.0f / 256.0f)
 #define AUTO_MAX_REL 1.0f
@@ -720,8 +724,9 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
     return MAGCAL_OK;
 }
 
-magcal_status_t magcal_optics_auto_params(const magcal_vec2_t *pts, size_t n, void *work, size_t work_len,
-                                          float *eps, uint16_t *min_pts, float *eps_prime)
+magcal_status_t magcal_optics_auto_params(const magcal_vec2_t *pts, size_t n, void *work,
+                                          size_t work_len, float *eps, uint16_t *min_pts,
+                                          float *eps_prime)
 {
     magcal_status_t st;
     float e;
@@ -748,8 +753,8 @@ magcal_status_t magcal_optics_auto_params(const magcal_vec2_t *pts, size_t n, vo
     return MAGCAL_OK;
 }
 
-magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magcal_vec2_t *pts, size_t n,
-                                     void *work, size_t work_len, uint8_t *inlier_mask,
+magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magcal_vec2_t *pts,
+                                     size_t n, void *work, size_t work_len, uint8_t *inlier_mask,
                                      magcal_optics_result_t *info)
 {
     magcal_optics_cfg_t use;

@@ -36,10 +36,7 @@ static uint32_t rng_next(uint32_t *s)
     return x;
 }
 
-static float rng_unit(uint32_t *s)
-{
-    return (float)(rng_next(s) >> 8) * (1.0f / 16777216.0f);
-}
+static float rng_unit(uint32_t *s) { return (float)(rng_next(s) >> 8) * (1.0f / 16777216.0f); }
 
 static void make_ring(size_t n)
 {
@@ -75,7 +72,8 @@ __attribute__((noinline)) int bench_target(const char *mode, size_t n, float eps
     }
     c.order = strncmp(mode, "classic", 7) == 0 ? MAGCAL_OPTICS_CLASSIC : MAGCAL_OPTICS_IMPROVED;
     c.neighbors = strstr(mode, "grid") ? MAGCAL_NEIGHBORS_GRID : MAGCAL_NEIGHBORS_BRUTE;
-    return (int)magcal_optics_run(&c, g_pts, n, g_work, sizeof g_work, g_order, g_reach, g_core, NULL, NULL);
+    return (int)magcal_optics_run(&c, g_pts, n, g_work, sizeof g_work, g_order, g_reach, g_core,
+                                  NULL, NULL);
 }
 
 int main(int argc, char **argv)
@@ -98,7 +96,8 @@ int main(int argc, char **argv)
     if (argc > 3 && strcmp(argv[3], "auto") == 0) {
         uint16_t mp;
         float ep;
-        if (magcal_optics_auto_params(g_pts, n, g_work, sizeof g_work, &eps, &mp, &ep) != MAGCAL_OK) {
+        if (magcal_optics_auto_params(g_pts, n, g_work, sizeof g_work, &eps, &mp, &ep) !=
+            MAGCAL_OK) {
             fprintf(stderr, "auto params failed\n");
             return 1;
         }
@@ -108,6 +107,7 @@ int main(int argc, char **argv)
         sum += isinf(g_reach[i]) ? 0.0 : (double)g_reach[i];
         sum += (double)g_order[i] + (double)g_labels[i] + (double)g_mask[i];
     }
-    printf("mode=%s n=%u eps=%g status=%d checksum=%.6f\n", argv[1], (unsigned)n, (double)eps, st, sum);
+    printf("mode=%s n=%u eps=%g status=%d checksum=%.6f\n", argv[1], (unsigned)n, (double)eps, st,
+           sum);
     return st == 0 ? 0 : 1;
 }

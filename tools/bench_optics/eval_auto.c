@@ -122,7 +122,8 @@ int main(void)
     };
     size_t is, in, i;
     uint32_t seed;
-    printf("%-30s %9s %9s %9s %9s %6s\n", "scenario", "kept_mean", "kept_min", "rej_mean", "eps'/R", "fails");
+    printf("%-30s %9s %9s %9s %9s %6s\n", "scenario", "kept_mean", "kept_min", "rej_mean", "eps'/R",
+           "fails");
     for (is = 0; is < sizeof sc / sizeof sc[0]; ++is) {
         double kept_sum = 0.0, kept_min = 1.0, rej_sum = 0.0, rel[25];
         char rej[16];
@@ -134,7 +135,8 @@ int main(void)
                 size_t n = ns[in], ti = 0u, ki = 0u, to = 0u, ko = 0u;
                 double k;
                 gen(&sc[is], n, seed + 100u * (uint32_t)in);
-                if (magcal_optics_filter(&cfg, g_pts, n, g_work, sizeof g_work, g_mask, &info) != MAGCAL_OK) {
+                if (magcal_optics_filter(&cfg, g_pts, n, g_work, sizeof g_work, g_mask, &info) !=
+                    MAGCAL_OK) {
                     ++fails;
                     rel[runs++] = 0.0;
                     kept_min = 0.0;
