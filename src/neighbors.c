@@ -142,7 +142,6 @@ void magcal_nbr_build(magcal_nbr_t *nb, const magcal_vec2_t *pts, size_t n, floa
 void magcal_nbr_query(const magcal_nbr_t *nb, size_t p, magcal_nbr_ranges_t *r)
 {
     uint16_t cx, cy, x_lo, x_hi, y_lo, y_hi, x, y;
-    size_t b[9], nbk = 0u, i, t;
     if (!nb->use_grid) {
         r->idx = NULL;
         r->begin[0] = 0u;
@@ -168,31 +167,23 @@ void magcal_nbr_query(const magcal_nbr_t *nb, size_t p, magcal_nbr_ranges_t *r)
         }
         return;
     }
-    /* folded grid: bucket numbers of the 3x3 block, sorted and deduplicated (may coincide) */
+    /* folded grid: the 3x3 cells may share buckets; every bucket once (its number parked in end[]
+     * while collecting, so no extra stack), one range per distinct bucket */
     for (y = y_lo; y <= y_hi; ++y) {
         for (x = x_lo; x <= x_hi; ++x) {
-            size_t v = nbr_bucket(nb, x, y);
-            for (t = nbk; t > 0u && b[t - 1u] > v; --t) {
-                b[t] = b[t - 1u];
+            uint16_t v = (uint16_t)nbr_bucket(nb, x, y);
+            uint16_t t;
+            for (t = 0u; t < r->n_ranges && r->end[t] != v; ++t) {
             }
-            if (t > 0u && b[t - 1u] == v) {
-                for (; t < nbk; ++t) { /* duplicate: undo the shift */
-                    b[t] = b[t + 1u];
-                }
-                continue;
+            if (t == r->n_ranges) {
+                r->end[r->n_ranges] = v;
+                r->n_ranges++;
             }
-            b[t] = v;
-            ++nbk;
         }
     }
-    /* consecutive buckets are contiguous in idx: merge them into ranges */
-    for (i = 0; i < nbk; ++i) {
-        if (r->n_ranges > 0u && b[i] == b[i - 1u] + 1u) {
-            r->end[r->n_ranges - 1u] = nb->start[b[i] + 1u];
-        } else {
-            r->begin[r->n_ranges] = nb->start[b[i]];
-            r->end[r->n_ranges] = nb->start[b[i] + 1u];
-            r->n_ranges++;
-        }
+    for (y = 0u; y < r->n_ranges; ++y) {
+        uint16_t v = r->end[y];
+        r->begin[y] = nb->start[v];
+        r->end[y] = nb->start[v + 1u];
     }
 }

@@ -21,6 +21,7 @@ typedef struct {
     uint16_t *seeds; /* heap (CLASSIC) or unordered list (IMPROVED) */
     uint16_t *pos;   /* CLASSIC: heap position of each point or POS_NONE */
     uint8_t *done;   /* processed bits */
+    float *best;     /* MinPts insertion buffer (workspace, keeps process() frame small) */
     size_t n_seeds;
     size_t n_done;
     uint16_t *live; /* brute force only: unprocessed points (reuses the unused grid index) */
@@ -211,7 +212,7 @@ static void live_pass(optics_ctx_t *c, size_t p, float core_p, float core2)
 
 static void process(optics_ctx_t *c, size_t p)
 {
-    float best[MAGCAL_MAX_MIN_PTS];
+    float *best = c->best;
     size_t cnt = 0u, m = c->min_pts, ri, k;
     const magcal_vec2_t *pts = c->pts;
     const float px = pts[p].x, py = pts[p].y, eps2 = c->eps2;
@@ -373,6 +374,7 @@ static void ctx_setup(optics_ctx_t *c, const magcal_optics_cfg_t *cfg, const mag
     c->seeds = (uint16_t *)(void *)w;
     c->pos = c->seeds + n;
     c->done = w + 4u * n + MAGCAL_NEIGHBORS_WORKSPACE_LEN(n);
+    c->best = (float *)(void *)(w + MAGCAL_OPTICS_BEST_OFFSET_(n));
     c->id = -1;
     c->best_id = -1;
     magcal_nbr_build(&c->nb, pts, n, cfg->eps, cfg->neighbors, w + 4u * n, window);
@@ -814,7 +816,7 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
             return MAGCAL_ERR_WORKSPACE;
         }
     }
-    ctx_setup(&c, &use, pts, n, w + 6u * n, win);
+    ctx_setup(&c, &use, pts, n, w + MAGCAL_OPTICS_FILTER_RUN_OFFSET_(n), win);
     c.reach = (float *)work;
     c.labels = (int16_t *)(void *)(w + 4u * n);
     c.eps_prime = eps_prime;

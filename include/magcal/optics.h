@@ -102,23 +102,32 @@ typedef enum {
 #define MAGCAL_NEIGHBORS_WORKSPACE_LEN(n)                                                          \
     (2u * (size_t)(n) + 2u * (MAGCAL_OPTICS_GRID_CELLS(n) + 1u))
 
-/**
- * Workspace bytes for magcal_optics_run() on n points: seed heap/list uint16[n], heap position
- * map uint16[n], spatial index, one "processed" bit per point, rounded up to a multiple of 4.
- * About 8.1 bytes per sample (n <= MAGCAL_GRID_MAX_CELLS); the outputs (order 2 + reach 4 +
- * core 4 bytes per sample) are separate caller arrays.
- */
-#define MAGCAL_OPTICS_WORKSPACE_LEN(n)                                                             \
+/** @cond INTERNAL */
+/* Offset of the MinPts insertion buffer in the run workspace (4-byte aligned). */
+#define MAGCAL_OPTICS_BEST_OFFSET_(n)                                                              \
     ((4u * (size_t)(n) + MAGCAL_NEIGHBORS_WORKSPACE_LEN(n) + ((size_t)(n) + 7u) / 8u + 3u) &       \
      ~(size_t)3u)
+/* Offset of the run workspace inside the filter workspace (4-byte aligned). */
+#define MAGCAL_OPTICS_FILTER_RUN_OFFSET_(n) ((6u * (size_t)(n) + 3u) & ~(size_t)3u)
+/** @endcond */
+
+/**
+ * Workspace bytes for magcal_optics_run() on n points: seed heap/list uint16[n], heap position
+ * map uint16[n], spatial index, one "processed" bit per point and the MinPts insertion buffer
+ * (4 * MAGCAL_MAX_MIN_PTS bytes, kept off the stack). About 8.1 bytes per sample + 128 bytes;
+ * the outputs (order 2 + reach 4 + core 4 bytes per sample) are separate caller arrays.
+ */
+#define MAGCAL_OPTICS_WORKSPACE_LEN(n)                                                             \
+    (MAGCAL_OPTICS_BEST_OFFSET_(n) + 4u * (size_t)MAGCAL_MAX_MIN_PTS)
 
 /**
  * Workspace bytes for magcal_optics_filter() and magcal_optics_auto_params() on n points:
- * reach float[n] + labels int16[n] + MAGCAL_OPTICS_WORKSPACE_LEN(n). About 16 bytes per sample;
- * with the caller's uint8 inlier mask the whole filter needs about 17 bytes per sample besides
- * the points (ordering and core distances are consumed on the fly, never stored).
+ * reach float[n] + labels int16[n] + MAGCAL_OPTICS_WORKSPACE_LEN(n). About 14.1 bytes per
+ * sample + 128 bytes; with the caller's uint8 inlier mask the whole filter needs about 15.1 bytes
+ * per sample besides the points (ordering and core distances are consumed on the fly).
  */
-#define MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n) (6u * (size_t)(n) + MAGCAL_OPTICS_WORKSPACE_LEN(n))
+#define MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n)                                                      \
+    (MAGCAL_OPTICS_FILTER_RUN_OFFSET_(n) + MAGCAL_OPTICS_WORKSPACE_LEN(n))
 
 /** Workspace bytes for magcal_optics_largest_cluster() on n labels (cluster counts, uint16[n]). */
 #define MAGCAL_OPTICS_LARGEST_WORKSPACE_LEN(n) ((2u * (size_t)(n) + 3u) & ~(size_t)3u)
