@@ -234,8 +234,8 @@ static void test_optics_run_matches_sklearn_golden_vectors(void)
             TEST_ASSERT_EQUAL_INT(g->n_clusters, n_clusters);
             TEST_ASSERT_EQUAL_INT16_ARRAY(g->labels, g_labels, g->n);
         }
-        printf("golden %s: %zu/%zu ordering positions equal to sklearn's over 4 variants\n",
-               g->name, order_same, 4u * g->n);
+        printf("golden %s: %u/%u ordering positions equal to sklearn's over 4 variants\n",
+               g->name, (unsigned)order_same, (unsigned)(4u * g->n));
     }
 }
 
