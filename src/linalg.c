@@ -75,8 +75,10 @@ magcal_status_t magcal_ldlt_solve(float *a, float *b, size_t n, float tau, float
     for (i = 0u; i < n; ++i) {
         b[i] /= d[i];
     }
-    for (i = n; i-- > 0u;) {
-        float s = b[i];
+    for (j = 0u; j < n; ++j) {
+        float s;
+        i = n - 1u - j; /* back substitution runs i = n-1 .. 0 */
+        s = b[i];
         for (k = i + 1u; k < n; ++k) {
             s -= a[k * n + i] * b[k];
         }
@@ -101,6 +103,8 @@ float magcal_wrap180_deg(float a)
         r -= 360.0f;
     } else if (r <= -180.0f) {
         r += 360.0f;
+    } else {
+        /* already in (-180, 180] */
     }
     return r;
 }

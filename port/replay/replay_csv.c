@@ -583,7 +583,8 @@ magcal_status_t magcal_replay_csv_fill(const magcal_replay_csv_t *d, size_t firs
     }
     for (k = 0u; k < count; ++k) {
         size_t r = first + k * step;
-        float m[3], g[3];
+        float m[3] = {0.0f, 0.0f, 0.0f};
+        float g[3] = {0.0f, 0.0f, 0.0f};
         for (a = 0u; a < 3u; ++a) {
             const double *cm = d->col[MAGCAL_REPLAY_COL_MX + plane->src[a]];
             double v = (cm != NULL) ? cm[r] : NAN;
