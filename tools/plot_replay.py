@@ -96,6 +96,10 @@ def main(argv=None):
 
     with open(a.report) as f:
         rep = json.load(f)
+    if rep.get("mode", "2d") != "2d":
+        sys.stderr.write("plot_replay.py: draws the 2d mode only; this report is --mode %s "
+                         "(use the JSON and the --headings CSV)\n" % rep.get("mode"))
+        return 2
     dump = read_dump(a.dump)
     hd = read_headings(a.headings)
     out = a.output or os.path.splitext(a.dump)[0] + "_replay.png"
