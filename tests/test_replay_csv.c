@@ -57,6 +57,30 @@ static void test_parse_any_column_order_extra_columns_comments_crlf_reads_values
     ASSERT_SIZE(8u, g_d.line[2]);
 }
 
+static void test_parse_aided_columns_are_recognised_and_required_ones_checked(void)
+{
+    const uint32_t req = REQ_XY | MAGCAL_REPLAY_COL_BIT(MAGCAL_REPLAY_COL_ROLL) |
+                         MAGCAL_REPLAY_COL_BIT(MAGCAL_REPLAY_COL_HEIGHT);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                          parse("mx,my,roll_deg,pitch_deg,yaw_deg,lat_deg,lon_deg,height_km,decimal_year,dop\n"
+                                "1,2,-1.5,2.5,359.5,48.1,11.6,0.52,2026.5,\n",
+                                req));
+    TEST_ASSERT_EQUAL_DOUBLE(-1.5, g_d.col[MAGCAL_REPLAY_COL_ROLL][0]);
+    TEST_ASSERT_EQUAL_DOUBLE(2.5, g_d.col[MAGCAL_REPLAY_COL_PITCH][0]);
+    TEST_ASSERT_EQUAL_DOUBLE(359.5, g_d.col[MAGCAL_REPLAY_COL_YAW][0]);
+    TEST_ASSERT_EQUAL_DOUBLE(48.1, g_d.col[MAGCAL_REPLAY_COL_LAT][0]);
+    TEST_ASSERT_EQUAL_DOUBLE(11.6, g_d.col[MAGCAL_REPLAY_COL_LON][0]);
+    TEST_ASSERT_EQUAL_DOUBLE(0.52, g_d.col[MAGCAL_REPLAY_COL_HEIGHT][0]);
+    TEST_ASSERT_EQUAL_DOUBLE(2026.5, g_d.col[MAGCAL_REPLAY_COL_YEAR][0]);
+    TEST_ASSERT_TRUE(isnan(g_d.col[MAGCAL_REPLAY_COL_DOP][0])); /* optional: empty = missing */
+    TEST_ASSERT_EQUAL_STRING("dop", magcal_replay_csv_col_name(MAGCAL_REPLAY_COL_DOP));
+    magcal_replay_csv_free(&g_d);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, parse("mx,my,roll_deg,height_km\n1,2,nan,0.5\n", req));
+    TEST_ASSERT_EQUAL_STRING("dump.csv:2:3: column \"roll_deg\" is required, got \"nan\"", g_err);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, parse("mx,my,roll_deg\n1,2,3\n", req));
+    TEST_ASSERT_EQUAL_STRING("dump.csv:1: missing required column \"height_km\" in the header", g_err);
+}
+
 static void test_parse_bad_number_names_file_line_and_field(void)
 {
     const char *text = "t,mx,my\n0,1,2\n0.1,1,2\n0.2,3,1.2.3\n";
@@ -371,5 +395,6 @@ int main(void)
     RUN_TEST(test_plane_parses_pairs_and_rejects_others);
     RUN_TEST(test_fill_maps_plane_decimates_and_feeds_the_replay_port);
     RUN_TEST(test_fill_two_axis_dump_zeroes_missing_z_and_rejects_missing_plane_axis);
+    RUN_TEST(test_parse_aided_columns_are_recognised_and_required_ones_checked);
     return UNITY_END();
 }
