@@ -452,6 +452,8 @@ def case_tilt_2d(a):
     # z_offset = mean mz over the level turn = V_z + vertical field
     check(abs(t.get("z_offset", 0) - (truth["V"][2] + hz)) <= 0.05, "z_offset %r vs %g" % (t.get("z_offset"), truth["V"][2] + hz))
     no_inc = run_json(a, base)
+    p = run(a, base, 0)
+    check("without --inclination" in p.stderr, "no note on stderr about the missing inclination: %r" % p.stderr)
     no_tilt = run_json(a, ["--no-tilt"] + base)
     sys.stdout.write("tilt_2d: with --inclination %.4f deg, without %.4f deg, no tilt %.4f deg, floor %.4f deg\n" % (
         rep.get("heading_rms_deg", -1), no_inc.get("heading_rms_deg", -1), no_tilt.get("heading_rms_deg", -1), floor))
