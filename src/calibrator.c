@@ -76,6 +76,8 @@ static float cal_coverage_of(const uint16_t *bins, float *miss_start, float *mis
         }
     } else if (filled == 0u) {
         best_len = MAGCAL_COVERAGE_BINS;
+    } else {
+        /* every bin filled: no missing sector */
     }
     if (miss_start != NULL) {
         *miss_start = (float)best_start * CAL_BIN_DEG;
@@ -178,7 +180,7 @@ magcal_status_t magcal_calibrator_init(magcal_calibrator_t *cal, const magcal_ca
     if (cal == NULL || cfg == NULL || sample_buf == NULL || work == NULL) {
         return MAGCAL_ERR_NULL;
     }
-    if (capacity < 16u || capacity > MAGCAL_MAX_SAMPLES || ((uintptr_t)work & 3u) != 0u) {
+    if (capacity < 16u || capacity > MAGCAL_MAX_SAMPLES || magcal_misalign(work, 4u) != 0u) {
         return MAGCAL_ERR_ARG;
     }
     st = cal_check_cfg(cfg);
@@ -280,6 +282,8 @@ magcal_status_t magcal_calibrator_push(magcal_calibrator_t *cal, magcal_vec2_t p
             cal_rebin(cal); /* the provisional centre moved: re-bin every stored sample */
         } else if (cal->bins[b] < 0xFFFFu) {
             cal->bins[b]++;
+        } else {
+            /* bin count saturated */
         }
     }
     ang = cal_angle_deg(p.x - cal->centre.x, p.y - cal->centre.y);
@@ -429,10 +433,10 @@ static magcal_status_t cal_filter(magcal_calibrator_t *cal, magcal_cal_report_t 
 {
     const magcal_calibrator_cfg_t *c = &cal->cfg;
     size_t n = cal->n;
-    size_t i;
     magcal_status_t st;
     if (c->filter == MAGCAL_FILTER_NONE || (c->eps <= 0.0f && n < 16u)) {
         /* no filter (auto parameters need 16 samples: below that every sample is a candidate) */
+        size_t i;
         for (i = 0u; i < n; ++i) {
             cal->mask_a[i] = 1u;
         }
@@ -495,6 +499,8 @@ static magcal_status_t cal_filter(magcal_calibrator_t *cal, magcal_cal_report_t 
             oc.eps = e;
             oc.eps_prime = ep;
             oc.min_pts = c->min_pts;
+        } else {
+            /* fully automatic parameters: the OPTICS defaults */
         }
         st = magcal_optics_filter(&oc, cal->buf, n, cal->scratch, cal->scratch_len, cal->mask_a, &info);
         if (st != MAGCAL_OK) {
@@ -666,11 +672,12 @@ magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *
     size_t n;
     size_t i;
     size_t used = 0u;
+    size_t n_out;
     size_t filt_in = 0u;
     magcal_status_t st;
     float radius;
     float cov;
-    int cur_usable;
+    int cur_usable = 0;
 
     if (cal == NULL || current == NULL) {
         return MAGCAL_ERR_NULL;
@@ -689,7 +696,7 @@ magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *
     if (n < cal->cfg.min_samples || n < MAGCAL_ELLIPSE_MIN_POINTS) {
         return cal_finish(cal, MAGCAL_ERR_TOO_FEW_POINTS, &rep, report);
     }
-    if (cal_degenerate(cal->buf, n)) {
+    if (cal_degenerate(cal->buf, n) != 0) {
         return cal_finish(cal, MAGCAL_ERR_DEGENERATE, &rep, report);
     }
 
@@ -756,6 +763,8 @@ magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *
             }
         } else if (cal->mask_a[i] != 0u) {
             rep.rejected_consensus++;
+        } else {
+            /* rejected by the filter and by the consensus */
         }
     }
     rep.used = (uint16_t)used;
@@ -770,10 +779,11 @@ magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *
     rep.min_pivot = cres.fit.min_pivot;
 
     /* 5. gates */
+    n_out = n - used;
     if (used < cal->cfg.min_samples) {
         return cal_finish(cal, MAGCAL_ERR_TOO_FEW_POINTS, &rep, report);
     }
-    if ((float)(n - used) > cal->cfg.max_outlier_frac * (float)n) {
+    if ((float)n_out > cal->cfg.max_outlier_frac * (float)n) {
         return cal_finish(cal, MAGCAL_ERR_TOO_MANY_OUTLIERS, &rep, report);
     }
     if ((cal->cfg.min_radius > 0.0f && radius < cal->cfg.min_radius) ||
@@ -806,9 +816,11 @@ magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *
     }
 
     /* 7. adoption rule */
-    cur_usable = (magcal_cal2d_validate(current) == MAGCAL_OK && current->radius > 0.0f) ? 1 : 0;
-    cal_shift(cur_usable ? current : NULL, &next, &rep.shift_max_deg, &rep.shift_rms_deg);
-    if (cur_usable) {
+    if (magcal_cal2d_validate(current) == MAGCAL_OK && current->radius > 0.0f) {
+        cur_usable = 1;
+    }
+    cal_shift(cur_usable != 0 ? current : NULL, &next, &rep.shift_max_deg, &rep.shift_rms_deg);
+    if (cur_usable != 0) {
         float var_cur;
         float var_new;
         float mean_cur;
@@ -865,7 +877,11 @@ magcal_status_t magcal_calibrator_inlier(const magcal_calibrator_t *cal, size_t 
     if (i >= cal->n_judged) {
         return MAGCAL_ERR_ARG;
     }
-    *is_inlier = (cal->flags[i] & MAGCAL_CALIBRATOR_FLAG_RESIDUAL) != 0u ? 0 : 1;
+    if ((cal->flags[i] & MAGCAL_CALIBRATOR_FLAG_RESIDUAL) != 0u) {
+        *is_inlier = 0;
+    } else {
+        *is_inlier = 1;
+    }
     return MAGCAL_OK;
 }
 
@@ -885,7 +901,11 @@ magcal_status_t magcal_calibrator_classify(const magcal_calibrator_t *cal, magca
         return MAGCAL_ERR_STATE;
     }
     r = magcal_ellipse_residual(&cal->fit, p);
-    *is_outlier = (magcal_isfinite_f(r) && fabsf(r) <= cal->threshold) ? 0 : 1;
+    if (magcal_isfinite_f(r) && fabsf(r) <= cal->threshold) {
+        *is_outlier = 0;
+    } else {
+        *is_outlier = 1;
+    }
     return MAGCAL_OK;
 }
 

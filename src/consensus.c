@@ -12,9 +12,6 @@
 /* 1 / Phi^-1(3/4): MAD of a normal distribution -> sigma. */
 #define CONS_MAD_TO_SIGMA 1.4826f
 
-/* Largest rank a shell-sort gap can reach is n; Ciura's gaps, extended. */
-static const uint16_t cons_gaps[] = {701u, 301u, 132u, 57u, 23u, 10u, 4u, 1u};
-
 /* k-th smallest (0-based) of a[0..n-1]; a is reordered. Iterative Hoare selection, bounded. */
 static float cons_select(float *a, size_t n, size_t k)
 {
@@ -29,10 +26,16 @@ static float cons_select(float *a, size_t n, size_t k)
         for (inner = 0u; inner <= n && i <= j; ++inner) {
             size_t s1;
             size_t s2;
-            for (s1 = 0u; s1 < n && a[i] < pivot; ++s1) {
+            for (s1 = 0u; s1 < n; ++s1) {
+                if (!(a[i] < pivot)) {
+                    break;
+                }
                 ++i;
             }
-            for (s2 = 0u; s2 < n && a[j] > pivot; ++s2) {
+            for (s2 = 0u; s2 < n; ++s2) {
+                if (!(a[j] > pivot)) {
+                    break;
+                }
                 --j;
             }
             if (i <= j) {
@@ -66,6 +69,8 @@ static float cons_median(float *a, size_t n)
 /* Sort idx[0..m-1] by key[0..m-1] ascending (keys move with their indices). Shell sort. */
 static void cons_sort(float *key, uint16_t *idx, size_t m)
 {
+    /* Largest rank a shell-sort gap can reach is n; Ciura's gaps, extended. */
+    static const uint16_t cons_gaps[] = {701u, 301u, 132u, 57u, 23u, 10u, 4u, 1u};
     size_t g;
     for (g = 0u; g < sizeof cons_gaps / sizeof cons_gaps[0]; ++g) {
         size_t gap = cons_gaps[g];
@@ -141,15 +146,17 @@ magcal_status_t magcal_consensus_run(const magcal_consensus_cfg_t *cfg, const ma
                                      const uint8_t *cand_mask, void *work, size_t work_len,
                                      uint8_t *inlier_mask, magcal_consensus_result_t *result)
 {
-    uintptr_t base;
     float *res;
     float *scr;
     uint16_t *order;
     size_t i;
     size_t m = 0u;
     uint32_t rng;
-    magcal_ellipse_t best;
-    magcal_ellipse_t cur;
+    magcal_ellipse_t *ells;
+    magcal_ellipse_t *best;
+    magcal_ellipse_t *cur;
+    magcal_ellipse_t *cand;
+    magcal_ellipse_t *next;
     float best_score = INFINITY;
     uint16_t draws = 0u;
     uint16_t valid = 0u;
@@ -181,9 +188,14 @@ magcal_status_t magcal_consensus_run(const magcal_consensus_cfg_t *cfg, const ma
         }
     }
 
-    /* carve the workspace: res[n], scr[n] (4-aligned), order[n] */
-    base = ((uintptr_t)work + 3u) & ~(uintptr_t)3u;
-    res = (float *)base;
+    /* carve the workspace (4-aligned): four ellipses (kept off the stack: the fits below are on
+     * the deepest stack path), res[n], scr[n], order[n] */
+    ells = (magcal_ellipse_t *)(void *)((uint8_t *)work + ((4u - magcal_misalign(work, 4u)) & 3u));
+    best = &ells[0];
+    cur = &ells[1];
+    cand = &ells[2];
+    next = &ells[3];
+    res = (float *)(void *)(ells + 4);
     scr = res + n;
     order = (uint16_t *)(void *)(scr + n);
 
@@ -224,62 +236,60 @@ magcal_status_t magcal_consensus_run(const magcal_consensus_cfg_t *cfg, const ma
             uint16_t idx[5];
             uint32_t off = magcal_prng_next(&rng, (uint32_t)m);
             size_t j;
-            magcal_ellipse_t cand;
             float score;
             for (j = 0u; j < 5u; ++j) {
                 uint32_t jit = magcal_prng_next(&rng, (uint32_t)fifth);
                 idx[j] = order[((size_t)off + j * fifth + (size_t)jit) % m];
             }
             ++draws;
-            if (magcal_ellipse_fit_idx(pts, n, idx, 5u, &cand) != MAGCAL_OK) {
+            if (magcal_ellipse_fit_idx(pts, n, idx, 5u, cand) != MAGCAL_OK) {
                 continue;
             }
-            if (cons_residuals(&cand, pts, n, res) != 0) {
+            if (cons_residuals(cand, pts, n, res) != 0) {
                 continue;
             }
             ++valid;
             score = cons_median(res, n);
             if (score < best_score) {
                 best_score = score;
-                best = cand;
+                *best = *cand;
             }
         }
     }
     if (valid == 0u) {
         /* no minimal set gave an ellipse: start from the least-squares fit of the candidates */
-        st = magcal_ellipse_fit_idx(pts, n, order, m, &best);
+        st = magcal_ellipse_fit_idx(pts, n, order, m, best);
         if (st != MAGCAL_OK) {
             return st;
         }
-        if (cons_residuals(&best, pts, n, res) != 0) {
+        if (cons_residuals(best, pts, n, res) != 0) {
             return MAGCAL_ERR_NONFINITE;
         }
         for (i = 0u; i < n; ++i) {
             scr[i] = res[i];
         }
         best_score = cons_median(scr, n);
-    } else if (cons_residuals(&best, pts, n, res) != 0) {
+    } else if (cons_residuals(best, pts, n, res) != 0) {
         return MAGCAL_ERR_NONFINITE;
+    } else {
+        /* res holds the best minimal model's residuals */
     }
 
     /* 3. threshold, inliers over every sample, refit; until the set is stable */
-    cur = best;
+    *cur = *best;
     sigma = CONS_MAD_TO_SIGMA * best_score;
-    thr = cons_threshold(cfg, &cur, sigma);
+    thr = cons_threshold(cfg, cur, sigma);
     {
         /* Working inlier set: order[] (the candidate list is no longer needed) as a 0/1 mask per
          * sample; inlier_mask is written only on success. */
         uint16_t *wm = order;
         uint16_t r;
+        int stop = 0;
         for (i = 0u; i < n; ++i) {
             wm[i] = (uint16_t)(res[i] <= thr ? 1u : 0u);
         }
-        for (r = 0u; r < cfg->refine_iter; ++r) {
-            magcal_ellipse_t next;
+        for (r = 0u; (r < cfg->refine_iter) && (stop == 0); ++r) {
             size_t k = 0u;
-            size_t changed = 0u;
-            float nsig;
-            float nthr;
             /* compact the mask into an ascending index list in place, fit, expand it back */
             for (i = 0u; i < n; ++i) {
                 if (wm[i] != 0u) {
@@ -290,7 +300,7 @@ magcal_status_t magcal_consensus_run(const magcal_consensus_cfg_t *cfg, const ma
             if (k < MAGCAL_ELLIPSE_MIN_POINTS) {
                 return MAGCAL_ERR_TOO_FEW_POINTS;
             }
-            st = magcal_ellipse_fit_idx(pts, n, wm, k, &next);
+            st = magcal_ellipse_fit_idx(pts, n, wm, k, next);
             /* restore wm as a 0/1 mask from the list (backwards keeps entries not yet read) */
             {
                 size_t q = k;
@@ -306,39 +316,44 @@ magcal_status_t magcal_consensus_run(const magcal_consensus_cfg_t *cfg, const ma
                 }
             }
             if (st != MAGCAL_OK) {
-                break; /* keep the last good model */
-            }
-            ++rounds;
-            if (cons_residuals(&next, pts, n, res) != 0) {
-                break;
-            }
-            cur = next;
-            /* sigma from the current inliers' residuals */
-            k = 0u;
-            for (i = 0u; i < n; ++i) {
-                if (wm[i] != 0u) {
-                    scr[k] = res[i];
-                    ++k;
+                stop = 1; /* keep the last good model */
+            } else {
+                ++rounds;
+                if (cons_residuals(next, pts, n, res) != 0) {
+                    stop = 1;
+                } else {
+                    size_t changed = 0u;
+                    float nsig;
+                    float nthr;
+                    *cur = *next;
+                    /* sigma from the current inliers' residuals */
+                    k = 0u;
+                    for (i = 0u; i < n; ++i) {
+                        if (wm[i] != 0u) {
+                            scr[k] = res[i];
+                            ++k;
+                        }
+                    }
+                    nsig = CONS_MAD_TO_SIGMA * cons_median(scr, k);
+                    nthr = cons_threshold(cfg, cur, nsig);
+                    for (i = 0u; i < n; ++i) {
+                        uint16_t v = (uint16_t)(res[i] <= nthr ? 1u : 0u);
+                        if (v != wm[i]) {
+                            ++changed;
+                            wm[i] = v;
+                        }
+                    }
+                    sigma = nsig;
+                    thr = nthr;
+                    if (changed == 0u) {
+                        stop = 1;
+                    }
                 }
-            }
-            nsig = CONS_MAD_TO_SIGMA * cons_median(scr, k);
-            nthr = cons_threshold(cfg, &cur, nsig);
-            for (i = 0u; i < n; ++i) {
-                uint16_t v = (uint16_t)(res[i] <= nthr ? 1u : 0u);
-                if (v != wm[i]) {
-                    ++changed;
-                    wm[i] = v;
-                }
-            }
-            sigma = nsig;
-            thr = nthr;
-            if (changed == 0u) {
-                break;
             }
         }
         /* final verdict for every sample against `cur` (res holds cur's residuals unless the
          * last refit failed; recompute to be exact) */
-        if (cons_residuals(&cur, pts, n, res) != 0) {
+        if (cons_residuals(cur, pts, n, res) != 0) {
             return MAGCAL_ERR_NONFINITE;
         }
         n_in = 0u;
@@ -367,7 +382,7 @@ magcal_status_t magcal_consensus_run(const magcal_consensus_cfg_t *cfg, const ma
             }
             inlier_mask[i] = in;
         }
-        result->fit = cur;
+        result->fit = *cur;
         result->sigma = sigma;
         result->threshold = thr;
         result->best_score = best_score;

@@ -3,6 +3,13 @@
 
 #include "magcal_internal.h"
 
+size_t magcal_misalign(const void *p, size_t align)
+{
+    /* Deviation D9 (MISRA 11.6): the alignment of a caller's workspace can only be read from
+     * its address. */
+    return (size_t)((uintptr_t)p & (uintptr_t)(align - 1u));
+}
+
 magcal_status_t magcal_ldlt_solve(float *a, float *b, size_t n, float tau, float *min_pivot)
 {
     float scale[MAGCAL_LDLT_MAX_N];

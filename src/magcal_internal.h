@@ -46,6 +46,12 @@ static inline int magcal_isfinite_f(float v)
     return (v == v) && (v - v == 0.0f);
 }
 
+/**
+ * Misalignment of a caller-provided buffer: the address of p modulo align (align a power of
+ * two, 1..16). The one place where a pointer becomes an integer (MISRA 11.6, deviation D9).
+ */
+size_t magcal_misalign(const void *p, size_t align);
+
 /** Wrap an angle in degrees to (-180, 180]. Input must be finite. */
 float magcal_wrap180_deg(float a);
 

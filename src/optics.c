@@ -101,7 +101,8 @@ static uint16_t seeds_pop_min(optics_ctx_t *c)
             heap_sift_down(c, 0u);
         }
     } else {
-        size_t k, best = 0u;
+        size_t k;
+        size_t best = 0u;
         const float *reach = c->reach;
         uint16_t bq = c->seeds[0];
         float br = reach[bq];
@@ -190,9 +191,13 @@ static float reach_of(float d2, float core_p, float core2)
 static void live_pass(optics_ctx_t *c, size_t p, float core_p, float core2)
 {
     const magcal_vec2_t *pts = c->pts;
-    const float px = pts[p].x, py = pts[p].y, eps2 = c->eps2;
+    const float px = pts[p].x;
+    const float py = pts[p].y;
+    const float eps2 = c->eps2;
     uint16_t *live = c->live;
-    size_t k, w = 0u, nl = c->n_live;
+    size_t k;
+    size_t w = 0u;
+    size_t nl = c->n_live;
     for (k = 0; k < nl; ++k) {
         size_t j = live[k];
         if (j == p) {
@@ -200,7 +205,8 @@ static void live_pass(optics_ctx_t *c, size_t p, float core_p, float core2)
         }
         live[w++] = (uint16_t)j;
         if (core_p < INFINITY) {
-            float dx = pts[j].x - px, dy = pts[j].y - py;
+            float dx = pts[j].x - px;
+            float dy = pts[j].y - py;
             float d2 = dx * dx + dy * dy;
             if (d2 <= eps2) {
                 float r = reach_of(d2, core_p, core2);
@@ -216,9 +222,14 @@ static void live_pass(optics_ctx_t *c, size_t p, float core_p, float core2)
 static void process(optics_ctx_t *c, size_t p)
 {
     float *best = c->best;
-    size_t cnt = 0u, m = c->min_pts, ri, k;
+    size_t cnt = 0u;
+    size_t m = c->min_pts;
+    size_t ri;
+    size_t k;
     const magcal_vec2_t *pts = c->pts;
-    const float px = pts[p].x, py = pts[p].y, eps2 = c->eps2;
+    const float px = pts[p].x;
+    const float py = pts[p].y;
+    const float eps2 = c->eps2;
     float core_p = INFINITY;
     magcal_nbr_ranges_t rg;
 
@@ -236,7 +247,8 @@ static void process(optics_ctx_t *c, size_t p)
         float lim = eps2;
         size_t n = c->n;
         for (k = 0; k < n; ++k) {
-            float dx = pts[k].x - px, dy = pts[k].y - py;
+            float dx = pts[k].x - px;
+            float dy = pts[k].y - py;
             float d2 = dx * dx + dy * dy;
             if (d2 <= lim && (cnt < m || d2 < lim)) {
                 size_t t = cnt < m ? cnt++ : m - 1u;
@@ -254,7 +266,8 @@ static void process(optics_ctx_t *c, size_t p)
     for (ri = 0; rg.idx != NULL && ri < rg.n_ranges; ++ri) {
         for (k = rg.begin[ri]; k < rg.end[ri]; ++k) {
             size_t j = rg.idx[k];
-            float dx = pts[j].x - px, dy = pts[j].y - py;
+            float dx = pts[j].x - px;
+            float dy = pts[j].y - py;
             float d2 = dx * dx + dy * dy;
             if (d2 <= eps2 && (cnt < m || d2 < best[m - 1u])) {
                 size_t t = cnt < m ? cnt++ : m - 1u;
@@ -286,7 +299,8 @@ static void process(optics_ctx_t *c, size_t p)
     for (ri = 0; ri < rg.n_ranges; ++ri) {
         for (k = rg.begin[ri]; k < rg.end[ri]; ++k) {
             size_t j = rg.idx != NULL ? rg.idx[k] : k;
-            float dx = pts[j].x - px, dy = pts[j].y - py;
+            float dx = pts[j].x - px;
+            float dy = pts[j].y - py;
             float d2 = dx * dx + dy * dy;
             if (d2 <= eps2 && !is_done(c, j)) {
                 float r = reach_of(d2, core_p, best[m - 1u]);
@@ -300,7 +314,8 @@ static void process(optics_ctx_t *c, size_t p)
 
 static void optics_loop(optics_ctx_t *c)
 {
-    size_t s, i;
+    size_t s;
+    size_t i;
     for (i = 0; i < c->n; ++i) {
         c->reach[i] = INFINITY;
         if (c->pred != NULL) {
@@ -412,7 +427,7 @@ magcal_status_t magcal_optics_run(const magcal_optics_cfg_t *cfg, const magcal_v
     if (st != MAGCAL_OK) {
         return st;
     }
-    if (((uintptr_t)work & 3u) != 0u) {
+    if (magcal_misalign(work, 4u) != 0u) {
         return MAGCAL_ERR_ARG;
     }
     st = check_points(pts, n, cfg->min_pts);
@@ -474,12 +489,14 @@ magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, v
                                               int16_t *cluster_id, uint16_t *count)
 {
     uint16_t *cnt;
-    size_t i, best_count = 0u;
-    int32_t best = -1, max_id = -1;
+    size_t i;
+    size_t best_count = 0u;
+    int32_t best = -1;
+    int32_t max_id = -1;
     if (labels == NULL || work == NULL || inlier_mask == NULL) {
         return MAGCAL_ERR_NULL;
     }
-    if (n == 0u || n > MAGCAL_MAX_SAMPLES || ((uintptr_t)work & 1u) != 0u) {
+    if (n == 0u || n > MAGCAL_MAX_SAMPLES || magcal_misalign(work, 2u) != 0u) {
         return MAGCAL_ERR_ARG;
     }
     if (work_len < MAGCAL_OPTICS_LARGEST_WORKSPACE_LEN(n)) {
@@ -535,10 +552,13 @@ magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, v
 /* k-th smallest of a[0..n-1] (a is permuted). Iterative Hoare selection, no recursion. */
 static float select_kth(float *a, size_t n, size_t k)
 {
-    size_t lo = 0u, hi = n - 1u;
+    size_t lo = 0u;
+    size_t hi = n - 1u;
     while (lo < hi) {
         float pivot = a[lo + (hi - lo) / 2u];
-        size_t i = lo, j = hi, guard;
+        size_t i = lo;
+        size_t j = hi;
+        size_t guard;
         for (guard = lo; guard <= hi; ++guard) { /* i grows by >= 1 per round: <= hi-lo+1 rounds */
             float t;
             while (a[i] < pivot) {
@@ -608,7 +628,8 @@ static void heapsort_idx(uint16_t *idx, const float *key, size_t m)
 
 static float dist(const magcal_vec2_t *a, const magcal_vec2_t *b)
 {
-    float dx = a->x - b->x, dy = a->y - b->y;
+    float dx = a->x - b->x;
+    float dy = a->y - b->y;
     return sqrtf(dx * dx + dy * dy);
 }
 
@@ -619,9 +640,19 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
     float *a = (float *)(void *)w;
     uint16_t *idx = (uint16_t *)(void *)(w + 4u * n);
     float *b = (float *)(void *)(w + 8u * n);
-    float cx, cy, rad, lo, hi, link1 = 0.0f, link2 = 0.0f, coreq, e;
-    float ncx, ncy;
-    size_t i, m = 0u;
+    float cx;
+    float cy;
+    float rad;
+    float lo;
+    float hi;
+    float link1 = 0.0f;
+    float link2 = 0.0f;
+    float coreq;
+    float e;
+    float ncx;
+    float ncy;
+    size_t i;
+    size_t m = 0u;
     unsigned pass;
 
     /* Pass 0 uses every point; passes 1..AUTO_TRIM_PASSES only the points within
@@ -634,7 +665,8 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
         float lim2 = (AUTO_TRIM * rad) * (AUTO_TRIM * rad);
         size_t k = 0u;
         for (i = 0; i < n; ++i) {
-            float dx = pts[i].x - cx, dy = pts[i].y - cy;
+            float dx = pts[i].x - cx;
+            float dy = pts[i].y - cy;
             if (pass == 0u || dx * dx + dy * dy <= lim2) {
                 a[k++] = pts[i].x;
             }
@@ -645,7 +677,8 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
         ncx = select_kth(a, k, k / 2u);
         k = 0u;
         for (i = 0; i < n; ++i) {
-            float dx = pts[i].x - cx, dy = pts[i].y - cy;
+            float dx = pts[i].x - cx;
+            float dy = pts[i].y - cy;
             if (pass == 0u || dx * dx + dy * dy <= lim2) {
                 a[k++] = pts[i].y;
             }
@@ -653,9 +686,11 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
         ncy = select_kth(a, k, k / 2u);
         k = 0u;
         for (i = 0; i < n; ++i) {
-            float dx = pts[i].x - cx, dy = pts[i].y - cy;
+            float dx = pts[i].x - cx;
+            float dy = pts[i].y - cy;
             if (pass == 0u || dx * dx + dy * dy <= lim2) {
-                float ex = pts[i].x - ncx, ey = pts[i].y - ncy;
+                float ex = pts[i].x - ncx;
+                float ey = pts[i].y - ncy;
                 a[k++] = sqrtf(ex * ex + ey * ey);
             }
         }
@@ -669,7 +704,8 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
     lo = rad - AUTO_BAND * rad;
     hi = rad + AUTO_BAND * rad;
     for (i = 0; i < n; ++i) {
-        float dx = pts[i].x - cx, dy = pts[i].y - cy;
+        float dx = pts[i].x - cx;
+        float dy = pts[i].y - cy;
         float r = sqrtf(dx * dx + dy * dy);
         a[i] = atan2f(dy, dx);
         if (r >= lo && r <= hi) {
@@ -684,7 +720,9 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
         const magcal_vec2_t *p0 = &pts[idx[i]];
         float near[2u * AUTO_WIN];
         float l = INFINITY;
-        size_t q, t, u;
+        size_t q;
+        size_t t;
+        size_t u;
         /* shortest way across the step i -> i+1 that bypasses up to AUTO_WIN - 1 points */
         for (q = 0; q < AUTO_WIN; ++q) {
             for (t = 1u; q + t <= AUTO_WIN; ++t) {
@@ -738,7 +776,7 @@ magcal_status_t magcal_optics_auto_params(const magcal_vec2_t *pts, size_t n, vo
     if (pts == NULL || work == NULL || eps == NULL || min_pts == NULL || eps_prime == NULL) {
         return MAGCAL_ERR_NULL;
     }
-    if (((uintptr_t)work & 3u) != 0u) {
+    if (magcal_misalign(work, 4u) != 0u) {
         return MAGCAL_ERR_ARG;
     }
     st = check_points(pts, n, AUTO_MIN_N);
@@ -765,14 +803,16 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
     magcal_optics_cfg_t use;
     optics_ctx_t c;
     magcal_status_t st;
-    float eps_prime, cr[3], window[4];
+    float eps_prime;
+    float cr[3];
+    float window[4];
     const float *win = NULL;
     uint8_t *w = (uint8_t *)work;
     size_t i;
     if (cfg == NULL || pts == NULL || work == NULL || inlier_mask == NULL) {
         return MAGCAL_ERR_NULL;
     }
-    if (((uintptr_t)work & 3u) != 0u) {
+    if (magcal_misalign(work, 4u) != 0u) {
         return MAGCAL_ERR_ARG;
     }
     use = *cfg;

@@ -212,7 +212,8 @@ typedef struct {
     uint8_t *mask_b;    /* workspace: consensus inlier mask [capacity] */
     void *scratch;      /* workspace: stage scratch */
     size_t scratch_len;
-    magcal_vec2_t bb_min, bb_max; /* bounding box of the stored samples */
+    magcal_vec2_t bb_min; /* bounding box of the stored samples */
+    magcal_vec2_t bb_max;
     magcal_vec2_t centre;         /* provisional centre of the coverage bins */
     float centre_tol;             /* re-bin when the bbox midpoint moves more than this */
     uint16_t bins[MAGCAL_COVERAGE_BINS];

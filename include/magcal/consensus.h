@@ -59,11 +59,13 @@ extern "C" {
 #define MAGCAL_CONSENSUS_MAX_REFINE 32u
 
 /**
- * Workspace bytes for magcal_consensus_run() on n samples: |residual| float[n], scratch float[n]
- * (angles, then selection), candidate order uint16[n], plus 4 bytes of alignment slack.
- * 10 bytes per sample.
+ * Workspace bytes for magcal_consensus_run() on n samples: four ellipse models (best, current,
+ * candidate, refit; kept off the stack), |residual| float[n], scratch float[n] (angles, then
+ * selection), candidate order uint16[n], plus 4 bytes of alignment slack.
+ * 10 bytes per sample + 4 * sizeof(magcal_ellipse_t).
  */
-#define MAGCAL_CONSENSUS_WORKSPACE_LEN(n) ((((size_t)(n) * 10u) + 3u + 4u) & ~(size_t)3u)
+#define MAGCAL_CONSENSUS_WORKSPACE_LEN(n)                                                          \
+    (((((size_t)(n) * 10u) + 3u + 4u) & ~(size_t)3u) + 4u * sizeof(magcal_ellipse_t))
 
 /** Configuration of the consensus stage (validated by every call). */
 typedef struct {
