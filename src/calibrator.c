@@ -11,7 +11,7 @@
 
 #define CAL_MAGIC MAGCAL_CALIBRATOR_MAGIC
 #define CAL_BIN_DEG (360.0f / (float)MAGCAL_COVERAGE_BINS)
-#define CAL_SHIFT_STEPS 72u   /* heading shift evaluated every 5 degrees */
+#define CAL_SHIFT_STEPS 72u /* heading shift evaluated every 5 degrees */
 #define CAL_COLLINEAR_TOL 1.0e-6f
 
 /* ------------------------------------------------------------------ small helpers */
@@ -90,10 +90,7 @@ static float cal_coverage_of(const uint16_t *bins, float *miss_start, float *mis
     return 360.0f - (float)best_len * CAL_BIN_DEG;
 }
 
-static int cal_finite_cfg_f(float v)
-{
-    return magcal_isfinite_f(v);
-}
+static int cal_finite_cfg_f(float v) { return magcal_isfinite_f(v); }
 
 static magcal_status_t cal_check_cfg(const magcal_calibrator_cfg_t *c)
 {
@@ -135,10 +132,7 @@ static magcal_status_t cal_check_cfg(const magcal_calibrator_cfg_t *c)
     return MAGCAL_OK;
 }
 
-static int cal_ok(const magcal_calibrator_t *cal)
-{
-    return cal != NULL && cal->magic == CAL_MAGIC;
-}
+static int cal_ok(const magcal_calibrator_t *cal) { return cal != NULL && cal->magic == CAL_MAGIC; }
 
 /* Recompute the live coverage bins around the bbox midpoint. */
 static void cal_rebin(magcal_calibrator_t *cal)
@@ -151,7 +145,8 @@ static void cal_rebin(magcal_calibrator_t *cal)
     cal->centre_tol = 0.125f * (hx < hy ? hx : hy);
     (void)memset(cal->bins, 0, sizeof cal->bins);
     for (i = 0u; i < cal->n; ++i) {
-        size_t b = cal_bin_of(cal_angle_deg(cal->buf[i].x - cal->centre.x, cal->buf[i].y - cal->centre.y));
+        size_t b =
+            cal_bin_of(cal_angle_deg(cal->buf[i].x - cal->centre.x, cal->buf[i].y - cal->centre.y));
         if (cal->bins[b] < 0xFFFFu) {
             cal->bins[b]++;
         }
@@ -398,8 +393,8 @@ static magcal_status_t cal_circle_centre(const magcal_vec2_t *p, size_t n, const
 }
 
 /* Bins of the masked (NULL: all) points' approximate headings around centre. */
-static float cal_coverage_around(const magcal_vec2_t *p, size_t n, const uint8_t *mask, magcal_vec2_t c,
-                                 float *miss_start, float *miss_width)
+static float cal_coverage_around(const magcal_vec2_t *p, size_t n, const uint8_t *mask,
+                                 magcal_vec2_t c, float *miss_start, float *miss_width)
 {
     uint16_t bins[MAGCAL_COVERAGE_BINS];
     size_t i;
@@ -457,7 +452,8 @@ static magcal_status_t cal_filter(magcal_calibrator_t *cal, magcal_cal_report_t 
             float e;
             float ep;
             uint16_t mp;
-            st = magcal_optics_auto_params(cal->buf, n, cal->scratch, cal->scratch_len, &e, &mp, &ep);
+            st = magcal_optics_auto_params(cal->buf, n, cal->scratch, cal->scratch_len, &e, &mp,
+                                           &ep);
             if (st != MAGCAL_OK) {
                 return st;
             }
@@ -492,7 +488,8 @@ static magcal_status_t cal_filter(magcal_calibrator_t *cal, magcal_cal_report_t 
             float e;
             float ep;
             uint16_t mp;
-            st = magcal_optics_auto_params(cal->buf, n, cal->scratch, cal->scratch_len, &e, &mp, &ep);
+            st = magcal_optics_auto_params(cal->buf, n, cal->scratch, cal->scratch_len, &e, &mp,
+                                           &ep);
             if (st != MAGCAL_OK) {
                 return st;
             }
@@ -502,7 +499,8 @@ static magcal_status_t cal_filter(magcal_calibrator_t *cal, magcal_cal_report_t 
         } else {
             /* fully automatic parameters: the OPTICS defaults */
         }
-        st = magcal_optics_filter(&oc, cal->buf, n, cal->scratch, cal->scratch_len, cal->mask_a, &info);
+        st = magcal_optics_filter(&oc, cal->buf, n, cal->scratch, cal->scratch_len, cal->mask_a,
+                                  &info);
         if (st != MAGCAL_OK) {
             return st;
         }
@@ -527,7 +525,8 @@ static int cal_inv2(const float m[2][2], float inv[2][2])
 }
 
 /* Heading change if `next` replaced `cur` (cur NULL = identity). */
-static void cal_shift(const magcal_cal2d_t *cur, const magcal_cal2d_t *next, float *max_deg, float *rms_deg)
+static void cal_shift(const magcal_cal2d_t *cur, const magcal_cal2d_t *next, float *max_deg,
+                      float *rms_deg)
 {
     float inv[2][2];
     float r = next->radius > 0.0f ? next->radius : 1.0f;
@@ -571,8 +570,8 @@ static void cal_shift(const magcal_cal2d_t *cur, const magcal_cal2d_t *next, flo
 }
 
 /* Mean corrected radius of the masked samples under c, and mean(d^2) with d = rho/mean - 1. */
-static void cal_radius_stats(const magcal_vec2_t *p, size_t n, const uint8_t *mask, const magcal_cal2d_t *c,
-                             float *mean, float *var_rel)
+static void cal_radius_stats(const magcal_vec2_t *p, size_t n, const uint8_t *mask,
+                             const magcal_cal2d_t *c, float *mean, float *var_rel)
 {
     float sum = 0.0f;
     float sum2 = 0.0f;
@@ -644,8 +643,8 @@ static magcal_status_t cal_plain_fit(magcal_calibrator_t *cal, magcal_consensus_
     return MAGCAL_OK;
 }
 
-static magcal_status_t cal_finish(magcal_calibrator_t *cal, magcal_status_t st, magcal_cal_report_t *rep,
-                                  magcal_cal_report_t *out)
+static magcal_status_t cal_finish(magcal_calibrator_t *cal, magcal_status_t st,
+                                  magcal_cal_report_t *rep, magcal_cal_report_t *out)
 {
     rep->status = st;
     if (st == MAGCAL_OK) {
@@ -726,9 +725,11 @@ magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *
         float cov_f;
         st = cal_circle_centre(cal->buf, n, cal->mask_a, &cc);
         if (st != MAGCAL_OK) {
-            return cal_finish(cal, st == MAGCAL_ERR_ILL_CONDITIONED ? MAGCAL_ERR_DEGENERATE : st, &rep, report);
+            return cal_finish(cal, st == MAGCAL_ERR_ILL_CONDITIONED ? MAGCAL_ERR_DEGENERATE : st,
+                              &rep, report);
         }
-        cov = cal_coverage_around(cal->buf, n, NULL, cc, &rep.missing_start_deg, &rep.missing_width_deg);
+        cov = cal_coverage_around(cal->buf, n, NULL, cc, &rep.missing_start_deg,
+                                  &rep.missing_width_deg);
         rep.coverage_deg = cov;
         if (cov < cal->cfg.min_coverage_deg) {
             return cal_finish(cal, MAGCAL_ERR_COVERAGE, &rep, report);
@@ -803,7 +804,8 @@ magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *
         return cal_finish(cal, st, &rep, report);
     }
     rep.cal = next;
-    cov = cal_coverage_corrected(cal->buf, n, cal->mask_b, &next, &rep.missing_start_deg, &rep.missing_width_deg);
+    cov = cal_coverage_corrected(cal->buf, n, cal->mask_b, &next, &rep.missing_start_deg,
+                                 &rep.missing_width_deg);
     rep.coverage_deg = cov;
     if (cov < cal->cfg.min_coverage_deg || !(cov > 0.0f)) {
         return cal_finish(cal, MAGCAL_ERR_COVERAGE, &rep, report);
@@ -885,7 +887,8 @@ magcal_status_t magcal_calibrator_inlier(const magcal_calibrator_t *cal, size_t 
     return MAGCAL_OK;
 }
 
-magcal_status_t magcal_calibrator_classify(const magcal_calibrator_t *cal, magcal_vec2_t p, int *is_outlier)
+magcal_status_t magcal_calibrator_classify(const magcal_calibrator_t *cal, magcal_vec2_t p,
+                                           int *is_outlier)
 {
     float r;
     if (cal == NULL || is_outlier == NULL) {
@@ -919,10 +922,7 @@ magcal_status_t magcal_calibrator_last_status(const magcal_calibrator_t *cal)
     return cal_ok(cal) ? cal->last_status : MAGCAL_ERR_NOT_INITIALISED;
 }
 
-size_t magcal_calibrator_count(const magcal_calibrator_t *cal)
-{
-    return cal_ok(cal) ? cal->n : 0u;
-}
+size_t magcal_calibrator_count(const magcal_calibrator_t *cal) { return cal_ok(cal) ? cal->n : 0u; }
 
 float magcal_calibrator_coverage_deg(const magcal_calibrator_t *cal)
 {

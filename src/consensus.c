@@ -61,10 +61,7 @@ static float cons_select(float *a, size_t n, size_t k)
 }
 
 /* Lower median of a[0..n-1] (n >= 1); a is reordered. */
-static float cons_median(float *a, size_t n)
-{
-    return cons_select(a, n, (n - 1u) / 2u);
-}
+static float cons_median(float *a, size_t n) { return cons_select(a, n, (n - 1u) / 2u); }
 
 /* Sort idx[0..m-1] by key[0..m-1] ascending (keys move with their indices). Shell sort. */
 static void cons_sort(float *key, uint16_t *idx, size_t m)
@@ -127,7 +124,8 @@ static magcal_status_t cons_check_cfg(const magcal_consensus_cfg_t *cfg)
 }
 
 /* threshold from sigma, clamped relative to the fit's mean radius */
-static float cons_threshold(const magcal_consensus_cfg_t *cfg, const magcal_ellipse_t *e, float sigma)
+static float cons_threshold(const magcal_consensus_cfg_t *cfg, const magcal_ellipse_t *e,
+                            float sigma)
 {
     float rm = cons_mean_radius(e);
     float thr = cfg->k_sigma * sigma;
@@ -142,9 +140,10 @@ static float cons_threshold(const magcal_consensus_cfg_t *cfg, const magcal_elli
     return thr;
 }
 
-magcal_status_t magcal_consensus_run(const magcal_consensus_cfg_t *cfg, const magcal_vec2_t *pts, size_t n,
-                                     const uint8_t *cand_mask, void *work, size_t work_len,
-                                     uint8_t *inlier_mask, magcal_consensus_result_t *result)
+magcal_status_t magcal_consensus_run(const magcal_consensus_cfg_t *cfg, const magcal_vec2_t *pts,
+                                     size_t n, const uint8_t *cand_mask, void *work,
+                                     size_t work_len, uint8_t *inlier_mask,
+                                     magcal_consensus_result_t *result)
 {
     float *res;
     float *scr;

@@ -143,14 +143,6 @@ static magcal_status_t norm_centred(const float bb[4], fit_norm_t *nm, float *sc
     return MAGCAL_OK;
 }
 
-static void kahan_add(float *sum, float *comp, float v)
-{
-    float y = v - *comp;
-    float t = *sum + y;
-    *comp = (t - *sum) - y;
-    *sum = t;
-}
-
 /* Pass 2: power sums of the normalised points, Kahan-compensated unless plain != 0 (the seed's
  * plain float32 accumulation, kept only for magcal_ellipse_fit_seed()). */
 static void src_moments(const fit_src_t *src, const fit_norm_t *nm, int plain, float mom[S_COUNT])
@@ -190,7 +182,7 @@ static void src_moments(const fit_src_t *src, const fit_norm_t *nm, int plain, f
             if (plain != 0) {
                 mom[j] += v[j];
             } else {
-                kahan_add(&mom[j], &comp[j], v[j]);
+                magcal_kahan_add(&mom[j], &comp[j], v[j]);
             }
         }
     }
@@ -300,7 +292,7 @@ static float src_residual_rms(const fit_src_t *src, const magcal_ellipse_t *e, s
             continue;
         }
         r = magcal_ellipse_residual(e, p);
-        kahan_add(&sum, &comp, r * r);
+        magcal_kahan_add(&sum, &comp, r * r);
     }
     return sqrtf(sum / (float)cnt);
 }

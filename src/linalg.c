@@ -143,3 +143,87 @@ uint32_t magcal_prng_next(uint32_t *state, uint32_t bound)
     }
     return (uint32_t)(((uint64_t)x * (uint64_t)bound) >> 32);
 }
+
+float magcal_det3(float a[3][3])
+{
+    return a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) -
+           a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) +
+           a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
+}
+
+/* Rotation J(p, q, c, s) applied as a <- J^T a J and e <- e J. */
+static void jacobi_rotate(float *a, float *e, size_t n, size_t p, size_t q)
+{
+    const float apq = a[p * n + q];
+    float theta;
+    float t;
+    float c;
+    float s;
+    size_t k;
+    theta = (a[q * n + q] - a[p * n + p]) / (2.0f * apq);
+    t = 1.0f / (fabsf(theta) + sqrtf(theta * theta + 1.0f));
+    if (theta < 0.0f) {
+        t = -t;
+    }
+    c = 1.0f / sqrtf(t * t + 1.0f);
+    s = t * c;
+    for (k = 0u; k < n; ++k) { /* a <- a J (columns p, q) */
+        const float akp = a[k * n + p];
+        const float akq = a[k * n + q];
+        a[k * n + p] = c * akp - s * akq;
+        a[k * n + q] = s * akp + c * akq;
+    }
+    for (k = 0u; k < n; ++k) { /* a <- J^T a (rows p, q) */
+        const float apk = a[p * n + k];
+        const float aqk = a[q * n + k];
+        a[p * n + k] = c * apk - s * aqk;
+        a[q * n + k] = s * apk + c * aqk;
+    }
+    for (k = 0u; k < n; ++k) {
+        const float ekp = e[k * n + p];
+        const float ekq = e[k * n + q];
+        e[k * n + p] = c * ekp - s * ekq;
+        e[k * n + q] = s * ekp + c * ekq;
+    }
+}
+
+magcal_status_t magcal_jacobi_sym(float *a, size_t n, float *w, float *e)
+{
+    size_t sweep;
+    size_t i;
+    size_t j;
+    float scale = 0.0f;
+    if (n == 0u || n > MAGCAL_JACOBI_MAX_N) {
+        return MAGCAL_ERR_ARG;
+    }
+    for (i = 0u; i < n; ++i) {
+        for (j = 0u; j < n; ++j) {
+            e[i * n + j] = (i == j) ? 1.0f : 0.0f;
+            scale += a[i * n + j] * a[i * n + j];
+        }
+    }
+    for (sweep = 0u; sweep < MAGCAL_JACOBI_SWEEPS; ++sweep) {
+        size_t p;
+        float off = 0.0f;
+        for (i = 0u; i < n; ++i) {
+            for (j = i + 1u; j < n; ++j) {
+                off += a[i * n + j] * a[i * n + j];
+            }
+        }
+        if (off <= 1e-14f * scale) {
+            for (i = 0u; i < n; ++i) {
+                w[i] = a[i * n + i];
+            }
+            return MAGCAL_OK;
+        }
+        for (p = 0u; p + 1u < n; ++p) {
+            size_t q;
+            for (q = p + 1u; q < n; ++q) {
+                if (a[p * n + q] != 0.0f) {
+                    jacobi_rotate(a, e, n, p, q);
+                }
+            }
+        }
+    }
+    return MAGCAL_ERR_NOT_CONVERGED;
+}

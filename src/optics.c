@@ -41,17 +41,25 @@ typedef struct {
 
 static int is_done(const optics_ctx_t *c, size_t i)
 {
-    return (int)(((unsigned)c->done[i >> 3] >> (unsigned)(i & 7u)) & 1u);
+    const unsigned bit = ((unsigned)c->done[i >> 3] >> (unsigned)(i & 7u)) & 1u;
+    int r = 0;
+    if (bit != 0u) {
+        r = 1;
+    }
+    return r;
 }
 
 /* (reach, index) lexicographic order: the tie rule that makes every variant identical. */
 static int key_less(const float *reach, uint16_t a, uint16_t b)
 {
-    return reach[a] < reach[b] || (reach[a] == reach[b] && a < b);
+    const float ra = reach[a];
+    const float rb = reach[b];
+    return ra < rb || (ra == rb && a < b);
 }
 
-static void heap_sift_up(optics_ctx_t *c, size_t k)
+static void heap_sift_up(optics_ctx_t *c, size_t k0)
 {
+    size_t k = k0;
     uint16_t v = c->seeds[k];
     while (k > 0u) {
         size_t parent = (k - 1u) >> 1;
@@ -67,8 +75,9 @@ static void heap_sift_up(optics_ctx_t *c, size_t k)
     c->pos[v] = (uint16_t)k;
 }
 
-static void heap_sift_down(optics_ctx_t *c, size_t k)
+static void heap_sift_down(optics_ctx_t *c, size_t k0)
 {
+    size_t k = k0;
     uint16_t v = c->seeds[k];
     size_t m = c->n_seeds;
     while (2u * k + 1u < m) { /* k at least doubles: <= log2(m) rounds */
@@ -171,6 +180,8 @@ static void update_one(optics_ctx_t *c, size_t p, size_t j, float r)
     } else if (old == INFINITY) {
         c->seeds[c->n_seeds] = (uint16_t)j;
         c->n_seeds++;
+    } else {
+        /* already a seed: its key decreased in place (the list is scanned, not a heap) */
     }
 }
 
@@ -203,7 +214,8 @@ static void live_pass(optics_ctx_t *c, size_t p, float core_p, float core2)
         if (j == p) {
             continue; /* the only point processed since the last pass */
         }
-        live[w++] = (uint16_t)j;
+        live[w] = (uint16_t)j;
+        ++w;
         if (core_p < INFINITY) {
             float dx = pts[j].x - px;
             float dy = pts[j].y - py;
@@ -251,7 +263,11 @@ static void process(optics_ctx_t *c, size_t p)
             float dy = pts[k].y - py;
             float d2 = dx * dx + dy * dy;
             if (d2 <= lim && (cnt < m || d2 < lim)) {
-                size_t t = cnt < m ? cnt++ : m - 1u;
+                size_t t = m - 1u;
+                if (cnt < m) {
+                    t = cnt;
+                    ++cnt;
+                }
                 while (t > 0u && best[t - 1u] > d2) {
                     best[t] = best[t - 1u];
                     --t;
@@ -270,7 +286,11 @@ static void process(optics_ctx_t *c, size_t p)
             float dy = pts[j].y - py;
             float d2 = dx * dx + dy * dy;
             if (d2 <= eps2 && (cnt < m || d2 < best[m - 1u])) {
-                size_t t = cnt < m ? cnt++ : m - 1u;
+                size_t t = m - 1u;
+                if (cnt < m) {
+                    t = cnt;
+                    ++cnt;
+                }
                 while (t > 0u && best[t - 1u] > d2) {
                     best[t] = best[t - 1u];
                     --t;
@@ -302,7 +322,7 @@ static void process(optics_ctx_t *c, size_t p)
             float dx = pts[j].x - px;
             float dy = pts[j].y - py;
             float d2 = dx * dx + dy * dy;
-            if (d2 <= eps2 && !is_done(c, j)) {
+            if (d2 <= eps2 && is_done(c, j) == 0) {
                 float r = reach_of(d2, core_p, best[m - 1u]);
                 if (r < c->reach[j]) {
                     update_one(c, p, j, r);
@@ -325,7 +345,7 @@ static void optics_loop(optics_ctx_t *c)
             c->pos[i] = POS_NONE;
         }
     }
-    memset(c->done, 0, (c->n + 7u) / 8u);
+    (void)memset(c->done, 0, (c->n + 7u) / 8u);
     if (!c->nb.use_grid) {
         c->live = c->nb.idx;
         for (i = 0; i < c->n; ++i) {
@@ -337,7 +357,7 @@ static void optics_loop(optics_ctx_t *c)
     c->n_seeds = 0u;
     c->n_done = 0u;
     for (s = 0; s < c->n; ++s) {
-        if (is_done(c, s)) {
+        if (is_done(c, s) != 0) {
             continue;
         }
         process(c, s);
@@ -383,7 +403,7 @@ static magcal_status_t check_cfg(const magcal_optics_cfg_t *cfg)
 static void ctx_setup(optics_ctx_t *c, const magcal_optics_cfg_t *cfg, const magcal_vec2_t *pts,
                       size_t n, uint8_t *w, const float *window)
 {
-    memset(c, 0, sizeof *c);
+    (void)memset(c, 0, sizeof *c);
     c->pts = pts;
     c->n = n;
     c->eps2 = cfg->eps * cfg->eps;
@@ -404,7 +424,7 @@ static void fill_info(magcal_optics_result_t *info, const optics_ctx_t *c, float
     if (info == NULL) {
         return;
     }
-    memset(info, 0, sizeof *info);
+    (void)memset(info, 0, sizeof *info);
     info->eps = eps;
     info->eps_prime = eps_prime;
     info->min_pts = c->min_pts;
@@ -479,7 +499,8 @@ magcal_status_t magcal_optics_extract_dbscan(const uint16_t *order, const float 
         }
     }
     if (n_clusters != NULL) {
-        *n_clusters = (uint16_t)(id + 1);
+        const int32_t count = id + 1;
+        *n_clusters = (uint16_t)count;
     }
     return MAGCAL_OK;
 }
@@ -503,7 +524,7 @@ magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, v
         return MAGCAL_ERR_WORKSPACE;
     }
     for (i = 0; i < n; ++i) {
-        if (labels[i] < -1 || (size_t)(labels[i] + 1) > n) {
+        if (labels[i] < -1 || (labels[i] >= 0 && (size_t)labels[i] >= n)) {
             return MAGCAL_ERR_ARG;
         }
         max_id = labels[i] > max_id ? labels[i] : max_id;
@@ -512,7 +533,7 @@ magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, v
         return MAGCAL_ERR_ALL_NOISE;
     }
     cnt = (uint16_t *)work;
-    memset(cnt, 0, ((size_t)max_id + 1u) * sizeof *cnt);
+    (void)memset(cnt, 0, ((size_t)max_id + 1u) * sizeof *cnt);
     for (i = 0; i < n; ++i) {
         if (labels[i] >= 0) {
             cnt[labels[i]]++;
@@ -525,7 +546,7 @@ magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, v
         }
     }
     for (i = 0; i < n; ++i) {
-        inlier_mask[i] = (uint8_t)(labels[i] == best);
+        inlier_mask[i] = (labels[i] == best) ? 1u : 0u;
     }
     if (cluster_id != NULL) {
         *cluster_id = (int16_t)best;
@@ -589,11 +610,14 @@ static float select_kth(float *a, size_t n, size_t k)
 /* Heapsort idx[0..m-1] by key[idx] ascending, ties by index (iterative sift). */
 static int sort_less(const float *key, uint16_t a, uint16_t b)
 {
-    return key[a] < key[b] || (key[a] == key[b] && a < b);
+    const float ka = key[a];
+    const float kb = key[b];
+    return ka < kb || (ka == kb && a < b);
 }
 
-static void sort_sift(uint16_t *idx, const float *key, size_t k, size_t m)
+static void sort_sift(uint16_t *idx, const float *key, size_t k0, size_t m)
 {
+    size_t k = k0;
     uint16_t v = idx[k];
     while (2u * k + 1u < m) {
         size_t child = 2u * k + 1u;
@@ -649,8 +673,6 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
     float link2 = 0.0f;
     float coreq;
     float e;
-    float ncx;
-    float ncy;
     size_t i;
     size_t m = 0u;
     unsigned pass;
@@ -663,12 +685,15 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
     rad = INFINITY;
     for (pass = 0; pass <= AUTO_TRIM_PASSES; ++pass) {
         float lim2 = (AUTO_TRIM * rad) * (AUTO_TRIM * rad);
+        float ncx;
+        float ncy;
         size_t k = 0u;
         for (i = 0; i < n; ++i) {
             float dx = pts[i].x - cx;
             float dy = pts[i].y - cy;
             if (pass == 0u || dx * dx + dy * dy <= lim2) {
-                a[k++] = pts[i].x;
+                a[k] = pts[i].x;
+                ++k;
             }
         }
         if (k < AUTO_MIN_N) {
@@ -680,7 +705,8 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
             float dx = pts[i].x - cx;
             float dy = pts[i].y - cy;
             if (pass == 0u || dx * dx + dy * dy <= lim2) {
-                a[k++] = pts[i].y;
+                a[k] = pts[i].y;
+                ++k;
             }
         }
         ncy = select_kth(a, k, k / 2u);
@@ -691,7 +717,8 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
             if (pass == 0u || dx * dx + dy * dy <= lim2) {
                 float ex = pts[i].x - ncx;
                 float ey = pts[i].y - ncy;
-                a[k++] = sqrtf(ex * ex + ey * ey);
+                a[k] = sqrtf(ex * ex + ey * ey);
+                ++k;
             }
         }
         cx = ncx;
@@ -709,7 +736,8 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
         float r = sqrtf(dx * dx + dy * dy);
         a[i] = atan2f(dy, dx);
         if (r >= lo && r <= hi) {
-            idx[m++] = (uint16_t)i;
+            idx[m] = (uint16_t)i;
+            ++m;
         }
     }
     if (m < 2u * AUTO_WIN + 2u) { /* the cyclic windows need distinct neighbours */
@@ -735,22 +763,31 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
             link1 = l;
         } else if (l > link2) {
             link2 = l;
+        } else {
+            /* neither of the two longest links */
         }
         /* core requirement: (MinPts-1)-th nearest of the AUTO_WIN angular neighbours each side */
         for (q = 1u; q <= AUTO_WIN; ++q) {
             near[2u * q - 2u] = dist(p0, &pts[idx[(i + m - q) % m]]);
             near[2u * q - 1u] = dist(p0, &pts[idx[(i + q) % m]]);
         }
-        for (t = 1u; t < 2u * AUTO_WIN; ++t) { /* insertion sort of 8 values */
+        for (t = 1u; t < (size_t)AUTO_WIN * 2u; ++t) { /* insertion sort of 8 values */
             float v = near[t];
-            for (u = t; u > 0u && near[u - 1u] > v; --u) {
+            for (u = t; u > 0u; --u) {
+                if (!(near[u - 1u] > v)) {
+                    break;
+                }
                 near[u] = near[u - 1u];
             }
             near[u] = v;
         }
         b[i] = near[AUTO_MIN_PTS - 2u];
     }
-    coreq = select_kth(b, m, (size_t)(AUTO_CORE_Q * (float)(m - 1u)));
+    {
+        const size_t last = m - 1u;
+        const float qpos = AUTO_CORE_Q * (float)last;
+        coreq = select_kth(b, m, (size_t)qpos);
+    }
     e = AUTO_SAFETY * (link2 > coreq ? link2 : coreq);
     if (e < AUTO_MIN_REL * rad) {
         e = AUTO_MIN_REL * rad;
@@ -872,10 +909,11 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
         return MAGCAL_ERR_ALL_NOISE;
     }
     for (i = 0; i < n; ++i) {
-        inlier_mask[i] = (uint8_t)(c.labels[i] == c.best_id);
+        inlier_mask[i] = (c.labels[i] == c.best_id) ? 1u : 0u;
     }
     if (info != NULL) {
-        info->n_clusters = (uint16_t)(c.id + 1);
+        const int32_t count = c.id + 1;
+        info->n_clusters = (uint16_t)count;
         info->largest_id = (int16_t)c.best_id;
         info->n_inliers = (uint16_t)c.best_count;
         info->n_noise = (uint16_t)c.n_noise;
