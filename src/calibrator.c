@@ -14,6 +14,19 @@
 #define CAL_SHIFT_STEPS 72u /* heading shift evaluated every 5 degrees */
 #define CAL_COLLINEAR_TOL 1.0e-6f
 
+/* State of one run(), kept in the workspace: the deepest stack paths of run() go through the
+ * filter and the consensus fits, so run()'s own frame must stay small. */
+typedef struct {
+    magcal_cal_report_t rep;
+    magcal_consensus_result_t cres;
+    magcal_cal2d_t next;
+    magcal_optics_cfg_t oc;
+    magcal_optics_result_t info;
+    magcal_dbscan_cfg_t dc;
+} cal_run_t;
+
+MAGCAL_STATIC_ASSERT(sizeof(cal_run_t) <= MAGCAL_CALIBRATOR_RUN_LEN, run_state_fits_workspace);
+
 /* ------------------------------------------------------------------ small helpers */
 
 /* Approximate heading of u (raw, around a centre): atan2(-u.x, u.y) in [0, 360). */
@@ -194,8 +207,9 @@ magcal_status_t magcal_calibrator_init(magcal_calibrator_t *cal, const magcal_ca
     cal->flags = w;
     cal->mask_a = w + capacity;
     cal->mask_b = w + 2u * capacity;
-    cal->scratch = (void *)(w + masks);
-    cal->scratch_len = work_len - masks;
+    cal->run = (void *)(w + masks);
+    cal->scratch = (void *)(w + masks + MAGCAL_CALIBRATOR_RUN_LEN);
+    cal->scratch_len = work_len - masks - MAGCAL_CALIBRATOR_RUN_LEN;
     cal->magic = CAL_MAGIC;
     return magcal_calibrator_reset(cal);
 }
@@ -330,8 +344,8 @@ static int cal_degenerate(const magcal_vec2_t *p, size_t n)
 }
 
 /* Hard-iron circle fit x^2 + y^2 + C x + D y + E = 0 of the masked points (centred, scaled). */
-static magcal_status_t cal_circle_centre(const magcal_vec2_t *p, size_t n, const uint8_t *mask,
-                                         magcal_vec2_t *centre)
+static MAGCAL_NOINLINE magcal_status_t cal_circle_centre(const magcal_vec2_t *p, size_t n,
+                                                         const uint8_t *mask, magcal_vec2_t *centre)
 {
     float mx = 0.0f;
     float my = 0.0f;
@@ -393,8 +407,9 @@ static magcal_status_t cal_circle_centre(const magcal_vec2_t *p, size_t n, const
 }
 
 /* Bins of the masked (NULL: all) points' approximate headings around centre. */
-static float cal_coverage_around(const magcal_vec2_t *p, size_t n, const uint8_t *mask,
-                                 magcal_vec2_t c, float *miss_start, float *miss_width)
+static MAGCAL_NOINLINE float cal_coverage_around(const magcal_vec2_t *p, size_t n,
+                                                 const uint8_t *mask, magcal_vec2_t c,
+                                                 float *miss_start, float *miss_width)
 {
     uint16_t bins[MAGCAL_COVERAGE_BINS];
     size_t i;
@@ -408,8 +423,9 @@ static float cal_coverage_around(const magcal_vec2_t *p, size_t n, const uint8_t
 }
 
 /* Bins of the corrected headings of the masked points (coverage of the final calibration). */
-static float cal_coverage_corrected(const magcal_vec2_t *p, size_t n, const uint8_t *mask,
-                                    const magcal_cal2d_t *c, float *miss_start, float *miss_width)
+static MAGCAL_NOINLINE float cal_coverage_corrected(const magcal_vec2_t *p, size_t n,
+                                                    const uint8_t *mask, const magcal_cal2d_t *c,
+                                                    float *miss_start, float *miss_width)
 {
     uint16_t bins[MAGCAL_COVERAGE_BINS];
     size_t i;
@@ -424,8 +440,10 @@ static float cal_coverage_corrected(const magcal_vec2_t *p, size_t n, const uint
 }
 
 /* Density filter into mask_a. */
-static magcal_status_t cal_filter(magcal_calibrator_t *cal, magcal_cal_report_t *rep)
+static MAGCAL_NOINLINE magcal_status_t cal_filter(magcal_calibrator_t *cal,
+                                                  magcal_cal_report_t *rep)
 {
+    cal_run_t *run = (cal_run_t *)cal->run;
     const magcal_calibrator_cfg_t *c = &cal->cfg;
     size_t n = cal->n;
     magcal_status_t st;
@@ -440,14 +458,16 @@ static magcal_status_t cal_filter(magcal_calibrator_t *cal, magcal_cal_report_t 
         return MAGCAL_OK;
     }
     if (c->filter == MAGCAL_FILTER_DBSCAN) {
-        magcal_dbscan_cfg_t dc = MAGCAL_DBSCAN_CFG_DEFAULT;
+        static const magcal_dbscan_cfg_t dc_default = MAGCAL_DBSCAN_CFG_DEFAULT;
+        magcal_dbscan_cfg_t *dc = &run->dc;
         int16_t *labels = (int16_t *)cal->scratch;
         size_t lab_len = (2u * n + 3u) & ~(size_t)3u;
         uint8_t *rest = (uint8_t *)cal->scratch + lab_len;
         size_t rest_len = cal->scratch_len - lab_len;
+        *dc = dc_default;
         if (c->eps > 0.0f) {
-            dc.eps = c->eps;
-            dc.min_pts = c->min_pts != 0u ? c->min_pts : 4u;
+            dc->eps = c->eps;
+            dc->min_pts = c->min_pts != 0u ? c->min_pts : 4u;
         } else {
             float e;
             float ep;
@@ -457,10 +477,10 @@ static magcal_status_t cal_filter(magcal_calibrator_t *cal, magcal_cal_report_t 
             if (st != MAGCAL_OK) {
                 return st;
             }
-            dc.eps = ep;
-            dc.min_pts = c->min_pts != 0u ? c->min_pts : mp;
+            dc->eps = ep;
+            dc->min_pts = c->min_pts != 0u ? c->min_pts : mp;
         }
-        st = magcal_dbscan_run(&dc, cal->buf, n, rest, rest_len, labels, NULL, NULL);
+        st = magcal_dbscan_run(dc, cal->buf, n, rest, rest_len, labels, NULL, NULL);
         if (st != MAGCAL_OK) {
             return st;
         }
@@ -468,21 +488,23 @@ static magcal_status_t cal_filter(magcal_calibrator_t *cal, magcal_cal_report_t 
         if (st != MAGCAL_OK) {
             return st;
         }
-        rep->filter_eps = dc.eps;
-        rep->filter_min_pts = dc.min_pts;
+        rep->filter_eps = dc->eps;
+        rep->filter_min_pts = dc->min_pts;
         return MAGCAL_OK;
     }
     {
-        magcal_optics_cfg_t oc = MAGCAL_OPTICS_CFG_DEFAULT;
-        magcal_optics_result_t info;
+        static const magcal_optics_cfg_t oc_default = MAGCAL_OPTICS_CFG_DEFAULT;
+        magcal_optics_cfg_t *oc = &run->oc;
+        magcal_optics_result_t *info = &run->info;
+        *oc = oc_default;
         if (c->filter == MAGCAL_FILTER_OPTICS_CLASSIC) {
-            oc.order = MAGCAL_OPTICS_CLASSIC;
-            oc.neighbors = MAGCAL_NEIGHBORS_BRUTE;
+            oc->order = MAGCAL_OPTICS_CLASSIC;
+            oc->neighbors = MAGCAL_NEIGHBORS_BRUTE;
         }
         if (c->eps > 0.0f) {
-            oc.eps = c->eps;
-            oc.eps_prime = c->eps;
-            oc.min_pts = c->min_pts != 0u ? c->min_pts : 4u;
+            oc->eps = c->eps;
+            oc->eps_prime = c->eps;
+            oc->min_pts = c->min_pts != 0u ? c->min_pts : 4u;
         } else if (c->min_pts != 0u) {
             /* automatic radius, caller's MinPts */
             float e;
@@ -493,19 +515,19 @@ static magcal_status_t cal_filter(magcal_calibrator_t *cal, magcal_cal_report_t 
             if (st != MAGCAL_OK) {
                 return st;
             }
-            oc.eps = e;
-            oc.eps_prime = ep;
-            oc.min_pts = c->min_pts;
+            oc->eps = e;
+            oc->eps_prime = ep;
+            oc->min_pts = c->min_pts;
         } else {
             /* fully automatic parameters: the OPTICS defaults */
         }
-        st = magcal_optics_filter(&oc, cal->buf, n, cal->scratch, cal->scratch_len, cal->mask_a,
-                                  &info);
+        st = magcal_optics_filter(oc, cal->buf, n, cal->scratch, cal->scratch_len, cal->mask_a,
+                                  info);
         if (st != MAGCAL_OK) {
             return st;
         }
-        rep->filter_eps = info.eps_prime;
-        rep->filter_min_pts = info.min_pts;
+        rep->filter_eps = info->eps_prime;
+        rep->filter_min_pts = info->min_pts;
     }
     return MAGCAL_OK;
 }
@@ -525,8 +547,8 @@ static int cal_inv2(const float m[2][2], float inv[2][2])
 }
 
 /* Heading change if `next` replaced `cur` (cur NULL = identity). */
-static void cal_shift(const magcal_cal2d_t *cur, const magcal_cal2d_t *next, float *max_deg,
-                      float *rms_deg)
+static MAGCAL_NOINLINE void cal_shift(const magcal_cal2d_t *cur, const magcal_cal2d_t *next,
+                                      float *max_deg, float *rms_deg)
 {
     float inv[2][2];
     float r = next->radius > 0.0f ? next->radius : 1.0f;
@@ -613,7 +635,8 @@ static void cal_set_flags(magcal_calibrator_t *cal, int with_residual)
 
 /* Plain least-squares fit of the filter inliers (use_consensus = 0). The classify() threshold
  * is k_sigma * residual RMS of the fit, clamped like the consensus threshold. */
-static magcal_status_t cal_plain_fit(magcal_calibrator_t *cal, magcal_consensus_result_t *res)
+static MAGCAL_NOINLINE magcal_status_t cal_plain_fit(magcal_calibrator_t *cal,
+                                                     magcal_consensus_result_t *res)
 {
     size_t n = cal->n;
     size_t i;
@@ -665,9 +688,10 @@ static magcal_status_t cal_finish(magcal_calibrator_t *cal, magcal_status_t st,
 magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *current,
                                       magcal_cal_report_t *report)
 {
-    magcal_cal_report_t rep;
-    magcal_consensus_result_t cres;
-    magcal_cal2d_t next;
+    cal_run_t *run;
+    magcal_cal_report_t *rep;
+    magcal_consensus_result_t *cres;
+    magcal_cal2d_t *next;
     size_t n;
     size_t i;
     size_t used = 0u;
@@ -684,35 +708,39 @@ magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *
     if (!cal_ok(cal)) {
         return MAGCAL_ERR_NOT_INITIALISED;
     }
-    (void)memset(&rep, 0, sizeof rep);
-    rep.current_err_deg = NAN;
+    run = (cal_run_t *)cal->run;
+    rep = &run->rep;
+    cres = &run->cres;
+    next = &run->next;
+    (void)memset(rep, 0, sizeof *rep);
+    rep->current_err_deg = NAN;
     n = cal->n;
-    rep.samples = (uint16_t)n;
+    rep->samples = (uint16_t)n;
     cal->has_fit = 0u;
     cal->n_judged = 0u;
 
     /* 1. pre-checks */
     if (n < cal->cfg.min_samples || n < MAGCAL_ELLIPSE_MIN_POINTS) {
-        return cal_finish(cal, MAGCAL_ERR_TOO_FEW_POINTS, &rep, report);
+        return cal_finish(cal, MAGCAL_ERR_TOO_FEW_POINTS, rep, report);
     }
     if (cal_degenerate(cal->buf, n) != 0) {
-        return cal_finish(cal, MAGCAL_ERR_DEGENERATE, &rep, report);
+        return cal_finish(cal, MAGCAL_ERR_DEGENERATE, rep, report);
     }
 
     /* 2. density filter */
-    st = cal_filter(cal, &rep);
+    st = cal_filter(cal, rep);
     if (st != MAGCAL_OK) {
-        return cal_finish(cal, st, &rep, report);
+        return cal_finish(cal, st, rep, report);
     }
     for (i = 0u; i < n; ++i) {
         if (cal->mask_a[i] != 0u) {
             ++filt_in;
         }
     }
-    rep.rejected_filter = (uint16_t)(n - filt_in);
+    rep->rejected_filter = (uint16_t)(n - filt_in);
     cal_set_flags(cal, 0);
     if (filt_in < cal->cfg.min_samples) {
-        return cal_finish(cal, MAGCAL_ERR_TOO_FEW_POINTS, &rep, report);
+        return cal_finish(cal, MAGCAL_ERR_TOO_FEW_POINTS, rep, report);
     }
 
     /* 3. coverage pre-gate: every sample, around the hard-iron circle centre of the filter inliers
@@ -726,94 +754,95 @@ magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *
         st = cal_circle_centre(cal->buf, n, cal->mask_a, &cc);
         if (st != MAGCAL_OK) {
             return cal_finish(cal, st == MAGCAL_ERR_ILL_CONDITIONED ? MAGCAL_ERR_DEGENERATE : st,
-                              &rep, report);
+                              rep, report);
         }
-        cov = cal_coverage_around(cal->buf, n, NULL, cc, &rep.missing_start_deg,
-                                  &rep.missing_width_deg);
-        rep.coverage_deg = cov;
+        cov = cal_coverage_around(cal->buf, n, NULL, cc, &rep->missing_start_deg,
+                                  &rep->missing_width_deg);
+        rep->coverage_deg = cov;
         if (cov < cal->cfg.min_coverage_deg) {
-            return cal_finish(cal, MAGCAL_ERR_COVERAGE, &rep, report);
+            return cal_finish(cal, MAGCAL_ERR_COVERAGE, rep, report);
         }
         cov_f = cal_coverage_around(cal->buf, n, cal->mask_a, cc, NULL, NULL);
         if (cov_f < cal->cfg.min_coverage_deg) {
-            rep.filter_fragmented = 1u;
+            rep->filter_fragmented = 1u;
         }
     }
 
     /* 4. consensus (or plain fit) */
-    (void)memset(&cres, 0, sizeof cres);
+    (void)memset(cres, 0, sizeof *cres);
     if (cal->cfg.use_consensus != 0u) {
         st = magcal_consensus_run(&cal->cfg.consensus, cal->buf, n,
-                                  rep.filter_fragmented != 0u ? NULL : cal->mask_a, cal->scratch,
-                                  cal->scratch_len, cal->mask_b, &cres);
+                                  rep->filter_fragmented != 0u ? NULL : cal->mask_a, cal->scratch,
+                                  cal->scratch_len, cal->mask_b, cres);
     } else {
-        st = cal_plain_fit(cal, &cres);
+        st = cal_plain_fit(cal, cres);
     }
     if (st != MAGCAL_OK) {
-        return cal_finish(cal, st, &rep, report);
+        return cal_finish(cal, st, rep, report);
     }
-    cal->fit = cres.fit;
-    cal->threshold = cres.threshold;
+    cal->fit = cres->fit;
+    cal->threshold = cres->threshold;
     cal->has_fit = 1u;
     cal_set_flags(cal, 1);
     for (i = 0u; i < n; ++i) {
         if (cal->mask_b[i] != 0u) {
             ++used;
             if (cal->mask_a[i] == 0u) {
-                rep.rescued_consensus++;
+                rep->rescued_consensus++;
             }
         } else if (cal->mask_a[i] != 0u) {
-            rep.rejected_consensus++;
+            rep->rejected_consensus++;
         } else {
             /* rejected by the filter and by the consensus */
         }
     }
-    rep.used = (uint16_t)used;
-    rep.outliers = (uint16_t)(n - used);
-    rep.ellipse = cres.fit;
-    rep.threshold = cres.threshold;
-    radius = sqrtf(cres.fit.semi_minor * cres.fit.semi_major);
-    rep.radius = radius;
-    rep.residual_rms = cres.fit.residual_rms;
-    rep.residual_rel = radius > 0.0f ? cres.fit.residual_rms / radius : INFINITY;
-    rep.axis_ratio = cres.fit.semi_major > 0.0f ? cres.fit.semi_minor / cres.fit.semi_major : 0.0f;
-    rep.min_pivot = cres.fit.min_pivot;
+    rep->used = (uint16_t)used;
+    rep->outliers = (uint16_t)(n - used);
+    rep->ellipse = cres->fit;
+    rep->threshold = cres->threshold;
+    radius = sqrtf(cres->fit.semi_minor * cres->fit.semi_major);
+    rep->radius = radius;
+    rep->residual_rms = cres->fit.residual_rms;
+    rep->residual_rel = radius > 0.0f ? cres->fit.residual_rms / radius : INFINITY;
+    rep->axis_ratio =
+        cres->fit.semi_major > 0.0f ? cres->fit.semi_minor / cres->fit.semi_major : 0.0f;
+    rep->min_pivot = cres->fit.min_pivot;
 
     /* 5. gates */
     n_out = n - used;
     if (used < cal->cfg.min_samples) {
-        return cal_finish(cal, MAGCAL_ERR_TOO_FEW_POINTS, &rep, report);
+        return cal_finish(cal, MAGCAL_ERR_TOO_FEW_POINTS, rep, report);
     }
     if ((float)n_out > cal->cfg.max_outlier_frac * (float)n) {
-        return cal_finish(cal, MAGCAL_ERR_TOO_MANY_OUTLIERS, &rep, report);
+        return cal_finish(cal, MAGCAL_ERR_TOO_MANY_OUTLIERS, rep, report);
     }
     if ((cal->cfg.min_radius > 0.0f && radius < cal->cfg.min_radius) ||
         (cal->cfg.max_radius > 0.0f && radius > cal->cfg.max_radius)) {
-        return cal_finish(cal, MAGCAL_ERR_RADIUS_RANGE, &rep, report);
+        return cal_finish(cal, MAGCAL_ERR_RADIUS_RANGE, rep, report);
     }
-    if (rep.axis_ratio < cal->cfg.min_axis_ratio) {
-        return cal_finish(cal, MAGCAL_ERR_AXIS_RATIO, &rep, report);
+    if (rep->axis_ratio < cal->cfg.min_axis_ratio) {
+        return cal_finish(cal, MAGCAL_ERR_AXIS_RATIO, rep, report);
     }
-    if (!(rep.residual_rel <= cal->cfg.max_residual_rel)) {
-        return cal_finish(cal, MAGCAL_ERR_RESIDUAL, &rep, report);
+    if (!(rep->residual_rel <= cal->cfg.max_residual_rel)) {
+        return cal_finish(cal, MAGCAL_ERR_RESIDUAL, rep, report);
     }
 
     /* 6. correction, final coverage (corrected headings of the inliers), estimates */
-    st = magcal_ellipse_to_cal(&cres.fit, cal->cfg.form, cal->cfg.output_radius, &next);
+    st = magcal_ellipse_to_cal(&cres->fit, cal->cfg.form, cal->cfg.output_radius, next);
     if (st != MAGCAL_OK) {
-        return cal_finish(cal, st, &rep, report);
+        return cal_finish(cal, st, rep, report);
     }
-    rep.cal = next;
-    cov = cal_coverage_corrected(cal->buf, n, cal->mask_b, &next, &rep.missing_start_deg,
-                                 &rep.missing_width_deg);
-    rep.coverage_deg = cov;
+    rep->cal = *next;
+    cov = cal_coverage_corrected(cal->buf, n, cal->mask_b, next, &rep->missing_start_deg,
+                                 &rep->missing_width_deg);
+    rep->coverage_deg = cov;
     if (cov < cal->cfg.min_coverage_deg || !(cov > 0.0f)) {
-        return cal_finish(cal, MAGCAL_ERR_COVERAGE, &rep, report);
+        return cal_finish(cal, MAGCAL_ERR_COVERAGE, rep, report);
     }
     {
-        float sig_rel = rep.residual_rel;
+        float sig_rel = rep->residual_rel;
         float infl = 360.0f / cov;
-        rep.est_heading_err_deg =
+        rep->est_heading_err_deg =
             MAGCAL_DEG_PER_RAD_F * sig_rel * sqrtf(5.0f / (float)used) * infl * infl;
     }
 
@@ -821,28 +850,28 @@ magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *
     if (magcal_cal2d_validate(current) == MAGCAL_OK && current->radius > 0.0f) {
         cur_usable = 1;
     }
-    cal_shift(cur_usable != 0 ? current : NULL, &next, &rep.shift_max_deg, &rep.shift_rms_deg);
+    cal_shift(cur_usable != 0 ? current : NULL, next, &rep->shift_max_deg, &rep->shift_rms_deg);
     if (cur_usable != 0) {
         float var_cur;
         float var_new;
         float mean_cur;
         float mean_new;
         cal_radius_stats(cal->buf, n, cal->mask_b, current, &mean_cur, &var_cur);
-        cal_radius_stats(cal->buf, n, cal->mask_b, &next, &mean_new, &var_new);
+        cal_radius_stats(cal->buf, n, cal->mask_b, next, &mean_new, &var_new);
         if (!(mean_cur > 0.0f) || !(mean_new > 0.0f)) {
-            rep.current_err_deg = INFINITY;
+            rep->current_err_deg = INFINITY;
         } else {
-            rep.current_err_deg = MAGCAL_DEG_PER_RAD_F * sqrtf(fmaxf(var_cur - var_new, 0.0f));
+            rep->current_err_deg = MAGCAL_DEG_PER_RAD_F * sqrtf(fmaxf(var_cur - var_new, 0.0f));
         }
-        if (!(rep.est_heading_err_deg <= rep.current_err_deg)) {
+        if (!(rep->est_heading_err_deg <= rep->current_err_deg)) {
             float change = mean_cur > 0.0f ? fabsf(mean_cur / current->radius - 1.0f) : INFINITY;
             if (!(change <= cal->cfg.max_radius_change)) {
-                return cal_finish(cal, MAGCAL_ERR_NOT_BETTER, &rep, report);
+                return cal_finish(cal, MAGCAL_ERR_NOT_BETTER, rep, report);
             }
         }
     }
-    *current = next;
-    return cal_finish(cal, MAGCAL_OK, &rep, report);
+    *current = *next;
+    return cal_finish(cal, MAGCAL_OK, rep, report);
 }
 
 /* ------------------------------------------------------------------ queries */

@@ -18,14 +18,6 @@
 
 #include "magcal_internal.h"
 
-/* Keep the 5-point path (its 5x6 tableau) out of magcal_ellipse_fit_idx's frame, which also sits
- * on the deepest path fit_normal -> moments_solve -> magcal_ldlt_solve. Plain C99 elsewhere. */
-#if defined(__GNUC__)
-#define ELLIPSE_NOINLINE __attribute__((noinline))
-#else
-#define ELLIPSE_NOINLINE
-#endif
-
 /* Power sums S_pq = sum x~^p y~^q kept by the accumulator (indices into mom[]). */
 #define S10 0u
 #define S01 1u
@@ -211,9 +203,6 @@ static int moments_collinear(const float *mom, float cnt)
 static magcal_status_t moments_solve(float mom[S_COUNT], float cnt, float *min_pivot)
 {
     float a[25];
-    float b[5];
-    magcal_status_t st;
-    size_t i;
 
     a[0] = mom[S22];
     a[5] = mom[S13];
@@ -241,19 +230,14 @@ static magcal_status_t moments_solve(float mom[S_COUNT], float cnt, float *min_p
     a[13] = a[17];
     a[14] = a[22];
     a[19] = a[23];
-    b[0] = -mom[S31];
-    b[1] = -mom[S22];
-    b[2] = -mom[S30];
-    b[3] = -mom[S21];
-    b[4] = -mom[S20];
-    st = magcal_ldlt_solve(a, b, 5u, MAGCAL_ELLIPSE_PIVOT_TOL, min_pivot);
-    if (st != MAGCAL_OK) {
-        return st;
-    }
-    for (i = 0u; i < 5u; ++i) {
-        mom[i] = b[i];
-    }
-    return MAGCAL_OK;
+    /* right-hand side in mom[0..4], solved in place (no separate b[] on the stack); the order
+     * writes each entry after its last read: S20 = mom[2] before mom[2] is replaced */
+    mom[4] = -mom[S20];
+    mom[0] = -mom[S31];
+    mom[1] = -mom[S22];
+    mom[2] = -mom[S30];
+    mom[3] = -mom[S21];
+    return magcal_ldlt_solve(a, mom, 5u, MAGCAL_ELLIPSE_PIVOT_TOL, min_pivot);
 }
 
 float magcal_ellipse_residual(const magcal_ellipse_t *e, magcal_vec2_t p)
@@ -420,7 +404,9 @@ magcal_status_t magcal_ellipse_fit(const magcal_vec2_t *pts, size_t n, const uin
 }
 
 /* Exact conic through 5 points: Gaussian elimination with partial pivoting on W X = Y. */
-static ELLIPSE_NOINLINE magcal_status_t fit_five(const fit_src_t *src, magcal_ellipse_t *out)
+/* MAGCAL_NOINLINE: keep the 5-point path (its 5x6 tableau) out of magcal_ellipse_fit_idx's frame,
+ * which also sits on the deepest path fit_normal -> moments_solve -> magcal_ldlt_solve. */
+static MAGCAL_NOINLINE magcal_status_t fit_five(const fit_src_t *src, magcal_ellipse_t *out)
 {
     float w[5][6];
     float coef[5];

@@ -13,7 +13,6 @@ size_t magcal_misalign(const void *p, size_t align)
 magcal_status_t magcal_ldlt_solve(float *a, float *b, size_t n, float tau, float *min_pivot)
 {
     float scale[MAGCAL_LDLT_MAX_N];
-    float d[MAGCAL_LDLT_MAX_N];
     float minp = 1.0f;
     size_t i;
     size_t j;
@@ -46,12 +45,13 @@ magcal_status_t magcal_ldlt_solve(float *a, float *b, size_t n, float tau, float
         }
         b[i] *= scale[i];
     }
-    /* LDL^T on the lower triangle: L stored below the diagonal, D in d[]. */
+    /* LDL^T on the lower triangle: L stored below the diagonal, D on the diagonal (a[k*n+k] is
+     * d_k once column k is done: no separate array on the stack). */
     for (j = 0u; j < n; ++j) {
         float dj = a[j * n + j];
         for (k = 0u; k < j; ++k) {
             float ljk = a[j * n + k];
-            dj -= ljk * ljk * d[k];
+            dj -= ljk * ljk * a[k * n + k];
         }
         if (!(dj > tau)) {
             if (min_pivot != NULL) {
@@ -62,11 +62,11 @@ magcal_status_t magcal_ldlt_solve(float *a, float *b, size_t n, float tau, float
         if (dj < minp) {
             minp = dj;
         }
-        d[j] = dj;
+        a[j * n + j] = dj;
         for (i = j + 1u; i < n; ++i) {
             float s = a[i * n + j];
             for (k = 0u; k < j; ++k) {
-                s -= a[i * n + k] * a[j * n + k] * d[k];
+                s -= a[i * n + k] * a[j * n + k] * a[k * n + k];
             }
             a[i * n + j] = s / dj;
         }
@@ -80,7 +80,7 @@ magcal_status_t magcal_ldlt_solve(float *a, float *b, size_t n, float tau, float
         b[i] = s;
     }
     for (i = 0u; i < n; ++i) {
-        b[i] /= d[i];
+        b[i] /= a[i * n + i];
     }
     for (j = 0u; j < n; ++j) {
         float s;

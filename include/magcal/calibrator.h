@@ -103,12 +103,23 @@ extern "C" {
 #define MAGCAL_CALIBRATOR_MASKS_LEN(cap) ((3u * (size_t)(cap) + 3u) & ~(size_t)3u)
 
 /**
- * Workspace bytes for a calibrator of the given capacity: the per-sample masks plus the largest
- * scratch of the stages (OPTICS filter, DBSCAN labels + queue, consensus). About 20 bytes per
- * sample at capacity 1024 (the sample buffer itself is 8 bytes per sample, separate).
+ * Bytes of the state of one magcal_calibrator_run() kept in the workspace instead of on the stack
+ * (the report, the consensus result, the candidate calibration, the filter's configuration and
+ * result), 4-aligned.
+ */
+#define MAGCAL_CALIBRATOR_RUN_LEN                                                                  \
+    ((sizeof(magcal_cal_report_t) + sizeof(magcal_consensus_result_t) + sizeof(magcal_cal2d_t) +  \
+      sizeof(magcal_optics_cfg_t) + sizeof(magcal_optics_result_t) + sizeof(magcal_dbscan_cfg_t) + \
+      3u) & ~(size_t)3u)
+
+/**
+ * Workspace bytes for a calibrator of the given capacity: the per-sample masks, the run() state
+ * (MAGCAL_CALIBRATOR_RUN_LEN) plus the largest scratch of the stages (OPTICS filter, DBSCAN
+ * labels + queue, consensus). About 20 bytes per sample at capacity 1024 (the sample buffer itself
+ * is 8 bytes per sample, separate).
  */
 #define MAGCAL_CALIBRATOR_WORKSPACE_LEN(cap)                                                       \
-    (MAGCAL_CALIBRATOR_MASKS_LEN(cap) +                                                            \
+    (MAGCAL_CALIBRATOR_MASKS_LEN(cap) + MAGCAL_CALIBRATOR_RUN_LEN +                                \
      MAGCAL_CALIBRATOR_MAX_(                                                                       \
          MAGCAL_CALIBRATOR_MAX_(MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(cap),                           \
                                 MAGCAL_CONSENSUS_WORKSPACE_LEN(cap)),                              \
@@ -210,6 +221,7 @@ typedef struct {
     uint8_t *flags;     /* workspace: per-sample flags [capacity] */
     uint8_t *mask_a;    /* workspace: filter inlier mask [capacity] */
     uint8_t *mask_b;    /* workspace: consensus inlier mask [capacity] */
+    void *run;          /* workspace: run() state (report, consensus result, candidate) */
     void *scratch;      /* workspace: stage scratch */
     size_t scratch_len;
     magcal_vec2_t bb_min; /* bounding box of the stored samples */

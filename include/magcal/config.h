@@ -42,6 +42,19 @@
 #define MAGCAL_ASSERT(cond) ((void)0)
 #endif
 
+/**
+ * Keep a function out of its callers' frames (stack depth: a large helper frame is then not
+ * added to every path through the caller). GCC/Clang attribute; empty for other compilers,
+ * where the stack numbers of docs/reliability.md do not apply anyway.
+ */
+#ifndef MAGCAL_NOINLINE
+#if defined(__GNUC__) || defined(__clang__)
+#define MAGCAL_NOINLINE __attribute__((noinline))
+#else
+#define MAGCAL_NOINLINE
+#endif
+#endif
+
 /* C99 static assert without _Static_assert (negative array size on failure). */
 #define MAGCAL_STATIC_ASSERT(cond, name) typedef char magcal_static_assert_##name[(cond) ? 1 : -1]
 
