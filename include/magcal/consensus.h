@@ -52,11 +52,8 @@
 extern "C" {
 #endif
 
-/** Largest number of minimal-set draws accepted in magcal_consensus_cfg_t::max_iter. */
-#define MAGCAL_CONSENSUS_MAX_ITER 2000u
-
-/** Largest number of threshold/refit rounds accepted in magcal_consensus_cfg_t::refine_iter. */
-#define MAGCAL_CONSENSUS_MAX_REFINE 32u
+/* MAGCAL_CONSENSUS_MAX_ITER and MAGCAL_CONSENSUS_MAX_REFINE (limits of the configuration) are
+ * build-time limits in magcal/config.h. */
 
 /**
  * Workspace bytes for magcal_consensus_run() on n samples: four ellipse models (best, current,
