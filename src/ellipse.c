@@ -409,8 +409,8 @@ magcal_status_t magcal_ellipse_fit(const magcal_vec2_t *pts, size_t n, const uin
 static MAGCAL_NOINLINE magcal_status_t fit_five(const fit_src_t *src, magcal_ellipse_t *out)
 {
     float w[5][6];
-    float coef[5];
     float mom[5];
+    float *coef = mom; /* mom[] is dead after the collinearity test: the solution reuses it */
     float s = 1.0f;
     float minp = 1.0f;
     float ptol = sqrtf(MAGCAL_ELLIPSE_PIVOT_TOL);

@@ -400,9 +400,18 @@ static magcal_status_t check_cfg(const magcal_optics_cfg_t *cfg)
 }
 
 /* Carve the run workspace (uint16 seeds, pos, neighbour index, done bits) and build the index. */
-static void ctx_setup(optics_ctx_t *c, const magcal_optics_cfg_t *cfg, const magcal_vec2_t *pts,
-                      size_t n, uint8_t *w, const float *window)
+/* The context lives in the workspace (MAGCAL_OPTICS_CTX_LEN_ bytes after the MinPts buffer),
+ * aligned for pointers: the ordering loop is on the deepest stack path of the 2-D pipeline. */
+MAGCAL_STATIC_ASSERT(sizeof(optics_ctx_t) + sizeof(void *) - 4u <= MAGCAL_OPTICS_CTX_LEN_,
+                     optics_ctx_fits_workspace);
+
+static optics_ctx_t *ctx_setup(const magcal_optics_cfg_t *cfg, const magcal_vec2_t *pts, size_t n,
+                               uint8_t *w, const float *window)
 {
+    uint8_t *cw = w + MAGCAL_OPTICS_BEST_OFFSET_(n) + 4u * (size_t)MAGCAL_MAX_MIN_PTS;
+    optics_ctx_t *c;
+    cw += (sizeof(void *) - magcal_misalign(cw, sizeof(void *))) % sizeof(void *);
+    c = (optics_ctx_t *)(void *)cw;
     (void)memset(c, 0, sizeof *c);
     c->pts = pts;
     c->n = n;
@@ -416,6 +425,7 @@ static void ctx_setup(optics_ctx_t *c, const magcal_optics_cfg_t *cfg, const mag
     c->id = -1;
     c->best_id = -1;
     magcal_nbr_build(&c->nb, pts, n, cfg->eps, cfg->neighbors, w + 4u * n, window);
+    return c;
 }
 
 static void fill_info(magcal_optics_result_t *info, const optics_ctx_t *c, float eps,
@@ -437,7 +447,7 @@ magcal_status_t magcal_optics_run(const magcal_optics_cfg_t *cfg, const magcal_v
                                   float *reach, float *core, uint16_t *pred,
                                   magcal_optics_result_t *info)
 {
-    optics_ctx_t c;
+    optics_ctx_t *c;
     magcal_status_t st;
     if (cfg == NULL || pts == NULL || work == NULL || order == NULL || reach == NULL ||
         core == NULL) {
@@ -457,13 +467,13 @@ magcal_status_t magcal_optics_run(const magcal_optics_cfg_t *cfg, const magcal_v
     if (work_len < MAGCAL_OPTICS_WORKSPACE_LEN(n)) {
         return MAGCAL_ERR_WORKSPACE;
     }
-    ctx_setup(&c, cfg, pts, n, (uint8_t *)work, NULL);
-    c.reach = reach;
-    c.order = order;
-    c.core = core;
-    c.pred = pred;
-    optics_loop(&c);
-    fill_info(info, &c, cfg->eps, cfg->eps);
+    c = ctx_setup(cfg, pts, n, (uint8_t *)work, NULL);
+    c->reach = reach;
+    c->order = order;
+    c->core = core;
+    c->pred = pred;
+    optics_loop(c);
+    fill_info(info, c, cfg->eps, cfg->eps);
     return MAGCAL_OK;
 }
 
@@ -838,7 +848,7 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
                                      magcal_optics_result_t *info)
 {
     magcal_optics_cfg_t use;
-    optics_ctx_t c;
+    optics_ctx_t *c;
     magcal_status_t st;
     float eps_prime;
     float cr[3];
@@ -896,27 +906,27 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
             return MAGCAL_ERR_WORKSPACE;
         }
     }
-    ctx_setup(&c, &use, pts, n, w + MAGCAL_OPTICS_FILTER_RUN_OFFSET_(n), win);
-    c.reach = (float *)work;
-    c.labels = (int16_t *)(void *)(w + 4u * n);
-    c.eps_prime = eps_prime;
-    optics_loop(&c);
-    fill_info(info, &c, use.eps, eps_prime);
-    if (c.best_id < 0) {
+    c = ctx_setup(&use, pts, n, w + MAGCAL_OPTICS_FILTER_RUN_OFFSET_(n), win);
+    c->reach = (float *)work;
+    c->labels = (int16_t *)(void *)(w + 4u * n);
+    c->eps_prime = eps_prime;
+    optics_loop(c);
+    fill_info(info, c, use.eps, eps_prime);
+    if (c->best_id < 0) {
         if (info != NULL) {
-            info->n_noise = (uint16_t)c.n_noise;
+            info->n_noise = (uint16_t)c->n_noise;
         }
         return MAGCAL_ERR_ALL_NOISE;
     }
     for (i = 0; i < n; ++i) {
-        inlier_mask[i] = (c.labels[i] == c.best_id) ? 1u : 0u;
+        inlier_mask[i] = (c->labels[i] == c->best_id) ? 1u : 0u;
     }
     if (info != NULL) {
-        const int32_t count = c.id + 1;
+        const int32_t count = c->id + 1;
         info->n_clusters = (uint16_t)count;
-        info->largest_id = (int16_t)c.best_id;
-        info->n_inliers = (uint16_t)c.best_count;
-        info->n_noise = (uint16_t)c.n_noise;
+        info->largest_id = (int16_t)c->best_id;
+        info->n_inliers = (uint16_t)c->best_count;
+        info->n_noise = (uint16_t)c->n_noise;
     }
     return MAGCAL_OK;
 }
