@@ -336,6 +336,8 @@ static void test_ellipse_fit_offset20_float32_matches_double_seed_fails(void)
     check_within(0.2, 6000.0, e.center.x, "x0 truth");
     check_within(0.2, -5000.0, e.center.y, "y0 truth");
     check_within(0.2, 300.0, e.semi_major, "r2 truth");
+    /* the radial residual works on raw counts far from the origin: RMS = noise sigma (2 LSB) */
+    check_within(0.15, 2.0, e.residual_rms, "residual RMS = noise sigma");
 
     st_seed = magcal_ellipse_fit_seed(g_pts, 2000, NULL, &es);
     if (st_seed == MAGCAL_OK) {
@@ -343,7 +345,7 @@ static void test_ellipse_fit_offset20_float32_matches_double_seed_fails(void)
         printf("offset/radius 20: seed status ok, centre err %.3g LSB, min pivot %.3g\n", err_seed, (double)es.min_pivot);
         TEST_ASSERT_TRUE_MESSAGE(err_seed > 100.0 * err_c, "seed scaling should degrade at offset/radius 20");
     } else {
-        printf("offset/radius 20: seed status %s, min pivot %.3g\n", magcal_status_str(st_seed), (double)es.min_pivot);
+        printf("offset/radius 20: seed status %s\n", magcal_status_str(st_seed));
         TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ILL_CONDITIONED, st_seed);
     }
 }
@@ -379,6 +381,54 @@ static void test_ellipse_fit_full_int16_range_is_accurate(void)
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_fit(g_pts, 700, NULL, &e));
     printf("int16 range, offset/radius 29: rel. err %.2e\n", rel_err_vs_ref(&e, &ref));
     check_within(1e-4, 0.0, rel_err_vs_ref(&e, &ref), "rel. error vs double");
+}
+
+static void test_ellipse_fit_matches_numpy_golden_values(void)
+{
+    /* Golden values from tools/ref/ellipse_ref.py: numpy lstsq (QR/SVD, double) on the same rings,
+     * regenerated bit for bit in Python from test_util.c's generator. Tolerances: a few float32
+     * ulps of the coordinate magnitude. */
+    magcal_ellipse_t e;
+    test_distortion_t d = make_dist(0.35, 1.15, 0.80, 25.0, -10.0, 0.42, -0.27);
+    test_make_ring(&d, 400, 0.0, 360.0, 1e-4, 11u, g_pts, NULL);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_fit(g_pts, 400, NULL, &e));
+    check_within(2e-7, 0.419989822, e.center.x, "2.3 x0");
+    check_within(2e-7, -0.270003584, e.center.y, "2.3 y0");
+    check_within(2e-7, 0.279994714, e.semi_minor, "2.3 r1");
+    check_within(2e-7, 0.402489356, e.semi_major, "2.3 r2");
+    check_within(1e-4, -64.9986147, e.angle_rad * DEG_D, "2.3 theta");
+    d = make_dist(300.0, 1.0, 1.0, 0.0, 0.0, 6000.0, -5000.0);
+    test_make_ring(&d, 2000, 0.0, 360.0, 2.0, 21u, g_pts, NULL);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_fit(g_pts, 2000, NULL, &e));
+    check_within(2e-3, 6000.01737, e.center.x, "20x x0");
+    check_within(2e-3, -5000.00576, e.center.y, "20x y0");
+    check_within(2e-3, 299.974704, e.semi_minor, "20x r1");
+    check_within(2e-3, 300.151143, e.semi_major, "20x r2");
+    d = make_dist(5000.0, 1.0, 1.0, 0.0, 0.0, 20000.0, -15000.0);
+    test_make_ring(&d, 2000, 0.0, 360.0, 2.0, 22u, g_pts, NULL);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_fit(g_pts, 2000, NULL, &e));
+    check_within(5e-3, 19999.972, e.center.x, "5x x0");
+    check_within(5e-3, -15000.1671, e.center.y, "5x y0");
+    check_within(5e-3, 4999.88881, e.semi_minor, "5x r1");
+    check_within(5e-3, 5000.02329, e.semi_major, "5x r2");
+}
+
+static void test_ellipse_fit_half_turn_at_offset20_matches_double_reference(void)
+{
+    /* 180 deg of arc (the least rotation a calibrator should accept), offset/radius 20: the
+     * bounding-box centre is then about r/2 off the true centre; still 1e-4 relative. */
+    test_distortion_t d = make_dist(300.0, 1.1, 0.9, 15.0, 0.0, -6000.0, -3000.0);
+    magcal_ellipse_t e;
+    ref_ellipse_t ref;
+    double rel;
+    test_make_ring(&d, 700, 100.0, 180.0, 0.5, 24u, g_pts, NULL);
+    TEST_ASSERT_EQUAL_INT(0, ref_fit(g_pts, 700, 1, &ref));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_fit(g_pts, 700, NULL, &e));
+    rel = rel_err_vs_ref(&e, &ref);
+    printf("half turn, offset/radius 20: rel. err %.2e, min pivot %.3g\n", rel, (double)e.min_pivot);
+    check_within(1e-4, 0.0, rel, "rel. error vs double");
+    check_within(2.0, -6000.0, e.center.x, "x0 truth (noise-limited on a half turn)");
+    check_within(2.0, -3000.0, e.center.y, "y0 truth");
 }
 
 /* --------------------------------------------------------- failure statuses */
@@ -537,6 +587,7 @@ static void test_ellipse_fit_idx_bad_subsets_return_status(void)
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipse_fit_idx(g_pts, 200, out_of_range, 5, &e));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_ellipse_fit_idx(g_pts, 200, ok6, 4, &e));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipse_fit_idx(g_pts, 200, NULL, 5, &e));
+    printf("5 points on 7.2 deg of arc: %s\n", magcal_status_str(magcal_ellipse_fit_idx(g_pts, 200, close, 5, &e)));
     TEST_ASSERT_TRUE(magcal_ellipse_fit_idx(g_pts, 200, close, 5, &e) != MAGCAL_OK);
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_fit_idx(g_pts, 200, ok6, 6, &e));
     check_within(1e-4 * 480.0, 2500.0, e.center.x, "6-point LS x0");
@@ -691,6 +742,30 @@ static void test_ellipse_to_cal_all_forms_map_onto_circle(void)
     check_within(0.0, e.center.x, sym.offset.x, "offset = centre");
 }
 
+static void test_ellipse_to_cal_noise_free_ring_is_circle_to_float_precision(void)
+{
+    /* Noise-free ring at raw-count scale with a 10x offset: every form maps it onto a circle to
+     * float32 precision (radius spread < 1e-5 relative) with the documented radius. */
+    test_distortion_t d = make_dist(600.0, 1.3, 0.75, -55.0, 20.0, 4000.0, 5000.0);
+    static const magcal_corr_form_t forms[3] = {MAGCAL_CORR_SYMMETRIC, MAGCAL_CORR_KX1, MAGCAL_CORR_TRIANGULAR};
+    magcal_ellipse_t e;
+    magcal_cal2d_t cal;
+    double spread, mean;
+    size_t i;
+    test_make_ring(&d, 500, 0.0, 360.0, 0.0, 61u, g_pts, NULL);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_fit(g_pts, 500, NULL, &e));
+    check_within(1e-5 * 780.0, 450.0, e.semi_minor, "r1 = 0.75 * 600");
+    check_within(1e-5 * 780.0, 780.0, e.semi_major, "r2 = 1.3 * 600");
+    for (i = 0; i < 3; ++i) {
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_to_cal(&e, forms[i], 0.0f, &cal));
+        cal_spread(&cal, g_pts, 500, &spread, &mean);
+        check_within(1e-5, 0.0, spread, "noise-free radius spread");
+        check_within(1e-5 * mean, cal.radius, mean, "radius field = mean corrected radius");
+        /* rho <= 0: sqrt(r1 r2) for symmetric and triangular, r1 for kx1 */
+        check_within(1e-5 * mean, forms[i] == MAGCAL_CORR_KX1 ? 450.0 : sqrt(450.0 * 780.0), mean, "default radius");
+    }
+}
+
 static void test_ellipse_to_cal_symmetric_offset_is_phis_plus_phip(void)
 {
     /* algorithms.md 1.3 / 2.4: T = R(25) diag(1.15, 0.8) R(-10): the symmetric form leaves a
@@ -787,6 +862,8 @@ int main(void)
     RUN_TEST(test_ellipse_fit_offset20_float32_matches_double_seed_fails);
     RUN_TEST(test_ellipse_fit_offset5_counts25000_meets_1e4_seed_does_not);
     RUN_TEST(test_ellipse_fit_full_int16_range_is_accurate);
+    RUN_TEST(test_ellipse_fit_half_turn_at_offset20_matches_double_reference);
+    RUN_TEST(test_ellipse_fit_matches_numpy_golden_values);
     RUN_TEST(test_ellipse_fit_60deg_arc_returns_hyperbola);
     RUN_TEST(test_ellipse_fit_bad_input_returns_specific_status);
     RUN_TEST(test_ellipse_fit_degenerate_points_return_degenerate);
@@ -798,6 +875,7 @@ int main(void)
     RUN_TEST(test_ellipse_fit_idx_and_mask_equal_compacted_fit);
     RUN_TEST(test_ellipse_residual_is_radial_distance);
     RUN_TEST(test_ellipse_to_cal_all_forms_map_onto_circle);
+    RUN_TEST(test_ellipse_to_cal_noise_free_ring_is_circle_to_float_precision);
     RUN_TEST(test_ellipse_to_cal_symmetric_offset_is_phis_plus_phip);
     RUN_TEST(test_ellipse_to_cal_symmetric_offset_noisy_mean_is_15deg);
     RUN_TEST(test_ellipse_to_cal_pure_soft_iron_recovers_heading);

@@ -24,6 +24,7 @@
  * with a fixed amount of stack.
  *
  * @code
+ * #include "magcal/config.h"   // MAGCAL_MAX_SAMPLES
  * #include "magcal/ellipse.h"
  *
  * static magcal_vec2_t samples[MAGCAL_MAX_SAMPLES];
