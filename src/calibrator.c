@@ -305,16 +305,23 @@ static int cal_degenerate(const magcal_vec2_t *p, size_t n)
     float disc;
     float l1;
     float l2;
+    float s = 0.0f;
     size_t i;
+    /* mean of p/n and deviations scaled by their largest magnitude: the sums cannot overflow
+     * (a ring of radius 1e18 overflowed sxx to Inf and was called degenerate) */
     for (i = 0u; i < n; ++i) {
-        mx += p[i].x;
-        my += p[i].y;
+        mx += p[i].x / (float)n;
+        my += p[i].y / (float)n;
     }
-    mx /= (float)n;
-    my /= (float)n;
     for (i = 0u; i < n; ++i) {
-        float dx = p[i].x - mx;
-        float dy = p[i].y - my;
+        s = fmaxf(s, fmaxf(fabsf(p[i].x - mx), fabsf(p[i].y - my)));
+    }
+    if (!(s > 0.0f) || !magcal_isfinite_f(s)) {
+        return 1; /* all identical, or a spread float32 cannot represent */
+    }
+    for (i = 0u; i < n; ++i) {
+        float dx = (p[i].x - mx) / s;
+        float dy = (p[i].y - my) / s;
         sxx += dx * dx;
         syy += dy * dy;
         sxy += dx * dy;
