@@ -292,8 +292,22 @@ magcal_status_t magcal_calibrator_push(magcal_calibrator_t *cal, magcal_vec2_t p
 
 /* ------------------------------------------------------------------ run() stages */
 
-/* All identical or collinear samples: smaller covariance eigenvalue vs larger. */
-static int cal_degenerate(const magcal_vec2_t *p, size_t n)
+/* All identical samples (checked before the density filter: far outliers cannot fake it). */
+static int cal_identical(const magcal_vec2_t *p, size_t n)
+{
+    size_t i;
+    for (i = 1u; i < n; ++i) {
+        if (p[i].x != p[0].x || p[i].y != p[0].y) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* Masked samples (mask NULL: all) identical or collinear: smaller covariance eigenvalue vs larger.
+ * Run on the density-filter inliers: before the filter, two glitch samples 1e5 R away made a
+ * clean ring look collinear (eigenvalue ratio ~1e-8). */
+static int cal_degenerate(const magcal_vec2_t *p, size_t n, const uint8_t *mask)
 {
     float mx = 0.0f;
     float my = 0.0f;
@@ -306,25 +320,42 @@ static int cal_degenerate(const magcal_vec2_t *p, size_t n)
     float l1;
     float l2;
     float s = 0.0f;
+    float fm;
+    size_t m = 0u;
     size_t i;
-    /* mean of p/n and deviations scaled by their largest magnitude: the sums cannot overflow
+    for (i = 0u; i < n; ++i) {
+        if (mask == NULL || mask[i] != 0u) {
+            ++m;
+        }
+    }
+    if (m == 0u) {
+        return 1;
+    }
+    fm = (float)m;
+    /* mean of p/m and deviations scaled by their largest magnitude: the sums cannot overflow
      * (a ring of radius 1e18 overflowed sxx to Inf and was called degenerate) */
     for (i = 0u; i < n; ++i) {
-        mx += p[i].x / (float)n;
-        my += p[i].y / (float)n;
+        if (mask == NULL || mask[i] != 0u) {
+            mx += p[i].x / fm;
+            my += p[i].y / fm;
+        }
     }
     for (i = 0u; i < n; ++i) {
-        s = fmaxf(s, fmaxf(fabsf(p[i].x - mx), fabsf(p[i].y - my)));
+        if (mask == NULL || mask[i] != 0u) {
+            s = fmaxf(s, fmaxf(fabsf(p[i].x - mx), fabsf(p[i].y - my)));
+        }
     }
     if (!(s > 0.0f) || !magcal_isfinite_f(s)) {
         return 1; /* all identical, or a spread float32 cannot represent */
     }
     for (i = 0u; i < n; ++i) {
-        float dx = (p[i].x - mx) / s;
-        float dy = (p[i].y - my) / s;
-        sxx += dx * dx;
-        syy += dy * dy;
-        sxy += dx * dy;
+        if (mask == NULL || mask[i] != 0u) {
+            float dx = (p[i].x - mx) / s;
+            float dy = (p[i].y - my) / s;
+            sxx += dx * dx;
+            syy += dy * dy;
+            sxy += dx * dy;
+        }
     }
     tr = sxx + syy;
     if (!(tr > 0.0f)) {
@@ -696,7 +727,7 @@ magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *
     if (n < cal->cfg.min_samples || n < MAGCAL_ELLIPSE_MIN_POINTS) {
         return cal_finish(cal, MAGCAL_ERR_TOO_FEW_POINTS, &rep, report);
     }
-    if (cal_degenerate(cal->buf, n)) {
+    if (cal_identical(cal->buf, n)) {
         return cal_finish(cal, MAGCAL_ERR_DEGENERATE, &rep, report);
     }
 
@@ -714,6 +745,9 @@ magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *
     cal_set_flags(cal, 0);
     if (filt_in < cal->cfg.min_samples) {
         return cal_finish(cal, MAGCAL_ERR_TOO_FEW_POINTS, &rep, report);
+    }
+    if (cal_degenerate(cal->buf, n, cal->mask_a)) {
+        return cal_finish(cal, MAGCAL_ERR_DEGENERATE, &rep, report);
     }
 
     /* 3. coverage pre-gate: every sample, around the hard-iron circle centre of the filter inliers

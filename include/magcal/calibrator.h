@@ -4,10 +4,11 @@
  *        singular points, fit the ellipse, gate the result and adopt it only when it is sound.
  *
  * Pipeline of magcal_calibrator_run():
- *  1. pre-checks: enough samples (cfg.min_samples), not all identical / collinear;
+ *  1. pre-checks: enough samples (cfg.min_samples), not all identical;
  *  2. density filter (optics.h / dbscan.h): OPTICS improved + grid with automatic eps, eps' and
  *     MinPts by default; OPTICS classic; DBSCAN; or none. cfg.eps / cfg.min_pts override the
- *     automatic values (DBSCAN with eps = 0 uses the automatic eps');
+ *     automatic values (DBSCAN with eps = 0 uses the automatic eps'); then the filter inliers
+ *     must not be collinear (tested after the filter, so far outliers cannot fake collinearity);
  *  3. coverage pre-gate: every sample, around a hard-iron circle fit of the filter inliers (so a
  *     short arc is reported as COVERAGE, not as whatever conic it happens to fit); when the filter
  *     inliers alone miss the gate (bursts split the ring into arcs, algorithms.md 4.3) the
