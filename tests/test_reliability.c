@@ -297,6 +297,31 @@ static void test_calibrator_run_three_point_cloud_returns_degenerate_keeps_cal(v
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ILL_CONDITIONED, magcal_ellipse_fit(g_pts, 60u, NULL, &e));
 }
 
+static void test_calibrator_run_ring_with_two_far_outliers_calibrates_and_rejects_them(void)
+{
+    /* two glitch samples 1e5 R away on a diagonal: before the fix the collinearity pre-check
+     * ran before the density filter and called the whole set DEGENERATE (eigenvalue ratio 1e-8) */
+    magcal_cal2d_t cur = MAGCAL_CAL2D_IDENTITY;
+    magcal_cal_report_t rep;
+    int inl = -1;
+    exact_ring(600u, 3.0f, -2.0f, 40.0f, 32.0f);
+    g_pts[0].x = 4.0e6f;
+    g_pts[0].y = 4.0e6f;
+    g_pts[1].x = -4.0e6f;
+    g_pts[1].y = -4.0e6f;
+    init_default(CAP);
+    push_all(600u);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_run(&g_cal, &cur, &rep));
+    TEST_ASSERT_EQUAL_UINT16(2u, rep.outliers);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_inlier(&g_cal, 0u, &inl));
+    TEST_ASSERT_EQUAL_INT(0, inl);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_inlier(&g_cal, 1u, &inl));
+    TEST_ASSERT_EQUAL_INT(0, inl);
+    /* exact ring: centre within 1e-4 of the radius */
+    TEST_ASSERT_FLOAT_WITHIN(40.0f * 1e-4f, 3.0f, cur.offset.x);
+    TEST_ASSERT_FLOAT_WITHIN(40.0f * 1e-4f, -2.0f, cur.offset.y);
+}
+
 /* ---------------------------------------------------------------- capacity and the port */
 
 static void test_calibrator_run_at_max_samples_then_push_returns_buffer_full(void)
@@ -410,6 +435,7 @@ int main(void)
     RUN_TEST(test_heading_compute_overflowing_correction_returns_nonfinite_untouched);
     RUN_TEST(test_calibrator_run_two_point_cloud_returns_degenerate_keeps_cal);
     RUN_TEST(test_calibrator_run_three_point_cloud_returns_degenerate_keeps_cal);
+    RUN_TEST(test_calibrator_run_ring_with_two_far_outliers_calibrates_and_rejects_them);
     RUN_TEST(test_calibrator_run_at_max_samples_then_push_returns_buffer_full);
     RUN_TEST(test_calibrator_poll_port_nonfinite_sample_returns_nonfinite_not_stored);
     RUN_TEST(test_optics_filter_eps_inf_and_subnormal_eps_give_one_cluster_and_all_noise);
