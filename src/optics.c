@@ -38,7 +38,7 @@ typedef struct {
 
 static int is_done(const optics_ctx_t *c, size_t i)
 {
-    return (c->done[i >> 3] >> (i & 7u)) & 1u;
+    return (int)(((unsigned)c->done[i >> 3] >> (i & 7u)) & 1u);
 }
 
 /* (reach, index) lexicographic order: the tie rule that makes every variant identical. */
