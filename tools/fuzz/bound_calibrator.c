@@ -94,16 +94,12 @@ int main(int argc, char **argv)
         g_pts[0].y = 4.0e6f;
         g_pts[1].x = -4.0e6f;
         g_pts[1].y = -4.0e6f;
-    } else if (strcmp(s, "clumps3") == 0) { /* 3 tight clumps 120 deg apart on the ring */
+    } else if (strncmp(s, "clumps", 6) == 0 && s[6] >= '2' && s[6] <= '9') {
+        /* k tight clumps spread evenly on the ring ("clumps4"), "_wide": 0.1 rad spread */
+        size_t k = (size_t)(s[6] - '0');
+        double sd = strstr(s, "_wide") != NULL ? 0.1 : 0.02;
         for (i = 0; i < N; ++i) {
-            double t = TWO_PI * (double)(i % 3u) / 3.0 + 0.02 * nrand();
-            g_pts[i].x = (float)(40.0 * cos(t));
-            g_pts[i].y = (float)(40.0 * sin(t));
-        }
-    } else if (strcmp(s, "clumps2") == 0 || strcmp(s, "clumps4") == 0) { /* k clumps on the ring */
-        size_t k = s[6] == '2' ? 2u : 4u;
-        for (i = 0; i < N; ++i) {
-            double t = TWO_PI * (double)(i % k) / (double)k + 0.02 * nrand();
+            double t = TWO_PI * (double)(i % k) / (double)k + sd * nrand();
             g_pts[i].x = (float)(40.0 * cos(t));
             g_pts[i].y = (float)(40.0 * sin(t));
         }

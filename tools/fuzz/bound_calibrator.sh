@@ -8,7 +8,7 @@ set -eu
 SRC=$(cd "$(dirname "$0")/../.." && pwd)
 OUT=${1:-$SRC/build/bound}
 [ $# -gt 0 ] && shift
-SCEN=${*:-"ring ring_noisy disc annulus_wide ring_plus_disc ring_cluster45 ring_spikes45 ring_far_outliers grid_lattice ring_noisy_lattice clumps2 clumps3 clumps4 ring_half_clumps3 ring_eps_huge_minpts4 ring_eps_huge ring_classic_eps_huge_iter2000 spikes45_iter2000"}
+SCEN=${*:-"ring ring_noisy disc annulus_wide ring_plus_disc ring_cluster45 ring_spikes45 ring_far_outliers grid_lattice ring_noisy_lattice clumps2 clumps3 clumps4 clumps5 clumps6 clumps8 clumps6_wide ring_half_clumps3 ring_eps_huge_minpts4 ring_eps_huge ring_classic_eps_huge_iter2000 spikes45_iter2000"}
 mkdir -p "$OUT"
 LIBSRC=$(ls "$SRC"/src/*.c | grep -v calibrator_poll.c)
 # shellcheck disable=SC2086
