@@ -399,6 +399,38 @@ static void test_optics_filter_eps_inf_and_subnormal_eps_give_one_cluster_and_al
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_filter(&cfg, g_pts, 200u, g_work, sizeof g_work, mask, &info));
 }
 
+static void test_dbscan_run_eps_whose_square_overflows_returns_arg(void)
+{
+    /* two groups of 10 samples, 1e25 apart, each 9e18 wide. eps = 1.9e19 squared overflows to
+     * Inf: the brute search called every pair a neighbour (1 cluster) while the grid found 2.
+     * Finite eps above sqrt(FLT_MAX) is now rejected; +Inf keeps its documented meaning. */
+    static int16_t labels[20];
+    static uint16_t order[20];
+    static float reach[20], core[20];
+    magcal_dbscan_cfg_t dc = {1.8e19f, 4u, MAGCAL_NEIGHBORS_BRUTE};
+    magcal_optics_cfg_t oc = {1.9e19f, 0.0f, 4u, MAGCAL_OPTICS_IMPROVED, MAGCAL_NEIGHBORS_BRUTE};
+    uint16_t n_cl = 0u;
+    size_t i;
+    for (i = 0; i < 20u; ++i) {
+        g_pts[i].x = (i < 10u ? 0.0f : 1.0e25f) + (float)(i % 10u) * 1.0e18f;
+        g_pts[i].y = 0.0f;
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_dbscan_run(&dc, g_pts, 20u, g_work, sizeof g_work, labels, &n_cl, NULL));
+    TEST_ASSERT_EQUAL_UINT16(2u, n_cl);
+    dc.neighbors = MAGCAL_NEIGHBORS_GRID;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_dbscan_run(&dc, g_pts, 20u, g_work, sizeof g_work, labels, &n_cl, NULL));
+    TEST_ASSERT_EQUAL_UINT16(2u, n_cl);
+    dc.eps = 1.9e19f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_dbscan_run(&dc, g_pts, 20u, g_work, sizeof g_work, labels, &n_cl, NULL));
+    dc.neighbors = MAGCAL_NEIGHBORS_BRUTE;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_dbscan_run(&dc, g_pts, 20u, g_work, sizeof g_work, labels, &n_cl, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_optics_run(&oc, g_pts, 20u, g_work, sizeof g_work, order, reach, core, NULL, NULL));
+    dc.eps = INFINITY;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_dbscan_run(&dc, g_pts, 20u, g_work, sizeof g_work, labels, &n_cl, NULL));
+    TEST_ASSERT_EQUAL_UINT16(1u, n_cl);
+}
+
 static void test_calibrator_run_dbscan_subnormal_eps_returns_all_noise_keeps_cal(void)
 {
     magcal_calibrator_cfg_t cfg = MAGCAL_CALIBRATOR_CFG_DEFAULT;
@@ -439,6 +471,7 @@ int main(void)
     RUN_TEST(test_calibrator_run_at_max_samples_then_push_returns_buffer_full);
     RUN_TEST(test_calibrator_poll_port_nonfinite_sample_returns_nonfinite_not_stored);
     RUN_TEST(test_optics_filter_eps_inf_and_subnormal_eps_give_one_cluster_and_all_noise);
+    RUN_TEST(test_dbscan_run_eps_whose_square_overflows_returns_arg);
     RUN_TEST(test_calibrator_run_dbscan_subnormal_eps_returns_all_noise_keeps_cal);
     return UNITY_END();
 }
