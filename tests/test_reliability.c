@@ -322,6 +322,29 @@ static void test_calibrator_run_ring_with_two_far_outliers_calibrates_and_reject
     TEST_ASSERT_FLOAT_WITHIN(40.0f * 1e-4f, -2.0f, cur.offset.y);
 }
 
+static void test_calibrator_run_consensus_sample_at_1e30_is_an_outlier_not_nonfinite(void)
+{
+    /* one finite sample 1e30 away (e.g. a corrupted float read): the density filter rejects it,
+     * but the consensus stage judges every sample and its residual overflows. Before the fix
+     * every minimal set was discarded and run() returned MAGCAL_ERR_NONFINITE, a status
+     * calibrator.h does not list. */
+    magcal_calibrator_cfg_t cfg = MAGCAL_CALIBRATOR_CFG_DEFAULT;
+    magcal_cal2d_t cur = MAGCAL_CAL2D_IDENTITY;
+    magcal_cal_report_t rep;
+    int inl = -1;
+    exact_ring(300u, 3.0f, -2.0f, 40.0f, 32.0f);
+    g_pts[17].x = 1.0e30f;
+    g_pts[17].y = -1.0e30f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
+    push_all(300u);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_run(&g_cal, &cur, &rep));
+    TEST_ASSERT_EQUAL_UINT16(1u, rep.outliers);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_inlier(&g_cal, 17u, &inl));
+    TEST_ASSERT_EQUAL_INT(0, inl);
+    TEST_ASSERT_FLOAT_WITHIN(40.0f * 1e-4f, 3.0f, cur.offset.x);
+    TEST_ASSERT_FLOAT_WITHIN(40.0f * 1e-4f, -2.0f, cur.offset.y);
+}
+
 /* ---------------------------------------------------------------- capacity and the port */
 
 static void test_calibrator_run_at_max_samples_then_push_returns_buffer_full(void)
@@ -468,6 +491,7 @@ int main(void)
     RUN_TEST(test_calibrator_run_two_point_cloud_returns_degenerate_keeps_cal);
     RUN_TEST(test_calibrator_run_three_point_cloud_returns_degenerate_keeps_cal);
     RUN_TEST(test_calibrator_run_ring_with_two_far_outliers_calibrates_and_rejects_them);
+    RUN_TEST(test_calibrator_run_consensus_sample_at_1e30_is_an_outlier_not_nonfinite);
     RUN_TEST(test_calibrator_run_at_max_samples_then_push_returns_buffer_full);
     RUN_TEST(test_calibrator_poll_port_nonfinite_sample_returns_nonfinite_not_stored);
     RUN_TEST(test_optics_filter_eps_inf_and_subnormal_eps_give_one_cluster_and_all_noise);

@@ -184,6 +184,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     cur = fz_previous(((unsigned)mode >> 5) & 3u);
     before = cur;
     st = magcal_calibrator_run(&cal, &cur, &rep);
+    if (!fz_run_status_ok(st)) {
+        fprintf(stderr, "run() returned %d (%s)\n", (int)st, magcal_status_str(st));
+    }
     FUZZ_CHECK(fz_run_status_ok(st), "run: undocumented status");
     FUZZ_CHECK(rep.status == st, "report status differs from the return value");
     FUZZ_CHECK(rep.samples == (uint16_t)n_kept, "report samples");
