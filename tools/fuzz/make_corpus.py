@@ -5,7 +5,7 @@
 
 Writes DIR/replay_csv/, DIR/calibrator/, DIR/cluster/ (one file per seed, named by content hash).
 Inputs: REPO/tests/data/{real,synthetic}/*.csv, SHARED/data/real/*/data.csv when given, and the
-hand-written seeds in tools/fuzz/seeds/csv/. The corpora are build products: never commit them.
+committed seeds in tools/fuzz/seeds/<harness>/ (hand-written CSVs, reproducers of fixed crashes). The corpora are build products: never commit them.
 
 Seed formats are those documented at the top of fuzz_calibrator.c and fuzz_cluster.c.
 """
@@ -129,7 +129,7 @@ def main():
                    glob.glob(os.path.join(a.source_dir, "tests/data/synthetic/*.csv")))
     if a.shared_dir:
         dumps += sorted(glob.glob(os.path.join(a.shared_dir, "data/real/*/data.csv")))
-    hand = sorted(glob.glob(os.path.join(os.path.dirname(os.path.abspath(__file__)), "seeds/csv/*")))
+    seeds = os.path.join(os.path.dirname(os.path.abspath(__file__)), "seeds")
 
     out_csv = os.path.join(a.out, "replay_csv")
     out_cal = os.path.join(a.out, "calibrator")
@@ -137,9 +137,11 @@ def main():
     for d in (out_csv, out_cal, out_clu):
         shutil.rmtree(d, ignore_errors=True)       # regenerated from scratch every time
         os.makedirs(d)
-    for h in hand:
-        with open(h, "rb") as f:
-            write_seed(out_csv, f.read())
+    # committed seeds: hand-written CSVs and the reproducers of fixed crashes (regressions)
+    for harness, out in (("replay_csv", out_csv), ("calibrator", out_cal), ("cluster", out_clu)):
+        for h in sorted(glob.glob(os.path.join(seeds, harness, "*"))):
+            with open(h, "rb") as f:
+                write_seed(out, f.read())
     for path in dumps:
         csv_seeds(path, out_csv)
         pts = read_xy(path)
