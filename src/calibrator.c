@@ -4,6 +4,7 @@
  */
 #include "magcal/calibrator.h"
 
+#include <float.h>
 #include <math.h>
 #include <string.h>
 
@@ -305,8 +306,22 @@ magcal_status_t magcal_calibrator_push(magcal_calibrator_t *cal, magcal_vec2_t p
 
 /* ------------------------------------------------------------------ run() stages */
 
-/* All identical or collinear samples: smaller covariance eigenvalue vs larger. */
-static int cal_degenerate(const magcal_vec2_t *p, size_t n)
+/* All identical samples (checked before the density filter: far outliers cannot fake it). */
+static int cal_identical(const magcal_vec2_t *p, size_t n)
+{
+    size_t i;
+    for (i = 1u; i < n; ++i) {
+        if (p[i].x != p[0].x || p[i].y != p[0].y) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* Masked samples (mask NULL: all) identical or collinear: smaller covariance eigenvalue vs larger.
+ * Run on the density-filter inliers: before the filter, two glitch samples 1e5 R away made a
+ * clean ring look collinear (eigenvalue ratio ~1e-8). */
+static int cal_degenerate(const magcal_vec2_t *p, size_t n, const uint8_t *mask)
 {
     float mx = 0.0f;
     float my = 0.0f;
@@ -318,19 +333,43 @@ static int cal_degenerate(const magcal_vec2_t *p, size_t n)
     float disc;
     float l1;
     float l2;
+    float s = 0.0f;
+    float fm;
+    size_t m = 0u;
     size_t i;
     for (i = 0u; i < n; ++i) {
-        mx += p[i].x;
-        my += p[i].y;
+        if (mask == NULL || mask[i] != 0u) {
+            ++m;
+        }
     }
-    mx /= (float)n;
-    my /= (float)n;
+    if (m == 0u) {
+        return 1;
+    }
+    fm = (float)m;
+    /* mean of p/m and deviations scaled by their largest magnitude: the sums cannot overflow
+     * (a ring of radius 1e18 overflowed sxx to Inf and was called degenerate) */
     for (i = 0u; i < n; ++i) {
-        float dx = p[i].x - mx;
-        float dy = p[i].y - my;
-        sxx += dx * dx;
-        syy += dy * dy;
-        sxy += dx * dy;
+        if (mask == NULL || mask[i] != 0u) {
+            mx += p[i].x / fm;
+            my += p[i].y / fm;
+        }
+    }
+    for (i = 0u; i < n; ++i) {
+        if (mask == NULL || mask[i] != 0u) {
+            s = fmaxf(s, fmaxf(fabsf(p[i].x - mx), fabsf(p[i].y - my)));
+        }
+    }
+    if (!(s > 0.0f) || !magcal_isfinite_f(s)) {
+        return 1; /* all identical, or a spread float32 cannot represent */
+    }
+    for (i = 0u; i < n; ++i) {
+        if (mask == NULL || mask[i] != 0u) {
+            float dx = (p[i].x - mx) / s;
+            float dy = (p[i].y - my) / s;
+            sxx += dx * dx;
+            syy += dy * dy;
+            sxy += dx * dy;
+        }
     }
     tr = sxx + syy;
     if (!(tr > 0.0f)) {
@@ -723,8 +762,23 @@ magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *
     if (n < cal->cfg.min_samples || n < MAGCAL_ELLIPSE_MIN_POINTS) {
         return cal_finish(cal, MAGCAL_ERR_TOO_FEW_POINTS, rep, report);
     }
-    if (cal_degenerate(cal->buf, n) != 0) {
+    if (cal_identical(cal->buf, n) != 0) {
         return cal_finish(cal, MAGCAL_ERR_DEGENERATE, rep, report);
+    }
+    {
+        /* Extent of the samples: when its square is not a normal float32, squared distances and
+         * moments lose their precision (the density filter's eps^2 test first): 0 = the points are
+         * indistinguishable, otherwise too ill-conditioned for float32 (rings below ~1e-20). */
+        const float ex = cal->bb_max.x - cal->bb_min.x;
+        const float ey = cal->bb_max.y - cal->bb_min.y;
+        const float ext = ex > ey ? ex : ey;
+        const float ext2 = ext * ext;
+        if (!(ext2 > 0.0f)) {
+            return cal_finish(cal, MAGCAL_ERR_DEGENERATE, rep, report);
+        }
+        if (ext2 < FLT_MIN) {
+            return cal_finish(cal, MAGCAL_ERR_ILL_CONDITIONED, rep, report);
+        }
     }
 
     /* 2. density filter */
@@ -741,6 +795,9 @@ magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *
     cal_set_flags(cal, 0);
     if (filt_in < cal->cfg.min_samples) {
         return cal_finish(cal, MAGCAL_ERR_TOO_FEW_POINTS, rep, report);
+    }
+    if (cal_degenerate(cal->buf, n, cal->mask_a) != 0) {
+        return cal_finish(cal, MAGCAL_ERR_DEGENERATE, rep, report);
     }
 
     /* 3. coverage pre-gate: every sample, around the hard-iron circle centre of the filter inliers

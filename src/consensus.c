@@ -90,18 +90,17 @@ static void cons_sort(float *key, uint16_t *idx, size_t m)
     }
 }
 
-/* |residual| of every sample to e, into r; returns 0, or -1 when a residual is not finite. */
-static int cons_residuals(const magcal_ellipse_t *e, const magcal_vec2_t *pts, size_t n, float *r)
+/* |residual| of every sample. The samples are finite (checked on entry) and the model comes from a
+ * successful fit, so a non-finite residual can only be an overflow of a sample astronomically far
+ * from the model (|p - c| above ~1e19): it is stored as +Inf, i.e. always an outlier. Returning an
+ * error instead made one such sample veto every minimal set and the run end in NONFINITE. */
+static void cons_residuals(const magcal_ellipse_t *e, const magcal_vec2_t *pts, size_t n, float *r)
 {
     size_t i;
     for (i = 0u; i < n; ++i) {
         float v = magcal_ellipse_residual(e, pts[i]);
-        if (!magcal_isfinite_f(v)) {
-            return -1;
-        }
-        r[i] = fabsf(v);
+        r[i] = magcal_isfinite_f(v) ? fabsf(v) : INFINITY;
     }
-    return 0;
 }
 
 static float cons_mean_radius(const magcal_ellipse_t *e)
@@ -244,9 +243,7 @@ magcal_status_t magcal_consensus_run(const magcal_consensus_cfg_t *cfg, const ma
             if (magcal_ellipse_fit_idx(pts, n, idx, 5u, cand) != MAGCAL_OK) {
                 continue;
             }
-            if (cons_residuals(cand, pts, n, res) != 0) {
-                continue;
-            }
+            cons_residuals(cand, pts, n, res);
             ++valid;
             score = cons_median(res, n);
             if (score < best_score) {
@@ -261,17 +258,13 @@ magcal_status_t magcal_consensus_run(const magcal_consensus_cfg_t *cfg, const ma
         if (st != MAGCAL_OK) {
             return st;
         }
-        if (cons_residuals(best, pts, n, res) != 0) {
-            return MAGCAL_ERR_NONFINITE;
-        }
+        cons_residuals(best, pts, n, res);
         for (i = 0u; i < n; ++i) {
             scr[i] = res[i];
         }
         best_score = cons_median(scr, n);
-    } else if (cons_residuals(best, pts, n, res) != 0) {
-        return MAGCAL_ERR_NONFINITE;
     } else {
-        /* res holds the best minimal model's residuals */
+        cons_residuals(best, pts, n, res);
     }
 
     /* 3. threshold, inliers over every sample, refit; until the set is stable */
@@ -318,9 +311,8 @@ magcal_status_t magcal_consensus_run(const magcal_consensus_cfg_t *cfg, const ma
                 stop = 1; /* keep the last good model */
             } else {
                 ++rounds;
-                if (cons_residuals(next, pts, n, res) != 0) {
-                    stop = 1;
-                } else {
+                cons_residuals(next, pts, n, res);
+                {
                     size_t changed = 0u;
                     float nsig;
                     float nthr;
@@ -352,9 +344,7 @@ magcal_status_t magcal_consensus_run(const magcal_consensus_cfg_t *cfg, const ma
         }
         /* final verdict for every sample against `cur` (res holds cur's residuals unless the
          * last refit failed; recompute to be exact) */
-        if (cons_residuals(cur, pts, n, res) != 0) {
-            return MAGCAL_ERR_NONFINITE;
-        }
+        cons_residuals(cur, pts, n, res);
         n_in = 0u;
         for (i = 0u; i < n; ++i) {
             if (res[i] <= thr) {

@@ -120,7 +120,7 @@ static magcal_status_t norm_centred(const float bb[4], fit_norm_t *nm, float *sc
     float r;
 
     if (!magcal_isfinite_f(wx) || !magcal_isfinite_f(wy)) {
-        return MAGCAL_ERR_NONFINITE; /* range overflows float32 */
+        return MAGCAL_ERR_ILL_CONDITIONED; /* finite points whose range overflows float32 */
     }
     if (!(big > 0.0f)) {
         return MAGCAL_ERR_DEGENERATE; /* all points identical */

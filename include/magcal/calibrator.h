@@ -4,10 +4,11 @@
  *        singular points, fit the ellipse, gate the result and adopt it only when it is sound.
  *
  * Pipeline of magcal_calibrator_run():
- *  1. pre-checks: enough samples (cfg.min_samples), not all identical / collinear;
+ *  1. pre-checks: enough samples (cfg.min_samples), not all identical;
  *  2. density filter (optics.h / dbscan.h): OPTICS improved + grid with automatic eps, eps' and
  *     MinPts by default; OPTICS classic; DBSCAN; or none. cfg.eps / cfg.min_pts override the
- *     automatic values (DBSCAN with eps = 0 uses the automatic eps');
+ *     automatic values (DBSCAN with eps = 0 uses the automatic eps'); then the filter inliers
+ *     must not be collinear (tested after the filter, so far outliers cannot fake collinearity);
  *  3. coverage pre-gate: every sample, around a hard-iron circle fit of the filter inliers (so a
  *     short arc is reported as COVERAGE, not as whatever conic it happens to fit); when the filter
  *     inliers alone miss the gate (bursts split the ring into arcs, algorithms.md 4.3) the
@@ -290,7 +291,9 @@ magcal_status_t magcal_calibrator_poll(magcal_calibrator_t *cal);
  * @param[out]    report  optional (NULL): what happened (always written when non-NULL).
  * @return MAGCAL_OK (adopted); MAGCAL_ERR_NULL (cal or current NULL); MAGCAL_ERR_NOT_INITIALISED;
  *         MAGCAL_ERR_TOO_FEW_POINTS (fewer than cfg.min_samples samples or inliers);
- *         MAGCAL_ERR_DEGENERATE (all samples identical or collinear);
+ *         MAGCAL_ERR_DEGENERATE (all samples identical or collinear, or their extent squared underflows
+ *         to 0); MAGCAL_ERR_ILL_CONDITIONED also when the extent squared is subnormal (rings below
+ *         about 1e-20: float32 distances lose their precision);
  *         MAGCAL_ERR_ALL_NOISE (the density filter found no cluster);
  *         MAGCAL_ERR_COVERAGE (arc below cfg.min_coverage_deg; see report->missing_*);
  *         MAGCAL_ERR_TOO_MANY_OUTLIERS; MAGCAL_ERR_HYPERBOLA; MAGCAL_ERR_PARABOLA;
