@@ -26,6 +26,7 @@ typedef struct {
     magcal_dbscan_cfg_t dc;
 } cal_run_t;
 
+/* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
 MAGCAL_STATIC_ASSERT(sizeof(cal_run_t) <= MAGCAL_CALIBRATOR_RUN_LEN, run_state_fits_workspace);
 
 /* ------------------------------------------------------------------ small helpers */
