@@ -404,34 +404,19 @@ magcal_status_t magcal_ellipse_fit(const magcal_vec2_t *pts, size_t n, const uin
 }
 
 /* Exact conic through 5 points: Gaussian elimination with partial pivoting on W X = Y. */
-/* MAGCAL_NOINLINE: keep the 5-point path (its 5x6 tableau) out of magcal_ellipse_fit_idx's frame,
- * which also sits on the deepest path fit_normal -> moments_solve -> magcal_ldlt_solve. */
-static MAGCAL_NOINLINE magcal_status_t fit_five(const fit_src_t *src, magcal_ellipse_t *out)
+/* Exact conic through the 5 normalised points of src: Gaussian elimination with partial pivoting
+ * on W X = Y, into coef[5]; *minp gets the smallest pivot. Its own frame (the 5x6 tableau) is not
+ * nested under conic_finish(): MAGCAL_NOINLINE keeps the deepest stack path of the fits short. */
+static MAGCAL_NOINLINE magcal_status_t five_solve(const fit_src_t *src, const fit_norm_t *nm,
+                                                  float coef[5], float *minp)
 {
     float w[5][6];
     float mom[5];
-    float *coef = mom; /* mom[] is dead after the collinearity test: the solution reuses it */
-    float s = 1.0f;
-    float minp = 1.0f;
     float ptol = sqrtf(MAGCAL_ELLIPSE_PIVOT_TOL);
-    size_t cnt = 0u;
     size_t i;
     size_t j;
     size_t k;
-    fit_norm_t nm;
-    magcal_status_t st;
 
-    for (i = 0u; i < 5u; ++i) {
-        for (j = i + 1u; j < 5u; ++j) {
-            if (src->idx[i] == src->idx[j]) {
-                return MAGCAL_ERR_DEGENERATE;
-            }
-        }
-    }
-    st = prepare_centred(src, &cnt, &nm, &s);
-    if (st != MAGCAL_OK) {
-        return st;
-    }
     for (i = 0u; i < 5u; ++i) {
         mom[i] = 0.0f;
     }
@@ -440,8 +425,8 @@ static MAGCAL_NOINLINE magcal_status_t fit_five(const fit_src_t *src, magcal_ell
      * (the first five moment indices) for the collinearity test. */
     for (i = 0u; i < 5u; ++i) {
         magcal_vec2_t p = src->pts[src->idx[i]];
-        float x = (p.x - nm.mx) * nm.isx;
-        float y = (p.y - nm.my) * nm.isy;
+        float x = (p.x - nm->mx) * nm->isx;
+        float y = (p.y - nm->my) * nm->isy;
         w[i][0] = x * y;
         w[i][1] = y * y;
         w[i][2] = x;
@@ -457,6 +442,7 @@ static MAGCAL_NOINLINE magcal_status_t fit_five(const fit_src_t *src, magcal_ell
     if (moments_collinear(mom, 5.0f) != 0) {
         return MAGCAL_ERR_DEGENERATE;
     }
+    *minp = 1.0f;
     for (k = 0u; k < 5u; ++k) {
         size_t piv = k;
         float best = fabsf(w[k][k]);
@@ -469,7 +455,7 @@ static MAGCAL_NOINLINE magcal_status_t fit_five(const fit_src_t *src, magcal_ell
         if (!(best > ptol)) {
             return MAGCAL_ERR_ILL_CONDITIONED;
         }
-        minp = (best < minp) ? best : minp;
+        *minp = (best < *minp) ? best : *minp;
         if (piv != k) {
             for (j = k; j < 6u; ++j) {
                 float t = w[k][j];
@@ -492,6 +478,37 @@ static MAGCAL_NOINLINE magcal_status_t fit_five(const fit_src_t *src, magcal_ell
             acc -= w[k][j] * coef[j];
         }
         coef[k] = acc / w[k][k];
+    }
+    return MAGCAL_OK;
+}
+
+/* MAGCAL_NOINLINE: keep the 5-point path out of magcal_ellipse_fit_idx's frame, which also sits
+ * on the deepest path fit_normal -> moments_solve -> magcal_ldlt_solve. */
+static MAGCAL_NOINLINE magcal_status_t fit_five(const fit_src_t *src, magcal_ellipse_t *out)
+{
+    float coef[5];
+    float s = 1.0f;
+    float minp = 1.0f;
+    size_t cnt = 0u;
+    size_t i;
+    size_t j;
+    fit_norm_t nm;
+    magcal_status_t st;
+
+    for (i = 0u; i < 5u; ++i) {
+        for (j = i + 1u; j < 5u; ++j) {
+            if (src->idx[i] == src->idx[j]) {
+                return MAGCAL_ERR_DEGENERATE;
+            }
+        }
+    }
+    st = prepare_centred(src, &cnt, &nm, &s);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    st = five_solve(src, &nm, coef, &minp);
+    if (st != MAGCAL_OK) {
+        return st;
     }
     return conic_finish(coef, nm.mx, nm.my, s, minp, 5u, src, out);
 }

@@ -10,9 +10,29 @@ size_t magcal_misalign(const void *p, size_t align)
     return (size_t)((uintptr_t)p & (uintptr_t)(align - 1u));
 }
 
+/*
+ * Where magcal_ldlt_solve keeps the equilibration factor of row i: in the strict upper triangle of
+ * a (never read as a matrix entry: the factorisation uses the lower triangle only) when it has room
+ * (n >= 3: row 0 holds i = 1..n-1, entry (1, 2) holds i = 0), else in the caller's 2-slot array.
+ * The solver is on the deepest stack path of every fit; a MAGCAL_LDLT_MAX_N array of factors
+ * would add 48 bytes to it.
+ */
+static float *ldlt_scale(float *a, float *small, size_t n, size_t i)
+{
+    float *slot;
+    if (n < 3u) {
+        slot = &small[i];
+    } else if (i == 0u) {
+        slot = &a[n + 2u];
+    } else {
+        slot = &a[i];
+    }
+    return slot;
+}
+
 magcal_status_t magcal_ldlt_solve(float *a, float *b, size_t n, float tau, float *min_pivot)
 {
-    float scale[MAGCAL_LDLT_MAX_N];
+    float small[2];
     float minp = 1.0f;
     size_t i;
     size_t j;
@@ -33,17 +53,18 @@ magcal_status_t magcal_ldlt_solve(float *a, float *b, size_t n, float tau, float
         if (!(dii > 0.0f)) {
             return MAGCAL_ERR_DEGENERATE;
         }
-        scale[i] = 1.0f / sqrtf(dii);
+        *ldlt_scale(a, small, n, i) = 1.0f / sqrtf(dii);
     }
     for (i = 0u; i < n; ++i) {
+        const float si = *ldlt_scale(a, small, n, i);
         for (j = 0u; j <= i; ++j) {
             float v = a[i * n + j];
             if (!magcal_isfinite_f(v)) {
                 return MAGCAL_ERR_NONFINITE;
             }
-            a[i * n + j] = v * scale[i] * scale[j];
+            a[i * n + j] = v * si * *ldlt_scale(a, small, n, j);
         }
-        b[i] *= scale[i];
+        b[i] *= si;
     }
     /* LDL^T on the lower triangle: L stored below the diagonal, D on the diagonal (a[k*n+k] is
      * d_k once column k is done: no separate array on the stack). */
@@ -92,7 +113,7 @@ magcal_status_t magcal_ldlt_solve(float *a, float *b, size_t n, float tau, float
         b[i] = s;
     }
     for (i = 0u; i < n; ++i) {
-        b[i] *= scale[i];
+        b[i] *= *ldlt_scale(a, small, n, i);
         if (!magcal_isfinite_f(b[i])) {
             return MAGCAL_ERR_ILL_CONDITIONED;
         }

@@ -28,7 +28,8 @@ extern "C" {
  * The matrix is equilibrated first (N' = D^-1/2 N D^-1/2) so the relative pivot test
  * `d_j < tau` detects rank deficiency regardless of column scaling (algorithms.md 3.2).
  *
- * @param[in,out] a   n*n row-major matrix; only the lower triangle is read; destroyed.
+ * @param[in,out] a   n*n row-major matrix; only the lower triangle is read; destroyed
+ *                    (the strict upper triangle is scratch, D ends on the diagonal).
  * @param[in,out] b   right-hand side of length n; overwritten with the solution.
  * @param n           order, 1..MAGCAL_LDLT_MAX_N.
  * @param tau         relative pivot threshold (1e-6f is a good float32 default).
