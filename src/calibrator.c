@@ -725,46 +725,28 @@ static magcal_status_t cal_finish(magcal_calibrator_t *cal, magcal_status_t st,
     return st;
 }
 
-magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *current,
-                                      magcal_cal_report_t *report)
+/*
+ * run() is a sequence of stages, each MAGCAL_NOINLINE with its own frame, sharing the state in the
+ * workspace (cal_run_t): the deepest stack paths (the consensus fits, the density filter) then
+ * sit under a small run() frame instead of one frame holding every stage's locals. Each stage
+ * returns MAGCAL_OK to continue or the run's final status.
+ */
+
+/* 1-3: pre-checks, density filter, collinearity of its inliers, coverage pre-gate. */
+static MAGCAL_NOINLINE magcal_status_t cal_stage_prepare(magcal_calibrator_t *cal,
+                                                         magcal_cal_report_t *rep)
 {
-    cal_run_t *run;
-    magcal_cal_report_t *rep;
-    magcal_consensus_result_t *cres;
-    magcal_cal2d_t *next;
-    size_t n;
+    const size_t n = cal->n;
     size_t i;
-    size_t used = 0u;
-    size_t n_out;
     size_t filt_in = 0u;
     magcal_status_t st;
-    float radius;
-    float cov;
-    int cur_usable = 0;
-
-    if (cal == NULL || current == NULL) {
-        return MAGCAL_ERR_NULL;
-    }
-    if (!cal_ok(cal)) {
-        return MAGCAL_ERR_NOT_INITIALISED;
-    }
-    run = (cal_run_t *)cal->run;
-    rep = &run->rep;
-    cres = &run->cres;
-    next = &run->next;
-    (void)memset(rep, 0, sizeof *rep);
-    rep->current_err_deg = NAN;
-    n = cal->n;
-    rep->samples = (uint16_t)n;
-    cal->has_fit = 0u;
-    cal->n_judged = 0u;
 
     /* 1. pre-checks */
     if (n < cal->cfg.min_samples || n < MAGCAL_ELLIPSE_MIN_POINTS) {
-        return cal_finish(cal, MAGCAL_ERR_TOO_FEW_POINTS, rep, report);
+        return MAGCAL_ERR_TOO_FEW_POINTS;
     }
     if (cal_identical(cal->buf, n) != 0) {
-        return cal_finish(cal, MAGCAL_ERR_DEGENERATE, rep, report);
+        return MAGCAL_ERR_DEGENERATE;
     }
     {
         /* Extent of the samples: when its square is not a normal float32, squared distances and
@@ -775,17 +757,17 @@ magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *
         const float ext = ex > ey ? ex : ey;
         const float ext2 = ext * ext;
         if (!(ext2 > 0.0f)) {
-            return cal_finish(cal, MAGCAL_ERR_DEGENERATE, rep, report);
+            return MAGCAL_ERR_DEGENERATE;
         }
         if (ext2 < FLT_MIN) {
-            return cal_finish(cal, MAGCAL_ERR_ILL_CONDITIONED, rep, report);
+            return MAGCAL_ERR_ILL_CONDITIONED;
         }
     }
 
     /* 2. density filter */
     st = cal_filter(cal, rep);
     if (st != MAGCAL_OK) {
-        return cal_finish(cal, st, rep, report);
+        return st;
     }
     for (i = 0u; i < n; ++i) {
         if (cal->mask_a[i] != 0u) {
@@ -795,10 +777,10 @@ magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *
     rep->rejected_filter = (uint16_t)(n - filt_in);
     cal_set_flags(cal, 0);
     if (filt_in < cal->cfg.min_samples) {
-        return cal_finish(cal, MAGCAL_ERR_TOO_FEW_POINTS, rep, report);
+        return MAGCAL_ERR_TOO_FEW_POINTS;
     }
     if (cal_degenerate(cal->buf, n, cal->mask_a) != 0) {
-        return cal_finish(cal, MAGCAL_ERR_DEGENERATE, rep, report);
+        return MAGCAL_ERR_DEGENERATE;
     }
 
     /* 3. coverage pre-gate: every sample, around the hard-iron circle centre of the filter inliers
@@ -808,36 +790,50 @@ magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *
      * sets from every sample instead (LMedS tolerates up to 50 % outliers). */
     {
         magcal_vec2_t cc;
+        float cov;
         float cov_f;
         st = cal_circle_centre(cal->buf, n, cal->mask_a, &cc);
         if (st != MAGCAL_OK) {
-            return cal_finish(cal, st == MAGCAL_ERR_ILL_CONDITIONED ? MAGCAL_ERR_DEGENERATE : st,
-                              rep, report);
+            return st == MAGCAL_ERR_ILL_CONDITIONED ? MAGCAL_ERR_DEGENERATE : st;
         }
         cov = cal_coverage_around(cal->buf, n, NULL, cc, &rep->missing_start_deg,
                                   &rep->missing_width_deg);
         rep->coverage_deg = cov;
         if (cov < cal->cfg.min_coverage_deg) {
-            return cal_finish(cal, MAGCAL_ERR_COVERAGE, rep, report);
+            return MAGCAL_ERR_COVERAGE;
         }
         cov_f = cal_coverage_around(cal->buf, n, cal->mask_a, cc, NULL, NULL);
         if (cov_f < cal->cfg.min_coverage_deg) {
             rep->filter_fragmented = 1u;
         }
     }
+    return MAGCAL_OK;
+}
 
-    /* 4. consensus (or plain fit) */
-    (void)memset(cres, 0, sizeof *cres);
-    if (cal->cfg.use_consensus != 0u) {
-        st = magcal_consensus_run(&cal->cfg.consensus, cal->buf, n,
-                                  rep->filter_fragmented != 0u ? NULL : cal->mask_a, cal->scratch,
-                                  cal->scratch_len, cal->mask_b, cres);
-    } else {
-        st = cal_plain_fit(cal, cres);
+/* 4. consensus (or plain fit) into run->cres: nothing else on this frame. */
+static MAGCAL_NOINLINE magcal_status_t cal_stage_fit(magcal_calibrator_t *cal)
+{
+    cal_run_t *run = (cal_run_t *)cal->run;
+    (void)memset(&run->cres, 0, sizeof run->cres);
+    if (cal->cfg.use_consensus == 0u) {
+        return cal_plain_fit(cal, &run->cres);
     }
-    if (st != MAGCAL_OK) {
-        return cal_finish(cal, st, rep, report);
-    }
+    return magcal_consensus_run(&cal->cfg.consensus, cal->buf, cal->n,
+                                run->rep.filter_fragmented != 0u ? NULL : cal->mask_a, cal->scratch,
+                                cal->scratch_len, cal->mask_b, &run->cres);
+}
+
+/* 4 (cont.) and 5: keep the fit, count, fill the report, gates. */
+static MAGCAL_NOINLINE magcal_status_t cal_stage_gates(magcal_calibrator_t *cal,
+                                                       magcal_cal_report_t *rep)
+{
+    const magcal_consensus_result_t *cres = &((const cal_run_t *)cal->run)->cres;
+    const size_t n = cal->n;
+    size_t i;
+    size_t used = 0u;
+    size_t n_out;
+    float radius;
+
     cal->fit = cres->fit;
     cal->threshold = cres->threshold;
     cal->has_fit = 1u;
@@ -869,39 +865,52 @@ magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *
     /* 5. gates */
     n_out = n - used;
     if (used < cal->cfg.min_samples) {
-        return cal_finish(cal, MAGCAL_ERR_TOO_FEW_POINTS, rep, report);
+        return MAGCAL_ERR_TOO_FEW_POINTS;
     }
     if ((float)n_out > cal->cfg.max_outlier_frac * (float)n) {
-        return cal_finish(cal, MAGCAL_ERR_TOO_MANY_OUTLIERS, rep, report);
+        return MAGCAL_ERR_TOO_MANY_OUTLIERS;
     }
     if ((cal->cfg.min_radius > 0.0f && radius < cal->cfg.min_radius) ||
         (cal->cfg.max_radius > 0.0f && radius > cal->cfg.max_radius)) {
-        return cal_finish(cal, MAGCAL_ERR_RADIUS_RANGE, rep, report);
+        return MAGCAL_ERR_RADIUS_RANGE;
     }
     if (rep->axis_ratio < cal->cfg.min_axis_ratio) {
-        return cal_finish(cal, MAGCAL_ERR_AXIS_RATIO, rep, report);
+        return MAGCAL_ERR_AXIS_RATIO;
     }
     if (!(rep->residual_rel <= cal->cfg.max_residual_rel)) {
-        return cal_finish(cal, MAGCAL_ERR_RESIDUAL, rep, report);
+        return MAGCAL_ERR_RESIDUAL;
     }
+    return MAGCAL_OK;
+}
 
-    /* 6. correction, final coverage (corrected headings of the inliers), estimates */
-    st = magcal_ellipse_to_cal(&cres->fit, cal->cfg.form, cal->cfg.output_radius, next);
+/* 6. correction, final coverage (corrected headings of the inliers), estimates; 7. adoption. */
+static MAGCAL_NOINLINE magcal_status_t cal_stage_adopt(magcal_calibrator_t *cal,
+                                                       magcal_cal2d_t *current,
+                                                       magcal_cal_report_t *rep)
+{
+    cal_run_t *run = (cal_run_t *)cal->run;
+    magcal_cal2d_t *next = &run->next;
+    const size_t n = cal->n;
+    magcal_status_t st;
+    float cov;
+    int cur_usable = 0;
+
+    st = magcal_ellipse_to_cal(&run->cres.fit, cal->cfg.form, cal->cfg.output_radius, next);
     if (st != MAGCAL_OK) {
-        return cal_finish(cal, st, rep, report);
+        return st;
     }
     rep->cal = *next;
     cov = cal_coverage_corrected(cal->buf, n, cal->mask_b, next, &rep->missing_start_deg,
                                  &rep->missing_width_deg);
     rep->coverage_deg = cov;
     if (cov < cal->cfg.min_coverage_deg || !(cov > 0.0f)) {
-        return cal_finish(cal, MAGCAL_ERR_COVERAGE, rep, report);
+        return MAGCAL_ERR_COVERAGE;
     }
     {
         float sig_rel = rep->residual_rel;
         float infl = 360.0f / cov;
         rep->est_heading_err_deg =
-            MAGCAL_DEG_PER_RAD_F * sig_rel * sqrtf(5.0f / (float)used) * infl * infl;
+            MAGCAL_DEG_PER_RAD_F * sig_rel * sqrtf(5.0f / (float)rep->used) * infl * infl;
     }
 
     /* 7. adoption rule */
@@ -924,12 +933,44 @@ magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *
         if (!(rep->est_heading_err_deg <= rep->current_err_deg)) {
             float change = mean_cur > 0.0f ? fabsf(mean_cur / current->radius - 1.0f) : INFINITY;
             if (!(change <= cal->cfg.max_radius_change)) {
-                return cal_finish(cal, MAGCAL_ERR_NOT_BETTER, rep, report);
+                return MAGCAL_ERR_NOT_BETTER;
             }
         }
     }
     *current = *next;
-    return cal_finish(cal, MAGCAL_OK, rep, report);
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *current,
+                                      magcal_cal_report_t *report)
+{
+    magcal_cal_report_t *rep;
+    magcal_status_t st;
+
+    if (cal == NULL || current == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (!cal_ok(cal)) {
+        return MAGCAL_ERR_NOT_INITIALISED;
+    }
+    rep = &((cal_run_t *)cal->run)->rep;
+    (void)memset(rep, 0, sizeof *rep);
+    rep->current_err_deg = NAN;
+    rep->samples = (uint16_t)cal->n;
+    cal->has_fit = 0u;
+    cal->n_judged = 0u;
+
+    st = cal_stage_prepare(cal, rep);
+    if (st == MAGCAL_OK) {
+        st = cal_stage_fit(cal);
+    }
+    if (st == MAGCAL_OK) {
+        st = cal_stage_gates(cal, rep);
+    }
+    if (st == MAGCAL_OK) {
+        st = cal_stage_adopt(cal, current, rep);
+    }
+    return cal_finish(cal, st, rep, report);
 }
 
 /* ------------------------------------------------------------------ queries */
