@@ -213,13 +213,13 @@ static MAGCAL_NOINLINE void cons_draw(cons_state_t *S)
     for (it = 0u; it < S->cfg->max_iter; ++it) {
         uint32_t off = magcal_prng_next(&S->rng, (uint32_t)m);
         size_t j;
-        float score;
         for (j = 0u; j < 5u; ++j) {
             uint32_t jit = magcal_prng_next(&S->rng, (uint32_t)fifth);
             S->idx[j] = S->order[((size_t)off + j * fifth + (size_t)jit) % m];
         }
         ++S->draws;
         if (magcal_ellipse_fit_idx(S->pts, S->n, S->idx, 5u, &S->cand) == MAGCAL_OK) {
+            float score;
             cons_residuals(&S->cand, S->pts, S->n, S->res);
             ++S->valid;
             score = cons_median(S->res, S->n);
@@ -235,8 +235,8 @@ static MAGCAL_NOINLINE void cons_draw(cons_state_t *S)
  * res gets its residuals. */
 static MAGCAL_NOINLINE magcal_status_t cons_start(cons_state_t *S)
 {
-    size_t i;
     if (S->valid == 0u) {
+        size_t i;
         magcal_status_t st = magcal_ellipse_fit_idx(S->pts, S->n, S->order, S->m, &S->best);
         if (st != MAGCAL_OK) {
             return st;

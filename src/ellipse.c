@@ -50,6 +50,15 @@ typedef struct {
     float isy;
 } fit_norm_t;
 
+/* The points of a masked fit: pts[k] where mask[k] != 0 (mask NULL: every point). */
+static void src_masked(fit_src_t *src, const magcal_vec2_t *pts, size_t n, const uint8_t *mask)
+{
+    src->pts = pts;
+    src->n = n;
+    src->mask = mask;
+    src->idx = NULL;
+}
+
 static int src_point(const fit_src_t *src, size_t k, magcal_vec2_t *p)
 {
     if (src->idx != NULL) {
@@ -396,10 +405,7 @@ magcal_status_t magcal_ellipse_fit(const magcal_vec2_t *pts, size_t n, const uin
     if (pts == NULL || out == NULL) {
         return MAGCAL_ERR_NULL;
     }
-    src.pts = pts;
-    src.n = n;
-    src.mask = mask;
-    src.idx = NULL;
+    src_masked(&src, pts, n, mask);
     return fit_normal(&src, out);
 }
 
@@ -580,10 +586,7 @@ magcal_status_t magcal_ellipse_fit_seed(const magcal_vec2_t *pts, size_t n, cons
     if (pts == NULL || out == NULL) {
         return MAGCAL_ERR_NULL;
     }
-    src.pts = pts;
-    src.n = n;
-    src.mask = mask;
-    src.idx = NULL;
+    src_masked(&src, pts, n, mask);
     st = prepare_seed(&src, &cnt, &nm);
     if (st != MAGCAL_OK) {
         return st;

@@ -43,10 +43,10 @@ static size_t pidx(size_t i, size_t j)
     return (i * (i + 1u)) / 2u + j;
 }
 
-static float residual_of(const magcal_ellipsoid_cal_t *cal, const magcal_vec3_t *m)
+/* h = G (m - V): the correction of one sample. */
+static void correct3(const magcal_ellipsoid_cal_t *cal, const magcal_vec3_t *m, float h[3])
 {
     float e[3];
-    float h[3];
     size_t i;
     e[0] = m->x - cal->v.x;
     e[1] = m->y - cal->v.y;
@@ -54,6 +54,12 @@ static float residual_of(const magcal_ellipsoid_cal_t *cal, const magcal_vec3_t 
     for (i = 0u; i < 3u; ++i) {
         h[i] = cal->g[i][0] * e[0] + cal->g[i][1] * e[1] + cal->g[i][2] * e[2];
     }
+}
+
+static float residual_of(const magcal_ellipsoid_cal_t *cal, const magcal_vec3_t *m)
+{
+    float h[3];
+    correct3(cal, m, h);
     return sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) - cal->field;
 }
 
@@ -690,17 +696,13 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
 magcal_status_t magcal_ellipsoid_apply(const magcal_ellipsoid_cal_t *cal, const magcal_vec3_t *m,
                                        magcal_vec3_t *h)
 {
-    float e[3];
     float r[3];
     size_t i;
     if (cal == NULL || m == NULL || h == NULL) {
         return MAGCAL_ERR_NULL;
     }
-    e[0] = m->x - cal->v.x;
-    e[1] = m->y - cal->v.y;
-    e[2] = m->z - cal->v.z;
+    correct3(cal, m, r);
     for (i = 0u; i < 3u; ++i) {
-        r[i] = cal->g[i][0] * e[0] + cal->g[i][1] * e[1] + cal->g[i][2] * e[2];
         if (!magcal_isfinite_f(r[i])) {
             return MAGCAL_ERR_NONFINITE;
         }

@@ -231,6 +231,24 @@ static void live_pass(optics_ctx_t *c, size_t p, float core_p, float core2)
     c->n_live = w;
 }
 
+/* Insert d2 into the ascending MinPts buffer best[0..cnt) of capacity m (when full, the largest
+ * value drops out); returns the new count. */
+static size_t best_insert(float *best, size_t cnt, size_t m, float d2)
+{
+    size_t t = m - 1u;
+    size_t count = cnt;
+    if (count < m) {
+        t = count;
+        ++count;
+    }
+    while (t > 0u && best[t - 1u] > d2) {
+        best[t] = best[t - 1u];
+        --t;
+    }
+    best[t] = d2;
+    return count;
+}
+
 static void process(optics_ctx_t *c, size_t p)
 {
     float *best = c->best;
@@ -263,16 +281,7 @@ static void process(optics_ctx_t *c, size_t p)
             float dy = pts[k].y - py;
             float d2 = dx * dx + dy * dy;
             if (d2 <= lim && (cnt < m || d2 < lim)) {
-                size_t t = m - 1u;
-                if (cnt < m) {
-                    t = cnt;
-                    ++cnt;
-                }
-                while (t > 0u && best[t - 1u] > d2) {
-                    best[t] = best[t - 1u];
-                    --t;
-                }
-                best[t] = d2;
+                cnt = best_insert(best, cnt, m, d2);
                 if (cnt == m) {
                     lim = best[m - 1u];
                 }
@@ -286,16 +295,7 @@ static void process(optics_ctx_t *c, size_t p)
             float dy = pts[j].y - py;
             float d2 = dx * dx + dy * dy;
             if (d2 <= eps2 && (cnt < m || d2 < best[m - 1u])) {
-                size_t t = m - 1u;
-                if (cnt < m) {
-                    t = cnt;
-                    ++cnt;
-                }
-                while (t > 0u && best[t - 1u] > d2) {
-                    best[t] = best[t - 1u];
-                    --t;
-                }
-                best[t] = d2;
+                cnt = best_insert(best, cnt, m, d2);
             }
         }
     }
