@@ -1,6 +1,7 @@
 /* Classic DBSCAN on 2-D points (baseline for the OPTICS filter), shared neighbour search. */
 #include "magcal/dbscan.h"
 
+#include <float.h>
 #include <math.h>
 
 #include "magcal_internal.h"
@@ -27,6 +28,15 @@ static size_t count_neighbors(const magcal_nbr_t *nb, size_t p, float eps2)
     return cnt;
 }
 
+/* eps > 0, and eps^2 (the threshold on squared distances) a normal float unless eps is +Inf:
+ * an overflowing (eps > 1.8e19) or underflowing (eps < 1.1e-19) eps^2 lets the brute search link
+ * pairs the grid never compares (same rule as optics.c). */
+static int dbscan_eps_ok(float eps)
+{
+    float e2 = eps * eps;
+    return eps > 0.0f && (!magcal_isfinite_f(eps) || (e2 >= FLT_MIN && magcal_isfinite_f(e2)));
+}
+
 magcal_status_t magcal_dbscan_run(const magcal_dbscan_cfg_t *cfg, const magcal_vec2_t *pts, size_t n,
                                   void *work, size_t work_len, int16_t *labels, uint16_t *n_clusters,
                                   magcal_neighbors_t *used)
@@ -40,10 +50,7 @@ magcal_status_t magcal_dbscan_run(const magcal_dbscan_cfg_t *cfg, const magcal_v
     if (cfg == NULL || pts == NULL || work == NULL || labels == NULL) {
         return MAGCAL_ERR_NULL;
     }
-    /* a finite eps whose square overflows (> 1.8e19) would make every pair a neighbour in the
-     * brute search (Inf <= Inf) but not in the grid */
-    if (!(cfg->eps > 0.0f) || (magcal_isfinite_f(cfg->eps) && !magcal_isfinite_f(cfg->eps * cfg->eps)) ||
-        cfg->min_pts < 2u || cfg->min_pts > MAGCAL_MAX_MIN_PTS ||
+    if (!dbscan_eps_ok(cfg->eps) || cfg->min_pts < 2u || cfg->min_pts > MAGCAL_MAX_MIN_PTS ||
         (cfg->neighbors != MAGCAL_NEIGHBORS_BRUTE && cfg->neighbors != MAGCAL_NEIGHBORS_GRID) ||
         ((uintptr_t)work & 3u) != 0u || n > MAGCAL_MAX_SAMPLES) {
         return MAGCAL_ERR_ARG;

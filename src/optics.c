@@ -1,6 +1,7 @@
 /* OPTICS ordering, ExtractDBSCAN, largest cluster, automatic parameters (algorithms.md 4). */
 #include "magcal/optics.h"
 
+#include <float.h>
 #include <math.h>
 #include <string.h>
 
@@ -270,11 +271,19 @@ static magcal_status_t check_points(const magcal_vec2_t *pts, size_t n, size_t m
     return magcal_nbr_check_finite(pts, n);
 }
 
+/* eps > 0, and eps^2 (the neighbour threshold on squared distances) a normal float unless eps is
+ * +Inf: if eps^2 overflows (eps > 1.8e19) every far pair (d^2 = Inf) passes, if it underflows
+ * (eps < 1.1e-19) every pair whose d^2 underflows passes; the brute search then links pairs the
+ * grid never compares, and the documented identity of the two searches breaks. */
+static int optics_eps_ok(float eps)
+{
+    float e2 = eps * eps;
+    return eps > 0.0f && (!magcal_isfinite_f(eps) || (e2 >= FLT_MIN && magcal_isfinite_f(e2)));
+}
+
 static magcal_status_t check_cfg(const magcal_optics_cfg_t *cfg)
 {
-    /* eps^2 is the neighbour threshold: a finite eps whose square overflows (> 1.8e19) would
-     * make every pair a neighbour in the brute search but not in the grid */
-    if (!(cfg->eps > 0.0f) || (magcal_isfinite_f(cfg->eps) && !magcal_isfinite_f(cfg->eps * cfg->eps))) {
+    if (!optics_eps_ok(cfg->eps)) {
         return MAGCAL_ERR_ARG;
     }
     if (cfg->min_pts < 2u || cfg->min_pts > MAGCAL_MAX_MIN_PTS) {
