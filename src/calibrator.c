@@ -727,7 +727,7 @@ magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *
     if (n < cal->cfg.min_samples || n < MAGCAL_ELLIPSE_MIN_POINTS) {
         return cal_finish(cal, MAGCAL_ERR_TOO_FEW_POINTS, &rep, report);
     }
-    if (cal_identical(cal->buf, n)) {
+    if (cal_identical(cal->buf, n) != 0) {
         return cal_finish(cal, MAGCAL_ERR_DEGENERATE, &rep, report);
     }
 
@@ -746,7 +746,7 @@ magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *
     if (filt_in < cal->cfg.min_samples) {
         return cal_finish(cal, MAGCAL_ERR_TOO_FEW_POINTS, &rep, report);
     }
-    if (cal_degenerate(cal->buf, n, cal->mask_a)) {
+    if (cal_degenerate(cal->buf, n, cal->mask_a) != 0) {
         return cal_finish(cal, MAGCAL_ERR_DEGENERATE, &rep, report);
     }
 
