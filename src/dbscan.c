@@ -44,11 +44,9 @@ magcal_status_t magcal_dbscan_run(const magcal_dbscan_cfg_t *cfg, const magcal_v
     if (cfg == NULL || pts == NULL || work == NULL || labels == NULL) {
         return MAGCAL_ERR_NULL;
     }
-    /* a finite eps whose square overflows (> 1.8e19) would make every pair a neighbour in the
-     * brute search (Inf <= Inf) but not in the grid */
-    if (!(cfg->eps > 0.0f) ||
-        (magcal_isfinite_f(cfg->eps) && !magcal_isfinite_f(cfg->eps * cfg->eps)) ||
-        cfg->min_pts < 2u || cfg->min_pts > MAGCAL_MAX_MIN_PTS ||
+    /* eps^2 is the neighbour threshold: it must be a normal float (neighbors.h) */
+    if (magcal_nbr_eps_ok(cfg->eps) == 0 || cfg->min_pts < 2u ||
+        cfg->min_pts > MAGCAL_MAX_MIN_PTS ||
         (cfg->neighbors != MAGCAL_NEIGHBORS_BRUTE && cfg->neighbors != MAGCAL_NEIGHBORS_GRID) ||
         magcal_misalign(work, 4u) != 0u || n > MAGCAL_MAX_SAMPLES) {
         return MAGCAL_ERR_ARG;

@@ -1,6 +1,8 @@
 /* Internal eps-neighbour search shared by OPTICS and DBSCAN (see neighbors.h). */
 #include "neighbors.h"
 
+#include <float.h>
+
 #include "magcal_internal.h"
 
 /*
@@ -12,6 +14,17 @@
  */
 #define NBR_MARGIN 0.015625f
 #define NBR_MAX_SIDE 32768.0f
+
+int magcal_nbr_eps_ok(float eps)
+{
+    const float e2 = eps * eps;
+    int ok = 0;
+    if (eps > 0.0f &&
+        (!magcal_isfinite_f(eps) || (e2 >= FLT_MIN * (1.0f / 1024.0f) && magcal_isfinite_f(e2)))) {
+        ok = 1;
+    }
+    return ok;
+}
 
 magcal_status_t magcal_nbr_check_finite(const magcal_vec2_t *pts, size_t n)
 {

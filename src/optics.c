@@ -384,10 +384,8 @@ static magcal_status_t check_points(const magcal_vec2_t *pts, size_t n, size_t m
 
 static magcal_status_t check_cfg(const magcal_optics_cfg_t *cfg)
 {
-    /* eps^2 is the neighbour threshold: a finite eps whose square overflows (> 1.8e19) would
-     * make every pair a neighbour in the brute search but not in the grid */
-    if (!(cfg->eps > 0.0f) ||
-        (magcal_isfinite_f(cfg->eps) && !magcal_isfinite_f(cfg->eps * cfg->eps))) {
+    /* eps^2 is the neighbour threshold: it must be a normal float (neighbors.h) */
+    if (magcal_nbr_eps_ok(cfg->eps) == 0) {
         return MAGCAL_ERR_ARG;
     }
     if (cfg->min_pts < 2u || cfg->min_pts > MAGCAL_MAX_MIN_PTS) {

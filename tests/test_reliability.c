@@ -394,7 +394,7 @@ static void test_calibrator_poll_port_nonfinite_sample_returns_nonfinite_not_sto
 
 /* ---------------------------------------------------------------- filter parameters */
 
-static void test_optics_filter_eps_inf_and_subnormal_eps_give_one_cluster_and_all_noise(void)
+static void test_optics_filter_eps_inf_one_cluster_subnormal_eps_arg_tiny_eps_all_noise(void)
 {
     static uint8_t mask[200];
     /* eps' must be finite (0 would mean eps' = eps = Inf, rejected with MAGCAL_ERR_ARG) */
@@ -406,13 +406,17 @@ static void test_optics_filter_eps_inf_and_subnormal_eps_give_one_cluster_and_al
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_filter(&cfg, g_pts, 200u, g_work, sizeof g_work, mask, &info));
     TEST_ASSERT_EQUAL_UINT16(200u, info.n_inliers);
     TEST_ASSERT_EQUAL_INT(MAGCAL_NEIGHBORS_BRUTE, info.neighbors);
-    /* eps = smallest subnormal: distinct points have no neighbours, everything is noise */
+    /* eps' = +Inf is rejected */
     memset(mask, 7, sizeof mask);
     cfg.eps_prime = INFINITY;
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_filter(&cfg, g_pts, 200u, g_work, sizeof g_work, mask, &info));
+    /* subnormal eps (eps^2 underflows to 0): rejected, brute and grid would disagree */
     cfg.eps = 1.0e-45f;
     cfg.eps_prime = 0.0f;
     TEST_ASSERT_TRUE(cfg.eps > 0.0f && cfg.eps < FLT_MIN);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_filter(&cfg, g_pts, 200u, g_work, sizeof g_work, mask, &info));
+    /* smallest accepted order of magnitude, 1.2e-19: distinct points 1.1 apart are all noise */
+    cfg.eps = 1.2e-19f;
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ALL_NOISE,
                           magcal_optics_filter(&cfg, g_pts, 200u, g_work, sizeof g_work, mask, &info));
     for (i = 0; i < 200u; ++i) {
@@ -423,7 +427,7 @@ static void test_optics_filter_eps_inf_and_subnormal_eps_give_one_cluster_and_al
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_filter(&cfg, g_pts, 200u, g_work, sizeof g_work, mask, &info));
 }
 
-static void test_dbscan_run_eps_whose_square_overflows_returns_arg(void)
+static void test_dbscan_run_eps_whose_square_overflows_or_underflows_returns_arg(void)
 {
     /* two groups of 10 samples, 1e25 apart, each 9e18 wide. eps = 1.9e19 squared overflows to
      * Inf: the brute search called every pair a neighbour (1 cluster) while the grid found 2.
@@ -453,9 +457,21 @@ static void test_dbscan_run_eps_whose_square_overflows_returns_arg(void)
     dc.eps = INFINITY;
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_dbscan_run(&dc, g_pts, 20u, g_work, sizeof g_work, labels, &n_cl, NULL));
     TEST_ASSERT_EQUAL_UINT16(1u, n_cl);
+    /* mirror case found by fuzz_cluster: eps 2.2e-28 (eps^2 underflows to 0) on points 1e-25
+     * apart whose d^2 also underflows to 0: brute linked every pair, the grid did not */
+    for (i = 0; i < 20u; ++i) {
+        g_pts[i].x = (float)i * 1.0e-25f;
+        g_pts[i].y = 0.0f;
+    }
+    dc.eps = 2.2e-28f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_dbscan_run(&dc, g_pts, 20u, g_work, sizeof g_work, labels, &n_cl, NULL));
+    oc.eps = 2.2e-28f;
+    oc.neighbors = MAGCAL_NEIGHBORS_GRID;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_optics_run(&oc, g_pts, 20u, g_work, sizeof g_work, order, reach, core, NULL, NULL));
 }
 
-static void test_calibrator_run_dbscan_subnormal_eps_returns_all_noise_keeps_cal(void)
+static void test_calibrator_run_dbscan_subnormal_eps_arg_tiny_eps_all_noise_keeps_cal(void)
 {
     magcal_calibrator_cfg_t cfg = MAGCAL_CALIBRATOR_CFG_DEFAULT;
     magcal_cal2d_t cur = previous_cal();
@@ -463,6 +479,13 @@ static void test_calibrator_run_dbscan_subnormal_eps_returns_all_noise_keeps_cal
     cfg.filter = MAGCAL_FILTER_DBSCAN;
     cfg.eps = 1.0e-45f;
     exact_ring(300u, 0.0f, 0.0f, 40.0f, 30.0f);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
+    push_all(300u);
+    /* the DBSCAN stage rejects a subnormal eps (eps^2 underflows): ARG from the stage */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_calibrator_run(&g_cal, &cur, NULL));
+    TEST_ASSERT_EQUAL_MEMORY(&before, &cur, sizeof cur);
+    /* eps 1.2e-19 is accepted: every sample is noise */
+    cfg.eps = 1.2e-19f;
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
     push_all(300u);
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ALL_NOISE, magcal_calibrator_run(&g_cal, &cur, NULL));
@@ -495,8 +518,8 @@ int main(void)
     RUN_TEST(test_calibrator_run_consensus_sample_at_1e30_is_an_outlier_not_nonfinite);
     RUN_TEST(test_calibrator_run_at_max_samples_then_push_returns_buffer_full);
     RUN_TEST(test_calibrator_poll_port_nonfinite_sample_returns_nonfinite_not_stored);
-    RUN_TEST(test_optics_filter_eps_inf_and_subnormal_eps_give_one_cluster_and_all_noise);
-    RUN_TEST(test_dbscan_run_eps_whose_square_overflows_returns_arg);
-    RUN_TEST(test_calibrator_run_dbscan_subnormal_eps_returns_all_noise_keeps_cal);
+    RUN_TEST(test_optics_filter_eps_inf_one_cluster_subnormal_eps_arg_tiny_eps_all_noise);
+    RUN_TEST(test_dbscan_run_eps_whose_square_overflows_or_underflows_returns_arg);
+    RUN_TEST(test_calibrator_run_dbscan_subnormal_eps_arg_tiny_eps_all_noise_keeps_cal);
     return UNITY_END();
 }

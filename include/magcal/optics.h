@@ -191,8 +191,9 @@ typedef struct {
  * @param[out] pred      optional (NULL): n predecessors, MAGCAL_OPTICS_NO_PRED for starts.
  * @param[out] info      optional (NULL): eps, min_pts and the neighbour search used.
  * @return MAGCAL_OK; MAGCAL_ERR_NULL (cfg, pts, work, order, reach or core NULL);
- *         MAGCAL_ERR_ARG (eps not > 0 or NaN, finite eps whose square overflows float, i.e.
- *         eps > 1.8e19 (use +INFINITY), min_pts outside 2..MAGCAL_MAX_MIN_PTS, bad enum,
+ *         MAGCAL_ERR_ARG (eps not > 0 or NaN, finite eps whose square is below FLT_MIN/1024 or overflows,
+ *         i.e. eps < 3.4e-21 or eps > 1.8e19 (use +INFINITY for "everything"), min_pts outside
+ *         2..MAGCAL_MAX_MIN_PTS, bad enum,
  *         work not 4-byte aligned); MAGCAL_ERR_TOO_FEW_POINTS (n < min_pts);
  *         MAGCAL_ERR_ARG also for n > MAGCAL_MAX_SAMPLES; MAGCAL_ERR_NONFINITE (a NaN/Inf point);
  *         MAGCAL_ERR_WORKSPACE (work_len too small). Outputs are untouched on failure.

@@ -1,11 +1,14 @@
 /*
  * Driver for the bounded-execution measurement (docs/reliability.md "Bounded execution"):
  * fills a calibrator of capacity MAGCAL_MAX_SAMPLES with one scenario and calls
- * magcal_calibrator_run() once. Run under valgrind --tool=callgrind
+ * magcal_calibrator_run() once. Host: run under valgrind --tool=callgrind
  * --toggle-collect=magcal_calibrator_run (tools/fuzz/bound_calibrator.sh) to count the
- * instructions of run() alone. Host only; double is used to build the inputs.
+ * instructions of run() alone. Cortex-M4F (-DMAGCAL_BOUND_M4F, tools/fuzz/bound_m4f.sh): every
+ * scenario in turn, timed with the CMSDK APB timer 0 of the QEMU mps2-an386 board (25 MHz);
+ * under `qemu-system-arm -icount shift=0` (one instruction per virtual ns) the instruction count
+ * of run() is 40 x ticks. double is used to build the inputs only.
  *
- *   bound_calibrator SCENARIO       prints "SCENARIO status n_used"
+ *   bound_calibrator SCENARIO       prints "SCENARIO status=.. used=.. eps=.. min_pts=.."
  */
 #include <math.h>
 #include <stdio.h>
@@ -48,15 +51,53 @@ static void ring(size_t from, size_t to, double r, double sigma, double turns)
     }
 }
 
+#ifdef MAGCAL_BOUND_M4F
+/* CMSDK APB timer 0 of the mps2-an386 board: down-counter at PCLK (25 MHz in QEMU). */
+#define TIMER0_CTRL (*(volatile uint32_t *)0x40000000u)
+#define TIMER0_VALUE (*(volatile uint32_t *)0x40000004u)
+#define TIMER0_RELOAD (*(volatile uint32_t *)0x40000008u)
+static uint32_t g_ticks;
+#endif
+
+static int bound_one(const char *s);
+
+#ifdef MAGCAL_BOUND_M4F
+int main(void)
+{
+    static const char *const all[] = {"ring", "disc", "grid_lattice", "clumps4", "clumps6", "clumps8",
+                                      "ring_eps_huge_minpts4", "ring_classic_eps_huge_iter2000"};
+    size_t k;
+    TIMER0_CTRL = 0u;
+    TIMER0_RELOAD = 0xFFFFFFFFu;
+    TIMER0_VALUE = 0xFFFFFFFFu;
+    TIMER0_CTRL = 1u;
+    for (k = 0; k < sizeof all / sizeof all[0]; ++k) {
+        if (bound_one(all[k]) != 0) {
+            return 1;
+        }
+        printf("  M4F ticks=%lu instructions~%lu\n", (unsigned long)g_ticks, 40ul * (unsigned long)g_ticks);
+    }
+    return 0;
+}
+#else
 int main(int argc, char **argv)
+{
+    return bound_one(argc > 1 ? argv[1] : "ring");
+}
+#endif
+
+static int bound_one(const char *s)
 {
     magcal_calibrator_cfg_t cfg = MAGCAL_CALIBRATOR_CFG_DEFAULT;
     magcal_calibrator_t cal;
     magcal_cal2d_t cur = MAGCAL_CAL2D_IDENTITY;
     magcal_cal_report_t rep;
     magcal_status_t st;
-    const char *s = argc > 1 ? argv[1] : "ring";
     size_t i;
+#ifdef MAGCAL_BOUND_M4F
+    uint32_t t0;
+#endif
+    g_rng = 12345u; /* same data whether scenarios run in one process or one each */
 
     if (strcmp(s, "ring") == 0) { /* clean ring, 2 turns, 0.5 % noise: the normal case */
         ring(0, N, 40.0, 0.2, 2.0);
@@ -170,7 +211,13 @@ int main(int argc, char **argv)
             return 2;
         }
     }
+#ifdef MAGCAL_BOUND_M4F
+    t0 = TIMER0_VALUE;
     st = magcal_calibrator_run(&cal, &cur, &rep);
+    g_ticks = t0 - TIMER0_VALUE;
+#else
+    st = magcal_calibrator_run(&cal, &cur, &rep);
+#endif
     if (getenv("BOUND_VERBOSE") != NULL) {
         fprintf(stderr, "cov=%g r1=%g r2=%g c=(%g,%g) resid=%g\n", (double)rep.coverage_deg,
                 (double)rep.ellipse.semi_minor, (double)rep.ellipse.semi_major, (double)rep.ellipse.center.x,
