@@ -18,7 +18,6 @@
 #define AIDED_MAGIC 0x41494433u /* "AID3" */
 #define NPHI 4u
 #define NPACK4 10u
-#define JACOBI_SWEEPS 12u
 #define MIN_EPOCHS_LIMIT 8u
 
 static size_t pidx4(size_t i, size_t j)
@@ -26,29 +25,15 @@ static size_t pidx4(size_t i, size_t j)
     return (i >= j) ? ((i * (i + 1u)) / 2u + j) : ((j * (j + 1u)) / 2u + i);
 }
 
-static void kahan_add(float *sum, float *comp, float v)
-{
-    float y = v - *comp;
-    float t = *sum + y;
-    *comp = (t - *sum) - y;
-    *sum = t;
-}
-
 static int finite3(const magcal_vec3_t *v)
 {
     return magcal_isfinite_f(v->x) && magcal_isfinite_f(v->y) && magcal_isfinite_f(v->z);
 }
 
-static float det3(float a[3][3])
-{
-    return a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) +
-           a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
-}
-
 /* x = a^-1 b for a 3x3 by cofactors; returns 0 when |det| is tiny relative to the entries. */
 static int solve3(float a[3][3], const float b[3], float x[3])
 {
-    float det = det3(a);
+    float det = magcal_det3(a);
     float mag = 0.0f;
     float inv[3][3];
     size_t i;
@@ -77,76 +62,6 @@ static int solve3(float a[3][3], const float b[3], float x[3])
     return 1;
 }
 
-/* Cyclic Jacobi on a symmetric 4x4 (a destroyed): eigenvalues w, eigenvectors in the columns of e. */
-static magcal_status_t jacobi4(float a[NPHI][NPHI], float w[NPHI], float e[NPHI][NPHI])
-{
-    size_t sweep;
-    size_t i;
-    size_t j;
-    float scale = 0.0f;
-    for (i = 0u; i < NPHI; ++i) {
-        for (j = 0u; j < NPHI; ++j) {
-            e[i][j] = (i == j) ? 1.0f : 0.0f;
-            scale += a[i][j] * a[i][j];
-        }
-    }
-    for (sweep = 0u; sweep < JACOBI_SWEEPS; ++sweep) {
-        size_t p;
-        float off = 0.0f;
-        for (i = 0u; i < NPHI; ++i) {
-            for (j = i + 1u; j < NPHI; ++j) {
-                off += a[i][j] * a[i][j];
-            }
-        }
-        if (off <= 1e-14f * scale) {
-            for (i = 0u; i < NPHI; ++i) {
-                w[i] = a[i][i];
-            }
-            return MAGCAL_OK;
-        }
-        for (p = 0u; p + 1u < NPHI; ++p) {
-            size_t q;
-            for (q = p + 1u; q < NPHI; ++q) {
-                float apq = a[p][q];
-                float theta;
-                float t;
-                float c;
-                float s;
-                size_t k;
-                if (apq == 0.0f) {
-                    continue;
-                }
-                theta = (a[q][q] - a[p][p]) / (2.0f * apq);
-                t = 1.0f / (fabsf(theta) + sqrtf(theta * theta + 1.0f));
-                if (theta < 0.0f) {
-                    t = -t;
-                }
-                c = 1.0f / sqrtf(t * t + 1.0f);
-                s = t * c;
-                for (k = 0u; k < NPHI; ++k) {
-                    float akp = a[k][p];
-                    float akq = a[k][q];
-                    a[k][p] = c * akp - s * akq;
-                    a[k][q] = s * akp + c * akq;
-                }
-                for (k = 0u; k < NPHI; ++k) {
-                    float apk = a[p][k];
-                    float aqk = a[q][k];
-                    a[p][k] = c * apk - s * aqk;
-                    a[q][k] = s * apk + c * aqk;
-                }
-                for (k = 0u; k < NPHI; ++k) {
-                    float ekp = e[k][p];
-                    float ekq = e[k][q];
-                    e[k][p] = c * ekp - s * ekq;
-                    e[k][q] = s * ekp + c * ekq;
-                }
-            }
-        }
-    }
-    return MAGCAL_ERR_NOT_CONVERGED;
-}
-
 magcal_status_t magcal_aided_dcm(float roll_rad, float pitch_rad, float yaw_rad, float c[3][3])
 {
     float cf;
@@ -158,7 +73,8 @@ magcal_status_t magcal_aided_dcm(float roll_rad, float pitch_rad, float yaw_rad,
     if (c == NULL) {
         return MAGCAL_ERR_NULL;
     }
-    if (!magcal_isfinite_f(roll_rad) || !magcal_isfinite_f(pitch_rad) || !magcal_isfinite_f(yaw_rad)) {
+    if (!magcal_isfinite_f(roll_rad) || !magcal_isfinite_f(pitch_rad) ||
+        !magcal_isfinite_f(yaw_rad)) {
         return MAGCAL_ERR_NONFINITE;
     }
     cf = cosf(roll_rad);
@@ -189,9 +105,10 @@ magcal_status_t magcal_aided_init(magcal_aided_t *inst, const magcal_aided_cfg_t
         return MAGCAL_ERR_NULL;
     }
     if (!(cfg->lambda >= 0.9f && cfg->lambda <= 1.0f) || !(cfg->max_dop > 0.0f) ||
-        !(cfg->gate_raw_rel > 0.0f) || !(cfg->gate_field_rel > 0.0f) || !(cfg->gate_vector_rel > 0.0f) ||
-        !(cfg->sigma_rel > 0.0f) || !(cfg->max_weak_std > 0.0f) || !(cfg->min_eig >= 0.0f && cfg->min_eig < 1.0f) ||
-        !(cfg->conv_dg > 0.0f) || !(cfg->conv_dv_rel > 0.0f) || !(cfg->noise_rel >= 0.0f && cfg->noise_rel < 0.1f)) {
+        !(cfg->gate_raw_rel > 0.0f) || !(cfg->gate_field_rel > 0.0f) ||
+        !(cfg->gate_vector_rel > 0.0f) || !(cfg->sigma_rel > 0.0f) || !(cfg->max_weak_std > 0.0f) ||
+        !(cfg->min_eig >= 0.0f && cfg->min_eig < 1.0f) || !(cfg->conv_dg > 0.0f) ||
+        !(cfg->conv_dv_rel > 0.0f) || !(cfg->noise_rel >= 0.0f && cfg->noise_rel < 0.1f)) {
         return MAGCAL_ERR_ARG;
     }
     if (!magcal_isfinite_f(cfg->max_dop) || !magcal_isfinite_f(cfg->gate_raw_rel) ||
@@ -268,7 +185,7 @@ static void aided_solve(magcal_aided_t *inst)
         lam[i][i] -= cfg->noise_rel * cfg->noise_rel;
     }
     (void)memcpy(lamc, lam, sizeof(lam));
-    if (jacobi4(lam, mu, ev) != MAGCAL_OK) {
+    if (magcal_jacobi_sym(&lam[0][0], NPHI, mu, &ev[0][0]) != MAGCAL_OK) {
         return; /* keep the previous estimate */
     }
     /* prior in normalised coordinates: G0 rows, c~0 = G0 (V0 - V0)/s = 0 */
@@ -394,7 +311,8 @@ static void aided_convergence(magcal_aided_t *inst)
     d[1] = inst->cal.v.y - inst->snap[10];
     d[2] = inst->cal.v.z - inst->snap[11];
     dv = sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-    if (dg < inst->cfg.conv_dg && dv < inst->cfg.conv_dv_rel * inst->cal.field && inst->n_prior_dirs == 0u) {
+    if (dg < inst->cfg.conv_dg && dv < inst->cfg.conv_dv_rel * inst->cal.field &&
+        inst->n_prior_dirs == 0u) {
         inst->flags |= MAGCAL_AIDED_FLAG_CONVERGED;
         if (inst->converged_at == 0u) {
             inst->converged_at = inst->n_accepted;
@@ -405,8 +323,8 @@ static void aided_convergence(magcal_aided_t *inst)
     inst->win_count = 0u;
 }
 
-static magcal_aided_gate_t aided_gate(const magcal_aided_t *inst, const magcal_aided_epoch_t *ep, float c[3][3],
-                                      float bmag)
+static magcal_aided_gate_t aided_gate(const magcal_aided_t *inst, const magcal_aided_epoch_t *ep,
+                                      float c[3][3], float bmag)
 {
     const magcal_aided_cfg_t *cfg = &inst->cfg;
     const magcal_ellipsoid_cal_t *cal;
@@ -422,8 +340,11 @@ static magcal_aided_gate_t aided_gate(const magcal_aided_t *inst, const magcal_a
      * direction on the prior (the out-of-plane one of level driving, harmless for near-level
      * epochs). An early estimate from one straight leg (two or more weak directions) would lock out
      * the new headings it needs, so the loose prior gate is used until then. */
-    use_cal = ((inst->flags & MAGCAL_AIDED_FLAG_ESTIMATE) != 0u) && (inst->n_prior_dirs <= 1u);
-    cal = use_cal ? &inst->cal : &cfg->prior;
+    use_cal = 0;
+    if (((inst->flags & MAGCAL_AIDED_FLAG_ESTIMATE) != 0u) && (inst->n_prior_dirs <= 1u)) {
+        use_cal = 1;
+    }
+    cal = (use_cal != 0) ? &inst->cal : &cfg->prior;
     e[0] = ep->m.x - cal->v.x;
     e[1] = ep->m.y - cal->v.y;
     e[2] = ep->m.z - cal->v.z;
@@ -431,8 +352,9 @@ static magcal_aided_gate_t aided_gate(const magcal_aided_t *inst, const magcal_a
         h[i] = cal->g[i][0] * e[0] + cal->g[i][1] * e[1] + cal->g[i][2] * e[2];
     }
     hmag = sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
-    if (!use_cal) {
-        return (fabsf(hmag - bmag) > cfg->gate_raw_rel * bmag) ? MAGCAL_AIDED_GATE_RAW : MAGCAL_AIDED_GATE_NONE;
+    if (use_cal == 0) {
+        return (fabsf(hmag - bmag) > cfg->gate_raw_rel * bmag) ? MAGCAL_AIDED_GATE_RAW
+                                                               : MAGCAL_AIDED_GATE_NONE;
     }
     if (fabsf(hmag - bmag) > cfg->gate_field_rel * bmag) {
         return MAGCAL_AIDED_GATE_FIELD;
@@ -451,7 +373,8 @@ static magcal_aided_gate_t aided_gate(const magcal_aided_t *inst, const magcal_a
     return MAGCAL_AIDED_GATE_NONE;
 }
 
-magcal_status_t magcal_aided_update(magcal_aided_t *inst, const magcal_aided_epoch_t *ep, magcal_aided_gate_t *reason)
+magcal_status_t magcal_aided_update(magcal_aided_t *inst, const magcal_aided_epoch_t *ep,
+                                    magcal_aided_gate_t *reason)
 {
     float c[3][3];
     float b[3];
@@ -470,7 +393,8 @@ magcal_status_t magcal_aided_update(magcal_aided_t *inst, const magcal_aided_epo
         return MAGCAL_ERR_NOT_INITIALISED;
     }
     if (!finite3(&ep->m) || !finite3(&ep->b_ref_ned) || !magcal_isfinite_f(ep->roll_rad) ||
-        !magcal_isfinite_f(ep->pitch_rad) || !magcal_isfinite_f(ep->yaw_rad) || !magcal_isfinite_f(ep->dop)) {
+        !magcal_isfinite_f(ep->pitch_rad) || !magcal_isfinite_f(ep->yaw_rad) ||
+        !magcal_isfinite_f(ep->dop)) {
         return MAGCAL_ERR_NONFINITE;
     }
     if (ep->dop < 0.0f || !(fabsf(ep->pitch_rad) < 0.5f * MAGCAL_PI_F)) {
@@ -521,13 +445,13 @@ magcal_status_t magcal_aided_update(magcal_aided_t *inst, const magcal_aided_epo
     for (i = 0u; i < NPHI; ++i) {
         for (j = 0u; j <= i; ++j) {
             size_t p = pidx4(i, j);
-            kahan_add(&inst->info[p], &inst->info_c[p], phi[i] * phi[j]);
+            magcal_kahan_add(&inst->info[p], &inst->info_c[p], phi[i] * phi[j]);
         }
         for (j = 0u; j < 3u; ++j) {
-            kahan_add(&inst->cross[i * 3u + j], &inst->cross_c[i * 3u + j], phi[i] * y[j]);
+            magcal_kahan_add(&inst->cross[i * 3u + j], &inst->cross_c[i * 3u + j], phi[i] * y[j]);
         }
     }
-    kahan_add(&inst->yy, &inst->yy_c, y[0] * y[0] + y[1] * y[1] + y[2] * y[2]);
+    magcal_kahan_add(&inst->yy, &inst->yy_c, y[0] * y[0] + y[1] * y[1] + y[2] * y[2]);
     inst->f_sum += bmag * inv_s;
     inst->n_accepted++;
     if (inst->n_accepted >= inst->cfg.min_epochs) {

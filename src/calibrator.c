@@ -4,6 +4,7 @@
  */
 #include "magcal/calibrator.h"
 
+#include <float.h>
 #include <math.h>
 #include <string.h>
 
@@ -11,8 +12,22 @@
 
 #define CAL_MAGIC MAGCAL_CALIBRATOR_MAGIC
 #define CAL_BIN_DEG (360.0f / (float)MAGCAL_COVERAGE_BINS)
-#define CAL_SHIFT_STEPS 72u   /* heading shift evaluated every 5 degrees */
+#define CAL_SHIFT_STEPS 72u /* heading shift evaluated every 5 degrees */
 #define CAL_COLLINEAR_TOL 1.0e-6f
+
+/* State of one run(), kept in the workspace: the deepest stack paths of run() go through the
+ * filter and the consensus fits, so run()'s own frame must stay small. */
+typedef struct {
+    magcal_cal_report_t rep;
+    magcal_consensus_result_t cres;
+    magcal_cal2d_t next;
+    magcal_optics_cfg_t oc;
+    magcal_optics_result_t info;
+    magcal_dbscan_cfg_t dc;
+} cal_run_t;
+
+/* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
+MAGCAL_STATIC_ASSERT(sizeof(cal_run_t) <= MAGCAL_CALIBRATOR_RUN_LEN, run_state_fits_workspace);
 
 /* ------------------------------------------------------------------ small helpers */
 
@@ -76,6 +91,8 @@ static float cal_coverage_of(const uint16_t *bins, float *miss_start, float *mis
         }
     } else if (filled == 0u) {
         best_len = MAGCAL_COVERAGE_BINS;
+    } else {
+        /* every bin filled: no missing sector */
     }
     if (miss_start != NULL) {
         *miss_start = (float)best_start * CAL_BIN_DEG;
@@ -88,10 +105,7 @@ static float cal_coverage_of(const uint16_t *bins, float *miss_start, float *mis
     return 360.0f - (float)best_len * CAL_BIN_DEG;
 }
 
-static int cal_finite_cfg_f(float v)
-{
-    return magcal_isfinite_f(v);
-}
+static int cal_finite_cfg_f(float v) { return magcal_isfinite_f(v); }
 
 static magcal_status_t cal_check_cfg(const magcal_calibrator_cfg_t *c)
 {
@@ -133,10 +147,7 @@ static magcal_status_t cal_check_cfg(const magcal_calibrator_cfg_t *c)
     return MAGCAL_OK;
 }
 
-static int cal_ok(const magcal_calibrator_t *cal)
-{
-    return cal != NULL && cal->magic == CAL_MAGIC;
-}
+static int cal_ok(const magcal_calibrator_t *cal) { return cal != NULL && cal->magic == CAL_MAGIC; }
 
 /* Recompute the live coverage bins around the bbox midpoint. */
 static void cal_rebin(magcal_calibrator_t *cal)
@@ -149,7 +160,8 @@ static void cal_rebin(magcal_calibrator_t *cal)
     cal->centre_tol = 0.125f * (hx < hy ? hx : hy);
     (void)memset(cal->bins, 0, sizeof cal->bins);
     for (i = 0u; i < cal->n; ++i) {
-        size_t b = cal_bin_of(cal_angle_deg(cal->buf[i].x - cal->centre.x, cal->buf[i].y - cal->centre.y));
+        size_t b =
+            cal_bin_of(cal_angle_deg(cal->buf[i].x - cal->centre.x, cal->buf[i].y - cal->centre.y));
         if (cal->bins[b] < 0xFFFFu) {
             cal->bins[b]++;
         }
@@ -178,7 +190,7 @@ magcal_status_t magcal_calibrator_init(magcal_calibrator_t *cal, const magcal_ca
     if (cal == NULL || cfg == NULL || sample_buf == NULL || work == NULL) {
         return MAGCAL_ERR_NULL;
     }
-    if (capacity < 16u || capacity > MAGCAL_MAX_SAMPLES || ((uintptr_t)work & 3u) != 0u) {
+    if (capacity < 16u || capacity > MAGCAL_MAX_SAMPLES || magcal_misalign(work, 4u) != 0u) {
         return MAGCAL_ERR_ARG;
     }
     st = cal_check_cfg(cfg);
@@ -197,8 +209,9 @@ magcal_status_t magcal_calibrator_init(magcal_calibrator_t *cal, const magcal_ca
     cal->flags = w;
     cal->mask_a = w + capacity;
     cal->mask_b = w + 2u * capacity;
-    cal->scratch = (void *)(w + masks);
-    cal->scratch_len = work_len - masks;
+    cal->run = (void *)(w + masks);
+    cal->scratch = (void *)(w + masks + MAGCAL_CALIBRATOR_RUN_LEN);
+    cal->scratch_len = work_len - masks - MAGCAL_CALIBRATOR_RUN_LEN;
     cal->magic = CAL_MAGIC;
     return magcal_calibrator_reset(cal);
 }
@@ -280,6 +293,8 @@ magcal_status_t magcal_calibrator_push(magcal_calibrator_t *cal, magcal_vec2_t p
             cal_rebin(cal); /* the provisional centre moved: re-bin every stored sample */
         } else if (cal->bins[b] < 0xFFFFu) {
             cal->bins[b]++;
+        } else {
+            /* bin count saturated */
         }
     }
     ang = cal_angle_deg(p.x - cal->centre.x, p.y - cal->centre.y);
@@ -292,8 +307,22 @@ magcal_status_t magcal_calibrator_push(magcal_calibrator_t *cal, magcal_vec2_t p
 
 /* ------------------------------------------------------------------ run() stages */
 
-/* All identical or collinear samples: smaller covariance eigenvalue vs larger. */
-static int cal_degenerate(const magcal_vec2_t *p, size_t n)
+/* All identical samples (checked before the density filter: far outliers cannot fake it). */
+static int cal_identical(const magcal_vec2_t *p, size_t n)
+{
+    size_t i;
+    for (i = 1u; i < n; ++i) {
+        if (p[i].x != p[0].x || p[i].y != p[0].y) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* Masked samples (mask NULL: all) identical or collinear: smaller covariance eigenvalue vs larger.
+ * Run on the density-filter inliers: before the filter, two glitch samples 1e5 R away made a
+ * clean ring look collinear (eigenvalue ratio ~1e-8). */
+static int cal_degenerate(const magcal_vec2_t *p, size_t n, const uint8_t *mask)
 {
     float mx = 0.0f;
     float my = 0.0f;
@@ -305,19 +334,43 @@ static int cal_degenerate(const magcal_vec2_t *p, size_t n)
     float disc;
     float l1;
     float l2;
+    float s = 0.0f;
+    float fm;
+    size_t m = 0u;
     size_t i;
     for (i = 0u; i < n; ++i) {
-        mx += p[i].x;
-        my += p[i].y;
+        if (mask == NULL || mask[i] != 0u) {
+            ++m;
+        }
     }
-    mx /= (float)n;
-    my /= (float)n;
+    if (m == 0u) {
+        return 1;
+    }
+    fm = (float)m;
+    /* mean of p/m and deviations scaled by their largest magnitude: the sums cannot overflow
+     * (a ring of radius 1e18 overflowed sxx to Inf and was called degenerate) */
     for (i = 0u; i < n; ++i) {
-        float dx = p[i].x - mx;
-        float dy = p[i].y - my;
-        sxx += dx * dx;
-        syy += dy * dy;
-        sxy += dx * dy;
+        if (mask == NULL || mask[i] != 0u) {
+            mx += p[i].x / fm;
+            my += p[i].y / fm;
+        }
+    }
+    for (i = 0u; i < n; ++i) {
+        if (mask == NULL || mask[i] != 0u) {
+            s = fmaxf(s, fmaxf(fabsf(p[i].x - mx), fabsf(p[i].y - my)));
+        }
+    }
+    if (!(s > 0.0f) || !magcal_isfinite_f(s)) {
+        return 1; /* all identical, or a spread float32 cannot represent */
+    }
+    for (i = 0u; i < n; ++i) {
+        if (mask == NULL || mask[i] != 0u) {
+            float dx = (p[i].x - mx) / s;
+            float dy = (p[i].y - my) / s;
+            sxx += dx * dx;
+            syy += dy * dy;
+            sxy += dx * dy;
+        }
     }
     tr = sxx + syy;
     if (!(tr > 0.0f)) {
@@ -331,8 +384,8 @@ static int cal_degenerate(const magcal_vec2_t *p, size_t n)
 }
 
 /* Hard-iron circle fit x^2 + y^2 + C x + D y + E = 0 of the masked points (centred, scaled). */
-static magcal_status_t cal_circle_centre(const magcal_vec2_t *p, size_t n, const uint8_t *mask,
-                                         magcal_vec2_t *centre)
+static MAGCAL_NOINLINE magcal_status_t cal_circle_centre(const magcal_vec2_t *p, size_t n,
+                                                         const uint8_t *mask, magcal_vec2_t *centre)
 {
     float mx = 0.0f;
     float my = 0.0f;
@@ -394,8 +447,9 @@ static magcal_status_t cal_circle_centre(const magcal_vec2_t *p, size_t n, const
 }
 
 /* Bins of the masked (NULL: all) points' approximate headings around centre. */
-static float cal_coverage_around(const magcal_vec2_t *p, size_t n, const uint8_t *mask, magcal_vec2_t c,
-                                 float *miss_start, float *miss_width)
+static MAGCAL_NOINLINE float cal_coverage_around(const magcal_vec2_t *p, size_t n,
+                                                 const uint8_t *mask, magcal_vec2_t c,
+                                                 float *miss_start, float *miss_width)
 {
     uint16_t bins[MAGCAL_COVERAGE_BINS];
     size_t i;
@@ -409,8 +463,9 @@ static float cal_coverage_around(const magcal_vec2_t *p, size_t n, const uint8_t
 }
 
 /* Bins of the corrected headings of the masked points (coverage of the final calibration). */
-static float cal_coverage_corrected(const magcal_vec2_t *p, size_t n, const uint8_t *mask,
-                                    const magcal_cal2d_t *c, float *miss_start, float *miss_width)
+static MAGCAL_NOINLINE float cal_coverage_corrected(const magcal_vec2_t *p, size_t n,
+                                                    const uint8_t *mask, const magcal_cal2d_t *c,
+                                                    float *miss_start, float *miss_width)
 {
     uint16_t bins[MAGCAL_COVERAGE_BINS];
     size_t i;
@@ -425,14 +480,16 @@ static float cal_coverage_corrected(const magcal_vec2_t *p, size_t n, const uint
 }
 
 /* Density filter into mask_a. */
-static magcal_status_t cal_filter(magcal_calibrator_t *cal, magcal_cal_report_t *rep)
+static MAGCAL_NOINLINE magcal_status_t cal_filter(magcal_calibrator_t *cal,
+                                                  magcal_cal_report_t *rep)
 {
+    cal_run_t *run = (cal_run_t *)cal->run;
     const magcal_calibrator_cfg_t *c = &cal->cfg;
     size_t n = cal->n;
-    size_t i;
     magcal_status_t st;
     if (c->filter == MAGCAL_FILTER_NONE || (c->eps <= 0.0f && n < 16u)) {
         /* no filter (auto parameters need 16 samples: below that every sample is a candidate) */
+        size_t i;
         for (i = 0u; i < n; ++i) {
             cal->mask_a[i] = 1u;
         }
@@ -441,26 +498,29 @@ static magcal_status_t cal_filter(magcal_calibrator_t *cal, magcal_cal_report_t 
         return MAGCAL_OK;
     }
     if (c->filter == MAGCAL_FILTER_DBSCAN) {
-        magcal_dbscan_cfg_t dc = MAGCAL_DBSCAN_CFG_DEFAULT;
+        static const magcal_dbscan_cfg_t dc_default = MAGCAL_DBSCAN_CFG_DEFAULT;
+        magcal_dbscan_cfg_t *dc = &run->dc;
         int16_t *labels = (int16_t *)cal->scratch;
         size_t lab_len = (2u * n + 3u) & ~(size_t)3u;
         uint8_t *rest = (uint8_t *)cal->scratch + lab_len;
         size_t rest_len = cal->scratch_len - lab_len;
+        *dc = dc_default;
         if (c->eps > 0.0f) {
-            dc.eps = c->eps;
-            dc.min_pts = c->min_pts != 0u ? c->min_pts : 4u;
+            dc->eps = c->eps;
+            dc->min_pts = c->min_pts != 0u ? c->min_pts : 4u;
         } else {
             float e;
             float ep;
             uint16_t mp;
-            st = magcal_optics_auto_params(cal->buf, n, cal->scratch, cal->scratch_len, &e, &mp, &ep);
+            st = magcal_optics_auto_params(cal->buf, n, cal->scratch, cal->scratch_len, &e, &mp,
+                                           &ep);
             if (st != MAGCAL_OK) {
                 return st;
             }
-            dc.eps = ep;
-            dc.min_pts = c->min_pts != 0u ? c->min_pts : mp;
+            dc->eps = ep;
+            dc->min_pts = c->min_pts != 0u ? c->min_pts : mp;
         }
-        st = magcal_dbscan_run(&dc, cal->buf, n, rest, rest_len, labels, NULL, NULL);
+        st = magcal_dbscan_run(dc, cal->buf, n, rest, rest_len, labels, NULL, NULL);
         if (st != MAGCAL_OK) {
             return st;
         }
@@ -468,40 +528,46 @@ static magcal_status_t cal_filter(magcal_calibrator_t *cal, magcal_cal_report_t 
         if (st != MAGCAL_OK) {
             return st;
         }
-        rep->filter_eps = dc.eps;
-        rep->filter_min_pts = dc.min_pts;
+        rep->filter_eps = dc->eps;
+        rep->filter_min_pts = dc->min_pts;
         return MAGCAL_OK;
     }
     {
-        magcal_optics_cfg_t oc = MAGCAL_OPTICS_CFG_DEFAULT;
-        magcal_optics_result_t info;
+        static const magcal_optics_cfg_t oc_default = MAGCAL_OPTICS_CFG_DEFAULT;
+        magcal_optics_cfg_t *oc = &run->oc;
+        magcal_optics_result_t *info = &run->info;
+        *oc = oc_default;
         if (c->filter == MAGCAL_FILTER_OPTICS_CLASSIC) {
-            oc.order = MAGCAL_OPTICS_CLASSIC;
-            oc.neighbors = MAGCAL_NEIGHBORS_BRUTE;
+            oc->order = MAGCAL_OPTICS_CLASSIC;
+            oc->neighbors = MAGCAL_NEIGHBORS_BRUTE;
         }
         if (c->eps > 0.0f) {
-            oc.eps = c->eps;
-            oc.eps_prime = c->eps;
-            oc.min_pts = c->min_pts != 0u ? c->min_pts : 4u;
+            oc->eps = c->eps;
+            oc->eps_prime = c->eps;
+            oc->min_pts = c->min_pts != 0u ? c->min_pts : 4u;
         } else if (c->min_pts != 0u) {
             /* automatic radius, caller's MinPts */
             float e;
             float ep;
             uint16_t mp;
-            st = magcal_optics_auto_params(cal->buf, n, cal->scratch, cal->scratch_len, &e, &mp, &ep);
+            st = magcal_optics_auto_params(cal->buf, n, cal->scratch, cal->scratch_len, &e, &mp,
+                                           &ep);
             if (st != MAGCAL_OK) {
                 return st;
             }
-            oc.eps = e;
-            oc.eps_prime = ep;
-            oc.min_pts = c->min_pts;
+            oc->eps = e;
+            oc->eps_prime = ep;
+            oc->min_pts = c->min_pts;
+        } else {
+            /* fully automatic parameters: the OPTICS defaults */
         }
-        st = magcal_optics_filter(&oc, cal->buf, n, cal->scratch, cal->scratch_len, cal->mask_a, &info);
+        st = magcal_optics_filter(oc, cal->buf, n, cal->scratch, cal->scratch_len, cal->mask_a,
+                                  info);
         if (st != MAGCAL_OK) {
             return st;
         }
-        rep->filter_eps = info.eps_prime;
-        rep->filter_min_pts = info.min_pts;
+        rep->filter_eps = info->eps_prime;
+        rep->filter_min_pts = info->min_pts;
     }
     return MAGCAL_OK;
 }
@@ -521,7 +587,8 @@ static int cal_inv2(const float m[2][2], float inv[2][2])
 }
 
 /* Heading change if `next` replaced `cur` (cur NULL = identity). */
-static void cal_shift(const magcal_cal2d_t *cur, const magcal_cal2d_t *next, float *max_deg, float *rms_deg)
+static MAGCAL_NOINLINE void cal_shift(const magcal_cal2d_t *cur, const magcal_cal2d_t *next,
+                                      float *max_deg, float *rms_deg)
 {
     float inv[2][2];
     float r = next->radius > 0.0f ? next->radius : 1.0f;
@@ -565,8 +632,8 @@ static void cal_shift(const magcal_cal2d_t *cur, const magcal_cal2d_t *next, flo
 }
 
 /* Mean corrected radius of the masked samples under c, and mean(d^2) with d = rho/mean - 1. */
-static void cal_radius_stats(const magcal_vec2_t *p, size_t n, const uint8_t *mask, const magcal_cal2d_t *c,
-                             float *mean, float *var_rel)
+static void cal_radius_stats(const magcal_vec2_t *p, size_t n, const uint8_t *mask,
+                             const magcal_cal2d_t *c, float *mean, float *var_rel)
 {
     float sum = 0.0f;
     float sum2 = 0.0f;
@@ -608,7 +675,8 @@ static void cal_set_flags(magcal_calibrator_t *cal, int with_residual)
 
 /* Plain least-squares fit of the filter inliers (use_consensus = 0). The classify() threshold
  * is k_sigma * residual RMS of the fit, clamped like the consensus threshold. */
-static magcal_status_t cal_plain_fit(magcal_calibrator_t *cal, magcal_consensus_result_t *res)
+static MAGCAL_NOINLINE magcal_status_t cal_plain_fit(magcal_calibrator_t *cal,
+                                                     magcal_consensus_result_t *res)
 {
     size_t n = cal->n;
     size_t i;
@@ -638,8 +706,8 @@ static magcal_status_t cal_plain_fit(magcal_calibrator_t *cal, magcal_consensus_
     return MAGCAL_OK;
 }
 
-static magcal_status_t cal_finish(magcal_calibrator_t *cal, magcal_status_t st, magcal_cal_report_t *rep,
-                                  magcal_cal_report_t *out)
+static magcal_status_t cal_finish(magcal_calibrator_t *cal, magcal_status_t st,
+                                  magcal_cal_report_t *rep, magcal_cal_report_t *out)
 {
     rep->status = st;
     if (st == MAGCAL_OK) {
@@ -657,56 +725,62 @@ static magcal_status_t cal_finish(magcal_calibrator_t *cal, magcal_status_t st, 
     return st;
 }
 
-magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *current,
-                                      magcal_cal_report_t *report)
+/*
+ * run() is a sequence of stages, each MAGCAL_NOINLINE with its own frame, sharing the state in the
+ * workspace (cal_run_t): the deepest stack paths (the consensus fits, the density filter) then
+ * sit under a small run() frame instead of one frame holding every stage's locals. Each stage
+ * returns MAGCAL_OK to continue or the run's final status.
+ */
+
+/* 1-3: pre-checks, density filter, collinearity of its inliers, coverage pre-gate. */
+static MAGCAL_NOINLINE magcal_status_t cal_stage_prepare(magcal_calibrator_t *cal,
+                                                         magcal_cal_report_t *rep)
 {
-    magcal_cal_report_t rep;
-    magcal_consensus_result_t cres;
-    magcal_cal2d_t next;
-    size_t n;
+    const size_t n = cal->n;
     size_t i;
-    size_t used = 0u;
     size_t filt_in = 0u;
     magcal_status_t st;
-    float radius;
-    float cov;
-    int cur_usable;
-
-    if (cal == NULL || current == NULL) {
-        return MAGCAL_ERR_NULL;
-    }
-    if (!cal_ok(cal)) {
-        return MAGCAL_ERR_NOT_INITIALISED;
-    }
-    (void)memset(&rep, 0, sizeof rep);
-    rep.current_err_deg = NAN;
-    n = cal->n;
-    rep.samples = (uint16_t)n;
-    cal->has_fit = 0u;
-    cal->n_judged = 0u;
 
     /* 1. pre-checks */
     if (n < cal->cfg.min_samples || n < MAGCAL_ELLIPSE_MIN_POINTS) {
-        return cal_finish(cal, MAGCAL_ERR_TOO_FEW_POINTS, &rep, report);
+        return MAGCAL_ERR_TOO_FEW_POINTS;
     }
-    if (cal_degenerate(cal->buf, n)) {
-        return cal_finish(cal, MAGCAL_ERR_DEGENERATE, &rep, report);
+    if (cal_identical(cal->buf, n) != 0) {
+        return MAGCAL_ERR_DEGENERATE;
+    }
+    {
+        /* Extent of the samples: when its square is not a normal float32, squared distances and
+         * moments lose their precision (the density filter's eps^2 test first): 0 = the points are
+         * indistinguishable, otherwise too ill-conditioned for float32 (rings below ~1e-20). */
+        const float ex = cal->bb_max.x - cal->bb_min.x;
+        const float ey = cal->bb_max.y - cal->bb_min.y;
+        const float ext = ex > ey ? ex : ey;
+        const float ext2 = ext * ext;
+        if (!(ext2 > 0.0f)) {
+            return MAGCAL_ERR_DEGENERATE;
+        }
+        if (ext2 < FLT_MIN) {
+            return MAGCAL_ERR_ILL_CONDITIONED;
+        }
     }
 
     /* 2. density filter */
-    st = cal_filter(cal, &rep);
+    st = cal_filter(cal, rep);
     if (st != MAGCAL_OK) {
-        return cal_finish(cal, st, &rep, report);
+        return st;
     }
     for (i = 0u; i < n; ++i) {
         if (cal->mask_a[i] != 0u) {
             ++filt_in;
         }
     }
-    rep.rejected_filter = (uint16_t)(n - filt_in);
+    rep->rejected_filter = (uint16_t)(n - filt_in);
     cal_set_flags(cal, 0);
     if (filt_in < cal->cfg.min_samples) {
-        return cal_finish(cal, MAGCAL_ERR_TOO_FEW_POINTS, &rep, report);
+        return MAGCAL_ERR_TOO_FEW_POINTS;
+    }
+    if (cal_degenerate(cal->buf, n, cal->mask_a) != 0) {
+        return MAGCAL_ERR_DEGENERATE;
     }
 
     /* 3. coverage pre-gate: every sample, around the hard-iron circle centre of the filter inliers
@@ -716,119 +790,187 @@ magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *
      * sets from every sample instead (LMedS tolerates up to 50 % outliers). */
     {
         magcal_vec2_t cc;
+        float cov;
         float cov_f;
         st = cal_circle_centre(cal->buf, n, cal->mask_a, &cc);
         if (st != MAGCAL_OK) {
-            return cal_finish(cal, st == MAGCAL_ERR_ILL_CONDITIONED ? MAGCAL_ERR_DEGENERATE : st, &rep, report);
+            return st == MAGCAL_ERR_ILL_CONDITIONED ? MAGCAL_ERR_DEGENERATE : st;
         }
-        cov = cal_coverage_around(cal->buf, n, NULL, cc, &rep.missing_start_deg, &rep.missing_width_deg);
-        rep.coverage_deg = cov;
+        cov = cal_coverage_around(cal->buf, n, NULL, cc, &rep->missing_start_deg,
+                                  &rep->missing_width_deg);
+        rep->coverage_deg = cov;
         if (cov < cal->cfg.min_coverage_deg) {
-            return cal_finish(cal, MAGCAL_ERR_COVERAGE, &rep, report);
+            return MAGCAL_ERR_COVERAGE;
         }
         cov_f = cal_coverage_around(cal->buf, n, cal->mask_a, cc, NULL, NULL);
         if (cov_f < cal->cfg.min_coverage_deg) {
-            rep.filter_fragmented = 1u;
+            rep->filter_fragmented = 1u;
         }
     }
+    return MAGCAL_OK;
+}
 
-    /* 4. consensus (or plain fit) */
-    (void)memset(&cres, 0, sizeof cres);
-    if (cal->cfg.use_consensus != 0u) {
-        st = magcal_consensus_run(&cal->cfg.consensus, cal->buf, n,
-                                  rep.filter_fragmented != 0u ? NULL : cal->mask_a, cal->scratch,
-                                  cal->scratch_len, cal->mask_b, &cres);
-    } else {
-        st = cal_plain_fit(cal, &cres);
+/* 4. consensus (or plain fit) into run->cres: nothing else on this frame. */
+static MAGCAL_NOINLINE magcal_status_t cal_stage_fit(magcal_calibrator_t *cal)
+{
+    cal_run_t *run = (cal_run_t *)cal->run;
+    (void)memset(&run->cres, 0, sizeof run->cres);
+    if (cal->cfg.use_consensus == 0u) {
+        return cal_plain_fit(cal, &run->cres);
     }
-    if (st != MAGCAL_OK) {
-        return cal_finish(cal, st, &rep, report);
-    }
-    cal->fit = cres.fit;
-    cal->threshold = cres.threshold;
+    return magcal_consensus_run(&cal->cfg.consensus, cal->buf, cal->n,
+                                run->rep.filter_fragmented != 0u ? NULL : cal->mask_a, cal->scratch,
+                                cal->scratch_len, cal->mask_b, &run->cres);
+}
+
+/* 4 (cont.) and 5: keep the fit, count, fill the report, gates. */
+static MAGCAL_NOINLINE magcal_status_t cal_stage_gates(magcal_calibrator_t *cal,
+                                                       magcal_cal_report_t *rep)
+{
+    const magcal_consensus_result_t *cres = &((const cal_run_t *)cal->run)->cres;
+    const size_t n = cal->n;
+    size_t i;
+    size_t used = 0u;
+    size_t n_out;
+    float radius;
+
+    cal->fit = cres->fit;
+    cal->threshold = cres->threshold;
     cal->has_fit = 1u;
     cal_set_flags(cal, 1);
     for (i = 0u; i < n; ++i) {
         if (cal->mask_b[i] != 0u) {
             ++used;
             if (cal->mask_a[i] == 0u) {
-                rep.rescued_consensus++;
+                rep->rescued_consensus++;
             }
         } else if (cal->mask_a[i] != 0u) {
-            rep.rejected_consensus++;
+            rep->rejected_consensus++;
+        } else {
+            /* rejected by the filter and by the consensus */
         }
     }
-    rep.used = (uint16_t)used;
-    rep.outliers = (uint16_t)(n - used);
-    rep.ellipse = cres.fit;
-    rep.threshold = cres.threshold;
-    radius = sqrtf(cres.fit.semi_minor * cres.fit.semi_major);
-    rep.radius = radius;
-    rep.residual_rms = cres.fit.residual_rms;
-    rep.residual_rel = radius > 0.0f ? cres.fit.residual_rms / radius : INFINITY;
-    rep.axis_ratio = cres.fit.semi_major > 0.0f ? cres.fit.semi_minor / cres.fit.semi_major : 0.0f;
-    rep.min_pivot = cres.fit.min_pivot;
+    rep->used = (uint16_t)used;
+    rep->outliers = (uint16_t)(n - used);
+    rep->ellipse = cres->fit;
+    rep->threshold = cres->threshold;
+    radius = sqrtf(cres->fit.semi_minor * cres->fit.semi_major);
+    rep->radius = radius;
+    rep->residual_rms = cres->fit.residual_rms;
+    rep->residual_rel = radius > 0.0f ? cres->fit.residual_rms / radius : INFINITY;
+    rep->axis_ratio =
+        cres->fit.semi_major > 0.0f ? cres->fit.semi_minor / cres->fit.semi_major : 0.0f;
+    rep->min_pivot = cres->fit.min_pivot;
 
     /* 5. gates */
+    n_out = n - used;
     if (used < cal->cfg.min_samples) {
-        return cal_finish(cal, MAGCAL_ERR_TOO_FEW_POINTS, &rep, report);
+        return MAGCAL_ERR_TOO_FEW_POINTS;
     }
-    if ((float)(n - used) > cal->cfg.max_outlier_frac * (float)n) {
-        return cal_finish(cal, MAGCAL_ERR_TOO_MANY_OUTLIERS, &rep, report);
+    if ((float)n_out > cal->cfg.max_outlier_frac * (float)n) {
+        return MAGCAL_ERR_TOO_MANY_OUTLIERS;
     }
     if ((cal->cfg.min_radius > 0.0f && radius < cal->cfg.min_radius) ||
         (cal->cfg.max_radius > 0.0f && radius > cal->cfg.max_radius)) {
-        return cal_finish(cal, MAGCAL_ERR_RADIUS_RANGE, &rep, report);
+        return MAGCAL_ERR_RADIUS_RANGE;
     }
-    if (rep.axis_ratio < cal->cfg.min_axis_ratio) {
-        return cal_finish(cal, MAGCAL_ERR_AXIS_RATIO, &rep, report);
+    if (rep->axis_ratio < cal->cfg.min_axis_ratio) {
+        return MAGCAL_ERR_AXIS_RATIO;
     }
-    if (!(rep.residual_rel <= cal->cfg.max_residual_rel)) {
-        return cal_finish(cal, MAGCAL_ERR_RESIDUAL, &rep, report);
+    if (!(rep->residual_rel <= cal->cfg.max_residual_rel)) {
+        return MAGCAL_ERR_RESIDUAL;
     }
+    return MAGCAL_OK;
+}
 
-    /* 6. correction, final coverage (corrected headings of the inliers), estimates */
-    st = magcal_ellipse_to_cal(&cres.fit, cal->cfg.form, cal->cfg.output_radius, &next);
+/* 6. correction, final coverage (corrected headings of the inliers), estimates; 7. adoption. */
+static MAGCAL_NOINLINE magcal_status_t cal_stage_adopt(magcal_calibrator_t *cal,
+                                                       magcal_cal2d_t *current,
+                                                       magcal_cal_report_t *rep)
+{
+    cal_run_t *run = (cal_run_t *)cal->run;
+    magcal_cal2d_t *next = &run->next;
+    const size_t n = cal->n;
+    magcal_status_t st;
+    float cov;
+    int cur_usable = 0;
+
+    st = magcal_ellipse_to_cal(&run->cres.fit, cal->cfg.form, cal->cfg.output_radius, next);
     if (st != MAGCAL_OK) {
-        return cal_finish(cal, st, &rep, report);
+        return st;
     }
-    rep.cal = next;
-    cov = cal_coverage_corrected(cal->buf, n, cal->mask_b, &next, &rep.missing_start_deg, &rep.missing_width_deg);
-    rep.coverage_deg = cov;
+    rep->cal = *next;
+    cov = cal_coverage_corrected(cal->buf, n, cal->mask_b, next, &rep->missing_start_deg,
+                                 &rep->missing_width_deg);
+    rep->coverage_deg = cov;
     if (cov < cal->cfg.min_coverage_deg || !(cov > 0.0f)) {
-        return cal_finish(cal, MAGCAL_ERR_COVERAGE, &rep, report);
+        return MAGCAL_ERR_COVERAGE;
     }
     {
-        float sig_rel = rep.residual_rel;
+        float sig_rel = rep->residual_rel;
         float infl = 360.0f / cov;
-        rep.est_heading_err_deg =
-            MAGCAL_DEG_PER_RAD_F * sig_rel * sqrtf(5.0f / (float)used) * infl * infl;
+        rep->est_heading_err_deg =
+            MAGCAL_DEG_PER_RAD_F * sig_rel * sqrtf(5.0f / (float)rep->used) * infl * infl;
     }
 
     /* 7. adoption rule */
-    cur_usable = (magcal_cal2d_validate(current) == MAGCAL_OK && current->radius > 0.0f) ? 1 : 0;
-    cal_shift(cur_usable ? current : NULL, &next, &rep.shift_max_deg, &rep.shift_rms_deg);
-    if (cur_usable) {
+    if (magcal_cal2d_validate(current) == MAGCAL_OK && current->radius > 0.0f) {
+        cur_usable = 1;
+    }
+    cal_shift(cur_usable != 0 ? current : NULL, next, &rep->shift_max_deg, &rep->shift_rms_deg);
+    if (cur_usable != 0) {
         float var_cur;
         float var_new;
         float mean_cur;
         float mean_new;
         cal_radius_stats(cal->buf, n, cal->mask_b, current, &mean_cur, &var_cur);
-        cal_radius_stats(cal->buf, n, cal->mask_b, &next, &mean_new, &var_new);
+        cal_radius_stats(cal->buf, n, cal->mask_b, next, &mean_new, &var_new);
         if (!(mean_cur > 0.0f) || !(mean_new > 0.0f)) {
-            rep.current_err_deg = INFINITY;
+            rep->current_err_deg = INFINITY;
         } else {
-            rep.current_err_deg = MAGCAL_DEG_PER_RAD_F * sqrtf(fmaxf(var_cur - var_new, 0.0f));
+            rep->current_err_deg = MAGCAL_DEG_PER_RAD_F * sqrtf(fmaxf(var_cur - var_new, 0.0f));
         }
-        if (!(rep.est_heading_err_deg <= rep.current_err_deg)) {
+        if (!(rep->est_heading_err_deg <= rep->current_err_deg)) {
             float change = mean_cur > 0.0f ? fabsf(mean_cur / current->radius - 1.0f) : INFINITY;
             if (!(change <= cal->cfg.max_radius_change)) {
-                return cal_finish(cal, MAGCAL_ERR_NOT_BETTER, &rep, report);
+                return MAGCAL_ERR_NOT_BETTER;
             }
         }
     }
-    *current = next;
-    return cal_finish(cal, MAGCAL_OK, &rep, report);
+    *current = *next;
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *current,
+                                      magcal_cal_report_t *report)
+{
+    magcal_cal_report_t *rep;
+    magcal_status_t st;
+
+    if (cal == NULL || current == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (!cal_ok(cal)) {
+        return MAGCAL_ERR_NOT_INITIALISED;
+    }
+    rep = &((cal_run_t *)cal->run)->rep;
+    (void)memset(rep, 0, sizeof *rep);
+    rep->current_err_deg = NAN;
+    rep->samples = (uint16_t)cal->n;
+    cal->has_fit = 0u;
+    cal->n_judged = 0u;
+
+    st = cal_stage_prepare(cal, rep);
+    if (st == MAGCAL_OK) {
+        st = cal_stage_fit(cal);
+    }
+    if (st == MAGCAL_OK) {
+        st = cal_stage_gates(cal, rep);
+    }
+    if (st == MAGCAL_OK) {
+        st = cal_stage_adopt(cal, current, rep);
+    }
+    return cal_finish(cal, st, rep, report);
 }
 
 /* ------------------------------------------------------------------ queries */
@@ -865,11 +1007,16 @@ magcal_status_t magcal_calibrator_inlier(const magcal_calibrator_t *cal, size_t 
     if (i >= cal->n_judged) {
         return MAGCAL_ERR_ARG;
     }
-    *is_inlier = (cal->flags[i] & MAGCAL_CALIBRATOR_FLAG_RESIDUAL) != 0u ? 0 : 1;
+    if ((cal->flags[i] & MAGCAL_CALIBRATOR_FLAG_RESIDUAL) != 0u) {
+        *is_inlier = 0;
+    } else {
+        *is_inlier = 1;
+    }
     return MAGCAL_OK;
 }
 
-magcal_status_t magcal_calibrator_classify(const magcal_calibrator_t *cal, magcal_vec2_t p, int *is_outlier)
+magcal_status_t magcal_calibrator_classify(const magcal_calibrator_t *cal, magcal_vec2_t p,
+                                           int *is_outlier)
 {
     float r;
     if (cal == NULL || is_outlier == NULL) {
@@ -885,7 +1032,11 @@ magcal_status_t magcal_calibrator_classify(const magcal_calibrator_t *cal, magca
         return MAGCAL_ERR_STATE;
     }
     r = magcal_ellipse_residual(&cal->fit, p);
-    *is_outlier = (magcal_isfinite_f(r) && fabsf(r) <= cal->threshold) ? 0 : 1;
+    if (magcal_isfinite_f(r) && fabsf(r) <= cal->threshold) {
+        *is_outlier = 0;
+    } else {
+        *is_outlier = 1;
+    }
     return MAGCAL_OK;
 }
 
@@ -899,10 +1050,7 @@ magcal_status_t magcal_calibrator_last_status(const magcal_calibrator_t *cal)
     return cal_ok(cal) ? cal->last_status : MAGCAL_ERR_NOT_INITIALISED;
 }
 
-size_t magcal_calibrator_count(const magcal_calibrator_t *cal)
-{
-    return cal_ok(cal) ? cal->n : 0u;
-}
+size_t magcal_calibrator_count(const magcal_calibrator_t *cal) { return cal_ok(cal) ? cal->n : 0u; }
 
 float magcal_calibrator_coverage_deg(const magcal_calibrator_t *cal)
 {

@@ -12,9 +12,6 @@
 /* 1 / Phi^-1(3/4): MAD of a normal distribution -> sigma. */
 #define CONS_MAD_TO_SIGMA 1.4826f
 
-/* Largest rank a shell-sort gap can reach is n; Ciura's gaps, extended. */
-static const uint16_t cons_gaps[] = {701u, 301u, 132u, 57u, 23u, 10u, 4u, 1u};
-
 /* k-th smallest (0-based) of a[0..n-1]; a is reordered. Iterative Hoare selection, bounded. */
 static float cons_select(float *a, size_t n, size_t k)
 {
@@ -29,10 +26,16 @@ static float cons_select(float *a, size_t n, size_t k)
         for (inner = 0u; inner <= n && i <= j; ++inner) {
             size_t s1;
             size_t s2;
-            for (s1 = 0u; s1 < n && a[i] < pivot; ++s1) {
+            for (s1 = 0u; s1 < n; ++s1) {
+                if (!(a[i] < pivot)) {
+                    break;
+                }
                 ++i;
             }
-            for (s2 = 0u; s2 < n && a[j] > pivot; ++s2) {
+            for (s2 = 0u; s2 < n; ++s2) {
+                if (!(a[j] > pivot)) {
+                    break;
+                }
                 --j;
             }
             if (i <= j) {
@@ -58,14 +61,13 @@ static float cons_select(float *a, size_t n, size_t k)
 }
 
 /* Lower median of a[0..n-1] (n >= 1); a is reordered. */
-static float cons_median(float *a, size_t n)
-{
-    return cons_select(a, n, (n - 1u) / 2u);
-}
+static float cons_median(float *a, size_t n) { return cons_select(a, n, (n - 1u) / 2u); }
 
 /* Sort idx[0..m-1] by key[0..m-1] ascending (keys move with their indices). Shell sort. */
 static void cons_sort(float *key, uint16_t *idx, size_t m)
 {
+    /* Largest rank a shell-sort gap can reach is n; Ciura's gaps, extended. */
+    static const uint16_t cons_gaps[] = {701u, 301u, 132u, 57u, 23u, 10u, 4u, 1u};
     size_t g;
     for (g = 0u; g < sizeof cons_gaps / sizeof cons_gaps[0]; ++g) {
         size_t gap = cons_gaps[g];
@@ -88,18 +90,17 @@ static void cons_sort(float *key, uint16_t *idx, size_t m)
     }
 }
 
-/* |residual| of every sample to e, into r; returns 0, or -1 when a residual is not finite. */
-static int cons_residuals(const magcal_ellipse_t *e, const magcal_vec2_t *pts, size_t n, float *r)
+/* |residual| of every sample. The samples are finite (checked on entry) and the model comes from a
+ * successful fit, so a non-finite residual can only be an overflow of a sample astronomically far
+ * from the model (|p - c| above ~1e19): it is stored as +Inf, i.e. always an outlier. Returning an
+ * error instead made one such sample veto every minimal set and the run end in NONFINITE. */
+static void cons_residuals(const magcal_ellipse_t *e, const magcal_vec2_t *pts, size_t n, float *r)
 {
     size_t i;
     for (i = 0u; i < n; ++i) {
         float v = magcal_ellipse_residual(e, pts[i]);
-        if (!magcal_isfinite_f(v)) {
-            return -1;
-        }
-        r[i] = fabsf(v);
+        r[i] = magcal_isfinite_f(v) ? fabsf(v) : INFINITY;
     }
-    return 0;
 }
 
 static float cons_mean_radius(const magcal_ellipse_t *e)
@@ -122,7 +123,8 @@ static magcal_status_t cons_check_cfg(const magcal_consensus_cfg_t *cfg)
 }
 
 /* threshold from sigma, clamped relative to the fit's mean radius */
-static float cons_threshold(const magcal_consensus_cfg_t *cfg, const magcal_ellipse_t *e, float sigma)
+static float cons_threshold(const magcal_consensus_cfg_t *cfg, const magcal_ellipse_t *e,
+                            float sigma)
 {
     float rm = cons_mean_radius(e);
     float thr = cfg->k_sigma * sigma;
@@ -137,26 +139,243 @@ static float cons_threshold(const magcal_consensus_cfg_t *cfg, const magcal_elli
     return thr;
 }
 
-magcal_status_t magcal_consensus_run(const magcal_consensus_cfg_t *cfg, const magcal_vec2_t *pts, size_t n,
-                                     const uint8_t *cand_mask, void *work, size_t work_len,
-                                     uint8_t *inlier_mask, magcal_consensus_result_t *result)
-{
-    uintptr_t base;
+/* State of one run, kept in the workspace: the minimal-set and refit loops call the ellipse fits,
+ * which are on the deepest stack path of the 2-D pipeline, so the loops' frames stay small. */
+typedef struct {
+    magcal_ellipse_t best; /* best minimal model (LMedS) */
+    magcal_ellipse_t cur;  /* current refit */
+    magcal_ellipse_t cand; /* candidate minimal model */
+    magcal_ellipse_t next; /* next refit */
+    const magcal_consensus_cfg_t *cfg;
+    const magcal_vec2_t *pts;
+    size_t n;
+    size_t m; /* candidates */
     float *res;
     float *scr;
     uint16_t *order;
-    size_t i;
-    size_t m = 0u;
-    uint32_t rng;
-    magcal_ellipse_t best;
-    magcal_ellipse_t cur;
-    float best_score = INFINITY;
-    uint16_t draws = 0u;
-    uint16_t valid = 0u;
-    uint16_t rounds = 0u;
+    float best_score;
     float sigma;
     float thr;
-    size_t n_in = 0u;
+    size_t n_in;
+    uint32_t rng;
+    uint16_t draws;
+    uint16_t valid;
+    uint16_t rounds;
+    uint16_t idx[5];
+} cons_state_t;
+
+/* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
+MAGCAL_STATIC_ASSERT(sizeof(cons_state_t) + sizeof(void *) - 1u <= MAGCAL_CONSENSUS_STATE_LEN_,
+                     consensus_state_fits_workspace);
+
+/* 1. candidates and their angular order around the coordinate-wise median */
+static MAGCAL_NOINLINE magcal_status_t cons_order(cons_state_t *S, const uint8_t *cand_mask)
+{
+    const magcal_vec2_t *pts = S->pts;
+    uint16_t *order = S->order;
+    float *scr = S->scr;
+    size_t i;
+    size_t m = 0u;
+    float cx;
+    float cy;
+    for (i = 0u; i < S->n; ++i) {
+        if (cand_mask == NULL || cand_mask[i] != 0u) {
+            order[m] = (uint16_t)i;
+            ++m;
+        }
+    }
+    S->m = m;
+    if (m < MAGCAL_ELLIPSE_MIN_POINTS) {
+        return MAGCAL_ERR_TOO_FEW_POINTS;
+    }
+    for (i = 0u; i < m; ++i) {
+        scr[i] = pts[order[i]].x;
+    }
+    cx = cons_median(scr, m);
+    for (i = 0u; i < m; ++i) {
+        scr[i] = pts[order[i]].y;
+    }
+    cy = cons_median(scr, m);
+    for (i = 0u; i < m; ++i) {
+        const magcal_vec2_t *p = &pts[order[i]];
+        scr[i] = atan2f(p->y - cy, p->x - cx);
+    }
+    cons_sort(scr, order, m);
+    return MAGCAL_OK;
+}
+
+/* 2. minimal sets spread over the angular order; LMedS score over every sample */
+static MAGCAL_NOINLINE void cons_draw(cons_state_t *S)
+{
+    const size_t m = S->m;
+    const size_t fifth = m / 5u;
+    uint16_t it;
+    for (it = 0u; it < S->cfg->max_iter; ++it) {
+        uint32_t off = magcal_prng_next(&S->rng, (uint32_t)m);
+        size_t j;
+        for (j = 0u; j < 5u; ++j) {
+            uint32_t jit = magcal_prng_next(&S->rng, (uint32_t)fifth);
+            S->idx[j] = S->order[((size_t)off + j * fifth + (size_t)jit) % m];
+        }
+        ++S->draws;
+        if (magcal_ellipse_fit_idx(S->pts, S->n, S->idx, 5u, &S->cand) == MAGCAL_OK) {
+            float score;
+            cons_residuals(&S->cand, S->pts, S->n, S->res);
+            ++S->valid;
+            score = cons_median(S->res, S->n);
+            if (score < S->best_score) {
+                S->best_score = score;
+                S->best = S->cand;
+            }
+        }
+    }
+}
+
+/* Start model: the best minimal set, or (none valid) the least-squares fit of the candidates;
+ * res gets its residuals. */
+static MAGCAL_NOINLINE magcal_status_t cons_start(cons_state_t *S)
+{
+    if (S->valid == 0u) {
+        size_t i;
+        magcal_status_t st = magcal_ellipse_fit_idx(S->pts, S->n, S->order, S->m, &S->best);
+        if (st != MAGCAL_OK) {
+            return st;
+        }
+        cons_residuals(&S->best, S->pts, S->n, S->res);
+        for (i = 0u; i < S->n; ++i) {
+            S->scr[i] = S->res[i];
+        }
+        S->best_score = cons_median(S->scr, S->n);
+    } else {
+        cons_residuals(&S->best, S->pts, S->n, S->res);
+    }
+    return MAGCAL_OK;
+}
+
+/* Working mask wm (0/1 per sample) -> ascending index list in place; returns its length. */
+static size_t cons_compact(uint16_t *wm, size_t n)
+{
+    size_t i;
+    size_t k = 0u;
+    for (i = 0u; i < n; ++i) {
+        if (wm[i] != 0u) {
+            wm[k] = (uint16_t)i;
+            ++k;
+        }
+    }
+    return k;
+}
+
+/* Index list of length k -> 0/1 mask again (backwards keeps entries not yet read). */
+static void cons_expand(uint16_t *wm, size_t n, size_t k)
+{
+    size_t q = k;
+    size_t t;
+    for (t = n; t > 0u; --t) {
+        size_t s = t - 1u;
+        if (q > 0u && wm[q - 1u] == (uint16_t)s) {
+            --q;
+            wm[s] = 1u;
+        } else {
+            wm[s] = 0u;
+        }
+    }
+}
+
+/* New threshold from the current inliers' residuals, new inlier mask; returns the changed count. */
+static size_t cons_rethreshold(cons_state_t *S, uint16_t *wm)
+{
+    const size_t n = S->n;
+    size_t changed = 0u;
+    size_t k = 0u;
+    size_t i;
+    float nsig;
+    float nthr;
+    for (i = 0u; i < n; ++i) {
+        if (wm[i] != 0u) {
+            S->scr[k] = S->res[i];
+            ++k;
+        }
+    }
+    nsig = CONS_MAD_TO_SIGMA * cons_median(S->scr, k);
+    nthr = cons_threshold(S->cfg, &S->cur, nsig);
+    for (i = 0u; i < n; ++i) {
+        uint16_t v = (uint16_t)(S->res[i] <= nthr ? 1u : 0u);
+        if (v != wm[i]) {
+            ++changed;
+            wm[i] = v;
+        }
+    }
+    S->sigma = nsig;
+    S->thr = nthr;
+    return changed;
+}
+
+/* Start of step 3: current model = best, its threshold, the working inlier mask wm. */
+static MAGCAL_NOINLINE void cons_refine_init(cons_state_t *S, uint16_t *wm)
+{
+    size_t i;
+    S->cur = S->best;
+    S->sigma = CONS_MAD_TO_SIGMA * S->best_score;
+    S->thr = cons_threshold(S->cfg, &S->cur, S->sigma);
+    for (i = 0u; i < S->n; ++i) {
+        wm[i] = (uint16_t)(S->res[i] <= S->thr ? 1u : 0u);
+    }
+}
+
+/* 3. threshold, inliers over every sample, refit; until the set is stable */
+static MAGCAL_NOINLINE magcal_status_t cons_refine(cons_state_t *S)
+{
+    /* Working inlier set: order[] (the candidate list is no longer needed) as a 0/1 mask per
+     * sample; inlier_mask is written only on success. */
+    uint16_t *wm = S->order;
+    const size_t n = S->n;
+    size_t i;
+    uint16_t r;
+    int stop = 0;
+    cons_refine_init(S, wm);
+    for (r = 0u; (r < S->cfg->refine_iter) && (stop == 0); ++r) {
+        magcal_status_t st;
+        /* compact the mask into an ascending index list in place, fit, expand it back */
+        const size_t k = cons_compact(wm, n);
+        if (k < MAGCAL_ELLIPSE_MIN_POINTS) {
+            return MAGCAL_ERR_TOO_FEW_POINTS;
+        }
+        st = magcal_ellipse_fit_idx(S->pts, n, wm, k, &S->next);
+        cons_expand(wm, n, k);
+        if (st != MAGCAL_OK) {
+            stop = 1; /* keep the last good model */
+        } else {
+            ++S->rounds;
+            cons_residuals(&S->next, S->pts, n, S->res);
+            S->cur = S->next;
+            if (cons_rethreshold(S, wm) == 0u) {
+                stop = 1;
+            }
+        }
+    }
+    /* final verdict for every sample against `cur` (res holds cur's residuals unless the
+     * last refit failed; recompute to be exact) */
+    cons_residuals(&S->cur, S->pts, n, S->res);
+    S->n_in = 0u;
+    for (i = 0u; i < n; ++i) {
+        if (S->res[i] <= S->thr) {
+            ++S->n_in;
+        }
+    }
+    if (S->n_in < MAGCAL_ELLIPSE_MIN_POINTS) {
+        return MAGCAL_ERR_TOO_FEW_POINTS;
+    }
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_consensus_run(const magcal_consensus_cfg_t *cfg, const magcal_vec2_t *pts,
+                                     size_t n, const uint8_t *cand_mask, void *work,
+                                     size_t work_len, uint8_t *inlier_mask,
+                                     magcal_consensus_result_t *result)
+{
+    cons_state_t *S;
+    size_t i;
     magcal_status_t st;
 
     if (cfg == NULL || pts == NULL || work == NULL || inlier_mask == NULL || result == NULL) {
@@ -181,175 +400,38 @@ magcal_status_t magcal_consensus_run(const magcal_consensus_cfg_t *cfg, const ma
         }
     }
 
-    /* carve the workspace: res[n], scr[n] (4-aligned), order[n] */
-    base = ((uintptr_t)work + 3u) & ~(uintptr_t)3u;
-    res = (float *)base;
-    scr = res + n;
-    order = (uint16_t *)(void *)(scr + n);
+    /* carve the workspace (aligned for pointers): the run state, res[n], scr[n], order[n] */
+    S = (cons_state_t *)(void *)((uint8_t *)work +
+                                 ((sizeof(void *) - magcal_misalign(work, sizeof(void *))) %
+                                  sizeof(void *)));
+    S->cfg = cfg;
+    S->pts = pts;
+    S->n = n;
+    S->m = 0u;
+    S->res = (float *)(void *)(S + 1);
+    S->scr = S->res + n;
+    S->order = (uint16_t *)(void *)(S->scr + n);
+    S->best_score = INFINITY;
+    S->sigma = 0.0f;
+    S->thr = 0.0f;
+    S->n_in = 0u;
+    S->rng = cfg->seed;
+    S->draws = 0u;
+    S->valid = 0u;
+    S->rounds = 0u;
 
-    /* 1. candidates and their angular order around the coordinate-wise median */
-    for (i = 0u; i < n; ++i) {
-        if (cand_mask == NULL || cand_mask[i] != 0u) {
-            order[m] = (uint16_t)i;
-            ++m;
-        }
+    st = cons_order(S, cand_mask);
+    if (st != MAGCAL_OK) {
+        return st;
     }
-    if (m < MAGCAL_ELLIPSE_MIN_POINTS) {
-        return MAGCAL_ERR_TOO_FEW_POINTS;
+    cons_draw(S);
+    st = cons_start(S);
+    if (st != MAGCAL_OK) {
+        return st;
     }
-    {
-        float cx;
-        float cy;
-        for (i = 0u; i < m; ++i) {
-            scr[i] = pts[order[i]].x;
-        }
-        cx = cons_median(scr, m);
-        for (i = 0u; i < m; ++i) {
-            scr[i] = pts[order[i]].y;
-        }
-        cy = cons_median(scr, m);
-        for (i = 0u; i < m; ++i) {
-            const magcal_vec2_t *p = &pts[order[i]];
-            scr[i] = atan2f(p->y - cy, p->x - cx);
-        }
-        cons_sort(scr, order, m);
-    }
-
-    /* 2. minimal sets spread over the angular order; LMedS score over every sample */
-    rng = cfg->seed;
-    {
-        size_t fifth = m / 5u;
-        uint16_t it;
-        for (it = 0u; it < cfg->max_iter; ++it) {
-            uint16_t idx[5];
-            uint32_t off = magcal_prng_next(&rng, (uint32_t)m);
-            size_t j;
-            magcal_ellipse_t cand;
-            float score;
-            for (j = 0u; j < 5u; ++j) {
-                uint32_t jit = magcal_prng_next(&rng, (uint32_t)fifth);
-                idx[j] = order[((size_t)off + j * fifth + (size_t)jit) % m];
-            }
-            ++draws;
-            if (magcal_ellipse_fit_idx(pts, n, idx, 5u, &cand) != MAGCAL_OK) {
-                continue;
-            }
-            if (cons_residuals(&cand, pts, n, res) != 0) {
-                continue;
-            }
-            ++valid;
-            score = cons_median(res, n);
-            if (score < best_score) {
-                best_score = score;
-                best = cand;
-            }
-        }
-    }
-    if (valid == 0u) {
-        /* no minimal set gave an ellipse: start from the least-squares fit of the candidates */
-        st = magcal_ellipse_fit_idx(pts, n, order, m, &best);
-        if (st != MAGCAL_OK) {
-            return st;
-        }
-        if (cons_residuals(&best, pts, n, res) != 0) {
-            return MAGCAL_ERR_NONFINITE;
-        }
-        for (i = 0u; i < n; ++i) {
-            scr[i] = res[i];
-        }
-        best_score = cons_median(scr, n);
-    } else if (cons_residuals(&best, pts, n, res) != 0) {
-        return MAGCAL_ERR_NONFINITE;
-    }
-
-    /* 3. threshold, inliers over every sample, refit; until the set is stable */
-    cur = best;
-    sigma = CONS_MAD_TO_SIGMA * best_score;
-    thr = cons_threshold(cfg, &cur, sigma);
-    {
-        /* Working inlier set: order[] (the candidate list is no longer needed) as a 0/1 mask per
-         * sample; inlier_mask is written only on success. */
-        uint16_t *wm = order;
-        uint16_t r;
-        for (i = 0u; i < n; ++i) {
-            wm[i] = (uint16_t)(res[i] <= thr ? 1u : 0u);
-        }
-        for (r = 0u; r < cfg->refine_iter; ++r) {
-            magcal_ellipse_t next;
-            size_t k = 0u;
-            size_t changed = 0u;
-            float nsig;
-            float nthr;
-            /* compact the mask into an ascending index list in place, fit, expand it back */
-            for (i = 0u; i < n; ++i) {
-                if (wm[i] != 0u) {
-                    wm[k] = (uint16_t)i;
-                    ++k;
-                }
-            }
-            if (k < MAGCAL_ELLIPSE_MIN_POINTS) {
-                return MAGCAL_ERR_TOO_FEW_POINTS;
-            }
-            st = magcal_ellipse_fit_idx(pts, n, wm, k, &next);
-            /* restore wm as a 0/1 mask from the list (backwards keeps entries not yet read) */
-            {
-                size_t q = k;
-                size_t t;
-                for (t = n; t > 0u; --t) {
-                    size_t s = t - 1u;
-                    if (q > 0u && wm[q - 1u] == (uint16_t)s) {
-                        --q;
-                        wm[s] = 1u;
-                    } else {
-                        wm[s] = 0u;
-                    }
-                }
-            }
-            if (st != MAGCAL_OK) {
-                break; /* keep the last good model */
-            }
-            ++rounds;
-            if (cons_residuals(&next, pts, n, res) != 0) {
-                break;
-            }
-            cur = next;
-            /* sigma from the current inliers' residuals */
-            k = 0u;
-            for (i = 0u; i < n; ++i) {
-                if (wm[i] != 0u) {
-                    scr[k] = res[i];
-                    ++k;
-                }
-            }
-            nsig = CONS_MAD_TO_SIGMA * cons_median(scr, k);
-            nthr = cons_threshold(cfg, &cur, nsig);
-            for (i = 0u; i < n; ++i) {
-                uint16_t v = (uint16_t)(res[i] <= nthr ? 1u : 0u);
-                if (v != wm[i]) {
-                    ++changed;
-                    wm[i] = v;
-                }
-            }
-            sigma = nsig;
-            thr = nthr;
-            if (changed == 0u) {
-                break;
-            }
-        }
-        /* final verdict for every sample against `cur` (res holds cur's residuals unless the
-         * last refit failed; recompute to be exact) */
-        if (cons_residuals(&cur, pts, n, res) != 0) {
-            return MAGCAL_ERR_NONFINITE;
-        }
-        n_in = 0u;
-        for (i = 0u; i < n; ++i) {
-            if (res[i] <= thr) {
-                ++n_in;
-            }
-        }
-        if (n_in < MAGCAL_ELLIPSE_MIN_POINTS) {
-            return MAGCAL_ERR_TOO_FEW_POINTS;
-        }
+    st = cons_refine(S);
+    if (st != MAGCAL_OK) {
+        return st;
     }
 
     /* success: write outputs */
@@ -357,7 +439,7 @@ magcal_status_t magcal_consensus_run(const magcal_consensus_cfg_t *cfg, const ma
         uint16_t rescued = 0u;
         uint16_t rejected = 0u;
         for (i = 0u; i < n; ++i) {
-            uint8_t in = (uint8_t)(res[i] <= thr ? 1u : 0u);
+            uint8_t in = (uint8_t)(S->res[i] <= S->thr ? 1u : 0u);
             uint8_t c = (uint8_t)((cand_mask == NULL || cand_mask[i] != 0u) ? 1u : 0u);
             if (in != 0u && c == 0u) {
                 ++rescued;
@@ -367,17 +449,17 @@ magcal_status_t magcal_consensus_run(const magcal_consensus_cfg_t *cfg, const ma
             }
             inlier_mask[i] = in;
         }
-        result->fit = cur;
-        result->sigma = sigma;
-        result->threshold = thr;
-        result->best_score = best_score;
-        result->n_candidates = (uint16_t)m;
-        result->n_inliers = (uint16_t)n_in;
+        result->fit = S->cur;
+        result->sigma = S->sigma;
+        result->threshold = S->thr;
+        result->best_score = S->best_score;
+        result->n_candidates = (uint16_t)S->m;
+        result->n_inliers = (uint16_t)S->n_in;
         result->n_rescued = rescued;
         result->n_rejected = rejected;
-        result->draws = draws;
-        result->valid_models = valid;
-        result->rounds = rounds;
+        result->draws = S->draws;
+        result->valid_models = S->valid;
+        result->rounds = S->rounds;
     }
     return MAGCAL_OK;
 }

@@ -12,13 +12,16 @@
 static size_t count_neighbors(const magcal_nbr_t *nb, size_t p, float eps2)
 {
     magcal_nbr_ranges_t rg;
-    size_t ri, k, cnt = 0u;
+    size_t ri;
+    size_t k;
+    size_t cnt = 0u;
     const magcal_vec2_t *pts = nb->pts;
     magcal_nbr_query(nb, p, &rg);
     for (ri = 0; ri < rg.n_ranges; ++ri) {
         for (k = rg.begin[ri]; k < rg.end[ri]; ++k) {
             size_t j = rg.idx != NULL ? rg.idx[k] : k;
-            float dx = pts[j].x - pts[p].x, dy = pts[j].y - pts[p].y;
+            float dx = pts[j].x - pts[p].x;
+            float dy = pts[j].y - pts[p].y;
             if (dx * dx + dy * dy <= eps2) {
                 ++cnt;
             }
@@ -35,14 +38,17 @@ magcal_status_t magcal_dbscan_run(const magcal_dbscan_cfg_t *cfg, const magcal_v
     magcal_status_t st;
     uint16_t *queue;
     float eps2;
-    size_t s, i;
+    size_t s;
+    size_t i;
     int32_t id = -1;
     if (cfg == NULL || pts == NULL || work == NULL || labels == NULL) {
         return MAGCAL_ERR_NULL;
     }
-    if (!(cfg->eps > 0.0f) || cfg->min_pts < 2u || cfg->min_pts > MAGCAL_MAX_MIN_PTS ||
+    /* eps^2 is the neighbour threshold: it must be a normal float (neighbors.h) */
+    if (magcal_nbr_eps_ok(cfg->eps) == 0 || cfg->min_pts < 2u ||
+        cfg->min_pts > MAGCAL_MAX_MIN_PTS ||
         (cfg->neighbors != MAGCAL_NEIGHBORS_BRUTE && cfg->neighbors != MAGCAL_NEIGHBORS_GRID) ||
-        ((uintptr_t)work & 3u) != 0u || n > MAGCAL_MAX_SAMPLES) {
+        magcal_misalign(work, 4u) != 0u || n > MAGCAL_MAX_SAMPLES) {
         return MAGCAL_ERR_ARG;
     }
     if (n < cfg->min_pts) {
@@ -62,7 +68,8 @@ magcal_status_t magcal_dbscan_run(const magcal_dbscan_cfg_t *cfg, const magcal_v
         labels[i] = LABEL_UNSEEN;
     }
     for (s = 0; s < n; ++s) {
-        size_t head = 0u, tail = 0u;
+        size_t head = 0u;
+        size_t tail = 0u;
         if (labels[s] != LABEL_UNSEEN) {
             continue;
         }
@@ -72,12 +79,15 @@ magcal_status_t magcal_dbscan_run(const magcal_dbscan_cfg_t *cfg, const magcal_v
         }
         ++id;
         labels[s] = (int16_t)id;
-        queue[tail++] = (uint16_t)s;
+        queue[tail] = (uint16_t)s;
+        ++tail;
         /* Breadth-first expansion; each point enters the queue at most once (labelled on entry). */
         while (head < tail) {
-            size_t p = queue[head++];
+            size_t p = queue[head];
             magcal_nbr_ranges_t rg;
-            size_t ri, k;
+            size_t ri;
+            size_t k;
+            ++head;
             if (p != s && count_neighbors(&nb, p, eps2) < cfg->min_pts) {
                 continue; /* border point: labelled, not expanded */
             }
@@ -85,22 +95,27 @@ magcal_status_t magcal_dbscan_run(const magcal_dbscan_cfg_t *cfg, const magcal_v
             for (ri = 0; ri < rg.n_ranges; ++ri) {
                 for (k = rg.begin[ri]; k < rg.end[ri]; ++k) {
                     size_t j = rg.idx != NULL ? rg.idx[k] : k;
-                    float dx = pts[j].x - pts[p].x, dy = pts[j].y - pts[p].y;
+                    float dx = pts[j].x - pts[p].x;
+                    float dy = pts[j].y - pts[p].y;
                     if (dx * dx + dy * dy > eps2) {
                         continue;
                     }
                     if (labels[j] == LABEL_UNSEEN) {
                         labels[j] = (int16_t)id;
-                        queue[tail++] = (uint16_t)j;
+                        queue[tail] = (uint16_t)j;
+                        ++tail;
                     } else if (labels[j] == MAGCAL_OPTICS_NOISE) {
                         labels[j] = (int16_t)id; /* border point: non-core, never expanded */
+                    } else {
+                        /* already in a cluster: nothing to do */
                     }
                 }
             }
         }
     }
     if (n_clusters != NULL) {
-        *n_clusters = (uint16_t)(id + 1);
+        const int32_t count = id + 1;
+        *n_clusters = (uint16_t)count;
     }
     if (used != NULL) {
         *used = nb.use_grid ? MAGCAL_NEIGHBORS_GRID : MAGCAL_NEIGHBORS_BRUTE;

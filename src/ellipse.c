@@ -18,14 +18,6 @@
 
 #include "magcal_internal.h"
 
-/* Keep the 5-point path (its 5x6 tableau) out of magcal_ellipse_fit_idx's frame, which also sits
- * on the deepest path fit_normal -> moments_solve -> magcal_ldlt_solve. Plain C99 elsewhere. */
-#if defined(__GNUC__)
-#define ELLIPSE_NOINLINE __attribute__((noinline))
-#else
-#define ELLIPSE_NOINLINE
-#endif
-
 /* Power sums S_pq = sum x~^p y~^q kept by the accumulator (indices into mom[]). */
 #define S10 0u
 #define S01 1u
@@ -57,6 +49,15 @@ typedef struct {
     float isx;
     float isy;
 } fit_norm_t;
+
+/* The points of a masked fit: pts[k] where mask[k] != 0 (mask NULL: every point). */
+static void src_masked(fit_src_t *src, const magcal_vec2_t *pts, size_t n, const uint8_t *mask)
+{
+    src->pts = pts;
+    src->n = n;
+    src->mask = mask;
+    src->idx = NULL;
+}
 
 static int src_point(const fit_src_t *src, size_t k, magcal_vec2_t *p)
 {
@@ -128,7 +129,7 @@ static magcal_status_t norm_centred(const float bb[4], fit_norm_t *nm, float *sc
     float r;
 
     if (!magcal_isfinite_f(wx) || !magcal_isfinite_f(wy)) {
-        return MAGCAL_ERR_NONFINITE; /* range overflows float32 */
+        return MAGCAL_ERR_ILL_CONDITIONED; /* finite points whose range overflows float32 */
     }
     if (!(big > 0.0f)) {
         return MAGCAL_ERR_DEGENERATE; /* all points identical */
@@ -141,14 +142,6 @@ static magcal_status_t norm_centred(const float bb[4], fit_norm_t *nm, float *sc
     nm->isy = nm->isx;
     *scale = s;
     return MAGCAL_OK;
-}
-
-static void kahan_add(float *sum, float *comp, float v)
-{
-    float y = v - *comp;
-    float t = *sum + y;
-    *comp = (t - *sum) - y;
-    *sum = t;
 }
 
 /* Pass 2: power sums of the normalised points, Kahan-compensated unless plain != 0 (the seed's
@@ -190,7 +183,7 @@ static void src_moments(const fit_src_t *src, const fit_norm_t *nm, int plain, f
             if (plain != 0) {
                 mom[j] += v[j];
             } else {
-                kahan_add(&mom[j], &comp[j], v[j]);
+                magcal_kahan_add(&mom[j], &comp[j], v[j]);
             }
         }
     }
@@ -219,9 +212,6 @@ static int moments_collinear(const float *mom, float cnt)
 static magcal_status_t moments_solve(float mom[S_COUNT], float cnt, float *min_pivot)
 {
     float a[25];
-    float b[5];
-    magcal_status_t st;
-    size_t i;
 
     a[0] = mom[S22];
     a[5] = mom[S13];
@@ -249,19 +239,14 @@ static magcal_status_t moments_solve(float mom[S_COUNT], float cnt, float *min_p
     a[13] = a[17];
     a[14] = a[22];
     a[19] = a[23];
-    b[0] = -mom[S31];
-    b[1] = -mom[S22];
-    b[2] = -mom[S30];
-    b[3] = -mom[S21];
-    b[4] = -mom[S20];
-    st = magcal_ldlt_solve(a, b, 5u, MAGCAL_ELLIPSE_PIVOT_TOL, min_pivot);
-    if (st != MAGCAL_OK) {
-        return st;
-    }
-    for (i = 0u; i < 5u; ++i) {
-        mom[i] = b[i];
-    }
-    return MAGCAL_OK;
+    /* right-hand side in mom[0..4], solved in place (no separate b[] on the stack); the order
+     * writes each entry after its last read: S20 = mom[2] before mom[2] is replaced */
+    mom[4] = -mom[S20];
+    mom[0] = -mom[S31];
+    mom[1] = -mom[S22];
+    mom[2] = -mom[S30];
+    mom[3] = -mom[S21];
+    return magcal_ldlt_solve(a, mom, 5u, MAGCAL_ELLIPSE_PIVOT_TOL, min_pivot);
 }
 
 float magcal_ellipse_residual(const magcal_ellipse_t *e, magcal_vec2_t p)
@@ -300,7 +285,7 @@ static float src_residual_rms(const fit_src_t *src, const magcal_ellipse_t *e, s
             continue;
         }
         r = magcal_ellipse_residual(e, p);
-        kahan_add(&sum, &comp, r * r);
+        magcal_kahan_add(&sum, &comp, r * r);
     }
     return sqrtf(sum / (float)cnt);
 }
@@ -420,40 +405,24 @@ magcal_status_t magcal_ellipse_fit(const magcal_vec2_t *pts, size_t n, const uin
     if (pts == NULL || out == NULL) {
         return MAGCAL_ERR_NULL;
     }
-    src.pts = pts;
-    src.n = n;
-    src.mask = mask;
-    src.idx = NULL;
+    src_masked(&src, pts, n, mask);
     return fit_normal(&src, out);
 }
 
 /* Exact conic through 5 points: Gaussian elimination with partial pivoting on W X = Y. */
-static ELLIPSE_NOINLINE magcal_status_t fit_five(const fit_src_t *src, magcal_ellipse_t *out)
+/* Exact conic through the 5 normalised points of src: Gaussian elimination with partial pivoting
+ * on W X = Y, into coef[5]; *minp gets the smallest pivot. Its own frame (the 5x6 tableau) is not
+ * nested under conic_finish(): MAGCAL_NOINLINE keeps the deepest stack path of the fits short. */
+static MAGCAL_NOINLINE magcal_status_t five_solve(const fit_src_t *src, const fit_norm_t *nm,
+                                                  float coef[5], float *minp)
 {
     float w[5][6];
-    float coef[5];
     float mom[5];
-    float s = 1.0f;
-    float minp = 1.0f;
     float ptol = sqrtf(MAGCAL_ELLIPSE_PIVOT_TOL);
-    size_t cnt = 0u;
     size_t i;
     size_t j;
     size_t k;
-    fit_norm_t nm;
-    magcal_status_t st;
 
-    for (i = 0u; i < 5u; ++i) {
-        for (j = i + 1u; j < 5u; ++j) {
-            if (src->idx[i] == src->idx[j]) {
-                return MAGCAL_ERR_DEGENERATE;
-            }
-        }
-    }
-    st = prepare_centred(src, &cnt, &nm, &s);
-    if (st != MAGCAL_OK) {
-        return st;
-    }
     for (i = 0u; i < 5u; ++i) {
         mom[i] = 0.0f;
     }
@@ -462,8 +431,8 @@ static ELLIPSE_NOINLINE magcal_status_t fit_five(const fit_src_t *src, magcal_el
      * (the first five moment indices) for the collinearity test. */
     for (i = 0u; i < 5u; ++i) {
         magcal_vec2_t p = src->pts[src->idx[i]];
-        float x = (p.x - nm.mx) * nm.isx;
-        float y = (p.y - nm.my) * nm.isy;
+        float x = (p.x - nm->mx) * nm->isx;
+        float y = (p.y - nm->my) * nm->isy;
         w[i][0] = x * y;
         w[i][1] = y * y;
         w[i][2] = x;
@@ -479,6 +448,7 @@ static ELLIPSE_NOINLINE magcal_status_t fit_five(const fit_src_t *src, magcal_el
     if (moments_collinear(mom, 5.0f) != 0) {
         return MAGCAL_ERR_DEGENERATE;
     }
+    *minp = 1.0f;
     for (k = 0u; k < 5u; ++k) {
         size_t piv = k;
         float best = fabsf(w[k][k]);
@@ -491,7 +461,7 @@ static ELLIPSE_NOINLINE magcal_status_t fit_five(const fit_src_t *src, magcal_el
         if (!(best > ptol)) {
             return MAGCAL_ERR_ILL_CONDITIONED;
         }
-        minp = (best < minp) ? best : minp;
+        *minp = (best < *minp) ? best : *minp;
         if (piv != k) {
             for (j = k; j < 6u; ++j) {
                 float t = w[k][j];
@@ -514,6 +484,37 @@ static ELLIPSE_NOINLINE magcal_status_t fit_five(const fit_src_t *src, magcal_el
             acc -= w[k][j] * coef[j];
         }
         coef[k] = acc / w[k][k];
+    }
+    return MAGCAL_OK;
+}
+
+/* MAGCAL_NOINLINE: keep the 5-point path out of magcal_ellipse_fit_idx's frame, which also sits
+ * on the deepest path fit_normal -> moments_solve -> magcal_ldlt_solve. */
+static MAGCAL_NOINLINE magcal_status_t fit_five(const fit_src_t *src, magcal_ellipse_t *out)
+{
+    float coef[5];
+    float s = 1.0f;
+    float minp = 1.0f;
+    size_t cnt = 0u;
+    size_t i;
+    size_t j;
+    fit_norm_t nm;
+    magcal_status_t st;
+
+    for (i = 0u; i < 5u; ++i) {
+        for (j = i + 1u; j < 5u; ++j) {
+            if (src->idx[i] == src->idx[j]) {
+                return MAGCAL_ERR_DEGENERATE;
+            }
+        }
+    }
+    st = prepare_centred(src, &cnt, &nm, &s);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    st = five_solve(src, &nm, coef, &minp);
+    if (st != MAGCAL_OK) {
+        return st;
     }
     return conic_finish(coef, nm.mx, nm.my, s, minp, 5u, src, out);
 }
@@ -585,10 +586,7 @@ magcal_status_t magcal_ellipse_fit_seed(const magcal_vec2_t *pts, size_t n, cons
     if (pts == NULL || out == NULL) {
         return MAGCAL_ERR_NULL;
     }
-    src.pts = pts;
-    src.n = n;
-    src.mask = mask;
-    src.idx = NULL;
+    src_masked(&src, pts, n, mask);
     st = prepare_seed(&src, &cnt, &nm);
     if (st != MAGCAL_OK) {
         return st;

@@ -12,16 +12,16 @@
 #include "magcal/ellipsoid.h"
 #include "magcal_internal.h"
 
-#define NQ 10u                      /* quadric row length */
+#define NQ 10u                        /* quadric row length */
 #define NPACK ((NQ * (NQ + 1u)) / 2u) /* packed lower triangle */
-#define COV_CELLS (MAGCAL_ELLIPSOID_COV_AZ * MAGCAL_ELLIPSOID_COV_EL)
+#define COV_CELLS ((size_t)MAGCAL_ELLIPSOID_COV_AZ * MAGCAL_ELLIPSOID_COV_EL)
 #define MIN_QUADRIC_POINTS 10u
 #define MIN_SPHERE_POINTS 4u
 #define MAX_REFITS_LIMIT 8u
-#define JACOBI_SWEEPS 12u
 #define INVITER_STEPS 8u
 #define INVITER_SHIFT_TRIES 3u
 
+/* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
 MAGCAL_STATIC_ASSERT(COV_CELLS <= 96u, coverage_cells_fit_three_words);
 
 /* Normalisation and Kahan-compensated normal matrix. */
@@ -43,18 +43,10 @@ static size_t pidx(size_t i, size_t j)
     return (i * (i + 1u)) / 2u + j;
 }
 
-static void kahan_add(float *sum, float *comp, float v)
-{
-    float y = v - *comp;
-    float t = *sum + y;
-    *comp = (t - *sum) - y;
-    *sum = t;
-}
-
-static float residual_of(const magcal_ellipsoid_cal_t *cal, const magcal_vec3_t *m)
+/* h = G (m - V): the correction of one sample. */
+static void correct3(const magcal_ellipsoid_cal_t *cal, const magcal_vec3_t *m, float h[3])
 {
     float e[3];
-    float h[3];
     size_t i;
     e[0] = m->x - cal->v.x;
     e[1] = m->y - cal->v.y;
@@ -62,6 +54,12 @@ static float residual_of(const magcal_ellipsoid_cal_t *cal, const magcal_vec3_t 
     for (i = 0u; i < 3u; ++i) {
         h[i] = cal->g[i][0] * e[0] + cal->g[i][1] * e[1] + cal->g[i][2] * e[2];
     }
+}
+
+static float residual_of(const magcal_ellipsoid_cal_t *cal, const magcal_vec3_t *m)
+{
+    float h[3];
+    correct3(cal, m, h);
     return sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) - cal->field;
 }
 
@@ -73,8 +71,8 @@ static int gate_keeps(const quad_gate_t *gate, const magcal_vec3_t *m)
     return fabsf(residual_of(gate->cal, m)) < gate->thr;
 }
 
-static void accumulate(const magcal_vec3_t *m, size_t n, const float mu[3], float inv_s, const quad_gate_t *gate,
-                       quad_acc_t *acc)
+static void accumulate(const magcal_vec3_t *m, size_t n, const float mu[3], float inv_s,
+                       const quad_gate_t *gate, quad_acc_t *acc)
 {
     size_t k;
     size_t i;
@@ -104,7 +102,7 @@ static void accumulate(const magcal_vec3_t *m, size_t n, const float mu[3], floa
         for (i = 0u; i < NQ; ++i) {
             for (j = 0u; j <= i; ++j) {
                 size_t p = pidx(i, j);
-                kahan_add(&acc->sum[p], &acc->comp[p], row[i] * row[j]);
+                magcal_kahan_add(&acc->sum[p], &acc->comp[p], row[i] * row[j]);
             }
         }
         acc->count++;
@@ -116,84 +114,9 @@ static float acc_at(const quad_acc_t *acc, size_t i, size_t j)
     return (i >= j) ? acc->sum[pidx(i, j)] : acc->sum[pidx(j, i)];
 }
 
-static float det3(float a[3][3])
-{
-    return a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) +
-           a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
-}
-
-/* Cyclic Jacobi on a symmetric 3x3: a = E diag(w) E^T (columns of e are eigenvectors). */
-static magcal_status_t jacobi3(float a_in[3][3], float w[3], float e[3][3])
-{
-    float a[3][3];
-    size_t sweep;
-    size_t i;
-    size_t j;
-    float scale = 0.0f;
-    (void)memcpy(a, a_in, sizeof(a));
-    for (i = 0u; i < 3u; ++i) {
-        for (j = 0u; j < 3u; ++j) {
-            e[i][j] = (i == j) ? 1.0f : 0.0f;
-            scale += a[i][j] * a[i][j];
-        }
-    }
-    for (sweep = 0u; sweep < JACOBI_SWEEPS; ++sweep) {
-        size_t p;
-        float off = a[0][1] * a[0][1] + a[0][2] * a[0][2] + a[1][2] * a[1][2];
-        if (off <= 1e-14f * scale) {
-            w[0] = a[0][0];
-            w[1] = a[1][1];
-            w[2] = a[2][2];
-            return MAGCAL_OK;
-        }
-        for (p = 0u; p < 2u; ++p) {
-            size_t q;
-            for (q = p + 1u; q < 3u; ++q) {
-                float apq = a[p][q];
-                float theta;
-                float t;
-                float c;
-                float s;
-                size_t k;
-                if (apq == 0.0f) {
-                    continue;
-                }
-                theta = (a[q][q] - a[p][p]) / (2.0f * apq);
-                t = 1.0f / (fabsf(theta) + sqrtf(theta * theta + 1.0f));
-                if (theta < 0.0f) {
-                    t = -t;
-                }
-                c = 1.0f / sqrtf(t * t + 1.0f);
-                s = t * c;
-                for (k = 0u; k < 3u; ++k) { /* a <- a J (columns p, q) */
-                    float akp = a[k][p];
-                    float akq = a[k][q];
-                    a[k][p] = c * akp - s * akq;
-                    a[k][q] = s * akp + c * akq;
-                }
-                for (k = 0u; k < 3u; ++k) { /* a <- J^T a (rows p, q) */
-                    float apk = a[p][k];
-                    float aqk = a[q][k];
-                    a[p][k] = c * apk - s * aqk;
-                    a[q][k] = s * apk + c * aqk;
-                }
-                for (k = 0u; k < 3u; ++k) {
-                    float ekp = e[k][p];
-                    float ekq = e[k][q];
-                    e[k][p] = c * ekp - s * ekq;
-                    e[k][q] = s * ekp + c * ekq;
-                }
-            }
-        }
-    }
-    return MAGCAL_ERR_NOT_CONVERGED;
-}
-
 /* G with G^T G = q (q positive definite). */
 static magcal_status_t sqrt_spd3(float q[3][3], magcal_ellipsoid_sqrt_t method, float g[3][3])
 {
-    size_t i;
-    size_t j;
     if (method == MAGCAL_ELLIPSOID_SQRT_CHOLESKY) {
         float u00 = q[0][0];
         float u01;
@@ -230,7 +153,12 @@ static magcal_status_t sqrt_spd3(float q[3][3], magcal_ellipsoid_sqrt_t method, 
     } else {
         float w[3];
         float e[3][3];
-        magcal_status_t st = jacobi3(q, w, e);
+        float a[3][3];
+        size_t i;
+        size_t j;
+        magcal_status_t st;
+        (void)memcpy(a, q, sizeof(a)); /* magcal_jacobi_sym destroys its input */
+        st = magcal_jacobi_sym(&a[0][0], 3u, w, &e[0][0]);
         if (st != MAGCAL_OK) {
             return st;
         }
@@ -242,7 +170,8 @@ static magcal_status_t sqrt_spd3(float q[3][3], magcal_ellipsoid_sqrt_t method, 
         }
         for (i = 0u; i < 3u; ++i) {
             for (j = 0u; j < 3u; ++j) {
-                g[i][j] = e[i][0] * w[0] * e[j][0] + e[i][1] * w[1] * e[j][1] + e[i][2] * w[2] * e[j][2];
+                g[i][j] =
+                    e[i][0] * w[0] * e[j][0] + e[i][1] * w[1] * e[j][1] + e[i][2] * w[2] * e[j][2];
             }
         }
     }
@@ -254,8 +183,9 @@ static magcal_status_t sqrt_spd3(float q[3][3], magcal_ellipsoid_sqrt_t method, 
  *   a x^2 + b y^2 + c z^2 + 2f yz + 2g xz + 2h xy + 2p x + 2q y + 2r z + d = 0
  * in normalised coordinates -> calibration in raw coordinates.
  */
-static magcal_status_t extract_quadric(const float coef_in[NQ], const float mu[3], float s, float field_cfg,
-                                       magcal_ellipsoid_sqrt_t method, magcal_ellipsoid_cal_t *cal)
+static magcal_status_t extract_quadric(const float coef_in[NQ], const float mu[3], float s,
+                                       float field_cfg, magcal_ellipsoid_sqrt_t method,
+                                       magcal_ellipsoid_cal_t *cal)
 {
     float coef[NQ];
     float aq[3][3];
@@ -290,7 +220,7 @@ static magcal_status_t extract_quadric(const float coef_in[NQ], const float mu[3
     u[0] = coef[6];
     u[1] = coef[7];
     u[2] = coef[8];
-    det = det3(aq);
+    det = magcal_det3(aq);
     if (!magcal_isfinite_f(det) || det == 0.0f) {
         return MAGCAL_ERR_NOT_ELLIPSOID;
     }
@@ -316,8 +246,9 @@ static magcal_status_t extract_quadric(const float coef_in[NQ], const float mu[3
         }
     }
     /* Sylvester: leading minors of A_q/k positive. */
-    detq = det3(qn);
-    if (!(qn[0][0] > 0.0f) || !(qn[0][0] * qn[1][1] - qn[0][1] * qn[1][0] > 0.0f) || !(detq > 0.0f)) {
+    detq = magcal_det3(qn);
+    if (!(qn[0][0] > 0.0f) || !(qn[0][0] * qn[1][1] - qn[0][1] * qn[1][0] > 0.0f) ||
+        !(detq > 0.0f)) {
         return MAGCAL_ERR_NOT_ELLIPSOID;
     }
     st = sqrt_spd3(qn, method, gn);
@@ -341,7 +272,8 @@ static magcal_status_t extract_quadric(const float coef_in[NQ], const float mu[3
     return MAGCAL_OK;
 }
 
-static magcal_status_t solve_quadric9(const quad_acc_t *acc, float tau, float coef[NQ], float *min_pivot)
+static magcal_status_t solve_quadric9(const quad_acc_t *acc, float tau, float coef[NQ],
+                                      float *min_pivot)
 {
     float a[9u * 9u];
     float b[9];
@@ -366,7 +298,8 @@ static magcal_status_t solve_quadric9(const quad_acc_t *acc, float tau, float co
 }
 
 /* Smallest eigenvector of D^T D by inverse iteration with a shifted LDL^T (algorithms.md 3.2). */
-static magcal_status_t solve_quadric10(const quad_acc_t *acc, float tau, float coef[NQ], float *min_pivot)
+static magcal_status_t solve_quadric10(const quad_acc_t *acc, float tau, float coef[NQ],
+                                       float *min_pivot)
 {
     float a[NQ * NQ];
     float v[NQ];
@@ -395,7 +328,6 @@ static magcal_status_t solve_quadric10(const quad_acc_t *acc, float tau, float c
         v[2] = 0.5f;
         v[9] = -0.5f;
         for (it = 0u; it < INVITER_STEPS; ++it) {
-            float nrm = 0.0f;
             for (i = 0u; i < NQ; ++i) {
                 for (j = 0u; j < NQ; ++j) {
                     a[i * NQ + j] = acc_at(acc, i, j);
@@ -403,19 +335,22 @@ static magcal_status_t solve_quadric10(const quad_acc_t *acc, float tau, float c
                 a[i * NQ + i] += shift;
             }
             st = magcal_ldlt_solve(a, v, NQ, 0.0f, NULL);
+            if (st == MAGCAL_OK) {
+                float nrm = 0.0f;
+                for (i = 0u; i < NQ; ++i) {
+                    nrm += v[i] * v[i];
+                }
+                nrm = sqrtf(nrm);
+                if (!(nrm > 0.0f) || !magcal_isfinite_f(nrm)) {
+                    st = MAGCAL_ERR_ILL_CONDITIONED;
+                } else {
+                    for (i = 0u; i < NQ; ++i) {
+                        v[i] /= nrm;
+                    }
+                }
+            }
             if (st != MAGCAL_OK) {
                 break;
-            }
-            for (i = 0u; i < NQ; ++i) {
-                nrm += v[i] * v[i];
-            }
-            nrm = sqrtf(nrm);
-            if (!(nrm > 0.0f) || !magcal_isfinite_f(nrm)) {
-                st = MAGCAL_ERR_ILL_CONDITIONED;
-                break;
-            }
-            for (i = 0u; i < NQ; ++i) {
-                v[i] /= nrm;
             }
         }
         if (st == MAGCAL_OK) {
@@ -448,8 +383,9 @@ static magcal_status_t solve_quadric10(const quad_acc_t *acc, float tau, float c
 }
 
 /* Sphere x^2+y^2+z^2 + C x + D y + E z + G0 = 0 from the same moments. */
-static magcal_status_t solve_sphere(const quad_acc_t *acc, const float mu[3], float s, float field_cfg, float tau,
-                                    magcal_ellipsoid_cal_t *cal, float *min_pivot)
+static magcal_status_t solve_sphere(const quad_acc_t *acc, const float mu[3], float s,
+                                    float field_cfg, float tau, magcal_ellipsoid_cal_t *cal,
+                                    float *min_pivot)
 {
     float a[16];
     float b[4];
@@ -467,7 +403,8 @@ static magcal_status_t solve_sphere(const quad_acc_t *acc, const float mu[3], fl
         for (j = 0u; j < 4u; ++j) {
             a[i * 4u + j] = acc_at(acc, lin[i], lin[j]) * fac[i] * fac[j];
         }
-        b[i] = -(acc_at(acc, lin[i], 0u) + acc_at(acc, lin[i], 1u) + acc_at(acc, lin[i], 2u)) * fac[i];
+        b[i] =
+            -(acc_at(acc, lin[i], 0u) + acc_at(acc, lin[i], 1u) + acc_at(acc, lin[i], 2u)) * fac[i];
     }
     st = magcal_ldlt_solve(a, b, 4u, tau, min_pivot);
     if (st != MAGCAL_OK) {
@@ -494,8 +431,9 @@ static magcal_status_t solve_sphere(const quad_acc_t *acc, const float mu[3], fl
     return MAGCAL_OK;
 }
 
-static magcal_status_t fit_model(const quad_acc_t *acc, magcal_ellipsoid_model_t model, const float mu[3], float s,
-                                 const magcal_ellipsoid_cfg_t *cfg, magcal_ellipsoid_cal_t *cal, float *min_pivot)
+static magcal_status_t fit_model(const quad_acc_t *acc, magcal_ellipsoid_model_t model,
+                                 const float mu[3], float s, const magcal_ellipsoid_cfg_t *cfg,
+                                 magcal_ellipsoid_cal_t *cal, float *min_pivot)
 {
     float coef[NQ];
     magcal_status_t st;
@@ -546,6 +484,7 @@ static int cell_of(float x, float y, float z, size_t *cell)
 static float coverage_of(const magcal_vec3_t *m, size_t n, const float c[3], float tiny)
 {
     uint32_t bits[3] = {0u, 0u, 0u};
+    const size_t cells = COV_CELLS;
     size_t k;
     size_t filled = 0u;
     for (k = 0u; k < n; ++k) {
@@ -556,19 +495,19 @@ static float coverage_of(const magcal_vec3_t *m, size_t n, const float c[3], flo
         if (fabsf(x) + fabsf(y) + fabsf(z) <= tiny) {
             continue;
         }
-        if (cell_of(x, y, z, &cell)) {
+        if (cell_of(x, y, z, &cell) != 0) {
             bits[cell / 32u] |= (uint32_t)1u << (cell % 32u);
         }
     }
-    for (k = 0u; k < COV_CELLS; ++k) {
-        if ((bits[k / 32u] >> (k % 32u)) & 1u) {
+    for (k = 0u; k < cells; ++k) {
+        if (((bits[k / 32u] >> (k % 32u)) & 1u) != 0u) {
             filled++;
         }
     }
-    return (float)filled / (float)COV_CELLS;
+    return (float)filled / (float)cells;
 }
 
-static magcal_status_t check_cfg(const magcal_ellipsoid_cfg_t *cfg)
+static magcal_status_t ellipsoid_check_cfg(const magcal_ellipsoid_cfg_t *cfg)
 {
     if ((unsigned)cfg->model > (unsigned)MAGCAL_ELLIPSOID_MODEL_SPHERE) {
         return MAGCAL_ERR_ARG;
@@ -587,7 +526,8 @@ static magcal_status_t check_cfg(const magcal_ellipsoid_cfg_t *cfg)
         !(cfg->outlier_floor_rel >= 0.0f && cfg->outlier_floor_rel <= 1.0f)) {
         return MAGCAL_ERR_ARG;
     }
-    if (cfg->max_refits > MAX_REFITS_LIMIT || !(cfg->max_reject_frac >= 0.0f && cfg->max_reject_frac < 1.0f)) {
+    if (cfg->max_refits > MAX_REFITS_LIMIT ||
+        !(cfg->max_reject_frac >= 0.0f && cfg->max_reject_frac < 1.0f)) {
         return MAGCAL_ERR_ARG;
     }
     if (!(cfg->pivot_tau >= 0.0f && cfg->pivot_tau <= 0.1f)) {
@@ -610,14 +550,15 @@ static float residual_pass(const magcal_vec3_t *m, size_t n, const magcal_ellips
             continue;
         }
         r = residual_of(cal, &m[k]);
-        kahan_add(&sum, &comp, r * r);
+        magcal_kahan_add(&sum, &comp, r * r);
         cnt++;
     }
     *kept = cnt;
     return (cnt > 0u) ? sqrtf(sum / (float)cnt) : 0.0f;
 }
 
-magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n, const magcal_ellipsoid_cfg_t *cfg,
+magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
+                                     const magcal_ellipsoid_cfg_t *cfg,
                                      magcal_ellipsoid_result_t *out)
 {
     float mu[3] = {0.0f, 0.0f, 0.0f};
@@ -645,23 +586,25 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n, const mag
     if (m == NULL || cfg == NULL || out == NULL) {
         return MAGCAL_ERR_NULL;
     }
-    st = check_cfg(cfg);
+    st = ellipsoid_check_cfg(cfg);
     if (st != MAGCAL_OK) {
         return st;
     }
-    if (n < ((cfg->model == MAGCAL_ELLIPSOID_MODEL_QUADRIC9 || cfg->model == MAGCAL_ELLIPSOID_MODEL_QUADRIC10)
+    if (n < ((cfg->model == MAGCAL_ELLIPSOID_MODEL_QUADRIC9 ||
+              cfg->model == MAGCAL_ELLIPSOID_MODEL_QUADRIC10)
                  ? MIN_QUADRIC_POINTS
                  : MIN_SPHERE_POINTS)) {
         return MAGCAL_ERR_TOO_FEW_POINTS;
     }
     /* Pass 1: mean (Kahan). */
     for (k = 0u; k < n; ++k) {
-        if (!magcal_isfinite_f(m[k].x) || !magcal_isfinite_f(m[k].y) || !magcal_isfinite_f(m[k].z)) {
+        if (!magcal_isfinite_f(m[k].x) || !magcal_isfinite_f(m[k].y) ||
+            !magcal_isfinite_f(m[k].z)) {
             return MAGCAL_ERR_NONFINITE;
         }
-        kahan_add(&mu[0], &comp[0], m[k].x);
-        kahan_add(&mu[1], &comp[1], m[k].y);
-        kahan_add(&mu[2], &comp[2], m[k].z);
+        magcal_kahan_add(&mu[0], &comp[0], m[k].x);
+        magcal_kahan_add(&mu[1], &comp[1], m[k].y);
+        magcal_kahan_add(&mu[2], &comp[2], m[k].z);
     }
     for (k = 0u; k < 3u; ++k) {
         mu[k] /= (float)n;
@@ -671,10 +614,11 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n, const mag
         float dx = m[k].x - mu[0];
         float dy = m[k].y - mu[1];
         float dz = m[k].z - mu[2];
-        kahan_add(&s2, &s2c, dx * dx + dy * dy + dz * dz);
+        magcal_kahan_add(&s2, &s2c, dx * dx + dy * dy + dz * dz);
     }
     s = sqrtf(s2 / (float)n);
-    if (!(s > 1e-6f * (fabsf(mu[0]) + fabsf(mu[1]) + fabsf(mu[2]))) || !(s > 0.0f) || !magcal_isfinite_f(s)) {
+    if (!(s > 1e-6f * (fabsf(mu[0]) + fabsf(mu[1]) + fabsf(mu[2]))) || !(s > 0.0f) ||
+        !magcal_isfinite_f(s)) {
         return MAGCAL_ERR_DEGENERATE;
     }
     inv_s = 1.0f / s;
@@ -696,8 +640,9 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n, const mag
         if (coverage < cfg->min_coverage_sphere) {
             return MAGCAL_ERR_COVERAGE;
         }
-        model = (coverage >= cfg->min_coverage_full && n >= MIN_QUADRIC_POINTS) ? MAGCAL_ELLIPSOID_MODEL_QUADRIC9
-                                                                                : MAGCAL_ELLIPSOID_MODEL_SPHERE;
+        model = (coverage >= cfg->min_coverage_full && n >= MIN_QUADRIC_POINTS)
+                    ? MAGCAL_ELLIPSOID_MODEL_QUADRIC9
+                    : MAGCAL_ELLIPSOID_MODEL_SPHERE;
     }
     st = fit_model(&acc, model, mu, s, cfg, &cal, &min_pivot);
     if (st != MAGCAL_OK) {
@@ -734,7 +679,8 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n, const mag
         prev_rejected = rejected;
     }
     rms = residual_pass(m, n, &cal, &gate, &kept);
-    if (kept < ((model == MAGCAL_ELLIPSOID_MODEL_SPHERE) ? MIN_SPHERE_POINTS : MIN_QUADRIC_POINTS)) {
+    if (kept <
+        ((model == MAGCAL_ELLIPSOID_MODEL_SPHERE) ? MIN_SPHERE_POINTS : MIN_QUADRIC_POINTS)) {
         return MAGCAL_ERR_TOO_FEW_POINTS;
     }
     out->cal = cal;
@@ -747,19 +693,16 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n, const mag
     return MAGCAL_OK;
 }
 
-magcal_status_t magcal_ellipsoid_apply(const magcal_ellipsoid_cal_t *cal, const magcal_vec3_t *m, magcal_vec3_t *h)
+magcal_status_t magcal_ellipsoid_apply(const magcal_ellipsoid_cal_t *cal, const magcal_vec3_t *m,
+                                       magcal_vec3_t *h)
 {
-    float e[3];
     float r[3];
     size_t i;
     if (cal == NULL || m == NULL || h == NULL) {
         return MAGCAL_ERR_NULL;
     }
-    e[0] = m->x - cal->v.x;
-    e[1] = m->y - cal->v.y;
-    e[2] = m->z - cal->v.z;
+    correct3(cal, m, r);
     for (i = 0u; i < 3u; ++i) {
-        r[i] = cal->g[i][0] * e[0] + cal->g[i][1] * e[1] + cal->g[i][2] * e[2];
         if (!magcal_isfinite_f(r[i])) {
             return MAGCAL_ERR_NONFINITE;
         }
@@ -770,8 +713,8 @@ magcal_status_t magcal_ellipsoid_apply(const magcal_ellipsoid_cal_t *cal, const 
     return MAGCAL_OK;
 }
 
-magcal_status_t magcal_ellipsoid_coverage(const magcal_vec3_t *m, size_t n, const magcal_vec3_t *centre,
-                                          float *coverage)
+magcal_status_t magcal_ellipsoid_coverage(const magcal_vec3_t *m, size_t n,
+                                          const magcal_vec3_t *centre, float *coverage)
 {
     float c[3];
     float mag = 0.0f;
@@ -782,12 +725,14 @@ magcal_status_t magcal_ellipsoid_coverage(const magcal_vec3_t *m, size_t n, cons
     if (n == 0u) {
         return MAGCAL_ERR_TOO_FEW_POINTS;
     }
-    if (!magcal_isfinite_f(centre->x) || !magcal_isfinite_f(centre->y) || !magcal_isfinite_f(centre->z)) {
+    if (!magcal_isfinite_f(centre->x) || !magcal_isfinite_f(centre->y) ||
+        !magcal_isfinite_f(centre->z)) {
         return MAGCAL_ERR_NONFINITE;
     }
     for (k = 0u; k < n; ++k) {
         float a;
-        if (!magcal_isfinite_f(m[k].x) || !magcal_isfinite_f(m[k].y) || !magcal_isfinite_f(m[k].z)) {
+        if (!magcal_isfinite_f(m[k].x) || !magcal_isfinite_f(m[k].y) ||
+            !magcal_isfinite_f(m[k].z)) {
             return MAGCAL_ERR_NONFINITE;
         }
         a = fabsf(m[k].x - centre->x) + fabsf(m[k].y - centre->y) + fabsf(m[k].z - centre->z);

@@ -7,9 +7,13 @@
 
 #define EM_MAXC MAGCAL_ERRMODEL_MAX_COEF
 
-MAGCAL_STATIC_ASSERT(MAGCAL_ERRMODEL_MAX_POLY_ORDER + 1u <= MAGCAL_LDLT_MAX_N, errmodel_poly_fits_solver);
+/* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
+MAGCAL_STATIC_ASSERT(MAGCAL_ERRMODEL_MAX_POLY_ORDER + 1u <= MAGCAL_LDLT_MAX_N,
+                     errmodel_poly_fits_solver);
+/* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
 MAGCAL_STATIC_ASSERT(2u * MAGCAL_ERRMODEL_MAX_FOURIER_ORDER + 1u <= MAGCAL_LDLT_MAX_N,
                      errmodel_fourier_fits_solver);
+/* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
 MAGCAL_STATIC_ASSERT(MAGCAL_ERRMODEL_MAX_POLY_ORDER + 1u <= EM_MAXC, errmodel_coef_storage);
 
 static size_t em_ncoef(magcal_errmodel_kind_t kind, size_t order)

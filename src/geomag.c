@@ -20,10 +20,9 @@
 #include "geomag_internal.h"
 #include "magcal_internal.h"
 
-#define GEOMAG_A_REF_KM 6371.2f          /* geomagnetic reference radius */
-#define GEOMAG_WGS84_A_KM 6378.137f      /* WGS 84 semi-major axis */
+#define GEOMAG_A_REF_KM 6371.2f           /* geomagnetic reference radius */
+#define GEOMAG_WGS84_A_KM 6378.137f       /* WGS 84 semi-major axis */
 #define GEOMAG_WGS84_E2 6.69437999014e-3f /* e^2 = f (2 - f), 1/f = 298.257223563 */
-#define GEOMAG_WGS84_1ME2 0.99330562000986f /* 1 - e^2 */
 
 /* Time dependence of the coefficients at one date: c(t) = a + dt * d, with the rate
  * d = (b - sub * a) * scale, where a and b are the coefficients of epoch e and of the next
@@ -52,16 +51,28 @@ typedef struct {
  * and accurate to relative precision near them. */
 static void sincos_deg(float deg, float *s, float *c)
 {
-    float k = floorf(deg / 90.0f + 0.5f); /* nearest quadrant, -4..4 */
+    float k = floorf(deg / 90.0f + 0.5f);               /* nearest quadrant, -4..4 */
     float r = (deg - 90.0f * k) * MAGCAL_RAD_PER_DEG_F; /* deg - 90k is exact, |.| <= 45 deg */
     float s0 = sinf(r);
     float c0 = cosf(r);
     int q = ((int)k % 4 + 4) % 4;
     switch (q) {
-    case 0: *s = s0; *c = c0; break;
-    case 1: *s = c0; *c = -s0; break;
-    case 2: *s = -s0; *c = -c0; break;
-    default: *s = -c0; *c = s0; break;
+    case 0:
+        *s = s0;
+        *c = c0;
+        break;
+    case 1:
+        *s = c0;
+        *c = -s0;
+        break;
+    case 2:
+        *s = -s0;
+        *c = -c0;
+        break;
+    default:
+        *s = -c0;
+        *c = s0;
+        break;
     }
 }
 
@@ -88,8 +99,13 @@ static void time_setup(const magcal_geomag_model_t *model, float year, geomag_ti
         /* the division may round across an epoch boundary: fix with exact comparisons */
         if (e > 0u && year < model->epoch_first + (float)e * model->epoch_step) {
             --e;
-        } else if (e < last && year >= model->epoch_first + (float)(e + 1u) * model->epoch_step) {
-            ++e;
+        } else if (e < last) {
+            const unsigned e1 = e + 1u;
+            if (year >= model->epoch_first + (float)e1 * model->epoch_step) {
+                ++e;
+            }
+        } else {
+            /* e is the last epoch */
         }
     }
     t0 = model->epoch_first + (float)e * model->epoch_step;
@@ -153,12 +169,14 @@ static void synthesise(const magcal_geomag_model_t *model, const geomag_time_t *
         float d2 = 0.0f;
         float fm = (float)m;
         if (m == 1u) {
-            umm = 1.0f;     /* Q_1^1 = 1 (P_1^1 = nu) */
-            dmm = pt->mu;   /* dP_1^1/dtheta = mu */
+            umm = 1.0f;   /* Q_1^1 = 1 (P_1^1 = nu) */
+            dmm = pt->mu; /* dP_1^1/dtheta = mu */
         } else if (m >= 2u) {
             float s = magcal_geomag_schmidt_s[m];
             dmm = s * (pt->nu * dmm + pt->mu * (pt->nu * umm));
             umm = s * pt->nu * umm;
+        } else {
+            /* m == 0: Q_0^0 = 1, dP_0^0/dtheta = 0 as initialised */
         }
         w = (m == 0u) ? 1.0f : pt->nu;
         u1 = umm;
@@ -175,6 +193,8 @@ static void synthesise(const magcal_geomag_model_t *model, const geomag_time_t *
             float ds;
             float t;
             float p;
+            unsigned n1;
+            float fn1;
             if (n > m) {
                 unsigned tri = (n * (n - 1u)) / 2u + m;
                 float a = magcal_geomag_schmidt_a[tri];
@@ -201,12 +221,14 @@ static void synthesise(const magcal_geomag_model_t *model, const geomag_time_t *
             t = rn[n];
             p = w * u1;
             acc = (n == 1u) ? lead : b;
+            n1 = n + 1u;
+            fn1 = (float)n1;
             acc[0] += t * gc * d1;
             acc[1] += t * gs * u1;
-            acc[2] -= (float)(n + 1u) * t * gc * p;
+            acc[2] -= fn1 * t * gc * p;
             acc[3] += t * dc * d1;
             acc[4] += t * ds * u1;
-            acc[5] -= (float)(n + 1u) * t * dc * p;
+            acc[5] -= fn1 * t * dc * p;
         }
         {
             float c_next = cm * pt->clon - sm * pt->slon;
@@ -259,9 +281,8 @@ static magcal_status_t check_date(const magcal_geomag_model_t *model, float year
     return MAGCAL_OK;
 }
 
-magcal_status_t magcal_geomag_eval(const magcal_geomag_model_t *model, float lat_deg,
-                                   float lon_deg, float height_km, float year,
-                                   magcal_geomag_result_t *out)
+magcal_status_t magcal_geomag_eval(const magcal_geomag_model_t *model, float lat_deg, float lon_deg,
+                                   float height_km, float year, magcal_geomag_result_t *out)
 {
     geomag_time_t ts;
     geomag_point_t pt;
@@ -348,9 +369,9 @@ magcal_status_t magcal_geomag_eval(const magcal_geomag_model_t *model, float lat
     return MAGCAL_OK;
 }
 
-magcal_status_t magcal_geomag_eval_geocentric(const magcal_geomag_model_t *model,
-                                              float lat_gc_deg, float lon_deg, float radius_km,
-                                              float year, float xyz_nt[3], float xyz_dot_nt_yr[3])
+magcal_status_t magcal_geomag_eval_geocentric(const magcal_geomag_model_t *model, float lat_gc_deg,
+                                              float lon_deg, float radius_km, float year,
+                                              float xyz_nt[3], float xyz_dot_nt_yr[3])
 {
     geomag_time_t ts;
     geomag_point_t pt;
@@ -397,6 +418,7 @@ magcal_status_t magcal_geomag_decimal_year(int year, int month, int day, float *
                                             31u, 31u, 30u, 31u, 30u, 31u};
     int leap;
     int doy;
+    int ylen;
     int i;
     int dim;
     if (out == NULL) {
@@ -405,7 +427,10 @@ magcal_status_t magcal_geomag_decimal_year(int year, int month, int day, float *
     if (year < 1900 || year > 2100 || month < 1 || month > 12 || day < 1) {
         return MAGCAL_ERR_ARG;
     }
-    leap = ((year % 4 == 0) && (year % 100 != 0)) || (year % 400 == 0);
+    leap = 0;
+    if (((year % 4 == 0) && (year % 100 != 0)) || (year % 400 == 0)) {
+        leap = 1;
+    }
     dim = (int)mdays[month - 1] + ((month == 2) ? leap : 0);
     if (day > dim) {
         return MAGCAL_ERR_ARG;
@@ -414,6 +439,8 @@ magcal_status_t magcal_geomag_decimal_year(int year, int month, int day, float *
     for (i = 0; i < month - 1; ++i) {
         doy += (int)mdays[i] + ((i == 1) ? leap : 0);
     }
-    *out = (float)year + (float)(doy - 1) / (float)(365 + leap);
+    doy -= 1;
+    ylen = 365 + leap;
+    *out = (float)year + (float)doy / (float)ylen;
     return MAGCAL_OK;
 }

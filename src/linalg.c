@@ -3,10 +3,36 @@
 
 #include "magcal_internal.h"
 
+size_t magcal_misalign(const void *p, size_t align)
+{
+    /* Deviation D9 (MISRA 11.6): the alignment of a caller's workspace can only be read from
+     * its address. */
+    return (size_t)((uintptr_t)p & (uintptr_t)(align - 1u));
+}
+
+/*
+ * Where magcal_ldlt_solve keeps the equilibration factor of row i: in the strict upper triangle of
+ * a (never read as a matrix entry: the factorisation uses the lower triangle only) when it has room
+ * (n >= 3: row 0 holds i = 1..n-1, entry (1, 2) holds i = 0), else in the caller's 2-slot array.
+ * The solver is on the deepest stack path of every fit; a MAGCAL_LDLT_MAX_N array of factors
+ * would add 48 bytes to it.
+ */
+static float *ldlt_scale(float *a, float *small, size_t n, size_t i)
+{
+    float *slot;
+    if (n < 3u) {
+        slot = &small[i];
+    } else if (i == 0u) {
+        slot = &a[n + 2u];
+    } else {
+        slot = &a[i];
+    }
+    return slot;
+}
+
 magcal_status_t magcal_ldlt_solve(float *a, float *b, size_t n, float tau, float *min_pivot)
 {
-    float scale[MAGCAL_LDLT_MAX_N];
-    float d[MAGCAL_LDLT_MAX_N];
+    float small[2];
     float minp = 1.0f;
     size_t i;
     size_t j;
@@ -27,24 +53,26 @@ magcal_status_t magcal_ldlt_solve(float *a, float *b, size_t n, float tau, float
         if (!(dii > 0.0f)) {
             return MAGCAL_ERR_DEGENERATE;
         }
-        scale[i] = 1.0f / sqrtf(dii);
+        *ldlt_scale(a, small, n, i) = 1.0f / sqrtf(dii);
     }
     for (i = 0u; i < n; ++i) {
+        const float si = *ldlt_scale(a, small, n, i);
         for (j = 0u; j <= i; ++j) {
             float v = a[i * n + j];
             if (!magcal_isfinite_f(v)) {
                 return MAGCAL_ERR_NONFINITE;
             }
-            a[i * n + j] = v * scale[i] * scale[j];
+            a[i * n + j] = v * si * *ldlt_scale(a, small, n, j);
         }
-        b[i] *= scale[i];
+        b[i] *= si;
     }
-    /* LDL^T on the lower triangle: L stored below the diagonal, D in d[]. */
+    /* LDL^T on the lower triangle: L stored below the diagonal, D on the diagonal (a[k*n+k] is
+     * d_k once column k is done: no separate array on the stack). */
     for (j = 0u; j < n; ++j) {
         float dj = a[j * n + j];
         for (k = 0u; k < j; ++k) {
             float ljk = a[j * n + k];
-            dj -= ljk * ljk * d[k];
+            dj -= ljk * ljk * a[k * n + k];
         }
         if (!(dj > tau)) {
             if (min_pivot != NULL) {
@@ -55,11 +83,11 @@ magcal_status_t magcal_ldlt_solve(float *a, float *b, size_t n, float tau, float
         if (dj < minp) {
             minp = dj;
         }
-        d[j] = dj;
+        a[j * n + j] = dj;
         for (i = j + 1u; i < n; ++i) {
             float s = a[i * n + j];
             for (k = 0u; k < j; ++k) {
-                s -= a[i * n + k] * a[j * n + k] * d[k];
+                s -= a[i * n + k] * a[j * n + k] * a[k * n + k];
             }
             a[i * n + j] = s / dj;
         }
@@ -73,7 +101,7 @@ magcal_status_t magcal_ldlt_solve(float *a, float *b, size_t n, float tau, float
         b[i] = s;
     }
     for (i = 0u; i < n; ++i) {
-        b[i] /= d[i];
+        b[i] /= a[i * n + i];
     }
     for (j = 0u; j < n; ++j) {
         float s;
@@ -85,7 +113,7 @@ magcal_status_t magcal_ldlt_solve(float *a, float *b, size_t n, float tau, float
         b[i] = s;
     }
     for (i = 0u; i < n; ++i) {
-        b[i] *= scale[i];
+        b[i] *= *ldlt_scale(a, small, n, i);
         if (!magcal_isfinite_f(b[i])) {
             return MAGCAL_ERR_ILL_CONDITIONED;
         }
@@ -135,4 +163,88 @@ uint32_t magcal_prng_next(uint32_t *state, uint32_t bound)
         return 0u;
     }
     return (uint32_t)(((uint64_t)x * (uint64_t)bound) >> 32);
+}
+
+float magcal_det3(float a[3][3])
+{
+    return a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) -
+           a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) +
+           a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
+}
+
+/* Rotation J(p, q, c, s) applied as a <- J^T a J and e <- e J. */
+static void jacobi_rotate(float *a, float *e, size_t n, size_t p, size_t q)
+{
+    const float apq = a[p * n + q];
+    float theta;
+    float t;
+    float c;
+    float s;
+    size_t k;
+    theta = (a[q * n + q] - a[p * n + p]) / (2.0f * apq);
+    t = 1.0f / (fabsf(theta) + sqrtf(theta * theta + 1.0f));
+    if (theta < 0.0f) {
+        t = -t;
+    }
+    c = 1.0f / sqrtf(t * t + 1.0f);
+    s = t * c;
+    for (k = 0u; k < n; ++k) { /* a <- a J (columns p, q) */
+        const float akp = a[k * n + p];
+        const float akq = a[k * n + q];
+        a[k * n + p] = c * akp - s * akq;
+        a[k * n + q] = s * akp + c * akq;
+    }
+    for (k = 0u; k < n; ++k) { /* a <- J^T a (rows p, q) */
+        const float apk = a[p * n + k];
+        const float aqk = a[q * n + k];
+        a[p * n + k] = c * apk - s * aqk;
+        a[q * n + k] = s * apk + c * aqk;
+    }
+    for (k = 0u; k < n; ++k) {
+        const float ekp = e[k * n + p];
+        const float ekq = e[k * n + q];
+        e[k * n + p] = c * ekp - s * ekq;
+        e[k * n + q] = s * ekp + c * ekq;
+    }
+}
+
+magcal_status_t magcal_jacobi_sym(float *a, size_t n, float *w, float *e)
+{
+    size_t sweep;
+    size_t i;
+    size_t j;
+    float scale = 0.0f;
+    if (n == 0u || n > MAGCAL_JACOBI_MAX_N) {
+        return MAGCAL_ERR_ARG;
+    }
+    for (i = 0u; i < n; ++i) {
+        for (j = 0u; j < n; ++j) {
+            e[i * n + j] = (i == j) ? 1.0f : 0.0f;
+            scale += a[i * n + j] * a[i * n + j];
+        }
+    }
+    for (sweep = 0u; sweep < MAGCAL_JACOBI_SWEEPS; ++sweep) {
+        size_t p;
+        float off = 0.0f;
+        for (i = 0u; i < n; ++i) {
+            for (j = i + 1u; j < n; ++j) {
+                off += a[i * n + j] * a[i * n + j];
+            }
+        }
+        if (off <= 1e-14f * scale) {
+            for (i = 0u; i < n; ++i) {
+                w[i] = a[i * n + i];
+            }
+            return MAGCAL_OK;
+        }
+        for (p = 0u; p + 1u < n; ++p) {
+            size_t q;
+            for (q = p + 1u; q < n; ++q) {
+                if (a[p * n + q] != 0.0f) {
+                    jacobi_rotate(a, e, n, p, q);
+                }
+            }
+        }
+    }
+    return MAGCAL_ERR_NOT_CONVERGED;
 }

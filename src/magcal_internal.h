@@ -28,7 +28,8 @@ extern "C" {
  * The matrix is equilibrated first (N' = D^-1/2 N D^-1/2) so the relative pivot test
  * `d_j < tau` detects rank deficiency regardless of column scaling (algorithms.md 3.2).
  *
- * @param[in,out] a   n*n row-major matrix; only the lower triangle is read; destroyed.
+ * @param[in,out] a   n*n row-major matrix; only the lower triangle is read; destroyed
+ *                    (the strict upper triangle is scratch, D ends on the diagonal).
  * @param[in,out] b   right-hand side of length n; overwritten with the solution.
  * @param n           order, 1..MAGCAL_LDLT_MAX_N.
  * @param tau         relative pivot threshold (1e-6f is a good float32 default).
@@ -41,10 +42,41 @@ extern "C" {
 magcal_status_t magcal_ldlt_solve(float *a, float *b, size_t n, float tau, float *min_pivot);
 
 /** True when v is neither NaN nor +/-Inf (works with -ffast-math off, no libm needed). */
-static inline int magcal_isfinite_f(float v)
+static inline int magcal_isfinite_f(float v) { return (v == v) && (v - v == 0.0f); }
+
+/**
+ * Misalignment of a caller-provided buffer: the address of p modulo align (align a power of
+ * two, 1..16). The one place where a pointer becomes an integer (MISRA 11.6, deviation D9).
+ */
+size_t magcal_misalign(const void *p, size_t align);
+
+/** Kahan-compensated float32 accumulation: *sum += v, *comp carries the lost low-order part. */
+static inline void magcal_kahan_add(float *sum, float *comp, float v)
 {
-    return (v == v) && (v - v == 0.0f);
+    const float y = v - *comp;
+    const float t = *sum + y;
+    *comp = (t - *sum) - y;
+    *sum = t;
 }
+
+/** Determinant of a 3x3 matrix by cofactors of the first row. */
+float magcal_det3(float a[3][3]);
+
+/** Largest order accepted by magcal_jacobi_sym (3x3 shape matrices, 4x4 information matrices). */
+#define MAGCAL_JACOBI_MAX_N 4u
+
+/** Cyclic sweeps of magcal_jacobi_sym before it reports MAGCAL_ERR_NOT_CONVERGED. */
+#define MAGCAL_JACOBI_SWEEPS 12u
+
+/**
+ * Cyclic Jacobi eigendecomposition of a symmetric n x n matrix (row-major, destroyed):
+ * a = E diag(w) E^T, eigenvectors in the columns of e (row-major n x n). Stops when the squared
+ * off-diagonal mass is <= 1e-14 of the squared Frobenius norm.
+ *
+ * @return MAGCAL_OK, MAGCAL_ERR_ARG (n outside 1..MAGCAL_JACOBI_MAX_N),
+ *         MAGCAL_ERR_NOT_CONVERGED (MAGCAL_JACOBI_SWEEPS sweeps were not enough).
+ */
+magcal_status_t magcal_jacobi_sym(float *a, size_t n, float *w, float *e);
 
 /** Wrap an angle in degrees to (-180, 180]. Input must be finite. */
 float magcal_wrap180_deg(float a);

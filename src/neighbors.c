@@ -1,6 +1,8 @@
 /* Internal eps-neighbour search shared by OPTICS and DBSCAN (see neighbors.h). */
 #include "neighbors.h"
 
+#include <float.h>
+
 #include "magcal_internal.h"
 
 /*
@@ -12,6 +14,17 @@
  */
 #define NBR_MARGIN 0.015625f
 #define NBR_MAX_SIDE 32768.0f
+
+int magcal_nbr_eps_ok(float eps)
+{
+    const float e2 = eps * eps;
+    int ok = 0;
+    if (eps > 0.0f &&
+        (!magcal_isfinite_f(eps) || (e2 >= FLT_MIN * (1.0f / 1024.0f) && magcal_isfinite_f(e2)))) {
+        ok = 1;
+    }
+    return ok;
+}
 
 magcal_status_t magcal_nbr_check_finite(const magcal_vec2_t *pts, size_t n)
 {
@@ -51,8 +64,20 @@ static size_t nbr_cell(const magcal_nbr_t *nb, size_t i)
 void magcal_nbr_build(magcal_nbr_t *nb, const magcal_vec2_t *pts, size_t n, float eps,
                       magcal_neighbors_t mode, void *mem, const float *window)
 {
-    float xmin, xmax, ymin, ymax, w, hgt, h, fw, fh;
-    size_t i, c, g, cells, cap = MAGCAL_OPTICS_GRID_CELLS(n);
+    float xmin;
+    float xmax;
+    float ymin;
+    float ymax;
+    float w;
+    float hgt;
+    float h;
+    float fw;
+    float fh;
+    size_t i;
+    size_t c;
+    size_t g;
+    size_t cells;
+    size_t cap = MAGCAL_OPTICS_GRID_CELLS(n);
     unsigned it;
     nb->pts = pts;
     nb->n = n;
@@ -68,8 +93,10 @@ void magcal_nbr_build(magcal_nbr_t *nb, const magcal_vec2_t *pts, size_t n, floa
     if (mode != MAGCAL_NEIGHBORS_GRID || !magcal_isfinite_f(eps) || n == 0u) {
         return;
     }
-    xmin = xmax = pts[0].x;
-    ymin = ymax = pts[0].y;
+    xmin = pts[0].x;
+    xmax = xmin;
+    ymin = pts[0].y;
+    ymax = ymin;
     for (i = 1; i < n; ++i) {
         xmin = pts[i].x < xmin ? pts[i].x : xmin;
         xmax = pts[i].x > xmax ? pts[i].x : xmax;
@@ -141,7 +168,14 @@ void magcal_nbr_build(magcal_nbr_t *nb, const magcal_vec2_t *pts, size_t n, floa
 
 void magcal_nbr_query(const magcal_nbr_t *nb, size_t p, magcal_nbr_ranges_t *r)
 {
-    uint16_t cx, cy, x_lo, x_hi, y_lo, y_hi, x, y;
+    uint16_t cx;
+    uint16_t cy;
+    uint16_t x_lo;
+    uint16_t x_hi;
+    uint16_t y_lo;
+    uint16_t y_hi;
+    uint16_t x;
+    uint16_t y;
     if (!nb->use_grid) {
         r->idx = NULL;
         r->begin[0] = 0u;

@@ -53,6 +53,17 @@ void magcal_nbr_build(magcal_nbr_t *nb, const magcal_vec2_t *pts, size_t n, floa
 /* Candidate ranges for a query at point index p (every point within eps of p is in them). */
 void magcal_nbr_query(const magcal_nbr_t *nb, size_t p, magcal_nbr_ranges_t *r);
 
+/*
+ * eps accepted by OPTICS and DBSCAN: eps > 0 and, unless eps is +Inf, eps^2 (the threshold on
+ * squared distances) finite and at least MAGCAL_NBR_EPS2_MIN = FLT_MIN / 1024, i.e.
+ * 3.4e-21 <= eps <= 1.8e19. If eps^2 overflows, every far pair (d^2 = Inf) passes; if it underflows
+ * to 0 (or to a few subnormal steps), pairs farther than the grid's cell side round to d^2 <= eps^2
+ * and the brute search links pairs the grid never compares (fuzz finding F7). From FLT_MIN / 1024
+ * up, a subnormal d^2 keeps >= 13 significant bits, a rounding far below the grid margin 2^-6, and
+ * both searches stay bit-identical (test_optics runs eps = 3e-20). Returns 1 when usable, else 0.
+ */
+int magcal_nbr_eps_ok(float eps);
+
 /* Returns MAGCAL_OK, MAGCAL_ERR_NONFINITE if any coordinate is NaN/Inf. */
 magcal_status_t magcal_nbr_check_finite(const magcal_vec2_t *pts, size_t n);
 

@@ -41,17 +41,25 @@ typedef struct {
 
 static int is_done(const optics_ctx_t *c, size_t i)
 {
-    return (int)(((unsigned)c->done[i >> 3] >> (unsigned)(i & 7u)) & 1u);
+    const unsigned bit = ((unsigned)c->done[i >> 3] >> (unsigned)(i & 7u)) & 1u;
+    int r = 0;
+    if (bit != 0u) {
+        r = 1;
+    }
+    return r;
 }
 
 /* (reach, index) lexicographic order: the tie rule that makes every variant identical. */
 static int key_less(const float *reach, uint16_t a, uint16_t b)
 {
-    return reach[a] < reach[b] || (reach[a] == reach[b] && a < b);
+    const float ra = reach[a];
+    const float rb = reach[b];
+    return ra < rb || (ra == rb && a < b);
 }
 
-static void heap_sift_up(optics_ctx_t *c, size_t k)
+static void heap_sift_up(optics_ctx_t *c, size_t k0)
 {
+    size_t k = k0;
     uint16_t v = c->seeds[k];
     while (k > 0u) {
         size_t parent = (k - 1u) >> 1;
@@ -67,8 +75,9 @@ static void heap_sift_up(optics_ctx_t *c, size_t k)
     c->pos[v] = (uint16_t)k;
 }
 
-static void heap_sift_down(optics_ctx_t *c, size_t k)
+static void heap_sift_down(optics_ctx_t *c, size_t k0)
 {
+    size_t k = k0;
     uint16_t v = c->seeds[k];
     size_t m = c->n_seeds;
     while (2u * k + 1u < m) { /* k at least doubles: <= log2(m) rounds */
@@ -101,7 +110,8 @@ static uint16_t seeds_pop_min(optics_ctx_t *c)
             heap_sift_down(c, 0u);
         }
     } else {
-        size_t k, best = 0u;
+        size_t k;
+        size_t best = 0u;
         const float *reach = c->reach;
         uint16_t bq = c->seeds[0];
         float br = reach[bq];
@@ -170,6 +180,8 @@ static void update_one(optics_ctx_t *c, size_t p, size_t j, float r)
     } else if (old == INFINITY) {
         c->seeds[c->n_seeds] = (uint16_t)j;
         c->n_seeds++;
+    } else {
+        /* already a seed: its key decreased in place (the list is scanned, not a heap) */
     }
 }
 
@@ -190,17 +202,23 @@ static float reach_of(float d2, float core_p, float core2)
 static void live_pass(optics_ctx_t *c, size_t p, float core_p, float core2)
 {
     const magcal_vec2_t *pts = c->pts;
-    const float px = pts[p].x, py = pts[p].y, eps2 = c->eps2;
+    const float px = pts[p].x;
+    const float py = pts[p].y;
+    const float eps2 = c->eps2;
     uint16_t *live = c->live;
-    size_t k, w = 0u, nl = c->n_live;
+    size_t k;
+    size_t w = 0u;
+    size_t nl = c->n_live;
     for (k = 0; k < nl; ++k) {
         size_t j = live[k];
         if (j == p) {
             continue; /* the only point processed since the last pass */
         }
-        live[w++] = (uint16_t)j;
+        live[w] = (uint16_t)j;
+        ++w;
         if (core_p < INFINITY) {
-            float dx = pts[j].x - px, dy = pts[j].y - py;
+            float dx = pts[j].x - px;
+            float dy = pts[j].y - py;
             float d2 = dx * dx + dy * dy;
             if (d2 <= eps2) {
                 float r = reach_of(d2, core_p, core2);
@@ -213,12 +231,35 @@ static void live_pass(optics_ctx_t *c, size_t p, float core_p, float core2)
     c->n_live = w;
 }
 
+/* Insert d2 into the ascending MinPts buffer best[0..cnt) of capacity m (when full, the largest
+ * value drops out); returns the new count. */
+static size_t best_insert(float *best, size_t cnt, size_t m, float d2)
+{
+    size_t t = m - 1u;
+    size_t count = cnt;
+    if (count < m) {
+        t = count;
+        ++count;
+    }
+    while (t > 0u && best[t - 1u] > d2) {
+        best[t] = best[t - 1u];
+        --t;
+    }
+    best[t] = d2;
+    return count;
+}
+
 static void process(optics_ctx_t *c, size_t p)
 {
     float *best = c->best;
-    size_t cnt = 0u, m = c->min_pts, ri, k;
+    size_t cnt = 0u;
+    size_t m = c->min_pts;
+    size_t ri;
+    size_t k;
     const magcal_vec2_t *pts = c->pts;
-    const float px = pts[p].x, py = pts[p].y, eps2 = c->eps2;
+    const float px = pts[p].x;
+    const float py = pts[p].y;
+    const float eps2 = c->eps2;
     float core_p = INFINITY;
     magcal_nbr_ranges_t rg;
 
@@ -236,15 +277,11 @@ static void process(optics_ctx_t *c, size_t p)
         float lim = eps2;
         size_t n = c->n;
         for (k = 0; k < n; ++k) {
-            float dx = pts[k].x - px, dy = pts[k].y - py;
+            float dx = pts[k].x - px;
+            float dy = pts[k].y - py;
             float d2 = dx * dx + dy * dy;
             if (d2 <= lim && (cnt < m || d2 < lim)) {
-                size_t t = cnt < m ? cnt++ : m - 1u;
-                while (t > 0u && best[t - 1u] > d2) {
-                    best[t] = best[t - 1u];
-                    --t;
-                }
-                best[t] = d2;
+                cnt = best_insert(best, cnt, m, d2);
                 if (cnt == m) {
                     lim = best[m - 1u];
                 }
@@ -254,15 +291,11 @@ static void process(optics_ctx_t *c, size_t p)
     for (ri = 0; rg.idx != NULL && ri < rg.n_ranges; ++ri) {
         for (k = rg.begin[ri]; k < rg.end[ri]; ++k) {
             size_t j = rg.idx[k];
-            float dx = pts[j].x - px, dy = pts[j].y - py;
+            float dx = pts[j].x - px;
+            float dy = pts[j].y - py;
             float d2 = dx * dx + dy * dy;
             if (d2 <= eps2 && (cnt < m || d2 < best[m - 1u])) {
-                size_t t = cnt < m ? cnt++ : m - 1u;
-                while (t > 0u && best[t - 1u] > d2) {
-                    best[t] = best[t - 1u];
-                    --t;
-                }
-                best[t] = d2;
+                cnt = best_insert(best, cnt, m, d2);
             }
         }
     }
@@ -286,9 +319,10 @@ static void process(optics_ctx_t *c, size_t p)
     for (ri = 0; ri < rg.n_ranges; ++ri) {
         for (k = rg.begin[ri]; k < rg.end[ri]; ++k) {
             size_t j = rg.idx != NULL ? rg.idx[k] : k;
-            float dx = pts[j].x - px, dy = pts[j].y - py;
+            float dx = pts[j].x - px;
+            float dy = pts[j].y - py;
             float d2 = dx * dx + dy * dy;
-            if (d2 <= eps2 && !is_done(c, j)) {
+            if (d2 <= eps2 && is_done(c, j) == 0) {
                 float r = reach_of(d2, core_p, best[m - 1u]);
                 if (r < c->reach[j]) {
                     update_one(c, p, j, r);
@@ -300,7 +334,8 @@ static void process(optics_ctx_t *c, size_t p)
 
 static void optics_loop(optics_ctx_t *c)
 {
-    size_t s, i;
+    size_t s;
+    size_t i;
     for (i = 0; i < c->n; ++i) {
         c->reach[i] = INFINITY;
         if (c->pred != NULL) {
@@ -310,7 +345,7 @@ static void optics_loop(optics_ctx_t *c)
             c->pos[i] = POS_NONE;
         }
     }
-    memset(c->done, 0, (c->n + 7u) / 8u);
+    (void)memset(c->done, 0, (c->n + 7u) / 8u);
     if (!c->nb.use_grid) {
         c->live = c->nb.idx;
         for (i = 0; i < c->n; ++i) {
@@ -322,7 +357,7 @@ static void optics_loop(optics_ctx_t *c)
     c->n_seeds = 0u;
     c->n_done = 0u;
     for (s = 0; s < c->n; ++s) {
-        if (is_done(c, s)) {
+        if (is_done(c, s) != 0) {
             continue;
         }
         process(c, s);
@@ -349,7 +384,8 @@ static magcal_status_t check_points(const magcal_vec2_t *pts, size_t n, size_t m
 
 static magcal_status_t check_cfg(const magcal_optics_cfg_t *cfg)
 {
-    if (!(cfg->eps > 0.0f)) {
+    /* eps^2 is the neighbour threshold: it must be a normal float (neighbors.h) */
+    if (magcal_nbr_eps_ok(cfg->eps) == 0) {
         return MAGCAL_ERR_ARG;
     }
     if (cfg->min_pts < 2u || cfg->min_pts > MAGCAL_MAX_MIN_PTS) {
@@ -365,10 +401,20 @@ static magcal_status_t check_cfg(const magcal_optics_cfg_t *cfg)
 }
 
 /* Carve the run workspace (uint16 seeds, pos, neighbour index, done bits) and build the index. */
-static void ctx_setup(optics_ctx_t *c, const magcal_optics_cfg_t *cfg, const magcal_vec2_t *pts,
-                      size_t n, uint8_t *w, const float *window)
+/* The context lives in the workspace (MAGCAL_OPTICS_CTX_LEN_ bytes after the MinPts buffer),
+ * aligned for pointers: the ordering loop is on the deepest stack path of the 2-D pipeline. */
+/* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
+MAGCAL_STATIC_ASSERT(sizeof(optics_ctx_t) + sizeof(void *) - 4u <= MAGCAL_OPTICS_CTX_LEN_,
+                     optics_ctx_fits_workspace);
+
+static optics_ctx_t *ctx_setup(const magcal_optics_cfg_t *cfg, const magcal_vec2_t *pts, size_t n,
+                               uint8_t *w, const float *window)
 {
-    memset(c, 0, sizeof *c);
+    uint8_t *cw = w + MAGCAL_OPTICS_BEST_OFFSET_(n) + 4u * (size_t)MAGCAL_MAX_MIN_PTS;
+    optics_ctx_t *c;
+    cw += (sizeof(void *) - magcal_misalign(cw, sizeof(void *))) % sizeof(void *);
+    c = (optics_ctx_t *)(void *)cw;
+    (void)memset(c, 0, sizeof *c);
     c->pts = pts;
     c->n = n;
     c->eps2 = cfg->eps * cfg->eps;
@@ -381,6 +427,7 @@ static void ctx_setup(optics_ctx_t *c, const magcal_optics_cfg_t *cfg, const mag
     c->id = -1;
     c->best_id = -1;
     magcal_nbr_build(&c->nb, pts, n, cfg->eps, cfg->neighbors, w + 4u * n, window);
+    return c;
 }
 
 static void fill_info(magcal_optics_result_t *info, const optics_ctx_t *c, float eps,
@@ -389,7 +436,7 @@ static void fill_info(magcal_optics_result_t *info, const optics_ctx_t *c, float
     if (info == NULL) {
         return;
     }
-    memset(info, 0, sizeof *info);
+    (void)memset(info, 0, sizeof *info);
     info->eps = eps;
     info->eps_prime = eps_prime;
     info->min_pts = c->min_pts;
@@ -402,7 +449,7 @@ magcal_status_t magcal_optics_run(const magcal_optics_cfg_t *cfg, const magcal_v
                                   float *reach, float *core, uint16_t *pred,
                                   magcal_optics_result_t *info)
 {
-    optics_ctx_t c;
+    optics_ctx_t *c;
     magcal_status_t st;
     if (cfg == NULL || pts == NULL || work == NULL || order == NULL || reach == NULL ||
         core == NULL) {
@@ -412,7 +459,7 @@ magcal_status_t magcal_optics_run(const magcal_optics_cfg_t *cfg, const magcal_v
     if (st != MAGCAL_OK) {
         return st;
     }
-    if (((uintptr_t)work & 3u) != 0u) {
+    if (magcal_misalign(work, 4u) != 0u) {
         return MAGCAL_ERR_ARG;
     }
     st = check_points(pts, n, cfg->min_pts);
@@ -422,13 +469,13 @@ magcal_status_t magcal_optics_run(const magcal_optics_cfg_t *cfg, const magcal_v
     if (work_len < MAGCAL_OPTICS_WORKSPACE_LEN(n)) {
         return MAGCAL_ERR_WORKSPACE;
     }
-    ctx_setup(&c, cfg, pts, n, (uint8_t *)work, NULL);
-    c.reach = reach;
-    c.order = order;
-    c.core = core;
-    c.pred = pred;
-    optics_loop(&c);
-    fill_info(info, &c, cfg->eps, cfg->eps);
+    c = ctx_setup(cfg, pts, n, (uint8_t *)work, NULL);
+    c->reach = reach;
+    c->order = order;
+    c->core = core;
+    c->pred = pred;
+    optics_loop(c);
+    fill_info(info, c, cfg->eps, cfg->eps);
     return MAGCAL_OK;
 }
 
@@ -464,7 +511,8 @@ magcal_status_t magcal_optics_extract_dbscan(const uint16_t *order, const float 
         }
     }
     if (n_clusters != NULL) {
-        *n_clusters = (uint16_t)(id + 1);
+        const int32_t count = id + 1;
+        *n_clusters = (uint16_t)count;
     }
     return MAGCAL_OK;
 }
@@ -474,19 +522,21 @@ magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, v
                                               int16_t *cluster_id, uint16_t *count)
 {
     uint16_t *cnt;
-    size_t i, best_count = 0u;
-    int32_t best = -1, max_id = -1;
+    size_t i;
+    size_t best_count = 0u;
+    int32_t best = -1;
+    int32_t max_id = -1;
     if (labels == NULL || work == NULL || inlier_mask == NULL) {
         return MAGCAL_ERR_NULL;
     }
-    if (n == 0u || n > MAGCAL_MAX_SAMPLES || ((uintptr_t)work & 1u) != 0u) {
+    if (n == 0u || n > MAGCAL_MAX_SAMPLES || magcal_misalign(work, 2u) != 0u) {
         return MAGCAL_ERR_ARG;
     }
     if (work_len < MAGCAL_OPTICS_LARGEST_WORKSPACE_LEN(n)) {
         return MAGCAL_ERR_WORKSPACE;
     }
     for (i = 0; i < n; ++i) {
-        if (labels[i] < -1 || (size_t)(labels[i] + 1) > n) {
+        if (labels[i] < -1 || (labels[i] >= 0 && (size_t)labels[i] >= n)) {
             return MAGCAL_ERR_ARG;
         }
         max_id = labels[i] > max_id ? labels[i] : max_id;
@@ -495,7 +545,7 @@ magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, v
         return MAGCAL_ERR_ALL_NOISE;
     }
     cnt = (uint16_t *)work;
-    memset(cnt, 0, ((size_t)max_id + 1u) * sizeof *cnt);
+    (void)memset(cnt, 0, ((size_t)max_id + 1u) * sizeof *cnt);
     for (i = 0; i < n; ++i) {
         if (labels[i] >= 0) {
             cnt[labels[i]]++;
@@ -508,7 +558,7 @@ magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, v
         }
     }
     for (i = 0; i < n; ++i) {
-        inlier_mask[i] = (uint8_t)(labels[i] == best);
+        inlier_mask[i] = (labels[i] == best) ? 1u : 0u;
     }
     if (cluster_id != NULL) {
         *cluster_id = (int16_t)best;
@@ -535,10 +585,13 @@ magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, v
 /* k-th smallest of a[0..n-1] (a is permuted). Iterative Hoare selection, no recursion. */
 static float select_kth(float *a, size_t n, size_t k)
 {
-    size_t lo = 0u, hi = n - 1u;
+    size_t lo = 0u;
+    size_t hi = n - 1u;
     while (lo < hi) {
         float pivot = a[lo + (hi - lo) / 2u];
-        size_t i = lo, j = hi, guard;
+        size_t i = lo;
+        size_t j = hi;
+        size_t guard;
         for (guard = lo; guard <= hi; ++guard) { /* i grows by >= 1 per round: <= hi-lo+1 rounds */
             float t;
             while (a[i] < pivot) {
@@ -569,11 +622,14 @@ static float select_kth(float *a, size_t n, size_t k)
 /* Heapsort idx[0..m-1] by key[idx] ascending, ties by index (iterative sift). */
 static int sort_less(const float *key, uint16_t a, uint16_t b)
 {
-    return key[a] < key[b] || (key[a] == key[b] && a < b);
+    const float ka = key[a];
+    const float kb = key[b];
+    return ka < kb || (ka == kb && a < b);
 }
 
-static void sort_sift(uint16_t *idx, const float *key, size_t k, size_t m)
+static void sort_sift(uint16_t *idx, const float *key, size_t k0, size_t m)
 {
+    size_t k = k0;
     uint16_t v = idx[k];
     while (2u * k + 1u < m) {
         size_t child = 2u * k + 1u;
@@ -608,7 +664,8 @@ static void heapsort_idx(uint16_t *idx, const float *key, size_t m)
 
 static float dist(const magcal_vec2_t *a, const magcal_vec2_t *b)
 {
-    float dx = a->x - b->x, dy = a->y - b->y;
+    float dx = a->x - b->x;
+    float dy = a->y - b->y;
     return sqrtf(dx * dx + dy * dy);
 }
 
@@ -619,9 +676,17 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
     float *a = (float *)(void *)w;
     uint16_t *idx = (uint16_t *)(void *)(w + 4u * n);
     float *b = (float *)(void *)(w + 8u * n);
-    float cx, cy, rad, lo, hi, link1 = 0.0f, link2 = 0.0f, coreq, e;
-    float ncx, ncy;
-    size_t i, m = 0u;
+    float cx;
+    float cy;
+    float rad;
+    float lo;
+    float hi;
+    float link1 = 0.0f;
+    float link2 = 0.0f;
+    float coreq;
+    float e;
+    size_t i;
+    size_t m = 0u;
     unsigned pass;
 
     /* Pass 0 uses every point; passes 1..AUTO_TRIM_PASSES only the points within
@@ -632,11 +697,15 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
     rad = INFINITY;
     for (pass = 0; pass <= AUTO_TRIM_PASSES; ++pass) {
         float lim2 = (AUTO_TRIM * rad) * (AUTO_TRIM * rad);
+        float ncx;
+        float ncy;
         size_t k = 0u;
         for (i = 0; i < n; ++i) {
-            float dx = pts[i].x - cx, dy = pts[i].y - cy;
+            float dx = pts[i].x - cx;
+            float dy = pts[i].y - cy;
             if (pass == 0u || dx * dx + dy * dy <= lim2) {
-                a[k++] = pts[i].x;
+                a[k] = pts[i].x;
+                ++k;
             }
         }
         if (k < AUTO_MIN_N) {
@@ -645,18 +714,23 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
         ncx = select_kth(a, k, k / 2u);
         k = 0u;
         for (i = 0; i < n; ++i) {
-            float dx = pts[i].x - cx, dy = pts[i].y - cy;
+            float dx = pts[i].x - cx;
+            float dy = pts[i].y - cy;
             if (pass == 0u || dx * dx + dy * dy <= lim2) {
-                a[k++] = pts[i].y;
+                a[k] = pts[i].y;
+                ++k;
             }
         }
         ncy = select_kth(a, k, k / 2u);
         k = 0u;
         for (i = 0; i < n; ++i) {
-            float dx = pts[i].x - cx, dy = pts[i].y - cy;
+            float dx = pts[i].x - cx;
+            float dy = pts[i].y - cy;
             if (pass == 0u || dx * dx + dy * dy <= lim2) {
-                float ex = pts[i].x - ncx, ey = pts[i].y - ncy;
-                a[k++] = sqrtf(ex * ex + ey * ey);
+                float ex = pts[i].x - ncx;
+                float ey = pts[i].y - ncy;
+                a[k] = sqrtf(ex * ex + ey * ey);
+                ++k;
             }
         }
         cx = ncx;
@@ -669,11 +743,13 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
     lo = rad - AUTO_BAND * rad;
     hi = rad + AUTO_BAND * rad;
     for (i = 0; i < n; ++i) {
-        float dx = pts[i].x - cx, dy = pts[i].y - cy;
+        float dx = pts[i].x - cx;
+        float dy = pts[i].y - cy;
         float r = sqrtf(dx * dx + dy * dy);
         a[i] = atan2f(dy, dx);
         if (r >= lo && r <= hi) {
-            idx[m++] = (uint16_t)i;
+            idx[m] = (uint16_t)i;
+            ++m;
         }
     }
     if (m < 2u * AUTO_WIN + 2u) { /* the cyclic windows need distinct neighbours */
@@ -684,7 +760,9 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
         const magcal_vec2_t *p0 = &pts[idx[i]];
         float near[2u * AUTO_WIN];
         float l = INFINITY;
-        size_t q, t, u;
+        size_t q;
+        size_t t;
+        size_t u;
         /* shortest way across the step i -> i+1 that bypasses up to AUTO_WIN - 1 points */
         for (q = 0; q < AUTO_WIN; ++q) {
             for (t = 1u; q + t <= AUTO_WIN; ++t) {
@@ -697,22 +775,31 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
             link1 = l;
         } else if (l > link2) {
             link2 = l;
+        } else {
+            /* neither of the two longest links */
         }
         /* core requirement: (MinPts-1)-th nearest of the AUTO_WIN angular neighbours each side */
         for (q = 1u; q <= AUTO_WIN; ++q) {
             near[2u * q - 2u] = dist(p0, &pts[idx[(i + m - q) % m]]);
             near[2u * q - 1u] = dist(p0, &pts[idx[(i + q) % m]]);
         }
-        for (t = 1u; t < 2u * AUTO_WIN; ++t) { /* insertion sort of 8 values */
+        for (t = 1u; t < (size_t)AUTO_WIN * 2u; ++t) { /* insertion sort of 8 values */
             float v = near[t];
-            for (u = t; u > 0u && near[u - 1u] > v; --u) {
+            for (u = t; u > 0u; --u) {
+                if (!(near[u - 1u] > v)) {
+                    break;
+                }
                 near[u] = near[u - 1u];
             }
             near[u] = v;
         }
         b[i] = near[AUTO_MIN_PTS - 2u];
     }
-    coreq = select_kth(b, m, (size_t)(AUTO_CORE_Q * (float)(m - 1u)));
+    {
+        const size_t last = m - 1u;
+        const float qpos = AUTO_CORE_Q * (float)last;
+        coreq = select_kth(b, m, (size_t)qpos);
+    }
     e = AUTO_SAFETY * (link2 > coreq ? link2 : coreq);
     if (e < AUTO_MIN_REL * rad) {
         e = AUTO_MIN_REL * rad;
@@ -738,7 +825,7 @@ magcal_status_t magcal_optics_auto_params(const magcal_vec2_t *pts, size_t n, vo
     if (pts == NULL || work == NULL || eps == NULL || min_pts == NULL || eps_prime == NULL) {
         return MAGCAL_ERR_NULL;
     }
-    if (((uintptr_t)work & 3u) != 0u) {
+    if (magcal_misalign(work, 4u) != 0u) {
         return MAGCAL_ERR_ARG;
     }
     st = check_points(pts, n, AUTO_MIN_N);
@@ -763,16 +850,18 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
                                      magcal_optics_result_t *info)
 {
     magcal_optics_cfg_t use;
-    optics_ctx_t c;
+    optics_ctx_t *c;
     magcal_status_t st;
-    float eps_prime, cr[3], window[4];
+    float eps_prime;
+    float cr[3];
+    float window[4];
     const float *win = NULL;
     uint8_t *w = (uint8_t *)work;
     size_t i;
     if (cfg == NULL || pts == NULL || work == NULL || inlier_mask == NULL) {
         return MAGCAL_ERR_NULL;
     }
-    if (((uintptr_t)work & 3u) != 0u) {
+    if (magcal_misalign(work, 4u) != 0u) {
         return MAGCAL_ERR_ARG;
     }
     use = *cfg;
@@ -819,26 +908,27 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
             return MAGCAL_ERR_WORKSPACE;
         }
     }
-    ctx_setup(&c, &use, pts, n, w + MAGCAL_OPTICS_FILTER_RUN_OFFSET_(n), win);
-    c.reach = (float *)work;
-    c.labels = (int16_t *)(void *)(w + 4u * n);
-    c.eps_prime = eps_prime;
-    optics_loop(&c);
-    fill_info(info, &c, use.eps, eps_prime);
-    if (c.best_id < 0) {
+    c = ctx_setup(&use, pts, n, w + MAGCAL_OPTICS_FILTER_RUN_OFFSET_(n), win);
+    c->reach = (float *)work;
+    c->labels = (int16_t *)(void *)(w + 4u * n);
+    c->eps_prime = eps_prime;
+    optics_loop(c);
+    fill_info(info, c, use.eps, eps_prime);
+    if (c->best_id < 0) {
         if (info != NULL) {
-            info->n_noise = (uint16_t)c.n_noise;
+            info->n_noise = (uint16_t)c->n_noise;
         }
         return MAGCAL_ERR_ALL_NOISE;
     }
     for (i = 0; i < n; ++i) {
-        inlier_mask[i] = (uint8_t)(c.labels[i] == c.best_id);
+        inlier_mask[i] = (c->labels[i] == c->best_id) ? 1u : 0u;
     }
     if (info != NULL) {
-        info->n_clusters = (uint16_t)(c.id + 1);
-        info->largest_id = (int16_t)c.best_id;
-        info->n_inliers = (uint16_t)c.best_count;
-        info->n_noise = (uint16_t)c.n_noise;
+        const int32_t count = c->id + 1;
+        info->n_clusters = (uint16_t)count;
+        info->largest_id = (int16_t)c->best_id;
+        info->n_inliers = (uint16_t)c->best_count;
+        info->n_noise = (uint16_t)c->n_noise;
     }
     return MAGCAL_OK;
 }

@@ -59,6 +59,9 @@ static float swing_spread_pivot(float g[SWING_N * SWING_N])
     size_t i;
     size_t j;
     size_t k;
+    for (k = 0u; k < SWING_N; ++k) {
+        d[k] = 0.0f; /* d[k] is read only for k < j, after it is set: defined for the analysers */
+    }
     for (j = 0u; j < SWING_N; ++j) {
         float dj = g[j * SWING_N + j];
         for (k = 0u; k < j; ++k) {
@@ -144,7 +147,7 @@ magcal_status_t magcal_swing_fit(const magcal_swing_cfg_t *cfg, const float *psi
             }
         }
     }
-    for (i = 0u; i < SWING_N * SWING_N; ++i) {
+    for (i = 0u; i < (size_t)SWING_N * SWING_N; ++i) {
         gram[i] = ata[i] / wsum;
     }
     pivot = swing_spread_pivot(gram);
@@ -167,8 +170,9 @@ magcal_status_t magcal_swing_fit(const magcal_swing_cfg_t *cfg, const float *psi
     if (regressor == MAGCAL_SWING_REG_REFERENCE) {
         /* |d delta/d psi| <= (|B| + |C| + 2|D| + 2|E|) pi/180: the contraction bound of the
          * fixed-point inversion psi_{j+1} = psi_c + delta(psi_j). */
-        float slope = (fabsf(atb[1]) + fabsf(atb[2]) + 2.0f * fabsf(atb[3]) + 2.0f * fabsf(atb[4])) *
-                      MAGCAL_RAD_PER_DEG_F;
+        float slope =
+            (fabsf(atb[1]) + fabsf(atb[2]) + 2.0f * fabsf(atb[3]) + 2.0f * fabsf(atb[4])) *
+            MAGCAL_RAD_PER_DEG_F;
         if (!(slope < SWING_MAX_SLOPE)) {
             return MAGCAL_ERR_NOT_CONVERGED;
         }
@@ -279,7 +283,8 @@ static void swing_cog_merge(magcal_swing_cog_t *acc, float psi_c_deg, float psi_
 {
     const float bin_w = 360.0f / (float)MAGCAL_SWING_COG_BINS;
     float psi = magcal_wrap360_deg(psi_c_deg);
-    size_t idx = (size_t)(psi / bin_w);
+    const float pos = psi / bin_w;
+    size_t idx = (size_t)pos;
     magcal_swing_bin_t *b;
     float off;
     float delta;
@@ -364,14 +369,17 @@ magcal_status_t magcal_swing_cog_add(magcal_swing_cog_t *acc, const magcal_swing
     }
     /* Straight and steady: fast enough, continuous in time, COG rate below the limit. */
     dt = ep->time_s - acc->last_t_s;
-    straight = ep->speed_mps >= acc->cfg.min_speed_mps && acc->have_last != 0u && dt > 0.0f &&
-               dt <= acc->cfg.max_gap_s &&
-               fabsf(magcal_wrap180_deg(ep->cog_deg - acc->last_cog_deg)) <=
-                   acc->cfg.max_cog_rate_dps * dt;
+    straight = 0;
+    if (ep->speed_mps >= acc->cfg.min_speed_mps && acc->have_last != 0u && dt > 0.0f &&
+        dt <= acc->cfg.max_gap_s &&
+        fabsf(magcal_wrap180_deg(ep->cog_deg - acc->last_cog_deg)) <=
+            acc->cfg.max_cog_rate_dps * dt) {
+        straight = 1;
+    }
     acc->last_t_s = ep->time_s;
     acc->last_cog_deg = ep->cog_deg;
     acc->have_last = 1u;
-    if (!straight) {
+    if (straight == 0) {
         swing_cog_close_leg(acc);
         return MAGCAL_ERR_GATED;
     }

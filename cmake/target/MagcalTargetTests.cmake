@@ -85,11 +85,13 @@ function(magcal_target_add_xcheck name)
 endfunction()
 
 # Worst-case stack per library function from this build's .su/.ci files (tools/stack/): fails on
-# recursion, dynamic frames, indirect calls, or a public entry point above the budget.
-set(MAGCAL_STACK_LIMIT 512 CACHE STRING "Worst-case stack budget (bytes) of one public magcal call")
+# recursion, dynamic frames, indirect calls, or a public entry point above its budget in
+# tools/stack/budgets.txt (default 512 B; larger, documented budgets for the 3-D/model fits).
+set(MAGCAL_STACK_BUDGETS ${PROJECT_SOURCE_DIR}/tools/stack/budgets.txt CACHE FILEPATH
+    "Per-function worst-case stack budgets (bytes) of the public magcal calls")
 add_test(NAME stack_usage
          COMMAND ${Python3_EXECUTABLE} ${PROJECT_SOURCE_DIR}/tools/stack/stack_usage.py
-                 ${PROJECT_BINARY_DIR} --limit ${MAGCAL_STACK_LIMIT})
+                 ${PROJECT_BINARY_DIR} --budgets ${MAGCAL_STACK_BUDGETS})
 set_tests_properties(stack_usage PROPERTIES LABELS "target;stack")
 
 # Validation of the static numbers: tests/target/stack_watermark.c measures the stack the public

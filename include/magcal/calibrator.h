@@ -4,10 +4,11 @@
  *        singular points, fit the ellipse, gate the result and adopt it only when it is sound.
  *
  * Pipeline of magcal_calibrator_run():
- *  1. pre-checks: enough samples (cfg.min_samples), not all identical / collinear;
+ *  1. pre-checks: enough samples (cfg.min_samples), not all identical;
  *  2. density filter (optics.h / dbscan.h): OPTICS improved + grid with automatic eps, eps' and
  *     MinPts by default; OPTICS classic; DBSCAN; or none. cfg.eps / cfg.min_pts override the
- *     automatic values (DBSCAN with eps = 0 uses the automatic eps');
+ *     automatic values (DBSCAN with eps = 0 uses the automatic eps'); then the filter inliers
+ *     must not be collinear (tested after the filter, so far outliers cannot fake collinearity);
  *  3. coverage pre-gate: every sample, around a hard-iron circle fit of the filter inliers (so a
  *     short arc is reported as COVERAGE, not as whatever conic it happens to fit); when the filter
  *     inliers alone miss the gate (bursts split the ring into arcs, algorithms.md 4.3) the
@@ -103,12 +104,23 @@ extern "C" {
 #define MAGCAL_CALIBRATOR_MASKS_LEN(cap) ((3u * (size_t)(cap) + 3u) & ~(size_t)3u)
 
 /**
- * Workspace bytes for a calibrator of the given capacity: the per-sample masks plus the largest
- * scratch of the stages (OPTICS filter, DBSCAN labels + queue, consensus). About 20 bytes per
- * sample at capacity 1024 (the sample buffer itself is 8 bytes per sample, separate).
+ * Bytes of the state of one magcal_calibrator_run() kept in the workspace instead of on the stack
+ * (the report, the consensus result, the candidate calibration, the filter's configuration and
+ * result), 4-aligned.
+ */
+#define MAGCAL_CALIBRATOR_RUN_LEN                                                                  \
+    ((sizeof(magcal_cal_report_t) + sizeof(magcal_consensus_result_t) + sizeof(magcal_cal2d_t) +  \
+      sizeof(magcal_optics_cfg_t) + sizeof(magcal_optics_result_t) + sizeof(magcal_dbscan_cfg_t) + \
+      3u) & ~(size_t)3u)
+
+/**
+ * Workspace bytes for a calibrator of the given capacity: the per-sample masks, the run() state
+ * (MAGCAL_CALIBRATOR_RUN_LEN) plus the largest scratch of the stages (OPTICS filter, DBSCAN
+ * labels + queue, consensus). About 20 bytes per sample at capacity 1024 (the sample buffer itself
+ * is 8 bytes per sample, separate).
  */
 #define MAGCAL_CALIBRATOR_WORKSPACE_LEN(cap)                                                       \
-    (MAGCAL_CALIBRATOR_MASKS_LEN(cap) +                                                            \
+    (MAGCAL_CALIBRATOR_MASKS_LEN(cap) + MAGCAL_CALIBRATOR_RUN_LEN +                                \
      MAGCAL_CALIBRATOR_MAX_(                                                                       \
          MAGCAL_CALIBRATOR_MAX_(MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(cap),                           \
                                 MAGCAL_CONSENSUS_WORKSPACE_LEN(cap)),                              \
@@ -210,9 +222,11 @@ typedef struct {
     uint8_t *flags;     /* workspace: per-sample flags [capacity] */
     uint8_t *mask_a;    /* workspace: filter inlier mask [capacity] */
     uint8_t *mask_b;    /* workspace: consensus inlier mask [capacity] */
+    void *run;          /* workspace: run() state (report, consensus result, candidate) */
     void *scratch;      /* workspace: stage scratch */
     size_t scratch_len;
-    magcal_vec2_t bb_min, bb_max; /* bounding box of the stored samples */
+    magcal_vec2_t bb_min; /* bounding box of the stored samples */
+    magcal_vec2_t bb_max;
     magcal_vec2_t centre;         /* provisional centre of the coverage bins */
     float centre_tol;             /* re-bin when the bbox midpoint moves more than this */
     uint16_t bins[MAGCAL_COVERAGE_BINS];
@@ -277,7 +291,9 @@ magcal_status_t magcal_calibrator_poll(magcal_calibrator_t *cal);
  * @param[out]    report  optional (NULL): what happened (always written when non-NULL).
  * @return MAGCAL_OK (adopted); MAGCAL_ERR_NULL (cal or current NULL); MAGCAL_ERR_NOT_INITIALISED;
  *         MAGCAL_ERR_TOO_FEW_POINTS (fewer than cfg.min_samples samples or inliers);
- *         MAGCAL_ERR_DEGENERATE (all samples identical or collinear);
+ *         MAGCAL_ERR_DEGENERATE (all samples identical or collinear, or their extent squared underflows
+ *         to 0); MAGCAL_ERR_ILL_CONDITIONED also when the extent squared is subnormal (rings below
+ *         about 1e-20: float32 distances lose their precision);
  *         MAGCAL_ERR_ALL_NOISE (the density filter found no cluster);
  *         MAGCAL_ERR_COVERAGE (arc below cfg.min_coverage_deg; see report->missing_*);
  *         MAGCAL_ERR_TOO_MANY_OUTLIERS; MAGCAL_ERR_HYPERBOLA; MAGCAL_ERR_PARABOLA;

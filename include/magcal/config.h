@@ -33,6 +33,55 @@
 #define MAGCAL_COVERAGE_BINS 36u
 #endif
 
+/* ---- Module limits and numerical tolerances (moved here from the module headers; same values) */
+
+/** Relative pivot threshold of the equilibrated LDL^T solve (algorithms.md 3.2). */
+#ifndef MAGCAL_ELLIPSE_PIVOT_TOL
+#define MAGCAL_ELLIPSE_PIVOT_TOL 1.0e-6f
+#endif
+
+/**
+ * Parabola tolerance: the conic is a parabola (MAGCAL_ERR_PARABOLA) when
+ * |4B - A^2| <= MAGCAL_ELLIPSE_PARABOLA_TOL * (1 + A^2/2 + B^2) (normalised coefficients; the
+ * right side is the squared Frobenius norm of [[1, A/2], [A/2, B]], so the test is invariant to
+ * the conic's scale). 1e-6 corresponds to an axis ratio of about 2000, beyond what float32
+ * coefficients resolve.
+ */
+#ifndef MAGCAL_ELLIPSE_PARABOLA_TOL
+#define MAGCAL_ELLIPSE_PARABOLA_TOL 1.0e-6f
+#endif
+
+/**
+ * Collinearity test: the used points are DEGENERATE when the smaller eigenvalue of their 2x2
+ * covariance is below this fraction of the larger (width/length below about 1e-3).
+ */
+#ifndef MAGCAL_ELLIPSE_COLLINEAR_TOL
+#define MAGCAL_ELLIPSE_COLLINEAR_TOL 1.0e-6f
+#endif
+
+/**
+ * Relative zero-field gate of magcal_heading_compute(): when the calibration's radius is known
+ * (> 0), a corrected field shorter than this fraction of it gives MAGCAL_ERR_ZERO_FIELD.
+ */
+#ifndef MAGCAL_HEADING_ZERO_FIELD_FRAC
+#define MAGCAL_HEADING_ZERO_FIELD_FRAC 1.0e-3f
+#endif
+
+/** Heading bins of the course-over-ground accumulator (10 deg each by default). */
+#ifndef MAGCAL_SWING_COG_BINS
+#define MAGCAL_SWING_COG_BINS 36u
+#endif
+
+/** Largest number of minimal-set draws accepted in magcal_consensus_cfg_t::max_iter. */
+#ifndef MAGCAL_CONSENSUS_MAX_ITER
+#define MAGCAL_CONSENSUS_MAX_ITER 2000u
+#endif
+
+/** Largest number of threshold/refit rounds accepted in magcal_consensus_cfg_t::refine_iter. */
+#ifndef MAGCAL_CONSENSUS_MAX_REFINE
+#define MAGCAL_CONSENSUS_MAX_REFINE 32u
+#endif
+
 /**
  * Internal invariant check. Defaults to nothing (stripped); define it (e.g. to a breakpoint or
  * a call into the firmware's fault handler) to enable. Bad caller input is never checked with
@@ -42,6 +91,19 @@
 #define MAGCAL_ASSERT(cond) ((void)0)
 #endif
 
+/**
+ * Keep a function out of its callers' frames (stack depth: a large helper frame is then not
+ * added to every path through the caller). GCC/Clang attribute; empty for other compilers,
+ * where the stack numbers of docs/reliability.md do not apply anyway.
+ */
+#ifndef MAGCAL_NOINLINE
+#if defined(__GNUC__) || defined(__clang__)
+#define MAGCAL_NOINLINE __attribute__((noinline))
+#else
+#define MAGCAL_NOINLINE
+#endif
+#endif
+
 /* C99 static assert without _Static_assert (negative array size on failure). */
 #define MAGCAL_STATIC_ASSERT(cond, name) typedef char magcal_static_assert_##name[(cond) ? 1 : -1]
 
@@ -49,6 +111,9 @@ MAGCAL_STATIC_ASSERT(MAGCAL_MAX_SAMPLES >= 16u, max_samples_at_least_16);
 MAGCAL_STATIC_ASSERT(MAGCAL_MAX_SAMPLES <= 65535u, max_samples_fits_uint16);
 MAGCAL_STATIC_ASSERT(MAGCAL_MAX_MIN_PTS >= 2u, min_pts_at_least_2);
 MAGCAL_STATIC_ASSERT(MAGCAL_GRID_MAX_CELLS >= 9u && MAGCAL_GRID_MAX_CELLS <= 65535u, grid_cells_range);
+MAGCAL_STATIC_ASSERT(MAGCAL_SWING_COG_BINS >= 4u && MAGCAL_SWING_COG_BINS <= 360u, swing_cog_bins_range);
+MAGCAL_STATIC_ASSERT(MAGCAL_CONSENSUS_MAX_ITER >= 1u && MAGCAL_CONSENSUS_MAX_ITER <= 65535u, consensus_iter_fits_uint16);
+MAGCAL_STATIC_ASSERT(MAGCAL_CONSENSUS_MAX_REFINE >= 1u && MAGCAL_CONSENSUS_MAX_REFINE <= 65535u, consensus_refine_fits_uint16);
 MAGCAL_STATIC_ASSERT(MAGCAL_COVERAGE_BINS >= 8u && MAGCAL_COVERAGE_BINS <= 360u, coverage_bins_range);
 
 #endif /* MAGCAL_CONFIG_H */

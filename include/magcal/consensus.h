@@ -52,18 +52,23 @@
 extern "C" {
 #endif
 
-/** Largest number of minimal-set draws accepted in magcal_consensus_cfg_t::max_iter. */
-#define MAGCAL_CONSENSUS_MAX_ITER 2000u
+/* MAGCAL_CONSENSUS_MAX_ITER and MAGCAL_CONSENSUS_MAX_REFINE (limits of the configuration) are
+ * build-time limits in magcal/config.h. */
 
-/** Largest number of threshold/refit rounds accepted in magcal_consensus_cfg_t::refine_iter. */
-#define MAGCAL_CONSENSUS_MAX_REFINE 32u
+/** @cond INTERNAL */
+/* Bytes of the run state kept in the workspace (four ellipse models and the loop state, off the
+ * stack) with its alignment slack; consensus.c checks the size with a static assert. */
+#define MAGCAL_CONSENSUS_STATE_LEN_ (4u * sizeof(magcal_ellipse_t) + 20u * sizeof(void *))
+/** @endcond */
 
 /**
- * Workspace bytes for magcal_consensus_run() on n samples: |residual| float[n], scratch float[n]
- * (angles, then selection), candidate order uint16[n], plus 4 bytes of alignment slack.
- * 10 bytes per sample.
+ * Workspace bytes for magcal_consensus_run() on n samples: the run state (four ellipse models:
+ * best, current, candidate, refit; the loop state), |residual| float[n], scratch float[n]
+ * (angles, then selection), candidate order uint16[n], plus alignment slack.
+ * 10 bytes per sample + MAGCAL_CONSENSUS_STATE_LEN_ (384 bytes on a 32-bit target).
  */
-#define MAGCAL_CONSENSUS_WORKSPACE_LEN(n) ((((size_t)(n) * 10u) + 3u + 4u) & ~(size_t)3u)
+#define MAGCAL_CONSENSUS_WORKSPACE_LEN(n)                                                          \
+    (((((size_t)(n) * 10u) + 3u + 4u) & ~(size_t)3u) + MAGCAL_CONSENSUS_STATE_LEN_)
 
 /** Configuration of the consensus stage (validated by every call). */
 typedef struct {

@@ -65,6 +65,8 @@ typedef struct {
  * @param[out] n_clusters optional (NULL): number of clusters.
  * @param[out] used       optional (NULL): neighbour search actually used (GRID -> BRUTE for eps = inf).
  * @return MAGCAL_OK; MAGCAL_ERR_NULL (cfg, pts, work or labels NULL); MAGCAL_ERR_ARG (eps not > 0,
+ *         finite eps whose square is below FLT_MIN/1024 or overflows: eps < 3.4e-21 or eps > 1.8e19
+ *         (use +INFINITY for "everything"),
  *         min_pts out of range, bad enum, misaligned work, n > MAGCAL_MAX_SAMPLES);
  *         MAGCAL_ERR_TOO_FEW_POINTS (n < min_pts); MAGCAL_ERR_NONFINITE; MAGCAL_ERR_WORKSPACE.
  *         labels untouched on failure.

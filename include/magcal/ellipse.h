@@ -61,29 +61,8 @@ extern "C" {
 /** Largest number of points of one fit (n_used is a uint16_t). */
 #define MAGCAL_ELLIPSE_MAX_POINTS 65535u
 
-/** Relative pivot threshold of the equilibrated LDL^T solve (algorithms.md 3.2). */
-#ifndef MAGCAL_ELLIPSE_PIVOT_TOL
-#define MAGCAL_ELLIPSE_PIVOT_TOL 1.0e-6f
-#endif
-
-/**
- * Parabola tolerance: the conic is a parabola (MAGCAL_ERR_PARABOLA) when
- * |4B - A^2| <= MAGCAL_ELLIPSE_PARABOLA_TOL * (1 + A^2/2 + B^2) (normalised coefficients; the
- * right side is the squared Frobenius norm of [[1, A/2], [A/2, B]], so the test is invariant to
- * the conic's scale). 1e-6 corresponds to an axis ratio of about 2000, beyond what float32
- * coefficients resolve.
- */
-#ifndef MAGCAL_ELLIPSE_PARABOLA_TOL
-#define MAGCAL_ELLIPSE_PARABOLA_TOL 1.0e-6f
-#endif
-
-/**
- * Collinearity test: the used points are DEGENERATE when the smaller eigenvalue of their 2x2
- * covariance is below this fraction of the larger (width/length below about 1e-3).
- */
-#ifndef MAGCAL_ELLIPSE_COLLINEAR_TOL
-#define MAGCAL_ELLIPSE_COLLINEAR_TOL 1.0e-6f
-#endif
+/* Numerical tolerances MAGCAL_ELLIPSE_PIVOT_TOL, MAGCAL_ELLIPSE_PARABOLA_TOL and
+ * MAGCAL_ELLIPSE_COLLINEAR_TOL are build-time settings in magcal/config.h. */
 
 /** Fitted ellipse. Lengths and centre in input units; see the file comment for normalisation. */
 typedef struct {
@@ -134,7 +113,7 @@ typedef enum {
  *         MAGCAL_ERR_NONFINITE (a used point is NaN/Inf);
  *         MAGCAL_ERR_DEGENERATE (all used points identical, or collinear);
  *         MAGCAL_ERR_ILL_CONDITIONED (pivot below MAGCAL_ELLIPSE_PIVOT_TOL: too little rotation,
- *         points on a degenerate conic);
+ *         points on a degenerate conic; or finite points whose x or y range exceeds FLT_MAX);
  *         MAGCAL_ERR_HYPERBOLA (4B - A^2 < 0: arc too short, outliers, tilt);
  *         MAGCAL_ERR_PARABOLA (|4B - A^2| within MAGCAL_ELLIPSE_PARABOLA_TOL);
  *         MAGCAL_ERR_IMAGINARY (K <= 0: imaginary or point ellipse).

@@ -34,6 +34,7 @@
 
 #include <stdint.h>
 
+#include "magcal/config.h"
 #include "magcal/status.h"
 #include "magcal/types.h"
 
@@ -44,13 +45,7 @@ extern "C" {
 /** Magic and layout version of magcal_cal2d_t ("MC2" + version byte 0x01). */
 #define MAGCAL_CAL2D_MAGIC 0x4D433201u
 
-/**
- * Relative zero-field gate of magcal_heading_compute(): when the calibration's radius is known
- * (> 0), a corrected field shorter than this fraction of it gives MAGCAL_ERR_ZERO_FIELD.
- */
-#ifndef MAGCAL_HEADING_ZERO_FIELD_FRAC
-#define MAGCAL_HEADING_ZERO_FIELD_FRAC 1.0e-3f
-#endif
+/* The zero-field gate MAGCAL_HEADING_ZERO_FIELD_FRAC is a build-time setting in magcal/config.h. */
 
 /**
  * A 2-D calibration: h = m * (raw - offset). Plain struct, storable in flash as is.

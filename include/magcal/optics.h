@@ -107,6 +107,9 @@ typedef enum {
 #define MAGCAL_OPTICS_BEST_OFFSET_(n)                                                              \
     ((4u * (size_t)(n) + MAGCAL_NEIGHBORS_WORKSPACE_LEN(n) + ((size_t)(n) + 7u) / 8u + 3u) &       \
      ~(size_t)3u)
+/* Bytes of the ordering loop's context, kept in the workspace (off the stack) after the MinPts
+ * buffer, with slack to align it for pointers; optics.c checks the size with a static assert. */
+#define MAGCAL_OPTICS_CTX_LEN_ (35u * sizeof(void *))
 /* Offset of the run workspace inside the filter workspace (4-byte aligned). */
 #define MAGCAL_OPTICS_FILTER_RUN_OFFSET_(n) ((6u * (size_t)(n) + 3u) & ~(size_t)3u)
 /** @endcond */
@@ -114,16 +117,17 @@ typedef enum {
 /**
  * Workspace bytes for magcal_optics_run() on n points: seed heap/list uint16[n], heap position
  * map uint16[n], spatial index, one "processed" bit per point and the MinPts insertion buffer
- * (4 * MAGCAL_MAX_MIN_PTS bytes, kept off the stack). About 8.1 bytes per sample + 128 bytes;
+ * (4 * MAGCAL_MAX_MIN_PTS bytes) and the loop's context (35 pointers' worth, 140 bytes on a 32-bit
+ * target), both kept off the stack. About 8.1 bytes per sample + 268 bytes (32-bit);
  * the outputs (order 2 + reach 4 + core 4 bytes per sample) are separate caller arrays.
  */
 #define MAGCAL_OPTICS_WORKSPACE_LEN(n)                                                             \
-    (MAGCAL_OPTICS_BEST_OFFSET_(n) + 4u * (size_t)MAGCAL_MAX_MIN_PTS)
+    (MAGCAL_OPTICS_BEST_OFFSET_(n) + 4u * (size_t)MAGCAL_MAX_MIN_PTS + MAGCAL_OPTICS_CTX_LEN_)
 
 /**
  * Workspace bytes for magcal_optics_filter() and magcal_optics_auto_params() on n points:
  * reach float[n] + labels int16[n] + MAGCAL_OPTICS_WORKSPACE_LEN(n). About 14.1 bytes per
- * sample + 128 bytes; with the caller's uint8 inlier mask the whole filter needs about 15.1 bytes
+ * sample + 268 bytes (32-bit); with the caller's uint8 inlier mask the whole filter needs about 15.1 bytes
  * per sample besides the points (ordering and core distances are consumed on the fly).
  */
 #define MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n)                                                      \
@@ -187,7 +191,9 @@ typedef struct {
  * @param[out] pred      optional (NULL): n predecessors, MAGCAL_OPTICS_NO_PRED for starts.
  * @param[out] info      optional (NULL): eps, min_pts and the neighbour search used.
  * @return MAGCAL_OK; MAGCAL_ERR_NULL (cfg, pts, work, order, reach or core NULL);
- *         MAGCAL_ERR_ARG (eps not > 0 or NaN, min_pts outside 2..MAGCAL_MAX_MIN_PTS, bad enum,
+ *         MAGCAL_ERR_ARG (eps not > 0 or NaN, finite eps whose square is below FLT_MIN/1024 or overflows,
+ *         i.e. eps < 3.4e-21 or eps > 1.8e19 (use +INFINITY for "everything"), min_pts outside
+ *         2..MAGCAL_MAX_MIN_PTS, bad enum,
  *         work not 4-byte aligned); MAGCAL_ERR_TOO_FEW_POINTS (n < min_pts);
  *         MAGCAL_ERR_ARG also for n > MAGCAL_MAX_SAMPLES; MAGCAL_ERR_NONFINITE (a NaN/Inf point);
  *         MAGCAL_ERR_WORKSPACE (work_len too small). Outputs are untouched on failure.

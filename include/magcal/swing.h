@@ -28,6 +28,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "magcal/config.h"
 #include "magcal/status.h"
 
 #ifdef __cplusplus
@@ -40,10 +41,8 @@ extern "C" {
 /** Fewest reference headings a fit accepts. */
 #define MAGCAL_SWING_MIN_POINTS 5u
 
-/** Heading bins of the course-over-ground accumulator (10 deg each by default). */
-#ifndef MAGCAL_SWING_COG_BINS
-#define MAGCAL_SWING_COG_BINS 36u
-#endif
+/* MAGCAL_SWING_COG_BINS (bins of the course-over-ground accumulator) is a build-time limit in
+ * magcal/config.h. */
 
 /** Which heading is the regressor of the model. */
 typedef enum {

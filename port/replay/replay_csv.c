@@ -3,6 +3,7 @@
 #include "replay_csv.h"
 
 #include <errno.h>
+#include <float.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -178,7 +179,8 @@ static int parse_cell(const char *s, size_t n, int required, double *v)
     if (end != buf + n) {
         return 2;
     }
-    if (!isfinite(x) || (errno == ERANGE && fabs(x) > 1.0)) {
+    /* beyond FLT_MAX the conversion to the library's float32 would be undefined (C99 6.3.1.5) */
+    if (!isfinite(x) || (errno == ERANGE && fabs(x) > 1.0) || fabs(x) > (double)FLT_MAX) {
         return 4;
     }
     *v = x;

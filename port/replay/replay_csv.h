@@ -15,7 +15,8 @@
  *   wrapped in double quotes (without commas inside) are accepted;
  * - a cell of a recognised column is a decimal number (`-1.5`, `2e-3`), or empty / `nan`
  *   (case-insensitive) meaning "missing", which is allowed only in columns the caller did not mark
- *   required. `inf`, hex, `1.2.3`, trailing text, ... are errors.
+ *   required. `inf`, hex, `1.2.3`, trailing text, a magnitude above FLT_MAX (it would not
+ *   convert to the library's float32), ... are errors.
  *
  * Errors are never silent: a malformed file fails as a whole with a message
  * `FILE:LINE:COL: what` (COL = 1-based field number; `FILE:LINE: what` when no single field is at

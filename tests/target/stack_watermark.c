@@ -12,6 +12,10 @@
 #include <stdint.h>
 #include <stdio.h>
 
+#include <string.h>
+
+#include "magcal/calibrator.h"
+#include "magcal/consensus.h"
 #include "magcal/ellipse.h"
 #include "magcal/heading.h"
 #include "magcal_internal.h"
@@ -21,6 +25,7 @@
 #define WM_GUARD_BYTES 64u
 #define WM_PAINT 0xA5u
 #define WM_RING_N 72u
+#define WM_CAP 96u
 
 typedef void (*wm_fn_t)(void);
 
@@ -29,6 +34,10 @@ static float g_psi[WM_RING_N];
 static magcal_ellipse_t g_ell;
 static magcal_cal2d_t g_cal;
 static int g_failures;
+static magcal_calibrator_t g_calib;
+static magcal_vec2_t g_buf[WM_CAP];
+static uint32_t g_work[(MAGCAL_CALIBRATOR_WORKSPACE_LEN(WM_CAP) + 3u) / 4u];
+static uint8_t g_mask[WM_CAP];
 
 static void wm_check(magcal_status_t st)
 {
@@ -76,6 +85,22 @@ static void call_ldlt_solve(void)
     wm_check(magcal_ldlt_solve(n, b, 3u, 1e-6f, NULL));
 }
 
+/* The whole 2-D pipeline (default configuration: OPTICS filter, consensus, fit, gates). */
+static void call_calibrator_run(void)
+{
+    magcal_cal2d_t cur;
+    (void)memset(&cur, 0, sizeof cur); /* no usable calibration yet: adopt */
+    wm_check(magcal_calibrator_run(&g_calib, &cur, NULL));
+}
+
+static void call_consensus_run(void)
+{
+    static const magcal_consensus_cfg_t cfg = MAGCAL_CONSENSUS_CFG_DEFAULT;
+    magcal_consensus_result_t res;
+    wm_check(magcal_consensus_run(&cfg, g_ring, WM_RING_N, NULL, g_work, sizeof g_work, g_mask,
+                                  &res));
+}
+
 /* Paint WM_PAINT_BYTES below the current stack pointer (leaving a guard for this function's
  * own call), run fn, and return how far below our SP it wrote. fn is called without arguments,
  * so the distance is fn's own worst-case depth on this input. */
@@ -110,6 +135,16 @@ int main(void)
     wm_report("call_ellipse_to_cal", call_ellipse_to_cal);
     wm_report("call_heading_compute", call_heading_compute);
     wm_report("call_ldlt_solve", call_ldlt_solve);
+    wm_report("call_consensus_run", call_consensus_run);
+    {
+        static const magcal_calibrator_cfg_t cfg = MAGCAL_CALIBRATOR_CFG_DEFAULT;
+        size_t i;
+        wm_check(magcal_calibrator_init(&g_calib, &cfg, g_buf, WM_CAP, g_work, sizeof g_work));
+        for (i = 0u; i < WM_RING_N; ++i) {
+            (void)magcal_calibrator_push(&g_calib, g_ring[i]); /* GATED samples are skipped */
+        }
+    }
+    wm_report("call_calibrator_run", call_calibrator_run);
     if (g_failures != 0) {
         printf("stack_watermark: %d calls failed\n", g_failures);
     }

@@ -164,6 +164,9 @@ def main(argv):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("build_dir")
     ap.add_argument("--limit", type=int, default=0, help="fail if a public entry point needs more (bytes)")
+    ap.add_argument("--budgets", default="",
+                    help="per-function budget table (tools/stack/budgets.txt): fail if a public entry "
+                         "point needs more than its budget (or the table's `default`)")
     ap.add_argument("--public-only", action="store_true", help="list only functions declared in include/")
     ap.add_argument("--src-root", default=os.path.join(os.path.dirname(__file__), "..", ".."))
     ap.add_argument("--assume", default=os.path.join(os.path.dirname(__file__), "assumptions.txt"))
@@ -269,6 +272,28 @@ def main(argv):
         if pubs:
             top = max(pubs, key=lambda r: r[2])
             print("worst public entry point: %s, %d bytes (limit %d)" % (top[0], top[2], args.limit))
+    if args.budgets:
+        budget = {}
+        with open(args.budgets) as f:
+            for line in f:
+                fields = line.split("#", 1)[0].split()
+                if len(fields) >= 2:
+                    budget[fields[0]] = int(fields[1])
+        if "default" not in budget:
+            errors.append("%s: no `default` budget" % args.budgets)
+        known = set(r[0] for r in rows if r[3])
+        for name in sorted(budget):
+            if name != "default" and name not in known:
+                errors.append("%s: budget for unknown public function %s" % (args.budgets, name))
+        print("\nbudget check (%s):" % os.path.basename(args.budgets))
+        for name, _, total, pub, _ in rows:
+            if not pub:
+                continue
+            lim = budget.get(name, budget.get("default", 0))
+            if name in budget:
+                print("  %-32s %5d / %5d %s" % (name, total, lim, "OK" if total <= lim else "OVER"))
+            if total > lim:
+                errors.append("%s needs %d bytes > budget %d" % (name, total, lim))
     for caller, callee in sorted(pruned):
         print("assumed never called: %s -> %s" % (caller, callee))
     if port_used:

@@ -1,0 +1,156 @@
+#!/usr/bin/env python3
+"""Build the libFuzzer seed corpora from the dumps (standard library only).
+
+  make_corpus.py --source-dir REPO --out DIR [--shared-dir /work/shared]
+
+Writes DIR/replay_csv/, DIR/calibrator/, DIR/cluster/ (one file per seed, named by content hash).
+Inputs: REPO/tests/data/{real,synthetic}/*.csv, SHARED/data/real/*/data.csv when given, and the
+committed seeds in tools/fuzz/seeds/<harness>/ (hand-written CSVs, reproducers of fixed crashes). The corpora are build products: never commit them.
+
+Seed formats are those documented at the top of fuzz_calibrator.c and fuzz_cluster.c.
+"""
+import argparse
+import glob
+import hashlib
+import math
+import os
+import shutil
+import struct
+
+CSV_HEAD_LINES = 40      # csv seeds: header + up to this many data lines (keeps seeds < ~4 kB)
+MAX_POINTS = 1024        # MAGCAL_MAX_SAMPLES
+PTS_PER_SEED = (60, 300)      # points per binary seed (capacity up to 1024 is fuzzed anyway)
+
+
+def write_seed(d, data):
+    os.makedirs(d, exist_ok=True)
+    name = hashlib.sha1(data).hexdigest()
+    with open(os.path.join(d, name), "wb") as f:
+        f.write(data)
+
+
+def read_xy(path):
+    """(x, y) pairs of the mx, my columns; rows with a missing/non-numeric cell are skipped."""
+    pts = []
+    header = None
+    with open(path, "r", encoding="utf-8", errors="replace") as f:
+        for line in f:
+            s = line.strip()
+            if not s or s.startswith("#"):
+                continue
+            cells = [c.strip().strip('"').lower() for c in s.split(",")]
+            if header is None:
+                header = cells
+                if "mx" not in header or "my" not in header:
+                    return []
+                ix, iy = header.index("mx"), header.index("my")
+                continue
+            try:
+                x, y = float(cells[ix]), float(cells[iy])
+            except (ValueError, IndexError):
+                continue
+            if math.isfinite(x) and math.isfinite(y):
+                pts.append((x, y))
+    return pts
+
+
+def csv_seeds(path, out):
+    with open(path, "rb") as f:
+        lines = f.read().splitlines(keepends=True)
+    # first non-comment line is the header; keep leading comments (they are part of the format)
+    k = 0
+    while k < len(lines) and (lines[k].strip() == b"" or lines[k].lstrip().startswith(b"#")):
+        k += 1
+    head = lines[: k + 1]
+    body = lines[k + 1:]
+    step = max(1, len(body) // CSV_HEAD_LINES)
+    write_seed(out, b"".join(head + body[:CSV_HEAD_LINES]))
+    write_seed(out, b"".join(head + body[::step][:CSV_HEAD_LINES]))
+
+
+def subsample(pts, m):
+    if len(pts) <= m:
+        return pts
+    step = len(pts) / m
+    return [pts[int(i * step)] for i in range(m)]
+
+
+def int16_scaled(pts):
+    big = max(max(abs(x), abs(y)) for x, y in pts) or 1.0
+    scale = big / 16000.0
+    q = b"".join(struct.pack("<hh", int(round(x / scale)), int(round(y / scale))) for x, y in pts)
+    return scale, q
+
+
+def f32(pts):
+    return b"".join(struct.pack("<ff", x, y) for x, y in pts)
+
+
+def calibrator_seeds(pts, out):
+    for m in PTS_PER_SEED:
+        p = subsample(pts, m)
+        if len(p) < 20:
+            continue
+        cap = min(MAX_POINTS, len(p))
+        scale, q = int16_scaled(p)
+        for filt in (0, 2):                             # OPTICS grid, DBSCAN (others by mutation)
+            mode = filt | 0x04                          # consensus on
+            hdr = struct.pack("<BHBBfBf", mode, cap - 16, 0, 0, 0.0, 0, 0.0)
+            write_seed(out, hdr + f32(p))
+            hdr = struct.pack("<BHBBfBf", mode | 0x80 | 0x20, cap - 16, 0, 0, 0.0, 0, scale)
+            write_seed(out, hdr + q)
+        # plain fit, gated push, previous calibration usable
+        write_seed(out, struct.pack("<BHBBfBf", 0x20, cap - 16, 0x32, 0, 0.0, 0, 0.0) + f32(p))
+
+
+def cluster_seeds(pts, out):
+    for m in PTS_PER_SEED:
+        p = subsample(pts, m)
+        if len(p) < 8:
+            continue
+        xs = [a for a, _ in p]
+        ys = [b for _, b in p]
+        span = max(max(xs) - min(xs), max(ys) - min(ys)) or 1.0
+        eps = span * 0.05
+        scale, q = int16_scaled(p)
+        for flags in (0x05, 0x00):                      # improved+grid, classic+brute
+            write_seed(out, struct.pack("<ffBBf", eps, eps * 0.8, 4, flags, 0.0) + f32(p))
+        write_seed(out, struct.pack("<ffBBf", eps / scale * scale, eps, 6, 0x15, scale) + q)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--source-dir", required=True)
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--shared-dir")
+    a = ap.parse_args()
+
+    dumps = sorted(glob.glob(os.path.join(a.source_dir, "tests/data/real/*.csv")) +
+                   glob.glob(os.path.join(a.source_dir, "tests/data/synthetic/*.csv")))
+    if a.shared_dir:
+        dumps += sorted(glob.glob(os.path.join(a.shared_dir, "data/real/*/data.csv")))
+    seeds = os.path.join(os.path.dirname(os.path.abspath(__file__)), "seeds")
+
+    out_csv = os.path.join(a.out, "replay_csv")
+    out_cal = os.path.join(a.out, "calibrator")
+    out_clu = os.path.join(a.out, "cluster")
+    for d in (out_csv, out_cal, out_clu):
+        shutil.rmtree(d, ignore_errors=True)       # regenerated from scratch every time
+        os.makedirs(d)
+    # committed seeds: hand-written CSVs and the reproducers of fixed crashes (regressions)
+    for harness, out in (("replay_csv", out_csv), ("calibrator", out_cal), ("cluster", out_clu)):
+        for h in sorted(glob.glob(os.path.join(seeds, harness, "*"))):
+            with open(h, "rb") as f:
+                write_seed(out, f.read())
+    for path in dumps:
+        csv_seeds(path, out_csv)
+        pts = read_xy(path)
+        if len(pts) >= 20:
+            calibrator_seeds(pts, out_cal)
+            cluster_seeds(pts, out_clu)
+    for d in (out_csv, out_cal, out_clu):
+        print("%s: %d seeds" % (d, len(os.listdir(d))))
+
+
+if __name__ == "__main__":
+    main()
