@@ -371,6 +371,9 @@ static magcal_status_t fit_normal(const fit_src_t *src, magcal_ellipse_t *out)
     e.norm_scale = s;
     e.n_used = (uint16_t)cnt;
     e.residual_rms = src_residual_rms(src, &e, cnt);
+    if (!magcal_isfinite_f(e.residual_rms)) {
+        return MAGCAL_ERR_ILL_CONDITIONED; /* residuals of points ~1e19 from the centre overflow */
+    }
     *out = e;
     return MAGCAL_OK;
 }
@@ -490,6 +493,9 @@ static magcal_status_t fit_five(const fit_src_t *src, magcal_ellipse_t *out)
     e.norm_scale = s;
     e.n_used = 5u;
     e.residual_rms = src_residual_rms(src, &e, 5u);
+    if (!magcal_isfinite_f(e.residual_rms)) {
+        return MAGCAL_ERR_ILL_CONDITIONED;
+    }
     *out = e;
     return MAGCAL_OK;
 }
@@ -584,6 +590,9 @@ magcal_status_t magcal_ellipse_fit_seed(const magcal_vec2_t *pts, size_t n, cons
     e.norm_scale = 1.0f;
     e.n_used = (uint16_t)cnt;
     e.residual_rms = src_residual_rms(&src, &e, cnt);
+    if (!magcal_isfinite_f(e.residual_rms)) {
+        return MAGCAL_ERR_ILL_CONDITIONED;
+    }
     *out = e;
     return MAGCAL_OK;
 }
