@@ -397,16 +397,20 @@ static MAGCAL_NOINLINE magcal_status_t cal_circle_centre(const magcal_vec2_t *p,
     magcal_status_t st;
     for (i = 0u; i < n; ++i) {
         if (mask[i] != 0u) {
-            mx += p[i].x;
-            my += p[i].y;
             ++m;
         }
     }
     if (m < 3u) {
         return MAGCAL_ERR_TOO_FEW_POINTS;
     }
-    mx /= (float)m;
-    my /= (float)m;
+    /* mean of p/m: summing p overflowed to Inf for samples near FLT_MAX (NaN centre, and the
+     * solver's NONFINITE reached run(), which does not document it) */
+    for (i = 0u; i < n; ++i) {
+        if (mask[i] != 0u) {
+            mx += p[i].x / (float)m;
+            my += p[i].y / (float)m;
+        }
+    }
     for (i = 0u; i < n; ++i) {
         if (mask[i] != 0u) {
             float d = fmaxf(fabsf(p[i].x - mx), fabsf(p[i].y - my));
@@ -415,6 +419,9 @@ static MAGCAL_NOINLINE magcal_status_t cal_circle_centre(const magcal_vec2_t *p,
     }
     if (!(s > 0.0f)) {
         return MAGCAL_ERR_DEGENERATE;
+    }
+    if (!magcal_isfinite_f(s)) {
+        return MAGCAL_ERR_ILL_CONDITIONED; /* spread beyond float32: reported as DEGENERATE */
     }
     (void)memset(a, 0, sizeof a);
     (void)memset(b, 0, sizeof b);

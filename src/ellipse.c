@@ -249,30 +249,41 @@ static magcal_status_t moments_solve(float mom[S_COUNT], float cnt, float *min_p
     return magcal_ldlt_solve(a, mom, 5u, MAGCAL_ELLIPSE_PIVOT_TOL, min_pivot);
 }
 
-float magcal_ellipse_residual(const magcal_ellipse_t *e, magcal_vec2_t p)
+/* Signed radial distance of p to the ellipse given by its centre, quadratic form and semi-minor
+ * axis (the fields of magcal_ellipse_t that the residual needs). */
+static float radial_residual(const float geo[6], magcal_vec2_t p)
 {
-    float ux;
-    float uy;
-    float a;
-    float n2;
+    float ux = p.x - geo[0];
+    float uy = p.y - geo[1];
+    float a = (geo[2] * ux + 2.0f * geo[3] * uy) * ux + geo[4] * uy * uy;
+    float n2 = ux * ux + uy * uy;
     float nrm;
 
-    if (e == NULL || !magcal_isfinite_f(p.x) || !magcal_isfinite_f(p.y)) {
-        return NAN;
-    }
-    ux = p.x - e->center.x;
-    uy = p.y - e->center.y;
-    a = (e->qform[0] * ux + 2.0f * e->qform[1] * uy) * ux + e->qform[2] * uy * uy;
-    n2 = ux * ux + uy * uy;
     if (!(a > 0.0f) || !(n2 > 0.0f)) {
-        return -e->semi_minor; /* at the centre */
+        return -geo[5]; /* at the centre */
     }
     nrm = sqrtf(n2);
     return nrm - nrm / sqrtf(a);
 }
 
+float magcal_ellipse_residual(const magcal_ellipse_t *e, magcal_vec2_t p)
+{
+    float geo[6];
+
+    if (e == NULL || !magcal_isfinite_f(p.x) || !magcal_isfinite_f(p.y)) {
+        return NAN;
+    }
+    geo[0] = e->center.x;
+    geo[1] = e->center.y;
+    geo[2] = e->qform[0];
+    geo[3] = e->qform[1];
+    geo[4] = e->qform[2];
+    geo[5] = e->semi_minor;
+    return radial_residual(geo, p);
+}
+
 /* Pass 3: RMS of the radial residual over the used points. */
-static float src_residual_rms(const fit_src_t *src, const magcal_ellipse_t *e, size_t cnt)
+static float src_residual_rms(const fit_src_t *src, const float geo[6], size_t cnt)
 {
     float sum = 0.0f;
     float comp = 0.0f;
@@ -284,7 +295,7 @@ static float src_residual_rms(const fit_src_t *src, const magcal_ellipse_t *e, s
         if (src_point(src, k, &p) == 0) {
             continue;
         }
-        r = magcal_ellipse_residual(e, p);
+        r = radial_residual(geo, p);
         magcal_kahan_add(&sum, &comp, r * r);
     }
     return sqrtf(sum / (float)cnt);
@@ -313,6 +324,7 @@ static magcal_status_t conic_finish(const float coef[5], float mx, float my, flo
     float cx;
     float cy;
     float q11;
+    float rms = 0.0f;
     size_t i;
 
     if (fabsf(delta) <= MAGCAL_ELLIPSE_PARABOLA_TOL * fro) {
@@ -338,6 +350,19 @@ static magcal_status_t conic_finish(const float coef[5], float mx, float my, flo
         !magcal_isfinite_f(q11) || !(q11 > 0.0f) || !(r1 > 0.0f)) {
         return MAGCAL_ERR_ILL_CONDITIONED; /* under/overflow of a nearly singular conic */
     }
+    if (src != NULL) {
+        float geo[6];
+        geo[0] = cx;
+        geo[1] = cy;
+        geo[2] = q11;
+        geo[3] = 0.5f * ca * q11;
+        geo[4] = cb * q11;
+        geo[5] = r1;
+        rms = src_residual_rms(src, geo, cnt);
+        if (!magcal_isfinite_f(rms)) {
+            return MAGCAL_ERR_ILL_CONDITIONED; /* residuals of points ~1e19 from the centre overflow */
+        }
+    }
     out->center.x = cx;
     out->center.y = cy;
     out->semi_minor = r1;
@@ -354,7 +379,7 @@ static magcal_status_t conic_finish(const float coef[5], float mx, float my, flo
     out->qform[1] = 0.5f * ca * q11;
     out->qform[2] = cb * q11;
     out->n_used = (uint16_t)cnt;
-    out->residual_rms = (src != NULL) ? src_residual_rms(src, out, cnt) : 0.0f;
+    out->residual_rms = rms;
     return MAGCAL_OK;
 }
 

@@ -231,6 +231,13 @@ static void test_ellipse_fit_extreme_magnitudes_return_specific_status(void)
      * this is ILL_CONDITIONED (it was NONFINITE, which the consensus passed on to run()) */
     exact_ring(64u, 0.0f, 0.0f, 0.9f * FLT_MAX, 0.9f * FLT_MAX);
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ILL_CONDITIONED, magcal_ellipse_fit(g_pts, 64u, NULL, &e));
+    /* ring of radius 1e19 plus one sample 3e19 away: the fit itself succeeds but |p - c|^2
+     * overflows in the residual; it returned OK with residual_rms = Inf before (found by
+     * fuzz_cluster), now ILL_CONDITIONED */
+    exact_ring(64u, 0.0f, 0.0f, 1.0e19f, 0.8e19f);
+    g_pts[5].x = 3.0e19f;
+    g_pts[5].y = 1.0e19f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ILL_CONDITIONED, magcal_ellipse_fit(g_pts, 64u, NULL, &e));
     /* radius 1e20: documented limit is about 1e15; the pivot test catches it */
     exact_ring(64u, 0.0f, 0.0f, 1.0e20f, 0.8e20f);
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ILL_CONDITIONED, magcal_ellipse_fit(g_pts, 64u, NULL, &e));

@@ -113,7 +113,8 @@ typedef enum {
  *         MAGCAL_ERR_NONFINITE (a used point is NaN/Inf);
  *         MAGCAL_ERR_DEGENERATE (all used points identical, or collinear);
  *         MAGCAL_ERR_ILL_CONDITIONED (pivot below MAGCAL_ELLIPSE_PIVOT_TOL: too little rotation,
- *         points on a degenerate conic; or finite points whose x or y range exceeds FLT_MAX);
+ *         points on a degenerate conic; or finite points whose x or y range exceeds FLT_MAX,
+ *         or whose residuals overflow float32: about 1.8e19 from the centre);
  *         MAGCAL_ERR_HYPERBOLA (4B - A^2 < 0: arc too short, outliers, tilt);
  *         MAGCAL_ERR_PARABOLA (|4B - A^2| within MAGCAL_ELLIPSE_PARABOLA_TOL);
  *         MAGCAL_ERR_IMAGINARY (K <= 0: imaginary or point ellipse).
