@@ -10,9 +10,15 @@ set(CMAKE_RANLIB arm-none-eabi-ranlib)
 set(MAGCAL_SIZE_PROGRAM arm-none-eabi-size)
 
 set(MAGCAL_M4F_FLAGS "-mcpu=cortex-m4 -mthumb -mfloat-abi=hard -mfpu=fpv4-sp-d16")
-set(CMAKE_C_FLAGS_INIT "${MAGCAL_M4F_FLAGS} -ffunction-sections -fdata-sections -fstack-usage")
+# -fstack-usage writes <obj>.su (frame per function) and -fcallgraph-info=su writes <obj>.ci (call
+# graph with frames): tools/stack/stack_usage.py sums them into a worst case per API function.
+set(CMAKE_C_FLAGS_INIT "${MAGCAL_M4F_FLAGS} -ffunction-sections -fdata-sections -fstack-usage -fcallgraph-info=su")
 set(CMAKE_C_FLAGS_MINSIZEREL_INIT "-Os -DNDEBUG")
 set(CMAKE_EXE_LINKER_FLAGS_INIT "${MAGCAL_M4F_FLAGS} -Wl,--gc-sections")
+
+# On-target test suite (-DMAGCAL_TARGET_TESTS=ON): a hook run right after project(magcal) that
+# adds Unity and tests/ for QEMU mps2-an386 (cmake/target/MagcalTargetHook.cmake).
+set(CMAKE_PROJECT_magcal_INCLUDE "${CMAKE_CURRENT_LIST_DIR}/target/MagcalTargetHook.cmake")
 
 set(CMAKE_FIND_ROOT_PATH_MODE_PROGRAM NEVER)
 set(CMAKE_FIND_ROOT_PATH_MODE_LIBRARY ONLY)

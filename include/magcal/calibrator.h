@@ -1,0 +1,323 @@
+/**
+ * @file calibrator.h
+ * @brief The 2-D calibration pipeline a firmware loop uses: collect level samples, reject
+ *        singular points, fit the ellipse, gate the result and adopt it only when it is sound.
+ *
+ * Pipeline of magcal_calibrator_run():
+ *  1. pre-checks: enough samples (cfg.min_samples), not all identical / collinear;
+ *  2. density filter (optics.h / dbscan.h): OPTICS improved + grid with automatic eps, eps' and
+ *     MinPts by default; OPTICS classic; DBSCAN; or none. cfg.eps / cfg.min_pts override the
+ *     automatic values (DBSCAN with eps = 0 uses the automatic eps');
+ *  3. coverage pre-gate around a hard-iron circle fit of the filter inliers (so a short arc is
+ *     reported as COVERAGE, not as whatever conic it happens to fit);
+ *  4. consensus (consensus.h): RANSAC/LMedS minimal ellipse sets, MAD-scaled residual threshold,
+ *     refit; every sample is judged by its residual (cfg.use_consensus = 0: a plain
+ *     least-squares fit of the filter inliers);
+ *  5. gates, each with its own status: too many outliers, not an ellipse (hyperbola, parabola,
+ *     imaginary), radius range, axis ratio, residual, coverage (around the fitted centre);
+ *  6. correction (magcal_ellipse_to_cal) and the adoption rule (below).
+ *
+ * Adoption rule. The caller's calibration `current` is replaced only when the new one passes
+ * every gate AND one of:
+ *  (a) `current` is not a usable calibration (magcal_cal2d_validate fails) or its radius is 0
+ *      (unknown, e.g. MAGCAL_CAL2D_IDENTITY);
+ *  (b) the new calibration is better: est_heading_err_deg(new) <= current_err_deg, where
+ *      current_err_deg is the heading error of `current` estimated on the new inliers (below);
+ *  (c) the new data are fresher (they always are: they were just collected) AND the field
+ *      radius is plausible: the new inliers corrected by `current` have a mean radius within
+ *      cfg.max_radius_change (relative) of current->radius, i.e. the same field strength was
+ *      seen, so the new data describe the same installation in the same field, and a slowly
+ *      drifting hard iron is tracked.
+ * Otherwise run() returns MAGCAL_ERR_NOT_BETTER and `current` is untouched.
+ *
+ * Heading-error estimates (degrees, documented formulas, see also docs/calibrator.md):
+ *  - new calibration: per-sample noise sigma_rel = residual_rms / R (R = sqrt(r1 r2)) gives the
+ *    CRLB heading noise sigma_rel rad (algorithms.md 9); the calibration error of a 5-parameter
+ *    fit on N inliers is that divided by sqrt(N / 5); a partial arc is inflated by
+ *    (360 / coverage_deg)^2 (extrapolation of the fit over the gap):
+ *        est_heading_err_deg = 57.2958 * sigma_rel * sqrt(5 / N) * (360 / coverage_deg)^2
+ *  - current calibration on the new inliers: a wrong centre or soft-iron matrix modulates the
+ *    corrected radius with the same relative amplitude as the heading error it causes. With
+ *    V(c) = mean(d_i^2), d_i = |c(p_i)| / mean_j |c(p_j)| - 1 over the new inliers, the excess
+ *    modulation of `current` over the new calibration (which removes the common noise) is
+ *        current_err_deg = 57.2958 * sqrt(max(0, V(current) - V(new)))
+ *  - heading shift if adopted: for headings psi = 0, 5, ..., 355 deg the raw point of the new
+ *    ellipse that the new calibration maps to psi is corrected with `current` (identity when
+ *    `current` is unusable); max and RMS of wrap(psi_current - psi).
+ *
+ * Memory: caller-allocated instance, sample buffer (capacity <= MAGCAL_MAX_SAMPLES) and one
+ * workspace of MAGCAL_CALIBRATOR_WORKSPACE_LEN(capacity) bytes (4-byte aligned) that also keeps
+ * the per-sample outlier flags between run() and the next reset. No heap.
+ *
+ * Axes: x right, y forward (only x, y of a port sample are used; the sensor must stay level).
+ * Units: the sensor's unit (raw LSB, uT, ...); heading degrees clockwise from magnetic north.
+ *
+ * @code
+ * #include "magcal/calibrator.h"
+ *
+ * #define CAP 512u
+ * static magcal_calibrator_t cal;
+ * static magcal_vec2_t buf[CAP];
+ * static uint32_t work[(MAGCAL_CALIBRATOR_WORKSPACE_LEN(CAP) + 3u) / 4u];
+ * static magcal_cal2d_t stored = MAGCAL_CAL2D_IDENTITY;    // or restored from flash
+ *
+ * void calibration_task(void)
+ * {
+ *     magcal_calibrator_cfg_t cfg = MAGCAL_CALIBRATOR_CFG_DEFAULT;
+ *     magcal_cal_report_t rep;
+ *     (void)magcal_calibrator_init(&cal, &cfg, buf, CAP, work, sizeof work);
+ *     while (magcal_calibrator_state(&cal) == MAGCAL_CALIBRATOR_COLLECTING) {
+ *         (void)magcal_calibrator_poll(&cal);             // one port sample per call
+ *     }
+ *     if (magcal_calibrator_run(&cal, &stored, &rep) == MAGCAL_OK) {
+ *         // rep.adopted == 1: `stored` holds the new calibration; write it to flash
+ *     }
+ * }
+ * @endcode
+ */
+#ifndef MAGCAL_CALIBRATOR_H
+#define MAGCAL_CALIBRATOR_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "magcal/config.h"
+#include "magcal/consensus.h"
+#include "magcal/dbscan.h"
+#include "magcal/ellipse.h"
+#include "magcal/heading.h"
+#include "magcal/optics.h"
+#include "magcal/status.h"
+#include "magcal/types.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/** Larger of two size expressions (compile-time constant for constant arguments). */
+#define MAGCAL_CALIBRATOR_MAX_(a, b) ((a) > (b) ? (a) : (b))
+
+/** Bytes of the three per-sample byte arrays (flags, filter mask, consensus mask), 4-aligned. */
+#define MAGCAL_CALIBRATOR_MASKS_LEN(cap) ((3u * (size_t)(cap) + 3u) & ~(size_t)3u)
+
+/**
+ * Workspace bytes for a calibrator of the given capacity: the per-sample masks plus the largest
+ * scratch of the stages (OPTICS filter, DBSCAN labels + queue, consensus). About 20 bytes per
+ * sample at capacity 1024 (the sample buffer itself is 8 bytes per sample, separate).
+ */
+#define MAGCAL_CALIBRATOR_WORKSPACE_LEN(cap)                                                       \
+    (MAGCAL_CALIBRATOR_MASKS_LEN(cap) +                                                            \
+     MAGCAL_CALIBRATOR_MAX_(                                                                       \
+         MAGCAL_CALIBRATOR_MAX_(MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(cap),                           \
+                                MAGCAL_CONSENSUS_WORKSPACE_LEN(cap)),                              \
+         ((2u * (size_t)(cap) + 3u) & ~(size_t)3u) +                                               \
+             MAGCAL_CALIBRATOR_MAX_(MAGCAL_DBSCAN_WORKSPACE_LEN(cap),                              \
+                                    MAGCAL_OPTICS_LARGEST_WORKSPACE_LEN(cap))))
+
+/** Private: value of magcal_calibrator_t::magic in an initialised instance ("MCAL"). */
+#define MAGCAL_CALIBRATOR_MAGIC 0x4D43414Cu
+
+/** Per-sample flag bits (magcal_calibrator_flags()). */
+#define MAGCAL_CALIBRATOR_FLAG_FILTER 0x01u   /**< rejected by the density filter */
+#define MAGCAL_CALIBRATOR_FLAG_RESIDUAL 0x02u /**< rejected by the residual threshold (final) */
+#define MAGCAL_CALIBRATOR_FLAG_JUDGED 0x80u   /**< sample took part in the last run() */
+
+/** Density filter in front of the consensus stage. */
+typedef enum {
+    MAGCAL_FILTER_OPTICS_GRID = 0,    /**< OPTICS, improved (unordered seeds) + grid search (default) */
+    MAGCAL_FILTER_OPTICS_CLASSIC = 1, /**< OPTICS, classic heap ordering, brute-force search */
+    MAGCAL_FILTER_DBSCAN = 2,         /**< DBSCAN + largest cluster */
+    MAGCAL_FILTER_NONE = 3            /**< no density filter: every sample is a candidate */
+} magcal_calibrator_filter_t;
+
+/** Lifecycle of a calibrator. */
+typedef enum {
+    MAGCAL_CALIBRATOR_COLLECTING = 0, /**< collecting; coverage not complete yet */
+    MAGCAL_CALIBRATOR_READY = 1,      /**< coverage >= cfg.min_coverage_deg and >= min_samples: run() */
+    MAGCAL_CALIBRATOR_CALIBRATED = 2, /**< last run() adopted a calibration */
+    MAGCAL_CALIBRATOR_FAILED = 3      /**< last run() failed or kept the old one; see last status */
+} magcal_calibrator_state_t;
+
+/** Runtime configuration (copied at init; validated there). */
+typedef struct {
+    magcal_calibrator_filter_t filter; /**< density filter (default OPTICS improved + grid) */
+    float eps;            /**< filter radius override, point unit; 0 = automatic (default) */
+    uint16_t min_pts;     /**< MinPts override, 2..MAGCAL_MAX_MIN_PTS; 0 = automatic (default) */
+    uint8_t use_consensus;  /**< 1 = residual stage after the filter (default), 0 = plain LS fit */
+    magcal_consensus_cfg_t consensus; /**< consensus settings (MAGCAL_CONSENSUS_CFG_DEFAULT) */
+    float min_spacing_deg;  /**< information gate of push(): minimum angle, around the provisional
+                                 centre, from the last stored sample, 0..90 deg; 0 = accept all (default) */
+    uint16_t max_per_bin;   /**< cap of stored samples per coverage bin; 0 = no cap (default) */
+    uint16_t min_samples;   /**< fewer samples (or inliers) give TOO_FEW_POINTS, >= 5 (default 20) */
+    float min_coverage_deg; /**< coverage gate, 0..360 (default 270: 3/4 of a turn) */
+    float max_outlier_frac; /**< more rejected than this fraction gives TOO_MANY_OUTLIERS (0.5) */
+    float min_axis_ratio;   /**< semi_minor / semi_major below this gives AXIS_RATIO (0.5) */
+    float min_radius;       /**< sqrt(r1 r2) below this gives RADIUS_RANGE, point unit; 0 = none */
+    float max_radius;       /**< sqrt(r1 r2) above this gives RADIUS_RANGE; 0 = none */
+    float max_residual_rel; /**< residual RMS / radius above this gives RESIDUAL (0.1) */
+    float max_radius_change;/**< adoption rule (c): relative field-radius change still plausible (0.2) */
+    magcal_corr_form_t form;/**< correction form (default MAGCAL_CORR_SYMMETRIC) */
+    float output_radius;    /**< rho for magcal_ellipse_to_cal; <= 0: sqrt(r1 r2), point unit (default 0) */
+} magcal_calibrator_cfg_t;
+
+/** Defaults that work without tuning (automatic filter parameters, accept every sample). */
+#define MAGCAL_CALIBRATOR_CFG_DEFAULT                                                              \
+    {                                                                                              \
+        MAGCAL_FILTER_OPTICS_GRID, 0.0f, 0u, 1u, MAGCAL_CONSENSUS_CFG_DEFAULT, 0.0f, 0u, 20u,      \
+            270.0f, 0.5f, 0.5f, 0.0f, 0.0f, 0.1f, 0.2f, MAGCAL_CORR_SYMMETRIC, 0.0f                \
+    }
+
+/** What run() did and found. Fields not reached by a failing run are 0 (or NaN where noted). */
+typedef struct {
+    magcal_status_t status;   /**< same as run()'s return value */
+    magcal_calibrator_state_t state; /**< state after the run */
+    uint8_t adopted;          /**< 1 when `current` was replaced */
+    uint16_t samples;         /**< samples in the buffer */
+    uint16_t used;            /**< samples in the final fit */
+    uint16_t rejected_filter; /**< rejected by the density filter */
+    uint16_t rejected_consensus; /**< filter inliers rejected by the residual stage */
+    uint16_t rescued_consensus;  /**< filter rejects taken back by the residual stage */
+    uint16_t outliers;        /**< final outliers = samples - used */
+    float filter_eps;         /**< eps' the density filter used (0 with filter none), point unit */
+    uint16_t filter_min_pts;  /**< MinPts the density filter used */
+    float coverage_deg;       /**< covered arc, multiple of 360/MAGCAL_COVERAGE_BINS */
+    float missing_start_deg;  /**< largest uncovered sector: start, approx. heading deg [0,360) */
+    float missing_width_deg;  /**< its width in degrees (0 when the circle is covered) */
+    float residual_rms;       /**< RMS residual of the final fit, point unit */
+    float residual_rel;       /**< residual_rms / radius */
+    float radius;             /**< sqrt(semi_minor * semi_major), point unit */
+    float axis_ratio;         /**< semi_minor / semi_major */
+    float min_pivot;          /**< smallest equilibrated pivot of the final fit (condition) */
+    float threshold;          /**< residual threshold used by classify(), point unit */
+    magcal_ellipse_t ellipse; /**< final fit */
+    float est_heading_err_deg;  /**< estimated heading error of the new calibration (formula above) */
+    float current_err_deg;      /**< estimated error of `current` on the new data; NaN if unusable */
+    float shift_max_deg;        /**< max |heading change| over 0..360 if adopted */
+    float shift_rms_deg;        /**< RMS heading change over 0..360 if adopted */
+    magcal_cal2d_t cal;         /**< the new calibration (also when not adopted: inspect only) */
+} magcal_cal_report_t;
+
+/** Calibrator instance. Allocate it anywhere; every field is PRIVATE (use the functions). */
+typedef struct {
+    magcal_calibrator_cfg_t cfg;
+    magcal_vec2_t *buf;
+    size_t capacity;
+    size_t n;
+    uint8_t *flags;     /* workspace: per-sample flags [capacity] */
+    uint8_t *mask_a;    /* workspace: filter inlier mask [capacity] */
+    uint8_t *mask_b;    /* workspace: consensus inlier mask [capacity] */
+    void *scratch;      /* workspace: stage scratch */
+    size_t scratch_len;
+    magcal_vec2_t bb_min, bb_max; /* bounding box of the stored samples */
+    magcal_vec2_t centre;         /* provisional centre of the coverage bins */
+    float centre_tol;             /* re-bin when the bbox midpoint moves more than this */
+    uint16_t bins[MAGCAL_COVERAGE_BINS];
+    int32_t last_bin_deg10;       /* angle of the last stored sample, 0.1 deg; -1 = none */
+    magcal_ellipse_t fit;         /* final fit of the last successful run */
+    float threshold;              /* its residual threshold */
+    size_t n_judged;              /* samples judged by the last run */
+    uint8_t has_fit;
+    magcal_calibrator_state_t state;
+    magcal_status_t last_status;
+    uint32_t magic;
+} magcal_calibrator_t;
+
+/**
+ * @brief Initialise a calibrator on caller storage.
+ * @param[out] cal        instance.
+ * @param[in]  cfg        configuration (copied); MAGCAL_CALIBRATOR_CFG_DEFAULT works untuned.
+ * @param[in]  sample_buf buffer of `capacity` samples owned by the caller.
+ * @param[in]  capacity   16..MAGCAL_MAX_SAMPLES.
+ * @param[in]  work       workspace, 4-byte aligned, >= MAGCAL_CALIBRATOR_WORKSPACE_LEN(capacity).
+ * @param[in]  work_len   bytes at work.
+ * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_ARG (capacity out of range, misaligned work, a cfg
+ *         value out of range: filter enum, eps < 0 or NaN, min_pts 1 or > MAGCAL_MAX_MIN_PTS,
+ *         consensus settings, min_samples < 5, coverage outside 0..360, fractions outside 0..1,
+ *         radius limits < 0 or min > max, form enum); MAGCAL_ERR_NONFINITE (a non-finite
+ *         cfg value); MAGCAL_ERR_WORKSPACE (work_len too small). cal untouched on failure.
+ */
+magcal_status_t magcal_calibrator_init(magcal_calibrator_t *cal, const magcal_calibrator_cfg_t *cfg,
+                                       magcal_vec2_t *sample_buf, size_t capacity, void *work,
+                                       size_t work_len);
+
+/** @brief Forget every sample and the last fit (state COLLECTING). @return MAGCAL_OK; MAGCAL_ERR_NULL;
+ *  MAGCAL_ERR_NOT_INITIALISED. */
+magcal_status_t magcal_calibrator_reset(magcal_calibrator_t *cal);
+
+/**
+ * @brief Offer one level sample (x right, y forward, sensor unit).
+ *
+ * Information gate (cfg.min_spacing_deg > 0 or cfg.max_per_bin > 0): the angle of p around the
+ * provisional centre (mid-range of the stored samples) must differ from the last stored sample's
+ * by at least min_spacing_deg, and its coverage bin must hold fewer than max_per_bin samples.
+ * With both 0 every finite sample is stored (what the replay harness uses).
+ * @return MAGCAL_OK (stored); MAGCAL_ERR_GATED (finite but adds no information: not stored, not a
+ *         fault); MAGCAL_ERR_NONFINITE (NaN/Inf: not stored); MAGCAL_ERR_BUFFER_FULL (not stored;
+ *         run() or reset()); MAGCAL_ERR_NULL; MAGCAL_ERR_NOT_INITIALISED.
+ */
+magcal_status_t magcal_calibrator_push(magcal_calibrator_t *cal, magcal_vec2_t p);
+
+/**
+ * @brief Read one sample through magcal_port_mag_read() (port/magcal_port.h) and push its x, y.
+ * @return any status of magcal_calibrator_push(); the port's status when the read fails
+ *         (MAGCAL_ERR_TIMEOUT, MAGCAL_ERR_PORT, MAGCAL_ERR_NO_DATA, ...), nothing stored then.
+ */
+magcal_status_t magcal_calibrator_poll(magcal_calibrator_t *cal);
+
+/**
+ * @brief Run the pipeline on the stored samples and apply the adoption rule (file comment).
+ * @param[in]     cal     instance (samples are kept; flags and the final fit are updated).
+ * @param[in,out] current caller's calibration: read (may be MAGCAL_CAL2D_IDENTITY or invalid);
+ *                        replaced ONLY when the new calibration is adopted (then MAGCAL_OK and
+ *                        report->adopted = 1); bit-identical otherwise.
+ * @param[out]    report  optional (NULL): what happened (always written when non-NULL).
+ * @return MAGCAL_OK (adopted); MAGCAL_ERR_NULL (cal or current NULL); MAGCAL_ERR_NOT_INITIALISED;
+ *         MAGCAL_ERR_TOO_FEW_POINTS (fewer than cfg.min_samples samples or inliers);
+ *         MAGCAL_ERR_DEGENERATE (all samples identical or collinear);
+ *         MAGCAL_ERR_ALL_NOISE (the density filter found no cluster);
+ *         MAGCAL_ERR_COVERAGE (arc below cfg.min_coverage_deg; see report->missing_*);
+ *         MAGCAL_ERR_TOO_MANY_OUTLIERS; MAGCAL_ERR_HYPERBOLA; MAGCAL_ERR_PARABOLA;
+ *         MAGCAL_ERR_IMAGINARY; MAGCAL_ERR_ILL_CONDITIONED; MAGCAL_ERR_RADIUS_RANGE;
+ *         MAGCAL_ERR_AXIS_RATIO; MAGCAL_ERR_RESIDUAL; MAGCAL_ERR_NOT_BETTER (gates passed, adoption
+ *         rule kept `current`); MAGCAL_ERR_ARG / MAGCAL_ERR_WORKSPACE from a stage (explicit eps or
+ *         min_pts the stage rejects).
+ */
+magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *current,
+                                      magcal_cal_report_t *report);
+
+/**
+ * @brief Per-sample verdict of the last run(): is sample i an inlier of the final fit?
+ * @param[out] is_inlier 1 inlier, 0 outlier.
+ * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_NOT_INITIALISED; MAGCAL_ERR_ARG (i beyond the
+ *         samples judged by the last run); MAGCAL_ERR_STATE (no run() reached the final fit).
+ */
+magcal_status_t magcal_calibrator_inlier(const magcal_calibrator_t *cal, size_t i, int *is_inlier);
+
+/**
+ * @brief Flag bits of sample i (MAGCAL_CALIBRATOR_FLAG_*) from the last run().
+ * @return as magcal_calibrator_inlier() (flags are available after any run that judged samples).
+ */
+magcal_status_t magcal_calibrator_flags(const magcal_calibrator_t *cal, size_t i, uint8_t *flags);
+
+/**
+ * @brief Judge any sample by its residual to the last final fit, with the same threshold.
+ * @param[out] is_outlier 1 when |residual| > threshold.
+ * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_NOT_INITIALISED; MAGCAL_ERR_NONFINITE;
+ *         MAGCAL_ERR_STATE (no final fit yet).
+ */
+magcal_status_t magcal_calibrator_classify(const magcal_calibrator_t *cal, magcal_vec2_t p, int *is_outlier);
+
+/** @brief Current state (MAGCAL_CALIBRATOR_FAILED also for a NULL or uninitialised cal). */
+magcal_calibrator_state_t magcal_calibrator_state(const magcal_calibrator_t *cal);
+
+/** @brief Number of stored samples (0 for NULL). */
+size_t magcal_calibrator_count(const magcal_calibrator_t *cal);
+
+/** @brief Live arc coverage of the stored samples around the provisional centre, degrees (0 for NULL). */
+float magcal_calibrator_coverage_deg(const magcal_calibrator_t *cal);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* MAGCAL_CALIBRATOR_H */

@@ -1,0 +1,125 @@
+/**
+ * @file consensus.h
+ * @brief Model-residual outlier stage after the density filter: deterministic RANSAC/LMedS over
+ *        5-point minimal ellipse sets, then a MAD-scaled residual threshold and refit.
+ *
+ * Why: a density filter (OPTICS/DBSCAN, optics.h) cannot separate singular points that arrive as
+ * dense bursts of consecutive samples, or that sit close to the ring (algorithms.md 4.3 caveats).
+ * Those points are far from the ellipse in RESIDUAL even when they are dense, so this stage judges
+ * every sample by its distance to a robustly found ellipse.
+ *
+ * Algorithm (all steps bounded, deterministic for a given cfg->seed):
+ *  1. Candidates = samples with cand_mask[i] != 0 (the density filter's inliers; NULL = all).
+ *     They are sorted by angle around their coordinate-wise median.
+ *  2. max_iter draws of a minimal set: 5 candidates spread over the angular order (one random
+ *     candidate in each fifth of the order, starting at a random rank: well conditioned sets
+ *     even on partial arcs). The conic through them (magcal_ellipse_fit_idx, exact 5-point path)
+ *     is kept only if it is an ellipse. Score = median over EVERY sample of
+ *     |magcal_ellipse_residual| (least median of squares: no threshold needed, breakdown 50%).
+ *     If no draw gives an ellipse the least-squares fit of all candidates is the start model.
+ *  3. sigma = 1.4826 * median |r| (of every sample for the start model, of the current inliers
+ *     afterwards); threshold = clamp(k_sigma * sigma, min_thr_rel * R, max_thr_rel * R) with
+ *     R = sqrt(semi_minor * semi_major); inliers = { i : |r_i| <= threshold } over EVERY sample
+ *     (a point the density filter rejected but that lies on the ellipse is taken back);
+ *     refit on the inliers (magcal_ellipse_fit with the mask), recompute every residual.
+ *     Repeat until the inlier set stops changing or refine_iter rounds were done.
+ *
+ * Units: residuals, sigma and threshold in the unit of the points (raw LSB, uT, ...).
+ * Axes: x right, y forward.
+ *
+ * @code
+ * static magcal_vec2_t pts[600];                // filled by the caller
+ * static uint8_t cand[600], inl[600];           // cand: density filter output (optics.h)
+ * static uint32_t work[(MAGCAL_CONSENSUS_WORKSPACE_LEN(600) + 3u) / 4u];
+ * magcal_consensus_cfg_t cfg = MAGCAL_CONSENSUS_CFG_DEFAULT;
+ * magcal_consensus_result_t res;
+ * magcal_status_t st = magcal_consensus_run(&cfg, pts, 600, cand, work, sizeof work, inl, &res);
+ * // st == MAGCAL_OK: res.fit is the ellipse of the inl[i] == 1 samples
+ * @endcode
+ */
+#ifndef MAGCAL_CONSENSUS_H
+#define MAGCAL_CONSENSUS_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "magcal/config.h"
+#include "magcal/ellipse.h"
+#include "magcal/status.h"
+#include "magcal/types.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/** Largest number of minimal-set draws accepted in magcal_consensus_cfg_t::max_iter. */
+#define MAGCAL_CONSENSUS_MAX_ITER 2000u
+
+/** Largest number of threshold/refit rounds accepted in magcal_consensus_cfg_t::refine_iter. */
+#define MAGCAL_CONSENSUS_MAX_REFINE 32u
+
+/**
+ * Workspace bytes for magcal_consensus_run() on n samples: |residual| float[n], scratch float[n]
+ * (angles, then selection), candidate order uint16[n], plus 4 bytes of alignment slack.
+ * 10 bytes per sample.
+ */
+#define MAGCAL_CONSENSUS_WORKSPACE_LEN(n) ((((size_t)(n) * 10u) + 3u + 4u) & ~(size_t)3u)
+
+/** Configuration of the consensus stage (validated by every call). */
+typedef struct {
+    uint16_t max_iter;    /**< minimal-set draws, 1..MAGCAL_CONSENSUS_MAX_ITER (default 48) */
+    uint16_t refine_iter; /**< threshold/refit rounds, 1..MAGCAL_CONSENSUS_MAX_REFINE (default 8) */
+    uint32_t seed;        /**< PRNG seed (magcal_prng_next); 0 is replaced by a fixed constant */
+    float k_sigma;        /**< threshold in robust sigmas, > 0 (default 3.5) */
+    float min_thr_rel;    /**< threshold floor, fraction of the mean radius, >= 0 (default 0.002) */
+    float max_thr_rel;    /**< threshold cap, fraction of the mean radius, > min (default 0.25) */
+} magcal_consensus_cfg_t;
+
+/** Defaults: work without tuning on rings with up to about 45% singular points. */
+#define MAGCAL_CONSENSUS_CFG_DEFAULT { 48u, 8u, 0x9E3779B9u, 3.5f, 0.002f, 0.25f }
+
+/** Result and statistics of one consensus run. */
+typedef struct {
+    magcal_ellipse_t fit;   /**< final least-squares fit of the inliers */
+    float sigma;            /**< robust residual scale 1.4826 * MAD of the inliers, point unit */
+    float threshold;        /**< |residual| <= threshold is an inlier, point unit */
+    float best_score;       /**< median |residual| of the best minimal-set model, point unit */
+    uint16_t n_candidates;  /**< samples the minimal sets were drawn from */
+    uint16_t n_inliers;     /**< final inliers (every sample judged) */
+    uint16_t n_rescued;     /**< inliers that were not candidates (density filter rejects taken back) */
+    uint16_t n_rejected;    /**< candidates rejected by the residual threshold */
+    uint16_t draws;         /**< minimal sets drawn */
+    uint16_t valid_models;  /**< minimal sets whose conic was an ellipse */
+    uint16_t rounds;        /**< threshold/refit rounds done */
+} magcal_consensus_result_t;
+
+/**
+ * @brief Robust ellipse fit: RANSAC/LMedS minimal sets from the candidates, residual threshold
+ *        over every sample, refit (algorithm in the file comment).
+ * @param[in]  cfg        configuration (MAGCAL_CONSENSUS_CFG_DEFAULT works without tuning).
+ * @param[in]  pts        n samples, finite, x right / y forward, any unit.
+ * @param[in]  n          number of samples, 5..MAGCAL_MAX_SAMPLES.
+ * @param[in]  cand_mask  NULL (every sample is a candidate) or n bytes, != 0 = candidate.
+ * @param[out] work       scratch, >= MAGCAL_CONSENSUS_WORKSPACE_LEN(n) bytes (any alignment).
+ * @param[in]  work_len   bytes at work.
+ * @param[out] inlier_mask n bytes: 1 = inlier of the final fit, 0 = outlier. Untouched on failure.
+ * @param[out] result     fit and statistics. Untouched on failure.
+ * @return MAGCAL_OK;
+ *         MAGCAL_ERR_NULL (cfg, pts, work, inlier_mask or result NULL);
+ *         MAGCAL_ERR_ARG (a cfg value out of its documented range, n > MAGCAL_MAX_SAMPLES);
+ *         MAGCAL_ERR_WORKSPACE (work_len too small);
+ *         MAGCAL_ERR_NONFINITE (a NaN/Inf sample);
+ *         MAGCAL_ERR_TOO_FEW_POINTS (n < 5, fewer than 5 candidates, or fewer than 5 inliers);
+ *         any failure status of magcal_ellipse_fit() when neither a minimal set nor the
+ *         candidates give an ellipse (MAGCAL_ERR_DEGENERATE, MAGCAL_ERR_ILL_CONDITIONED,
+ *         MAGCAL_ERR_HYPERBOLA, MAGCAL_ERR_PARABOLA, MAGCAL_ERR_IMAGINARY).
+ */
+magcal_status_t magcal_consensus_run(const magcal_consensus_cfg_t *cfg, const magcal_vec2_t *pts, size_t n,
+                                     const uint8_t *cand_mask, void *work, size_t work_len,
+                                     uint8_t *inlier_mask, magcal_consensus_result_t *result);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* MAGCAL_CONSENSUS_H */

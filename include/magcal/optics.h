@@ -1,0 +1,245 @@
+/**
+ * @file optics.h
+ * @brief OPTICS density filter for 2-D magnetometer samples (algorithms.md section 4).
+ *
+ * OPTICS (Ankerst, Breunig, Kriegel & Sander 1999) orders the points so that density-connected
+ * points are adjacent and records, per point, its core distance and its reachability distance.
+ * ExtractDBSCAN-Clustering at a radius eps' <= eps then labels the points exactly as DBSCAN(eps',
+ * MinPts) would (up to a few border points), and the largest cluster is kept as "normal data"
+ * (the ring of a compass swing); everything else is rejected before the ellipse fit.
+ *
+ * Units: any consistent unit (raw LSB, uT, gauss); eps and eps' are in the unit of the points.
+ * Axes: x right, y forward (magcal_vec2_t); only Euclidean distances are used.
+ *
+ * Determinism: both ordering modes (CLASSIC binary heap with decrease-key, IMPROVED unordered
+ * seed list with one linear scan) and both neighbour searches (BRUTE, GRID) produce bit-identical
+ * ordering, reachability, core distance and predecessor arrays: the next point is the argmin of
+ * (reach, index) among the seeds, and the first unprocessed index when no seed is left.
+ *
+ * Memory: no heap, no recursion. The caller owns every buffer; `work` must be aligned to 4 bytes
+ * (declare it as `uint32_t` or `float`) and at least the size macro's length in bytes.
+ *
+ * Automatic parameters (magcal_optics_auto_params, used by magcal_optics_filter when cfg->eps <= 0):
+ *  1. centre c = (median x, median y), radius R = median |p - c|; then twice more over only the
+ *     points within 3 R of the previous centre (a far cluster, e.g. 23 % driver glitches 36 R
+ *     away, cannot drag the centre). Everything below is a multiple of distances measured on the
+ *     data, so raw counts and microtesla behave identically (scale invariant).
+ *  2. the "ring band" = points with | |p - c| - R | <= 0.5 R, sorted by angle around c.
+ *  3. along that angular order (cyclic), link_i = the shortest distance between a point at or
+ *     before i and a point after i, bypassing at most 3 points (|p_i-a p_i+b|, a >= 0, b >= 1,
+ *     a + b <= 4): the gap the chain must jump there, with isolated off-ring points skipped;
+ *     core_i = 3rd smallest distance from p_i to its 4 angular neighbours on each side (the
+ *     radius that makes p_i a core point for MinPts = 4).
+ *  4. eps' = 1.5 * max(second largest link_i, 90th percentile of core_i), clamped to
+ *     [R/256, R]; eps = eps'; MinPts = 4. One cut in the cyclic chain leaves an arc, which is
+ *     still one cluster, so only the second largest gap must be bridged (a 300 deg arc is not
+ *     forced to bridge its 60 deg hole).
+ *  Why: algorithms.md 4.3 measured that eps' from local spacing alone (3 x median core distance)
+ *  fragments random rings; eps' must bridge the largest gap between consecutive ring samples,
+ *  which this rule measures directly instead of guessing it from n. The cap R keeps points more
+ *  than R away from every ring point out (driver glitches, a different field); the factor 1.5
+ *  absorbs radial noise between the sampled links. Bursts of displaced samples close to the
+ *  ring are NOT rejected here (they leave gaps the rule must bridge, so they merge with the
+ *  ring); a model-residual stage after this filter handles them. Measurements: docs/optics.md.
+ *
+ * @code
+ * static magcal_vec2_t pts[512];                       // filled by the caller
+ * static uint32_t work[(MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(512) + 3u) / 4u];
+ * static uint8_t inlier[512];
+ * magcal_optics_cfg_t cfg = MAGCAL_OPTICS_CFG_DEFAULT;  // eps = 0: automatic parameters
+ * magcal_optics_result_t info;
+ * magcal_status_t st = magcal_optics_filter(&cfg, pts, 512, work, sizeof work, inlier, &info);
+ * // st == MAGCAL_OK: inlier[i] == 1 for the points of the largest cluster (info.n_inliers)
+ * @endcode
+ */
+#ifndef MAGCAL_OPTICS_H
+#define MAGCAL_OPTICS_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "magcal/config.h"
+#include "magcal/status.h"
+#include "magcal/types.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/** Label of a noise point (ExtractDBSCAN and DBSCAN). Clusters are numbered 0, 1, 2, ... */
+#define MAGCAL_OPTICS_NOISE ((int16_t)-1)
+
+/** Predecessor of a point that starts a connected part (no predecessor). */
+#define MAGCAL_OPTICS_NO_PRED ((uint16_t)0xFFFFu)
+
+/** Seed-list organisation of the ordering loop (algorithms.md 4.2); outputs are identical. */
+typedef enum {
+    MAGCAL_OPTICS_CLASSIC = 0,  /**< binary min-heap keyed on (reach, index) with decrease-key */
+    MAGCAL_OPTICS_IMPROVED = 1  /**< unordered seed list, one linear scan for the minimum */
+} magcal_optics_order_t;
+
+/** Neighbour search used for the eps-queries; outputs are identical. */
+typedef enum {
+    MAGCAL_NEIGHBORS_BRUTE = 0, /**< test every point, O(n) per query */
+    MAGCAL_NEIGHBORS_GRID = 1   /**< uniform grid, counting sort, 3x3 cell query (brute if eps = inf) */
+} magcal_neighbors_t;
+
+/**
+ * Grid cells the spatial index may use for n points: min(MAGCAL_GRID_MAX_CELLS, max(n, 16)).
+ * The cell side is eps*(1+2^-20), enlarged (still correct, only less selective) when the bounding
+ * box would need more cells than this.
+ */
+#define MAGCAL_OPTICS_GRID_CELLS(n) \
+    ((size_t)(n) < 16u ? (size_t)16u \
+     : ((size_t)(n) > (size_t)MAGCAL_GRID_MAX_CELLS ? (size_t)MAGCAL_GRID_MAX_CELLS : (size_t)(n)))
+
+/** Bytes of the internal spatial index for n points: idx[n] + start[G+1] (uint16). */
+#define MAGCAL_NEIGHBORS_WORKSPACE_LEN(n) (2u * (size_t)(n) + 2u * (MAGCAL_OPTICS_GRID_CELLS(n) + 1u))
+
+/**
+ * Workspace bytes for magcal_optics_run() on n points: seed heap/list uint16[n], heap position
+ * map uint16[n], spatial index, one "processed" bit per point, rounded up to a multiple of 4.
+ * About 8.1 bytes per sample (n <= MAGCAL_GRID_MAX_CELLS); the outputs (order 2 + reach 4 +
+ * core 4 bytes per sample) are separate caller arrays.
+ */
+#define MAGCAL_OPTICS_WORKSPACE_LEN(n) \
+    ((4u * (size_t)(n) + MAGCAL_NEIGHBORS_WORKSPACE_LEN(n) + ((size_t)(n) + 7u) / 8u + 3u) & ~(size_t)3u)
+
+/**
+ * Workspace bytes for magcal_optics_filter() and magcal_optics_auto_params() on n points:
+ * reach float[n] + labels int16[n] + MAGCAL_OPTICS_WORKSPACE_LEN(n). About 16 bytes per sample;
+ * with the caller's uint8 inlier mask the whole filter needs about 17 bytes per sample besides
+ * the points (ordering and core distances are consumed on the fly, never stored).
+ */
+#define MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n) (6u * (size_t)(n) + MAGCAL_OPTICS_WORKSPACE_LEN(n))
+
+/** Workspace bytes for magcal_optics_largest_cluster() on n labels (cluster counts, uint16[n]). */
+#define MAGCAL_OPTICS_LARGEST_WORKSPACE_LEN(n) ((2u * (size_t)(n) + 3u) & ~(size_t)3u)
+
+/** OPTICS configuration (validated by every call that takes it). */
+typedef struct {
+    /** Neighbourhood radius eps > 0 (may be +INFINITY). magcal_optics_filter: eps <= 0 selects
+     *  automatic eps, eps' and MinPts (magcal_optics_auto_params); magcal_optics_run: must be > 0. */
+    float eps;
+    /** Extraction radius eps' (filter only), 0 < eps' <= eps; 0 means eps' = eps. Ignored in auto. */
+    float eps_prime;
+    /** MinPts, counting the point itself: 2..MAGCAL_MAX_MIN_PTS. Ignored in auto mode. */
+    uint16_t min_pts;
+    /** Seed-list organisation. */
+    magcal_optics_order_t order;
+    /** Neighbour search. */
+    magcal_neighbors_t neighbors;
+} magcal_optics_cfg_t;
+
+/** Defaults: automatic parameters, improved ordering, grid search (work without tuning). */
+#define MAGCAL_OPTICS_CFG_DEFAULT \
+    { 0.0f, 0.0f, 4u, MAGCAL_OPTICS_IMPROVED, MAGCAL_NEIGHBORS_GRID }
+
+/** What a run or filter did (diagnostics). */
+typedef struct {
+    float eps;                      /**< eps used (auto or given), point unit */
+    float eps_prime;                /**< eps' used by the extraction (filter only) */
+    uint16_t min_pts;               /**< MinPts used */
+    magcal_neighbors_t neighbors;   /**< search actually used (GRID falls back to BRUTE for eps = inf) */
+    uint16_t n_clusters;            /**< clusters found at eps' (filter only) */
+    int16_t largest_id;             /**< id of the kept cluster (filter only) */
+    uint16_t n_inliers;             /**< points in the kept cluster (filter only) */
+    uint16_t n_noise;               /**< points labelled noise at eps' (filter only) */
+} magcal_optics_result_t;
+
+/**
+ * @brief Run the OPTICS ordering loop (algorithms.md 4.1-4.2).
+ * @param[in]  cfg       eps (> 0, may be +INF), min_pts, order, neighbors; eps_prime ignored.
+ * @param[in]  pts       n points, finite.
+ * @param[in]  n         number of points, cfg->min_pts..MAGCAL_MAX_SAMPLES.
+ * @param[out] work      scratch, 4-byte aligned, >= MAGCAL_OPTICS_WORKSPACE_LEN(n) bytes.
+ * @param[in]  work_len  bytes available at work.
+ * @param[out] order     n indices: the cluster ordering.
+ * @param[out] reach     n reachability distances, indexed by point (INFINITY = undefined).
+ * @param[out] core      n core distances, indexed by point (INFINITY = undefined).
+ * @param[out] pred      optional (NULL): n predecessors, MAGCAL_OPTICS_NO_PRED for starts.
+ * @param[out] info      optional (NULL): eps, min_pts and the neighbour search used.
+ * @return MAGCAL_OK; MAGCAL_ERR_NULL (cfg, pts, work, order, reach or core NULL);
+ *         MAGCAL_ERR_ARG (eps not > 0 or NaN, min_pts outside 2..MAGCAL_MAX_MIN_PTS, bad enum,
+ *         work not 4-byte aligned); MAGCAL_ERR_TOO_FEW_POINTS (n < min_pts);
+ *         MAGCAL_ERR_ARG also for n > MAGCAL_MAX_SAMPLES; MAGCAL_ERR_NONFINITE (a NaN/Inf point);
+ *         MAGCAL_ERR_WORKSPACE (work_len too small). Outputs are untouched on failure.
+ */
+magcal_status_t magcal_optics_run(const magcal_optics_cfg_t *cfg, const magcal_vec2_t *pts, size_t n,
+                                  void *work, size_t work_len, uint16_t *order, float *reach,
+                                  float *core, uint16_t *pred, magcal_optics_result_t *info);
+
+/**
+ * @brief ExtractDBSCAN-Clustering at eps' (algorithms.md 4.3).
+ * @param[in]  order, reach, core  outputs of magcal_optics_run for n points.
+ * @param[in]  n          number of points (1..MAGCAL_MAX_SAMPLES).
+ * @param[in]  eps        the eps the ordering was computed with (> 0, may be +INF).
+ * @param[in]  eps_prime  extraction radius, 0 <= eps' <= eps, finite.
+ * @param[out] labels     n labels indexed by point: 0, 1, ... or MAGCAL_OPTICS_NOISE.
+ * @param[out] n_clusters optional (NULL): number of clusters.
+ * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_ARG (eps' > eps, eps' < 0 or not finite, n = 0,
+ *         an order entry >= n, n > MAGCAL_MAX_SAMPLES).
+ *         labels untouched on failure.
+ */
+magcal_status_t magcal_optics_extract_dbscan(const uint16_t *order, const float *reach, const float *core,
+                                             size_t n, float eps, float eps_prime, int16_t *labels,
+                                             uint16_t *n_clusters);
+
+/**
+ * @brief Keep the largest cluster: highest count, ties to the smaller id (algorithms.md 4.3).
+ * Works on labels from magcal_optics_extract_dbscan or magcal_dbscan_run.
+ * @param[in]  labels     n labels (>= 0 cluster id, MAGCAL_OPTICS_NOISE); ids must be < n.
+ * @param[in]  n          number of labels (1..MAGCAL_MAX_SAMPLES).
+ * @param[out] work       scratch, 2-byte aligned, >= MAGCAL_OPTICS_LARGEST_WORKSPACE_LEN(n) bytes.
+ * @param[in]  work_len   bytes at work.
+ * @param[out] inlier_mask n bytes: 1 for the points of the kept cluster, else 0.
+ * @param[out] cluster_id optional (NULL): id of the kept cluster.
+ * @param[out] count      optional (NULL): its size.
+ * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_ARG (n = 0, a label < -1 or >= n, misaligned work);
+ *         MAGCAL_ERR_ARG also for n > MAGCAL_MAX_SAMPLES; MAGCAL_ERR_WORKSPACE;
+ *         MAGCAL_ERR_ALL_NOISE (no cluster). Outputs untouched on failure.
+ */
+magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, void *work, size_t work_len,
+                                              uint8_t *inlier_mask, int16_t *cluster_id, uint16_t *count);
+
+/**
+ * @brief Automatic eps, MinPts and eps' from the data's own scale (rule in the file comment).
+ * @param[in]  pts        n points, finite.
+ * @param[in]  n          16..MAGCAL_MAX_SAMPLES.
+ * @param[out] work       scratch, 4-byte aligned, >= MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n) bytes.
+ * @param[in]  work_len   bytes at work.
+ * @param[out] eps        eps for the ordering (= eps').
+ * @param[out] min_pts    MinPts (4).
+ * @param[out] eps_prime  extraction radius.
+ * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_ARG (misaligned work);
+ *         MAGCAL_ERR_TOO_FEW_POINTS (n < 16); MAGCAL_ERR_ARG also for n > MAGCAL_MAX_SAMPLES;
+ *         MAGCAL_ERR_NONFINITE; MAGCAL_ERR_WORKSPACE; MAGCAL_ERR_DEGENERATE (median radius 0 or
+ *         fewer than 10 points in the ring band). Outputs untouched on failure.
+ */
+magcal_status_t magcal_optics_auto_params(const magcal_vec2_t *pts, size_t n, void *work, size_t work_len,
+                                          float *eps, uint16_t *min_pts, float *eps_prime);
+
+/**
+ * @brief Points to inlier mask in one call: (auto params), OPTICS, ExtractDBSCAN at eps', largest
+ * cluster. Ordering and core distances are consumed on the fly; the result equals
+ * magcal_optics_run + magcal_optics_extract_dbscan + magcal_optics_largest_cluster.
+ * @param[in]  cfg        cfg->eps <= 0: automatic parameters; otherwise eps, eps_prime, min_pts as given.
+ * @param[in]  pts        n points, finite.
+ * @param[in]  n          cfg->min_pts (16 in auto mode)..MAGCAL_MAX_SAMPLES.
+ * @param[out] work       scratch, 4-byte aligned, >= MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n) bytes.
+ * @param[in]  work_len   bytes at work.
+ * @param[out] inlier_mask n bytes: 1 = kept (largest cluster), 0 = rejected.
+ * @param[out] info       optional (NULL): parameters used and cluster statistics.
+ * @return MAGCAL_OK; every status of magcal_optics_run / magcal_optics_auto_params;
+ *         MAGCAL_ERR_ARG (eps' > eps or eps' < 0); MAGCAL_ERR_ALL_NOISE (no cluster).
+ *         inlier_mask untouched on failure.
+ */
+magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magcal_vec2_t *pts, size_t n,
+                                     void *work, size_t work_len, uint8_t *inlier_mask,
+                                     magcal_optics_result_t *info);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* MAGCAL_OPTICS_H */

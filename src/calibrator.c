@@ -1,0 +1,892 @@
+/*
+ * The 2-D calibration pipeline object: collect, filter (OPTICS/DBSCAN), consensus, fit, gate,
+ * adopt. See include/magcal/calibrator.h for the pipeline, the gates and the adoption rule.
+ */
+#include "magcal/calibrator.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "magcal_internal.h"
+
+#define CAL_MAGIC MAGCAL_CALIBRATOR_MAGIC
+#define CAL_BIN_DEG (360.0f / (float)MAGCAL_COVERAGE_BINS)
+#define CAL_SHIFT_STEPS 72u   /* heading shift evaluated every 5 degrees */
+#define CAL_COLLINEAR_TOL 1.0e-6f
+
+/* ------------------------------------------------------------------ small helpers */
+
+/* Approximate heading of u (raw, around a centre): atan2(-u.x, u.y) in [0, 360). */
+static float cal_angle_deg(float ux, float uy)
+{
+    float a = atan2f(-ux, uy) * MAGCAL_DEG_PER_RAD_F;
+    if (a < 0.0f) {
+        a += 360.0f;
+    }
+    if (a >= 360.0f) {
+        a = 0.0f;
+    }
+    return a;
+}
+
+static size_t cal_bin_of(float deg)
+{
+    size_t b = (size_t)(deg / CAL_BIN_DEG);
+    return b >= MAGCAL_COVERAGE_BINS ? MAGCAL_COVERAGE_BINS - 1u : b;
+}
+
+/* Coverage of a bin occupancy table: covered degrees, largest empty circular run. */
+static float cal_coverage_of(const uint16_t *bins, float *miss_start, float *miss_width)
+{
+    size_t filled = 0u;
+    size_t best_len = 0u;
+    size_t best_start = 0u;
+    size_t b;
+    for (b = 0u; b < MAGCAL_COVERAGE_BINS; ++b) {
+        if (bins[b] != 0u) {
+            ++filled;
+        }
+    }
+    if (filled > 0u && filled < MAGCAL_COVERAGE_BINS) {
+        /* start scanning right after a filled bin so circular runs are contiguous */
+        size_t s0 = 0u;
+        size_t run = 0u;
+        size_t run_start = 0u;
+        size_t k;
+        for (b = 0u; b < MAGCAL_COVERAGE_BINS; ++b) {
+            if (bins[b] != 0u) {
+                s0 = b + 1u;
+                break;
+            }
+        }
+        for (k = 0u; k < MAGCAL_COVERAGE_BINS; ++k) {
+            size_t bb = (s0 + k) % MAGCAL_COVERAGE_BINS;
+            if (bins[bb] == 0u) {
+                if (run == 0u) {
+                    run_start = bb;
+                }
+                ++run;
+                if (run > best_len) {
+                    best_len = run;
+                    best_start = run_start;
+                }
+            } else {
+                run = 0u;
+            }
+        }
+    } else if (filled == 0u) {
+        best_len = MAGCAL_COVERAGE_BINS;
+    }
+    if (miss_start != NULL) {
+        *miss_start = (float)best_start * CAL_BIN_DEG;
+    }
+    if (miss_width != NULL) {
+        *miss_width = (float)best_len * CAL_BIN_DEG;
+    }
+    /* the arc is what the largest empty sector leaves: isolated empty bins between samples of a
+     * sparse recording are crossed, not missing */
+    return 360.0f - (float)best_len * CAL_BIN_DEG;
+}
+
+static int cal_finite_cfg_f(float v)
+{
+    return magcal_isfinite_f(v);
+}
+
+static magcal_status_t cal_check_cfg(const magcal_calibrator_cfg_t *c)
+{
+    if (!cal_finite_cfg_f(c->eps) || !cal_finite_cfg_f(c->min_spacing_deg) ||
+        !cal_finite_cfg_f(c->min_coverage_deg) || !cal_finite_cfg_f(c->max_outlier_frac) ||
+        !cal_finite_cfg_f(c->min_axis_ratio) || !cal_finite_cfg_f(c->min_radius) ||
+        !cal_finite_cfg_f(c->max_radius) || !cal_finite_cfg_f(c->max_residual_rel) ||
+        !cal_finite_cfg_f(c->max_radius_change) || !cal_finite_cfg_f(c->output_radius) ||
+        !cal_finite_cfg_f(c->consensus.k_sigma) || !cal_finite_cfg_f(c->consensus.min_thr_rel) ||
+        !cal_finite_cfg_f(c->consensus.max_thr_rel)) {
+        return MAGCAL_ERR_NONFINITE;
+    }
+    if ((int)c->filter < (int)MAGCAL_FILTER_OPTICS_GRID || (int)c->filter > (int)MAGCAL_FILTER_NONE) {
+        return MAGCAL_ERR_ARG;
+    }
+    if (c->eps < 0.0f || c->min_pts == 1u || c->min_pts > MAGCAL_MAX_MIN_PTS) {
+        return MAGCAL_ERR_ARG;
+    }
+    if (c->use_consensus > 1u) {
+        return MAGCAL_ERR_ARG;
+    }
+    if (c->consensus.max_iter < 1u || c->consensus.max_iter > MAGCAL_CONSENSUS_MAX_ITER ||
+        c->consensus.refine_iter < 1u || c->consensus.refine_iter > MAGCAL_CONSENSUS_MAX_REFINE ||
+        !(c->consensus.k_sigma > 0.0f) || c->consensus.min_thr_rel < 0.0f ||
+        !(c->consensus.max_thr_rel > c->consensus.min_thr_rel)) {
+        return MAGCAL_ERR_ARG;
+    }
+    if (c->min_spacing_deg < 0.0f || c->min_spacing_deg > 90.0f || c->min_samples < 5u ||
+        c->min_coverage_deg < 0.0f || c->min_coverage_deg > 360.0f || c->max_outlier_frac < 0.0f ||
+        c->max_outlier_frac > 1.0f || c->min_axis_ratio < 0.0f || c->min_axis_ratio > 1.0f ||
+        c->min_radius < 0.0f || c->max_radius < 0.0f ||
+        (c->max_radius > 0.0f && c->min_radius > c->max_radius) || !(c->max_residual_rel > 0.0f) ||
+        c->max_radius_change < 0.0f) {
+        return MAGCAL_ERR_ARG;
+    }
+    if ((int)c->form < (int)MAGCAL_CORR_SYMMETRIC || (int)c->form > (int)MAGCAL_CORR_TRIANGULAR) {
+        return MAGCAL_ERR_ARG;
+    }
+    return MAGCAL_OK;
+}
+
+static int cal_ok(const magcal_calibrator_t *cal)
+{
+    return cal != NULL && cal->magic == CAL_MAGIC;
+}
+
+/* Recompute the live coverage bins around the bbox midpoint. */
+static void cal_rebin(magcal_calibrator_t *cal)
+{
+    size_t i;
+    float hx = 0.5f * (cal->bb_max.x - cal->bb_min.x);
+    float hy = 0.5f * (cal->bb_max.y - cal->bb_min.y);
+    cal->centre.x = 0.5f * (cal->bb_min.x + cal->bb_max.x);
+    cal->centre.y = 0.5f * (cal->bb_min.y + cal->bb_max.y);
+    cal->centre_tol = 0.125f * (hx < hy ? hx : hy);
+    (void)memset(cal->bins, 0, sizeof cal->bins);
+    for (i = 0u; i < cal->n; ++i) {
+        size_t b = cal_bin_of(cal_angle_deg(cal->buf[i].x - cal->centre.x, cal->buf[i].y - cal->centre.y));
+        if (cal->bins[b] < 0xFFFFu) {
+            cal->bins[b]++;
+        }
+    }
+}
+
+static void cal_update_state(magcal_calibrator_t *cal)
+{
+    float cov = cal_coverage_of(cal->bins, NULL, NULL);
+    if (cal->n >= cal->cfg.min_samples && cov >= cal->cfg.min_coverage_deg) {
+        cal->state = MAGCAL_CALIBRATOR_READY;
+    } else {
+        cal->state = MAGCAL_CALIBRATOR_COLLECTING;
+    }
+}
+
+/* ------------------------------------------------------------------ lifecycle */
+
+magcal_status_t magcal_calibrator_init(magcal_calibrator_t *cal, const magcal_calibrator_cfg_t *cfg,
+                                       magcal_vec2_t *sample_buf, size_t capacity, void *work,
+                                       size_t work_len)
+{
+    magcal_status_t st;
+    uint8_t *w;
+    size_t masks;
+    if (cal == NULL || cfg == NULL || sample_buf == NULL || work == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (capacity < 16u || capacity > MAGCAL_MAX_SAMPLES || ((uintptr_t)work & 3u) != 0u) {
+        return MAGCAL_ERR_ARG;
+    }
+    st = cal_check_cfg(cfg);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    if (work_len < MAGCAL_CALIBRATOR_WORKSPACE_LEN(capacity)) {
+        return MAGCAL_ERR_WORKSPACE;
+    }
+    (void)memset(cal, 0, sizeof *cal);
+    cal->cfg = *cfg;
+    cal->buf = sample_buf;
+    cal->capacity = capacity;
+    w = (uint8_t *)work;
+    masks = MAGCAL_CALIBRATOR_MASKS_LEN(capacity);
+    cal->flags = w;
+    cal->mask_a = w + capacity;
+    cal->mask_b = w + 2u * capacity;
+    cal->scratch = (void *)(w + masks);
+    cal->scratch_len = work_len - masks;
+    cal->magic = CAL_MAGIC;
+    return magcal_calibrator_reset(cal);
+}
+
+magcal_status_t magcal_calibrator_reset(magcal_calibrator_t *cal)
+{
+    if (cal == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (!cal_ok(cal)) {
+        return MAGCAL_ERR_NOT_INITIALISED;
+    }
+    cal->n = 0u;
+    cal->n_judged = 0u;
+    cal->has_fit = 0u;
+    cal->threshold = 0.0f;
+    cal->last_bin_deg10 = -1;
+    cal->centre_tol = 0.0f;
+    (void)memset(cal->bins, 0, sizeof cal->bins);
+    cal->state = MAGCAL_CALIBRATOR_COLLECTING;
+    cal->last_status = MAGCAL_OK;
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_calibrator_push(magcal_calibrator_t *cal, magcal_vec2_t p)
+{
+    float ang;
+    size_t b;
+    if (cal == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (!cal_ok(cal)) {
+        return MAGCAL_ERR_NOT_INITIALISED;
+    }
+    if (!magcal_isfinite_f(p.x) || !magcal_isfinite_f(p.y)) {
+        return MAGCAL_ERR_NONFINITE;
+    }
+    if (cal->n >= cal->capacity) {
+        return MAGCAL_ERR_BUFFER_FULL;
+    }
+    ang = cal_angle_deg(p.x - cal->centre.x, p.y - cal->centre.y);
+    b = cal_bin_of(ang);
+    if (cal->n > 0u) {
+        if (cal->cfg.min_spacing_deg > 0.0f && cal->last_bin_deg10 >= 0) {
+            float d = fabsf(magcal_wrap180_deg(ang - 0.1f * (float)cal->last_bin_deg10));
+            if (d < cal->cfg.min_spacing_deg) {
+                return MAGCAL_ERR_GATED;
+            }
+        }
+        if (cal->cfg.max_per_bin > 0u && cal->bins[b] >= cal->cfg.max_per_bin) {
+            return MAGCAL_ERR_GATED;
+        }
+    }
+    cal->buf[cal->n] = p;
+    cal->n++;
+    if (cal->n == 1u) {
+        cal->bb_min = p;
+        cal->bb_max = p;
+    } else {
+        if (p.x < cal->bb_min.x) {
+            cal->bb_min.x = p.x;
+        }
+        if (p.y < cal->bb_min.y) {
+            cal->bb_min.y = p.y;
+        }
+        if (p.x > cal->bb_max.x) {
+            cal->bb_max.x = p.x;
+        }
+        if (p.y > cal->bb_max.y) {
+            cal->bb_max.y = p.y;
+        }
+    }
+    {
+        float mx = 0.5f * (cal->bb_min.x + cal->bb_max.x);
+        float my = 0.5f * (cal->bb_min.y + cal->bb_max.y);
+        float dx = mx - cal->centre.x;
+        float dy = my - cal->centre.y;
+        if (cal->n == 1u || dx * dx + dy * dy > cal->centre_tol * cal->centre_tol) {
+            cal_rebin(cal); /* the provisional centre moved: re-bin every stored sample */
+        } else if (cal->bins[b] < 0xFFFFu) {
+            cal->bins[b]++;
+        }
+    }
+    ang = cal_angle_deg(p.x - cal->centre.x, p.y - cal->centre.y);
+    cal->last_bin_deg10 = (int32_t)(ang * 10.0f);
+    if (cal->state != MAGCAL_CALIBRATOR_CALIBRATED && cal->state != MAGCAL_CALIBRATOR_FAILED) {
+        cal_update_state(cal);
+    }
+    return MAGCAL_OK;
+}
+
+/* ------------------------------------------------------------------ run() stages */
+
+/* All identical or collinear samples: smaller covariance eigenvalue vs larger. */
+static int cal_degenerate(const magcal_vec2_t *p, size_t n)
+{
+    float mx = 0.0f;
+    float my = 0.0f;
+    float sxx = 0.0f;
+    float syy = 0.0f;
+    float sxy = 0.0f;
+    float tr;
+    float det;
+    float disc;
+    float l1;
+    float l2;
+    size_t i;
+    for (i = 0u; i < n; ++i) {
+        mx += p[i].x;
+        my += p[i].y;
+    }
+    mx /= (float)n;
+    my /= (float)n;
+    for (i = 0u; i < n; ++i) {
+        float dx = p[i].x - mx;
+        float dy = p[i].y - my;
+        sxx += dx * dx;
+        syy += dy * dy;
+        sxy += dx * dy;
+    }
+    tr = sxx + syy;
+    if (!(tr > 0.0f)) {
+        return 1;
+    }
+    det = sxx * syy - sxy * sxy;
+    disc = sqrtf(fmaxf(0.25f * tr * tr - det, 0.0f));
+    l1 = 0.5f * tr + disc;
+    l2 = 0.5f * tr - disc;
+    return l2 <= CAL_COLLINEAR_TOL * l1;
+}
+
+/* Hard-iron circle fit x^2 + y^2 + C x + D y + E = 0 of the masked points (centred, scaled). */
+static magcal_status_t cal_circle_centre(const magcal_vec2_t *p, size_t n, const uint8_t *mask,
+                                         magcal_vec2_t *centre)
+{
+    float mx = 0.0f;
+    float my = 0.0f;
+    float s = 0.0f;
+    float a[9];
+    float b[3];
+    size_t i;
+    size_t m = 0u;
+    magcal_status_t st;
+    for (i = 0u; i < n; ++i) {
+        if (mask[i] != 0u) {
+            mx += p[i].x;
+            my += p[i].y;
+            ++m;
+        }
+    }
+    if (m < 3u) {
+        return MAGCAL_ERR_TOO_FEW_POINTS;
+    }
+    mx /= (float)m;
+    my /= (float)m;
+    for (i = 0u; i < n; ++i) {
+        if (mask[i] != 0u) {
+            float d = fmaxf(fabsf(p[i].x - mx), fabsf(p[i].y - my));
+            s = fmaxf(s, d);
+        }
+    }
+    if (!(s > 0.0f)) {
+        return MAGCAL_ERR_DEGENERATE;
+    }
+    (void)memset(a, 0, sizeof a);
+    (void)memset(b, 0, sizeof b);
+    for (i = 0u; i < n; ++i) {
+        if (mask[i] != 0u) {
+            float u = (p[i].x - mx) / s;
+            float v = (p[i].y - my) / s;
+            float w[3];
+            float y = -(u * u + v * v);
+            size_t r;
+            size_t c;
+            w[0] = u;
+            w[1] = v;
+            w[2] = 1.0f;
+            for (r = 0u; r < 3u; ++r) {
+                for (c = 0u; c <= r; ++c) {
+                    a[r * 3u + c] += w[r] * w[c];
+                }
+                b[r] += w[r] * y;
+            }
+        }
+    }
+    st = magcal_ldlt_solve(a, b, 3u, 1.0e-6f, NULL);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    centre->x = mx - 0.5f * b[0] * s;
+    centre->y = my - 0.5f * b[1] * s;
+    return MAGCAL_OK;
+}
+
+/* Bins of the masked points' approximate headings around centre. */
+static float cal_coverage_around(const magcal_vec2_t *p, size_t n, const uint8_t *mask, magcal_vec2_t c,
+                                 float *miss_start, float *miss_width)
+{
+    uint16_t bins[MAGCAL_COVERAGE_BINS];
+    size_t i;
+    (void)memset(bins, 0, sizeof bins);
+    for (i = 0u; i < n; ++i) {
+        if (mask[i] != 0u) {
+            bins[cal_bin_of(cal_angle_deg(p[i].x - c.x, p[i].y - c.y))] = 1u;
+        }
+    }
+    return cal_coverage_of(bins, miss_start, miss_width);
+}
+
+/* Bins of the corrected headings of the masked points (coverage of the final calibration). */
+static float cal_coverage_corrected(const magcal_vec2_t *p, size_t n, const uint8_t *mask,
+                                    const magcal_cal2d_t *c, float *miss_start, float *miss_width)
+{
+    uint16_t bins[MAGCAL_COVERAGE_BINS];
+    size_t i;
+    (void)memset(bins, 0, sizeof bins);
+    for (i = 0u; i < n; ++i) {
+        magcal_vec2_t h;
+        if (mask[i] != 0u && magcal_correct_apply(c, p[i], &h) == MAGCAL_OK) {
+            bins[cal_bin_of(cal_angle_deg(h.x, h.y))] = 1u;
+        }
+    }
+    return cal_coverage_of(bins, miss_start, miss_width);
+}
+
+/* Density filter into mask_a. */
+static magcal_status_t cal_filter(magcal_calibrator_t *cal, magcal_cal_report_t *rep)
+{
+    const magcal_calibrator_cfg_t *c = &cal->cfg;
+    size_t n = cal->n;
+    size_t i;
+    magcal_status_t st;
+    if (c->filter == MAGCAL_FILTER_NONE || (c->eps <= 0.0f && n < 16u)) {
+        /* no filter (auto parameters need 16 samples: below that every sample is a candidate) */
+        for (i = 0u; i < n; ++i) {
+            cal->mask_a[i] = 1u;
+        }
+        rep->filter_eps = 0.0f;
+        rep->filter_min_pts = 0u;
+        return MAGCAL_OK;
+    }
+    if (c->filter == MAGCAL_FILTER_DBSCAN) {
+        magcal_dbscan_cfg_t dc = MAGCAL_DBSCAN_CFG_DEFAULT;
+        int16_t *labels = (int16_t *)cal->scratch;
+        size_t lab_len = (2u * n + 3u) & ~(size_t)3u;
+        uint8_t *rest = (uint8_t *)cal->scratch + lab_len;
+        size_t rest_len = cal->scratch_len - lab_len;
+        if (c->eps > 0.0f) {
+            dc.eps = c->eps;
+            dc.min_pts = c->min_pts != 0u ? c->min_pts : 4u;
+        } else {
+            float e;
+            float ep;
+            uint16_t mp;
+            st = magcal_optics_auto_params(cal->buf, n, cal->scratch, cal->scratch_len, &e, &mp, &ep);
+            if (st != MAGCAL_OK) {
+                return st;
+            }
+            dc.eps = ep;
+            dc.min_pts = c->min_pts != 0u ? c->min_pts : mp;
+        }
+        st = magcal_dbscan_run(&dc, cal->buf, n, rest, rest_len, labels, NULL, NULL);
+        if (st != MAGCAL_OK) {
+            return st;
+        }
+        st = magcal_optics_largest_cluster(labels, n, rest, rest_len, cal->mask_a, NULL, NULL);
+        if (st != MAGCAL_OK) {
+            return st;
+        }
+        rep->filter_eps = dc.eps;
+        rep->filter_min_pts = dc.min_pts;
+        return MAGCAL_OK;
+    }
+    {
+        magcal_optics_cfg_t oc = MAGCAL_OPTICS_CFG_DEFAULT;
+        magcal_optics_result_t info;
+        if (c->filter == MAGCAL_FILTER_OPTICS_CLASSIC) {
+            oc.order = MAGCAL_OPTICS_CLASSIC;
+            oc.neighbors = MAGCAL_NEIGHBORS_BRUTE;
+        }
+        if (c->eps > 0.0f) {
+            oc.eps = c->eps;
+            oc.eps_prime = c->eps;
+            oc.min_pts = c->min_pts != 0u ? c->min_pts : 4u;
+        } else if (c->min_pts != 0u) {
+            /* automatic radius, caller's MinPts */
+            float e;
+            float ep;
+            uint16_t mp;
+            st = magcal_optics_auto_params(cal->buf, n, cal->scratch, cal->scratch_len, &e, &mp, &ep);
+            if (st != MAGCAL_OK) {
+                return st;
+            }
+            oc.eps = e;
+            oc.eps_prime = ep;
+            oc.min_pts = c->min_pts;
+        }
+        st = magcal_optics_filter(&oc, cal->buf, n, cal->scratch, cal->scratch_len, cal->mask_a, &info);
+        if (st != MAGCAL_OK) {
+            return st;
+        }
+        rep->filter_eps = info.eps_prime;
+        rep->filter_min_pts = info.min_pts;
+    }
+    return MAGCAL_OK;
+}
+
+/* 2x2 inverse of a calibration matrix. */
+static int cal_inv2(const float m[2][2], float inv[2][2])
+{
+    float det = m[0][0] * m[1][1] - m[0][1] * m[1][0];
+    if (!(fabsf(det) > 0.0f) || !magcal_isfinite_f(det)) {
+        return -1;
+    }
+    inv[0][0] = m[1][1] / det;
+    inv[0][1] = -m[0][1] / det;
+    inv[1][0] = -m[1][0] / det;
+    inv[1][1] = m[0][0] / det;
+    return 0;
+}
+
+/* Heading change if `next` replaced `cur` (cur NULL = identity). */
+static void cal_shift(const magcal_cal2d_t *cur, const magcal_cal2d_t *next, float *max_deg, float *rms_deg)
+{
+    float inv[2][2];
+    float r = next->radius > 0.0f ? next->radius : 1.0f;
+    float mx = 0.0f;
+    float ss = 0.0f;
+    size_t k;
+    size_t cnt = 0u;
+    if (cal_inv2(next->m, inv) != 0) {
+        *max_deg = NAN;
+        *rms_deg = NAN;
+        return;
+    }
+    for (k = 0u; k < CAL_SHIFT_STEPS; ++k) {
+        float psi = (float)k * (360.0f / (float)CAL_SHIFT_STEPS);
+        float pr = psi * MAGCAL_RAD_PER_DEG_F;
+        float hx = -r * sinf(pr);
+        float hy = r * cosf(pr);
+        magcal_vec2_t raw;
+        magcal_vec2_t h;
+        float ph;
+        float d;
+        raw.x = inv[0][0] * hx + inv[0][1] * hy + next->offset.x;
+        raw.y = inv[1][0] * hx + inv[1][1] * hy + next->offset.y;
+        if (cur != NULL) {
+            if (magcal_correct_apply(cur, raw, &h) != MAGCAL_OK) {
+                continue;
+            }
+        } else {
+            h = raw;
+        }
+        if (magcal_heading_from_field(h, &ph) != MAGCAL_OK) {
+            continue;
+        }
+        d = fabsf(magcal_wrap180_deg(ph - psi));
+        mx = fmaxf(mx, d);
+        ss += d * d;
+        ++cnt;
+    }
+    *max_deg = mx;
+    *rms_deg = cnt > 0u ? sqrtf(ss / (float)cnt) : NAN;
+}
+
+/* Mean corrected radius of the masked samples under c, and mean(d^2) with d = rho/mean - 1. */
+static void cal_radius_stats(const magcal_vec2_t *p, size_t n, const uint8_t *mask, const magcal_cal2d_t *c,
+                             float *mean, float *var_rel)
+{
+    float sum = 0.0f;
+    float sum2 = 0.0f;
+    size_t k = 0u;
+    size_t i;
+    for (i = 0u; i < n; ++i) {
+        magcal_vec2_t h;
+        if (mask[i] != 0u && magcal_correct_apply(c, p[i], &h) == MAGCAL_OK) {
+            float rho = sqrtf(h.x * h.x + h.y * h.y);
+            sum += rho;
+            sum2 += rho * rho;
+            ++k;
+        }
+    }
+    if (k == 0u || !(sum > 0.0f)) {
+        *mean = 0.0f;
+        *var_rel = 0.0f;
+        return;
+    }
+    *mean = sum / (float)k;
+    *var_rel = (sum2 / (float)k) / (*mean * *mean) - 1.0f;
+}
+
+static void cal_set_flags(magcal_calibrator_t *cal, int with_residual)
+{
+    size_t i;
+    for (i = 0u; i < cal->n; ++i) {
+        uint8_t f = MAGCAL_CALIBRATOR_FLAG_JUDGED;
+        if (cal->mask_a[i] == 0u) {
+            f = (uint8_t)(f | MAGCAL_CALIBRATOR_FLAG_FILTER);
+        }
+        if (with_residual != 0 && cal->mask_b[i] == 0u) {
+            f = (uint8_t)(f | MAGCAL_CALIBRATOR_FLAG_RESIDUAL);
+        }
+        cal->flags[i] = f;
+    }
+    cal->n_judged = cal->n;
+}
+
+/* Plain least-squares fit of the filter inliers (use_consensus = 0). The classify() threshold
+ * is k_sigma * residual RMS of the fit, clamped like the consensus threshold. */
+static magcal_status_t cal_plain_fit(magcal_calibrator_t *cal, magcal_consensus_result_t *res)
+{
+    size_t n = cal->n;
+    size_t i;
+    size_t k = 0u;
+    float rm;
+    float thr;
+    magcal_status_t st = magcal_ellipse_fit(cal->buf, n, cal->mask_a, &res->fit);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    for (i = 0u; i < n; ++i) {
+        cal->mask_b[i] = cal->mask_a[i];
+        if (cal->mask_a[i] != 0u) {
+            ++k;
+        }
+    }
+    rm = sqrtf(res->fit.semi_minor * res->fit.semi_major);
+    thr = cal->cfg.consensus.k_sigma * res->fit.residual_rms;
+    thr = fmaxf(thr, cal->cfg.consensus.min_thr_rel * rm);
+    thr = fminf(thr, cal->cfg.consensus.max_thr_rel * rm);
+    res->sigma = res->fit.residual_rms;
+    res->threshold = thr;
+    res->n_candidates = (uint16_t)k;
+    res->n_inliers = (uint16_t)k;
+    res->n_rescued = 0u;
+    res->n_rejected = 0u;
+    return MAGCAL_OK;
+}
+
+static magcal_status_t cal_finish(magcal_calibrator_t *cal, magcal_status_t st, magcal_cal_report_t *rep,
+                                  magcal_cal_report_t *out)
+{
+    rep->status = st;
+    if (st == MAGCAL_OK) {
+        cal->state = MAGCAL_CALIBRATOR_CALIBRATED;
+        rep->adopted = 1u;
+    } else {
+        cal->state = MAGCAL_CALIBRATOR_FAILED;
+        rep->adopted = 0u;
+    }
+    cal->last_status = st;
+    rep->state = cal->state;
+    if (out != NULL) {
+        *out = *rep;
+    }
+    return st;
+}
+
+magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *current,
+                                      magcal_cal_report_t *report)
+{
+    magcal_cal_report_t rep;
+    magcal_consensus_result_t cres;
+    magcal_cal2d_t next;
+    size_t n;
+    size_t i;
+    size_t used = 0u;
+    size_t filt_in = 0u;
+    magcal_status_t st;
+    float radius;
+    float cov;
+    int cur_usable;
+
+    if (cal == NULL || current == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (!cal_ok(cal)) {
+        return MAGCAL_ERR_NOT_INITIALISED;
+    }
+    (void)memset(&rep, 0, sizeof rep);
+    rep.current_err_deg = NAN;
+    n = cal->n;
+    rep.samples = (uint16_t)n;
+    cal->has_fit = 0u;
+    cal->n_judged = 0u;
+
+    /* 1. pre-checks */
+    if (n < cal->cfg.min_samples || n < MAGCAL_ELLIPSE_MIN_POINTS) {
+        return cal_finish(cal, MAGCAL_ERR_TOO_FEW_POINTS, &rep, report);
+    }
+    if (cal_degenerate(cal->buf, n)) {
+        return cal_finish(cal, MAGCAL_ERR_DEGENERATE, &rep, report);
+    }
+
+    /* 2. density filter */
+    st = cal_filter(cal, &rep);
+    if (st != MAGCAL_OK) {
+        return cal_finish(cal, st, &rep, report);
+    }
+    for (i = 0u; i < n; ++i) {
+        if (cal->mask_a[i] != 0u) {
+            ++filt_in;
+        }
+    }
+    rep.rejected_filter = (uint16_t)(n - filt_in);
+    cal_set_flags(cal, 0);
+    if (filt_in < cal->cfg.min_samples) {
+        return cal_finish(cal, MAGCAL_ERR_TOO_FEW_POINTS, &rep, report);
+    }
+
+    /* 3. coverage pre-gate around the hard-iron circle centre of the filter inliers */
+    {
+        magcal_vec2_t cc;
+        st = cal_circle_centre(cal->buf, n, cal->mask_a, &cc);
+        if (st != MAGCAL_OK) {
+            return cal_finish(cal, st == MAGCAL_ERR_ILL_CONDITIONED ? MAGCAL_ERR_DEGENERATE : st, &rep, report);
+        }
+        cov = cal_coverage_around(cal->buf, n, cal->mask_a, cc, &rep.missing_start_deg, &rep.missing_width_deg);
+        rep.coverage_deg = cov;
+        if (cov < cal->cfg.min_coverage_deg) {
+            return cal_finish(cal, MAGCAL_ERR_COVERAGE, &rep, report);
+        }
+    }
+
+    /* 4. consensus (or plain fit) */
+    (void)memset(&cres, 0, sizeof cres);
+    if (cal->cfg.use_consensus != 0u) {
+        st = magcal_consensus_run(&cal->cfg.consensus, cal->buf, n, cal->mask_a, cal->scratch,
+                                  cal->scratch_len, cal->mask_b, &cres);
+    } else {
+        st = cal_plain_fit(cal, &cres);
+    }
+    if (st != MAGCAL_OK) {
+        return cal_finish(cal, st, &rep, report);
+    }
+    cal->fit = cres.fit;
+    cal->threshold = cres.threshold;
+    cal->has_fit = 1u;
+    cal_set_flags(cal, 1);
+    for (i = 0u; i < n; ++i) {
+        if (cal->mask_b[i] != 0u) {
+            ++used;
+        }
+    }
+    rep.used = (uint16_t)used;
+    rep.outliers = (uint16_t)(n - used);
+    rep.rejected_consensus = cres.n_rejected;
+    rep.rescued_consensus = cres.n_rescued;
+    rep.ellipse = cres.fit;
+    rep.threshold = cres.threshold;
+    radius = sqrtf(cres.fit.semi_minor * cres.fit.semi_major);
+    rep.radius = radius;
+    rep.residual_rms = cres.fit.residual_rms;
+    rep.residual_rel = radius > 0.0f ? cres.fit.residual_rms / radius : INFINITY;
+    rep.axis_ratio = cres.fit.semi_major > 0.0f ? cres.fit.semi_minor / cres.fit.semi_major : 0.0f;
+    rep.min_pivot = cres.fit.min_pivot;
+
+    /* 5. gates */
+    if (used < cal->cfg.min_samples) {
+        return cal_finish(cal, MAGCAL_ERR_TOO_FEW_POINTS, &rep, report);
+    }
+    if ((float)(n - used) > cal->cfg.max_outlier_frac * (float)n) {
+        return cal_finish(cal, MAGCAL_ERR_TOO_MANY_OUTLIERS, &rep, report);
+    }
+    if ((cal->cfg.min_radius > 0.0f && radius < cal->cfg.min_radius) ||
+        (cal->cfg.max_radius > 0.0f && radius > cal->cfg.max_radius)) {
+        return cal_finish(cal, MAGCAL_ERR_RADIUS_RANGE, &rep, report);
+    }
+    if (rep.axis_ratio < cal->cfg.min_axis_ratio) {
+        return cal_finish(cal, MAGCAL_ERR_AXIS_RATIO, &rep, report);
+    }
+    if (!(rep.residual_rel <= cal->cfg.max_residual_rel)) {
+        return cal_finish(cal, MAGCAL_ERR_RESIDUAL, &rep, report);
+    }
+
+    /* 6. correction, final coverage (corrected headings of the inliers), estimates */
+    st = magcal_ellipse_to_cal(&cres.fit, cal->cfg.form, cal->cfg.output_radius, &next);
+    if (st != MAGCAL_OK) {
+        return cal_finish(cal, st, &rep, report);
+    }
+    rep.cal = next;
+    cov = cal_coverage_corrected(cal->buf, n, cal->mask_b, &next, &rep.missing_start_deg, &rep.missing_width_deg);
+    rep.coverage_deg = cov;
+    if (cov < cal->cfg.min_coverage_deg || !(cov > 0.0f)) {
+        return cal_finish(cal, MAGCAL_ERR_COVERAGE, &rep, report);
+    }
+    {
+        float sig_rel = rep.residual_rel;
+        float infl = 360.0f / cov;
+        rep.est_heading_err_deg =
+            MAGCAL_DEG_PER_RAD_F * sig_rel * sqrtf(5.0f / (float)used) * infl * infl;
+    }
+
+    /* 7. adoption rule */
+    cur_usable = (magcal_cal2d_validate(current) == MAGCAL_OK && current->radius > 0.0f) ? 1 : 0;
+    cal_shift(cur_usable ? current : NULL, &next, &rep.shift_max_deg, &rep.shift_rms_deg);
+    if (cur_usable) {
+        float var_cur;
+        float var_new;
+        float mean_cur;
+        float mean_new;
+        cal_radius_stats(cal->buf, n, cal->mask_b, current, &mean_cur, &var_cur);
+        cal_radius_stats(cal->buf, n, cal->mask_b, &next, &mean_new, &var_new);
+        if (!(mean_cur > 0.0f) || !(mean_new > 0.0f)) {
+            rep.current_err_deg = INFINITY;
+        } else {
+            rep.current_err_deg = MAGCAL_DEG_PER_RAD_F * sqrtf(fmaxf(var_cur - var_new, 0.0f));
+        }
+        if (!(rep.est_heading_err_deg <= rep.current_err_deg)) {
+            float change = mean_cur > 0.0f ? fabsf(mean_cur / current->radius - 1.0f) : INFINITY;
+            if (!(change <= cal->cfg.max_radius_change)) {
+                return cal_finish(cal, MAGCAL_ERR_NOT_BETTER, &rep, report);
+            }
+        }
+    }
+    *current = next;
+    return cal_finish(cal, MAGCAL_OK, &rep, report);
+}
+
+/* ------------------------------------------------------------------ queries */
+
+magcal_status_t magcal_calibrator_flags(const magcal_calibrator_t *cal, size_t i, uint8_t *flags)
+{
+    if (cal == NULL || flags == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (!cal_ok(cal)) {
+        return MAGCAL_ERR_NOT_INITIALISED;
+    }
+    if (cal->n_judged == 0u) {
+        return MAGCAL_ERR_STATE;
+    }
+    if (i >= cal->n_judged) {
+        return MAGCAL_ERR_ARG;
+    }
+    *flags = cal->flags[i];
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_calibrator_inlier(const magcal_calibrator_t *cal, size_t i, int *is_inlier)
+{
+    if (cal == NULL || is_inlier == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (!cal_ok(cal)) {
+        return MAGCAL_ERR_NOT_INITIALISED;
+    }
+    if (cal->has_fit == 0u) {
+        return MAGCAL_ERR_STATE;
+    }
+    if (i >= cal->n_judged) {
+        return MAGCAL_ERR_ARG;
+    }
+    *is_inlier = (cal->flags[i] & MAGCAL_CALIBRATOR_FLAG_RESIDUAL) != 0u ? 0 : 1;
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_calibrator_classify(const magcal_calibrator_t *cal, magcal_vec2_t p, int *is_outlier)
+{
+    float r;
+    if (cal == NULL || is_outlier == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (!cal_ok(cal)) {
+        return MAGCAL_ERR_NOT_INITIALISED;
+    }
+    if (!magcal_isfinite_f(p.x) || !magcal_isfinite_f(p.y)) {
+        return MAGCAL_ERR_NONFINITE;
+    }
+    if (cal->has_fit == 0u) {
+        return MAGCAL_ERR_STATE;
+    }
+    r = magcal_ellipse_residual(&cal->fit, p);
+    *is_outlier = (magcal_isfinite_f(r) && fabsf(r) <= cal->threshold) ? 0 : 1;
+    return MAGCAL_OK;
+}
+
+magcal_calibrator_state_t magcal_calibrator_state(const magcal_calibrator_t *cal)
+{
+    return cal_ok(cal) ? cal->state : MAGCAL_CALIBRATOR_FAILED;
+}
+
+size_t magcal_calibrator_count(const magcal_calibrator_t *cal)
+{
+    return cal_ok(cal) ? cal->n : 0u;
+}
+
+float magcal_calibrator_coverage_deg(const magcal_calibrator_t *cal)
+{
+    return cal_ok(cal) ? cal_coverage_of(cal->bins, NULL, NULL) : 0.0f;
+}

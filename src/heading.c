@@ -1,0 +1,123 @@
+/* 2-D correction and heading (algorithms.md 1.1, 1.2, 2.4). float32 only. */
+#include "magcal/heading.h"
+
+#include <float.h>
+#include <math.h>
+
+#include "magcal_internal.h"
+
+magcal_status_t magcal_cal2d_validate(const magcal_cal2d_t *c)
+{
+    float det;
+
+    if (c == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (c->magic != MAGCAL_CAL2D_MAGIC) {
+        return MAGCAL_ERR_NOT_INITIALISED;
+    }
+    if (!magcal_isfinite_f(c->offset.x) || !magcal_isfinite_f(c->offset.y) || !magcal_isfinite_f(c->m[0][0]) ||
+        !magcal_isfinite_f(c->m[0][1]) || !magcal_isfinite_f(c->m[1][0]) || !magcal_isfinite_f(c->m[1][1]) ||
+        !magcal_isfinite_f(c->radius)) {
+        return MAGCAL_ERR_NONFINITE;
+    }
+    det = c->m[0][0] * c->m[1][1] - c->m[0][1] * c->m[1][0];
+    if (!(det > 0.0f)) {
+        return MAGCAL_ERR_DEGENERATE;
+    }
+    if (c->radius < 0.0f) {
+        return MAGCAL_ERR_ARG;
+    }
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_correct_apply(const magcal_cal2d_t *c, magcal_vec2_t raw, magcal_vec2_t *out)
+{
+    magcal_status_t st;
+    float ux;
+    float uy;
+    magcal_vec2_t h;
+
+    if (c == NULL || out == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    st = magcal_cal2d_validate(c);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    if (!magcal_isfinite_f(raw.x) || !magcal_isfinite_f(raw.y)) {
+        return MAGCAL_ERR_NONFINITE;
+    }
+    ux = raw.x - c->offset.x;
+    uy = raw.y - c->offset.y;
+    h.x = c->m[0][0] * ux + c->m[0][1] * uy;
+    h.y = c->m[1][0] * ux + c->m[1][1] * uy;
+    if (!magcal_isfinite_f(h.x) || !magcal_isfinite_f(h.y)) { /* overflow of huge inputs */
+        return MAGCAL_ERR_NONFINITE;
+    }
+    *out = h;
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_heading_from_field(magcal_vec2_t h, float *heading_deg)
+{
+    float deg;
+
+    if (heading_deg == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (!magcal_isfinite_f(h.x) || !magcal_isfinite_f(h.y)) {
+        return MAGCAL_ERR_NONFINITE;
+    }
+    /* |h|^2 below FLT_MIN: the direction is lost in underflow (or h is exactly zero). Computed
+     * on the larger component first so huge finite inputs cannot overflow the test. */
+    if (fabsf(h.x) < 1.0e-19f && fabsf(h.y) < 1.0e-19f && (h.x * h.x + h.y * h.y) < FLT_MIN) {
+        return MAGCAL_ERR_ZERO_FIELD;
+    }
+    deg = atan2f(-h.x, h.y) * MAGCAL_DEG_PER_RAD_F; /* (-180, 180] (plus rounding) */
+    if (deg < 0.0f) {
+        deg += 360.0f;
+    }
+    if (deg >= 360.0f || deg == 0.0f) { /* -tiny + 360 rounds to 360; also turns -0 into +0 */
+        deg = 0.0f;
+    }
+    *heading_deg = deg;
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_heading_compute(const magcal_cal2d_t *c, magcal_vec2_t raw, float declination_deg,
+                                       float *magnetic_deg, float *true_deg)
+{
+    magcal_status_t st;
+    magcal_vec2_t h;
+    float mag;
+
+    if (c == NULL || magnetic_deg == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (!magcal_isfinite_f(declination_deg)) {
+        return MAGCAL_ERR_NONFINITE;
+    }
+    if (declination_deg > 180.0f || declination_deg < -180.0f) {
+        return MAGCAL_ERR_ARG;
+    }
+    st = magcal_correct_apply(c, raw, &h);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    if (c->radius > 0.0f) {
+        float lim = MAGCAL_HEADING_ZERO_FIELD_FRAC * c->radius;
+        if (fabsf(h.x) < lim && fabsf(h.y) < lim && (h.x * h.x + h.y * h.y) < lim * lim) {
+            return MAGCAL_ERR_ZERO_FIELD;
+        }
+    }
+    st = magcal_heading_from_field(h, &mag);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    *magnetic_deg = mag;
+    if (true_deg != NULL) {
+        *true_deg = magcal_wrap360_deg(mag + declination_deg);
+    }
+    return MAGCAL_OK;
+}

@@ -1,0 +1,53 @@
+/*
+ * Internal eps-neighbour search shared by OPTICS and DBSCAN (algorithms.md 4.4 "Grid").
+ * Not installed. A query returns up to three ranges of positions into idx[] (one per grid row of
+ * the 3x3 block, cells of a row are contiguous after the counting sort); brute force is one range
+ * over all points. The caller tests d^2 <= eps^2 itself, so both searches see the same candidate
+ * distances computed the same way and give bit-identical results.
+ */
+#ifndef MAGCAL_NEIGHBORS_H
+#define MAGCAL_NEIGHBORS_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "magcal/optics.h"
+
+typedef struct {
+    const uint16_t *idx; /* NULL: identity (brute force) */
+    uint16_t begin[3];
+    uint16_t end[3];
+    uint16_t n_ranges;
+} magcal_nbr_ranges_t;
+
+typedef struct {
+    const magcal_vec2_t *pts;
+    size_t n;
+    int use_grid;
+    float x0;
+    float y0;
+    float inv_h;
+    uint16_t gw;
+    uint16_t gh;
+    uint16_t *idx;   /* n entries, points sorted by cell */
+    uint16_t *start; /* gw*gh + 1 entries */
+} magcal_nbr_t;
+
+/*
+ * Build the index. mem: MAGCAL_NEIGHBORS_WORKSPACE_LEN(n) bytes, 2-byte aligned. window: NULL
+ * (grid over the bounding box) or {xmin, ymin, xmax, ymax}: the grid covers only the window and
+ * points outside are clamped into the border cells (still exact: clamping is monotone, so two
+ * points within eps stay in adjacent cells; only the border cells get fuller).
+ * Grid cell side h = eps*(1 + 2^-7), doubled until the grid fits MAGCAL_OPTICS_GRID_CELLS(n).
+ * Falls back to brute force when mode is BRUTE, eps is not finite, or the points are all equal.
+ */
+void magcal_nbr_build(magcal_nbr_t *nb, const magcal_vec2_t *pts, size_t n, float eps, magcal_neighbors_t mode,
+                      void *mem, const float *window);
+
+/* Candidate ranges for a query at point index p (every point within eps of p is in them). */
+void magcal_nbr_query(const magcal_nbr_t *nb, size_t p, magcal_nbr_ranges_t *r);
+
+/* Returns MAGCAL_OK, MAGCAL_ERR_NONFINITE if any coordinate is NaN/Inf. */
+magcal_status_t magcal_nbr_check_finite(const magcal_vec2_t *pts, size_t n);
+
+#endif

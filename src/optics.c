@@ -1,0 +1,764 @@
+/* OPTICS ordering, ExtractDBSCAN, largest cluster, automatic parameters (algorithms.md 4). */
+#include "magcal/optics.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "magcal_internal.h"
+#include "neighbors.h"
+
+#define POS_NONE 0xFFFFu
+
+/* Everything the ordering loop needs; optional outputs are NULL when not wanted. */
+typedef struct {
+    const magcal_vec2_t *pts;
+    size_t n;
+    float eps2;
+    uint16_t min_pts;
+    magcal_optics_order_t mode;
+    magcal_nbr_t nb;
+    float *reach;    /* n, working reach (final when a point is processed) */
+    uint16_t *seeds; /* heap (CLASSIC) or unordered list (IMPROVED) */
+    uint16_t *pos;   /* CLASSIC: heap position of each point or POS_NONE */
+    uint8_t *done;   /* processed bits */
+    size_t n_seeds;
+    size_t n_done;
+    uint16_t *order; /* optional outputs */
+    float *core;
+    uint16_t *pred;
+    /* on-the-fly ExtractDBSCAN (filter) */
+    int16_t *labels;
+    float eps_prime;
+    int32_t id;
+    size_t cur_count;
+    int32_t best_id;
+    size_t best_count;
+    size_t n_noise;
+} optics_ctx_t;
+
+static int is_done(const optics_ctx_t *c, size_t i)
+{
+    return (c->done[i >> 3] >> (i & 7u)) & 1u;
+}
+
+/* (reach, index) lexicographic order: the tie rule that makes every variant identical. */
+static int key_less(const float *reach, uint16_t a, uint16_t b)
+{
+    return reach[a] < reach[b] || (reach[a] == reach[b] && a < b);
+}
+
+static void heap_sift_up(optics_ctx_t *c, size_t k)
+{
+    uint16_t v = c->seeds[k];
+    while (k > 0u) {
+        size_t parent = (k - 1u) >> 1;
+        uint16_t pv = c->seeds[parent];
+        if (!key_less(c->reach, v, pv)) {
+            break;
+        }
+        c->seeds[k] = pv;
+        c->pos[pv] = (uint16_t)k;
+        k = parent;
+    }
+    c->seeds[k] = v;
+    c->pos[v] = (uint16_t)k;
+}
+
+static void heap_sift_down(optics_ctx_t *c, size_t k)
+{
+    uint16_t v = c->seeds[k];
+    size_t m = c->n_seeds;
+    for (;;) {
+        size_t child = 2u * k + 1u;
+        uint16_t cv;
+        if (child >= m) {
+            break;
+        }
+        cv = c->seeds[child];
+        if (child + 1u < m && key_less(c->reach, c->seeds[child + 1u], cv)) {
+            ++child;
+            cv = c->seeds[child];
+        }
+        if (!key_less(c->reach, cv, v)) {
+            break;
+        }
+        c->seeds[k] = cv;
+        c->pos[cv] = (uint16_t)k;
+        k = child;
+    }
+    c->seeds[k] = v;
+    c->pos[v] = (uint16_t)k;
+}
+
+static uint16_t seeds_pop_min(optics_ctx_t *c)
+{
+    uint16_t q;
+    if (c->mode == MAGCAL_OPTICS_CLASSIC) {
+        q = c->seeds[0];
+        c->n_seeds--;
+        c->pos[q] = POS_NONE;
+        if (c->n_seeds > 0u) {
+            c->seeds[0] = c->seeds[c->n_seeds];
+            heap_sift_down(c, 0u);
+        }
+    } else {
+        size_t k, best = 0u;
+        const float *reach = c->reach;
+        uint16_t bq = c->seeds[0];
+        float br = reach[bq];
+        for (k = 1u; k < c->n_seeds; ++k) {
+            uint16_t s = c->seeds[k];
+            float r = reach[s];
+            if (r < br || (r == br && s < bq)) {
+                br = r;
+                bq = s;
+                best = k;
+            }
+        }
+        q = bq;
+        c->n_seeds--;
+        c->seeds[best] = c->seeds[c->n_seeds];
+    }
+    return q;
+}
+
+static void extract_step(optics_ctx_t *c, size_t p, float core_p)
+{
+    int16_t lab;
+    if (c->reach[p] > c->eps_prime) {
+        if (core_p <= c->eps_prime) {
+            if (c->id >= 0 && c->cur_count > c->best_count) {
+                c->best_count = c->cur_count;
+                c->best_id = c->id;
+            }
+            c->id++;
+            c->cur_count = 1u;
+            lab = (int16_t)c->id;
+        } else {
+            lab = MAGCAL_OPTICS_NOISE;
+            c->n_noise++;
+        }
+    } else {
+        lab = (int16_t)c->id;
+        if (c->id >= 0) {
+            c->cur_count++;
+        } else {
+            c->n_noise++; /* unreachable in practice: the first point has reach = inf */
+        }
+    }
+    c->labels[p] = lab;
+}
+
+static void process(optics_ctx_t *c, size_t p)
+{
+    float best[MAGCAL_MAX_MIN_PTS];
+    size_t cnt = 0u, m = c->min_pts, ri, k;
+    const magcal_vec2_t *pts = c->pts;
+    const float px = pts[p].x, py = pts[p].y, eps2 = c->eps2;
+    float core_p = INFINITY;
+    magcal_nbr_ranges_t rg;
+
+    c->done[p >> 3] = (uint8_t)(c->done[p >> 3] | (1u << (p & 7u)));
+    if (c->order != NULL) {
+        c->order[c->n_done] = (uint16_t)p;
+    }
+    c->n_done++;
+
+    /* Pass 1: core distance = MinPts-th smallest d^2 (p itself included, d = 0). */
+    magcal_nbr_query(&c->nb, p, &rg);
+    for (ri = 0; ri < rg.n_ranges; ++ri) {
+        for (k = rg.begin[ri]; k < rg.end[ri]; ++k) {
+            size_t j = rg.idx != NULL ? rg.idx[k] : k;
+            float dx = pts[j].x - px, dy = pts[j].y - py;
+            float d2 = dx * dx + dy * dy;
+            if (d2 <= eps2 && (cnt < m || d2 < best[m - 1u])) {
+                size_t t = cnt < m ? cnt++ : m - 1u;
+                while (t > 0u && best[t - 1u] > d2) {
+                    best[t] = best[t - 1u];
+                    --t;
+                }
+                best[t] = d2;
+            }
+        }
+    }
+    if (cnt >= m) {
+        core_p = sqrtf(best[m - 1u]);
+    }
+    if (c->core != NULL) {
+        c->core[p] = core_p;
+    }
+    if (c->labels != NULL) {
+        extract_step(c, p, core_p);
+    }
+    if (cnt < m) {
+        return;
+    }
+    /* Pass 2: reachability updates of the unprocessed neighbours. */
+    for (ri = 0; ri < rg.n_ranges; ++ri) {
+        for (k = rg.begin[ri]; k < rg.end[ri]; ++k) {
+            size_t j = rg.idx != NULL ? rg.idx[k] : k;
+            float dx = pts[j].x - px, dy = pts[j].y - py;
+            float d2 = dx * dx + dy * dy;
+            float r, old;
+            if (d2 > eps2 || is_done(c, j)) {
+                continue;
+            }
+            r = sqrtf(d2);
+            r = r > core_p ? r : core_p;
+            old = c->reach[j];
+            if (!(r < old)) {
+                continue;
+            }
+            c->reach[j] = r;
+            if (c->pred != NULL) {
+                c->pred[j] = (uint16_t)p;
+            }
+            if (c->mode == MAGCAL_OPTICS_CLASSIC) {
+                if (c->pos[j] == POS_NONE) {
+                    c->seeds[c->n_seeds] = (uint16_t)j;
+                    c->n_seeds++;
+                    heap_sift_up(c, c->n_seeds - 1u);
+                } else {
+                    heap_sift_up(c, c->pos[j]);
+                }
+            } else if (old == INFINITY) {
+                c->seeds[c->n_seeds] = (uint16_t)j;
+                c->n_seeds++;
+            }
+        }
+    }
+}
+
+static void optics_loop(optics_ctx_t *c)
+{
+    size_t s, i;
+    for (i = 0; i < c->n; ++i) {
+        c->reach[i] = INFINITY;
+        if (c->pred != NULL) {
+            c->pred[i] = MAGCAL_OPTICS_NO_PRED;
+        }
+        if (c->mode == MAGCAL_OPTICS_CLASSIC) {
+            c->pos[i] = POS_NONE;
+        }
+    }
+    memset(c->done, 0, (c->n + 7u) / 8u);
+    c->n_seeds = 0u;
+    c->n_done = 0u;
+    for (s = 0; s < c->n; ++s) {
+        if (is_done(c, s)) {
+            continue;
+        }
+        process(c, s);
+        while (c->n_seeds > 0u) {
+            process(c, seeds_pop_min(c));
+        }
+    }
+    if (c->labels != NULL && c->id >= 0 && c->cur_count > c->best_count) {
+        c->best_count = c->cur_count;
+        c->best_id = c->id;
+    }
+}
+
+static magcal_status_t check_points(const magcal_vec2_t *pts, size_t n, size_t min_n)
+{
+    if (n > MAGCAL_MAX_SAMPLES) {
+        return MAGCAL_ERR_ARG;
+    }
+    if (n < min_n) {
+        return MAGCAL_ERR_TOO_FEW_POINTS;
+    }
+    return magcal_nbr_check_finite(pts, n);
+}
+
+static magcal_status_t check_cfg(const magcal_optics_cfg_t *cfg)
+{
+    if (!(cfg->eps > 0.0f)) {
+        return MAGCAL_ERR_ARG;
+    }
+    if (cfg->min_pts < 2u || cfg->min_pts > MAGCAL_MAX_MIN_PTS) {
+        return MAGCAL_ERR_ARG;
+    }
+    if (cfg->order != MAGCAL_OPTICS_CLASSIC && cfg->order != MAGCAL_OPTICS_IMPROVED) {
+        return MAGCAL_ERR_ARG;
+    }
+    if (cfg->neighbors != MAGCAL_NEIGHBORS_BRUTE && cfg->neighbors != MAGCAL_NEIGHBORS_GRID) {
+        return MAGCAL_ERR_ARG;
+    }
+    return MAGCAL_OK;
+}
+
+/* Carve the run workspace (uint16 seeds, pos, neighbour index, done bits) and build the index. */
+static void ctx_setup(optics_ctx_t *c, const magcal_optics_cfg_t *cfg, const magcal_vec2_t *pts, size_t n,
+                      uint8_t *w, const float *window)
+{
+    memset(c, 0, sizeof *c);
+    c->pts = pts;
+    c->n = n;
+    c->eps2 = cfg->eps * cfg->eps;
+    c->min_pts = cfg->min_pts;
+    c->mode = cfg->order;
+    c->seeds = (uint16_t *)(void *)w;
+    c->pos = c->seeds + n;
+    c->done = w + 4u * n + MAGCAL_NEIGHBORS_WORKSPACE_LEN(n);
+    c->id = -1;
+    c->best_id = -1;
+    magcal_nbr_build(&c->nb, pts, n, cfg->eps, cfg->neighbors, w + 4u * n, window);
+}
+
+static void fill_info(magcal_optics_result_t *info, const optics_ctx_t *c, float eps, float eps_prime)
+{
+    if (info == NULL) {
+        return;
+    }
+    memset(info, 0, sizeof *info);
+    info->eps = eps;
+    info->eps_prime = eps_prime;
+    info->min_pts = c->min_pts;
+    info->neighbors = c->nb.use_grid ? MAGCAL_NEIGHBORS_GRID : MAGCAL_NEIGHBORS_BRUTE;
+    info->largest_id = MAGCAL_OPTICS_NOISE;
+}
+
+magcal_status_t magcal_optics_run(const magcal_optics_cfg_t *cfg, const magcal_vec2_t *pts, size_t n,
+                                  void *work, size_t work_len, uint16_t *order, float *reach,
+                                  float *core, uint16_t *pred, magcal_optics_result_t *info)
+{
+    optics_ctx_t c;
+    magcal_status_t st;
+    if (cfg == NULL || pts == NULL || work == NULL || order == NULL || reach == NULL || core == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    st = check_cfg(cfg);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    if (((uintptr_t)work & 3u) != 0u) {
+        return MAGCAL_ERR_ARG;
+    }
+    st = check_points(pts, n, cfg->min_pts);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    if (work_len < MAGCAL_OPTICS_WORKSPACE_LEN(n)) {
+        return MAGCAL_ERR_WORKSPACE;
+    }
+    ctx_setup(&c, cfg, pts, n, (uint8_t *)work, NULL);
+    c.reach = reach;
+    c.order = order;
+    c.core = core;
+    c.pred = pred;
+    optics_loop(&c);
+    fill_info(info, &c, cfg->eps, cfg->eps);
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_optics_extract_dbscan(const uint16_t *order, const float *reach, const float *core,
+                                             size_t n, float eps, float eps_prime, int16_t *labels,
+                                             uint16_t *n_clusters)
+{
+    size_t k;
+    int32_t id = -1;
+    if (order == NULL || reach == NULL || core == NULL || labels == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (n == 0u || n > MAGCAL_MAX_SAMPLES || !(eps > 0.0f) || !(eps_prime >= 0.0f) ||
+        !magcal_isfinite_f(eps_prime) || eps_prime > eps) {
+        return MAGCAL_ERR_ARG;
+    }
+    for (k = 0; k < n; ++k) {
+        if (order[k] >= n) {
+            return MAGCAL_ERR_ARG;
+        }
+    }
+    for (k = 0; k < n; ++k) {
+        size_t p = order[k];
+        if (reach[p] > eps_prime) {
+            if (core[p] <= eps_prime) {
+                ++id;
+                labels[p] = (int16_t)id;
+            } else {
+                labels[p] = MAGCAL_OPTICS_NOISE;
+            }
+        } else {
+            labels[p] = (int16_t)id;
+        }
+    }
+    if (n_clusters != NULL) {
+        *n_clusters = (uint16_t)(id + 1);
+    }
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, void *work, size_t work_len,
+                                              uint8_t *inlier_mask, int16_t *cluster_id, uint16_t *count)
+{
+    uint16_t *cnt;
+    size_t i, best_count = 0u;
+    int32_t best = -1, max_id = -1;
+    if (labels == NULL || work == NULL || inlier_mask == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (n == 0u || n > MAGCAL_MAX_SAMPLES || ((uintptr_t)work & 1u) != 0u) {
+        return MAGCAL_ERR_ARG;
+    }
+    if (work_len < MAGCAL_OPTICS_LARGEST_WORKSPACE_LEN(n)) {
+        return MAGCAL_ERR_WORKSPACE;
+    }
+    for (i = 0; i < n; ++i) {
+        if (labels[i] < -1 || (size_t)(labels[i] + 1) > n) {
+            return MAGCAL_ERR_ARG;
+        }
+        max_id = labels[i] > max_id ? labels[i] : max_id;
+    }
+    if (max_id < 0) {
+        return MAGCAL_ERR_ALL_NOISE;
+    }
+    cnt = (uint16_t *)work;
+    memset(cnt, 0, ((size_t)max_id + 1u) * sizeof *cnt);
+    for (i = 0; i < n; ++i) {
+        if (labels[i] >= 0) {
+            cnt[labels[i]]++;
+        }
+    }
+    for (i = 0; i <= (size_t)max_id; ++i) {
+        if (cnt[i] > best_count) { /* strict: ties keep the smaller id */
+            best_count = cnt[i];
+            best = (int32_t)i;
+        }
+    }
+    for (i = 0; i < n; ++i) {
+        inlier_mask[i] = (uint8_t)(labels[i] == best);
+    }
+    if (cluster_id != NULL) {
+        *cluster_id = (int16_t)best;
+    }
+    if (count != NULL) {
+        *count = (uint16_t)best_count;
+    }
+    return MAGCAL_OK;
+}
+
+/* ---- automatic parameters ---------------------------------------------------------------- */
+
+#define AUTO_MIN_N 16u
+#define AUTO_MIN_PTS 4u
+#define AUTO_BAND 0.5f    /* ring band: | |p-c| - R | <= 0.5 R */
+#define AUTO_SAFETY 1.5f  /* eps' = 1.5 * measured requirement */
+#define AUTO_CORE_Q 0.9f  /* quantile of the per-point core requirement */
+#define AUTO_WIN 4u       /* angular neighbours looked at on each side */
+#define AUTO_TRIM 3.0f    /* centre passes after the first use points within 3 R */
+#define AUTO_TRIM_PASSES 2u
+#define AUTO_MIN_REL (1.0f / 256.0f)
+#define AUTO_MAX_REL 1.0f
+
+/* k-th smallest of a[0..n-1] (a is permuted). Iterative Hoare selection, no recursion. */
+static float select_kth(float *a, size_t n, size_t k)
+{
+    size_t lo = 0u, hi = n - 1u;
+    while (lo < hi) {
+        float pivot = a[lo + (hi - lo) / 2u];
+        size_t i = lo, j = hi;
+        for (;;) {
+            float t;
+            while (a[i] < pivot) {
+                ++i;
+            }
+            while (a[j] > pivot) {
+                --j;
+            }
+            if (i >= j) {
+                break;
+            }
+            t = a[i];
+            a[i] = a[j];
+            a[j] = t;
+            ++i;
+            --j;
+        }
+        /* now a[lo..j] <= pivot <= a[j+1..hi] (Hoare partition, j in [lo, hi-1]) */
+        if (k <= j) {
+            hi = j;
+        } else {
+            lo = j + 1u;
+        }
+    }
+    return a[k];
+}
+
+/* Heapsort idx[0..m-1] by key[idx] ascending, ties by index (iterative sift). */
+static int sort_less(const float *key, uint16_t a, uint16_t b)
+{
+    return key[a] < key[b] || (key[a] == key[b] && a < b);
+}
+
+static void sort_sift(uint16_t *idx, const float *key, size_t k, size_t m)
+{
+    uint16_t v = idx[k];
+    for (;;) {
+        size_t child = 2u * k + 1u;
+        if (child >= m) {
+            break;
+        }
+        if (child + 1u < m && sort_less(key, idx[child], idx[child + 1u])) {
+            ++child;
+        }
+        if (!sort_less(key, v, idx[child])) {
+            break;
+        }
+        idx[k] = idx[child];
+        k = child;
+    }
+    idx[k] = v;
+}
+
+static void heapsort_idx(uint16_t *idx, const float *key, size_t m)
+{
+    size_t k;
+    if (m < 2u) {
+        return;
+    }
+    for (k = m / 2u; k > 0u; --k) {
+        sort_sift(idx, key, k - 1u, m);
+    }
+    for (k = m - 1u; k > 0u; --k) {
+        uint16_t t = idx[0];
+        idx[0] = idx[k];
+        idx[k] = t;
+        sort_sift(idx, key, 0u, k);
+    }
+}
+
+static float dist(const magcal_vec2_t *a, const magcal_vec2_t *b)
+{
+    float dx = a->x - b->x, dy = a->y - b->y;
+    return sqrtf(dx * dx + dy * dy);
+}
+
+/* The rule of optics.h, also returning the robust centre and radius (grid window). */
+static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *w, float *eps_prime,
+                                   float *centre_radius)
+{
+    float *a = (float *)(void *)w;
+    uint16_t *idx = (uint16_t *)(void *)(w + 4u * n);
+    float *b = (float *)(void *)(w + 8u * n);
+    float cx, cy, rad, lo, hi, link1 = 0.0f, link2 = 0.0f, coreq, e;
+    float ncx, ncy;
+    size_t i, m = 0u;
+    unsigned pass;
+
+    /* Pass 0 uses every point; passes 1..AUTO_TRIM_PASSES only the points within
+     * AUTO_TRIM * R of the previous centre, so a far cluster (e.g. 23 % driver glitches 36 R
+     * away) cannot drag the median centre off the ring. */
+    cx = 0.0f;
+    cy = 0.0f;
+    rad = INFINITY;
+    for (pass = 0; pass <= AUTO_TRIM_PASSES; ++pass) {
+        float lim2 = (AUTO_TRIM * rad) * (AUTO_TRIM * rad);
+        size_t k = 0u;
+        for (i = 0; i < n; ++i) {
+            float dx = pts[i].x - cx, dy = pts[i].y - cy;
+            if (pass == 0u || dx * dx + dy * dy <= lim2) {
+                a[k++] = pts[i].x;
+            }
+        }
+        if (k < AUTO_MIN_N) {
+            break; /* keep the previous estimate */
+        }
+        ncx = select_kth(a, k, k / 2u);
+        k = 0u;
+        for (i = 0; i < n; ++i) {
+            float dx = pts[i].x - cx, dy = pts[i].y - cy;
+            if (pass == 0u || dx * dx + dy * dy <= lim2) {
+                a[k++] = pts[i].y;
+            }
+        }
+        ncy = select_kth(a, k, k / 2u);
+        k = 0u;
+        for (i = 0; i < n; ++i) {
+            float dx = pts[i].x - cx, dy = pts[i].y - cy;
+            if (pass == 0u || dx * dx + dy * dy <= lim2) {
+                float ex = pts[i].x - ncx, ey = pts[i].y - ncy;
+                a[k++] = sqrtf(ex * ex + ey * ey);
+            }
+        }
+        cx = ncx;
+        cy = ncy;
+        rad = select_kth(a, k, k / 2u);
+        if (!(rad > 0.0f) || !magcal_isfinite_f(rad)) {
+            return MAGCAL_ERR_DEGENERATE;
+        }
+    }
+    lo = rad - AUTO_BAND * rad;
+    hi = rad + AUTO_BAND * rad;
+    for (i = 0; i < n; ++i) {
+        float dx = pts[i].x - cx, dy = pts[i].y - cy;
+        float r = sqrtf(dx * dx + dy * dy);
+        a[i] = atan2f(dy, dx);
+        if (r >= lo && r <= hi) {
+            idx[m++] = (uint16_t)i;
+        }
+    }
+    if (m < 2u * AUTO_WIN + 2u) { /* the cyclic windows need distinct neighbours */
+        return MAGCAL_ERR_DEGENERATE;
+    }
+    heapsort_idx(idx, a, m);
+    for (i = 0; i < m; ++i) {
+        const magcal_vec2_t *p0 = &pts[idx[i]];
+        float near[2u * AUTO_WIN];
+        float l = INFINITY;
+        size_t q, t, u;
+        /* shortest way across the step i -> i+1 that bypasses up to AUTO_WIN - 1 points */
+        for (q = 0; q < AUTO_WIN; ++q) {
+            for (t = 1u; q + t <= AUTO_WIN; ++t) {
+                float dd = dist(&pts[idx[(i + m - q) % m]], &pts[idx[(i + t) % m]]);
+                l = dd < l ? dd : l;
+            }
+        }
+        if (l > link1) {
+            link2 = link1;
+            link1 = l;
+        } else if (l > link2) {
+            link2 = l;
+        }
+        /* core requirement: (MinPts-1)-th nearest of the AUTO_WIN angular neighbours each side */
+        for (q = 1u; q <= AUTO_WIN; ++q) {
+            near[2u * q - 2u] = dist(p0, &pts[idx[(i + m - q) % m]]);
+            near[2u * q - 1u] = dist(p0, &pts[idx[(i + q) % m]]);
+        }
+        for (t = 1u; t < 2u * AUTO_WIN; ++t) { /* insertion sort of 8 values */
+            float v = near[t];
+            for (u = t; u > 0u && near[u - 1u] > v; --u) {
+                near[u] = near[u - 1u];
+            }
+            near[u] = v;
+        }
+        b[i] = near[AUTO_MIN_PTS - 2u];
+    }
+    coreq = select_kth(b, m, (size_t)(AUTO_CORE_Q * (float)(m - 1u)));
+    e = AUTO_SAFETY * (link2 > coreq ? link2 : coreq);
+    if (e < AUTO_MIN_REL * rad) {
+        e = AUTO_MIN_REL * rad;
+    }
+    if (e > AUTO_MAX_REL * rad) {
+        e = AUTO_MAX_REL * rad;
+    }
+    *eps_prime = e;
+    if (centre_radius != NULL) {
+        centre_radius[0] = cx;
+        centre_radius[1] = cy;
+        centre_radius[2] = rad;
+    }
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_optics_auto_params(const magcal_vec2_t *pts, size_t n, void *work, size_t work_len,
+                                          float *eps, uint16_t *min_pts, float *eps_prime)
+{
+    magcal_status_t st;
+    float e;
+    if (pts == NULL || work == NULL || eps == NULL || min_pts == NULL || eps_prime == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (((uintptr_t)work & 3u) != 0u) {
+        return MAGCAL_ERR_ARG;
+    }
+    st = check_points(pts, n, AUTO_MIN_N);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    if (work_len < MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n)) {
+        return MAGCAL_ERR_WORKSPACE;
+    }
+    st = auto_params(pts, n, (uint8_t *)work, &e, NULL);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    *eps = e;
+    *eps_prime = e;
+    *min_pts = (uint16_t)AUTO_MIN_PTS;
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magcal_vec2_t *pts, size_t n,
+                                     void *work, size_t work_len, uint8_t *inlier_mask,
+                                     magcal_optics_result_t *info)
+{
+    magcal_optics_cfg_t use;
+    optics_ctx_t c;
+    magcal_status_t st;
+    float eps_prime, cr[3], window[4];
+    const float *win = NULL;
+    uint8_t *w = (uint8_t *)work;
+    size_t i;
+    if (cfg == NULL || pts == NULL || work == NULL || inlier_mask == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (((uintptr_t)work & 3u) != 0u) {
+        return MAGCAL_ERR_ARG;
+    }
+    use = *cfg;
+    if (!(cfg->eps > 0.0f)) {
+        if (cfg->eps != cfg->eps) {
+            return MAGCAL_ERR_ARG; /* NaN is not "auto" */
+        }
+        use.eps = 1.0f;
+        use.min_pts = (uint16_t)AUTO_MIN_PTS;
+        st = check_cfg(&use);
+        if (st == MAGCAL_OK) {
+            st = check_points(pts, n, AUTO_MIN_N);
+        }
+        if (st == MAGCAL_OK && work_len < MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n)) {
+            st = MAGCAL_ERR_WORKSPACE;
+        }
+        if (st == MAGCAL_OK) {
+            st = auto_params(pts, n, w, &eps_prime, cr);
+        }
+        if (st != MAGCAL_OK) {
+            return st;
+        }
+        use.eps = eps_prime;
+        /* grid only over the ring's neighbourhood: far outliers are clamped into border cells */
+        window[0] = cr[0] - 1.5f * cr[2] - eps_prime;
+        window[1] = cr[1] - 1.5f * cr[2] - eps_prime;
+        window[2] = cr[0] + 1.5f * cr[2] + eps_prime;
+        window[3] = cr[1] + 1.5f * cr[2] + eps_prime;
+        win = window;
+    } else {
+        st = check_cfg(&use);
+        if (st != MAGCAL_OK) {
+            return st;
+        }
+        eps_prime = cfg->eps_prime == 0.0f ? cfg->eps : cfg->eps_prime;
+        if (!(eps_prime > 0.0f) || !magcal_isfinite_f(eps_prime) || eps_prime > cfg->eps) {
+            return MAGCAL_ERR_ARG;
+        }
+        st = check_points(pts, n, use.min_pts);
+        if (st != MAGCAL_OK) {
+            return st;
+        }
+        if (work_len < MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n)) {
+            return MAGCAL_ERR_WORKSPACE;
+        }
+    }
+    ctx_setup(&c, &use, pts, n, w + 6u * n, win);
+    c.reach = (float *)work;
+    c.labels = (int16_t *)(void *)(w + 4u * n);
+    c.eps_prime = eps_prime;
+    optics_loop(&c);
+    fill_info(info, &c, use.eps, eps_prime);
+    if (c.best_id < 0) {
+        if (info != NULL) {
+            info->n_noise = (uint16_t)c.n_noise;
+        }
+        return MAGCAL_ERR_ALL_NOISE;
+    }
+    for (i = 0; i < n; ++i) {
+        inlier_mask[i] = (uint8_t)(c.labels[i] == c.best_id);
+    }
+    if (info != NULL) {
+        info->n_clusters = (uint16_t)(c.id + 1);
+        info->largest_id = (int16_t)c.best_id;
+        info->n_inliers = (uint16_t)c.best_count;
+        info->n_noise = (uint16_t)c.n_noise;
+    }
+    return MAGCAL_OK;
+}

@@ -1,0 +1,682 @@
+/*
+ * Tests of the 2-D calibration pipeline object (calibrator.h) on synthetic dumps with known truth
+ * (tools/gen_dump.py: tests/data/synthetic/<scenario>.csv), on recorded LSM9DS1 flat turns
+ * (tests/data/real, Apache-2.0), on bad input and through the port fake.
+ *
+ * Metric (algorithms.md 9): heading RMS over the verification rows [n_cal, n) of a dump, with the
+ * adopted calibration, against heading_ref_deg; compared with the dump's floor_deg = the same RMS
+ * with the TRUE calibration applied to the same noisy rows.
+ */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "magcal/calibrator.h"
+#include "magcal_port_fake.h"
+#include "test_dumps.h"
+#include "unity.h"
+
+#define CAP MAGCAL_MAX_SAMPLES
+
+static magcal_calibrator_t g_cal;
+static magcal_vec2_t g_buf[CAP];
+static uint32_t g_work[(MAGCAL_CALIBRATOR_WORKSPACE_LEN(CAP) + 3u) / 4u];
+
+void setUp(void) {}
+void tearDown(void) {}
+
+/* What one pipeline run on a synthetic dump gave. */
+typedef struct {
+    magcal_status_t st;
+    magcal_cal_report_t rep;
+    magcal_cal2d_t cal;
+    double rms_deg;    /* heading RMS on the verification rows */
+    double ratio;      /* rms / floor */
+    size_t n_out;      /* true outliers */
+    size_t caught;     /* true outliers flagged */
+    size_t n_in;       /* true inliers */
+    size_t false_rej;  /* true inliers flagged */
+} run_t;
+
+static double recall(const run_t *r)
+{
+    return r->n_out ? (double)r->caught / (double)r->n_out : 1.0;
+}
+
+static double false_rate(const run_t *r)
+{
+    return r->n_in ? (double)r->false_rej / (double)r->n_in : 0.0;
+}
+
+static magcal_vec2_t row(const magcal_test_dump_t *d, size_t i)
+{
+    magcal_vec2_t p;
+    p.x = d->mx[i];
+    p.y = d->my[i];
+    return p;
+}
+
+/* Heading RMS of calibration c over rows [from, to) against heading_ref_deg. */
+static double heading_rms(const magcal_test_dump_t *d, const magcal_cal2d_t *c, size_t from, size_t to)
+{
+    double ss = 0.0;
+    size_t i;
+    for (i = from; i < to; ++i) {
+        float h;
+        double e;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_heading_compute(c, row(d, i), 0.0f, &h, NULL));
+        e = fmod((double)h - (double)d->heading_ref_deg[i] + 540.0, 360.0) - 180.0;
+        ss += e * e;
+    }
+    return sqrt(ss / (double)(to - from));
+}
+
+static void run_dump(const magcal_test_dump_t *d, const magcal_calibrator_cfg_t *cfg, run_t *r)
+{
+    size_t i;
+    size_t n_cal;
+    magcal_cal2d_t ident = MAGCAL_CAL2D_IDENTITY;
+    TEST_ASSERT_NOT_NULL(d->truth);
+    n_cal = d->truth->n_cal;
+    memset(r, 0, sizeof *r);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_cal, cfg, g_buf, CAP, g_work, sizeof g_work));
+    for (i = 0; i < n_cal; ++i) {
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_push(&g_cal, row(d, i)));
+    }
+    r->cal = ident;
+    r->st = magcal_calibrator_run(&g_cal, &r->cal, &r->rep);
+    if (r->st != MAGCAL_OK) {
+        r->rms_deg = INFINITY;
+        r->ratio = INFINITY;
+        return;
+    }
+    r->rms_deg = heading_rms(d, &r->cal, n_cal, d->n);
+    r->ratio = r->rms_deg / (double)d->truth->floor_deg;
+    for (i = 0; i < n_cal; ++i) {
+        int inl = 1;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_inlier(&g_cal, i, &inl));
+        if (d->outlier[i] > 0.5f) {
+            r->n_out++;
+            r->caught += inl ? 0u : 1u;
+        } else {
+            r->n_in++;
+            r->false_rej += inl ? 1u : 0u;
+        }
+    }
+    r->false_rej = r->n_in - r->false_rej; /* counted inliers kept above */
+}
+
+static const magcal_test_dump_t *const g_scen[] = {
+    &dump_synthetic_clean,        &dump_synthetic_heavy_noise,  &dump_synthetic_outliers_10,
+    &dump_synthetic_outliers_25,  &dump_synthetic_outliers_35,  &dump_synthetic_raw_counts,
+    &dump_synthetic_hard_iron_5x, &dump_synthetic_soft_iron_strong, &dump_synthetic_arc_300,
+    &dump_synthetic_n60,          &dump_synthetic_near_ring,    &dump_synthetic_spikes,
+};
+#define N_SCEN (sizeof g_scen / sizeof g_scen[0])
+
+/* ---------------------------------------------------------------- default pipeline on every scenario */
+
+/* Default (automatic) parameters: heading RMS <= 1.2 x floor, recall >= 90 %, false rejections
+ * <= 5 % of the inliers, on every synthetic scenario. */
+static void test_run_every_scenario_default_within_1p2_floor(void)
+{
+    size_t s;
+    magcal_calibrator_cfg_t cfg = MAGCAL_CALIBRATOR_CFG_DEFAULT;
+    printf("\n%-34s %6s %8s %8s %6s %7s %7s %5s %5s\n", "scenario (default pipeline)", "status", "rms_deg",
+           "floor", "ratio", "recall", "falsrej", "filt", "cons");
+    for (s = 0; s < N_SCEN; ++s) {
+        const magcal_test_dump_t *d = g_scen[s];
+        run_t r;
+        run_dump(d, &cfg, &r);
+        printf("%-34s %6d %8.4f %8.4f %6.3f %7.3f %7.4f %5u %5u\n", d->name, (int)r.st, r.rms_deg,
+               (double)d->truth->floor_deg, r.ratio, recall(&r), false_rate(&r),
+               (unsigned)r.rep.rejected_filter, (unsigned)r.rep.rejected_consensus);
+    }
+    for (s = 0; s < N_SCEN; ++s) {
+        const magcal_test_dump_t *d = g_scen[s];
+        run_t r;
+        run_dump(d, &cfg, &r);
+        TEST_ASSERT_EQUAL_INT_MESSAGE(MAGCAL_OK, r.st, d->name);
+        TEST_ASSERT_TRUE_MESSAGE(r.ratio <= 1.2, d->name);
+        TEST_ASSERT_TRUE_MESSAGE(recall(&r) >= 0.90, d->name);
+        TEST_ASSERT_TRUE_MESSAGE(false_rate(&r) <= 0.05, d->name);
+        TEST_ASSERT_EQUAL_UINT8(1u, r.rep.adopted);
+        TEST_ASSERT_EQUAL_INT(MAGCAL_CALIBRATOR_CALIBRATED, magcal_calibrator_state(&g_cal));
+    }
+}
+
+/* Plain least squares (no filter, no consensus) fails the outlier scenarios: status not OK or
+ * heading RMS > 3 x floor; OPTICS only (no consensus) numbers are printed for comparison. */
+static void test_run_outlier_scenarios_plain_ls_fails(void)
+{
+    static const magcal_test_dump_t *const outl[] = {&dump_synthetic_outliers_10, &dump_synthetic_outliers_25,
+                                                     &dump_synthetic_outliers_35, &dump_synthetic_near_ring,
+                                                     &dump_synthetic_spikes};
+    size_t s;
+    magcal_calibrator_cfg_t ls = MAGCAL_CALIBRATOR_CFG_DEFAULT;
+    magcal_calibrator_cfg_t opt = MAGCAL_CALIBRATOR_CFG_DEFAULT;
+    ls.filter = MAGCAL_FILTER_NONE;
+    ls.use_consensus = 0u;
+    /* the comparison is about the fit: let every gate but the conic type pass */
+    ls.max_residual_rel = 1.0e9f;
+    ls.min_axis_ratio = 0.0f;
+    ls.max_outlier_frac = 1.0f;
+    opt.use_consensus = 0u;
+    opt.max_residual_rel = 1.0e9f;
+    opt.min_axis_ratio = 0.0f;
+    printf("\n%-34s %8s %8s %8s %8s\n", "scenario", "LS st", "LS ratio", "OPT st", "OPTratio");
+    for (s = 0; s < sizeof outl / sizeof outl[0]; ++s) {
+        run_t a;
+        run_t b;
+        run_dump(outl[s], &ls, &a);
+        run_dump(outl[s], &opt, &b);
+        printf("%-34s %8d %8.2f %8d %8.2f\n", outl[s]->name, (int)a.st, a.ratio, (int)b.st, b.ratio);
+        TEST_ASSERT_TRUE_MESSAGE(a.st != MAGCAL_OK || a.ratio > 3.0, outl[s]->name);
+    }
+}
+
+/* ---------------------------------------------------------------- bad input keeps the old calibration */
+
+/* A valid, non-identity calibration to protect. */
+static magcal_cal2d_t prev_cal(void)
+{
+    magcal_cal2d_t c = MAGCAL_CAL2D_IDENTITY;
+    c.offset.x = 3.0f;
+    c.offset.y = -2.0f;
+    c.m[0][0] = 0.9f;
+    c.m[0][1] = 0.05f;
+    c.m[1][0] = 0.05f;
+    c.m[1][1] = 1.1f;
+    c.radius = 40.0f;
+    return c;
+}
+
+/* Run on the stored samples expecting `want`; the previous calibration must be bit-identical. */
+static void expect_run_keeps(magcal_status_t want)
+{
+    magcal_cal2d_t c = prev_cal();
+    magcal_cal2d_t ref = prev_cal();
+    magcal_cal_report_t rep;
+    TEST_ASSERT_EQUAL_INT(want, magcal_calibrator_run(&g_cal, &c, &rep));
+    TEST_ASSERT_EQUAL_INT(want, rep.status);
+    TEST_ASSERT_EQUAL_UINT8(0u, rep.adopted);
+    TEST_ASSERT_EQUAL_MEMORY(&ref, &c, sizeof c);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_CALIBRATOR_FAILED, magcal_calibrator_state(&g_cal));
+}
+
+static void init_default(void)
+{
+    magcal_calibrator_cfg_t cfg = MAGCAL_CALIBRATOR_CFG_DEFAULT;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
+}
+
+/* push the first n calibration rows of a dump */
+static void push_rows(const magcal_test_dump_t *d, size_t n)
+{
+    size_t i;
+    for (i = 0; i < n; ++i) {
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_push(&g_cal, row(d, i)));
+    }
+}
+
+static void test_push_nonfinite_returns_nonfinite_not_stored(void)
+{
+    magcal_vec2_t p;
+    init_default();
+    push_rows(&dump_synthetic_clean, 10);
+    p.x = NAN;
+    p.y = 1.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_calibrator_push(&g_cal, p));
+    p.x = 1.0f;
+    p.y = INFINITY;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_calibrator_push(&g_cal, p));
+    p.y = -INFINITY;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_calibrator_push(&g_cal, p));
+    TEST_ASSERT_EQUAL_UINT32((uint32_t)(10u), (uint32_t)magcal_calibrator_count(&g_cal));
+    expect_run_keeps(MAGCAL_ERR_TOO_FEW_POINTS); /* 10 < min_samples 20 */
+}
+
+static void test_run_identical_points_returns_degenerate_keeps_cal(void)
+{
+    size_t i;
+    magcal_vec2_t p = {12.5f, -3.0f};
+    init_default();
+    for (i = 0; i < 100; ++i) {
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_push(&g_cal, p));
+    }
+    expect_run_keeps(MAGCAL_ERR_DEGENERATE);
+}
+
+static void test_run_collinear_points_returns_degenerate_keeps_cal(void)
+{
+    size_t i;
+    init_default();
+    for (i = 0; i < 100; ++i) {
+        magcal_vec2_t p;
+        p.x = 5.0f + 0.3f * (float)i;
+        p.y = -2.0f + 0.6f * (float)i;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_push(&g_cal, p));
+    }
+    expect_run_keeps(MAGCAL_ERR_DEGENERATE);
+}
+
+static void test_run_fewer_than_5_points_returns_too_few_keeps_cal(void)
+{
+    magcal_calibrator_cfg_t cfg = MAGCAL_CALIBRATOR_CFG_DEFAULT;
+    cfg.min_samples = 5u;
+    cfg.min_coverage_deg = 0.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
+    push_rows(&dump_synthetic_n60, 4);
+    expect_run_keeps(MAGCAL_ERR_TOO_FEW_POINTS);
+}
+
+/* 90 degrees of the clean turn (75 of 600 rows over 720 deg): below the default 270 deg. */
+static void test_run_short_arc_returns_coverage_names_missing_sector_keeps_cal(void)
+{
+    magcal_cal2d_t c = prev_cal();
+    magcal_cal2d_t ref = prev_cal();
+    magcal_cal_report_t rep;
+    init_default();
+    push_rows(&dump_synthetic_clean, 75);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_COVERAGE, magcal_calibrator_run(&g_cal, &c, &rep));
+    TEST_ASSERT_EQUAL_MEMORY(&ref, &c, sizeof c);
+    printf("short arc: coverage %.0f deg, missing sector %.0f..%.0f deg\n", (double)rep.coverage_deg,
+           (double)rep.missing_start_deg, (double)(rep.missing_start_deg + rep.missing_width_deg));
+    /* truth: headings 17..107 deg visited; bins are 10 deg wide, raw angles are distorted by the
+     * soft iron (up to ~10 deg here), so allow two bins of slack on each side */
+    TEST_ASSERT_FLOAT_WITHIN(30.0f, 90.0f, rep.coverage_deg);
+    TEST_ASSERT_FLOAT_WITHIN(30.0f, 270.0f, rep.missing_width_deg);
+    TEST_ASSERT_FLOAT_WITHIN(30.0f, 110.0f, rep.missing_start_deg);
+}
+
+static void test_push_buffer_full_returns_buffer_full(void)
+{
+    static magcal_vec2_t small[16];
+    static uint32_t w[(MAGCAL_CALIBRATOR_WORKSPACE_LEN(16) + 3u) / 4u];
+    magcal_calibrator_cfg_t cfg = MAGCAL_CALIBRATOR_CFG_DEFAULT;
+    size_t i;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE, magcal_calibrator_init(&g_cal, &cfg, small, 16, w, sizeof w - 4u));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_cal, &cfg, small, 16, w, sizeof w));
+    for (i = 0; i < 16; ++i) {
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_push(&g_cal, row(&dump_synthetic_clean, i)));
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_BUFFER_FULL, magcal_calibrator_push(&g_cal, row(&dump_synthetic_clean, 16)));
+    TEST_ASSERT_EQUAL_UINT32((uint32_t)(16u), (uint32_t)magcal_calibrator_count(&g_cal));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_reset(&g_cal));
+    TEST_ASSERT_EQUAL_UINT32((uint32_t)(0u), (uint32_t)magcal_calibrator_count(&g_cal));
+}
+
+static void test_run_tiny_eps_returns_all_noise_keeps_cal(void)
+{
+    magcal_calibrator_cfg_t cfg = MAGCAL_CALIBRATOR_CFG_DEFAULT;
+    cfg.eps = 1.0e-4f; /* far below the 0.2 noise: no point has 4 neighbours */
+    cfg.min_pts = 4u;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
+    push_rows(&dump_synthetic_clean, 600);
+    expect_run_keeps(MAGCAL_ERR_ALL_NOISE);
+    cfg.filter = MAGCAL_FILTER_DBSCAN;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
+    push_rows(&dump_synthetic_clean, 600);
+    expect_run_keeps(MAGCAL_ERR_ALL_NOISE);
+}
+
+static void test_run_spikes_without_rejection_returns_hyperbola_keeps_cal(void)
+{
+    magcal_calibrator_cfg_t cfg = MAGCAL_CALIBRATOR_CFG_DEFAULT;
+    cfg.filter = MAGCAL_FILTER_NONE;
+    cfg.use_consensus = 0u;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
+    push_rows(&dump_synthetic_spikes, 600);
+    expect_run_keeps(MAGCAL_ERR_HYPERBOLA);
+}
+
+/* Each plausibility gate with its own status (limits set just beyond the truth). */
+static void test_run_gates_each_return_own_status_keep_cal(void)
+{
+    magcal_calibrator_cfg_t cfg = MAGCAL_CALIBRATOR_CFG_DEFAULT;
+    cfg.min_axis_ratio = 0.6f; /* truth 0.55 */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
+    push_rows(&dump_synthetic_soft_iron_strong, 600);
+    expect_run_keeps(MAGCAL_ERR_AXIS_RATIO);
+
+    cfg = (magcal_calibrator_cfg_t)MAGCAL_CALIBRATOR_CFG_DEFAULT;
+    cfg.max_radius = 35.0f; /* truth sqrt(1.15*0.85)*40 = 39.5 */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
+    push_rows(&dump_synthetic_clean, 600);
+    expect_run_keeps(MAGCAL_ERR_RADIUS_RANGE);
+    cfg.max_radius = 0.0f;
+    cfg.min_radius = 45.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
+    push_rows(&dump_synthetic_clean, 600);
+    expect_run_keeps(MAGCAL_ERR_RADIUS_RANGE);
+
+    cfg = (magcal_calibrator_cfg_t)MAGCAL_CALIBRATOR_CFG_DEFAULT;
+    cfg.max_residual_rel = 0.02f; /* heavy noise: sigma/radius = 2/39.5 = 0.05 */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
+    push_rows(&dump_synthetic_heavy_noise, 600);
+    expect_run_keeps(MAGCAL_ERR_RESIDUAL);
+
+    cfg = (magcal_calibrator_cfg_t)MAGCAL_CALIBRATOR_CFG_DEFAULT;
+    cfg.max_outlier_frac = 0.2f; /* 35 % injected */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
+    push_rows(&dump_synthetic_outliers_35, 600);
+    expect_run_keeps(MAGCAL_ERR_TOO_MANY_OUTLIERS);
+}
+
+static void test_init_bad_cfg_returns_arg(void)
+{
+    magcal_calibrator_cfg_t cfg = MAGCAL_CALIBRATOR_CFG_DEFAULT;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_calibrator_init(NULL, &cfg, g_buf, CAP, g_work, sizeof g_work));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP + 1u, g_work, sizeof g_work));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, (uint8_t *)g_work + 1, sizeof g_work - 4u));
+    cfg.min_samples = 4u;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
+    cfg = (magcal_calibrator_cfg_t)MAGCAL_CALIBRATOR_CFG_DEFAULT;
+    cfg.min_coverage_deg = NAN;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
+    cfg = (magcal_calibrator_cfg_t)MAGCAL_CALIBRATOR_CFG_DEFAULT;
+    cfg.min_pts = 1u;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
+}
+
+/* ---------------------------------------------------------------- adoption rule */
+
+/* Current calibration with the centre off by 4 (10 % of the radius): the new fit is better and
+ * adopted; the heading shift reported is the error of the old one, about asin(4/39.5) = 5.8 deg
+ * at most (soft iron modulates it: accept 4..8 deg). */
+static void test_run_better_fit_adopted_reports_shift(void)
+{
+    magcal_cal2d_t c;
+    magcal_cal_report_t rep;
+    run_t r;
+    magcal_calibrator_cfg_t cfg = MAGCAL_CALIBRATOR_CFG_DEFAULT;
+    run_dump(&dump_synthetic_clean, &cfg, &r);
+    c = r.cal;
+    c.offset.x += 4.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_run(&g_cal, &c, &rep));
+    TEST_ASSERT_EQUAL_UINT8(1u, rep.adopted);
+    TEST_ASSERT_EQUAL_MEMORY(&r.cal, &c, sizeof c);
+    printf("adopt: est %.4f deg, current %.3f deg, shift max %.3f rms %.3f deg\n", (double)rep.est_heading_err_deg,
+           (double)rep.current_err_deg, (double)rep.shift_max_deg, (double)rep.shift_rms_deg);
+    TEST_ASSERT_TRUE(rep.current_err_deg > rep.est_heading_err_deg);
+    TEST_ASSERT_FLOAT_WITHIN(2.0f, 6.0f, rep.shift_max_deg);
+    TEST_ASSERT_FLOAT_WITHIN(1.5f, 4.1f, rep.shift_rms_deg); /* 5.8/sqrt(2) */
+}
+
+/* Same data, field 1.5x stronger (everything scaled about the centre): the current calibration
+ * still makes a circle of it, so the new one is not better, and the radius change (50 %) is not
+ * plausible: NOT_BETTER, current bit-identical. The identical re-run is adopted (rule c) with a
+ * heading shift near 0. */
+static void test_run_implausible_radius_not_better_keeps_cal(void)
+{
+    magcal_cal2d_t c;
+    magcal_cal2d_t ref;
+    magcal_cal_report_t rep;
+    run_t r;
+    size_t i;
+    magcal_calibrator_cfg_t cfg = MAGCAL_CALIBRATOR_CFG_DEFAULT;
+    run_dump(&dump_synthetic_clean, &cfg, &r);
+    c = r.cal;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_run(&g_cal, &c, &rep));
+    TEST_ASSERT_TRUE(rep.shift_max_deg < 0.01f);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_reset(&g_cal));
+    for (i = 0; i < 600; ++i) {
+        magcal_vec2_t p = row(&dump_synthetic_clean, i);
+        p.x = r.cal.offset.x + 1.5f * (p.x - r.cal.offset.x);
+        p.y = r.cal.offset.y + 1.5f * (p.y - r.cal.offset.y);
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_push(&g_cal, p));
+    }
+    ref = c;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NOT_BETTER, magcal_calibrator_run(&g_cal, &c, &rep));
+    TEST_ASSERT_EQUAL_MEMORY(&ref, &c, sizeof c);
+    TEST_ASSERT_EQUAL_UINT8(0u, rep.adopted);
+}
+
+/* A corrupted stored calibration (bad magic) is not usable: the new one is adopted. */
+static void test_run_corrupted_current_is_replaced(void)
+{
+    magcal_cal2d_t c = prev_cal();
+    magcal_cal_report_t rep;
+    init_default();
+    push_rows(&dump_synthetic_clean, 600);
+    c.magic ^= 0x100u;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NOT_INITIALISED, magcal_cal2d_validate(&c));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_run(&g_cal, &c, &rep));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cal2d_validate(&c));
+    TEST_ASSERT_TRUE(isnan(rep.current_err_deg));
+}
+
+/* ---------------------------------------------------------------- per-sample verdicts */
+
+/* classify() with the final fit and threshold gives exactly the run's per-sample verdict. */
+static void test_classify_matches_inlier_flags(void)
+{
+    run_t r;
+    size_t i;
+    magcal_calibrator_cfg_t cfg = MAGCAL_CALIBRATOR_CFG_DEFAULT;
+    int o;
+    size_t flagged = 0u;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_STATE, magcal_calibrator_classify(&g_cal, row(&dump_synthetic_clean, 0), &o));
+    run_dump(&dump_synthetic_outliers_25, &cfg, &r);
+    for (i = 0; i < 600; ++i) {
+        int inl;
+        uint8_t f;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_inlier(&g_cal, i, &inl));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_classify(&g_cal, row(&dump_synthetic_outliers_25, i), &o));
+        TEST_ASSERT_EQUAL_INT(inl, !o);
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_flags(&g_cal, i, &f));
+        TEST_ASSERT_TRUE((f & MAGCAL_CALIBRATOR_FLAG_JUDGED) != 0u);
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_calibrator_inlier(&g_cal, 600, &o));
+    /* verification rows (never pushed) are all clean: classify accepts them */
+    for (i = 600; i < dump_synthetic_outliers_25.n; ++i) {
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_classify(&g_cal, row(&dump_synthetic_outliers_25, i), &o));
+        flagged += o ? 1u : 0u;
+    }
+    /* a 3.5-sigma threshold flags ~0.05 % of clean rows; allow the 5 % false-rejection budget */
+    TEST_ASSERT_TRUE(flagged * 20u <= dump_synthetic_outliers_25.n - 600u);
+}
+
+/* ---------------------------------------------------------------- information gate, states */
+
+static void test_push_spacing_gate_skips_redundant_samples(void)
+{
+    magcal_calibrator_cfg_t cfg = MAGCAL_CALIBRATOR_CFG_DEFAULT;
+    magcal_cal2d_t c = MAGCAL_CAL2D_IDENTITY;
+    size_t i;
+    size_t gated = 0u;
+    cfg.min_spacing_deg = 3.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
+    /* a stationary vehicle: one sample stored, the rest gated */
+    for (i = 0; i < 50; ++i) {
+        magcal_status_t st = magcal_calibrator_push(&g_cal, row(&dump_synthetic_clean, 0));
+        TEST_ASSERT_TRUE(st == MAGCAL_OK || st == MAGCAL_ERR_GATED);
+    }
+    TEST_ASSERT_EQUAL_UINT32((uint32_t)(1u), (uint32_t)magcal_calibrator_count(&g_cal));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_CALIBRATOR_COLLECTING, magcal_calibrator_state(&g_cal));
+    for (i = 0; i < 600; ++i) {
+        magcal_status_t st = magcal_calibrator_push(&g_cal, row(&dump_synthetic_clean, i));
+        TEST_ASSERT_TRUE(st == MAGCAL_OK || st == MAGCAL_ERR_GATED);
+        gated += st == MAGCAL_ERR_GATED ? 1u : 0u;
+    }
+    printf("spacing 3 deg: stored %u of 650, coverage %.0f deg\n", (unsigned)magcal_calibrator_count(&g_cal),
+           (double)magcal_calibrator_coverage_deg(&g_cal));
+    /* 720 deg turned at >= 3 deg spacing: at most ~240 (+ slack for the moving provisional centre) */
+    TEST_ASSERT_TRUE(magcal_calibrator_count(&g_cal) <= 300u);
+    TEST_ASSERT_TRUE(magcal_calibrator_count(&g_cal) >= 150u);
+    TEST_ASSERT_EQUAL_FLOAT(360.0f, magcal_calibrator_coverage_deg(&g_cal));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_CALIBRATOR_READY, magcal_calibrator_state(&g_cal));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_run(&g_cal, &c, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_CALIBRATOR_CALIBRATED, magcal_calibrator_state(&g_cal));
+}
+
+static void test_push_per_bin_cap_limits_samples(void)
+{
+    magcal_calibrator_cfg_t cfg = MAGCAL_CALIBRATOR_CFG_DEFAULT;
+    size_t i;
+    cfg.max_per_bin = 5u;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
+    for (i = 0; i < 600; ++i) {
+        magcal_status_t st = magcal_calibrator_push(&g_cal, row(&dump_synthetic_clean, i));
+        TEST_ASSERT_TRUE(st == MAGCAL_OK || st == MAGCAL_ERR_GATED);
+    }
+    printf("per-bin cap 5: stored %u of 600\n", (unsigned)magcal_calibrator_count(&g_cal));
+    /* re-binning around a moving provisional centre may let a few more through early on */
+    TEST_ASSERT_TRUE(magcal_calibrator_count(&g_cal) <= 5u * MAGCAL_COVERAGE_BINS + 40u);
+    TEST_ASSERT_TRUE(magcal_calibrator_count(&g_cal) >= 4u * MAGCAL_COVERAGE_BINS);
+}
+
+/* ---------------------------------------------------------------- port path */
+
+static void test_poll_reads_port_passes_errors_through(void)
+{
+    size_t i;
+    magcal_cal2d_t c = MAGCAL_CAL2D_IDENTITY;
+    size_t ok = 0u;
+    const magcal_test_dump_t *d = &dump_synthetic_outliers_10;
+    magcal_port_fake_reset();
+    for (i = 0; i < 600; ++i) {
+        magcal_vec3_t v;
+        v.x = d->mx[i];
+        v.y = d->my[i];
+        v.z = -30.0f;
+        if (i == 100u) {
+            TEST_ASSERT_EQUAL_INT(0, magcal_port_fake_push_mag_status(MAGCAL_ERR_TIMEOUT));
+        }
+        if (i == 200u) {
+            TEST_ASSERT_EQUAL_INT(0, magcal_port_fake_push_mag_status(MAGCAL_ERR_PORT));
+        }
+        TEST_ASSERT_EQUAL_INT(0, magcal_port_fake_push_mag(v));
+    }
+    init_default();
+    for (i = 0; i < 602; ++i) {
+        magcal_status_t st = magcal_calibrator_poll(&g_cal);
+        if (i == 100u) {
+            TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TIMEOUT, st);
+        } else if (i == 201u) {
+            TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_PORT, st);
+        } else {
+            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, st);
+            ++ok;
+        }
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NO_DATA, magcal_calibrator_poll(&g_cal));
+    TEST_ASSERT_EQUAL_UINT32(600u, (uint32_t)ok);
+    TEST_ASSERT_EQUAL_UINT32((uint32_t)(600u), (uint32_t)magcal_calibrator_count(&g_cal));
+    TEST_ASSERT_EQUAL_UINT32(603u, (uint32_t)magcal_port_fake_mag_calls());
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_run(&g_cal, &c, NULL));
+    TEST_ASSERT_TRUE(heading_rms(d, &c, 600, d->n) <= 1.2 * (double)d->truth->floor_deg);
+}
+
+/* ---------------------------------------------------------------- recorded dumps */
+
+/* std/mean of |cal(p)| over rows (identity = raw). */
+static double radius_spread(const magcal_test_dump_t *d, const magcal_cal2d_t *c, int skip_glitch)
+{
+    double s = 0.0;
+    double s2 = 0.0;
+    size_t i;
+    size_t k = 0u;
+    for (i = 0; i < d->n; ++i) {
+        magcal_vec2_t h;
+        double r;
+        if (skip_glitch && d->glitch != NULL && d->glitch[i] > 0.5f) {
+            continue;
+        }
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_correct_apply(c, row(d, i), &h));
+        r = sqrt((double)h.x * h.x + (double)h.y * h.y);
+        s += r;
+        s2 += r * r;
+        ++k;
+    }
+    s /= (double)k;
+    return sqrt(s2 / (double)k - s * s) / s;
+}
+
+/*
+ * Recorded dump: calibrate on every row (default pipeline), then compare the radius spread
+ * std/mean of the non-glitch rows, raw (identity) vs corrected, with the float64 reference of
+ * tools/ref_real_spread.py (plain LS ellipse fit of the non-glitch rows, the optimum of an ellipse
+ * correction): the corrected spread must be within 5 % of that optimum, the drop >= min_drop.
+ * Every row the importer flagged as a glitch must be rejected.
+ */
+static void real_dump(const magcal_test_dump_t *d, double ref_spread, double min_drop)
+{
+    magcal_cal2d_t c = MAGCAL_CAL2D_IDENTITY;
+    magcal_cal2d_t ident = MAGCAL_CAL2D_IDENTITY;
+    magcal_cal_report_t rep;
+    size_t i;
+    size_t glitches = 0u;
+    size_t caught = 0u;
+    double raw;
+    double cor;
+    init_default();
+    for (i = 0; i < d->n; ++i) {
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_push(&g_cal, row(d, i)));
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_run(&g_cal, &c, &rep));
+    raw = radius_spread(d, &ident, 1);
+    cor = radius_spread(d, &c, 1);
+    if (d->glitch != NULL) {
+        for (i = 0; i < d->n; ++i) {
+            if (d->glitch[i] > 0.5f) {
+                int inl;
+                ++glitches;
+                TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_inlier(&g_cal, i, &inl));
+                caught += inl ? 0u : 1u;
+            }
+        }
+    }
+    printf("%s: n %u used %u (filter -%u, residual -%u), coverage %.0f, spread raw %.4f -> %.4f (x%.1f), "
+           "glitches %u/%u rejected, est err %.3f deg\n",
+           d->name, (unsigned)d->n, (unsigned)rep.used, (unsigned)rep.rejected_filter,
+           (unsigned)rep.rejected_consensus, (double)rep.coverage_deg, raw, cor, raw / cor, (unsigned)caught,
+           (unsigned)glitches, (double)rep.est_heading_err_deg);
+    TEST_ASSERT_TRUE(cor <= 1.05 * ref_spread);
+    TEST_ASSERT_TRUE(raw / cor >= min_drop);
+    TEST_ASSERT_EQUAL_UINT32((uint32_t)glitches, (uint32_t)caught);
+}
+
+/* Hand-turned board: the best ellipse leaves 2.6 % spread (tilt wobble), so the drop from the raw
+ * 12.8 % is at most 4.9x (tools/ref_real_spread.py): the 5x target is not reachable on this
+ * recording by any ellipse correction; require 4.5x and the optimum within 5 %. */
+static void test_run_lsm9ds1_flat_turns_spread_near_optimum(void)
+{
+    real_dump(&dump_real_lsm9ds1_pmodnav_flat_turns, 0.02617, 4.5);
+}
+
+static void test_run_lsm9ds1_driver_glitches_all_rejected(void)
+{
+    TEST_ASSERT_NOT_NULL(dump_real_lsm9ds1_pmodnav_driver_glitches.glitch);
+    /* reference over the 232 non-glitch rows: raw 0.14727, LS optimum 0.05879 (2.5x) */
+    real_dump(&dump_real_lsm9ds1_pmodnav_driver_glitches, 0.05879, 2.3);
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_run_every_scenario_default_within_1p2_floor);
+    RUN_TEST(test_run_outlier_scenarios_plain_ls_fails);
+    RUN_TEST(test_push_nonfinite_returns_nonfinite_not_stored);
+    RUN_TEST(test_run_identical_points_returns_degenerate_keeps_cal);
+    RUN_TEST(test_run_collinear_points_returns_degenerate_keeps_cal);
+    RUN_TEST(test_run_fewer_than_5_points_returns_too_few_keeps_cal);
+    RUN_TEST(test_run_short_arc_returns_coverage_names_missing_sector_keeps_cal);
+    RUN_TEST(test_push_buffer_full_returns_buffer_full);
+    RUN_TEST(test_run_tiny_eps_returns_all_noise_keeps_cal);
+    RUN_TEST(test_run_spikes_without_rejection_returns_hyperbola_keeps_cal);
+    RUN_TEST(test_run_gates_each_return_own_status_keep_cal);
+    RUN_TEST(test_init_bad_cfg_returns_arg);
+    RUN_TEST(test_run_better_fit_adopted_reports_shift);
+    RUN_TEST(test_run_implausible_radius_not_better_keeps_cal);
+    RUN_TEST(test_run_corrupted_current_is_replaced);
+    RUN_TEST(test_classify_matches_inlier_flags);
+    RUN_TEST(test_push_spacing_gate_skips_redundant_samples);
+    RUN_TEST(test_push_per_bin_cap_limits_samples);
+    RUN_TEST(test_poll_reads_port_passes_errors_through);
+    RUN_TEST(test_run_lsm9ds1_flat_turns_spread_near_optimum);
+    RUN_TEST(test_run_lsm9ds1_driver_glitches_all_rejected);
+    return UNITY_END();
+}

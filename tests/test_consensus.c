@@ -1,0 +1,206 @@
+/*
+ * Tests of the consensus (model-residual) outlier stage, consensus.h, on synthetic dumps with known
+ * truth (tools/gen_dump.py): outlier recall / false rejections against the dump's outlier column,
+ * fitted centre and semi-axes against the truth (b, T), determinism, rescue of density-filter
+ * rejects, bad input.
+ */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "magcal/consensus.h"
+#include "magcal/optics.h"
+#include "test_dumps.h"
+#include "unity.h"
+
+#define NMAX 1024u
+
+static magcal_vec2_t g_pts[NMAX];
+static uint8_t g_mask[NMAX];
+static uint8_t g_cand[NMAX];
+static uint32_t g_work[(MAGCAL_CONSENSUS_WORKSPACE_LEN(NMAX) + 3u) / 4u];
+static uint32_t g_owork[(MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(NMAX) + 3u) / 4u];
+
+void setUp(void) {}
+void tearDown(void) {}
+
+/* calibration rows of a dump into g_pts; returns n_cal */
+static size_t load(const magcal_test_dump_t *d)
+{
+    size_t i;
+    size_t n = d->truth->n_cal;
+    for (i = 0; i < n; ++i) {
+        g_pts[i].x = d->mx[i];
+        g_pts[i].y = d->my[i];
+    }
+    return n;
+}
+
+/* truth semi-axes: eigenvalues of the symmetric T times h0 */
+static void truth_axes(const magcal_test_truth_t *t, float *r_min, float *r_max)
+{
+    float tr = t->t00 + t->t11;
+    float det = t->t00 * t->t11 - t->t01 * t->t10;
+    float disc = sqrtf(0.25f * tr * tr - det);
+    *r_min = t->h0 * (0.5f * tr - disc);
+    *r_max = t->h0 * (0.5f * tr + disc);
+}
+
+static void check_scenario(const magcal_test_dump_t *d, int use_optics)
+{
+    magcal_consensus_cfg_t cfg = MAGCAL_CONSENSUS_CFG_DEFAULT;
+    magcal_consensus_result_t res;
+    size_t n = load(d);
+    size_t i;
+    size_t n_out = 0u, caught = 0u, n_in = 0u, false_rej = 0u;
+    float rmin, rmax;
+    const uint8_t *cand = NULL;
+    if (use_optics) {
+        magcal_optics_cfg_t oc = MAGCAL_OPTICS_CFG_DEFAULT;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_filter(&oc, g_pts, n, g_owork, sizeof g_owork, g_cand, NULL));
+        cand = g_cand;
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_consensus_run(&cfg, g_pts, n, cand, g_work, sizeof g_work, g_mask, &res));
+    for (i = 0; i < n; ++i) {
+        if (d->outlier[i] > 0.5f) {
+            ++n_out;
+            caught += g_mask[i] ? 0u : 1u;
+        } else {
+            ++n_in;
+            false_rej += g_mask[i] ? 1u : 0u;
+        }
+    }
+    false_rej = n_in - false_rej;
+    truth_axes(d->truth, &rmin, &rmax);
+    printf("%-34s %s: inliers %u, caught %u/%u, false %u/%u, draws %u valid %u rounds %u, sigma %.4f thr %.4f, "
+           "centre err %.4f, axes %.3f/%.3f (truth %.3f/%.3f)\n",
+           d->name, use_optics ? "optics+cons" : "cons only ", (unsigned)res.n_inliers, (unsigned)caught,
+           (unsigned)n_out, (unsigned)false_rej, (unsigned)n_in, (unsigned)res.draws, (unsigned)res.valid_models,
+           (unsigned)res.rounds, (double)res.sigma, (double)res.threshold,
+           (double)hypotf(res.fit.center.x - d->truth->bx, res.fit.center.y - d->truth->by),
+           (double)res.fit.semi_minor, (double)res.fit.semi_major, (double)rmin, (double)rmax);
+    /* recall >= 90 %, false rejections <= 5 % of the inliers */
+    TEST_ASSERT_TRUE_MESSAGE(caught * 10u >= n_out * 9u, d->name);
+    TEST_ASSERT_TRUE_MESSAGE(false_rej * 20u <= n_in, d->name);
+    /* centre and axes: noise sigma 0.2 over >= 390 inliers gives ~0.02 standard error; 0.1 = 5x */
+    TEST_ASSERT_FLOAT_WITHIN_MESSAGE(0.1f, d->truth->bx, res.fit.center.x, d->name);
+    TEST_ASSERT_FLOAT_WITHIN_MESSAGE(0.1f, d->truth->by, res.fit.center.y, d->name);
+    TEST_ASSERT_FLOAT_WITHIN_MESSAGE(0.1f, rmin, res.fit.semi_minor, d->name);
+    TEST_ASSERT_FLOAT_WITHIN_MESSAGE(0.1f, rmax, res.fit.semi_major, d->name);
+    /* sigma recovers the noise (0.2) within 20 % */
+    TEST_ASSERT_FLOAT_WITHIN_MESSAGE(0.04f, d->truth->sigma, res.sigma, d->name);
+    TEST_ASSERT_EQUAL_UINT32(res.n_inliers, (uint32_t)(n - n_out - false_rej + (n_out - caught)));
+}
+
+static void test_consensus_run_bursts_alone_recall_90_centre_truth(void)
+{
+    check_scenario(&dump_synthetic_outliers_10, 0);
+    check_scenario(&dump_synthetic_outliers_25, 0);
+    check_scenario(&dump_synthetic_outliers_35, 0);
+    check_scenario(&dump_synthetic_near_ring, 0);
+    check_scenario(&dump_synthetic_spikes, 0);
+    check_scenario(&dump_synthetic_clean, 0);
+}
+
+static void test_consensus_run_after_optics_recall_90_centre_truth(void)
+{
+    check_scenario(&dump_synthetic_outliers_10, 1);
+    check_scenario(&dump_synthetic_outliers_25, 1);
+    check_scenario(&dump_synthetic_outliers_35, 1);
+    check_scenario(&dump_synthetic_near_ring, 1);
+    check_scenario(&dump_synthetic_spikes, 1);
+}
+
+/* Same seed: bit-identical mask and fit. Another seed: the same inlier set on this data. */
+static void test_consensus_run_same_seed_is_deterministic(void)
+{
+    static uint8_t mask2[NMAX];
+    magcal_consensus_cfg_t cfg = MAGCAL_CONSENSUS_CFG_DEFAULT;
+    magcal_consensus_result_t a, b;
+    size_t n = load(&dump_synthetic_outliers_35);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_consensus_run(&cfg, g_pts, n, NULL, g_work, sizeof g_work, g_mask, &a));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_consensus_run(&cfg, g_pts, n, NULL, g_work, sizeof g_work, mask2, &b));
+    TEST_ASSERT_EQUAL_MEMORY(g_mask, mask2, n);
+    TEST_ASSERT_EQUAL_MEMORY(&a, &b, sizeof a);
+    cfg.seed = 12345u;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_consensus_run(&cfg, g_pts, n, NULL, g_work, sizeof g_work, mask2, &b));
+    TEST_ASSERT_EQUAL_MEMORY(g_mask, mask2, n);
+}
+
+/* Candidates that leave out every third clean sample: those are judged by residual and taken back. */
+static void test_consensus_run_noncandidates_on_ring_are_rescued(void)
+{
+    magcal_consensus_cfg_t cfg = MAGCAL_CONSENSUS_CFG_DEFAULT;
+    magcal_consensus_result_t res;
+    size_t n = load(&dump_synthetic_clean);
+    size_t i;
+    size_t left_out = 0u;
+    for (i = 0; i < n; ++i) {
+        g_cand[i] = (uint8_t)((i % 3u) != 0u);
+        left_out += g_cand[i] ? 0u : 1u;
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_consensus_run(&cfg, g_pts, n, g_cand, g_work, sizeof g_work, g_mask, &res));
+    TEST_ASSERT_EQUAL_UINT32((uint32_t)(n - left_out), res.n_candidates);
+    /* 3.5 sigma: at most a handful of the 200 left-out samples stay out */
+    TEST_ASSERT_TRUE(res.n_rescued >= left_out - 5u);
+}
+
+static void test_consensus_run_bad_input_returns_status_outputs_untouched(void)
+{
+    magcal_consensus_cfg_t cfg = MAGCAL_CONSENSUS_CFG_DEFAULT;
+    magcal_consensus_result_t res;
+    magcal_consensus_result_t ref;
+    size_t n = load(&dump_synthetic_clean);
+    size_t i;
+    memset(&res, 0xA5, sizeof res);
+    memset(&ref, 0xA5, sizeof ref);
+    memset(g_mask, 0x5A, n);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_consensus_run(NULL, g_pts, n, NULL, g_work, sizeof g_work, g_mask, &res));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_consensus_run(&cfg, NULL, n, NULL, g_work, sizeof g_work, g_mask, &res));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_consensus_run(&cfg, g_pts, n, NULL, NULL, sizeof g_work, g_mask, &res));
+    /* the size macro is exact: one byte less is refused */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE,
+                          magcal_consensus_run(&cfg, g_pts, n, NULL, g_work, MAGCAL_CONSENSUS_WORKSPACE_LEN(n) - 1u, g_mask, &res));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_consensus_run(&cfg, g_pts, 4, NULL, g_work, sizeof g_work, g_mask, &res));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_consensus_run(&cfg, g_pts, NMAX + 1u, NULL, g_work, sizeof g_work, g_mask, &res));
+    cfg.max_iter = 0u;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_consensus_run(&cfg, g_pts, n, NULL, g_work, sizeof g_work, g_mask, &res));
+    cfg = (magcal_consensus_cfg_t)MAGCAL_CONSENSUS_CFG_DEFAULT;
+    cfg.max_thr_rel = cfg.min_thr_rel;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_consensus_run(&cfg, g_pts, n, NULL, g_work, sizeof g_work, g_mask, &res));
+    cfg = (magcal_consensus_cfg_t)MAGCAL_CONSENSUS_CFG_DEFAULT;
+    cfg.k_sigma = NAN;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_consensus_run(&cfg, g_pts, n, NULL, g_work, sizeof g_work, g_mask, &res));
+    cfg = (magcal_consensus_cfg_t)MAGCAL_CONSENSUS_CFG_DEFAULT;
+    /* four candidates only */
+    memset(g_cand, 0, n);
+    g_cand[0] = g_cand[100] = g_cand[200] = g_cand[300] = 1u;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_consensus_run(&cfg, g_pts, n, g_cand, g_work, sizeof g_work, g_mask, &res));
+    /* a NaN sample */
+    g_pts[17].y = NAN;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_consensus_run(&cfg, g_pts, n, NULL, g_work, sizeof g_work, g_mask, &res));
+    /* collinear samples: no minimal set and no LS fit is an ellipse */
+    for (i = 0; i < 100; ++i) {
+        g_pts[i].x = 1.0f + 0.5f * (float)i;
+        g_pts[i].y = -3.0f + 0.25f * (float)i;
+    }
+    {
+        magcal_status_t st = magcal_consensus_run(&cfg, g_pts, 100, NULL, g_work, sizeof g_work, g_mask, &res);
+        TEST_ASSERT_TRUE(st == MAGCAL_ERR_DEGENERATE || st == MAGCAL_ERR_ILL_CONDITIONED);
+    }
+    TEST_ASSERT_EQUAL_MEMORY(&ref, &res, sizeof res);
+    for (i = 0; i < n; ++i) {
+        TEST_ASSERT_EQUAL_HEX8(0x5A, g_mask[i]);
+    }
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_consensus_run_bursts_alone_recall_90_centre_truth);
+    RUN_TEST(test_consensus_run_after_optics_recall_90_centre_truth);
+    RUN_TEST(test_consensus_run_same_seed_is_deterministic);
+    RUN_TEST(test_consensus_run_noncandidates_on_ring_are_rescued);
+    RUN_TEST(test_consensus_run_bad_input_returns_status_outputs_untouched);
+    return UNITY_END();
+}

@@ -1,0 +1,596 @@
+/* Tests of the OPTICS filter (include/magcal/optics.h, algorithms.md 4). */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "golden_optics.h"
+#include "magcal/optics.h"
+#include "test_util.h"
+#include "unity.h"
+
+void setUp(void) {}
+void tearDown(void) {}
+
+#define NMAX 1024u
+
+static magcal_vec2_t g_pts[NMAX + 1u];
+static uint32_t g_work[(MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(NMAX + 1u) + 3u) / 4u];
+static uint16_t g_order[4][NMAX];
+static float g_reach[4][NMAX];
+static float g_core[4][NMAX];
+static uint16_t g_pred[4][NMAX];
+static int16_t g_labels[NMAX];
+static uint8_t g_mask[NMAX];
+static uint8_t g_mask2[NMAX];
+
+/*
+ * Reference ordering written straight from algorithms.md 4.1/4.2 the way scikit-learn does it:
+ * O(n^2), next point = argmin over ALL unprocessed points of (reach, index), the lowest
+ * unprocessed index when every reach is infinite; core by full sort. Same float32 distance
+ * formula as the library, so the outputs must be bit-identical.
+ */
+static uint16_t r_order[NMAX];
+static float r_reach[NMAX];
+static float r_core[NMAX];
+static uint16_t r_pred[NMAX];
+static uint8_t r_done[NMAX];
+
+static void reference_optics(const magcal_vec2_t *p, size_t n, float eps, size_t min_pts)
+{
+    float eps2 = eps * eps;
+    size_t i, j, k, step;
+    for (i = 0; i < n; ++i) {
+        r_reach[i] = INFINITY;
+        r_pred[i] = MAGCAL_OPTICS_NO_PRED;
+        r_done[i] = 0u;
+    }
+    for (step = 0; step < n; ++step) {
+        size_t q = n;
+        float d2s[NMAX];
+        size_t cnt = 0u;
+        for (i = 0; i < n; ++i) {
+            if (!r_done[i] && (q == n || r_reach[i] < r_reach[q])) {
+                q = i; /* strict '<' keeps the lowest index among ties */
+            }
+        }
+        r_done[q] = 1u;
+        r_order[step] = (uint16_t)q;
+        for (j = 0; j < n; ++j) {
+            float dx = p[j].x - p[q].x, dy = p[j].y - p[q].y;
+            float d2 = dx * dx + dy * dy;
+            if (d2 <= eps2) {
+                /* insertion into a sorted list of all neighbour distances */
+                for (k = cnt; k > 0u && d2s[k - 1u] > d2; --k) {
+                    d2s[k] = d2s[k - 1u];
+                }
+                d2s[k] = d2;
+                ++cnt;
+            }
+        }
+        r_core[q] = cnt >= min_pts ? sqrtf(d2s[min_pts - 1u]) : INFINITY;
+        if (cnt < min_pts) {
+            continue;
+        }
+        for (j = 0; j < n; ++j) {
+            float dx = p[j].x - p[q].x, dy = p[j].y - p[q].y;
+            float d2 = dx * dx + dy * dy, r;
+            if (r_done[j] || d2 > eps2) {
+                continue;
+            }
+            r = sqrtf(d2);
+            r = r > r_core[q] ? r : r_core[q];
+            if (r < r_reach[j]) {
+                r_reach[j] = r;
+                r_pred[j] = (uint16_t)q;
+            }
+        }
+    }
+}
+
+/* Points: ring + outliers, with duplicates and grid-valued (tie-rich) coordinates when asked. */
+static void make_points(magcal_vec2_t *p, size_t n, uint32_t seed, int ties)
+{
+    uint32_t rng = seed;
+    size_t i;
+    for (i = 0; i < n; ++i) {
+        double a = 6.283185307179586 * test_rand_uniform(&rng);
+        double r = test_rand_uniform(&rng) < 0.9 ? 1.0 + 0.05 * test_rand_normal(&rng) : 3.0 * test_rand_uniform(&rng);
+        p[i].x = (float)(r * cos(a));
+        p[i].y = (float)(r * sin(a));
+        if (ties) {
+            p[i].x = floorf(p[i].x * 8.0f) / 8.0f; /* exact multiples of 1/8: many equal distances */
+            p[i].y = floorf(p[i].y * 8.0f) / 8.0f;
+        }
+        if (i > 0u && test_rand_uniform(&rng) < 0.05) {
+            p[i] = p[(size_t)(test_rand_uniform(&rng) * (double)i)]; /* duplicate */
+        }
+    }
+}
+
+static magcal_optics_cfg_t cfg_of(float eps, uint16_t min_pts, magcal_optics_order_t o, magcal_neighbors_t nb)
+{
+    magcal_optics_cfg_t c = MAGCAL_OPTICS_CFG_DEFAULT;
+    c.eps = eps;
+    c.eps_prime = 0.0f;
+    c.min_pts = min_pts;
+    c.order = o;
+    c.neighbors = nb;
+    return c;
+}
+
+static void run_variant(size_t v, const magcal_vec2_t *p, size_t n, float eps, uint16_t min_pts,
+                        magcal_optics_result_t *info)
+{
+    magcal_optics_cfg_t c = cfg_of(eps, min_pts, (v & 1u) ? MAGCAL_OPTICS_IMPROVED : MAGCAL_OPTICS_CLASSIC,
+                                   (v & 2u) ? MAGCAL_NEIGHBORS_GRID : MAGCAL_NEIGHBORS_BRUTE);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_run(&c, p, n, g_work, sizeof g_work, g_order[v], g_reach[v],
+                                                       g_core[v], g_pred[v], info));
+}
+
+static void test_optics_run_four_variants_match_reference_bit_exact(void)
+{
+    static const float eps_list[] = {INFINITY, 2.0f, 0.5f, 0.3f, 0.125f, 0.05f};
+    static const uint16_t mp_list[] = {2u, 4u, 5u, 9u};
+    static const size_t n_list[] = {9u, 40u, 150u, 400u};
+    uint32_t seed = 1u;
+    size_t ie, im, in, v, case_count = 0u, grid_used = 0u;
+    for (in = 0; in < 4u; ++in) {
+        for (ie = 0; ie < 6u; ++ie) {
+            for (im = 0; im < 4u; ++im) {
+                size_t n = n_list[in];
+                magcal_optics_result_t info;
+                int ties = (int)((seed & 1u) != 0u);
+                if (mp_list[im] > n) {
+                    continue;
+                }
+                make_points(g_pts, n, seed++, ties);
+                reference_optics(g_pts, n, eps_list[ie], mp_list[im]);
+                for (v = 0; v < 4u; ++v) {
+                    run_variant(v, g_pts, n, eps_list[ie], mp_list[im], &info);
+                    TEST_ASSERT_EQUAL_MEMORY(r_order, g_order[v], n * sizeof r_order[0]);
+                    TEST_ASSERT_EQUAL_MEMORY(r_reach, g_reach[v], n * sizeof r_reach[0]);
+                    TEST_ASSERT_EQUAL_MEMORY(r_core, g_core[v], n * sizeof r_core[0]);
+                    TEST_ASSERT_EQUAL_MEMORY(r_pred, g_pred[v], n * sizeof r_pred[0]);
+                    if ((v & 2u) && info.neighbors == MAGCAL_NEIGHBORS_GRID) {
+                        ++grid_used;
+                    }
+                    if (isinf(eps_list[ie])) {
+                        TEST_ASSERT_EQUAL_INT(MAGCAL_NEIGHBORS_BRUTE, info.neighbors);
+                    }
+                }
+                ++case_count;
+            }
+        }
+    }
+    TEST_ASSERT_TRUE(case_count >= 90u);
+    TEST_ASSERT_TRUE(grid_used >= 2u * 60u); /* the grid really ran on every finite-eps case */
+}
+
+static void test_optics_run_all_duplicates_gives_zero_core_and_reach(void)
+{
+    size_t i, v;
+    for (i = 0; i < 20u; ++i) {
+        g_pts[i].x = 3.0f;
+        g_pts[i].y = -1.0f;
+    }
+    for (v = 0; v < 4u; ++v) {
+        run_variant(v, g_pts, 20u, 0.5f, 4u, NULL);
+        TEST_ASSERT_EQUAL_UINT16(0u, g_order[v][0]);
+        TEST_ASSERT_TRUE(isinf(g_reach[v][0]));
+        for (i = 1; i < 20u; ++i) {
+            TEST_ASSERT_EQUAL_UINT16(i, g_order[v][i]); /* ties broken by index */
+            TEST_ASSERT_EQUAL_FLOAT(0.0f, g_reach[v][i]);
+            TEST_ASSERT_EQUAL_FLOAT(0.0f, g_core[v][i]);
+        }
+    }
+}
+
+/* Golden vectors from scikit-learn 1.2.1 (tools/golden/make_optics_golden.py). Tolerance 1e-4
+ * relative: float32 distances against float64 (algorithms.md 4.5). */
+static void test_optics_run_matches_sklearn_golden_vectors(void)
+{
+    size_t s, i, v;
+    for (s = 0; s < GOLDEN_OPTICS_N_SETS; ++s) {
+        const golden_optics_set_t *g = &golden_optics_sets[s];
+        uint16_t n_clusters = 0u;
+        size_t order_same = 0u;
+        for (v = 0; v < 4u; ++v) {
+            run_variant(v, g->pts, g->n, g->eps, g->min_pts, NULL);
+            for (i = 0; i < g->n; ++i) {
+                float e = g->core[i];
+                if (isinf(e)) {
+                    TEST_ASSERT_TRUE(isinf(g_core[v][i]));
+                } else {
+                    TEST_ASSERT_FLOAT_WITHIN(1e-4f * e + 1e-30f, e, g_core[v][i]);
+                }
+            }
+            /* reachability plot: value at each position of the ordering (ties may swap points
+             * with equal values, the plot stays the same) */
+            for (i = 0; i < g->n; ++i) {
+                float e = g->reach[g->order[i]];
+                float a = g_reach[v][g_order[v][i]];
+                order_same += g->order[i] == g_order[v][i];
+                if (isinf(e)) {
+                    TEST_ASSERT_TRUE(isinf(a));
+                } else {
+                    TEST_ASSERT_FLOAT_WITHIN(1e-4f * e, e, a);
+                }
+            }
+            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_extract_dbscan(g_order[v], g_reach[v], g_core[v], g->n,
+                                                                         g->eps, g->eps_prime, g_labels,
+                                                                         &n_clusters));
+            TEST_ASSERT_EQUAL_INT(g->n_clusters, n_clusters);
+            TEST_ASSERT_EQUAL_INT16_ARRAY(g->labels, g_labels, g->n);
+        }
+        printf("golden %s: %zu/%zu ordering positions equal to sklearn's over 4 variants\n", g->name, order_same,
+               4u * g->n);
+    }
+}
+
+static void test_optics_extract_dbscan_hand_made_example_follows_4_3(void)
+{
+    /* order 3,0,1,4,2,5 with chosen reach/core: p3 starts cluster 0 (reach inf, core 1 <= 2);
+     * p0 joins (reach 1.5); p1 is noise (reach 5 > 2, core 3 > 2); p4 starts cluster 1
+     * (reach 5, core 2 <= 2: boundary inclusive); p2 joins (reach 2 <= 2); p5 noise (reach inf,
+     * core inf). */
+    static const uint16_t order[6] = {3, 0, 1, 4, 2, 5};
+    static const float reach[6] = {1.5f, 5.0f, 2.0f, INFINITY, 5.0f, INFINITY};
+    static const float core[6] = {0.5f, 3.0f, 1.0f, 1.0f, 2.0f, INFINITY};
+    static const int16_t expect[6] = {0, -1, 1, 0, 1, -1};
+    int16_t lab[6];
+    uint16_t nc = 0u;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_extract_dbscan(order, reach, core, 6u, 10.0f, 2.0f, lab, &nc));
+    TEST_ASSERT_EQUAL_INT16_ARRAY(expect, lab, 6);
+    TEST_ASSERT_EQUAL_UINT16(2u, nc);
+    /* eps' = 0: only exact duplicates could cluster, here all noise */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_extract_dbscan(order, reach, core, 6u, 10.0f, 0.0f, lab, &nc));
+    TEST_ASSERT_EQUAL_UINT16(0u, nc);
+    /* eps' > eps is refused and labels stay untouched */
+    lab[0] = 77;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_extract_dbscan(order, reach, core, 6u, 1.0f, 2.0f, lab, &nc));
+    TEST_ASSERT_EQUAL_INT16(77, lab[0]);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_extract_dbscan(order, reach, core, 6u, 10.0f, -1.0f, lab, &nc));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_optics_extract_dbscan(order, reach, core, 6u, INFINITY, INFINITY, lab, &nc));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_extract_dbscan(NULL, reach, core, 6u, 10.0f, 2.0f, lab, &nc));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_extract_dbscan(order, reach, core, 0u, 10.0f, 2.0f, lab, &nc));
+    {
+        static const uint16_t bad[6] = {3, 0, 1, 4, 2, 6};
+        TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_extract_dbscan(bad, reach, core, 6u, 10.0f, 2.0f, lab, &nc));
+    }
+}
+
+static void test_optics_largest_cluster_tie_goes_to_smaller_id(void)
+{
+    static const int16_t lab[9] = {1, 1, 1, -1, 0, 0, 0, 2, 2};
+    static const uint8_t expect[9] = {0, 0, 0, 0, 1, 1, 1, 0, 0};
+    static const int16_t lab2[7] = {2, 2, 2, 2, 0, -1, 1};
+    static const uint8_t expect2[7] = {1, 1, 1, 1, 0, 0, 0};
+    uint16_t w[16];
+    uint8_t m[9];
+    int16_t id = -5;
+    uint16_t cnt = 0u;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_largest_cluster(lab, 9u, w, sizeof w, m, &id, &cnt));
+    TEST_ASSERT_EQUAL_UINT8_ARRAY(expect, m, 9);
+    TEST_ASSERT_EQUAL_INT16(0, id);
+    TEST_ASSERT_EQUAL_UINT16(3u, cnt);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_largest_cluster(lab2, 7u, w, sizeof w, m, &id, &cnt));
+    TEST_ASSERT_EQUAL_UINT8_ARRAY(expect2, m, 7);
+    TEST_ASSERT_EQUAL_INT16(2, id);
+    TEST_ASSERT_EQUAL_UINT16(4u, cnt);
+}
+
+static void test_optics_largest_cluster_errors_return_status(void)
+{
+    static const int16_t noise[4] = {-1, -1, -1, -1};
+    static const int16_t bad[4] = {0, -2, 0, 0};
+    static const int16_t big[4] = {0, 4, 0, 0};
+    static const int16_t ok[4] = {0, 0, 1, -1};
+    uint16_t w[8];
+    uint8_t m[4] = {9, 9, 9, 9};
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ALL_NOISE, magcal_optics_largest_cluster(noise, 4u, w, sizeof w, m, NULL, NULL));
+    TEST_ASSERT_EQUAL_UINT8(9u, m[0]);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_largest_cluster(bad, 4u, w, sizeof w, m, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_largest_cluster(big, 4u, w, sizeof w, m, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_largest_cluster(ok, 0u, w, sizeof w, m, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_largest_cluster(NULL, 4u, w, sizeof w, m, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_largest_cluster(ok, 4u, NULL, sizeof w, m, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_largest_cluster(ok, 4u, w, sizeof w, NULL, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE, magcal_optics_largest_cluster(
+                                                    ok, 4u, w, MAGCAL_OPTICS_LARGEST_WORKSPACE_LEN(4u) - 1u, m, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_largest_cluster(ok, 4u, w, MAGCAL_OPTICS_LARGEST_WORKSPACE_LEN(4u),
+                                                                   m, NULL, NULL));
+    TEST_ASSERT_EQUAL_UINT8(1u, m[0]);
+}
+
+static void test_optics_run_bad_input_returns_status_and_leaves_outputs(void)
+{
+    magcal_optics_cfg_t c = cfg_of(0.5f, 4u, MAGCAL_OPTICS_IMPROVED, MAGCAL_NEIGHBORS_GRID);
+    uint16_t *o = g_order[0];
+    float *r = g_reach[0], *k = g_core[0];
+    size_t len = MAGCAL_OPTICS_WORKSPACE_LEN(50u);
+    make_points(g_pts, 51u, 7u, 0);
+    o[0] = 4242u;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_run(NULL, g_pts, 50u, g_work, len, o, r, k, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_run(&c, NULL, 50u, g_work, len, o, r, k, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_run(&c, g_pts, 50u, NULL, len, o, r, k, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_run(&c, g_pts, 50u, g_work, len, NULL, r, k, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_run(&c, g_pts, 50u, g_work, len, o, NULL, k, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_run(&c, g_pts, 50u, g_work, len, o, r, NULL, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_optics_run(&c, g_pts, 3u, g_work, len, o, r, k, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_run(&c, g_pts, MAGCAL_MAX_SAMPLES + 1u, g_work,
+                                                            sizeof g_work, o, r, k, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_run(&c, g_pts, 50u, (uint8_t *)g_work + 2, len, o, r, k,
+                                                            NULL, NULL));
+    c.eps = 0.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_run(&c, g_pts, 50u, g_work, len, o, r, k, NULL, NULL));
+    c.eps = NAN;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_run(&c, g_pts, 50u, g_work, len, o, r, k, NULL, NULL));
+    c.eps = 0.5f;
+    c.min_pts = 1u;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_run(&c, g_pts, 50u, g_work, len, o, r, k, NULL, NULL));
+    c.min_pts = (uint16_t)(MAGCAL_MAX_MIN_PTS + 1u);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_run(&c, g_pts, 50u, g_work, len, o, r, k, NULL, NULL));
+    c.min_pts = 4u;
+    c.order = (magcal_optics_order_t)7;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_run(&c, g_pts, 50u, g_work, len, o, r, k, NULL, NULL));
+    c.order = MAGCAL_OPTICS_CLASSIC;
+    c.neighbors = (magcal_neighbors_t)7;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_run(&c, g_pts, 50u, g_work, len, o, r, k, NULL, NULL));
+    c.neighbors = MAGCAL_NEIGHBORS_GRID;
+    g_pts[17].y = NAN;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_optics_run(&c, g_pts, 50u, g_work, len, o, r, k, NULL, NULL));
+    g_pts[17].y = INFINITY;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_optics_run(&c, g_pts, 50u, g_work, len, o, r, k, NULL, NULL));
+    g_pts[17].y = 0.25f;
+    TEST_ASSERT_EQUAL_UINT16(4242u, o[0]);
+}
+
+/* The size macro is exactly what the functions check: LEN(n) passes, LEN(n) - 1 and n + 1
+ * points with LEN(n) fail. */
+static void test_optics_workspace_macros_are_what_functions_check(void)
+{
+    static const size_t ns[] = {4u, 16u, 17u, 100u, 333u, 1024u};
+    magcal_optics_cfg_t c = cfg_of(0.4f, 4u, MAGCAL_OPTICS_CLASSIC, MAGCAL_NEIGHBORS_GRID);
+    magcal_optics_cfg_t a = MAGCAL_OPTICS_CFG_DEFAULT;
+    size_t i;
+    float e, ep;
+    uint16_t mp;
+    for (i = 0; i < 6u; ++i) {
+        size_t n = ns[i], len = MAGCAL_OPTICS_WORKSPACE_LEN(n), flen = MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n);
+        make_points(g_pts, n + 1u, (uint32_t)(100u + i), 0);
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_run(&c, g_pts, n, g_work, len, g_order[0], g_reach[0],
+                                                           g_core[0], NULL, NULL));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE, magcal_optics_run(&c, g_pts, n, g_work, len - 1u, g_order[0],
+                                                                      g_reach[0], g_core[0], NULL, NULL));
+        TEST_ASSERT_EQUAL_INT(n + 1u > MAGCAL_MAX_SAMPLES ? MAGCAL_ERR_ARG : MAGCAL_ERR_WORKSPACE,
+                              magcal_optics_run(&c, g_pts, n + 1u, g_work, len, g_order[0], g_reach[0], g_core[0],
+                                                NULL, NULL));
+        if (n >= 16u) {
+            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_filter(&c, g_pts, n, g_work, flen, g_mask, NULL));
+            TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE,
+                                  magcal_optics_filter(&c, g_pts, n, g_work, flen - 1u, g_mask, NULL));
+            TEST_ASSERT_EQUAL_INT(n + 1u > MAGCAL_MAX_SAMPLES ? MAGCAL_ERR_ARG : MAGCAL_ERR_WORKSPACE,
+                                  magcal_optics_filter(&c, g_pts, n + 1u, g_work, flen, g_mask, NULL));
+            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_auto_params(g_pts, n, g_work, flen, &e, &mp, &ep));
+            TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE, magcal_optics_auto_params(g_pts, n, g_work, flen - 1u, &e, &mp, &ep));
+            TEST_ASSERT_EQUAL_INT(n + 1u > MAGCAL_MAX_SAMPLES ? MAGCAL_ERR_ARG : MAGCAL_ERR_WORKSPACE,
+                                  magcal_optics_auto_params(g_pts, n + 1u, g_work, flen, &e, &mp, &ep));
+            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_filter(&a, g_pts, n, g_work, flen, g_mask, NULL));
+            TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE, magcal_optics_filter(&a, g_pts, n, g_work, flen - 1u, g_mask, NULL));
+        }
+    }
+    /* budget: the whole filter (workspace + uint8 mask) stays under 24 bytes per sample */
+    TEST_ASSERT_TRUE(MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(1024u) + 1024u <= 24u * 1024u);
+    TEST_ASSERT_TRUE(MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(60u) + 60u <= 24u * 60u);
+}
+
+/* magcal_optics_filter == run + extract + largest_cluster (the on-the-fly extraction is exact). */
+static void test_optics_filter_equals_run_extract_largest(void)
+{
+    uint32_t seed;
+    for (seed = 1u; seed <= 12u; ++seed) {
+        size_t n = 50u + 37u * seed, i;
+        float eps = 0.1f + 0.05f * (float)(seed % 4u), ep = eps * (0.5f + 0.1f * (float)(seed % 5u));
+        magcal_optics_cfg_t c = cfg_of(eps, (uint16_t)(3u + seed % 4u),
+                                       (seed & 1u) ? MAGCAL_OPTICS_IMPROVED : MAGCAL_OPTICS_CLASSIC,
+                                       (seed & 2u) ? MAGCAL_NEIGHBORS_GRID : MAGCAL_NEIGHBORS_BRUTE);
+        magcal_optics_result_t info;
+        int16_t id;
+        uint16_t cnt, nc;
+        size_t noise = 0u;
+        make_points(g_pts, n, seed * 13u, (int)(seed & 1u));
+        c.eps_prime = ep;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_filter(&c, g_pts, n, g_work, sizeof g_work, g_mask, &info));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_run(&c, g_pts, n, g_work, sizeof g_work, g_order[0], g_reach[0],
+                                                           g_core[0], NULL, NULL));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_extract_dbscan(g_order[0], g_reach[0], g_core[0], n, eps, ep,
+                                                                     g_labels, &nc));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_largest_cluster(g_labels, n, g_work, sizeof g_work, g_mask2,
+                                                                      &id, &cnt));
+        TEST_ASSERT_EQUAL_UINT8_ARRAY(g_mask2, g_mask, n);
+        for (i = 0; i < n; ++i) {
+            noise += g_labels[i] < 0;
+        }
+        TEST_ASSERT_EQUAL_INT16(id, info.largest_id);
+        TEST_ASSERT_EQUAL_UINT16(cnt, info.n_inliers);
+        TEST_ASSERT_EQUAL_UINT16(nc, info.n_clusters);
+        TEST_ASSERT_EQUAL_UINT16(noise, info.n_noise);
+        TEST_ASSERT_EQUAL_FLOAT(ep, info.eps_prime);
+    }
+}
+
+static void test_optics_filter_bad_input_returns_status(void)
+{
+    magcal_optics_cfg_t c = cfg_of(0.3f, 4u, MAGCAL_OPTICS_IMPROVED, MAGCAL_NEIGHBORS_GRID);
+    magcal_optics_cfg_t a = MAGCAL_OPTICS_CFG_DEFAULT;
+    size_t i;
+    make_points(g_pts, 100u, 5u, 0);
+    g_mask[0] = 7u;
+    c.eps_prime = 0.4f; /* eps' > eps */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_filter(&c, g_pts, 100u, g_work, sizeof g_work, g_mask, NULL));
+    c.eps_prime = -0.1f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_filter(&c, g_pts, 100u, g_work, sizeof g_work, g_mask, NULL));
+    c.eps_prime = 1e-6f; /* nothing within 1e-6: every point is noise */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ALL_NOISE,
+                          magcal_optics_filter(&c, g_pts, 100u, g_work, sizeof g_work, g_mask, NULL));
+    TEST_ASSERT_EQUAL_UINT8(7u, g_mask[0]);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_filter(NULL, g_pts, 100u, g_work, sizeof g_work, g_mask, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_filter(&a, g_pts, 100u, g_work, sizeof g_work, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS,
+                          magcal_optics_filter(&a, g_pts, 15u, g_work, sizeof g_work, g_mask, NULL));
+    a.eps = NAN;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_filter(&a, g_pts, 100u, g_work, sizeof g_work, g_mask, NULL));
+    a.eps = 0.0f;
+    g_pts[3].x = -INFINITY;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE,
+                          magcal_optics_filter(&a, g_pts, 100u, g_work, sizeof g_work, g_mask, NULL));
+    for (i = 0; i < 100u; ++i) {
+        g_pts[i].x = 1.0f;
+        g_pts[i].y = 2.0f;
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_DEGENERATE,
+                          magcal_optics_filter(&a, g_pts, 100u, g_work, sizeof g_work, g_mask, NULL));
+    TEST_ASSERT_EQUAL_UINT8(7u, g_mask[0]);
+    {
+        float e = 5.0f, ep = 5.0f;
+        uint16_t mp = 9u;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_DEGENERATE, magcal_optics_auto_params(g_pts, 100u, g_work, sizeof g_work,
+                                                                               &e, &mp, &ep));
+        TEST_ASSERT_EQUAL_FLOAT(5.0f, e);
+        TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_auto_params(g_pts, 100u, g_work, sizeof g_work, NULL,
+                                                                         &mp, &ep));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_auto_params(g_pts, 100u, (uint8_t *)g_work + 1,
+                                                                        sizeof g_work - 4u, &e, &mp, &ep));
+    }
+}
+
+/* ---- automatic parameters on synthetic rings with known truth --------------------------------- */
+
+typedef struct {
+    size_t n;
+    double sigma_rel;   /* noise / radius */
+    double arc_deg;
+    double ratio;       /* minor/major axis */
+    double offset_rel;  /* hard iron / radius */
+    double spike_frac;  /* isolated spikes: y shifted by -36 radii (driver glitch) */
+    int random_angles;
+} ring_case_t;
+
+static uint8_t g_truth[NMAX];
+
+static void make_case(const ring_case_t *rc, double scale, uint32_t seed)
+{
+    test_distortion_t d;
+    uint32_t rng = seed;
+    size_t i;
+    memset(&d, 0, sizeof d);
+    d.h0 = scale;
+    d.t[0][0] = 1.0f;
+    d.t[1][1] = (float)rc->ratio;
+    d.t[0][1] = 0.1f;
+    d.bx = (float)(rc->offset_rel * scale);
+    d.by = (float)(-0.6 * rc->offset_rel * scale);
+    for (i = 0; i < rc->n; ++i) {
+        double psi = rc->random_angles ? rc->arc_deg * test_rand_uniform(&rng) : rc->arc_deg * (double)i / (double)rc->n;
+        g_pts[i] = test_distorted_sample(&d, psi, rc->sigma_rel * scale, &rng);
+        g_truth[i] = 1u;
+        if (test_rand_uniform(&rng) < rc->spike_frac) {
+            g_pts[i].y -= (float)(36.0 * scale);
+            g_truth[i] = 0u;
+        }
+    }
+}
+
+static void test_optics_filter_auto_keeps_ring_rejects_spikes_at_every_scale(void)
+{
+    static const ring_case_t cases[] = {
+        {60u, 0.01, 360.0, 1.0, 0.0, 0.0, 0},   {60u, 0.02, 360.0, 1.0, 0.0, 0.0, 1},
+        {100u, 0.01, 360.0, 0.55, 5.0, 0.0, 1}, {300u, 0.01, 360.0, 1.0, 0.0, 0.0, 1},
+        {300u, 0.05, 360.0, 1.0, 0.0, 0.0, 1}, {300u, 0.01, 300.0, 1.0, 0.0, 0.0, 1},
+        {700u, 0.01, 360.0, 0.55, 5.0, 0.05, 1}, {1024u, 0.005, 360.0, 1.0, 0.0, 0.0, 1},
+        {1024u, 0.03, 360.0, 0.8, 2.0, 0.05, 0}, {200u, 0.01, 360.0, 1.0, 0.0, 0.10, 1},
+    };
+    static const double scales[] = {1e-3, 1.0, 2000.0};
+    size_t ic, is, i;
+    for (ic = 0; ic < sizeof cases / sizeof cases[0]; ++ic) {
+        uint16_t kept_ref = 0u;
+        float rel_ref = 0.0f;
+        for (is = 0; is < 3u; ++is) {
+            magcal_optics_cfg_t a = MAGCAL_OPTICS_CFG_DEFAULT;
+            magcal_optics_result_t info;
+            size_t n = cases[ic].n, ti = 0u, ki = 0u, to = 0u, ko = 0u;
+            char msg[96];
+            make_case(&cases[ic], scales[is], (uint32_t)(11u + ic));
+            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_filter(&a, g_pts, n, g_work, sizeof g_work, g_mask, &info));
+            for (i = 0; i < n; ++i) {
+                if (g_truth[i]) {
+                    ++ti;
+                    ki += g_mask[i];
+                } else {
+                    ++to;
+                    ko += g_mask[i];
+                }
+            }
+            snprintf(msg, sizeof msg, "case %u scale %g: kept %u/%u inliers, %u/%u spikes", (unsigned)ic,
+                     scales[is], (unsigned)ki, (unsigned)ti, (unsigned)ko, (unsigned)to);
+            TEST_ASSERT_TRUE_MESSAGE(ki * 100u >= ti * 95u, msg); /* >= 95 % of the inliers kept */
+            TEST_ASSERT_EQUAL_UINT_MESSAGE(0u, ko, msg);            /* every far spike rejected */
+            TEST_ASSERT_EQUAL_INT(MAGCAL_NEIGHBORS_GRID, info.neighbors);
+            /* same relative behaviour at every scale: eps'/scale within 1e-3, kept count within 1 % */
+            if (is == 0u) {
+                kept_ref = info.n_inliers;
+                rel_ref = (float)(info.eps_prime / scales[is]);
+            } else {
+                TEST_ASSERT_FLOAT_WITHIN(1e-3f * rel_ref, rel_ref, (float)(info.eps_prime / scales[is]));
+                TEST_ASSERT_UINT_WITHIN(n / 100u + 1u, kept_ref, info.n_inliers);
+            }
+        }
+    }
+}
+
+static void test_optics_auto_params_real_glitches_rejects_every_glitch(void)
+{
+    /* The recorded ring with a driver glitch (y ~ -8.9 gauss on ~0.25 gauss ring): the golden set
+     * "real_glitches" holds its points; glitches are the samples with |y| > 1. */
+    const golden_optics_set_t *g = &golden_optics_sets[2];
+    magcal_optics_cfg_t a = MAGCAL_OPTICS_CFG_DEFAULT;
+    magcal_optics_result_t info;
+    size_t i, good = 0u, kept_good = 0u, kept_bad = 0u;
+    float e, ep;
+    uint16_t mp;
+    TEST_ASSERT_EQUAL_STRING("real_glitches", g->name);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_auto_params(g->pts, g->n, g_work, sizeof g_work, &e, &mp, &ep));
+    TEST_ASSERT_EQUAL_UINT16(4u, mp);
+    TEST_ASSERT_EQUAL_FLOAT(e, ep);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_filter(&a, g->pts, g->n, g_work, sizeof g_work, g_mask, &info));
+    TEST_ASSERT_EQUAL_FLOAT(ep, info.eps_prime);
+    for (i = 0; i < g->n; ++i) {
+        int glitch = fabsf(g->pts[i].y) > 1.0f;
+        good += !glitch;
+        kept_good += !glitch && g_mask[i];
+        kept_bad += glitch && g_mask[i];
+    }
+    printf("real glitches: eps' = %g gauss, kept %u/%u genuine, %u glitches\n", (double)ep, (unsigned)kept_good,
+           (unsigned)good, (unsigned)kept_bad);
+    TEST_ASSERT_EQUAL_UINT(0u, kept_bad);
+    TEST_ASSERT_TRUE(kept_good * 100u >= good * 95u);
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_optics_run_four_variants_match_reference_bit_exact);
+    RUN_TEST(test_optics_run_all_duplicates_gives_zero_core_and_reach);
+    RUN_TEST(test_optics_run_matches_sklearn_golden_vectors);
+    RUN_TEST(test_optics_extract_dbscan_hand_made_example_follows_4_3);
+    RUN_TEST(test_optics_largest_cluster_tie_goes_to_smaller_id);
+    RUN_TEST(test_optics_largest_cluster_errors_return_status);
+    RUN_TEST(test_optics_run_bad_input_returns_status_and_leaves_outputs);
+    RUN_TEST(test_optics_workspace_macros_are_what_functions_check);
+    RUN_TEST(test_optics_filter_equals_run_extract_largest);
+    RUN_TEST(test_optics_filter_bad_input_returns_status);
+    RUN_TEST(test_optics_filter_auto_keeps_ring_rejects_spikes_at_every_scale);
+    RUN_TEST(test_optics_auto_params_real_glitches_rejects_every_glitch);
+    return UNITY_END();
+}
