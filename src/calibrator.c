@@ -104,7 +104,7 @@ static magcal_status_t cal_check_cfg(const magcal_calibrator_cfg_t *c)
         !cal_finite_cfg_f(c->consensus.max_thr_rel)) {
         return MAGCAL_ERR_NONFINITE;
     }
-    if ((int)c->filter < (int)MAGCAL_FILTER_OPTICS_GRID || (int)c->filter > (int)MAGCAL_FILTER_NONE) {
+    if ((unsigned)c->filter > (unsigned)MAGCAL_FILTER_NONE) { /* also catches negative values */
         return MAGCAL_ERR_ARG;
     }
     if (c->eps < 0.0f || c->min_pts == 1u || c->min_pts > MAGCAL_MAX_MIN_PTS) {
@@ -127,7 +127,7 @@ static magcal_status_t cal_check_cfg(const magcal_calibrator_cfg_t *c)
         c->max_radius_change < 0.0f) {
         return MAGCAL_ERR_ARG;
     }
-    if ((int)c->form < (int)MAGCAL_CORR_SYMMETRIC || (int)c->form > (int)MAGCAL_CORR_TRIANGULAR) {
+    if ((unsigned)c->form > (unsigned)MAGCAL_CORR_TRIANGULAR) {
         return MAGCAL_ERR_ARG;
     }
     return MAGCAL_OK;

@@ -80,6 +80,10 @@ def load_library(build_dir, extra_dirs=()):
                 if m:
                     edges.append((m.group(1), m.group(2)))
         for src, dst in edges:
+            if ":" in dst and dst not in local_defs:
+                # a static function of this unit with no node of its own: GCC inlined it into
+                # every caller, so its frame and its calls are already in the callers'
+                continue
             s = local_defs.get(src, src.split(":")[-1])
             d = local_defs.get(dst, dst.split(":")[-1])
             g.calls.setdefault(s, set()).add(d)
