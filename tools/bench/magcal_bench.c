@@ -12,7 +12,8 @@
  *   magcal_bench info N             key=value lines: automatic eps / eps' / MinPts, the result of
  *                                   the default calibration, a check that the three OPTICS
  *                                   variants agree bit for bit, workspace sizes
- *   magcal_bench dump N FILE        the N points as CSV "x,y,outlier" (%.9g: float32 exact)
+ *   magcal_bench dump N FILE        the N points as CSV "x,y,outlier,magcal_filter_inlier" (%.9g:
+ *                                   float32 exact; last column: the default OPTICS filter mask)
  *   magcal_bench run KERNEL N       run KERNEL once (under callgrind --toggle-collect=<its
  *                                   library function>); the setup outside the kernel is not
  *                                   collected
@@ -24,6 +25,8 @@
  *   optics_indexed   magcal_optics_run  IMPROVED + GRID (the calibrator's default)
  *   optics_classic_grid magcal_optics_run CLASSIC + GRID (context: what the index alone buys)
  *   optics_filter    magcal_optics_filter  auto params + ordering + extraction + largest cluster
+ *                    (the calibrator's path: its grid covers only a window around the ring)
+ *   auto_params      magcal_optics_auto_params (subtract from optics_filter for its ordering)
  *   dbscan           magcal_dbscan_run  eps = automatic eps', MinPts = automatic, GRID
  *   dbscan_brute     magcal_dbscan_run  same with BRUTE
  *   ellipse          magcal_ellipse_fit on the true inliers
@@ -278,6 +281,11 @@ static int run_kernel(const char *k, size_t n, int quiet)
         if (!quiet) {
             printf("inliers=%u\n", (unsigned)info.n_inliers);
         }
+    } else if (strcmp(k, "auto_params") == 0) {
+        st = auto_params(n);
+        if (st != MAGCAL_OK) {
+            return fail(k, st);
+        }
     } else if (strcmp(k, "dbscan") == 0 || strcmp(k, "dbscan_brute") == 0) {
         st = auto_params(n);
         if (st == MAGCAL_OK) {
@@ -459,15 +467,21 @@ static int mode_info(size_t n)
 
 static int mode_dump(size_t n, const char *path)
 {
-    FILE *f = fopen(path, "w");
+    FILE *f;
     size_t i;
+    magcal_status_t st = optics_filter(n, NULL); /* the calibrator's filter, for comparison */
+    if (st != MAGCAL_OK) {
+        return fail("optics filter", st);
+    }
+    f = fopen(path, "w");
     if (f == NULL) {
         fprintf(stderr, "magcal_bench: cannot write %s\n", path);
         return 1;
     }
-    fprintf(f, "x,y,outlier\n");
+    fprintf(f, "x,y,outlier,magcal_filter_inlier\n");
     for (i = 0u; i < n; ++i) {
-        fprintf(f, "%.9g,%.9g,%u\n", (double)g_pts[i].x, (double)g_pts[i].y, (unsigned)g_outlier[i]);
+        fprintf(f, "%.9g,%.9g,%u,%u\n", (double)g_pts[i].x, (double)g_pts[i].y, (unsigned)g_outlier[i],
+                (unsigned)g_mask[i]);
     }
     return fclose(f) == 0 ? 0 : 1;
 }
