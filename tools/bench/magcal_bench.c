@@ -24,6 +24,8 @@
  *   optics_improved  magcal_optics_run  IMPROVED unordered seeds + BRUTE
  *   optics_indexed   magcal_optics_run  IMPROVED + GRID (the calibrator's default)
  *   optics_classic_grid magcal_optics_run CLASSIC + GRID (context: what the index alone buys)
+ *   optics_classic_inf, optics_improved_inf  magcal_optics_run with eps = +INF (sklearn's default
+ *                    max_eps; the seed list then holds every unprocessed point), BRUTE
  *   optics_filter    magcal_optics_filter  auto params + ordering + extraction + largest cluster
  *                    (the calibrator's path: its grid covers only a window around the ring)
  *   auto_params      magcal_optics_auto_params (subtract from optics_filter for its ordering)
@@ -260,6 +262,10 @@ static int run_kernel(const char *k, size_t n, int quiet)
             st = optics_variant(n, MAGCAL_OPTICS_IMPROVED, MAGCAL_NEIGHBORS_BRUTE, g_order, g_reach, g_core);
         } else if (strcmp(k, "optics_indexed") == 0) {
             st = optics_variant(n, MAGCAL_OPTICS_IMPROVED, MAGCAL_NEIGHBORS_GRID, g_order, g_reach, g_core);
+        } else if (strcmp(k, "optics_classic_inf") == 0 || strcmp(k, "optics_improved_inf") == 0) {
+            g_eps = INFINITY; /* scikit-learn's default max_eps: every point is a neighbour */
+            st = optics_variant(n, k[7] == 'c' ? MAGCAL_OPTICS_CLASSIC : MAGCAL_OPTICS_IMPROVED, MAGCAL_NEIGHBORS_BRUTE,
+                                g_order, g_reach, g_core);
         } else if (strcmp(k, "optics_classic_grid") == 0) {
             st = optics_variant(n, MAGCAL_OPTICS_CLASSIC, MAGCAL_NEIGHBORS_GRID, g_order, g_reach, g_core);
         } else {
