@@ -16,10 +16,6 @@ set(CMAKE_C_FLAGS_INIT "${MAGCAL_M4F_FLAGS} -ffunction-sections -fdata-sections 
 set(CMAKE_C_FLAGS_MINSIZEREL_INIT "-Os -DNDEBUG")
 set(CMAKE_EXE_LINKER_FLAGS_INIT "${MAGCAL_M4F_FLAGS} -Wl,--gc-sections")
 
-# On-target test suite (-DMAGCAL_TARGET_TESTS=ON): a hook run right after project(magcal) that
-# adds Unity and tests/ for QEMU mps2-an386 (cmake/target/MagcalTargetHook.cmake).
-set(CMAKE_PROJECT_magcal_INCLUDE "${CMAKE_CURRENT_LIST_DIR}/target/MagcalTargetHook.cmake")
-
 set(CMAKE_FIND_ROOT_PATH_MODE_PROGRAM NEVER)
 set(CMAKE_FIND_ROOT_PATH_MODE_LIBRARY ONLY)
 set(CMAKE_FIND_ROOT_PATH_MODE_INCLUDE ONLY)

@@ -13,6 +13,17 @@
 #include "magcal/config.h"
 #include "magcal/status.h"
 #include "magcal/types.h"
+#include "magcal/optics.h"
+#include "magcal/dbscan.h"
+#include "magcal/ellipse.h"
+#include "magcal/heading.h"
+#include "magcal/consensus.h"
+#include "magcal/calibrator.h"
 #include "magcal/geomag.h"
+#include "magcal/ellipsoid.h"
+#include "magcal/aided.h"
+#include "magcal/tilt.h"
+#include "magcal/swing.h"
+#include "magcal/errmodel.h"
 
 #endif /* MAGCAL_H */

@@ -393,7 +393,7 @@ static magcal_status_t cal_circle_centre(const magcal_vec2_t *p, size_t n, const
     return MAGCAL_OK;
 }
 
-/* Bins of the masked points' approximate headings around centre. */
+/* Bins of the masked (NULL: all) points' approximate headings around centre. */
 static float cal_coverage_around(const magcal_vec2_t *p, size_t n, const uint8_t *mask, magcal_vec2_t c,
                                  float *miss_start, float *miss_width)
 {
@@ -401,7 +401,7 @@ static float cal_coverage_around(const magcal_vec2_t *p, size_t n, const uint8_t
     size_t i;
     (void)memset(bins, 0, sizeof bins);
     for (i = 0u; i < n; ++i) {
-        if (mask[i] != 0u) {
+        if (mask == NULL || mask[i] != 0u) {
             bins[cal_bin_of(cal_angle_deg(p[i].x - c.x, p[i].y - c.y))] = 1u;
         }
     }
@@ -709,24 +709,34 @@ magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *
         return cal_finish(cal, MAGCAL_ERR_TOO_FEW_POINTS, &rep, report);
     }
 
-    /* 3. coverage pre-gate around the hard-iron circle centre of the filter inliers */
+    /* 3. coverage pre-gate: every sample, around the hard-iron circle centre of the filter inliers
+     * (a short arc is reported as COVERAGE, not as whatever conic it happens to fit). When the
+     * filter's inliers alone cover less than the gate while all samples do, the filter split the
+     * ring into arcs (bursts leave gaps, algorithms.md 4.3): the consensus then draws its minimal
+     * sets from every sample instead (LMedS tolerates up to 50 % outliers). */
     {
         magcal_vec2_t cc;
+        float cov_f;
         st = cal_circle_centre(cal->buf, n, cal->mask_a, &cc);
         if (st != MAGCAL_OK) {
             return cal_finish(cal, st == MAGCAL_ERR_ILL_CONDITIONED ? MAGCAL_ERR_DEGENERATE : st, &rep, report);
         }
-        cov = cal_coverage_around(cal->buf, n, cal->mask_a, cc, &rep.missing_start_deg, &rep.missing_width_deg);
+        cov = cal_coverage_around(cal->buf, n, NULL, cc, &rep.missing_start_deg, &rep.missing_width_deg);
         rep.coverage_deg = cov;
         if (cov < cal->cfg.min_coverage_deg) {
             return cal_finish(cal, MAGCAL_ERR_COVERAGE, &rep, report);
+        }
+        cov_f = cal_coverage_around(cal->buf, n, cal->mask_a, cc, NULL, NULL);
+        if (cov_f < cal->cfg.min_coverage_deg) {
+            rep.filter_fragmented = 1u;
         }
     }
 
     /* 4. consensus (or plain fit) */
     (void)memset(&cres, 0, sizeof cres);
     if (cal->cfg.use_consensus != 0u) {
-        st = magcal_consensus_run(&cal->cfg.consensus, cal->buf, n, cal->mask_a, cal->scratch,
+        st = magcal_consensus_run(&cal->cfg.consensus, cal->buf, n,
+                                  rep.filter_fragmented != 0u ? NULL : cal->mask_a, cal->scratch,
                                   cal->scratch_len, cal->mask_b, &cres);
     } else {
         st = cal_plain_fit(cal, &cres);
@@ -741,12 +751,15 @@ magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *
     for (i = 0u; i < n; ++i) {
         if (cal->mask_b[i] != 0u) {
             ++used;
+            if (cal->mask_a[i] == 0u) {
+                rep.rescued_consensus++;
+            }
+        } else if (cal->mask_a[i] != 0u) {
+            rep.rejected_consensus++;
         }
     }
     rep.used = (uint16_t)used;
     rep.outliers = (uint16_t)(n - used);
-    rep.rejected_consensus = cres.n_rejected;
-    rep.rescued_consensus = cres.n_rescued;
     rep.ellipse = cres.fit;
     rep.threshold = cres.threshold;
     radius = sqrtf(cres.fit.semi_minor * cres.fit.semi_major);
@@ -879,6 +892,11 @@ magcal_status_t magcal_calibrator_classify(const magcal_calibrator_t *cal, magca
 magcal_calibrator_state_t magcal_calibrator_state(const magcal_calibrator_t *cal)
 {
     return cal_ok(cal) ? cal->state : MAGCAL_CALIBRATOR_FAILED;
+}
+
+magcal_status_t magcal_calibrator_last_status(const magcal_calibrator_t *cal)
+{
+    return cal_ok(cal) ? cal->last_status : MAGCAL_ERR_NOT_INITIALISED;
 }
 
 size_t magcal_calibrator_count(const magcal_calibrator_t *cal)

@@ -27,9 +27,9 @@ static size_t count_neighbors(const magcal_nbr_t *nb, size_t p, float eps2)
     return cnt;
 }
 
-magcal_status_t magcal_dbscan_run(const magcal_dbscan_cfg_t *cfg, const magcal_vec2_t *pts, size_t n,
-                                  void *work, size_t work_len, int16_t *labels, uint16_t *n_clusters,
-                                  magcal_neighbors_t *used)
+magcal_status_t magcal_dbscan_run(const magcal_dbscan_cfg_t *cfg, const magcal_vec2_t *pts,
+                                  size_t n, void *work, size_t work_len, int16_t *labels,
+                                  uint16_t *n_clusters, magcal_neighbors_t *used)
 {
     magcal_nbr_t nb;
     magcal_status_t st;

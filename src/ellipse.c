@@ -18,8 +18,29 @@
 
 #include "magcal_internal.h"
 
-/* Power sums S_pq = sum x~^p y~^q kept by the accumulator. */
-enum { S10, S01, S20, S11, S02, S30, S21, S12, S03, S31, S22, S13, S04, S_COUNT };
+/* Keep the 5-point path (its 5x6 tableau) out of magcal_ellipse_fit_idx's frame, which also sits
+ * on the deepest path fit_normal -> moments_solve -> magcal_ldlt_solve. Plain C99 elsewhere. */
+#if defined(__GNUC__)
+#define ELLIPSE_NOINLINE __attribute__((noinline))
+#else
+#define ELLIPSE_NOINLINE
+#endif
+
+/* Power sums S_pq = sum x~^p y~^q kept by the accumulator (indices into mom[]). */
+#define S10 0u
+#define S01 1u
+#define S20 2u
+#define S11 3u
+#define S02 4u
+#define S30 5u
+#define S21 6u
+#define S12 7u
+#define S03 8u
+#define S31 9u
+#define S22 10u
+#define S13 11u
+#define S04 12u
+#define S_COUNT 13u
 
 /* The points a fit uses: pts[idx[k]] for k < n when idx is set, else pts[k] where mask[k] != 0. */
 typedef struct {
@@ -65,7 +86,7 @@ static magcal_status_t src_scan(const fit_src_t *src, size_t *count, float bb[4]
     amax[0] = 0.0f;
     amax[1] = 0.0f;
     for (k = 0u; k < src->n; ++k) {
-        if (!src_point(src, k, &p)) {
+        if (src_point(src, k, &p) == 0) {
             continue;
         }
         if (!magcal_isfinite_f(p.x) || !magcal_isfinite_f(p.y)) {
@@ -140,14 +161,14 @@ static void src_moments(const fit_src_t *src, const fit_norm_t *nm, int plain, f
     size_t j;
     magcal_vec2_t p;
 
-    for (j = 0u; j < (size_t)S_COUNT; ++j) {
+    for (j = 0u; j < S_COUNT; ++j) {
         mom[j] = 0.0f;
         comp[j] = 0.0f;
     }
     for (k = 0u; k < src->n; ++k) {
         float x;
         float y;
-        if (!src_point(src, k, &p)) {
+        if (src_point(src, k, &p) == 0) {
             continue;
         }
         x = (p.x - nm->mx) * nm->isx;
@@ -165,8 +186,8 @@ static void src_moments(const fit_src_t *src, const fit_norm_t *nm, int plain, f
         v[S22] = v[S20] * v[S02];
         v[S13] = v[S11] * v[S02];
         v[S04] = v[S02] * v[S02];
-        for (j = 0u; j < (size_t)S_COUNT; ++j) {
-            if (plain) {
+        for (j = 0u; j < S_COUNT; ++j) {
+            if (plain != 0) {
                 mom[j] += v[j];
             } else {
                 kahan_add(&mom[j], &comp[j], v[j]);
@@ -176,8 +197,9 @@ static void src_moments(const fit_src_t *src, const fit_norm_t *nm, int plain, f
 }
 
 /* Collinear (or nearly) points: smaller covariance eigenvalue below a fraction of the larger.
- * det/tr^2 = l1 l2 / (l1 + l2)^2 is the eigenvalue ratio when that ratio is small. */
-static int moments_collinear(const float mom[S_COUNT], float cnt)
+ * det/tr^2 = l1 l2 / (l1 + l2)^2 is the eigenvalue ratio when that ratio is small. Reads only
+ * mom[S10..S02] (the first five entries). */
+static int moments_collinear(const float *mom, float cnt)
 {
     float inv = 1.0f / cnt;
     float mu = mom[S10] * inv;
@@ -191,8 +213,10 @@ static int moments_collinear(const float mom[S_COUNT], float cnt)
     return !(tr > 0.0f) || !(det > MAGCAL_ELLIPSE_COLLINEAR_TOL * tr * tr);
 }
 
-/* Normal equations of the rows w = [xy, y^2, x, y, 1], Y = -x^2, solved by equilibrated LDL^T. */
-static magcal_status_t moments_solve(const float mom[S_COUNT], float cnt, float coef[5], float *min_pivot)
+/* Normal equations of the rows w = [xy, y^2, x, y, 1], Y = -x^2, solved by equilibrated LDL^T.
+ * On success the coefficients A..E overwrite mom[0..4] (the moments are dead by then; sharing the
+ * array keeps the deepest stack path, through magcal_ldlt_solve, short). */
+static magcal_status_t moments_solve(float mom[S_COUNT], float cnt, float *min_pivot)
 {
     float a[25];
     float b[5];
@@ -235,60 +259,7 @@ static magcal_status_t moments_solve(const float mom[S_COUNT], float cnt, float 
         return st;
     }
     for (i = 0u; i < 5u; ++i) {
-        coef[i] = b[i];
-    }
-    return MAGCAL_OK;
-}
-
-/*
- * Geometry of x^2 + A xy + B y^2 + C x + D y + E = 0 given in coordinates x~ = (x - mx)/s
- * (isotropic s, so angles are unchanged and lengths scale by s). Fills centre, axes, angle and
- * the input-unit quadratic form of g (algorithms.md 2.3).
- */
-static magcal_status_t conic_geometry(const float coef[5], float mx, float my, float s, magcal_ellipse_t *g)
-{
-    float ca = coef[0];
-    float cb = coef[1];
-    float cc = coef[2];
-    float cd = coef[3];
-    float ce = coef[4];
-    float delta = 4.0f * cb - ca * ca;
-    float fro = 1.0f + 0.5f * ca * ca + cb * cb;
-    float x0;
-    float y0;
-    float kk;
-    float hyp;
-    float l1;
-    float l2;
-    float q11;
-
-    if (fabsf(delta) <= MAGCAL_ELLIPSE_PARABOLA_TOL * fro) {
-        return MAGCAL_ERR_PARABOLA;
-    }
-    if (delta < 0.0f) {
-        return MAGCAL_ERR_HYPERBOLA;
-    }
-    x0 = (ca * cd - 2.0f * cb * cc) / delta;
-    y0 = (ca * cc - 2.0f * cd) / delta;
-    kk = -(ce + 0.5f * (cc * x0 + cd * y0));
-    if (!(kk > 0.0f)) {
-        return MAGCAL_ERR_IMAGINARY;
-    }
-    hyp = sqrtf((1.0f - cb) * (1.0f - cb) + ca * ca);
-    l1 = 0.5f * (1.0f + cb) + 0.5f * hyp;
-    l2 = (0.25f * delta) / l1; /* det/l1: no cancellation for thin ellipses */
-    g->angle_rad = 0.5f * atan2f(ca, 1.0f - cb);
-    g->semi_minor = sqrtf(kk / l1) * s;
-    g->semi_major = sqrtf(kk / l2) * s;
-    g->center.x = mx + s * x0;
-    g->center.y = my + s * y0;
-    q11 = 1.0f / (kk * s * s);
-    g->qform[0] = q11;
-    g->qform[1] = 0.5f * ca * q11;
-    g->qform[2] = cb * q11;
-    if (!magcal_isfinite_f(g->center.x) || !magcal_isfinite_f(g->center.y) || !magcal_isfinite_f(g->semi_major) ||
-        !magcal_isfinite_f(q11) || !(q11 > 0.0f) || !(g->semi_minor > 0.0f)) {
-        return MAGCAL_ERR_ILL_CONDITIONED; /* under/overflow of a nearly singular conic */
+        mom[i] = b[i];
     }
     return MAGCAL_OK;
 }
@@ -325,7 +296,7 @@ static float src_residual_rms(const fit_src_t *src, const magcal_ellipse_t *e, s
 
     for (k = 0u; k < src->n; ++k) {
         float r;
-        if (!src_point(src, k, &p)) {
+        if (src_point(src, k, &p) == 0) {
             continue;
         }
         r = magcal_ellipse_residual(e, p);
@@ -334,48 +305,115 @@ static float src_residual_rms(const fit_src_t *src, const magcal_ellipse_t *e, s
     return sqrtf(sum / (float)cnt);
 }
 
-/* Centred fit through the normal equations (any count >= 5). */
-static magcal_status_t fit_normal(const fit_src_t *src, magcal_ellipse_t *out)
+/*
+ * Geometry of x^2 + A xy + B y^2 + C x + D y + E = 0 given in coordinates x~ = (x - mx)/s
+ * (isotropic s, so angles are unchanged and lengths scale by s; algorithms.md 2.3), then the
+ * complete result. *out is written only once every check has passed; src (may be NULL: residual
+ * RMS 0) is used for the residual RMS over the cnt used points.
+ */
+static magcal_status_t conic_finish(const float coef[5], float mx, float my, float s,
+                                    float min_pivot, size_t cnt, const fit_src_t *src,
+                                    magcal_ellipse_t *out)
+{
+    float ca = coef[0];
+    float cb = coef[1];
+    float delta = 4.0f * cb - ca * ca;
+    float fro = 1.0f + 0.5f * ca * ca + cb * cb;
+    float x0;
+    float y0;
+    float kk;
+    float l1;
+    float r1;
+    float r2;
+    float cx;
+    float cy;
+    float q11;
+    size_t i;
+
+    if (fabsf(delta) <= MAGCAL_ELLIPSE_PARABOLA_TOL * fro) {
+        return MAGCAL_ERR_PARABOLA;
+    }
+    if (delta < 0.0f) {
+        return MAGCAL_ERR_HYPERBOLA;
+    }
+    x0 = (ca * coef[3] - 2.0f * cb * coef[2]) / delta;
+    y0 = (ca * coef[2] - 2.0f * coef[3]) / delta;
+    kk = -(coef[4] + 0.5f * (coef[2] * x0 + coef[3] * y0));
+    if (!(kk > 0.0f)) {
+        return MAGCAL_ERR_IMAGINARY;
+    }
+    l1 = 0.5f * (1.0f + cb) + 0.5f * sqrtf((1.0f - cb) * (1.0f - cb) + ca * ca);
+    r1 = sqrtf(kk / l1) * s;
+    /* l2 = det/l1: no cancellation for thin ellipses */
+    r2 = sqrtf(kk / ((0.25f * delta) / l1)) * s;
+    cx = mx + s * x0;
+    cy = my + s * y0;
+    q11 = 1.0f / (kk * s * s);
+    if (!magcal_isfinite_f(cx) || !magcal_isfinite_f(cy) || !magcal_isfinite_f(r2) ||
+        !magcal_isfinite_f(q11) || !(q11 > 0.0f) || !(r1 > 0.0f)) {
+        return MAGCAL_ERR_ILL_CONDITIONED; /* under/overflow of a nearly singular conic */
+    }
+    out->center.x = cx;
+    out->center.y = cy;
+    out->semi_minor = r1;
+    out->semi_major = r2;
+    out->angle_rad = 0.5f * atan2f(ca, 1.0f - cb);
+    for (i = 0u; i < 5u; ++i) {
+        out->coef[i] = coef[i];
+    }
+    out->norm_center.x = mx;
+    out->norm_center.y = my;
+    out->norm_scale = s;
+    out->min_pivot = min_pivot;
+    out->qform[0] = q11;
+    out->qform[1] = 0.5f * ca * q11;
+    out->qform[2] = cb * q11;
+    out->n_used = (uint16_t)cnt;
+    out->residual_rms = (src != NULL) ? src_residual_rms(src, out, cnt) : 0.0f;
+    return MAGCAL_OK;
+}
+
+/* Pass 1 and the centred normalisation, in a frame of their own. */
+static magcal_status_t prepare_centred(const fit_src_t *src, size_t *count, fit_norm_t *nm,
+                                       float *scale)
 {
     float bb[4];
     float amax[2];
-    float mom[S_COUNT];
-    float s = 1.0f;
-    size_t cnt = 0u;
-    fit_norm_t nm;
-    magcal_ellipse_t e;
-    magcal_status_t st;
+    magcal_status_t st = src_scan(src, count, bb, amax);
 
-    st = src_scan(src, &cnt, bb, amax);
     if (st != MAGCAL_OK) {
         return st;
     }
-    st = norm_centred(bb, &nm, &s);
+    return norm_centred(bb, nm, scale);
+}
+
+/* Centred fit through the normal equations (any count >= 5). */
+static magcal_status_t fit_normal(const fit_src_t *src, magcal_ellipse_t *out)
+{
+    float mom[S_COUNT];
+    float s = 1.0f;
+    float minp = 0.0f;
+    size_t cnt = 0u;
+    fit_norm_t nm;
+    magcal_status_t st;
+
+    st = prepare_centred(src, &cnt, &nm, &s);
     if (st != MAGCAL_OK) {
         return st;
     }
     src_moments(src, &nm, 0, mom);
-    if (moments_collinear(mom, (float)cnt)) {
+    if (moments_collinear(mom, (float)cnt) != 0) {
         return MAGCAL_ERR_DEGENERATE;
     }
-    st = moments_solve(mom, (float)cnt, e.coef, &e.min_pivot);
+    st = moments_solve(mom, (float)cnt, &minp);
     if (st != MAGCAL_OK) {
         return st;
     }
-    st = conic_geometry(e.coef, nm.mx, nm.my, s, &e);
-    if (st != MAGCAL_OK) {
-        return st;
-    }
-    e.norm_center.x = nm.mx;
-    e.norm_center.y = nm.my;
-    e.norm_scale = s;
-    e.n_used = (uint16_t)cnt;
-    e.residual_rms = src_residual_rms(src, &e, cnt);
-    *out = e;
-    return MAGCAL_OK;
+    return conic_finish(mom, nm.mx, nm.my, s, minp, cnt, src, out);
 }
 
-magcal_status_t magcal_ellipse_fit(const magcal_vec2_t *pts, size_t n, const uint8_t *mask, magcal_ellipse_t *out)
+magcal_status_t magcal_ellipse_fit(const magcal_vec2_t *pts, size_t n, const uint8_t *mask,
+                                   magcal_ellipse_t *out)
 {
     fit_src_t src;
 
@@ -390,21 +428,19 @@ magcal_status_t magcal_ellipse_fit(const magcal_vec2_t *pts, size_t n, const uin
 }
 
 /* Exact conic through 5 points: Gaussian elimination with partial pivoting on W X = Y. */
-static magcal_status_t fit_five(const fit_src_t *src, magcal_ellipse_t *out)
+static ELLIPSE_NOINLINE magcal_status_t fit_five(const fit_src_t *src, magcal_ellipse_t *out)
 {
     float w[5][6];
-    float bb[4];
-    float amax[2];
+    float coef[5];
+    float mom[5];
     float s = 1.0f;
     float minp = 1.0f;
     float ptol = sqrtf(MAGCAL_ELLIPSE_PIVOT_TOL);
-    float mom[S_COUNT];
     size_t cnt = 0u;
     size_t i;
     size_t j;
     size_t k;
     fit_norm_t nm;
-    magcal_ellipse_t e;
     magcal_status_t st;
 
     for (i = 0u; i < 5u; ++i) {
@@ -414,19 +450,16 @@ static magcal_status_t fit_five(const fit_src_t *src, magcal_ellipse_t *out)
             }
         }
     }
-    st = src_scan(src, &cnt, bb, amax);
+    st = prepare_centred(src, &cnt, &nm, &s);
     if (st != MAGCAL_OK) {
         return st;
     }
-    st = norm_centred(bb, &nm, &s);
-    if (st != MAGCAL_OK) {
-        return st;
-    }
-    for (i = 0u; i < (size_t)S_COUNT; ++i) {
+    for (i = 0u; i < 5u; ++i) {
         mom[i] = 0.0f;
     }
     /* Rows [xy, y^2, x, y, 1 | -x^2]: |entries| <= 1 and the constant column makes each row's
-     * max-abs exactly 1, so the rows are already equilibrated. */
+     * max-abs exactly 1, so the rows are already equilibrated. mom[] gets S10, S01, S20, S11, S02
+     * (the first five moment indices) for the collinearity test. */
     for (i = 0u; i < 5u; ++i) {
         magcal_vec2_t p = src->pts[src->idx[i]];
         float x = (p.x - nm.mx) * nm.isx;
@@ -443,7 +476,7 @@ static magcal_status_t fit_five(const fit_src_t *src, magcal_ellipse_t *out)
         mom[S11] += x * y;
         mom[S02] += y * y;
     }
-    if (moments_collinear(mom, 5.0f)) {
+    if (moments_collinear(mom, 5.0f) != 0) {
         return MAGCAL_ERR_DEGENERATE;
     }
     for (k = 0u; k < 5u; ++k) {
@@ -473,29 +506,20 @@ static magcal_status_t fit_five(const fit_src_t *src, magcal_ellipse_t *out)
             }
         }
     }
-    for (k = 5u; k-- > 0u;) {
-        float acc = w[k][5];
+    for (i = 0u; i < 5u; ++i) { /* back substitution, k = 4 .. 0 */
+        float acc;
+        k = 4u - i;
+        acc = w[k][5];
         for (j = k + 1u; j < 5u; ++j) {
-            acc -= w[k][j] * e.coef[j];
+            acc -= w[k][j] * coef[j];
         }
-        e.coef[k] = acc / w[k][k];
+        coef[k] = acc / w[k][k];
     }
-    e.min_pivot = minp;
-    st = conic_geometry(e.coef, nm.mx, nm.my, s, &e);
-    if (st != MAGCAL_OK) {
-        return st;
-    }
-    e.norm_center.x = nm.mx;
-    e.norm_center.y = nm.my;
-    e.norm_scale = s;
-    e.n_used = 5u;
-    e.residual_rms = src_residual_rms(src, &e, 5u);
-    *out = e;
-    return MAGCAL_OK;
+    return conic_finish(coef, nm.mx, nm.my, s, minp, 5u, src, out);
 }
 
-magcal_status_t magcal_ellipse_fit_idx(const magcal_vec2_t *pts, size_t n_pts, const uint16_t *idx, size_t m,
-                                       magcal_ellipse_t *out)
+magcal_status_t magcal_ellipse_fit_idx(const magcal_vec2_t *pts, size_t n_pts, const uint16_t *idx,
+                                       size_t m, magcal_ellipse_t *out)
 {
     fit_src_t src;
     size_t k;
@@ -524,20 +548,38 @@ magcal_status_t magcal_ellipse_fit_idx(const magcal_vec2_t *pts, size_t n_pts, c
     return fit_normal(&src, out);
 }
 
+/* Pass 1 and the seed's max-abs normalisation (no centring), in a frame of their own. */
+static magcal_status_t prepare_seed(const fit_src_t *src, size_t *count, fit_norm_t *nm)
+{
+    float bb[4];
+    float amax[2];
+    magcal_status_t st = src_scan(src, count, bb, amax);
+
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    if (!(amax[0] > 0.0f) || !(amax[1] > 0.0f)) {
+        return MAGCAL_ERR_DEGENERATE; /* a whole axis is zero: collinear */
+    }
+    nm->mx = 0.0f;
+    nm->my = 0.0f;
+    nm->isx = 1.0f / amax[0];
+    nm->isy = 1.0f / amax[1];
+    return MAGCAL_OK;
+}
+
 magcal_status_t magcal_ellipse_fit_seed(const magcal_vec2_t *pts, size_t n, const uint8_t *mask,
                                         magcal_ellipse_t *out)
 {
     fit_src_t src;
-    float bb[4];
-    float amax[2];
     float mom[S_COUNT];
-    float c[5];
+    float cu[5];
     float sx;
     float sy;
     float rx;
+    float minp = 0.0f;
     size_t cnt = 0u;
     fit_norm_t nm;
-    magcal_ellipse_t e;
     magcal_status_t st;
 
     if (pts == NULL || out == NULL) {
@@ -547,45 +589,28 @@ magcal_status_t magcal_ellipse_fit_seed(const magcal_vec2_t *pts, size_t n, cons
     src.n = n;
     src.mask = mask;
     src.idx = NULL;
-    st = src_scan(&src, &cnt, bb, amax);
+    st = prepare_seed(&src, &cnt, &nm);
     if (st != MAGCAL_OK) {
         return st;
     }
-    if (!(amax[0] > 0.0f) || !(amax[1] > 0.0f)) {
-        return MAGCAL_ERR_DEGENERATE; /* a whole axis is zero: collinear */
-    }
-    sx = amax[0];
-    sy = amax[1];
-    nm.mx = 0.0f;
-    nm.my = 0.0f;
-    nm.isx = 1.0f / sx;
-    nm.isy = 1.0f / sy;
     src_moments(&src, &nm, 1, mom);
-    if (moments_collinear(mom, (float)cnt)) {
+    if (moments_collinear(mom, (float)cnt) != 0) {
         return MAGCAL_ERR_DEGENERATE;
     }
-    st = moments_solve(mom, (float)cnt, c, &e.min_pivot);
+    st = moments_solve(mom, (float)cnt, &minp);
     if (st != MAGCAL_OK) {
         return st;
     }
-    /* Back to input units (algorithms.md 2.2 with mx = my = 0). */
+    /* Back to input units (algorithms.md 2.2 with mx = my = 0); geometry extracted there. */
+    sx = 1.0f / nm.isx;
+    sy = 1.0f / nm.isy;
     rx = sx / sy;
-    e.coef[0] = c[0] * rx;
-    e.coef[1] = c[1] * rx * rx;
-    e.coef[2] = c[2] * sx;
-    e.coef[3] = c[3] * sx * rx;
-    e.coef[4] = c[4] * sx * sx;
-    st = conic_geometry(e.coef, 0.0f, 0.0f, 1.0f, &e);
-    if (st != MAGCAL_OK) {
-        return st;
-    }
-    e.norm_center.x = 0.0f;
-    e.norm_center.y = 0.0f;
-    e.norm_scale = 1.0f;
-    e.n_used = (uint16_t)cnt;
-    e.residual_rms = src_residual_rms(&src, &e, cnt);
-    *out = e;
-    return MAGCAL_OK;
+    cu[0] = mom[0] * rx;
+    cu[1] = mom[1] * rx * rx;
+    cu[2] = mom[2] * sx;
+    cu[3] = mom[3] * sx * rx;
+    cu[4] = mom[4] * sx * sx;
+    return conic_finish(cu, 0.0f, 0.0f, 1.0f, minp, cnt, &src, out);
 }
 
 magcal_status_t magcal_ellipse_to_cal(const magcal_ellipse_t *e, magcal_corr_form_t form, float rho,
@@ -606,8 +631,9 @@ magcal_status_t magcal_ellipse_to_cal(const magcal_ellipse_t *e, magcal_corr_for
     }
     r1 = e->semi_minor;
     r2 = e->semi_major;
-    if (!magcal_isfinite_f(r2) || !magcal_isfinite_f(e->angle_rad) || !magcal_isfinite_f(e->center.x) ||
-        !magcal_isfinite_f(e->center.y) || !(r1 > 0.0f) || !(r1 <= r2)) {
+    if (!magcal_isfinite_f(r2) || !magcal_isfinite_f(e->angle_rad) ||
+        !magcal_isfinite_f(e->center.x) || !magcal_isfinite_f(e->center.y) || !(r1 > 0.0f) ||
+        !(r1 <= r2)) {
         return MAGCAL_ERR_ARG;
     }
     c = cosf(e->angle_rad);
@@ -648,24 +674,22 @@ magcal_status_t magcal_ellipse_to_cal(const magcal_ellipse_t *e, magcal_corr_for
         cal.m[1][1] = out_r / (r1 * r2 * sq);
         break;
     }
-    default:
-        return MAGCAL_ERR_ARG;
+    default: return MAGCAL_ERR_ARG;
     }
     cal.offset = e->center;
     cal.radius = out_r;
     cal.magic = MAGCAL_CAL2D_MAGIC;
-    if (!magcal_isfinite_f(cal.m[0][0]) || !magcal_isfinite_f(cal.m[0][1]) || !magcal_isfinite_f(cal.m[1][1])) {
+    if (!magcal_isfinite_f(cal.m[0][0]) || !magcal_isfinite_f(cal.m[0][1]) ||
+        !magcal_isfinite_f(cal.m[1][1])) {
         return MAGCAL_ERR_ARG;
     }
     *out = cal;
     return MAGCAL_OK;
 }
 
-magcal_status_t magcal_ellipse_from_conic(const float coef[5], magcal_vec2_t norm_center, float norm_scale,
-                                          magcal_ellipse_t *out)
+magcal_status_t magcal_ellipse_from_conic(const float coef[5], magcal_vec2_t norm_center,
+                                          float norm_scale, magcal_ellipse_t *out)
 {
-    magcal_ellipse_t e;
-    magcal_status_t st;
     size_t i;
 
     if (coef == NULL || out == NULL) {
@@ -675,23 +699,13 @@ magcal_status_t magcal_ellipse_from_conic(const float coef[5], magcal_vec2_t nor
         if (!magcal_isfinite_f(coef[i])) {
             return MAGCAL_ERR_NONFINITE;
         }
-        e.coef[i] = coef[i];
     }
-    if (!magcal_isfinite_f(norm_center.x) || !magcal_isfinite_f(norm_center.y) || !magcal_isfinite_f(norm_scale)) {
+    if (!magcal_isfinite_f(norm_center.x) || !magcal_isfinite_f(norm_center.y) ||
+        !magcal_isfinite_f(norm_scale)) {
         return MAGCAL_ERR_NONFINITE;
     }
     if (!(norm_scale > 0.0f)) {
         return MAGCAL_ERR_ARG;
     }
-    st = conic_geometry(e.coef, norm_center.x, norm_center.y, norm_scale, &e);
-    if (st != MAGCAL_OK) {
-        return st;
-    }
-    e.norm_center = norm_center;
-    e.norm_scale = norm_scale;
-    e.residual_rms = 0.0f;
-    e.min_pivot = 1.0f;
-    e.n_used = 0u;
-    *out = e;
-    return MAGCAL_OK;
+    return conic_finish(coef, norm_center.x, norm_center.y, norm_scale, 1.0f, 0u, NULL, out);
 }

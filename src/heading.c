@@ -16,8 +16,9 @@ magcal_status_t magcal_cal2d_validate(const magcal_cal2d_t *c)
     if (c->magic != MAGCAL_CAL2D_MAGIC) {
         return MAGCAL_ERR_NOT_INITIALISED;
     }
-    if (!magcal_isfinite_f(c->offset.x) || !magcal_isfinite_f(c->offset.y) || !magcal_isfinite_f(c->m[0][0]) ||
-        !magcal_isfinite_f(c->m[0][1]) || !magcal_isfinite_f(c->m[1][0]) || !magcal_isfinite_f(c->m[1][1]) ||
+    if (!magcal_isfinite_f(c->offset.x) || !magcal_isfinite_f(c->offset.y) ||
+        !magcal_isfinite_f(c->m[0][0]) || !magcal_isfinite_f(c->m[0][1]) ||
+        !magcal_isfinite_f(c->m[1][0]) || !magcal_isfinite_f(c->m[1][1]) ||
         !magcal_isfinite_f(c->radius)) {
         return MAGCAL_ERR_NONFINITE;
     }
@@ -85,8 +86,8 @@ magcal_status_t magcal_heading_from_field(magcal_vec2_t h, float *heading_deg)
     return MAGCAL_OK;
 }
 
-magcal_status_t magcal_heading_compute(const magcal_cal2d_t *c, magcal_vec2_t raw, float declination_deg,
-                                       float *magnetic_deg, float *true_deg)
+magcal_status_t magcal_heading_compute(const magcal_cal2d_t *c, magcal_vec2_t raw,
+                                       float declination_deg, float *magnetic_deg, float *true_deg)
 {
     magcal_status_t st;
     magcal_vec2_t h;
@@ -117,7 +118,20 @@ magcal_status_t magcal_heading_compute(const magcal_cal2d_t *c, magcal_vec2_t ra
     }
     *magnetic_deg = mag;
     if (true_deg != NULL) {
-        *true_deg = magcal_wrap360_deg(mag + declination_deg);
+        /* mag in [0, 360), declination in [-180, 180]: one add or subtract reaches [0, 360)
+         * (no fmodf); a sum that rounds up to 360 reads 0. */
+        float t = mag + declination_deg;
+        if (t < 0.0f) {
+            t += 360.0f;
+        } else if (t >= 360.0f) {
+            t -= 360.0f;
+        } else {
+            /* already in range */
+        }
+        if (t >= 360.0f || t == 0.0f) {
+            t = 0.0f;
+        }
+        *true_deg = t;
     }
     return MAGCAL_OK;
 }

@@ -15,8 +15,8 @@
 
 typedef struct {
     const uint16_t *idx; /* NULL: identity (brute force) */
-    uint16_t begin[3];
-    uint16_t end[3];
+    uint16_t begin[9];
+    uint16_t end[9];
     uint16_t n_ranges;
 } magcal_nbr_ranges_t;
 
@@ -27,10 +27,11 @@ typedef struct {
     float x0;
     float y0;
     float inv_h;
-    uint16_t gw;
-    uint16_t gh;
-    uint16_t *idx;   /* n entries, points sorted by cell */
-    uint16_t *start; /* gw*gh + 1 entries */
+    uint16_t gw;     /* cells per row (<= 2^15) */
+    uint16_t gh;     /* rows (<= 2^15) */
+    uint16_t nbkt;   /* buckets G: cell (cx, cy) lives in bucket (cx + cy*gw) mod G */
+    uint16_t *idx;   /* n entries, points sorted by bucket */
+    uint16_t *start; /* G + 1 entries */
 } magcal_nbr_t;
 
 /*
@@ -38,11 +39,16 @@ typedef struct {
  * (grid over the bounding box) or {xmin, ymin, xmax, ymax}: the grid covers only the window and
  * points outside are clamped into the border cells (still exact: clamping is monotone, so two
  * points within eps stay in adjacent cells; only the border cells get fuller).
- * Grid cell side h = eps*(1 + 2^-7), doubled until the grid fits MAGCAL_OPTICS_GRID_CELLS(n).
+ * Uniform grid with cell side h = eps*(1 + 2^-6) over the box; the row-major cell number is
+ * folded modulo G = MAGCAL_OPTICS_GRID_CELLS(n) buckets and the points are counting-sorted by
+ * bucket. When the grid has no more than G cells this IS the plain dense grid of algorithms.md
+ * 4.4; when far outliers stretch the box beyond G cells, distant cells share buckets (a few extra
+ * candidates that the distance test rejects) instead of the cell side growing or the search
+ * falling back to brute force. A query visits the (deduplicated) buckets of the 3x3 cells.
  * Falls back to brute force when mode is BRUTE, eps is not finite, or the points are all equal.
  */
-void magcal_nbr_build(magcal_nbr_t *nb, const magcal_vec2_t *pts, size_t n, float eps, magcal_neighbors_t mode,
-                      void *mem, const float *window);
+void magcal_nbr_build(magcal_nbr_t *nb, const magcal_vec2_t *pts, size_t n, float eps,
+                      magcal_neighbors_t mode, void *mem, const float *window);
 
 /* Candidate ranges for a query at point index p (every point within eps of p is in them). */
 void magcal_nbr_query(const magcal_nbr_t *nb, size_t p, magcal_nbr_ranges_t *r);

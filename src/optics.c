@@ -21,8 +21,11 @@ typedef struct {
     uint16_t *seeds; /* heap (CLASSIC) or unordered list (IMPROVED) */
     uint16_t *pos;   /* CLASSIC: heap position of each point or POS_NONE */
     uint8_t *done;   /* processed bits */
+    float *best;     /* MinPts insertion buffer (workspace, keeps process() frame small) */
     size_t n_seeds;
     size_t n_done;
+    uint16_t *live; /* brute force only: unprocessed points (reuses the unused grid index) */
+    size_t n_live;
     uint16_t *order; /* optional outputs */
     float *core;
     uint16_t *pred;
@@ -38,7 +41,7 @@ typedef struct {
 
 static int is_done(const optics_ctx_t *c, size_t i)
 {
-    return (c->done[i >> 3] >> (i & 7u)) & 1u;
+    return (int)(((unsigned)c->done[i >> 3] >> (unsigned)(i & 7u)) & 1u);
 }
 
 /* (reach, index) lexicographic order: the tie rule that makes every variant identical. */
@@ -68,13 +71,9 @@ static void heap_sift_down(optics_ctx_t *c, size_t k)
 {
     uint16_t v = c->seeds[k];
     size_t m = c->n_seeds;
-    for (;;) {
+    while (2u * k + 1u < m) { /* k at least doubles: <= log2(m) rounds */
         size_t child = 2u * k + 1u;
-        uint16_t cv;
-        if (child >= m) {
-            break;
-        }
-        cv = c->seeds[child];
+        uint16_t cv = c->seeds[child];
         if (child + 1u < m && key_less(c->reach, c->seeds[child + 1u], cv)) {
             ++child;
             cv = c->seeds[child];
@@ -149,9 +148,71 @@ static void extract_step(optics_ctx_t *c, size_t p, float core_p)
     c->labels[p] = lab;
 }
 
+/*
+ * Reach decrease of unprocessed neighbour j of core point p to r (algorithms.md 4.2): callers
+ * computed r = max(core(p), d) and checked r < reach[j] (strict: the first value set keeps ties).
+ */
+static void update_one(optics_ctx_t *c, size_t p, size_t j, float r)
+{
+    float old = c->reach[j];
+    c->reach[j] = r;
+    if (c->pred != NULL) {
+        c->pred[j] = (uint16_t)p;
+    }
+    if (c->mode == MAGCAL_OPTICS_CLASSIC) {
+        if (c->pos[j] == POS_NONE) {
+            c->seeds[c->n_seeds] = (uint16_t)j;
+            c->n_seeds++;
+            heap_sift_up(c, c->n_seeds - 1u);
+        } else {
+            heap_sift_up(c, c->pos[j]);
+        }
+    } else if (old == INFINITY) {
+        c->seeds[c->n_seeds] = (uint16_t)j;
+        c->n_seeds++;
+    }
+}
+
+/*
+ * r = max(core, sqrt(d2)) without the square root when d2 <= core^2 (then r = core exactly:
+ * sqrtf is monotone and core = sqrtf(core2)), so most reach candidates cost no sqrt and no bit of
+ * the result changes.
+ */
+#define REACH_OF(d2, core_p, core2) ((d2) <= (core2) ? (core_p) : sqrtf(d2))
+
+/*
+ * Brute-force pass 2 over the compact list of unprocessed points (the point processed last is
+ * dropped as it is met, so the k-th pass costs n - k instead of n).
+ */
+static void live_pass(optics_ctx_t *c, size_t p, float core_p, float core2)
+{
+    const magcal_vec2_t *pts = c->pts;
+    const float px = pts[p].x, py = pts[p].y, eps2 = c->eps2;
+    uint16_t *live = c->live;
+    size_t k, w = 0u, nl = c->n_live;
+    for (k = 0; k < nl; ++k) {
+        size_t j = live[k];
+        if (j == p) {
+            continue; /* the only point processed since the last pass */
+        }
+        live[w++] = (uint16_t)j;
+        if (core_p < INFINITY) {
+            float dx = pts[j].x - px, dy = pts[j].y - py;
+            float d2 = dx * dx + dy * dy;
+            if (d2 <= eps2) {
+                float r = REACH_OF(d2, core_p, core2);
+                if (r < c->reach[j]) {
+                    update_one(c, p, j, r);
+                }
+            }
+        }
+    }
+    c->n_live = w;
+}
+
 static void process(optics_ctx_t *c, size_t p)
 {
-    float best[MAGCAL_MAX_MIN_PTS];
+    float *best = c->best;
     size_t cnt = 0u, m = c->min_pts, ri, k;
     const magcal_vec2_t *pts = c->pts;
     const float px = pts[p].x, py = pts[p].y, eps2 = c->eps2;
@@ -164,11 +225,32 @@ static void process(optics_ctx_t *c, size_t p)
     }
     c->n_done++;
 
-    /* Pass 1: core distance = MinPts-th smallest d^2 (p itself included, d = 0). */
+    /* Pass 1: core distance = MinPts-th smallest d^2 (p itself included, d = 0), kept in a
+     * sorted insertion buffer; once it holds m values only d^2 < best[m-1] (<= eps^2) enters. */
     magcal_nbr_query(&c->nb, p, &rg);
-    for (ri = 0; ri < rg.n_ranges; ++ri) {
+    if (rg.idx == NULL) {
+        /* brute force: plain sweep; lim = eps^2 until m values are held, then best[m-1] */
+        float lim = eps2;
+        size_t n = c->n;
+        for (k = 0; k < n; ++k) {
+            float dx = pts[k].x - px, dy = pts[k].y - py;
+            float d2 = dx * dx + dy * dy;
+            if (d2 <= lim && (cnt < m || d2 < lim)) {
+                size_t t = cnt < m ? cnt++ : m - 1u;
+                while (t > 0u && best[t - 1u] > d2) {
+                    best[t] = best[t - 1u];
+                    --t;
+                }
+                best[t] = d2;
+                if (cnt == m) {
+                    lim = best[m - 1u];
+                }
+            }
+        }
+    }
+    for (ri = 0; rg.idx != NULL && ri < rg.n_ranges; ++ri) {
         for (k = rg.begin[ri]; k < rg.end[ri]; ++k) {
-            size_t j = rg.idx != NULL ? rg.idx[k] : k;
+            size_t j = rg.idx[k];
             float dx = pts[j].x - px, dy = pts[j].y - py;
             float d2 = dx * dx + dy * dy;
             if (d2 <= eps2 && (cnt < m || d2 < best[m - 1u])) {
@@ -190,40 +272,24 @@ static void process(optics_ctx_t *c, size_t p)
     if (c->labels != NULL) {
         extract_step(c, p, core_p);
     }
+    if (c->live != NULL) {
+        live_pass(c, p, cnt >= m ? core_p : INFINITY, cnt >= m ? best[m - 1u] : INFINITY);
+        return;
+    }
     if (cnt < m) {
         return;
     }
-    /* Pass 2: reachability updates of the unprocessed neighbours. */
+    /* Pass 2 (grid): reachability updates of the unprocessed neighbours. */
     for (ri = 0; ri < rg.n_ranges; ++ri) {
         for (k = rg.begin[ri]; k < rg.end[ri]; ++k) {
             size_t j = rg.idx != NULL ? rg.idx[k] : k;
             float dx = pts[j].x - px, dy = pts[j].y - py;
             float d2 = dx * dx + dy * dy;
-            float r, old;
-            if (d2 > eps2 || is_done(c, j)) {
-                continue;
-            }
-            r = sqrtf(d2);
-            r = r > core_p ? r : core_p;
-            old = c->reach[j];
-            if (!(r < old)) {
-                continue;
-            }
-            c->reach[j] = r;
-            if (c->pred != NULL) {
-                c->pred[j] = (uint16_t)p;
-            }
-            if (c->mode == MAGCAL_OPTICS_CLASSIC) {
-                if (c->pos[j] == POS_NONE) {
-                    c->seeds[c->n_seeds] = (uint16_t)j;
-                    c->n_seeds++;
-                    heap_sift_up(c, c->n_seeds - 1u);
-                } else {
-                    heap_sift_up(c, c->pos[j]);
+            if (d2 <= eps2 && !is_done(c, j)) {
+                float r = REACH_OF(d2, core_p, best[m - 1u]);
+                if (r < c->reach[j]) {
+                    update_one(c, p, j, r);
                 }
-            } else if (old == INFINITY) {
-                c->seeds[c->n_seeds] = (uint16_t)j;
-                c->n_seeds++;
             }
         }
     }
@@ -242,6 +308,14 @@ static void optics_loop(optics_ctx_t *c)
         }
     }
     memset(c->done, 0, (c->n + 7u) / 8u);
+    if (!c->nb.use_grid) {
+        c->live = c->nb.idx;
+        for (i = 0; i < c->n; ++i) {
+            c->live[i] = (uint16_t)i;
+        }
+        c->n_live = c->n;
+    }
+
     c->n_seeds = 0u;
     c->n_done = 0u;
     for (s = 0; s < c->n; ++s) {
@@ -288,8 +362,8 @@ static magcal_status_t check_cfg(const magcal_optics_cfg_t *cfg)
 }
 
 /* Carve the run workspace (uint16 seeds, pos, neighbour index, done bits) and build the index. */
-static void ctx_setup(optics_ctx_t *c, const magcal_optics_cfg_t *cfg, const magcal_vec2_t *pts, size_t n,
-                      uint8_t *w, const float *window)
+static void ctx_setup(optics_ctx_t *c, const magcal_optics_cfg_t *cfg, const magcal_vec2_t *pts,
+                      size_t n, uint8_t *w, const float *window)
 {
     memset(c, 0, sizeof *c);
     c->pts = pts;
@@ -300,12 +374,14 @@ static void ctx_setup(optics_ctx_t *c, const magcal_optics_cfg_t *cfg, const mag
     c->seeds = (uint16_t *)(void *)w;
     c->pos = c->seeds + n;
     c->done = w + 4u * n + MAGCAL_NEIGHBORS_WORKSPACE_LEN(n);
+    c->best = (float *)(void *)(w + MAGCAL_OPTICS_BEST_OFFSET_(n));
     c->id = -1;
     c->best_id = -1;
     magcal_nbr_build(&c->nb, pts, n, cfg->eps, cfg->neighbors, w + 4u * n, window);
 }
 
-static void fill_info(magcal_optics_result_t *info, const optics_ctx_t *c, float eps, float eps_prime)
+static void fill_info(magcal_optics_result_t *info, const optics_ctx_t *c, float eps,
+                      float eps_prime)
 {
     if (info == NULL) {
         return;
@@ -318,13 +394,15 @@ static void fill_info(magcal_optics_result_t *info, const optics_ctx_t *c, float
     info->largest_id = MAGCAL_OPTICS_NOISE;
 }
 
-magcal_status_t magcal_optics_run(const magcal_optics_cfg_t *cfg, const magcal_vec2_t *pts, size_t n,
-                                  void *work, size_t work_len, uint16_t *order, float *reach,
-                                  float *core, uint16_t *pred, magcal_optics_result_t *info)
+magcal_status_t magcal_optics_run(const magcal_optics_cfg_t *cfg, const magcal_vec2_t *pts,
+                                  size_t n, void *work, size_t work_len, uint16_t *order,
+                                  float *reach, float *core, uint16_t *pred,
+                                  magcal_optics_result_t *info)
 {
     optics_ctx_t c;
     magcal_status_t st;
-    if (cfg == NULL || pts == NULL || work == NULL || order == NULL || reach == NULL || core == NULL) {
+    if (cfg == NULL || pts == NULL || work == NULL || order == NULL || reach == NULL ||
+        core == NULL) {
         return MAGCAL_ERR_NULL;
     }
     st = check_cfg(cfg);
@@ -351,9 +429,9 @@ magcal_status_t magcal_optics_run(const magcal_optics_cfg_t *cfg, const magcal_v
     return MAGCAL_OK;
 }
 
-magcal_status_t magcal_optics_extract_dbscan(const uint16_t *order, const float *reach, const float *core,
-                                             size_t n, float eps, float eps_prime, int16_t *labels,
-                                             uint16_t *n_clusters)
+magcal_status_t magcal_optics_extract_dbscan(const uint16_t *order, const float *reach,
+                                             const float *core, size_t n, float eps,
+                                             float eps_prime, int16_t *labels, uint16_t *n_clusters)
 {
     size_t k;
     int32_t id = -1;
@@ -388,8 +466,9 @@ magcal_status_t magcal_optics_extract_dbscan(const uint16_t *order, const float 
     return MAGCAL_OK;
 }
 
-magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, void *work, size_t work_len,
-                                              uint8_t *inlier_mask, int16_t *cluster_id, uint16_t *count)
+magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, void *work,
+                                              size_t work_len, uint8_t *inlier_mask,
+                                              int16_t *cluster_id, uint16_t *count)
 {
     uint16_t *cnt;
     size_t i, best_count = 0u;
@@ -441,11 +520,11 @@ magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, v
 
 #define AUTO_MIN_N 16u
 #define AUTO_MIN_PTS 4u
-#define AUTO_BAND 0.5f    /* ring band: | |p-c| - R | <= 0.5 R */
-#define AUTO_SAFETY 1.5f  /* eps' = 1.5 * measured requirement */
-#define AUTO_CORE_Q 0.9f  /* quantile of the per-point core requirement */
-#define AUTO_WIN 4u       /* angular neighbours looked at on each side */
-#define AUTO_TRIM 3.0f    /* centre passes after the first use points within 3 R */
+#define AUTO_BAND 0.5f   /* ring band: | |p-c| - R | <= 0.5 R */
+#define AUTO_SAFETY 1.5f /* eps' = 1.5 * measured requirement */
+#define AUTO_CORE_Q 0.9f /* quantile of the per-point core requirement */
+#define AUTO_WIN 4u      /* angular neighbours looked at on each side */
+#define AUTO_TRIM 3.0f   /* centre passes after the first use points within 3 R */
 #define AUTO_TRIM_PASSES 2u
 #define AUTO_MIN_REL (1.0f / 256.0f)
 #define AUTO_MAX_REL 1.0f
@@ -456,8 +535,8 @@ static float select_kth(float *a, size_t n, size_t k)
     size_t lo = 0u, hi = n - 1u;
     while (lo < hi) {
         float pivot = a[lo + (hi - lo) / 2u];
-        size_t i = lo, j = hi;
-        for (;;) {
+        size_t i = lo, j = hi, guard;
+        for (guard = lo; guard <= hi; ++guard) { /* i grows by >= 1 per round: <= hi-lo+1 rounds */
             float t;
             while (a[i] < pivot) {
                 ++i;
@@ -493,11 +572,8 @@ static int sort_less(const float *key, uint16_t a, uint16_t b)
 static void sort_sift(uint16_t *idx, const float *key, size_t k, size_t m)
 {
     uint16_t v = idx[k];
-    for (;;) {
+    while (2u * k + 1u < m) {
         size_t child = 2u * k + 1u;
-        if (child >= m) {
-            break;
-        }
         if (child + 1u < m && sort_less(key, idx[child], idx[child + 1u])) {
             ++child;
         }
@@ -650,8 +726,9 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
     return MAGCAL_OK;
 }
 
-magcal_status_t magcal_optics_auto_params(const magcal_vec2_t *pts, size_t n, void *work, size_t work_len,
-                                          float *eps, uint16_t *min_pts, float *eps_prime)
+magcal_status_t magcal_optics_auto_params(const magcal_vec2_t *pts, size_t n, void *work,
+                                          size_t work_len, float *eps, uint16_t *min_pts,
+                                          float *eps_prime)
 {
     magcal_status_t st;
     float e;
@@ -678,8 +755,8 @@ magcal_status_t magcal_optics_auto_params(const magcal_vec2_t *pts, size_t n, vo
     return MAGCAL_OK;
 }
 
-magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magcal_vec2_t *pts, size_t n,
-                                     void *work, size_t work_len, uint8_t *inlier_mask,
+magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magcal_vec2_t *pts,
+                                     size_t n, void *work, size_t work_len, uint8_t *inlier_mask,
                                      magcal_optics_result_t *info)
 {
     magcal_optics_cfg_t use;
@@ -739,7 +816,7 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
             return MAGCAL_ERR_WORKSPACE;
         }
     }
-    ctx_setup(&c, &use, pts, n, w + 6u * n, win);
+    ctx_setup(&c, &use, pts, n, w + MAGCAL_OPTICS_FILTER_RUN_OFFSET_(n), win);
     c.reach = (float *)work;
     c.labels = (int16_t *)(void *)(w + 4u * n);
     c.eps_prime = eps_prime;

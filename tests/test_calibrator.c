@@ -114,6 +114,34 @@ static const magcal_test_dump_t *const g_scen[] = {
 };
 #define N_SCEN (sizeof g_scen / sizeof g_scen[0])
 
+/* ---------------------------------------------------------------- the truth itself */
+
+/* The floor stored by tools/gen_dump.py (float64) is recomputed here from the truth fields:
+ * M = T^-1, offset b, applied to the verification rows; agreement within 1 % (float32 rows). */
+static void test_truth_floor_recomputes_in_c(void)
+{
+    size_t s;
+    for (s = 0; s < N_SCEN; ++s) {
+        const magcal_test_dump_t *d = g_scen[s];
+        const magcal_test_truth_t *t = d->truth;
+        magcal_cal2d_t c = MAGCAL_CAL2D_IDENTITY;
+        float det = t->t00 * t->t11 - t->t01 * t->t10;
+        double rms;
+        c.offset.x = t->bx;
+        c.offset.y = t->by;
+        c.m[0][0] = t->t11 / det;
+        c.m[0][1] = -t->t01 / det;
+        c.m[1][0] = -t->t10 / det;
+        c.m[1][1] = t->t00 / det;
+        c.radius = t->h0;
+        rms = heading_rms(d, &c, t->n_cal, d->n);
+        TEST_ASSERT_FLOAT_WITHIN_MESSAGE(0.01f * t->floor_deg, t->floor_deg, (float)rms, d->name);
+        /* the floor is close to the CRLB 57.3 sigma/h0 (noise shaped by M, algorithms.md 9) */
+        TEST_ASSERT_TRUE_MESSAGE(rms > 0.5 * 57.2958 * t->sigma / t->h0 && rms < 2.0 * 57.2958 * t->sigma / t->h0,
+                                 d->name);
+    }
+}
+
 /* ---------------------------------------------------------------- default pipeline on every scenario */
 
 /* Default (automatic) parameters: heading RMS <= 1.2 x floor, recall >= 90 %, false rejections
@@ -128,9 +156,10 @@ static void test_run_every_scenario_default_within_1p2_floor(void)
         const magcal_test_dump_t *d = g_scen[s];
         run_t r;
         run_dump(d, &cfg, &r);
-        printf("%-34s %6d %8.4f %8.4f %6.3f %7.3f %7.4f %5u %5u\n", d->name, (int)r.st, r.rms_deg,
+        printf("%-34s %6d %8.4f %8.4f %6.3f %7.3f %7.4f %5u %5u%s\n", d->name, (int)r.st, r.rms_deg,
                (double)d->truth->floor_deg, r.ratio, recall(&r), false_rate(&r),
-               (unsigned)r.rep.rejected_filter, (unsigned)r.rep.rejected_consensus);
+               (unsigned)r.rep.rejected_filter, (unsigned)r.rep.rejected_consensus,
+               r.rep.filter_fragmented ? " (filter split the ring: consensus drew from all)" : "");
     }
     for (s = 0; s < N_SCEN; ++s) {
         const magcal_test_dump_t *d = g_scen[s];
@@ -175,6 +204,31 @@ static void test_run_outlier_scenarios_plain_ls_fails(void)
     }
 }
 
+/* Every filter choice (OPTICS classic, DBSCAN with automatic eps', none) followed by the consensus
+ * meets the same targets on the burst and spike dumps. */
+static void test_run_every_filter_choice_within_1p2_floor(void)
+{
+    static const magcal_test_dump_t *const dumps[] = {&dump_synthetic_outliers_25, &dump_synthetic_outliers_35,
+                                                      &dump_synthetic_near_ring, &dump_synthetic_spikes};
+    static const magcal_calibrator_filter_t filters[] = {MAGCAL_FILTER_OPTICS_CLASSIC, MAGCAL_FILTER_DBSCAN,
+                                                         MAGCAL_FILTER_NONE};
+    size_t s, f;
+    for (f = 0; f < sizeof filters / sizeof filters[0]; ++f) {
+        for (s = 0; s < sizeof dumps / sizeof dumps[0]; ++s) {
+            magcal_calibrator_cfg_t cfg = MAGCAL_CALIBRATOR_CFG_DEFAULT;
+            run_t r;
+            cfg.filter = filters[f];
+            run_dump(dumps[s], &cfg, &r);
+            printf("filter %d %-34s ratio %.3f recall %.3f false %.4f\n", (int)filters[f], dumps[s]->name, r.ratio,
+                   recall(&r), false_rate(&r));
+            TEST_ASSERT_EQUAL_INT_MESSAGE(MAGCAL_OK, r.st, dumps[s]->name);
+            TEST_ASSERT_TRUE_MESSAGE(r.ratio <= 1.2, dumps[s]->name);
+            TEST_ASSERT_TRUE_MESSAGE(recall(&r) >= 0.90, dumps[s]->name);
+            TEST_ASSERT_TRUE_MESSAGE(false_rate(&r) <= 0.05, dumps[s]->name);
+        }
+    }
+}
+
 /* ---------------------------------------------------------------- bad input keeps the old calibration */
 
 /* A valid, non-identity calibration to protect. */
@@ -202,6 +256,7 @@ static void expect_run_keeps(magcal_status_t want)
     TEST_ASSERT_EQUAL_UINT8(0u, rep.adopted);
     TEST_ASSERT_EQUAL_MEMORY(&ref, &c, sizeof c);
     TEST_ASSERT_EQUAL_INT(MAGCAL_CALIBRATOR_FAILED, magcal_calibrator_state(&g_cal));
+    TEST_ASSERT_EQUAL_INT(want, magcal_calibrator_last_status(&g_cal));
 }
 
 static void init_default(void)
@@ -657,8 +712,10 @@ static void test_run_lsm9ds1_driver_glitches_all_rejected(void)
 int main(void)
 {
     UNITY_BEGIN();
+    RUN_TEST(test_truth_floor_recomputes_in_c);
     RUN_TEST(test_run_every_scenario_default_within_1p2_floor);
     RUN_TEST(test_run_outlier_scenarios_plain_ls_fails);
+    RUN_TEST(test_run_every_filter_choice_within_1p2_floor);
     RUN_TEST(test_push_nonfinite_returns_nonfinite_not_stored);
     RUN_TEST(test_run_identical_points_returns_degenerate_keeps_cal);
     RUN_TEST(test_run_collinear_points_returns_degenerate_keeps_cal);

@@ -30,7 +30,8 @@ static void make_points(magcal_vec2_t *p, size_t n, uint32_t seed, int ties)
     size_t i;
     for (i = 0; i < n; ++i) {
         double a = 6.283185307179586 * test_rand_uniform(&rng);
-        double r = test_rand_uniform(&rng) < 0.85 ? 1.0 + 0.05 * test_rand_normal(&rng) : 3.0 * test_rand_uniform(&rng);
+        double r = test_rand_uniform(&rng) < 0.85 ? 1.0 + 0.05 * test_rand_normal(&rng)
+                                                  : 3.0 * test_rand_uniform(&rng);
         p[i].x = (float)(r * cos(a));
         p[i].y = (float)(r * sin(a));
         if (ties) {
@@ -138,9 +139,13 @@ static void test_dbscan_run_brute_equals_grid_and_satisfies_definition(void)
                 c.eps = eps_list[ie];
                 c.min_pts = mp_list[im];
                 c.neighbors = MAGCAL_NEIGHBORS_BRUTE;
-                TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_dbscan_run(&c, g_pts, n, g_work, sizeof g_work, g_lab_b, &nb, NULL));
+                TEST_ASSERT_EQUAL_INT(
+                    MAGCAL_OK,
+                    magcal_dbscan_run(&c, g_pts, n, g_work, sizeof g_work, g_lab_b, &nb, NULL));
                 c.neighbors = MAGCAL_NEIGHBORS_GRID;
-                TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_dbscan_run(&c, g_pts, n, g_work, sizeof g_work, g_lab_g, &ng, &used));
+                TEST_ASSERT_EQUAL_INT(
+                    MAGCAL_OK,
+                    magcal_dbscan_run(&c, g_pts, n, g_work, sizeof g_work, g_lab_g, &ng, &used));
                 TEST_ASSERT_EQUAL_INT(MAGCAL_NEIGHBORS_GRID, used);
                 TEST_ASSERT_EQUAL_UINT16(nb, ng);
                 TEST_ASSERT_EQUAL_INT16_ARRAY(g_lab_b, g_lab_g, n);
@@ -165,11 +170,13 @@ static void test_dbscan_run_core_partition_equals_optics_extraction(void)
         oc.min_pts = (uint16_t)(3u + seed % 3u);
         dc.eps = eps_prime;
         dc.min_pts = oc.min_pts;
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_run(&oc, g_pts, n, g_work, sizeof g_work, g_order, g_reach,
-                                                           g_core, NULL, NULL));
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_extract_dbscan(g_order, g_reach, g_core, n, oc.eps, eps_prime,
-                                                                     g_lab_o, &no));
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_dbscan_run(&dc, g_pts, n, g_work, sizeof g_work, g_lab_b, &nd, NULL));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_run(&oc, g_pts, n, g_work, sizeof g_work,
+                                                           g_order, g_reach, g_core, NULL, NULL));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                              magcal_optics_extract_dbscan(g_order, g_reach, g_core, n, oc.eps,
+                                                           eps_prime, g_lab_o, &no));
+        TEST_ASSERT_EQUAL_INT(
+            MAGCAL_OK, magcal_dbscan_run(&dc, g_pts, n, g_work, sizeof g_work, g_lab_b, &nd, NULL));
         core_flags(g_pts, n, eps_prime, dc.min_pts);
         TEST_ASSERT_EQUAL_UINT16(nd, no);
         check_same_core_partition(n, g_lab_b, g_lab_o);
@@ -191,7 +198,8 @@ static void test_dbscan_run_matches_sklearn_golden_core_points(void)
         uint16_t nd = 0u;
         dc.eps = g->eps_prime;
         dc.min_pts = g->min_pts;
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_dbscan_run(&dc, g->pts, g->n, g_work, sizeof g_work, g_lab_b, &nd, NULL));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_dbscan_run(&dc, g->pts, g->n, g_work, sizeof g_work,
+                                                           g_lab_b, &nd, NULL));
         TEST_ASSERT_EQUAL_INT(g->n_clusters, nd);
         core_flags(g->pts, g->n, g->eps_prime, g->min_pts);
         check_same_core_partition(g->n, g_lab_b, g->labels);
@@ -203,8 +211,9 @@ static void test_dbscan_run_hand_made_border_and_noise(void)
     /* Cluster A: 4 points on a 0.5 square (each sees 3 others within 1.0 -> core for MinPts 4).
      * p4 at (1.5,0) is exactly 1.0 from p1 only (inclusive radius): border of A. Cluster B: 4 points around (10,10).
      * p9 far away: noise. eps = 1.0 exactly representable distances. */
-    static const magcal_vec2_t p[10] = {{0, 0}, {0.5f, 0}, {0, 0.5f}, {0.5f, 0.5f}, {1.5f, 0},
-                                        {10, 10}, {10.5f, 10}, {10, 10.5f}, {10.5f, 10.5f}, {-5, 7}};
+    static const magcal_vec2_t p[10] = {{0, 0},         {0.5f, 0}, {0, 0.5f},   {0.5f, 0.5f},
+                                        {1.5f, 0},      {10, 10},  {10.5f, 10}, {10, 10.5f},
+                                        {10.5f, 10.5f}, {-5, 7}};
     static const int16_t expect[10] = {0, 0, 0, 0, 0, 1, 1, 1, 1, -1};
     magcal_dbscan_cfg_t c = MAGCAL_DBSCAN_CFG_DEFAULT;
     int16_t lab[10];
@@ -213,18 +222,22 @@ static void test_dbscan_run_hand_made_border_and_noise(void)
     int16_t id = -3;
     c.eps = 1.0f;
     c.min_pts = 4u;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_dbscan_run(&c, p, 10u, g_work, sizeof g_work, lab, &nc, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                          magcal_dbscan_run(&c, p, 10u, g_work, sizeof g_work, lab, &nc, NULL));
     TEST_ASSERT_EQUAL_INT16_ARRAY(expect, lab, 10);
     TEST_ASSERT_EQUAL_UINT16(2u, nc);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_largest_cluster(lab, 10u, w, sizeof w, mask, &id, &cnt));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                          magcal_optics_largest_cluster(lab, 10u, w, sizeof w, mask, &id, &cnt));
     TEST_ASSERT_EQUAL_INT16(0, id);
     TEST_ASSERT_EQUAL_UINT16(5u, cnt);
     TEST_ASSERT_EQUAL_UINT8(1u, mask[4]);
     TEST_ASSERT_EQUAL_UINT8(0u, mask[9]);
     c.min_pts = 6u; /* nobody is core: all noise */
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_dbscan_run(&c, p, 10u, g_work, sizeof g_work, lab, &nc, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                          magcal_dbscan_run(&c, p, 10u, g_work, sizeof g_work, lab, &nc, NULL));
     TEST_ASSERT_EQUAL_UINT16(0u, nc);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ALL_NOISE, magcal_optics_largest_cluster(lab, 10u, w, sizeof w, mask, &id, &cnt));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ALL_NOISE,
+                          magcal_optics_largest_cluster(lab, 10u, w, sizeof w, mask, &id, &cnt));
 }
 
 static void test_dbscan_run_bad_input_returns_status(void)
@@ -234,31 +247,46 @@ static void test_dbscan_run_bad_input_returns_status(void)
     magcal_neighbors_t used = MAGCAL_NEIGHBORS_GRID;
     make_points(g_pts, 51u, 9u, 0);
     g_lab_b[0] = 99;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_dbscan_run(&c, g_pts, 50u, g_work, len, g_lab_b, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_dbscan_run(&c, g_pts, 50u, g_work, len, g_lab_b, NULL, NULL));
     c.eps = 0.2f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_dbscan_run(NULL, g_pts, 50u, g_work, len, g_lab_b, NULL, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_dbscan_run(&c, NULL, 50u, g_work, len, g_lab_b, NULL, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_dbscan_run(&c, g_pts, 50u, NULL, len, g_lab_b, NULL, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_dbscan_run(&c, g_pts, 50u, g_work, len, NULL, NULL, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_dbscan_run(&c, g_pts, 3u, g_work, len, g_lab_b, NULL, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_dbscan_run(&c, g_pts, MAGCAL_MAX_SAMPLES + 1u, g_work, sizeof g_work,
-                                                            g_lab_b, NULL, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE, magcal_dbscan_run(&c, g_pts, 50u, g_work, len - 1u, g_lab_b, NULL, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE, magcal_dbscan_run(&c, g_pts, 51u, g_work, len, g_lab_b, NULL, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_dbscan_run(&c, g_pts, 50u, (uint8_t *)g_work + 2, len, g_lab_b, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
+                          magcal_dbscan_run(NULL, g_pts, 50u, g_work, len, g_lab_b, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
+                          magcal_dbscan_run(&c, NULL, 50u, g_work, len, g_lab_b, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
+                          magcal_dbscan_run(&c, g_pts, 50u, NULL, len, g_lab_b, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
+                          magcal_dbscan_run(&c, g_pts, 50u, g_work, len, NULL, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS,
+                          magcal_dbscan_run(&c, g_pts, 3u, g_work, len, g_lab_b, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_dbscan_run(&c, g_pts, MAGCAL_MAX_SAMPLES + 1u, g_work,
+                                            sizeof g_work, g_lab_b, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE,
+                          magcal_dbscan_run(&c, g_pts, 50u, g_work, len - 1u, g_lab_b, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE,
+                          magcal_dbscan_run(&c, g_pts, 51u, g_work, len, g_lab_b, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_dbscan_run(&c, g_pts, 50u, (uint8_t *)g_work + 2,
+                                                            len, g_lab_b, NULL, NULL));
     c.min_pts = 1u;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_dbscan_run(&c, g_pts, 50u, g_work, len, g_lab_b, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_dbscan_run(&c, g_pts, 50u, g_work, len, g_lab_b, NULL, NULL));
     c.min_pts = 4u;
     c.neighbors = (magcal_neighbors_t)3;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_dbscan_run(&c, g_pts, 50u, g_work, len, g_lab_b, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_dbscan_run(&c, g_pts, 50u, g_work, len, g_lab_b, NULL, NULL));
     c.neighbors = MAGCAL_NEIGHBORS_GRID;
     g_pts[5].x = NAN;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_dbscan_run(&c, g_pts, 50u, g_work, len, g_lab_b, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE,
+                          magcal_dbscan_run(&c, g_pts, 50u, g_work, len, g_lab_b, NULL, NULL));
     TEST_ASSERT_EQUAL_INT16(99, g_lab_b[0]);
     g_pts[5].x = 0.0f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_dbscan_run(&c, g_pts, 50u, g_work, len, g_lab_b, NULL, &used));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                          magcal_dbscan_run(&c, g_pts, 50u, g_work, len, g_lab_b, NULL, &used));
     c.eps = INFINITY; /* one cluster, grid not usable */
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_dbscan_run(&c, g_pts, 50u, g_work, len, g_lab_b, NULL, &used));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                          magcal_dbscan_run(&c, g_pts, 50u, g_work, len, g_lab_b, NULL, &used));
     TEST_ASSERT_EQUAL_INT(MAGCAL_NEIGHBORS_BRUTE, used);
     TEST_ASSERT_EQUAL_INT16(0, g_lab_b[49]);
 }

@@ -31,15 +31,15 @@ static void check_within(double tol, double expected, double actual, const char 
 {
     char msg[160];
     if (!(fabs(actual - expected) <= tol)) {
-        snprintf(msg, sizeof msg, "%s: expected %.9g, got %.9g (|diff| %.3g > tol %.3g)", what, expected, actual,
-                 fabs(actual - expected), tol);
+        snprintf(msg, sizeof msg, "%s: expected %.9g, got %.9g (|diff| %.3g > tol %.3g)", what,
+                 expected, actual, fabs(actual - expected), tol);
         TEST_FAIL_MESSAGE(msg);
     }
 }
 
 /* T = R(phis) diag(kx, ky) R(phip) (algorithms.md 1.3). */
-static test_distortion_t make_dist(double h0, double kx, double ky, double phis_deg, double phip_deg, double bx,
-                                   double by)
+static test_distortion_t make_dist(double h0, double kx, double ky, double phis_deg,
+                                   double phip_deg, double bx, double by)
 {
     test_distortion_t d;
     double cs = cos(phis_deg / DEG_D), ss = sin(phis_deg / DEG_D);
@@ -278,7 +278,8 @@ static void test_ellipse_fit_matches_double_reference_1e4(void)
         printf("case %u: float32 vs double rel. err %.2e (theta diff %.2e deg)\n", (unsigned)i, err,
                axis_diff_deg(e.angle_rad * DEG_D, ref.theta * DEG_D));
         check_within(1e-4, 0.0, err, "rel. error vs double reference");
-        check_within(0.01, 0.0, axis_diff_deg(e.angle_rad * DEG_D, ref.theta * DEG_D), "theta vs reference");
+        check_within(0.01, 0.0, axis_diff_deg(e.angle_rad * DEG_D, ref.theta * DEG_D),
+                     "theta vs reference");
     }
 }
 
@@ -328,8 +329,8 @@ static void test_ellipse_fit_offset20_float32_matches_double_seed_fails(void)
     TEST_ASSERT_EQUAL_INT(0, ref_fit(g_pts, 2000, 1, &ref));
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_fit(g_pts, 2000, NULL, &e));
     err_c = hypot(e.center.x - ref.cx, e.center.y - ref.cy);
-    printf("offset/radius 20: centred f32 centre err %.2e LSB, rel. err %.2e, min pivot %.3g\n", err_c,
-           rel_err_vs_ref(&e, &ref), (double)e.min_pivot);
+    printf("offset/radius 20: centred f32 centre err %.2e LSB, rel. err %.2e, min pivot %.3g\n",
+           err_c, rel_err_vs_ref(&e, &ref), (double)e.min_pivot);
     check_within(1e-4, 0.0, rel_err_vs_ref(&e, &ref), "centred fit rel. error vs double");
     check_within(0.01, 0.0, err_c, "centred fit centre error (LSB)");
     /* the truth too (noise-limited): centre within 0.2 LSB, radius within 0.2 LSB */
@@ -342,8 +343,10 @@ static void test_ellipse_fit_offset20_float32_matches_double_seed_fails(void)
     st_seed = magcal_ellipse_fit_seed(g_pts, 2000, NULL, &es);
     if (st_seed == MAGCAL_OK) {
         double err_seed = hypot(es.center.x - ref.cx, es.center.y - ref.cy);
-        printf("offset/radius 20: seed status ok, centre err %.3g LSB, min pivot %.3g\n", err_seed, (double)es.min_pivot);
-        TEST_ASSERT_TRUE_MESSAGE(err_seed > 100.0 * err_c, "seed scaling should degrade at offset/radius 20");
+        printf("offset/radius 20: seed status ok, centre err %.3g LSB, min pivot %.3g\n", err_seed,
+               (double)es.min_pivot);
+        TEST_ASSERT_TRUE_MESSAGE(err_seed > 100.0 * err_c,
+                                 "seed scaling should degrade at offset/radius 20");
     } else {
         printf("offset/radius 20: seed status %s\n", magcal_status_str(st_seed));
         TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ILL_CONDITIONED, st_seed);
@@ -363,11 +366,13 @@ static void test_ellipse_fit_offset5_counts25000_meets_1e4_seed_does_not(void)
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_fit_seed(g_pts, 2000, NULL, &es));
     rel = rel_err_vs_ref(&e, &ref);
     rel_seed = rel_err_vs_ref(&es, &ref);
-    printf("offset/radius 5, 25000 counts: centred rel. err %.2e (centre %.2e LSB); seed rel. err %.2e (centre %.2e LSB)\n",
+    printf("offset/radius 5, 25000 counts: centred rel. err %.2e (centre %.2e LSB); seed rel. err "
+           "%.2e (centre %.2e LSB)\n",
            rel, hypot(e.center.x - ref.cx, e.center.y - ref.cy), rel_seed,
            hypot(es.center.x - ref.cx, es.center.y - ref.cy));
     check_within(1e-5, 0.0, rel, "centred fit rel. error vs double");
-    TEST_ASSERT_TRUE_MESSAGE(rel_seed > 1e-4, "seed scaling should miss 1e-4 relative at offset/radius 5");
+    TEST_ASSERT_TRUE_MESSAGE(rel_seed > 1e-4,
+                             "seed scaling should miss 1e-4 relative at offset/radius 5");
 }
 
 static void test_ellipse_fit_full_int16_range_is_accurate(void)
@@ -425,7 +430,8 @@ static void test_ellipse_fit_half_turn_at_offset20_matches_double_reference(void
     TEST_ASSERT_EQUAL_INT(0, ref_fit(g_pts, 700, 1, &ref));
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_fit(g_pts, 700, NULL, &e));
     rel = rel_err_vs_ref(&e, &ref);
-    printf("half turn, offset/radius 20: rel. err %.2e, min pivot %.3g\n", rel, (double)e.min_pivot);
+    printf("half turn, offset/radius 20: rel. err %.2e, min pivot %.3g\n", rel,
+           (double)e.min_pivot);
     check_within(1e-4, 0.0, rel, "rel. error vs double");
     check_within(2.0, -6000.0, e.center.x, "x0 truth (noise-limited on a half turn)");
     check_within(2.0, -3000.0, e.center.y, "y0 truth");
@@ -585,9 +591,11 @@ static void test_ellipse_fit_idx_bad_subsets_return_status(void)
     test_make_ring(&d, 200, 0.0, 360.0, 0.0, 41u, g_pts, NULL);
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_DEGENERATE, magcal_ellipse_fit_idx(g_pts, 200, dup, 5, &e));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipse_fit_idx(g_pts, 200, out_of_range, 5, &e));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_ellipse_fit_idx(g_pts, 200, ok6, 4, &e));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS,
+                          magcal_ellipse_fit_idx(g_pts, 200, ok6, 4, &e));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipse_fit_idx(g_pts, 200, NULL, 5, &e));
-    printf("5 points on 7.2 deg of arc: %s\n", magcal_status_str(magcal_ellipse_fit_idx(g_pts, 200, close, 5, &e)));
+    printf("5 points on 7.2 deg of arc: %s\n",
+           magcal_status_str(magcal_ellipse_fit_idx(g_pts, 200, close, 5, &e)));
     TEST_ASSERT_TRUE(magcal_ellipse_fit_idx(g_pts, 200, close, 5, &e) != MAGCAL_OK);
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_fit_idx(g_pts, 200, ok6, 6, &e));
     check_within(1e-4 * 480.0, 2500.0, e.center.x, "6-point LS x0");
@@ -663,7 +671,8 @@ static void test_ellipse_residual_is_radial_distance(void)
 /* ------------------------------------------------------------- corrections */
 
 /* Max relative spread of |M (p - c)| over the ring, and its mean. */
-static void cal_spread(const magcal_cal2d_t *cal, const magcal_vec2_t *p, size_t n, double *spread, double *mean)
+static void cal_spread(const magcal_cal2d_t *cal, const magcal_vec2_t *p, size_t n, double *spread,
+                       double *mean)
 {
     double mn = 1e300, mxr = 0.0, sum = 0.0;
     size_t i;
@@ -681,8 +690,8 @@ static void cal_spread(const magcal_cal2d_t *cal, const magcal_vec2_t *p, size_t
 }
 
 /* Constant heading offset psi_meas - psi_true: mean and peak-to-peak, degrees. */
-static void cal_heading_offset(const magcal_cal2d_t *cal, const magcal_vec2_t *p, const float *psi, size_t n,
-                               double *mean, double *ptp)
+static void cal_heading_offset(const magcal_cal2d_t *cal, const magcal_vec2_t *p, const float *psi,
+                               size_t n, double *mean, double *ptp)
 {
     double first = 0.0, lo = 1e9, hi = -1e9, sum = 0.0;
     size_t i;
@@ -721,7 +730,8 @@ static void test_ellipse_to_cal_all_forms_map_onto_circle(void)
     printf("radius spread: symmetric %.2e", spread);
     check_within(3e-3, 0.0, spread, "symmetric spread");
     check_within(1e-3 * 0.3357, sqrt(0.28 * 0.4025), mean, "symmetric radius = sqrt(r1 r2)");
-    check_within(1e-6, sqrt((double)e.semi_minor * e.semi_major), sym.radius, "symmetric radius field");
+    check_within(1e-6, sqrt((double)e.semi_minor * e.semi_major), sym.radius,
+                 "symmetric radius field");
     cal_spread(&kx1, g_pts, 400, &spread, &mean);
     printf(", kx1 %.2e", spread);
     check_within(3e-3, 0.0, spread, "kx1 spread");
@@ -747,7 +757,8 @@ static void test_ellipse_to_cal_noise_free_ring_is_circle_to_float_precision(voi
     /* Noise-free ring at raw-count scale with a 10x offset: every form maps it onto a circle to
      * float32 precision (radius spread < 1e-5 relative) with the documented radius. */
     test_distortion_t d = make_dist(600.0, 1.3, 0.75, -55.0, 20.0, 4000.0, 5000.0);
-    static const magcal_corr_form_t forms[3] = {MAGCAL_CORR_SYMMETRIC, MAGCAL_CORR_KX1, MAGCAL_CORR_TRIANGULAR};
+    static const magcal_corr_form_t forms[3] = {MAGCAL_CORR_SYMMETRIC, MAGCAL_CORR_KX1,
+                                                MAGCAL_CORR_TRIANGULAR};
     magcal_ellipse_t e;
     magcal_cal2d_t cal;
     double spread, mean;
@@ -762,7 +773,8 @@ static void test_ellipse_to_cal_noise_free_ring_is_circle_to_float_precision(voi
         check_within(1e-5, 0.0, spread, "noise-free radius spread");
         check_within(1e-5 * mean, cal.radius, mean, "radius field = mean corrected radius");
         /* rho <= 0: sqrt(r1 r2) for symmetric and triangular, r1 for kx1 */
-        check_within(1e-5 * mean, forms[i] == MAGCAL_CORR_KX1 ? 450.0 : sqrt(450.0 * 780.0), mean, "default radius");
+        check_within(1e-5 * mean, forms[i] == MAGCAL_CORR_KX1 ? 450.0 : sqrt(450.0 * 780.0), mean,
+                     "default radius");
     }
 }
 
@@ -841,14 +853,20 @@ static void test_ellipse_to_cal_bad_input_returns_status(void)
     magcal_ellipse_t e;
     magcal_cal2d_t cal;
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_from_conic(ell, c0, 1.0f, &e));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipse_to_cal(NULL, MAGCAL_CORR_SYMMETRIC, 1.0f, &cal));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipse_to_cal(&e, MAGCAL_CORR_SYMMETRIC, 1.0f, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipse_to_cal(&e, (magcal_corr_form_t)7, 1.0f, &cal));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_ellipse_to_cal(&e, MAGCAL_CORR_SYMMETRIC, NAN, &cal));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
+                          magcal_ellipse_to_cal(NULL, MAGCAL_CORR_SYMMETRIC, 1.0f, &cal));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
+                          magcal_ellipse_to_cal(&e, MAGCAL_CORR_SYMMETRIC, 1.0f, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_ellipse_to_cal(&e, (magcal_corr_form_t)7, 1.0f, &cal));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE,
+                          magcal_ellipse_to_cal(&e, MAGCAL_CORR_SYMMETRIC, NAN, &cal));
     e.semi_minor = 3.0f; /* r1 > r2 */
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipse_to_cal(&e, MAGCAL_CORR_SYMMETRIC, 1.0f, &cal));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_ellipse_to_cal(&e, MAGCAL_CORR_SYMMETRIC, 1.0f, &cal));
     e.semi_minor = 0.0f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipse_to_cal(&e, MAGCAL_CORR_TRIANGULAR, 1.0f, &cal));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_ellipse_to_cal(&e, MAGCAL_CORR_TRIANGULAR, 1.0f, &cal));
 }
 
 int main(void)

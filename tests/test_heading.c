@@ -31,7 +31,8 @@ static void test_heading_from_field_eight_compass_points(void)
     size_t i;
     for (i = 0; i < 8; ++i) {
         float deg = -1.0f;
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_heading_from_field(field_at(45.0 * (double)i, 20.0), &deg));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                              magcal_heading_from_field(field_at(45.0 * (double)i, 20.0), &deg));
         TEST_ASSERT_FLOAT_WITHIN(1e-4f, expect[i], deg);
     }
     {
@@ -49,7 +50,8 @@ static void test_heading_from_field_all_headings_match_truth(void)
     for (i = 0; i < 3600; ++i) {
         double psi = 0.1 * (double)i;
         float deg;
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_heading_from_field(field_at(psi, i % 2u ? 0.5 : 30000.0), &deg));
+        TEST_ASSERT_EQUAL_INT(
+            MAGCAL_OK, magcal_heading_from_field(field_at(psi, i % 2u ? 0.5 : 30000.0), &deg));
         TEST_ASSERT_TRUE(deg >= 0.0f && deg < 360.0f);
         TEST_ASSERT_FLOAT_WITHIN(1e-3f, 0.0f, (float)test_angle_diff_deg(deg, psi));
     }
@@ -112,7 +114,7 @@ static void test_cal2d_validate_identity_and_corruptions(void)
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cal2d_validate(&id));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_cal2d_validate(NULL));
     TEST_ASSERT_EQUAL_UINT(32u, (unsigned)sizeof(magcal_cal2d_t)); /* flash layout: 8 floats */
-    memset(&c, 0xFF, sizeof c); /* erased flash */
+    memset(&c, 0xFF, sizeof c);                                    /* erased flash */
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NOT_INITIALISED, magcal_cal2d_validate(&c));
     memset(&c, 0, sizeof c);
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NOT_INITIALISED, magcal_cal2d_validate(&c));
@@ -148,7 +150,7 @@ static void test_correct_apply_computes_m_times_raw_minus_offset(void)
     raw.x = INFINITY;
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_correct_apply(&c, raw, &h));
     TEST_ASSERT_FLOAT_WITHIN(1e-5f, 25.0f, h.x); /* untouched */
-    raw.x = 3e38f; /* overflow of M u */
+    raw.x = 3e38f;                               /* overflow of M u */
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_correct_apply(&c, raw, &h));
     c.magic = 0u;
     raw.x = 0.0f;
@@ -195,22 +197,37 @@ static void test_heading_compute_declination_gives_true_heading(void)
     magcal_cal2d_t c = MAGCAL_CAL2D_IDENTITY;
     float mag = -1.0f, tru = -1.0f;
     /* magnetic 350 + 15 east = 5; magnetic 10 - 15 (west) = 355; exact 180 stays 180 */
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_heading_compute(&c, field_at(350.0, 1.0), 15.0f, &mag, &tru));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                          magcal_heading_compute(&c, field_at(350.0, 1.0), 15.0f, &mag, &tru));
     TEST_ASSERT_FLOAT_WITHIN(1e-4f, 350.0f, mag);
     TEST_ASSERT_FLOAT_WITHIN(1e-4f, 5.0f, tru);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_heading_compute(&c, field_at(10.0, 1.0), -15.0f, &mag, &tru));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                          magcal_heading_compute(&c, field_at(10.0, 1.0), -15.0f, &mag, &tru));
     TEST_ASSERT_FLOAT_WITHIN(1e-4f, 10.0f, mag);
     TEST_ASSERT_FLOAT_WITHIN(1e-4f, 355.0f, tru);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_heading_compute(&c, field_at(90.0, 1.0), 90.0f, &mag, &tru));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                          magcal_heading_compute(&c, field_at(90.0, 1.0), 90.0f, &mag, &tru));
     TEST_ASSERT_FLOAT_WITHIN(1e-4f, 180.0f, tru);
     /* magnetic 0 + declination 0 -> 0; -180 and +180 declinations both give 180 from north */
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_heading_compute(&c, field_at(0.0, 1.0), -180.0f, &mag, &tru));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                          magcal_heading_compute(&c, field_at(0.0, 1.0), -180.0f, &mag, &tru));
     TEST_ASSERT_FLOAT_WITHIN(1e-4f, 180.0f, tru);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_heading_compute(&c, field_at(180.0, 1.0), 180.0f, &mag, &tru));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                          magcal_heading_compute(&c, field_at(180.0, 1.0), 180.0f, &mag, &tru));
+    TEST_ASSERT_TRUE(tru >= 0.0f && tru < 360.0f);
+    TEST_ASSERT_FLOAT_WITHIN(1e-4f, 0.0f, (float)test_angle_diff_deg(tru, 0.0));
+    /* a sum that rounds to 360 reads 0: magnetic 0, declination -1e-6 (and +tiny west of north) */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                          magcal_heading_compute(&c, field_at(0.0, 1.0), -1e-6f, &mag, &tru));
+    TEST_ASSERT_TRUE(tru >= 0.0f && tru < 360.0f);
+    TEST_ASSERT_FLOAT_WITHIN(1e-4f, 0.0f, (float)test_angle_diff_deg(tru, 0.0));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                          magcal_heading_compute(&c, field_at(359.99999, 1.0), 1e-6f, &mag, &tru));
     TEST_ASSERT_TRUE(tru >= 0.0f && tru < 360.0f);
     TEST_ASSERT_FLOAT_WITHIN(1e-4f, 0.0f, (float)test_angle_diff_deg(tru, 0.0));
     /* true_deg is optional */
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_heading_compute(&c, field_at(33.0, 1.0), 5.0f, &mag, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                          magcal_heading_compute(&c, field_at(33.0, 1.0), 5.0f, &mag, NULL));
     TEST_ASSERT_FLOAT_WITHIN(1e-4f, 33.0f, mag);
 }
 
@@ -222,7 +239,8 @@ static void test_heading_compute_true_heading_in_half_open_range(void)
     for (i = 0; i < 360; i += 7) {
         for (j = -180; j <= 180; j += 15) {
             float mag, tru;
-            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_heading_compute(&c, field_at((double)i, 40.0), (float)j, &mag, &tru));
+            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_heading_compute(&c, field_at((double)i, 40.0),
+                                                                    (float)j, &mag, &tru));
             TEST_ASSERT_TRUE(tru >= 0.0f && tru < 360.0f);
             TEST_ASSERT_FLOAT_WITHIN(1e-3f, 0.0f, (float)test_angle_diff_deg(tru, (double)(i + j)));
         }

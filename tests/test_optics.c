@@ -26,7 +26,7 @@ static uint8_t g_mask2[NMAX];
 /*
  * Reference ordering written straight from algorithms.md 4.1/4.2 the way scikit-learn does it:
  * O(n^2), next point = argmin over ALL unprocessed points of (reach, index), the lowest
- * unprocessed index when every reach is infinite; core by full sort. Same float32 distance
+ * unprocessed index when every reach is infinite; core by selection over all neighbours. Same float32 distance
  * formula as the library, so the outputs must be bit-identical.
  */
 static uint16_t r_order[NMAX];
@@ -59,13 +59,21 @@ static void reference_optics(const magcal_vec2_t *p, size_t n, float eps, size_t
             float dx = p[j].x - p[q].x, dy = p[j].y - p[q].y;
             float d2 = dx * dx + dy * dy;
             if (d2 <= eps2) {
-                /* insertion into a sorted list of all neighbour distances */
-                for (k = cnt; k > 0u && d2s[k - 1u] > d2; --k) {
-                    d2s[k] = d2s[k - 1u];
-                }
-                d2s[k] = d2;
-                ++cnt;
+                d2s[cnt++] = d2; /* every neighbour distance, p itself included */
             }
+        }
+        /* partial selection sort: the min_pts smallest to the front (O(cnt * min_pts)) */
+        for (k = 0; k < min_pts && k < cnt; ++k) {
+            size_t best = k, t;
+            float tmp;
+            for (t = k + 1u; t < cnt; ++t) {
+                if (d2s[t] < d2s[best]) {
+                    best = t;
+                }
+            }
+            tmp = d2s[k];
+            d2s[k] = d2s[best];
+            d2s[best] = tmp;
         }
         r_core[q] = cnt >= min_pts ? sqrtf(d2s[min_pts - 1u]) : INFINITY;
         if (cnt < min_pts) {
@@ -94,11 +102,13 @@ static void make_points(magcal_vec2_t *p, size_t n, uint32_t seed, int ties)
     size_t i;
     for (i = 0; i < n; ++i) {
         double a = 6.283185307179586 * test_rand_uniform(&rng);
-        double r = test_rand_uniform(&rng) < 0.9 ? 1.0 + 0.05 * test_rand_normal(&rng) : 3.0 * test_rand_uniform(&rng);
+        double r = test_rand_uniform(&rng) < 0.9 ? 1.0 + 0.05 * test_rand_normal(&rng)
+                                                 : 3.0 * test_rand_uniform(&rng);
         p[i].x = (float)(r * cos(a));
         p[i].y = (float)(r * sin(a));
         if (ties) {
-            p[i].x = floorf(p[i].x * 8.0f) / 8.0f; /* exact multiples of 1/8: many equal distances */
+            p[i].x =
+                floorf(p[i].x * 8.0f) / 8.0f; /* exact multiples of 1/8: many equal distances */
             p[i].y = floorf(p[i].y * 8.0f) / 8.0f;
         }
         if (i > 0u && test_rand_uniform(&rng) < 0.05) {
@@ -107,7 +117,8 @@ static void make_points(magcal_vec2_t *p, size_t n, uint32_t seed, int ties)
     }
 }
 
-static magcal_optics_cfg_t cfg_of(float eps, uint16_t min_pts, magcal_optics_order_t o, magcal_neighbors_t nb)
+static magcal_optics_cfg_t cfg_of(float eps, uint16_t min_pts, magcal_optics_order_t o,
+                                  magcal_neighbors_t nb)
 {
     magcal_optics_cfg_t c = MAGCAL_OPTICS_CFG_DEFAULT;
     c.eps = eps;
@@ -121,17 +132,18 @@ static magcal_optics_cfg_t cfg_of(float eps, uint16_t min_pts, magcal_optics_ord
 static void run_variant(size_t v, const magcal_vec2_t *p, size_t n, float eps, uint16_t min_pts,
                         magcal_optics_result_t *info)
 {
-    magcal_optics_cfg_t c = cfg_of(eps, min_pts, (v & 1u) ? MAGCAL_OPTICS_IMPROVED : MAGCAL_OPTICS_CLASSIC,
-                                   (v & 2u) ? MAGCAL_NEIGHBORS_GRID : MAGCAL_NEIGHBORS_BRUTE);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_run(&c, p, n, g_work, sizeof g_work, g_order[v], g_reach[v],
-                                                       g_core[v], g_pred[v], info));
+    magcal_optics_cfg_t c =
+        cfg_of(eps, min_pts, (v & 1u) ? MAGCAL_OPTICS_IMPROVED : MAGCAL_OPTICS_CLASSIC,
+               (v & 2u) ? MAGCAL_NEIGHBORS_GRID : MAGCAL_NEIGHBORS_BRUTE);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_run(&c, p, n, g_work, sizeof g_work, g_order[v],
+                                                       g_reach[v], g_core[v], g_pred[v], info));
 }
 
 static void test_optics_run_four_variants_match_reference_bit_exact(void)
 {
     static const float eps_list[] = {INFINITY, 2.0f, 0.5f, 0.3f, 0.125f, 0.05f};
     static const uint16_t mp_list[] = {2u, 4u, 5u, 9u};
-    static const size_t n_list[] = {9u, 40u, 150u, 400u};
+    static const size_t n_list[] = {9u, 40u, 120u, 260u};
     uint32_t seed = 1u;
     size_t ie, im, in, v, case_count = 0u, grid_used = 0u;
     for (in = 0; in < 4u; ++in) {
@@ -216,14 +228,14 @@ static void test_optics_run_matches_sklearn_golden_vectors(void)
                     TEST_ASSERT_FLOAT_WITHIN(1e-4f * e, e, a);
                 }
             }
-            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_extract_dbscan(g_order[v], g_reach[v], g_core[v], g->n,
-                                                                         g->eps, g->eps_prime, g_labels,
-                                                                         &n_clusters));
+            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_extract_dbscan(
+                                                 g_order[v], g_reach[v], g_core[v], g->n, g->eps,
+                                                 g->eps_prime, g_labels, &n_clusters));
             TEST_ASSERT_EQUAL_INT(g->n_clusters, n_clusters);
             TEST_ASSERT_EQUAL_INT16_ARRAY(g->labels, g_labels, g->n);
         }
-        printf("golden %s: %zu/%zu ordering positions equal to sklearn's over 4 variants\n", g->name, order_same,
-               4u * g->n);
+        printf("golden %s: %u/%u ordering positions equal to sklearn's over 4 variants\n",
+               g->name, (unsigned)order_same, (unsigned)(4u * g->n));
     }
 }
 
@@ -239,24 +251,32 @@ static void test_optics_extract_dbscan_hand_made_example_follows_4_3(void)
     static const int16_t expect[6] = {0, -1, 1, 0, 1, -1};
     int16_t lab[6];
     uint16_t nc = 0u;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_extract_dbscan(order, reach, core, 6u, 10.0f, 2.0f, lab, &nc));
+    TEST_ASSERT_EQUAL_INT(
+        MAGCAL_OK, magcal_optics_extract_dbscan(order, reach, core, 6u, 10.0f, 2.0f, lab, &nc));
     TEST_ASSERT_EQUAL_INT16_ARRAY(expect, lab, 6);
     TEST_ASSERT_EQUAL_UINT16(2u, nc);
     /* eps' = 0: only exact duplicates could cluster, here all noise */
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_extract_dbscan(order, reach, core, 6u, 10.0f, 0.0f, lab, &nc));
+    TEST_ASSERT_EQUAL_INT(
+        MAGCAL_OK, magcal_optics_extract_dbscan(order, reach, core, 6u, 10.0f, 0.0f, lab, &nc));
     TEST_ASSERT_EQUAL_UINT16(0u, nc);
     /* eps' > eps is refused and labels stay untouched */
     lab[0] = 77;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_extract_dbscan(order, reach, core, 6u, 1.0f, 2.0f, lab, &nc));
+    TEST_ASSERT_EQUAL_INT(
+        MAGCAL_ERR_ARG, magcal_optics_extract_dbscan(order, reach, core, 6u, 1.0f, 2.0f, lab, &nc));
     TEST_ASSERT_EQUAL_INT16(77, lab[0]);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_extract_dbscan(order, reach, core, 6u, 10.0f, -1.0f, lab, &nc));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
-                          magcal_optics_extract_dbscan(order, reach, core, 6u, INFINITY, INFINITY, lab, &nc));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_extract_dbscan(NULL, reach, core, 6u, 10.0f, 2.0f, lab, &nc));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_extract_dbscan(order, reach, core, 0u, 10.0f, 2.0f, lab, &nc));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_extract_dbscan(order, reach, core, 6u,
+                                                                       10.0f, -1.0f, lab, &nc));
+    TEST_ASSERT_EQUAL_INT(
+        MAGCAL_ERR_ARG,
+        magcal_optics_extract_dbscan(order, reach, core, 6u, INFINITY, INFINITY, lab, &nc));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_extract_dbscan(NULL, reach, core, 6u,
+                                                                        10.0f, 2.0f, lab, &nc));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_extract_dbscan(order, reach, core, 0u,
+                                                                       10.0f, 2.0f, lab, &nc));
     {
         static const uint16_t bad[6] = {3, 0, 1, 4, 2, 6};
-        TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_extract_dbscan(bad, reach, core, 6u, 10.0f, 2.0f, lab, &nc));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_extract_dbscan(bad, reach, core, 6u,
+                                                                           10.0f, 2.0f, lab, &nc));
     }
 }
 
@@ -270,11 +290,13 @@ static void test_optics_largest_cluster_tie_goes_to_smaller_id(void)
     uint8_t m[9];
     int16_t id = -5;
     uint16_t cnt = 0u;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_largest_cluster(lab, 9u, w, sizeof w, m, &id, &cnt));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                          magcal_optics_largest_cluster(lab, 9u, w, sizeof w, m, &id, &cnt));
     TEST_ASSERT_EQUAL_UINT8_ARRAY(expect, m, 9);
     TEST_ASSERT_EQUAL_INT16(0, id);
     TEST_ASSERT_EQUAL_UINT16(3u, cnt);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_largest_cluster(lab2, 7u, w, sizeof w, m, &id, &cnt));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                          magcal_optics_largest_cluster(lab2, 7u, w, sizeof w, m, &id, &cnt));
     TEST_ASSERT_EQUAL_UINT8_ARRAY(expect2, m, 7);
     TEST_ASSERT_EQUAL_INT16(2, id);
     TEST_ASSERT_EQUAL_UINT16(4u, cnt);
@@ -288,18 +310,28 @@ static void test_optics_largest_cluster_errors_return_status(void)
     static const int16_t ok[4] = {0, 0, 1, -1};
     uint16_t w[8];
     uint8_t m[4] = {9, 9, 9, 9};
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ALL_NOISE, magcal_optics_largest_cluster(noise, 4u, w, sizeof w, m, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ALL_NOISE,
+                          magcal_optics_largest_cluster(noise, 4u, w, sizeof w, m, NULL, NULL));
     TEST_ASSERT_EQUAL_UINT8(9u, m[0]);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_largest_cluster(bad, 4u, w, sizeof w, m, NULL, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_largest_cluster(big, 4u, w, sizeof w, m, NULL, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_largest_cluster(ok, 0u, w, sizeof w, m, NULL, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_largest_cluster(NULL, 4u, w, sizeof w, m, NULL, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_largest_cluster(ok, 4u, NULL, sizeof w, m, NULL, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_largest_cluster(ok, 4u, w, sizeof w, NULL, NULL, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE, magcal_optics_largest_cluster(
-                                                    ok, 4u, w, MAGCAL_OPTICS_LARGEST_WORKSPACE_LEN(4u) - 1u, m, NULL, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_largest_cluster(ok, 4u, w, MAGCAL_OPTICS_LARGEST_WORKSPACE_LEN(4u),
-                                                                   m, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_optics_largest_cluster(bad, 4u, w, sizeof w, m, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_optics_largest_cluster(big, 4u, w, sizeof w, m, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_optics_largest_cluster(ok, 0u, w, sizeof w, m, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
+                          magcal_optics_largest_cluster(NULL, 4u, w, sizeof w, m, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
+                          magcal_optics_largest_cluster(ok, 4u, NULL, sizeof w, m, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
+                          magcal_optics_largest_cluster(ok, 4u, w, sizeof w, NULL, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(
+        MAGCAL_ERR_WORKSPACE,
+        magcal_optics_largest_cluster(ok, 4u, w, MAGCAL_OPTICS_LARGEST_WORKSPACE_LEN(4u) - 1u, m,
+                                      NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(
+        MAGCAL_OK, magcal_optics_largest_cluster(ok, 4u, w, MAGCAL_OPTICS_LARGEST_WORKSPACE_LEN(4u),
+                                                 m, NULL, NULL));
     TEST_ASSERT_EQUAL_UINT8(1u, m[0]);
 }
 
@@ -311,37 +343,53 @@ static void test_optics_run_bad_input_returns_status_and_leaves_outputs(void)
     size_t len = MAGCAL_OPTICS_WORKSPACE_LEN(50u);
     make_points(g_pts, 51u, 7u, 0);
     o[0] = 4242u;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_run(NULL, g_pts, 50u, g_work, len, o, r, k, NULL, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_run(&c, NULL, 50u, g_work, len, o, r, k, NULL, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_run(&c, g_pts, 50u, NULL, len, o, r, k, NULL, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_run(&c, g_pts, 50u, g_work, len, NULL, r, k, NULL, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_run(&c, g_pts, 50u, g_work, len, o, NULL, k, NULL, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_run(&c, g_pts, 50u, g_work, len, o, r, NULL, NULL, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_optics_run(&c, g_pts, 3u, g_work, len, o, r, k, NULL, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_run(&c, g_pts, MAGCAL_MAX_SAMPLES + 1u, g_work,
-                                                            sizeof g_work, o, r, k, NULL, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_run(&c, g_pts, 50u, (uint8_t *)g_work + 2, len, o, r, k,
-                                                            NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
+                          magcal_optics_run(NULL, g_pts, 50u, g_work, len, o, r, k, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
+                          magcal_optics_run(&c, NULL, 50u, g_work, len, o, r, k, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
+                          magcal_optics_run(&c, g_pts, 50u, NULL, len, o, r, k, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
+                          magcal_optics_run(&c, g_pts, 50u, g_work, len, NULL, r, k, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
+                          magcal_optics_run(&c, g_pts, 50u, g_work, len, o, NULL, k, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
+                          magcal_optics_run(&c, g_pts, 50u, g_work, len, o, r, NULL, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS,
+                          magcal_optics_run(&c, g_pts, 3u, g_work, len, o, r, k, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_optics_run(&c, g_pts, MAGCAL_MAX_SAMPLES + 1u, g_work,
+                                            sizeof g_work, o, r, k, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_run(&c, g_pts, 50u, (uint8_t *)g_work + 2,
+                                                            len, o, r, k, NULL, NULL));
     c.eps = 0.0f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_run(&c, g_pts, 50u, g_work, len, o, r, k, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_optics_run(&c, g_pts, 50u, g_work, len, o, r, k, NULL, NULL));
     c.eps = NAN;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_run(&c, g_pts, 50u, g_work, len, o, r, k, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_optics_run(&c, g_pts, 50u, g_work, len, o, r, k, NULL, NULL));
     c.eps = 0.5f;
     c.min_pts = 1u;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_run(&c, g_pts, 50u, g_work, len, o, r, k, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_optics_run(&c, g_pts, 50u, g_work, len, o, r, k, NULL, NULL));
     c.min_pts = (uint16_t)(MAGCAL_MAX_MIN_PTS + 1u);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_run(&c, g_pts, 50u, g_work, len, o, r, k, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_optics_run(&c, g_pts, 50u, g_work, len, o, r, k, NULL, NULL));
     c.min_pts = 4u;
     c.order = (magcal_optics_order_t)7;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_run(&c, g_pts, 50u, g_work, len, o, r, k, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_optics_run(&c, g_pts, 50u, g_work, len, o, r, k, NULL, NULL));
     c.order = MAGCAL_OPTICS_CLASSIC;
     c.neighbors = (magcal_neighbors_t)7;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_run(&c, g_pts, 50u, g_work, len, o, r, k, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_optics_run(&c, g_pts, 50u, g_work, len, o, r, k, NULL, NULL));
     c.neighbors = MAGCAL_NEIGHBORS_GRID;
     g_pts[17].y = NAN;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_optics_run(&c, g_pts, 50u, g_work, len, o, r, k, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE,
+                          magcal_optics_run(&c, g_pts, 50u, g_work, len, o, r, k, NULL, NULL));
     g_pts[17].y = INFINITY;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_optics_run(&c, g_pts, 50u, g_work, len, o, r, k, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE,
+                          magcal_optics_run(&c, g_pts, 50u, g_work, len, o, r, k, NULL, NULL));
     g_pts[17].y = 0.25f;
     TEST_ASSERT_EQUAL_UINT16(4242u, o[0]);
 }
@@ -357,27 +405,39 @@ static void test_optics_workspace_macros_are_what_functions_check(void)
     float e, ep;
     uint16_t mp;
     for (i = 0; i < 6u; ++i) {
-        size_t n = ns[i], len = MAGCAL_OPTICS_WORKSPACE_LEN(n), flen = MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n);
+        size_t n = ns[i], len = MAGCAL_OPTICS_WORKSPACE_LEN(n),
+               flen = MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n);
         make_points(g_pts, n + 1u, (uint32_t)(100u + i), 0);
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_run(&c, g_pts, n, g_work, len, g_order[0], g_reach[0],
-                                                           g_core[0], NULL, NULL));
-        TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE, magcal_optics_run(&c, g_pts, n, g_work, len - 1u, g_order[0],
-                                                                      g_reach[0], g_core[0], NULL, NULL));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_run(&c, g_pts, n, g_work, len, g_order[0],
+                                                           g_reach[0], g_core[0], NULL, NULL));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE,
+                              magcal_optics_run(&c, g_pts, n, g_work, len - 1u, g_order[0],
+                                                g_reach[0], g_core[0], NULL, NULL));
         TEST_ASSERT_EQUAL_INT(n + 1u > MAGCAL_MAX_SAMPLES ? MAGCAL_ERR_ARG : MAGCAL_ERR_WORKSPACE,
-                              magcal_optics_run(&c, g_pts, n + 1u, g_work, len, g_order[0], g_reach[0], g_core[0],
-                                                NULL, NULL));
+                              magcal_optics_run(&c, g_pts, n + 1u, g_work, len, g_order[0],
+                                                g_reach[0], g_core[0], NULL, NULL));
         if (n >= 16u) {
-            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_filter(&c, g_pts, n, g_work, flen, g_mask, NULL));
-            TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE,
-                                  magcal_optics_filter(&c, g_pts, n, g_work, flen - 1u, g_mask, NULL));
-            TEST_ASSERT_EQUAL_INT(n + 1u > MAGCAL_MAX_SAMPLES ? MAGCAL_ERR_ARG : MAGCAL_ERR_WORKSPACE,
-                                  magcal_optics_filter(&c, g_pts, n + 1u, g_work, flen, g_mask, NULL));
-            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_auto_params(g_pts, n, g_work, flen, &e, &mp, &ep));
-            TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE, magcal_optics_auto_params(g_pts, n, g_work, flen - 1u, &e, &mp, &ep));
-            TEST_ASSERT_EQUAL_INT(n + 1u > MAGCAL_MAX_SAMPLES ? MAGCAL_ERR_ARG : MAGCAL_ERR_WORKSPACE,
-                                  magcal_optics_auto_params(g_pts, n + 1u, g_work, flen, &e, &mp, &ep));
-            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_filter(&a, g_pts, n, g_work, flen, g_mask, NULL));
-            TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE, magcal_optics_filter(&a, g_pts, n, g_work, flen - 1u, g_mask, NULL));
+            TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                                  magcal_optics_filter(&c, g_pts, n, g_work, flen, g_mask, NULL));
+            TEST_ASSERT_EQUAL_INT(
+                MAGCAL_ERR_WORKSPACE,
+                magcal_optics_filter(&c, g_pts, n, g_work, flen - 1u, g_mask, NULL));
+            TEST_ASSERT_EQUAL_INT(
+                n + 1u > MAGCAL_MAX_SAMPLES ? MAGCAL_ERR_ARG : MAGCAL_ERR_WORKSPACE,
+                magcal_optics_filter(&c, g_pts, n + 1u, g_work, flen, g_mask, NULL));
+            TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                                  magcal_optics_auto_params(g_pts, n, g_work, flen, &e, &mp, &ep));
+            TEST_ASSERT_EQUAL_INT(
+                MAGCAL_ERR_WORKSPACE,
+                magcal_optics_auto_params(g_pts, n, g_work, flen - 1u, &e, &mp, &ep));
+            TEST_ASSERT_EQUAL_INT(
+                n + 1u > MAGCAL_MAX_SAMPLES ? MAGCAL_ERR_ARG : MAGCAL_ERR_WORKSPACE,
+                magcal_optics_auto_params(g_pts, n + 1u, g_work, flen, &e, &mp, &ep));
+            TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                                  magcal_optics_filter(&a, g_pts, n, g_work, flen, g_mask, NULL));
+            TEST_ASSERT_EQUAL_INT(
+                MAGCAL_ERR_WORKSPACE,
+                magcal_optics_filter(&a, g_pts, n, g_work, flen - 1u, g_mask, NULL));
         }
     }
     /* budget: the whole filter (workspace + uint8 mask) stays under 24 bytes per sample */
@@ -391,23 +451,29 @@ static void test_optics_filter_equals_run_extract_largest(void)
     uint32_t seed;
     for (seed = 1u; seed <= 12u; ++seed) {
         size_t n = 50u + 37u * seed, i;
-        float eps = 0.1f + 0.05f * (float)(seed % 4u), ep = eps * (0.5f + 0.1f * (float)(seed % 5u));
-        magcal_optics_cfg_t c = cfg_of(eps, (uint16_t)(3u + seed % 4u),
-                                       (seed & 1u) ? MAGCAL_OPTICS_IMPROVED : MAGCAL_OPTICS_CLASSIC,
-                                       (seed & 2u) ? MAGCAL_NEIGHBORS_GRID : MAGCAL_NEIGHBORS_BRUTE);
+        float eps = 0.1f + 0.05f * (float)(seed % 4u),
+              ep = eps * (0.5f + 0.1f * (float)(seed % 5u));
+        magcal_optics_cfg_t c =
+            cfg_of(eps, (uint16_t)(3u + seed % 4u),
+                   (seed & 1u) ? MAGCAL_OPTICS_IMPROVED : MAGCAL_OPTICS_CLASSIC,
+                   (seed & 2u) ? MAGCAL_NEIGHBORS_GRID : MAGCAL_NEIGHBORS_BRUTE);
         magcal_optics_result_t info;
         int16_t id;
         uint16_t cnt, nc;
         size_t noise = 0u;
         make_points(g_pts, n, seed * 13u, (int)(seed & 1u));
         c.eps_prime = ep;
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_filter(&c, g_pts, n, g_work, sizeof g_work, g_mask, &info));
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_run(&c, g_pts, n, g_work, sizeof g_work, g_order[0], g_reach[0],
-                                                           g_core[0], NULL, NULL));
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_extract_dbscan(g_order[0], g_reach[0], g_core[0], n, eps, ep,
-                                                                     g_labels, &nc));
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_largest_cluster(g_labels, n, g_work, sizeof g_work, g_mask2,
-                                                                      &id, &cnt));
+        TEST_ASSERT_EQUAL_INT(
+            MAGCAL_OK, magcal_optics_filter(&c, g_pts, n, g_work, sizeof g_work, g_mask, &info));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                              magcal_optics_run(&c, g_pts, n, g_work, sizeof g_work, g_order[0],
+                                                g_reach[0], g_core[0], NULL, NULL));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                              magcal_optics_extract_dbscan(g_order[0], g_reach[0], g_core[0], n,
+                                                           eps, ep, g_labels, &nc));
+        TEST_ASSERT_EQUAL_INT(
+            MAGCAL_OK,
+            magcal_optics_largest_cluster(g_labels, n, g_work, sizeof g_work, g_mask2, &id, &cnt));
         TEST_ASSERT_EQUAL_UINT8_ARRAY(g_mask2, g_mask, n);
         for (i = 0; i < n; ++i) {
             noise += g_labels[i] < 0;
@@ -428,40 +494,49 @@ static void test_optics_filter_bad_input_returns_status(void)
     make_points(g_pts, 100u, 5u, 0);
     g_mask[0] = 7u;
     c.eps_prime = 0.4f; /* eps' > eps */
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_filter(&c, g_pts, 100u, g_work, sizeof g_work, g_mask, NULL));
+    TEST_ASSERT_EQUAL_INT(
+        MAGCAL_ERR_ARG, magcal_optics_filter(&c, g_pts, 100u, g_work, sizeof g_work, g_mask, NULL));
     c.eps_prime = -0.1f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_filter(&c, g_pts, 100u, g_work, sizeof g_work, g_mask, NULL));
+    TEST_ASSERT_EQUAL_INT(
+        MAGCAL_ERR_ARG, magcal_optics_filter(&c, g_pts, 100u, g_work, sizeof g_work, g_mask, NULL));
     c.eps_prime = 1e-6f; /* nothing within 1e-6: every point is noise */
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ALL_NOISE,
-                          magcal_optics_filter(&c, g_pts, 100u, g_work, sizeof g_work, g_mask, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ALL_NOISE, magcal_optics_filter(&c, g_pts, 100u, g_work,
+                                                                     sizeof g_work, g_mask, NULL));
     TEST_ASSERT_EQUAL_UINT8(7u, g_mask[0]);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_filter(NULL, g_pts, 100u, g_work, sizeof g_work, g_mask, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_filter(&a, g_pts, 100u, g_work, sizeof g_work, NULL, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS,
-                          magcal_optics_filter(&a, g_pts, 15u, g_work, sizeof g_work, g_mask, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_filter(NULL, g_pts, 100u, g_work,
+                                                                sizeof g_work, g_mask, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
+                          magcal_optics_filter(&a, g_pts, 100u, g_work, sizeof g_work, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(
+        MAGCAL_ERR_TOO_FEW_POINTS,
+        magcal_optics_filter(&a, g_pts, 15u, g_work, sizeof g_work, g_mask, NULL));
     a.eps = NAN;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_filter(&a, g_pts, 100u, g_work, sizeof g_work, g_mask, NULL));
+    TEST_ASSERT_EQUAL_INT(
+        MAGCAL_ERR_ARG, magcal_optics_filter(&a, g_pts, 100u, g_work, sizeof g_work, g_mask, NULL));
     a.eps = 0.0f;
     g_pts[3].x = -INFINITY;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE,
-                          magcal_optics_filter(&a, g_pts, 100u, g_work, sizeof g_work, g_mask, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_optics_filter(&a, g_pts, 100u, g_work,
+                                                                     sizeof g_work, g_mask, NULL));
     for (i = 0; i < 100u; ++i) {
         g_pts[i].x = 1.0f;
         g_pts[i].y = 2.0f;
     }
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_DEGENERATE,
-                          magcal_optics_filter(&a, g_pts, 100u, g_work, sizeof g_work, g_mask, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_DEGENERATE, magcal_optics_filter(&a, g_pts, 100u, g_work,
+                                                                      sizeof g_work, g_mask, NULL));
     TEST_ASSERT_EQUAL_UINT8(7u, g_mask[0]);
     {
         float e = 5.0f, ep = 5.0f;
         uint16_t mp = 9u;
-        TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_DEGENERATE, magcal_optics_auto_params(g_pts, 100u, g_work, sizeof g_work,
-                                                                               &e, &mp, &ep));
+        TEST_ASSERT_EQUAL_INT(
+            MAGCAL_ERR_DEGENERATE,
+            magcal_optics_auto_params(g_pts, 100u, g_work, sizeof g_work, &e, &mp, &ep));
         TEST_ASSERT_EQUAL_FLOAT(5.0f, e);
-        TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_auto_params(g_pts, 100u, g_work, sizeof g_work, NULL,
-                                                                         &mp, &ep));
-        TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_auto_params(g_pts, 100u, (uint8_t *)g_work + 1,
-                                                                        sizeof g_work - 4u, &e, &mp, &ep));
+        TEST_ASSERT_EQUAL_INT(
+            MAGCAL_ERR_NULL,
+            magcal_optics_auto_params(g_pts, 100u, g_work, sizeof g_work, NULL, &mp, &ep));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                              magcal_optics_auto_params(g_pts, 100u, (uint8_t *)g_work + 1,
+                                                        sizeof g_work - 4u, &e, &mp, &ep));
     }
 }
 
@@ -469,11 +544,11 @@ static void test_optics_filter_bad_input_returns_status(void)
 
 typedef struct {
     size_t n;
-    double sigma_rel;   /* noise / radius */
+    double sigma_rel; /* noise / radius */
     double arc_deg;
-    double ratio;       /* minor/major axis */
-    double offset_rel;  /* hard iron / radius */
-    double spike_frac;  /* isolated spikes: y shifted by -36 radii (driver glitch) */
+    double ratio;      /* minor/major axis */
+    double offset_rel; /* hard iron / radius */
+    double spike_frac; /* isolated spikes: y shifted by -36 radii (driver glitch) */
     int random_angles;
 } ring_case_t;
 
@@ -492,7 +567,8 @@ static void make_case(const ring_case_t *rc, double scale, uint32_t seed)
     d.bx = (float)(rc->offset_rel * scale);
     d.by = (float)(-0.6 * rc->offset_rel * scale);
     for (i = 0; i < rc->n; ++i) {
-        double psi = rc->random_angles ? rc->arc_deg * test_rand_uniform(&rng) : rc->arc_deg * (double)i / (double)rc->n;
+        double psi = rc->random_angles ? rc->arc_deg * test_rand_uniform(&rng)
+                                       : rc->arc_deg * (double)i / (double)rc->n;
         g_pts[i] = test_distorted_sample(&d, psi, rc->sigma_rel * scale, &rng);
         g_truth[i] = 1u;
         if (test_rand_uniform(&rng) < rc->spike_frac) {
@@ -505,9 +581,9 @@ static void make_case(const ring_case_t *rc, double scale, uint32_t seed)
 static void test_optics_filter_auto_keeps_ring_rejects_spikes_at_every_scale(void)
 {
     static const ring_case_t cases[] = {
-        {60u, 0.01, 360.0, 1.0, 0.0, 0.0, 0},   {60u, 0.02, 360.0, 1.0, 0.0, 0.0, 1},
-        {100u, 0.01, 360.0, 0.55, 5.0, 0.0, 1}, {300u, 0.01, 360.0, 1.0, 0.0, 0.0, 1},
-        {300u, 0.05, 360.0, 1.0, 0.0, 0.0, 1}, {300u, 0.01, 300.0, 1.0, 0.0, 0.0, 1},
+        {60u, 0.01, 360.0, 1.0, 0.0, 0.0, 0},    {60u, 0.02, 360.0, 1.0, 0.0, 0.0, 1},
+        {100u, 0.01, 360.0, 0.55, 5.0, 0.0, 1},  {300u, 0.01, 360.0, 1.0, 0.0, 0.0, 1},
+        {300u, 0.05, 360.0, 1.0, 0.0, 0.0, 1},   {300u, 0.01, 300.0, 1.0, 0.0, 0.0, 1},
         {700u, 0.01, 360.0, 0.55, 5.0, 0.05, 1}, {1024u, 0.005, 360.0, 1.0, 0.0, 0.0, 1},
         {1024u, 0.03, 360.0, 0.8, 2.0, 0.05, 0}, {200u, 0.01, 360.0, 1.0, 0.0, 0.10, 1},
     };
@@ -522,7 +598,8 @@ static void test_optics_filter_auto_keeps_ring_rejects_spikes_at_every_scale(voi
             size_t n = cases[ic].n, ti = 0u, ki = 0u, to = 0u, ko = 0u;
             char msg[96];
             make_case(&cases[ic], scales[is], (uint32_t)(11u + ic));
-            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_filter(&a, g_pts, n, g_work, sizeof g_work, g_mask, &info));
+            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_filter(&a, g_pts, n, g_work,
+                                                                  sizeof g_work, g_mask, &info));
             for (i = 0; i < n; ++i) {
                 if (g_truth[i]) {
                     ++ti;
@@ -532,17 +609,19 @@ static void test_optics_filter_auto_keeps_ring_rejects_spikes_at_every_scale(voi
                     ko += g_mask[i];
                 }
             }
-            snprintf(msg, sizeof msg, "case %u scale %g: kept %u/%u inliers, %u/%u spikes", (unsigned)ic,
-                     scales[is], (unsigned)ki, (unsigned)ti, (unsigned)ko, (unsigned)to);
+            snprintf(msg, sizeof msg, "case %u scale %g: kept %u/%u inliers, %u/%u spikes",
+                     (unsigned)ic, scales[is], (unsigned)ki, (unsigned)ti, (unsigned)ko,
+                     (unsigned)to);
             TEST_ASSERT_TRUE_MESSAGE(ki * 100u >= ti * 95u, msg); /* >= 95 % of the inliers kept */
-            TEST_ASSERT_EQUAL_UINT_MESSAGE(0u, ko, msg);            /* every far spike rejected */
+            TEST_ASSERT_EQUAL_UINT_MESSAGE(0u, ko, msg);          /* every far spike rejected */
             TEST_ASSERT_EQUAL_INT(MAGCAL_NEIGHBORS_GRID, info.neighbors);
             /* same relative behaviour at every scale: eps'/scale within 1e-3, kept count within 1 % */
             if (is == 0u) {
                 kept_ref = info.n_inliers;
                 rel_ref = (float)(info.eps_prime / scales[is]);
             } else {
-                TEST_ASSERT_FLOAT_WITHIN(1e-3f * rel_ref, rel_ref, (float)(info.eps_prime / scales[is]));
+                TEST_ASSERT_FLOAT_WITHIN(1e-3f * rel_ref, rel_ref,
+                                         (float)(info.eps_prime / scales[is]));
                 TEST_ASSERT_UINT_WITHIN(n / 100u + 1u, kept_ref, info.n_inliers);
             }
         }
@@ -560,10 +639,12 @@ static void test_optics_auto_params_real_glitches_rejects_every_glitch(void)
     float e, ep;
     uint16_t mp;
     TEST_ASSERT_EQUAL_STRING("real_glitches", g->name);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_auto_params(g->pts, g->n, g_work, sizeof g_work, &e, &mp, &ep));
+    TEST_ASSERT_EQUAL_INT(
+        MAGCAL_OK, magcal_optics_auto_params(g->pts, g->n, g_work, sizeof g_work, &e, &mp, &ep));
     TEST_ASSERT_EQUAL_UINT16(4u, mp);
     TEST_ASSERT_EQUAL_FLOAT(e, ep);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_filter(&a, g->pts, g->n, g_work, sizeof g_work, g_mask, &info));
+    TEST_ASSERT_EQUAL_INT(
+        MAGCAL_OK, magcal_optics_filter(&a, g->pts, g->n, g_work, sizeof g_work, g_mask, &info));
     TEST_ASSERT_EQUAL_FLOAT(ep, info.eps_prime);
     for (i = 0; i < g->n; ++i) {
         int glitch = fabsf(g->pts[i].y) > 1.0f;
@@ -571,8 +652,8 @@ static void test_optics_auto_params_real_glitches_rejects_every_glitch(void)
         kept_good += !glitch && g_mask[i];
         kept_bad += glitch && g_mask[i];
     }
-    printf("real glitches: eps' = %g gauss, kept %u/%u genuine, %u glitches\n", (double)ep, (unsigned)kept_good,
-           (unsigned)good, (unsigned)kept_bad);
+    printf("real glitches: eps' = %g gauss, kept %u/%u genuine, %u glitches\n", (double)ep,
+           (unsigned)kept_good, (unsigned)good, (unsigned)kept_bad);
     TEST_ASSERT_EQUAL_UINT(0u, kept_bad);
     TEST_ASSERT_TRUE(kept_good * 100u >= good * 95u);
 }

@@ -8,8 +8,10 @@
  *  2. density filter (optics.h / dbscan.h): OPTICS improved + grid with automatic eps, eps' and
  *     MinPts by default; OPTICS classic; DBSCAN; or none. cfg.eps / cfg.min_pts override the
  *     automatic values (DBSCAN with eps = 0 uses the automatic eps');
- *  3. coverage pre-gate around a hard-iron circle fit of the filter inliers (so a short arc is
- *     reported as COVERAGE, not as whatever conic it happens to fit);
+ *  3. coverage pre-gate: every sample, around a hard-iron circle fit of the filter inliers (so a
+ *     short arc is reported as COVERAGE, not as whatever conic it happens to fit); when the filter
+ *     inliers alone miss the gate (bursts split the ring into arcs, algorithms.md 4.3) the
+ *     consensus draws from every sample (report.filter_fragmented = 1);
  *  4. consensus (consensus.h): RANSAC/LMedS minimal ellipse sets, MAD-scaled residual threshold,
  *     refit; every sample is judged by its residual (cfg.use_consensus = 0: a plain
  *     least-squares fit of the filter inliers);
@@ -195,6 +197,8 @@ typedef struct {
     float shift_max_deg;        /**< max |heading change| over 0..360 if adopted */
     float shift_rms_deg;        /**< RMS heading change over 0..360 if adopted */
     magcal_cal2d_t cal;         /**< the new calibration (also when not adopted: inspect only) */
+    uint8_t filter_fragmented;  /**< 1: the filter inliers alone missed the coverage gate (ring split
+                                     into arcs by bursts), so the consensus drew from every sample */
 } magcal_cal_report_t;
 
 /** Calibrator instance. Allocate it anywhere; every field is PRIVATE (use the functions). */
@@ -309,6 +313,13 @@ magcal_status_t magcal_calibrator_classify(const magcal_calibrator_t *cal, magca
 
 /** @brief Current state (MAGCAL_CALIBRATOR_FAILED also for a NULL or uninitialised cal). */
 magcal_calibrator_state_t magcal_calibrator_state(const magcal_calibrator_t *cal);
+
+/**
+ * @brief Reason of the current state: the status of the last run() (MAGCAL_OK before any run or
+ *        after an adoption; e.g. MAGCAL_ERR_COVERAGE in state FAILED). MAGCAL_ERR_NOT_INITIALISED
+ *        for a NULL or uninitialised cal.
+ */
+magcal_status_t magcal_calibrator_last_status(const magcal_calibrator_t *cal);
 
 /** @brief Number of stored samples (0 for NULL). */
 size_t magcal_calibrator_count(const magcal_calibrator_t *cal);

@@ -38,7 +38,8 @@ extern "C" {
 #endif
 
 /** Workspace bytes for magcal_dbscan_run() on n points: queue uint16[n] + spatial index. */
-#define MAGCAL_DBSCAN_WORKSPACE_LEN(n) ((2u * (size_t)(n) + MAGCAL_NEIGHBORS_WORKSPACE_LEN(n) + 3u) & ~(size_t)3u)
+#define MAGCAL_DBSCAN_WORKSPACE_LEN(n)                                                             \
+    ((2u * (size_t)(n) + MAGCAL_NEIGHBORS_WORKSPACE_LEN(n) + 3u) & ~(size_t)3u)
 
 /** DBSCAN configuration. */
 typedef struct {
@@ -48,7 +49,10 @@ typedef struct {
 } magcal_dbscan_cfg_t;
 
 /** Defaults: eps must be set by the caller (0 is rejected), MinPts 4, grid search. */
-#define MAGCAL_DBSCAN_CFG_DEFAULT { 0.0f, 4u, MAGCAL_NEIGHBORS_GRID }
+#define MAGCAL_DBSCAN_CFG_DEFAULT                                                                  \
+    {                                                                                              \
+        0.0f, 4u, MAGCAL_NEIGHBORS_GRID                                                            \
+    }
 
 /**
  * @brief Label n points with DBSCAN(eps, MinPts).
@@ -65,9 +69,9 @@ typedef struct {
  *         MAGCAL_ERR_TOO_FEW_POINTS (n < min_pts); MAGCAL_ERR_NONFINITE; MAGCAL_ERR_WORKSPACE.
  *         labels untouched on failure.
  */
-magcal_status_t magcal_dbscan_run(const magcal_dbscan_cfg_t *cfg, const magcal_vec2_t *pts, size_t n,
-                                  void *work, size_t work_len, int16_t *labels, uint16_t *n_clusters,
-                                  magcal_neighbors_t *used);
+magcal_status_t magcal_dbscan_run(const magcal_dbscan_cfg_t *cfg, const magcal_vec2_t *pts,
+                                  size_t n, void *work, size_t work_len, int16_t *labels,
+                                  uint16_t *n_clusters, magcal_neighbors_t *used);
 
 #ifdef __cplusplus
 }

@@ -87,24 +87,38 @@ extern "C" {
 
 /** Fitted ellipse. Lengths and centre in input units; see the file comment for normalisation. */
 typedef struct {
-    magcal_vec2_t center;      /**< centre (x0, y0) = hard-iron estimate, input units */
-    float semi_minor;          /**< r1 <= r2, input units */
-    float semi_major;          /**< r2, input units */
-    float angle_rad;           /**< theta: direction of the semi-MINOR axis e1 = (cos, sin), (-pi/2, pi/2] (alg. 2.3) */
-    float coef[5];             /**< A..E in NORMALISED coordinates (x~, y~) */
-    magcal_vec2_t norm_center; /**< provisional centre used for normalisation, input units */
-    float norm_scale;          /**< scale s used for normalisation, input units */
-    float residual_rms;        /**< RMS of magcal_ellipse_residual() over the used points, input units */
-    float min_pivot;           /**< smallest equilibrated LDL^T pivot (5-point exact path: smallest |U_jj|) */
-    float qform[3];            /**< (q11, q12, q22): (p-c)^T Q (p-c) = 1 on the ellipse, input units^-2 */
-    uint16_t n_used;           /**< number of points used */
+    /** centre (x0, y0) = hard-iron estimate, input units */
+    magcal_vec2_t center;
+    /** r1 <= r2, input units */
+    float semi_minor;
+    /** r2, input units */
+    float semi_major;
+    /** theta: direction of the semi-MINOR axis e1 = (cos, sin), in (-pi/2, pi/2] (alg. 2.3) */
+    float angle_rad;
+    /** A..E in NORMALISED coordinates (x~, y~) */
+    float coef[5];
+    /** provisional centre used for normalisation, input units */
+    magcal_vec2_t norm_center;
+    /** scale s used for normalisation, input units */
+    float norm_scale;
+    /** RMS of magcal_ellipse_residual() over the used points, input units */
+    float residual_rms;
+    /** smallest equilibrated LDL^T pivot (5-point exact path: smallest |U_jj|) */
+    float min_pivot;
+    /** (q11, q12, q22): (p - c)^T Q (p - c) = 1 on the ellipse, input units^-2 */
+    float qform[3];
+    /** number of points used */
+    uint16_t n_used;
 } magcal_ellipse_t;
 
 /** Correction form built by magcal_ellipse_to_cal() (algorithms.md 2.4). */
 typedef enum {
-    MAGCAL_CORR_SYMMETRIC = 0, /**< M = rho R(theta) diag(1/r1, 1/r2) R(theta)^T (whitening, default) */
-    MAGCAL_CORR_KX1 = 1,       /**< seed "kx = 1": M = R diag(1, r1/r2) R^T, circle radius r1 */
-    MAGCAL_CORR_TRIANGULAR = 2 /**< upper triangular M (y axis keeps its direction) */
+    /** M = rho R(theta) diag(1/r1, 1/r2) R(theta)^T (whitening, default) */
+    MAGCAL_CORR_SYMMETRIC = 0,
+    /** seed "kx = 1": M = R diag(1, r1/r2) R^T, circle radius r1 */
+    MAGCAL_CORR_KX1 = 1,
+    /** upper triangular M (the y axis keeps its direction) */
+    MAGCAL_CORR_TRIANGULAR = 2
 } magcal_corr_form_t;
 
 /**
@@ -184,8 +198,8 @@ magcal_status_t magcal_ellipse_fit_seed(const magcal_vec2_t *pts, size_t n, cons
  *         MAGCAL_ERR_ARG (norm_scale <= 0); MAGCAL_ERR_HYPERBOLA; MAGCAL_ERR_PARABOLA;
  *         MAGCAL_ERR_IMAGINARY (K <= 0); MAGCAL_ERR_ILL_CONDITIONED (geometry over/underflows).
  */
-magcal_status_t magcal_ellipse_from_conic(const float coef[5], magcal_vec2_t norm_center, float norm_scale,
-                                          magcal_ellipse_t *out);
+magcal_status_t magcal_ellipse_from_conic(const float coef[5], magcal_vec2_t norm_center,
+                                          float norm_scale, magcal_ellipse_t *out);
 
 /**
  * @brief Signed approximate geometric distance of p to the ellipse, input units.

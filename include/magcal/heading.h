@@ -89,7 +89,8 @@ magcal_status_t magcal_cal2d_validate(const magcal_cal2d_t *c);
  * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_NONFINITE (raw or c non-finite); any status of
  *         magcal_cal2d_validate().
  */
-magcal_status_t magcal_correct_apply(const magcal_cal2d_t *c, magcal_vec2_t raw, magcal_vec2_t *out);
+magcal_status_t magcal_correct_apply(const magcal_cal2d_t *c, magcal_vec2_t raw,
+                                     magcal_vec2_t *out);
 
 /**
  * @brief Heading of a calibrated, level horizontal field: atan2(-h.x, h.y) in degrees.
@@ -116,8 +117,8 @@ magcal_status_t magcal_heading_from_field(magcal_vec2_t h, float *heading_deg);
  *         magcal_cal2d_validate(); MAGCAL_ERR_ZERO_FIELD (as magcal_heading_from_field(), or,
  *         when c->radius > 0, |h| < MAGCAL_HEADING_ZERO_FIELD_FRAC * radius).
  */
-magcal_status_t magcal_heading_compute(const magcal_cal2d_t *c, magcal_vec2_t raw, float declination_deg,
-                                       float *magnetic_deg, float *true_deg);
+magcal_status_t magcal_heading_compute(const magcal_cal2d_t *c, magcal_vec2_t raw,
+                                       float declination_deg, float *magnetic_deg, float *true_deg);
 
 #ifdef __cplusplus
 }

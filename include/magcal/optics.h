@@ -74,44 +74,60 @@ extern "C" {
 
 /** Seed-list organisation of the ordering loop (algorithms.md 4.2); outputs are identical. */
 typedef enum {
-    MAGCAL_OPTICS_CLASSIC = 0,  /**< binary min-heap keyed on (reach, index) with decrease-key */
-    MAGCAL_OPTICS_IMPROVED = 1  /**< unordered seed list, one linear scan for the minimum */
+    MAGCAL_OPTICS_CLASSIC = 0, /**< binary min-heap keyed on (reach, index) with decrease-key */
+    MAGCAL_OPTICS_IMPROVED = 1 /**< unordered seed list, one linear scan for the minimum */
 } magcal_optics_order_t;
 
 /** Neighbour search used for the eps-queries; outputs are identical. */
 typedef enum {
     MAGCAL_NEIGHBORS_BRUTE = 0, /**< test every point, O(n) per query */
-    MAGCAL_NEIGHBORS_GRID = 1   /**< uniform grid, counting sort, 3x3 cell query (brute if eps = inf) */
+    MAGCAL_NEIGHBORS_GRID = 1   /**< uniform grid, counting sort, 3x3 cell query (brute if eps = inf
+                                     or all points equal) */
 } magcal_neighbors_t;
 
 /**
- * Grid cells the spatial index may use for n points: min(MAGCAL_GRID_MAX_CELLS, max(n, 16)).
- * The cell side is eps*(1+2^-20), enlarged (still correct, only less selective) when the bounding
- * box would need more cells than this.
+ * Buckets G of the spatial index for n points: min(MAGCAL_GRID_MAX_CELLS, max(n, 16)).
+ * The grid has cell side eps*(1+2^-6) over the points' bounding box; a grid of at most G cells
+ * is stored densely (algorithms.md 4.4), a larger one (far outliers stretching the box) folds its
+ * row-major cell number modulo G, so distant cells share buckets and the distance test drops the
+ * extra candidates. Results never depend on G; only the speed does.
  */
-#define MAGCAL_OPTICS_GRID_CELLS(n) \
-    ((size_t)(n) < 16u ? (size_t)16u \
-     : ((size_t)(n) > (size_t)MAGCAL_GRID_MAX_CELLS ? (size_t)MAGCAL_GRID_MAX_CELLS : (size_t)(n)))
+#define MAGCAL_OPTICS_GRID_CELLS(n)                                                                \
+    ((size_t)(n) < 16u                                                                             \
+         ? (size_t)16u                                                                             \
+         : ((size_t)(n) > (size_t)MAGCAL_GRID_MAX_CELLS ? (size_t)MAGCAL_GRID_MAX_CELLS            \
+                                                        : (size_t)(n)))
 
 /** Bytes of the internal spatial index for n points: idx[n] + start[G+1] (uint16). */
-#define MAGCAL_NEIGHBORS_WORKSPACE_LEN(n) (2u * (size_t)(n) + 2u * (MAGCAL_OPTICS_GRID_CELLS(n) + 1u))
+#define MAGCAL_NEIGHBORS_WORKSPACE_LEN(n)                                                          \
+    (2u * (size_t)(n) + 2u * (MAGCAL_OPTICS_GRID_CELLS(n) + 1u))
+
+/** @cond INTERNAL */
+/* Offset of the MinPts insertion buffer in the run workspace (4-byte aligned). */
+#define MAGCAL_OPTICS_BEST_OFFSET_(n)                                                              \
+    ((4u * (size_t)(n) + MAGCAL_NEIGHBORS_WORKSPACE_LEN(n) + ((size_t)(n) + 7u) / 8u + 3u) &       \
+     ~(size_t)3u)
+/* Offset of the run workspace inside the filter workspace (4-byte aligned). */
+#define MAGCAL_OPTICS_FILTER_RUN_OFFSET_(n) ((6u * (size_t)(n) + 3u) & ~(size_t)3u)
+/** @endcond */
 
 /**
  * Workspace bytes for magcal_optics_run() on n points: seed heap/list uint16[n], heap position
- * map uint16[n], spatial index, one "processed" bit per point, rounded up to a multiple of 4.
- * About 8.1 bytes per sample (n <= MAGCAL_GRID_MAX_CELLS); the outputs (order 2 + reach 4 +
- * core 4 bytes per sample) are separate caller arrays.
+ * map uint16[n], spatial index, one "processed" bit per point and the MinPts insertion buffer
+ * (4 * MAGCAL_MAX_MIN_PTS bytes, kept off the stack). About 8.1 bytes per sample + 128 bytes;
+ * the outputs (order 2 + reach 4 + core 4 bytes per sample) are separate caller arrays.
  */
-#define MAGCAL_OPTICS_WORKSPACE_LEN(n) \
-    ((4u * (size_t)(n) + MAGCAL_NEIGHBORS_WORKSPACE_LEN(n) + ((size_t)(n) + 7u) / 8u + 3u) & ~(size_t)3u)
+#define MAGCAL_OPTICS_WORKSPACE_LEN(n)                                                             \
+    (MAGCAL_OPTICS_BEST_OFFSET_(n) + 4u * (size_t)MAGCAL_MAX_MIN_PTS)
 
 /**
  * Workspace bytes for magcal_optics_filter() and magcal_optics_auto_params() on n points:
- * reach float[n] + labels int16[n] + MAGCAL_OPTICS_WORKSPACE_LEN(n). About 16 bytes per sample;
- * with the caller's uint8 inlier mask the whole filter needs about 17 bytes per sample besides
- * the points (ordering and core distances are consumed on the fly, never stored).
+ * reach float[n] + labels int16[n] + MAGCAL_OPTICS_WORKSPACE_LEN(n). About 14.1 bytes per
+ * sample + 128 bytes; with the caller's uint8 inlier mask the whole filter needs about 15.1 bytes
+ * per sample besides the points (ordering and core distances are consumed on the fly).
  */
-#define MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n) (6u * (size_t)(n) + MAGCAL_OPTICS_WORKSPACE_LEN(n))
+#define MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n)                                                      \
+    (MAGCAL_OPTICS_FILTER_RUN_OFFSET_(n) + MAGCAL_OPTICS_WORKSPACE_LEN(n))
 
 /** Workspace bytes for magcal_optics_largest_cluster() on n labels (cluster counts, uint16[n]). */
 #define MAGCAL_OPTICS_LARGEST_WORKSPACE_LEN(n) ((2u * (size_t)(n) + 3u) & ~(size_t)3u)
@@ -121,7 +137,8 @@ typedef struct {
     /** Neighbourhood radius eps > 0 (may be +INFINITY). magcal_optics_filter: eps <= 0 selects
      *  automatic eps, eps' and MinPts (magcal_optics_auto_params); magcal_optics_run: must be > 0. */
     float eps;
-    /** Extraction radius eps' (filter only), 0 < eps' <= eps; 0 means eps' = eps. Ignored in auto. */
+    /** Extraction radius eps' (filter only), finite, 0 < eps' <= eps; 0 means eps' = eps (then
+     *  eps must be finite). Ignored in auto mode. */
     float eps_prime;
     /** MinPts, counting the point itself: 2..MAGCAL_MAX_MIN_PTS. Ignored in auto mode. */
     uint16_t min_pts;
@@ -132,19 +149,29 @@ typedef struct {
 } magcal_optics_cfg_t;
 
 /** Defaults: automatic parameters, improved ordering, grid search (work without tuning). */
-#define MAGCAL_OPTICS_CFG_DEFAULT \
-    { 0.0f, 0.0f, 4u, MAGCAL_OPTICS_IMPROVED, MAGCAL_NEIGHBORS_GRID }
+#define MAGCAL_OPTICS_CFG_DEFAULT                                                                  \
+    {                                                                                              \
+        0.0f, 0.0f, 4u, MAGCAL_OPTICS_IMPROVED, MAGCAL_NEIGHBORS_GRID                              \
+    }
 
 /** What a run or filter did (diagnostics). */
 typedef struct {
-    float eps;                      /**< eps used (auto or given), point unit */
-    float eps_prime;                /**< eps' used by the extraction (filter only) */
-    uint16_t min_pts;               /**< MinPts used */
-    magcal_neighbors_t neighbors;   /**< search actually used (GRID falls back to BRUTE for eps = inf) */
-    uint16_t n_clusters;            /**< clusters found at eps' (filter only) */
-    int16_t largest_id;             /**< id of the kept cluster (filter only) */
-    uint16_t n_inliers;             /**< points in the kept cluster (filter only) */
-    uint16_t n_noise;               /**< points labelled noise at eps' (filter only) */
+    /** eps used (auto or given), point unit. */
+    float eps;
+    /** eps' used by the extraction (filter only). */
+    float eps_prime;
+    /** MinPts used. */
+    uint16_t min_pts;
+    /** Search actually used (GRID falls back to BRUTE for eps = inf or all points equal). */
+    magcal_neighbors_t neighbors;
+    /** Clusters found at eps' (filter only). */
+    uint16_t n_clusters;
+    /** Id of the kept cluster (filter only). */
+    int16_t largest_id;
+    /** Points in the kept cluster (filter only). */
+    uint16_t n_inliers;
+    /** Points labelled noise at eps' (filter only). */
+    uint16_t n_noise;
 } magcal_optics_result_t;
 
 /**
@@ -165,9 +192,10 @@ typedef struct {
  *         MAGCAL_ERR_ARG also for n > MAGCAL_MAX_SAMPLES; MAGCAL_ERR_NONFINITE (a NaN/Inf point);
  *         MAGCAL_ERR_WORKSPACE (work_len too small). Outputs are untouched on failure.
  */
-magcal_status_t magcal_optics_run(const magcal_optics_cfg_t *cfg, const magcal_vec2_t *pts, size_t n,
-                                  void *work, size_t work_len, uint16_t *order, float *reach,
-                                  float *core, uint16_t *pred, magcal_optics_result_t *info);
+magcal_status_t magcal_optics_run(const magcal_optics_cfg_t *cfg, const magcal_vec2_t *pts,
+                                  size_t n, void *work, size_t work_len, uint16_t *order,
+                                  float *reach, float *core, uint16_t *pred,
+                                  magcal_optics_result_t *info);
 
 /**
  * @brief ExtractDBSCAN-Clustering at eps' (algorithms.md 4.3).
@@ -181,8 +209,9 @@ magcal_status_t magcal_optics_run(const magcal_optics_cfg_t *cfg, const magcal_v
  *         an order entry >= n, n > MAGCAL_MAX_SAMPLES).
  *         labels untouched on failure.
  */
-magcal_status_t magcal_optics_extract_dbscan(const uint16_t *order, const float *reach, const float *core,
-                                             size_t n, float eps, float eps_prime, int16_t *labels,
+magcal_status_t magcal_optics_extract_dbscan(const uint16_t *order, const float *reach,
+                                             const float *core, size_t n, float eps,
+                                             float eps_prime, int16_t *labels,
                                              uint16_t *n_clusters);
 
 /**
@@ -199,8 +228,9 @@ magcal_status_t magcal_optics_extract_dbscan(const uint16_t *order, const float 
  *         MAGCAL_ERR_ARG also for n > MAGCAL_MAX_SAMPLES; MAGCAL_ERR_WORKSPACE;
  *         MAGCAL_ERR_ALL_NOISE (no cluster). Outputs untouched on failure.
  */
-magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, void *work, size_t work_len,
-                                              uint8_t *inlier_mask, int16_t *cluster_id, uint16_t *count);
+magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, void *work,
+                                              size_t work_len, uint8_t *inlier_mask,
+                                              int16_t *cluster_id, uint16_t *count);
 
 /**
  * @brief Automatic eps, MinPts and eps' from the data's own scale (rule in the file comment).
@@ -216,8 +246,9 @@ magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, v
  *         MAGCAL_ERR_NONFINITE; MAGCAL_ERR_WORKSPACE; MAGCAL_ERR_DEGENERATE (median radius 0 or
  *         fewer than 10 points in the ring band). Outputs untouched on failure.
  */
-magcal_status_t magcal_optics_auto_params(const magcal_vec2_t *pts, size_t n, void *work, size_t work_len,
-                                          float *eps, uint16_t *min_pts, float *eps_prime);
+magcal_status_t magcal_optics_auto_params(const magcal_vec2_t *pts, size_t n, void *work,
+                                          size_t work_len, float *eps, uint16_t *min_pts,
+                                          float *eps_prime);
 
 /**
  * @brief Points to inlier mask in one call: (auto params), OPTICS, ExtractDBSCAN at eps', largest
@@ -234,8 +265,8 @@ magcal_status_t magcal_optics_auto_params(const magcal_vec2_t *pts, size_t n, vo
  *         MAGCAL_ERR_ARG (eps' > eps or eps' < 0); MAGCAL_ERR_ALL_NOISE (no cluster).
  *         inlier_mask untouched on failure.
  */
-magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magcal_vec2_t *pts, size_t n,
-                                     void *work, size_t work_len, uint8_t *inlier_mask,
+magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magcal_vec2_t *pts,
+                                     size_t n, void *work, size_t work_len, uint8_t *inlier_mask,
                                      magcal_optics_result_t *info);
 
 #ifdef __cplusplus

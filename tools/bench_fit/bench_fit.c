@@ -44,6 +44,7 @@ int main(void)
     printf("fit %d: centre (%.3f, %.3f) r1 %.3f r2 %.3f rms %.3f\n", (int)st, (double)e.center.x,
            (double)e.center.y, (double)e.semi_minor, (double)e.semi_major, (double)e.residual_rms);
     printf("fit5 %d: centre (%.3f, %.3f); residual %.4f; heading %d: %.3f / %.3f\n", (int)st5,
-           (double)e5.center.x, (double)e5.center.y, (double)res, (int)sth, (double)mag, (double)tru);
+           (double)e5.center.x, (double)e5.center.y, (double)res, (int)sth, (double)mag,
+           (double)tru);
     return (st == MAGCAL_OK && st5 == MAGCAL_OK && sth == MAGCAL_OK) ? 0 : 1;
 }

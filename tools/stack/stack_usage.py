@@ -17,6 +17,9 @@ Assumptions (--assume, default tools/stack/assumptions.txt): `caller callee  # r
 remove call edges that the library's arguments provably never take (e.g. libm's huge-argument
 range reduction); each needs its reason, and the table marks pruned paths.
 
+Calls into the HAL port (functions declared in port/magcal_port.h) are the firmware's code: they
+count as 0 bytes and are listed, so the integrator adds the port's own worst case.
+
 Errors (exit 1): a cycle in the call graph, a dynamic or dynamic,bounded frame, an indirect
 call, an external function that cannot be costed, or (with --limit) a public entry point whose
 worst case exceeds the limit. Standard library only (plus arm-none-eabi-objdump / -gcc).
@@ -196,6 +199,15 @@ def main(argv):
         with open(h) as f:
             public.update(re.findall(r"\b(magcal_[a-z0-9_]+)\s*\(", f.read()))
 
+    # The HAL port (port/magcal_port.h) is implemented by the firmware: its frames are not
+    # known here and count as 0; the caller adds its port's worst case (reported below).
+    port = set()
+    port_h = os.path.join(args.src_root, "port", "magcal_port.h")
+    if os.path.exists(port_h):
+        with open(port_h) as f:
+            port.update(re.findall(r"\b(magcal_port_[a-z0-9_]+)\s*\(", f.read()))
+    port_used = set()
+
     memo = {}
     onstack = []
 
@@ -215,6 +227,9 @@ def main(argv):
             if g.kind[name] != "static":
                 errors.append("%s: %s frame (%s)" % (name, g.kind[name], g.where[name]))
             callees = g.calls.get(name, set())
+        elif name in port:
+            port_used.add(name)
+            own, callees = 0, set()
         elif name in ext:
             own, callees = ext[name]
             if own is None:
@@ -256,6 +271,9 @@ def main(argv):
             print("worst public entry point: %s, %d bytes (limit %d)" % (top[0], top[2], args.limit))
     for caller, callee in sorted(pruned):
         print("assumed never called: %s -> %s" % (caller, callee))
+    if port_used:
+        print("HAL port calls counted as 0 bytes (add the port implementation's own worst case): "
+              + ", ".join(sorted(port_used)))
     if args.measured_run:
         p = subprocess.run(args.measured_run, capture_output=True, text=True)
         if p.returncode != 0:

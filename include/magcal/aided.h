@@ -1,0 +1,208 @@
+/**
+ * @file aided.h
+ * @brief Online 3-D magnetometer calibration aided by an INS/GNSS attitude and a reference field.
+ *
+ * Model (algorithms.md 7.1, 7.3, 7.4): `m = W h + V + noise`, `h = C_n^b B_ref`. Per epoch the linear
+ * vector residual `C_b^n G (m - V) - B_ref` is written as `C_n^b B_ref = G m + c` (c = -G V): three
+ * least-squares problems sharing the regressor `[m; 1]`, so one 4x4 information matrix serves all
+ * three (information-form RLS, optional forgetting factor). Memory is fixed (the instance struct) and
+ * work per epoch is bounded (a 4x4 Jacobi eigen-decomposition and solve).
+ *
+ * Frames and attitude (the standard aerospace ZYX Euler angles of an INS, see algorithms.md 6, 7.1):
+ * - body: x right, y forward, z up; the raw field m in body axes;
+ * - B_ref: NED components (x north, y east, z down), e.g. WMM at the GNSS position, in the SAME unit
+ *   as the output you want (uT or nT); m is expected in that unit too unless `cfg.prior` scales it;
+ * - yaw psi: heading of the forward axis, clockwise from (true) north; pitch theta: nose up positive,
+ *   rotation about the right axis; roll phi: right side down positive, rotation about the forward axis;
+ *   `C_b^ENU = R_z(-psi) R_x(theta) R_y(phi)`, `C_b^NED = P C_b^ENU`, P = [[0,1,0],[1,0,0],[0,0,-1]].
+ *   These are numerically the INS's FRD/NED yaw, pitch, roll (C_FRD^NED = R_z(psi) R_y(theta) R_x(phi)).
+ *   The attitude, yaw in particular, must NOT come from this magnetometer.
+ *
+ * Gates (algorithms.md 7.8), checked in this order, each counted: DOP > max_dop; until a fully
+ * observed estimate exists (>= min_epochs accepted and no direction frozen at the prior) the raw
+ * magnitude gate through the prior, `| |G0(m - V0)| - |B_ref| | > gate_raw_rel*|B_ref|` (loose: V is
+ * unknown); afterwards `| |G(m - V)| - |B_ref| | > gate_field_rel*|B_ref|` and
+ * `|C_b^n G(m - V) - B_ref| > gate_vector_rel*|B_ref|`.
+ *
+ * Observability (algorithms.md 7.7): exactly level yaw-only motion leaves three parameters (the z
+ * scale and cross terms against the z offset) unobservable. The module eigen-decomposes the
+ * per-epoch information matrix of the normalised regressor [(m - V0)/|B|; 1]; a direction whose
+ * eigenvalue mu_k is below `min_eig` (sensor noise alone also excites it, so this test does not
+ * improve with N) or whose predicted parameter standard deviation `sigma / sqrt(N_eff * mu_k)`
+ * exceeds `max_weak_std` is frozen at the prior (cfg.prior, e.g. the factory calibration) and
+ * reported (MAGCAL_ERR_UNOBSERVABLE, MAGCAL_AIDED_FLAG_PRIOR_USED).
+ *
+ * The result is a magcal_ellipsoid_cal_t: `h = G (m - V)` in body axes, then tilt compensation
+ * (algorithms.md 6) gives the heading. G includes the magnetometer-to-INS misalignment.
+ */
+#ifndef MAGCAL_AIDED_H
+#define MAGCAL_AIDED_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "magcal/ellipsoid.h"
+#include "magcal/status.h"
+#include "magcal/types.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/** One epoch of input. */
+typedef struct {
+    magcal_vec3_t m;         /**< raw field, body axes (x right, y forward, z up) */
+    float roll_rad;          /**< phi: right side down positive, about the forward axis, radians */
+    float pitch_rad;         /**< theta: nose up positive, about the right axis, radians, |theta| < pi/2 */
+    float yaw_rad;           /**< psi: clockwise from north, radians (any range) */
+    magcal_vec3_t b_ref_ned; /**< reference field: x north, y east, z down (same unit as the output) */
+    float dop;               /**< GNSS dilution of precision (PDOP or HDOP), >= 0 */
+} magcal_aided_epoch_t;
+
+/** Why an epoch was rejected (index into magcal_aided_result_t::gated). */
+typedef enum {
+    MAGCAL_AIDED_GATE_NONE = 0,   /**< accepted */
+    MAGCAL_AIDED_GATE_DOP = 1,    /**< dop > max_dop */
+    MAGCAL_AIDED_GATE_RAW = 2,    /**< raw magnitude gate through the prior (no fully observed estimate yet) */
+    MAGCAL_AIDED_GATE_FIELD = 3,  /**< calibrated magnitude gate */
+    MAGCAL_AIDED_GATE_VECTOR = 4, /**< calibrated vector (direction) gate */
+    MAGCAL_AIDED_GATE_COUNT = 5
+} magcal_aided_gate_t;
+
+/** Result flags. */
+#define MAGCAL_AIDED_FLAG_ESTIMATE 0x01u   /**< an estimate exists (>= min_epochs accepted) */
+#define MAGCAL_AIDED_FLAG_CONVERGED 0x02u  /**< parameter change below thresholds over a window */
+#define MAGCAL_AIDED_FLAG_PRIOR_USED 0x04u /**< at least one direction frozen at the prior */
+
+/** Configuration. Start from MAGCAL_AIDED_CFG_DEFAULT. */
+typedef struct {
+    float lambda;          /**< forgetting factor in [0.9, 1]; 1 = growing-memory least squares (default 1) */
+    float max_dop;         /**< DOP gate (default 3) */
+    float gate_raw_rel;    /**< raw gate, fraction of |B_ref| (default 1.0: a sanity check only, V may be as large as F) */
+    float gate_field_rel;  /**< calibrated magnitude gate, fraction of F (default 0.05) */
+    float gate_vector_rel; /**< calibrated vector gate, fraction of F (default 0.15) */
+    float sigma_rel;       /**< assumed vector residual std / F: noise + attitude error (default 0.005) */
+    float max_weak_std;    /**< largest predicted std of a parameter direction (G units) (default 0.03) */
+    float min_eig;         /**< smallest usable eigenvalue of the per-epoch information matrix of [m/|B|; 1]
+                                (default 2e-5: about 0.6 deg RMS tilt at 66 deg inclination, 20x the
+                                level-driving value of a 0.05 uT-noise sensor at 50 uT) */
+    float noise_rel;       /**< magnetometer white noise std per axis / |B| (e.g. 0.05 uT / 48 uT = 0.001);
+                                removes the errors-in-variables shrinkage of weakly excited directions
+                                (bias-compensated least squares); 0 = off (default 0) */
+    uint32_t min_epochs;   /**< accepted epochs before an estimate exists (>= 8, default 50) */
+    uint32_t conv_window;  /**< accepted epochs per convergence window (>= 1, default 50) */
+    float conv_dg;         /**< converged: max |dG_ij| over a window below this (default 2e-3) */
+    float conv_dv_rel;     /**< converged: |dV| / F over a window below this (default 2e-3) */
+    magcal_ellipsoid_cal_t prior; /**< prior / factory calibration (G0, V0; field unused); V0 also centres the data */
+} magcal_aided_cfg_t;
+
+/** Defaults that work without tuning (prior: G0 = I, V0 = 0: raw data already in the B_ref unit). */
+#define MAGCAL_AIDED_CFG_DEFAULT                                                                    \
+    {                                                                                               \
+        1.0f, 3.0f, 1.0f, 0.05f, 0.15f, 0.005f, 0.03f, 2e-5f, 0.0f, 50u, 50u, 2e-3f, 2e-3f,                      \
+        {{{1.0f, 0.0f, 0.0f}, {0.0f, 1.0f, 0.0f}, {0.0f, 0.0f, 1.0f}}, {0.0f, 0.0f, 0.0f}, 0.0f}    \
+    }
+
+/** Instance. Allocate statically; all fields are private (read them through magcal_aided_get). */
+typedef struct {
+    magcal_aided_cfg_t cfg;  /**< private: copy of the configuration */
+    uint32_t magic;          /**< private: initialisation marker */
+    float scale;             /**< private: normalisation s (|B_ref| of the first accepted epoch) */
+    float info[10];          /**< private: information matrix, packed lower triangle of 4x4 */
+    float info_c[10];        /**< private: Kahan compensation of info */
+    float cross[12];         /**< private: sum phi y^T, 4x3 */
+    float cross_c[12];       /**< private: Kahan compensation of cross */
+    float yy;                /**< private: sum |y|^2 */
+    float yy_c;              /**< private: compensation of yy */
+    float f_sum;             /**< private: sum |B_ref| / s (for F) */
+    float theta[12];         /**< private: current solution, 4x3 (normalised) */
+    float snap[12];          /**< private: solution at the start of the convergence window */
+    magcal_ellipsoid_cal_t cal; /**< private: current calibration */
+    float min_eig;           /**< private: smallest eigenvalue of the per-epoch information matrix */
+    float weak_std;          /**< private: predicted std along the weakest direction */
+    float weak_dir[4];       /**< private: weakest direction (normalised [m; 1] space) */
+    float resid_rms;         /**< private: RMS vector residual of the fit, output units */
+    uint32_t n_accepted;     /**< private */
+    uint32_t n_seen;         /**< private */
+    uint32_t gated[MAGCAL_AIDED_GATE_COUNT]; /**< private: counts per gate reason */
+    uint32_t win_count;      /**< private: epochs in the current convergence window */
+    uint32_t converged_at;   /**< private: accepted-epoch count at first convergence, 0 = never */
+    uint32_t n_prior_dirs;   /**< private: directions frozen at the prior */
+    uint32_t flags;          /**< private: MAGCAL_AIDED_FLAG_* */
+} magcal_aided_t;
+
+/** Snapshot of the estimate. */
+typedef struct {
+    magcal_ellipsoid_cal_t cal;  /**< G, V, F (F = mean |B_ref| of the accepted epochs) */
+    uint32_t flags;              /**< MAGCAL_AIDED_FLAG_* */
+    uint32_t n_accepted;         /**< epochs used */
+    uint32_t n_seen;             /**< epochs offered */
+    uint32_t gated[MAGCAL_AIDED_GATE_COUNT]; /**< rejected epochs per reason (index 0 unused) */
+    uint32_t converged_at;       /**< accepted-epoch count at first convergence, 0 = not yet */
+    uint32_t n_prior_dirs;       /**< parameter directions (of 4) frozen at the prior */
+    float min_eig;               /**< smallest eigenvalue of the normalised per-epoch information matrix */
+    float weak_std;              /**< predicted std of the weakest parameter direction (G units) */
+    float resid_rms;             /**< RMS of the vector residual C G (m - V) - B_ref, output units */
+} magcal_aided_result_t;
+
+/**
+ * @brief Initialise an instance (validates and copies the configuration).
+ * @param[out] inst instance.
+ * @param[in]  cfg  configuration (MAGCAL_AIDED_CFG_DEFAULT).
+ * @return MAGCAL_OK, MAGCAL_ERR_NULL, MAGCAL_ERR_ARG (a value out of its documented range, or a
+ *         singular prior G0), MAGCAL_ERR_NONFINITE (non-finite prior).
+ */
+magcal_status_t magcal_aided_init(magcal_aided_t *inst, const magcal_aided_cfg_t *cfg);
+
+/**
+ * @brief Offer one epoch: gate it, and if accepted update the estimate (bounded work).
+ * @param[in,out] inst   initialised instance.
+ * @param[in]     ep     epoch.
+ * @param[out]    reason optional (may be NULL): gate that rejected the epoch, or MAGCAL_AIDED_GATE_NONE.
+ * @return MAGCAL_OK (accepted), MAGCAL_ERR_GATED (rejected by a gate; counted, state unchanged otherwise),
+ *         MAGCAL_ERR_NULL, MAGCAL_ERR_NOT_INITIALISED, MAGCAL_ERR_NONFINITE (a non-finite input),
+ *         MAGCAL_ERR_ARG (dop < 0, |pitch| >= pi/2), MAGCAL_ERR_ZERO_FIELD (|B_ref| == 0).
+ */
+magcal_status_t magcal_aided_update(magcal_aided_t *inst, const magcal_aided_epoch_t *ep, magcal_aided_gate_t *reason);
+
+/**
+ * @brief Read the current estimate.
+ * @param[in]  inst initialised instance.
+ * @param[out] out  result. Written on MAGCAL_OK, MAGCAL_ERR_UNOBSERVABLE and MAGCAL_ERR_NOT_CONVERGED.
+ * @return MAGCAL_OK (converged, every direction observed);
+ *         MAGCAL_ERR_UNOBSERVABLE (estimate written, but some directions come from the prior: excitation
+ *         too poor, e.g. level yaw-only driving; headings at tilt are only as good as the prior);
+ *         MAGCAL_ERR_NOT_CONVERGED (estimate written, observable, not yet converged);
+ *         MAGCAL_ERR_TOO_FEW_POINTS (fewer than min_epochs accepted; out untouched);
+ *         MAGCAL_ERR_NULL, MAGCAL_ERR_NOT_INITIALISED.
+ *
+ * @code
+ * static magcal_aided_t cal3d;                   // about 0.6 KiB, sizeof(magcal_aided_t)
+ * const magcal_aided_cfg_t cfg = MAGCAL_AIDED_CFG_DEFAULT;
+ * magcal_aided_epoch_t ep;                       // filled from the INS, GNSS and WMM every epoch
+ * magcal_aided_result_t res;
+ * (void)magcal_aided_init(&cal3d, &cfg);
+ * // per epoch:
+ * (void)magcal_aided_update(&cal3d, &ep, NULL);
+ * if (magcal_aided_get(&cal3d, &res) == MAGCAL_OK) {
+ *     // h = G (m - V): magcal_ellipsoid_apply(&res.cal, &m, &h), then tilt-compensate
+ * }
+ * @endcode
+ */
+magcal_status_t magcal_aided_get(const magcal_aided_t *inst, magcal_aided_result_t *out);
+
+/**
+ * @brief Direction cosine matrix C_b^NED (body x right, y forward, z up) from INS Euler angles.
+ * @param[in]  roll_rad  phi (right side down positive), radians.
+ * @param[in]  pitch_rad theta (nose up positive), radians.
+ * @param[in]  yaw_rad   psi (clockwise from north), radians.
+ * @param[out] c         row-major 3x3: v_NED = C v_body.
+ * @return MAGCAL_OK, MAGCAL_ERR_NULL, MAGCAL_ERR_NONFINITE.
+ */
+magcal_status_t magcal_aided_dcm(float roll_rad, float pitch_rad, float yaw_rad, float c[3][3]);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* MAGCAL_AIDED_H */

@@ -1,0 +1,157 @@
+/**
+ * @file ellipsoid.h
+ * @brief 3-D magnetometer calibration by a least-squares ellipsoid (general quadric) fit.
+ *
+ * Model (algorithms.md 7.1/7.2): raw field `m = W h + V + noise`, where h is the true field in body
+ * axes (x right, y forward, z up) and `|h| = F`. The fit finds the offset V and a correction matrix
+ * `G = W^-1` (up to a left rotation, which no attitude-free fit can observe), with
+ * `G^T G = Q`, `(m - V)^T Q (m - V) = F^2`. Apply it with `h = G (m - V)`.
+ *
+ * Models:
+ * - 9-parameter quadric (d = -1) after centring and scaling (default),
+ * - 10-parameter quadric (smallest eigenvector of D^T D by inverse iteration),
+ * - 4-parameter sphere (hard iron only, G = (F/R) I), used automatically (model AUTO) when the
+ *   direction coverage is too poor for the full model.
+ *
+ * Coverage: the directions of `m - c` around the provisional centre c (the sphere-fit centre) are
+ * binned in 12 azimuth x 6 equal-area elevation cells (bands of equal z/|m - c|); coverage is the
+ * filled fraction of the 72 cells, in [0, 1].
+ *
+ * Outliers: after each fit, samples whose total-field residual `| |G(m - V)| - F |` exceeds
+ * `outlier_k` times the RMS of the kept residuals (never less than `outlier_floor_rel * F`) are
+ * dropped and the model is fitted again, at most `max_refits` times. No per-sample storage is needed:
+ * the sample array is read again on each pass (2 + 2 * refits passes at most).
+ *
+ * Units: any consistent raw unit for m; G maps raw units to the unit of `cfg.field` (e.g. LSB to uT).
+ * All arithmetic is float32 with Kahan-compensated sums; no workspace is needed (worst-case stack
+ * about 2.5 KiB on Cortex-M4 -Os, 10-parameter path; the 9-parameter path needs about 1.6 KiB).
+ */
+#ifndef MAGCAL_ELLIPSOID_H
+#define MAGCAL_ELLIPSOID_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "magcal/status.h"
+#include "magcal/types.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/** Number of azimuth cells of the coverage measure. */
+#define MAGCAL_ELLIPSOID_COV_AZ 12u
+/** Number of (equal-area) elevation bands of the coverage measure. */
+#define MAGCAL_ELLIPSOID_COV_EL 6u
+
+/** A 3-D calibration: `h = G (m - V)`. Shared with the aided module (aided.h). */
+typedef struct {
+    float g[3][3];   /**< correction matrix G, row-major: h_i = sum_j g[i][j] (m_j - v_j) */
+    magcal_vec3_t v; /**< offset V (hard iron + sensor bias), raw units, body axes */
+    float field;     /**< F: magnitude of the corrected field h, output units */
+} magcal_ellipsoid_cal_t;
+
+/** Which model to fit. */
+typedef enum {
+    MAGCAL_ELLIPSOID_MODEL_AUTO = 0, /**< 9-parameter quadric if coverage allows, else sphere */
+    MAGCAL_ELLIPSOID_MODEL_QUADRIC9 = 1,  /**< 9-parameter quadric (d = -1), coverage not gated */
+    MAGCAL_ELLIPSOID_MODEL_QUADRIC10 = 2, /**< 10-parameter quadric (||v|| = 1), coverage not gated */
+    MAGCAL_ELLIPSOID_MODEL_SPHERE = 3     /**< 4-parameter sphere (hard iron only), coverage not gated */
+} magcal_ellipsoid_model_t;
+
+/** How G is taken from Q (both satisfy G^T G = Q). */
+typedef enum {
+    MAGCAL_ELLIPSOID_SQRT_SYMMETRIC = 0, /**< G = Q^(1/2), symmetric (3x3 Jacobi eigen-decomposition) */
+    MAGCAL_ELLIPSOID_SQRT_CHOLESKY = 1   /**< G = U, upper triangular, Q = U^T U */
+} magcal_ellipsoid_sqrt_t;
+
+/** Fit configuration. Start from MAGCAL_ELLIPSOID_CFG_DEFAULT. */
+typedef struct {
+    magcal_ellipsoid_model_t model;    /**< model to fit (default AUTO) */
+    magcal_ellipsoid_sqrt_t sqrt_method; /**< square root of Q (default SYMMETRIC) */
+    float field;               /**< F > 0: output magnitude (e.g. WMM |B| in uT); 0: choose F so det(G) = 1 */
+    float min_coverage_full;   /**< AUTO: coverage needed for the 9-parameter model, [0,1] (default 0.45) */
+    float min_coverage_sphere; /**< AUTO: coverage needed for the sphere, [0,1] (default 0.20); below: MAGCAL_ERR_COVERAGE */
+    float outlier_k;           /**< outlier gate in RMS multiples; 0 disables rejection (default 3) */
+    float outlier_floor_rel;   /**< outlier gate never below this fraction of F (default 0.005) */
+    uint32_t max_refits;       /**< refits after outlier rejection, 0..8 (default 3) */
+    float max_reject_frac;     /**< more rejected than this fraction: MAGCAL_ERR_TOO_MANY_OUTLIERS (default 0.25) */
+    float pivot_tau;           /**< relative LDL^T pivot threshold (default 1e-6) */
+} magcal_ellipsoid_cfg_t;
+
+/** Defaults that work without tuning. */
+#define MAGCAL_ELLIPSOID_CFG_DEFAULT                                                                \
+    {                                                                                               \
+        MAGCAL_ELLIPSOID_MODEL_AUTO, MAGCAL_ELLIPSOID_SQRT_SYMMETRIC, 0.0f, 0.45f, 0.20f, 3.0f,     \
+            0.005f, 3u, 0.25f, 1e-6f                                                                \
+    }
+
+/** Result of a fit. */
+typedef struct {
+    magcal_ellipsoid_cal_t cal;     /**< V, G, F */
+    float residual_rms;             /**< RMS of |G(m - V)| - F over the kept samples, output units */
+    float coverage;                 /**< filled fraction of the 12 x 6 direction cells, [0, 1] */
+    float min_pivot;                /**< smallest equilibrated LDL^T pivot (reciprocal-condition hint) */
+    size_t n_used;                  /**< samples in the final fit */
+    size_t n_rejected;              /**< samples dropped as outliers */
+    magcal_ellipsoid_model_t model; /**< model actually fitted (never AUTO) */
+} magcal_ellipsoid_result_t;
+
+/**
+ * @brief Fit V and G to raw 3-D field samples.
+ *
+ * @param[in]  m    n raw samples (body axes x right, y forward, z up; any unit).
+ * @param[in]  n    number of samples (>= 4 for the sphere, >= 10 for the quadrics; the sphere needs
+ *                  coverage anyway, so in practice use >= 50).
+ * @param[in]  cfg  configuration (MAGCAL_ELLIPSOID_CFG_DEFAULT).
+ * @param[out] out  result; written only on MAGCAL_OK.
+ * @return MAGCAL_OK;
+ *         MAGCAL_ERR_NULL (m, cfg or out NULL);
+ *         MAGCAL_ERR_ARG (config out of range);
+ *         MAGCAL_ERR_NONFINITE (a sample is NaN/Inf);
+ *         MAGCAL_ERR_TOO_FEW_POINTS (n below the model's minimum, also after outlier rejection);
+ *         MAGCAL_ERR_DEGENERATE (all samples identical);
+ *         MAGCAL_ERR_COVERAGE (AUTO: coverage below min_coverage_sphere);
+ *         MAGCAL_ERR_ILL_CONDITIONED (normal equations fail the pivot test: too little rotation);
+ *         MAGCAL_ERR_NOT_ELLIPSOID (quadric is not an ellipsoid: k <= 0 or A_q/k not positive definite);
+ *         MAGCAL_ERR_NOT_CONVERGED (Jacobi eigen-decomposition of Q did not converge);
+ *         MAGCAL_ERR_TOO_MANY_OUTLIERS (rejected fraction above max_reject_frac).
+ *
+ * @code
+ * static magcal_vec3_t samples[600];            // filled by the application
+ * const magcal_ellipsoid_cfg_t cfg = MAGCAL_ELLIPSOID_CFG_DEFAULT;
+ * magcal_ellipsoid_result_t fit;
+ * magcal_vec3_t h;
+ * if (magcal_ellipsoid_fit(samples, 600u, &cfg, &fit) == MAGCAL_OK) {
+ *     (void)magcal_ellipsoid_apply(&fit.cal, &samples[0], &h);   // h = G (m - V)
+ * }
+ * @endcode
+ */
+magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n, const magcal_ellipsoid_cfg_t *cfg,
+                                     magcal_ellipsoid_result_t *out);
+
+/**
+ * @brief Apply a calibration: h = G (m - V).
+ * @param[in]  cal calibration (from magcal_ellipsoid_fit or the aided module).
+ * @param[in]  m   raw sample, body axes.
+ * @param[out] h   corrected field, body axes, unit of cal->field; written only on MAGCAL_OK.
+ * @return MAGCAL_OK, MAGCAL_ERR_NULL, MAGCAL_ERR_NONFINITE (m or cal not finite).
+ */
+magcal_status_t magcal_ellipsoid_apply(const magcal_ellipsoid_cal_t *cal, const magcal_vec3_t *m, magcal_vec3_t *h);
+
+/**
+ * @brief Direction coverage of samples around a centre: filled fraction of 12 x 6 cells.
+ * @param[in]  m        n samples.
+ * @param[in]  n        number of samples (>= 1).
+ * @param[in]  centre   centre c (e.g. a provisional V); samples within 1e-6 of c (relative) are skipped.
+ * @param[out] coverage fraction in [0, 1]; written only on MAGCAL_OK.
+ * @return MAGCAL_OK, MAGCAL_ERR_NULL, MAGCAL_ERR_TOO_FEW_POINTS (n == 0), MAGCAL_ERR_NONFINITE.
+ */
+magcal_status_t magcal_ellipsoid_coverage(const magcal_vec3_t *m, size_t n, const magcal_vec3_t *centre,
+                                          float *coverage);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* MAGCAL_ELLIPSOID_H */

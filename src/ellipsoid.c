@@ -1,0 +1,803 @@
+/*
+ * 3-D ellipsoid (general quadric) calibration fit, algorithms.md 7.2 with the solvers of 3.1/3.2.
+ *
+ * Data are centred on their mean and scaled by their RMS distance before the normal equations are
+ * accumulated (Kahan-compensated float32 sums of one packed 10x10 matrix, from which the 9-parameter,
+ * 10-parameter and sphere systems are all taken). Extraction happens in normalised coordinates and
+ * is mapped back: V = mu + s*V~, G = (F/s)*sqrt(A~/k~).
+ */
+#include <math.h>
+#include <string.h>
+
+#include "magcal/ellipsoid.h"
+#include "magcal_internal.h"
+
+#define NQ 10u                      /* quadric row length */
+#define NPACK ((NQ * (NQ + 1u)) / 2u) /* packed lower triangle */
+#define COV_CELLS (MAGCAL_ELLIPSOID_COV_AZ * MAGCAL_ELLIPSOID_COV_EL)
+#define MIN_QUADRIC_POINTS 10u
+#define MIN_SPHERE_POINTS 4u
+#define MAX_REFITS_LIMIT 8u
+#define JACOBI_SWEEPS 12u
+#define INVITER_STEPS 8u
+#define INVITER_SHIFT_TRIES 3u
+
+MAGCAL_STATIC_ASSERT(COV_CELLS <= 96u, coverage_cells_fit_three_words);
+
+/* Normalisation and Kahan-compensated normal matrix. */
+typedef struct {
+    float sum[NPACK];
+    float comp[NPACK];
+    size_t count;
+} quad_acc_t;
+
+/* Optional gate applied while accumulating: keep samples with | |G(m-V)| - F | < thr. */
+typedef struct {
+    const magcal_ellipsoid_cal_t *cal; /* NULL: keep every sample */
+    float thr;
+} quad_gate_t;
+
+static size_t pidx(size_t i, size_t j)
+{
+    /* packed lower triangle, i >= j */
+    return (i * (i + 1u)) / 2u + j;
+}
+
+static void kahan_add(float *sum, float *comp, float v)
+{
+    float y = v - *comp;
+    float t = *sum + y;
+    *comp = (t - *sum) - y;
+    *sum = t;
+}
+
+static float residual_of(const magcal_ellipsoid_cal_t *cal, const magcal_vec3_t *m)
+{
+    float e[3];
+    float h[3];
+    size_t i;
+    e[0] = m->x - cal->v.x;
+    e[1] = m->y - cal->v.y;
+    e[2] = m->z - cal->v.z;
+    for (i = 0u; i < 3u; ++i) {
+        h[i] = cal->g[i][0] * e[0] + cal->g[i][1] * e[1] + cal->g[i][2] * e[2];
+    }
+    return sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) - cal->field;
+}
+
+static int gate_keeps(const quad_gate_t *gate, const magcal_vec3_t *m)
+{
+    if (gate->cal == NULL) {
+        return 1;
+    }
+    return fabsf(residual_of(gate->cal, m)) < gate->thr;
+}
+
+static void accumulate(const magcal_vec3_t *m, size_t n, const float mu[3], float inv_s, const quad_gate_t *gate,
+                       quad_acc_t *acc)
+{
+    size_t k;
+    size_t i;
+    size_t j;
+    (void)memset(acc, 0, sizeof(*acc));
+    for (k = 0u; k < n; ++k) {
+        float row[NQ];
+        float x;
+        float y;
+        float z;
+        if (!gate_keeps(gate, &m[k])) {
+            continue;
+        }
+        x = (m[k].x - mu[0]) * inv_s;
+        y = (m[k].y - mu[1]) * inv_s;
+        z = (m[k].z - mu[2]) * inv_s;
+        row[0] = x * x;
+        row[1] = y * y;
+        row[2] = z * z;
+        row[3] = 2.0f * y * z;
+        row[4] = 2.0f * x * z;
+        row[5] = 2.0f * x * y;
+        row[6] = 2.0f * x;
+        row[7] = 2.0f * y;
+        row[8] = 2.0f * z;
+        row[9] = 1.0f;
+        for (i = 0u; i < NQ; ++i) {
+            for (j = 0u; j <= i; ++j) {
+                size_t p = pidx(i, j);
+                kahan_add(&acc->sum[p], &acc->comp[p], row[i] * row[j]);
+            }
+        }
+        acc->count++;
+    }
+}
+
+static float acc_at(const quad_acc_t *acc, size_t i, size_t j)
+{
+    return (i >= j) ? acc->sum[pidx(i, j)] : acc->sum[pidx(j, i)];
+}
+
+static float det3(float a[3][3])
+{
+    return a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) +
+           a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
+}
+
+/* Cyclic Jacobi on a symmetric 3x3: a = E diag(w) E^T (columns of e are eigenvectors). */
+static magcal_status_t jacobi3(float a_in[3][3], float w[3], float e[3][3])
+{
+    float a[3][3];
+    size_t sweep;
+    size_t i;
+    size_t j;
+    float scale = 0.0f;
+    (void)memcpy(a, a_in, sizeof(a));
+    for (i = 0u; i < 3u; ++i) {
+        for (j = 0u; j < 3u; ++j) {
+            e[i][j] = (i == j) ? 1.0f : 0.0f;
+            scale += a[i][j] * a[i][j];
+        }
+    }
+    for (sweep = 0u; sweep < JACOBI_SWEEPS; ++sweep) {
+        size_t p;
+        float off = a[0][1] * a[0][1] + a[0][2] * a[0][2] + a[1][2] * a[1][2];
+        if (off <= 1e-14f * scale) {
+            w[0] = a[0][0];
+            w[1] = a[1][1];
+            w[2] = a[2][2];
+            return MAGCAL_OK;
+        }
+        for (p = 0u; p < 2u; ++p) {
+            size_t q;
+            for (q = p + 1u; q < 3u; ++q) {
+                float apq = a[p][q];
+                float theta;
+                float t;
+                float c;
+                float s;
+                size_t k;
+                if (apq == 0.0f) {
+                    continue;
+                }
+                theta = (a[q][q] - a[p][p]) / (2.0f * apq);
+                t = 1.0f / (fabsf(theta) + sqrtf(theta * theta + 1.0f));
+                if (theta < 0.0f) {
+                    t = -t;
+                }
+                c = 1.0f / sqrtf(t * t + 1.0f);
+                s = t * c;
+                for (k = 0u; k < 3u; ++k) { /* a <- a J (columns p, q) */
+                    float akp = a[k][p];
+                    float akq = a[k][q];
+                    a[k][p] = c * akp - s * akq;
+                    a[k][q] = s * akp + c * akq;
+                }
+                for (k = 0u; k < 3u; ++k) { /* a <- J^T a (rows p, q) */
+                    float apk = a[p][k];
+                    float aqk = a[q][k];
+                    a[p][k] = c * apk - s * aqk;
+                    a[q][k] = s * apk + c * aqk;
+                }
+                for (k = 0u; k < 3u; ++k) {
+                    float ekp = e[k][p];
+                    float ekq = e[k][q];
+                    e[k][p] = c * ekp - s * ekq;
+                    e[k][q] = s * ekp + c * ekq;
+                }
+            }
+        }
+    }
+    return MAGCAL_ERR_NOT_CONVERGED;
+}
+
+/* G with G^T G = q (q positive definite). */
+static magcal_status_t sqrt_spd3(float q[3][3], magcal_ellipsoid_sqrt_t method, float g[3][3])
+{
+    size_t i;
+    size_t j;
+    if (method == MAGCAL_ELLIPSOID_SQRT_CHOLESKY) {
+        float u00 = q[0][0];
+        float u01;
+        float u02;
+        float u11;
+        float u12;
+        float u22;
+        if (!(u00 > 0.0f)) {
+            return MAGCAL_ERR_NOT_ELLIPSOID;
+        }
+        u00 = sqrtf(u00);
+        u01 = q[0][1] / u00;
+        u02 = q[0][2] / u00;
+        u11 = q[1][1] - u01 * u01;
+        if (!(u11 > 0.0f)) {
+            return MAGCAL_ERR_NOT_ELLIPSOID;
+        }
+        u11 = sqrtf(u11);
+        u12 = (q[1][2] - u01 * u02) / u11;
+        u22 = q[2][2] - u02 * u02 - u12 * u12;
+        if (!(u22 > 0.0f)) {
+            return MAGCAL_ERR_NOT_ELLIPSOID;
+        }
+        u22 = sqrtf(u22);
+        g[0][0] = u00;
+        g[0][1] = u01;
+        g[0][2] = u02;
+        g[1][0] = 0.0f;
+        g[1][1] = u11;
+        g[1][2] = u12;
+        g[2][0] = 0.0f;
+        g[2][1] = 0.0f;
+        g[2][2] = u22;
+    } else {
+        float w[3];
+        float e[3][3];
+        magcal_status_t st = jacobi3(q, w, e);
+        if (st != MAGCAL_OK) {
+            return st;
+        }
+        for (i = 0u; i < 3u; ++i) {
+            if (!(w[i] > 0.0f)) {
+                return MAGCAL_ERR_NOT_ELLIPSOID;
+            }
+            w[i] = sqrtf(w[i]);
+        }
+        for (i = 0u; i < 3u; ++i) {
+            for (j = 0u; j < 3u; ++j) {
+                g[i][j] = e[i][0] * w[0] * e[j][0] + e[i][1] * w[1] * e[j][1] + e[i][2] * w[2] * e[j][2];
+            }
+        }
+    }
+    return MAGCAL_OK;
+}
+
+/*
+ * Quadric coefficients (a, b, c, f, g, h, p, q, r, d) of
+ *   a x^2 + b y^2 + c z^2 + 2f yz + 2g xz + 2h xy + 2p x + 2q y + 2r z + d = 0
+ * in normalised coordinates -> calibration in raw coordinates.
+ */
+static magcal_status_t extract_quadric(const float coef_in[NQ], const float mu[3], float s, float field_cfg,
+                                       magcal_ellipsoid_sqrt_t method, magcal_ellipsoid_cal_t *cal)
+{
+    float coef[NQ];
+    float aq[3][3];
+    float inv[3][3];
+    float u[3];
+    float vt[3];
+    float det;
+    float k;
+    float qn[3][3];
+    float gn[3][3];
+    float f;
+    float detq;
+    size_t i;
+    size_t j;
+    magcal_status_t st;
+
+    (void)memcpy(coef, coef_in, sizeof(coef));
+    if (coef[0] + coef[1] + coef[2] < 0.0f) { /* eigenvector sign is arbitrary */
+        for (i = 0u; i < NQ; ++i) {
+            coef[i] = -coef[i];
+        }
+    }
+    aq[0][0] = coef[0];
+    aq[1][1] = coef[1];
+    aq[2][2] = coef[2];
+    aq[1][2] = coef[3];
+    aq[2][1] = coef[3];
+    aq[0][2] = coef[4];
+    aq[2][0] = coef[4];
+    aq[0][1] = coef[5];
+    aq[1][0] = coef[5];
+    u[0] = coef[6];
+    u[1] = coef[7];
+    u[2] = coef[8];
+    det = det3(aq);
+    if (!magcal_isfinite_f(det) || det == 0.0f) {
+        return MAGCAL_ERR_NOT_ELLIPSOID;
+    }
+    inv[0][0] = (aq[1][1] * aq[2][2] - aq[1][2] * aq[2][1]) / det;
+    inv[0][1] = (aq[0][2] * aq[2][1] - aq[0][1] * aq[2][2]) / det;
+    inv[0][2] = (aq[0][1] * aq[1][2] - aq[0][2] * aq[1][1]) / det;
+    inv[1][1] = (aq[0][0] * aq[2][2] - aq[0][2] * aq[2][0]) / det;
+    inv[1][2] = (aq[0][2] * aq[1][0] - aq[0][0] * aq[1][2]) / det;
+    inv[2][2] = (aq[0][0] * aq[1][1] - aq[0][1] * aq[1][0]) / det;
+    inv[1][0] = inv[0][1];
+    inv[2][0] = inv[0][2];
+    inv[2][1] = inv[1][2];
+    for (i = 0u; i < 3u; ++i) {
+        vt[i] = -(inv[i][0] * u[0] + inv[i][1] * u[1] + inv[i][2] * u[2]);
+    }
+    k = -(u[0] * vt[0] + u[1] * vt[1] + u[2] * vt[2]) - coef[9];
+    if (!(k > 0.0f) || !magcal_isfinite_f(k)) {
+        return MAGCAL_ERR_NOT_ELLIPSOID;
+    }
+    for (i = 0u; i < 3u; ++i) {
+        for (j = 0u; j < 3u; ++j) {
+            qn[i][j] = aq[i][j] / k;
+        }
+    }
+    /* Sylvester: leading minors of A_q/k positive. */
+    detq = det3(qn);
+    if (!(qn[0][0] > 0.0f) || !(qn[0][0] * qn[1][1] - qn[0][1] * qn[1][0] > 0.0f) || !(detq > 0.0f)) {
+        return MAGCAL_ERR_NOT_ELLIPSOID;
+    }
+    st = sqrt_spd3(qn, method, gn);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    /* Unit-radius form in raw units is qn / s^2; det(Q1) = detq / s^6. */
+    f = (field_cfg > 0.0f) ? field_cfg : s * powf(detq, -1.0f / 6.0f);
+    if (!magcal_isfinite_f(f) || !(f > 0.0f)) {
+        return MAGCAL_ERR_NOT_ELLIPSOID;
+    }
+    for (i = 0u; i < 3u; ++i) {
+        for (j = 0u; j < 3u; ++j) {
+            cal->g[i][j] = gn[i][j] * (f / s);
+        }
+    }
+    cal->v.x = mu[0] + s * vt[0];
+    cal->v.y = mu[1] + s * vt[1];
+    cal->v.z = mu[2] + s * vt[2];
+    cal->field = f;
+    return MAGCAL_OK;
+}
+
+static magcal_status_t solve_quadric9(const quad_acc_t *acc, float tau, float coef[NQ], float *min_pivot)
+{
+    float a[9u * 9u];
+    float b[9];
+    size_t i;
+    size_t j;
+    magcal_status_t st;
+    for (i = 0u; i < 9u; ++i) {
+        for (j = 0u; j < 9u; ++j) {
+            a[i * 9u + j] = acc_at(acc, i, j);
+        }
+        b[i] = acc_at(acc, i, 9u); /* D^T 1: the column of the constant term */
+    }
+    st = magcal_ldlt_solve(a, b, 9u, tau, min_pivot);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    for (i = 0u; i < 9u; ++i) {
+        coef[i] = b[i];
+    }
+    coef[9] = -1.0f;
+    return MAGCAL_OK;
+}
+
+/* Smallest eigenvector of D^T D by inverse iteration with a shifted LDL^T (algorithms.md 3.2). */
+static magcal_status_t solve_quadric10(const quad_acc_t *acc, float tau, float coef[NQ], float *min_pivot)
+{
+    float a[NQ * NQ];
+    float v[NQ];
+    float trace = 0.0f;
+    float shift;
+    size_t i;
+    size_t j;
+    size_t it;
+    size_t attempt;
+    magcal_status_t st = MAGCAL_ERR_ILL_CONDITIONED;
+
+    for (i = 0u; i < NQ; ++i) {
+        trace += acc_at(acc, i, i);
+    }
+    if (!(trace > 0.0f)) {
+        return MAGCAL_ERR_DEGENERATE;
+    }
+    shift = 1e-5f * trace / (float)NQ;
+    for (attempt = 0u; attempt < INVITER_SHIFT_TRIES; ++attempt) {
+        /* start: the unit sphere x^2 + y^2 + z^2 - 1 = 0 of the normalised data */
+        for (i = 0u; i < NQ; ++i) {
+            v[i] = 0.0f;
+        }
+        v[0] = 0.5f;
+        v[1] = 0.5f;
+        v[2] = 0.5f;
+        v[9] = -0.5f;
+        for (it = 0u; it < INVITER_STEPS; ++it) {
+            float nrm = 0.0f;
+            for (i = 0u; i < NQ; ++i) {
+                for (j = 0u; j < NQ; ++j) {
+                    a[i * NQ + j] = acc_at(acc, i, j);
+                }
+                a[i * NQ + i] += shift;
+            }
+            st = magcal_ldlt_solve(a, v, NQ, 0.0f, NULL);
+            if (st != MAGCAL_OK) {
+                break;
+            }
+            for (i = 0u; i < NQ; ++i) {
+                nrm += v[i] * v[i];
+            }
+            nrm = sqrtf(nrm);
+            if (!(nrm > 0.0f) || !magcal_isfinite_f(nrm)) {
+                st = MAGCAL_ERR_ILL_CONDITIONED;
+                break;
+            }
+            for (i = 0u; i < NQ; ++i) {
+                v[i] /= nrm;
+            }
+        }
+        if (st == MAGCAL_OK) {
+            break;
+        }
+        shift *= 10.0f;
+    }
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    /* Conditioning hint from the unshifted 9x9 block, the same test as the 9-parameter model. */
+    {
+        float b9[9];
+        float a9[81];
+        for (i = 0u; i < 9u; ++i) {
+            for (j = 0u; j < 9u; ++j) {
+                a9[i * 9u + j] = acc_at(acc, i, j);
+            }
+            b9[i] = 0.0f;
+        }
+        st = magcal_ldlt_solve(a9, b9, 9u, tau, min_pivot);
+        if (st != MAGCAL_OK) {
+            return st;
+        }
+    }
+    for (i = 0u; i < NQ; ++i) {
+        coef[i] = v[i];
+    }
+    return MAGCAL_OK;
+}
+
+/* Sphere x^2+y^2+z^2 + C x + D y + E z + G0 = 0 from the same moments. */
+static magcal_status_t solve_sphere(const quad_acc_t *acc, const float mu[3], float s, float field_cfg, float tau,
+                                    magcal_ellipsoid_cal_t *cal, float *min_pivot)
+{
+    float a[16];
+    float b[4];
+    float c[3];
+    float r2;
+    float rr;
+    float f;
+    size_t i;
+    size_t j;
+    magcal_status_t st;
+    /* index of x, y, z, 1 in the quadric row and its factor (row holds 2x, 2y, 2z, 1) */
+    static const size_t lin[4] = {6u, 7u, 8u, 9u};
+    static const float fac[4] = {0.5f, 0.5f, 0.5f, 1.0f};
+    for (i = 0u; i < 4u; ++i) {
+        for (j = 0u; j < 4u; ++j) {
+            a[i * 4u + j] = acc_at(acc, lin[i], lin[j]) * fac[i] * fac[j];
+        }
+        b[i] = -(acc_at(acc, lin[i], 0u) + acc_at(acc, lin[i], 1u) + acc_at(acc, lin[i], 2u)) * fac[i];
+    }
+    st = magcal_ldlt_solve(a, b, 4u, tau, min_pivot);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    for (i = 0u; i < 3u; ++i) {
+        c[i] = -0.5f * b[i];
+    }
+    r2 = c[0] * c[0] + c[1] * c[1] + c[2] * c[2] - b[3];
+    if (!(r2 > 0.0f) || !magcal_isfinite_f(r2)) {
+        return MAGCAL_ERR_NOT_ELLIPSOID;
+    }
+    rr = s * sqrtf(r2);
+    f = (field_cfg > 0.0f) ? field_cfg : rr;
+    for (i = 0u; i < 3u; ++i) {
+        for (j = 0u; j < 3u; ++j) {
+            cal->g[i][j] = (i == j) ? (f / rr) : 0.0f;
+        }
+    }
+    cal->v.x = mu[0] + s * c[0];
+    cal->v.y = mu[1] + s * c[1];
+    cal->v.z = mu[2] + s * c[2];
+    cal->field = f;
+    return MAGCAL_OK;
+}
+
+static magcal_status_t fit_model(const quad_acc_t *acc, magcal_ellipsoid_model_t model, const float mu[3], float s,
+                                 const magcal_ellipsoid_cfg_t *cfg, magcal_ellipsoid_cal_t *cal, float *min_pivot)
+{
+    float coef[NQ];
+    magcal_status_t st;
+    if (model == MAGCAL_ELLIPSOID_MODEL_SPHERE) {
+        if (acc->count < MIN_SPHERE_POINTS) {
+            return MAGCAL_ERR_TOO_FEW_POINTS;
+        }
+        return solve_sphere(acc, mu, s, cfg->field, cfg->pivot_tau, cal, min_pivot);
+    }
+    if (acc->count < MIN_QUADRIC_POINTS) {
+        return MAGCAL_ERR_TOO_FEW_POINTS;
+    }
+    if (model == MAGCAL_ELLIPSOID_MODEL_QUADRIC10) {
+        st = solve_quadric10(acc, cfg->pivot_tau, coef, min_pivot);
+    } else {
+        st = solve_quadric9(acc, cfg->pivot_tau, coef, min_pivot);
+    }
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    return extract_quadric(coef, mu, s, cfg->field, cfg->sqrt_method, cal);
+}
+
+static int cell_of(float x, float y, float z, size_t *cell)
+{
+    float r = sqrtf(x * x + y * y + z * z);
+    float az;
+    float sz;
+    size_t ia;
+    size_t ie;
+    if (!(r > 0.0f)) {
+        return 0;
+    }
+    az = atan2f(y, x) + MAGCAL_PI_F; /* [0, 2pi] */
+    sz = z / r + 1.0f;               /* [0, 2]: equal-area bands */
+    ia = (size_t)(az * ((float)MAGCAL_ELLIPSOID_COV_AZ / (2.0f * MAGCAL_PI_F)));
+    ie = (size_t)(sz * ((float)MAGCAL_ELLIPSOID_COV_EL / 2.0f));
+    if (ia >= MAGCAL_ELLIPSOID_COV_AZ) {
+        ia = MAGCAL_ELLIPSOID_COV_AZ - 1u;
+    }
+    if (ie >= MAGCAL_ELLIPSOID_COV_EL) {
+        ie = MAGCAL_ELLIPSOID_COV_EL - 1u;
+    }
+    *cell = ie * MAGCAL_ELLIPSOID_COV_AZ + ia;
+    return 1;
+}
+
+static float coverage_of(const magcal_vec3_t *m, size_t n, const float c[3], float tiny)
+{
+    uint32_t bits[3] = {0u, 0u, 0u};
+    size_t k;
+    size_t filled = 0u;
+    for (k = 0u; k < n; ++k) {
+        size_t cell;
+        float x = m[k].x - c[0];
+        float y = m[k].y - c[1];
+        float z = m[k].z - c[2];
+        if (fabsf(x) + fabsf(y) + fabsf(z) <= tiny) {
+            continue;
+        }
+        if (cell_of(x, y, z, &cell)) {
+            bits[cell / 32u] |= (uint32_t)1u << (cell % 32u);
+        }
+    }
+    for (k = 0u; k < COV_CELLS; ++k) {
+        if ((bits[k / 32u] >> (k % 32u)) & 1u) {
+            filled++;
+        }
+    }
+    return (float)filled / (float)COV_CELLS;
+}
+
+static magcal_status_t check_cfg(const magcal_ellipsoid_cfg_t *cfg)
+{
+    if ((unsigned)cfg->model > (unsigned)MAGCAL_ELLIPSOID_MODEL_SPHERE) {
+        return MAGCAL_ERR_ARG;
+    }
+    if ((unsigned)cfg->sqrt_method > (unsigned)MAGCAL_ELLIPSOID_SQRT_CHOLESKY) {
+        return MAGCAL_ERR_ARG;
+    }
+    if (!magcal_isfinite_f(cfg->field) || cfg->field < 0.0f) {
+        return MAGCAL_ERR_ARG;
+    }
+    if (!(cfg->min_coverage_full >= 0.0f && cfg->min_coverage_full <= 1.0f) ||
+        !(cfg->min_coverage_sphere >= 0.0f && cfg->min_coverage_sphere <= 1.0f)) {
+        return MAGCAL_ERR_ARG;
+    }
+    if (!(cfg->outlier_k >= 0.0f && cfg->outlier_k <= 100.0f) ||
+        !(cfg->outlier_floor_rel >= 0.0f && cfg->outlier_floor_rel <= 1.0f)) {
+        return MAGCAL_ERR_ARG;
+    }
+    if (cfg->max_refits > MAX_REFITS_LIMIT || !(cfg->max_reject_frac >= 0.0f && cfg->max_reject_frac < 1.0f)) {
+        return MAGCAL_ERR_ARG;
+    }
+    if (!(cfg->pivot_tau >= 0.0f && cfg->pivot_tau <= 0.1f)) {
+        return MAGCAL_ERR_ARG;
+    }
+    return MAGCAL_OK;
+}
+
+/* RMS of the residuals under `cal` of the samples kept by `gate`; also counts |r| >= thr_new. */
+static float residual_pass(const magcal_vec3_t *m, size_t n, const magcal_ellipsoid_cal_t *cal,
+                           const quad_gate_t *gate, size_t *kept)
+{
+    float sum = 0.0f;
+    float comp = 0.0f;
+    size_t k;
+    size_t cnt = 0u;
+    for (k = 0u; k < n; ++k) {
+        float r;
+        if (!gate_keeps(gate, &m[k])) {
+            continue;
+        }
+        r = residual_of(cal, &m[k]);
+        kahan_add(&sum, &comp, r * r);
+        cnt++;
+    }
+    *kept = cnt;
+    return (cnt > 0u) ? sqrtf(sum / (float)cnt) : 0.0f;
+}
+
+magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n, const magcal_ellipsoid_cfg_t *cfg,
+                                     magcal_ellipsoid_result_t *out)
+{
+    float mu[3] = {0.0f, 0.0f, 0.0f};
+    float comp[3] = {0.0f, 0.0f, 0.0f};
+    float s2 = 0.0f;
+    float s2c = 0.0f;
+    float s;
+    float inv_s;
+    float cov_centre[3];
+    float coverage;
+    float min_pivot = 0.0f;
+    size_t k;
+    size_t iter;
+    size_t kept = 0u;
+    size_t prev_rejected = 0u;
+    magcal_ellipsoid_model_t model;
+    magcal_ellipsoid_cal_t cal;
+    magcal_ellipsoid_cal_t gate_cal;
+    magcal_ellipsoid_cal_t sphere_cal;
+    quad_acc_t acc;
+    quad_gate_t gate = {NULL, 0.0f};
+    magcal_status_t st;
+    float rms;
+
+    if (m == NULL || cfg == NULL || out == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    st = check_cfg(cfg);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    if (n < ((cfg->model == MAGCAL_ELLIPSOID_MODEL_QUADRIC9 || cfg->model == MAGCAL_ELLIPSOID_MODEL_QUADRIC10)
+                 ? MIN_QUADRIC_POINTS
+                 : MIN_SPHERE_POINTS)) {
+        return MAGCAL_ERR_TOO_FEW_POINTS;
+    }
+    /* Pass 1: mean (Kahan). */
+    for (k = 0u; k < n; ++k) {
+        if (!magcal_isfinite_f(m[k].x) || !magcal_isfinite_f(m[k].y) || !magcal_isfinite_f(m[k].z)) {
+            return MAGCAL_ERR_NONFINITE;
+        }
+        kahan_add(&mu[0], &comp[0], m[k].x);
+        kahan_add(&mu[1], &comp[1], m[k].y);
+        kahan_add(&mu[2], &comp[2], m[k].z);
+    }
+    for (k = 0u; k < 3u; ++k) {
+        mu[k] /= (float)n;
+    }
+    /* Pass 2: RMS distance from the mean = scale. */
+    for (k = 0u; k < n; ++k) {
+        float dx = m[k].x - mu[0];
+        float dy = m[k].y - mu[1];
+        float dz = m[k].z - mu[2];
+        kahan_add(&s2, &s2c, dx * dx + dy * dy + dz * dz);
+    }
+    s = sqrtf(s2 / (float)n);
+    if (!(s > 1e-6f * (fabsf(mu[0]) + fabsf(mu[1]) + fabsf(mu[2]))) || !(s > 0.0f) || !magcal_isfinite_f(s)) {
+        return MAGCAL_ERR_DEGENERATE;
+    }
+    inv_s = 1.0f / s;
+
+    /* Pass 3: the normal matrix of every sample; sphere fit gives the provisional centre. */
+    accumulate(m, n, mu, inv_s, &gate, &acc);
+    model = cfg->model;
+    cov_centre[0] = mu[0];
+    cov_centre[1] = mu[1];
+    cov_centre[2] = mu[2];
+    st = solve_sphere(&acc, mu, s, cfg->field, cfg->pivot_tau, &sphere_cal, &min_pivot);
+    if (st == MAGCAL_OK) {
+        cov_centre[0] = sphere_cal.v.x;
+        cov_centre[1] = sphere_cal.v.y;
+        cov_centre[2] = sphere_cal.v.z;
+    }
+    coverage = coverage_of(m, n, cov_centre, 1e-6f * s);
+    if (model == MAGCAL_ELLIPSOID_MODEL_AUTO) {
+        if (coverage < cfg->min_coverage_sphere) {
+            return MAGCAL_ERR_COVERAGE;
+        }
+        model = (coverage >= cfg->min_coverage_full && n >= MIN_QUADRIC_POINTS) ? MAGCAL_ELLIPSOID_MODEL_QUADRIC9
+                                                                                : MAGCAL_ELLIPSOID_MODEL_SPHERE;
+    }
+    st = fit_model(&acc, model, mu, s, cfg, &cal, &min_pivot);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+
+    /* Outlier rejection: residual gate + refit (no per-sample storage; the array is read again). */
+    for (iter = 0u; iter < cfg->max_refits && cfg->outlier_k > 0.0f; ++iter) {
+        size_t rejected;
+        size_t kept_new;
+        quad_gate_t next;
+        rms = residual_pass(m, n, &cal, &gate, &kept);
+        next.cal = &cal;
+        next.thr = cfg->outlier_k * rms;
+        if (next.thr < cfg->outlier_floor_rel * cal.field) {
+            next.thr = cfg->outlier_floor_rel * cal.field;
+        }
+        (void)residual_pass(m, n, &cal, &next, &kept_new);
+        rejected = n - kept_new;
+        if (rejected == prev_rejected) {
+            break;
+        }
+        if ((float)rejected > cfg->max_reject_frac * (float)n) {
+            return MAGCAL_ERR_TOO_MANY_OUTLIERS;
+        }
+        gate_cal = cal;
+        gate.cal = &gate_cal;
+        gate.thr = next.thr;
+        accumulate(m, n, mu, inv_s, &gate, &acc);
+        st = fit_model(&acc, model, mu, s, cfg, &cal, &min_pivot);
+        if (st != MAGCAL_OK) {
+            return st;
+        }
+        prev_rejected = rejected;
+    }
+    rms = residual_pass(m, n, &cal, &gate, &kept);
+    if (kept < ((model == MAGCAL_ELLIPSOID_MODEL_SPHERE) ? MIN_SPHERE_POINTS : MIN_QUADRIC_POINTS)) {
+        return MAGCAL_ERR_TOO_FEW_POINTS;
+    }
+    out->cal = cal;
+    out->residual_rms = rms;
+    out->coverage = coverage;
+    out->min_pivot = min_pivot;
+    out->n_used = kept;
+    out->n_rejected = n - kept;
+    out->model = model;
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_ellipsoid_apply(const magcal_ellipsoid_cal_t *cal, const magcal_vec3_t *m, magcal_vec3_t *h)
+{
+    float e[3];
+    float r[3];
+    size_t i;
+    if (cal == NULL || m == NULL || h == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    e[0] = m->x - cal->v.x;
+    e[1] = m->y - cal->v.y;
+    e[2] = m->z - cal->v.z;
+    for (i = 0u; i < 3u; ++i) {
+        r[i] = cal->g[i][0] * e[0] + cal->g[i][1] * e[1] + cal->g[i][2] * e[2];
+        if (!magcal_isfinite_f(r[i])) {
+            return MAGCAL_ERR_NONFINITE;
+        }
+    }
+    h->x = r[0];
+    h->y = r[1];
+    h->z = r[2];
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_ellipsoid_coverage(const magcal_vec3_t *m, size_t n, const magcal_vec3_t *centre,
+                                          float *coverage)
+{
+    float c[3];
+    float mag = 0.0f;
+    size_t k;
+    if (m == NULL || centre == NULL || coverage == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (n == 0u) {
+        return MAGCAL_ERR_TOO_FEW_POINTS;
+    }
+    if (!magcal_isfinite_f(centre->x) || !magcal_isfinite_f(centre->y) || !magcal_isfinite_f(centre->z)) {
+        return MAGCAL_ERR_NONFINITE;
+    }
+    for (k = 0u; k < n; ++k) {
+        float a;
+        if (!magcal_isfinite_f(m[k].x) || !magcal_isfinite_f(m[k].y) || !magcal_isfinite_f(m[k].z)) {
+            return MAGCAL_ERR_NONFINITE;
+        }
+        a = fabsf(m[k].x - centre->x) + fabsf(m[k].y - centre->y) + fabsf(m[k].z - centre->z);
+        if (a > mag) {
+            mag = a;
+        }
+    }
+    c[0] = centre->x;
+    c[1] = centre->y;
+    c[2] = centre->z;
+    *coverage = coverage_of(m, n, c, 1e-6f * mag);
+    return MAGCAL_OK;
+}

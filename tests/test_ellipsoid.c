@@ -1,0 +1,546 @@
+/*
+ * Tests of the ellipsoid fit (src/ellipsoid.c) on synthetic data with known truth (double here).
+ * Truth: m = W h + V + n, h = C_n^b B_ref, |B_ref| = F (algorithms.md 7.1/7.2).
+ */
+#include <math.h>
+#include <string.h>
+
+#include "magcal/ellipsoid.h"
+#include "test_util.h"
+#include "unity.h"
+
+void setUp(void) {}
+void tearDown(void) {}
+
+#define PI_D 3.14159265358979323846
+#define D2R (PI_D / 180.0)
+#define NFIT 600
+#define NOUT 30
+
+/* Reference field (NED, uT): F = 48.37, inclination 65.5 deg, declination 3.4 deg. */
+static const double B_NED[3] = {20.0, 1.2, 44.0};
+static const double V_TRUE[3] = {18.0, -11.0, 27.0};
+
+static magcal_vec3_t g_m[NFIT + NOUT];
+static double g_att[NFIT][3]; /* roll, pitch, yaw (rad) */
+
+static void mat_mul(double a[3][3], double b[3][3], double c[3][3])
+{
+    int i, j, k;
+    for (i = 0; i < 3; ++i) {
+        for (j = 0; j < 3; ++j) {
+            c[i][j] = 0.0;
+            for (k = 0; k < 3; ++k) {
+                c[i][j] += a[i][k] * b[k][j];
+            }
+        }
+    }
+}
+
+static void mat_inv(double a[3][3], double r[3][3])
+{
+    double det = a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) +
+                 a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
+    r[0][0] = (a[1][1] * a[2][2] - a[1][2] * a[2][1]) / det;
+    r[0][1] = (a[0][2] * a[2][1] - a[0][1] * a[2][2]) / det;
+    r[0][2] = (a[0][1] * a[1][2] - a[0][2] * a[1][1]) / det;
+    r[1][0] = (a[1][2] * a[2][0] - a[1][0] * a[2][2]) / det;
+    r[1][1] = (a[0][0] * a[2][2] - a[0][2] * a[2][0]) / det;
+    r[1][2] = (a[0][2] * a[1][0] - a[0][0] * a[1][2]) / det;
+    r[2][0] = (a[1][0] * a[2][1] - a[1][1] * a[2][0]) / det;
+    r[2][1] = (a[0][1] * a[2][0] - a[0][0] * a[2][1]) / det;
+    r[2][2] = (a[0][0] * a[1][1] - a[0][1] * a[1][0]) / det;
+}
+
+static void rot(int axis, double a, double r[3][3])
+{
+    double c = cos(a), s = sin(a);
+    memset(r, 0, sizeof(double) * 9);
+    if (axis == 0) {
+        r[0][0] = 1;
+        r[1][1] = c;
+        r[1][2] = -s;
+        r[2][1] = s;
+        r[2][2] = c;
+    } else if (axis == 1) {
+        r[1][1] = 1;
+        r[0][0] = c;
+        r[0][2] = s;
+        r[2][0] = -s;
+        r[2][2] = c;
+    } else {
+        r[2][2] = 1;
+        r[0][0] = c;
+        r[0][1] = -s;
+        r[1][0] = s;
+        r[1][1] = c;
+    }
+}
+
+/* C_b^NED for body x right, y forward, z up: P Rz(-yaw) Rx(pitch) Ry(roll) (algorithms.md 6, 7.1). */
+static void dcm_ned(double roll, double pitch, double yaw, double c[3][3])
+{
+    static double P[3][3] = {{0, 1, 0}, {1, 0, 0}, {0, 0, -1}};
+    double rz[3][3], rx[3][3], ry[3][3], t1[3][3], t2[3][3];
+    rot(2, -yaw, rz);
+    rot(0, pitch, rx);
+    rot(1, roll, ry);
+    mat_mul(rz, rx, t1);
+    mat_mul(t1, ry, t2);
+    mat_mul(P, t2, c);
+}
+
+/* W = C_si * C_no * C_sf * C_mis (soft iron, non-orthogonality, scale, misalignment). */
+static void make_w_full(double w[3][3])
+{
+    static double si[3][3] = {{1.05, 0.04, -0.03}, {0.04, 0.97, 0.05}, {-0.03, 0.05, 1.02}};
+    static double no[3][3] = {{1, 0, 0}, {0.01, 1, 0}, {-0.015, 0.02, 1}};
+    static double sf[3][3] = {{1.1, 0, 0}, {0, 0.93, 0}, {0, 0, 1.04}};
+    double mis[3][3], r1[3][3], r2[3][3], r3[3][3], t1[3][3], t2[3][3];
+    rot(2, 2.0 * D2R, r1);
+    rot(0, -1.5 * D2R, r2);
+    rot(1, 1.0 * D2R, r3);
+    mat_mul(r1, r2, t1);
+    mat_mul(t1, r3, mis);
+    mat_mul(si, no, t1);
+    mat_mul(t1, sf, t2);
+    mat_mul(t2, mis, w);
+}
+
+/* Symmetric W (soft iron + scale only): then G_sym = W^-1 exactly and headings are comparable. */
+static void make_w_sym(double w[3][3])
+{
+    static double si[3][3] = {{1.08, 0.04, -0.03}, {0.04, 0.95, 0.05}, {-0.03, 0.05, 1.03}};
+    memcpy(w, si, sizeof(si));
+}
+
+static double f_ref(void)
+{
+    return sqrt(B_NED[0] * B_NED[0] + B_NED[1] * B_NED[1] + B_NED[2] * B_NED[2]);
+}
+
+static magcal_vec3_t sample(double w[3][3], const double v[3], const double att[3], double sigma, uint32_t *rng)
+{
+    double c[3][3], h[3], m[3];
+    int i;
+    magcal_vec3_t out;
+    dcm_ned(att[0], att[1], att[2], c);
+    for (i = 0; i < 3; ++i) { /* h = C^T B */
+        h[i] = c[0][i] * B_NED[0] + c[1][i] * B_NED[1] + c[2][i] * B_NED[2];
+    }
+    for (i = 0; i < 3; ++i) {
+        m[i] = w[i][0] * h[0] + w[i][1] * h[1] + w[i][2] * h[2] + v[i] + sigma * test_rand_normal(rng);
+    }
+    out.x = (float)m[0];
+    out.y = (float)m[1];
+    out.z = (float)m[2];
+    return out;
+}
+
+/* Attitudes: yaw uniform, pitch and roll uniform in +-max (deg); max >= 180 gives full rotations. */
+static void make_set(double w[3][3], size_t n, double max_pitch_deg, double max_roll_deg, double sigma,
+                     uint32_t seed)
+{
+    uint32_t rng = seed;
+    size_t k;
+    for (k = 0; k < n; ++k) {
+        g_att[k][2] = 2.0 * PI_D * test_rand_uniform(&rng);
+        g_att[k][1] = (2.0 * test_rand_uniform(&rng) - 1.0) * max_pitch_deg * D2R;
+        g_att[k][0] = (2.0 * test_rand_uniform(&rng) - 1.0) * max_roll_deg * D2R;
+        if (max_pitch_deg >= 90.0) { /* uniform direction of the pitch axis */
+            g_att[k][1] = asin(2.0 * test_rand_uniform(&rng) - 1.0);
+        }
+        g_m[k] = sample(w, V_TRUE, g_att[k], sigma, &rng);
+    }
+}
+
+static double v_err(const magcal_ellipsoid_cal_t *cal)
+{
+    double dx = cal->v.x - V_TRUE[0], dy = cal->v.y - V_TRUE[1], dz = cal->v.z - V_TRUE[2];
+    return sqrt(dx * dx + dy * dy + dz * dz);
+}
+
+/* ||G^T G - (W W^T)^-1|| / ||(W W^T)^-1|| (Frobenius): G is W^-1 up to a left rotation. */
+static double q_err(const magcal_ellipsoid_cal_t *cal, double w[3][3])
+{
+    double wi[3][3], q[3][3], num = 0, den = 0;
+    int i, j, k;
+    mat_inv(w, wi);
+    for (i = 0; i < 3; ++i) {
+        for (j = 0; j < 3; ++j) {
+            double qt = 0, qh = 0;
+            for (k = 0; k < 3; ++k) {
+                qt += wi[k][i] * wi[k][j];
+                qh += (double)cal->g[k][i] * cal->g[k][j];
+            }
+            q[i][j] = qt;
+            num += (qh - qt) * (qh - qt);
+            den += qt * qt;
+        }
+    }
+    (void)q;
+    return sqrt(num / den);
+}
+
+/* Tilt-compensated magnetic heading (deg) of a calibrated body field h (algorithms.md 6). */
+static double heading_deg(const double h[3], double roll, double pitch)
+{
+    double cf = cos(roll), sf = sin(roll), ct = cos(pitch), st = sin(pitch);
+    double lx = h[0] * cf + h[2] * sf;
+    double ly = h[1] * ct + st * (h[0] * sf - h[2] * cf);
+    return atan2(-lx, ly) / D2R;
+}
+
+static double heading_rms(size_t n, double g[3][3], const double v[3])
+{
+    double decl = atan2(B_NED[1], B_NED[0]) / D2R, s = 0;
+    size_t k;
+    for (k = 0; k < n; ++k) {
+        double e[3] = {g_m[k].x - v[0], g_m[k].y - v[1], g_m[k].z - v[2]}, h[3], d;
+        int i;
+        for (i = 0; i < 3; ++i) {
+            h[i] = g[i][0] * e[0] + g[i][1] * e[1] + g[i][2] * e[2];
+        }
+        d = test_angle_diff_deg(heading_deg(h, g_att[k][0], g_att[k][1]), g_att[k][2] / D2R - decl);
+        s += d * d;
+    }
+    return sqrt(s / (double)n);
+}
+
+static magcal_ellipsoid_cfg_t cfg_with_field(void)
+{
+    magcal_ellipsoid_cfg_t cfg = MAGCAL_ELLIPSOID_CFG_DEFAULT;
+    cfg.field = (float)f_ref();
+    return cfg;
+}
+
+static void test_ellipsoid_fit_random_attitudes_recovers_v_and_q(void)
+{
+    double w[3][3];
+    magcal_ellipsoid_cfg_t cfg = cfg_with_field();
+    magcal_ellipsoid_result_t r;
+    make_w_full(w);
+    make_set(w, NFIT, 180.0, 180.0, 0.05, 1234u);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ELLIPSOID_MODEL_QUADRIC9, r.model);
+    /* algorithms.md 7.2 (double): 0.001 uT and 1.5e-4; float32 + 3-sigma clipping: 0.02 uT, 1e-3. */
+    TEST_ASSERT_TRUE(v_err(&r.cal) < 0.02);
+    TEST_ASSERT_TRUE(q_err(&r.cal, w) < 1e-3);
+    TEST_ASSERT_FLOAT_WITHIN(1e-3f, (float)f_ref(), r.cal.field);
+    TEST_ASSERT_TRUE(r.coverage > 0.9f);
+    /* Noise 0.05 uT through G (|G| ~ 1): residual RMS near 0.05. */
+    TEST_ASSERT_FLOAT_WITHIN(0.02f, 0.05f, r.residual_rms);
+    TEST_ASSERT_TRUE(r.n_rejected <= 6u); /* 3-sigma clipping of Gaussian noise: ~0.3 % */
+}
+
+static void test_ellipsoid_fit_quadric10_matches_quadric9(void)
+{
+    double w[3][3];
+    magcal_ellipsoid_cfg_t cfg = cfg_with_field();
+    magcal_ellipsoid_result_t r9, r10;
+    int i, j;
+    make_w_full(w);
+    make_set(w, NFIT, 180.0, 180.0, 0.05, 777u);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r9));
+    cfg.model = MAGCAL_ELLIPSOID_MODEL_QUADRIC10;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r10));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ELLIPSOID_MODEL_QUADRIC10, r10.model);
+    TEST_ASSERT_TRUE(v_err(&r10.cal) < 0.02);
+    TEST_ASSERT_TRUE(q_err(&r10.cal, w) < 1e-3);
+    /* The two fits differ only in the normalisation constraint (algorithms.md: 2e-5 in double). */
+    TEST_ASSERT_FLOAT_WITHIN(0.01f, r9.cal.v.x, r10.cal.v.x);
+    TEST_ASSERT_FLOAT_WITHIN(0.01f, r9.cal.v.y, r10.cal.v.y);
+    TEST_ASSERT_FLOAT_WITHIN(0.01f, r9.cal.v.z, r10.cal.v.z);
+    for (i = 0; i < 3; ++i) {
+        for (j = 0; j < 3; ++j) {
+            TEST_ASSERT_FLOAT_WITHIN(5e-4f, r9.cal.g[i][j], r10.cal.g[i][j]);
+        }
+    }
+}
+
+static void test_ellipsoid_fit_sqrt_variants_satisfy_gtg_equals_q(void)
+{
+    double w[3][3], gw[3][3], gd[3][3];
+    magcal_ellipsoid_cfg_t cfg = cfg_with_field();
+    magcal_ellipsoid_result_t rs, rc;
+    int i, j, k;
+    make_w_full(w);
+    make_set(w, NFIT, 180.0, 180.0, 0.05, 99u);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &rs));
+    cfg.sqrt_method = MAGCAL_ELLIPSOID_SQRT_CHOLESKY;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &rc));
+    /* symmetric root is symmetric, Cholesky root is upper triangular */
+    TEST_ASSERT_FLOAT_WITHIN(1e-5f, rs.cal.g[0][1], rs.cal.g[1][0]);
+    TEST_ASSERT_FLOAT_WITHIN(1e-5f, rs.cal.g[0][2], rs.cal.g[2][0]);
+    TEST_ASSERT_FLOAT_WITHIN(1e-5f, rs.cal.g[1][2], rs.cal.g[2][1]);
+    TEST_ASSERT_EQUAL_FLOAT(0.0f, rc.cal.g[1][0]);
+    TEST_ASSERT_EQUAL_FLOAT(0.0f, rc.cal.g[2][0]);
+    TEST_ASSERT_EQUAL_FLOAT(0.0f, rc.cal.g[2][1]);
+    /* both give the same Q = G^T G */
+    for (i = 0; i < 3; ++i) {
+        for (j = 0; j < 3; ++j) {
+            double qs = 0, qc = 0;
+            for (k = 0; k < 3; ++k) {
+                qs += (double)rs.cal.g[k][i] * rs.cal.g[k][j];
+                qc += (double)rc.cal.g[k][i] * rc.cal.g[k][j];
+            }
+            TEST_ASSERT_FLOAT_WITHIN(2e-5f, (float)qs, (float)qc);
+        }
+    }
+    /* G W is a rotation (W^-1 up to a left rotation): (GW)^T (GW) = I within 2e-3. */
+    for (i = 0; i < 3; ++i) {
+        for (j = 0; j < 3; ++j) {
+            gd[i][j] = rs.cal.g[i][j];
+        }
+    }
+    mat_mul(gd, w, gw);
+    for (i = 0; i < 3; ++i) {
+        for (j = 0; j < 3; ++j) {
+            double s = 0;
+            for (k = 0; k < 3; ++k) {
+                s += gw[k][i] * gw[k][j];
+            }
+            TEST_ASSERT_FLOAT_WITHIN(2e-3f, (i == j) ? 1.0f : 0.0f, (float)s);
+        }
+    }
+}
+
+static void test_ellipsoid_fit_tilted_headings_within_1p2_of_floor(void)
+{
+    double w[3][3], wi[3][3], g[3][3], v[3];
+    magcal_ellipsoid_cfg_t cfg = cfg_with_field();
+    magcal_ellipsoid_result_t r;
+    double floor_rms, fit_rms;
+    int i, j;
+    make_w_sym(w);
+    make_set(w, NFIT, 180.0, 180.0, 0.1, 4242u);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    /* evaluation set: |pitch|, |roll| <= 40 deg, same noise; floor = true calibration on it */
+    make_set(w, NFIT, 40.0, 40.0, 0.1, 5151u);
+    mat_inv(w, wi);
+    floor_rms = heading_rms(NFIT, wi, V_TRUE);
+    for (i = 0; i < 3; ++i) {
+        for (j = 0; j < 3; ++j) {
+            g[i][j] = r.cal.g[i][j];
+        }
+    }
+    v[0] = r.cal.v.x;
+    v[1] = r.cal.v.y;
+    v[2] = r.cal.v.z;
+    fit_rms = heading_rms(NFIT, g, v);
+    TEST_ASSERT_TRUE(floor_rms > 0.05 && floor_rms < 1.0); /* sanity of the floor itself */
+    TEST_ASSERT_TRUE(fit_rms <= 1.2 * floor_rms);
+}
+
+static void test_ellipsoid_fit_outliers_rejected_by_residual_gate(void)
+{
+    double w[3][3];
+    magcal_ellipsoid_cfg_t cfg = cfg_with_field();
+    magcal_ellipsoid_result_t r, rn;
+    uint32_t rng = 31337u;
+    size_t k;
+    make_w_full(w);
+    make_set(w, NFIT, 180.0, 180.0, 0.05, 2024u);
+    /* 5 % outliers: 5..20 uT spikes in random directions added to copies of good samples */
+    for (k = 0; k < NOUT; ++k) {
+        double mag = 5.0 + 15.0 * test_rand_uniform(&rng);
+        double dx = test_rand_normal(&rng), dy = test_rand_normal(&rng), dz = test_rand_normal(&rng);
+        double nn = sqrt(dx * dx + dy * dy + dz * dz);
+        g_m[NFIT + k] = g_m[k * 17];
+        g_m[NFIT + k].x += (float)(mag * dx / nn);
+        g_m[NFIT + k].y += (float)(mag * dy / nn);
+        g_m[NFIT + k].z += (float)(mag * dz / nn);
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT + NOUT, &cfg, &r));
+    cfg.outlier_k = 0.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT + NOUT, &cfg, &rn));
+    TEST_ASSERT_TRUE(v_err(&r.cal) < 0.03);
+    TEST_ASSERT_TRUE(q_err(&r.cal, w) < 1.5e-3);
+    TEST_ASSERT_TRUE(r.n_rejected >= NOUT && r.n_rejected <= NOUT + 10);
+    /* without the gate the same data give a clearly worse fit */
+    TEST_ASSERT_EQUAL_UINT32(0u, (uint32_t)rn.n_rejected);
+    TEST_ASSERT_TRUE(v_err(&rn.cal) > 5.0 * v_err(&r.cal));
+}
+
+static void test_ellipsoid_fit_rejections_above_limit_return_too_many_outliers(void)
+{
+    /* every 10th sample shifted by 10 uT (10 %): rejecting them exceeds a 5 % limit */
+    double w[3][3];
+    magcal_ellipsoid_cfg_t cfg = cfg_with_field();
+    magcal_ellipsoid_result_t r;
+    size_t k;
+    make_w_full(w);
+    make_set(w, NFIT, 180.0, 180.0, 0.05, 606u);
+    for (k = 0; k < NFIT; k += 10) {
+        g_m[k].x += 10.0f;
+    }
+    cfg.max_reject_frac = 0.05f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_MANY_OUTLIERS, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    cfg.max_reject_frac = 0.25f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    /* a shift nearly tangent to the sphere barely changes |h|: 58 of the 60 are caught */
+    TEST_ASSERT_TRUE(r.n_rejected >= NFIT / 10 - 4 && r.n_rejected <= NFIT / 10 + 6);
+    TEST_ASSERT_TRUE(v_err(&r.cal) < 0.03);
+}
+
+static void test_ellipsoid_fit_poor_coverage_falls_back_to_sphere(void)
+{
+    /* hard iron only (W = 0.9 I), tilts limited to +-20 deg: only a band of directions */
+    static double w[3][3] = {{0.9, 0, 0}, {0, 0.9, 0}, {0, 0, 0.9}};
+    magcal_ellipsoid_cfg_t cfg = cfg_with_field();
+    magcal_ellipsoid_result_t r;
+    make_set(w, NFIT, 20.0, 20.0, 0.05, 55u);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_TRUE(r.coverage >= cfg.min_coverage_sphere && r.coverage < cfg.min_coverage_full);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ELLIPSOID_MODEL_SPHERE, r.model);
+    TEST_ASSERT_TRUE(v_err(&r.cal) < 0.1);
+    TEST_ASSERT_FLOAT_WITHIN(1e-3f, 1.0f / 0.9f, r.cal.g[0][0]);
+    TEST_ASSERT_EQUAL_FLOAT(0.0f, r.cal.g[0][1]);
+}
+
+static void test_ellipsoid_fit_level_ring_auto_returns_coverage(void)
+{
+    /* Level yaw-only: every direction in one cone (12 of 72 cells); no model is identifiable. With
+     * noise the normal equations pass the (scale-free) pivot test, so only the coverage gate of AUTO
+     * protects: an explicitly requested quadric returns a confident but wrong V. */
+    double w[3][3];
+    magcal_ellipsoid_cfg_t cfg = cfg_with_field();
+    magcal_ellipsoid_result_t r;
+    make_w_full(w);
+    make_set(w, NFIT, 0.0, 0.0, 0.05, 66u);
+    memset(&r, 0xA5, sizeof(r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_COVERAGE, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_HEX8(0xA5, ((unsigned char *)&r)[0]); /* untouched on failure */
+    cfg.model = MAGCAL_ELLIPSOID_MODEL_QUADRIC9;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_TRUE(r.coverage < cfg.min_coverage_sphere);
+    TEST_ASSERT_TRUE(v_err(&r.cal) > 5.0); /* measured 46.7 uT */
+}
+
+static void test_ellipsoid_fit_hyperboloid_returns_not_ellipsoid(void)
+{
+    /* x^2 + y^2 - z^2 = 400: a hyperboloid of one sheet */
+    magcal_ellipsoid_cfg_t cfg = MAGCAL_ELLIPSOID_CFG_DEFAULT;
+    magcal_ellipsoid_result_t r;
+    size_t k;
+    for (k = 0; k < NFIT; ++k) {
+        double t = 2.0 * PI_D * (double)k / 37.0;
+        double z = -20.0 + 40.0 * (double)(k % 23) / 22.0;
+        double rr = sqrt(400.0 + z * z);
+        g_m[k].x = (float)(rr * cos(t) + 5.0);
+        g_m[k].y = (float)(rr * sin(t) - 3.0);
+        g_m[k].z = (float)z;
+    }
+    cfg.model = MAGCAL_ELLIPSOID_MODEL_QUADRIC9;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NOT_ELLIPSOID, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    cfg.model = MAGCAL_ELLIPSOID_MODEL_QUADRIC10;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NOT_ELLIPSOID, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+}
+
+static void test_ellipsoid_fit_unknown_field_gives_unit_determinant(void)
+{
+    double w[3][3];
+    magcal_ellipsoid_cfg_t cfg = MAGCAL_ELLIPSOID_CFG_DEFAULT;
+    magcal_ellipsoid_result_t r;
+    double det, detw;
+    make_w_full(w);
+    make_set(w, NFIT, 180.0, 180.0, 0.05, 8u);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    det = (double)r.cal.g[0][0] * (r.cal.g[1][1] * r.cal.g[2][2] - r.cal.g[1][2] * r.cal.g[2][1]) -
+          (double)r.cal.g[0][1] * (r.cal.g[1][0] * r.cal.g[2][2] - r.cal.g[1][2] * r.cal.g[2][0]) +
+          (double)r.cal.g[0][2] * (r.cal.g[1][0] * r.cal.g[2][1] - r.cal.g[1][1] * r.cal.g[2][0]);
+    TEST_ASSERT_FLOAT_WITHIN(1e-4f, 1.0f, (float)det);
+    /* F = geometric mean radius = F_true * det(W)^(1/3) */
+    detw = w[0][0] * (w[1][1] * w[2][2] - w[1][2] * w[2][1]) - w[0][1] * (w[1][0] * w[2][2] - w[1][2] * w[2][0]) +
+           w[0][2] * (w[1][0] * w[2][1] - w[1][1] * w[2][0]);
+    TEST_ASSERT_FLOAT_WITHIN(0.01f, (float)(f_ref() * cbrt(detw)), r.cal.field);
+    TEST_ASSERT_TRUE(v_err(&r.cal) < 0.02);
+}
+
+static void test_ellipsoid_fit_bad_input_returns_status(void)
+{
+    magcal_ellipsoid_cfg_t cfg = MAGCAL_ELLIPSOID_CFG_DEFAULT;
+    magcal_ellipsoid_result_t r;
+    double w[3][3];
+    size_t k;
+    make_w_full(w);
+    make_set(w, 100, 180.0, 180.0, 0.05, 3u);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_fit(NULL, 100, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_fit(g_m, 100, NULL, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_fit(g_m, 100, &cfg, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_ellipsoid_fit(g_m, 3, &cfg, &r));
+    cfg.model = MAGCAL_ELLIPSOID_MODEL_QUADRIC9;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_ellipsoid_fit(g_m, 9, &cfg, &r));
+    cfg.max_refits = 99u;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    cfg.max_refits = 3u;
+    cfg.min_coverage_full = 1.5f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    cfg.min_coverage_full = 0.45f;
+    cfg.field = -1.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    cfg.field = 0.0f;
+    cfg.model = (magcal_ellipsoid_model_t)7;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    cfg.model = MAGCAL_ELLIPSOID_MODEL_AUTO;
+    g_m[50].y = NAN;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    for (k = 0; k < 100; ++k) {
+        g_m[k].x = 3.0f;
+        g_m[k].y = -2.0f;
+        g_m[k].z = 1.0f;
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_DEGENERATE, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+}
+
+static void test_ellipsoid_coverage_counts_direction_cells(void)
+{
+    double w[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+    magcal_vec3_t c = {(float)V_TRUE[0], (float)V_TRUE[1], (float)V_TRUE[2]};
+    float cov = -1.0f;
+    size_t k;
+    make_set(w, NFIT, 180.0, 180.0, 0.0, 11u);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_coverage(g_m, NFIT, &c, &cov));
+    TEST_ASSERT_TRUE(cov > 0.95f); /* 600 random directions fill (nearly) all 72 cells */
+    for (k = 0; k < 10; ++k) {
+        g_m[k].x = c.x + 1.0f;
+        g_m[k].y = c.y + 0.1f * (float)k;
+        g_m[k].z = c.z + 0.01f;
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_coverage(g_m, 1, &c, &cov));
+    TEST_ASSERT_FLOAT_WITHIN(1e-6f, 1.0f / 72.0f, cov);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_ellipsoid_coverage(g_m, 0, &c, &cov));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_coverage(g_m, 1, NULL, &cov));
+}
+
+static void test_ellipsoid_apply_known_matrix_and_offset(void)
+{
+    magcal_ellipsoid_cal_t cal = {{{2, 0, 0}, {0, 1, 1}, {0, 0, 3}}, {1, 2, 3}, 10};
+    magcal_vec3_t m = {2, 4, 5}, h = {0, 0, 0};
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_apply(&cal, &m, &h));
+    TEST_ASSERT_FLOAT_WITHIN(1e-6f, 2.0f, h.x); /* 2*(2-1) */
+    TEST_ASSERT_FLOAT_WITHIN(1e-6f, 4.0f, h.y); /* (4-2)+(5-3) */
+    TEST_ASSERT_FLOAT_WITHIN(1e-6f, 6.0f, h.z); /* 3*(5-3) */
+    m.z = INFINITY;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_ellipsoid_apply(&cal, &m, &h));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_apply(NULL, &m, &h));
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_ellipsoid_fit_random_attitudes_recovers_v_and_q);
+    RUN_TEST(test_ellipsoid_fit_quadric10_matches_quadric9);
+    RUN_TEST(test_ellipsoid_fit_sqrt_variants_satisfy_gtg_equals_q);
+    RUN_TEST(test_ellipsoid_fit_tilted_headings_within_1p2_of_floor);
+    RUN_TEST(test_ellipsoid_fit_outliers_rejected_by_residual_gate);
+    RUN_TEST(test_ellipsoid_fit_rejections_above_limit_return_too_many_outliers);
+    RUN_TEST(test_ellipsoid_fit_poor_coverage_falls_back_to_sphere);
+    RUN_TEST(test_ellipsoid_fit_level_ring_auto_returns_coverage);
+    RUN_TEST(test_ellipsoid_fit_hyperboloid_returns_not_ellipsoid);
+    RUN_TEST(test_ellipsoid_fit_unknown_field_gives_unit_determinant);
+    RUN_TEST(test_ellipsoid_fit_bad_input_returns_status);
+    RUN_TEST(test_ellipsoid_coverage_counts_direction_cells);
+    RUN_TEST(test_ellipsoid_apply_known_matrix_and_offset);
+    return UNITY_END();
+}
