@@ -61,6 +61,7 @@ KERNELS = {
 MAIN_KERNELS = ["optics_classic", "optics_improved", "optics_indexed", "dbscan", "ellipse", "calibration"]
 EXTRA_KERNELS = ["optics_classic_grid", "optics_filter", "auto_params", "dbscan_brute", "consensus",
                  "calibration_push"]
+CORE_ENTRY_POINTS = ["magcal_optics_filter", "magcal_ellipse_fit", "magcal_ellipse_to_cal", "magcal_heading_compute"]
 INF_KERNELS = ["optics_classic_inf", "optics_improved_inf"]  # eps = +inf, n <= 700 only (O(n^2))
 ENTRY_POINTS = ["magcal_calibrator_init", "magcal_calibrator_push", "magcal_calibrator_poll",
                 "magcal_calibrator_run", "magcal_heading_compute"]
@@ -280,6 +281,21 @@ def per_object(map_path):
     return objs
 
 
+def image_sizes(bdir, name):
+    elf = os.path.join(bdir, name + ".elf")
+    mp = os.path.join(bdir, name + ".map")
+    totals = parse_map(mp, elf)
+    size_out = run(["arm-none-eabi-size", elf]).stdout.split("\n")[1].split()
+    rows = {}
+    for g in sorted(set(g for g, _ in totals)):
+        fo = totals.get((g, "flash_only"), 0)
+        d = totals.get((g, "data"), 0)
+        b = totals.get((g, "bss"), 0)
+        rows[g] = {"flash": fo + d, "ram": d + b, "text_rodata": fo, "data": d, "bss": b}
+    return {"groups": rows, "elf_text": int(size_out[0]), "elf_data": int(size_out[1]),
+            "elf_bss": int(size_out[2]), "per_object": per_object(mp)}
+
+
 def m4f_footprint(build_dir, tmp_root):
     if shutil.which("arm-none-eabi-gcc") is None:
         return {"error": "arm-none-eabi-gcc not found"}
@@ -291,20 +307,8 @@ def m4f_footprint(build_dir, tmp_root):
         p = run(["cmake", "--build", bdir, "-j2"])
     if p.returncode != 0:
         return {"error": "m4f image build failed:\n" + p.stdout[-2000:] + p.stderr[-2000:]}
-    elf = os.path.join(bdir, "pipeline2d.elf")
-    mp = os.path.join(bdir, "pipeline2d.map")
-    totals = parse_map(mp, elf)
-    size_out = run(["arm-none-eabi-size", elf]).stdout.split("\n")[1].split()
-    text_b, data_b, bss_b = int(size_out[0]), int(size_out[1]), int(size_out[2])
-    groups = sorted(set(g for g, _ in totals))
-    rows = {}
-    for g in groups:
-        fo = totals.get((g, "flash_only"), 0)
-        d = totals.get((g, "data"), 0)
-        b = totals.get((g, "bss"), 0)
-        rows[g] = {"flash": fo + d, "ram": d + b, "text_rodata": fo, "data": d, "bss": b}
-    res = {"groups": rows, "elf_text": text_b, "elf_data": data_b, "elf_bss": bss_b,
-           "per_object": per_object(mp), "elf": elf}
+    res = image_sizes(bdir, "pipeline2d")
+    res["core2d"] = image_sizes(bdir, "core2d")
     nm = run(["arm-none-eabi-nm", "-u", os.path.join(bdir, "libmagcal.a")]).stdout
     res["double_helpers"] = sorted(set(re.findall(r"__aeabi_(?:d[a-z0-9]+|f2d|i2d|ui2d|l2d|ul2d)", nm)))
     # stack: tools/stack/stack_usage.py over the library + the image's own objects (port stub)
@@ -326,6 +330,7 @@ def m4f_footprint(build_dir, tmp_root):
             v["path_frames"] = " -> ".join("%s %d" % (f, own[f]) for f in lib) + (
                 " -> %s %d" % ("/".join(f for f in fs if f not in own), tail) if tail or len(lib) < len(fs) else "")
         res["stack"] = {k: stack[k] for k in ENTRY_POINTS if k in stack}
+        res["core2d"]["stack"] = {k: stack[k] for k in CORE_ENTRY_POINTS if k in stack}
         res["stack_own"] = own
         res["stack_errors"] = [e for e in p.stderr.splitlines() if e.startswith("ERROR")]
         res["stack_tool"] = "tools/stack/stack_usage.py"
@@ -668,6 +673,18 @@ def render_markdown(res, ns, i_ref, m4f, sk_info):
         po = sorted(mm["per_object"].items(), key=lambda kv: -kv[1])
         L.append("Library flash per object (text + rodata): " + ", ".join("%s %d" % (k.replace(".c.obj", ""), v)
                                                                         for k, v in po) + ".")
+        c2 = mm.get("core2d")
+        if c2:
+            cg = c2["groups"]
+            cst = c2.get("stack", {})
+            L.append("Seed-equivalent core for comparison (`core2d.elf`: port reads, `magcal_optics_filter` with automatic "
+                     "parameters, `magcal_ellipse_fit`, `magcal_ellipse_to_cal`, `magcal_heading_compute`; no calibrator "
+                     "object, no consensus): libmagcal flash **%d B** (libm %d B); per object: %s; worst stack %s." % (
+                         cg.get("magcal", {}).get("flash", 0), cg.get("libm", {}).get("flash", 0),
+                         ", ".join("%s %d" % (k.replace(".c.obj", ""), v) for k, v in
+                                   sorted(c2["per_object"].items(), key=lambda kv: -kv[1])),
+                         ", ".join("%s %d B" % (k, v["worst"]) for k, v in cst.items()) or "-"))
+            L.append("")
         L.append("Software double helpers referenced by libmagcal.a: %s." % (", ".join(mm["double_helpers"]) or "none"))
         L.append("")
         w = ex["workspace"]
