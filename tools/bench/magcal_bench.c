@@ -183,11 +183,12 @@ static int fail(const char *what, magcal_status_t st)
 
 static magcal_status_t auto_params(size_t n)
 {
-    return magcal_optics_auto_params(g_pts, n, g_work, sizeof g_work, &g_eps, &g_min_pts, &g_eps_prime);
+    return magcal_optics_auto_params(g_pts, n, g_work, sizeof g_work, &g_eps, &g_min_pts,
+                                     &g_eps_prime);
 }
 
-static magcal_status_t optics_variant(size_t n, magcal_optics_order_t order, magcal_neighbors_t nbr, uint16_t *o,
-                                      float *re, float *co)
+static magcal_status_t optics_variant(size_t n, magcal_optics_order_t order, magcal_neighbors_t nbr,
+                                      uint16_t *o, float *re, float *co)
 {
     magcal_optics_cfg_t cfg = MAGCAL_OPTICS_CFG_DEFAULT;
     cfg.eps = g_eps;
@@ -257,17 +258,21 @@ static int run_kernel(const char *k, size_t n, int quiet)
             return fail("auto params", st);
         }
         if (strcmp(k, "optics_classic") == 0) {
-            st = optics_variant(n, MAGCAL_OPTICS_CLASSIC, MAGCAL_NEIGHBORS_BRUTE, g_order, g_reach, g_core);
+            st = optics_variant(n, MAGCAL_OPTICS_CLASSIC, MAGCAL_NEIGHBORS_BRUTE, g_order, g_reach,
+                                g_core);
         } else if (strcmp(k, "optics_improved") == 0) {
-            st = optics_variant(n, MAGCAL_OPTICS_IMPROVED, MAGCAL_NEIGHBORS_BRUTE, g_order, g_reach, g_core);
+            st = optics_variant(n, MAGCAL_OPTICS_IMPROVED, MAGCAL_NEIGHBORS_BRUTE, g_order, g_reach,
+                                g_core);
         } else if (strcmp(k, "optics_indexed") == 0) {
-            st = optics_variant(n, MAGCAL_OPTICS_IMPROVED, MAGCAL_NEIGHBORS_GRID, g_order, g_reach, g_core);
+            st = optics_variant(n, MAGCAL_OPTICS_IMPROVED, MAGCAL_NEIGHBORS_GRID, g_order, g_reach,
+                                g_core);
         } else if (strcmp(k, "optics_classic_inf") == 0 || strcmp(k, "optics_improved_inf") == 0) {
             g_eps = INFINITY; /* scikit-learn's default max_eps: every point is a neighbour */
-            st = optics_variant(n, k[7] == 'c' ? MAGCAL_OPTICS_CLASSIC : MAGCAL_OPTICS_IMPROVED, MAGCAL_NEIGHBORS_BRUTE,
-                                g_order, g_reach, g_core);
+            st = optics_variant(n, k[7] == 'c' ? MAGCAL_OPTICS_CLASSIC : MAGCAL_OPTICS_IMPROVED,
+                                MAGCAL_NEIGHBORS_BRUTE, g_order, g_reach, g_core);
         } else if (strcmp(k, "optics_classic_grid") == 0) {
-            st = optics_variant(n, MAGCAL_OPTICS_CLASSIC, MAGCAL_NEIGHBORS_GRID, g_order, g_reach, g_core);
+            st = optics_variant(n, MAGCAL_OPTICS_CLASSIC, MAGCAL_NEIGHBORS_GRID, g_order, g_reach,
+                                g_core);
         } else {
             fprintf(stderr, "magcal_bench: unknown kernel %s\n", k);
             return 1;
@@ -367,9 +372,10 @@ static int mode_time(const char *k, size_t n, size_t reps)
         fprintf(stderr, "magcal_bench: REPS must be 1..1000\n");
         return 1;
     }
-    if (strcmp(k, "calibration_push") != 0 && strcmp(k, "optics_indexed") != 0 && strcmp(k, "optics_classic") != 0 &&
-        strcmp(k, "optics_filter") != 0) {
-        fprintf(stderr, "magcal_bench: time supports calibration_push, optics_filter, optics_indexed, optics_classic\n");
+    if (strcmp(k, "calibration_push") != 0 && strcmp(k, "optics_indexed") != 0 &&
+        strcmp(k, "optics_classic") != 0 && strcmp(k, "optics_filter") != 0) {
+        fprintf(stderr, "magcal_bench: time supports calibration_push, optics_filter, "
+                        "optics_indexed, optics_classic\n");
         return 1;
     }
     if (run_kernel(k, n, 1) != 0) { /* warm-up: page in code and data, check it works */
@@ -385,9 +391,11 @@ static int mode_time(const char *k, size_t n, size_t reps)
         } else if (strcmp(k, "optics_filter") == 0) {
             st = optics_filter(n, NULL);
         } else if (strcmp(k, "optics_indexed") == 0) {
-            st = optics_variant(n, MAGCAL_OPTICS_IMPROVED, MAGCAL_NEIGHBORS_GRID, g_order, g_reach, g_core);
+            st = optics_variant(n, MAGCAL_OPTICS_IMPROVED, MAGCAL_NEIGHBORS_GRID, g_order, g_reach,
+                                g_core);
         } else {
-            st = optics_variant(n, MAGCAL_OPTICS_CLASSIC, MAGCAL_NEIGHBORS_BRUTE, g_order, g_reach, g_core);
+            st = optics_variant(n, MAGCAL_OPTICS_CLASSIC, MAGCAL_NEIGHBORS_BRUTE, g_order, g_reach,
+                                g_core);
         }
         t[i] = now_s() - t0;
         if (st != MAGCAL_OK) {
@@ -395,14 +403,16 @@ static int mode_time(const char *k, size_t n, size_t reps)
         }
     }
     qsort(t, reps, sizeof t[0], cmp_double);
-    printf("median_s=%.9f min_s=%.9f reps=%u\n", reps % 2u ? t[reps / 2u] : 0.5 * (t[reps / 2u - 1u] + t[reps / 2u]),
-           t[0], (unsigned)reps);
+    printf("median_s=%.9f min_s=%.9f reps=%u\n",
+           reps % 2u ? t[reps / 2u] : 0.5 * (t[reps / 2u - 1u] + t[reps / 2u]), t[0],
+           (unsigned)reps);
     return 0;
 }
 
 static int same_arrays(size_t n)
 {
-    return memcmp(g_order, g_order2, n * sizeof g_order[0]) == 0 && memcmp(g_reach, g_reach2, n * sizeof(float)) == 0 &&
+    return memcmp(g_order, g_order2, n * sizeof g_order[0]) == 0 &&
+           memcmp(g_reach, g_reach2, n * sizeof(float)) == 0 &&
            memcmp(g_core, g_core2, n * sizeof(float)) == 0;
 }
 
@@ -419,8 +429,8 @@ static int mode_info(size_t n)
     if (st != MAGCAL_OK) {
         return fail("auto params", st);
     }
-    printf("n=%u\nmax_samples=%u\neps=%.9g\neps_prime=%.9g\nmin_pts=%u\n", (unsigned)n, (unsigned)NMAX,
-           (double)g_eps, (double)g_eps_prime, (unsigned)g_min_pts);
+    printf("n=%u\nmax_samples=%u\neps=%.9g\neps_prime=%.9g\nmin_pts=%u\n", (unsigned)n,
+           (unsigned)NMAX, (double)g_eps, (double)g_eps_prime, (unsigned)g_min_pts);
     for (i = 0u; i < n; ++i) {
         n_out += g_outlier[i];
     }
@@ -431,9 +441,11 @@ static int mode_info(size_t n)
     if (st != MAGCAL_OK) {
         return fail("optics classic", st);
     }
-    st = optics_variant(n, MAGCAL_OPTICS_IMPROVED, MAGCAL_NEIGHBORS_BRUTE, g_order2, g_reach2, g_core2);
+    st = optics_variant(n, MAGCAL_OPTICS_IMPROVED, MAGCAL_NEIGHBORS_BRUTE, g_order2, g_reach2,
+                        g_core2);
     same = same && st == MAGCAL_OK && same_arrays(n);
-    st = optics_variant(n, MAGCAL_OPTICS_IMPROVED, MAGCAL_NEIGHBORS_GRID, g_order2, g_reach2, g_core2);
+    st = optics_variant(n, MAGCAL_OPTICS_IMPROVED, MAGCAL_NEIGHBORS_GRID, g_order2, g_reach2,
+                        g_core2);
     same = same && st == MAGCAL_OK && same_arrays(n);
     printf("optics_variants_identical=%d\n", same);
 
@@ -441,7 +453,8 @@ static int mode_info(size_t n)
     if (st != MAGCAL_OK) {
         return fail("optics filter", st);
     }
-    printf("filter_inliers=%u\nfilter_clusters=%u\n", (unsigned)info.n_inliers, (unsigned)info.n_clusters);
+    printf("filter_inliers=%u\nfilter_clusters=%u\n", (unsigned)info.n_inliers,
+           (unsigned)info.n_clusters);
 
     st = calib_full(n, &cal, &rep);
     printf("calibration_status=%d\n", (int)st);
@@ -454,15 +467,19 @@ static int mode_info(size_t n)
         rej_true += (size_t)(inl == 0 && g_outlier[i] == 0u);
         kept_false += (size_t)(inl != 0 && g_outlier[i] != 0u);
     }
-    printf("calibration_used=%u\ncalibration_rejected_inliers=%u\ncalibration_kept_outliers=%u\n", (unsigned)rep.used,
-           (unsigned)rej_true, (unsigned)kept_false);
-    printf("calibration_centre=%.4f,%.4f\ncalibration_axes=%.4f,%.4f\n", (double)rep.ellipse.center.x,
-           (double)rep.ellipse.center.y, (double)rep.ellipse.semi_minor, (double)rep.ellipse.semi_major);
+    printf("calibration_used=%u\ncalibration_rejected_inliers=%u\ncalibration_kept_outliers=%u\n",
+           (unsigned)rep.used, (unsigned)rej_true, (unsigned)kept_false);
+    printf("calibration_centre=%.4f,%.4f\ncalibration_axes=%.4f,%.4f\n",
+           (double)rep.ellipse.center.x, (double)rep.ellipse.center.y,
+           (double)rep.ellipse.semi_minor, (double)rep.ellipse.semi_major);
     printf("calibration_est_heading_err_deg=%.4f\n", (double)rep.est_heading_err_deg);
     /* size macros at this build's capacity and at the shipped default 1024 */
-    printf("calibrator_workspace_bytes_%u=%u\n", (unsigned)NMAX, (unsigned)MAGCAL_CALIBRATOR_WORKSPACE_LEN(NMAX));
-    printf("calibrator_workspace_bytes_1024=%u\n", (unsigned)MAGCAL_CALIBRATOR_WORKSPACE_LEN(1024u));
-    printf("optics_filter_workspace_bytes_1024=%u\n", (unsigned)MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(1024u));
+    printf("calibrator_workspace_bytes_%u=%u\n", (unsigned)NMAX,
+           (unsigned)MAGCAL_CALIBRATOR_WORKSPACE_LEN(NMAX));
+    printf("calibrator_workspace_bytes_1024=%u\n",
+           (unsigned)MAGCAL_CALIBRATOR_WORKSPACE_LEN(1024u));
+    printf("optics_filter_workspace_bytes_1024=%u\n",
+           (unsigned)MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(1024u));
     printf("consensus_workspace_bytes_1024=%u\n", (unsigned)MAGCAL_CONSENSUS_WORKSPACE_LEN(1024u));
     printf("dbscan_workspace_bytes_1024=%u\n", (unsigned)MAGCAL_DBSCAN_WORKSPACE_LEN(1024u));
     printf("masks_bytes_1024=%u\n", (unsigned)MAGCAL_CALIBRATOR_MASKS_LEN(1024u));
@@ -486,16 +503,17 @@ static int mode_dump(size_t n, const char *path)
     }
     fprintf(f, "x,y,outlier,magcal_filter_inlier\n");
     for (i = 0u; i < n; ++i) {
-        fprintf(f, "%.9g,%.9g,%u,%u\n", (double)g_pts[i].x, (double)g_pts[i].y, (unsigned)g_outlier[i],
-                (unsigned)g_mask[i]);
+        fprintf(f, "%.9g,%.9g,%u,%u\n", (double)g_pts[i].x, (double)g_pts[i].y,
+                (unsigned)g_outlier[i], (unsigned)g_mask[i]);
     }
     return fclose(f) == 0 ? 0 : 1;
 }
 
 static int usage(void)
 {
-    fprintf(stderr, "usage: magcal_bench info N | dump N FILE | run KERNEL N | time KERNEL N REPS\n"
-                    "       (N = 16..%u; see the comment at the top of magcal_bench.c)\n",
+    fprintf(stderr,
+            "usage: magcal_bench info N | dump N FILE | run KERNEL N | time KERNEL N REPS\n"
+            "       (N = 16..%u; see the comment at the top of magcal_bench.c)\n",
             (unsigned)NMAX);
     return 1;
 }

@@ -410,13 +410,14 @@ def main(argv):
     log("   %d valgrind runs done (%.0f s)" % (len(jobs), time.time() - t_start))
 
     log("== wall clock (same machine, this run)")
-    wall_magcal, wall_sklearn, sk_info = [], [], {}
+    wall_magcal, wall_sklearn, sk_info, wall_magcal_min = [], [], {}, []
     for n in ns:
-        reps = 101 if n <= 300 else (51 if n <= 1500 else 21)
+        reps = 201 if n <= 300 else (101 if n <= 1500 else 41)
         if args.quick:
             reps = 21
         med, mn = magcal_time(exe, n, reps)
         wall_magcal.append(med)
+        wall_magcal_min.append(mn)
         sk = None
         if not args.skip_sklearn:
             sreps = 3 if (args.quick or n >= 1500) else 5
@@ -467,6 +468,8 @@ def main(argv):
     extra["calibration_used"] = [infos[n]["calibration_used"] for n in ns]
     extra["true_outliers"] = [infos[n]["true_outliers"] for n in ns]
     extra["sklearn_largest_cluster_agree"] = [sk_info[n]["agree"] if n in sk_info else None for n in ns]
+    extra["magcal_calibration_wall_min_s"] = wall_magcal_min
+    extra["sklearn_optics_wall_min_s"] = [min(sk_info[n]["times"]) if n in sk_info else None for n in ns]
     extra["nbr_pairs"] = [sk_info[n]["nbr_pairs"] if n in sk_info else None for n in ns]
     extra["sklearn_version"] = next((v["version"] for v in sk_info.values()), None)
 
@@ -639,16 +642,19 @@ def render_markdown(res, ns, i_ref, m4f, sk_info):
     L.append("")
     L.append("### Wall clock, same machine, same run")
     L.append("")
-    L.append("| n | magcal full calibration (init + push + run), median | scikit-learn %s OPTICS fit, median | sklearn / magcal | sklearn largest cluster = magcal filter inliers |" %
+    L.append("| n | magcal full calibration (init + push + run): median (min) | scikit-learn %s OPTICS fit: median (min) | sklearn / magcal: medians (minima) | sklearn largest cluster = magcal filter inliers |" %
              (ex.get("sklearn_version") or ""))
     L.append("|---:|---:|---:|---:|---:|")
     for j, n in enumerate(ns):
         sk = res["sklearn_optics_wall_s"][j]
+        skm = ex["sklearn_optics_wall_min_s"][j]
         mg = res["magcal_calibration_wall_s"][j]
+        mgm = ex["magcal_calibration_wall_min_s"][j]
         agree = ex["sklearn_largest_cluster_agree"][j]
-        L.append("| %d | %s ms | %s | %s | %s |" % (
-            n, fmt(mg * 1e3, "%.3f"), ("%.1f ms" % (sk * 1e3)) if sk else "not run",
-            ("%.0fx" % (sk / mg)) if sk else "-", ("%d / %d points" % (agree, n)) if agree is not None else "-"))
+        L.append("| %d | %.3f ms (%.3f) | %s | %s | %s |" % (
+            n, mg * 1e3, mgm * 1e3, ("%.1f ms (%.1f)" % (sk * 1e3, skm * 1e3)) if sk else "not run",
+            ("%.0fx (%.0fx)" % (sk / mg, skm / mgm)) if sk else "-",
+            ("%d / %d points" % (agree, n)) if agree is not None else "-"))
     L.append("")
     L.append("scikit-learn: `OPTICS(min_samples=MinPts, max_eps=eps, cluster_method='dbscan', eps=eps')` with "
              "magcal's automatic eps = eps' and MinPts of that data set, float64, `fit()` only (import and data "

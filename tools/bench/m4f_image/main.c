@@ -28,7 +28,9 @@ int main(void)
     size_t i;
     magcal_status_t st = magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work);
 
-    for (i = 0u; st == MAGCAL_OK && i < CAP && magcal_calibrator_state(&g_cal) == MAGCAL_CALIBRATOR_COLLECTING; ++i) {
+    for (i = 0u; st == MAGCAL_OK && i < CAP &&
+                 magcal_calibrator_state(&g_cal) == MAGCAL_CALIBRATOR_COLLECTING;
+         ++i) {
         st = magcal_calibrator_poll(&g_cal);
     }
     if (st == MAGCAL_OK) {
