@@ -333,6 +333,8 @@ def m4f_footprint(build_dir, tmp_root):
         res["core2d"]["stack"] = {k: stack[k] for k in CORE_ENTRY_POINTS if k in stack}
         res["stack_own"] = own
         res["stack_errors"] = [e for e in p.stderr.splitlines() if e.startswith("ERROR")]
+        res["stack_assumptions"] = [ln[len("assumed never called: "):] for ln in p.stdout.splitlines()
+                                    if ln.startswith("assumed never called: ")]
         res["stack_tool"] = "tools/stack/stack_usage.py"
     else:
         res["stack_error"] = "tools/stack/stack_usage.py not present (merge the target branch)"
@@ -708,6 +710,10 @@ def render_markdown(res, ns, i_ref, m4f, sk_info):
                     L.append("| `%s` | %d | %d | %s |" % (k, s["own"], s["worst"],
                                                           s["path_frames"].replace(" -> ", " → ")))
             L.append("")
+            if mm.get("stack_assumptions"):
+                L.append("Call edges pruned by tools/stack/assumptions.txt (argument-range facts, reviewed there): " +
+                         "; ".join("`%s`" % a for a in mm["stack_assumptions"]) + ".")
+                L.append("")
             if mm.get("stack_errors"):
                 L.append("stack_usage.py reported: " + "; ".join(mm["stack_errors"]))
                 L.append("")
