@@ -308,6 +308,9 @@ def m4f_footprint(build_dir, tmp_root):
     if p.returncode != 0:
         return {"error": "m4f image build failed:\n" + p.stdout[-2000:] + p.stderr[-2000:]}
     res = image_sizes(bdir, "pipeline2d")
+    syms = run(["arm-none-eabi-nm", "-S", os.path.join(bdir, "pipeline2d.elf")]).stdout
+    m = re.search(r"^[0-9a-f]+ ([0-9a-f]+) [bB] g_work$", syms, re.M)
+    res["image_workspace_bytes"] = int(m.group(1), 16) if m else None  # cross-check of the host macro value
     res["core2d"] = image_sizes(bdir, "core2d")
     nm = run(["arm-none-eabi-nm", "-u", os.path.join(bdir, "libmagcal.a")]).stdout
     res["double_helpers"] = sorted(set(re.findall(r"__aeabi_(?:d[a-z0-9]+|f2d|i2d|ui2d|l2d|ul2d)", nm)))
@@ -493,6 +496,9 @@ def main(argv):
         lib = g.get("magcal", {"flash": 0, "ram": 0})
         app = g.get("application", {"flash": 0, "ram": 0})
         res["m4f_flash_bytes"] = lib["flash"]
+        if m4f.get("image_workspace_bytes") not in (None, ws):
+            log("WARNING: workspace macro on the host (%d B) != g_work in the M4F image (%s B)" % (
+                ws, m4f.get("image_workspace_bytes")))
         # RAM the pipeline needs besides the stack: the library's own data+bss (no mutable
         # globals: expected 0) + the caller's calibrator instance, sample buffer and workspace
         res["m4f_ram_bytes"] = lib["ram"] + inst + ws + cap * i0["sample_bytes"]
