@@ -312,6 +312,17 @@ def m4f_footprint(build_dir, tmp_root):
     m = re.search(r"^[0-9a-f]+ ([0-9a-f]+) [bB] g_work$", syms, re.M)
     res["image_workspace_bytes"] = int(m.group(1), 16) if m else None  # cross-check of the host macro value
     res["core2d"] = image_sizes(bdir, "core2d")
+    cyc = os.path.join(bdir, "cycles.elf")
+    if os.path.exists(cyc) and shutil.which("qemu-system-arm"):
+        p = run(["timeout", "120", "qemu-system-arm", "-M", "mps2-an386", "-display", "none", "-monitor", "none",
+                 "-serial", "null", "-semihosting-config", "enable=on,target=native", "-icount", "shift=0",
+                 "-kernel", cyc])
+        insn = {}
+        for m in re.finditer(r"^M4F (\S+) (\d+) (\d+) (-?\d+)$", p.stdout, re.M):
+            insn.setdefault(m.group(1), {})[int(m.group(2))] = int(m.group(3)) if m.group(4) == "0" else None
+        res["qemu_insn"] = insn
+        if p.returncode != 0:
+            res["qemu_error"] = "cycles.elf exited with %d" % p.returncode
     nm = run(["arm-none-eabi-nm", "-u", os.path.join(bdir, "libmagcal.a")]).stdout
     res["double_helpers"] = sorted(set(re.findall(r"__aeabi_(?:d[a-z0-9]+|f2d|i2d|ui2d|l2d|ul2d)", nm)))
     # stack: tools/stack/stack_usage.py over the library + the image's own objects (port stub)
@@ -687,6 +698,24 @@ def render_markdown(res, ns, i_ref, m4f, sk_info):
         po = sorted(mm["per_object"].items(), key=lambda kv: -kv[1])
         L.append("Library flash per object (text + rodata): " + ", ".join("%s %d" % (k.replace(".c.obj", ""), v)
                                                                         for k, v in po) + ".")
+        qi = mm.get("qemu_insn")
+        if qi and qi.get("calibration"):
+            qn = sorted(qi["calibration"])
+            L.append("Cortex-M4F instructions on QEMU mps2-an386 (`cycles.elf`, `-icount shift=0`, SysTick: 40 instructions "
+                     "per tick, deterministic; shipped config, capacity 1024, same generator). A Cortex-M4 needs at least "
+                     "one cycle per instruction, so the last column is a lower bound:")
+            L.append("")
+            L.append("| n | magcal_optics_filter | push x n | calibrator run() | run() at 168 MHz, >= |")
+            L.append("|---:|---:|---:|---:|---:|")
+            for n in qn:
+                r_ = qi["calibration"][n]
+                L.append("| %d | %s | %s | %s | %s |" % (n, fmt_int(qi.get("optics_filter", {}).get(n)),
+                                                     fmt_int(qi.get("calibration_push", {}).get(n)), fmt_int(r_),
+                                                     ("%.1f ms" % (r_ / 168e3)) if r_ else "-"))
+            L.append("")
+            if qi.get("heading"):
+                L.append("One `magcal_heading_compute` on the M4F: %s instructions." % fmt_int(qi["heading"].get(1)))
+                L.append("")
         c2 = mm.get("core2d")
         if c2:
             cg = c2["groups"]
