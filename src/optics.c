@@ -178,7 +178,10 @@ static void update_one(optics_ctx_t *c, size_t p, size_t j, float r)
  * sqrtf is monotone and core = sqrtf(core2)), so most reach candidates cost no sqrt and no bit of
  * the result changes.
  */
-#define REACH_OF(d2, core_p, core2) ((d2) <= (core2) ? (core_p) : sqrtf(d2))
+static float reach_of(float d2, float core_p, float core2)
+{
+    return d2 <= core2 ? core_p : sqrtf(d2);
+}
 
 /*
  * Brute-force pass 2 over the compact list of unprocessed points (the point processed last is
@@ -200,7 +203,7 @@ static void live_pass(optics_ctx_t *c, size_t p, float core_p, float core2)
             float dx = pts[j].x - px, dy = pts[j].y - py;
             float d2 = dx * dx + dy * dy;
             if (d2 <= eps2) {
-                float r = REACH_OF(d2, core_p, core2);
+                float r = reach_of(d2, core_p, core2);
                 if (r < c->reach[j]) {
                     update_one(c, p, j, r);
                 }
@@ -286,7 +289,7 @@ static void process(optics_ctx_t *c, size_t p)
             float dx = pts[j].x - px, dy = pts[j].y - py;
             float d2 = dx * dx + dy * dy;
             if (d2 <= eps2 && !is_done(c, j)) {
-                float r = REACH_OF(d2, core_p, best[m - 1u]);
+                float r = reach_of(d2, core_p, best[m - 1u]);
                 if (r < c->reach[j]) {
                     update_one(c, p, j, r);
                 }

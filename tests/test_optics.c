@@ -178,6 +178,31 @@ static void test_optics_run_four_variants_match_reference_bit_exact(void)
     TEST_ASSERT_TRUE(grid_used >= 2u * 60u); /* the grid really ran on every finite-eps case */
 }
 
+/* Extreme magnitudes: squared distances near FLT_MAX, denormal squared distances, a grid
+ * wider than 2^15 cells per row: still bit-identical to the reference in every variant. */
+static void test_optics_run_extreme_scales_match_reference(void)
+{
+    static const float scales[] = {1e18f, 1e-19f, 1.0f};
+    static const float eps_rel[] = {0.2f, 0.3f, 1e-6f};
+    size_t is, v, i;
+    for (is = 0; is < 3u; ++is) {
+        size_t n = 120u;
+        float eps = eps_rel[is] * scales[is];
+        make_points(g_pts, n, 77u + (uint32_t)is, 0);
+        for (i = 0; i < n; ++i) {
+            g_pts[i].x *= scales[is];
+            g_pts[i].y *= scales[is];
+        }
+        reference_optics(g_pts, n, eps, 4u);
+        for (v = 0; v < 4u; ++v) {
+            run_variant(v, g_pts, n, eps, 4u, NULL);
+            TEST_ASSERT_EQUAL_MEMORY(r_order, g_order[v], n * sizeof r_order[0]);
+            TEST_ASSERT_EQUAL_MEMORY(r_reach, g_reach[v], n * sizeof r_reach[0]);
+            TEST_ASSERT_EQUAL_MEMORY(r_core, g_core[v], n * sizeof r_core[0]);
+        }
+    }
+}
+
 static void test_optics_run_all_duplicates_gives_zero_core_and_reach(void)
 {
     size_t i, v;
@@ -662,6 +687,7 @@ int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_optics_run_four_variants_match_reference_bit_exact);
+    RUN_TEST(test_optics_run_extreme_scales_match_reference);
     RUN_TEST(test_optics_run_all_duplicates_gives_zero_core_and_reach);
     RUN_TEST(test_optics_run_matches_sklearn_golden_vectors);
     RUN_TEST(test_optics_extract_dbscan_hand_made_example_follows_4_3);
