@@ -698,24 +698,28 @@ def render_markdown(res, ns, i_ref, m4f, sk_info):
         po = sorted(mm["per_object"].items(), key=lambda kv: -kv[1])
         L.append("Library flash per object (text + rodata): " + ", ".join("%s %d" % (k.replace(".c.obj", ""), v)
                                                                         for k, v in po) + ".")
+        L.append("")
+        Q = []
         qi = mm.get("qemu_insn")
         if qi and qi.get("calibration"):
             qn = sorted(qi["calibration"])
-            L.append("Cortex-M4F instructions on QEMU mps2-an386 (`cycles.elf`, `-icount shift=0`, SysTick: 40 instructions "
+            Q.append("#### Cortex-M4F instruction counts (QEMU)")
+            Q.append("")
+            Q.append("Cortex-M4F instructions on QEMU mps2-an386 (`cycles.elf`, `-icount shift=0`, SysTick: 40 instructions "
                      "per tick, deterministic; shipped config, capacity 1024, same generator). A Cortex-M4 needs at least "
                      "one cycle per instruction, so the last column is a lower bound:")
-            L.append("")
-            L.append("| n | magcal_optics_filter | push x n | calibrator run() | run() at 168 MHz, >= |")
-            L.append("|---:|---:|---:|---:|---:|")
+            Q.append("")
+            Q.append("| n | magcal_optics_filter | push x n | calibrator run() | run() at 168 MHz, >= |")
+            Q.append("|---:|---:|---:|---:|---:|")
             for n in qn:
                 r_ = qi["calibration"][n]
-                L.append("| %d | %s | %s | %s | %s |" % (n, fmt_int(qi.get("optics_filter", {}).get(n)),
+                Q.append("| %d | %s | %s | %s | %s |" % (n, fmt_int(qi.get("optics_filter", {}).get(n)),
                                                      fmt_int(qi.get("calibration_push", {}).get(n)), fmt_int(r_),
                                                      ("%.1f ms" % (r_ / 168e3)) if r_ else "-"))
-            L.append("")
+            Q.append("")
             if qi.get("heading"):
-                L.append("One `magcal_heading_compute` on the M4F: %s instructions." % fmt_int(qi["heading"].get(1)))
-                L.append("")
+                Q.append("One `magcal_heading_compute` on the M4F: %s instructions." % fmt_int(qi["heading"].get(1)))
+                Q.append("")
         c2 = mm.get("core2d")
         if c2:
             cg = c2["groups"]
@@ -755,6 +759,7 @@ def render_markdown(res, ns, i_ref, m4f, sk_info):
         elif mm.get("stack_error"):
             L.append(mm["stack_error"])
             L.append("")
+        L.extend(Q)
     else:
         L.append("not measured: %s" % (mm["error"] if mm else "skipped (--skip-m4f)"))
         L.append("")
