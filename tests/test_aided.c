@@ -10,6 +10,7 @@
 #include "magcal/ellipsoid.h"
 #include "magcal/geomag.h"
 #include "test_util.h"
+#include "test_util3d.h"
 #include "unity.h"
 
 void setUp(void) {}
@@ -31,94 +32,11 @@ typedef struct {
 static epoch_t g_ep[NEP];
 static magcal_vec3_t g_m[NEP];
 
-static void mat_mul(double a[3][3], double b[3][3], double c[3][3])
-{
-    int i, j, k;
-    for (i = 0; i < 3; ++i) {
-        for (j = 0; j < 3; ++j) {
-            c[i][j] = 0.0;
-            for (k = 0; k < 3; ++k) {
-                c[i][j] += a[i][k] * b[k][j];
-            }
-        }
-    }
-}
-
-static void mat_inv(double a[3][3], double r[3][3])
-{
-    double det = a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) +
-                 a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
-    r[0][0] = (a[1][1] * a[2][2] - a[1][2] * a[2][1]) / det;
-    r[0][1] = (a[0][2] * a[2][1] - a[0][1] * a[2][2]) / det;
-    r[0][2] = (a[0][1] * a[1][2] - a[0][2] * a[1][1]) / det;
-    r[1][0] = (a[1][2] * a[2][0] - a[1][0] * a[2][2]) / det;
-    r[1][1] = (a[0][0] * a[2][2] - a[0][2] * a[2][0]) / det;
-    r[1][2] = (a[0][2] * a[1][0] - a[0][0] * a[1][2]) / det;
-    r[2][0] = (a[1][0] * a[2][1] - a[1][1] * a[2][0]) / det;
-    r[2][1] = (a[0][1] * a[2][0] - a[0][0] * a[2][1]) / det;
-    r[2][2] = (a[0][0] * a[1][1] - a[0][1] * a[1][0]) / det;
-}
-
-static void rot(int axis, double a, double r[3][3])
-{
-    double c = cos(a), s = sin(a);
-    memset(r, 0, sizeof(double) * 9);
-    if (axis == 0) {
-        r[0][0] = 1;
-        r[1][1] = c;
-        r[1][2] = -s;
-        r[2][1] = s;
-        r[2][2] = c;
-    } else if (axis == 1) {
-        r[1][1] = 1;
-        r[0][0] = c;
-        r[0][2] = s;
-        r[2][0] = -s;
-        r[2][2] = c;
-    } else {
-        r[2][2] = 1;
-        r[0][0] = c;
-        r[0][1] = -s;
-        r[1][0] = s;
-        r[1][1] = c;
-    }
-}
-
-/* C_b^NED for body x right, y forward, z up: P Rz(-yaw) Rx(pitch) Ry(roll) (algorithms.md 6, 7.1). */
-static void dcm_ned(double roll, double pitch, double yaw, double c[3][3])
-{
-    static double P[3][3] = {{0, 1, 0}, {1, 0, 0}, {0, 0, -1}};
-    double rz[3][3], rx[3][3], ry[3][3], t1[3][3], t2[3][3];
-    rot(2, -yaw, rz);
-    rot(0, pitch, rx);
-    rot(1, roll, ry);
-    mat_mul(rz, rx, t1);
-    mat_mul(t1, ry, t2);
-    mat_mul(P, t2, c);
-}
-
-/* W = C_si * C_no * C_sf * C_mis (the same truth as test_ellipsoid.c). */
-static void make_w_full(double w[3][3])
-{
-    static double si[3][3] = {{1.05, 0.04, -0.03}, {0.04, 0.97, 0.05}, {-0.03, 0.05, 1.02}};
-    static double no[3][3] = {{1, 0, 0}, {0.01, 1, 0}, {-0.015, 0.02, 1}};
-    static double sf[3][3] = {{1.1, 0, 0}, {0, 0.93, 0}, {0, 0, 1.04}};
-    double mis[3][3], r1[3][3], r2[3][3], r3[3][3], t1[3][3], t2[3][3];
-    rot(2, 2.0 * D2R, r1);
-    rot(0, -1.5 * D2R, r2);
-    rot(1, 1.0 * D2R, r3);
-    mat_mul(r1, r2, t1);
-    mat_mul(t1, r3, mis);
-    mat_mul(si, no, t1);
-    mat_mul(t1, sf, t2);
-    mat_mul(t2, mis, w);
-}
-
 static void field_at(double w[3][3], const double att[3], double m[3])
 {
     double c[3][3], h[3];
     int i;
-    dcm_ned(att[0], att[1], att[2], c);
+    test_dcm_ned(att[0], att[1], att[2], c);
     for (i = 0; i < 3; ++i) {
         h[i] = c[0][i] * B_NED[0] + c[1][i] * B_NED[1] + c[2][i] * B_NED[2];
     }
@@ -195,7 +113,7 @@ static double g_err(const magcal_ellipsoid_cal_t *cal, double w[3][3])
 {
     double wi[3][3], num = 0, den = 0;
     int i, j;
-    mat_inv(w, wi);
+    test_mat3_inv(w, wi);
     for (i = 0; i < 3; ++i) {
         for (j = 0; j < 3; ++j) {
             num += (cal->g[i][j] - wi[i][j]) * (cal->g[i][j] - wi[i][j]);
@@ -295,7 +213,7 @@ static void test_aided_road_one_degree_converges_where_quadric_fails(void)
     magcal_ellipsoid_result_t er;
     magcal_status_t est;
     double floor_rms, fit_rms;
-    make_w_full(w);
+    test_make_w_full(w);
     make_drive(w, NEP, 1.0, 0.05, 2025u);
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, run(&cfg, NEP, &g_inst, &res));
     TEST_ASSERT_EQUAL_UINT32(0u, res.n_prior_dirs);
@@ -306,7 +224,7 @@ static void test_aided_road_one_degree_converges_where_quadric_fails(void)
     cal_to_d(&res.cal, g, v);
     TEST_ASSERT_TRUE(tilted_heading_max(w, g, v) < 0.3);
     /* heading over the drive: within 1.2 x the floor of the true calibration on the same data */
-    mat_inv(w, wi);
+    test_mat3_inv(w, wi);
     floor_rms = drive_heading_rms(wi, V_TRUE, NEP);
     fit_rms = drive_heading_rms(g, v, NEP);
     TEST_ASSERT_TRUE(fit_rms <= 1.2 * floor_rms);
@@ -327,7 +245,7 @@ static void test_aided_noise_compensation_removes_weak_direction_shrinkage(void)
     double w[3][3], g[3][3], v[3];
     magcal_aided_cfg_t cfg = MAGCAL_AIDED_CFG_DEFAULT;
     magcal_aided_result_t plain, comp;
-    make_w_full(w);
+    test_make_w_full(w);
     make_drive(w, NEP, 1.0, 0.05, 2025u);
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, run(&cfg, NEP, &g_inst, &plain));
     cfg.noise_rel = (float)(0.05 / sqrt(B_NED[0] * B_NED[0] + B_NED[1] * B_NED[1] + B_NED[2] * B_NED[2]));
@@ -345,7 +263,7 @@ static void test_aided_level_drive_reports_unobservable_and_uses_prior(void)
     magcal_aided_cfg_t cfg = MAGCAL_AIDED_CFG_DEFAULT;
     magcal_aided_result_t res;
     int i, j;
-    make_w_full(w);
+    test_make_w_full(w);
     make_drive(w, NEP, 0.0, 0.05, 77u);
     /* prior = identity (factory): unobservable, flagged, in-plane headings still right */
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_UNOBSERVABLE, run(&cfg, NEP, &g_inst, &res));
@@ -358,7 +276,7 @@ static void test_aided_level_drive_reports_unobservable_and_uses_prior(void)
             TEST_ASSERT_TRUE(fabs(res.cal.g[i][j]) < 1.5f); /* no blow-up along the null direction */
         }
     }
-    mat_inv(w, wi);
+    test_mat3_inv(w, wi);
     cal_to_d(&res.cal, g, v);
     TEST_ASSERT_TRUE(drive_heading_rms(g, v, NEP) <= 1.2 * drive_heading_rms(wi, V_TRUE, NEP));
     /* prior = truth: the frozen direction takes the prior's value, so the whole model is right */
@@ -386,7 +304,7 @@ static void test_aided_gates_reject_disturbed_epochs_estimate_unchanged(void)
     static unsigned char disturbed[NEP];
     size_t k;
     int i, j;
-    make_w_full(w);
+    test_make_w_full(w);
     make_drive(w, NEP, 1.0, 0.05, 4711u);
     memset(disturbed, 0, sizeof(disturbed));
     for (k = 0; k < 5; ++k) { /* start-up: a saturated reading, caught by the raw magnitude gate */
@@ -465,7 +383,7 @@ static void test_aided_wmm2025_reference_along_track_converges(void)
     double w[3][3];
     magcal_aided_cfg_t cfg = MAGCAL_AIDED_CFG_DEFAULT;
     magcal_aided_result_t res;
-    make_w_full(w);
+    test_make_w_full(w);
     g_use_wmm = 1;
     make_drive(w, NEP, 1.5, 0.05, 99u);
     g_use_wmm = 0;
@@ -485,7 +403,7 @@ static void test_aided_forgetting_factor_tracks_hard_iron_change(void)
     double w[3][3], vnew_err_forget, vnew_err_plain;
     magcal_aided_cfg_t cfg = MAGCAL_AIDED_CFG_DEFAULT;
     magcal_aided_result_t rf, rp;
-    make_w_full(w);
+    test_make_w_full(w);
     memcpy(g_shift, shift, sizeof(g_shift));
     g_shift_at = 1000;
     make_drive(w, NEP, 3.0, 0.05, 31u);
@@ -514,7 +432,7 @@ static void test_aided_get_before_window_returns_not_converged(void)
     double w[3][3];
     magcal_aided_cfg_t cfg = MAGCAL_AIDED_CFG_DEFAULT;
     magcal_aided_result_t res;
-    make_w_full(w);
+    test_make_w_full(w);
     make_drive(w, NEP, 3.0, 0.05, 2025u);
     cfg.conv_window = 5000u; /* longer than the drive: never judged */
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NOT_CONVERGED, run(&cfg, NEP, &g_inst, &res));
@@ -534,14 +452,14 @@ static void test_aided_dcm_matches_euler_definition_and_frd_ins(void)
         double c[3][3], rz[3][3], ry[3][3], rx[3][3], t1[3][3], t2[3][3], frd[3][3];
         float cf[3][3];
         TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_aided_dcm((float)r, (float)p, (float)y, cf));
-        dcm_ned(r, p, y, c);
+        test_dcm_ned(r, p, y, c);
         /* an FRD/NED INS: C_FRD^NED = Rz(yaw) Ry(pitch) Rx(roll); C_RFU^NED = C_FRD^NED P */
-        rot(2, y, rz);
-        rot(1, p, ry);
-        rot(0, r, rx);
-        mat_mul(rz, ry, t1);
-        mat_mul(t1, rx, t2);
-        mat_mul(t2, P, frd);
+        test_rot3(2, y, rz);
+        test_rot3(1, p, ry);
+        test_rot3(0, r, rx);
+        test_mat3_mul(rz, ry, t1);
+        test_mat3_mul(t1, rx, t2);
+        test_mat3_mul(t2, P, frd);
         for (i = 0; i < 3; ++i) {
             for (j = 0; j < 3; ++j) {
                 TEST_ASSERT_FLOAT_WITHIN(1e-6f, (float)c[i][j], cf[i][j]);
@@ -558,7 +476,7 @@ static void test_aided_bad_input_returns_status(void)
     magcal_aided_epoch_t ep;
     double w[3][3];
     memset(&g_inst, 0, sizeof(g_inst));
-    make_w_full(w);
+    test_make_w_full(w);
     make_drive(w, 10, 1.0, 0.05, 5u);
     ep = g_ep[0].ep;
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NOT_INITIALISED, magcal_aided_update(&g_inst, &ep, NULL));

@@ -7,6 +7,7 @@
 
 #include "magcal/ellipsoid.h"
 #include "test_util.h"
+#include "test_util3d.h"
 #include "unity.h"
 
 void setUp(void) {}
@@ -23,89 +24,6 @@ static const double V_TRUE[3] = {18.0, -11.0, 27.0};
 
 static magcal_vec3_t g_m[NFIT + NOUT];
 static double g_att[NFIT][3]; /* roll, pitch, yaw (rad) */
-
-static void mat_mul(double a[3][3], double b[3][3], double c[3][3])
-{
-    int i, j, k;
-    for (i = 0; i < 3; ++i) {
-        for (j = 0; j < 3; ++j) {
-            c[i][j] = 0.0;
-            for (k = 0; k < 3; ++k) {
-                c[i][j] += a[i][k] * b[k][j];
-            }
-        }
-    }
-}
-
-static void mat_inv(double a[3][3], double r[3][3])
-{
-    double det = a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) +
-                 a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
-    r[0][0] = (a[1][1] * a[2][2] - a[1][2] * a[2][1]) / det;
-    r[0][1] = (a[0][2] * a[2][1] - a[0][1] * a[2][2]) / det;
-    r[0][2] = (a[0][1] * a[1][2] - a[0][2] * a[1][1]) / det;
-    r[1][0] = (a[1][2] * a[2][0] - a[1][0] * a[2][2]) / det;
-    r[1][1] = (a[0][0] * a[2][2] - a[0][2] * a[2][0]) / det;
-    r[1][2] = (a[0][2] * a[1][0] - a[0][0] * a[1][2]) / det;
-    r[2][0] = (a[1][0] * a[2][1] - a[1][1] * a[2][0]) / det;
-    r[2][1] = (a[0][1] * a[2][0] - a[0][0] * a[2][1]) / det;
-    r[2][2] = (a[0][0] * a[1][1] - a[0][1] * a[1][0]) / det;
-}
-
-static void rot(int axis, double a, double r[3][3])
-{
-    double c = cos(a), s = sin(a);
-    memset(r, 0, sizeof(double) * 9);
-    if (axis == 0) {
-        r[0][0] = 1;
-        r[1][1] = c;
-        r[1][2] = -s;
-        r[2][1] = s;
-        r[2][2] = c;
-    } else if (axis == 1) {
-        r[1][1] = 1;
-        r[0][0] = c;
-        r[0][2] = s;
-        r[2][0] = -s;
-        r[2][2] = c;
-    } else {
-        r[2][2] = 1;
-        r[0][0] = c;
-        r[0][1] = -s;
-        r[1][0] = s;
-        r[1][1] = c;
-    }
-}
-
-/* C_b^NED for body x right, y forward, z up: P Rz(-yaw) Rx(pitch) Ry(roll) (algorithms.md 6, 7.1). */
-static void dcm_ned(double roll, double pitch, double yaw, double c[3][3])
-{
-    static double P[3][3] = {{0, 1, 0}, {1, 0, 0}, {0, 0, -1}};
-    double rz[3][3], rx[3][3], ry[3][3], t1[3][3], t2[3][3];
-    rot(2, -yaw, rz);
-    rot(0, pitch, rx);
-    rot(1, roll, ry);
-    mat_mul(rz, rx, t1);
-    mat_mul(t1, ry, t2);
-    mat_mul(P, t2, c);
-}
-
-/* W = C_si * C_no * C_sf * C_mis (soft iron, non-orthogonality, scale, misalignment). */
-static void make_w_full(double w[3][3])
-{
-    static double si[3][3] = {{1.05, 0.04, -0.03}, {0.04, 0.97, 0.05}, {-0.03, 0.05, 1.02}};
-    static double no[3][3] = {{1, 0, 0}, {0.01, 1, 0}, {-0.015, 0.02, 1}};
-    static double sf[3][3] = {{1.1, 0, 0}, {0, 0.93, 0}, {0, 0, 1.04}};
-    double mis[3][3], r1[3][3], r2[3][3], r3[3][3], t1[3][3], t2[3][3];
-    rot(2, 2.0 * D2R, r1);
-    rot(0, -1.5 * D2R, r2);
-    rot(1, 1.0 * D2R, r3);
-    mat_mul(r1, r2, t1);
-    mat_mul(t1, r3, mis);
-    mat_mul(si, no, t1);
-    mat_mul(t1, sf, t2);
-    mat_mul(t2, mis, w);
-}
 
 /* Symmetric W (soft iron + scale only): then G_sym = W^-1 exactly and headings are comparable. */
 static void make_w_sym(double w[3][3])
@@ -124,7 +42,7 @@ static magcal_vec3_t sample(double w[3][3], const double v[3], const double att[
     double c[3][3], h[3], m[3];
     int i;
     magcal_vec3_t out;
-    dcm_ned(att[0], att[1], att[2], c);
+    test_dcm_ned(att[0], att[1], att[2], c);
     for (i = 0; i < 3; ++i) { /* h = C^T B */
         h[i] = c[0][i] * B_NED[0] + c[1][i] * B_NED[1] + c[2][i] * B_NED[2];
     }
@@ -165,7 +83,7 @@ static double q_err(const magcal_ellipsoid_cal_t *cal, double w[3][3])
 {
     double wi[3][3], q[3][3], num = 0, den = 0;
     int i, j, k;
-    mat_inv(w, wi);
+    test_mat3_inv(w, wi);
     for (i = 0; i < 3; ++i) {
         for (j = 0; j < 3; ++j) {
             double qt = 0, qh = 0;
@@ -219,7 +137,7 @@ static void test_ellipsoid_fit_random_attitudes_recovers_v_and_q(void)
     double w[3][3];
     magcal_ellipsoid_cfg_t cfg = cfg_with_field();
     magcal_ellipsoid_result_t r;
-    make_w_full(w);
+    test_make_w_full(w);
     make_set(w, NFIT, 180.0, 180.0, 0.05, 1234u);
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ELLIPSOID_MODEL_QUADRIC9, r.model);
@@ -239,7 +157,7 @@ static void test_ellipsoid_fit_quadric10_matches_quadric9(void)
     magcal_ellipsoid_cfg_t cfg = cfg_with_field();
     magcal_ellipsoid_result_t r9, r10;
     int i, j;
-    make_w_full(w);
+    test_make_w_full(w);
     make_set(w, NFIT, 180.0, 180.0, 0.05, 777u);
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r9));
     cfg.model = MAGCAL_ELLIPSOID_MODEL_QUADRIC10;
@@ -264,7 +182,7 @@ static void test_ellipsoid_fit_sqrt_variants_satisfy_gtg_equals_q(void)
     magcal_ellipsoid_cfg_t cfg = cfg_with_field();
     magcal_ellipsoid_result_t rs, rc;
     int i, j, k;
-    make_w_full(w);
+    test_make_w_full(w);
     make_set(w, NFIT, 180.0, 180.0, 0.05, 99u);
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &rs));
     cfg.sqrt_method = MAGCAL_ELLIPSOID_SQRT_CHOLESKY;
@@ -293,7 +211,7 @@ static void test_ellipsoid_fit_sqrt_variants_satisfy_gtg_equals_q(void)
             gd[i][j] = rs.cal.g[i][j];
         }
     }
-    mat_mul(gd, w, gw);
+    test_mat3_mul(gd, w, gw);
     for (i = 0; i < 3; ++i) {
         for (j = 0; j < 3; ++j) {
             double s = 0;
@@ -317,7 +235,7 @@ static void test_ellipsoid_fit_tilted_headings_within_1p2_of_floor(void)
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
     /* evaluation set: |pitch|, |roll| <= 40 deg, same noise; floor = true calibration on it */
     make_set(w, NFIT, 40.0, 40.0, 0.1, 5151u);
-    mat_inv(w, wi);
+    test_mat3_inv(w, wi);
     floor_rms = heading_rms(NFIT, wi, V_TRUE);
     for (i = 0; i < 3; ++i) {
         for (j = 0; j < 3; ++j) {
@@ -339,7 +257,7 @@ static void test_ellipsoid_fit_outliers_rejected_by_residual_gate(void)
     magcal_ellipsoid_result_t r, rn;
     uint32_t rng = 31337u;
     size_t k;
-    make_w_full(w);
+    test_make_w_full(w);
     make_set(w, NFIT, 180.0, 180.0, 0.05, 2024u);
     /* 5 % outliers: 5..20 uT spikes in random directions added to copies of good samples */
     for (k = 0; k < NOUT; ++k) {
@@ -369,7 +287,7 @@ static void test_ellipsoid_fit_rejections_above_limit_return_too_many_outliers(v
     magcal_ellipsoid_cfg_t cfg = cfg_with_field();
     magcal_ellipsoid_result_t r;
     size_t k;
-    make_w_full(w);
+    test_make_w_full(w);
     make_set(w, NFIT, 180.0, 180.0, 0.05, 606u);
     for (k = 0; k < NFIT; k += 10) {
         g_m[k].x += 10.0f;
@@ -406,7 +324,7 @@ static void test_ellipsoid_fit_level_ring_auto_returns_coverage(void)
     double w[3][3];
     magcal_ellipsoid_cfg_t cfg = cfg_with_field();
     magcal_ellipsoid_result_t r;
-    make_w_full(w);
+    test_make_w_full(w);
     make_set(w, NFIT, 0.0, 0.0, 0.05, 66u);
     memset(&r, 0xA5, sizeof(r));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_COVERAGE, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
@@ -443,7 +361,7 @@ static void test_ellipsoid_fit_unknown_field_gives_unit_determinant(void)
     magcal_ellipsoid_cfg_t cfg = MAGCAL_ELLIPSOID_CFG_DEFAULT;
     magcal_ellipsoid_result_t r;
     double det, detw;
-    make_w_full(w);
+    test_make_w_full(w);
     make_set(w, NFIT, 180.0, 180.0, 0.05, 8u);
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
     det = (double)r.cal.g[0][0] * (r.cal.g[1][1] * r.cal.g[2][2] - r.cal.g[1][2] * r.cal.g[2][1]) -
@@ -463,7 +381,7 @@ static void test_ellipsoid_fit_bad_input_returns_status(void)
     magcal_ellipsoid_result_t r;
     double w[3][3];
     size_t k;
-    make_w_full(w);
+    test_make_w_full(w);
     make_set(w, 100, 180.0, 180.0, 0.05, 3u);
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_fit(NULL, 100, &cfg, &r));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_fit(g_m, 100, NULL, &r));

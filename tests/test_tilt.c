@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "magcal/tilt.h"
+#include "test_util3d.h"
 #include "test_util.h"
 #include "unity.h"
 
@@ -12,20 +13,6 @@
 
 void setUp(void) {}
 void tearDown(void) {}
-
-/* c = a * b (3x3, row-major). */
-static void mat_mul(double a[3][3], double b[3][3], double c[3][3])
-{
-    int i, j, k;
-    for (i = 0; i < 3; ++i) {
-        for (j = 0; j < 3; ++j) {
-            c[i][j] = 0.0;
-            for (k = 0; k < 3; ++k) {
-                c[i][j] += a[i][k] * b[k][j];
-            }
-        }
-    }
-}
 
 /* C_b^ENU for heading psi, pitch theta, roll phi (degrees). */
 static void c_b_enu(double psi, double theta, double phi, double c[3][3])
@@ -35,8 +22,8 @@ static void c_b_enu(double psi, double theta, double phi, double c[3][3])
     double rx[3][3] = {{1, 0, 0}, {0, cos(t), -sin(t)}, {0, sin(t), cos(t)}};
     double ry[3][3] = {{cos(p), 0, sin(p)}, {0, 1, 0}, {-sin(p), 0, cos(p)}};
     double tmp[3][3];
-    mat_mul(rz, rx, tmp);
-    mat_mul(tmp, ry, c);
+    test_mat3_mul(rz, rx, tmp);
+    test_mat3_mul(tmp, ry, c);
 }
 
 /* Body-frame specific force (g) and field for a known attitude; field F with inclination incl
