@@ -595,18 +595,17 @@ static int cal_inv2(const float m[2][2], float inv[2][2])
     return 0;
 }
 
-/* sin(5 j deg), j = 0..18: the shift's test headings are multiples of 5 deg (CAL_SHIFT_STEPS),
- * so their sines and cosines come from this quarter-wave table instead of sinf/cosf (whose
- * argument reduction is ~3 KB of flash). */
-static const float cal_sin5[19] = {
-    0.000000000e+00f, 8.715574275e-02f, 1.736481777e-01f, 2.588190451e-01f, 3.420201433e-01f,
-    4.226182617e-01f, 5.000000000e-01f, 5.735764364e-01f, 6.427876097e-01f, 7.071067812e-01f,
-    7.660444431e-01f, 8.191520443e-01f, 8.660254038e-01f, 9.063077870e-01f, 9.396926208e-01f,
-    9.659258263e-01f, 9.848077530e-01f, 9.961946981e-01f, 1.000000000e+00f};
-
-/* sin and cos of k * 5 deg, k < 72 (quadrant q = k / 18, j = k % 18). */
+/* sin and cos of k * 5 deg, k < 72 (quadrant q = k / 18, j = k % 18): the shift's test headings
+ * are multiples of 5 deg (CAL_SHIFT_STEPS), so their sines and cosines come from a quarter-wave
+ * table of sin(5 j deg), j = 0..18, instead of sinf/cosf (whose argument reduction is ~3 KB of
+ * flash). */
 static void cal_sincos5(size_t k, float *sn, float *cs)
 {
+    static const float cal_sin5[19] = {
+        0.000000000e+00f, 8.715574275e-02f, 1.736481777e-01f, 2.588190451e-01f, 3.420201433e-01f,
+        4.226182617e-01f, 5.000000000e-01f, 5.735764364e-01f, 6.427876097e-01f, 7.071067812e-01f,
+        7.660444431e-01f, 8.191520443e-01f, 8.660254038e-01f, 9.063077870e-01f, 9.396926208e-01f,
+        9.659258263e-01f, 9.848077530e-01f, 9.961946981e-01f, 1.000000000e+00f};
     size_t q = k / 18u;
     size_t j = k % 18u;
     float a = cal_sin5[j];

@@ -651,7 +651,6 @@ static int ell_axis_dir(const float q[3], float *cc, float *ss, float *cs)
     float d;
     float b;
     float m;
-    float h;
     float k2;
     float s2;
     if (!magcal_isfinite_f(q[0]) || !magcal_isfinite_f(q[1]) || !magcal_isfinite_f(q[2]) ||
@@ -668,6 +667,7 @@ static int ell_axis_dir(const float q[3], float *cc, float *ss, float *cs)
         k2 = 1.0f; /* circle: theta = 0 */
         s2 = 0.0f;
     } else {
+        float h;
         d /= m;
         b /= m;
         h = sqrtf(d * d + b * b);
