@@ -12,7 +12,7 @@
 
 #define CAL_MAGIC MAGCAL_CALIBRATOR_MAGIC
 #define CAL_BIN_DEG (360.0f / (float)MAGCAL_COVERAGE_BINS)
-#define CAL_SHIFT_STEPS 72u /* heading shift evaluated every 5 degrees */
+#define CAL_SHIFT_STEPS 72u /* heading shift evaluated every 5 degrees (cal_sincos5) */
 #define CAL_COLLINEAR_TOL 1.0e-6f
 
 /* State of one run(), kept in the workspace: the deepest stack paths of run() go through the
@@ -207,11 +207,13 @@ magcal_status_t magcal_calibrator_init(magcal_calibrator_t *cal, const magcal_ca
     w = (uint8_t *)work;
     masks = MAGCAL_CALIBRATOR_MASKS_LEN(capacity);
     cal->flags = w;
-    cal->mask_a = w + capacity;
-    cal->mask_b = w + 2u * capacity;
     cal->run = (void *)(w + masks);
     cal->scratch = (void *)(w + masks + MAGCAL_CALIBRATOR_RUN_LEN);
     cal->scratch_len = work_len - masks - MAGCAL_CALIBRATOR_RUN_LEN;
+    /* the two stage masks live behind the consensus workspace, in the stage scratch: they are
+     * written after the density filter (the largest scratch user) has finished */
+    cal->mask_a = (uint8_t *)cal->scratch + MAGCAL_CONSENSUS_WORKSPACE_LEN(capacity);
+    cal->mask_b = cal->mask_a + capacity;
     cal->magic = CAL_MAGIC;
     return magcal_calibrator_reset(cal);
 }
@@ -486,7 +488,7 @@ static MAGCAL_NOINLINE float cal_coverage_corrected(const magcal_vec2_t *p, size
     return cal_coverage_of(bins, miss_start, miss_width);
 }
 
-/* Density filter into mask_a. */
+/* Density filter: its 0/1 inlier mask into cal->flags (the scratch is in use until it returns). */
 static MAGCAL_NOINLINE magcal_status_t cal_filter(magcal_calibrator_t *cal,
                                                   magcal_cal_report_t *rep)
 {
@@ -498,7 +500,7 @@ static MAGCAL_NOINLINE magcal_status_t cal_filter(magcal_calibrator_t *cal,
         /* no filter (auto parameters need 16 samples: below that every sample is a candidate) */
         size_t i;
         for (i = 0u; i < n; ++i) {
-            cal->mask_a[i] = 1u;
+            cal->flags[i] = 1u;
         }
         rep->filter_eps = 0.0f;
         rep->filter_min_pts = 0u;
@@ -531,7 +533,7 @@ static MAGCAL_NOINLINE magcal_status_t cal_filter(magcal_calibrator_t *cal,
         if (st != MAGCAL_OK) {
             return st;
         }
-        st = magcal_optics_largest_cluster(labels, n, rest, rest_len, cal->mask_a, NULL, NULL);
+        st = magcal_optics_largest_cluster(labels, n, rest, rest_len, cal->flags, NULL, NULL);
         if (st != MAGCAL_OK) {
             return st;
         }
@@ -568,8 +570,8 @@ static MAGCAL_NOINLINE magcal_status_t cal_filter(magcal_calibrator_t *cal,
         } else {
             /* fully automatic parameters: the OPTICS defaults */
         }
-        st = magcal_optics_filter(oc, cal->buf, n, cal->scratch, cal->scratch_len, cal->mask_a,
-                                  info);
+        st =
+            magcal_optics_filter(oc, cal->buf, n, cal->scratch, cal->scratch_len, cal->flags, info);
         if (st != MAGCAL_OK) {
             return st;
         }
@@ -593,6 +595,44 @@ static int cal_inv2(const float m[2][2], float inv[2][2])
     return 0;
 }
 
+/* sin and cos of k * 5 deg, k < 72 (quadrant q = k / 18, j = k % 18): the shift's test headings
+ * are multiples of 5 deg (CAL_SHIFT_STEPS), so their sines and cosines come from a quarter-wave
+ * table of sin(5 j deg), j = 0..18, instead of sinf/cosf (whose argument reduction is ~3 KB of
+ * flash). */
+static void cal_sincos5(size_t k, float *sn, float *cs)
+{
+    static const float cal_sin5[19] = {
+        0.000000000e+00f, 8.715574275e-02f, 1.736481777e-01f, 2.588190451e-01f, 3.420201433e-01f,
+        4.226182617e-01f, 5.000000000e-01f, 5.735764364e-01f, 6.427876097e-01f, 7.071067812e-01f,
+        7.660444431e-01f, 8.191520443e-01f, 8.660254038e-01f, 9.063077870e-01f, 9.396926208e-01f,
+        9.659258263e-01f, 9.848077530e-01f, 9.961946981e-01f, 1.000000000e+00f};
+    size_t q = k / 18u;
+    size_t j = k % 18u;
+    float a = cal_sin5[j];
+    float b = cal_sin5[18u - j];
+    switch (q) {
+    case 0u:
+        *sn = a;
+        *cs = b;
+        break;
+    case 1u:
+        *sn = b;
+        *cs = -a;
+        break;
+    case 2u:
+        *sn = -a;
+        *cs = -b;
+        break;
+    default:
+        *sn = -b;
+        *cs = a;
+        break;
+    }
+}
+
+/* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
+MAGCAL_STATIC_ASSERT(CAL_SHIFT_STEPS == 72u, shift_steps_match_sine_table);
+
 /* Heading change if `next` replaced `cur` (cur NULL = identity). */
 static MAGCAL_NOINLINE void cal_shift(const magcal_cal2d_t *cur, const magcal_cal2d_t *next,
                                       float *max_deg, float *rms_deg)
@@ -610,13 +650,17 @@ static MAGCAL_NOINLINE void cal_shift(const magcal_cal2d_t *cur, const magcal_ca
     }
     for (k = 0u; k < CAL_SHIFT_STEPS; ++k) {
         float psi = (float)k * (360.0f / (float)CAL_SHIFT_STEPS);
-        float pr = psi * MAGCAL_RAD_PER_DEG_F;
-        float hx = -r * sinf(pr);
-        float hy = r * cosf(pr);
+        float sp;
+        float cp;
+        float hx;
+        float hy;
         magcal_vec2_t raw;
         magcal_vec2_t h;
         float ph;
         float d;
+        cal_sincos5(k, &sp, &cp);
+        hx = -r * sp;
+        hy = r * cp;
         raw.x = inv[0][0] * hx + inv[0][1] * hy + next->offset.x;
         raw.y = inv[1][0] * hx + inv[1][1] * hy + next->offset.y;
         if (cur != NULL) {
@@ -776,6 +820,7 @@ static MAGCAL_NOINLINE magcal_status_t cal_stage_prepare(magcal_calibrator_t *ca
     if (st != MAGCAL_OK) {
         return st;
     }
+    (void)memcpy(cal->mask_a, cal->flags, n); /* the scratch is free now; flags become flag bits */
     for (i = 0u; i < n; ++i) {
         if (cal->mask_a[i] != 0u) {
             ++filt_in;
@@ -827,7 +872,8 @@ static MAGCAL_NOINLINE magcal_status_t cal_stage_fit(magcal_calibrator_t *cal)
     }
     return magcal_consensus_run(&cal->cfg.consensus, cal->buf, cal->n,
                                 run->rep.filter_fragmented != 0u ? NULL : cal->mask_a, cal->scratch,
-                                cal->scratch_len, cal->mask_b, &run->cres);
+                                MAGCAL_CONSENSUS_WORKSPACE_LEN(cal->capacity), cal->mask_b,
+                                &run->cres);
 }
 
 /* 4 (cont.) and 5: keep the fit, count, fill the report, gates. */

@@ -636,13 +636,63 @@ magcal_status_t magcal_ellipse_fit_seed(const magcal_vec2_t *pts, size_t n, cons
     return conic_finish(cu, 0.0f, 0.0f, 1.0f, minp, cnt, &src, out);
 }
 
+/*
+ * Semi-minor axis direction e1 = (cos theta, sin theta) of the quadratic form q = (q11, q12, q22)
+ * without trigonometry (sinf/cosf of the angle pulled ~3 KB of argument reduction into every
+ * image): e1 is the eigenvector of the larger eigenvalue, with
+ * cos 2theta = (q11 - q22)/h, sin 2theta = 2 q12/h, h = |(q11 - q22, 2 q12)|, the same direction
+ * as theta = atan2(2 q12, q11 - q22)/2 (algorithms.md 2.3; a circle gives theta = 0). Returns the
+ * products cc = cos^2, ss = sin^2, cs = cos sin; the larger of cc, ss comes from (1 +- cos 2theta)/2
+ * and the smaller from cs^2 over it, so neither loses its relative precision. -1 when q is not the
+ * finite positive form of an ellipse.
+ */
+static int ell_axis_dir(const float q[3], float *cc, float *ss, float *cs)
+{
+    float d;
+    float b;
+    float m;
+    float k2;
+    float s2;
+    if (!magcal_isfinite_f(q[0]) || !magcal_isfinite_f(q[1]) || !magcal_isfinite_f(q[2]) ||
+        !(q[0] > 0.0f)) {
+        return -1;
+    }
+    d = 1.0f - q[2] / q[0];   /* (1 - B) of the normalised conic */
+    b = 2.0f * (q[1] / q[0]); /* A */
+    m = fmaxf(fabsf(d), fabsf(b));
+    if (!magcal_isfinite_f(m)) {
+        return -1;
+    }
+    if (!(m > 0.0f)) {
+        k2 = 1.0f; /* circle: theta = 0 */
+        s2 = 0.0f;
+    } else {
+        float h;
+        d /= m;
+        b /= m;
+        h = sqrtf(d * d + b * b);
+        k2 = d / h;
+        s2 = b / h;
+    }
+    *cs = 0.5f * s2;
+    if (k2 >= 0.0f) {
+        *cc = 0.5f * (1.0f + k2);
+        *ss = (*cs * *cs) / *cc;
+    } else {
+        *ss = 0.5f * (1.0f - k2);
+        *cc = (*cs * *cs) / *ss;
+    }
+    return 0;
+}
+
 magcal_status_t magcal_ellipse_to_cal(const magcal_ellipse_t *e, magcal_corr_form_t form, float rho,
                                       magcal_cal2d_t *out)
 {
     float r1;
     float r2;
-    float c;
-    float sn;
+    float cc; /* cos^2 theta */
+    float ss; /* sin^2 theta */
+    float cs; /* cos theta sin theta */
     float out_r;
     magcal_cal2d_t cal;
 
@@ -656,11 +706,9 @@ magcal_status_t magcal_ellipse_to_cal(const magcal_ellipse_t *e, magcal_corr_for
     r2 = e->semi_major;
     if (!magcal_isfinite_f(r2) || !magcal_isfinite_f(e->angle_rad) ||
         !magcal_isfinite_f(e->center.x) || !magcal_isfinite_f(e->center.y) || !(r1 > 0.0f) ||
-        !(r1 <= r2)) {
+        !(r1 <= r2) || ell_axis_dir(e->qform, &cc, &ss, &cs) != 0) {
         return MAGCAL_ERR_ARG;
     }
-    c = cosf(e->angle_rad);
-    sn = sinf(e->angle_rad);
     switch (form) {
     case MAGCAL_CORR_SYMMETRIC:
     case MAGCAL_CORR_KX1: {
@@ -676,10 +724,10 @@ magcal_status_t magcal_ellipse_to_cal(const magcal_ellipse_t *e, magcal_corr_for
         }
         i1 = out_r / r1;
         i2 = out_r / r2;
-        cal.m[0][0] = c * c * i1 + sn * sn * i2;
-        cal.m[0][1] = c * sn * (i1 - i2);
+        cal.m[0][0] = cc * i1 + ss * i2;
+        cal.m[0][1] = cs * (i1 - i2);
         cal.m[1][0] = cal.m[0][1];
-        cal.m[1][1] = sn * sn * i1 + c * c * i2;
+        cal.m[1][1] = ss * i1 + cc * i2;
         break;
     }
     case MAGCAL_CORR_TRIANGULAR: {
@@ -687,8 +735,8 @@ magcal_status_t magcal_ellipse_to_cal(const magcal_ellipse_t *e, magcal_corr_for
          * from its geometry; det Q = 1/(r1 r2)^2 avoids the cancelling q22 - q12^2/q11). */
         float a1 = 1.0f / (r1 * r1);
         float a2 = 1.0f / (r2 * r2);
-        float q11 = c * c * a1 + sn * sn * a2;
-        float q12 = c * sn * (a1 - a2);
+        float q11 = cc * a1 + ss * a2;
+        float q12 = cs * (a1 - a2);
         float sq = sqrtf(q11);
         out_r = (rho > 0.0f) ? rho : sqrtf(r1) * sqrtf(r2);
         cal.m[0][0] = out_r * sq;

@@ -361,6 +361,26 @@ static void test_push_buffer_full_returns_buffer_full(void)
     TEST_ASSERT_EQUAL_UINT32((uint32_t)(0u), (uint32_t)magcal_calibrator_count(&g_cal));
 }
 
+/* Size macros: one persistent byte per sample (the flags; the two stage masks live in the stage
+ * scratch), and the budget of docs/performance.md: workspace + sample buffer <= 24 B/sample at the
+ * shipped capacity 1024. */
+static void test_workspace_len_capacity_1024_within_24_bytes_per_sample(void)
+{
+    TEST_ASSERT_EQUAL_UINT32(1024u, (uint32_t)MAGCAL_CALIBRATOR_MASKS_LEN(1024u));
+    TEST_ASSERT_EQUAL_UINT32(20u, (uint32_t)MAGCAL_CALIBRATOR_MASKS_LEN(17u));
+    TEST_ASSERT_EQUAL_UINT32((uint32_t)(MAGCAL_CONSENSUS_WORKSPACE_LEN(1024u) + 2048u),
+                             (uint32_t)MAGCAL_CALIBRATOR_CONSENSUS_LEN(1024u));
+    TEST_ASSERT_TRUE(MAGCAL_CALIBRATOR_WORKSPACE_LEN(1024u) + 1024u * sizeof(magcal_vec2_t) <=
+                     24u * 1024u);
+    /* the consensus stage and its masks fit in the stage scratch at every capacity */
+    TEST_ASSERT_TRUE(MAGCAL_CALIBRATOR_WORKSPACE_LEN(16u) >=
+                     MAGCAL_CALIBRATOR_MASKS_LEN(16u) + MAGCAL_CALIBRATOR_RUN_LEN +
+                         MAGCAL_CALIBRATOR_CONSENSUS_LEN(16u));
+    TEST_ASSERT_TRUE(MAGCAL_CALIBRATOR_WORKSPACE_LEN(MAGCAL_MAX_SAMPLES) >=
+                     MAGCAL_CALIBRATOR_MASKS_LEN(MAGCAL_MAX_SAMPLES) + MAGCAL_CALIBRATOR_RUN_LEN +
+                         MAGCAL_CALIBRATOR_CONSENSUS_LEN(MAGCAL_MAX_SAMPLES));
+}
+
 static void test_run_tiny_eps_returns_all_noise_keeps_cal(void)
 {
     magcal_calibrator_cfg_t cfg = MAGCAL_CALIBRATOR_CFG_DEFAULT;
@@ -722,6 +742,7 @@ int main(void)
     RUN_TEST(test_run_fewer_than_5_points_returns_too_few_keeps_cal);
     RUN_TEST(test_run_short_arc_returns_coverage_names_missing_sector_keeps_cal);
     RUN_TEST(test_push_buffer_full_returns_buffer_full);
+    RUN_TEST(test_workspace_len_capacity_1024_within_24_bytes_per_sample);
     RUN_TEST(test_run_tiny_eps_returns_all_noise_keeps_cal);
     RUN_TEST(test_run_spikes_without_rejection_returns_hyperbola_keeps_cal);
     RUN_TEST(test_run_gates_each_return_own_status_keep_cal);

@@ -846,6 +846,68 @@ static void test_ellipse_to_cal_pure_soft_iron_recovers_heading(void)
     check_within(0.01, 0.0, ptp, "heading error peak-to-peak");
 }
 
+/* The axis direction comes from qform without sinf/cosf: compare every form with the
+ * trigonometric construction of algorithms.md 2.4 in double (theta = atan2(A, 1 - B)/2 of the
+ * conic), for axes at 0, +-45, 90 deg, general angles, a circle, a near-circle and thin ellipses.
+ * Tolerance 4e-6 of the largest entry: a few float32 roundings. */
+static void test_ellipse_to_cal_matches_trig_construction(void)
+{
+    static const float ab[][2] = {{0.0f, 1.0f},   {0.0f, 0.25f}, {0.0f, 4.0f},   {1.0f, 1.0f},
+                                  {-1.0f, 1.0f},  {0.6f, 0.3f},  {-0.6f, 3.0f},  {1.0e-4f, 1.0f},
+                                  {1.9f, 1.0f},   {0.2f, 0.011f}, {-3.0f, 2.3f}, {0.05f, 90.0f}};
+    size_t k;
+    for (k = 0; k < sizeof ab / sizeof ab[0]; ++k) {
+        float coef[5] = {ab[k][0], ab[k][1], 0.0f, 0.0f, -1.0f};
+        magcal_vec2_t c0 = {3.0f, -2.0f};
+        magcal_ellipse_t e;
+        magcal_cal2d_t sym, kx1, tri;
+        double th = 0.5 * atan2((double)ab[k][0], 1.0 - (double)ab[k][1]);
+        double c = cos(th), s = sin(th), r1, r2, i1, i2, a1, a2, q11, q12, big, tol;
+        double want[3][2][2];
+        size_t f, i, j;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_from_conic(coef, c0, 2.0f, &e));
+        r1 = e.semi_minor;
+        r2 = e.semi_major;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_to_cal(&e, MAGCAL_CORR_SYMMETRIC, 1.5f, &sym));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_to_cal(&e, MAGCAL_CORR_KX1, 0.0f, &kx1));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_to_cal(&e, MAGCAL_CORR_TRIANGULAR, 1.5f, &tri));
+        i1 = 1.5 / r1;
+        i2 = 1.5 / r2;
+        want[0][0][0] = c * c * i1 + s * s * i2;
+        want[0][0][1] = c * s * (i1 - i2);
+        want[0][1][0] = want[0][0][1];
+        want[0][1][1] = s * s * i1 + c * c * i2;
+        for (i = 0; i < 2; ++i) {
+            for (j = 0; j < 2; ++j) {
+                want[1][i][j] = want[0][i][j] * r1 / 1.5; /* kx1, rho <= 0: radius r1 */
+            }
+        }
+        a1 = 1.0 / (r1 * r1);
+        a2 = 1.0 / (r2 * r2);
+        q11 = c * c * a1 + s * s * a2;
+        q12 = c * s * (a1 - a2);
+        want[2][0][0] = 1.5 * sqrt(q11);
+        want[2][0][1] = 1.5 * q12 / sqrt(q11);
+        want[2][1][0] = 0.0;
+        want[2][1][1] = 1.5 / (r1 * r2 * sqrt(q11));
+        for (f = 0; f < 3; ++f) {
+            const magcal_cal2d_t *got = f == 0 ? &sym : (f == 1 ? &kx1 : &tri);
+            big = 0.0;
+            for (i = 0; i < 2; ++i) {
+                for (j = 0; j < 2; ++j) {
+                    big = fmax(big, fabs(want[f][i][j]));
+                }
+            }
+            tol = 4e-6 * big;
+            for (i = 0; i < 2; ++i) {
+                for (j = 0; j < 2; ++j) {
+                    check_within(tol, want[f][i][j], got->m[i][j], "M entry vs trig construction");
+                }
+            }
+        }
+    }
+}
+
 static void test_ellipse_to_cal_bad_input_returns_status(void)
 {
     static const float ell[5] = {0.0f, 0.25f, 0.0f, 0.0f, -1.0f};
@@ -867,6 +929,14 @@ static void test_ellipse_to_cal_bad_input_returns_status(void)
     e.semi_minor = 0.0f;
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
                           magcal_ellipse_to_cal(&e, MAGCAL_CORR_TRIANGULAR, 1.0f, &cal));
+    /* the axis direction is read from qform: a non-positive q11 or a NaN entry is no ellipse */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_from_conic(ell, c0, 1.0f, &e));
+    e.qform[0] = 0.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_ellipse_to_cal(&e, MAGCAL_CORR_SYMMETRIC, 1.0f, &cal));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_from_conic(ell, c0, 1.0f, &e));
+    e.qform[1] = NAN;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipse_to_cal(&e, MAGCAL_CORR_KX1, 1.0f, &cal));
 }
 
 int main(void)
@@ -897,6 +967,7 @@ int main(void)
     RUN_TEST(test_ellipse_to_cal_symmetric_offset_is_phis_plus_phip);
     RUN_TEST(test_ellipse_to_cal_symmetric_offset_noisy_mean_is_15deg);
     RUN_TEST(test_ellipse_to_cal_pure_soft_iron_recovers_heading);
+    RUN_TEST(test_ellipse_to_cal_matches_trig_construction);
     RUN_TEST(test_ellipse_to_cal_bad_input_returns_status);
     return UNITY_END();
 }

@@ -100,8 +100,17 @@ extern "C" {
 /** Larger of two size expressions (compile-time constant for constant arguments). */
 #define MAGCAL_CALIBRATOR_MAX_(a, b) ((a) > (b) ? (a) : (b))
 
-/** Bytes of the three per-sample byte arrays (flags, filter mask, consensus mask), 4-aligned. */
-#define MAGCAL_CALIBRATOR_MASKS_LEN(cap) ((3u * (size_t)(cap) + 3u) & ~(size_t)3u)
+/**
+ * Bytes of the persistent per-sample byte array (the flags), 4-aligned. The density filter writes
+ * its inlier mask straight into it; run() copies that mask and the consensus output mask into the
+ * part of the stage scratch the consensus does not use (MAGCAL_CALIBRATOR_CONSENSUS_LEN) and folds
+ * them into the flag bits, so only one byte per sample outlives the stages.
+ */
+#define MAGCAL_CALIBRATOR_MASKS_LEN(cap) (((size_t)(cap) + 3u) & ~(size_t)3u)
+
+/** Scratch of the consensus stage: its workspace, then the filter and consensus masks [cap] each. */
+#define MAGCAL_CALIBRATOR_CONSENSUS_LEN(cap)                                                       \
+    (MAGCAL_CONSENSUS_WORKSPACE_LEN(cap) + ((2u * (size_t)(cap) + 3u) & ~(size_t)3u))
 
 /**
  * Bytes of the state of one magcal_calibrator_run() kept in the workspace instead of on the stack
@@ -114,16 +123,16 @@ extern "C" {
       3u) & ~(size_t)3u)
 
 /**
- * Workspace bytes for a calibrator of the given capacity: the per-sample masks, the run() state
+ * Workspace bytes for a calibrator of the given capacity: the per-sample flags, the run() state
  * (MAGCAL_CALIBRATOR_RUN_LEN) plus the largest scratch of the stages (OPTICS filter, DBSCAN
- * labels + queue, consensus). About 20 bytes per sample at capacity 1024 (the sample buffer itself
- * is 8 bytes per sample, separate).
+ * labels + queue, consensus + its two masks). About 16 bytes per sample at capacity 1024 (the
+ * sample buffer itself is 8 bytes per sample, separate).
  */
 #define MAGCAL_CALIBRATOR_WORKSPACE_LEN(cap)                                                       \
     (MAGCAL_CALIBRATOR_MASKS_LEN(cap) + MAGCAL_CALIBRATOR_RUN_LEN +                                \
      MAGCAL_CALIBRATOR_MAX_(                                                                       \
          MAGCAL_CALIBRATOR_MAX_(MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(cap),                           \
-                                MAGCAL_CONSENSUS_WORKSPACE_LEN(cap)),                              \
+                                MAGCAL_CALIBRATOR_CONSENSUS_LEN(cap)),                             \
          ((2u * (size_t)(cap) + 3u) & ~(size_t)3u) +                                               \
              MAGCAL_CALIBRATOR_MAX_(MAGCAL_DBSCAN_WORKSPACE_LEN(cap),                              \
                                     MAGCAL_OPTICS_LARGEST_WORKSPACE_LEN(cap))))
@@ -220,8 +229,8 @@ typedef struct {
     size_t capacity;
     size_t n;
     uint8_t *flags;     /* workspace: per-sample flags [capacity] */
-    uint8_t *mask_a;    /* workspace: filter inlier mask [capacity] */
-    uint8_t *mask_b;    /* workspace: consensus inlier mask [capacity] */
+    uint8_t *mask_a;    /* workspace (stage scratch, after the filter): filter mask [capacity] */
+    uint8_t *mask_b;    /* workspace (stage scratch): consensus inlier mask [capacity] */
     void *run;          /* workspace: run() state (report, consensus result, candidate) */
     void *scratch;      /* workspace: stage scratch */
     size_t scratch_len;

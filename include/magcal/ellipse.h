@@ -202,7 +202,8 @@ float magcal_ellipse_residual(const magcal_ellipse_t *e, magcal_vec2_t p);
  * - MAGCAL_CORR_KX1: rho > 0 gives rho (then M equals the symmetric form), else r1 (the seed's
  *   form R diag(1, r1/r2) R^T);
  * - MAGCAL_CORR_TRIANGULAR: rho if rho > 0, else sqrt(r1 r2).
- * @param[in]  e    ellipse from a successful fit.
+ * @param[in]  e    ellipse from a successful fit (its axes, centre and qform are used: the axis
+ *                  direction is the eigenvector of qform, the direction angle_rad describes).
  * @param[in]  form correction form.
  * @param[in]  rho  output radius (e.g. 1, or H0 from the geomagnetic model), or <= 0 (see above).
  * @param[out] out  calibration (magic set); untouched on failure.
