@@ -1028,19 +1028,31 @@ magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *
 
 /* ------------------------------------------------------------------ queries */
 
-magcal_status_t magcal_calibrator_flags(const magcal_calibrator_t *cal, size_t i, uint8_t *flags)
+/* Shared argument and state checks of the per-sample queries: need_fit selects whether a final
+ * fit (inlier) or only a judged run (flags) is required. */
+static magcal_status_t cal_query_check(const magcal_calibrator_t *cal, const void *out, size_t i,
+                                       uint8_t need_fit)
 {
-    if (cal == NULL || flags == NULL) {
+    if (cal == NULL || out == NULL) {
         return MAGCAL_ERR_NULL;
     }
     if (!cal_ok(cal)) {
         return MAGCAL_ERR_NOT_INITIALISED;
     }
-    if (cal->n_judged == 0u) {
+    if ((need_fit != 0u) ? (cal->has_fit == 0u) : (cal->n_judged == 0u)) {
         return MAGCAL_ERR_STATE;
     }
     if (i >= cal->n_judged) {
         return MAGCAL_ERR_ARG;
+    }
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_calibrator_flags(const magcal_calibrator_t *cal, size_t i, uint8_t *flags)
+{
+    magcal_status_t st = cal_query_check(cal, flags, i, 0u);
+    if (st != MAGCAL_OK) {
+        return st;
     }
     *flags = cal->flags[i];
     return MAGCAL_OK;
@@ -1048,17 +1060,9 @@ magcal_status_t magcal_calibrator_flags(const magcal_calibrator_t *cal, size_t i
 
 magcal_status_t magcal_calibrator_inlier(const magcal_calibrator_t *cal, size_t i, int *is_inlier)
 {
-    if (cal == NULL || is_inlier == NULL) {
-        return MAGCAL_ERR_NULL;
-    }
-    if (!cal_ok(cal)) {
-        return MAGCAL_ERR_NOT_INITIALISED;
-    }
-    if (cal->has_fit == 0u) {
-        return MAGCAL_ERR_STATE;
-    }
-    if (i >= cal->n_judged) {
-        return MAGCAL_ERR_ARG;
+    magcal_status_t st = cal_query_check(cal, is_inlier, i, 1u);
+    if (st != MAGCAL_OK) {
+        return st;
     }
     if ((cal->flags[i] & MAGCAL_CALIBRATOR_FLAG_RESIDUAL) != 0u) {
         *is_inlier = 0;
