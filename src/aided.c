@@ -1,12 +1,27 @@
 /*
- * INS/GNSS-aided online 3-D calibration (algorithms.md 7.3, 7.4, 7.6, 7.7, 7.8).
+ * INS/GNSS-aided online 3-D calibration (algorithms.md 7.3-7.8).
  *
- * Linear vector model per epoch: y = C_n^b B_ref / s = G x~ + c~ with x~ = (m - V0)/s, the shared
- * regressor phi = [x~; 1] and theta (4x3) = [G^T; c~^T]. Information-form RLS: Lambda = sum phi phi^T
- * (4x4) and Z = sum phi y^T (4x3), Kahan-compensated float32 sums, optional forgetting. The solve
- * eigen-decomposes Lambda/N_eff (4x4 Jacobi): directions with enough excitation are solved from the
- * data, the others are frozen at the prior theta0 (pseudo-inverse around the prior):
- *   theta = theta0 + sum_{k good} e_k e_k^T (Z - Lambda theta0) / (N_eff mu_k).
+ * Unknowns theta (4x3) = [G^T; c~^T] with h/s = theta^T phi, phi = [x~; 1], x~ = (m - V0)/s.
+ * State index p = 3 i + j (i: regressor 0..3, j: body axis 0..2).
+ *
+ * Vector residual (linear, algorithms.md 7.4): y = C_n^b B_ref / s = theta^T phi. Information
+ * Lambda (x) I3 / sigma_v^2, Lambda = sum phi phi^T (4x4), right-hand side Z = sum phi y^T (4x3).
+ *
+ * Total-field residual (algorithms.md 7.3, 7.5, 7.6): r_F = |theta^T phi| - F/s, linearised at the
+ * estimate in force when the epoch arrives (recursive Gauss-Newton / EKF in information form):
+ * n = h/|h|, J_F = u^T with u_p = n_j phi_i, and J_F theta_i - r_F(theta_i) = F/s, so each epoch
+ * adds u u^T / sigma_F^2 to the information and u F/s / sigma_F^2 to the right-hand side. The
+ * direction n changes only to second order with an error of the estimate, so the linearisation of
+ * early epochs costs little; the term enters once the calibrated gates are in use (an estimate that
+ * predicts every heading), never from the raw prior.
+ *
+ * Solve: eigen-decompose Lambda/N (4x4 Jacobi), freeze directions e_k with too little excitation
+ * at the prior theta0 (all three axes, both residuals: the total-field Jacobian u = n (x) phi also
+ * lies in span{phi}), and solve for the coefficients a_kj of theta = theta0 + sum_k e_k a_k^T over
+ * the kept directions from the reduced normal equations (<= 12 x 12, LDL^T):
+ *   [w_v mu_k N delta + w_F (E^T (x) I) H_F (E (x) I)] a = (E^T (x) I)(w_v (Z - Lambda theta0) + w_F (b_F - H_F theta0)).
+ * Vector-only (objective VECTOR, or no total-field epoch yet): the system is diagonal,
+ *   theta = theta0 + sum_{k kept} e_k e_k^T (Z - Lambda theta0) / (N mu_k).
  * Finally G = theta[0..2]^T, V = V0 - s G^-1 c~.
  */
 #include <math.h>
@@ -18,9 +33,12 @@
 #define AIDED_MAGIC 0x41494433u /* "AID3" */
 #define NPHI 4u
 #define NPACK4 10u
+#define NPAR 12u
+#define NPACK12 78u
 #define MIN_EPOCHS_LIMIT 8u
 
-static size_t pidx4(size_t i, size_t j)
+/* Index of (i, j) in a packed lower triangle (row-major), any order. */
+static size_t pidx(size_t i, size_t j)
 {
     return (i >= j) ? ((i * (i + 1u)) / 2u + j) : ((j * (j + 1u)) / 2u + i);
 }
@@ -106,15 +124,20 @@ magcal_status_t magcal_aided_init(magcal_aided_t *inst, const magcal_aided_cfg_t
     }
     if (!(cfg->lambda >= 0.9f && cfg->lambda <= 1.0f) || !(cfg->max_dop > 0.0f) ||
         !(cfg->gate_raw_rel > 0.0f) || !(cfg->gate_field_rel > 0.0f) ||
-        !(cfg->gate_vector_rel > 0.0f) || !(cfg->sigma_rel > 0.0f) || !(cfg->max_weak_std > 0.0f) ||
+        !(cfg->gate_vector_rel > 0.0f) || !(cfg->sigma_rel > 0.0f) || !(cfg->sigma_f_rel > 0.0f) ||
+        !(cfg->max_weak_std > 0.0f) ||
         !(cfg->min_eig >= 0.0f && cfg->min_eig < 1.0f) || !(cfg->conv_dg > 0.0f) ||
         !(cfg->conv_dv_rel > 0.0f) || !(cfg->noise_rel >= 0.0f && cfg->noise_rel < 0.1f)) {
         return MAGCAL_ERR_ARG;
     }
     if (!magcal_isfinite_f(cfg->max_dop) || !magcal_isfinite_f(cfg->gate_raw_rel) ||
         !magcal_isfinite_f(cfg->gate_field_rel) || !magcal_isfinite_f(cfg->gate_vector_rel) ||
-        !magcal_isfinite_f(cfg->sigma_rel) || !magcal_isfinite_f(cfg->max_weak_std) ||
+        !magcal_isfinite_f(cfg->sigma_rel) || !magcal_isfinite_f(cfg->sigma_f_rel) ||
+        !magcal_isfinite_f(cfg->max_weak_std) ||
         !magcal_isfinite_f(cfg->conv_dg) || !magcal_isfinite_f(cfg->conv_dv_rel)) {
+        return MAGCAL_ERR_ARG;
+    }
+    if (cfg->objective != MAGCAL_AIDED_OBJ_COMBINED && cfg->objective != MAGCAL_AIDED_OBJ_VECTOR) {
         return MAGCAL_ERR_ARG;
     }
     if (cfg->min_epochs < MIN_EPOCHS_LIMIT || cfg->conv_window < 1u) {
@@ -147,6 +170,123 @@ magcal_status_t magcal_aided_init(magcal_aided_t *inst, const magcal_aided_cfg_t
     return MAGCAL_OK;
 }
 
+/*
+ * Weight of the total-field residual relative to the vector residual, w_F / w_v. Both residuals
+ * carry the same magnetometer noise: the total-field residual is, to first order, the along-field
+ * component of the vector residual (attitude errors rotate the vector residual across the field).
+ * Summing both with 1/sigma^2 weights would count that noise twice, so the total-field weight is
+ * the information the along-field direction has beyond the vector residual's:
+ *   w_F = 1/sigma_F^2 - 1/sigma_v^2  (>= 0),
+ * which makes the along-field weight exactly 1/sigma_F^2 and the cross-field weight 1/sigma_v^2,
+ * the information of one vector measurement with covariance
+ * sigma_F^2 n n^T + sigma_v^2 (I - n n^T).
+ */
+static float aided_wf(const magcal_aided_cfg_t *cfg)
+{
+    const float r = cfg->sigma_rel / cfg->sigma_f_rel;
+    const float wf = r * r - 1.0f;
+    return (wf > 0.0f) ? wf : 0.0f;
+}
+
+/* Total-field information per epoch at (p, q): H_F / N with the magnetometer noise removed
+ * (E[phi phi^T] carries noise_rel^2 on the first three diagonal entries, algorithms.md 7.7). */
+static float hf_at(const magcal_aided_t *inst, size_t p, size_t q, float inv_n)
+{
+    float v = inst->hf[pidx(p, q)];
+    if ((p / 3u) == (q / 3u) && (p / 3u) < 3u) {
+        const float nr = inst->cfg.noise_rel;
+        v -= nr * nr * inst->nn[pidx(p % 3u, q % 3u)];
+    }
+    return v * inv_n;
+}
+
+/* In place: x[(k, j)] = sum_i ev[i][k] x[(i, j)] for the 4 x 3 blocks x[3 i + j] at stride `stride`
+ * (the (E^T (x) I3) rotation of one row or column of the 12 x 12 system into Lambda's eigenbasis). */
+static void aided_rotate(float ev[NPHI][NPHI], float *x, size_t stride)
+{
+    float t[NPHI];
+    size_t i;
+    size_t j;
+    size_t k;
+    for (j = 0u; j < 3u; ++j) {
+        for (i = 0u; i < NPHI; ++i) {
+            t[i] = x[(3u * i + j) * stride];
+        }
+        for (k = 0u; k < NPHI; ++k) {
+            float acc = 0.0f;
+            for (i = 0u; i < NPHI; ++i) {
+                acc += ev[i][k] * t[i];
+            }
+            x[(3u * k + j) * stride] = acc;
+        }
+    }
+}
+
+/*
+ * Combined vector + total-field step over the kept eigen-directions keep[0..nk-1] of Lambda/N
+ * (module comment). resid = Z - Lambda theta0 (not divided by N); theta = theta0 on entry.
+ * Returns 1 and writes theta on success, 0 when the reduced system is not positive definite
+ * (the caller then takes the vector step). About 2.5 k multiply-adds plus a <= 12 x 12 LDL^T.
+ */
+static int aided_combined(const magcal_aided_t *inst, float ev[NPHI][NPHI], const float mu[NPHI],
+                          const size_t keep[NPHI], size_t nk, float resid[NPHI][3], float theta[NPHI][3])
+{
+    float msys[NPAR * NPAR];
+    float rhs[NPAR];
+    const float neff = inst->info[pidx(3u, 3u)];
+    const float inv_n = 1.0f / neff;
+    const float wf = aided_wf(&inst->cfg); /* w_F / w_v */
+    const size_t n = 3u * nk;
+    size_t p;
+    size_t q;
+    size_t i;
+    /* msys = H_F / N (noise-compensated), full symmetric */
+    for (p = 0u; p < NPAR; ++p) {
+        for (q = 0u; q <= p; ++q) {
+            const float v = hf_at(inst, p, q, inv_n);
+            msys[p * NPAR + q] = v;
+            msys[q * NPAR + p] = v;
+        }
+    }
+    /* right-hand side at theta0: (Z - Lambda theta0)/N + w (b_F - H_F theta0)/N */
+    for (p = 0u; p < NPAR; ++p) {
+        float acc = inst->bf[p] * inv_n;
+        for (q = 0u; q < NPAR; ++q) {
+            acc -= msys[p * NPAR + q] * theta[q / 3u][q % 3u];
+        }
+        rhs[p] = resid[p / 3u][p % 3u] * inv_n + wf * acc;
+    }
+    /* into Lambda's eigenbasis: rhs <- (E^T (x) I) rhs, msys <- (E^T (x) I) msys (E (x) I) */
+    aided_rotate(ev, rhs, 1u);
+    for (p = 0u; p < NPAR; ++p) {
+        aided_rotate(ev, &msys[p], NPAR); /* column p */
+    }
+    for (p = 0u; p < NPAR; ++p) {
+        aided_rotate(ev, &msys[p * NPAR], 1u); /* row p */
+    }
+    /* keep the observed directions, compacted in place to an n x n system (every target index
+     * is <= its source index and targets are written in increasing order, so no source is
+     * overwritten before it is read); the vector information is mu_k on the diagonal */
+    for (p = 0u; p < n; ++p) {
+        const size_t sp = 3u * keep[p / 3u] + p % 3u;
+        for (q = 0u; q < n; ++q) {
+            const size_t sq = 3u * keep[q / 3u] + q % 3u;
+            msys[p * n + q] = wf * msys[sp * NPAR + sq] + ((p == q) ? mu[keep[p / 3u]] : 0.0f);
+        }
+        rhs[p] = rhs[sp];
+    }
+    if (magcal_ldlt_solve(msys, rhs, n, 1e-6f, NULL) != MAGCAL_OK) {
+        return 0;
+    }
+    for (p = 0u; p < n; ++p) {
+        const size_t kp = keep[p / 3u];
+        for (i = 0u; i < NPHI; ++i) {
+            theta[i][p % 3u] += ev[i][kp] * rhs[p];
+        }
+    }
+    return 1;
+}
+
 /* Solve for theta from the sums; updates cal, weak-direction diagnostics and the residual. */
 static void aided_solve(magcal_aided_t *inst)
 {
@@ -155,16 +295,17 @@ static void aided_solve(magcal_aided_t *inst)
     float lamc[NPHI][NPHI];
     float ev[NPHI][NPHI];
     float mu[NPHI];
-    float theta0[NPHI][3];
     float resid[NPHI][3];
     float theta[NPHI][3];
     float g[3][3];
     float ct[3];
     float vv[3];
-    float neff = inst->info[pidx4(3u, 3u)];
+    float neff = inst->info[pidx(3u, 3u)];
     float sigma;
     float rss;
     float fmean;
+    size_t keep[NPHI];
+    size_t nk = 0u;
     size_t i;
     size_t j;
     size_t k;
@@ -176,7 +317,7 @@ static void aided_solve(magcal_aided_t *inst)
     }
     for (i = 0u; i < NPHI; ++i) {
         for (j = 0u; j < NPHI; ++j) {
-            lam[i][j] = inst->info[pidx4(i, j)] / neff;
+            lam[i][j] = inst->info[pidx(i, j)] / neff;
         }
     }
     /* Bias compensation: E[x~ x~^T] holds the noise variance on its diagonal; remove it so that a
@@ -191,16 +332,16 @@ static void aided_solve(magcal_aided_t *inst)
     /* prior in normalised coordinates: G0 rows, c~0 = G0 (V0 - V0)/s = 0 */
     for (j = 0u; j < 3u; ++j) {
         for (i = 0u; i < 3u; ++i) {
-            theta0[i][j] = cfg->prior.g[j][i];
+            theta[i][j] = cfg->prior.g[j][i];
         }
-        theta0[3][j] = 0.0f;
+        theta[3][j] = 0.0f;
     }
-    /* residual of the (compensated) normal equations at the prior: Z - Lambda theta0 */
+    /* residual of the (compensated) vector normal equations at the prior: Z - Lambda theta0 */
     for (i = 0u; i < NPHI; ++i) {
         for (j = 0u; j < 3u; ++j) {
             float sacc = inst->cross[i * 3u + j];
             for (k = 0u; k < NPHI; ++k) {
-                sacc -= neff * lamc[i][k] * theta0[k][j];
+                sacc -= neff * lamc[i][k] * theta[k][j];
             }
             resid[i][j] = sacc;
         }
@@ -209,7 +350,16 @@ static void aided_solve(magcal_aided_t *inst)
     if (inst->cal.field > 0.0f && inst->resid_rms / inst->cal.field > sigma) {
         sigma = inst->resid_rms / inst->cal.field;
     }
-    (void)memcpy(theta, theta0, sizeof(theta));
+    if (cfg->objective == MAGCAL_AIDED_OBJ_COMBINED && inst->n_tf > 0u) {
+        /* predicted std with the total-field information too: along a direction e_k it adds
+         * w_F sum n_j^2 (e_k^T phi)^2 for body axis j; take the least-informed axis, min_j of the
+         * mean n_j^2 over the total-field epochs, times their share of all epochs */
+        float nmin = inst->nn[0];
+        nmin = (inst->nn[2] < nmin) ? inst->nn[2] : nmin;
+        nmin = (inst->nn[5] < nmin) ? inst->nn[5] : nmin;
+        sigma = sigma / sqrtf(1.0f + aided_wf(cfg) * nmin / neff);
+    }
+    /* observability: keep the directions with enough excitation, freeze the others at the prior */
     for (k = 0u; k < NPHI; ++k) {
         float std = (mu[k] > 0.0f) ? sigma / sqrtf(neff * mu[k]) : 1e30f;
         if (mu[k] < mu[kmin]) {
@@ -217,16 +367,25 @@ static void aided_solve(magcal_aided_t *inst)
         }
         if (!(mu[k] >= cfg->min_eig) || !(mu[k] > 0.0f) || !(std <= cfg->max_weak_std)) {
             nprior++;
-            continue;
+        } else {
+            keep[nk] = k;
+            nk++;
         }
-        for (j = 0u; j < 3u; ++j) {
-            float proj = 0.0f;
-            for (i = 0u; i < NPHI; ++i) {
-                proj += ev[i][k] * resid[i][j];
-            }
-            proj /= neff * mu[k];
-            for (i = 0u; i < NPHI; ++i) {
-                theta[i][j] += ev[i][k] * proj;
+    }
+    if (cfg->objective != MAGCAL_AIDED_OBJ_COMBINED || inst->n_tf == 0u || nk == 0u ||
+        !(aided_wf(cfg) > 0.0f) || aided_combined(inst, ev, mu, keep, nk, resid, theta) == 0) {
+        /* vector residual only: diagonal in the eigenbasis */
+        for (k = 0u; k < nk; ++k) {
+            const size_t kk = keep[k];
+            for (j = 0u; j < 3u; ++j) {
+                float proj = 0.0f;
+                for (i = 0u; i < NPHI; ++i) {
+                    proj += ev[i][kk] * resid[i][j];
+                }
+                proj /= neff * mu[kk];
+                for (i = 0u; i < NPHI; ++i) {
+                    theta[i][j] += ev[i][kk] * proj;
+                }
             }
         }
     }
@@ -236,13 +395,13 @@ static void aided_solve(magcal_aided_t *inst)
         inst->weak_dir[i] = ev[i][kmin];
     }
     inst->n_prior_dirs = nprior;
-    /* residual sum of squares: yy - 2 tr(theta^T Z) + tr(theta^T Lambda theta) */
+    /* vector residual sum of squares: yy - 2 tr(theta^T Z) + tr(theta^T Lambda theta) */
     rss = inst->yy;
     for (j = 0u; j < 3u; ++j) {
         for (i = 0u; i < NPHI; ++i) {
             float lt = 0.0f;
             for (k = 0u; k < NPHI; ++k) {
-                lt += inst->info[pidx4(i, k)] * theta[k][j];
+                lt += inst->info[pidx(i, k)] * theta[k][j];
             }
             rss += theta[i][j] * (lt - 2.0f * inst->cross[i * 3u + j]);
         }
@@ -323,16 +482,18 @@ static void aided_convergence(magcal_aided_t *inst)
     inst->win_count = 0u;
 }
 
+/* Gate an epoch (header order). h: the field through the calibration used (calibrated once
+ * *calibrated is set: then it also linearises the total-field residual). */
 static magcal_aided_gate_t aided_gate(const magcal_aided_t *inst, const magcal_aided_epoch_t *ep,
-                                      float c[3][3], float bmag)
+                                      float c[3][3], float bmag, float h[3], int *calibrated)
 {
     const magcal_aided_cfg_t *cfg = &inst->cfg;
     const magcal_ellipsoid_cal_t *cal;
     float e[3];
-    float h[3];
     float hmag;
     int use_cal;
     size_t i;
+    *calibrated = 0;
     if (ep->dop > cfg->max_dop) {
         return MAGCAL_AIDED_GATE_DOP;
     }
@@ -352,6 +513,7 @@ static magcal_aided_gate_t aided_gate(const magcal_aided_t *inst, const magcal_a
         h[i] = cal->g[i][0] * e[0] + cal->g[i][1] * e[1] + cal->g[i][2] * e[2];
     }
     hmag = sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
+    *calibrated = use_cal;
     if (use_cal == 0) {
         return (fabsf(hmag - bmag) > cfg->gate_raw_rel * bmag) ? MAGCAL_AIDED_GATE_RAW
                                                                : MAGCAL_AIDED_GATE_NONE;
@@ -373,6 +535,50 @@ static magcal_aided_gate_t aided_gate(const magcal_aided_t *inst, const magcal_a
     return MAGCAL_AIDED_GATE_NONE;
 }
 
+/* Accumulate the linearised total-field residual of an accepted epoch (module comment) and its
+ * a-priori value for the windowed RMS. h: calibrated field (output units), phi: regressor. */
+static void aided_total_field(magcal_aided_t *inst, const float h[3], const float phi[NPHI], float bmag)
+{
+    float u[NPAR];
+    float nv[3];
+    const float hmag = sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
+    const float fs = bmag / inst->scale;
+    size_t p;
+    size_t q;
+    if (!(hmag > 0.0f)) {
+        return;
+    }
+    inst->rf_win += (hmag - bmag) * (hmag - bmag);
+    inst->rf_win_n++;
+    if (inst->rf_win_n >= inst->cfg.conv_window) {
+        inst->resid_f_rms = sqrtf(inst->rf_win / (float)inst->rf_win_n);
+        inst->rf_win = 0.0f;
+        inst->rf_win_n = 0u;
+    }
+    if (inst->cfg.objective != MAGCAL_AIDED_OBJ_COMBINED) {
+        return;
+    }
+    for (p = 0u; p < 3u; ++p) {
+        nv[p] = h[p] / hmag;
+    }
+    for (p = 0u; p < NPAR; ++p) {
+        u[p] = nv[p % 3u] * phi[p / 3u];
+    }
+    for (p = 0u; p < NPAR; ++p) {
+        for (q = 0u; q <= p; ++q) {
+            const size_t k = pidx(p, q);
+            magcal_kahan_add(&inst->hf[k], &inst->hf_c[k], u[p] * u[q]);
+        }
+        magcal_kahan_add(&inst->bf[p], &inst->bf_c[p], fs * u[p]);
+    }
+    for (p = 0u; p < 3u; ++p) {
+        for (q = 0u; q <= p; ++q) {
+            inst->nn[pidx(p, q)] += nv[p] * nv[q];
+        }
+    }
+    inst->n_tf++;
+}
+
 magcal_status_t magcal_aided_update(magcal_aided_t *inst, const magcal_aided_epoch_t *ep,
                                     magcal_aided_gate_t *reason)
 {
@@ -381,9 +587,11 @@ magcal_status_t magcal_aided_update(magcal_aided_t *inst, const magcal_aided_epo
     float bmag;
     float phi[NPHI];
     float y[3];
+    float h[3];
     float inv_s;
     size_t i;
     size_t j;
+    int calibrated = 0;
     magcal_aided_gate_t gate;
 
     if (inst == NULL || ep == NULL) {
@@ -409,7 +617,7 @@ magcal_status_t magcal_aided_update(magcal_aided_t *inst, const magcal_aided_epo
     }
     (void)magcal_aided_dcm(ep->roll_rad, ep->pitch_rad, ep->yaw_rad, c);
     inst->n_seen++;
-    gate = aided_gate(inst, ep, c, bmag);
+    gate = aided_gate(inst, ep, c, bmag, h, &calibrated);
     if (reason != NULL) {
         *reason = gate;
     }
@@ -441,10 +649,21 @@ magcal_status_t magcal_aided_update(magcal_aided_t *inst, const magcal_aided_epo
         inst->yy *= lam;
         inst->yy_c *= lam;
         inst->f_sum *= lam;
+        for (i = 0u; i < NPACK12; ++i) {
+            inst->hf[i] *= lam;
+            inst->hf_c[i] *= lam;
+        }
+        for (i = 0u; i < NPAR; ++i) {
+            inst->bf[i] *= lam;
+            inst->bf_c[i] *= lam;
+        }
+        for (i = 0u; i < 6u; ++i) {
+            inst->nn[i] *= lam;
+        }
     }
     for (i = 0u; i < NPHI; ++i) {
         for (j = 0u; j <= i; ++j) {
-            size_t p = pidx4(i, j);
+            size_t p = pidx(i, j);
             magcal_kahan_add(&inst->info[p], &inst->info_c[p], phi[i] * phi[j]);
         }
         for (j = 0u; j < 3u; ++j) {
@@ -453,6 +672,9 @@ magcal_status_t magcal_aided_update(magcal_aided_t *inst, const magcal_aided_epo
     }
     magcal_kahan_add(&inst->yy, &inst->yy_c, y[0] * y[0] + y[1] * y[1] + y[2] * y[2]);
     inst->f_sum += bmag * inv_s;
+    if (calibrated != 0) {
+        aided_total_field(inst, h, phi, bmag);
+    }
     inst->n_accepted++;
     if (inst->n_accepted >= inst->cfg.min_epochs) {
         aided_solve(inst);
@@ -485,6 +707,8 @@ magcal_status_t magcal_aided_get(const magcal_aided_t *inst, magcal_aided_result
     out->min_eig = inst->min_eig;
     out->weak_std = inst->weak_std;
     out->resid_rms = inst->resid_rms;
+    out->resid_f_rms = inst->resid_f_rms;
+    out->n_total_field = inst->n_tf;
     if (inst->n_prior_dirs > 0u) {
         return MAGCAL_ERR_UNOBSERVABLE;
     }

@@ -49,8 +49,9 @@ static void field_at(double w[3][3], const double att[3], double m[3])
  * Road-like drive: straight legs of 60 epochs (yaw wandering +-2 deg) joined by 90-degree turns over
  * 15 epochs (3 right, 1 left, repeating), pitch and roll AR(1) processes with the given RMS (0 =
  * exactly level). Field noise sigma_m (uT); the INS attitude passed to the estimator has white errors
- * of 0.01 deg (roll, pitch) and 0.05 deg (yaw).
+ * of g_att_sd_rp (roll, pitch; default 0.01 deg) and g_att_sd_yaw (default 0.05 deg).
  */
+static double g_att_sd_rp = 0.01, g_att_sd_yaw = 0.05; /* INS attitude error std (deg) */
 static int g_use_wmm; /* 1: B_ref from WMM2025 along a track (integration test), else B_NED */
 static size_t g_shift_at = (size_t)-1; /* from this epoch on, the hard iron changes by g_shift */
 static double g_shift[3];
@@ -98,9 +99,9 @@ static void make_drive(double w[3][3], size_t n, double tilt_rms_deg, double sig
         g_ep[k].ep.m.x = (float)m[0];
         g_ep[k].ep.m.y = (float)m[1];
         g_ep[k].ep.m.z = (float)m[2];
-        g_ep[k].ep.roll_rad = (float)(roll + 0.01 * D2R * test_rand_normal(&rng));
-        g_ep[k].ep.pitch_rad = (float)(pitch + 0.01 * D2R * test_rand_normal(&rng));
-        g_ep[k].ep.yaw_rad = (float)(g_ep[k].att[2] + 0.05 * D2R * test_rand_normal(&rng));
+        g_ep[k].ep.roll_rad = (float)(roll + g_att_sd_rp * D2R * test_rand_normal(&rng));
+        g_ep[k].ep.pitch_rad = (float)(pitch + g_att_sd_rp * D2R * test_rand_normal(&rng));
+        g_ep[k].ep.yaw_rad = (float)(g_ep[k].att[2] + g_att_sd_yaw * D2R * test_rand_normal(&rng));
         g_ep[k].ep.b_ref_ned.x = (float)B_NED[0];
         g_ep[k].ep.b_ref_ned.y = (float)B_NED[1];
         g_ep[k].ep.b_ref_ned.z = (float)B_NED[2];
@@ -241,10 +242,12 @@ static void test_aided_noise_compensation_removes_weak_direction_shrinkage(void)
 {
     /* At 1 deg RMS tilt the out-of-plane regressor variance is only ~80x the sensor noise variance,
      * so plain least squares shrinks that direction by ~1/80 (errors in variables): the 1.2 % of
-     * algorithms.md 7.7. Subtracting the known noise variance removes most of it. */
+     * algorithms.md 7.7. Subtracting the known noise variance removes most of it. The vector
+     * estimator here (objective VECTOR); the combined one in the attitude-noise test below. */
     double w[3][3], g[3][3], v[3];
     magcal_aided_cfg_t cfg = MAGCAL_AIDED_CFG_DEFAULT;
     magcal_aided_result_t plain, comp;
+    cfg.objective = MAGCAL_AIDED_OBJ_VECTOR;
     test_make_w_full(w);
     make_drive(w, NEP, 1.0, 0.05, 2025u);
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, run(&cfg, NEP, &g_inst, &plain));
@@ -255,6 +258,118 @@ static void test_aided_noise_compensation_removes_weak_direction_shrinkage(void)
     TEST_ASSERT_TRUE(v_err(&comp.cal) < 0.5);
     cal_to_d(&comp.cal, g, v);
     TEST_ASSERT_TRUE(tilted_heading_max(w, g, v) < 0.15); /* measured 0.11 (plain: 0.23) */
+}
+
+/* RMS over seeds of G error, V error and tilted-heading error of one configuration. */
+typedef struct {
+    double g, v, tilt;
+    uint32_t n_unobservable;
+} seed_stats_t;
+
+static seed_stats_t over_seeds(double w[3][3], const magcal_aided_cfg_t *cfg, size_t nseeds)
+{
+    seed_stats_t st = {0.0, 0.0, 0.0, 0u};
+    double g[3][3], v[3];
+    size_t sd;
+    for (sd = 0; sd < nseeds; ++sd) {
+        magcal_aided_result_t r;
+        double t;
+        make_drive(w, NEP, 1.0, 0.05, 1000u + 17u * (uint32_t)sd);
+        if (run(cfg, NEP, &g_inst2, &r) == MAGCAL_ERR_UNOBSERVABLE) {
+            st.n_unobservable++;
+        }
+        cal_to_d(&r.cal, g, v);
+        t = tilted_heading_max(w, g, v);
+        st.g += g_err(&r.cal, w) * g_err(&r.cal, w);
+        st.v += v_err(&r.cal) * v_err(&r.cal);
+        st.tilt += t * t;
+    }
+    st.g = sqrt(st.g / (double)nseeds);
+    st.v = sqrt(st.v / (double)nseeds);
+    st.tilt = sqrt(st.tilt / (double)nseeds);
+    return st;
+}
+
+static void test_aided_combined_objective_beats_vector_under_attitude_noise(void)
+{
+    /* INS attitude errors rotate the vector residual across the field; the total-field residual
+     * does not see them (algorithms.md 7.3). Road 1 deg RMS, 0.05 uT noise, 4 seeds, weights set
+     * to the simulation: sigma_F = noise (0.05/48.4 ~ 0.001), sigma_v ~ noise + attitude x F. */
+    double w[3][3];
+    magcal_aided_cfg_t cfg = MAGCAL_AIDED_CFG_DEFAULT;
+    seed_stats_t comb, vec, raw;
+    test_make_w_full(w);
+    cfg.noise_rel = (float)(0.05 / 48.37);
+    cfg.sigma_f_rel = 0.001f;
+    /* 0.2 deg roll/pitch, 1 deg yaw error (measured: combined G 1.0 %, V 0.79 uT, tilt 0.34 deg;
+     * vector only 1.7 %, 1.46 uT, 0.60 deg) */
+    g_att_sd_rp = 0.2;
+    g_att_sd_yaw = 1.0;
+    cfg.sigma_rel = 0.006f;
+    comb = over_seeds(w, &cfg, 4u);
+    cfg.objective = MAGCAL_AIDED_OBJ_VECTOR;
+    vec = over_seeds(w, &cfg, 4u);
+    TEST_ASSERT_EQUAL_UINT32(0u, comb.n_unobservable);
+    TEST_ASSERT_TRUE(comb.g < 0.75 * vec.g);
+    TEST_ASSERT_TRUE(comb.v < 0.75 * vec.v);
+    TEST_ASSERT_TRUE(comb.tilt < 0.75 * vec.tilt);
+    TEST_ASSERT_TRUE(comb.g < 0.015 && comb.v < 1.2 && comb.tilt < 0.5);
+    /* the noise compensation matters in the total-field term as well (measured 2.2 % without) */
+    cfg.objective = MAGCAL_AIDED_OBJ_COMBINED;
+    cfg.noise_rel = 0.0f;
+    raw = over_seeds(w, &cfg, 4u);
+    TEST_ASSERT_TRUE(comb.g < 0.7 * raw.g);
+    cfg.noise_rel = (float)(0.05 / 48.37);
+    /* 0.5 deg roll/pitch, 2 deg yaw: the vector residual alone no longer resolves the weak
+     * (out-of-plane) direction and freezes it at the identity prior (measured G 14.6 %, V 9.7 uT,
+     * tilt 2.6 deg); with the total-field residual it stays observable (G 1.2 %, 0.96 uT, 0.45 deg) */
+    g_att_sd_rp = 0.5;
+    g_att_sd_yaw = 2.0;
+    cfg.sigma_rel = 0.012f;
+    comb = over_seeds(w, &cfg, 4u);
+    cfg.objective = MAGCAL_AIDED_OBJ_VECTOR;
+    vec = over_seeds(w, &cfg, 4u);
+    g_att_sd_rp = 0.01;
+    g_att_sd_yaw = 0.05;
+    TEST_ASSERT_EQUAL_UINT32(4u, vec.n_unobservable);
+    TEST_ASSERT_EQUAL_UINT32(0u, comb.n_unobservable);
+    TEST_ASSERT_TRUE(vec.g > 0.08 && vec.v > 5.0);
+    TEST_ASSERT_TRUE(comb.g < 0.02 && comb.v < 1.5 && comb.tilt < 0.7);
+}
+
+static void test_aided_total_field_weight_zero_when_sigmas_equal(void)
+{
+    /* sigma_F >= sigma_v: the along-field noise is already in the vector residual, the total-field
+     * term adds no information (w_F = 1/sigma_F^2 - 1/sigma_v^2 = 0) and the combined estimate is
+     * the vector one */
+    double w[3][3];
+    magcal_aided_cfg_t cfg = MAGCAL_AIDED_CFG_DEFAULT;
+    magcal_aided_result_t a, b;
+    int i, j;
+    test_make_w_full(w);
+    make_drive(w, NEP, 1.0, 0.05, 2025u);
+    cfg.sigma_rel = 0.002f;
+    cfg.sigma_f_rel = 0.002f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, run(&cfg, NEP, &g_inst, &a));
+    TEST_ASSERT_TRUE(a.n_total_field > NEP / 2u);
+    cfg.objective = MAGCAL_AIDED_OBJ_VECTOR;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, run(&cfg, NEP, &g_inst2, &b));
+    for (i = 0; i < 3; ++i) {
+        for (j = 0; j < 3; ++j) {
+            TEST_ASSERT_EQUAL_FLOAT(b.cal.g[i][j], a.cal.g[i][j]);
+        }
+    }
+    TEST_ASSERT_EQUAL_FLOAT(b.cal.v.x, a.cal.v.x);
+    TEST_ASSERT_EQUAL_FLOAT(b.cal.v.y, a.cal.v.y);
+    TEST_ASSERT_EQUAL_FLOAT(b.cal.v.z, a.cal.v.z);
+    /* sigma_F slightly below sigma_v: the total-field term is on and moves the estimate */
+    cfg.objective = MAGCAL_AIDED_OBJ_COMBINED;
+    cfg.sigma_f_rel = 0.001f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, run(&cfg, NEP, &g_inst, &a));
+    TEST_ASSERT_TRUE(fabsf(a.cal.v.x - b.cal.v.x) + fabsf(a.cal.v.y - b.cal.v.y) + fabsf(a.cal.v.z - b.cal.v.z) > 1e-3f);
+    /* the a-priori total-field residual is reported in both modes: ~ the 0.05 uT noise */
+    TEST_ASSERT_FLOAT_WITHIN(0.02f, 0.05f, a.resid_f_rms);
+    TEST_ASSERT_FLOAT_WITHIN(0.02f, 0.05f, b.resid_f_rms);
 }
 
 static void test_aided_level_drive_reports_unobservable_and_uses_prior(void)
@@ -489,6 +604,14 @@ static void test_aided_bad_input_returns_status(void)
     cfg.min_epochs = 2u;
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_aided_init(&g_inst, &cfg));
     cfg.min_epochs = 50u;
+    cfg.sigma_f_rel = 0.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_aided_init(&g_inst, &cfg));
+    cfg.sigma_f_rel = INFINITY;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_aided_init(&g_inst, &cfg));
+    cfg.sigma_f_rel = 0.002f;
+    cfg.objective = (magcal_aided_objective_t)7;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_aided_init(&g_inst, &cfg));
+    cfg.objective = MAGCAL_AIDED_OBJ_COMBINED;
     cfg.prior.g[2][2] = 0.0f; /* singular prior */
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_aided_init(&g_inst, &cfg));
     cfg.prior.g[2][2] = NAN;
@@ -518,6 +641,8 @@ int main(void)
     UNITY_BEGIN();
     RUN_TEST(test_aided_road_one_degree_converges_where_quadric_fails);
     RUN_TEST(test_aided_noise_compensation_removes_weak_direction_shrinkage);
+    RUN_TEST(test_aided_combined_objective_beats_vector_under_attitude_noise);
+    RUN_TEST(test_aided_total_field_weight_zero_when_sigmas_equal);
     RUN_TEST(test_aided_level_drive_reports_unobservable_and_uses_prior);
     RUN_TEST(test_aided_gates_reject_disturbed_epochs_estimate_unchanged);
     RUN_TEST(test_aided_wmm2025_reference_along_track_converges);

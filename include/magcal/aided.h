@@ -2,11 +2,22 @@
  * @file aided.h
  * @brief Online 3-D magnetometer calibration aided by an INS/GNSS attitude and a reference field.
  *
- * Model (algorithms.md 7.1, 7.3, 7.4): `m = W h + V + noise`, `h = C_n^b B_ref`. Per epoch the linear
- * vector residual `C_b^n G (m - V) - B_ref` is written as `C_n^b B_ref = G m + c` (c = -G V): three
- * least-squares problems sharing the regressor `[m; 1]`, so one 4x4 information matrix serves all
- * three (information-form RLS, optional forgetting factor). Memory is fixed (the instance struct) and
- * work per epoch is bounded (a 4x4 Jacobi eigen-decomposition and solve).
+ * Model (algorithms.md 7.1, 7.3-7.6): `m = W h + V + noise`, `h = C_n^b B_ref`, estimated online from
+ * the combined objective of algorithms.md 7.3,
+ *   J = sum_i [ |C_b^n G (m_i - V) - B_ref,i|^2 / sigma_v^2 + (|G (m_i - V)| - |B_ref,i|)^2 / sigma_F^2 ],
+ * by a recursive Gauss-Newton in information form. Unknowns: the 12 entries of theta (4x3) =
+ * [G^T; c~^T], c~ = G (V0 - V)/s, i.e. `h/s = theta^T phi` with the regressor phi = [(m - V0)/s; 1].
+ * - vector residual (linear in theta, body axes): three least-squares problems sharing phi, so its
+ *   information is Lambda (x) I3 with the 4x4 Lambda = sum phi phi^T (algorithms.md 7.4);
+ * - total-field residual: linearised at the estimate in force when the epoch arrives (EKF form,
+ *   algorithms.md 7.6): with n = h/|h|, J_F = n (x) phi and the linearised measurement is
+ *   n^T theta^T phi = |B_ref|/s, so each epoch adds (n n^T) (x) (phi phi^T) (78 packed floats) and
+ *   |B_ref|/s (n (x) phi). It enters once an estimate predicts the field at every heading (the
+ *   switch of the calibrated gates below); before that only the vector residual is used.
+ * The information matrices are packed lower triangles (symmetric by construction in float32) with
+ * Kahan-compensated sums and optional forgetting. Each solve eigen-decomposes Lambda/N (4x4 Jacobi),
+ * freezes the poorly excited directions at the prior (below) and solves the remaining <= 12 x 12
+ * system by LDL^T. Memory is fixed (the instance struct) and the work per epoch bounded.
  *
  * Frames and attitude (the standard aerospace ZYX Euler angles of an INS, see algorithms.md 6, 7.1):
  * - body: x right, y forward, z up; the raw field m in body axes;
@@ -25,12 +36,13 @@
  * `|C_b^n G(m - V) - B_ref| > gate_vector_rel*|B_ref|`.
  *
  * Observability (algorithms.md 7.7): exactly level yaw-only motion leaves three parameters (the z
- * scale and cross terms against the z offset) unobservable. The module eigen-decomposes the
+ * scale and cross terms against the z offset) unobservable by either residual (both Jacobians lie
+ * in span{phi}, so they share the null direction of Lambda). The module eigen-decomposes the
  * per-epoch information matrix of the normalised regressor [(m - V0)/|B|; 1]; a direction whose
  * eigenvalue mu_k is below `min_eig` (sensor noise alone also excites it, so this test does not
  * improve with N) or whose predicted parameter standard deviation `sigma / sqrt(N_eff * mu_k)`
- * exceeds `max_weak_std` is frozen at the prior (cfg.prior, e.g. the factory calibration) and
- * reported (MAGCAL_ERR_UNOBSERVABLE, MAGCAL_AIDED_FLAG_PRIOR_USED).
+ * exceeds `max_weak_std` is frozen at the prior (cfg.prior, e.g. the factory calibration), for
+ * all three body axes and in both residuals, and reported (MAGCAL_ERR_UNOBSERVABLE, MAGCAL_AIDED_FLAG_PRIOR_USED).
  *
  * The result is a magcal_ellipsoid_cal_t: `h = G (m - V)` in body axes, then tilt compensation
  * (algorithms.md 6) gives the heading. G includes the magnetometer-to-INS misalignment.
@@ -69,6 +81,12 @@ typedef enum {
     MAGCAL_AIDED_GATE_COUNT = 5
 } magcal_aided_gate_t;
 
+/** Objective minimised by the estimator (algorithms.md 7.3). */
+typedef enum {
+    MAGCAL_AIDED_OBJ_COMBINED = 0, /**< vector + total-field residual (default) */
+    MAGCAL_AIDED_OBJ_VECTOR = 1    /**< vector residual only: the linear solution of algorithms.md 7.4 */
+} magcal_aided_objective_t;
+
 /** Result flags. */
 #define MAGCAL_AIDED_FLAG_ESTIMATE 0x01u   /**< an estimate exists (>= min_epochs accepted) */
 #define MAGCAL_AIDED_FLAG_CONVERGED 0x02u  /**< parameter change below thresholds over a window */
@@ -81,7 +99,11 @@ typedef struct {
     float gate_raw_rel;    /**< raw gate, fraction of |B_ref| (default 1.0: a sanity check only, V may be as large as F) */
     float gate_field_rel;  /**< calibrated magnitude gate, fraction of F (default 0.05) */
     float gate_vector_rel; /**< calibrated vector gate, fraction of F (default 0.15) */
-    float sigma_rel;       /**< assumed vector residual std / F: noise + attitude error (default 0.005) */
+    float sigma_rel;       /**< assumed vector residual std / F: noise + attitude error x F (default 0.005) */
+    float sigma_f_rel;     /**< assumed total-field residual std / F: magnetometer noise + reference-model
+                                error, no attitude error (default 0.002); only sigma_rel/sigma_f_rel
+                                matters for the estimate */
+    magcal_aided_objective_t objective; /**< MAGCAL_AIDED_OBJ_COMBINED (default) or _VECTOR */
     float max_weak_std;    /**< largest predicted std of a parameter direction (G units) (default 0.03) */
     float min_eig;         /**< smallest usable eigenvalue of the per-epoch information matrix of [m/|B|; 1]
                                 (default 2e-5: about 0.6 deg RMS tilt at 66 deg inclination, 20x the
@@ -99,7 +121,8 @@ typedef struct {
 /** Defaults that work without tuning (prior: G0 = I, V0 = 0: raw data already in the B_ref unit). */
 #define MAGCAL_AIDED_CFG_DEFAULT                                                                    \
     {                                                                                               \
-        1.0f, 3.0f, 1.0f, 0.05f, 0.15f, 0.005f, 0.03f, 2e-5f, 0.0f, 50u, 50u, 2e-3f, 2e-3f,                      \
+        1.0f, 3.0f, 1.0f, 0.05f, 0.15f, 0.005f, 0.002f, MAGCAL_AIDED_OBJ_COMBINED, 0.03f, 2e-5f, 0.0f,  \
+            50u, 50u, 2e-3f, 2e-3f,                                                                 \
         {{{1.0f, 0.0f, 0.0f}, {0.0f, 1.0f, 0.0f}, {0.0f, 0.0f, 1.0f}}, {0.0f, 0.0f, 0.0f}, 0.0f}    \
     }
 
@@ -115,6 +138,15 @@ typedef struct {
     float yy;                /**< private: sum |y|^2 */
     float yy_c;              /**< private: compensation of yy */
     float f_sum;             /**< private: sum |B_ref| / s (for F) */
+    float hf[78];            /**< private: total-field information sum (n n^T) (x) (phi phi^T), packed 12x12 */
+    float hf_c[78];          /**< private: Kahan compensation of hf */
+    float bf[12];            /**< private: sum |B_ref|/s (n (x) phi) */
+    float bf_c[12];          /**< private: Kahan compensation of bf */
+    float nn[6];             /**< private: sum n n^T, packed 3x3 (noise compensation of hf) */
+    uint32_t n_tf;           /**< private: accepted epochs that entered hf */
+    float rf_win;            /**< private: sum of squared total-field residuals in the current window */
+    uint32_t rf_win_n;       /**< private: epochs in rf_win */
+    float resid_f_rms;       /**< private: RMS total-field residual of the last complete window */
     float theta[12];         /**< private: current solution, 4x3 (normalised) */
     float snap[12];          /**< private: solution at the start of the convergence window */
     magcal_ellipsoid_cal_t cal; /**< private: current calibration */
@@ -143,6 +175,10 @@ typedef struct {
     float min_eig;               /**< smallest eigenvalue of the normalised per-epoch information matrix */
     float weak_std;              /**< predicted std of the weakest parameter direction (G units) */
     float resid_rms;             /**< RMS of the vector residual C G (m - V) - B_ref, output units */
+    float resid_f_rms;           /**< RMS of |G (m - V)| - |B_ref| over the last complete convergence window,
+                                      each epoch with the estimate in force when it arrived (a-priori,
+                                      innovation RMS), output units; 0 until a window is complete */
+    uint32_t n_total_field;      /**< accepted epochs whose total-field residual entered the objective */
 } magcal_aided_result_t;
 
 /**
@@ -177,7 +213,7 @@ magcal_status_t magcal_aided_update(magcal_aided_t *inst, const magcal_aided_epo
  *         MAGCAL_ERR_NULL, MAGCAL_ERR_NOT_INITIALISED.
  *
  * @code
- * static magcal_aided_t cal3d;                   // about 0.6 KiB, sizeof(magcal_aided_t)
+ * static magcal_aided_t cal3d;                   // about 1.3 KiB, sizeof(magcal_aided_t)
  * const magcal_aided_cfg_t cfg = MAGCAL_AIDED_CFG_DEFAULT;
  * magcal_aided_epoch_t ep;                       // filled from the INS, GNSS and WMM every epoch
  * magcal_aided_result_t res;
