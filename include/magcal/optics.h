@@ -1,6 +1,6 @@
 /**
  * @file optics.h
- * @brief OPTICS density filter for 2-D magnetometer samples (algorithms.md section 4).
+ * @brief OPTICS density filter for 2-D and 3-D magnetometer samples (algorithms.md section 4).
  *
  * OPTICS (Ankerst, Breunig, Kriegel & Sander 1999) orders the points so that density-connected
  * points are adjacent and records, per point, its core distance and its reachability distance.
@@ -274,6 +274,141 @@ magcal_status_t magcal_optics_auto_params(const magcal_vec2_t *pts, size_t n, vo
 magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magcal_vec2_t *pts,
                                      size_t n, void *work, size_t work_len, uint8_t *inlier_mask,
                                      magcal_optics_result_t *info);
+
+/* ---- 3-D samples (src/optics3.c) --------------------------------------------------------- */
+
+/*
+ * The 3-D functions below apply the same OPTICS definitions (algorithms.md 4.1-4.3) to
+ * magcal_vec3_t samples (x right, y forward, z up; any consistent unit) with the Euclidean
+ * distance sqrt(dx^2 + dy^2 + dz^2). The ordering loop, tie rule (argmin of (reach, index),
+ * first unprocessed index when no seed is left) and both ordering modes are those of the 2-D
+ * magcal_optics_run, so CLASSIC and IMPROVED give bit-identical order, reach, core and pred.
+ * ExtractDBSCAN and the largest-cluster rule are dimension-free: use
+ * magcal_optics_extract_dbscan() and magcal_optics_largest_cluster() on the 3-D run's outputs.
+ *
+ * Neighbour search: brute force only. Every eps-query tests the points not yet processed (the
+ * core-distance pass tests all n), so one run costs about 1.5 n^2 squared distances, O(n^2)
+ * time whatever eps is (measured instruction counts in docs/optics.md, section "3-D").
+ * cfg->neighbors must still be a valid enum value; GRID is accepted and runs the brute search
+ * (info->neighbors reports MAGCAL_NEIGHBORS_BRUTE).
+ *
+ * Automatic parameters (magcal_optics_auto_params3, used by magcal_optics_filter3 when
+ * cfg->eps <= 0), every quantity a multiple of distances measured on the data (scale invariant):
+ *  1. centre c = coordinate medians, R = median |p - c|; twice more over only the points within
+ *     3 R of the previous centre (a far cluster cannot drag the centre), as in 2-D.
+ *  2. the "shell band" = points with | |p - c| - R | <= 0.5 R (at least 10 points).
+ *  3. for each band point, k_i = distance to its 3rd nearest other sample (all n samples
+ *     searched): the radius that makes it a core point for MinPts = 4.
+ *  4. eps' = 3 * median(k_i), clamped to [R/256, R]; eps = eps'; MinPts = 4.
+ *  Why: on a 2-D surface the random gaps that the chain of core points must bridge grow only
+ *  slowly with n compared with the local spacing (a 1-D ring's largest gap is ~log n spacings), so
+ *  a fixed multiple of the median k-distance bridges them; the median ignores the outliers in the
+ *  band. Measured with scikit-learn (docs/optics.md "3-D"): the eps' that keeps every sample of a
+ *  uniformly covered noisy ellipsoid in one cluster is at most 2.1 x median(k_i) (n = 100..1000);
+ *  with attitudes limited to +-45 deg roll/pitch (denser bands, sparse edges) factor 2.5 loses up
+ *  to 20 of 1000 samples, factor 3 at most 3. The price: eps' is about 0.57 R at n = 300 and
+ *  0.4 R at n = 600, so only samples farther than that from the shell are rejected here;
+ *  nearer outliers are for the fit's residual gate. A sensor that only yaws (a vehicle on flat
+ *  ground) samples a ring on the ellipsoid, a 1-D set, for which this rule is not made.
+ * @code
+ * static magcal_vec3_t pts3[600];                      // filled by the caller
+ * static uint32_t work3[(MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(600) + 3u) / 4u];
+ * static uint8_t inlier3[600];
+ * magcal_optics_cfg_t cfg3 = MAGCAL_OPTICS_CFG_DEFAULT; // eps = 0: automatic parameters
+ * magcal_optics_result_t info3;
+ * magcal_status_t st3 = magcal_optics_filter3(&cfg3, pts3, 600, work3, sizeof work3, inlier3, &info3);
+ * // st3 == MAGCAL_OK: inlier3[i] == 1 for the samples of the largest cluster; copy them out and
+ * // give them to magcal_ellipsoid_fit()
+ * @endcode
+ */
+
+/** @cond INTERNAL */
+/* Offset of the MinPts insertion buffer in the 3-D run workspace (4-byte aligned): seeds, heap
+ * positions and the list of unprocessed points (uint16[n] each), then the processed bits. */
+#define MAGCAL_OPTICS3_BEST_OFFSET_(n) ((6u * (size_t)(n) + ((size_t)(n) + 7u) / 8u + 3u) & ~(size_t)3u)
+/* Bytes of the 3-D ordering loop's context (off the stack), with slack to align it for pointers;
+ * optics3.c checks the size with a static assert. */
+#define MAGCAL_OPTICS3_CTX_LEN_ (32u * sizeof(void *))
+/** @endcond */
+
+/**
+ * Workspace bytes for magcal_optics_run3() on n points: seed heap/list uint16[n], heap position
+ * map uint16[n], unprocessed list uint16[n], one "processed" bit per point, the MinPts insertion
+ * buffer (4 * MAGCAL_MAX_MIN_PTS bytes) and the loop's context (32 pointers' worth). About
+ * 6.1 bytes per sample + 256 bytes (32-bit); the outputs are separate caller arrays.
+ */
+#define MAGCAL_OPTICS3_WORKSPACE_LEN(n)                                                            \
+    (MAGCAL_OPTICS3_BEST_OFFSET_(n) + 4u * (size_t)MAGCAL_MAX_MIN_PTS + MAGCAL_OPTICS3_CTX_LEN_)
+
+/**
+ * Workspace bytes for magcal_optics_filter3() and magcal_optics_auto_params3() on n points:
+ * reach float[n] + labels int16[n] + MAGCAL_OPTICS3_WORKSPACE_LEN(n) (the automatic parameters
+ * reuse the first 8 n bytes). About 12.1 bytes per sample + 256 bytes (32-bit).
+ */
+#define MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n)                                                     \
+    (MAGCAL_OPTICS_FILTER_RUN_OFFSET_(n) + MAGCAL_OPTICS3_WORKSPACE_LEN(n))
+
+/**
+ * @brief Run the OPTICS ordering loop on 3-D points (algorithms.md 4.1-4.2, brute-force search).
+ * @param[in]  cfg       eps (> 0, may be +INF), min_pts, order, neighbors (GRID runs brute force);
+ *                       eps_prime ignored.
+ * @param[in]  pts       n points (x right, y forward, z up; any unit), finite.
+ * @param[in]  n         number of points, cfg->min_pts..MAGCAL_MAX_SAMPLES.
+ * @param[out] work      scratch, 4-byte aligned, >= MAGCAL_OPTICS3_WORKSPACE_LEN(n) bytes.
+ * @param[in]  work_len  bytes available at work.
+ * @param[out] order     n indices: the cluster ordering.
+ * @param[out] reach     n reachability distances, indexed by point (INFINITY = undefined).
+ * @param[out] core      n core distances, indexed by point (INFINITY = undefined).
+ * @param[out] pred      optional (NULL): n predecessors, MAGCAL_OPTICS_NO_PRED for starts.
+ * @param[out] info      optional (NULL): eps, min_pts and the neighbour search used (BRUTE).
+ * @return MAGCAL_OK; MAGCAL_ERR_NULL (cfg, pts, work, order, reach or core NULL);
+ *         MAGCAL_ERR_ARG (eps not > 0 or NaN, finite eps < 3.4e-21 or > 1.8e19 as in
+ *         magcal_optics_run, min_pts outside 2..MAGCAL_MAX_MIN_PTS, bad enum, work not 4-byte
+ *         aligned, n > MAGCAL_MAX_SAMPLES); MAGCAL_ERR_TOO_FEW_POINTS (n < min_pts);
+ *         MAGCAL_ERR_NONFINITE (a NaN/Inf coordinate); MAGCAL_ERR_WORKSPACE (work_len too small).
+ *         Outputs are untouched on failure.
+ */
+magcal_status_t magcal_optics_run3(const magcal_optics_cfg_t *cfg, const magcal_vec3_t *pts,
+                                   size_t n, void *work, size_t work_len, uint16_t *order,
+                                   float *reach, float *core, uint16_t *pred,
+                                   magcal_optics_result_t *info);
+
+/**
+ * @brief Automatic eps, MinPts and eps' for 3-D samples on a sphere/ellipsoid shell (rule above).
+ * @param[in]  pts        n points, finite.
+ * @param[in]  n          16..MAGCAL_MAX_SAMPLES.
+ * @param[out] work       scratch, 4-byte aligned, >= MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n) bytes.
+ * @param[in]  work_len   bytes at work.
+ * @param[out] eps        eps for the ordering (= eps').
+ * @param[out] min_pts    MinPts (4).
+ * @param[out] eps_prime  extraction radius.
+ * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_ARG (misaligned work, n > MAGCAL_MAX_SAMPLES);
+ *         MAGCAL_ERR_TOO_FEW_POINTS (n < 16); MAGCAL_ERR_NONFINITE; MAGCAL_ERR_WORKSPACE;
+ *         MAGCAL_ERR_DEGENERATE (median radius 0 or fewer than 10 points in the shell band).
+ *         Outputs untouched on failure.
+ */
+magcal_status_t magcal_optics_auto_params3(const magcal_vec3_t *pts, size_t n, void *work,
+                                           size_t work_len, float *eps, uint16_t *min_pts,
+                                           float *eps_prime);
+
+/**
+ * @brief 3-D points to inlier mask in one call: (auto params), OPTICS, ExtractDBSCAN at eps',
+ * largest cluster. The result equals magcal_optics_run3 + magcal_optics_extract_dbscan +
+ * magcal_optics_largest_cluster.
+ * @param[in]  cfg        cfg->eps <= 0: automatic parameters; otherwise eps, eps_prime, min_pts as given.
+ * @param[in]  pts        n points, finite.
+ * @param[in]  n          cfg->min_pts (16 in auto mode)..MAGCAL_MAX_SAMPLES.
+ * @param[out] work       scratch, 4-byte aligned, >= MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n) bytes.
+ * @param[in]  work_len   bytes at work.
+ * @param[out] inlier_mask n bytes: 1 = kept (largest cluster), 0 = rejected.
+ * @param[out] info       optional (NULL): parameters used and cluster statistics.
+ * @return MAGCAL_OK; every status of magcal_optics_run3 / magcal_optics_auto_params3;
+ *         MAGCAL_ERR_ARG (eps NaN, eps' > eps, eps' < 0 or not finite); MAGCAL_ERR_ALL_NOISE
+ *         (no cluster). inlier_mask untouched on failure.
+ */
+magcal_status_t magcal_optics_filter3(const magcal_optics_cfg_t *cfg, const magcal_vec3_t *pts,
+                                      size_t n, void *work, size_t work_len, uint8_t *inlier_mask,
+                                      magcal_optics_result_t *info);
 
 #ifdef __cplusplus
 }

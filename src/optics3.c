@@ -1,0 +1,672 @@
+/*
+ * OPTICS on 3-D samples: ordering loop (brute-force eps-queries), automatic parameters and the
+ * one-call filter (algorithms.md 4; rule and measurements in optics.h and docs/optics.md "3-D").
+ * Kept apart from optics.c so the tuned 2-D code and its bit-identical cross-checks stay as they
+ * are; ExtractDBSCAN and the largest-cluster rule are shared (they never look at coordinates).
+ */
+#include <math.h>
+#include <string.h>
+
+#include "magcal/optics.h"
+#include "magcal_internal.h"
+#include "neighbors.h"
+
+#define POS_NONE 0xFFFFu
+
+/* Everything the ordering loop needs; optional outputs are NULL when not wanted. */
+typedef struct {
+    const magcal_vec3_t *pts;
+    size_t n;
+    float eps2;
+    uint16_t min_pts;
+    magcal_optics_order_t mode;
+    float *reach;    /* n, working reach (final when a point is processed) */
+    uint16_t *seeds; /* heap (CLASSIC) or unordered list (IMPROVED) */
+    uint16_t *pos;   /* CLASSIC: heap position of each point or POS_NONE */
+    uint16_t *live;  /* unprocessed points, compacted as they are processed */
+    uint8_t *done;   /* processed bits */
+    float *best;     /* MinPts insertion buffer (workspace, keeps process3() frame small) */
+    size_t n_seeds;
+    size_t n_done;
+    size_t n_live;
+    uint16_t *order; /* optional outputs */
+    float *core;
+    uint16_t *pred;
+    /* on-the-fly ExtractDBSCAN (filter) */
+    int16_t *labels;
+    float eps_prime;
+    int32_t id;
+    size_t cur_count;
+    int32_t best_id;
+    size_t best_count;
+    size_t n_noise;
+} optics3_ctx_t;
+
+/* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
+MAGCAL_STATIC_ASSERT(sizeof(optics3_ctx_t) + sizeof(void *) - 4u <= MAGCAL_OPTICS3_CTX_LEN_,
+                     optics3_ctx_fits_workspace);
+
+static float dist2(const magcal_vec3_t *a, const magcal_vec3_t *b)
+{
+    float dx = a->x - b->x;
+    float dy = a->y - b->y;
+    float dz = a->z - b->z;
+    return dx * dx + dy * dy + dz * dz;
+}
+
+/* (reach, index) lexicographic order: the tie rule that makes both ordering modes identical. */
+static int key_less(const float *reach, uint16_t a, uint16_t b)
+{
+    const float ra = reach[a];
+    const float rb = reach[b];
+    return ra < rb || (ra == rb && a < b);
+}
+
+static void heap_sift_up(optics3_ctx_t *c, size_t k0)
+{
+    size_t k = k0;
+    uint16_t v = c->seeds[k];
+    while (k > 0u) {
+        size_t parent = (k - 1u) >> 1;
+        uint16_t pv = c->seeds[parent];
+        if (!key_less(c->reach, v, pv)) {
+            break;
+        }
+        c->seeds[k] = pv;
+        c->pos[pv] = (uint16_t)k;
+        k = parent;
+    }
+    c->seeds[k] = v;
+    c->pos[v] = (uint16_t)k;
+}
+
+static void heap_sift_down(optics3_ctx_t *c, size_t k0)
+{
+    size_t k = k0;
+    uint16_t v = c->seeds[k];
+    size_t m = c->n_seeds;
+    while (2u * k + 1u < m) { /* k at least doubles: <= log2(m) rounds */
+        size_t child = 2u * k + 1u;
+        uint16_t cv = c->seeds[child];
+        if (child + 1u < m && key_less(c->reach, c->seeds[child + 1u], cv)) {
+            ++child;
+            cv = c->seeds[child];
+        }
+        if (!key_less(c->reach, cv, v)) {
+            break;
+        }
+        c->seeds[k] = cv;
+        c->pos[cv] = (uint16_t)k;
+        k = child;
+    }
+    c->seeds[k] = v;
+    c->pos[v] = (uint16_t)k;
+}
+
+static uint16_t seeds_pop_min(optics3_ctx_t *c)
+{
+    uint16_t q;
+    if (c->mode == MAGCAL_OPTICS_CLASSIC) {
+        q = c->seeds[0];
+        c->n_seeds--;
+        c->pos[q] = POS_NONE;
+        if (c->n_seeds > 0u) {
+            c->seeds[0] = c->seeds[c->n_seeds];
+            heap_sift_down(c, 0u);
+        }
+    } else {
+        size_t k;
+        size_t best = 0u;
+        const float *reach = c->reach;
+        uint16_t bq = c->seeds[0];
+        float br = reach[bq];
+        for (k = 1u; k < c->n_seeds; ++k) {
+            uint16_t s = c->seeds[k];
+            float r = reach[s];
+            if (r < br || (r == br && s < bq)) {
+                br = r;
+                bq = s;
+                best = k;
+            }
+        }
+        q = bq;
+        c->n_seeds--;
+        c->seeds[best] = c->seeds[c->n_seeds];
+    }
+    return q;
+}
+
+/* ExtractDBSCAN step for the point just processed (same rule as magcal_optics_extract_dbscan). */
+static void extract_step(optics3_ctx_t *c, size_t p, float core_p)
+{
+    int16_t lab;
+    if (c->reach[p] > c->eps_prime) {
+        if (core_p <= c->eps_prime) {
+            if (c->id >= 0 && c->cur_count > c->best_count) {
+                c->best_count = c->cur_count;
+                c->best_id = c->id;
+            }
+            c->id++;
+            c->cur_count = 1u;
+            lab = (int16_t)c->id;
+        } else {
+            lab = MAGCAL_OPTICS_NOISE;
+            c->n_noise++;
+        }
+    } else {
+        lab = (int16_t)c->id;
+        if (c->id >= 0) {
+            c->cur_count++;
+        } else {
+            c->n_noise++; /* unreachable in practice: the first point has reach = inf */
+        }
+    }
+    c->labels[p] = lab;
+}
+
+/* Reach decrease of unprocessed neighbour j of core point p to r (< reach[j], checked by the
+ * caller; strict, so the first value set keeps ties). */
+static void update_one(optics3_ctx_t *c, size_t p, size_t j, float r)
+{
+    float old = c->reach[j];
+    c->reach[j] = r;
+    if (c->pred != NULL) {
+        c->pred[j] = (uint16_t)p;
+    }
+    if (c->mode == MAGCAL_OPTICS_CLASSIC) {
+        if (c->pos[j] == POS_NONE) {
+            c->seeds[c->n_seeds] = (uint16_t)j;
+            c->n_seeds++;
+            heap_sift_up(c, c->n_seeds - 1u);
+        } else {
+            heap_sift_up(c, c->pos[j]);
+        }
+    } else if (old == INFINITY) {
+        c->seeds[c->n_seeds] = (uint16_t)j;
+        c->n_seeds++;
+    } else {
+        /* already a seed: its key decreased in place (the list is scanned, not a heap) */
+    }
+}
+
+/* Insert d2 into the ascending buffer best[0..cnt) of capacity m (when full, the largest value
+ * drops out); returns the new count. */
+static size_t best_insert(float *best, size_t cnt, size_t m, float d2)
+{
+    size_t t = m - 1u;
+    size_t count = cnt;
+    if (count < m) {
+        t = count;
+        ++count;
+    }
+    while (t > 0u && best[t - 1u] > d2) {
+        best[t] = best[t - 1u];
+        --t;
+    }
+    best[t] = d2;
+    return count;
+}
+
+/*
+ * PROCESS(p) of algorithms.md 4.2. Pass 1 sweeps all n points for the core distance (MinPts-th
+ * smallest d^2, p itself included); pass 2 sweeps the compact list of unprocessed points for the
+ * reachability updates (dropping p, the only point processed since the previous pass), so the
+ * k-th call costs n + (n - k) squared distances: about 1.5 n^2 per run.
+ * r = max(core, d) is taken as core without a square root when d^2 <= core^2 (sqrtf is monotone
+ * and core = sqrtf(core^2), so no bit changes).
+ */
+static void process3(optics3_ctx_t *c, size_t p)
+{
+    float *best = c->best;
+    size_t cnt = 0u;
+    const size_t m = c->min_pts;
+    const size_t n = c->n;
+    const magcal_vec3_t *pts = c->pts;
+    const magcal_vec3_t *pp = &pts[p];
+    const float eps2 = c->eps2;
+    float lim = eps2;
+    float core_p = INFINITY;
+    float core2 = INFINITY;
+    uint16_t *live = c->live;
+    size_t nl = c->n_live;
+    size_t w = 0u;
+    size_t k;
+
+    c->done[p >> 3] = (uint8_t)(c->done[p >> 3] | (1u << (p & 7u)));
+    if (c->order != NULL) {
+        c->order[c->n_done] = (uint16_t)p;
+    }
+    c->n_done++;
+
+    for (k = 0; k < n; ++k) {
+        float d2 = dist2(&pts[k], pp);
+        if (d2 <= lim && (cnt < m || d2 < lim)) {
+            cnt = best_insert(best, cnt, m, d2);
+            if (cnt == m) {
+                lim = best[m - 1u];
+            }
+        }
+    }
+    if (cnt >= m) {
+        core2 = best[m - 1u];
+        core_p = sqrtf(core2);
+    }
+    if (c->core != NULL) {
+        c->core[p] = core_p;
+    }
+    if (c->labels != NULL) {
+        extract_step(c, p, core_p);
+    }
+    for (k = 0; k < nl; ++k) {
+        size_t j = live[k];
+        if (j == p) {
+            continue;
+        }
+        live[w] = (uint16_t)j;
+        ++w;
+        if (core_p < INFINITY) {
+            float d2 = dist2(&pts[j], pp);
+            if (d2 <= eps2) {
+                float r = d2 <= core2 ? core_p : sqrtf(d2);
+                if (r < c->reach[j]) {
+                    update_one(c, p, j, r);
+                }
+            }
+        }
+    }
+    c->n_live = w;
+}
+
+static void optics3_loop(optics3_ctx_t *c)
+{
+    size_t s;
+    size_t i;
+    for (i = 0; i < c->n; ++i) {
+        c->reach[i] = INFINITY;
+        c->live[i] = (uint16_t)i;
+        if (c->pred != NULL) {
+            c->pred[i] = MAGCAL_OPTICS_NO_PRED;
+        }
+        if (c->mode == MAGCAL_OPTICS_CLASSIC) {
+            c->pos[i] = POS_NONE;
+        }
+    }
+    (void)memset(c->done, 0, (c->n + 7u) / 8u);
+    c->n_live = c->n;
+    c->n_seeds = 0u;
+    c->n_done = 0u;
+    for (s = 0; s < c->n; ++s) {
+        if ((((unsigned)c->done[s >> 3] >> (unsigned)(s & 7u)) & 1u) != 0u) {
+            continue;
+        }
+        process3(c, s);
+        while (c->n_seeds > 0u) { /* each pop processes one new point: <= n rounds in total */
+            process3(c, seeds_pop_min(c));
+        }
+    }
+    if (c->labels != NULL && c->id >= 0 && c->cur_count > c->best_count) {
+        c->best_count = c->cur_count;
+        c->best_id = c->id;
+    }
+}
+
+static magcal_status_t check_points3(const magcal_vec3_t *pts, size_t n, size_t min_n)
+{
+    size_t i;
+    if (n > MAGCAL_MAX_SAMPLES) {
+        return MAGCAL_ERR_ARG;
+    }
+    if (n < min_n) {
+        return MAGCAL_ERR_TOO_FEW_POINTS;
+    }
+    for (i = 0; i < n; ++i) {
+        if (!magcal_isfinite_f(pts[i].x) || !magcal_isfinite_f(pts[i].y) ||
+            !magcal_isfinite_f(pts[i].z)) {
+            return MAGCAL_ERR_NONFINITE;
+        }
+    }
+    return MAGCAL_OK;
+}
+
+static magcal_status_t check_cfg3(const magcal_optics_cfg_t *cfg)
+{
+    /* eps^2 is the neighbour threshold: the same accepted range as in 2-D (neighbors.h) */
+    if (magcal_nbr_eps_ok(cfg->eps) == 0) {
+        return MAGCAL_ERR_ARG;
+    }
+    if (cfg->min_pts < 2u || cfg->min_pts > MAGCAL_MAX_MIN_PTS) {
+        return MAGCAL_ERR_ARG;
+    }
+    if (cfg->order != MAGCAL_OPTICS_CLASSIC && cfg->order != MAGCAL_OPTICS_IMPROVED) {
+        return MAGCAL_ERR_ARG;
+    }
+    if (cfg->neighbors != MAGCAL_NEIGHBORS_BRUTE && cfg->neighbors != MAGCAL_NEIGHBORS_GRID) {
+        return MAGCAL_ERR_ARG;
+    }
+    return MAGCAL_OK;
+}
+
+/* Carve the run workspace (layout of MAGCAL_OPTICS3_WORKSPACE_LEN); the context sits after the
+ * MinPts buffer, aligned for pointers. */
+static optics3_ctx_t *ctx3_setup(const magcal_optics_cfg_t *cfg, const magcal_vec3_t *pts,
+                                 size_t n, uint8_t *w)
+{
+    uint8_t *cw = w + MAGCAL_OPTICS3_BEST_OFFSET_(n) + 4u * (size_t)MAGCAL_MAX_MIN_PTS;
+    optics3_ctx_t *c;
+    cw += (sizeof(void *) - magcal_misalign(cw, sizeof(void *))) % sizeof(void *);
+    c = (optics3_ctx_t *)(void *)cw;
+    (void)memset(c, 0, sizeof *c);
+    c->pts = pts;
+    c->n = n;
+    c->eps2 = cfg->eps * cfg->eps;
+    c->min_pts = cfg->min_pts;
+    c->mode = cfg->order;
+    c->seeds = (uint16_t *)(void *)w;
+    c->pos = c->seeds + n;
+    c->live = c->pos + n;
+    c->done = w + 6u * n;
+    c->best = (float *)(void *)(w + MAGCAL_OPTICS3_BEST_OFFSET_(n));
+    c->id = -1;
+    c->best_id = -1;
+    return c;
+}
+
+static void fill_info3(magcal_optics_result_t *info, const optics3_ctx_t *c, float eps,
+                       float eps_prime)
+{
+    if (info == NULL) {
+        return;
+    }
+    (void)memset(info, 0, sizeof *info);
+    info->eps = eps;
+    info->eps_prime = eps_prime;
+    info->min_pts = c->min_pts;
+    info->neighbors = MAGCAL_NEIGHBORS_BRUTE;
+    info->largest_id = MAGCAL_OPTICS_NOISE;
+}
+
+magcal_status_t magcal_optics_run3(const magcal_optics_cfg_t *cfg, const magcal_vec3_t *pts,
+                                   size_t n, void *work, size_t work_len, uint16_t *order,
+                                   float *reach, float *core, uint16_t *pred,
+                                   magcal_optics_result_t *info)
+{
+    optics3_ctx_t *c;
+    magcal_status_t st;
+    if (cfg == NULL || pts == NULL || work == NULL || order == NULL || reach == NULL ||
+        core == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    st = check_cfg3(cfg);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    if (magcal_misalign(work, 4u) != 0u) {
+        return MAGCAL_ERR_ARG;
+    }
+    st = check_points3(pts, n, cfg->min_pts);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    if (work_len < MAGCAL_OPTICS3_WORKSPACE_LEN(n)) {
+        return MAGCAL_ERR_WORKSPACE;
+    }
+    c = ctx3_setup(cfg, pts, n, (uint8_t *)work);
+    c->reach = reach;
+    c->order = order;
+    c->core = core;
+    c->pred = pred;
+    optics3_loop(c);
+    fill_info3(info, c, cfg->eps, cfg->eps);
+    return MAGCAL_OK;
+}
+
+/* ---- automatic parameters ---------------------------------------------------------------- */
+
+#define AUTO3_MIN_N 16u
+#define AUTO3_MIN_PTS 4u
+#define AUTO3_MIN_BAND 10u
+#define AUTO3_BAND 0.5f   /* shell band: | |p-c| - R | <= 0.5 R */
+#define AUTO3_FACTOR 3.0f /* eps' = 3 * median k-distance (measured: docs/optics.md "3-D") */
+#define AUTO3_TRIM 3.0f   /* centre passes after the first use points within 3 R */
+#define AUTO3_TRIM_PASSES 2u
+#define AUTO3_MIN_REL (1.0f / 256.0f)
+#define AUTO3_MAX_REL 1.0f
+
+/* k-th smallest of a[0..n-1] (a is permuted). Iterative Hoare selection, no recursion. */
+static float select_kth3(float *a, size_t n, size_t k)
+{
+    size_t lo = 0u;
+    size_t hi = n - 1u;
+    while (lo < hi) {
+        float pivot = a[lo + (hi - lo) / 2u];
+        size_t i = lo;
+        size_t j = hi;
+        size_t guard;
+        for (guard = lo; guard <= hi; ++guard) { /* i grows by >= 1 per round: <= hi-lo+1 rounds */
+            float t;
+            while (a[i] < pivot) {
+                ++i;
+            }
+            while (a[j] > pivot) {
+                --j;
+            }
+            if (i >= j) {
+                break;
+            }
+            t = a[i];
+            a[i] = a[j];
+            a[j] = t;
+            ++i;
+            --j;
+        }
+        /* now a[lo..j] <= pivot <= a[j+1..hi] (Hoare partition, j in [lo, hi-1]) */
+        if (k <= j) {
+            hi = j;
+        } else {
+            lo = j + 1u;
+        }
+    }
+    return a[k];
+}
+
+/* Copy coordinate `axis` (0 x, 1 y, 2 z) of the points within sqrt(lim2) of c (all when lim2 is
+ * infinite) into a; returns how many. */
+static size_t gather3(const magcal_vec3_t *pts, size_t n, const magcal_vec3_t *c, float lim2,
+                      unsigned axis, float *a)
+{
+    size_t i;
+    size_t k = 0u;
+    for (i = 0; i < n; ++i) {
+        if (lim2 == INFINITY || dist2(&pts[i], c) <= lim2) {
+            a[k] = axis == 0u ? pts[i].x : (axis == 1u ? pts[i].y : pts[i].z);
+            ++k;
+        }
+    }
+    return k;
+}
+
+/* The rule of optics.h. w holds a float[n] and b float[n] (8 n bytes). */
+static magcal_status_t auto_params3(const magcal_vec3_t *pts, size_t n, uint8_t *w,
+                                    float *eps_prime)
+{
+    float *a = (float *)(void *)w;
+    float *b = (float *)(void *)(w + 4u * n);
+    magcal_vec3_t cen = {0.0f, 0.0f, 0.0f};
+    float rad = INFINITY;
+    float lo;
+    float hi;
+    float e;
+    size_t i;
+    size_t m = 0u;
+    unsigned pass;
+
+    for (pass = 0; pass <= AUTO3_TRIM_PASSES; ++pass) {
+        const float lim2 =
+            pass == 0u ? INFINITY : (AUTO3_TRIM * rad) * (AUTO3_TRIM * rad);
+        magcal_vec3_t nc;
+        size_t k = gather3(pts, n, &cen, lim2, 0u, a);
+        if (k < AUTO3_MIN_N) {
+            break; /* keep the previous estimate */
+        }
+        nc.x = select_kth3(a, k, k / 2u);
+        (void)gather3(pts, n, &cen, lim2, 1u, a);
+        nc.y = select_kth3(a, k, k / 2u);
+        (void)gather3(pts, n, &cen, lim2, 2u, a);
+        nc.z = select_kth3(a, k, k / 2u);
+        k = 0u;
+        for (i = 0; i < n; ++i) {
+            if (lim2 == INFINITY || dist2(&pts[i], &cen) <= lim2) {
+                a[k] = sqrtf(dist2(&pts[i], &nc));
+                ++k;
+            }
+        }
+        cen = nc;
+        rad = select_kth3(a, k, k / 2u);
+        if (!(rad > 0.0f) || !magcal_isfinite_f(rad)) {
+            return MAGCAL_ERR_DEGENERATE;
+        }
+    }
+    lo = rad - AUTO3_BAND * rad;
+    hi = rad + AUTO3_BAND * rad;
+    for (i = 0; i < n; ++i) {
+        const float r = sqrtf(dist2(&pts[i], &cen));
+        if (r >= lo && r <= hi) {
+            /* 3rd nearest other sample (MinPts = 4 counts the point itself) */
+            float k3[AUTO3_MIN_PTS - 1u];
+            size_t cnt = 0u;
+            size_t j;
+            for (j = 0; j < n; ++j) {
+                float d2;
+                if (j == i) {
+                    continue;
+                }
+                d2 = dist2(&pts[j], &pts[i]);
+                if (cnt < AUTO3_MIN_PTS - 1u || d2 < k3[AUTO3_MIN_PTS - 2u]) {
+                    cnt = best_insert(k3, cnt, AUTO3_MIN_PTS - 1u, d2);
+                }
+            }
+            b[m] = sqrtf(k3[AUTO3_MIN_PTS - 2u]); /* n >= 16: the buffer is full */
+            ++m;
+        }
+    }
+    if (m < AUTO3_MIN_BAND) {
+        return MAGCAL_ERR_DEGENERATE;
+    }
+    e = AUTO3_FACTOR * select_kth3(b, m, m / 2u);
+    if (!(e >= AUTO3_MIN_REL * rad)) {
+        e = AUTO3_MIN_REL * rad;
+    }
+    if (e > AUTO3_MAX_REL * rad) {
+        e = AUTO3_MAX_REL * rad;
+    }
+    *eps_prime = e;
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_optics_auto_params3(const magcal_vec3_t *pts, size_t n, void *work,
+                                           size_t work_len, float *eps, uint16_t *min_pts,
+                                           float *eps_prime)
+{
+    magcal_status_t st;
+    float e;
+    if (pts == NULL || work == NULL || eps == NULL || min_pts == NULL || eps_prime == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (magcal_misalign(work, 4u) != 0u) {
+        return MAGCAL_ERR_ARG;
+    }
+    st = check_points3(pts, n, AUTO3_MIN_N);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    if (work_len < MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n)) {
+        return MAGCAL_ERR_WORKSPACE;
+    }
+    st = auto_params3(pts, n, (uint8_t *)work, &e);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    *eps = e;
+    *eps_prime = e;
+    *min_pts = (uint16_t)AUTO3_MIN_PTS;
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_optics_filter3(const magcal_optics_cfg_t *cfg, const magcal_vec3_t *pts,
+                                      size_t n, void *work, size_t work_len, uint8_t *inlier_mask,
+                                      magcal_optics_result_t *info)
+{
+    magcal_optics_cfg_t use;
+    optics3_ctx_t *c;
+    magcal_status_t st;
+    float eps_prime;
+    uint8_t *w = (uint8_t *)work;
+    size_t i;
+    if (cfg == NULL || pts == NULL || work == NULL || inlier_mask == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (magcal_misalign(work, 4u) != 0u) {
+        return MAGCAL_ERR_ARG;
+    }
+    use = *cfg;
+    if (!(cfg->eps > 0.0f)) {
+        if (cfg->eps != cfg->eps) {
+            return MAGCAL_ERR_ARG; /* NaN is not "auto" */
+        }
+        use.eps = 1.0f;
+        use.min_pts = (uint16_t)AUTO3_MIN_PTS;
+        st = check_cfg3(&use);
+        if (st == MAGCAL_OK) {
+            st = check_points3(pts, n, AUTO3_MIN_N);
+        }
+        if (st == MAGCAL_OK && work_len < MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n)) {
+            st = MAGCAL_ERR_WORKSPACE;
+        }
+        if (st == MAGCAL_OK) {
+            st = auto_params3(pts, n, w, &eps_prime);
+        }
+        if (st != MAGCAL_OK) {
+            return st;
+        }
+        use.eps = eps_prime;
+    } else {
+        st = check_cfg3(&use);
+        if (st != MAGCAL_OK) {
+            return st;
+        }
+        eps_prime = cfg->eps_prime == 0.0f ? cfg->eps : cfg->eps_prime;
+        if (!(eps_prime > 0.0f) || !magcal_isfinite_f(eps_prime) || eps_prime > cfg->eps) {
+            return MAGCAL_ERR_ARG;
+        }
+        st = check_points3(pts, n, use.min_pts);
+        if (st != MAGCAL_OK) {
+            return st;
+        }
+        if (work_len < MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n)) {
+            return MAGCAL_ERR_WORKSPACE;
+        }
+    }
+    c = ctx3_setup(&use, pts, n, w + MAGCAL_OPTICS_FILTER_RUN_OFFSET_(n));
+    c->reach = (float *)work;
+    c->labels = (int16_t *)(void *)(w + 4u * n);
+    c->eps_prime = eps_prime;
+    optics3_loop(c);
+    fill_info3(info, c, use.eps, eps_prime);
+    if (c->best_id < 0) {
+        if (info != NULL) {
+            info->n_noise = (uint16_t)c->n_noise;
+        }
+        return MAGCAL_ERR_ALL_NOISE;
+    }
+    for (i = 0; i < n; ++i) {
+        inlier_mask[i] = (c->labels[i] == c->best_id) ? 1u : 0u;
+    }
+    if (info != NULL) {
+        const int32_t count = c->id + 1;
+        info->n_clusters = (uint16_t)count;
+        info->largest_id = (int16_t)c->best_id;
+        info->n_inliers = (uint16_t)c->best_count;
+        info->n_noise = (uint16_t)c->n_noise;
+    }
+    return MAGCAL_OK;
+}
