@@ -1,0 +1,543 @@
+/* Tests of the 3-D OPTICS filter (magcal_optics_run3 / auto_params3 / filter3, optics.h). */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "golden_optics3.h"
+#include "magcal/ellipsoid.h"
+#include "magcal/optics.h"
+#include "test_util.h"
+#include "test_util3d.h"
+#include "unity.h"
+
+void setUp(void) {}
+void tearDown(void) {}
+
+#define NMAX 1024u
+
+static magcal_vec3_t g_pts[NMAX + 1u];
+static magcal_vec3_t g_in[NMAX];
+static uint32_t g_work[(MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(NMAX + 1u) + 3u) / 4u];
+static uint16_t g_order[3][NMAX];
+static float g_reach[3][NMAX];
+static float g_core[3][NMAX];
+static uint16_t g_pred[3][NMAX];
+static int16_t g_labels[NMAX];
+static uint8_t g_mask[NMAX];
+static uint8_t g_mask2[NMAX];
+static uint8_t g_is_out[NMAX];
+
+/*
+ * Reference ordering written straight from algorithms.md 4.1/4.2: O(n^2) per step, next point =
+ * argmin over ALL unprocessed points of (reach, index) (the lowest unprocessed index when every
+ * reach is infinite), core by sorting all neighbour distances. Same float32 distance formula as
+ * the library, so the outputs must be bit-identical.
+ */
+static uint16_t r_order[NMAX];
+static float r_reach[NMAX];
+static float r_core[NMAX];
+static uint16_t r_pred[NMAX];
+static uint8_t r_done[NMAX];
+static float r_d2[NMAX];
+
+static float d2_of(const magcal_vec3_t *a, const magcal_vec3_t *b)
+{
+    float dx = a->x - b->x, dy = a->y - b->y, dz = a->z - b->z;
+    return dx * dx + dy * dy + dz * dz;
+}
+
+static void reference_optics3(const magcal_vec3_t *p, size_t n, float eps, size_t min_pts)
+{
+    const float eps2 = eps * eps;
+    size_t i, j, step;
+    for (i = 0; i < n; ++i) {
+        r_reach[i] = INFINITY;
+        r_pred[i] = MAGCAL_OPTICS_NO_PRED;
+        r_done[i] = 0u;
+    }
+    for (step = 0; step < n; ++step) {
+        size_t q = n, cnt = 0u;
+        float core2 = INFINITY;
+        for (i = 0; i < n; ++i) {
+            if (!r_done[i] && (q == n || r_reach[i] < r_reach[q])) {
+                q = i; /* strict '<' keeps the lowest index among ties */
+            }
+        }
+        r_done[q] = 1u;
+        r_order[step] = (uint16_t)q;
+        for (j = 0; j < n; ++j) { /* insertion sort of every d^2 <= eps^2 */
+            float d2 = d2_of(&p[j], &p[q]);
+            if (d2 <= eps2) {
+                size_t t = cnt++;
+                while (t > 0u && r_d2[t - 1u] > d2) {
+                    r_d2[t] = r_d2[t - 1u];
+                    --t;
+                }
+                r_d2[t] = d2;
+            }
+        }
+        if (cnt >= min_pts) {
+            core2 = r_d2[min_pts - 1u];
+        }
+        r_core[q] = sqrtf(core2);
+        if (cnt < min_pts) {
+            continue;
+        }
+        for (j = 0; j < n; ++j) {
+            float d2 = d2_of(&p[j], &p[q]);
+            if (!r_done[j] && d2 <= eps2) {
+                float r = d2 > core2 ? sqrtf(d2) : r_core[q];
+                if (r < r_reach[j]) {
+                    r_reach[j] = r;
+                    r_pred[j] = (uint16_t)q;
+                }
+            }
+        }
+    }
+}
+
+/* variant 0: CLASSIC + BRUTE, 1: IMPROVED + BRUTE, 2: IMPROVED + GRID (runs brute force in 3-D) */
+static void run_variant(size_t v, const magcal_vec3_t *p, size_t n, float eps, uint16_t min_pts)
+{
+    magcal_optics_cfg_t cfg = MAGCAL_OPTICS_CFG_DEFAULT;
+    magcal_optics_result_t info;
+    cfg.eps = eps;
+    cfg.min_pts = min_pts;
+    cfg.order = v == 0u ? MAGCAL_OPTICS_CLASSIC : MAGCAL_OPTICS_IMPROVED;
+    cfg.neighbors = v == 2u ? MAGCAL_NEIGHBORS_GRID : MAGCAL_NEIGHBORS_BRUTE;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                          magcal_optics_run3(&cfg, p, n, g_work, sizeof g_work, g_order[v],
+                                             g_reach[v], g_core[v], g_pred[v], &info));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_NEIGHBORS_BRUTE, info.neighbors);
+    TEST_ASSERT_EQUAL_UINT16(min_pts, info.min_pts);
+}
+
+/* ---- synthetic truth: m = W h + V + noise, |h| = F, h uniform on the sphere --------------- */
+
+#define F_TRUE 50.0
+static const double V_TRUE[3] = {12.0, -25.0, 8.0};
+
+static void unit_dir(uint32_t *rng, double u[3])
+{
+    double s;
+    do {
+        u[0] = test_rand_normal(rng);
+        u[1] = test_rand_normal(rng);
+        u[2] = test_rand_normal(rng);
+        s = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+    } while (s < 1e-9);
+    u[0] /= s;
+    u[1] /= s;
+    u[2] /= s;
+}
+
+/* V + scale * W (F u) + N(0, sigma^2) per axis */
+static magcal_vec3_t shell_point(double w[3][3], const double u[3], double scale, double sigma,
+                                 uint32_t *rng)
+{
+    double m[3];
+    int i;
+    magcal_vec3_t r;
+    for (i = 0; i < 3; ++i) {
+        m[i] = V_TRUE[i] +
+               scale * F_TRUE * (w[i][0] * u[0] + w[i][1] * u[1] + w[i][2] * u[2]) +
+               sigma * test_rand_normal(rng);
+    }
+    r.x = (float)m[0];
+    r.y = (float)m[1];
+    r.z = (float)m[2];
+    return r;
+}
+
+/* n clean shell samples into g_pts[0..n) (g_is_out cleared) */
+static void make_shell(size_t n, double sigma, uint32_t seed)
+{
+    double w[3][3], u[3];
+    uint32_t rng = seed;
+    size_t k;
+    test_make_w_full(w);
+    for (k = 0; k < n; ++k) {
+        unit_dir(&rng, u);
+        g_pts[k] = shell_point(w, u, 1.0, sigma, &rng);
+        g_is_out[k] = 0u;
+    }
+}
+
+/* ---- tests ---------------------------------------------------------------------------------- */
+
+/* Golden vectors from scikit-learn 1.2.1 (tools/golden/make_optics3_golden.py). Tolerance 1e-4
+ * relative on core and on the reachability plot (float32 distances against float64,
+ * algorithms.md 4.5); labels at eps' exact. */
+static void test_optics_run3_matches_sklearn_golden_vectors(void)
+{
+    size_t s, i, v;
+    for (s = 0; s < GOLDEN_OPTICS3_N_SETS; ++s) {
+        const golden_optics3_set_t *g = &golden_optics3_sets[s];
+        uint16_t n_clusters = 0u;
+        size_t order_same = 0u;
+        for (v = 0; v < 3u; ++v) {
+            run_variant(v, g->pts, g->n, g->eps, g->min_pts);
+            for (i = 0; i < g->n; ++i) {
+                float e = g->core[i];
+                if (isinf(e)) {
+                    TEST_ASSERT_TRUE(isinf(g_core[v][i]));
+                } else {
+                    TEST_ASSERT_FLOAT_WITHIN(1e-4f * e + 1e-30f, e, g_core[v][i]);
+                }
+            }
+            for (i = 0; i < g->n; ++i) { /* reachability plot, position by position */
+                float e = g->reach[g->order[i]];
+                float a = g_reach[v][g_order[v][i]];
+                order_same += g->order[i] == g_order[v][i];
+                if (isinf(e)) {
+                    TEST_ASSERT_TRUE(isinf(a));
+                } else {
+                    TEST_ASSERT_FLOAT_WITHIN(1e-4f * e, e, a);
+                }
+            }
+            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_extract_dbscan(
+                                                 g_order[v], g_reach[v], g_core[v], g->n, g->eps,
+                                                 g->eps_prime, g_labels, &n_clusters));
+            TEST_ASSERT_EQUAL_INT(g->n_clusters, n_clusters);
+            TEST_ASSERT_EQUAL_INT16_ARRAY(g->labels, g_labels, g->n);
+        }
+        printf("golden3 %s: %u/%u ordering positions equal to sklearn's over 3 variants\n",
+               g->name, (unsigned)order_same, (unsigned)(3u * g->n));
+    }
+}
+
+/* Random sets (uniform cube, clumps with exact duplicates, shells), finite and infinite eps,
+ * MinPts 2..8: CLASSIC, IMPROVED and the GRID flag are bit-identical to the reference. */
+static void test_optics_run3_variants_bit_identical_to_reference(void)
+{
+    static const float eps_list[4] = {0.15f, 0.3f, 0.7f, INFINITY};
+    uint32_t rng = 12345u;
+    size_t trial;
+    for (trial = 0; trial < 24u; ++trial) {
+        const size_t n = 20u + (size_t)(test_rand_uniform(&rng) * 280.0);
+        const float eps = eps_list[trial % 4u];
+        const uint16_t min_pts = (uint16_t)(2u + trial % 7u);
+        size_t i, v;
+        for (i = 0; i < n; ++i) {
+            if (trial % 3u == 1u && i % 5u == 4u) {
+                g_pts[i] = g_pts[i - 1u]; /* exact duplicates: ties everywhere */
+            } else {
+                g_pts[i].x = (float)test_rand_uniform(&rng);
+                g_pts[i].y = (float)test_rand_uniform(&rng);
+                g_pts[i].z = (float)(trial % 3u == 2u ? 0.25 * test_rand_uniform(&rng)
+                                                      : test_rand_uniform(&rng));
+            }
+        }
+        reference_optics3(g_pts, n, eps, min_pts);
+        for (v = 0; v < 3u; ++v) {
+            run_variant(v, g_pts, n, eps, min_pts);
+            TEST_ASSERT_EQUAL_MEMORY(r_order, g_order[v], n * sizeof r_order[0]);
+            TEST_ASSERT_EQUAL_MEMORY(r_reach, g_reach[v], n * sizeof r_reach[0]);
+            TEST_ASSERT_EQUAL_MEMORY(r_core, g_core[v], n * sizeof r_core[0]);
+            TEST_ASSERT_EQUAL_MEMORY(r_pred, g_pred[v], n * sizeof r_pred[0]);
+        }
+    }
+}
+
+static void test_optics_run3_all_duplicates_gives_zero_core_and_reach(void)
+{
+    size_t i, v;
+    for (i = 0; i < 20u; ++i) {
+        g_pts[i].x = 3.0f;
+        g_pts[i].y = -1.0f;
+        g_pts[i].z = 7.0f;
+    }
+    for (v = 0; v < 3u; ++v) {
+        run_variant(v, g_pts, 20u, 0.5f, 4u);
+        TEST_ASSERT_TRUE(isinf(g_reach[v][0]));
+        for (i = 0; i < 20u; ++i) {
+            TEST_ASSERT_EQUAL_UINT16(i, g_order[v][i]); /* ties broken by index */
+            TEST_ASSERT_EQUAL_FLOAT(0.0f, g_core[v][i]);
+            if (i > 0u) {
+                TEST_ASSERT_EQUAL_FLOAT(0.0f, g_reach[v][i]);
+            }
+        }
+    }
+}
+
+/* The one-call filter equals run3 + extract_dbscan + largest_cluster (given parameters and auto). */
+static void test_optics_filter3_equals_run_extract_largest(void)
+{
+    const golden_optics3_set_t *g = &golden_optics3_sets[0];
+    magcal_optics_cfg_t cfg = MAGCAL_OPTICS_CFG_DEFAULT;
+    magcal_optics_result_t info;
+    uint16_t n_clusters, count;
+    int16_t id;
+    size_t mode;
+    for (mode = 0; mode < 2u; ++mode) {
+        float eps = g->eps, eps_prime = g->eps_prime;
+        uint16_t min_pts = g->min_pts;
+        cfg.order = mode == 0u ? MAGCAL_OPTICS_CLASSIC : MAGCAL_OPTICS_IMPROVED;
+        if (mode == 0u) {
+            cfg.eps = eps;
+            cfg.eps_prime = eps_prime;
+            cfg.min_pts = min_pts;
+        } else {
+            cfg.eps = 0.0f; /* auto */
+            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_auto_params3(g->pts, g->n, g_work,
+                                                                        sizeof g_work, &eps,
+                                                                        &min_pts, &eps_prime));
+        }
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_filter3(&cfg, g->pts, g->n, g_work,
+                                                               sizeof g_work, g_mask, &info));
+        TEST_ASSERT_EQUAL_FLOAT(eps, info.eps);
+        TEST_ASSERT_EQUAL_FLOAT(eps_prime, info.eps_prime);
+        TEST_ASSERT_EQUAL_UINT16(min_pts, info.min_pts);
+        run_variant(1u, g->pts, g->n, eps, min_pts);
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                              magcal_optics_extract_dbscan(g_order[1], g_reach[1], g_core[1], g->n,
+                                                           eps, eps_prime, g_labels, &n_clusters));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                              magcal_optics_largest_cluster(g_labels, g->n, g_work, sizeof g_work,
+                                                            g_mask2, &id, &count));
+        TEST_ASSERT_EQUAL_MEMORY(g_mask2, g_mask, g->n);
+        TEST_ASSERT_EQUAL_UINT16(n_clusters, info.n_clusters);
+        TEST_ASSERT_EQUAL_INT16(id, info.largest_id);
+        TEST_ASSERT_EQUAL_UINT16(count, info.n_inliers);
+    }
+}
+
+/* eps' from the rule in optics.h is scale invariant: x1024 (exact in float) scales it exactly;
+ * a shift by 1000 R changes it by float rounding only (1e-3 relative: coordinates lose ~10 bits). */
+static void test_optics_auto_params3_scale_and_shift_invariant(void)
+{
+    float e0, e1, e2, p0, p1, p2;
+    uint16_t m0, m1, m2;
+    size_t i;
+    make_shell(300u, 0.25, 77u);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_auto_params3(g_pts, 300u, g_work,
+                                                                sizeof g_work, &e0, &m0, &p0));
+    for (i = 0; i < 300u; ++i) {
+        g_in[i].x = 1024.0f * g_pts[i].x;
+        g_in[i].y = 1024.0f * g_pts[i].y;
+        g_in[i].z = 1024.0f * g_pts[i].z;
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_auto_params3(g_in, 300u, g_work,
+                                                                sizeof g_work, &e1, &m1, &p1));
+    for (i = 0; i < 300u; ++i) {
+        g_in[i].x = g_pts[i].x + 5.0e4f;
+        g_in[i].y = g_pts[i].y - 5.0e4f;
+        g_in[i].z = g_pts[i].z + 2.5e4f;
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_auto_params3(g_in, 300u, g_work,
+                                                                sizeof g_work, &e2, &m2, &p2));
+    printf("auto3 n=300: eps' = %.4f F, x1024 ratio %.9g, shifted ratio %.6f\n",
+           (double)e0 / F_TRUE, (double)(e1 / e0), (double)(e2 / e0));
+    TEST_ASSERT_EQUAL_UINT16(4u, m0);
+    TEST_ASSERT_EQUAL_FLOAT(e0, p0);
+    TEST_ASSERT_EQUAL_FLOAT(1024.0f * e0, e1);
+    TEST_ASSERT_FLOAT_WITHIN(1e-3f * e0, e0, e2);
+    /* measured on this set: eps' = 0.589 F (3 x the median 3-NN distance at n = 300) */
+    TEST_ASSERT_TRUE(e0 > 0.3f * (float)F_TRUE && e0 < 0.8f * (float)F_TRUE);
+}
+
+/* Clean, uniformly covered shells keep every sample (the factor-3 rule, docs/optics.md "3-D"). */
+static void test_optics_filter3_clean_shell_keeps_every_sample(void)
+{
+    static const size_t ns[4] = {100u, 300u, 600u, 1000u};
+    magcal_optics_cfg_t cfg = MAGCAL_OPTICS_CFG_DEFAULT;
+    magcal_optics_result_t info;
+    size_t t;
+    for (t = 0; t < 4u; ++t) {
+        make_shell(ns[t], 0.5, (uint32_t)(1000u + t));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_filter3(&cfg, g_pts, ns[t], g_work,
+                                                               sizeof g_work, g_mask, &info));
+        TEST_ASSERT_EQUAL_UINT16(ns[t], info.n_inliers);
+        TEST_ASSERT_EQUAL_UINT16(1u, info.n_clusters);
+    }
+}
+
+/* ---- bad input --------------------------------------------------------------------------- */
+
+static void fill_sentinels(void)
+{
+    (void)memset(g_order[0], 0xA5, sizeof g_order[0]);
+    (void)memset(g_reach[0], 0xA5, sizeof g_reach[0]);
+    (void)memset(g_core[0], 0xA5, sizeof g_core[0]);
+    (void)memset(g_mask, 0xA5, sizeof g_mask);
+}
+
+static void assert_sentinels(size_t n)
+{
+    size_t i;
+    for (i = 0; i < n; ++i) {
+        TEST_ASSERT_EQUAL_HEX16(0xA5A5u, g_order[0][i]);
+        TEST_ASSERT_EQUAL_HEX8(0xA5u, g_mask[i]);
+    }
+    TEST_ASSERT_EACH_EQUAL_HEX8(0xA5u, (const uint8_t *)g_reach[0], n * sizeof(float));
+    TEST_ASSERT_EACH_EQUAL_HEX8(0xA5u, (const uint8_t *)g_core[0], n * sizeof(float));
+}
+
+static magcal_status_t run3_with(const magcal_optics_cfg_t *cfg, const magcal_vec3_t *p, size_t n,
+                                 void *w, size_t wl)
+{
+    return magcal_optics_run3(cfg, p, n, w, wl, g_order[0], g_reach[0], g_core[0], NULL, NULL);
+}
+
+static void test_optics_run3_bad_input_returns_specific_status(void)
+{
+    magcal_optics_cfg_t cfg = MAGCAL_OPTICS_CFG_DEFAULT;
+    magcal_optics_cfg_t bad;
+    const size_t n = 50u;
+    const size_t wl = MAGCAL_OPTICS3_WORKSPACE_LEN(50u);
+    uint8_t *w1 = (uint8_t *)g_work + 1;
+    cfg.eps = 20.0f;
+    make_shell(n, 0.5, 5u);
+    fill_sentinels();
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, run3_with(NULL, g_pts, n, g_work, wl));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, run3_with(&cfg, NULL, n, g_work, wl));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, run3_with(&cfg, g_pts, n, NULL, wl));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_run3(&cfg, g_pts, n, g_work, wl, NULL,
+                                                              g_reach[0], g_core[0], NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_run3(&cfg, g_pts, n, g_work, wl,
+                                                              g_order[0], NULL, g_core[0], NULL,
+                                                              NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_run3(&cfg, g_pts, n, g_work, wl,
+                                                              g_order[0], g_reach[0], NULL, NULL,
+                                                              NULL));
+    /* eps: 0, negative, NaN, eps^2 underflowing (< 3.4e-21) or overflowing (> 1.8e19) */
+    bad = cfg;
+    bad.eps = 0.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, run3_with(&bad, g_pts, n, g_work, wl));
+    bad.eps = -1.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, run3_with(&bad, g_pts, n, g_work, wl));
+    bad.eps = NAN;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, run3_with(&bad, g_pts, n, g_work, wl));
+    bad.eps = 1e-21f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, run3_with(&bad, g_pts, n, g_work, wl));
+    bad.eps = 1e20f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, run3_with(&bad, g_pts, n, g_work, wl));
+    bad = cfg;
+    bad.min_pts = 1u;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, run3_with(&bad, g_pts, n, g_work, wl));
+    bad.min_pts = (uint16_t)(MAGCAL_MAX_MIN_PTS + 1u);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, run3_with(&bad, g_pts, n, g_work, wl));
+    bad = cfg;
+    bad.order = (magcal_optics_order_t)2;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, run3_with(&bad, g_pts, n, g_work, wl));
+    bad = cfg;
+    bad.neighbors = (magcal_neighbors_t)2;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, run3_with(&bad, g_pts, n, g_work, wl));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, run3_with(&cfg, g_pts, n, w1, wl));
+    /* counts: n < min_pts, n > MAGCAL_MAX_SAMPLES (uint16 indices) */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, run3_with(&cfg, g_pts, 3u, g_work, wl));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, run3_with(&cfg, g_pts, 0u, g_work, wl));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, run3_with(&cfg, g_pts, MAGCAL_MAX_SAMPLES + 1u, g_work,
+                                                    sizeof g_work));
+    /* NaN / Inf in each coordinate */
+    g_pts[7].z = NAN;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, run3_with(&cfg, g_pts, n, g_work, wl));
+    g_pts[7].z = 0.0f;
+    g_pts[49].x = INFINITY;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, run3_with(&cfg, g_pts, n, g_work, wl));
+    g_pts[49].x = 0.0f;
+    g_pts[0].y = -INFINITY;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, run3_with(&cfg, g_pts, n, g_work, wl));
+    g_pts[0].y = 0.0f;
+    /* workspace: the macro's length works, one byte less does not */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE, run3_with(&cfg, g_pts, n, g_work, wl - 1u));
+    assert_sentinels(n);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, run3_with(&cfg, g_pts, n, g_work, wl));
+}
+
+static void test_optics_filter3_and_auto_bad_input_returns_specific_status(void)
+{
+    magcal_optics_cfg_t cfg = MAGCAL_OPTICS_CFG_DEFAULT;
+    magcal_optics_cfg_t bad;
+    magcal_optics_result_t info;
+    const size_t n = 60u;
+    const size_t wl = MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(60u);
+    uint8_t *w1 = (uint8_t *)g_work + 2;
+    float e = -7.0f, ep = -7.0f;
+    uint16_t mp = 77u;
+    size_t i;
+    make_shell(n, 0.5, 6u);
+    fill_sentinels();
+    /* filter3, auto mode (eps = 0) */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_filter3(NULL, g_pts, n, g_work, wl, g_mask, &info));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_filter3(&cfg, NULL, n, g_work, wl, g_mask, &info));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_filter3(&cfg, g_pts, n, NULL, wl, g_mask, &info));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_filter3(&cfg, g_pts, n, g_work, wl, NULL, &info));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_filter3(&cfg, g_pts, n, w1, wl, g_mask, &info));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_optics_filter3(&cfg, g_pts, 15u, g_work, wl, g_mask, &info));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_filter3(&cfg, g_pts, MAGCAL_MAX_SAMPLES + 1u, g_work, sizeof g_work, g_mask, &info));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE, magcal_optics_filter3(&cfg, g_pts, n, g_work, wl - 1u, g_mask, &info));
+    bad = cfg;
+    bad.eps = NAN;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_filter3(&bad, g_pts, n, g_work, wl, g_mask, &info));
+    bad = cfg;
+    bad.order = (magcal_optics_order_t)-1;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_filter3(&bad, g_pts, n, g_work, wl, g_mask, &info));
+    /* given parameters: eps' > eps, eps' < 0, eps' NaN/Inf, eps out of range, n < min_pts */
+    bad = cfg;
+    bad.eps = 10.0f;
+    bad.eps_prime = 11.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_filter3(&bad, g_pts, n, g_work, wl, g_mask, &info));
+    bad.eps_prime = -1.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_filter3(&bad, g_pts, n, g_work, wl, g_mask, &info));
+    bad.eps_prime = NAN;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_filter3(&bad, g_pts, n, g_work, wl, g_mask, &info));
+    bad.eps = INFINITY;
+    bad.eps_prime = 0.0f; /* eps' = eps = inf is not finite */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_filter3(&bad, g_pts, n, g_work, wl, g_mask, &info));
+    bad.eps = 1e20f;
+    bad.eps_prime = 1.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_filter3(&bad, g_pts, n, g_work, wl, g_mask, &info));
+    bad.eps = 10.0f;
+    bad.min_pts = 8u;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_optics_filter3(&bad, g_pts, 7u, g_work, wl, g_mask, &info));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE, magcal_optics_filter3(&bad, g_pts, n, g_work, wl - 1u, g_mask, &info));
+    /* eps below every pair distance: every point is noise */
+    bad.eps = 1e-6f;
+    bad.eps_prime = 0.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ALL_NOISE, magcal_optics_filter3(&bad, g_pts, n, g_work, wl, g_mask, &info));
+    TEST_ASSERT_EQUAL_UINT16(n, info.n_noise);
+    g_pts[33].y = NAN;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_optics_filter3(&cfg, g_pts, n, g_work, wl, g_mask, &info));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_optics_auto_params3(g_pts, n, g_work, wl, &e, &mp, &ep));
+    g_pts[33].y = 1.0f;
+    /* auto_params3 */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_auto_params3(NULL, n, g_work, wl, &e, &mp, &ep));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_auto_params3(g_pts, n, NULL, wl, &e, &mp, &ep));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_auto_params3(g_pts, n, g_work, wl, NULL, &mp, &ep));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_auto_params3(g_pts, n, g_work, wl, &e, NULL, &ep));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_auto_params3(g_pts, n, g_work, wl, &e, &mp, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_auto_params3(g_pts, n, w1, wl, &e, &mp, &ep));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_optics_auto_params3(g_pts, 15u, g_work, wl, &e, &mp, &ep));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_auto_params3(g_pts, MAGCAL_MAX_SAMPLES + 1u, g_work, sizeof g_work, &e, &mp, &ep));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE, magcal_optics_auto_params3(g_pts, n, g_work, wl - 1u, &e, &mp, &ep));
+    /* more than half the samples identical: median radius 0 */
+    for (i = 0; i < 31u; ++i) {
+        g_in[i] = g_pts[0];
+    }
+    for (; i < n; ++i) {
+        g_in[i] = g_pts[i];
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_DEGENERATE, magcal_optics_auto_params3(g_in, n, g_work, wl, &e, &mp, &ep));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_DEGENERATE, magcal_optics_filter3(&cfg, g_in, n, g_work, wl, g_mask, &info));
+    TEST_ASSERT_EQUAL_FLOAT(-7.0f, e);
+    TEST_ASSERT_EQUAL_FLOAT(-7.0f, ep);
+    TEST_ASSERT_EQUAL_UINT16(77u, mp);
+    assert_sentinels(n);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_auto_params3(g_pts, n, g_work, wl, &e, &mp, &ep));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_filter3(&cfg, g_pts, n, g_work, wl, g_mask, &info));
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_optics_run3_matches_sklearn_golden_vectors);
+    RUN_TEST(test_optics_run3_variants_bit_identical_to_reference);
+    RUN_TEST(test_optics_run3_all_duplicates_gives_zero_core_and_reach);
+    RUN_TEST(test_optics_filter3_equals_run_extract_largest);
+    RUN_TEST(test_optics_auto_params3_scale_and_shift_invariant);
+    RUN_TEST(test_optics_filter3_clean_shell_keeps_every_sample);
+    RUN_TEST(test_optics_run3_bad_input_returns_specific_status);
+    RUN_TEST(test_optics_filter3_and_auto_bad_input_returns_specific_status);
+    return UNITY_END();
+}
