@@ -36,6 +36,13 @@
  *   calibration      magcal_calibrator_run, default cfg (samples pushed before, not counted)
  *   calibration_push magcal_calibrator_push x N + magcal_calibrator_run (timing: init, push, run)
  *   heading          magcal_heading_compute, one sample, with the calibration of the data set
+ *   optics3_filter   magcal_optics_filter3 (automatic parameters) on a 3-D set: a noisy ellipsoid
+ *                    shell (uniform directions, F = 500, offset (300, -200, 150), axes 1.1/0.93/1.04
+ *                    x F, sigma 3) with 5 % scattered points (radius x 1.7..2.5) and 3 % one stuck
+ *                    burst 0.8 R outside (generate3(); not used by run_bench.py)
+ *   optics3_classic, optics3_improved  magcal_optics_run3 CLASSIC / IMPROVED with the automatic
+ *                    eps and MinPts of that set
+ *   auto_params3     magcal_optics_auto_params3 on that set
  */
 #define _POSIX_C_SOURCE 199309L
 
@@ -87,6 +94,67 @@ static void generate(size_t n)
     for (i = 0u; i < n; ++i) {
         g_outlier[i] = (uint8_t)(g_kind[i] != 0u);
         g_truth_inlier[i] = (uint8_t)(g_kind[i] == 0u);
+    }
+}
+
+/* ------------------------------------------------------------------ 3-D set */
+
+static magcal_vec3_t g_pts3[NMAX];
+static uint32_t g_work3[(MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(NMAX) + 3u) / 4u];
+
+static double rnd3(uint32_t *s)
+{
+    uint32_t x = *s;
+    x ^= x << 13;
+    x ^= x >> 17;
+    x ^= x << 5;
+    *s = x;
+    return ((double)(x >> 8) + 0.5) / 16777216.0;
+}
+
+static double gauss3(uint32_t *s)
+{
+    double u1 = rnd3(s), u2 = rnd3(s);
+    return sqrt(-2.0 * log(u1)) * cos(6.283185307179586 * u2);
+}
+
+/* The 3-D data set of the optics3_* kernels (comment at the top). */
+static void generate3(size_t n)
+{
+    static const double axes[3] = {1.1, 0.93, 1.04};
+    static const double off[3] = {300.0, -200.0, 150.0};
+    const size_t n_burst = (3u * n) / 100u;
+    const size_t b0 = n / 3u;
+    uint32_t s = 0x3D3D3D3Du;
+    double ub[3] = {0.48, -0.6, 0.64};
+    size_t i;
+    int a;
+    for (i = 0u; i < n; ++i) {
+        double u[3], r, sc = 1.0;
+        u[0] = gauss3(&s);
+        u[1] = gauss3(&s);
+        u[2] = gauss3(&s);
+        r = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+        if (i % 20u == 7u) {
+            sc = 1.7 + 0.8 * rnd3(&s); /* 5 % scattered */
+        }
+        if (i >= b0 && i < b0 + n_burst) {
+            u[0] = ub[0];
+            u[1] = ub[1];
+            u[2] = ub[2];
+            r = 1.0;
+            sc = 1.8; /* stuck burst */
+        }
+        for (a = 0; a < 3; ++a) {
+            double v = off[a] + sc * 500.0 * axes[a] * u[a] / r + (sc == 1.8 ? 0.0 : 3.0 * gauss3(&s));
+            if (a == 0) {
+                g_pts3[i].x = (float)v;
+            } else if (a == 1) {
+                g_pts3[i].y = (float)v;
+            } else {
+                g_pts3[i].z = (float)v;
+            }
+        }
     }
 }
 
@@ -243,6 +311,29 @@ static int run_kernel(const char *k, size_t n, int quiet)
         }
     } else if (strcmp(k, "calibration") == 0 || strcmp(k, "calibration_push") == 0) {
         st = calib_full(n, &cal, &rep);
+        if (st != MAGCAL_OK) {
+            return fail(k, st);
+        }
+    } else if (strncmp(k, "optics3_", 8) == 0 || strcmp(k, "auto_params3") == 0) {
+        magcal_optics_cfg_t c3 = MAGCAL_OPTICS_CFG_DEFAULT;
+        magcal_optics_result_t info;
+        generate3(n);
+        if (strcmp(k, "optics3_filter") == 0) {
+            st = magcal_optics_filter3(&c3, g_pts3, n, g_work3, sizeof g_work3, g_mask, &info);
+            if (st == MAGCAL_OK && !quiet) {
+                printf("eps=%.3f inliers=%u clusters=%u\n", (double)info.eps_prime,
+                       (unsigned)info.n_inliers, (unsigned)info.n_clusters);
+            }
+        } else {
+            st = magcal_optics_auto_params3(g_pts3, n, g_work3, sizeof g_work3, &c3.eps,
+                                            &c3.min_pts, &c3.eps_prime);
+            if (st == MAGCAL_OK && strcmp(k, "auto_params3") != 0) {
+                c3.order = strcmp(k, "optics3_classic") == 0 ? MAGCAL_OPTICS_CLASSIC
+                                                             : MAGCAL_OPTICS_IMPROVED;
+                st = magcal_optics_run3(&c3, g_pts3, n, g_work3, sizeof g_work3, g_order, g_reach,
+                                        g_core, NULL, NULL);
+            }
+        }
         if (st != MAGCAL_OK) {
             return fail(k, st);
         }
