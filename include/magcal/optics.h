@@ -297,8 +297,9 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
  *  1. centre c = coordinate medians, R = median |p - c|; twice more over only the points within
  *     3 R of the previous centre (a far cluster cannot drag the centre), as in 2-D.
  *  2. the "shell band" = points with | |p - c| - R | <= 0.5 R (at least 10 points).
- *  3. for each band point, k_i = distance to its 3rd nearest other sample (all n samples
- *     searched): the radius that makes it a core point for MinPts = 4.
+ *  3. for each band point (at most 128: beyond that, 128 drawn by a fixed-seed PRNG, so the
+ *     result stays deterministic and the cost O(n)), k_i = distance to its 3rd nearest other
+ *     sample (all n samples searched): the radius that makes it a core point for MinPts = 4.
  *  4. eps' = 3 * median(k_i), clamped to [R/256, R]; eps = eps'; MinPts = 4.
  *  Why: on a 2-D surface the random gaps that the chain of core points must bridge grow only
  *  slowly with n compared with the local spacing (a 1-D ring's largest gap is ~log n spacings), so
@@ -343,7 +344,7 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
 /**
  * Workspace bytes for magcal_optics_filter3() and magcal_optics_auto_params3() on n points:
  * reach float[n] + labels int16[n] + MAGCAL_OPTICS3_WORKSPACE_LEN(n) (the automatic parameters
- * reuse the first 8 n bytes). About 12.1 bytes per sample + 256 bytes (32-bit).
+ * reuse the first 10 n bytes). About 12.1 bytes per sample + 256 bytes (32-bit).
  */
 #define MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n)                                                     \
     (MAGCAL_OPTICS_FILTER_RUN_OFFSET_(n) + MAGCAL_OPTICS3_WORKSPACE_LEN(n))
