@@ -23,7 +23,15 @@ typedef struct {
     float *reach;    /* n, working reach (final when a point is processed) */
     uint16_t *seeds; /* heap (CLASSIC) or unordered list (IMPROVED) */
     uint16_t *pos;   /* CLASSIC: heap position of each point or POS_NONE */
-    uint16_t *live;  /* unprocessed points, compacted as they are processed */
+    uint16_t *live;  /* BRUTE: unprocessed points, compacted; GRID: points sorted by bucket */
+    uint16_t *start; /* GRID: G + 1 bucket starts into live[] */
+    int use_grid;
+    float x0, y0, z0; /* GRID: lower corner of the box */
+    float inv_h;      /* GRID: 1 / cell side */
+    uint32_t gw, gh, gd; /* GRID: cells per axis (<= GRID3_AXIS_CELLS) */
+    uint32_t nbkt;       /* GRID: buckets G */
+    int dense;           /* GRID: gw*gh*gd <= G, row-major cell number is the bucket */
+    uint16_t bk[27];     /* GRID: distinct buckets of the current query */
     uint8_t *done;   /* processed bits */
     float *best;     /* MinPts insertion buffer (workspace, keeps process3() frame small) */
     size_t n_seeds;
@@ -207,6 +215,212 @@ static size_t best_insert(float *best, size_t cnt, size_t m, float d2)
     return count;
 }
 
+/* ---- 3-D grid (neighbour search GRID) -------------------------------------------------------
+ * Cell side h = eps * (1 + 2^-6) over the bounding box; cell coordinates are clamped to
+ * [0, GRID3_AXIS_CELLS - 1] (monotone, so two points within eps stay in adjacent cells; far
+ * outliers only crowd the border cells). A cell (cx, cy, cz) lives in bucket
+ * cx + gw (cy + gh cz) when the grid has at most G = MAGCAL_OPTICS_GRID_CELLS(n) cells, else in a
+ * spatial hash of it modulo G; points are counting-sorted by bucket. A query visits the distinct
+ * buckets of the 3x3x3 block around the point's cell: every point within eps is met exactly once
+ * (extra points of colliding cells fail the distance test), so the core distances and reach
+ * updates, and therefore every output, are bit-identical to the brute-force search. With at most
+ * 2^15 cells per axis the float rounding of a cell coordinate stays below 2^-8 cell, inside the
+ * 2^-6 margin of h.
+ */
+#define GRID3_AXIS_CELLS 32768u
+#define GRID3_MARGIN (1.0f + 1.0f / 64.0f)
+
+static uint32_t cell_of(float v, float v0, float inv_h)
+{
+    float t = (v - v0) * inv_h;
+    uint32_t cidx = GRID3_AXIS_CELLS - 1u;
+    if (!(t >= 0.0f)) {
+        cidx = 0u; /* not reached: v >= v0 */
+    } else if (t < (float)(GRID3_AXIS_CELLS - 1u)) {
+        cidx = (uint32_t)t; /* truncation = floor for t >= 0 */
+    } else {
+        /* clamped into the last cell */
+    }
+    return cidx;
+}
+
+static uint32_t bucket_of(const optics3_ctx_t *c, uint32_t cx, uint32_t cy, uint32_t cz)
+{
+    uint32_t b;
+    if (c->dense != 0) {
+        b = cx + c->gw * (cy + c->gh * cz);
+    } else {
+        b = ((cx * 73856093u) ^ (cy * 19349663u) ^ (cz * 83492791u)) % c->nbkt;
+    }
+    return b;
+}
+
+static uint32_t point_bucket(const optics3_ctx_t *c, size_t i)
+{
+    const magcal_vec3_t *q = &c->pts[i];
+    return bucket_of(c, cell_of(q->x, c->x0, c->inv_h), cell_of(q->y, c->y0, c->inv_h),
+                     cell_of(q->z, c->z0, c->inv_h));
+}
+
+/* Build the grid over live[] / start[] when cfg asks for it and it can help (finite eps, points
+ * not all equal); otherwise leave use_grid = 0 (brute force). */
+static void grid3_build(optics3_ctx_t *c, float eps, magcal_neighbors_t mode)
+{
+    const magcal_vec3_t *pts = c->pts;
+    const size_t n = c->n;
+    float lo[3];
+    float hi[3];
+    uint32_t g[3];
+    float h;
+    size_t i;
+    unsigned a;
+    uint64_t cells;
+    c->use_grid = 0;
+    if (mode != MAGCAL_NEIGHBORS_GRID || !magcal_isfinite_f(eps)) {
+        return;
+    }
+    lo[0] = pts[0].x;
+    lo[1] = pts[0].y;
+    lo[2] = pts[0].z;
+    hi[0] = lo[0];
+    hi[1] = lo[1];
+    hi[2] = lo[2];
+    for (i = 1u; i < n; ++i) {
+        lo[0] = pts[i].x < lo[0] ? pts[i].x : lo[0];
+        lo[1] = pts[i].y < lo[1] ? pts[i].y : lo[1];
+        lo[2] = pts[i].z < lo[2] ? pts[i].z : lo[2];
+        hi[0] = pts[i].x > hi[0] ? pts[i].x : hi[0];
+        hi[1] = pts[i].y > hi[1] ? pts[i].y : hi[1];
+        hi[2] = pts[i].z > hi[2] ? pts[i].z : hi[2];
+    }
+    if (lo[0] == hi[0] && lo[1] == hi[1] && lo[2] == hi[2]) {
+        return; /* all points equal */
+    }
+    h = eps * GRID3_MARGIN;
+    c->inv_h = 1.0f / h;
+    c->x0 = lo[0];
+    c->y0 = lo[1];
+    c->z0 = lo[2];
+    for (a = 0u; a < 3u; ++a) {
+        g[a] = cell_of(hi[a], lo[a], c->inv_h) + 1u;
+    }
+    c->gw = g[0];
+    c->gh = g[1];
+    c->gd = g[2];
+    c->nbkt = (uint32_t)MAGCAL_OPTICS_GRID_CELLS(n);
+    cells = (uint64_t)g[0] * (uint64_t)g[1] * (uint64_t)g[2];
+    c->dense = cells <= (uint64_t)c->nbkt ? 1 : 0;
+    if (c->dense != 0) {
+        c->nbkt = (uint32_t)cells;
+    }
+    c->use_grid = 1;
+    /* counting sort by bucket: counts in start[b + 1], prefix sums, placement, shift back */
+    (void)memset(c->start, 0, ((size_t)c->nbkt + 1u) * sizeof c->start[0]);
+    for (i = 0; i < n; ++i) {
+        c->start[point_bucket(c, i) + 1u]++;
+    }
+    for (i = 1u; i <= c->nbkt; ++i) {
+        c->start[i] = (uint16_t)(c->start[i] + c->start[i - 1u]);
+    }
+    for (i = 0; i < n; ++i) {
+        const uint32_t b = point_bucket(c, i);
+        c->live[c->start[b]] = (uint16_t)i;
+        c->start[b]++;
+    }
+    for (i = c->nbkt; i > 0u; --i) {
+        c->start[i] = c->start[i - 1u];
+    }
+    c->start[0] = 0u;
+}
+
+/* Distinct buckets of the 3x3x3 cells around point p; returns how many (<= 27). */
+static size_t grid3_query(const optics3_ctx_t *c, size_t p, uint16_t *bk)
+{
+    const magcal_vec3_t *q = &c->pts[p];
+    const uint32_t cx = cell_of(q->x, c->x0, c->inv_h);
+    const uint32_t cy = cell_of(q->y, c->y0, c->inv_h);
+    const uint32_t cz = cell_of(q->z, c->z0, c->inv_h);
+    uint32_t dx;
+    uint32_t dy;
+    uint32_t dz;
+    size_t nb = 0u;
+    for (dz = 0u; dz < 3u; ++dz) {
+        for (dy = 0u; dy < 3u; ++dy) {
+            for (dx = 0u; dx < 3u; ++dx) {
+                /* cell coordinate + d - 1, skipped outside [0, g - 1] */
+                const uint32_t x = cx + dx;
+                const uint32_t y = cy + dy;
+                const uint32_t z = cz + dz;
+                uint32_t b;
+                size_t t;
+                int seen = 0;
+                if (x == 0u || y == 0u || z == 0u || x > c->gw || y > c->gh || z > c->gd) {
+                    continue;
+                }
+                b = bucket_of(c, x - 1u, y - 1u, z - 1u);
+                for (t = 0; t < nb; ++t) {
+                    seen |= (bk[t] == b) ? 1 : 0;
+                }
+                if (seen == 0 && c->start[b] != c->start[b + 1u]) {
+                    bk[nb] = (uint16_t)b;
+                    ++nb;
+                }
+            }
+        }
+    }
+    return nb;
+}
+
+/* PROCESS(p) with the grid: both passes over the candidate buckets. */
+static void process3_grid(optics3_ctx_t *c, size_t p, float core_p0)
+{
+    float *best = c->best;
+    uint16_t *bk = c->bk;
+    const size_t m = c->min_pts;
+    const magcal_vec3_t *pts = c->pts;
+    const magcal_vec3_t *pp = &pts[p];
+    const float eps2 = c->eps2;
+    const size_t nb = grid3_query(c, p, bk);
+    float core_p = core_p0;
+    float core2 = INFINITY;
+    size_t cnt = 0u;
+    size_t t;
+    size_t k;
+    for (t = 0; t < nb; ++t) {
+        for (k = c->start[bk[t]]; k < c->start[bk[t] + 1u]; ++k) {
+            float d2 = dist2(&pts[c->live[k]], pp);
+            if (d2 <= eps2 && (cnt < m || d2 < best[m - 1u])) {
+                cnt = best_insert(best, cnt, m, d2);
+            }
+        }
+    }
+    if (cnt >= m) {
+        core2 = best[m - 1u];
+        core_p = sqrtf(core2);
+    }
+    if (c->core != NULL) {
+        c->core[p] = core_p;
+    }
+    if (c->labels != NULL) {
+        extract_step(c, p, core_p);
+    }
+    if (cnt < m) {
+        return;
+    }
+    for (t = 0; t < nb; ++t) {
+        for (k = c->start[bk[t]]; k < c->start[bk[t] + 1u]; ++k) {
+            size_t j = c->live[k];
+            float d2 = dist2(&pts[j], pp);
+            if (d2 <= eps2 && ((((unsigned)c->done[j >> 3] >> (unsigned)(j & 7u)) & 1u) == 0u)) {
+                float r = d2 <= core2 ? core_p : sqrtf(d2);
+                if (r < c->reach[j]) {
+                    update_one(c, p, j, r);
+                }
+            }
+        }
+    }
+}
+
 /*
  * PROCESS(p) of algorithms.md 4.2. Pass 1 sweeps all n points for the core distance (MinPts-th
  * smallest d^2, p itself included); pass 2 sweeps the compact list of unprocessed points for the
@@ -237,6 +451,10 @@ static void process3(optics3_ctx_t *c, size_t p)
         c->order[c->n_done] = (uint16_t)p;
     }
     c->n_done++;
+    if (c->use_grid != 0) {
+        process3_grid(c, p, core_p);
+        return;
+    }
 
     for (k = 0; k < n; ++k) {
         float d2 = dist2(&pts[k], pp);
@@ -283,7 +501,9 @@ static void optics3_loop(optics3_ctx_t *c)
     size_t i;
     for (i = 0; i < c->n; ++i) {
         c->reach[i] = INFINITY;
-        c->live[i] = (uint16_t)i;
+        if (c->use_grid == 0) {
+            c->live[i] = (uint16_t)i;
+        }
         if (c->pred != NULL) {
             c->pred[i] = MAGCAL_OPTICS_NO_PRED;
         }
@@ -364,10 +584,12 @@ static optics3_ctx_t *ctx3_setup(const magcal_optics_cfg_t *cfg, const magcal_ve
     c->seeds = (uint16_t *)(void *)w;
     c->pos = c->seeds + n;
     c->live = c->pos + n;
-    c->done = w + 6u * n;
+    c->start = c->live + n;
+    c->done = w + 6u * n + 2u * (MAGCAL_OPTICS_GRID_CELLS(n) + 1u);
     c->best = (float *)(void *)(w + MAGCAL_OPTICS3_BEST_OFFSET_(n));
     c->id = -1;
     c->best_id = -1;
+    grid3_build(c, cfg->eps, cfg->neighbors);
     return c;
 }
 
@@ -381,7 +603,7 @@ static void fill_info3(magcal_optics_result_t *info, const optics3_ctx_t *c, flo
     info->eps = eps;
     info->eps_prime = eps_prime;
     info->min_pts = c->min_pts;
-    info->neighbors = MAGCAL_NEIGHBORS_BRUTE;
+    info->neighbors = c->use_grid != 0 ? MAGCAL_NEIGHBORS_GRID : MAGCAL_NEIGHBORS_BRUTE;
     info->largest_id = MAGCAL_OPTICS_NOISE;
 }
 

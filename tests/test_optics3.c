@@ -18,10 +18,10 @@ void tearDown(void) {}
 static magcal_vec3_t g_pts[NMAX + 1u];
 static magcal_vec3_t g_in[NMAX];
 static uint32_t g_work[(MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(NMAX + 1u) + 3u) / 4u];
-static uint16_t g_order[3][NMAX];
-static float g_reach[3][NMAX];
-static float g_core[3][NMAX];
-static uint16_t g_pred[3][NMAX];
+static uint16_t g_order[4][NMAX];
+static float g_reach[4][NMAX];
+static float g_core[4][NMAX];
+static uint16_t g_pred[4][NMAX];
 static int16_t g_labels[NMAX];
 static uint8_t g_mask[NMAX];
 static uint8_t g_mask2[NMAX];
@@ -96,20 +96,28 @@ static void reference_optics3(const magcal_vec3_t *p, size_t n, float eps, size_
     }
 }
 
-/* variant 0: CLASSIC + BRUTE, 1: IMPROVED + BRUTE, 2: IMPROVED + GRID (runs brute force in 3-D) */
-static void run_variant(size_t v, const magcal_vec3_t *p, size_t n, float eps, uint16_t min_pts)
+/* variant 0: CLASSIC + BRUTE, 1: IMPROVED + BRUTE, 2: IMPROVED + GRID, 3: CLASSIC + GRID */
+static magcal_neighbors_t run_variant(size_t v, const magcal_vec3_t *p, size_t n, float eps,
+                                      uint16_t min_pts)
 {
     magcal_optics_cfg_t cfg = MAGCAL_OPTICS_CFG_DEFAULT;
     magcal_optics_result_t info;
     cfg.eps = eps;
     cfg.min_pts = min_pts;
-    cfg.order = v == 0u ? MAGCAL_OPTICS_CLASSIC : MAGCAL_OPTICS_IMPROVED;
-    cfg.neighbors = v == 2u ? MAGCAL_NEIGHBORS_GRID : MAGCAL_NEIGHBORS_BRUTE;
+    cfg.order = (v == 1u || v == 2u) ? MAGCAL_OPTICS_IMPROVED : MAGCAL_OPTICS_CLASSIC;
+    cfg.neighbors = v >= 2u ? MAGCAL_NEIGHBORS_GRID : MAGCAL_NEIGHBORS_BRUTE;
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
                           magcal_optics_run3(&cfg, p, n, g_work, sizeof g_work, g_order[v],
                                              g_reach[v], g_core[v], g_pred[v], &info));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_NEIGHBORS_BRUTE, info.neighbors);
+    if (v < 2u) {
+        TEST_ASSERT_EQUAL_INT(MAGCAL_NEIGHBORS_BRUTE, info.neighbors);
+    } else if (!isfinite(eps)) {
+        TEST_ASSERT_EQUAL_INT(MAGCAL_NEIGHBORS_BRUTE, info.neighbors); /* GRID falls back */
+    } else {
+        /* GRID, unless all points are equal (checked by the caller) */
+    }
     TEST_ASSERT_EQUAL_UINT16(min_pts, info.min_pts);
+    return info.neighbors;
 }
 
 /* ---- synthetic truth: m = W h + V + noise, |h| = F, h uniform on the sphere --------------- */
@@ -176,7 +184,7 @@ static void test_optics_run3_matches_sklearn_golden_vectors(void)
         uint16_t n_clusters = 0u;
         size_t order_same = 0u;
         double max_rel = 0.0;
-        for (v = 0; v < 3u; ++v) {
+        for (v = 0; v < 4u; ++v) {
             run_variant(v, g->pts, g->n, g->eps, g->min_pts);
             for (i = 0; i < g->n; ++i) {
                 float e = g->core[i];
@@ -210,20 +218,21 @@ static void test_optics_run3_matches_sklearn_golden_vectors(void)
             TEST_ASSERT_EQUAL_INT(g->n_clusters, n_clusters);
             TEST_ASSERT_EQUAL_INT16_ARRAY(g->labels, g_labels, g->n);
         }
-        printf("golden3 %s: %u/%u ordering positions equal to sklearn's over 3 variants, "
+        printf("golden3 %s: %u/%u ordering positions equal to sklearn's over 4 variants, "
                "max relative core/reach difference %.2e\n",
-               g->name, (unsigned)order_same, (unsigned)(3u * g->n), max_rel);
+               g->name, (unsigned)order_same, (unsigned)(4u * g->n), max_rel);
     }
 }
 
-/* Random sets (uniform cube, clumps with exact duplicates, shells), finite and infinite eps,
- * MinPts 2..8: CLASSIC, IMPROVED and the GRID flag are bit-identical to the reference. */
+/* Random sets (uniform cube, exact duplicates, flat slabs, far outliers), finite and infinite
+ * eps, MinPts 2..8: CLASSIC/IMPROVED x BRUTE/GRID are bit-identical to the reference. The eps
+ * values give dense grids (0.3, 0.7) and hashed ones (0.15: 343 cells > G = n for n < 343). */
 static void test_optics_run3_variants_bit_identical_to_reference(void)
 {
     static const float eps_list[4] = {0.15f, 0.3f, 0.7f, INFINITY};
     uint32_t rng = 12345u;
     size_t trial;
-    for (trial = 0; trial < 24u; ++trial) {
+    for (trial = 0; trial < 40u; ++trial) {
         const size_t n = 20u + (size_t)(test_rand_uniform(&rng) * 280.0);
         const float eps = eps_list[trial % 4u];
         const uint16_t min_pts = (uint16_t)(2u + trial % 7u);
@@ -238,14 +247,51 @@ static void test_optics_run3_variants_bit_identical_to_reference(void)
                                                       : test_rand_uniform(&rng));
             }
         }
+        if (trial % 8u == 1u || trial % 8u == 4u) {
+            /* far outliers: more than 2^15 cells per axis, the grid clamps into border cells */
+            g_pts[0].x = -1.0e6f;
+            g_pts[1].y = 3.0e5f;
+            g_pts[2].z = -7.0e5f;
+        }
         reference_optics3(g_pts, n, eps, min_pts);
-        for (v = 0; v < 3u; ++v) {
-            run_variant(v, g_pts, n, eps, min_pts);
+        for (v = 0; v < 4u; ++v) {
+            magcal_neighbors_t used = run_variant(v, g_pts, n, eps, min_pts);
+            TEST_ASSERT_EQUAL_INT(v >= 2u && isfinite(eps) ? MAGCAL_NEIGHBORS_GRID
+                                                           : MAGCAL_NEIGHBORS_BRUTE, used);
             TEST_ASSERT_EQUAL_MEMORY(r_order, g_order[v], n * sizeof r_order[0]);
             TEST_ASSERT_EQUAL_MEMORY(r_reach, g_reach[v], n * sizeof r_reach[0]);
             TEST_ASSERT_EQUAL_MEMORY(r_core, g_core[v], n * sizeof r_core[0]);
             TEST_ASSERT_EQUAL_MEMORY(r_pred, g_pred[v], n * sizeof r_pred[0]);
         }
+    }
+}
+
+/* Pairs 0.999 eps apart that straddle a cell border, along each axis (cell side eps (1 + 2^-6)
+ * from the box corner at the origin): GRID must still find them (a cell side below eps would put
+ * b two cells from a and lose the pair). */
+static void test_optics_run3_grid_finds_pairs_across_cell_borders(void)
+{
+    size_t a, v;
+    (void)memset(g_pts, 0, 12u * sizeof g_pts[0]);
+    for (a = 0; a < 3u; ++a) {
+        float *c0 = a == 0u ? &g_pts[1 + 3u * a].x : (a == 1u ? &g_pts[1 + 3u * a].y : &g_pts[1 + 3u * a].z);
+        float *c1 = a == 0u ? &g_pts[2 + 3u * a].x : (a == 1u ? &g_pts[2 + 3u * a].y : &g_pts[2 + 3u * a].z);
+        *c0 = 0.98f;
+        *c1 = 0.98f + 0.999f;
+        g_pts[3 + 3u * a].x = 5.0f + (float)a; /* far companions keep the box large */
+    }
+    g_pts[10].x = 6.0f;
+    g_pts[10].y = 6.0f;
+    g_pts[11].z = 6.0f;
+    reference_optics3(g_pts, 12u, 1.0f, 2u);
+    for (v = 0; v < 4u; ++v) {
+        run_variant(v, g_pts, 12u, 1.0f, 2u);
+        TEST_ASSERT_EQUAL_MEMORY(r_order, g_order[v], 12u * sizeof r_order[0]);
+        TEST_ASSERT_EQUAL_MEMORY(r_reach, g_reach[v], 12u * sizeof r_reach[0]);
+        TEST_ASSERT_EQUAL_MEMORY(r_core, g_core[v], 12u * sizeof r_core[0]);
+    }
+    for (a = 0; a < 3u; ++a) { /* b's nearest neighbour is a, 0.999 away */
+        TEST_ASSERT_FLOAT_WITHIN(1e-5f, 0.999f, g_core[2][2 + 3u * a]);
     }
 }
 
@@ -257,8 +303,8 @@ static void test_optics_run3_all_duplicates_gives_zero_core_and_reach(void)
         g_pts[i].y = -1.0f;
         g_pts[i].z = 7.0f;
     }
-    for (v = 0; v < 3u; ++v) {
-        run_variant(v, g_pts, 20u, 0.5f, 4u);
+    for (v = 0; v < 4u; ++v) {
+        TEST_ASSERT_EQUAL_INT(MAGCAL_NEIGHBORS_BRUTE, run_variant(v, g_pts, 20u, 0.5f, 4u));
         TEST_ASSERT_TRUE(isinf(g_reach[v][0]));
         for (i = 0; i < 20u; ++i) {
             TEST_ASSERT_EQUAL_UINT16(i, g_order[v][i]); /* ties broken by index */
@@ -760,6 +806,7 @@ int main(void)
     UNITY_BEGIN();
     RUN_TEST(test_optics_run3_matches_sklearn_golden_vectors);
     RUN_TEST(test_optics_run3_variants_bit_identical_to_reference);
+    RUN_TEST(test_optics_run3_grid_finds_pairs_across_cell_borders);
     RUN_TEST(test_optics_run3_all_duplicates_gives_zero_core_and_reach);
     RUN_TEST(test_optics_filter3_equals_run_extract_largest);
     RUN_TEST(test_optics_auto_params3_scale_and_shift_invariant);

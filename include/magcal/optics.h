@@ -286,11 +286,14 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
  * ExtractDBSCAN and the largest-cluster rule are dimension-free: use
  * magcal_optics_extract_dbscan() and magcal_optics_largest_cluster() on the 3-D run's outputs.
  *
- * Neighbour search: brute force only. Every eps-query tests the points not yet processed (the
- * core-distance pass tests all n), so one run costs about 1.5 n^2 squared distances, O(n^2)
- * time whatever eps is (measured instruction counts in docs/optics.md, section "3-D").
- * cfg->neighbors must still be a valid enum value; GRID is accepted and runs the brute search
- * (info->neighbors reports MAGCAL_NEIGHBORS_BRUTE).
+ * Neighbour search: BRUTE tests every point for the core distance and the points not yet
+ * processed for the reach updates: about 1.5 n^2 squared distances, O(n^2) whatever eps is.
+ * GRID (the default) counting-sorts the points into cubic cells of side eps (1 + 2^-6) (dense
+ * row-major buckets when the box has at most MAGCAL_OPTICS_GRID_CELLS(n) cells, else a spatial
+ * hash modulo that many buckets; cell coordinates clamped to 2^15 per axis) and visits the 3x3x3
+ * block; it falls back to BRUTE for eps = +INF or all points equal (info->neighbors says which).
+ * All four combinations give bit-identical outputs. Measured instruction counts: docs/optics.md,
+ * section "3-D".
  *
  * Automatic parameters (magcal_optics_auto_params3, used by magcal_optics_filter3 when
  * cfg->eps <= 0), every quantity a multiple of distances measured on the data (scale invariant):
@@ -325,18 +328,23 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
 
 /** @cond INTERNAL */
 /* Offset of the MinPts insertion buffer in the 3-D run workspace (4-byte aligned): seeds, heap
- * positions and the list of unprocessed points (uint16[n] each), then the processed bits. */
-#define MAGCAL_OPTICS3_BEST_OFFSET_(n) ((6u * (size_t)(n) + ((size_t)(n) + 7u) / 8u + 3u) & ~(size_t)3u)
+ * positions, unprocessed list / grid index (uint16[n] each), grid bucket starts uint16[G+1],
+ * then the processed bits. */
+#define MAGCAL_OPTICS3_BEST_OFFSET_(n)                                                             \
+    ((6u * (size_t)(n) + 2u * (MAGCAL_OPTICS_GRID_CELLS(n) + 1u) + ((size_t)(n) + 7u) / 8u +      \
+      3u) &                                                                                        \
+     ~(size_t)3u)
 /* Bytes of the 3-D ordering loop's context (off the stack), with slack to align it for pointers;
  * optics3.c checks the size with a static assert. */
-#define MAGCAL_OPTICS3_CTX_LEN_ (32u * sizeof(void *))
+#define MAGCAL_OPTICS3_CTX_LEN_ (26u * sizeof(void *) + 112u)
 /** @endcond */
 
 /**
  * Workspace bytes for magcal_optics_run3() on n points: seed heap/list uint16[n], heap position
- * map uint16[n], unprocessed list uint16[n], one "processed" bit per point, the MinPts insertion
- * buffer (4 * MAGCAL_MAX_MIN_PTS bytes) and the loop's context (32 pointers' worth). About
- * 6.1 bytes per sample + 256 bytes (32-bit); the outputs are separate caller arrays.
+ * map uint16[n], unprocessed list or grid index uint16[n], grid bucket starts
+ * uint16[MAGCAL_OPTICS_GRID_CELLS(n) + 1], one "processed" bit per point, the MinPts insertion
+ * buffer (4 * MAGCAL_MAX_MIN_PTS bytes) and the loop's context (216 bytes on a 32-bit target).
+ * About 8.1 bytes per sample + 346 bytes (32-bit, n >= 16); the outputs are separate caller arrays.
  */
 #define MAGCAL_OPTICS3_WORKSPACE_LEN(n)                                                            \
     (MAGCAL_OPTICS3_BEST_OFFSET_(n) + 4u * (size_t)MAGCAL_MAX_MIN_PTS + MAGCAL_OPTICS3_CTX_LEN_)
@@ -344,15 +352,14 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
 /**
  * Workspace bytes for magcal_optics_filter3() and magcal_optics_auto_params3() on n points:
  * reach float[n] + labels int16[n] + MAGCAL_OPTICS3_WORKSPACE_LEN(n) (the automatic parameters
- * reuse the first 10 n bytes). About 12.1 bytes per sample + 256 bytes (32-bit).
+ * reuse the first 10 n bytes). About 14.1 bytes per sample + 346 bytes (32-bit, n >= 16).
  */
 #define MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n)                                                     \
     (MAGCAL_OPTICS_FILTER_RUN_OFFSET_(n) + MAGCAL_OPTICS3_WORKSPACE_LEN(n))
 
 /**
- * @brief Run the OPTICS ordering loop on 3-D points (algorithms.md 4.1-4.2, brute-force search).
- * @param[in]  cfg       eps (> 0, may be +INF), min_pts, order, neighbors (GRID runs brute force);
- *                       eps_prime ignored.
+ * @brief Run the OPTICS ordering loop on 3-D points (algorithms.md 4.1-4.2).
+ * @param[in]  cfg       eps (> 0, may be +INF), min_pts, order, neighbors; eps_prime ignored.
  * @param[in]  pts       n points (x right, y forward, z up; any unit), finite.
  * @param[in]  n         number of points, cfg->min_pts..MAGCAL_MAX_SAMPLES.
  * @param[out] work      scratch, 4-byte aligned, >= MAGCAL_OPTICS3_WORKSPACE_LEN(n) bytes.
@@ -361,7 +368,7 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
  * @param[out] reach     n reachability distances, indexed by point (INFINITY = undefined).
  * @param[out] core      n core distances, indexed by point (INFINITY = undefined).
  * @param[out] pred      optional (NULL): n predecessors, MAGCAL_OPTICS_NO_PRED for starts.
- * @param[out] info      optional (NULL): eps, min_pts and the neighbour search used (BRUTE).
+ * @param[out] info      optional (NULL): eps, min_pts and the neighbour search used.
  * @return MAGCAL_OK; MAGCAL_ERR_NULL (cfg, pts, work, order, reach or core NULL);
  *         MAGCAL_ERR_ARG (eps not > 0 or NaN, finite eps < 3.4e-21 or > 1.8e19 as in
  *         magcal_optics_run, min_pts outside 2..MAGCAL_MAX_MIN_PTS, bad enum, work not 4-byte
