@@ -26,14 +26,14 @@ typedef struct {
     uint16_t *live;  /* BRUTE: unprocessed points, compacted; GRID: points sorted by bucket */
     uint16_t *start; /* GRID: G + 1 bucket starts into live[] */
     int use_grid;
-    float x0, y0, z0; /* GRID: lower corner of the box */
-    float inv_h;      /* GRID: 1 / cell side */
+    float x0, y0, z0;    /* GRID: lower corner of the box */
+    float inv_h;         /* GRID: 1 / cell side */
     uint32_t gw, gh, gd; /* GRID: cells per axis (<= GRID3_AXIS_CELLS) */
     uint32_t nbkt;       /* GRID: buckets G */
     int dense;           /* GRID: gw*gh*gd <= G, row-major cell number is the bucket */
     uint16_t bk[27];     /* GRID: distinct buckets of the current query */
-    uint8_t *done;   /* processed bits */
-    float *best;     /* MinPts insertion buffer (workspace, keeps process3() frame small) */
+    uint8_t *done;       /* processed bits */
+    float *best;         /* MinPts insertion buffer (workspace, keeps process3() frame small) */
     size_t n_seeds;
     size_t n_done;
     size_t n_live;
@@ -568,8 +568,8 @@ static magcal_status_t check_cfg3(const magcal_optics_cfg_t *cfg)
 
 /* Carve the run workspace (layout of MAGCAL_OPTICS3_WORKSPACE_LEN); the context sits after the
  * MinPts buffer, aligned for pointers. */
-static optics3_ctx_t *ctx3_setup(const magcal_optics_cfg_t *cfg, const magcal_vec3_t *pts,
-                                 size_t n, uint8_t *w)
+static optics3_ctx_t *ctx3_setup(const magcal_optics_cfg_t *cfg, const magcal_vec3_t *pts, size_t n,
+                                 uint8_t *w)
 {
     uint8_t *cw = w + MAGCAL_OPTICS3_BEST_OFFSET_(n) + 4u * (size_t)MAGCAL_MAX_MIN_PTS;
     optics3_ctx_t *c;
@@ -729,8 +729,7 @@ static magcal_status_t auto_params3(const magcal_vec3_t *pts, size_t n, uint8_t 
     unsigned pass;
 
     for (pass = 0; pass <= AUTO3_TRIM_PASSES; ++pass) {
-        const float lim2 =
-            pass == 0u ? INFINITY : (AUTO3_TRIM * rad) * (AUTO3_TRIM * rad);
+        const float lim2 = pass == 0u ? INFINITY : (AUTO3_TRIM * rad) * (AUTO3_TRIM * rad);
         magcal_vec3_t nc;
         size_t k = gather3(pts, n, &cen, lim2, 0u, a);
         if (k < AUTO3_MIN_N) {

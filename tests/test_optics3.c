@@ -147,8 +147,7 @@ static magcal_vec3_t shell_point(double w[3][3], const double u[3], double scale
     int i;
     magcal_vec3_t r;
     for (i = 0; i < 3; ++i) {
-        m[i] = V_TRUE[i] +
-               scale * F_TRUE * (w[i][0] * u[0] + w[i][1] * u[1] + w[i][2] * u[2]) +
+        m[i] = V_TRUE[i] + scale * F_TRUE * (w[i][0] * u[0] + w[i][1] * u[1] + w[i][2] * u[2]) +
                sigma * test_rand_normal(rng);
     }
     r.x = (float)m[0];
@@ -256,8 +255,8 @@ static void test_optics_run3_variants_bit_identical_to_reference(void)
         reference_optics3(g_pts, n, eps, min_pts);
         for (v = 0; v < 4u; ++v) {
             magcal_neighbors_t used = run_variant(v, g_pts, n, eps, min_pts);
-            TEST_ASSERT_EQUAL_INT(v >= 2u && isfinite(eps) ? MAGCAL_NEIGHBORS_GRID
-                                                           : MAGCAL_NEIGHBORS_BRUTE, used);
+            TEST_ASSERT_EQUAL_INT(
+                v >= 2u && isfinite(eps) ? MAGCAL_NEIGHBORS_GRID : MAGCAL_NEIGHBORS_BRUTE, used);
             TEST_ASSERT_EQUAL_MEMORY(r_order, g_order[v], n * sizeof r_order[0]);
             TEST_ASSERT_EQUAL_MEMORY(r_reach, g_reach[v], n * sizeof r_reach[0]);
             TEST_ASSERT_EQUAL_MEMORY(r_core, g_core[v], n * sizeof r_core[0]);
@@ -274,8 +273,10 @@ static void test_optics_run3_grid_finds_pairs_across_cell_borders(void)
     size_t a, v;
     (void)memset(g_pts, 0, 12u * sizeof g_pts[0]);
     for (a = 0; a < 3u; ++a) {
-        float *c0 = a == 0u ? &g_pts[1 + 3u * a].x : (a == 1u ? &g_pts[1 + 3u * a].y : &g_pts[1 + 3u * a].z);
-        float *c1 = a == 0u ? &g_pts[2 + 3u * a].x : (a == 1u ? &g_pts[2 + 3u * a].y : &g_pts[2 + 3u * a].z);
+        float *c0 = a == 0u ? &g_pts[1 + 3u * a].x
+                            : (a == 1u ? &g_pts[1 + 3u * a].y : &g_pts[1 + 3u * a].z);
+        float *c1 = a == 0u ? &g_pts[2 + 3u * a].x
+                            : (a == 1u ? &g_pts[2 + 3u * a].y : &g_pts[2 + 3u * a].z);
         *c0 = 0.98f;
         *c1 = 0.98f + 0.999f;
         g_pts[3 + 3u * a].x = 5.0f + (float)a; /* far companions keep the box large */
@@ -335,9 +336,9 @@ static void test_optics_filter3_equals_run_extract_largest(void)
             cfg.min_pts = min_pts;
         } else {
             cfg.eps = 0.0f; /* auto */
-            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_auto_params3(g->pts, g->n, g_work,
-                                                                        sizeof g_work, &eps,
-                                                                        &min_pts, &eps_prime));
+            TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                                  magcal_optics_auto_params3(g->pts, g->n, g_work, sizeof g_work,
+                                                             &eps, &min_pts, &eps_prime));
         }
         TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_filter3(&cfg, g->pts, g->n, g_work,
                                                                sizeof g_work, g_mask, &info));
@@ -366,22 +367,22 @@ static void test_optics_auto_params3_scale_and_shift_invariant(void)
     uint16_t m0, m1, m2;
     size_t i;
     make_shell(300u, 0.25, 77u);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_auto_params3(g_pts, 300u, g_work,
-                                                                sizeof g_work, &e0, &m0, &p0));
+    TEST_ASSERT_EQUAL_INT(
+        MAGCAL_OK, magcal_optics_auto_params3(g_pts, 300u, g_work, sizeof g_work, &e0, &m0, &p0));
     for (i = 0; i < 300u; ++i) {
         g_in[i].x = 1024.0f * g_pts[i].x;
         g_in[i].y = 1024.0f * g_pts[i].y;
         g_in[i].z = 1024.0f * g_pts[i].z;
     }
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_auto_params3(g_in, 300u, g_work,
-                                                                sizeof g_work, &e1, &m1, &p1));
+    TEST_ASSERT_EQUAL_INT(
+        MAGCAL_OK, magcal_optics_auto_params3(g_in, 300u, g_work, sizeof g_work, &e1, &m1, &p1));
     for (i = 0; i < 300u; ++i) {
         g_in[i].x = g_pts[i].x + 5.0e4f;
         g_in[i].y = g_pts[i].y - 5.0e4f;
         g_in[i].z = g_pts[i].z + 2.5e4f;
     }
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_auto_params3(g_in, 300u, g_work,
-                                                                sizeof g_work, &e2, &m2, &p2));
+    TEST_ASSERT_EQUAL_INT(
+        MAGCAL_OK, magcal_optics_auto_params3(g_in, 300u, g_work, sizeof g_work, &e2, &m2, &p2));
     printf("auto3 n=300: eps' = %.4f F, x1024 ratio %.9g, shifted ratio %.6f\n",
            (double)e0 / F_TRUE, (double)(e1 / e0), (double)(e2 / e0));
     TEST_ASSERT_EQUAL_UINT16(4u, m0);
@@ -611,8 +612,10 @@ static void test_optics_filter3_then_ellipsoid_fit_near_burst_gate_finishes(void
         f = run_filter_then_fit();
         print_e2e("near burst: density + fit", &f);
         for (k = 0; k < E2E_N; ++k) {
-            spikes_kept += (g_is_out[k] != 0u && (k < 200u || k >= 200u + E2E_N_BURST) &&
-                            g_mask[k] != 0u) ? 1u : 0u;
+            spikes_kept +=
+                (g_is_out[k] != 0u && (k < 200u || k >= 200u + E2E_N_BURST) && g_mask[k] != 0u)
+                    ? 1u
+                    : 0u;
         }
         TEST_ASSERT_EQUAL_INT(MAGCAL_OK, f.st_filter);
         TEST_ASSERT_EQUAL_UINT(0u, spikes_kept);
@@ -667,12 +670,12 @@ static void test_optics_run3_bad_input_returns_specific_status(void)
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, run3_with(&cfg, g_pts, n, NULL, wl));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_run3(&cfg, g_pts, n, g_work, wl, NULL,
                                                               g_reach[0], g_core[0], NULL, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_run3(&cfg, g_pts, n, g_work, wl,
-                                                              g_order[0], NULL, g_core[0], NULL,
-                                                              NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_run3(&cfg, g_pts, n, g_work, wl,
-                                                              g_order[0], g_reach[0], NULL, NULL,
-                                                              NULL));
+    TEST_ASSERT_EQUAL_INT(
+        MAGCAL_ERR_NULL,
+        magcal_optics_run3(&cfg, g_pts, n, g_work, wl, g_order[0], NULL, g_core[0], NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(
+        MAGCAL_ERR_NULL,
+        magcal_optics_run3(&cfg, g_pts, n, g_work, wl, g_order[0], g_reach[0], NULL, NULL, NULL));
     /* eps: 0, negative, NaN, eps^2 underflowing (< 3.4e-21) or overflowing (> 1.8e19) */
     bad = cfg;
     bad.eps = 0.0f;
@@ -700,8 +703,8 @@ static void test_optics_run3_bad_input_returns_specific_status(void)
     /* counts: n < min_pts, n > MAGCAL_MAX_SAMPLES (uint16 indices) */
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, run3_with(&cfg, g_pts, 3u, g_work, wl));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, run3_with(&cfg, g_pts, 0u, g_work, wl));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, run3_with(&cfg, g_pts, MAGCAL_MAX_SAMPLES + 1u, g_work,
-                                                    sizeof g_work));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          run3_with(&cfg, g_pts, MAGCAL_MAX_SAMPLES + 1u, g_work, sizeof g_work));
     /* NaN / Inf in each coordinate */
     g_pts[7].z = NAN;
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, run3_with(&cfg, g_pts, n, g_work, wl));
@@ -732,58 +735,89 @@ static void test_optics_filter3_and_auto_bad_input_returns_specific_status(void)
     make_shell(n, 0.5, 6u);
     fill_sentinels();
     /* filter3, auto mode (eps = 0) */
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_filter3(NULL, g_pts, n, g_work, wl, g_mask, &info));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_filter3(&cfg, NULL, n, g_work, wl, g_mask, &info));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_filter3(&cfg, g_pts, n, NULL, wl, g_mask, &info));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_filter3(&cfg, g_pts, n, g_work, wl, NULL, &info));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_filter3(&cfg, g_pts, n, w1, wl, g_mask, &info));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_optics_filter3(&cfg, g_pts, 15u, g_work, wl, g_mask, &info));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_filter3(&cfg, g_pts, MAGCAL_MAX_SAMPLES + 1u, g_work, sizeof g_work, g_mask, &info));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE, magcal_optics_filter3(&cfg, g_pts, n, g_work, wl - 1u, g_mask, &info));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
+                          magcal_optics_filter3(NULL, g_pts, n, g_work, wl, g_mask, &info));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
+                          magcal_optics_filter3(&cfg, NULL, n, g_work, wl, g_mask, &info));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
+                          magcal_optics_filter3(&cfg, g_pts, n, NULL, wl, g_mask, &info));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
+                          magcal_optics_filter3(&cfg, g_pts, n, g_work, wl, NULL, &info));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_optics_filter3(&cfg, g_pts, n, w1, wl, g_mask, &info));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS,
+                          magcal_optics_filter3(&cfg, g_pts, 15u, g_work, wl, g_mask, &info));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_optics_filter3(&cfg, g_pts, MAGCAL_MAX_SAMPLES + 1u, g_work,
+                                                sizeof g_work, g_mask, &info));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE,
+                          magcal_optics_filter3(&cfg, g_pts, n, g_work, wl - 1u, g_mask, &info));
     bad = cfg;
     bad.eps = NAN;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_filter3(&bad, g_pts, n, g_work, wl, g_mask, &info));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_optics_filter3(&bad, g_pts, n, g_work, wl, g_mask, &info));
     bad = cfg;
     bad.order = (magcal_optics_order_t)-1;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_filter3(&bad, g_pts, n, g_work, wl, g_mask, &info));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_optics_filter3(&bad, g_pts, n, g_work, wl, g_mask, &info));
     /* given parameters: eps' > eps, eps' < 0, eps' NaN/Inf, eps out of range, n < min_pts */
     bad = cfg;
     bad.eps = 10.0f;
     bad.eps_prime = 11.0f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_filter3(&bad, g_pts, n, g_work, wl, g_mask, &info));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_optics_filter3(&bad, g_pts, n, g_work, wl, g_mask, &info));
     bad.eps_prime = -1.0f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_filter3(&bad, g_pts, n, g_work, wl, g_mask, &info));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_optics_filter3(&bad, g_pts, n, g_work, wl, g_mask, &info));
     bad.eps_prime = NAN;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_filter3(&bad, g_pts, n, g_work, wl, g_mask, &info));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_optics_filter3(&bad, g_pts, n, g_work, wl, g_mask, &info));
     bad.eps = INFINITY;
     bad.eps_prime = 0.0f; /* eps' = eps = inf is not finite */
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_filter3(&bad, g_pts, n, g_work, wl, g_mask, &info));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_optics_filter3(&bad, g_pts, n, g_work, wl, g_mask, &info));
     bad.eps = 1e20f;
     bad.eps_prime = 1.0f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_filter3(&bad, g_pts, n, g_work, wl, g_mask, &info));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_optics_filter3(&bad, g_pts, n, g_work, wl, g_mask, &info));
     bad.eps = 10.0f;
     bad.min_pts = 8u;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_optics_filter3(&bad, g_pts, 7u, g_work, wl, g_mask, &info));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE, magcal_optics_filter3(&bad, g_pts, n, g_work, wl - 1u, g_mask, &info));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS,
+                          magcal_optics_filter3(&bad, g_pts, 7u, g_work, wl, g_mask, &info));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE,
+                          magcal_optics_filter3(&bad, g_pts, n, g_work, wl - 1u, g_mask, &info));
     /* eps below every pair distance: every point is noise */
     bad.eps = 1e-6f;
     bad.eps_prime = 0.0f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ALL_NOISE, magcal_optics_filter3(&bad, g_pts, n, g_work, wl, g_mask, &info));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ALL_NOISE,
+                          magcal_optics_filter3(&bad, g_pts, n, g_work, wl, g_mask, &info));
     TEST_ASSERT_EQUAL_UINT16(n, info.n_noise);
     g_pts[33].y = NAN;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_optics_filter3(&cfg, g_pts, n, g_work, wl, g_mask, &info));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_optics_auto_params3(g_pts, n, g_work, wl, &e, &mp, &ep));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE,
+                          magcal_optics_filter3(&cfg, g_pts, n, g_work, wl, g_mask, &info));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE,
+                          magcal_optics_auto_params3(g_pts, n, g_work, wl, &e, &mp, &ep));
     g_pts[33].y = 1.0f;
     /* auto_params3 */
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_auto_params3(NULL, n, g_work, wl, &e, &mp, &ep));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_auto_params3(g_pts, n, NULL, wl, &e, &mp, &ep));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_auto_params3(g_pts, n, g_work, wl, NULL, &mp, &ep));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_auto_params3(g_pts, n, g_work, wl, &e, NULL, &ep));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_auto_params3(g_pts, n, g_work, wl, &e, &mp, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_auto_params3(g_pts, n, w1, wl, &e, &mp, &ep));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_optics_auto_params3(g_pts, 15u, g_work, wl, &e, &mp, &ep));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_auto_params3(g_pts, MAGCAL_MAX_SAMPLES + 1u, g_work, sizeof g_work, &e, &mp, &ep));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE, magcal_optics_auto_params3(g_pts, n, g_work, wl - 1u, &e, &mp, &ep));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
+                          magcal_optics_auto_params3(NULL, n, g_work, wl, &e, &mp, &ep));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
+                          magcal_optics_auto_params3(g_pts, n, NULL, wl, &e, &mp, &ep));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
+                          magcal_optics_auto_params3(g_pts, n, g_work, wl, NULL, &mp, &ep));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
+                          magcal_optics_auto_params3(g_pts, n, g_work, wl, &e, NULL, &ep));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
+                          magcal_optics_auto_params3(g_pts, n, g_work, wl, &e, &mp, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_optics_auto_params3(g_pts, n, w1, wl, &e, &mp, &ep));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS,
+                          magcal_optics_auto_params3(g_pts, 15u, g_work, wl, &e, &mp, &ep));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                          magcal_optics_auto_params3(g_pts, MAGCAL_MAX_SAMPLES + 1u, g_work,
+                                                     sizeof g_work, &e, &mp, &ep));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE,
+                          magcal_optics_auto_params3(g_pts, n, g_work, wl - 1u, &e, &mp, &ep));
     /* more than half the samples identical: median radius 0 */
     for (i = 0; i < 31u; ++i) {
         g_in[i] = g_pts[0];
@@ -791,14 +825,18 @@ static void test_optics_filter3_and_auto_bad_input_returns_specific_status(void)
     for (; i < n; ++i) {
         g_in[i] = g_pts[i];
     }
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_DEGENERATE, magcal_optics_auto_params3(g_in, n, g_work, wl, &e, &mp, &ep));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_DEGENERATE, magcal_optics_filter3(&cfg, g_in, n, g_work, wl, g_mask, &info));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_DEGENERATE,
+                          magcal_optics_auto_params3(g_in, n, g_work, wl, &e, &mp, &ep));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_DEGENERATE,
+                          magcal_optics_filter3(&cfg, g_in, n, g_work, wl, g_mask, &info));
     TEST_ASSERT_EQUAL_FLOAT(-7.0f, e);
     TEST_ASSERT_EQUAL_FLOAT(-7.0f, ep);
     TEST_ASSERT_EQUAL_UINT16(77u, mp);
     assert_sentinels(n);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_auto_params3(g_pts, n, g_work, wl, &e, &mp, &ep));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_filter3(&cfg, g_pts, n, g_work, wl, g_mask, &info));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                          magcal_optics_auto_params3(g_pts, n, g_work, wl, &e, &mp, &ep));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                          magcal_optics_filter3(&cfg, g_pts, n, g_work, wl, g_mask, &info));
 }
 
 int main(void)

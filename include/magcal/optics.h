@@ -331,8 +331,7 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
  * positions, unprocessed list / grid index (uint16[n] each), grid bucket starts uint16[G+1],
  * then the processed bits. */
 #define MAGCAL_OPTICS3_BEST_OFFSET_(n)                                                             \
-    ((6u * (size_t)(n) + 2u * (MAGCAL_OPTICS_GRID_CELLS(n) + 1u) + ((size_t)(n) + 7u) / 8u +      \
-      3u) &                                                                                        \
+    ((6u * (size_t)(n) + 2u * (MAGCAL_OPTICS_GRID_CELLS(n) + 1u) + ((size_t)(n) + 7u) / 8u + 3u) & \
      ~(size_t)3u)
 /* Bytes of the 3-D ordering loop's context (off the stack), with slack to align it for pointers;
  * optics3.c checks the size with a static assert. */
