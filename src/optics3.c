@@ -26,14 +26,18 @@ typedef struct {
     uint16_t *live;  /* BRUTE: unprocessed points, compacted; GRID: points sorted by bucket */
     uint16_t *start; /* GRID: G + 1 bucket starts into live[] */
     int use_grid;
-    float x0, y0, z0;    /* GRID: lower corner of the box */
-    float inv_h;         /* GRID: 1 / cell side */
-    uint32_t gw, gh, gd; /* GRID: cells per axis (<= GRID3_AXIS_CELLS) */
-    uint32_t nbkt;       /* GRID: buckets G */
-    int dense;           /* GRID: gw*gh*gd <= G, row-major cell number is the bucket */
-    uint16_t bk[27];     /* GRID: distinct buckets of the current query */
-    uint8_t *done;       /* processed bits */
-    float *best;         /* MinPts insertion buffer (workspace, keeps process3() frame small) */
+    float x0; /* GRID: lower corner of the box */
+    float y0;
+    float z0;
+    float inv_h; /* GRID: 1 / cell side */
+    uint32_t gw; /* GRID: cells per axis (<= GRID3_AXIS_CELLS) */
+    uint32_t gh;
+    uint32_t gd;
+    uint32_t nbkt;   /* GRID: buckets G */
+    int dense;       /* GRID: gw*gh*gd <= G, row-major cell number is the bucket */
+    uint16_t bk[27]; /* GRID: distinct buckets of the current query */
+    uint8_t *done;   /* processed bits */
+    float *best;     /* MinPts insertion buffer (workspace, keeps process3() frame small) */
     size_t n_seeds;
     size_t n_done;
     size_t n_live;
@@ -63,21 +67,21 @@ static float dist2(const magcal_vec3_t *a, const magcal_vec3_t *b)
 }
 
 /* (reach, index) lexicographic order: the tie rule that makes both ordering modes identical. */
-static int key_less(const float *reach, uint16_t a, uint16_t b)
+static int key_less3(const float *reach, uint16_t a, uint16_t b)
 {
     const float ra = reach[a];
     const float rb = reach[b];
     return ra < rb || (ra == rb && a < b);
 }
 
-static void heap_sift_up(optics3_ctx_t *c, size_t k0)
+static void heap_up3(optics3_ctx_t *c, size_t k0)
 {
     size_t k = k0;
     uint16_t v = c->seeds[k];
     while (k > 0u) {
         size_t parent = (k - 1u) >> 1;
         uint16_t pv = c->seeds[parent];
-        if (!key_less(c->reach, v, pv)) {
+        if (!key_less3(c->reach, v, pv)) {
             break;
         }
         c->seeds[k] = pv;
@@ -88,7 +92,7 @@ static void heap_sift_up(optics3_ctx_t *c, size_t k0)
     c->pos[v] = (uint16_t)k;
 }
 
-static void heap_sift_down(optics3_ctx_t *c, size_t k0)
+static void heap_down3(optics3_ctx_t *c, size_t k0)
 {
     size_t k = k0;
     uint16_t v = c->seeds[k];
@@ -96,11 +100,11 @@ static void heap_sift_down(optics3_ctx_t *c, size_t k0)
     while (2u * k + 1u < m) { /* k at least doubles: <= log2(m) rounds */
         size_t child = 2u * k + 1u;
         uint16_t cv = c->seeds[child];
-        if (child + 1u < m && key_less(c->reach, c->seeds[child + 1u], cv)) {
+        if (child + 1u < m && key_less3(c->reach, c->seeds[child + 1u], cv)) {
             ++child;
             cv = c->seeds[child];
         }
-        if (!key_less(c->reach, cv, v)) {
+        if (!key_less3(c->reach, cv, v)) {
             break;
         }
         c->seeds[k] = cv;
@@ -111,7 +115,7 @@ static void heap_sift_down(optics3_ctx_t *c, size_t k0)
     c->pos[v] = (uint16_t)k;
 }
 
-static uint16_t seeds_pop_min(optics3_ctx_t *c)
+static uint16_t seeds_pop3(optics3_ctx_t *c)
 {
     uint16_t q;
     if (c->mode == MAGCAL_OPTICS_CLASSIC) {
@@ -120,7 +124,7 @@ static uint16_t seeds_pop_min(optics3_ctx_t *c)
         c->pos[q] = POS_NONE;
         if (c->n_seeds > 0u) {
             c->seeds[0] = c->seeds[c->n_seeds];
-            heap_sift_down(c, 0u);
+            heap_down3(c, 0u);
         }
     } else {
         size_t k;
@@ -145,7 +149,7 @@ static uint16_t seeds_pop_min(optics3_ctx_t *c)
 }
 
 /* ExtractDBSCAN step for the point just processed (same rule as magcal_optics_extract_dbscan). */
-static void extract_step(optics3_ctx_t *c, size_t p, float core_p)
+static void extract_step3(optics3_ctx_t *c, size_t p, float core_p)
 {
     int16_t lab;
     if (c->reach[p] > c->eps_prime) {
@@ -174,7 +178,7 @@ static void extract_step(optics3_ctx_t *c, size_t p, float core_p)
 
 /* Reach decrease of unprocessed neighbour j of core point p to r (< reach[j], checked by the
  * caller; strict, so the first value set keeps ties). */
-static void update_one(optics3_ctx_t *c, size_t p, size_t j, float r)
+static void update_one3(optics3_ctx_t *c, size_t p, size_t j, float r)
 {
     float old = c->reach[j];
     c->reach[j] = r;
@@ -185,9 +189,9 @@ static void update_one(optics3_ctx_t *c, size_t p, size_t j, float r)
         if (c->pos[j] == POS_NONE) {
             c->seeds[c->n_seeds] = (uint16_t)j;
             c->n_seeds++;
-            heap_sift_up(c, c->n_seeds - 1u);
+            heap_up3(c, c->n_seeds - 1u);
         } else {
-            heap_sift_up(c, c->pos[j]);
+            heap_up3(c, c->pos[j]);
         }
     } else if (old == INFINITY) {
         c->seeds[c->n_seeds] = (uint16_t)j;
@@ -199,7 +203,7 @@ static void update_one(optics3_ctx_t *c, size_t p, size_t j, float r)
 
 /* Insert d2 into the ascending buffer best[0..cnt) of capacity m (when full, the largest value
  * drops out); returns the new count. */
-static size_t best_insert(float *best, size_t cnt, size_t m, float d2)
+static size_t best_insert3(float *best, size_t cnt, size_t m, float d2)
 {
     size_t t = m - 1u;
     size_t count = cnt;
@@ -228,15 +232,16 @@ static size_t best_insert(float *best, size_t cnt, size_t m, float d2)
  * 2^-6 margin of h.
  */
 #define GRID3_AXIS_CELLS 32768u
+#define GRID3_AXIS_LAST_F 32767.0f /* GRID3_AXIS_CELLS - 1 */
 #define GRID3_MARGIN (1.0f + 1.0f / 64.0f)
 
-static uint32_t cell_of(float v, float v0, float inv_h)
+static uint32_t cell3_of(float v, float v0, float inv_h)
 {
     float t = (v - v0) * inv_h;
     uint32_t cidx = GRID3_AXIS_CELLS - 1u;
     if (!(t >= 0.0f)) {
         cidx = 0u; /* not reached: v >= v0 */
-    } else if (t < (float)(GRID3_AXIS_CELLS - 1u)) {
+    } else if (t < GRID3_AXIS_LAST_F) {
         cidx = (uint32_t)t; /* truncation = floor for t >= 0 */
     } else {
         /* clamped into the last cell */
@@ -258,8 +263,8 @@ static uint32_t bucket_of(const optics3_ctx_t *c, uint32_t cx, uint32_t cy, uint
 static uint32_t point_bucket(const optics3_ctx_t *c, size_t i)
 {
     const magcal_vec3_t *q = &c->pts[i];
-    return bucket_of(c, cell_of(q->x, c->x0, c->inv_h), cell_of(q->y, c->y0, c->inv_h),
-                     cell_of(q->z, c->z0, c->inv_h));
+    return bucket_of(c, cell3_of(q->x, c->x0, c->inv_h), cell3_of(q->y, c->y0, c->inv_h),
+                     cell3_of(q->z, c->z0, c->inv_h));
 }
 
 /* Build the grid over live[] / start[] when cfg asks for it and it can help (finite eps, points
@@ -302,15 +307,17 @@ static void grid3_build(optics3_ctx_t *c, float eps, magcal_neighbors_t mode)
     c->y0 = lo[1];
     c->z0 = lo[2];
     for (a = 0u; a < 3u; ++a) {
-        g[a] = cell_of(hi[a], lo[a], c->inv_h) + 1u;
+        g[a] = cell3_of(hi[a], lo[a], c->inv_h) + 1u;
     }
     c->gw = g[0];
     c->gh = g[1];
     c->gd = g[2];
     c->nbkt = (uint32_t)MAGCAL_OPTICS_GRID_CELLS(n);
-    cells = (uint64_t)g[0] * (uint64_t)g[1] * (uint64_t)g[2];
-    c->dense = cells <= (uint64_t)c->nbkt ? 1 : 0;
-    if (c->dense != 0) {
+    cells = (uint64_t)g[0] * (uint64_t)g[1];
+    cells *= (uint64_t)g[2];
+    c->dense = 0;
+    if (cells <= (uint64_t)c->nbkt) {
+        c->dense = 1;
         c->nbkt = (uint32_t)cells;
     }
     c->use_grid = 1;
@@ -337,9 +344,9 @@ static void grid3_build(optics3_ctx_t *c, float eps, magcal_neighbors_t mode)
 static size_t grid3_query(const optics3_ctx_t *c, size_t p, uint16_t *bk)
 {
     const magcal_vec3_t *q = &c->pts[p];
-    const uint32_t cx = cell_of(q->x, c->x0, c->inv_h);
-    const uint32_t cy = cell_of(q->y, c->y0, c->inv_h);
-    const uint32_t cz = cell_of(q->z, c->z0, c->inv_h);
+    const uint32_t cx = cell3_of(q->x, c->x0, c->inv_h);
+    const uint32_t cy = cell3_of(q->y, c->y0, c->inv_h);
+    const uint32_t cz = cell3_of(q->z, c->z0, c->inv_h);
     uint32_t dx;
     uint32_t dy;
     uint32_t dz;
@@ -390,7 +397,7 @@ static void process3_grid(optics3_ctx_t *c, size_t p, float core_p0)
         for (k = c->start[bk[t]]; k < c->start[bk[t] + 1u]; ++k) {
             float d2 = dist2(&pts[c->live[k]], pp);
             if (d2 <= eps2 && (cnt < m || d2 < best[m - 1u])) {
-                cnt = best_insert(best, cnt, m, d2);
+                cnt = best_insert3(best, cnt, m, d2);
             }
         }
     }
@@ -402,7 +409,7 @@ static void process3_grid(optics3_ctx_t *c, size_t p, float core_p0)
         c->core[p] = core_p;
     }
     if (c->labels != NULL) {
-        extract_step(c, p, core_p);
+        extract_step3(c, p, core_p);
     }
     if (cnt < m) {
         return;
@@ -414,7 +421,7 @@ static void process3_grid(optics3_ctx_t *c, size_t p, float core_p0)
             if (d2 <= eps2 && ((((unsigned)c->done[j >> 3] >> (unsigned)(j & 7u)) & 1u) == 0u)) {
                 float r = d2 <= core2 ? core_p : sqrtf(d2);
                 if (r < c->reach[j]) {
-                    update_one(c, p, j, r);
+                    update_one3(c, p, j, r);
                 }
             }
         }
@@ -459,7 +466,7 @@ static void process3(optics3_ctx_t *c, size_t p)
     for (k = 0; k < n; ++k) {
         float d2 = dist2(&pts[k], pp);
         if (d2 <= lim && (cnt < m || d2 < lim)) {
-            cnt = best_insert(best, cnt, m, d2);
+            cnt = best_insert3(best, cnt, m, d2);
             if (cnt == m) {
                 lim = best[m - 1u];
             }
@@ -473,7 +480,7 @@ static void process3(optics3_ctx_t *c, size_t p)
         c->core[p] = core_p;
     }
     if (c->labels != NULL) {
-        extract_step(c, p, core_p);
+        extract_step3(c, p, core_p);
     }
     for (k = 0; k < nl; ++k) {
         size_t j = live[k];
@@ -487,7 +494,7 @@ static void process3(optics3_ctx_t *c, size_t p)
             if (d2 <= eps2) {
                 float r = d2 <= core2 ? core_p : sqrtf(d2);
                 if (r < c->reach[j]) {
-                    update_one(c, p, j, r);
+                    update_one3(c, p, j, r);
                 }
             }
         }
@@ -521,7 +528,7 @@ static void optics3_loop(optics3_ctx_t *c)
         }
         process3(c, s);
         while (c->n_seeds > 0u) { /* each pop processes one new point: <= n rounds in total */
-            process3(c, seeds_pop_min(c));
+            process3(c, seeds_pop3(c));
         }
     }
     if (c->labels != NULL && c->id >= 0 && c->cur_count > c->best_count) {
@@ -769,11 +776,14 @@ static magcal_status_t auto_params3(const magcal_vec3_t *pts, size_t n, uint8_t 
      * many, a pseudo-random draw (fixed seed, so the result is deterministic; random rather than
      * strided so that periodic glitches cannot line up with the sampling) costs O(n) instead of
      * O(n^2) and moves the median by a few per cent (docs/optics.md "3-D") */
-    n_k = m <= AUTO3_KSAMPLES ? m : AUTO3_KSAMPLES;
+    n_k = m;
+    if (n_k > AUTO3_KSAMPLES) {
+        n_k = AUTO3_KSAMPLES;
+    }
     for (t = 0; t < n_k; ++t) {
         const size_t i3 = m <= AUTO3_KSAMPLES ? band[t] : band[magcal_prng_next(&rng, (uint32_t)m)];
         /* 3rd nearest other sample (MinPts = 4 counts the point itself) */
-        float k3[AUTO3_MIN_PTS - 1u];
+        float k3[AUTO3_MIN_PTS - 1u] = {INFINITY, INFINITY, INFINITY};
         size_t cnt = 0u;
         size_t j;
         for (j = 0; j < n; ++j) {
@@ -783,7 +793,7 @@ static magcal_status_t auto_params3(const magcal_vec3_t *pts, size_t n, uint8_t 
             }
             d2 = dist2(&pts[j], &pts[i3]);
             if (cnt < AUTO3_MIN_PTS - 1u || d2 < k3[AUTO3_MIN_PTS - 2u]) {
-                cnt = best_insert(k3, cnt, AUTO3_MIN_PTS - 1u, d2);
+                cnt = best_insert3(k3, cnt, AUTO3_MIN_PTS - 1u, d2);
             }
         }
         b[t] = sqrtf(k3[AUTO3_MIN_PTS - 2u]); /* n >= 16: the buffer is full */
