@@ -6,6 +6,7 @@
 #include "golden_optics3.h"
 #include "magcal/ellipsoid.h"
 #include "magcal/optics.h"
+#include "test_dumps.h"
 #include "test_util.h"
 #include "test_util3d.h"
 #include "unity.h"
@@ -628,6 +629,81 @@ static void test_optics_filter3_then_ellipsoid_fit_near_burst_gate_finishes(void
     }
 }
 
+/* ---- real recordings -------------------------------------------------------------------- */
+
+static double v_dist(const magcal_ellipsoid_cal_t *a, const magcal_ellipsoid_cal_t *b)
+{
+    double dx = (double)a->v.x - (double)b->v.x;
+    double dy = (double)a->v.y - (double)b->v.y;
+    double dz = (double)a->v.z - (double)b->v.z;
+    return sqrt(dx * dx + dy * dy + dz * dz);
+}
+
+/*
+ * Real tumble recordings (tests/data/real: LSM9DS1 534 samples in gauss, the ellipsoid_fit python
+ * sample 347 samples in raw counts). No truth is known, so the reference is the default ellipsoid
+ * fit of the recording itself. (a) filter3 keeps every recorded sample (measured: 534/534,
+ * 347/347, one cluster). (b) Injected: 20 samples stuck at V + 1.8 (m_17 - V) and n/20 spikes
+ * (V + 2 (m - V) or V + 0.2 (m - V) of other samples): measured, filter3 rejects 45 of 46 and
+ * 37 of 37 and no recorded sample, and the fit on its inliers lands within 4e-5 F of the
+ * reference V; the fit's gate alone is off by 4.6 % F (557 of 580 used) and 8.8 % F (375 of
+ * 384 used). Tolerances: at most 2 injected samples kept, none lost, |V - V_ref| < 0.2 % F.
+ */
+static void test_optics_filter3_real_tumbles_keep_samples_and_reject_injected(void)
+{
+    static const magcal_test_dump_t *const dumps[2] = {&dump_real_lsm9ds1_pmodnav_tumble,
+                                                       &dump_real_ellipsoid_fit_python_sample};
+    size_t d, i;
+    for (d = 0; d < 2u; ++d) {
+        magcal_optics_cfg_t cfg = MAGCAL_OPTICS_CFG_DEFAULT;
+        magcal_optics_result_t info;
+        const magcal_ellipsoid_cfg_t fc = MAGCAL_ELLIPSOID_CFG_DEFAULT;
+        magcal_ellipsoid_result_t ref, fit, gate;
+        const magcal_test_dump_t *dp = dumps[d];
+        size_t nb = dp->n, m = 0u, kept_out = 0u, lost = 0u;
+        magcal_vec3_t v;
+        for (i = 0; i < dp->n; ++i) {
+            g_pts[i].x = dp->mx[i];
+            g_pts[i].y = dp->my[i];
+            g_pts[i].z = dp->mz[i];
+            g_is_out[i] = 0u;
+        }
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_pts, dp->n, &fc, &ref));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_filter3(&cfg, g_pts, dp->n, g_work,
+                                                               sizeof g_work, g_mask, &info));
+        TEST_ASSERT_EQUAL_UINT16(dp->n, info.n_inliers); /* (a) */
+        v = ref.cal.v;
+        for (i = 0; i < 20u + dp->n / 20u; ++i) { /* (b) */
+            const size_t src = i < 20u ? 17u : ((i - 20u) * 37u + 5u) % dp->n;
+            const float sc = i < 20u ? 1.8f : (i % 3u == 0u ? 0.2f : 2.0f);
+            g_pts[nb].x = v.x + sc * (g_pts[src].x - v.x);
+            g_pts[nb].y = v.y + sc * (g_pts[src].y - v.y);
+            g_pts[nb].z = v.z + sc * (g_pts[src].z - v.z);
+            g_is_out[nb] = 1u;
+            ++nb;
+        }
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_filter3(&cfg, g_pts, nb, g_work,
+                                                               sizeof g_work, g_mask, &info));
+        for (i = 0; i < nb; ++i) {
+            kept_out += (g_mask[i] != 0u && g_is_out[i] != 0u) ? 1u : 0u;
+            lost += (g_mask[i] == 0u && g_is_out[i] == 0u) ? 1u : 0u;
+            if (g_mask[i] != 0u) {
+                g_in[m++] = g_pts[i];
+            }
+        }
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_in, m, &fc, &fit));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_pts, nb, &fc, &gate));
+        printf("%s: %u samples all kept; %u injected: %u kept, %u recorded lost; |dV|/F "
+               "density+fit %.2e, gate only %.2e (%u used)\n",
+               dp->name, (unsigned)dp->n, (unsigned)(nb - dp->n), (unsigned)kept_out,
+               (unsigned)lost, v_dist(&fit.cal, &ref.cal) / (double)ref.cal.field,
+               v_dist(&gate.cal, &ref.cal) / (double)ref.cal.field, (unsigned)gate.n_used);
+        TEST_ASSERT_TRUE(kept_out <= 2u);
+        TEST_ASSERT_EQUAL_UINT(0u, lost);
+        TEST_ASSERT_TRUE(v_dist(&fit.cal, &ref.cal) < 2e-3 * (double)ref.cal.field);
+    }
+}
+
 /* ---- bad input --------------------------------------------------------------------------- */
 
 static void fill_sentinels(void)
@@ -851,6 +927,7 @@ int main(void)
     RUN_TEST(test_optics_filter3_clean_shell_keeps_every_sample);
     RUN_TEST(test_optics_filter3_then_ellipsoid_fit_far_burst_recovers_truth);
     RUN_TEST(test_optics_filter3_then_ellipsoid_fit_near_burst_gate_finishes);
+    RUN_TEST(test_optics_filter3_real_tumbles_keep_samples_and_reject_injected);
     RUN_TEST(test_optics_run3_bad_input_returns_specific_status);
     RUN_TEST(test_optics_filter3_and_auto_bad_input_returns_specific_status);
     return UNITY_END();
