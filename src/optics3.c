@@ -654,14 +654,29 @@ magcal_status_t magcal_optics_run3(const magcal_optics_cfg_t *cfg, const magcal_
 #define AUTO3_MIN_N 16u
 #define AUTO3_MIN_PTS 4u
 #define AUTO3_MIN_BAND 10u
-#define AUTO3_KSAMPLES 128u /* band points whose k-distance is measured */
-#define AUTO3_SEED 0x2545F491u
+#define AUTO3_BISECT 20u
+#define AUTO3_SAFETY 2.0f /* eps' = 2 x the radius connecting 75 % of the band (docs/optics.md) */
 #define AUTO3_BAND 0.5f   /* shell band: | |p-c| - R | <= 0.5 R */
-#define AUTO3_FACTOR 3.0f /* eps' = 3 * median k-distance (measured: docs/optics.md "3-D") */
 #define AUTO3_TRIM 3.0f   /* centre passes after the first use points within 3 R */
 #define AUTO3_TRIM_PASSES 2u
 #define AUTO3_MIN_REL (1.0f / 256.0f)
 #define AUTO3_MAX_REL 1.0f
+
+/* What the automatic rule measured and ran. */
+typedef struct {
+    const magcal_vec3_t *pts;
+    size_t n;
+    magcal_vec3_t cen;
+    float rad;
+    float lo2; /* shell band, squared radii */
+    float hi2;
+    const float *reach; /* the ordering at eps = R, in the workspace */
+    const float *core;
+    const uint16_t *order;
+    float eps;
+    float eps_prime;
+    magcal_neighbors_t neighbors;
+} auto3_t;
 
 /* k-th smallest of a[0..n-1] (a is permuted). Iterative Hoare selection, no recursion. */
 static float select_kth3(float *a, size_t n, size_t k)
@@ -717,22 +732,56 @@ static size_t gather3(const magcal_vec3_t *pts, size_t n, const magcal_vec3_t *c
 }
 
 /* The rule of optics.h. w holds a float[n], b float[n] and the band list uint16[n] (10 n bytes). */
-static magcal_status_t auto_params3(const magcal_vec3_t *pts, size_t n, uint8_t *w,
-                                    float *eps_prime)
+/*
+ * Band samples in the largest cluster of ExtractDBSCAN at eps' (4.3 over the stored ordering):
+ * clusters start at a point with reach > eps' and core <= eps' and collect every later point
+ * with reach <= eps' (noise points in between do not end them).
+ */
+static size_t band_in_largest(const auto3_t *au, float eps_prime)
+{
+    size_t k;
+    size_t best = 0u;
+    size_t cur = 0u;
+    int started = 0;
+    for (k = 0; k < au->n; ++k) {
+        const size_t p = au->order[k];
+        const float d2 = dist2(&au->pts[p], &au->cen);
+        const size_t in_band = (d2 >= au->lo2 && d2 <= au->hi2) ? 1u : 0u;
+        if (au->reach[p] > eps_prime) {
+            if (au->core[p] <= eps_prime) {
+                best = cur > best ? cur : best;
+                cur = in_band;
+                started = 1;
+            }
+        } else if (started != 0) {
+            cur += in_band;
+        } else {
+            /* not reached: the first point has reach = inf */
+        }
+    }
+    return cur > best ? cur : best;
+}
+
+/*
+ * The rule of optics.h: robust centre and R, one OPTICS run with eps = R (ordering, reach and
+ * core stored in w), then the smallest eps' (geometric bisection over [R/256, R], 20 steps:
+ * 5e-6 relative) whose largest cluster holds 75 % of the shell band, times AUTO3_SAFETY.
+ * Layout of w: reach float[n] | core float[n] | order uint16[n] | run workspace.
+ */
+static magcal_status_t auto_run3(const magcal_optics_cfg_t *cfg, const magcal_vec3_t *pts, size_t n,
+                                 uint8_t *w, auto3_t *au)
 {
     float *a = (float *)(void *)w;
-    float *b = (float *)(void *)(w + 4u * n);
     magcal_vec3_t cen = {0.0f, 0.0f, 0.0f};
+    magcal_optics_cfg_t use = *cfg;
+    optics3_ctx_t *c;
     float rad = INFINITY;
     float lo;
     float hi;
     float e;
     size_t i;
     size_t m = 0u;
-    size_t n_k;
-    size_t t;
-    uint32_t rng = AUTO3_SEED;
-    uint16_t *band = (uint16_t *)(void *)(w + 8u * n);
+    size_t target;
     unsigned pass;
 
     for (pass = 0; pass <= AUTO3_TRIM_PASSES; ++pass) {
@@ -756,56 +805,61 @@ static magcal_status_t auto_params3(const magcal_vec3_t *pts, size_t n, uint8_t 
         }
         cen = nc;
         rad = select_kth3(a, k, k / 2u);
-        if (!(rad > 0.0f) || !magcal_isfinite_f(rad)) {
+        if (!(rad > 0.0f) || !magcal_isfinite_f(rad) || magcal_nbr_eps_ok(rad) == 0) {
             return MAGCAL_ERR_DEGENERATE;
         }
     }
     lo = rad - AUTO3_BAND * rad;
     hi = rad + AUTO3_BAND * rad;
-    for (i = 0; i < n; ++i) { /* band list */
-        const float r = sqrtf(dist2(&pts[i], &cen));
-        if (r >= lo && r <= hi) {
-            band[m] = (uint16_t)i;
-            ++m;
-        }
+    au->pts = pts;
+    au->n = n;
+    au->cen = cen;
+    au->rad = rad;
+    au->lo2 = lo * lo;
+    au->hi2 = hi * hi;
+    for (i = 0; i < n; ++i) {
+        const float d2 = dist2(&pts[i], &cen);
+        m += (d2 >= au->lo2 && d2 <= au->hi2) ? 1u : 0u;
     }
     if (m < AUTO3_MIN_BAND) {
         return MAGCAL_ERR_DEGENERATE;
     }
-    /* k-distances of at most AUTO3_KSAMPLES band points, each against all n samples: beyond that
-     * many, a pseudo-random draw (fixed seed, so the result is deterministic; random rather than
-     * strided so that periodic glitches cannot line up with the sampling) costs O(n) instead of
-     * O(n^2) and moves the median by a few per cent (docs/optics.md "3-D") */
-    n_k = m;
-    if (n_k > AUTO3_KSAMPLES) {
-        n_k = AUTO3_KSAMPLES;
-    }
-    for (t = 0; t < n_k; ++t) {
-        const size_t i3 = m <= AUTO3_KSAMPLES ? band[t] : band[magcal_prng_next(&rng, (uint32_t)m)];
-        /* 3rd nearest other sample (MinPts = 4 counts the point itself) */
-        float k3[AUTO3_MIN_PTS - 1u] = {INFINITY, INFINITY, INFINITY};
-        size_t cnt = 0u;
-        size_t j;
-        for (j = 0; j < n; ++j) {
-            float d2;
-            if (j == i3) {
-                continue;
-            }
-            d2 = dist2(&pts[j], &pts[i3]);
-            if (cnt < AUTO3_MIN_PTS - 1u || d2 < k3[AUTO3_MIN_PTS - 2u]) {
-                cnt = best_insert3(k3, cnt, AUTO3_MIN_PTS - 1u, d2);
+    /* the ordering at eps = R holds every extraction at eps' <= R */
+    use.eps = AUTO3_MAX_REL * rad;
+    use.min_pts = (uint16_t)AUTO3_MIN_PTS;
+    c = ctx3_setup(&use, pts, n, w + MAGCAL_OPTICS3_FILTER_RUN_OFFSET_(n));
+    c->reach = (float *)(void *)w;
+    c->core = (float *)(void *)(w + 4u * n);
+    c->order = (uint16_t *)(void *)(w + 8u * n);
+    au->reach = c->reach;
+    au->core = c->core;
+    au->order = c->order;
+    optics3_loop(c);
+    au->neighbors = c->use_grid != 0 ? MAGCAL_NEIGHBORS_GRID : MAGCAL_NEIGHBORS_BRUTE;
+    au->eps = use.eps;
+
+    target = m - m / 4u; /* 75 % of the band */
+    lo = AUTO3_MIN_REL * rad;
+    hi = AUTO3_MAX_REL * rad;
+    if (band_in_largest(au, hi) < target) {
+        e = hi; /* the bulk never connects within R: keep the largest cluster at R */
+    } else if (band_in_largest(au, lo) >= target) {
+        e = lo;
+    } else {
+        for (i = 0; i < AUTO3_BISECT; ++i) { /* invariant: lo fails, hi connects */
+            const float mid = sqrtf(lo * hi);
+            if (band_in_largest(au, mid) >= target) {
+                hi = mid;
+            } else {
+                lo = mid;
             }
         }
-        b[t] = sqrtf(k3[AUTO3_MIN_PTS - 2u]); /* n >= 16: the buffer is full */
-    }
-    e = AUTO3_FACTOR * select_kth3(b, n_k, n_k / 2u);
-    if (!(e >= AUTO3_MIN_REL * rad)) {
-        e = AUTO3_MIN_REL * rad;
+        e = AUTO3_SAFETY * hi;
     }
     if (e > AUTO3_MAX_REL * rad) {
         e = AUTO3_MAX_REL * rad;
     }
-    *eps_prime = e;
+    au->eps_prime = e;
     return MAGCAL_OK;
 }
 
@@ -813,8 +867,9 @@ magcal_status_t magcal_optics_auto_params3(const magcal_vec3_t *pts, size_t n, v
                                            size_t work_len, float *eps, uint16_t *min_pts,
                                            float *eps_prime)
 {
+    const magcal_optics_cfg_t cfg = MAGCAL_OPTICS_CFG_DEFAULT;
     magcal_status_t st;
-    float e;
+    auto3_t au;
     if (pts == NULL || work == NULL || eps == NULL || min_pts == NULL || eps_prime == NULL) {
         return MAGCAL_ERR_NULL;
     }
@@ -828,12 +883,12 @@ magcal_status_t magcal_optics_auto_params3(const magcal_vec3_t *pts, size_t n, v
     if (work_len < MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n)) {
         return MAGCAL_ERR_WORKSPACE;
     }
-    st = auto_params3(pts, n, (uint8_t *)work, &e);
+    st = auto_run3(&cfg, pts, n, (uint8_t *)work, &au);
     if (st != MAGCAL_OK) {
         return st;
     }
-    *eps = e;
-    *eps_prime = e;
+    *eps = au.eps;
+    *eps_prime = au.eps_prime;
     *min_pts = (uint16_t)AUTO3_MIN_PTS;
     return MAGCAL_OK;
 }
@@ -856,6 +911,14 @@ magcal_status_t magcal_optics_filter3(const magcal_optics_cfg_t *cfg, const magc
     }
     use = *cfg;
     if (!(cfg->eps > 0.0f)) {
+        auto3_t au;
+        int16_t *labels = (int16_t *)(void *)(w + MAGCAL_OPTICS3_FILTER_RUN_OFFSET_(n));
+        uint8_t *cnt_work =
+            w + MAGCAL_OPTICS3_FILTER_RUN_OFFSET_(n) + MAGCAL_OPTICS_LARGEST_WORKSPACE_LEN(n);
+        uint16_t n_clusters = 0u;
+        uint16_t count = 0u;
+        int16_t id = MAGCAL_OPTICS_NOISE;
+        size_t n_noise = 0u;
         if (cfg->eps != cfg->eps) {
             return MAGCAL_ERR_ARG; /* NaN is not "auto" */
         }
@@ -869,30 +932,48 @@ magcal_status_t magcal_optics_filter3(const magcal_optics_cfg_t *cfg, const magc
             st = MAGCAL_ERR_WORKSPACE;
         }
         if (st == MAGCAL_OK) {
-            st = auto_params3(pts, n, w, &eps_prime);
+            st = auto_run3(&use, pts, n, w, &au);
         }
         if (st != MAGCAL_OK) {
             return st;
         }
-        use.eps = eps_prime;
-    } else {
-        st = check_cfg3(&use);
-        if (st != MAGCAL_OK) {
-            return st;
+        /* the run's workspace is free again: labels, then the cluster counts */
+        (void)magcal_optics_extract_dbscan(au.order, au.reach, au.core, n, au.eps, au.eps_prime,
+                                           labels, &n_clusters);
+        for (i = 0; i < n; ++i) {
+            n_noise += labels[i] == MAGCAL_OPTICS_NOISE ? 1u : 0u;
         }
-        eps_prime = cfg->eps_prime == 0.0f ? cfg->eps : cfg->eps_prime;
-        if (!(eps_prime > 0.0f) || !magcal_isfinite_f(eps_prime) || eps_prime > cfg->eps) {
-            return MAGCAL_ERR_ARG;
+        st = magcal_optics_largest_cluster(
+            labels, n, cnt_work, MAGCAL_OPTICS_LARGEST_WORKSPACE_LEN(n), inlier_mask, &id, &count);
+        if (info != NULL) {
+            (void)memset(info, 0, sizeof *info);
+            info->eps = au.eps;
+            info->eps_prime = au.eps_prime;
+            info->min_pts = (uint16_t)AUTO3_MIN_PTS;
+            info->neighbors = au.neighbors;
+            info->n_clusters = n_clusters;
+            info->largest_id = id;
+            info->n_inliers = count;
+            info->n_noise = (uint16_t)n_noise;
         }
-        st = check_points3(pts, n, use.min_pts);
-        if (st != MAGCAL_OK) {
-            return st;
-        }
-        if (work_len < MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n)) {
-            return MAGCAL_ERR_WORKSPACE;
-        }
+        return st;
     }
-    c = ctx3_setup(&use, pts, n, w + MAGCAL_OPTICS_FILTER_RUN_OFFSET_(n));
+    st = check_cfg3(&use);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    eps_prime = cfg->eps_prime == 0.0f ? cfg->eps : cfg->eps_prime;
+    if (!(eps_prime > 0.0f) || !magcal_isfinite_f(eps_prime) || eps_prime > cfg->eps) {
+        return MAGCAL_ERR_ARG;
+    }
+    st = check_points3(pts, n, use.min_pts);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    if (work_len < MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n)) {
+        return MAGCAL_ERR_WORKSPACE;
+    }
+    c = ctx3_setup(&use, pts, n, w + MAGCAL_OPTICS3_FILTER_RUN_OFFSET_(n));
     c->reach = (float *)work;
     c->labels = (int16_t *)(void *)(w + 4u * n);
     c->eps_prime = eps_prime;

@@ -300,20 +300,20 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
  *  1. centre c = coordinate medians, R = median |p - c|; twice more over only the points within
  *     3 R of the previous centre (a far cluster cannot drag the centre), as in 2-D.
  *  2. the "shell band" = points with | |p - c| - R | <= 0.5 R (at least 10 points).
- *  3. for each band point (at most 128: beyond that, 128 drawn by a fixed-seed PRNG, so the
- *     result stays deterministic and the cost O(n)), k_i = distance to its 3rd nearest other
- *     sample (all n samples searched): the radius that makes it a core point for MinPts = 4.
- *  4. eps' = 3 * median(k_i), clamped to [R/256, R]; eps = eps'; MinPts = 4.
- *  Why: on a 2-D surface the random gaps that the chain of core points must bridge grow only
- *  slowly with n compared with the local spacing (a 1-D ring's largest gap is ~log n spacings), so
- *  a fixed multiple of the median k-distance bridges them; the median ignores the outliers in the
- *  band. Measured with scikit-learn (docs/optics.md "3-D"): the eps' that keeps every sample of a
- *  uniformly covered noisy ellipsoid in one cluster is at most 2.1 x median(k_i) (n = 100..1000);
- *  with attitudes limited to +-45 deg roll/pitch (denser bands, sparse edges) factor 2.5 loses up
- *  to 20 of 1000 samples, factor 3 at most 3. The price: eps' is about 0.57 R at n = 300 and
- *  0.4 R at n = 600, so only samples farther than that from the shell are rejected here;
- *  nearer outliers are for the fit's residual gate. A sensor that only yaws (a vehicle on flat
- *  ground) samples a ring on the ellipsoid, a 1-D set, for which this rule is not made.
+ *  3. one OPTICS run with eps = R, MinPts = 4 (its ordering serves every eps' <= R).
+ *  4. r75 = the smallest eps' (geometric bisection over [R/256, R], 5e-6 relative) at which the
+ *     largest ExtractDBSCAN cluster holds 75 % of the band points; eps' = 2 r75, at most R
+ *     (eps' = R when even R does not reach 75 %); eps = R; MinPts = 4.
+ *  Why: the samples of a real calibration are a trajectory on the ellipsoid (dense along the
+ *  path, gaps between passes), not independent points, so a spacing statistic (k-distance)
+ *  fragments them; this rule measures the radius that actually connects the bulk of the shell.
+ *  75 % tolerates up to a quarter of the band being outliers; the factor 2 connects the sparser
+ *  rest. Measured (docs/optics.md "3-D"): 9 real tumble recordings and synthetic shells (uniform,
+ *  tilt-limited, yaw-only) lose at most 11 of 1000 genuine samples; eps' is about 0.5 R at
+ *  n = 300 and 0.36 R at n = 600 for uniform directions, so only samples farther than that from
+ *  the shell are rejected here; nearer outliers are for the fit's residual gate.
+ *  Cost: the run at eps = R is nearly brute force (the 3x3x3 block covers the shell), O(n^2).
+ *
  * @code
  * static magcal_vec3_t pts3[600];                      // filled by the caller
  * static uint32_t work3[(MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(600) + 3u) / 4u];
@@ -336,6 +336,9 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
 /* Bytes of the 3-D ordering loop's context (off the stack), with slack to align it for pointers;
  * optics3.c checks the size with a static assert. */
 #define MAGCAL_OPTICS3_CTX_LEN_ (26u * sizeof(void *) + 112u)
+/* Offset of the run workspace inside the 3-D filter workspace (4-byte aligned): reach float[n],
+ * core float[n], order uint16[n] (the automatic rule keeps the whole ordering). */
+#define MAGCAL_OPTICS3_FILTER_RUN_OFFSET_(n) ((10u * (size_t)(n) + 3u) & ~(size_t)3u)
 /** @endcond */
 
 /**
@@ -350,11 +353,11 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
 
 /**
  * Workspace bytes for magcal_optics_filter3() and magcal_optics_auto_params3() on n points:
- * reach float[n] + labels int16[n] + MAGCAL_OPTICS3_WORKSPACE_LEN(n) (the automatic parameters
- * reuse the first 10 n bytes). About 14.1 bytes per sample + 346 bytes (32-bit, n >= 16).
+ * reach float[n] + core float[n] + order uint16[n] (the automatic rule keeps the whole ordering)
+ * + MAGCAL_OPTICS3_WORKSPACE_LEN(n). About 18.1 bytes per sample + 346 bytes (32-bit, n >= 16).
  */
 #define MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n)                                                     \
-    (MAGCAL_OPTICS_FILTER_RUN_OFFSET_(n) + MAGCAL_OPTICS3_WORKSPACE_LEN(n))
+    (MAGCAL_OPTICS3_FILTER_RUN_OFFSET_(n) + MAGCAL_OPTICS3_WORKSPACE_LEN(n))
 
 /**
  * @brief Run the OPTICS ordering loop on 3-D points (algorithms.md 4.1-4.2).
@@ -386,12 +389,13 @@ magcal_status_t magcal_optics_run3(const magcal_optics_cfg_t *cfg, const magcal_
  * @param[in]  n          16..MAGCAL_MAX_SAMPLES.
  * @param[out] work       scratch, 4-byte aligned, >= MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n) bytes.
  * @param[in]  work_len   bytes at work.
- * @param[out] eps        eps for the ordering (= eps').
+ * @param[out] eps        eps for the ordering (= R, the robust shell radius).
  * @param[out] min_pts    MinPts (4).
- * @param[out] eps_prime  extraction radius.
+ * @param[out] eps_prime  extraction radius (<= eps).
  * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_ARG (misaligned work, n > MAGCAL_MAX_SAMPLES);
  *         MAGCAL_ERR_TOO_FEW_POINTS (n < 16); MAGCAL_ERR_NONFINITE; MAGCAL_ERR_WORKSPACE;
- *         MAGCAL_ERR_DEGENERATE (median radius 0 or fewer than 10 points in the shell band).
+ *         MAGCAL_ERR_DEGENERATE (median radius 0 or outside the eps range of magcal_optics_run3,
+ *         or fewer than 10 points in the shell band).
  *         Outputs untouched on failure.
  */
 magcal_status_t magcal_optics_auto_params3(const magcal_vec3_t *pts, size_t n, void *work,
