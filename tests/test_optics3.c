@@ -599,11 +599,12 @@ static void test_optics_filter3_then_ellipsoid_fit_far_burst_recovers_truth(void
 }
 
 /*
- * Limit: a burst stuck 0.3 R outside the shell (burst_scale 1.3) lies within eps' (about 0.4 R at
- * n = 600) of shell samples, so the density stage merges it with the shell (20 kept) while it
- * still rejects the 30 spikes; the fit's residual gate then drops the burst, since the spikes no
- * longer inflate the RMS. Measured over 60 seeds: the pipeline gives |dV| <= 0.069; the gate
- * alone fails in 24 of 60 runs (|dV| up to 1.9, the spikes' residuals mask the burst).
+ * Limit: a burst stuck 0.3 R outside the shell (burst_scale 1.3) lies within eps' (about 0.36 R
+ * at n = 600) of shell samples, so the density stage usually merges it with the shell (20 kept in
+ * 59 of 60 measured seeds, rejected whole in 1) while it still rejects the 30 spikes; the fit's
+ * residual gate then drops the burst, since the spikes no longer inflate the RMS. Measured over
+ * 60 seeds: the pipeline gives |dV| <= 0.069; the gate alone fails in 24 of 60 runs (|dV| up to
+ * 1.9, the spikes' residuals mask the burst).
  */
 static void test_optics_filter3_then_ellipsoid_fit_near_burst_gate_finishes(void)
 {
@@ -622,10 +623,11 @@ static void test_optics_filter3_then_ellipsoid_fit_near_burst_gate_finishes(void
         }
         TEST_ASSERT_EQUAL_INT(MAGCAL_OK, f.st_filter);
         TEST_ASSERT_EQUAL_UINT(0u, spikes_kept);
-        TEST_ASSERT_EQUAL_UINT(E2E_N_BURST, f.kept_out); /* the documented limit */
+        /* the burst is either rejected here or merged whole (the documented limit) */
+        TEST_ASSERT_TRUE(f.kept_out == 0u || f.kept_out == E2E_N_BURST);
         TEST_ASSERT_TRUE(f.false_rej <= E2E_MAX_FALSE_REJ);
         TEST_ASSERT_EQUAL_INT(MAGCAL_OK, f.st_fit);
-        TEST_ASSERT_TRUE(f.n_rejected >= E2E_N_BURST);
+        TEST_ASSERT_TRUE(f.kept_out == 0u || f.n_rejected >= E2E_N_BURST); /* then the gate */
         TEST_ASSERT_TRUE(f.v_err < E2E_TOL_V);
         TEST_ASSERT_TRUE(f.q_err < E2E_TOL_Q);
     }
