@@ -827,6 +827,9 @@ static magcal_status_t auto_run3(const magcal_optics_cfg_t *cfg, const magcal_ve
     /* the ordering at eps = R holds every extraction at eps' <= R */
     use.eps = AUTO3_MAX_REL * rad;
     use.min_pts = (uint16_t)AUTO3_MIN_PTS;
+    /* at eps = R the 3x3x3 block covers the whole shell: the brute search, whose reach pass
+     * shrinks with the unprocessed list, is cheaper (filter at n = 1000: 43.7 M -> 36.7 M) */
+    use.neighbors = MAGCAL_NEIGHBORS_BRUTE;
     c = ctx3_setup(&use, pts, n, w + MAGCAL_OPTICS3_FILTER_RUN_OFFSET_(n));
     c->reach = (float *)(void *)w;
     c->core = (float *)(void *)(w + 4u * n);
