@@ -40,8 +40,8 @@
  *                    shell (uniform directions, F = 500, offset (300, -200, 150), axes 1.1/0.93/1.04
  *                    x F, sigma 3) with 5 % scattered points (radius x 1.7..2.5) and 3 % one stuck
  *                    burst 0.8 R outside (generate3(); not used by run_bench.py)
- *   optics3_classic, optics3_improved  magcal_optics_run3 CLASSIC / IMPROVED + GRID with the
- *                    automatic eps and MinPts of that set
+ *   optics3_classic, optics3_improved  magcal_optics_run3 CLASSIC / IMPROVED + GRID at
+ *                    eps = the automatic eps' of that set, MinPts 4
  *   optics3_classic_brute, optics3_improved_brute  the same with BRUTE
  *   auto_params3     magcal_optics_auto_params3 on that set
  */
@@ -329,6 +329,7 @@ static int run_kernel(const char *k, size_t n, int quiet)
             st = magcal_optics_auto_params3(g_pts3, n, g_work3, sizeof g_work3, &c3.eps,
                                             &c3.min_pts, &c3.eps_prime);
             if (st == MAGCAL_OK && strcmp(k, "auto_params3") != 0) {
+                c3.eps = c3.eps_prime; /* the run at eps = eps' (the automatic eps is R) */
                 c3.order = strncmp(k, "optics3_classic", 15) == 0 ? MAGCAL_OPTICS_CLASSIC
                                                                   : MAGCAL_OPTICS_IMPROVED;
                 c3.neighbors = strstr(k, "_brute") != NULL ? MAGCAL_NEIGHBORS_BRUTE
