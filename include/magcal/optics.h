@@ -312,7 +312,8 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
  *  tilt-limited, yaw-only) lose at most 11 of 1000 genuine samples; eps' is about 0.5 R at
  *  n = 300 and 0.36 R at n = 600 for uniform directions, so only samples farther than that from
  *  the shell are rejected here; nearer outliers are for the fit's residual gate.
- *  Cost: the run at eps = R is nearly brute force (the 3x3x3 block covers the shell), O(n^2).
+ *  Cost: the run at eps = R uses the brute search whatever cfg->neighbors says (the grid cannot
+ *  help at that radius): O(n^2), about 37 M host instructions at n = 1000.
  *
  * @code
  * static magcal_vec3_t pts3[600];                      // filled by the caller
