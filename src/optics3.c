@@ -746,7 +746,10 @@ static size_t band_in_largest(const auto3_t *au, float eps_prime)
     for (k = 0; k < au->n; ++k) {
         const size_t p = au->order[k];
         const float d2 = dist2(&au->pts[p], &au->cen);
-        const size_t in_band = (d2 >= au->lo2 && d2 <= au->hi2) ? 1u : 0u;
+        size_t in_band = 0u;
+        if (d2 >= au->lo2 && d2 <= au->hi2) {
+            in_band = 1u;
+        }
         if (au->reach[p] > eps_prime) {
             if (au->core[p] <= eps_prime) {
                 best = cur > best ? cur : best;
