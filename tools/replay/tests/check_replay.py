@@ -25,6 +25,9 @@ Cases (one CTest test each):
                    tilted rows, tilt gate counts equal the truth's
   tilt_2d          level_tilted (gen_dump3d.py): 2d calibration + tilt with --inclination: <= 1.2 x
                    floor; without it (vertical component 0) and without tilt: >= 5 x floor
+  outliers_3d      tumble_outliers (gen_dump3d.py): --mode 3d outlier column = the fit's final gate:
+                   every injected row flagged (calibration and verification), count over the
+                   calibration rows = n_outliers, truth_flags, console outlier-row count
   real_3d          bundled 3-D tumbles: corrected spread within 5 % of an independent numpy
                    ellipsoid fit (tools/ref_real_spread3d.py), drop factors, accelerometer unit
   aided            aided_road (gen_aided_dump.py): G, V near truth (test_aided.c tolerances),
@@ -436,6 +439,50 @@ def case_tilt_3d(a):
     mp = run_json(a, ["--mode", "3d", "--accel-unit", "mps2", "--cal-range", "0:%d" % truth["n_cal"], path])
     check(mp.get("tilt", {}).get("accel_unit_source") == "given" and
           mp.get("tilt", {}).get("gates", {}).get("free_fall") == truth["n_rows"], "--accel-unit mps2: %r" % mp.get("tilt"))
+
+
+def case_outliers_3d(a):
+    truth = load_truth(a, "tumble_outliers")
+    path = extra_data(a, "tumble_outliers.csv")
+    n_cal = truth["n_cal"]
+    hp = os.path.join(a.work_dir, "tumble_outliers_headings.csv")
+    rep = run_json(a, ["--mode", "3d", "--cal-range", "0:%d" % n_cal, "--headings", hp, path])
+    check(rep.get("status") == "ok" and rep.get("model") == "quadric9", "status %r model %r" % (
+        rep.get("status"), rep.get("model")))
+    rows = read_csv_rows(hp)
+    check(len(rows) == truth["n_rows"], "headings rows %d" % len(rows))
+    flagged = [int(r["index"]) for r in rows if r["outlier"] == "1"]
+    truth_rows = set(truth["outlier_rows"])
+    cal_flagged = [i for i in flagged if i < n_cal]
+    ver_extra = [i for i in flagged if i >= n_cal and i not in truth_rows]
+    tf = rep.get("truth_flags", {})
+    sys.stdout.write("outliers_3d: %d rows flagged (%d calibration, n_outliers %r), truth %d (%d calibration); "
+                     "truth_flags %r; verification false alarms %r; heading RMS %.4f deg, floor %.4f deg\n" % (
+                         len(flagged), len(cal_flagged), rep.get("n_outliers"), len(truth_rows),
+                         truth["n_cal_outliers"], tf, ver_extra, rep.get("heading_rms_deg", -1), truth["floor_deg"]))
+    # every injected outlier row flagged, in the calibration AND the verification rows
+    check(truth_rows <= set(flagged), "missed outlier rows %r" % sorted(truth_rows - set(flagged)))
+    # calibration rows: the CSV mask is the fit's own (its count is n_outliers = n_cal - n_used)
+    check(len(cal_flagged) == rep.get("n_outliers") == n_cal - rep.get("n_used", 0),
+          "calibration rows flagged %d vs n_outliers %r" % (len(cal_flagged), rep.get("n_outliers")))
+    check(rep.get("n_outlier_rows") == len(flagged), "n_outlier_rows %r vs CSV %d" % (rep.get("n_outlier_rows"), len(flagged)))
+    # truth flags over the fed (calibration) rows; measured 24 / 24, 0 missed, 1 false alarm
+    check(tf.get("column") == "outlier" and tf.get("flagged") == truth["n_cal_outliers"] and
+          tf.get("detected") == truth["n_cal_outliers"] and tf.get("missed") == 0, "truth_flags %r" % tf)
+    check(tf.get("false_alarms", 99) <= 3, "false alarms %r > 3 (3-sigma gate, 600 rows)" % tf.get("false_alarms"))
+    check(tf.get("detected", 0) + tf.get("false_alarms", 0) == rep.get("n_outliers"), "detected + false alarms != n_outliers")
+    check(len(ver_extra) <= 5, "verification false alarms %r > 5 (measured 3 of 160)" % ver_extra)
+    check(rep.get("n_heading_flagged") == sum(1 for i in flagged if i >= n_cal), "n_heading_flagged %r" % rep.get("n_heading_flagged"))
+    # radial errors leave the heading unchanged: heading RMS stays at the floor
+    check(rep.get("heading_rms_deg", 99) <= FLOOR_FACTOR * truth["floor_deg"], "heading RMS %r" % rep.get("heading_rms_deg"))
+    # the table names the count
+    p = run(a, ["--mode", "3d", "--cal-range", "0:%d" % n_cal, path], 0)
+    check("outlier rows      %d of %d rows" % (len(flagged), truth["n_rows"]) in p.stdout, "table: %r" % p.stdout[:600])
+    check("truth flags       %d fed rows have outlier=1" % truth["n_cal_outliers"] in p.stdout, "table truth line")
+    # a dump without truth column: no truth_flags, and no outliers on a clean tumble
+    clean = run_json(a, ["--mode", "3d", "--cal-range", "0:600", extra_data(a, "tilt_tumble.csv")])
+    check("truth_flags" not in clean and clean.get("n_outliers") == 0 and clean.get("n_outlier_rows") == 0,
+          "clean tumble: %r" % {k: clean.get(k) for k in ("n_outliers", "n_outlier_rows", "truth_flags")})
 
 
 def case_tilt_2d(a):
