@@ -613,17 +613,25 @@ int main(int argc, char **argv)
         ao.year = c.year;
         r.field_unit = c.field_unit;
         r.prior = (c.prior_path != NULL) ? c.prior_path : "identity";
-        if (c.prior_path != NULL) {
-            rc = replay_read_prior(c.prior_path, ao.unit_per_nt, &prior, perr, sizeof perr);
-            if (rc != REPLAY_EXIT_OK) {
-                fprintf(stderr, "magcal-replay: %s\n", perr);
-                goto done;
-            }
-        }
         rc = replay_wmm_rows(&d, &ao, bned, decl, err, sizeof err);
         if (rc != REPLAY_EXIT_OK) {
             fprintf(stderr, "magcal-replay: %s: %s\n", c.path, err);
             goto done;
+        }
+        r.prior_g_scale = 1.0;
+        if (c.prior_path != NULL) {
+            double fref = NAN; /* |B_ref| of the first calibration row that has one */
+            for (i = r.cal_first; i < r.cal_end && !isfinite(fref); ++i) {
+                if (isfinite(bned[3u * i])) {
+                    fref = sqrt(bned[3u * i] * bned[3u * i] + bned[3u * i + 1u] * bned[3u * i + 1u] +
+                                bned[3u * i + 2u] * bned[3u * i + 2u]);
+                }
+            }
+            rc = replay_read_prior(c.prior_path, ao.unit_per_nt, fref, &prior, &r.prior_g_scale, perr, sizeof perr);
+            if (rc != REPLAY_EXIT_OK) {
+                fprintf(stderr, "magcal-replay: %s\n", perr);
+                goto done;
+            }
         }
         rc = replay_aided_run(&d, fed, bned, r.cal_first, r.cal_end, c.prior_path != NULL ? &prior : NULL, &r, &cal3,
                               gate_row);

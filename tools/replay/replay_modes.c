@@ -441,15 +441,15 @@ static int json_numbers(const cJSON *arr, double *out, int n)
     return 0;
 }
 
-int replay_read_prior(const char *path, double unit_per_nt, magcal_ellipsoid_cal_t *prior, char *err,
-                      size_t err_len)
+int replay_read_prior(const char *path, double unit_per_nt, double field_ref, magcal_ellipsoid_cal_t *prior,
+                      double *g_scale, char *err, size_t err_len)
 {
     FILE *f = fopen(path, "rb");
     char *text = NULL;
     long len;
     cJSON *root = NULL;
-    const cJSON *mat, *off, *unit;
-    double g[3][3], v[3], det, scale = 1.0, gnorm = 0.0;
+    const cJSON *mat, *off, *unit, *mode, *field;
+    double g[3][3], v[3], det, scale = 1.0, gnorm = 0.0, gs = 1.0;
     int i, j, rc = REPLAY_EXIT_INPUT;
 
     if (f == NULL) {
@@ -508,6 +508,21 @@ int replay_read_prior(const char *path, double unit_per_nt, magcal_ellipsoid_cal
         }
         scale = unit_per_nt / u; /* prior unit -> dump unit */
     }
+    /* a 3d report's G outputs its own F (det G = 1): rescale to the reference magnitude */
+    mode = cJSON_GetObjectItemCaseSensitive(root, "mode");
+    field = cJSON_GetObjectItemCaseSensitive(root, "field");
+    if (cJSON_IsString(mode) && strcmp(mode->valuestring, "3d") == 0 && isfinite(field_ref)) {
+        if (!cJSON_IsNumber(field) || !(field->valuedouble > 0.0) || !isfinite(field->valuedouble)) {
+            (void)snprintf(err, err_len, "%s: prior is a 3d report without a positive \"field\"", path);
+            goto out;
+        }
+        gs = field_ref / (field->valuedouble * scale); /* its F in the dump unit */
+        for (i = 0; i < 3; ++i) {
+            for (j = 0; j < 3; ++j) {
+                g[i][j] *= gs;
+            }
+        }
+    }
     det = g[0][0] * (g[1][1] * g[2][2] - g[1][2] * g[2][1]) - g[0][1] * (g[1][0] * g[2][2] - g[1][2] * g[2][0]) +
           g[0][2] * (g[1][0] * g[2][1] - g[1][1] * g[2][0]);
     for (i = 0; i < 3; ++i) {
@@ -529,6 +544,7 @@ int replay_read_prior(const char *path, double unit_per_nt, magcal_ellipsoid_cal
     prior->v.y = (float)(v[1] * scale);
     prior->v.z = (float)(v[2] * scale);
     prior->field = 0.0f;
+    *g_scale = gs;
     rc = REPLAY_EXIT_OK;
 out:
     cJSON_Delete(root);

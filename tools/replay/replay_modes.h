@@ -62,11 +62,14 @@ const char *replay_gate_name(unsigned char g);
  * (keys "matrix": 3x3 G, row-major, "offset": [x, y, z] V; both in that dump's field unit). When
  * the file names its unit (top-level "field_unit" or "aided": {"field_unit": ...}: uT, nT, gauss)
  * and it differs from the current dump's (unit_per_nt), V is converted (G is a ratio of equal
- * units and is kept). Returns REPLAY_EXIT_OK, or REPLAY_EXIT_INPUT with a message naming the file
- * in err (unreadable, not JSON, key missing or malformed, non-finite, singular G).
+ * units and is kept). A 3d report ("mode": "3d") maps the field to its own magnitude "field"
+ * (det G = 1), not to the reference field: when field_ref (|B_ref| in the dump unit) is finite,
+ * G is scaled by field_ref / field; *g_scale returns the factor applied (1: none).
+ * Returns REPLAY_EXIT_OK, or REPLAY_EXIT_INPUT with a message naming the file in err (unreadable,
+ * not JSON, key missing or malformed, non-finite, singular G).
  */
-int replay_read_prior(const char *path, double unit_per_nt, magcal_ellipsoid_cal_t *prior, char *err,
-                      size_t err_len);
+int replay_read_prior(const char *path, double unit_per_nt, double field_ref, magcal_ellipsoid_cal_t *prior,
+                      double *g_scale, char *err, size_t err_len);
 
 /**
  * Per row: the WMM2025 reference field (NED, dump unit) and declination from lat/lon/height and

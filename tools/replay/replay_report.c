@@ -112,6 +112,9 @@ static void add_aided(cJSON *o, const replay_report_t *r)
     cJSON_AddStringToObject(a, "status", r->aided_status != NULL ? r->aided_status : "error");
     cJSON_AddStringToObject(a, "field_unit", r->field_unit != NULL ? r->field_unit : "uT");
     cJSON_AddStringToObject(a, "prior", r->prior != NULL ? r->prior : "identity");
+    if (r->prior != NULL && r->prior_g_scale != 1.0) {
+        cJSON_AddNumberToObject(a, "prior_g_scale", sig7(r->prior_g_scale));
+    }
     cJSON_AddItemToObject(a, "b_ref_ned_first", vec3(r->b_ref_first));
     cJSON_AddNumberToObject(a, "declination_first_deg", sig7(r->decl_first_deg));
     cJSON_AddNumberToObject(a, "n_seen", (double)r->aided_seen);
@@ -308,7 +311,11 @@ static void print_aided(const replay_report_t *r)
            r->aided_status != NULL ? r->aided_status : "error", (unsigned long)r->aided_seen,
            (unsigned long)r->aided_accepted, (unsigned long)r->aided_skipped,
            r->field_unit != NULL ? r->field_unit : "uT");
-    printf("  prior             %s\n", r->prior != NULL ? r->prior : "identity");
+    printf("  prior             %s", r->prior != NULL ? r->prior : "identity");
+    if (r->prior != NULL && r->prior_g_scale != 1.0) {
+        printf(" (a 3d report: G scaled by |B_ref| / F = %.6g)", r->prior_g_scale);
+    }
+    printf("\n");
     printf("  gated             dop %lu, raw %lu, field %lu, vector %lu\n", (unsigned long)r->aided_gated[1],
            (unsigned long)r->aided_gated[2], (unsigned long)r->aided_gated[3], (unsigned long)r->aided_gated[4]);
     printf("  B_ref (first)     NED (%.6g, %.6g, %.6g), declination %.3f deg (WMM2025)\n", r->b_ref_first[0],

@@ -126,6 +126,7 @@ typedef struct {
     int aided_status_code;
     const char *field_unit;       /* unit of the dump's field: "uT" | "nT" | "gauss" */
     const char *prior;            /* "identity" or the --prior file name */
+    double prior_g_scale;         /* factor applied to a 3d report's G (|B_ref| / its F), else 1 */
     double b_ref_first[3];        /* B_ref (NED, dump unit) of the first epoch fed */
     double decl_first_deg;        /* WMM declination of the first epoch fed */
     size_t aided_seen, aided_accepted, aided_gated[5];
