@@ -556,11 +556,13 @@ static void test_ellipsoid_outliers_bad_input_returns_status(void)
     test_make_w_full(w);
     make_radial_outliers(w, 2718u);
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_outliers(NULL, g_m, NFIT, flag, &n_out));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
+                          magcal_ellipsoid_outliers(NULL, g_m, NFIT, flag, &n_out));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_outliers(&r, NULL, NFIT, flag, &n_out));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_outliers(&r, g_m, NFIT, NULL, &n_out));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_outliers(&r, g_m, NFIT, flag, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_ellipsoid_outliers(&r, g_m, 0u, flag, &n_out));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS,
+                          magcal_ellipsoid_outliers(&r, g_m, 0u, flag, &n_out));
     bad = r;
     bad.gate_thr = NAN;
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_outliers(&bad, g_m, NFIT, flag, &n_out));
@@ -572,7 +574,8 @@ static void test_ellipsoid_outliers_bad_input_returns_status(void)
     /* a NaN sample anywhere: outputs untouched */
     memset(flag, 0xA5, sizeof(flag));
     g_m[NFIT - 1].z = NAN;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_ellipsoid_outliers(&r, g_m, NFIT, flag, &n_out));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE,
+                          magcal_ellipsoid_outliers(&r, g_m, NFIT, flag, &n_out));
     TEST_ASSERT_EQUAL_HEX8(0xA5, flag[0]);
     TEST_ASSERT_EQUAL_UINT32(77u, (uint32_t)n_out);
 }

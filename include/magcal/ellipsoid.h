@@ -174,8 +174,9 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n, const mag
  * }
  * @endcode
  */
-magcal_status_t magcal_ellipsoid_outliers(const magcal_ellipsoid_result_t *res, const magcal_vec3_t *m,
-                                          size_t n, uint8_t *outlier, size_t *n_outliers);
+magcal_status_t magcal_ellipsoid_outliers(const magcal_ellipsoid_result_t *res,
+                                          const magcal_vec3_t *m, size_t n, uint8_t *outlier,
+                                          size_t *n_outliers);
 
 /**
  * @brief Apply a calibration: h = G (m - V).
