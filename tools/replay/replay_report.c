@@ -111,6 +111,10 @@ static void add_aided(cJSON *o, const replay_report_t *r)
     cJSON *a = cJSON_CreateObject(), *g = cJSON_CreateObject();
     cJSON_AddStringToObject(a, "status", r->aided_status != NULL ? r->aided_status : "error");
     cJSON_AddStringToObject(a, "field_unit", r->field_unit != NULL ? r->field_unit : "uT");
+    cJSON_AddStringToObject(a, "prior", r->prior != NULL ? r->prior : "identity");
+    if (r->prior != NULL && r->prior_g_scale != 1.0) {
+        cJSON_AddNumberToObject(a, "prior_g_scale", sig7(r->prior_g_scale));
+    }
     cJSON_AddItemToObject(a, "b_ref_ned_first", vec3(r->b_ref_first));
     cJSON_AddNumberToObject(a, "declination_first_deg", sig7(r->decl_first_deg));
     cJSON_AddNumberToObject(a, "n_seen", (double)r->aided_seen);
@@ -167,6 +171,9 @@ int replay_print_json(const replay_report_t *r)
     /* reached by most failing runs too (0 where the run stopped earlier) */
     cJSON_AddNumberToObject(o, "n_used", (double)r->n_used);
     cJSON_AddNumberToObject(o, "n_outliers", (double)r->n_outliers);
+    if (r->mode[0] != '2' && (r->have_3d || r->have_aided)) {
+        cJSON_AddNumberToObject(o, "n_outlier_rows", (double)r->n_outlier_rows);
+    }
     if (r->mode[0] == '2') {
         cJSON_AddNumberToObject(o, "coverage_deg", sig7(r->coverage_deg));
     } else if (r->mode[0] == '3') {
@@ -304,6 +311,11 @@ static void print_aided(const replay_report_t *r)
            r->aided_status != NULL ? r->aided_status : "error", (unsigned long)r->aided_seen,
            (unsigned long)r->aided_accepted, (unsigned long)r->aided_skipped,
            r->field_unit != NULL ? r->field_unit : "uT");
+    printf("  prior             %s", r->prior != NULL ? r->prior : "identity");
+    if (r->prior != NULL && r->prior_g_scale != 1.0) {
+        printf(" (a 3d report: G scaled by |B_ref| / F = %.6g)", r->prior_g_scale);
+    }
+    printf("\n");
     printf("  gated             dop %lu, raw %lu, field %lu, vector %lu\n", (unsigned long)r->aided_gated[1],
            (unsigned long)r->aided_gated[2], (unsigned long)r->aided_gated[3], (unsigned long)r->aided_gated[4]);
     printf("  B_ref (first)     NED (%.6g, %.6g, %.6g), declination %.3f deg (WMM2025)\n", r->b_ref_first[0],
@@ -360,6 +372,17 @@ void replay_print_table(const replay_report_t *r)
     if (r->mode[0] != '2') {
         printf("  samples           %lu fed, %lu used, %lu rejected\n", (unsigned long)r->n_fed,
                (unsigned long)r->n_used, (unsigned long)r->n_outliers);
+        if (r->have_3d) {
+            printf("  outlier rows      %lu of %lu rows (headings CSV outlier = 1: %s)\n",
+                   (unsigned long)r->n_outlier_rows, (unsigned long)r->n_rows,
+                   r->mode[0] == 'a' ? "epochs rejected by a gate"
+                                     : "the fit's final residual gate, on every row");
+        }
+        if (r->truth_column != NULL) {
+            printf("  truth flags       %lu fed rows have %s=1: %lu flagged, %lu missed; %lu false alarms\n",
+                   (unsigned long)r->truth_flagged, r->truth_column, (unsigned long)r->truth_detected,
+                   (unsigned long)r->truth_missed, (unsigned long)r->false_alarms);
+        }
         if (r->mode[0] == 'a') {
             print_aided(r);
         }

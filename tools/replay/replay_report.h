@@ -55,6 +55,7 @@ typedef struct {
     char reason[256];
     /* counts */
     size_t n_rows, n_cal, n_fed, decimation, n_used, n_outliers;
+    size_t n_outlier_rows; /* 3d / aided: rows with outlier = 1 in the headings CSV (all rows) */
     size_t capacity;
     /* geometry (dump units) */
     double coverage_deg;
@@ -124,6 +125,8 @@ typedef struct {
     const char *aided_status;
     int aided_status_code;
     const char *field_unit;       /* unit of the dump's field: "uT" | "nT" | "gauss" */
+    const char *prior;            /* "identity" or the --prior file name */
+    double prior_g_scale;         /* factor applied to a 3d report's G (|B_ref| / its F), else 1 */
     double b_ref_first[3];        /* B_ref (NED, dump unit) of the first epoch fed */
     double decl_first_deg;        /* WMM declination of the first epoch fed */
     size_t aided_seen, aided_accepted, aided_gated[5];
