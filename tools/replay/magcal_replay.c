@@ -42,6 +42,7 @@ static const char k_usage[] =
     "  --inclination DEG   2d + tilt: inclination giving the level vertical field (default 0)\n"
     "  --field-unit U      aided: unit of mx,my,mz: uT (default) | nT | gauss\n"
     "  --year Y            aided: decimal year of the dump (default: decimal_year column, else t as Unix time)\n"
+    "  --aided-objective O aided: combined (vector + total-field residual, default) | vector\n"
     "  --prior FILE.json   aided: prior (factory) calibration: the JSON report of a --mode 3d or aided run\n"
     "                      (keys matrix, offset; dump units) (default: identity G, zero V)\n"
     "  -h, --help          this text\n"
@@ -241,6 +242,7 @@ typedef struct {
     const char *field_unit;  /* aided */
     double year;             /* NaN = from the dump */
     const char *prior_path;  /* aided: --prior, NULL = identity */
+    const char *aided_objective; /* aided: --aided-objective, NULL = combined */
 } cli_t;
 
 static int parse_args(int argc, char **argv, cli_t *c)
@@ -338,6 +340,12 @@ static int parse_args(int argc, char **argv, cli_t *c)
             }
             c->field_unit = v;
             ++i;
+        } else if (strcmp(a, "--aided-objective") == 0) {
+            if (strcmp(v, "combined") != 0 && strcmp(v, "vector") != 0) {
+                return usage_error("--aided-objective must be combined or vector, got \"%s\"", v);
+            }
+            c->aided_objective = v;
+            ++i;
         } else if (strcmp(a, "--prior") == 0) {
             c->prior_path = v;
             ++i;
@@ -368,6 +376,9 @@ static int parse_args(int argc, char **argv, cli_t *c)
     }
     if (c->prior_path != NULL && strcmp(c->mode, "aided") != 0) {
         return usage_error("%s", "--prior is for the aided mode (the prior of magcal_aided_update)");
+    }
+    if (c->aided_objective != NULL && strcmp(c->mode, "aided") != 0) {
+        return usage_error("%s", "--aided-objective is for the aided mode");
     }
     if (isfinite(c->inclination) && strcmp(c->mode, "2d") != 0) {
         return usage_error("%s", "--inclination is for the 2d mode (3d and aided calibrate z)");
@@ -613,6 +624,7 @@ int main(int argc, char **argv)
         ao.year = c.year;
         r.field_unit = c.field_unit;
         r.prior = (c.prior_path != NULL) ? c.prior_path : "identity";
+        r.aided_objective = (c.aided_objective != NULL) ? c.aided_objective : "combined";
         rc = replay_wmm_rows(&d, &ao, bned, decl, err, sizeof err);
         if (rc != REPLAY_EXIT_OK) {
             fprintf(stderr, "magcal-replay: %s: %s\n", c.path, err);

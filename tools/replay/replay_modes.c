@@ -571,6 +571,9 @@ int replay_aided_run(const magcal_replay_csv_t *d, const magcal_vec3_t *m, const
     if (prior != NULL) {
         cfg.prior = *prior;
     }
+    if (r->aided_objective != NULL && strcmp(r->aided_objective, "vector") == 0) {
+        cfg.objective = MAGCAL_AIDED_OBJ_VECTOR;
+    }
     for (i = 0u; i < d->n_rows; ++i) {
         gate_row[i] = (i >= first && i < end) ? REPLAY_GATE_SKIPPED : REPLAY_GATE_NOT_CAL;
     }
@@ -651,6 +654,8 @@ int replay_aided_run(const magcal_replay_csv_t *d, const magcal_vec3_t *m, const
     r->min_eig = res.min_eig;
     r->weak_std = res.weak_std;
     r->resid_rms_aided = res.resid_rms;
+    r->resid_f_rms_aided = res.resid_f_rms;
+    r->n_total_field = res.n_total_field;
     r->have_3d = 1;
     r->model3 = "aided";
     r->off3[0] = res.cal.v.x;

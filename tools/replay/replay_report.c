@@ -112,6 +112,7 @@ static void add_aided(cJSON *o, const replay_report_t *r)
     cJSON_AddStringToObject(a, "status", r->aided_status != NULL ? r->aided_status : "error");
     cJSON_AddStringToObject(a, "field_unit", r->field_unit != NULL ? r->field_unit : "uT");
     cJSON_AddStringToObject(a, "prior", r->prior != NULL ? r->prior : "identity");
+    cJSON_AddStringToObject(a, "objective", r->aided_objective != NULL ? r->aided_objective : "combined");
     if (r->prior != NULL && r->prior_g_scale != 1.0) {
         cJSON_AddNumberToObject(a, "prior_g_scale", sig7(r->prior_g_scale));
     }
@@ -132,6 +133,8 @@ static void add_aided(cJSON *o, const replay_report_t *r)
         cJSON_AddNumberToObject(a, "min_eig", sig7(r->min_eig));
         cJSON_AddNumberToObject(a, "weak_std", sig7(r->weak_std));
         cJSON_AddNumberToObject(a, "resid_rms", sig7(r->resid_rms_aided));
+        cJSON_AddNumberToObject(a, "resid_f_rms", sig7(r->resid_f_rms_aided));
+        cJSON_AddNumberToObject(a, "n_total_field", (double)r->n_total_field);
     }
     cJSON_AddItemToObject(o, "aided", a);
 }
@@ -311,6 +314,7 @@ static void print_aided(const replay_report_t *r)
            r->aided_status != NULL ? r->aided_status : "error", (unsigned long)r->aided_seen,
            (unsigned long)r->aided_accepted, (unsigned long)r->aided_skipped,
            r->field_unit != NULL ? r->field_unit : "uT");
+    printf("  objective         %s\n", r->aided_objective != NULL ? r->aided_objective : "combined");
     printf("  prior             %s", r->prior != NULL ? r->prior : "identity");
     if (r->prior != NULL && r->prior_g_scale != 1.0) {
         printf(" (a 3d report: G scaled by |B_ref| / F = %.6g)", r->prior_g_scale);
@@ -324,6 +328,8 @@ static void print_aided(const replay_report_t *r)
         printf("  convergence       at accepted epoch %ld (row %ld); %u directions from the prior; "
                "min_eig %.3g, weak_std %.3g, residual RMS %.4g\n",
                r->converged_at, r->converged_row, r->n_prior_dirs, r->min_eig, r->weak_std, r->resid_rms_aided);
+        printf("  total field       %lu epochs in the objective; a-priori |G(m - V)| - |B_ref| RMS %.4g\n",
+               (unsigned long)r->n_total_field, r->resid_f_rms_aided);
     }
 }
 

@@ -134,6 +134,9 @@ typedef struct {
     long converged_at, converged_row; /* -1 = not converged */
     unsigned aided_flags, n_prior_dirs;
     double min_eig, weak_std, resid_rms_aided;
+    const char *aided_objective;  /* input: "combined" (default) | "vector" (--aided-objective) */
+    double resid_f_rms_aided;     /* a-priori total-field residual RMS of the last window */
+    size_t n_total_field;         /* accepted epochs whose total-field residual entered the objective */
 } replay_report_t;
 
 /** Print the report as a readable table. */

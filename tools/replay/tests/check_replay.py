@@ -596,6 +596,19 @@ def case_aided(a):
           "gate column: %r" % {k: len(v) for k, v in gates.items()})
     check(rep.get("n_outlier_rows") == 50 and ad.get("prior") == "identity", "n_outlier_rows %r prior %r" % (
         rep.get("n_outlier_rows"), ad.get("prior")))
+    # objective: combined by default (total-field residual in the objective for nearly every
+    # accepted epoch after the first estimate); --aided-objective vector: none, same accuracy class
+    check(ad.get("objective") == "combined" and ad.get("n_total_field", 0) > 0.9 * ad.get("n_accepted", 0),
+          "objective %r, total-field epochs %r of %r" % (ad.get("objective"), ad.get("n_total_field"), ad.get("n_accepted")))
+    check(0.0 < ad.get("resid_f_rms", -1) < 0.1, "a-priori total-field residual RMS %r uT (noise 0.05)" % ad.get("resid_f_rms"))
+    vrep = run_json(a, ["--mode", "aided", "--aided-objective", "vector", "--cal-range", "0:%d" % truth["n_cal"], path])
+    vad = vrep.get("aided", {})
+    vg = g_rel_err(vrep.get("matrix", [[0] * 3] * 3), Gt)
+    vv = math.dist(vrep.get("offset", [0, 0, 0]), truth["V"])
+    sys.stdout.write("aided --aided-objective vector: G error %.4f, V error %.3f uT\n" % (vg, vv))
+    check(vad.get("objective") == "vector" and vad.get("n_total_field") == 0, "vector run: %r" % vad)
+    check(vg < 0.02 and vv < 1.5, "vector objective: G %.4f, V %.3f" % (vg, vv))
+    run(a, ["--mode", "2d", "--aided-objective", "vector", path], 1)
     # the same rows with the INS level (roll = pitch = 0 for all): no excitation of z -> unobservable
     rows = read_csv_rows(path)
     lvl = os.path.join(a.work_dir, "aided_level.csv")
