@@ -38,7 +38,7 @@
 #define MIN_EPOCHS_LIMIT 8u
 
 /* Index of (i, j) in a packed lower triangle (row-major), any order. */
-static size_t pidx(size_t i, size_t j)
+static size_t aided_pidx(size_t i, size_t j)
 {
     return (i >= j) ? ((i * (i + 1u)) / 2u + j) : ((j * (j + 1u)) / 2u + i);
 }
@@ -192,10 +192,10 @@ static float aided_wf(const magcal_aided_cfg_t *cfg)
  * (E[phi phi^T] carries noise_rel^2 on the first three diagonal entries, algorithms.md 7.7). */
 static float hf_at(const magcal_aided_t *inst, size_t p, size_t q, float inv_n)
 {
-    float v = inst->hf[pidx(p, q)];
+    float v = inst->hf[aided_pidx(p, q)];
     if ((p / 3u) == (q / 3u) && (p / 3u) < 3u) {
         const float nr = inst->cfg.noise_rel;
-        v -= nr * nr * inst->nn[pidx(p % 3u, q % 3u)];
+        v -= nr * nr * inst->nn[aided_pidx(p % 3u, q % 3u)];
     }
     return v * inv_n;
 }
@@ -233,7 +233,7 @@ static int aided_combined(const magcal_aided_t *inst, float ev[NPHI][NPHI], cons
 {
     float msys[NPAR * NPAR];
     float rhs[NPAR];
-    const float neff = inst->info[pidx(3u, 3u)];
+    const float neff = inst->info[aided_pidx(3u, 3u)];
     const float inv_n = 1.0f / neff;
     const float wf = aided_wf(&inst->cfg); /* w_F / w_v */
     const size_t n = 3u * nk;
@@ -300,7 +300,7 @@ static void aided_solve(magcal_aided_t *inst)
     float g[3][3];
     float ct[3];
     float vv[3];
-    float neff = inst->info[pidx(3u, 3u)];
+    float neff = inst->info[aided_pidx(3u, 3u)];
     float sigma;
     float rss;
     float fmean;
@@ -317,7 +317,7 @@ static void aided_solve(magcal_aided_t *inst)
     }
     for (i = 0u; i < NPHI; ++i) {
         for (j = 0u; j < NPHI; ++j) {
-            lam[i][j] = inst->info[pidx(i, j)] / neff;
+            lam[i][j] = inst->info[aided_pidx(i, j)] / neff;
         }
     }
     /* Bias compensation: E[x~ x~^T] holds the noise variance on its diagonal; remove it so that a
@@ -401,7 +401,7 @@ static void aided_solve(magcal_aided_t *inst)
         for (i = 0u; i < NPHI; ++i) {
             float lt = 0.0f;
             for (k = 0u; k < NPHI; ++k) {
-                lt += inst->info[pidx(i, k)] * theta[k][j];
+                lt += inst->info[aided_pidx(i, k)] * theta[k][j];
             }
             rss += theta[i][j] * (lt - 2.0f * inst->cross[i * 3u + j]);
         }
@@ -566,14 +566,14 @@ static void aided_total_field(magcal_aided_t *inst, const float h[3], const floa
     }
     for (p = 0u; p < NPAR; ++p) {
         for (q = 0u; q <= p; ++q) {
-            const size_t k = pidx(p, q);
+            const size_t k = aided_pidx(p, q);
             magcal_kahan_add(&inst->hf[k], &inst->hf_c[k], u[p] * u[q]);
         }
         magcal_kahan_add(&inst->bf[p], &inst->bf_c[p], fs * u[p]);
     }
     for (p = 0u; p < 3u; ++p) {
         for (q = 0u; q <= p; ++q) {
-            inst->nn[pidx(p, q)] += nv[p] * nv[q];
+            inst->nn[aided_pidx(p, q)] += nv[p] * nv[q];
         }
     }
     inst->n_tf++;
@@ -663,7 +663,7 @@ magcal_status_t magcal_aided_update(magcal_aided_t *inst, const magcal_aided_epo
     }
     for (i = 0u; i < NPHI; ++i) {
         for (j = 0u; j <= i; ++j) {
-            size_t p = pidx(i, j);
+            size_t p = aided_pidx(i, j);
             magcal_kahan_add(&inst->info[p], &inst->info_c[p], phi[i] * phi[j]);
         }
         for (j = 0u; j < 3u; ++j) {
