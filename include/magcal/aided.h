@@ -14,6 +14,11 @@
  *   n^T theta^T phi = |B_ref|/s, so each epoch adds (n n^T) (x) (phi phi^T) (78 packed floats) and
  *   |B_ref|/s (n (x) phi). It enters once an estimate predicts the field at every heading (the
  *   switch of the calibrated gates below); before that only the vector residual is used.
+ * Weights: both residuals carry the same magnetometer noise (the total-field residual is, to first
+ * order, the along-field component of the vector residual), so the total-field term is weighted
+ * w_F = 1/sigma_F^2 - 1/sigma_v^2 >= 0 (sigma_F = cfg.sigma_f_rel F, sigma_v = cfg.sigma_rel F): the
+ * along-field information is then 1/sigma_F^2 and the cross-field one 1/sigma_v^2. With
+ * sigma_f_rel >= sigma_rel the estimate equals the vector-only one (MAGCAL_AIDED_OBJ_VECTOR).
  * The information matrices are packed lower triangles (symmetric by construction in float32) with
  * Kahan-compensated sums and optional forgetting. Each solve eigen-decomposes Lambda/N (4x4 Jacobi),
  * freezes the poorly excited directions at the prior (below) and solves the remaining <= 12 x 12
@@ -30,8 +35,8 @@
  *   The attitude, yaw in particular, must NOT come from this magnetometer.
  *
  * Gates (algorithms.md 7.8), checked in this order, each counted: DOP > max_dop; |m - V0| > 1e4 |B_ref|
- * in any axis (RAW: a saturated or corrupted reading, outside the range of the sums); until a fully
- * observed estimate exists (>= min_epochs accepted and no direction frozen at the prior) the raw
+ * in any axis (RAW: a saturated or corrupted reading, outside the range of the sums); until an
+ * estimate predicts every heading (>= min_epochs accepted, at most one direction frozen) the raw
  * magnitude gate through the prior, `| |G0(m - V0)| - |B_ref| | > gate_raw_rel*|B_ref|` (loose: V is
  * unknown); afterwards `| |G(m - V)| - |B_ref| | > gate_field_rel*|B_ref|` and
  * `|C_b^n G(m - V) - B_ref| > gate_vector_rel*|B_ref|`.
