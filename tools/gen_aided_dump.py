@@ -121,17 +121,24 @@ def main(argv):
                  verification=dict(rows=[N_CAL, N_ROWS]), floor_deg=floor,
                  note="floor_deg: heading RMS on the verification rows with the TRUE W^-1, V, the dump's "
                       "INS roll/pitch and the WMM declination, against heading_ref_deg (true yaw)")
-    os.makedirs(out, exist_ok=True)
-    with open(os.path.join(out, "aided_road.csv"), "w") as f:
-        f.write("\n".join(lines) + "\n")
-    with open(os.path.join(out, "aided_road.json"), "w") as f:
-        json.dump(truth, f, indent=1)
-        f.write("\n")
-    print("aided_road rows=%d floor=%.4f deg decl=%.4f deg" % (N_ROWS, floor, decl))
-    return 0
+    return write_dump(out, lines, truth)
 
 
 N_CAL_LEVEL, N_ROWS_LEVEL, TILT_LEVEL = 1200, 1500, 15.0
+
+
+def write_dump(out, lines, truth):
+    """OUT/<scenario>.csv and OUT/<scenario>.json (truth)."""
+    name = truth["scenario"]
+    os.makedirs(out, exist_ok=True)
+    with open(os.path.join(out, name + ".csv"), "w") as f:
+        f.write("\n".join(lines) + "\n")
+    with open(os.path.join(out, name + ".json"), "w") as f:
+        json.dump(truth, f, indent=1)
+        f.write("\n")
+    print("%s rows=%d floor=%.4f deg decl=%.4f deg" % (name, truth["n_rows"], truth["floor_deg"],
+                                                        truth["declination_deg"]))
+    return 0
 
 
 def main_level(out):
@@ -177,14 +184,7 @@ def main_level(out):
                  verification=dict(rows=[N_CAL_LEVEL, N_ROWS_LEVEL]), floor_deg=floor,
                  note="calibration rows exactly level (unobservable z terms); floor_deg: heading RMS on the "
                       "verification rows with the TRUE W^-1, V, the dump's INS roll/pitch and the WMM declination")
-    os.makedirs(out, exist_ok=True)
-    with open(os.path.join(out, "aided_level.csv"), "w") as f:
-        f.write("\n".join(lines) + "\n")
-    with open(os.path.join(out, "aided_level.json"), "w") as f:
-        json.dump(truth, f, indent=1)
-        f.write("\n")
-    print("aided_level rows=%d floor=%.4f deg decl=%.4f deg" % (N_ROWS_LEVEL, floor, decl))
-    return 0
+    return write_dump(out, lines, truth)
 
 
 if __name__ == "__main__":
