@@ -77,6 +77,19 @@ def heading_deg(h, roll, pitch):
     return math.degrees(math.atan2(-lx, ly))
 
 
+HEADER = "t,mx,my,mz,roll_deg,pitch_deg,yaw_deg,lat_deg,lon_deg,height_km,decimal_year,dop,heading_ref_deg"
+
+
+def road_yaw(k, yaw, leg):
+    """Straight legs of 60 epochs joined by 90-degree turns over 15 epochs (3 right, 1 left)."""
+    ph = k % 75
+    if ph >= 60:
+        yaw += (-1.0 if leg % 4 == 3 else 1.0) * 6.0 * D2R
+        if ph == 74:
+            leg += 1
+    return yaw, leg
+
+
 def main(argv):
     out = argv[argv.index("--out") + 1] if "--out" in argv else "tools/replay/tests/data"
     if "--level" in argv:
@@ -89,15 +102,10 @@ def main(argv):
     a = 0.98
     drive = math.sqrt(1 - a * a) * 1.0 * D2R
     yaw, pitch, roll, leg = 10.0 * D2R, 0.0, 0.0, 0
-    lines = ["# scenario: aided_road (tools/gen_aided_dump.py)",
-             "t,mx,my,mz,roll_deg,pitch_deg,yaw_deg,lat_deg,lon_deg,height_km,decimal_year,dop,heading_ref_deg"]
+    lines = ["# scenario: aided_road (tools/gen_aided_dump.py)", HEADER]
     errs = []
     for k in range(N_ROWS):
-        ph = k % 75
-        if ph >= 60:
-            yaw += (-1.0 if leg % 4 == 3 else 1.0) * 6.0 * D2R
-            if ph == 74:
-                leg += 1
+        yaw, leg = road_yaw(k, yaw, leg)
         pitch = a * pitch + drive * rng.standard_normal()
         roll = a * roll + drive * rng.standard_normal()
         y_true = yaw + 2.0 * D2R * math.sin(0.1 * k)
@@ -148,15 +156,10 @@ def main_level(out):
     B = B_NED_NT * 1e-3  # uT
     decl = math.degrees(math.atan2(B[1], B[0]))
     yaw, leg = 10.0 * D2R, 0
-    lines = ["# scenario: aided_level (tools/gen_aided_dump.py --level)",
-             "t,mx,my,mz,roll_deg,pitch_deg,yaw_deg,lat_deg,lon_deg,height_km,decimal_year,dop,heading_ref_deg"]
+    lines = ["# scenario: aided_level (tools/gen_aided_dump.py --level)", HEADER]
     errs = []
     for k in range(N_ROWS_LEVEL):
-        ph = k % 75
-        if ph >= 60:
-            yaw += (-1.0 if leg % 4 == 3 else 1.0) * 6.0 * D2R
-            if ph == 74:
-                leg += 1
+        yaw, leg = road_yaw(k, yaw, leg)
         y_true = yaw + 2.0 * D2R * math.sin(0.1 * k)
         if k < N_CAL_LEVEL:
             roll = pitch = 0.0
