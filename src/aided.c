@@ -36,9 +36,11 @@
 #define NPAR 12u
 #define NPACK12 78u
 #define MIN_EPOCHS_LIMIT 8u
+#define REF_RATIO 16.0f   /* allowed |B_ref| / s range: [1/16, 16] */
+#define RAW_RANGE 1.0e4f  /* allowed |m - V0|_inf / |B_ref| (range of the normalised sums) */
 
 /* Index of (i, j) in a packed lower triangle (row-major), any order. */
-static size_t pidx(size_t i, size_t j)
+static size_t aided_pidx(size_t i, size_t j)
 {
     return (i >= j) ? ((i * (i + 1u)) / 2u + j) : ((j * (j + 1u)) / 2u + i);
 }
@@ -192,10 +194,10 @@ static float aided_wf(const magcal_aided_cfg_t *cfg)
  * (E[phi phi^T] carries noise_rel^2 on the first three diagonal entries, algorithms.md 7.7). */
 static float hf_at(const magcal_aided_t *inst, size_t p, size_t q, float inv_n)
 {
-    float v = inst->hf[pidx(p, q)];
+    float v = inst->hf[aided_pidx(p, q)];
     if ((p / 3u) == (q / 3u) && (p / 3u) < 3u) {
         const float nr = inst->cfg.noise_rel;
-        v -= nr * nr * inst->nn[pidx(p % 3u, q % 3u)];
+        v -= nr * nr * inst->nn[aided_pidx(p % 3u, q % 3u)];
     }
     return v * inv_n;
 }
@@ -233,7 +235,7 @@ static int aided_combined(const magcal_aided_t *inst, float ev[NPHI][NPHI], cons
 {
     float msys[NPAR * NPAR];
     float rhs[NPAR];
-    const float neff = inst->info[pidx(3u, 3u)];
+    const float neff = inst->info[aided_pidx(3u, 3u)];
     const float inv_n = 1.0f / neff;
     const float wf = aided_wf(&inst->cfg); /* w_F / w_v */
     const size_t n = 3u * nk;
@@ -300,7 +302,7 @@ static void aided_solve(magcal_aided_t *inst)
     float g[3][3];
     float ct[3];
     float vv[3];
-    float neff = inst->info[pidx(3u, 3u)];
+    float neff = inst->info[aided_pidx(3u, 3u)];
     float sigma;
     float rss;
     float fmean;
@@ -317,7 +319,7 @@ static void aided_solve(magcal_aided_t *inst)
     }
     for (i = 0u; i < NPHI; ++i) {
         for (j = 0u; j < NPHI; ++j) {
-            lam[i][j] = inst->info[pidx(i, j)] / neff;
+            lam[i][j] = inst->info[aided_pidx(i, j)] / neff;
         }
     }
     /* Bias compensation: E[x~ x~^T] holds the noise variance on its diagonal; remove it so that a
@@ -401,7 +403,7 @@ static void aided_solve(magcal_aided_t *inst)
         for (i = 0u; i < NPHI; ++i) {
             float lt = 0.0f;
             for (k = 0u; k < NPHI; ++k) {
-                lt += inst->info[pidx(i, k)] * theta[k][j];
+                lt += inst->info[aided_pidx(i, k)] * theta[k][j];
             }
             rss += theta[i][j] * (lt - 2.0f * inst->cross[i * 3u + j]);
         }
@@ -420,10 +422,20 @@ static void aided_solve(magcal_aided_t *inst)
             }
         }
     }
-    if (!solve3(g, ct, vv)) {
-        return; /* singular G: keep the previous estimate */
+    if (!magcal_isfinite_f(ct[0]) || !magcal_isfinite_f(ct[1]) || !magcal_isfinite_f(ct[2]) ||
+        !solve3(g, ct, vv)) {
+        return; /* singular G or a non-finite solution: keep the previous estimate */
     }
     fmean = inst->scale * inst->f_sum / neff;
+    {
+        const float vx = inst->cfg.prior.v.x - inst->scale * vv[0];
+        const float vy = inst->cfg.prior.v.y - inst->scale * vv[1];
+        const float vz = inst->cfg.prior.v.z - inst->scale * vv[2];
+        if (!magcal_isfinite_f(vx) || !magcal_isfinite_f(vy) || !magcal_isfinite_f(vz) ||
+            !magcal_isfinite_f(fmean) || !(fmean > 0.0f)) {
+            return;
+        }
+    }
     (void)memcpy(inst->cal.g, g, sizeof(g));
     inst->cal.v.x = inst->cfg.prior.v.x - inst->scale * vv[0];
     inst->cal.v.y = inst->cfg.prior.v.y - inst->scale * vv[1];
@@ -497,6 +509,12 @@ static magcal_aided_gate_t aided_gate(const magcal_aided_t *inst, const magcal_a
     if (ep->dop > cfg->max_dop) {
         return MAGCAL_AIDED_GATE_DOP;
     }
+    /* far outside any field (a saturated or corrupted reading): never enters the sums */
+    if (!(fabsf(ep->m.x - cfg->prior.v.x) <= RAW_RANGE * bmag) ||
+        !(fabsf(ep->m.y - cfg->prior.v.y) <= RAW_RANGE * bmag) ||
+        !(fabsf(ep->m.z - cfg->prior.v.z) <= RAW_RANGE * bmag)) {
+        return MAGCAL_AIDED_GATE_RAW;
+    }
     /* The calibrated gates need an estimate that predicts the field at every heading: at most one
      * direction on the prior (the out-of-plane one of level driving, harmless for near-level
      * epochs). An early estimate from one straight leg (two or more weak directions) would lock out
@@ -515,10 +533,11 @@ static magcal_aided_gate_t aided_gate(const magcal_aided_t *inst, const magcal_a
     hmag = sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
     *calibrated = use_cal;
     if (use_cal == 0) {
-        return (fabsf(hmag - bmag) > cfg->gate_raw_rel * bmag) ? MAGCAL_AIDED_GATE_RAW
+        /* written as !(x <= limit): a NaN (an overflowed product) is rejected, not accepted */
+        return !(fabsf(hmag - bmag) <= cfg->gate_raw_rel * bmag) ? MAGCAL_AIDED_GATE_RAW
                                                                : MAGCAL_AIDED_GATE_NONE;
     }
-    if (fabsf(hmag - bmag) > cfg->gate_field_rel * bmag) {
+    if (!(fabsf(hmag - bmag) <= cfg->gate_field_rel * bmag)) {
         return MAGCAL_AIDED_GATE_FIELD;
     }
     {
@@ -528,7 +547,7 @@ static magcal_aided_gate_t aided_gate(const magcal_aided_t *inst, const magcal_a
             float ri = c[i][0] * h[0] + c[i][1] * h[1] + c[i][2] * h[2] - b[i];
             r2 += ri * ri;
         }
-        if (sqrtf(r2) > cfg->gate_vector_rel * bmag) {
+        if (!(sqrtf(r2) <= cfg->gate_vector_rel * bmag)) {
             return MAGCAL_AIDED_GATE_VECTOR;
         }
     }
@@ -566,14 +585,14 @@ static void aided_total_field(magcal_aided_t *inst, const float h[3], const floa
     }
     for (p = 0u; p < NPAR; ++p) {
         for (q = 0u; q <= p; ++q) {
-            const size_t k = pidx(p, q);
+            const size_t k = aided_pidx(p, q);
             magcal_kahan_add(&inst->hf[k], &inst->hf_c[k], u[p] * u[q]);
         }
         magcal_kahan_add(&inst->bf[p], &inst->bf_c[p], fs * u[p]);
     }
     for (p = 0u; p < 3u; ++p) {
         for (q = 0u; q <= p; ++q) {
-            inst->nn[pidx(p, q)] += nv[p] * nv[q];
+            inst->nn[aided_pidx(p, q)] += nv[p] * nv[q];
         }
     }
     inst->n_tf++;
@@ -614,6 +633,13 @@ magcal_status_t magcal_aided_update(magcal_aided_t *inst, const magcal_aided_epo
     bmag = sqrtf(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
     if (!(bmag > 0.0f)) {
         return MAGCAL_ERR_ZERO_FIELD;
+    }
+    /* |B_ref| must be representable and stay within REF_RATIO of the normalisation s (the first
+     * accepted epoch's |B_ref|): the Earth's field varies by a factor ~3 over the globe, so a
+     * larger jump is a unit mix-up, and it would push the normalised sums out of float32 range */
+    if (!magcal_isfinite_f(bmag) ||
+        (inst->scale > 0.0f && !(bmag <= REF_RATIO * inst->scale && bmag * REF_RATIO >= inst->scale))) {
+        return MAGCAL_ERR_ARG;
     }
     (void)magcal_aided_dcm(ep->roll_rad, ep->pitch_rad, ep->yaw_rad, c);
     inst->n_seen++;
@@ -663,7 +689,7 @@ magcal_status_t magcal_aided_update(magcal_aided_t *inst, const magcal_aided_epo
     }
     for (i = 0u; i < NPHI; ++i) {
         for (j = 0u; j <= i; ++j) {
-            size_t p = pidx(i, j);
+            size_t p = aided_pidx(i, j);
             magcal_kahan_add(&inst->info[p], &inst->info_c[p], phi[i] * phi[j]);
         }
         for (j = 0u; j < 3u; ++j) {

@@ -690,6 +690,63 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
     out->n_used = kept;
     out->n_rejected = n - kept;
     out->model = model;
+    /* the final pass's gate, for magcal_ellipsoid_outliers (thr 0: no gate) */
+    out->gate_cal = (gate.cal != NULL) ? gate_cal : cal;
+    out->gate_thr = (gate.cal != NULL) ? gate.thr : 0.0f;
+    return MAGCAL_OK;
+}
+
+static int cal_isfinite(const magcal_ellipsoid_cal_t *cal)
+{
+    size_t i;
+    size_t j;
+    for (i = 0u; i < 3u; ++i) {
+        for (j = 0u; j < 3u; ++j) {
+            if (!magcal_isfinite_f(cal->g[i][j])) {
+                return 0;
+            }
+        }
+    }
+    return magcal_isfinite_f(cal->v.x) && magcal_isfinite_f(cal->v.y) &&
+           magcal_isfinite_f(cal->v.z) && magcal_isfinite_f(cal->field);
+}
+
+magcal_status_t magcal_ellipsoid_outliers(const magcal_ellipsoid_result_t *res,
+                                          const magcal_vec3_t *m, size_t n, uint8_t *outlier,
+                                          size_t *n_outliers)
+{
+    quad_gate_t gate;
+    size_t k;
+    size_t cnt = 0u;
+    if (res == NULL || m == NULL || outlier == NULL || n_outliers == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (n == 0u) {
+        return MAGCAL_ERR_TOO_FEW_POINTS;
+    }
+    if (!magcal_isfinite_f(res->gate_thr) || res->gate_thr < 0.0f ||
+        cal_isfinite(&res->gate_cal) == 0) {
+        return MAGCAL_ERR_ARG;
+    }
+    /* validate every sample before writing: outputs stay untouched on failure */
+    for (k = 0u; k < n; ++k) {
+        if (!magcal_isfinite_f(m[k].x) || !magcal_isfinite_f(m[k].y) ||
+            !magcal_isfinite_f(m[k].z)) {
+            return MAGCAL_ERR_NONFINITE;
+        }
+    }
+    /* the very predicate the fit accumulated with (gate_keeps), so the counts agree bit for bit */
+    gate.cal = (res->gate_thr > 0.0f) ? &res->gate_cal : NULL;
+    gate.thr = res->gate_thr;
+    for (k = 0u; k < n; ++k) {
+        if (gate_keeps(&gate, &m[k]) != 0) {
+            outlier[k] = 0u;
+        } else {
+            outlier[k] = 1u;
+            cnt++;
+        }
+    }
+    *n_outliers = cnt;
     return MAGCAL_OK;
 }
 

@@ -281,6 +281,27 @@ static magcal_status_t check_date(const magcal_geomag_model_t *model, float year
     return MAGCAL_OK;
 }
 
+/* Shared argument checks of both evaluators, in the documented order: non-finite input, latitude /
+ * longitude / height (or radius) range, model table, date validity. */
+static magcal_status_t check_args(const magcal_geomag_model_t *model, float lat_deg, float lon_deg,
+                                  float h, float h_min, float h_max, float year)
+{
+    magcal_status_t st;
+    if (!magcal_isfinite_f(lat_deg) || !magcal_isfinite_f(lon_deg) || !magcal_isfinite_f(h) ||
+        !magcal_isfinite_f(year)) {
+        return MAGCAL_ERR_NONFINITE;
+    }
+    if (lat_deg < -90.0f || lat_deg > 90.0f || lon_deg < -360.0f || lon_deg > 360.0f || h < h_min ||
+        h > h_max) {
+        return MAGCAL_ERR_ARG;
+    }
+    st = check_model(model);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    return check_date(model, year);
+}
+
 magcal_status_t magcal_geomag_eval(const magcal_geomag_model_t *model, float lat_deg, float lon_deg,
                                    float height_km, float year, magcal_geomag_result_t *out)
 {
@@ -298,19 +319,7 @@ magcal_status_t magcal_geomag_eval(const magcal_geomag_model_t *model, float lat
     if (model == NULL || out == NULL) {
         return MAGCAL_ERR_NULL;
     }
-    if (!magcal_isfinite_f(lat_deg) || !magcal_isfinite_f(lon_deg) ||
-        !magcal_isfinite_f(height_km) || !magcal_isfinite_f(year)) {
-        return MAGCAL_ERR_NONFINITE;
-    }
-    if (lat_deg < -90.0f || lat_deg > 90.0f || lon_deg < -360.0f || lon_deg > 360.0f ||
-        height_km < model->height_min_km || height_km > model->height_max_km) {
-        return MAGCAL_ERR_ARG;
-    }
-    st = check_model(model);
-    if (st != MAGCAL_OK) {
-        return st;
-    }
-    st = check_date(model, year);
+    st = check_args(model, lat_deg, lon_deg, height_km, model->height_min_km, model->height_max_km, year);
     if (st != MAGCAL_OK) {
         return st;
     }
@@ -382,19 +391,8 @@ magcal_status_t magcal_geomag_eval_geocentric(const magcal_geomag_model_t *model
     if (model == NULL || xyz_nt == NULL) {
         return MAGCAL_ERR_NULL;
     }
-    if (!magcal_isfinite_f(lat_gc_deg) || !magcal_isfinite_f(lon_deg) ||
-        !magcal_isfinite_f(radius_km) || !magcal_isfinite_f(year)) {
-        return MAGCAL_ERR_NONFINITE;
-    }
-    if (lat_gc_deg < -90.0f || lat_gc_deg > 90.0f || lon_deg < -360.0f || lon_deg > 360.0f ||
-        radius_km < MAGCAL_GEOMAG_RADIUS_MIN_KM || radius_km > MAGCAL_GEOMAG_RADIUS_MAX_KM) {
-        return MAGCAL_ERR_ARG;
-    }
-    st = check_model(model);
-    if (st != MAGCAL_OK) {
-        return st;
-    }
-    st = check_date(model, year);
+    st = check_args(model, lat_gc_deg, lon_deg, radius_km, MAGCAL_GEOMAG_RADIUS_MIN_KM,
+                    MAGCAL_GEOMAG_RADIUS_MAX_KM, year);
     if (st != MAGCAL_OK) {
         return st;
     }

@@ -290,6 +290,20 @@ static seed_stats_t over_seeds(double w[3][3], const magcal_aided_cfg_t *cfg, si
     return st;
 }
 
+/* Both objectives on the same drives, with the given INS attitude noise (deg) and sigma_rel. */
+static void compare_objectives(double w[3][3], magcal_aided_cfg_t *cfg, double rp_deg, double yaw_deg,
+                               float sigma_rel, seed_stats_t *comb, seed_stats_t *vec)
+{
+    g_att_sd_rp = rp_deg;
+    g_att_sd_yaw = yaw_deg;
+    cfg->sigma_rel = sigma_rel;
+    cfg->objective = MAGCAL_AIDED_OBJ_COMBINED;
+    *comb = over_seeds(w, cfg, 4u);
+    cfg->objective = MAGCAL_AIDED_OBJ_VECTOR;
+    *vec = over_seeds(w, cfg, 4u);
+    cfg->objective = MAGCAL_AIDED_OBJ_COMBINED;
+}
+
 static void test_aided_combined_objective_beats_vector_under_attitude_noise(void)
 {
     /* INS attitude errors rotate the vector residual across the field; the total-field residual
@@ -303,19 +317,13 @@ static void test_aided_combined_objective_beats_vector_under_attitude_noise(void
     cfg.sigma_f_rel = 0.001f;
     /* 0.2 deg roll/pitch, 1 deg yaw error (measured: combined G 1.0 %, V 0.79 uT, tilt 0.34 deg;
      * vector only 1.7 %, 1.46 uT, 0.60 deg) */
-    g_att_sd_rp = 0.2;
-    g_att_sd_yaw = 1.0;
-    cfg.sigma_rel = 0.006f;
-    comb = over_seeds(w, &cfg, 4u);
-    cfg.objective = MAGCAL_AIDED_OBJ_VECTOR;
-    vec = over_seeds(w, &cfg, 4u);
+    compare_objectives(w, &cfg, 0.2, 1.0, 0.006f, &comb, &vec);
     TEST_ASSERT_EQUAL_UINT32(0u, comb.n_unobservable);
     TEST_ASSERT_TRUE(comb.g < 0.75 * vec.g);
     TEST_ASSERT_TRUE(comb.v < 0.75 * vec.v);
     TEST_ASSERT_TRUE(comb.tilt < 0.75 * vec.tilt);
     TEST_ASSERT_TRUE(comb.g < 0.015 && comb.v < 1.2 && comb.tilt < 0.5);
     /* the noise compensation matters in the total-field term as well (measured 2.2 % without) */
-    cfg.objective = MAGCAL_AIDED_OBJ_COMBINED;
     cfg.noise_rel = 0.0f;
     raw = over_seeds(w, &cfg, 4u);
     TEST_ASSERT_TRUE(comb.g < 0.7 * raw.g);
@@ -323,12 +331,7 @@ static void test_aided_combined_objective_beats_vector_under_attitude_noise(void
     /* 0.5 deg roll/pitch, 2 deg yaw: the vector residual alone no longer resolves the weak
      * (out-of-plane) direction and freezes it at the identity prior (measured G 14.6 %, V 9.7 uT,
      * tilt 2.6 deg); with the total-field residual it stays observable (G 1.2 %, 0.96 uT, 0.45 deg) */
-    g_att_sd_rp = 0.5;
-    g_att_sd_yaw = 2.0;
-    cfg.sigma_rel = 0.012f;
-    comb = over_seeds(w, &cfg, 4u);
-    cfg.objective = MAGCAL_AIDED_OBJ_VECTOR;
-    vec = over_seeds(w, &cfg, 4u);
+    compare_objectives(w, &cfg, 0.5, 2.0, 0.012f, &comb, &vec);
     g_att_sd_rp = 0.01;
     g_att_sd_yaw = 0.05;
     TEST_ASSERT_EQUAL_UINT32(4u, vec.n_unobservable);

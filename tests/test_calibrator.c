@@ -14,6 +14,7 @@
 #include "magcal/calibrator.h"
 #include "magcal_port_fake.h"
 #include "test_dumps.h"
+#include "test_util.h"
 #include "unity.h"
 
 #define CAP MAGCAL_MAX_SAMPLES
@@ -647,27 +648,19 @@ static void test_poll_reads_port_passes_errors_through(void)
 
 /* ---------------------------------------------------------------- recorded dumps */
 
-/* std/mean of |cal(p)| over rows (identity = raw). */
-static double radius_spread(const magcal_test_dump_t *d, const magcal_cal2d_t *c, int skip_glitch)
+/* std/mean of |cal(p)| over the non-glitch rows (identity = raw). */
+static magcal_vec2_t g_dump_pts[4096];
+static uint8_t g_dump_skip[4096];
+
+static double radius_spread(const magcal_test_dump_t *d, const magcal_cal2d_t *c)
 {
-    double s = 0.0;
-    double s2 = 0.0;
     size_t i;
-    size_t k = 0u;
+    TEST_ASSERT_TRUE(d->n <= sizeof g_dump_skip);
     for (i = 0; i < d->n; ++i) {
-        magcal_vec2_t h;
-        double r;
-        if (skip_glitch && d->glitch != NULL && d->glitch[i] > 0.5f) {
-            continue;
-        }
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_correct_apply(c, row(d, i), &h));
-        r = sqrt((double)h.x * h.x + (double)h.y * h.y);
-        s += r;
-        s2 += r * r;
-        ++k;
+        g_dump_pts[i] = row(d, i);
+        g_dump_skip[i] = (uint8_t)(d->glitch != NULL && d->glitch[i] > 0.5f);
     }
-    s /= (double)k;
-    return sqrt(s2 / (double)k - s * s) / s;
+    return test_radius_spread(c, g_dump_pts, g_dump_skip, d->n);
 }
 
 /*
@@ -692,8 +685,8 @@ static void real_dump(const magcal_test_dump_t *d, double ref_spread, double min
         TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_push(&g_cal, row(d, i)));
     }
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_run(&g_cal, &c, &rep));
-    raw = radius_spread(d, &ident, 1);
-    cor = radius_spread(d, &c, 1);
+    raw = radius_spread(d, &ident);
+    cor = radius_spread(d, &c);
     if (d->glitch != NULL) {
         for (i = 0; i < d->n; ++i) {
             if (d->glitch[i] > 0.5f) {

@@ -17,6 +17,7 @@
 #include <string.h>
 
 #include "magcal/calibrator.h"
+#include "test_util.h"
 #include "unity.h"
 
 #define CAP MAGCAL_MAX_SAMPLES
@@ -99,22 +100,7 @@ static size_t read_csv(const char *path, const char *xcol, const char *ycol)
 
 static double spread(size_t n, const magcal_cal2d_t *c)
 {
-    double s = 0.0, s2 = 0.0;
-    size_t i, k = 0u;
-    for (i = 0; i < n; ++i) {
-        magcal_vec2_t h;
-        double r;
-        if (g_glitch[i]) {
-            continue;
-        }
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_correct_apply(c, g_rows[i], &h));
-        r = sqrt((double)h.x * h.x + (double)h.y * h.y);
-        s += r;
-        s2 += r * r;
-        ++k;
-    }
-    s /= (double)k;
-    return sqrt(s2 / (double)k - s * s) / s;
+    return test_radius_spread(c, g_rows, g_glitch, n);
 }
 
 static void check_dump(const char *name, const char *xcol, const char *ycol, double ref_drop)

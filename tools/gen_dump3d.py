@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 """Synthetic 3-axis dumps with accelerometer and known truth for the tilt-compensation checks of
-magcal-replay (tools/replay/tests/check_replay.py, cases tilt_3d and tilt_2d).
+magcal-replay (tools/replay/tests/check_replay.py, cases tilt_3d, tilt_2d and outliers_3d).
 
     /usr/bin/python3 tools/gen_dump3d.py [--out tools/replay/tests/data]
 
@@ -23,6 +23,11 @@ Scenarios:
                 Soft iron only in x/y with det = 1 (so the 2-D calibration radius equals H and
                 its M is the true inverse), z gain 1, V = (12, -7, 20) uT: the 2-D calibration
                 plus the --inclination approximation is exact up to noise.
+  tumble_outliers  tilt_tumble's W, V and layout (600 tumble rows, 160 tilted verification rows,
+                no gate rows) with known outlier rows (column `outlier` = 1): 24 calibration rows
+                (7, 32, 57, ...: every 25th) and 8 verification rows (605, 625, ...) get a field
+                magnitude error of +-(10..30) % of F along m - V (alternating sign). Along m - V
+                the true calibration's heading is unchanged, so floor_deg is the clean floor.
 
 Truth JSON: floor_deg = heading RMS on the verification rows with the TRUE calibration and the
 same tilt formulas applied to the same noisy samples; gates = expected tilt gate counts over all
@@ -95,7 +100,7 @@ def wrap180(a):
 
 def make(name, rng):
     rows = []  # (roll, pitch, yaw, accel scale, ref)
-    if name == "tilt_tumble":
+    if name in ("tilt_tumble", "tumble_outliers"):
         A = np.array([[1.12, 0.05, -0.04], [0.05, 0.90, 0.06], [-0.04, 0.06, 1.02]])
         W = A  # symmetric positive definite
         for _ in range(600):
@@ -125,6 +130,9 @@ def make(name, rng):
         r, p = rng.uniform(-tilt, tilt, 2)
         rows.append(dict(C=c_b_enu(math.radians(r), math.radians(p), math.radians(psi)), scale=1.0, ref=float(psi)))
     n_ver_end = len(rows)
+    out_rows = []
+    if name == "tumble_outliers":
+        out_rows = list(range(7, n_cal, 25)) + list(range(n_cal + 5, n_ver_end, 20))
     if name == "tilt_tumble":
         for sc in (1.3, 1.3, 1.3, 0.1, 0.1):
             rows.append(dict(C=c_b_enu(0.05, 0.1, 0.0), scale=sc, ref=0.0))
@@ -136,31 +144,38 @@ def make(name, rng):
         C = rw["C"]
         h = C.T @ b_enu()
         m = W @ h + V + SIGMA_M * rng.standard_normal(3)
+        if i in out_rows:
+            sgn = 1.0 if out_rows.index(i) % 2 == 0 else -1.0
+            m = V + (1.0 + sgn * rng.uniform(0.10, 0.30)) * (m - V)
         f = rw["scale"] * (C.T @ np.array([0.0, 0.0, 1.0])) + SIGMA_A * rng.standard_normal(3)
         ht = Winv @ (m - V)
         g = gate(f, ht)
         gates[g] = gates.get(g, 0) + 1
         if n_cal <= i < n_ver_end:
             errs.append(wrap180(tilt_heading(f, ht)[0] - rw["ref"]))
-        out.append((0.05 * i, m, f, rw["ref"]))
+        out.append((0.05 * i, m, f, rw["ref"], 1 if i in out_rows else 0))
     floor = math.sqrt(np.mean(np.square(errs)))
     lines = ["# scenario: %s" % name, "# h_horizontal_uT: %g" % H, "# inclination_deg: %g" % INCL,
-             "# floor_deg: %.6g" % floor, "t,mx,my,mz,ax,ay,az,heading_ref_deg"]
-    for t, m, f, ref in out:
+             "# floor_deg: %.6g" % floor, "t,mx,my,mz,ax,ay,az,heading_ref_deg" + (",outlier" if out_rows else "")]
+    for t, m, f, ref, o in out:
         lines.append("%.2f,%.5f,%.5f,%.5f,%.5f,%.5f,%.5f,%s" % (
-            t, m[0], m[1], m[2], f[0], f[1], f[2], "nan" if math.isnan(ref) else "%.4f" % ref))
+            t, m[0], m[1], m[2], f[0], f[1], f[2], "nan" if math.isnan(ref) else "%.4f" % ref) +
+            (",%d" % o if out_rows else ""))
     truth = dict(scenario=name, W=W.tolist(), V=V.tolist(), h_horizontal=H, inclination_deg=INCL,
                  F=float(np.linalg.norm(b_enu())), sigma_m=SIGMA_M, sigma_a=SIGMA_A, n_cal=n_cal,
                  verification=dict(rows=[n_cal, n_ver_end], headings_deg=VER_H, per_heading=10, tilt_deg=tilt),
                  n_rows=len(rows), floor_deg=floor, gates=gates,
                  note="heading = tilt-compensated (algorithms.md 6) with the TRUE W, V on the same samples")
+    if out_rows:
+        truth["outlier_rows"] = out_rows
+        truth["n_cal_outliers"] = sum(1 for i in out_rows if i < n_cal)
     return "\n".join(lines) + "\n", truth
 
 
 def main(argv):
     out = argv[argv.index("--out") + 1] if "--out" in argv else "tools/replay/tests/data"
     os.makedirs(out, exist_ok=True)
-    for seed, name in ((201, "tilt_tumble"), (202, "level_tilted")):
+    for seed, name in ((201, "tilt_tumble"), (202, "level_tilted"), (203, "tumble_outliers")):
         csv, truth = make(name, np.random.default_rng(seed))
         with open(os.path.join(out, name + ".csv"), "w") as f:
             f.write(csv)

@@ -14,6 +14,11 @@
  *   n^T theta^T phi = |B_ref|/s, so each epoch adds (n n^T) (x) (phi phi^T) (78 packed floats) and
  *   |B_ref|/s (n (x) phi). It enters once an estimate predicts the field at every heading (the
  *   switch of the calibrated gates below); before that only the vector residual is used.
+ * Weights: both residuals carry the same magnetometer noise (the total-field residual is, to first
+ * order, the along-field component of the vector residual), so the total-field term is weighted
+ * w_F = 1/sigma_F^2 - 1/sigma_v^2 >= 0 (sigma_F = cfg.sigma_f_rel F, sigma_v = cfg.sigma_rel F): the
+ * along-field information is then 1/sigma_F^2 and the cross-field one 1/sigma_v^2. With
+ * sigma_f_rel >= sigma_rel the estimate equals the vector-only one (MAGCAL_AIDED_OBJ_VECTOR).
  * The information matrices are packed lower triangles (symmetric by construction in float32) with
  * Kahan-compensated sums and optional forgetting. Each solve eigen-decomposes Lambda/N (4x4 Jacobi),
  * freezes the poorly excited directions at the prior (below) and solves the remaining <= 12 x 12
@@ -29,8 +34,9 @@
  *   These are numerically the INS's FRD/NED yaw, pitch, roll (C_FRD^NED = R_z(psi) R_y(theta) R_x(phi)).
  *   The attitude, yaw in particular, must NOT come from this magnetometer.
  *
- * Gates (algorithms.md 7.8), checked in this order, each counted: DOP > max_dop; until a fully
- * observed estimate exists (>= min_epochs accepted and no direction frozen at the prior) the raw
+ * Gates (algorithms.md 7.8), checked in this order, each counted: DOP > max_dop; |m - V0| > 1e4 |B_ref|
+ * in any axis (RAW: a saturated or corrupted reading, outside the range of the sums); until an
+ * estimate predicts every heading (>= min_epochs accepted, at most one direction frozen) the raw
  * magnitude gate through the prior, `| |G0(m - V0)| - |B_ref| | > gate_raw_rel*|B_ref|` (loose: V is
  * unknown); afterwards `| |G(m - V)| - |B_ref| | > gate_field_rel*|B_ref|` and
  * `|C_b^n G(m - V) - B_ref| > gate_vector_rel*|B_ref|`.
@@ -197,7 +203,9 @@ magcal_status_t magcal_aided_init(magcal_aided_t *inst, const magcal_aided_cfg_t
  * @param[out]    reason optional (may be NULL): gate that rejected the epoch, or MAGCAL_AIDED_GATE_NONE.
  * @return MAGCAL_OK (accepted), MAGCAL_ERR_GATED (rejected by a gate; counted, state unchanged otherwise),
  *         MAGCAL_ERR_NULL, MAGCAL_ERR_NOT_INITIALISED, MAGCAL_ERR_NONFINITE (a non-finite input),
- *         MAGCAL_ERR_ARG (dop < 0, |pitch| >= pi/2), MAGCAL_ERR_ZERO_FIELD (|B_ref| == 0).
+ *         MAGCAL_ERR_ARG (dop < 0, |pitch| >= pi/2, |B_ref| not representable in float32 or more than
+ *         16x away from the first accepted epoch's |B_ref|: a unit mix-up), MAGCAL_ERR_ZERO_FIELD
+ *         (|B_ref| == 0). Rejected epochs (every status but MAGCAL_OK) leave the estimate unchanged.
  */
 magcal_status_t magcal_aided_update(magcal_aided_t *inst, const magcal_aided_epoch_t *ep, magcal_aided_gate_t *reason);
 

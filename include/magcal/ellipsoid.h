@@ -20,7 +20,10 @@
  * Outliers: after each fit, samples whose total-field residual `| |G(m - V)| - F |` exceeds
  * `outlier_k` times the RMS of the kept residuals (never less than `outlier_floor_rel * F`) are
  * dropped and the model is fitted again, at most `max_refits` times. No per-sample storage is needed:
- * the sample array is read again on each pass (2 + 2 * refits passes at most).
+ * the sample array is read again on each pass (2 + 2 * refits passes at most). The gate of the final
+ * pass (the calibration it was computed with, which is the fit BEFORE the last refit, and its
+ * threshold) is returned in the result, so magcal_ellipsoid_outliers() can give the per-sample mask
+ * afterwards without storage inside the fit.
  *
  * Units: any consistent raw unit for m; G maps raw units to the unit of `cfg.field` (e.g. LSB to uT).
  * All arithmetic is float32 with Kahan-compensated sums; no workspace is needed (worst-case stack
@@ -95,6 +98,13 @@ typedef struct {
     size_t n_used;                  /**< samples in the final fit */
     size_t n_rejected;              /**< samples dropped as outliers */
     magcal_ellipsoid_model_t model; /**< model actually fitted (never AUTO) */
+    /** Calibration the final outlier gate was evaluated with (the fit before the last refit; equal
+     *  to `cal` when no gate was applied). Input of magcal_ellipsoid_outliers(). */
+    magcal_ellipsoid_cal_t gate_cal;
+    /** Final outlier gate, output units: a sample is an outlier when | |G_gate (m - V_gate)| -
+     *  F_gate | >= gate_thr. 0: no gate was applied (outlier_k == 0, max_refits == 0 or nothing
+     *  was ever rejected), every sample was used. */
+    float gate_thr;
 } magcal_ellipsoid_result_t;
 
 /**
@@ -129,6 +139,44 @@ typedef struct {
  */
 magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n, const magcal_ellipsoid_cfg_t *cfg,
                                      magcal_ellipsoid_result_t *out);
+
+/**
+ * @brief Per-sample outlier mask of a fit: classify each sample with the fit's final gate.
+ *
+ * Applies exactly the gate of the final pass of magcal_ellipsoid_fit (res->gate_cal,
+ * res->gate_thr): sample k is an outlier when | |G_gate (m_k - V_gate)| - F_gate | >= gate_thr,
+ * with the same float32 arithmetic as the fit. On the fit's own input (same m, same n) the count
+ * equals res->n_rejected and the flagged samples are exactly those left out of res->cal. On other
+ * samples it applies the same gate (e.g. to screen new data with the calibration's own criterion).
+ *
+ * @param[in]  res        result of a successful magcal_ellipsoid_fit.
+ * @param[in]  m          n raw samples (same unit and axes as the fit's input).
+ * @param[in]  n          number of samples (>= 1).
+ * @param[out] outlier    n flags: 1 = outlier, 0 = kept; written only on MAGCAL_OK.
+ * @param[out] n_outliers number of flags set; written only on MAGCAL_OK.
+ * @return MAGCAL_OK;
+ *         MAGCAL_ERR_NULL (res, m, outlier or n_outliers NULL);
+ *         MAGCAL_ERR_TOO_FEW_POINTS (n == 0);
+ *         MAGCAL_ERR_ARG (res->gate_thr negative or NaN, or res->gate_cal not finite: not a result
+ *         of magcal_ellipsoid_fit);
+ *         MAGCAL_ERR_NONFINITE (a sample is NaN/Inf).
+ *
+ * @code
+ * #define N_SAMPLES 600u
+ * static magcal_vec3_t samples[N_SAMPLES];      // filled by the application
+ * static uint8_t flag[N_SAMPLES];
+ * const magcal_ellipsoid_cfg_t cfg = MAGCAL_ELLIPSOID_CFG_DEFAULT;
+ * magcal_ellipsoid_result_t fit;
+ * size_t n_out;
+ * if (magcal_ellipsoid_fit(samples, N_SAMPLES, &cfg, &fit) == MAGCAL_OK &&
+ *     magcal_ellipsoid_outliers(&fit, samples, N_SAMPLES, flag, &n_out) == MAGCAL_OK) {
+ *     // n_out == fit.n_rejected; flag[k] == 1 for the samples the fit dropped
+ * }
+ * @endcode
+ */
+magcal_status_t magcal_ellipsoid_outliers(const magcal_ellipsoid_result_t *res,
+                                          const magcal_vec3_t *m, size_t n, uint8_t *outlier,
+                                          size_t *n_outliers);
 
 /**
  * @brief Apply a calibration: h = G (m - V).

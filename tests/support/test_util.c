@@ -2,6 +2,9 @@
 
 #include <math.h>
 
+#include "magcal/heading.h"
+#include "unity.h"
+
 double test_rand_uniform(uint32_t *state)
 {
     uint32_t x = *state ? *state : 0x12345678u;
@@ -58,4 +61,27 @@ double test_angle_diff_deg(double a, double b)
         r += 360.0;
     }
     return r;
+}
+
+double test_radius_spread(const magcal_cal2d_t *c, const magcal_vec2_t *pts, const uint8_t *skip, size_t n)
+{
+    double s = 0.0;
+    double s2 = 0.0;
+    size_t i;
+    size_t k = 0u;
+    for (i = 0; i < n; ++i) {
+        magcal_vec2_t h;
+        double r;
+        if (skip != NULL && skip[i] != 0u) {
+            continue;
+        }
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_correct_apply(c, pts[i], &h));
+        r = sqrt((double)h.x * h.x + (double)h.y * h.y);
+        s += r;
+        s2 += r * r;
+        ++k;
+    }
+    TEST_ASSERT_TRUE(k > 0u);
+    s /= (double)k;
+    return sqrt(s2 / (double)k - s * s) / s;
 }

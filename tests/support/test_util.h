@@ -5,6 +5,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "magcal/heading.h"
 #include "magcal/types.h"
 
 /** Known 2-D distortion: Hm = T*H + b, H = h0*(-sin psi, cos psi) (algorithms.md 1.1/1.3). */
@@ -29,5 +30,12 @@ void test_make_ring(const test_distortion_t *d, size_t n, double start_deg, doub
 
 /** Smallest signed angle difference a-b in degrees, (-180, 180]. */
 double test_angle_diff_deg(double a, double b);
+
+/**
+ * Radius spread std/mean of |c(p)| over the n points whose skip flag is 0 (skip may be NULL),
+ * c applied with magcal_correct_apply (the identity calibration gives the raw spread). Asserts
+ * every correction succeeds.
+ */
+double test_radius_spread(const magcal_cal2d_t *c, const magcal_vec2_t *pts, const uint8_t *skip, size_t n);
 
 #endif

@@ -3,7 +3,7 @@
 
   make_corpus.py --source-dir REPO --out DIR [--shared-dir /work/shared]
 
-Writes DIR/replay_csv/, DIR/calibrator/, DIR/cluster/ (one file per seed, named by content hash).
+Writes DIR/replay_csv/, DIR/calibrator/, DIR/cluster/, DIR/3d/ (one file per seed, named by content hash).
 Inputs: REPO/tests/data/{real,synthetic}/*.csv, SHARED/data/real/*/data.csv when given, and the
 committed seeds in tools/fuzz/seeds/<harness>/ (hand-written CSVs, reproducers of fixed crashes). The corpora are build products: never commit them.
 
@@ -14,6 +14,7 @@ import glob
 import hashlib
 import math
 import os
+import random
 import shutil
 import struct
 
@@ -118,6 +119,32 @@ def cluster_seeds(pts, out):
         write_seed(out, struct.pack("<ffBBf", eps / scale * scale, eps, 6, 0x15, scale) + q)
 
 
+def seeds_3d(out):
+    """fuzz_3d.c synthetic drives: flags, W - I, V, then (yaw step, pitch, roll, 3 noise, dop) per
+    epoch. Road-like turning with ~1 deg tilt, level, and one with a high-DOP segment; both
+    objectives, forgetting and noise compensation."""
+    rng = random.Random(2026)
+    for flags, tilt, n in ((0x00, 20, 1300), (0x01, 20, 1300), (0x06, 20, 1300), (0x04, 0, 1000),
+                           (0x10, 60, 1300), (0x20, 40, 1200)):
+        hdr = bytes([flags]) + bytes((rng.randrange(-40, 41) & 0xFF) for _ in range(9)) + \
+            bytes((rng.randrange(-60, 61) & 0xFF) for _ in range(3))
+        body = bytearray()
+        for k in range(n):
+            step = 30 if (k % 75) >= 60 else rng.randrange(0, 3)
+            dop = 200 if 500 <= k < 520 else 48
+            body += bytes([step, rng.randrange(-tilt, tilt + 1) & 0xFF, rng.randrange(-tilt, tilt + 1) & 0xFF,
+                           rng.randrange(-10, 11) & 0xFF, rng.randrange(-10, 11) & 0xFF,
+                           rng.randrange(-10, 11) & 0xFF, dop])
+        write_seed(out, hdr + bytes(body))
+    # raw epochs: one plausible, level, float layout
+    raw = bytearray([0x40])
+    for k in range(60):
+        yaw = 0.2 * k
+        raw += struct.pack("<10f", 20.0 * math.sin(yaw), 20.0 * math.cos(yaw), -44.0, 0.0, 0.0, yaw,
+                           20.0, 1.2, 44.0, 1.2)
+    write_seed(out, bytes(raw))
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--source-dir", required=True)
@@ -134,11 +161,12 @@ def main():
     out_csv = os.path.join(a.out, "replay_csv")
     out_cal = os.path.join(a.out, "calibrator")
     out_clu = os.path.join(a.out, "cluster")
-    for d in (out_csv, out_cal, out_clu):
+    out_3d = os.path.join(a.out, "3d")
+    for d in (out_csv, out_cal, out_clu, out_3d):
         shutil.rmtree(d, ignore_errors=True)       # regenerated from scratch every time
         os.makedirs(d)
     # committed seeds: hand-written CSVs and the reproducers of fixed crashes (regressions)
-    for harness, out in (("replay_csv", out_csv), ("calibrator", out_cal), ("cluster", out_clu)):
+    for harness, out in (("replay_csv", out_csv), ("calibrator", out_cal), ("cluster", out_clu), ("3d", out_3d)):
         for h in sorted(glob.glob(os.path.join(seeds, harness, "*"))):
             with open(h, "rb") as f:
                 write_seed(out, f.read())
@@ -148,7 +176,8 @@ def main():
         if len(pts) >= 20:
             calibrator_seeds(pts, out_cal)
             cluster_seeds(pts, out_clu)
-    for d in (out_csv, out_cal, out_clu):
+    seeds_3d(out_3d)
+    for d in (out_csv, out_cal, out_clu, out_3d):
         print("%s: %d seeds" % (d, len(os.listdir(d))))
 
 

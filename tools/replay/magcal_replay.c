@@ -9,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "magcal/aided.h"
 #include "magcal/calibrator.h"
 #include "magcal/ellipsoid.h"
 #include "magcal/heading.h"
@@ -30,6 +31,7 @@ static const char k_usage[] =
     "  --declination DEG   magnetic declination, east positive (default 0)\n"
     "  --plane XY|XZ|YZ    dump axes forming the horizontal plane (default XY; YX, ZX, ZY mirror)\n"
     "  --headings OUT.csv  per row: index,raw_heading_deg,heading_deg,outlier[,heading_ref_deg,error_deg]\n"
+    "                      (aided: then a gate column: none|dop|raw|field|vector|skipped)\n"
     "  --json              the report as one JSON object on stdout (default: a readable table)\n"
     "  --mode 2d|3d|aided  2d (default): ellipse on the plane; 3d: ellipsoid on mx,my,mz;\n"
     "                      aided: INS/GNSS-aided 3-D calibration (roll/pitch/yaw, lat/lon/height)\n"
@@ -40,6 +42,9 @@ static const char k_usage[] =
     "  --inclination DEG   2d + tilt: inclination giving the level vertical field (default 0)\n"
     "  --field-unit U      aided: unit of mx,my,mz: uT (default) | nT | gauss\n"
     "  --year Y            aided: decimal year of the dump (default: decimal_year column, else t as Unix time)\n"
+    "  --aided-objective O aided: combined (vector + total-field residual, default) | vector\n"
+    "  --prior FILE.json   aided: prior (factory) calibration: the JSON report of a --mode 3d or aided run\n"
+    "                      (keys matrix, offset; dump units) (default: identity G, zero V)\n"
     "  -h, --help          this text\n"
     "exit status: 0 ok, 1 usage, 2 input error, 3 calibration failed, 4 output error, 5 internal error\n";
 
@@ -236,6 +241,8 @@ typedef struct {
     double inclination;      /* NaN = not given */
     const char *field_unit;  /* aided */
     double year;             /* NaN = from the dump */
+    const char *prior_path;  /* aided: --prior, NULL = identity */
+    const char *aided_objective; /* aided: --aided-objective, NULL = combined */
 } cli_t;
 
 static int parse_args(int argc, char **argv, cli_t *c)
@@ -333,6 +340,15 @@ static int parse_args(int argc, char **argv, cli_t *c)
             }
             c->field_unit = v;
             ++i;
+        } else if (strcmp(a, "--aided-objective") == 0) {
+            if (strcmp(v, "combined") != 0 && strcmp(v, "vector") != 0) {
+                return usage_error("--aided-objective must be combined or vector, got \"%s\"", v);
+            }
+            c->aided_objective = v;
+            ++i;
+        } else if (strcmp(a, "--prior") == 0) {
+            c->prior_path = v;
+            ++i;
         } else if (strcmp(a, "--year") == 0) {
             if (parse_double(v, &c->year) != 0 || c->year < 1900.0 || c->year > 2100.0) {
                 return usage_error("--year needs a decimal year, got \"%s\"", v);
@@ -357,6 +373,12 @@ static int parse_args(int argc, char **argv, cli_t *c)
     }
     if (strcmp(c->mode, "aided") == 0 && c->tilt == 1) {
         return usage_error("%s", "--tilt: the aided mode levels the field with the INS roll and pitch");
+    }
+    if (c->prior_path != NULL && strcmp(c->mode, "aided") != 0) {
+        return usage_error("%s", "--prior is for the aided mode (the prior of magcal_aided_update)");
+    }
+    if (c->aided_objective != NULL && strcmp(c->mode, "aided") != 0) {
+        return usage_error("%s", "--aided-objective is for the aided mode");
     }
     if (isfinite(c->inclination) && strcmp(c->mode, "2d") != 0) {
         return usage_error("%s", "--inclination is for the 2d mode (3d and aided calibrate z)");
@@ -440,6 +462,7 @@ int main(int argc, char **argv)
     replay_result_t res;
     replay_swing_t sw;
     magcal_ellipsoid_cal_t cal3;
+    magcal_ellipsoid_result_t fit3;
     char err[MAGCAL_REPLAY_CSV_ERR_LEN];
     uint32_t required;
     int rc, mode3d, aided;
@@ -447,7 +470,7 @@ int main(int argc, char **argv)
     magcal_vec3_t *fed = NULL;
     double *raw_rad = NULL, *cor_rad = NULL, *err_deg = NULL, *hdg = NULL, *raw_hdg = NULL;
     double *hmag = NULL, *hmag0 = NULL, *decl = NULL, *bned = NULL, *refmag = NULL;
-    unsigned char *flag = NULL, *use = NULL, *fedmask = NULL, *tstat = NULL;
+    unsigned char *flag = NULL, *use = NULL, *fedmask = NULL, *tstat = NULL, *gate_row = NULL;
     const double *ref;
     double accel_scale = 1.0;
     static const double k_nan = NAN;
@@ -463,6 +486,7 @@ int main(int argc, char **argv)
     memset(&res, 0, sizeof res);
     memset(&sw, 0, sizeof sw);
     memset(&cal3, 0, sizeof cal3);
+    memset(&fit3, 0, sizeof fit3);
     required = MAGCAL_REPLAY_COL_BIT(MAGCAL_REPLAY_COL_MX + c.cal.plane.src[0]) |
                MAGCAL_REPLAY_COL_BIT(MAGCAL_REPLAY_COL_MX + c.cal.plane.src[1]);
     if (mode3d || aided) {
@@ -573,9 +597,10 @@ int main(int argc, char **argv)
     use = (unsigned char *)calloc(n, 1u);
     fedmask = (unsigned char *)calloc(n, 1u);
     tstat = (unsigned char *)calloc(n, 1u);
+    gate_row = (unsigned char *)calloc(n, 1u);
     res.flags = (unsigned char *)calloc(r.n_fed, 1u);
     if (!fed || !raw_rad || !cor_rad || !err_deg || !hdg || !raw_hdg || !hmag || !hmag0 || !decl || !refmag ||
-        !bned || !flag || !use || !fedmask || !tstat || !res.flags) {
+        !bned || !flag || !use || !fedmask || !tstat || !gate_row || !res.flags) {
         fprintf(stderr, "magcal-replay: out of memory\n");
         rc = REPLAY_EXIT_INTERNAL;
         goto done;
@@ -593,15 +618,39 @@ int main(int argc, char **argv)
     /* Calibrate. */
     if (aided) {
         replay_aided_opts_t ao;
+        magcal_ellipsoid_cal_t prior;
+        char perr[512];
         ao.unit_per_nt = (strcmp(c.field_unit, "nT") == 0) ? 1.0 : (strcmp(c.field_unit, "gauss") == 0) ? 1e-5 : 1e-3;
         ao.year = c.year;
         r.field_unit = c.field_unit;
+        r.prior = (c.prior_path != NULL) ? c.prior_path : "identity";
+        r.aided_objective = (c.aided_objective != NULL) ? c.aided_objective : "combined";
         rc = replay_wmm_rows(&d, &ao, bned, decl, err, sizeof err);
         if (rc != REPLAY_EXIT_OK) {
             fprintf(stderr, "magcal-replay: %s: %s\n", c.path, err);
             goto done;
         }
-        rc = replay_aided_run(&d, fed, bned, r.cal_first, r.cal_end, &r, &cal3);
+        r.prior_g_scale = 1.0;
+        if (c.prior_path != NULL) {
+            double fref = NAN; /* |B_ref| of the first calibration row that has one */
+            for (i = r.cal_first; i < r.cal_end && !isfinite(fref); ++i) {
+                if (isfinite(bned[3u * i])) {
+                    fref = sqrt(bned[3u * i] * bned[3u * i] + bned[3u * i + 1u] * bned[3u * i + 1u] +
+                                bned[3u * i + 2u] * bned[3u * i + 2u]);
+                }
+            }
+            rc = replay_read_prior(c.prior_path, ao.unit_per_nt, fref, &prior, &r.prior_g_scale, perr, sizeof perr);
+            if (rc != REPLAY_EXIT_OK) {
+                fprintf(stderr, "magcal-replay: %s\n", perr);
+                goto done;
+            }
+        }
+        rc = replay_aided_run(&d, fed, bned, r.cal_first, r.cal_end, c.prior_path != NULL ? &prior : NULL, &r, &cal3,
+                              gate_row);
+        if (rc == REPLAY_EXIT_INPUT) {
+            fprintf(stderr, "magcal-replay: %s: prior refused by magcal_aided_init: %s\n", c.prior_path, r.reason);
+            goto done;
+        }
         r.decl_first_deg = NAN;
         for (i = r.cal_first; i < r.cal_end; ++i) {
             if (isfinite(decl[i])) {
@@ -610,7 +659,10 @@ int main(int argc, char **argv)
             }
         }
     } else if (mode3d) {
-        rc = replay_fit_3d(fed + r.cal_first, r.n_cal, &r, &cal3);
+        rc = replay_fit_3d(fed + r.cal_first, r.n_cal, &r, &fit3, flag + r.cal_first);
+        if (rc == REPLAY_EXIT_OK) {
+            cal3 = fit3.cal;
+        }
     } else {
         /* Replay port serves the (decimated) calibration rows; the calibrator polls. */
         rc = replay_calibrate(&c.cal, &d, r.cal_first, r.n_fed, r.decimation, &r, &res);
@@ -695,6 +747,14 @@ int main(int argc, char **argv)
                 cor_rad[i] = sqrt((double)h3.x * h3.x + (double)h3.y * h3.y + (double)h3.z * h3.z);
             }
             use[i] = fedmask[i];
+            if (aided) {
+                /* rejected by a gate of magcal_aided_update (gate_row: none, or not offered) */
+                flag[i] = (unsigned char)(gate_row[i] >= MAGCAL_AIDED_GATE_DOP && gate_row[i] < MAGCAL_AIDED_GATE_COUNT);
+            } else if (i < r.cal_first || i >= r.cal_end) {
+                /* calibration rows: the fit's own mask; others: the same final gate */
+                flag[i] = (unsigned char)replay_classify_3d(&fit3, &fed[i]);
+            }
+            r.n_outlier_rows += (size_t)(flag[i] != 0u);
             if (have_h3 && aided) {
                 const double *ro = d.col[MAGCAL_REPLAY_COL_ROLL], *pi = d.col[MAGCAL_REPLAY_COL_PITCH];
                 magcal_tilt_t att;
@@ -780,7 +840,7 @@ int main(int argc, char **argv)
             truth = d.col[MAGCAL_REPLAY_COL_OUTLIER];
             r.truth_column = "outlier";
         }
-        if (truth == NULL || rc != REPLAY_EXIT_OK || mode3d || aided) {
+        if (truth == NULL || rc != REPLAY_EXIT_OK || aided) {
             r.truth_column = NULL;
         } else {
             for (i = r.cal_first; i < r.cal_end; i += r.decimation) {
@@ -799,9 +859,9 @@ int main(int argc, char **argv)
         FILE *f = fopen(c.headings_path, "w");
         int bad = (f == NULL);
         if (f != NULL) {
-            fprintf(f, "index,raw_heading_deg,heading_deg,outlier%s%s%s\n",
+            fprintf(f, "index,raw_heading_deg,heading_deg,outlier%s%s%s%s\n",
                     ref != NULL ? ",heading_ref_deg,error_deg" : "", r.tilt_on ? ",tilt" : "",
-                    sw.ok ? ",heading_before_swing_deg" : "");
+                    sw.ok ? ",heading_before_swing_deg" : "", aided ? ",gate" : "");
             for (i = 0u; i < n; ++i) {
                 fprintf(f, "%lu,%.4f,%.4f,%d", (unsigned long)i, raw_hdg[i], hdg[i], flag[i]);
                 if (ref != NULL) {
@@ -812,6 +872,9 @@ int main(int argc, char **argv)
                 }
                 if (sw.ok) {
                     fprintf(f, ",%.4f", isfinite(hmag0[i]) ? wrap360(hmag0[i] + decl[i]) : NAN);
+                }
+                if (aided) {
+                    fprintf(f, ",%s", replay_gate_name(gate_row[i]));
                 }
                 fputc('\n', f);
             }
@@ -856,6 +919,7 @@ done:
     free(use);
     free(fedmask);
     free(tstat);
+    free(gate_row);
     free(res.flags);
     magcal_replay_csv_free(&d);
     return rc;

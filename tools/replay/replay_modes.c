@@ -1,10 +1,13 @@
 /* magcal-replay: 3-D, aided and swing modes (see replay_modes.h). */
 #include "replay_modes.h"
 
+#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+#include <cjson/cJSON.h>
 
 #include "magcal/aided.h"
 #include "magcal/geomag.h"
@@ -42,12 +45,25 @@ static const char *model_name(magcal_ellipsoid_model_t m)
     }
 }
 
-int replay_fit_3d(const magcal_vec3_t *m, size_t n, replay_report_t *r, magcal_ellipsoid_cal_t *cal)
+int replay_classify_3d(const magcal_ellipsoid_result_t *fit, const magcal_vec3_t *m)
+{
+    uint8_t f = 0u;
+    size_t cnt = 0u;
+    if (magcal_ellipsoid_outliers(fit, m, 1u, &f, &cnt) != MAGCAL_OK) {
+        return 0;
+    }
+    return f != 0u;
+}
+
+int replay_fit_3d(const magcal_vec3_t *m, size_t n, replay_report_t *r, magcal_ellipsoid_result_t *fit,
+                  unsigned char *flags)
 {
     const magcal_ellipsoid_cfg_t cfg = MAGCAL_ELLIPSOID_CFG_DEFAULT;
     magcal_ellipsoid_result_t res;
     magcal_status_t st;
     float cov = 0.0f;
+    size_t n_flag = 0u, k3;
+    uint8_t *mask;
     int i, j;
 
     memset(&res, 0, sizeof res);
@@ -76,7 +92,24 @@ int replay_fit_3d(const magcal_vec3_t *m, size_t n, replay_report_t *r, magcal_e
         r->have_3d = 0;
         return (st == MAGCAL_ERR_NULL || st == MAGCAL_ERR_ARG) ? REPLAY_EXIT_INTERNAL : REPLAY_EXIT_CAL_FAILED;
     }
-    *cal = res.cal;
+    /* per-sample mask of the fit's final gate; on the fit's own input it must count n_rejected */
+    mask = (uint8_t *)malloc(n);
+    if (mask == NULL) {
+        fprintf(stderr, "magcal-replay: out of memory\n");
+        return REPLAY_EXIT_INTERNAL;
+    }
+    st = magcal_ellipsoid_outliers(&res, m, n, mask, &n_flag);
+    if (st != MAGCAL_OK || n_flag != res.n_rejected) {
+        fprintf(stderr, "magcal-replay: magcal_ellipsoid_outliers: %s, %lu flagged vs n_rejected %lu\n",
+                magcal_status_str(st), (unsigned long)n_flag, (unsigned long)res.n_rejected);
+        free(mask);
+        return REPLAY_EXIT_INTERNAL;
+    }
+    for (k3 = 0u; k3 < n; ++k3) {
+        flags[k3] = mask[k3];
+    }
+    free(mask);
+    *fit = res;
     r->have_3d = 1;
     r->model3 = model_name(res.model);
     r->coverage3 = res.coverage;
@@ -364,12 +397,169 @@ int replay_wmm_rows(const magcal_replay_csv_t *d, const replay_aided_opts_t *o, 
     return REPLAY_EXIT_OK;
 }
 
+const char *replay_gate_name(unsigned char g)
+{
+    switch (g) {
+    case MAGCAL_AIDED_GATE_NONE: return "none";
+    case MAGCAL_AIDED_GATE_DOP: return "dop";
+    case MAGCAL_AIDED_GATE_RAW: return "raw";
+    case MAGCAL_AIDED_GATE_FIELD: return "field";
+    case MAGCAL_AIDED_GATE_VECTOR: return "vector";
+    case REPLAY_GATE_SKIPPED: return "skipped";
+    default: return "";
+    }
+}
+
+static double unit_per_nt_of(const char *u)
+{
+    if (strcmp(u, "uT") == 0) {
+        return 1e-3;
+    }
+    if (strcmp(u, "nT") == 0) {
+        return 1.0;
+    }
+    if (strcmp(u, "gauss") == 0) {
+        return 1e-5;
+    }
+    return NAN;
+}
+
+/* n finite numbers of a JSON array; 0 ok, -1 otherwise */
+static int json_numbers(const cJSON *arr, double *out, int n)
+{
+    int k;
+    if (!cJSON_IsArray(arr) || cJSON_GetArraySize(arr) != n) {
+        return -1;
+    }
+    for (k = 0; k < n; ++k) {
+        const cJSON *it = cJSON_GetArrayItem(arr, k);
+        if (!cJSON_IsNumber(it) || !isfinite(it->valuedouble)) {
+            return -1;
+        }
+        out[k] = it->valuedouble;
+    }
+    return 0;
+}
+
+int replay_read_prior(const char *path, double unit_per_nt, double field_ref, magcal_ellipsoid_cal_t *prior,
+                      double *g_scale, char *err, size_t err_len)
+{
+    FILE *f = fopen(path, "rb");
+    char *text = NULL;
+    long len;
+    cJSON *root = NULL;
+    const cJSON *mat, *off, *unit, *mode, *field;
+    double g[3][3], v[3], det, scale = 1.0, gnorm = 0.0, gs = 1.0;
+    int i, j, rc = REPLAY_EXIT_INPUT;
+
+    if (f == NULL) {
+        (void)snprintf(err, err_len, "%s: cannot open the prior: %s", path, strerror(errno));
+        return REPLAY_EXIT_INPUT;
+    }
+    if (fseek(f, 0, SEEK_END) != 0 || (len = ftell(f)) < 0 || len > (1L << 20) || fseek(f, 0, SEEK_SET) != 0) {
+        (void)snprintf(err, err_len, "%s: prior unreadable or larger than 1 MiB", path);
+        fclose(f);
+        return REPLAY_EXIT_INPUT;
+    }
+    text = (char *)malloc((size_t)len + 1u);
+    if (text == NULL || fread(text, 1u, (size_t)len, f) != (size_t)len) {
+        (void)snprintf(err, err_len, "%s: cannot read the prior", path);
+        goto out;
+    }
+    text[len] = '\0';
+    root = cJSON_Parse(text);
+    if (root == NULL || !cJSON_IsObject(root)) {
+        (void)snprintf(err, err_len, "%s: prior is not a JSON object (a magcal-replay --json report of --mode 3d "
+                       "or aided, or {\"matrix\": [[..],[..],[..]], \"offset\": [x, y, z]})", path);
+        goto out;
+    }
+    mat = cJSON_GetObjectItemCaseSensitive(root, "matrix");
+    off = cJSON_GetObjectItemCaseSensitive(root, "offset");
+    if (mat == NULL || off == NULL) {
+        (void)snprintf(err, err_len, "%s: prior has no \"%s\" key (needs \"matrix\": 3x3 G and \"offset\": V, "
+                       "as in a --mode 3d or aided JSON report)", path, mat == NULL ? "matrix" : "offset");
+        goto out;
+    }
+    if (!cJSON_IsArray(mat) || cJSON_GetArraySize(mat) != 3) {
+        (void)snprintf(err, err_len, "%s: prior \"matrix\" must be 3 rows of 3 finite numbers", path);
+        goto out;
+    }
+    for (i = 0; i < 3; ++i) {
+        if (json_numbers(cJSON_GetArrayItem(mat, i), g[i], 3) != 0) {
+            (void)snprintf(err, err_len, "%s: prior \"matrix\" must be 3 rows of 3 finite numbers", path);
+            goto out;
+        }
+    }
+    if (json_numbers(off, v, 3) != 0) {
+        (void)snprintf(err, err_len, "%s: prior \"offset\" must be 3 finite numbers", path);
+        goto out;
+    }
+    /* unit of the file, when it says: top level, else the aided object's */
+    unit = cJSON_GetObjectItemCaseSensitive(root, "field_unit");
+    if (unit == NULL) {
+        const cJSON *ad = cJSON_GetObjectItemCaseSensitive(root, "aided");
+        unit = (ad != NULL) ? cJSON_GetObjectItemCaseSensitive(ad, "field_unit") : NULL;
+    }
+    if (unit != NULL) {
+        double u = cJSON_IsString(unit) ? unit_per_nt_of(unit->valuestring) : NAN;
+        if (!isfinite(u)) {
+            (void)snprintf(err, err_len, "%s: prior \"field_unit\" must be \"uT\", \"nT\" or \"gauss\"", path);
+            goto out;
+        }
+        scale = unit_per_nt / u; /* prior unit -> dump unit */
+    }
+    /* a 3d report's G outputs its own F (det G = 1): rescale to the reference magnitude */
+    mode = cJSON_GetObjectItemCaseSensitive(root, "mode");
+    field = cJSON_GetObjectItemCaseSensitive(root, "field");
+    if (cJSON_IsString(mode) && strcmp(mode->valuestring, "3d") == 0 && isfinite(field_ref)) {
+        if (!cJSON_IsNumber(field) || !(field->valuedouble > 0.0) || !isfinite(field->valuedouble)) {
+            (void)snprintf(err, err_len, "%s: prior is a 3d report without a positive \"field\"", path);
+            goto out;
+        }
+        gs = field_ref / (field->valuedouble * scale); /* its F in the dump unit */
+        for (i = 0; i < 3; ++i) {
+            for (j = 0; j < 3; ++j) {
+                g[i][j] *= gs;
+            }
+        }
+    }
+    det = g[0][0] * (g[1][1] * g[2][2] - g[1][2] * g[2][1]) - g[0][1] * (g[1][0] * g[2][2] - g[1][2] * g[2][0]) +
+          g[0][2] * (g[1][0] * g[2][1] - g[1][1] * g[2][0]);
+    for (i = 0; i < 3; ++i) {
+        for (j = 0; j < 3; ++j) {
+            gnorm += g[i][j] * g[i][j];
+        }
+    }
+    gnorm = sqrt(gnorm / 3.0); /* 1 for a rotation */
+    if (!(fabs(det) > 1e-6 * gnorm * gnorm * gnorm)) {
+        (void)snprintf(err, err_len, "%s: prior \"matrix\" is singular (det %g)", path, det);
+        goto out;
+    }
+    for (i = 0; i < 3; ++i) {
+        for (j = 0; j < 3; ++j) {
+            prior->g[i][j] = (float)g[i][j];
+        }
+    }
+    prior->v.x = (float)(v[0] * scale);
+    prior->v.y = (float)(v[1] * scale);
+    prior->v.z = (float)(v[2] * scale);
+    prior->field = 0.0f;
+    *g_scale = gs;
+    rc = REPLAY_EXIT_OK;
+out:
+    cJSON_Delete(root);
+    free(text);
+    fclose(f);
+    return rc;
+}
+
 static magcal_aided_t g_aided;
 
 int replay_aided_run(const magcal_replay_csv_t *d, const magcal_vec3_t *m, const double *b_ned3,
-                     size_t first, size_t end, replay_report_t *r, magcal_ellipsoid_cal_t *cal)
+                     size_t first, size_t end, const magcal_ellipsoid_cal_t *prior, replay_report_t *r,
+                     magcal_ellipsoid_cal_t *cal, unsigned char *gate_row)
 {
-    const magcal_aided_cfg_t cfg = MAGCAL_AIDED_CFG_DEFAULT;
+    magcal_aided_cfg_t cfg = MAGCAL_AIDED_CFG_DEFAULT;
     const double *roll = d->col[MAGCAL_REPLAY_COL_ROLL], *pitch = d->col[MAGCAL_REPLAY_COL_PITCH];
     const double *yaw = d->col[MAGCAL_REPLAY_COL_YAW], *dop = d->col[MAGCAL_REPLAY_COL_DOP];
     const double d2r = k_pi / 180.0;
@@ -378,7 +568,20 @@ int replay_aided_run(const magcal_replay_csv_t *d, const magcal_vec3_t *m, const
     size_t i, k;
     int first_fed = 1;
 
+    if (prior != NULL) {
+        cfg.prior = *prior;
+    }
+    if (r->aided_objective != NULL && strcmp(r->aided_objective, "vector") == 0) {
+        cfg.objective = MAGCAL_AIDED_OBJ_VECTOR;
+    }
+    for (i = 0u; i < d->n_rows; ++i) {
+        gate_row[i] = (i >= first && i < end) ? REPLAY_GATE_SKIPPED : REPLAY_GATE_NOT_CAL;
+    }
     st = magcal_aided_init(&g_aided, &cfg);
+    if (st != MAGCAL_OK && prior != NULL) {
+        (void)snprintf(r->reason, sizeof r->reason, "%s", magcal_status_str(st));
+        return REPLAY_EXIT_INPUT;
+    }
     if (st != MAGCAL_OK) {
         fprintf(stderr, "magcal-replay: magcal_aided_init: %s\n", magcal_status_str(st));
         return REPLAY_EXIT_INTERNAL;
@@ -415,6 +618,7 @@ int replay_aided_run(const magcal_replay_csv_t *d, const magcal_vec3_t *m, const
             r->aided_skipped++;
             continue;
         }
+        gate_row[i] = (st == MAGCAL_OK) ? (unsigned char)MAGCAL_AIDED_GATE_NONE : (unsigned char)why;
         if (st == MAGCAL_OK && r->converged_row < 0 &&
             magcal_aided_get(&g_aided, &res) != MAGCAL_ERR_TOO_FEW_POINTS &&
             (res.flags & MAGCAL_AIDED_FLAG_CONVERGED) != 0u) {
@@ -450,6 +654,8 @@ int replay_aided_run(const magcal_replay_csv_t *d, const magcal_vec3_t *m, const
     r->min_eig = res.min_eig;
     r->weak_std = res.weak_std;
     r->resid_rms_aided = res.resid_rms;
+    r->resid_f_rms_aided = res.resid_f_rms;
+    r->n_total_field = res.n_total_field;
     r->have_3d = 1;
     r->model3 = "aided";
     r->off3[0] = res.cal.v.x;

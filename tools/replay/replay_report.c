@@ -111,6 +111,11 @@ static void add_aided(cJSON *o, const replay_report_t *r)
     cJSON *a = cJSON_CreateObject(), *g = cJSON_CreateObject();
     cJSON_AddStringToObject(a, "status", r->aided_status != NULL ? r->aided_status : "error");
     cJSON_AddStringToObject(a, "field_unit", r->field_unit != NULL ? r->field_unit : "uT");
+    cJSON_AddStringToObject(a, "prior", r->prior != NULL ? r->prior : "identity");
+    cJSON_AddStringToObject(a, "objective", r->aided_objective != NULL ? r->aided_objective : "combined");
+    if (r->prior != NULL && r->prior_g_scale != 1.0) {
+        cJSON_AddNumberToObject(a, "prior_g_scale", sig7(r->prior_g_scale));
+    }
     cJSON_AddItemToObject(a, "b_ref_ned_first", vec3(r->b_ref_first));
     cJSON_AddNumberToObject(a, "declination_first_deg", sig7(r->decl_first_deg));
     cJSON_AddNumberToObject(a, "n_seen", (double)r->aided_seen);
@@ -128,6 +133,8 @@ static void add_aided(cJSON *o, const replay_report_t *r)
         cJSON_AddNumberToObject(a, "min_eig", sig7(r->min_eig));
         cJSON_AddNumberToObject(a, "weak_std", sig7(r->weak_std));
         cJSON_AddNumberToObject(a, "resid_rms", sig7(r->resid_rms_aided));
+        cJSON_AddNumberToObject(a, "resid_f_rms", sig7(r->resid_f_rms_aided));
+        cJSON_AddNumberToObject(a, "n_total_field", (double)r->n_total_field);
     }
     cJSON_AddItemToObject(o, "aided", a);
 }
@@ -167,6 +174,9 @@ int replay_print_json(const replay_report_t *r)
     /* reached by most failing runs too (0 where the run stopped earlier) */
     cJSON_AddNumberToObject(o, "n_used", (double)r->n_used);
     cJSON_AddNumberToObject(o, "n_outliers", (double)r->n_outliers);
+    if (r->mode[0] != '2' && (r->have_3d || r->have_aided)) {
+        cJSON_AddNumberToObject(o, "n_outlier_rows", (double)r->n_outlier_rows);
+    }
     if (r->mode[0] == '2') {
         cJSON_AddNumberToObject(o, "coverage_deg", sig7(r->coverage_deg));
     } else if (r->mode[0] == '3') {
@@ -304,6 +314,12 @@ static void print_aided(const replay_report_t *r)
            r->aided_status != NULL ? r->aided_status : "error", (unsigned long)r->aided_seen,
            (unsigned long)r->aided_accepted, (unsigned long)r->aided_skipped,
            r->field_unit != NULL ? r->field_unit : "uT");
+    printf("  objective         %s\n", r->aided_objective != NULL ? r->aided_objective : "combined");
+    printf("  prior             %s", r->prior != NULL ? r->prior : "identity");
+    if (r->prior != NULL && r->prior_g_scale != 1.0) {
+        printf(" (a 3d report: G scaled by |B_ref| / F = %.6g)", r->prior_g_scale);
+    }
+    printf("\n");
     printf("  gated             dop %lu, raw %lu, field %lu, vector %lu\n", (unsigned long)r->aided_gated[1],
            (unsigned long)r->aided_gated[2], (unsigned long)r->aided_gated[3], (unsigned long)r->aided_gated[4]);
     printf("  B_ref (first)     NED (%.6g, %.6g, %.6g), declination %.3f deg (WMM2025)\n", r->b_ref_first[0],
@@ -312,6 +328,8 @@ static void print_aided(const replay_report_t *r)
         printf("  convergence       at accepted epoch %ld (row %ld); %u directions from the prior; "
                "min_eig %.3g, weak_std %.3g, residual RMS %.4g\n",
                r->converged_at, r->converged_row, r->n_prior_dirs, r->min_eig, r->weak_std, r->resid_rms_aided);
+        printf("  total field       %lu epochs in the objective; a-priori |G(m - V)| - |B_ref| RMS %.4g\n",
+               (unsigned long)r->n_total_field, r->resid_f_rms_aided);
     }
 }
 
@@ -360,6 +378,17 @@ void replay_print_table(const replay_report_t *r)
     if (r->mode[0] != '2') {
         printf("  samples           %lu fed, %lu used, %lu rejected\n", (unsigned long)r->n_fed,
                (unsigned long)r->n_used, (unsigned long)r->n_outliers);
+        if (r->have_3d) {
+            printf("  outlier rows      %lu of %lu rows (headings CSV outlier = 1: %s)\n",
+                   (unsigned long)r->n_outlier_rows, (unsigned long)r->n_rows,
+                   r->mode[0] == 'a' ? "epochs rejected by a gate"
+                                     : "the fit's final residual gate, on every row");
+        }
+        if (r->truth_column != NULL) {
+            printf("  truth flags       %lu fed rows have %s=1: %lu flagged, %lu missed; %lu false alarms\n",
+                   (unsigned long)r->truth_flagged, r->truth_column, (unsigned long)r->truth_detected,
+                   (unsigned long)r->truth_missed, (unsigned long)r->false_alarms);
+        }
         if (r->mode[0] == 'a') {
             print_aided(r);
         }

@@ -55,6 +55,7 @@ typedef struct {
     char reason[256];
     /* counts */
     size_t n_rows, n_cal, n_fed, decimation, n_used, n_outliers;
+    size_t n_outlier_rows; /* 3d / aided: rows with outlier = 1 in the headings CSV (all rows) */
     size_t capacity;
     /* geometry (dump units) */
     double coverage_deg;
@@ -124,6 +125,8 @@ typedef struct {
     const char *aided_status;
     int aided_status_code;
     const char *field_unit;       /* unit of the dump's field: "uT" | "nT" | "gauss" */
+    const char *prior;            /* "identity" or the --prior file name */
+    double prior_g_scale;         /* factor applied to a 3d report's G (|B_ref| / its F), else 1 */
     double b_ref_first[3];        /* B_ref (NED, dump unit) of the first epoch fed */
     double decl_first_deg;        /* WMM declination of the first epoch fed */
     size_t aided_seen, aided_accepted, aided_gated[5];
@@ -131,6 +134,9 @@ typedef struct {
     long converged_at, converged_row; /* -1 = not converged */
     unsigned aided_flags, n_prior_dirs;
     double min_eig, weak_std, resid_rms_aided;
+    const char *aided_objective;  /* input: "combined" (default) | "vector" (--aided-objective) */
+    double resid_f_rms_aided;     /* a-priori total-field residual RMS of the last window */
+    size_t n_total_field;         /* accepted epochs whose total-field residual entered the objective */
 } replay_report_t;
 
 /** Print the report as a readable table. */

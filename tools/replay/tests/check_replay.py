@@ -25,10 +25,18 @@ Cases (one CTest test each):
                    tilted rows, tilt gate counts equal the truth's
   tilt_2d          level_tilted (gen_dump3d.py): 2d calibration + tilt with --inclination: <= 1.2 x
                    floor; without it (vertical component 0) and without tilt: >= 5 x floor
+  outliers_3d      tumble_outliers (gen_dump3d.py): --mode 3d outlier column = the fit's final gate:
+                   every injected row flagged (calibration and verification), count over the
+                   calibration rows = n_outliers, truth_flags, console outlier-row count
   real_3d          bundled 3-D tumbles: corrected spread within 5 % of an independent numpy
                    ellipsoid fit (tools/ref_real_spread3d.py), drop factors, accelerometer unit
   aided            aided_road (gen_aided_dump.py): G, V near truth (test_aided.c tolerances),
-                   converged, DOP gate count, WMM B_ref, heading RMS <= 1.2 x floor
+                   converged, DOP gate count, WMM B_ref, heading RMS <= 1.2 x floor; headings CSV
+                   outlier = the DOP-gated rows, gate column
+  aided_prior      aided_level (gen_aided_dump.py --level, calibration exactly level): --prior
+                   identity vs TRUE calibration (both unobservable; the true prior gives G, V and
+                   tilted headings at truth), a report passed back as prior, unit conversion,
+                   3d-report rescaling, bad prior files (exit 2)
   modes_usage      errors of the new options and columns (exit 1 / 2)
 Exit status 0 = pass, 1 = fail (messages on stderr), 77 = skipped.
 """
@@ -438,6 +446,50 @@ def case_tilt_3d(a):
           mp.get("tilt", {}).get("gates", {}).get("free_fall") == truth["n_rows"], "--accel-unit mps2: %r" % mp.get("tilt"))
 
 
+def case_outliers_3d(a):
+    truth = load_truth(a, "tumble_outliers")
+    path = extra_data(a, "tumble_outliers.csv")
+    n_cal = truth["n_cal"]
+    hp = os.path.join(a.work_dir, "tumble_outliers_headings.csv")
+    rep = run_json(a, ["--mode", "3d", "--cal-range", "0:%d" % n_cal, "--headings", hp, path])
+    check(rep.get("status") == "ok" and rep.get("model") == "quadric9", "status %r model %r" % (
+        rep.get("status"), rep.get("model")))
+    rows = read_csv_rows(hp)
+    check(len(rows) == truth["n_rows"], "headings rows %d" % len(rows))
+    flagged = [int(r["index"]) for r in rows if r["outlier"] == "1"]
+    truth_rows = set(truth["outlier_rows"])
+    cal_flagged = [i for i in flagged if i < n_cal]
+    ver_extra = [i for i in flagged if i >= n_cal and i not in truth_rows]
+    tf = rep.get("truth_flags", {})
+    sys.stdout.write("outliers_3d: %d rows flagged (%d calibration, n_outliers %r), truth %d (%d calibration); "
+                     "truth_flags %r; verification false alarms %r; heading RMS %.4f deg, floor %.4f deg\n" % (
+                         len(flagged), len(cal_flagged), rep.get("n_outliers"), len(truth_rows),
+                         truth["n_cal_outliers"], tf, ver_extra, rep.get("heading_rms_deg", -1), truth["floor_deg"]))
+    # every injected outlier row flagged, in the calibration AND the verification rows
+    check(truth_rows <= set(flagged), "missed outlier rows %r" % sorted(truth_rows - set(flagged)))
+    # calibration rows: the CSV mask is the fit's own (its count is n_outliers = n_cal - n_used)
+    check(len(cal_flagged) == rep.get("n_outliers") == n_cal - rep.get("n_used", 0),
+          "calibration rows flagged %d vs n_outliers %r" % (len(cal_flagged), rep.get("n_outliers")))
+    check(rep.get("n_outlier_rows") == len(flagged), "n_outlier_rows %r vs CSV %d" % (rep.get("n_outlier_rows"), len(flagged)))
+    # truth flags over the fed (calibration) rows; measured 24 / 24, 0 missed, 1 false alarm
+    check(tf.get("column") == "outlier" and tf.get("flagged") == truth["n_cal_outliers"] and
+          tf.get("detected") == truth["n_cal_outliers"] and tf.get("missed") == 0, "truth_flags %r" % tf)
+    check(tf.get("false_alarms", 99) <= 3, "false alarms %r > 3 (3-sigma gate, 600 rows)" % tf.get("false_alarms"))
+    check(tf.get("detected", 0) + tf.get("false_alarms", 0) == rep.get("n_outliers"), "detected + false alarms != n_outliers")
+    check(len(ver_extra) <= 5, "verification false alarms %r > 5 (measured 3 of 160)" % ver_extra)
+    check(rep.get("n_heading_flagged") == sum(1 for i in flagged if i >= n_cal), "n_heading_flagged %r" % rep.get("n_heading_flagged"))
+    # radial errors leave the heading unchanged: heading RMS stays at the floor
+    check(rep.get("heading_rms_deg", 99) <= FLOOR_FACTOR * truth["floor_deg"], "heading RMS %r" % rep.get("heading_rms_deg"))
+    # the table names the count
+    p = run(a, ["--mode", "3d", "--cal-range", "0:%d" % n_cal, path], 0)
+    check("outlier rows      %d of %d rows" % (len(flagged), truth["n_rows"]) in p.stdout, "table: %r" % p.stdout[:600])
+    check("truth flags       %d fed rows have outlier=1" % truth["n_cal_outliers"] in p.stdout, "table truth line")
+    # a dump without truth column: no truth_flags, and no outliers on a clean tumble
+    clean = run_json(a, ["--mode", "3d", "--cal-range", "0:600", extra_data(a, "tilt_tumble.csv")])
+    check("truth_flags" not in clean and clean.get("n_outliers") == 0 and clean.get("n_outlier_rows") == 0,
+          "clean tumble: %r" % {k: clean.get(k) for k in ("n_outliers", "n_outlier_rows", "truth_flags")})
+
+
 def case_tilt_2d(a):
     truth = load_truth(a, "level_tilted")
     path = extra_data(a, "level_tilted.csv")
@@ -527,6 +579,36 @@ def case_aided(a):
     check(rep.get("n_heading") == truth["n_rows"] - truth["n_cal"], "n_heading %r" % rep.get("n_heading"))
     check(rep.get("heading_rms_deg", 99) <= FLOOR_FACTOR * floor, "heading RMS %r > %.2f x floor %.4f" % (
         rep.get("heading_rms_deg"), FLOOR_FACTOR, floor))
+    # headings CSV: outlier = epochs gated by magcal_aided_update, gate column names the gate
+    hp = os.path.join(a.work_dir, "aided_road_headings.csv")
+    run(a, ["--mode", "aided", "--cal-range", "0:%d" % truth["n_cal"], "--headings", hp, path], 0)
+    with open(hp) as f:
+        header = f.readline().strip()
+    check(header == "index,raw_heading_deg,heading_deg,outlier,heading_ref_deg,error_deg,gate", "aided header %r" % header)
+    hrows = read_csv_rows(hp)
+    out_rows = [int(r["index"]) for r in hrows if r["outlier"] == "1"]
+    check(out_rows == list(range(500, 550)), "outlier rows %r: expected the DOP rows 500-549" % out_rows[:60])
+    gates = {}
+    for r in hrows:
+        gates.setdefault(r["gate"], []).append(int(r["index"]))
+    check(sorted(gates) == ["", "dop", "none"] and gates["dop"] == out_rows and len(gates["none"]) == ad.get("n_accepted")
+          and gates[""] == list(range(truth["n_cal"], truth["n_rows"])),
+          "gate column: %r" % {k: len(v) for k, v in gates.items()})
+    check(rep.get("n_outlier_rows") == 50 and ad.get("prior") == "identity", "n_outlier_rows %r prior %r" % (
+        rep.get("n_outlier_rows"), ad.get("prior")))
+    # objective: combined by default (total-field residual in the objective for nearly every
+    # accepted epoch after the first estimate); --aided-objective vector: none, same accuracy class
+    check(ad.get("objective") == "combined" and ad.get("n_total_field", 0) > 0.9 * ad.get("n_accepted", 0),
+          "objective %r, total-field epochs %r of %r" % (ad.get("objective"), ad.get("n_total_field"), ad.get("n_accepted")))
+    check(0.0 < ad.get("resid_f_rms", -1) < 0.1, "a-priori total-field residual RMS %r uT (noise 0.05)" % ad.get("resid_f_rms"))
+    vrep = run_json(a, ["--mode", "aided", "--aided-objective", "vector", "--cal-range", "0:%d" % truth["n_cal"], path])
+    vad = vrep.get("aided", {})
+    vg = g_rel_err(vrep.get("matrix", [[0] * 3] * 3), Gt)
+    vv = math.dist(vrep.get("offset", [0, 0, 0]), truth["V"])
+    sys.stdout.write("aided --aided-objective vector: G error %.4f, V error %.3f uT\n" % (vg, vv))
+    check(vad.get("objective") == "vector" and vad.get("n_total_field") == 0, "vector run: %r" % vad)
+    check(vg < 0.02 and vv < 1.5, "vector objective: G %.4f, V %.3f" % (vg, vv))
+    run(a, ["--mode", "2d", "--aided-objective", "vector", path], 1)
     # the same rows with the INS level (roll = pitch = 0 for all): no excitation of z -> unobservable
     rows = read_csv_rows(path)
     lvl = os.path.join(a.work_dir, "aided_level.csv")
@@ -541,6 +623,90 @@ def case_aided(a):
     # too few epochs: no estimate, exit 3
     short = run_json(a, ["--mode", "aided", "--cal-range", "0:20", path], 3)
     check(short.get("status") == "too_few_points", "20 epochs: status %r" % short.get("status"))
+
+
+def g_rel_err(G, Gt):
+    num = sum((G[i][j] - Gt[i][j]) ** 2 for i in range(3) for j in range(3))
+    den = sum(Gt[i][j] ** 2 for i in range(3) for j in range(3))
+    return math.sqrt(num / den)
+
+
+def case_aided_prior(a):
+    truth = load_truth(a, "aided_level")
+    path = extra_data(a, "aided_level.csv")
+    base = ["--mode", "aided", "--cal-range", "0:%d" % truth["n_cal"], path]
+    floor = truth["floor_deg"]
+
+    def write(name, obj):
+        p = os.path.join(a.work_dir, name)
+        with open(p, "w") as f:
+            f.write(obj if isinstance(obj, str) else json.dumps(obj))
+        return p
+
+    def summary(rep):
+        return (g_rel_err(rep.get("matrix", [[0] * 3] * 3), truth["G_true"]),
+                math.dist(rep.get("offset", [0, 0, 0]), truth["V"]), rep.get("heading_rms_deg", 99))
+
+    ident = run_json(a, base)
+    true_p = write("prior_true.json", {"matrix": truth["G_true"], "offset": truth["V"]})
+    tp = run_json(a, ["--prior", true_p] + base)
+    gi, vi, hi = summary(ident)
+    gt, vt, ht = summary(tp)
+    sys.stdout.write("aided_prior: identity prior: %s, G error %.4f, V error %.3f uT, tilted heading RMS %.4f deg; "
+                     "true prior: %s, G error %.5f, V error %.4f uT, heading RMS %.4f deg; floor %.4f deg\n" % (
+                         ident.get("status"), gi, vi, hi, tp.get("status"), gt, vt, ht, floor))
+    # exactly level calibration: unobservable either way (the prior fills the z terms)
+    check(ident.get("status") == "unobservable" and tp.get("status") == "unobservable",
+          "status identity %r, true prior %r" % (ident.get("status"), tp.get("status")))
+    check(ident.get("aided", {}).get("prior") == "identity" and tp.get("aided", {}).get("prior") == true_p,
+          "prior names %r / %r" % (ident.get("aided", {}).get("prior"), tp.get("aided", {}).get("prior")))
+    check(ident.get("aided", {}).get("n_prior_dirs", 0) >= 1 and tp.get("aided", {}).get("n_prior_dirs", 0) >= 1,
+          "directions from the prior: %r / %r" % (ident.get("aided"), tp.get("aided")))
+    # measured: identity G error 0.1446, V error 9.65 uT, heading 0.781 deg (floor 0.139);
+    # true prior: G error 1e-4, V error 0.001 uT, heading 0.139 deg
+    check(gi > 0.10 and vi > 5.0 and hi > 4.0 * floor, "identity prior should be visibly wrong at tilt: %r" % ((gi, vi, hi),))
+    check(gt < 0.002 and vt < 0.05, "true prior: G error %.5f >= 0.002 or V error %.4f >= 0.05 uT" % (gt, vt))
+    check(ht <= FLOOR_FACTOR * floor, "true prior: heading RMS %.4f > %.2f x floor %.4f" % (ht, FLOOR_FACTOR, floor))
+    # the JSON report of that run passed back as the prior: same result (report round trip)
+    rp = write("prior_report.json", json.dumps(tp))
+    back = run_json(a, ["--prior", rp] + base)
+    gb, vb, hb = summary(back)
+    check(gb < 0.002 and vb < 0.05 and hb <= FLOOR_FACTOR * floor, "report as prior: %r" % ((gb, vb, hb),))
+    # the prior's unit: V in nT with "field_unit": "nT" is converted to the dump's uT
+    nt = write("prior_nt.json", {"matrix": truth["G_true"], "offset": [1000.0 * x for x in truth["V"]], "field_unit": "nT"})
+    gn, vn, hn = summary(run_json(a, ["--prior", nt] + base))
+    check(abs(gn - gt) < 1e-4 and abs(vn - vt) < 1e-3, "nT prior: %r vs %r" % ((gn, vn), (gt, vt)))
+    # a 3d report maps to its own F (det G = 1): rescaled by |B_ref| / F
+    fb = math.sqrt(sum(x * x for x in truth["b_ref_ned_uT"]))
+    three = write("prior_3d.json", {"mode": "3d", "matrix": [[g * 50.0 / fb for g in row] for row in truth["G_true"]],
+                                    "offset": truth["V"], "field": 50.0})
+    r3 = run_json(a, ["--prior", three] + base)
+    g3, v3, _ = summary(r3)
+    check(abs(r3.get("aided", {}).get("prior_g_scale", 0) - fb / 50.0) < 1e-5 and g3 < 0.002,
+          "3d report prior: scale %r, G error %.5f" % (r3.get("aided", {}).get("prior_g_scale"), g3))
+    # bad prior files: exit 2, message names the file
+    bad = {
+        "prior_missing.json": None,
+        "prior_notjson.json": "{\"matrix\": [[1, 0, 0],",
+        "prior_nooffset.json": {"matrix": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]},
+        "prior_shape.json": {"matrix": [[1, 0, 0], [0, 1, 0]], "offset": [0, 0, 0]},
+        "prior_string.json": {"matrix": [[1, 0, 0], [0, "1", 0], [0, 0, 1]], "offset": [0, 0, 0]},
+        "prior_singular.json": {"matrix": [[1, 2, 3], [2, 4, 6], [0, 0, 1]], "offset": [0, 0, 0]},
+        "prior_unit.json": {"matrix": [[1, 0, 0], [0, 1, 0], [0, 0, 1]], "offset": [0, 0, 0], "field_unit": "mG"},
+    }
+    want = {"prior_missing.json": "cannot open the prior", "prior_notjson.json": "is not a JSON object",
+            "prior_nooffset.json": "no \"offset\" key", "prior_shape.json": "3 rows of 3 finite numbers",
+            "prior_string.json": "3 rows of 3 finite numbers", "prior_singular.json": "is singular",
+            "prior_unit.json": "\"field_unit\" must be"}
+    for name, obj in sorted(bad.items()):
+        p = os.path.join(a.work_dir, name) if obj is None else write(name, obj)
+        if obj is None and os.path.exists(p):
+            os.remove(p)
+        q = run(a, ["--prior", p] + base, 2)
+        check(p in q.stderr and want[name] in q.stderr, "%s: stderr %r" % (name, q.stderr))
+    # --prior outside the aided mode: usage error
+    q = run(a, ["--mode", "3d", "--prior", true_p, path], 1)
+    check("--prior is for the aided mode" in q.stderr, "--prior with 3d: %r" % q.stderr)
 
 
 def case_modes_usage(a):
