@@ -488,6 +488,8 @@ typedef struct {
     size_t false_rej; /* shell samples rejected by the density filter */
     double v_err, q_err;
     size_t n_used, n_rejected; /* of the fit */
+    size_t gate_burst_kept;    /* fit gate only: burst samples the final gate accepts */
+    size_t gate_spikes_kept;   /* fit gate only: spikes the final gate accepts */
     magcal_optics_result_t info;
 } e2e_t;
 
@@ -537,10 +539,20 @@ static e2e_t run_fit_only(void)
     (void)memset(&r, 0, sizeof r);
     r.st_fit = magcal_ellipsoid_fit(g_pts, E2E_N, &fcfg, &fit);
     if (r.st_fit == MAGCAL_OK) {
+        size_t k, n_out = 0u;
         r.v_err = v_err(&fit.cal);
         r.q_err = q_err(&fit.cal);
         r.n_used = fit.n_used;
         r.n_rejected = fit.n_rejected;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                              magcal_ellipsoid_outliers(&fit, g_pts, E2E_N, g_mask2, &n_out));
+        for (k = 0; k < E2E_N; ++k) {
+            const int burst = k >= 200u && k < 200u + E2E_N_BURST;
+            if (g_is_out[k] != 0u && g_mask2[k] == 0u) {
+                r.gate_burst_kept += burst ? 1u : 0u;
+                r.gate_spikes_kept += burst ? 0u : 1u;
+            }
+        }
     }
     return r;
 }
@@ -548,10 +560,11 @@ static e2e_t run_fit_only(void)
 static void print_e2e(const char *what, const e2e_t *r)
 {
     printf("%-28s filter %d (eps' %.2f, clusters %u, kept %u, outliers kept %u, false rej %u) "
-           "fit %d: |dV| %.4f, Q err %.2e, used %u, rejected %u\n",
+           "fit %d: |dV| %.4f, Q err %.2e, used %u, rejected %u, gate keeps burst %u spikes %u\n",
            what, (int)r->st_filter, (double)r->info.eps_prime, (unsigned)r->info.n_clusters,
            (unsigned)r->info.n_inliers, (unsigned)r->kept_out, (unsigned)r->false_rej,
-           (int)r->st_fit, r->v_err, r->q_err, (unsigned)r->n_used, (unsigned)r->n_rejected);
+           (int)r->st_fit, r->v_err, r->q_err, (unsigned)r->n_used, (unsigned)r->n_rejected,
+           (unsigned)r->gate_burst_kept, (unsigned)r->gate_spikes_kept);
 }
 
 /*
@@ -569,11 +582,12 @@ static void print_e2e(const char *what, const e2e_t *r)
  * rejects all 50 injected outliers (30 spikes as noise or small clusters, the 20 identical burst
  * samples as their own cluster) and the fit recovers V and Q.
  * What the density stage adds, measured over 60 seeds: the fit's k x RMS gate alone
- * (outlier_k 3, 3 refits) drops only 14-34 of the 650 samples, so at least 16 of the 50 outliers
- * stay in every run: the first fit bends towards the 20 identical burst samples, whose residuals
- * then stay under 3 x RMS (a compromise fit); |dV| = 5.5 median, 11.7 max (11-23 % of F),
- * Q error 0.25 median, against 0.030 / 1.4e-3 with the density stage. With the burst stuck at V
- * instead (scale 0, a zero reading), the gate alone fails in 6 of 60 runs (|dV| up to 5.7).
+ * (outlier_k 3, 3 refits) accepts all 20 burst samples in 60 of 60 runs (per-sample mask from
+ * magcal_ellipsoid_outliers; plus 0-16 spikes): the first fit bends towards the 20 identical
+ * samples, whose residuals then stay under 3 x RMS (a compromise fit); |dV| = 5.5 median, 11.7
+ * max (11-23 % of F), Q error 0.25 median, against 0.030 / 1.4e-3 with the density stage. With
+ * the burst stuck at V instead (scale 0), the gate rejects the burst but keeps up to 11 spikes and
+ * fails in 6 of 60 runs (|dV| up to 5.7).
  */
 static void test_optics_filter3_then_ellipsoid_fit_far_burst_recovers_truth(void)
 {
