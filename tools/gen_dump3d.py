@@ -28,6 +28,10 @@ Scenarios:
                 (7, 32, 57, ...: every 25th) and 8 verification rows (605, 625, ...) get a field
                 magnitude error of +-(10..30) % of F along m - V (alternating sign). Along m - V
                 the true calibration's heading is unchanged, so floor_deg is the clean floor.
+  tumble_burst  tilt_tumble's W, V and layout with a dense burst: rows 300-319 stuck at one reading
+                80 % outside the shell (+ noise), and 10 spikes (25, 85, ...: every 60th) at
+                3 F from V in random directions (column `outlier` = 1). The OPTICS density stage
+                must take the burst out; the fit's residual gate alone accepts it.
 
 Truth JSON: floor_deg = heading RMS on the verification rows with the TRUE calibration and the
 same tilt formulas applied to the same noisy samples; gates = expected tilt gate counts over all
@@ -100,7 +104,7 @@ def wrap180(a):
 
 def make(name, rng):
     rows = []  # (roll, pitch, yaw, accel scale, ref)
-    if name in ("tilt_tumble", "tumble_outliers"):
+    if name in ("tilt_tumble", "tumble_outliers", "tumble_burst"):
         A = np.array([[1.12, 0.05, -0.04], [0.05, 0.90, 0.06], [-0.04, 0.06, 1.02]])
         W = A  # symmetric positive definite
         for _ in range(600):
@@ -133,6 +137,10 @@ def make(name, rng):
     out_rows = []
     if name == "tumble_outliers":
         out_rows = list(range(7, n_cal, 25)) + list(range(n_cal + 5, n_ver_end, 20))
+    burst_rows = list(range(300, 320)) if name == "tumble_burst" else []
+    spike_rows = list(range(25, n_cal, 60)) if name == "tumble_burst" else []
+    out_rows = out_rows + burst_rows + spike_rows
+    burst_m = None
     if name == "tilt_tumble":
         for sc in (1.3, 1.3, 1.3, 0.1, 0.1):
             rows.append(dict(C=c_b_enu(0.05, 0.1, 0.0), scale=sc, ref=0.0))
@@ -144,7 +152,15 @@ def make(name, rng):
         C = rw["C"]
         h = C.T @ b_enu()
         m = W @ h + V + SIGMA_M * rng.standard_normal(3)
-        if i in out_rows:
+        if i in burst_rows:
+            # a reading stuck 80 % outside the shell (driver glitch / magnet next to the sensor)
+            if burst_m is None:
+                burst_m = V + 1.8 * (m - V)
+            m = burst_m + SIGMA_M * rng.standard_normal(3)
+        elif i in spike_rows:
+            d = rng.standard_normal(3)
+            m = V + 3.0 * np.linalg.norm(m - V) * d / np.linalg.norm(d)
+        elif i in out_rows:
             sgn = 1.0 if out_rows.index(i) % 2 == 0 else -1.0
             m = V + (1.0 + sgn * rng.uniform(0.10, 0.30)) * (m - V)
         f = rw["scale"] * (C.T @ np.array([0.0, 0.0, 1.0])) + SIGMA_A * rng.standard_normal(3)
@@ -175,7 +191,7 @@ def make(name, rng):
 def main(argv):
     out = argv[argv.index("--out") + 1] if "--out" in argv else "tools/replay/tests/data"
     os.makedirs(out, exist_ok=True)
-    for seed, name in ((201, "tilt_tumble"), (202, "level_tilted"), (203, "tumble_outliers")):
+    for seed, name in ((201, "tilt_tumble"), (202, "level_tilted"), (203, "tumble_outliers"), (204, "tumble_burst")):
         csv, truth = make(name, np.random.default_rng(seed))
         with open(os.path.join(out, name + ".csv"), "w") as f:
             f.write(csv)

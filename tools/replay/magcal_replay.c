@@ -377,6 +377,9 @@ static int parse_args(int argc, char **argv, cli_t *c)
     if (c->prior_path != NULL && strcmp(c->mode, "aided") != 0) {
         return usage_error("%s", "--prior is for the aided mode (the prior of magcal_aided_update)");
     }
+    if (strcmp(c->mode, "3d") == 0 && strcmp(c->cal.filter, "dbscan") == 0) {
+        return usage_error("%s", "--filter dbscan is 2-D only (3d: optics, optics-classic or none)");
+    }
     if (c->aided_objective != NULL && strcmp(c->mode, "aided") != 0) {
         return usage_error("%s", "--aided-objective is for the aided mode");
     }
@@ -659,7 +662,8 @@ int main(int argc, char **argv)
             }
         }
     } else if (mode3d) {
-        rc = replay_fit_3d(fed + r.cal_first, r.n_cal, &r, &fit3, flag + r.cal_first);
+        rc = replay_fit_3d(fed + r.cal_first, r.n_cal, c.cal.filter, c.cal.eps, c.cal.min_pts, &r, &fit3,
+                           flag + r.cal_first);
         if (rc == REPLAY_EXIT_OK) {
             cal3 = fit3.cal;
         }

@@ -11,6 +11,7 @@
 
 #include "magcal/aided.h"
 #include "magcal/geomag.h"
+#include "magcal/optics.h"
 #include "replay_cal.h"
 
 static const double k_pi = 3.14159265358979323846;
@@ -55,60 +56,146 @@ int replay_classify_3d(const magcal_ellipsoid_result_t *fit, const magcal_vec3_t
     return f != 0u;
 }
 
-int replay_fit_3d(const magcal_vec3_t *m, size_t n, replay_report_t *r, magcal_ellipsoid_result_t *fit,
-                  unsigned char *flags)
+/* OPTICS density stage on the 3-D samples: inlier[0..n) (1 = kept). Returns REPLAY_EXIT_OK,
+ * _CAL_FAILED (no cluster, degenerate data: status and reason set) or _INTERNAL. */
+static int density_3d(const magcal_vec3_t *m, size_t n, const char *filter, double eps, long min_pts,
+                      replay_report_t *r, uint8_t *inlier)
+{
+    magcal_optics_cfg_t cfg = MAGCAL_OPTICS_CFG_DEFAULT;
+    magcal_optics_result_t info;
+    magcal_status_t st;
+    size_t wlen = MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n);
+    uint32_t *work;
+
+    if (strcmp(filter, "optics-classic") == 0) {
+        cfg.order = MAGCAL_OPTICS_CLASSIC;
+    }
+    if (isfinite(eps) && eps > 0.0) {
+        cfg.eps = (float)eps;
+        cfg.eps_prime = (float)eps;
+        cfg.min_pts = 4u;
+    }
+    if (min_pts > 0) {
+        if (min_pts > (long)MAGCAL_MAX_MIN_PTS) {
+            fprintf(stderr, "magcal-replay: --min-pts %ld is above MAGCAL_MAX_MIN_PTS (%u)\n", min_pts,
+                    (unsigned)MAGCAL_MAX_MIN_PTS);
+            return REPLAY_EXIT_USAGE;
+        }
+        cfg.min_pts = (uint16_t)min_pts;
+    }
+    work = (uint32_t *)malloc(wlen + 4u);
+    if (work == NULL) {
+        fprintf(stderr, "magcal-replay: out of memory\n");
+        return REPLAY_EXIT_INTERNAL;
+    }
+    st = magcal_optics_filter3(&cfg, m, n, work, wlen, inlier, &info);
+    free(work);
+    if (st != MAGCAL_OK) {
+        r->status = replay_status_id(st);
+        r->status_code = (int)st;
+        (void)snprintf(r->reason, sizeof r->reason, "3-D OPTICS density stage: %s on %lu samples",
+                       magcal_status_str(st), (unsigned long)n);
+        r->have_3d = 0;
+        return (st == MAGCAL_ERR_NULL || st == MAGCAL_ERR_WORKSPACE) ? REPLAY_EXIT_INTERNAL
+                                                                      : REPLAY_EXIT_CAL_FAILED;
+    }
+    r->eps3 = info.eps;
+    r->eps_prime3 = info.eps_prime;
+    r->min_pts3 = (long)info.min_pts;
+    return REPLAY_EXIT_OK;
+}
+
+int replay_fit_3d(const magcal_vec3_t *m, size_t n, const char *filter, double eps, long min_pts,
+                  replay_report_t *r, magcal_ellipsoid_result_t *fit, unsigned char *flags)
 {
     const magcal_ellipsoid_cfg_t cfg = MAGCAL_ELLIPSOID_CFG_DEFAULT;
     magcal_ellipsoid_result_t res;
     magcal_status_t st;
     float cov = 0.0f;
-    size_t n_flag = 0u, k3;
-    uint8_t *mask;
-    int i, j;
+    size_t n_flag = 0u, k3, nk = 0u;
+    uint8_t *mask, *inlier;
+    magcal_vec3_t *kept;
+    int i, j, rc;
+
+    r->eps3 = NAN;
+    r->eps_prime3 = NAN;
+    r->min_pts3 = 0;
+    r->n_density3 = 0u;
+    mask = (uint8_t *)malloc(2u * n + 1u);
+    kept = (magcal_vec3_t *)malloc((n + 1u) * sizeof *kept);
+    if (mask == NULL || kept == NULL) {
+        free(mask);
+        free(kept);
+        fprintf(stderr, "magcal-replay: out of memory\n");
+        return REPLAY_EXIT_INTERNAL;
+    }
+    inlier = mask + n;
+    (void)memset(inlier, 1, n);
+    if (strcmp(filter, "none") != 0) {
+        if (n > (size_t)MAGCAL_MAX_SAMPLES) {
+            fprintf(stderr, "magcal-replay: note: %lu calibration samples exceed MAGCAL_MAX_SAMPLES (%u): "
+                            "3-D density stage skipped (fit's residual gate only); use --decimate or "
+                            "--cal-range\n",
+                    (unsigned long)n, (unsigned)MAGCAL_MAX_SAMPLES);
+            r->filter = "none (n > MAGCAL_MAX_SAMPLES)";
+        } else {
+            rc = density_3d(m, n, filter, eps, min_pts, r, inlier);
+            if (rc != REPLAY_EXIT_OK) {
+                free(mask);
+                free(kept);
+                return rc;
+            }
+        }
+    }
+    for (k3 = 0u; k3 < n; ++k3) {
+        if (inlier[k3] != 0u) {
+            kept[nk++] = m[k3];
+        }
+    }
+    r->n_density3 = n - nk;
 
     memset(&res, 0, sizeof res);
-    st = magcal_ellipsoid_fit(m, n, &cfg, &res);
+    st = magcal_ellipsoid_fit(kept, nk, &cfg, &res);
     r->status = replay_status_id(st);
     r->status_code = (int)st;
     if (st != MAGCAL_OK) {
         magcal_vec3_t c = {0.0f, 0.0f, 0.0f};
         size_t k;
         /* coverage around the sample mean, to explain a coverage failure */
-        for (k = 0u; k < n; ++k) {
-            c.x += m[k].x / (float)n;
-            c.y += m[k].y / (float)n;
-            c.z += m[k].z / (float)n;
+        for (k = 0u; k < nk; ++k) {
+            c.x += kept[k].x / (float)nk;
+            c.y += kept[k].y / (float)nk;
+            c.z += kept[k].z / (float)nk;
         }
-        if (magcal_ellipsoid_coverage(m, n, &c, &cov) == MAGCAL_OK) {
+        if (nk > 0u && magcal_ellipsoid_coverage(kept, nk, &c, &cov) == MAGCAL_OK) {
             r->coverage3 = cov;
         } else {
             r->coverage3 = NAN;
         }
         (void)snprintf(r->reason, sizeof r->reason,
-                       "%s: %lu samples; direction coverage about the sample mean %.2f of the 72 cells "
-                       "(sphere needs %.2f, quadric %.2f)",
-                       magcal_status_str(st), (unsigned long)n, (double)cov, (double)cfg.min_coverage_sphere,
-                       (double)cfg.min_coverage_full);
+                       "%s: %lu samples (%lu removed by the density stage); direction coverage about the "
+                       "sample mean %.2f of the 72 cells (sphere needs %.2f, quadric %.2f)",
+                       magcal_status_str(st), (unsigned long)nk, (unsigned long)r->n_density3, (double)cov,
+                       (double)cfg.min_coverage_sphere, (double)cfg.min_coverage_full);
         r->have_3d = 0;
+        free(mask);
+        free(kept);
         return (st == MAGCAL_ERR_NULL || st == MAGCAL_ERR_ARG) ? REPLAY_EXIT_INTERNAL : REPLAY_EXIT_CAL_FAILED;
     }
     /* per-sample mask of the fit's final gate; on the fit's own input it must count n_rejected */
-    mask = (uint8_t *)malloc(n);
-    if (mask == NULL) {
-        fprintf(stderr, "magcal-replay: out of memory\n");
-        return REPLAY_EXIT_INTERNAL;
-    }
-    st = magcal_ellipsoid_outliers(&res, m, n, mask, &n_flag);
+    st = magcal_ellipsoid_outliers(&res, kept, nk, mask, &n_flag);
     if (st != MAGCAL_OK || n_flag != res.n_rejected) {
         fprintf(stderr, "magcal-replay: magcal_ellipsoid_outliers: %s, %lu flagged vs n_rejected %lu\n",
                 magcal_status_str(st), (unsigned long)n_flag, (unsigned long)res.n_rejected);
         free(mask);
+        free(kept);
         return REPLAY_EXIT_INTERNAL;
     }
-    for (k3 = 0u; k3 < n; ++k3) {
-        flags[k3] = mask[k3];
+    for (k3 = 0u, nk = 0u; k3 < n; ++k3) {
+        flags[k3] = (unsigned char)((inlier[k3] == 0u) ? 1u : mask[nk++]);
     }
     free(mask);
+    free(kept);
     *fit = res;
     r->have_3d = 1;
     r->model3 = model_name(res.model);
@@ -124,7 +211,7 @@ int replay_fit_3d(const magcal_vec3_t *m, size_t n, replay_report_t *r, magcal_e
     r->field3 = res.cal.field;
     r->residual_rms = res.residual_rms;
     r->n_used = res.n_used;
-    r->n_outliers = res.n_rejected;
+    r->n_outliers = res.n_rejected + r->n_density3;
     r->n_rejected3 = res.n_rejected;
     return REPLAY_EXIT_OK;
 }

@@ -11,12 +11,16 @@
 #include "replay_csv.h"
 #include "replay_report.h"
 
-/** Fit the 3-D ellipsoid (AUTO model: quadric, sphere on poor coverage) to n mapped samples and
- *  fill r's 3-D fields, status and reason; on success *fit is the library result (its final
- *  outlier gate included) and flags[0..n) the per-sample outlier mask (magcal_ellipsoid_outliers,
- *  checked to count res.n_rejected). Returns REPLAY_EXIT_OK, _CAL_FAILED or _INTERNAL. */
-int replay_fit_3d(const magcal_vec3_t *m, size_t n, replay_report_t *r, magcal_ellipsoid_result_t *fit,
-                  unsigned char *flags);
+/** 3-D pipeline on n mapped samples: the OPTICS density stage (magcal_optics_filter3; filter
+ *  "optics" or "optics-classic", automatic parameters unless eps > 0 / min_pts > 0; "none" skips
+ *  it, as does n > MAGCAL_MAX_SAMPLES, with a note) on the samples, then the ellipsoid fit (AUTO
+ *  model: quadric, sphere on poor coverage, residual gate) on its inliers. Fills r's 3-D fields,
+ *  status and reason; on success *fit is the library result (its final outlier gate included)
+ *  and flags[0..n) the per-sample outlier mask: 1 = rejected by the density stage or by the fit's
+ *  gate (magcal_ellipsoid_outliers, checked to count res.n_rejected). Returns REPLAY_EXIT_OK,
+ *  _CAL_FAILED or _INTERNAL. */
+int replay_fit_3d(const magcal_vec3_t *m, size_t n, const char *filter, double eps, long min_pts,
+                  replay_report_t *r, magcal_ellipsoid_result_t *fit, unsigned char *flags);
 
 /** The 3-D fit's final outlier gate applied to one sample (rows outside the calibration):
  *  1 outlier, 0 kept, 0 when the sample cannot be judged (non-finite). */

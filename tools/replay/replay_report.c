@@ -185,6 +185,15 @@ int replay_print_json(const replay_report_t *r)
     if (r->have_3d) {
         add_3d(o, r);
         if (r->mode[0] == '3') {
+            cJSON *dn = cJSON_CreateObject();
+            cJSON_AddNumberToObject(dn, "rejected", (double)r->n_density3);
+            if (isfinite(r->eps3)) {
+                cJSON_AddNumberToObject(dn, "eps", sig7(r->eps3));
+                cJSON_AddNumberToObject(dn, "eps_prime", sig7(r->eps_prime3));
+                cJSON_AddNumberToObject(dn, "min_pts", (double)r->min_pts3);
+            }
+            cJSON_AddItemToObject(o, "density", dn);
+            cJSON_AddNumberToObject(o, "n_residual_rejected", (double)r->n_rejected3);
             cJSON_AddStringToObject(o, "model", r->model3);
             cJSON_AddNumberToObject(o, "residual_rms", sig7(r->residual_rms));
         }
@@ -299,6 +308,13 @@ static void print_3d(const replay_report_t *r)
            r->mat3[2][0], r->mat3[2][1], r->mat3[2][2]);
     printf("  field F           %.6g\n", r->field3);
     if (r->mode[0] == '3') {
+        if (isfinite(r->eps3)) {
+            printf("  density stage     3-D OPTICS (%s): eps %.6g, eps' %.6g, MinPts %ld: %lu rejected; residual gate: %lu\n",
+                   r->filter, r->eps3, r->eps_prime3, r->min_pts3, (unsigned long)r->n_density3,
+                   (unsigned long)r->n_rejected3);
+        } else {
+            printf("  density stage     %s; residual gate: %lu rejected\n", r->filter, (unsigned long)r->n_rejected3);
+        }
         printf("  model             %s; direction coverage %.3f of 72 cells; residual RMS %.6g (%.2f %% of F)\n",
                r->model3, r->coverage3, r->residual_rms,
                r->field3 > 0.0 ? 100.0 * r->residual_rms / r->field3 : NAN);
@@ -382,7 +398,8 @@ void replay_print_table(const replay_report_t *r)
             printf("  outlier rows      %lu of %lu rows (headings CSV outlier = 1: %s)\n",
                    (unsigned long)r->n_outlier_rows, (unsigned long)r->n_rows,
                    r->mode[0] == 'a' ? "epochs rejected by a gate"
-                                     : "the fit's final residual gate, on every row");
+                                     : "3-D OPTICS density stage or the fit's final residual gate on the "
+                                       "calibration rows, the fit's gate on the others");
         }
         if (r->truth_column != NULL) {
             printf("  truth flags       %lu fed rows have %s=1: %lu flagged, %lu missed; %lu false alarms\n",

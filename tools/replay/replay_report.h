@@ -118,7 +118,10 @@ typedef struct {
     double field3;
     const char *model3;
     double coverage3;
-    size_t n_rejected3;
+    size_t n_rejected3;           /* 3d: rejected by the fit's residual gate */
+    size_t n_density3;            /* 3d: rejected by the OPTICS density stage (0 with --filter none) */
+    double eps3, eps_prime3;      /* 3d: density-stage parameters used (NaN when skipped) */
+    long min_pts3;                /* 3d: density-stage MinPts used (0 when skipped) */
 
     /* ---- aided */
     int have_aided;               /* a result (G, V) exists */

@@ -28,6 +28,9 @@ Cases (one CTest test each):
   outliers_3d      tumble_outliers (gen_dump3d.py): --mode 3d outlier column = the fit's final gate:
                    every injected row flagged (calibration and verification), count over the
                    calibration rows = n_outliers, truth_flags, console outlier-row count
+  burst_3d         tumble_burst (gen_dump3d.py): dense burst 80 % outside the shell + far spikes:
+                   the 3-D OPTICS density stage rejects all 30, V and heading at truth; with
+                   --filter none the fit's gate alone accepts the burst (V error > 5 uT)
   real_3d          bundled 3-D tumbles: corrected spread within 5 % of an independent numpy
                    ellipsoid fit (tools/ref_real_spread3d.py), drop factors, accelerometer unit
   aided            aided_road (gen_aided_dump.py): G, V near truth (test_aided.c tolerances),
@@ -444,6 +447,40 @@ def case_tilt_3d(a):
     mp = run_json(a, ["--mode", "3d", "--accel-unit", "mps2", "--cal-range", "0:%d" % truth["n_cal"], path])
     check(mp.get("tilt", {}).get("accel_unit_source") == "given" and
           mp.get("tilt", {}).get("gates", {}).get("free_fall") == truth["n_rows"], "--accel-unit mps2: %r" % mp.get("tilt"))
+
+
+def case_burst_3d(a):
+    """3d mode: a dense burst 80 % outside the shell + 10 far spikes. The OPTICS density stage
+    (default --filter optics) takes them out; the fit's residual gate alone (--filter none)
+    accepts the burst as a compromise fit."""
+    truth = load_truth(a, "tumble_burst")
+    path = extra_data(a, "tumble_burst.csv")
+    n_cal = truth["n_cal"]
+    base = ["--mode", "3d", "--cal-range", "0:%d" % n_cal, path]
+    rep = run_json(a, base)
+    off = run_json(a, ["--filter", "none"] + base)
+    dn, tf = rep.get("density", {}), rep.get("truth_flags", {})
+    verr = math.dist(rep.get("offset", [0, 0, 0]), truth["V"])
+    verr_off = math.dist(off.get("offset", [0, 0, 0]), truth["V"])
+    sys.stdout.write("burst_3d: density stage %r, residual gate %r, truth %r, V error %.3f uT, heading RMS %.4f deg "
+                     "(floor %.4f); --filter none: V error %.3f uT, heading RMS %.3f deg, truth %r\n" % (
+                         dn, rep.get("n_residual_rejected"), tf, verr, rep.get("heading_rms_deg", -1),
+                         truth["floor_deg"], verr_off, off.get("heading_rms_deg", -1), off.get("truth_flags")))
+    check(rep.get("status") == "ok" and rep.get("filter") == "optics", "status %r filter %r" % (
+        rep.get("status"), rep.get("filter")))
+    # measured: the density stage rejects exactly the 30 injected rows, the gate 2 more
+    check(dn.get("rejected", 0) >= 30 and dn.get("eps_prime", 0) > 0 and dn.get("min_pts") == 4, "density %r" % dn)
+    check(tf.get("flagged") == 30 and tf.get("detected") == 30 and tf.get("missed") == 0, "truth flags %r" % tf)
+    check(tf.get("false_alarms", 99) <= 3, "false alarms %r" % tf.get("false_alarms"))
+    check(rep.get("n_outliers") == dn.get("rejected", 0) + rep.get("n_residual_rejected", 0), "n_outliers %r" % rep.get("n_outliers"))
+    check(verr < 0.1, "V error %.3f uT >= 0.1 (measured 0.019)" % verr)
+    check(rep.get("heading_rms_deg", 99) <= FLOOR_FACTOR * truth["floor_deg"], "heading RMS %r" % rep.get("heading_rms_deg"))
+    # without the density stage the burst drags the fit (measured V error 12 uT, heading RMS 52 deg)
+    check(off.get("density", {}).get("rejected") == 0 and off.get("filter") == "none", "filter none: %r" % off.get("density"))
+    check(verr_off > 5.0 and off.get("truth_flags", {}).get("missed", 0) >= 20, "filter none: V error %.3f, truth %r" % (
+        verr_off, off.get("truth_flags")))
+    # the 2-D-only DBSCAN filter is refused in 3d mode
+    run(a, ["--filter", "dbscan"] + base, 1)
 
 
 def case_outliers_3d(a):
