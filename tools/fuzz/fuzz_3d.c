@@ -1,7 +1,8 @@
 /*
  * libFuzzer harness for the 3-D calibration: the INS/GNSS-aided estimator (every epoch through
  * magcal_aided_update, both objectives, forgetting, noise compensation, fuzzed configuration and
- * prior) and the ellipsoid fit with its per-sample outlier mask, on the same samples.
+ * prior), the 3-D OPTICS density stage (magcal_optics_filter3, automatic parameters, both
+ * orderings) and the ellipsoid fit with its per-sample outlier mask, on the same samples.
  *
  * Input layout (little endian; missing bytes read as 0):
  *   u8 flags: bit 0 objective (0 combined, 1 vector), bit 1 lambda 0.995, bit 2 noise_rel 1e-3,
@@ -17,19 +18,55 @@
  * (NOT_INITIALISED); counters add up (seen = accepted + gated, n_total_field <= accepted); a
  * written estimate is finite with F > 0 and non-negative finite diagnostics; the vector-only
  * estimator never reports total-field epochs; the ellipsoid fit's outlier mask counts exactly
- * n_rejected on its own input and an OK fit is finite.
+ * n_rejected on its own input and an OK fit is finite; the density stage returns a documented
+ * status, leaves the mask untouched on failure, and CLASSIC and IMPROVED keep the same samples.
  */
 #include <math.h>
 
 #include "fuzz_common.h"
 #include "magcal/aided.h"
 #include "magcal/ellipsoid.h"
+#include "magcal/optics.h"
 
 #define FZ_MAX_EPOCHS 4096u
 
 static magcal_aided_t fz_inst;
 static magcal_vec3_t fz_m[FZ_MAX_EPOCHS];
 static uint8_t fz_mask[FZ_MAX_EPOCHS];
+static uint8_t fz_mask2[FZ_MAX_EPOCHS];
+static uint32_t fz_work3[(MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(MAGCAL_MAX_SAMPLES) + 3u) / 4u];
+
+/* 3-D OPTICS density stage, both orderings, automatic parameters, on the first FZ_DENSITY_N
+ * samples at most (its automatic rule is O(n^2): 1024 samples under ASan would cut the harness to
+ * ~15 executions/s). */
+#define FZ_DENSITY_N 300u
+static void fz_density(size_t n)
+{
+    magcal_optics_cfg_t cfg = MAGCAL_OPTICS_CFG_DEFAULT;
+    magcal_optics_result_t info;
+    magcal_status_t st;
+    magcal_status_t st2;
+    size_t i;
+    if (n > FZ_DENSITY_N) {
+        n = FZ_DENSITY_N;
+    }
+    (void)memset(fz_mask, 0xA5, sizeof fz_mask);
+    st = magcal_optics_filter3(&cfg, fz_m, n, fz_work3, sizeof fz_work3, fz_mask, &info);
+    FUZZ_CHECK(st == MAGCAL_OK || st == MAGCAL_ERR_TOO_FEW_POINTS || st == MAGCAL_ERR_DEGENERATE ||
+                   st == MAGCAL_ERR_ALL_NOISE || st == MAGCAL_ERR_ARG,
+               "filter3 status");
+    cfg.order = MAGCAL_OPTICS_CLASSIC;
+    (void)memset(fz_mask2, 0xA5, sizeof fz_mask2);
+    st2 = magcal_optics_filter3(&cfg, fz_m, n, fz_work3, sizeof fz_work3, fz_mask2, NULL);
+    FUZZ_CHECK(st2 == st, "filter3 classic status == improved status");
+    for (i = 0u; i < n; ++i) {
+        if (st != MAGCAL_OK) {
+            FUZZ_CHECK(fz_mask[i] == 0xA5u && fz_mask2[i] == 0xA5u, "filter3 mask untouched on failure");
+        } else {
+            FUZZ_CHECK(fz_mask[i] <= 1u && fz_mask[i] == fz_mask2[i], "filter3 mask 0/1, classic == improved");
+        }
+    }
+}
 
 static int fz_finite3(const magcal_vec3_t *v)
 {
@@ -219,6 +256,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         FUZZ_CHECK(res.n_prior_dirs <= 4u, "prior directions");
         FUZZ_CHECK((st == MAGCAL_ERR_UNOBSERVABLE) == (res.n_prior_dirs > 0u), "unobservable iff prior used");
     }
+    fz_density(n);
     fz_ellipsoid(n, flags);
     return 0;
 }
