@@ -101,3 +101,101 @@ void bench_generate(magcal_vec2_t *g_pts, uint8_t *g_kind, size_t n)
         }
     }
 }
+
+/* ------------------------------------------------------------------ 3-D sets */
+
+static double rnd3(uint32_t *s)
+{
+    uint32_t x = *s;
+    x ^= x << 13;
+    x ^= x >> 17;
+    x ^= x << 5;
+    *s = x;
+    return ((double)(x >> 8) + 0.5) / 16777216.0;
+}
+
+static double gauss3(uint32_t *s)
+{
+    double u1 = rnd3(s), u2 = rnd3(s);
+    return sqrt(-2.0 * log(u1)) * cos(6.283185307179586 * u2);
+}
+
+void bench_generate3(magcal_vec3_t *pts3, size_t n)
+{
+    static const double axes[3] = {1.1, 0.93, 1.04};
+    static const double off[3] = {300.0, -200.0, 150.0};
+    const size_t n_burst = (3u * n) / 100u;
+    const size_t b0 = n / 3u;
+    uint32_t s = 0x3D3D3D3Du;
+    double ub[3] = {0.48, -0.6, 0.64};
+    size_t i;
+    int a;
+    for (i = 0u; i < n; ++i) {
+        double u[3], r, sc = 1.0;
+        u[0] = gauss3(&s);
+        u[1] = gauss3(&s);
+        u[2] = gauss3(&s);
+        r = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+        if (i % 20u == 7u) {
+            sc = 1.7 + 0.8 * rnd3(&s); /* 5 % scattered */
+        }
+        if (i >= b0 && i < b0 + n_burst) {
+            u[0] = ub[0];
+            u[1] = ub[1];
+            u[2] = ub[2];
+            r = 1.0;
+            sc = 1.8; /* stuck burst */
+        }
+        for (a = 0; a < 3; ++a) {
+            double v = off[a] + sc * 500.0 * axes[a] * u[a] / r + (sc == 1.8 ? 0.0 : 3.0 * gauss3(&s));
+            if (a == 0) {
+                pts3[i].x = (float)v;
+            } else if (a == 1) {
+                pts3[i].y = (float)v;
+            } else {
+                pts3[i].z = (float)v;
+            }
+        }
+    }
+}
+
+void bench_generate_drive(magcal_aided_epoch_t *ep, size_t n)
+{
+    static const double w[3][3] = {{1.10, 0.04, -0.03}, {0.05, 0.93, 0.05}, {-0.04, 0.06, 1.04}};
+    static const double v[3] = {18.0, -11.0, 27.0};
+    static const float b[3] = {20.0f, 1.2f, 44.0f};
+    const double d2r = BENCH_PI / 180.0;
+    const double a = 0.98;
+    const double drive = sqrt(1.0 - a * a) * 1.0 * d2r;
+    uint32_t s = 0x0A1DEDu;
+    double yaw = 10.0 * d2r, pitch = 0.0, roll = 0.0;
+    size_t k, leg = 0u;
+    int i;
+    for (k = 0u; k < n; ++k) {
+        size_t ph = k % 75u;
+        float c[3][3];
+        double h[3];
+        if (ph >= 60u) {
+            yaw += ((leg % 4u) == 3u ? -6.0 : 6.0) * d2r;
+            if (ph == 74u) {
+                leg++;
+            }
+        }
+        pitch = a * pitch + drive * gauss3(&s);
+        roll = a * roll + drive * gauss3(&s);
+        (void)magcal_aided_dcm((float)roll, (float)pitch, (float)yaw, c);
+        for (i = 0; i < 3; ++i) {
+            h[i] = (double)c[0][i] * b[0] + (double)c[1][i] * b[1] + (double)c[2][i] * b[2];
+        }
+        ep[k].m.x = (float)(w[0][0] * h[0] + w[0][1] * h[1] + w[0][2] * h[2] + v[0] + 0.05 * gauss3(&s));
+        ep[k].m.y = (float)(w[1][0] * h[0] + w[1][1] * h[1] + w[1][2] * h[2] + v[1] + 0.05 * gauss3(&s));
+        ep[k].m.z = (float)(w[2][0] * h[0] + w[2][1] * h[1] + w[2][2] * h[2] + v[2] + 0.05 * gauss3(&s));
+        ep[k].roll_rad = (float)(roll + 0.01 * d2r * gauss3(&s));
+        ep[k].pitch_rad = (float)(pitch + 0.01 * d2r * gauss3(&s));
+        ep[k].yaw_rad = (float)(yaw + 0.05 * d2r * gauss3(&s));
+        ep[k].b_ref_ned.x = b[0];
+        ep[k].b_ref_ned.y = b[1];
+        ep[k].b_ref_ned.z = b[2];
+        ep[k].dop = 1.2f;
+    }
+}

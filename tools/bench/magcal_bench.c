@@ -39,11 +39,17 @@
  *   optics3_filter   magcal_optics_filter3 (automatic parameters) on a 3-D set: a noisy ellipsoid
  *                    shell (uniform directions, F = 500, offset (300, -200, 150), axes 1.1/0.93/1.04
  *                    x F, sigma 3) with 5 % scattered points (radius x 1.7..2.5) and 3 % one stuck
- *                    burst 0.8 R outside (generate3(); not used by run_bench.py)
+ *                    burst 0.8 R outside (bench_generate3())
  *   optics3_classic, optics3_improved  magcal_optics_run3 CLASSIC / IMPROVED + GRID at
  *                    eps = the automatic eps' of that set, MinPts 4
  *   optics3_classic_brute, optics3_improved_brute  the same with BRUTE
  *   auto_params3     magcal_optics_auto_params3 on that set
+ *   ellipsoid3       magcal_ellipsoid_fit (default cfg) on the inliers of magcal_optics_filter3
+ *                    of that set (the harness's 3d pipeline; the filter is not counted)
+ *   aided            magcal_aided_update x N epochs of a synthetic road drive (bench_generate_drive:
+ *                    1 deg RMS tilt, 90-degree turns; default cfg, combined objective); callgrind
+ *                    counts all N calls, the runner divides by N
+ *   aided_vector     the same with the vector objective
  */
 #define _POSIX_C_SOURCE 199309L
 
@@ -58,6 +64,7 @@
 #include "magcal/consensus.h"
 #include "magcal/dbscan.h"
 #include "magcal/ellipse.h"
+#include "magcal/ellipsoid.h"
 #include "magcal/heading.h"
 #include "magcal/optics.h"
 
@@ -101,63 +108,10 @@ static void generate(size_t n)
 /* ------------------------------------------------------------------ 3-D set */
 
 static magcal_vec3_t g_pts3[NMAX];
+static magcal_vec3_t g_kept3[NMAX];
 static uint32_t g_work3[(MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(NMAX) + 3u) / 4u];
-
-static double rnd3(uint32_t *s)
-{
-    uint32_t x = *s;
-    x ^= x << 13;
-    x ^= x >> 17;
-    x ^= x << 5;
-    *s = x;
-    return ((double)(x >> 8) + 0.5) / 16777216.0;
-}
-
-static double gauss3(uint32_t *s)
-{
-    double u1 = rnd3(s), u2 = rnd3(s);
-    return sqrt(-2.0 * log(u1)) * cos(6.283185307179586 * u2);
-}
-
-/* The 3-D data set of the optics3_* kernels (comment at the top). */
-static void generate3(size_t n)
-{
-    static const double axes[3] = {1.1, 0.93, 1.04};
-    static const double off[3] = {300.0, -200.0, 150.0};
-    const size_t n_burst = (3u * n) / 100u;
-    const size_t b0 = n / 3u;
-    uint32_t s = 0x3D3D3D3Du;
-    double ub[3] = {0.48, -0.6, 0.64};
-    size_t i;
-    int a;
-    for (i = 0u; i < n; ++i) {
-        double u[3], r, sc = 1.0;
-        u[0] = gauss3(&s);
-        u[1] = gauss3(&s);
-        u[2] = gauss3(&s);
-        r = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
-        if (i % 20u == 7u) {
-            sc = 1.7 + 0.8 * rnd3(&s); /* 5 % scattered */
-        }
-        if (i >= b0 && i < b0 + n_burst) {
-            u[0] = ub[0];
-            u[1] = ub[1];
-            u[2] = ub[2];
-            r = 1.0;
-            sc = 1.8; /* stuck burst */
-        }
-        for (a = 0; a < 3; ++a) {
-            double v = off[a] + sc * 500.0 * axes[a] * u[a] / r + (sc == 1.8 ? 0.0 : 3.0 * gauss3(&s));
-            if (a == 0) {
-                g_pts3[i].x = (float)v;
-            } else if (a == 1) {
-                g_pts3[i].y = (float)v;
-            } else {
-                g_pts3[i].z = (float)v;
-            }
-        }
-    }
-}
+static magcal_aided_epoch_t g_ep[NMAX];
+static magcal_aided_t g_aided;
 
 /* ------------------------------------------------------------------ kernels */
 
@@ -315,10 +269,55 @@ static int run_kernel(const char *k, size_t n, int quiet)
         if (st != MAGCAL_OK) {
             return fail(k, st);
         }
+    } else if (strcmp(k, "ellipsoid3") == 0) {
+        magcal_optics_cfg_t c3 = MAGCAL_OPTICS_CFG_DEFAULT;
+        magcal_ellipsoid_cfg_t ec = MAGCAL_ELLIPSOID_CFG_DEFAULT;
+        magcal_ellipsoid_result_t er;
+        size_t i, nk = 0u;
+        bench_generate3(g_pts3, n);
+        st = magcal_optics_filter3(&c3, g_pts3, n, g_work3, sizeof g_work3, g_mask, NULL);
+        for (i = 0u; st == MAGCAL_OK && i < n; ++i) {
+            if (g_mask[i] != 0u) {
+                g_kept3[nk++] = g_pts3[i];
+            }
+        }
+        if (st == MAGCAL_OK) {
+            st = magcal_ellipsoid_fit(g_kept3, nk, &ec, &er);
+        }
+        if (st != MAGCAL_OK) {
+            return fail(k, st);
+        }
+        if (!quiet) {
+            printf("kept=%u used=%u V=%.3f,%.3f,%.3f\n", (unsigned)nk, (unsigned)er.n_used, (double)er.cal.v.x,
+                   (double)er.cal.v.y, (double)er.cal.v.z);
+        }
+    } else if (strcmp(k, "aided") == 0 || strcmp(k, "aided_vector") == 0) {
+        magcal_aided_cfg_t ac = MAGCAL_AIDED_CFG_DEFAULT;
+        magcal_aided_result_t ar;
+        size_t i;
+        if (strcmp(k, "aided_vector") == 0) {
+            ac.objective = MAGCAL_AIDED_OBJ_VECTOR;
+        }
+        bench_generate_drive(g_ep, n);
+        st = magcal_aided_init(&g_aided, &ac);
+        for (i = 0u; st == MAGCAL_OK && i < n; ++i) {
+            st = magcal_aided_update(&g_aided, &g_ep[i], NULL);
+            if (st == MAGCAL_ERR_GATED) {
+                st = MAGCAL_OK;
+            }
+        }
+        if (st != MAGCAL_OK) {
+            return fail(k, st);
+        }
+        st = magcal_aided_get(&g_aided, &ar);
+        if (!quiet) {
+            printf("status=%d accepted=%u V=%.3f,%.3f,%.3f\n", (int)st, (unsigned)ar.n_accepted, (double)ar.cal.v.x,
+                   (double)ar.cal.v.y, (double)ar.cal.v.z);
+        }
     } else if (strncmp(k, "optics3_", 8) == 0 || strcmp(k, "auto_params3") == 0) {
         magcal_optics_cfg_t c3 = MAGCAL_OPTICS_CFG_DEFAULT;
         magcal_optics_result_t info;
-        generate3(n);
+        bench_generate3(g_pts3, n);
         if (strcmp(k, "optics3_filter") == 0) {
             st = magcal_optics_filter3(&c3, g_pts3, n, g_work3, sizeof g_work3, g_mask, &info);
             if (st == MAGCAL_OK && !quiet) {

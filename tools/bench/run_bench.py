@@ -57,7 +57,15 @@ KERNELS = {
     "calibration": "magcal_calibrator_run",
     "calibration_push": "magcal_calibrator_push",
     "heading": "magcal_heading_compute",
+    "optics3_filter": "magcal_optics_filter3",
+    "ellipsoid3": "magcal_ellipsoid_fit",
+    "aided": "magcal_aided_update",
+    "aided_vector": "magcal_aided_update",
 }
+# 3-D kernels (3-D shell of bench_generate3 / road drive of bench_generate_drive): n points, or
+# n epochs for the aided estimator (its count is divided by n: instructions per epoch)
+N3 = [300, 600, 1000]
+N_AIDED = 2000
 MAIN_KERNELS = ["optics_classic", "optics_improved", "optics_indexed", "dbscan", "ellipse", "calibration"]
 EXTRA_KERNELS = ["optics_classic_grid", "optics_filter", "auto_params", "dbscan_brute", "consensus",
                  "calibration_push"]
@@ -418,6 +426,9 @@ def main(argv):
     jobs += [(k, n) for n in ns if n <= N_REF for k in INF_KERNELS]
     n_head = N_REF if N_REF in ns else ns[-1]
     jobs.append(("heading", n_head))
+    ns3 = N3[:1] if args.quick else N3
+    jobs += [("optics3_filter", n) for n in ns3] + [("ellipsoid3", n) for n in ns3]
+    jobs += [("aided", N_AIDED), ("aided_vector", N_AIDED)]
     counts = {}
     with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, args.jobs)) as ex:
         futs = {ex.submit(callgrind, exe, k, n): (k, n) for k, n in jobs}
@@ -474,6 +485,15 @@ def main(argv):
     }
     extra = {k + "_instr": series(k) for k in EXTRA_KERNELS}
     extra["ellipse_instr"] = series("ellipse")
+    extra["three_d"] = {
+        "n": ns3,
+        "optics3_filter_instr": [counts.get(("optics3_filter", n)) for n in ns3],
+        "ellipsoid3_fit_instr": [counts.get(("ellipsoid3", n)) for n in ns3],
+        "aided_epochs": N_AIDED,
+        "aided_update_instr_per_epoch": (counts[("aided", N_AIDED)] / N_AIDED) if counts.get(("aided", N_AIDED)) else None,
+        "aided_vector_update_instr_per_epoch": (counts[("aided_vector", N_AIDED)] / N_AIDED)
+        if counts.get(("aided_vector", N_AIDED)) else None,
+    }
     for k in INF_KERNELS:
         extra[k + "_instr"] = series(k)
     extra["optics_filter_ordering_instr"] = [
@@ -659,6 +679,24 @@ def render_markdown(res, ns, i_ref, m4f, sk_info):
                                                  "optics_classic_grid", "optics_filter_ordering", "dbscan",
                                                  "dbscan_brute", "ellipse", "calibration", "nbr_pairs"] if k in g) + ".")
     L.append("")
+    t3 = ex.get("three_d")
+    if t3:
+        L.append("#### 3-D (issue 6)")
+        L.append("")
+        L.append("3-D shell (`bench_generate3`: F = 500, axes 1.1/0.93/1.04, sigma 3, 5 %% scattered points, 3 %% one "
+                 "stuck burst 0.8 R outside) and road drive (`bench_generate_drive`, %d epochs, 1 deg RMS tilt):" %
+                 t3["aided_epochs"])
+        L.append("")
+        L.append("| n | `magcal_optics_filter3` (automatic parameters) | `magcal_ellipsoid_fit` on its inliers |")
+        L.append("|---:|---:|---:|")
+        for j, n in enumerate(t3["n"]):
+            L.append("| %d | %s | %s |" % (n, fmt_int(t3["optics3_filter_instr"][j]), fmt_int(t3["ellipsoid3_fit_instr"][j])))
+        L.append("")
+        L.append("`magcal_aided_update`, average per epoch over %d epochs (a solve every epoch after the first 50): "
+                 "combined objective %s instructions, vector objective %s." % (
+                     t3["aided_epochs"], fmt(t3["aided_update_instr_per_epoch"], "%.0f"),
+                     fmt(t3["aided_vector_update_instr_per_epoch"], "%.0f")))
+        L.append("")
     L.append("### Wall clock, same machine, same run")
     L.append("")
     L.append("| n | magcal full calibration (init + push + run): median (min) | scikit-learn %s OPTICS fit: median (min) | sklearn / magcal: medians (minima) | sklearn largest cluster = magcal filter inliers |" %
@@ -719,6 +757,13 @@ def render_markdown(res, ns, i_ref, m4f, sk_info):
             Q.append("")
             if qi.get("heading"):
                 Q.append("One `magcal_heading_compute` on the M4F: %s instructions." % fmt_int(qi["heading"].get(1)))
+                Q.append("")
+            if qi.get("optics3_filter") or qi.get("aided_update"):
+                Q.append("3-D on the M4F: `magcal_optics_filter3` (automatic parameters, the 3-D shell) " + ", ".join(
+                    "n = %d: %s" % (n, fmt_int(v)) for n, v in sorted(qi.get("optics3_filter", {}).items())) +
+                    "; `magcal_aided_update` per epoch (road drive, %s epochs): %s instructions (combined objective)." % (
+                        ", ".join(str(n) for n in sorted(qi.get("aided_update", {}))),
+                        ", ".join(fmt_int(v) for _, v in sorted(qi.get("aided_update", {}).items()))))
                 Q.append("")
         c2 = mm.get("core2d")
         if c2:

@@ -2,11 +2,13 @@
  * `-icount shift=0`: one guest instruction per virtual ns, SysTick at 25 MHz, so one tick is 40
  * instructions, deterministic). Not cycles: a Cortex-M4 needs at least one cycle per instruction
  * (loads, branches and divides take more), so the counts are a lower bound of the cycles.
- * Data: the host bench's generator (../bench_data.c), capacity MAGCAL_MAX_SAMPLES (1024). Prints
+ * Data: the host bench's generators (../bench_data.c: the 2-D ring, the 3-D shell, the road drive
+ * of the aided estimator), capacity MAGCAL_MAX_SAMPLES (1024). Prints
  * "M4F <what> <n> <instructions> <status>" lines through semihosting. */
 #include <stdint.h>
 #include <stdio.h>
 
+#include "magcal/aided.h"
 #include "magcal/calibrator.h"
 #include "magcal/heading.h"
 #include "magcal/optics.h"
@@ -25,12 +27,50 @@ static uint8_t g_mask[CAP];
 static magcal_vec2_t g_buf[CAP];
 static uint32_t g_work[(MAGCAL_CALIBRATOR_WORKSPACE_LEN(CAP) + 3u) / 4u];
 static magcal_calibrator_t g_cal;
+static magcal_vec3_t g_pts3[CAP];
+static uint32_t g_work3[(MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(CAP) + 3u) / 4u];
+#define N_EPOCHS 2000u
+static magcal_aided_epoch_t g_ep[N_EPOCHS];
+static magcal_aided_t g_aided;
 
 static uint32_t ticks(void) { return SYST_CVR; /* counts down, 24 bits */ }
 
 static unsigned long insn_since(uint32_t t0)
 {
     return (unsigned long)((t0 - ticks()) & 0xFFFFFFu) * INSN_PER_TICK;
+}
+
+/* 3-D: the density stage at n = 300, 600, 1000 and the aided estimator per epoch. */
+static int three_d(void)
+{
+    static const size_t ns3[] = {300u, 600u, 1000u};
+    const magcal_aided_cfg_t acfg = MAGCAL_AIDED_CFG_DEFAULT;
+    magcal_status_t st;
+    uint32_t t0;
+    unsigned long ins;
+    size_t k, i;
+    int fails = 0;
+    for (k = 0u; k < sizeof ns3 / sizeof ns3[0]; ++k) {
+        magcal_optics_cfg_t c3 = MAGCAL_OPTICS_CFG_DEFAULT;
+        bench_generate3(g_pts3, ns3[k]);
+        t0 = ticks();
+        st = magcal_optics_filter3(&c3, g_pts3, ns3[k], g_work3, sizeof g_work3, g_mask, NULL);
+        printf("M4F optics3_filter %u %lu %d\n", (unsigned)ns3[k], insn_since(t0), (int)st);
+        fails += st != MAGCAL_OK;
+    }
+    bench_generate_drive(g_ep, N_EPOCHS);
+    st = magcal_aided_init(&g_aided, &acfg);
+    t0 = ticks();
+    for (i = 0u; st == MAGCAL_OK && i < N_EPOCHS; ++i) {
+        st = magcal_aided_update(&g_aided, &g_ep[i], NULL);
+        if (st == MAGCAL_ERR_GATED) {
+            st = MAGCAL_OK;
+        }
+    }
+    ins = insn_since(t0);
+    printf("M4F aided_update %u %lu %d\n", (unsigned)N_EPOCHS, ins / N_EPOCHS, (int)st);
+    fails += st != MAGCAL_OK;
+    return fails;
 }
 
 int main(void)
@@ -79,5 +119,6 @@ int main(void)
             fails += st != MAGCAL_OK;
         }
     }
+    fails += three_d();
     return fails == 0 ? 0 : 1;
 }
