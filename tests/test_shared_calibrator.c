@@ -17,12 +17,12 @@
 #include <string.h>
 
 #include "magcal/calibrator.h"
+#include "test_csv.h"
 #include "test_util.h"
 #include "unity.h"
 
 #define CAP MAGCAL_MAX_SAMPLES
 #define MAX_ROWS 8192u
-#define LINE_LEN 1024u
 
 static magcal_calibrator_t g_cal;
 static magcal_vec2_t g_buf[CAP];
@@ -33,68 +33,34 @@ static uint8_t g_glitch[MAX_ROWS];
 void setUp(void) {}
 void tearDown(void) {}
 
-/* Column index of name in a header line, or -1. */
-static int col_index(const char *header, const char *name)
-{
-    char buf[LINE_LEN];
-    char *tok;
-    int i = 0;
-    strncpy(buf, header, sizeof buf - 1u);
-    buf[sizeof buf - 1u] = '\0';
-    for (tok = strtok(buf, ",\r\n"); tok != NULL; tok = strtok(NULL, ",\r\n"), ++i) {
-        if (strcmp(tok, name) == 0) {
-            return i;
-        }
-    }
-    return -1;
-}
-
 /* Read columns xcol, ycol (and glitch if present) of a uniform CSV; returns the row count. */
+static double g_cells[MAX_ROWS * 3u];
+
 static size_t read_csv(const char *path, const char *xcol, const char *ycol)
 {
-    char line[LINE_LEN];
-    FILE *f = fopen(path, "r");
-    int ix, iy, ig;
+    const char *cols[3] = {xcol, ycol, "glitch"};
+    char line[TEST_CSV_LINE_LEN];
+    size_t ncols = 2u;
+    size_t nr;
+    size_t i;
     size_t n = 0u;
+    FILE *f = fopen(path, "r");
     TEST_ASSERT_NOT_NULL_MESSAGE(f, path);
     TEST_ASSERT_NOT_NULL(fgets(line, sizeof line, f));
-    ix = col_index(line, xcol);
-    iy = col_index(line, ycol);
-    ig = col_index(line, "glitch");
-    TEST_ASSERT_TRUE(ix >= 0 && iy >= 0);
-    while (n < MAX_ROWS && fgets(line, sizeof line, f) != NULL) {
-        char *p = line;
-        int c = 0;
-        float vx = NAN, vy = NAN, vg = 0.0f;
-        while (p != NULL && *p != '\0') {
-            char *end;
-            float v = strtof(p, &end);
-            if (end == p) {
-                v = NAN; /* "nan" is parsed by strtof; anything else unparsable counts as missing */
-            }
-            if (c == ix) {
-                vx = v;
-            }
-            if (c == iy) {
-                vy = v;
-            }
-            if (c == ig) {
-                vg = v;
-            }
-            p = strchr(p, ',');
-            if (p != NULL) {
-                ++p;
-            }
-            ++c;
-        }
-        if (isfinite(vx) && isfinite(vy)) {
-            g_rows[n].x = vx;
-            g_rows[n].y = vy;
-            g_glitch[n] = (uint8_t)(vg > 0.5f);
+    fclose(f);
+    if (strstr(line, "glitch") != NULL) {
+        ncols = 3u;
+    }
+    nr = test_read_csv(path, cols, ncols, g_cells, MAX_ROWS);
+    for (i = 0u; i < nr; ++i) {
+        const double *r = &g_cells[i * ncols];
+        if (isfinite(r[0]) && isfinite(r[1])) {
+            g_rows[n].x = (float)r[0];
+            g_rows[n].y = (float)r[1];
+            g_glitch[n] = (uint8_t)(ncols == 3u && r[2] > 0.5);
             ++n;
         }
     }
-    fclose(f);
     return n;
 }
 
