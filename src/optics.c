@@ -173,7 +173,7 @@ static magcal_status_t check_points(const magcal_vec2_t *pts, size_t n, size_t m
     return magcal_nbr_check_finite(pts, n);
 }
 
-static magcal_status_t check_cfg(const magcal_optics_cfg_t *cfg)
+magcal_status_t magcal_ocore_check_cfg(const magcal_optics_cfg_t *cfg)
 {
     /* eps^2 is the neighbour threshold: it must be a normal float (neighbors.h) */
     if (magcal_nbr_eps_ok(cfg->eps) == 0) {
@@ -221,20 +221,6 @@ static optics_ctx_t *ctx_setup(const magcal_optics_cfg_t *cfg, const magcal_vec2
     return c;
 }
 
-static void fill_info(magcal_optics_result_t *info, const optics_ctx_t *c, float eps,
-                      float eps_prime)
-{
-    if (info == NULL) {
-        return;
-    }
-    (void)memset(info, 0, sizeof *info);
-    info->eps = eps;
-    info->eps_prime = eps_prime;
-    info->min_pts = c->oc.min_pts;
-    info->neighbors = c->nb.use_grid ? MAGCAL_NEIGHBORS_GRID : MAGCAL_NEIGHBORS_BRUTE;
-    info->largest_id = MAGCAL_OPTICS_NOISE;
-}
-
 magcal_status_t magcal_optics_run(const magcal_optics_cfg_t *cfg, const magcal_vec2_t *pts,
                                   size_t n, void *work, size_t work_len, uint16_t *order,
                                   float *reach, float *core, uint16_t *pred,
@@ -246,7 +232,7 @@ magcal_status_t magcal_optics_run(const magcal_optics_cfg_t *cfg, const magcal_v
         core == NULL) {
         return MAGCAL_ERR_NULL;
     }
-    st = check_cfg(cfg);
+    st = magcal_ocore_check_cfg(cfg);
     if (st != MAGCAL_OK) {
         return st;
     }
@@ -266,7 +252,7 @@ magcal_status_t magcal_optics_run(const magcal_optics_cfg_t *cfg, const magcal_v
     c->oc.core = core;
     c->oc.pred = pred;
     optics_loop(c);
-    fill_info(info, c, cfg->eps, cfg->eps);
+    magcal_ocore_fill_info(info, &c->oc, c->nb.use_grid, cfg->eps, cfg->eps);
     return MAGCAL_OK;
 }
 
@@ -373,8 +359,8 @@ magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, v
 #define AUTO_MIN_REL (1.0f / 256.0f)
 #define AUTO_MAX_REL 1.0f
 
-/* k-th smallest of a[0..n-1] (a is permuted). Iterative Hoare selection, no recursion. */
-static float select_kth(float *a, size_t n, size_t k)
+/* (declared in optics_core.h: the 3-D automatic parameters use it too) */
+float magcal_ocore_select_kth(float *a, size_t n, size_t k)
 {
     size_t lo = 0u;
     size_t hi = n - 1u;
@@ -502,7 +488,7 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
         if (k < AUTO_MIN_N) {
             break; /* keep the previous estimate */
         }
-        ncx = select_kth(a, k, k / 2u);
+        ncx = magcal_ocore_select_kth(a, k, k / 2u);
         k = 0u;
         for (i = 0; i < n; ++i) {
             float dx = pts[i].x - cx;
@@ -512,7 +498,7 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
                 ++k;
             }
         }
-        ncy = select_kth(a, k, k / 2u);
+        ncy = magcal_ocore_select_kth(a, k, k / 2u);
         k = 0u;
         for (i = 0; i < n; ++i) {
             float dx = pts[i].x - cx;
@@ -526,7 +512,7 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
         }
         cx = ncx;
         cy = ncy;
-        rad = select_kth(a, k, k / 2u);
+        rad = magcal_ocore_select_kth(a, k, k / 2u);
         if (!(rad > 0.0f) || !magcal_isfinite_f(rad)) {
             return MAGCAL_ERR_DEGENERATE;
         }
@@ -589,7 +575,7 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
     {
         const size_t last = m - 1u;
         const float qpos = AUTO_CORE_Q * (float)last;
-        coreq = select_kth(b, m, (size_t)qpos);
+        coreq = magcal_ocore_select_kth(b, m, (size_t)qpos);
     }
     e = AUTO_SAFETY * (link2 > coreq ? link2 : coreq);
     if (e < AUTO_MIN_REL * rad) {
@@ -648,7 +634,6 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
     float window[4];
     const float *win = NULL;
     uint8_t *w = (uint8_t *)work;
-    size_t i;
     if (cfg == NULL || pts == NULL || work == NULL || inlier_mask == NULL) {
         return MAGCAL_ERR_NULL;
     }
@@ -662,7 +647,7 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
         }
         use.eps = 1.0f;
         use.min_pts = (uint16_t)AUTO_MIN_PTS;
-        st = check_cfg(&use);
+        st = magcal_ocore_check_cfg(&use);
         if (st == MAGCAL_OK) {
             st = check_points(pts, n, AUTO_MIN_N);
         }
@@ -683,7 +668,7 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
         window[3] = cr[1] + 1.5f * cr[2] + eps_prime;
         win = window;
     } else {
-        st = check_cfg(&use);
+        st = magcal_ocore_check_cfg(&use);
         if (st != MAGCAL_OK) {
             return st;
         }
@@ -704,22 +689,6 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
     c->oc.labels = (int16_t *)(void *)(w + 4u * n);
     c->oc.eps_prime = eps_prime;
     optics_loop(c);
-    fill_info(info, c, use.eps, eps_prime);
-    if (c->oc.best_id < 0) {
-        if (info != NULL) {
-            info->n_noise = (uint16_t)c->oc.n_noise;
-        }
-        return MAGCAL_ERR_ALL_NOISE;
-    }
-    for (i = 0; i < n; ++i) {
-        inlier_mask[i] = (c->oc.labels[i] == c->oc.best_id) ? 1u : 0u;
-    }
-    if (info != NULL) {
-        const int32_t count = c->oc.id + 1;
-        info->n_clusters = (uint16_t)count;
-        info->largest_id = (int16_t)c->oc.best_id;
-        info->n_inliers = (uint16_t)c->oc.best_count;
-        info->n_noise = (uint16_t)c->oc.n_noise;
-    }
-    return MAGCAL_OK;
+    magcal_ocore_fill_info(info, &c->oc, c->nb.use_grid, use.eps, eps_prime);
+    return magcal_ocore_filter_out(&c->oc, n, inlier_mask, info);
 }

@@ -370,24 +370,6 @@ static magcal_status_t check_points3(const magcal_vec3_t *pts, size_t n, size_t 
     return MAGCAL_OK;
 }
 
-static magcal_status_t check_cfg3(const magcal_optics_cfg_t *cfg)
-{
-    /* eps^2 is the neighbour threshold: the same accepted range as in 2-D (neighbors.h) */
-    if (magcal_nbr_eps_ok(cfg->eps) == 0) {
-        return MAGCAL_ERR_ARG;
-    }
-    if (cfg->min_pts < 2u || cfg->min_pts > MAGCAL_MAX_MIN_PTS) {
-        return MAGCAL_ERR_ARG;
-    }
-    if (cfg->order != MAGCAL_OPTICS_CLASSIC && cfg->order != MAGCAL_OPTICS_IMPROVED) {
-        return MAGCAL_ERR_ARG;
-    }
-    if (cfg->neighbors != MAGCAL_NEIGHBORS_BRUTE && cfg->neighbors != MAGCAL_NEIGHBORS_GRID) {
-        return MAGCAL_ERR_ARG;
-    }
-    return MAGCAL_OK;
-}
-
 /* Carve the run workspace (layout of MAGCAL_OPTICS3_WORKSPACE_LEN); the context sits after the
  * MinPts buffer, aligned for pointers. */
 static optics3_ctx_t *ctx3_setup(const magcal_optics_cfg_t *cfg, const magcal_vec3_t *pts, size_t n,
@@ -415,20 +397,6 @@ static optics3_ctx_t *ctx3_setup(const magcal_optics_cfg_t *cfg, const magcal_ve
     return c;
 }
 
-static void fill_info3(magcal_optics_result_t *info, const optics3_ctx_t *c, float eps,
-                       float eps_prime)
-{
-    if (info == NULL) {
-        return;
-    }
-    (void)memset(info, 0, sizeof *info);
-    info->eps = eps;
-    info->eps_prime = eps_prime;
-    info->min_pts = c->oc.min_pts;
-    info->neighbors = c->use_grid != 0 ? MAGCAL_NEIGHBORS_GRID : MAGCAL_NEIGHBORS_BRUTE;
-    info->largest_id = MAGCAL_OPTICS_NOISE;
-}
-
 magcal_status_t magcal_optics_run3(const magcal_optics_cfg_t *cfg, const magcal_vec3_t *pts,
                                    size_t n, void *work, size_t work_len, uint16_t *order,
                                    float *reach, float *core, uint16_t *pred,
@@ -440,7 +408,7 @@ magcal_status_t magcal_optics_run3(const magcal_optics_cfg_t *cfg, const magcal_
         core == NULL) {
         return MAGCAL_ERR_NULL;
     }
-    st = check_cfg3(cfg);
+    st = magcal_ocore_check_cfg(cfg);
     if (st != MAGCAL_OK) {
         return st;
     }
@@ -460,7 +428,7 @@ magcal_status_t magcal_optics_run3(const magcal_optics_cfg_t *cfg, const magcal_
     c->oc.core = core;
     c->oc.pred = pred;
     optics3_loop(c);
-    fill_info3(info, c, cfg->eps, cfg->eps);
+    magcal_ocore_fill_info(info, &c->oc, c->use_grid, cfg->eps, cfg->eps);
     return MAGCAL_OK;
 }
 
@@ -492,43 +460,6 @@ typedef struct {
     float eps_prime;
     magcal_neighbors_t neighbors;
 } auto3_t;
-
-/* k-th smallest of a[0..n-1] (a is permuted). Iterative Hoare selection, no recursion. */
-static float select_kth3(float *a, size_t n, size_t k)
-{
-    size_t lo = 0u;
-    size_t hi = n - 1u;
-    while (lo < hi) {
-        float pivot = a[lo + (hi - lo) / 2u];
-        size_t i = lo;
-        size_t j = hi;
-        size_t guard;
-        for (guard = lo; guard <= hi; ++guard) { /* i grows by >= 1 per round: <= hi-lo+1 rounds */
-            float t;
-            while (a[i] < pivot) {
-                ++i;
-            }
-            while (a[j] > pivot) {
-                --j;
-            }
-            if (i >= j) {
-                break;
-            }
-            t = a[i];
-            a[i] = a[j];
-            a[j] = t;
-            ++i;
-            --j;
-        }
-        /* now a[lo..j] <= pivot <= a[j+1..hi] (Hoare partition, j in [lo, hi-1]) */
-        if (k <= j) {
-            hi = j;
-        } else {
-            lo = j + 1u;
-        }
-    }
-    return a[k];
-}
 
 /* Copy coordinate `axis` (0 x, 1 y, 2 z) of the points within sqrt(lim2) of c (all when lim2 is
  * infinite) into a; returns how many. */
@@ -609,11 +540,11 @@ static magcal_status_t auto_run3(const magcal_optics_cfg_t *cfg, const magcal_ve
         if (k < AUTO3_MIN_N) {
             break; /* keep the previous estimate */
         }
-        nc.x = select_kth3(a, k, k / 2u);
+        nc.x = magcal_ocore_select_kth(a, k, k / 2u);
         (void)gather3(pts, n, &cen, lim2, 1u, a);
-        nc.y = select_kth3(a, k, k / 2u);
+        nc.y = magcal_ocore_select_kth(a, k, k / 2u);
         (void)gather3(pts, n, &cen, lim2, 2u, a);
-        nc.z = select_kth3(a, k, k / 2u);
+        nc.z = magcal_ocore_select_kth(a, k, k / 2u);
         k = 0u;
         for (i = 0; i < n; ++i) {
             if (lim2 == INFINITY || dist2(&pts[i], &cen) <= lim2) {
@@ -622,7 +553,7 @@ static magcal_status_t auto_run3(const magcal_optics_cfg_t *cfg, const magcal_ve
             }
         }
         cen = nc;
-        rad = select_kth3(a, k, k / 2u);
+        rad = magcal_ocore_select_kth(a, k, k / 2u);
         if (!(rad > 0.0f) || !magcal_isfinite_f(rad) || magcal_nbr_eps_ok(rad) == 0) {
             return MAGCAL_ERR_DEGENERATE;
         }
@@ -723,7 +654,6 @@ magcal_status_t magcal_optics_filter3(const magcal_optics_cfg_t *cfg, const magc
     magcal_status_t st;
     float eps_prime;
     uint8_t *w = (uint8_t *)work;
-    size_t i;
     if (cfg == NULL || pts == NULL || work == NULL || inlier_mask == NULL) {
         return MAGCAL_ERR_NULL;
     }
@@ -740,12 +670,13 @@ magcal_status_t magcal_optics_filter3(const magcal_optics_cfg_t *cfg, const magc
         uint16_t count = 0u;
         int16_t id = MAGCAL_OPTICS_NOISE;
         size_t n_noise = 0u;
+        size_t i;
         if (cfg->eps != cfg->eps) {
             return MAGCAL_ERR_ARG; /* NaN is not "auto" */
         }
         use.eps = 1.0f;
         use.min_pts = (uint16_t)AUTO3_MIN_PTS;
-        st = check_cfg3(&use);
+        st = magcal_ocore_check_cfg(&use);
         if (st == MAGCAL_OK) {
             st = check_points3(pts, n, AUTO3_MIN_N);
         }
@@ -779,7 +710,7 @@ magcal_status_t magcal_optics_filter3(const magcal_optics_cfg_t *cfg, const magc
         }
         return st;
     }
-    st = check_cfg3(&use);
+    st = magcal_ocore_check_cfg(&use);
     if (st != MAGCAL_OK) {
         return st;
     }
@@ -799,22 +730,6 @@ magcal_status_t magcal_optics_filter3(const magcal_optics_cfg_t *cfg, const magc
     c->oc.labels = (int16_t *)(void *)(w + 4u * n);
     c->oc.eps_prime = eps_prime;
     optics3_loop(c);
-    fill_info3(info, c, use.eps, eps_prime);
-    if (c->oc.best_id < 0) {
-        if (info != NULL) {
-            info->n_noise = (uint16_t)c->oc.n_noise;
-        }
-        return MAGCAL_ERR_ALL_NOISE;
-    }
-    for (i = 0; i < n; ++i) {
-        inlier_mask[i] = (c->oc.labels[i] == c->oc.best_id) ? 1u : 0u;
-    }
-    if (info != NULL) {
-        const int32_t count = c->oc.id + 1;
-        info->n_clusters = (uint16_t)count;
-        info->largest_id = (int16_t)c->oc.best_id;
-        info->n_inliers = (uint16_t)c->oc.best_count;
-        info->n_noise = (uint16_t)c->oc.n_noise;
-    }
-    return MAGCAL_OK;
+    magcal_ocore_fill_info(info, &c->oc, c->use_grid, use.eps, eps_prime);
+    return magcal_ocore_filter_out(&c->oc, n, inlier_mask, info);
 }

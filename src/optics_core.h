@@ -261,4 +261,54 @@ static inline void magcal_ocore_finish(magcal_ocore_t *o)
     }
 }
 
+/* Fill the run summary (info may be NULL): parameters used, no cluster found yet. */
+static inline void magcal_ocore_fill_info(magcal_optics_result_t *info, const magcal_ocore_t *o,
+                                          int use_grid, float eps, float eps_prime)
+{
+    if (info == NULL) {
+        return;
+    }
+    (void)memset(info, 0, sizeof *info);
+    info->eps = eps;
+    info->eps_prime = eps_prime;
+    info->min_pts = o->min_pts;
+    info->neighbors = use_grid != 0 ? MAGCAL_NEIGHBORS_GRID : MAGCAL_NEIGHBORS_BRUTE;
+    info->largest_id = MAGCAL_OPTICS_NOISE;
+}
+
+/* Result of a filter run with on-the-fly extraction over n points: inlier_mask[i] = 1 for the
+ * largest cluster and the cluster counts in info (filled by magcal_ocore_fill_info first).
+ * Returns MAGCAL_ERR_ALL_NOISE (mask untouched) when no cluster formed, else MAGCAL_OK. */
+static inline magcal_status_t magcal_ocore_filter_out(const magcal_ocore_t *o, size_t n,
+                                                      uint8_t *inlier_mask,
+                                                      magcal_optics_result_t *info)
+{
+    size_t i;
+    if (o->best_id < 0) {
+        if (info != NULL) {
+            info->n_noise = (uint16_t)o->n_noise;
+        }
+        return MAGCAL_ERR_ALL_NOISE;
+    }
+    for (i = 0; i < n; ++i) {
+        inlier_mask[i] = (o->labels[i] == o->best_id) ? 1u : 0u;
+    }
+    if (info != NULL) {
+        const int32_t count = o->id + 1;
+        info->n_clusters = (uint16_t)count;
+        info->largest_id = (int16_t)o->best_id;
+        info->n_inliers = (uint16_t)o->best_count;
+        info->n_noise = (uint16_t)o->n_noise;
+    }
+    return MAGCAL_OK;
+}
+
+/* Checks of a magcal_optics_cfg_t shared by both dimensions (eps, MinPts, order, neighbour
+ * search); MAGCAL_ERR_ARG or MAGCAL_OK. Defined in optics.c (cold: once per call). */
+magcal_status_t magcal_ocore_check_cfg(const magcal_optics_cfg_t *cfg);
+
+/* k-th smallest of a[0..n-1], 0 <= k < n (a is permuted). Iterative Hoare selection, no
+ * recursion. Defined in optics.c (the automatic parameters of both dimensions). */
+float magcal_ocore_select_kth(float *a, size_t n, size_t k);
+
 #endif
