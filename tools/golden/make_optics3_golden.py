@@ -64,18 +64,9 @@ def main():
             lambda p: "{%s, %s, %s}" % (g2.c_float(p[0]), g2.c_float(p[1]), g2.c_float(p[2])))
         print("%-13s n=%3d eps=%g MinPts=%d eps'=%g clusters=%d largest=%d noise=%d near-ties=%d"
               % (name, len(x64), eps, min_pts, eps_prime, nclu, big, noise, ties))
-    out_c.append("const golden_optics3_set_t golden_optics3_sets[GOLDEN_OPTICS3_N_SETS] = {")
-    out_c.extend(table)
-    out_c.append("};")
-    h = g2.golden_header("make_optics3_golden.py", "GOLDEN_OPTICS3_H",
-                         "One scikit-learn OPTICS run on 3-D points (algorithms.md 4.5): float32 "
-                         "inputs, expected outputs.",
-                         "magcal_vec3_t", "golden_optics3_set_t", "golden_optics3_sets",
-                         "GOLDEN_OPTICS3_N_SETS", len(sets))
-    with open(os.path.join(args.out, "golden_optics3.h"), "w") as f:
-        f.write(h)
-    with open(os.path.join(args.out, "golden_optics3.c"), "w") as f:
-        f.write("\n".join(out_c) + "\n")
+    g2.write_golden(args.out, "golden_optics3", "make_optics3_golden.py",
+                    "One scikit-learn OPTICS run on 3-D points (algorithms.md 4.5): float32 inputs, "
+                    "expected outputs.", "magcal_vec3_t", out_c, table)
 
 
 if __name__ == "__main__":
