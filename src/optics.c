@@ -105,7 +105,12 @@ static void process(optics_ctx_t *c, size_t p)
     if (cnt >= m) {
         core_p = sqrtf(best[m - 1u]);
     }
-    magcal_ocore_record(&c->oc, p, core_p);
+    if (c->oc.core != NULL) {
+        c->oc.core[p] = core_p;
+    }
+    if (c->oc.labels != NULL) {
+        magcal_ocore_extract_step(&c->oc, p, core_p);
+    }
     if (c->live != NULL) {
         live_pass(c, p, cnt >= m ? core_p : INFINITY, cnt >= m ? best[m - 1u] : INFINITY);
         return;

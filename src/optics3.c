@@ -234,7 +234,12 @@ static void process3_grid(optics3_ctx_t *c, size_t p, float core_p0)
         core2 = best[m - 1u];
         core_p = sqrtf(core2);
     }
-    magcal_ocore_record(&c->oc, p, core_p);
+    if (c->oc.core != NULL) {
+        c->oc.core[p] = core_p;
+    }
+    if (c->oc.labels != NULL) {
+        magcal_ocore_extract_step(&c->oc, p, core_p);
+    }
     if (cnt < m) {
         return;
     }
@@ -296,7 +301,12 @@ static void process3(optics3_ctx_t *c, size_t p)
         core2 = best[m - 1u];
         core_p = sqrtf(core2);
     }
-    magcal_ocore_record(&c->oc, p, core_p);
+    if (c->oc.core != NULL) {
+        c->oc.core[p] = core_p;
+    }
+    if (c->oc.labels != NULL) {
+        magcal_ocore_extract_step(&c->oc, p, core_p);
+    }
     for (k = 0; k < nl; ++k) {
         size_t j = live[k];
         if (j == p) {

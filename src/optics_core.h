@@ -235,17 +235,6 @@ static inline void magcal_ocore_mark(magcal_ocore_t *o, size_t p)
     o->n_done++;
 }
 
-/* PROCESS(p) once its core distance is known: store it and take the extraction step. */
-static inline void magcal_ocore_record(magcal_ocore_t *o, size_t p, float core_p)
-{
-    if (o->core != NULL) {
-        o->core[p] = core_p;
-    }
-    if (o->labels != NULL) {
-        magcal_ocore_extract_step(o, p, core_p);
-    }
-}
-
 /* Start of a run over n points: every reach infinite, no predecessor, nothing in the heap,
  * nothing processed. */
 static inline void magcal_ocore_start(magcal_ocore_t *o, size_t n)
