@@ -148,8 +148,6 @@ static void optics_loop(optics_ctx_t *c)
         c->n_live = c->n;
     }
 
-    c->oc.n_seeds = 0u;
-    c->oc.n_done = 0u;
     for (s = 0; s < c->n; ++s) {
         if (magcal_ocore_is_done(&c->oc, s) != 0) {
             continue;
@@ -164,11 +162,9 @@ static void optics_loop(optics_ctx_t *c)
 
 static magcal_status_t check_points(const magcal_vec2_t *pts, size_t n, size_t min_n)
 {
-    if (n > MAGCAL_MAX_SAMPLES) {
-        return MAGCAL_ERR_ARG;
-    }
-    if (n < min_n) {
-        return MAGCAL_ERR_TOO_FEW_POINTS;
+    const magcal_status_t st = magcal_ocore_check_n(n, min_n);
+    if (st != MAGCAL_OK) {
+        return st;
     }
     return magcal_nbr_check_finite(pts, n);
 }

@@ -338,8 +338,6 @@ static void optics3_loop(optics3_ctx_t *c)
         }
     }
     c->n_live = c->n;
-    c->oc.n_seeds = 0u;
-    c->oc.n_done = 0u;
     for (s = 0; s < c->n; ++s) {
         if (magcal_ocore_is_done(&c->oc, s) != 0) {
             continue;
@@ -355,11 +353,9 @@ static void optics3_loop(optics3_ctx_t *c)
 static magcal_status_t check_points3(const magcal_vec3_t *pts, size_t n, size_t min_n)
 {
     size_t i;
-    if (n > MAGCAL_MAX_SAMPLES) {
-        return MAGCAL_ERR_ARG;
-    }
-    if (n < min_n) {
-        return MAGCAL_ERR_TOO_FEW_POINTS;
+    const magcal_status_t st = magcal_ocore_check_n(n, min_n);
+    if (st != MAGCAL_OK) {
+        return st;
     }
     for (i = 0; i < n; ++i) {
         if (!magcal_isfinite_f(pts[i].x) || !magcal_isfinite_f(pts[i].y) ||

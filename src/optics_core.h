@@ -250,6 +250,8 @@ static inline void magcal_ocore_start(magcal_ocore_t *o, size_t n)
         }
     }
     (void)memset(o->done, 0, (n + 7u) / 8u);
+    o->n_seeds = 0u;
+    o->n_done = 0u;
 }
 
 /* End of a run: the last cluster of the on-the-fly extraction competes for the largest. */
@@ -301,6 +303,21 @@ static inline magcal_status_t magcal_ocore_filter_out(const magcal_ocore_t *o, s
         info->n_noise = (uint16_t)o->n_noise;
     }
     return MAGCAL_OK;
+}
+
+/* Point count checks of every entry point: MAGCAL_ERR_ARG above MAGCAL_MAX_SAMPLES,
+ * MAGCAL_ERR_TOO_FEW_POINTS below min_n, else MAGCAL_OK (finiteness is checked per dimension). */
+static inline magcal_status_t magcal_ocore_check_n(size_t n, size_t min_n)
+{
+    magcal_status_t st = MAGCAL_OK;
+    if (n > MAGCAL_MAX_SAMPLES) {
+        st = MAGCAL_ERR_ARG;
+    } else if (n < min_n) {
+        st = MAGCAL_ERR_TOO_FEW_POINTS;
+    } else {
+        /* count in range */
+    }
+    return st;
 }
 
 /* Checks of a magcal_optics_cfg_t shared by both dimensions (eps, MinPts, order, neighbour
