@@ -4,9 +4,11 @@
  * search differ between the dimensions; everything that looks at reach values, seeds and the
  * processed bits lives here, once.
  *
- * The functions are defined here, not once with external linkage in a .c file, so each ordering
- * loop compiles them as it did when they were its own static helpers: same inlining, same stack
- * frames (tools/stack/stack_usage.py) and host instruction counts (callgrind, magcal_bench).
+ * The loop's functions are defined here, not once with external linkage in a .c file, so each
+ * ordering loop compiles them as it did when they were its own static helpers: same inlining,
+ * same stack frames (tools/stack/stack_usage.py) and host instruction counts (callgrind,
+ * magcal_bench). Only the two cold helpers at the end (cfg check, median selection) are one
+ * extern copy in optics.c.
  * Most are `static inline` (MISRA 5.9 exempts an inline function defined once in a shared
  * header). magcal_ocore_update() and magcal_ocore_sift_up() are plain `static`: with `inline`,
  * GCC -O2 inlines them into the reach passes and magcal_optics_run costs 1.9 % more instructions;
