@@ -6,194 +6,19 @@
 
 #include "magcal_internal.h"
 #include "neighbors.h"
+#include "optics_core.h"
 
-#define POS_NONE 0xFFFFu
-
-/* Everything the ordering loop needs; optional outputs are NULL when not wanted. */
+/* Everything the ordering loop needs: the dimension-free state (optics_core.h) and the 2-D
+ * points and neighbour search. */
 typedef struct {
+    magcal_ocore_t oc;
     const magcal_vec2_t *pts;
     size_t n;
     float eps2;
-    uint16_t min_pts;
-    magcal_optics_order_t mode;
     magcal_nbr_t nb;
-    float *reach;    /* n, working reach (final when a point is processed) */
-    uint16_t *seeds; /* heap (CLASSIC) or unordered list (IMPROVED) */
-    uint16_t *pos;   /* CLASSIC: heap position of each point or POS_NONE */
-    uint8_t *done;   /* processed bits */
-    float *best;     /* MinPts insertion buffer (workspace, keeps process() frame small) */
-    size_t n_seeds;
-    size_t n_done;
     uint16_t *live; /* brute force only: unprocessed points (reuses the unused grid index) */
     size_t n_live;
-    uint16_t *order; /* optional outputs */
-    float *core;
-    uint16_t *pred;
-    /* on-the-fly ExtractDBSCAN (filter) */
-    int16_t *labels;
-    float eps_prime;
-    int32_t id;
-    size_t cur_count;
-    int32_t best_id;
-    size_t best_count;
-    size_t n_noise;
 } optics_ctx_t;
-
-static int is_done(const optics_ctx_t *c, size_t i)
-{
-    const unsigned bit = ((unsigned)c->done[i >> 3] >> (unsigned)(i & 7u)) & 1u;
-    int r = 0;
-    if (bit != 0u) {
-        r = 1;
-    }
-    return r;
-}
-
-/* (reach, index) lexicographic order: the tie rule that makes every variant identical. */
-static int key_less(const float *reach, uint16_t a, uint16_t b)
-{
-    const float ra = reach[a];
-    const float rb = reach[b];
-    return ra < rb || (ra == rb && a < b);
-}
-
-static void heap_sift_up(optics_ctx_t *c, size_t k0)
-{
-    size_t k = k0;
-    uint16_t v = c->seeds[k];
-    while (k > 0u) {
-        size_t parent = (k - 1u) >> 1;
-        uint16_t pv = c->seeds[parent];
-        if (!key_less(c->reach, v, pv)) {
-            break;
-        }
-        c->seeds[k] = pv;
-        c->pos[pv] = (uint16_t)k;
-        k = parent;
-    }
-    c->seeds[k] = v;
-    c->pos[v] = (uint16_t)k;
-}
-
-static void heap_sift_down(optics_ctx_t *c, size_t k0)
-{
-    size_t k = k0;
-    uint16_t v = c->seeds[k];
-    size_t m = c->n_seeds;
-    while (2u * k + 1u < m) { /* k at least doubles: <= log2(m) rounds */
-        size_t child = 2u * k + 1u;
-        uint16_t cv = c->seeds[child];
-        if (child + 1u < m && key_less(c->reach, c->seeds[child + 1u], cv)) {
-            ++child;
-            cv = c->seeds[child];
-        }
-        if (!key_less(c->reach, cv, v)) {
-            break;
-        }
-        c->seeds[k] = cv;
-        c->pos[cv] = (uint16_t)k;
-        k = child;
-    }
-    c->seeds[k] = v;
-    c->pos[v] = (uint16_t)k;
-}
-
-static uint16_t seeds_pop_min(optics_ctx_t *c)
-{
-    uint16_t q;
-    if (c->mode == MAGCAL_OPTICS_CLASSIC) {
-        q = c->seeds[0];
-        c->n_seeds--;
-        c->pos[q] = POS_NONE;
-        if (c->n_seeds > 0u) {
-            c->seeds[0] = c->seeds[c->n_seeds];
-            heap_sift_down(c, 0u);
-        }
-    } else {
-        size_t k;
-        size_t best = 0u;
-        const float *reach = c->reach;
-        uint16_t bq = c->seeds[0];
-        float br = reach[bq];
-        for (k = 1u; k < c->n_seeds; ++k) {
-            uint16_t s = c->seeds[k];
-            float r = reach[s];
-            if (r < br || (r == br && s < bq)) {
-                br = r;
-                bq = s;
-                best = k;
-            }
-        }
-        q = bq;
-        c->n_seeds--;
-        c->seeds[best] = c->seeds[c->n_seeds];
-    }
-    return q;
-}
-
-static void extract_step(optics_ctx_t *c, size_t p, float core_p)
-{
-    int16_t lab;
-    if (c->reach[p] > c->eps_prime) {
-        if (core_p <= c->eps_prime) {
-            if (c->id >= 0 && c->cur_count > c->best_count) {
-                c->best_count = c->cur_count;
-                c->best_id = c->id;
-            }
-            c->id++;
-            c->cur_count = 1u;
-            lab = (int16_t)c->id;
-        } else {
-            lab = MAGCAL_OPTICS_NOISE;
-            c->n_noise++;
-        }
-    } else {
-        lab = (int16_t)c->id;
-        if (c->id >= 0) {
-            c->cur_count++;
-        } else {
-            c->n_noise++; /* unreachable in practice: the first point has reach = inf */
-        }
-    }
-    c->labels[p] = lab;
-}
-
-/*
- * Reach decrease of unprocessed neighbour j of core point p to r (algorithms.md 4.2): callers
- * computed r = max(core(p), d) and checked r < reach[j] (strict: the first value set keeps ties).
- */
-static void update_one(optics_ctx_t *c, size_t p, size_t j, float r)
-{
-    float old = c->reach[j];
-    c->reach[j] = r;
-    if (c->pred != NULL) {
-        c->pred[j] = (uint16_t)p;
-    }
-    if (c->mode == MAGCAL_OPTICS_CLASSIC) {
-        if (c->pos[j] == POS_NONE) {
-            c->seeds[c->n_seeds] = (uint16_t)j;
-            c->n_seeds++;
-            heap_sift_up(c, c->n_seeds - 1u);
-        } else {
-            heap_sift_up(c, c->pos[j]);
-        }
-    } else if (old == INFINITY) {
-        c->seeds[c->n_seeds] = (uint16_t)j;
-        c->n_seeds++;
-    } else {
-        /* already a seed: its key decreased in place (the list is scanned, not a heap) */
-    }
-}
-
-/*
- * r = max(core, sqrt(d2)) without the square root when d2 <= core^2 (then r = core exactly:
- * sqrtf is monotone and core = sqrtf(core2)), so most reach candidates cost no sqrt and no bit of
- * the result changes.
- */
-static float reach_of(float d2, float core_p, float core2)
-{
-    return d2 <= core2 ? core_p : sqrtf(d2);
-}
 
 /*
  * Brute-force pass 2 over the compact list of unprocessed points (the point processed last is
@@ -221,9 +46,9 @@ static void live_pass(optics_ctx_t *c, size_t p, float core_p, float core2)
             float dy = pts[j].y - py;
             float d2 = dx * dx + dy * dy;
             if (d2 <= eps2) {
-                float r = reach_of(d2, core_p, core2);
-                if (r < c->reach[j]) {
-                    update_one(c, p, j, r);
+                float r = magcal_ocore_reach_of(d2, core_p, core2);
+                if (r < c->oc.reach[j]) {
+                    magcal_ocore_update(&c->oc, p, j, r);
                 }
             }
         }
@@ -231,29 +56,11 @@ static void live_pass(optics_ctx_t *c, size_t p, float core_p, float core2)
     c->n_live = w;
 }
 
-/* Insert d2 into the ascending MinPts buffer best[0..cnt) of capacity m (when full, the largest
- * value drops out); returns the new count. */
-static size_t best_insert(float *best, size_t cnt, size_t m, float d2)
-{
-    size_t t = m - 1u;
-    size_t count = cnt;
-    if (count < m) {
-        t = count;
-        ++count;
-    }
-    while (t > 0u && best[t - 1u] > d2) {
-        best[t] = best[t - 1u];
-        --t;
-    }
-    best[t] = d2;
-    return count;
-}
-
 static void process(optics_ctx_t *c, size_t p)
 {
-    float *best = c->best;
+    float *best = c->oc.best;
     size_t cnt = 0u;
-    size_t m = c->min_pts;
+    size_t m = c->oc.min_pts;
     size_t ri;
     size_t k;
     const magcal_vec2_t *pts = c->pts;
@@ -263,11 +70,7 @@ static void process(optics_ctx_t *c, size_t p)
     float core_p = INFINITY;
     magcal_nbr_ranges_t rg;
 
-    c->done[p >> 3] = (uint8_t)(c->done[p >> 3] | (1u << (p & 7u)));
-    if (c->order != NULL) {
-        c->order[c->n_done] = (uint16_t)p;
-    }
-    c->n_done++;
+    magcal_ocore_mark(&c->oc, p);
 
     /* Pass 1: core distance = MinPts-th smallest d^2 (p itself included, d = 0), kept in a
      * sorted insertion buffer; once it holds m values only d^2 < best[m-1] (<= eps^2) enters. */
@@ -281,7 +84,7 @@ static void process(optics_ctx_t *c, size_t p)
             float dy = pts[k].y - py;
             float d2 = dx * dx + dy * dy;
             if (d2 <= lim && (cnt < m || d2 < lim)) {
-                cnt = best_insert(best, cnt, m, d2);
+                cnt = magcal_ocore_best_insert(best, cnt, m, d2);
                 if (cnt == m) {
                     lim = best[m - 1u];
                 }
@@ -295,18 +98,18 @@ static void process(optics_ctx_t *c, size_t p)
             float dy = pts[j].y - py;
             float d2 = dx * dx + dy * dy;
             if (d2 <= eps2 && (cnt < m || d2 < best[m - 1u])) {
-                cnt = best_insert(best, cnt, m, d2);
+                cnt = magcal_ocore_best_insert(best, cnt, m, d2);
             }
         }
     }
     if (cnt >= m) {
         core_p = sqrtf(best[m - 1u]);
     }
-    if (c->core != NULL) {
-        c->core[p] = core_p;
+    if (c->oc.core != NULL) {
+        c->oc.core[p] = core_p;
     }
-    if (c->labels != NULL) {
-        extract_step(c, p, core_p);
+    if (c->oc.labels != NULL) {
+        magcal_ocore_extract_step(&c->oc, p, core_p);
     }
     if (c->live != NULL) {
         live_pass(c, p, cnt >= m ? core_p : INFINITY, cnt >= m ? best[m - 1u] : INFINITY);
@@ -322,10 +125,10 @@ static void process(optics_ctx_t *c, size_t p)
             float dx = pts[j].x - px;
             float dy = pts[j].y - py;
             float d2 = dx * dx + dy * dy;
-            if (d2 <= eps2 && is_done(c, j) == 0) {
-                float r = reach_of(d2, core_p, best[m - 1u]);
-                if (r < c->reach[j]) {
-                    update_one(c, p, j, r);
+            if (d2 <= eps2 && magcal_ocore_is_done(&c->oc, j) == 0) {
+                float r = magcal_ocore_reach_of(d2, core_p, best[m - 1u]);
+                if (r < c->oc.reach[j]) {
+                    magcal_ocore_update(&c->oc, p, j, r);
                 }
             }
         }
@@ -335,18 +138,9 @@ static void process(optics_ctx_t *c, size_t p)
 static void optics_loop(optics_ctx_t *c)
 {
     size_t s;
-    size_t i;
-    for (i = 0; i < c->n; ++i) {
-        c->reach[i] = INFINITY;
-        if (c->pred != NULL) {
-            c->pred[i] = MAGCAL_OPTICS_NO_PRED;
-        }
-        if (c->mode == MAGCAL_OPTICS_CLASSIC) {
-            c->pos[i] = POS_NONE;
-        }
-    }
-    (void)memset(c->done, 0, (c->n + 7u) / 8u);
+    magcal_ocore_start(&c->oc, c->n);
     if (!c->nb.use_grid) {
+        size_t i;
         c->live = c->nb.idx;
         for (i = 0; i < c->n; ++i) {
             c->live[i] = (uint16_t)i;
@@ -354,35 +148,28 @@ static void optics_loop(optics_ctx_t *c)
         c->n_live = c->n;
     }
 
-    c->n_seeds = 0u;
-    c->n_done = 0u;
     for (s = 0; s < c->n; ++s) {
-        if (is_done(c, s) != 0) {
+        if (magcal_ocore_is_done(&c->oc, s) != 0) {
             continue;
         }
         process(c, s);
-        while (c->n_seeds > 0u) {
-            process(c, seeds_pop_min(c));
+        while (c->oc.n_seeds > 0u) {
+            process(c, magcal_ocore_pop_min(&c->oc));
         }
     }
-    if (c->labels != NULL && c->id >= 0 && c->cur_count > c->best_count) {
-        c->best_count = c->cur_count;
-        c->best_id = c->id;
-    }
+    magcal_ocore_finish(&c->oc);
 }
 
 static magcal_status_t check_points(const magcal_vec2_t *pts, size_t n, size_t min_n)
 {
-    if (n > MAGCAL_MAX_SAMPLES) {
-        return MAGCAL_ERR_ARG;
-    }
-    if (n < min_n) {
-        return MAGCAL_ERR_TOO_FEW_POINTS;
+    const magcal_status_t st = magcal_ocore_check_n(n, min_n);
+    if (st != MAGCAL_OK) {
+        return st;
     }
     return magcal_nbr_check_finite(pts, n);
 }
 
-static magcal_status_t check_cfg(const magcal_optics_cfg_t *cfg)
+magcal_status_t magcal_ocore_check_cfg(const magcal_optics_cfg_t *cfg)
 {
     /* eps^2 is the neighbour threshold: it must be a normal float (neighbors.h) */
     if (magcal_nbr_eps_ok(cfg->eps) == 0) {
@@ -418,30 +205,16 @@ static optics_ctx_t *ctx_setup(const magcal_optics_cfg_t *cfg, const magcal_vec2
     c->pts = pts;
     c->n = n;
     c->eps2 = cfg->eps * cfg->eps;
-    c->min_pts = cfg->min_pts;
-    c->mode = cfg->order;
-    c->seeds = (uint16_t *)(void *)w;
-    c->pos = c->seeds + n;
-    c->done = w + 4u * n + MAGCAL_NEIGHBORS_WORKSPACE_LEN(n);
-    c->best = (float *)(void *)(w + MAGCAL_OPTICS_BEST_OFFSET_(n));
-    c->id = -1;
-    c->best_id = -1;
+    c->oc.min_pts = cfg->min_pts;
+    c->oc.mode = cfg->order;
+    c->oc.seeds = (uint16_t *)(void *)w;
+    c->oc.pos = c->oc.seeds + n;
+    c->oc.done = w + 4u * n + MAGCAL_NEIGHBORS_WORKSPACE_LEN(n);
+    c->oc.best = (float *)(void *)(w + MAGCAL_OPTICS_BEST_OFFSET_(n));
+    c->oc.id = -1;
+    c->oc.best_id = -1;
     magcal_nbr_build(&c->nb, pts, n, cfg->eps, cfg->neighbors, w + 4u * n, window);
     return c;
-}
-
-static void fill_info(magcal_optics_result_t *info, const optics_ctx_t *c, float eps,
-                      float eps_prime)
-{
-    if (info == NULL) {
-        return;
-    }
-    (void)memset(info, 0, sizeof *info);
-    info->eps = eps;
-    info->eps_prime = eps_prime;
-    info->min_pts = c->min_pts;
-    info->neighbors = c->nb.use_grid ? MAGCAL_NEIGHBORS_GRID : MAGCAL_NEIGHBORS_BRUTE;
-    info->largest_id = MAGCAL_OPTICS_NOISE;
 }
 
 magcal_status_t magcal_optics_run(const magcal_optics_cfg_t *cfg, const magcal_vec2_t *pts,
@@ -455,7 +228,7 @@ magcal_status_t magcal_optics_run(const magcal_optics_cfg_t *cfg, const magcal_v
         core == NULL) {
         return MAGCAL_ERR_NULL;
     }
-    st = check_cfg(cfg);
+    st = magcal_ocore_check_cfg(cfg);
     if (st != MAGCAL_OK) {
         return st;
     }
@@ -470,12 +243,12 @@ magcal_status_t magcal_optics_run(const magcal_optics_cfg_t *cfg, const magcal_v
         return MAGCAL_ERR_WORKSPACE;
     }
     c = ctx_setup(cfg, pts, n, (uint8_t *)work, NULL);
-    c->reach = reach;
-    c->order = order;
-    c->core = core;
-    c->pred = pred;
+    c->oc.reach = reach;
+    c->oc.order = order;
+    c->oc.core = core;
+    c->oc.pred = pred;
     optics_loop(c);
-    fill_info(info, c, cfg->eps, cfg->eps);
+    magcal_ocore_fill_info(info, &c->oc, c->nb.use_grid, cfg->eps, cfg->eps);
     return MAGCAL_OK;
 }
 
@@ -582,8 +355,8 @@ magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, v
 #define AUTO_MIN_REL (1.0f / 256.0f)
 #define AUTO_MAX_REL 1.0f
 
-/* k-th smallest of a[0..n-1] (a is permuted). Iterative Hoare selection, no recursion. */
-static float select_kth(float *a, size_t n, size_t k)
+/* (declared in optics_core.h: the 3-D automatic parameters use it too) */
+float magcal_ocore_select_kth(float *a, size_t n, size_t k)
 {
     size_t lo = 0u;
     size_t hi = n - 1u;
@@ -711,7 +484,7 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
         if (k < AUTO_MIN_N) {
             break; /* keep the previous estimate */
         }
-        ncx = select_kth(a, k, k / 2u);
+        ncx = magcal_ocore_select_kth(a, k, k / 2u);
         k = 0u;
         for (i = 0; i < n; ++i) {
             float dx = pts[i].x - cx;
@@ -721,7 +494,7 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
                 ++k;
             }
         }
-        ncy = select_kth(a, k, k / 2u);
+        ncy = magcal_ocore_select_kth(a, k, k / 2u);
         k = 0u;
         for (i = 0; i < n; ++i) {
             float dx = pts[i].x - cx;
@@ -735,7 +508,7 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
         }
         cx = ncx;
         cy = ncy;
-        rad = select_kth(a, k, k / 2u);
+        rad = magcal_ocore_select_kth(a, k, k / 2u);
         if (!(rad > 0.0f) || !magcal_isfinite_f(rad)) {
             return MAGCAL_ERR_DEGENERATE;
         }
@@ -798,7 +571,7 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
     {
         const size_t last = m - 1u;
         const float qpos = AUTO_CORE_Q * (float)last;
-        coreq = select_kth(b, m, (size_t)qpos);
+        coreq = magcal_ocore_select_kth(b, m, (size_t)qpos);
     }
     e = AUTO_SAFETY * (link2 > coreq ? link2 : coreq);
     if (e < AUTO_MIN_REL * rad) {
@@ -857,7 +630,6 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
     float window[4];
     const float *win = NULL;
     uint8_t *w = (uint8_t *)work;
-    size_t i;
     if (cfg == NULL || pts == NULL || work == NULL || inlier_mask == NULL) {
         return MAGCAL_ERR_NULL;
     }
@@ -871,7 +643,7 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
         }
         use.eps = 1.0f;
         use.min_pts = (uint16_t)AUTO_MIN_PTS;
-        st = check_cfg(&use);
+        st = magcal_ocore_check_cfg(&use);
         if (st == MAGCAL_OK) {
             st = check_points(pts, n, AUTO_MIN_N);
         }
@@ -892,7 +664,7 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
         window[3] = cr[1] + 1.5f * cr[2] + eps_prime;
         win = window;
     } else {
-        st = check_cfg(&use);
+        st = magcal_ocore_check_cfg(&use);
         if (st != MAGCAL_OK) {
             return st;
         }
@@ -909,26 +681,10 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
         }
     }
     c = ctx_setup(&use, pts, n, w + MAGCAL_OPTICS_FILTER_RUN_OFFSET_(n), win);
-    c->reach = (float *)work;
-    c->labels = (int16_t *)(void *)(w + 4u * n);
-    c->eps_prime = eps_prime;
+    c->oc.reach = (float *)work;
+    c->oc.labels = (int16_t *)(void *)(w + 4u * n);
+    c->oc.eps_prime = eps_prime;
     optics_loop(c);
-    fill_info(info, c, use.eps, eps_prime);
-    if (c->best_id < 0) {
-        if (info != NULL) {
-            info->n_noise = (uint16_t)c->n_noise;
-        }
-        return MAGCAL_ERR_ALL_NOISE;
-    }
-    for (i = 0; i < n; ++i) {
-        inlier_mask[i] = (c->labels[i] == c->best_id) ? 1u : 0u;
-    }
-    if (info != NULL) {
-        const int32_t count = c->id + 1;
-        info->n_clusters = (uint16_t)count;
-        info->largest_id = (int16_t)c->best_id;
-        info->n_inliers = (uint16_t)c->best_count;
-        info->n_noise = (uint16_t)c->n_noise;
-    }
-    return MAGCAL_OK;
+    magcal_ocore_fill_info(info, &c->oc, c->nb.use_grid, use.eps, eps_prime);
+    return magcal_ocore_filter_out(&c->oc, n, inlier_mask, info);
 }

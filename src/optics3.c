@@ -1,8 +1,9 @@
 /*
  * OPTICS on 3-D samples: ordering loop (brute-force eps-queries), automatic parameters and the
  * one-call filter (algorithms.md 4; rule and measurements in optics.h and docs/optics.md "3-D").
- * Kept apart from optics.c so the tuned 2-D code and its bit-identical cross-checks stay as they
- * are; ExtractDBSCAN and the largest-cluster rule are shared (they never look at coordinates).
+ * Only the coordinates and the neighbour search are 3-D here: the seed heap/list, reach updates,
+ * on-the-fly extraction and MinPts buffer are optics_core.h (shared with optics.c), and
+ * ExtractDBSCAN and the largest-cluster rule are optics.c's (they never look at coordinates).
  */
 #include <math.h>
 #include <string.h>
@@ -10,19 +11,15 @@
 #include "magcal/optics.h"
 #include "magcal_internal.h"
 #include "neighbors.h"
+#include "optics_core.h"
 
-#define POS_NONE 0xFFFFu
-
-/* Everything the ordering loop needs; optional outputs are NULL when not wanted. */
+/* Everything the ordering loop needs: the dimension-free state (optics_core.h, shared with the
+ * 2-D loop) and the 3-D points and neighbour search. */
 typedef struct {
+    magcal_ocore_t oc;
     const magcal_vec3_t *pts;
     size_t n;
     float eps2;
-    uint16_t min_pts;
-    magcal_optics_order_t mode;
-    float *reach;    /* n, working reach (final when a point is processed) */
-    uint16_t *seeds; /* heap (CLASSIC) or unordered list (IMPROVED) */
-    uint16_t *pos;   /* CLASSIC: heap position of each point or POS_NONE */
     uint16_t *live;  /* BRUTE: unprocessed points, compacted; GRID: points sorted by bucket */
     uint16_t *start; /* GRID: G + 1 bucket starts into live[] */
     int use_grid;
@@ -36,22 +33,7 @@ typedef struct {
     uint32_t nbkt;   /* GRID: buckets G */
     int dense;       /* GRID: gw*gh*gd <= G, row-major cell number is the bucket */
     uint16_t bk[27]; /* GRID: distinct buckets of the current query */
-    uint8_t *done;   /* processed bits */
-    float *best;     /* MinPts insertion buffer (workspace, keeps process3() frame small) */
-    size_t n_seeds;
-    size_t n_done;
     size_t n_live;
-    uint16_t *order; /* optional outputs */
-    float *core;
-    uint16_t *pred;
-    /* on-the-fly ExtractDBSCAN (filter) */
-    int16_t *labels;
-    float eps_prime;
-    int32_t id;
-    size_t cur_count;
-    int32_t best_id;
-    size_t best_count;
-    size_t n_noise;
 } optics3_ctx_t;
 
 /* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
@@ -64,159 +46,6 @@ static float dist2(const magcal_vec3_t *a, const magcal_vec3_t *b)
     float dy = a->y - b->y;
     float dz = a->z - b->z;
     return dx * dx + dy * dy + dz * dz;
-}
-
-/* (reach, index) lexicographic order: the tie rule that makes both ordering modes identical. */
-static int key_less3(const float *reach, uint16_t a, uint16_t b)
-{
-    const float ra = reach[a];
-    const float rb = reach[b];
-    return ra < rb || (ra == rb && a < b);
-}
-
-static void heap_up3(optics3_ctx_t *c, size_t k0)
-{
-    size_t k = k0;
-    uint16_t v = c->seeds[k];
-    while (k > 0u) {
-        size_t parent = (k - 1u) >> 1;
-        uint16_t pv = c->seeds[parent];
-        if (!key_less3(c->reach, v, pv)) {
-            break;
-        }
-        c->seeds[k] = pv;
-        c->pos[pv] = (uint16_t)k;
-        k = parent;
-    }
-    c->seeds[k] = v;
-    c->pos[v] = (uint16_t)k;
-}
-
-static void heap_down3(optics3_ctx_t *c, size_t k0)
-{
-    size_t k = k0;
-    uint16_t v = c->seeds[k];
-    size_t m = c->n_seeds;
-    while (2u * k + 1u < m) { /* k at least doubles: <= log2(m) rounds */
-        size_t child = 2u * k + 1u;
-        uint16_t cv = c->seeds[child];
-        if (child + 1u < m && key_less3(c->reach, c->seeds[child + 1u], cv)) {
-            ++child;
-            cv = c->seeds[child];
-        }
-        if (!key_less3(c->reach, cv, v)) {
-            break;
-        }
-        c->seeds[k] = cv;
-        c->pos[cv] = (uint16_t)k;
-        k = child;
-    }
-    c->seeds[k] = v;
-    c->pos[v] = (uint16_t)k;
-}
-
-static uint16_t seeds_pop3(optics3_ctx_t *c)
-{
-    uint16_t q;
-    if (c->mode == MAGCAL_OPTICS_CLASSIC) {
-        q = c->seeds[0];
-        c->n_seeds--;
-        c->pos[q] = POS_NONE;
-        if (c->n_seeds > 0u) {
-            c->seeds[0] = c->seeds[c->n_seeds];
-            heap_down3(c, 0u);
-        }
-    } else {
-        size_t k;
-        size_t best = 0u;
-        const float *reach = c->reach;
-        uint16_t bq = c->seeds[0];
-        float br = reach[bq];
-        for (k = 1u; k < c->n_seeds; ++k) {
-            uint16_t s = c->seeds[k];
-            float r = reach[s];
-            if (r < br || (r == br && s < bq)) {
-                br = r;
-                bq = s;
-                best = k;
-            }
-        }
-        q = bq;
-        c->n_seeds--;
-        c->seeds[best] = c->seeds[c->n_seeds];
-    }
-    return q;
-}
-
-/* ExtractDBSCAN step for the point just processed (same rule as magcal_optics_extract_dbscan). */
-static void extract_step3(optics3_ctx_t *c, size_t p, float core_p)
-{
-    int16_t lab;
-    if (c->reach[p] > c->eps_prime) {
-        if (core_p <= c->eps_prime) {
-            if (c->id >= 0 && c->cur_count > c->best_count) {
-                c->best_count = c->cur_count;
-                c->best_id = c->id;
-            }
-            c->id++;
-            c->cur_count = 1u;
-            lab = (int16_t)c->id;
-        } else {
-            lab = MAGCAL_OPTICS_NOISE;
-            c->n_noise++;
-        }
-    } else {
-        lab = (int16_t)c->id;
-        if (c->id >= 0) {
-            c->cur_count++;
-        } else {
-            c->n_noise++; /* unreachable in practice: the first point has reach = inf */
-        }
-    }
-    c->labels[p] = lab;
-}
-
-/* Reach decrease of unprocessed neighbour j of core point p to r (< reach[j], checked by the
- * caller; strict, so the first value set keeps ties). */
-static void update_one3(optics3_ctx_t *c, size_t p, size_t j, float r)
-{
-    float old = c->reach[j];
-    c->reach[j] = r;
-    if (c->pred != NULL) {
-        c->pred[j] = (uint16_t)p;
-    }
-    if (c->mode == MAGCAL_OPTICS_CLASSIC) {
-        if (c->pos[j] == POS_NONE) {
-            c->seeds[c->n_seeds] = (uint16_t)j;
-            c->n_seeds++;
-            heap_up3(c, c->n_seeds - 1u);
-        } else {
-            heap_up3(c, c->pos[j]);
-        }
-    } else if (old == INFINITY) {
-        c->seeds[c->n_seeds] = (uint16_t)j;
-        c->n_seeds++;
-    } else {
-        /* already a seed: its key decreased in place (the list is scanned, not a heap) */
-    }
-}
-
-/* Insert d2 into the ascending buffer best[0..cnt) of capacity m (when full, the largest value
- * drops out); returns the new count. */
-static size_t best_insert3(float *best, size_t cnt, size_t m, float d2)
-{
-    size_t t = m - 1u;
-    size_t count = cnt;
-    if (count < m) {
-        t = count;
-        ++count;
-    }
-    while (t > 0u && best[t - 1u] > d2) {
-        best[t] = best[t - 1u];
-        --t;
-    }
-    best[t] = d2;
-    return count;
 }
 
 /* ---- 3-D grid (neighbour search GRID) -------------------------------------------------------
@@ -381,9 +210,9 @@ static size_t grid3_query(const optics3_ctx_t *c, size_t p, uint16_t *bk)
 /* PROCESS(p) with the grid: both passes over the candidate buckets. */
 static void process3_grid(optics3_ctx_t *c, size_t p, float core_p0)
 {
-    float *best = c->best;
+    float *best = c->oc.best;
     uint16_t *bk = c->bk;
-    const size_t m = c->min_pts;
+    const size_t m = c->oc.min_pts;
     const magcal_vec3_t *pts = c->pts;
     const magcal_vec3_t *pp = &pts[p];
     const float eps2 = c->eps2;
@@ -397,7 +226,7 @@ static void process3_grid(optics3_ctx_t *c, size_t p, float core_p0)
         for (k = c->start[bk[t]]; k < c->start[bk[t] + 1u]; ++k) {
             float d2 = dist2(&pts[c->live[k]], pp);
             if (d2 <= eps2 && (cnt < m || d2 < best[m - 1u])) {
-                cnt = best_insert3(best, cnt, m, d2);
+                cnt = magcal_ocore_best_insert(best, cnt, m, d2);
             }
         }
     }
@@ -405,11 +234,11 @@ static void process3_grid(optics3_ctx_t *c, size_t p, float core_p0)
         core2 = best[m - 1u];
         core_p = sqrtf(core2);
     }
-    if (c->core != NULL) {
-        c->core[p] = core_p;
+    if (c->oc.core != NULL) {
+        c->oc.core[p] = core_p;
     }
-    if (c->labels != NULL) {
-        extract_step3(c, p, core_p);
+    if (c->oc.labels != NULL) {
+        magcal_ocore_extract_step(&c->oc, p, core_p);
     }
     if (cnt < m) {
         return;
@@ -418,10 +247,10 @@ static void process3_grid(optics3_ctx_t *c, size_t p, float core_p0)
         for (k = c->start[bk[t]]; k < c->start[bk[t] + 1u]; ++k) {
             size_t j = c->live[k];
             float d2 = dist2(&pts[j], pp);
-            if (d2 <= eps2 && ((((unsigned)c->done[j >> 3] >> (unsigned)(j & 7u)) & 1u) == 0u)) {
-                float r = d2 <= core2 ? core_p : sqrtf(d2);
-                if (r < c->reach[j]) {
-                    update_one3(c, p, j, r);
+            if (d2 <= eps2 && magcal_ocore_is_done(&c->oc, j) == 0) {
+                float r = magcal_ocore_reach_of(d2, core_p, core2);
+                if (r < c->oc.reach[j]) {
+                    magcal_ocore_update(&c->oc, p, j, r);
                 }
             }
         }
@@ -438,9 +267,9 @@ static void process3_grid(optics3_ctx_t *c, size_t p, float core_p0)
  */
 static void process3(optics3_ctx_t *c, size_t p)
 {
-    float *best = c->best;
+    float *best = c->oc.best;
     size_t cnt = 0u;
-    const size_t m = c->min_pts;
+    const size_t m = c->oc.min_pts;
     const size_t n = c->n;
     const magcal_vec3_t *pts = c->pts;
     const magcal_vec3_t *pp = &pts[p];
@@ -453,11 +282,7 @@ static void process3(optics3_ctx_t *c, size_t p)
     size_t w = 0u;
     size_t k;
 
-    c->done[p >> 3] = (uint8_t)(c->done[p >> 3] | (1u << (p & 7u)));
-    if (c->order != NULL) {
-        c->order[c->n_done] = (uint16_t)p;
-    }
-    c->n_done++;
+    magcal_ocore_mark(&c->oc, p);
     if (c->use_grid != 0) {
         process3_grid(c, p, core_p);
         return;
@@ -466,7 +291,7 @@ static void process3(optics3_ctx_t *c, size_t p)
     for (k = 0; k < n; ++k) {
         float d2 = dist2(&pts[k], pp);
         if (d2 <= lim && (cnt < m || d2 < lim)) {
-            cnt = best_insert3(best, cnt, m, d2);
+            cnt = magcal_ocore_best_insert(best, cnt, m, d2);
             if (cnt == m) {
                 lim = best[m - 1u];
             }
@@ -476,11 +301,11 @@ static void process3(optics3_ctx_t *c, size_t p)
         core2 = best[m - 1u];
         core_p = sqrtf(core2);
     }
-    if (c->core != NULL) {
-        c->core[p] = core_p;
+    if (c->oc.core != NULL) {
+        c->oc.core[p] = core_p;
     }
-    if (c->labels != NULL) {
-        extract_step3(c, p, core_p);
+    if (c->oc.labels != NULL) {
+        magcal_ocore_extract_step(&c->oc, p, core_p);
     }
     for (k = 0; k < nl; ++k) {
         size_t j = live[k];
@@ -492,9 +317,9 @@ static void process3(optics3_ctx_t *c, size_t p)
         if (core_p < INFINITY) {
             float d2 = dist2(&pts[j], pp);
             if (d2 <= eps2) {
-                float r = d2 <= core2 ? core_p : sqrtf(d2);
-                if (r < c->reach[j]) {
-                    update_one3(c, p, j, r);
+                float r = magcal_ocore_reach_of(d2, core_p, core2);
+                if (r < c->oc.reach[j]) {
+                    magcal_ocore_update(&c->oc, p, j, r);
                 }
             }
         }
@@ -505,70 +330,38 @@ static void process3(optics3_ctx_t *c, size_t p)
 static void optics3_loop(optics3_ctx_t *c)
 {
     size_t s;
-    size_t i;
-    for (i = 0; i < c->n; ++i) {
-        c->reach[i] = INFINITY;
-        if (c->use_grid == 0) {
+    magcal_ocore_start(&c->oc, c->n);
+    if (c->use_grid == 0) {
+        size_t i;
+        for (i = 0; i < c->n; ++i) {
             c->live[i] = (uint16_t)i;
         }
-        if (c->pred != NULL) {
-            c->pred[i] = MAGCAL_OPTICS_NO_PRED;
-        }
-        if (c->mode == MAGCAL_OPTICS_CLASSIC) {
-            c->pos[i] = POS_NONE;
-        }
     }
-    (void)memset(c->done, 0, (c->n + 7u) / 8u);
     c->n_live = c->n;
-    c->n_seeds = 0u;
-    c->n_done = 0u;
     for (s = 0; s < c->n; ++s) {
-        if ((((unsigned)c->done[s >> 3] >> (unsigned)(s & 7u)) & 1u) != 0u) {
+        if (magcal_ocore_is_done(&c->oc, s) != 0) {
             continue;
         }
         process3(c, s);
-        while (c->n_seeds > 0u) { /* each pop processes one new point: <= n rounds in total */
-            process3(c, seeds_pop3(c));
+        while (c->oc.n_seeds > 0u) { /* each pop processes one new point: <= n rounds in total */
+            process3(c, magcal_ocore_pop_min(&c->oc));
         }
     }
-    if (c->labels != NULL && c->id >= 0 && c->cur_count > c->best_count) {
-        c->best_count = c->cur_count;
-        c->best_id = c->id;
-    }
+    magcal_ocore_finish(&c->oc);
 }
 
 static magcal_status_t check_points3(const magcal_vec3_t *pts, size_t n, size_t min_n)
 {
     size_t i;
-    if (n > MAGCAL_MAX_SAMPLES) {
-        return MAGCAL_ERR_ARG;
-    }
-    if (n < min_n) {
-        return MAGCAL_ERR_TOO_FEW_POINTS;
+    const magcal_status_t st = magcal_ocore_check_n(n, min_n);
+    if (st != MAGCAL_OK) {
+        return st;
     }
     for (i = 0; i < n; ++i) {
         if (!magcal_isfinite_f(pts[i].x) || !magcal_isfinite_f(pts[i].y) ||
             !magcal_isfinite_f(pts[i].z)) {
             return MAGCAL_ERR_NONFINITE;
         }
-    }
-    return MAGCAL_OK;
-}
-
-static magcal_status_t check_cfg3(const magcal_optics_cfg_t *cfg)
-{
-    /* eps^2 is the neighbour threshold: the same accepted range as in 2-D (neighbors.h) */
-    if (magcal_nbr_eps_ok(cfg->eps) == 0) {
-        return MAGCAL_ERR_ARG;
-    }
-    if (cfg->min_pts < 2u || cfg->min_pts > MAGCAL_MAX_MIN_PTS) {
-        return MAGCAL_ERR_ARG;
-    }
-    if (cfg->order != MAGCAL_OPTICS_CLASSIC && cfg->order != MAGCAL_OPTICS_IMPROVED) {
-        return MAGCAL_ERR_ARG;
-    }
-    if (cfg->neighbors != MAGCAL_NEIGHBORS_BRUTE && cfg->neighbors != MAGCAL_NEIGHBORS_GRID) {
-        return MAGCAL_ERR_ARG;
     }
     return MAGCAL_OK;
 }
@@ -586,32 +379,18 @@ static optics3_ctx_t *ctx3_setup(const magcal_optics_cfg_t *cfg, const magcal_ve
     c->pts = pts;
     c->n = n;
     c->eps2 = cfg->eps * cfg->eps;
-    c->min_pts = cfg->min_pts;
-    c->mode = cfg->order;
-    c->seeds = (uint16_t *)(void *)w;
-    c->pos = c->seeds + n;
-    c->live = c->pos + n;
+    c->oc.min_pts = cfg->min_pts;
+    c->oc.mode = cfg->order;
+    c->oc.seeds = (uint16_t *)(void *)w;
+    c->oc.pos = c->oc.seeds + n;
+    c->live = c->oc.pos + n;
     c->start = c->live + n;
-    c->done = w + 6u * n + 2u * (MAGCAL_OPTICS_GRID_CELLS(n) + 1u);
-    c->best = (float *)(void *)(w + MAGCAL_OPTICS3_BEST_OFFSET_(n));
-    c->id = -1;
-    c->best_id = -1;
+    c->oc.done = w + 6u * n + 2u * (MAGCAL_OPTICS_GRID_CELLS(n) + 1u);
+    c->oc.best = (float *)(void *)(w + MAGCAL_OPTICS3_BEST_OFFSET_(n));
+    c->oc.id = -1;
+    c->oc.best_id = -1;
     grid3_build(c, cfg->eps, cfg->neighbors);
     return c;
-}
-
-static void fill_info3(magcal_optics_result_t *info, const optics3_ctx_t *c, float eps,
-                       float eps_prime)
-{
-    if (info == NULL) {
-        return;
-    }
-    (void)memset(info, 0, sizeof *info);
-    info->eps = eps;
-    info->eps_prime = eps_prime;
-    info->min_pts = c->min_pts;
-    info->neighbors = c->use_grid != 0 ? MAGCAL_NEIGHBORS_GRID : MAGCAL_NEIGHBORS_BRUTE;
-    info->largest_id = MAGCAL_OPTICS_NOISE;
 }
 
 magcal_status_t magcal_optics_run3(const magcal_optics_cfg_t *cfg, const magcal_vec3_t *pts,
@@ -625,7 +404,7 @@ magcal_status_t magcal_optics_run3(const magcal_optics_cfg_t *cfg, const magcal_
         core == NULL) {
         return MAGCAL_ERR_NULL;
     }
-    st = check_cfg3(cfg);
+    st = magcal_ocore_check_cfg(cfg);
     if (st != MAGCAL_OK) {
         return st;
     }
@@ -640,12 +419,12 @@ magcal_status_t magcal_optics_run3(const magcal_optics_cfg_t *cfg, const magcal_
         return MAGCAL_ERR_WORKSPACE;
     }
     c = ctx3_setup(cfg, pts, n, (uint8_t *)work);
-    c->reach = reach;
-    c->order = order;
-    c->core = core;
-    c->pred = pred;
+    c->oc.reach = reach;
+    c->oc.order = order;
+    c->oc.core = core;
+    c->oc.pred = pred;
     optics3_loop(c);
-    fill_info3(info, c, cfg->eps, cfg->eps);
+    magcal_ocore_fill_info(info, &c->oc, c->use_grid, cfg->eps, cfg->eps);
     return MAGCAL_OK;
 }
 
@@ -677,43 +456,6 @@ typedef struct {
     float eps_prime;
     magcal_neighbors_t neighbors;
 } auto3_t;
-
-/* k-th smallest of a[0..n-1] (a is permuted). Iterative Hoare selection, no recursion. */
-static float select_kth3(float *a, size_t n, size_t k)
-{
-    size_t lo = 0u;
-    size_t hi = n - 1u;
-    while (lo < hi) {
-        float pivot = a[lo + (hi - lo) / 2u];
-        size_t i = lo;
-        size_t j = hi;
-        size_t guard;
-        for (guard = lo; guard <= hi; ++guard) { /* i grows by >= 1 per round: <= hi-lo+1 rounds */
-            float t;
-            while (a[i] < pivot) {
-                ++i;
-            }
-            while (a[j] > pivot) {
-                --j;
-            }
-            if (i >= j) {
-                break;
-            }
-            t = a[i];
-            a[i] = a[j];
-            a[j] = t;
-            ++i;
-            --j;
-        }
-        /* now a[lo..j] <= pivot <= a[j+1..hi] (Hoare partition, j in [lo, hi-1]) */
-        if (k <= j) {
-            hi = j;
-        } else {
-            lo = j + 1u;
-        }
-    }
-    return a[k];
-}
 
 /* Copy coordinate `axis` (0 x, 1 y, 2 z) of the points within sqrt(lim2) of c (all when lim2 is
  * infinite) into a; returns how many. */
@@ -794,11 +536,11 @@ static magcal_status_t auto_run3(const magcal_optics_cfg_t *cfg, const magcal_ve
         if (k < AUTO3_MIN_N) {
             break; /* keep the previous estimate */
         }
-        nc.x = select_kth3(a, k, k / 2u);
+        nc.x = magcal_ocore_select_kth(a, k, k / 2u);
         (void)gather3(pts, n, &cen, lim2, 1u, a);
-        nc.y = select_kth3(a, k, k / 2u);
+        nc.y = magcal_ocore_select_kth(a, k, k / 2u);
         (void)gather3(pts, n, &cen, lim2, 2u, a);
-        nc.z = select_kth3(a, k, k / 2u);
+        nc.z = magcal_ocore_select_kth(a, k, k / 2u);
         k = 0u;
         for (i = 0; i < n; ++i) {
             if (lim2 == INFINITY || dist2(&pts[i], &cen) <= lim2) {
@@ -807,7 +549,7 @@ static magcal_status_t auto_run3(const magcal_optics_cfg_t *cfg, const magcal_ve
             }
         }
         cen = nc;
-        rad = select_kth3(a, k, k / 2u);
+        rad = magcal_ocore_select_kth(a, k, k / 2u);
         if (!(rad > 0.0f) || !magcal_isfinite_f(rad) || magcal_nbr_eps_ok(rad) == 0) {
             return MAGCAL_ERR_DEGENERATE;
         }
@@ -834,12 +576,12 @@ static magcal_status_t auto_run3(const magcal_optics_cfg_t *cfg, const magcal_ve
      * shrinks with the unprocessed list, is cheaper (filter at n = 1000: 43.7 M -> 36.7 M) */
     use.neighbors = MAGCAL_NEIGHBORS_BRUTE;
     c = ctx3_setup(&use, pts, n, w + MAGCAL_OPTICS3_FILTER_RUN_OFFSET_(n));
-    c->reach = (float *)(void *)w;
-    c->core = (float *)(void *)(w + 4u * n);
-    c->order = (uint16_t *)(void *)(w + 8u * n);
-    au->reach = c->reach;
-    au->core = c->core;
-    au->order = c->order;
+    c->oc.reach = (float *)(void *)w;
+    c->oc.core = (float *)(void *)(w + 4u * n);
+    c->oc.order = (uint16_t *)(void *)(w + 8u * n);
+    au->reach = c->oc.reach;
+    au->core = c->oc.core;
+    au->order = c->oc.order;
     optics3_loop(c);
     au->neighbors = c->use_grid != 0 ? MAGCAL_NEIGHBORS_GRID : MAGCAL_NEIGHBORS_BRUTE;
     au->eps = use.eps;
@@ -908,7 +650,6 @@ magcal_status_t magcal_optics_filter3(const magcal_optics_cfg_t *cfg, const magc
     magcal_status_t st;
     float eps_prime;
     uint8_t *w = (uint8_t *)work;
-    size_t i;
     if (cfg == NULL || pts == NULL || work == NULL || inlier_mask == NULL) {
         return MAGCAL_ERR_NULL;
     }
@@ -925,12 +666,13 @@ magcal_status_t magcal_optics_filter3(const magcal_optics_cfg_t *cfg, const magc
         uint16_t count = 0u;
         int16_t id = MAGCAL_OPTICS_NOISE;
         size_t n_noise = 0u;
+        size_t i;
         if (cfg->eps != cfg->eps) {
             return MAGCAL_ERR_ARG; /* NaN is not "auto" */
         }
         use.eps = 1.0f;
         use.min_pts = (uint16_t)AUTO3_MIN_PTS;
-        st = check_cfg3(&use);
+        st = magcal_ocore_check_cfg(&use);
         if (st == MAGCAL_OK) {
             st = check_points3(pts, n, AUTO3_MIN_N);
         }
@@ -964,7 +706,7 @@ magcal_status_t magcal_optics_filter3(const magcal_optics_cfg_t *cfg, const magc
         }
         return st;
     }
-    st = check_cfg3(&use);
+    st = magcal_ocore_check_cfg(&use);
     if (st != MAGCAL_OK) {
         return st;
     }
@@ -980,26 +722,10 @@ magcal_status_t magcal_optics_filter3(const magcal_optics_cfg_t *cfg, const magc
         return MAGCAL_ERR_WORKSPACE;
     }
     c = ctx3_setup(&use, pts, n, w + MAGCAL_OPTICS3_FILTER_RUN_OFFSET_(n));
-    c->reach = (float *)work;
-    c->labels = (int16_t *)(void *)(w + 4u * n);
-    c->eps_prime = eps_prime;
+    c->oc.reach = (float *)work;
+    c->oc.labels = (int16_t *)(void *)(w + 4u * n);
+    c->oc.eps_prime = eps_prime;
     optics3_loop(c);
-    fill_info3(info, c, use.eps, eps_prime);
-    if (c->best_id < 0) {
-        if (info != NULL) {
-            info->n_noise = (uint16_t)c->n_noise;
-        }
-        return MAGCAL_ERR_ALL_NOISE;
-    }
-    for (i = 0; i < n; ++i) {
-        inlier_mask[i] = (c->labels[i] == c->best_id) ? 1u : 0u;
-    }
-    if (info != NULL) {
-        const int32_t count = c->id + 1;
-        info->n_clusters = (uint16_t)count;
-        info->largest_id = (int16_t)c->best_id;
-        info->n_inliers = (uint16_t)c->best_count;
-        info->n_noise = (uint16_t)c->n_noise;
-    }
-    return MAGCAL_OK;
+    magcal_ocore_fill_info(info, &c->oc, c->use_grid, use.eps, eps_prime);
+    return magcal_ocore_filter_out(&c->oc, n, inlier_mask, info);
 }
