@@ -11,10 +11,10 @@
 #include <string.h>
 
 #include "magcal/optics.h"
+#include "test_csv.h"
 #include "unity.h"
 
 #define MAX_ROWS 32768u
-#define LINE_LEN 1024u
 #define N_TARGET 1000u
 
 static magcal_vec3_t g_rows[MAX_ROWS];
@@ -25,65 +25,27 @@ static uint32_t g_work[(MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(MAGCAL_MAX_SAMPLES) 
 void setUp(void) {}
 void tearDown(void) {}
 
-/* Column index of name in a header line, or -1. */
-static int col_index(const char *header, const char *name)
-{
-    char buf[LINE_LEN];
-    char *tok;
-    int i = 0;
-    strncpy(buf, header, sizeof buf - 1u);
-    buf[sizeof buf - 1u] = '\0';
-    for (tok = strtok(buf, ",\r\n"); tok != NULL; tok = strtok(NULL, ",\r\n"), ++i) {
-        if (strcmp(tok, name) == 0) {
-            return i;
-        }
-    }
-    return -1;
-}
-
 /* mx, my, mz of a CSV under data/real (rows with a non-finite value skipped); returns the count. */
+static double g_cells[MAX_ROWS * 3u];
+
 static size_t read_mxyz(const char *name)
 {
+    static const char *const cols[3] = {"mx", "my", "mz"};
     char path[512];
-    char line[LINE_LEN];
-    FILE *f;
-    int ix, iy, iz;
+    size_t nr;
+    size_t i;
     size_t n = 0u;
     (void)snprintf(path, sizeof path, "%s/data/real/%s/data.csv", MAGCAL_SHARED_DIR, name);
-    f = fopen(path, "r");
-    TEST_ASSERT_NOT_NULL_MESSAGE(f, path);
-    TEST_ASSERT_NOT_NULL(fgets(line, sizeof line, f));
-    ix = col_index(line, "mx");
-    iy = col_index(line, "my");
-    iz = col_index(line, "mz");
-    TEST_ASSERT_TRUE(ix >= 0 && iy >= 0 && iz >= 0);
-    while (n < MAX_ROWS && fgets(line, sizeof line, f) != NULL) {
-        char *p = line;
-        int c = 0;
-        float v3[3] = {NAN, NAN, NAN};
-        while (p != NULL && *p != '\0') {
-            char *end;
-            float v = strtof(p, &end);
-            if (end == p) {
-                v = NAN;
-            }
-            v3[0] = c == ix ? v : v3[0];
-            v3[1] = c == iy ? v : v3[1];
-            v3[2] = c == iz ? v : v3[2];
-            p = strchr(p, ',');
-            if (p != NULL) {
-                ++p;
-            }
-            ++c;
-        }
-        if (isfinite(v3[0]) && isfinite(v3[1]) && isfinite(v3[2])) {
-            g_rows[n].x = v3[0];
-            g_rows[n].y = v3[1];
-            g_rows[n].z = v3[2];
+    nr = test_read_csv(path, cols, 3u, g_cells, MAX_ROWS);
+    for (i = 0u; i < nr; ++i) {
+        const double *r = &g_cells[i * 3u];
+        if (isfinite(r[0]) && isfinite(r[1]) && isfinite(r[2])) {
+            g_rows[n].x = (float)r[0];
+            g_rows[n].y = (float)r[1];
+            g_rows[n].z = (float)r[2];
             ++n;
         }
     }
-    fclose(f);
     return n;
 }
 
