@@ -43,6 +43,7 @@ static const char k_usage[] =
     "  --field-unit U      aided: unit of mx,my,mz: uT (default) | nT | gauss\n"
     "  --year Y            aided: decimal year of the dump (default: decimal_year column, else t as Unix time)\n"
     "  --aided-objective O aided: combined (vector + total-field residual, default) | vector\n"
+    "  --model M           aided: reference field model wmm2025 (default, 2025-2030) | igrf14 (1900-2030)\n"
     "  --prior FILE.json   aided: prior (factory) calibration: the JSON report of a --mode 3d or aided run\n"
     "                      (keys matrix, offset; dump units) (default: identity G, zero V)\n"
     "  -h, --help          this text\n"
@@ -243,6 +244,7 @@ typedef struct {
     double year;             /* NaN = from the dump */
     const char *prior_path;  /* aided: --prior, NULL = identity */
     const char *aided_objective; /* aided: --aided-objective, NULL = combined */
+    const char *model;           /* aided: --model wmm2025 | igrf14, NULL = wmm2025 */
 } cli_t;
 
 static int parse_args(int argc, char **argv, cli_t *c)
@@ -340,6 +342,12 @@ static int parse_args(int argc, char **argv, cli_t *c)
             }
             c->field_unit = v;
             ++i;
+        } else if (strcmp(a, "--model") == 0) {
+            if (strcmp(v, "wmm2025") != 0 && strcmp(v, "igrf14") != 0) {
+                return usage_error("--model must be wmm2025 or igrf14, got \"%s\"", v);
+            }
+            c->model = v;
+            ++i;
         } else if (strcmp(a, "--aided-objective") == 0) {
             if (strcmp(v, "combined") != 0 && strcmp(v, "vector") != 0) {
                 return usage_error("--aided-objective must be combined or vector, got \"%s\"", v);
@@ -379,6 +387,9 @@ static int parse_args(int argc, char **argv, cli_t *c)
     }
     if (strcmp(c->mode, "3d") == 0 && strcmp(c->cal.filter, "dbscan") == 0) {
         return usage_error("%s", "--filter dbscan is 2-D only (3d: optics, optics-classic or none)");
+    }
+    if (c->model != NULL && strcmp(c->mode, "aided") != 0) {
+        return usage_error("%s", "--model is for the aided mode (the reference field of magcal_aided_update)");
     }
     if (c->aided_objective != NULL && strcmp(c->mode, "aided") != 0) {
         return usage_error("%s", "--aided-objective is for the aided mode");
@@ -625,6 +636,8 @@ int main(int argc, char **argv)
         char perr[512];
         ao.unit_per_nt = (strcmp(c.field_unit, "nT") == 0) ? 1.0 : (strcmp(c.field_unit, "gauss") == 0) ? 1e-5 : 1e-3;
         ao.year = c.year;
+        ao.igrf = (c.model != NULL && strcmp(c.model, "igrf14") == 0);
+        r.geomag_model = ao.igrf ? "IGRF-14" : "WMM2025";
         r.field_unit = c.field_unit;
         r.prior = (c.prior_path != NULL) ? c.prior_path : "identity";
         r.aided_objective = (c.aided_objective != NULL) ? c.aided_objective : "combined";

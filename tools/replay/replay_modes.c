@@ -460,19 +460,20 @@ int replay_wmm_rows(const magcal_replay_csv_t *d, const replay_aided_opts_t *o, 
          * thresholds ~1 m and ~1 h change the field by far less than 1 nT */
         if (!(fabs(lat[i] - last[0]) < 1e-5 && fabs(lon[i] - last[1]) < 1e-5 && fabs(hgt[i] - last[2]) < 1e-3 &&
               fabs(y - last[3]) < 1e-4)) {
-            st = magcal_geomag_eval(&magcal_geomag_wmm2025, (float)lat[i], (float)lon[i], (float)hgt[i], (float)y, &f);
+            st = magcal_geomag_eval(o->igrf ? &magcal_geomag_igrf14 : &magcal_geomag_wmm2025, (float)lat[i],
+                                    (float)lon[i], (float)hgt[i], (float)y, &f);
             last[0] = lat[i];
             last[1] = lon[i];
             last[2] = hgt[i];
             last[3] = y;
             if (st == MAGCAL_ERR_OUT_OF_VALIDITY) {
-                (void)snprintf(err, err_len, "row %lu: epoch %.4f outside WMM2025 validity (2025.0-2030.0)",
-                               (unsigned long)i, y);
+                (void)snprintf(err, err_len, "row %lu: epoch %.4f outside %s validity (%s)", (unsigned long)i, y,
+                               o->igrf ? "IGRF-14" : "WMM2025", o->igrf ? "1900.0-2030.0" : "2025.0-2030.0; --model igrf14 covers 1900-2030");
                 return REPLAY_EXIT_INPUT;
             }
             if (st != MAGCAL_OK) {
-                (void)snprintf(err, err_len, "row %lu: WMM2025 rejects lat %g lon %g height %g km: %s",
-                               (unsigned long)i, lat[i], lon[i], hgt[i], magcal_status_str(st));
+                (void)snprintf(err, err_len, "row %lu: %s rejects lat %g lon %g height %g km: %s", (unsigned long)i,
+                               o->igrf ? "IGRF-14" : "WMM2025", lat[i], lon[i], hgt[i], magcal_status_str(st));
                 return REPLAY_EXIT_INPUT;
             }
         }

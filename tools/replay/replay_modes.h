@@ -48,6 +48,7 @@ double replay_swing_apply(const replay_swing_t *sw, double psi_c_deg);
 /** Options of the aided mode. */
 typedef struct {
     double unit_per_nt; /* dump field unit per nT (uT: 1e-3, gauss: 1e-5, nT: 1) */
+    int igrf;           /* 1: IGRF-14 (1900.0-2030.0), 0: WMM2025 (2025.0-2030.0) */
     double year;        /* NaN: from the decimal_year column, else t as Unix time */
 } replay_aided_opts_t;
 
@@ -76,7 +77,7 @@ int replay_read_prior(const char *path, double unit_per_nt, double field_ref, ma
                       double *g_scale, char *err, size_t err_len);
 
 /**
- * Per row: the WMM2025 reference field (NED, dump unit) and declination from lat/lon/height and
+ * Per row: the WMM2025 (or IGRF-14, o->igrf) reference field (NED, dump unit) and declination from lat/lon/height and
  * the epoch. Rows where a cell is missing or the model rejects the input get NaN. Returns
  * REPLAY_EXIT_OK, or REPLAY_EXIT_INPUT with a message in err (no epoch source, date outside WMM).
  */

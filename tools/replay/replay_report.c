@@ -113,6 +113,7 @@ static void add_aided(cJSON *o, const replay_report_t *r)
     cJSON_AddStringToObject(a, "field_unit", r->field_unit != NULL ? r->field_unit : "uT");
     cJSON_AddStringToObject(a, "prior", r->prior != NULL ? r->prior : "identity");
     cJSON_AddStringToObject(a, "objective", r->aided_objective != NULL ? r->aided_objective : "combined");
+    cJSON_AddStringToObject(a, "model", r->geomag_model != NULL ? r->geomag_model : "WMM2025");
     if (r->prior != NULL && r->prior_g_scale != 1.0) {
         cJSON_AddNumberToObject(a, "prior_g_scale", sig7(r->prior_g_scale));
     }
@@ -338,8 +339,9 @@ static void print_aided(const replay_report_t *r)
     printf("\n");
     printf("  gated             dop %lu, raw %lu, field %lu, vector %lu\n", (unsigned long)r->aided_gated[1],
            (unsigned long)r->aided_gated[2], (unsigned long)r->aided_gated[3], (unsigned long)r->aided_gated[4]);
-    printf("  B_ref (first)     NED (%.6g, %.6g, %.6g), declination %.3f deg (WMM2025)\n", r->b_ref_first[0],
-           r->b_ref_first[1], r->b_ref_first[2], r->decl_first_deg);
+    printf("  B_ref (first)     NED (%.6g, %.6g, %.6g), declination %.3f deg (%s)\n", r->b_ref_first[0],
+           r->b_ref_first[1], r->b_ref_first[2], r->decl_first_deg,
+           r->geomag_model != NULL ? r->geomag_model : "WMM2025");
     if (r->have_aided) {
         printf("  convergence       at accepted epoch %ld (row %ld); %u directions from the prior; "
                "min_eig %.3g, weak_std %.3g, residual RMS %.4g\n",

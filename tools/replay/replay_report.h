@@ -138,6 +138,7 @@ typedef struct {
     unsigned aided_flags, n_prior_dirs;
     double min_eig, weak_std, resid_rms_aided;
     const char *aided_objective;  /* input: "combined" (default) | "vector" (--aided-objective) */
+    const char *geomag_model;     /* aided: "WMM2025" | "IGRF-14" (--model) */
     double resid_f_rms_aided;     /* a-priori total-field residual RMS of the last window */
     size_t n_total_field;         /* accepted epochs whose total-field residual entered the objective */
 } replay_report_t;

@@ -646,6 +646,15 @@ def case_aided(a):
     check(vad.get("objective") == "vector" and vad.get("n_total_field") == 0, "vector run: %r" % vad)
     check(vg < 0.02 and vv < 1.5, "vector objective: G %.4f, V %.3f" % (vg, vv))
     run(a, ["--mode", "2d", "--aided-objective", "vector", path], 1)
+    # --model igrf14: the same site from IGRF-14 (WMM and IGRF agree to ~0.1 uT here), same accuracy class
+    irep = run_json(a, ["--mode", "aided", "--model", "igrf14", "--cal-range", "0:%d" % truth["n_cal"], path])
+    iad = irep.get("aided", {})
+    db = math.dist(iad.get("b_ref_ned_first", [0, 0, 0]), truth["b_ref_ned_uT"])
+    check(iad.get("model") == "IGRF-14" and ad.get("model") == "WMM2025", "model names %r %r" % (iad.get("model"), ad.get("model")))
+    check(0.0 < db < 0.3, "IGRF-14 vs WMM2025 B_ref differ by %.3f uT" % db)
+    check(irep.get("status") == "ok" and g_rel_err(irep.get("matrix", [[0] * 3] * 3), Gt) < 0.02,
+          "igrf14 run: status %r" % irep.get("status"))
+    run(a, ["--mode", "2d", "--model", "igrf14", path], 1)
     # the same rows with the INS level (roll = pitch = 0 for all): no excitation of z -> unobservable
     rows = read_csv_rows(path)
     lvl = os.path.join(a.work_dir, "aided_level.csv")
