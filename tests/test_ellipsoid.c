@@ -78,28 +78,6 @@ static double v_err(const magcal_ellipsoid_cal_t *cal)
     return sqrt(dx * dx + dy * dy + dz * dz);
 }
 
-/* ||G^T G - (W W^T)^-1|| / ||(W W^T)^-1|| (Frobenius): G is W^-1 up to a left rotation. */
-static double q_err(const magcal_ellipsoid_cal_t *cal, double w[3][3])
-{
-    double wi[3][3], q[3][3], num = 0, den = 0;
-    int i, j, k;
-    test_mat3_inv(w, wi);
-    for (i = 0; i < 3; ++i) {
-        for (j = 0; j < 3; ++j) {
-            double qt = 0, qh = 0;
-            for (k = 0; k < 3; ++k) {
-                qt += wi[k][i] * wi[k][j];
-                qh += (double)cal->g[k][i] * cal->g[k][j];
-            }
-            q[i][j] = qt;
-            num += (qh - qt) * (qh - qt);
-            den += qt * qt;
-        }
-    }
-    (void)q;
-    return sqrt(num / den);
-}
-
 /* Tilt-compensated magnetic heading (deg) of a calibrated body field h (algorithms.md 6). */
 static double heading_deg(const double h[3], double roll, double pitch)
 {
@@ -143,7 +121,7 @@ static void test_ellipsoid_fit_random_attitudes_recovers_v_and_q(void)
     TEST_ASSERT_EQUAL_INT(MAGCAL_ELLIPSOID_MODEL_QUADRIC9, r.model);
     /* algorithms.md 7.2 (double): 0.001 uT and 1.5e-4; float32 + 3-sigma clipping: 0.02 uT, 1e-3. */
     TEST_ASSERT_TRUE(v_err(&r.cal) < 0.02);
-    TEST_ASSERT_TRUE(q_err(&r.cal, w) < 1e-3);
+    TEST_ASSERT_TRUE(test_q_err(&r.cal, w) < 1e-3);
     TEST_ASSERT_FLOAT_WITHIN(1e-3f, (float)f_ref(), r.cal.field);
     TEST_ASSERT_TRUE(r.coverage > 0.9f);
     /* Noise 0.05 uT through G (|G| ~ 1): residual RMS near 0.05. */
@@ -164,7 +142,7 @@ static void test_ellipsoid_fit_quadric10_matches_quadric9(void)
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r10));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ELLIPSOID_MODEL_QUADRIC10, r10.model);
     TEST_ASSERT_TRUE(v_err(&r10.cal) < 0.02);
-    TEST_ASSERT_TRUE(q_err(&r10.cal, w) < 1e-3);
+    TEST_ASSERT_TRUE(test_q_err(&r10.cal, w) < 1e-3);
     /* The two fits differ only in the normalisation constraint (algorithms.md: 2e-5 in double). */
     TEST_ASSERT_FLOAT_WITHIN(0.01f, r9.cal.v.x, r10.cal.v.x);
     TEST_ASSERT_FLOAT_WITHIN(0.01f, r9.cal.v.y, r10.cal.v.y);
@@ -273,7 +251,7 @@ static void test_ellipsoid_fit_outliers_rejected_by_residual_gate(void)
     cfg.outlier_k = 0.0f;
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT + NOUT, &cfg, &rn));
     TEST_ASSERT_TRUE(v_err(&r.cal) < 0.03);
-    TEST_ASSERT_TRUE(q_err(&r.cal, w) < 1.5e-3);
+    TEST_ASSERT_TRUE(test_q_err(&r.cal, w) < 1.5e-3);
     TEST_ASSERT_TRUE(r.n_rejected >= NOUT && r.n_rejected <= NOUT + 10);
     /* without the gate the same data give a clearly worse fit */
     TEST_ASSERT_EQUAL_UINT32(0u, (uint32_t)rn.n_rejected);

@@ -460,25 +460,12 @@ static double v_err(const magcal_ellipsoid_cal_t *cal)
     return sqrt(dx * dx + dy * dy + dz * dz);
 }
 
-/* ||G^T G - (W W^T)^-1||_F / ||(W W^T)^-1||_F: G is W^-1 up to a left rotation. */
+/* Shape error against the test's truth W (test_make_w_full). */
 static double q_err(const magcal_ellipsoid_cal_t *cal)
 {
-    double w[3][3], wi[3][3], num = 0, den = 0;
-    int i, j, k;
+    double w[3][3];
     test_make_w_full(w);
-    test_mat3_inv(w, wi);
-    for (i = 0; i < 3; ++i) {
-        for (j = 0; j < 3; ++j) {
-            double qt = 0, qh = 0;
-            for (k = 0; k < 3; ++k) {
-                qt += wi[k][i] * wi[k][j];
-                qh += (double)cal->g[k][i] * cal->g[k][j];
-            }
-            num += (qh - qt) * (qh - qt);
-            den += qt * qt;
-        }
-    }
-    return sqrt(num / den);
+    return test_q_err(cal, w);
 }
 
 typedef struct {

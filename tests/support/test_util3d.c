@@ -88,3 +88,22 @@ void test_make_w_full(double w[3][3])
     test_mat3_mul(t1, sf, t2);
     test_mat3_mul(t2, mis, w);
 }
+
+double test_q_err(const magcal_ellipsoid_cal_t *cal, double w[3][3])
+{
+    double wi[3][3], num = 0, den = 0;
+    int i, j, k;
+    test_mat3_inv(w, wi);
+    for (i = 0; i < 3; ++i) {
+        for (j = 0; j < 3; ++j) {
+            double qt = 0, qh = 0;
+            for (k = 0; k < 3; ++k) {
+                qt += wi[k][i] * wi[k][j];
+                qh += (double)cal->g[k][i] * cal->g[k][j];
+            }
+            num += (qh - qt) * (qh - qt);
+            den += qt * qt;
+        }
+    }
+    return sqrt(num / den);
+}
