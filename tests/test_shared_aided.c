@@ -52,9 +52,9 @@ static size_t load(const char *name)
     size_t k;
     size_t n = 0u;
     (void)snprintf(path, sizeof path, "%s/data/real/%s/data.csv", MAGCAL_SHARED_DIR, name);
-    n_imu = test_read_csv(path, imu_cols, 6u, g_imu, MAX_IMU);
+    n_imu = test_read_csv(path, imu_cols, 6u, 6u, g_imu, MAX_IMU);
     (void)snprintf(path, sizeof path, "%s/data/real/%s/gps.csv", MAGCAL_SHARED_DIR, name);
-    n_gps = test_read_csv(path, gps_cols, 5u, g_gps, MAX_FIX);
+    n_gps = test_read_csv(path, gps_cols, 5u, 5u, g_gps, MAX_FIX);
     for (i = 0u; i < n_gps; ++i) {
         const double *g = &g_gps[i * 5u];
         double s[5] = {0.0, 0.0, 0.0, 0.0, 0.0};

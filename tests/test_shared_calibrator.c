@@ -38,26 +38,16 @@ static double g_cells[MAX_ROWS * 3u];
 
 static size_t read_csv(const char *path, const char *xcol, const char *ycol)
 {
-    const char *cols[3] = {xcol, ycol, "glitch"};
-    char line[TEST_CSV_LINE_LEN];
-    size_t ncols = 2u;
-    size_t nr;
+    const char *cols[3] = {xcol, ycol, "glitch"}; /* glitch optional */
+    size_t nr = test_read_csv(path, cols, 3u, 2u, g_cells, MAX_ROWS);
     size_t i;
     size_t n = 0u;
-    FILE *f = fopen(path, "r");
-    TEST_ASSERT_NOT_NULL_MESSAGE(f, path);
-    TEST_ASSERT_NOT_NULL(fgets(line, sizeof line, f));
-    fclose(f);
-    if (strstr(line, "glitch") != NULL) {
-        ncols = 3u;
-    }
-    nr = test_read_csv(path, cols, ncols, g_cells, MAX_ROWS);
     for (i = 0u; i < nr; ++i) {
-        const double *r = &g_cells[i * ncols];
+        const double *r = &g_cells[i * 3u];
         if (isfinite(r[0]) && isfinite(r[1])) {
             g_rows[n].x = (float)r[0];
             g_rows[n].y = (float)r[1];
-            g_glitch[n] = (uint8_t)(ncols == 3u && r[2] > 0.5);
+            g_glitch[n] = (uint8_t)(r[2] > 0.5); /* NaN (no column) compares false */
             ++n;
         }
     }

@@ -36,7 +36,7 @@ static size_t read_mxyz(const char *name)
     size_t i;
     size_t n = 0u;
     (void)snprintf(path, sizeof path, "%s/data/real/%s/data.csv", MAGCAL_SHARED_DIR, name);
-    nr = test_read_csv(path, cols, 3u, g_cells, MAX_ROWS);
+    nr = test_read_csv(path, cols, 3u, 3u, g_cells, MAX_ROWS);
     for (i = 0u; i < nr; ++i) {
         const double *r = &g_cells[i * 3u];
         if (isfinite(r[0]) && isfinite(r[1]) && isfinite(r[2])) {

@@ -9,9 +9,11 @@
 
 /**
  * Read the named columns of a CSV with one header line into out[row * ncols + k] (double; an
- * unparsable or missing cell is NaN, "nan" parses as NaN). At most max_rows rows; a missing
- * column or file fails the calling test. Returns the number of rows read.
+ * unparsable or missing cell is NaN, "nan" parses as NaN). The first n_required names must be
+ * in the header (else the calling test fails); the others are optional and read as NaN when the
+ * header lacks them. At most max_rows rows; a missing file fails the test. Returns the row count.
  */
-size_t test_read_csv(const char *path, const char *const *names, size_t ncols, double *out, size_t max_rows);
+size_t test_read_csv(const char *path, const char *const *names, size_t ncols, size_t n_required, double *out,
+                     size_t max_rows);
 
 #endif /* MAGCAL_TEST_CSV_H */
