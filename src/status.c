@@ -39,6 +39,13 @@ const char *magcal_status_str(magcal_status_t status)
     case MAGCAL_ERR_NOT_CONVERGED: return "not converged";
     case MAGCAL_ERR_ZERO_FIELD: return "field too small";
     case MAGCAL_ERR_GATED: return "rejected by gate";
+    case MAGCAL_ERR_NO_MOTION: return "no motion";
+    case MAGCAL_ERR_SINGLE_AXIS: return "single rotation axis";
+    case MAGCAL_ERR_FIELD_MAGNITUDE: return "field magnitude implausible";
+    case MAGCAL_ERR_CONFIG_MISMATCH: return "configuration mismatch";
+    case MAGCAL_ERR_ALIGNMENT: return "misaligned buffer";
+    case MAGCAL_ERR_CRC: return "record CRC mismatch";
+    case MAGCAL_ERR_VERSION: return "record version mismatch";
     default: return "unknown";
     }
 }

@@ -50,7 +50,14 @@ typedef enum {
     MAGCAL_ERR_UNOBSERVABLE = -31,    /**< excitation too poor: part of the model is unobservable */
     MAGCAL_ERR_NOT_CONVERGED = -32,   /**< iterative solver did not converge within its bound */
     MAGCAL_ERR_ZERO_FIELD = -33,      /**< field vector too small to define a heading */
-    MAGCAL_ERR_GATED = -34            /**< epoch rejected by a gate (field magnitude, DOP, rate) */
+    MAGCAL_ERR_GATED = -34,           /**< epoch rejected by a gate (field magnitude, DOP, rate) */
+    MAGCAL_ERR_NO_MOTION = -35,       /**< samples do not move: the sensor was at rest (noise around one point) */
+    MAGCAL_ERR_SINGLE_AXIS = -36,     /**< samples sweep one cone (rotation about one axis only, e.g. level turns): 3-D centre unobservable along it */
+    MAGCAL_ERR_FIELD_MAGNITUDE = -37, /**< fitted field magnitude outside the band around the expected field */
+    MAGCAL_ERR_CONFIG_MISMATCH = -38, /**< caller compiled with other compile-time limits (struct layout) than the library */
+    MAGCAL_ERR_ALIGNMENT = -39,       /**< caller buffer not aligned as its declaration helper requires */
+    MAGCAL_ERR_CRC = -40,             /**< stored record fails its CRC (corrupted flash) */
+    MAGCAL_ERR_VERSION = -41          /**< stored record has another magic or layout version */
 } magcal_status_t;
 
 /**
