@@ -214,9 +214,6 @@ magcal_status_t magcal_errmodel_apply(const magcal_errmodel_t *model, float psi_
 /* ------------------------------------------------------------------------------------------- */
 /* The patent's power series in radians (error = measured - true) */
 
-
-
-
 magcal_status_t magcal_errmodel_poly_to_power(const magcal_errmodel_t *model,
                                               magcal_errmodel_power_order_t order, float *coef_rad,
                                               size_t cap, size_t *n_coef)
@@ -271,7 +268,8 @@ magcal_status_t magcal_errmodel_poly_to_power(const magcal_errmodel_t *model,
         }
     }
     for (i = 0u; i < nc; ++i) {
-        float v = -acc[i] * MAGCAL_RAD_PER_DEG_F; /* degrees -> radians, reference - measured -> error */
+        float v =
+            -acc[i] * MAGCAL_RAD_PER_DEG_F; /* degrees -> radians, reference - measured -> error */
         if (!magcal_isfinite_f(v)) {
             return MAGCAL_ERR_NONFINITE;
         }

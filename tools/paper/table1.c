@@ -64,7 +64,9 @@ static imu_t g_imu[MAX_IMU];
 static gps_t g_gps[MAX_GPS];
 static magcal_vec2_t g_cal_pts[CAP];
 static uint8_t g_mask[CAP];
-static uint32_t g_work[(MAGCAL_CALIBRATOR_WORKSPACE_LEN(CAP) + MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(CAP) + 3u) / 4u];
+static uint32_t
+    g_work[(MAGCAL_CALIBRATOR_WORKSPACE_LEN(CAP) + MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(CAP) + 3u) /
+           4u];
 static magcal_vec2_t g_buf[CAP];
 static magcal_calibrator_t g_calib;
 
@@ -144,8 +146,8 @@ static double decimal_year(double unix_t)
     time_t tt = (time_t)unix_t;
     struct tm *g = gmtime(&tt);
     float y0 = 0.0f;
-    if (g == NULL ||
-        magcal_geomag_decimal_year(g->tm_year + 1900, g->tm_mon + 1, g->tm_mday, &y0) != MAGCAL_OK) {
+    if (g == NULL || magcal_geomag_decimal_year(g->tm_year + 1900, g->tm_mon + 1, g->tm_mday,
+                                                &y0) != MAGCAL_OK) {
         return 2024.0;
     }
     return (double)y0 + (double)(g->tm_hour * 3600 + g->tm_min * 60 + g->tm_sec) / 86400.0 / 365.25;
@@ -197,7 +199,7 @@ typedef struct {
     int ok;
     magcal_status_t st;
     unsigned used;
-    double offset;       /* mean error on the calibration turn */
+    double offset; /* mean error on the calibration turn */
     double sse, sse_card, sse_abs;
     long n, n_card;
 } score_t;
@@ -385,8 +387,8 @@ static void run_methods(rec_t *r)
                         oc.eps = eps;
                         oc.eps_prime = eps_p;
                         oc.min_pts = 8u; /* the paper's m */
-                        s->st = magcal_optics_filter(&oc, g_cal_pts, r->n_cal, g_work, sizeof g_work,
-                                                     g_mask, &info);
+                        s->st = magcal_optics_filter(&oc, g_cal_pts, r->n_cal, g_work,
+                                                     sizeof g_work, g_mask, &info);
                     }
                     mask = g_mask;
                     s->used = 0;
@@ -435,8 +437,8 @@ static void print_rec(const rec_t *r)
     int mth, f;
     printf("\n### %s: calibration turn %.1f..%.1f s (%u samples), declination %.2f deg, "
            "%ld steady verification epochs (%ld near N/E/S/W)\n\n",
-           r->name, r->t_start - g_imu[0].t, r->t_end - g_imu[0].t, r->n_cal, r->decl,
-           r->s[0][0].n, r->s[0][0].n_card);
+           r->name, r->t_start - g_imu[0].t, r->t_end - g_imu[0].t, r->n_cal, r->decl, r->s[0][0].n,
+           r->s[0][0].n_card);
     printf("| method | form | samples used | offset on the turn (deg) | RMS, offset removed (deg) "
            "| at N/E/S/W +-15 deg | RMS, declination only |\n|---|---|---|---|---|---|---|\n");
     for (mth = 0; mth < N_METHODS; ++mth) {
