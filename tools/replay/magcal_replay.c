@@ -861,7 +861,7 @@ int main(int argc, char **argv)
         r.tilt_z_offset = (kz > 0u) ? sz / (double)kz : 0.0;
         r.tilt_hz_level = isfinite(c.inclination) ? -(double)res.cal.radius * tan(c.inclination * 3.14159265358979323846 / 180.0) : 0.0;
         r.tilt_field = "2d: h = (M (raw_xy - centre), mz - z_offset + hz_level)";
-        if (!isfinite(c.inclination)) {
+        if (!isfinite(c.inclination) && !vehicle) {
             fprintf(stderr, "magcal-replay: note: 2d tilt compensation without --inclination takes the "
                             "level vertical field as 0, which leaves most of the tilt error (docs/replay.md, "
                             "\"Tilt compensation\"); give --inclination, use --mode 3d, or --no-tilt\n");

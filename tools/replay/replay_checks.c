@@ -336,7 +336,8 @@ void replay_check_level(const magcal_replay_csv_t *d, const magcal_vec3_t *fed, 
     } else if (isfinite(tilt90) && tilt90 > 20.0) {
         (void)snprintf(why, sizeof why, "the accelerometer shows a tilt above %.0f deg on 10 %% of the "
                                          "calibration rows", tilt90);
-    } else if (r->have_geometry && r->spread_corrected > 0.08) {
+    } else if (r->have_geometry && r->spread_corrected > 0.08 && !(r->fit != NULL && strcmp(r->fit, "plain") == 0)) {
+        /* (not after the plain fit: its outliers alone leave such a spread) */
         (void)snprintf(why, sizeof why, "the corrected radius still varies by %.1f %% (std/mean): the samples "
                                          "fill the ellipse instead of lying on it, as a 3-D motion projected on "
                                          "the plane does", 100.0 * r->spread_corrected);
@@ -386,8 +387,9 @@ void replay_check_heading_pattern(const double *hdg_deg, const double *ref_deg, 
     } else if (re > 0.9 && fabs(me) > 10.0) {
         replay_warn(w, "heading_bias",
                     "heading RMS %.1f deg against the reference with a good fit (radius spread %.1fx smaller) "
-                    "and a constant bias of %+.1f deg: a rotated mounting or a wrong frame (%s); fit a compass "
-                    "swing with --ref-rows, or check the axes (--plane YX if x and y are swapped%s)",
+                    "and a constant bias of %+.1f deg: a wrong --declination (the reference is a true heading), a "
+                    "rotated mounting or a wrong frame (%s); fit a compass swing with --ref-rows, or check the "
+                    "axes (--plane YX if x and y are swapped%s)",
                     r->heading_rms_deg, spread_ratio, me,
                     fabs(fabs(me) - 180.0) < 20.0 ? "180 deg: x and y both negated?"
                     : fabs(fabs(me) - 90.0) < 20.0 ? "90 deg: an axis swapped and one negated?"
