@@ -96,7 +96,7 @@ def legend_labels(rep, groups):
         "other": "not calibration rows (%d)" % len(groups["other"]),
     }
     if groups["not_fed"]:
-        lab["not_fed"] = "calibration rows not fed: every %d-th fed (%d)" % (
+        lab["not_fed"] = "calibration rows skipped by the decimation k = %d (%d)" % (
             int(rep.get("decimation", 1)), len(groups["not_fed"]))
     return lab
 

@@ -983,6 +983,9 @@ int main(int argc, char **argv)
         r.spread_raw_all = spread(raw_rad, fedmask, n);
         r.spread_corrected = spread(cor_rad, use, n);
         heading_metrics(&r, ref != NULL ? ref : &k_nan, err_deg, flag, ref != NULL ? n : 0u);
+        if (!aided) {
+            replay_check_field_range(mode3d ? r.field3 : r.radius, !mode3d, r.unit, &r.warnings);
+        }
         if (!aided && r.n_heading > 0u) {
             double ratio = (mode3d ? r.spread_raw_all : r.spread_raw) / fmax(r.spread_corrected, 1e-12);
             replay_check_heading_pattern(hdg, ref, n, &r, ratio, &r.warnings);

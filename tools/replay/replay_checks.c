@@ -397,3 +397,21 @@ void replay_check_heading_pattern(const double *hdg_deg, const double *ref_deg, 
                     fabs(fabs(me) - 90.0) < 20.0 ? ", then negate one of them" : "");
     }
 }
+
+void replay_check_field_range(double magnitude, int horizontal, const char *unit, replay_warnings_t *w)
+{
+    /* Earth's field: 22..67 uT in total (WMM), its horizontal part 0..42 uT; the bounds leave room
+     * for a distorted installation, not for a wrong unit (x100, x1000) */
+    double ut, lo = horizontal ? 0.5 : 10.0, hi = 100.0;
+    if (unit == NULL || !isfinite(magnitude)) {
+        return;
+    }
+    ut = (strcmp(unit, "nT") == 0) ? magnitude * 1e-3 : (strcmp(unit, "gauss") == 0) ? magnitude * 100.0 : magnitude;
+    if (ut < lo || ut > hi) {
+        replay_warn(w, "field_range",
+                    "the calibrated %s is %.4g %s = %.4g uT, outside the %.3g..%.3g uT a magnetometer sees of "
+                    "the Earth's field (%s): is --field-unit %s right?",
+                    horizontal ? "radius (horizontal field)" : "field magnitude", magnitude, unit, ut, lo, hi,
+                    horizontal ? "its horizontal part is 0..42 uT" : "22..67 uT", unit);
+    }
+}

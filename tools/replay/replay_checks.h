@@ -58,4 +58,8 @@ void replay_check_level(const magcal_replay_csv_t *d, const magcal_vec3_t *fed, 
 void replay_check_heading_pattern(const double *hdg_deg, const double *ref_deg, size_t n_rows,
                                   const replay_report_t *r, double spread_ratio, replay_warnings_t *w);
 
+/** 2d / 3d with --field-unit: the calibrated radius (horizontal) or field magnitude outside what
+ *  the Earth's field gives in that unit (0.5..100 uT horizontal, 10..100 uT total). */
+void replay_check_field_range(double magnitude, int horizontal, const char *unit, replay_warnings_t *w);
+
 #endif

@@ -334,6 +334,12 @@ def rows_tumble_2d(a):
         _, rep = row(a, "3-D tumble replayed in 2-D (%s)" % dump.split(".")[0], ["--json", "--no-tilt", path],
                      (0, 3), "try --mode 3d")
         check("not_level" in warning_ids(rep), "%s: not_level id" % dump)
+    # a synthetic tumble (tools/gen_dump3d.py) the 2d calibration accepts: status ok, yet wrong
+    tumble = os.path.join(a.source_dir, "tools", "replay", "tests", "data", "tumble_outliers.csv")
+    _, rep = row(a, "3-D tumble replayed in 2-D (tumble_outliers: status ok)", ["--json", "--no-tilt", "--cal-range",
+                                                                                "0:600", tumble], 0, "try --mode 3d")
+    check(rep is not None and rep.get("status") == "ok" and rep.get("heading_rms_deg", 0) > 3.0,
+          "tumble_outliers in 2d: ok but wrong (RMS %r)" % (rep or {}).get("heading_rms_deg"))
     flat = os.path.join(a.source_dir, "tests", "data", "real", "lsm9ds1_pmodnav_flat_turns.csv")
     p = run(a, ["--json", flat])
     check("not_level" not in warning_ids(json.loads(p.stdout)), "flat turns: no not_level warning")
@@ -388,7 +394,13 @@ def rows_report(a):
         check(rep.get("field_unit") == "uT", "field_unit %r" % rep.get("field_unit"))
         check(rep.get("file") == "sub/rep.csv", "file as given: %r" % rep.get("file"))
         check(rep.get("missing_sector", {}).get("width_deg") is not None, "missing_sector")
+        check(warning_ids(rep) == [], "a clean uT dump has no warnings: %r" % warning_ids(rep))
         check(isinstance(rep.get("adopt_rule"), str) and rep["adopt_rule"].startswith("a"), "adopt_rule %r" % rep.get("adopt_rule"))
+    # a unit that does not fit the data: a field of 20 uT given as gauss (2000 uT)
+    _, rep_g = row(a, "--field-unit that does not fit the data", ["--json", "--field-unit", "gauss", "--cal-range",
+                                                                  "0:400", "sub/rep.csv"], 0,
+                   "is --field-unit gauss right?", cwd=a.work_dir)
+    check("field_range" in warning_ids(rep_g), "field_range id")
     p, _ = row(a, "field unit in the table", ["--field-unit", "uT", "--cal-range", "0:400", "sub/rep.csv"], 0,
                "est. heading err", cwd=a.work_dir, where="stdout")
     check(") uT" in p.stdout and "dump units" not in p.stdout, "table carries the unit:\n%s" % p.stdout)
