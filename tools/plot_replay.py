@@ -294,7 +294,7 @@ def main(argv=None):
     # ---- summary line
     if ok:
         s = ("%d rows, %d calibration rows fed (decimation %d), %d used, %d outliers, coverage %.0f deg | "
-             "centre (%.4g, %.4g), radius %.4g, residual RMS %.3g (%s) | filter %s, %s fit" % (
+             "centre (%.4g, %.4g), radius %.4g, residual RMS %.3g (%s)\nfilter %s, %s fit" % (
                  rep["n_rows"], rep["n_fed"], rep["decimation"], rep["n_used"], rep["n_outliers"],
                  rep["coverage_deg"], rep["center"][0], rep["center"][1], rep["radius"],
                  rep["residual_rms"], unit, rep["filter"], rep.get("fit", "consensus")))
@@ -303,8 +303,8 @@ def main(argv=None):
             s += " | largest gap %.0f deg from heading %.0f deg" % (ms["width_deg"], ms["start_deg"])
     else:
         s = "calibration failed (%s): %s" % (rep.get("status"), rep.get("reason", ""))
-    fig.text(0.5, 0.01, s, ha="center", fontsize=9)
-    fig.tight_layout(rect=(0, 0.025, 1, 0.97))
+    fig.text(0.5, 0.008, s, ha="center", fontsize=9)
+    fig.tight_layout(rect=(0, 0.035, 1, 0.97))
     fig.savefig(out, dpi=110)
     print(out)
     return 0

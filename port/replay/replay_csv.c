@@ -495,9 +495,8 @@ static magcal_status_t parse_header(const ctx_t *cx, const char *p, size_t n, si
             return MAGCAL_ERR_ARG;
         }
     }
-    if (describe_header(p, n, cx->sep, h, seen, 1, d->note, sizeof d->note) > 0u) {
-        /* d->note: the columns that are not read, with suggestions (the caller warns) */
-    }
+    /* d->note: the columns that are not read, with suggestions ("" when none; the caller warns) */
+    (void)describe_header(p, n, cx->sep, h, seen, 1, d->note, sizeof d->note);
     for (i = 0u; i < (size_t)MAGCAL_REPLAY_COL_COUNT; ++i) {
         if (seen[i] != 0) {
             d->col[i] = (double *)malloc(sizeof(double)); /* grown per row; non-NULL = present */

@@ -516,8 +516,9 @@ static void print_2d(const replay_report_t *r)
         printf("; largest gap %.0f deg from heading %.0f deg", r->missing_width_deg, r->missing_start_deg);
     }
     printf("\n");
-    printf("  est. heading err  %.3g deg (the library's estimate, no reference needed; %s fit; adopted by rule %s)\n",
-           r->est_heading_err_deg, r->fit != NULL ? r->fit : "consensus", r->adopt_rule != NULL ? r->adopt_rule : "?");
+    printf("  est. heading err  %.3g deg (the library's estimate; needs no reference)\n", r->est_heading_err_deg);
+    printf("  fit, adoption     %s fit; adopted by rule %s\n", r->fit != NULL ? r->fit : "consensus",
+           r->adopt_rule != NULL ? r->adopt_rule : "?");
     printf("  hard-iron centre  (%.6g, %.6g) %s\n", r->center[0], r->center[1], unit_of(r));
     printf("  ellipse           semi-axes %.6g / %.6g, major axis at %.1f deg (ccw from +x)\n",
            r->semi_axes[0], r->semi_axes[1], r->angle_deg);
