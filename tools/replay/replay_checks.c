@@ -356,6 +356,7 @@ void replay_check_heading_pattern(const double *hdg_deg, const double *ref_deg, 
 {
     double ec = 0.0, es = 0.0, sc = 0.0, ss = 0.0, re, rs, me, ms;
     size_t i, k = 0u;
+    int accel_down = 0;
     if (ref_deg == NULL || !(r->heading_rms_deg > 10.0) || !(spread_ratio >= 2.0)) {
         return;
     }
@@ -377,13 +378,19 @@ void replay_check_heading_pattern(const double *hdg_deg, const double *ref_deg, 
     rs = hypot(sc, ss) / (double)k; /* 1: heading + reference is one constant (mirror) */
     me = atan2(es, ec) * k_deg;
     ms = fmod(atan2(ss, sc) * k_deg + 360.0, 360.0);
+    for (i = 0u; i < w->n; ++i) {
+        accel_down = accel_down || strcmp(w->w[i].id, "accel_down") == 0;
+    }
     if (rs > 0.9 && rs > re) {
         replay_warn(w, "mirrored",
                     "heading RMS %.1f deg against the reference with a good fit (radius spread %.1fx smaller): "
-                    "the heading turns the wrong way (heading + reference = %.0f deg on every row): the axes "
-                    "are swapped or in another frame (a NED sensor frame is x forward, y right, z down; magcal "
-                    "wants x right, y forward, z up): try --plane YX (then --ref-rows for a remaining rotation)",
-                    r->heading_rms_deg, spread_ratio, ms);
+                    "the heading turns the wrong way (heading + reference = %.0f deg on every row): %s",
+                    r->heading_rms_deg, spread_ratio, ms,
+                    accel_down ? "the z-down accelerometer (warning accel_down) mirrors the tilt-compensated "
+                                 "heading: fix its sign first (or --no-tilt)"
+                               : "the axes are swapped or in another frame (a NED sensor frame is x forward, y "
+                                 "right, z down; magcal wants x right, y forward, z up): try --plane YX (then "
+                                 "--ref-rows for a remaining rotation)");
     } else if (re > 0.9 && fabs(me) > 10.0) {
         replay_warn(w, "heading_bias",
                     "heading RMS %.1f deg against the reference with a good fit (radius spread %.1fx smaller) "

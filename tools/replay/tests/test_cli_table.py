@@ -274,6 +274,11 @@ def rows_accel_down(a):
     _, rep = row(a, "accelerometer z down with tilt on", ["--json", "--cal-range", "0:400", path], 0,
                  "the accelerometer's z points down")
     check("accel_down" in warning_ids(rep), "accel down: warning id")
+    mir = [w["text"] for w in (rep or {}).get("warnings", []) if w["id"] == "mirrored"]
+    check(all("--plane YX" not in t and "accel_down" in t for t in mir),
+          "accel down: a mirror warning blames the accelerometer, not the plane: %r" % mir)
+    p = run(a, ["--json", "--cal-range", "0:400", "--no-tilt", path])
+    check(json.loads(p.stdout).get("heading_rms_deg", 99) < 1.0, "accel down: --no-tilt gives the level heading")
     up = accel_dump(a, "accel_up.csv")
     p = run(a, ["--json", "--cal-range", "0:400", up])
     check("accel_down" not in warning_ids(json.loads(p.stdout)), "z up: no warning")
