@@ -476,7 +476,11 @@ def ls_ellipse(pts):
     det = 4.0 * B - A * A
     cx = (A * D - 2.0 * B * C) / det
     cy = (A * C - 2.0 * D) / det
-    return (cx * s + mx, cy * s + my)
+    f0 = cx * cx + A * cx * cy + B * cy * cy + C * cx + D * cy + E
+    # eigenvalues of [[1, A/2], [A/2, B]]: semi-axes sqrt(-f0 / lambda), major first
+    tr, dt = 1.0 + B, B - A * A / 4.0
+    l1, l2 = (tr - math.sqrt(tr * tr - 4 * dt)) / 2.0, (tr + math.sqrt(tr * tr - 4 * dt)) / 2.0
+    return (cx * s + mx, cy * s + my), (math.sqrt(-f0 / l1) * s, math.sqrt(-f0 / l2) * s)
 
 
 def rows_no_consensus(a):
@@ -500,10 +504,15 @@ def rows_no_consensus(a):
                   where="stdout")
     cons = json.loads(run(a, ["--json", "--cal-range", "0:400", path]).stdout)
     if rep:
-        cx, cy = ls_ellipse(pts)
+        (cx, cy), (sa, sb) = ls_ellipse(pts)
         r0 = rep["radius"]
         d = math.hypot(rep["center"][0] - cx, rep["center"][1] - cy)
         check(d <= 1e-4 * r0, "plain centre %r != independent LS %r (%.3g of the radius)" % (rep["center"], (cx, cy), d / r0))
+        ea, eb = rep["ellipse"]["semi_axes"]
+        check(abs(ea - sa) <= 1e-4 * r0 and abs(eb - sb) <= 1e-4 * r0,
+              "plain semi-axes %r != independent LS (%.6g, %.6g)" % ((ea, eb), sa, sb))
+        sys.stderr.write("plain fit vs independent float64 LS: centre %.2e, semi-axes %.2e, %.2e of the radius\n" % (
+            d / r0, abs(ea - sa) / r0, abs(eb - sb) / r0))
         check(rep["n_used"] == 400 and rep["n_outliers"] == 0 and rep["filter"] == "none", "plain: every sample used")
         check(rep2 == rep, "--fit plain == --no-consensus")
         check(cons["n_outliers"] >= 12, "consensus rejects the burst")
