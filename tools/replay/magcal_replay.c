@@ -463,6 +463,9 @@ static int parse_args(int argc, char **argv, cli_t *c)
                 char s[3] = {'-', (char)optopt, '\0'};
                 return usage_error("unknown option %s", s);
             }
+            if (optopt >= 256) { /* a known long option that takes no value, given one */
+                return usage_error("option %s takes no value", a);
+            }
             return usage_error("unknown (or ambiguous) option %s", a);
         }
         rc = parse_opt(opt, optarg, c);

@@ -380,7 +380,12 @@ def rows_bad_values(a):
                             ("--field-unit mT", ["--field-unit", "mT"], "--field-unit must be uT, nT or gauss"),
                             ("--fit foo", ["--fit", "foo"], "--fit must be consensus or plain"),
                             ("--eps (no value)", ["--eps"], "option --eps needs a value"),
-                            ("--bogus=1", ["--bogus=1"], "unknown (or ambiguous) option --bogus=1")):
+                            ("--bogus=1", ["--bogus=1"], "unknown (or ambiguous) option --bogus=1"),
+                            ("--json=1", ["--json=1"], "option --json=1 takes no value"),
+                            ("--mode 4d", ["--mode", "4d"], "--mode must be 2d, 3d or aided"),
+                            ("--ref-rows 5", ["--ref-rows", "5"], "--ref-rows must be A:B"),
+                            ("--year x", ["--year=x"], "--year needs a decimal year"),
+                            ("--inclination 95", ["--inclination", "95"], "--inclination needs degrees in (-90, 90)")):
         row(a, name, args + ([path] if name != "--eps (no value)" else []), 1, sub)
 
 
