@@ -63,6 +63,25 @@ static float cons_select(float *a, size_t n, size_t k)
 /* Lower median of a[0..n-1] (n >= 1); a is reordered. */
 static float cons_median(float *a, size_t n) { return cons_select(a, n, (n - 1u) / 2u); }
 
+/*
+ * Lower median of the residuals of every sample EXCEPT the 5 of the minimal set (which the model
+ * passes through exactly: with them, the median of n = 20 samples was the 7th smallest of the 15
+ * real residuals, sigma was 30 % low and 7.6 % of clean samples were rejected). The minimal set's
+ * entries are set to -1 (below every |residual|) and the median is taken over the ranks above
+ * them. a is reordered. Needs n > 5 (n == 5: the plain median of the five zeros).
+ */
+static float cons_median_excl5(float *a, size_t n, const uint16_t idx[5])
+{
+    size_t j;
+    if (n <= 5u) {
+        return cons_median(a, n);
+    }
+    for (j = 0u; j < 5u; ++j) {
+        a[idx[j]] = -1.0f;
+    }
+    return cons_select(a, n, 5u + (n - 6u) / 2u);
+}
+
 /* Sort idx[0..m-1] by key[0..m-1] ascending (keys move with their indices). Shell sort. */
 static void cons_sort(float *key, uint16_t *idx, size_t m)
 {
@@ -222,7 +241,7 @@ static MAGCAL_NOINLINE void cons_draw(cons_state_t *S)
             float score;
             cons_residuals(&S->cand, S->pts, S->n, S->res);
             ++S->valid;
-            score = cons_median(S->res, S->n);
+            score = cons_median_excl5(S->res, S->n, S->idx);
             if (score < S->best_score) {
                 S->best_score = score;
                 S->best = S->cand;
@@ -297,7 +316,12 @@ static size_t cons_rethreshold(cons_state_t *S, uint16_t *wm)
             ++k;
         }
     }
+    /* residuals of a 5-parameter least-squares fit of its own k inliers are smaller than the
+     * noise by sqrt((k - 5) / k): undo it so small sets are not trimmed (k = 20: 13 %) */
     nsig = CONS_MAD_TO_SIGMA * cons_median(S->scr, k);
+    if (k > 2u * MAGCAL_ELLIPSE_MIN_POINTS) {
+        nsig *= sqrtf((float)k / (float)(k - MAGCAL_ELLIPSE_MIN_POINTS));
+    }
     nthr = cons_threshold(S->cfg, &S->cur, nsig);
     for (i = 0u; i < n; ++i) {
         uint16_t v = (uint16_t)(S->res[i] <= nthr ? 1u : 0u);

@@ -351,6 +351,9 @@ static void test_push_buffer_full_returns_buffer_full(void)
     static uint32_t w[(MAGCAL_CALIBRATOR_WORKSPACE_LEN(16) + 3u) / 4u];
     magcal_calibrator_cfg_t cfg = MAGCAL_CALIBRATOR_CFG_DEFAULT;
     size_t i;
+    /* the default min_samples (20) cannot fit in 16 samples: refused at init */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_calibrator_init(&g_cal, &cfg, small, 16, w, sizeof w));
+    cfg.min_samples = 16u;
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE, magcal_calibrator_init(&g_cal, &cfg, small, 16, w, sizeof w - 4u));
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_cal, &cfg, small, 16, w, sizeof w));
     for (i = 0; i < 16; ++i) {
@@ -482,8 +485,8 @@ static void test_run_better_fit_adopted_reports_shift(void)
 
 /* Same data, field 1.5x stronger (everything scaled about the centre): the current calibration
  * still makes a circle of it, so the new one is not better, and the radius change (50 %) is not
- * plausible: NOT_BETTER, current bit-identical. The identical re-run is adopted (rule c) with a
- * heading shift near 0. */
+ * plausible: NOT_BETTER, current bit-identical. The identical re-run is a tie, not an improvement:
+ * NOT_BETTER too (a tie never replaces: issue 12), its current error reads ~0 and the shift ~0. */
 static void test_run_implausible_radius_not_better_keeps_cal(void)
 {
     magcal_cal2d_t c;
@@ -494,8 +497,12 @@ static void test_run_implausible_radius_not_better_keeps_cal(void)
     magcal_calibrator_cfg_t cfg = MAGCAL_CALIBRATOR_CFG_DEFAULT;
     run_dump(&dump_synthetic_clean, &cfg, &r);
     c = r.cal;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_run(&g_cal, &c, &rep));
+    ref = c;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NOT_BETTER, magcal_calibrator_run(&g_cal, &c, &rep));
+    TEST_ASSERT_EQUAL_MEMORY(&ref, &c, sizeof c);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ADOPT_NONE, rep.adopt_rule);
     TEST_ASSERT_TRUE(rep.shift_max_deg < 0.01f);
+    TEST_ASSERT_TRUE(rep.current_err_deg < 0.5f * rep.est_param_err_deg);
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_reset(&g_cal));
     for (i = 0; i < 600; ++i) {
         magcal_vec2_t p = row(&dump_synthetic_clean, i);

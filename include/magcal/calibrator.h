@@ -181,14 +181,33 @@ typedef struct {
     float max_radius_change;/**< adoption rule (c): relative field-radius change still plausible (0.2) */
     magcal_corr_form_t form;/**< correction form (default MAGCAL_CORR_SYMMETRIC) */
     float output_radius;    /**< rho for magcal_ellipse_to_cal; <= 0: sqrt(r1 r2), point unit (default 0) */
+    float max_param_err_ratio; /**< observability gate: est_param_err_deg above this multiple of
+                                    est_noise_deg gives UNOBSERVABLE, > 0 (default 0.75) */
 } magcal_calibrator_cfg_t;
 
 /** Defaults that work without tuning (automatic filter parameters, accept every sample). */
 #define MAGCAL_CALIBRATOR_CFG_DEFAULT                                                              \
     {                                                                                              \
         MAGCAL_FILTER_OPTICS_GRID, 0.0f, 0u, 1u, MAGCAL_CONSENSUS_CFG_DEFAULT, 0.0f, 0u, 20u,      \
-            270.0f, 0.5f, 0.5f, 0.0f, 0.0f, 0.1f, 0.2f, MAGCAL_CORR_SYMMETRIC, 0.0f                \
+            270.0f, 0.5f, 0.5f, 0.0f, 0.0f, 0.1f, 0.2f, MAGCAL_CORR_SYMMETRIC, 0.0f, 0.75f         \
     }
+
+/** Adoption rule (b): `current` must be worse than the new calibration by this factor. */
+#define MAGCAL_CALIBRATOR_ADOPT_MARGIN 2.0f
+/** Adoption rule (c): `current`'s error on the new inliers is "demonstrably" non-zero above this
+ *  many standard deviations of its noise-only distribution (report current_err_z). */
+#define MAGCAL_CALIBRATOR_STALE_Z 5.0f
+/** Rules (b) and (c) need a current error above this (degrees): float32 rounding, not data. */
+#define MAGCAL_CALIBRATOR_ADOPT_MIN_DEG 1.0e-3f
+
+/** Which adoption rule installed the new calibration (report adopt_rule). */
+typedef enum {
+    MAGCAL_ADOPT_NONE = 0,     /**< not adopted (failure, or NOT_BETTER) */
+    MAGCAL_ADOPT_UNUSABLE = 1, /**< (a) `current` unusable: invalid, or radius 0 (never fitted) */
+    MAGCAL_ADOPT_BETTER = 2,   /**< (b) `current` worse than the new one by MAGCAL_CALIBRATOR_ADOPT_MARGIN */
+    MAGCAL_ADOPT_STALE = 3     /**< (c) `current` demonstrably wrong on the new data, same field
+                                    radius, new one not worse */
+} magcal_adopt_rule_t;
 
 /** What run() did and found. Fields not reached by a failing run are 0 (or NaN where noted). */
 typedef struct {
@@ -220,7 +239,16 @@ typedef struct {
     magcal_cal2d_t cal;         /**< the new calibration (also when not adopted: inspect only) */
     uint8_t filter_fragmented;  /**< 1: the filter inliers alone missed the coverage gate (ring split
                                      into arcs by bursts), so the consensus drew from every sample */
+    float est_param_err_deg;    /**< RMS heading error of the new calibration's parameters alone
+                                     (centre and soft iron), degrees; NaN before the estimate */
+    float est_noise_deg;        /**< per-sample heading noise of the data (incl. quantisation), deg */
+    float current_err_z;        /**< significance of current_err_deg: (err^2 - E_noise) / sd_noise */
+    uint16_t distinct;          /**< distinct sample values among the inliers (quantisation) */
+    magcal_adopt_rule_t adopt_rule; /**< the rule that installed the new calibration */
 } magcal_cal_report_t;
+
+/** @brief Short constant name of an adoption rule ("unusable", "better", ...; "unknown"). */
+const char *magcal_adopt_rule_str(magcal_adopt_rule_t rule);
 
 /** Calibrator instance. Allocate it anywhere; every field is PRIVATE (use the functions). */
 typedef struct {
