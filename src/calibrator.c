@@ -115,7 +115,7 @@ static magcal_status_t cal_check_cfg(const magcal_calibrator_cfg_t *c)
         !cal_finite_cfg_f(c->min_axis_ratio) || !cal_finite_cfg_f(c->min_radius) ||
         !cal_finite_cfg_f(c->max_radius) || !cal_finite_cfg_f(c->max_residual_rel) ||
         !cal_finite_cfg_f(c->max_radius_change) || !cal_finite_cfg_f(c->output_radius) ||
-        !cal_finite_cfg_f(c->max_param_err_ratio) ||
+        !cal_finite_cfg_f(c->max_param_err_ratio) || !cal_finite_cfg_f(c->max_design_factor) ||
         !cal_finite_cfg_f(c->consensus.k_sigma) || !cal_finite_cfg_f(c->consensus.min_thr_rel) ||
         !cal_finite_cfg_f(c->consensus.max_thr_rel)) {
         return MAGCAL_ERR_NONFINITE;
@@ -140,7 +140,8 @@ static magcal_status_t cal_check_cfg(const magcal_calibrator_cfg_t *c)
         c->max_outlier_frac > 1.0f || c->min_axis_ratio < 0.0f || c->min_axis_ratio > 1.0f ||
         c->min_radius < 0.0f || c->max_radius < 0.0f ||
         (c->max_radius > 0.0f && c->min_radius > c->max_radius) || !(c->max_residual_rel > 0.0f) ||
-        c->max_radius_change < 0.0f || !(c->max_param_err_ratio > 0.0f)) {
+        c->max_radius_change < 0.0f || !(c->max_param_err_ratio > 0.0f) ||
+        !(c->max_design_factor >= 1.0f)) {
         return MAGCAL_ERR_ARG;
     }
     if ((unsigned)c->form > (unsigned)MAGCAL_CORR_TRIANGULAR) {
@@ -945,10 +946,12 @@ static MAGCAL_NOINLINE magcal_status_t cal_stage_estimate(magcal_calibrator_t *c
      * over uniformly spread headings */
     noise = hn->sigma_rel;
     rep->est_noise_deg = MAGCAL_DEG_PER_RAD_F * noise;
+    rep->design_factor = hn->design;
     rep->est_param_err_deg = MAGCAL_DEG_PER_RAD_F * sqrtf(hn->noise2 + hn->bias2);
     rep->est_heading_err_deg =
         MAGCAL_DEG_PER_RAD_F * sqrtf(noise * noise + hn->noise2 + hn->bias2);
-    if (!(sqrtf(hn->noise2 + hn->bias2) <= cal->cfg.max_param_err_ratio * noise)) {
+    if (!(sqrtf(hn->noise2 + hn->bias2) <= cal->cfg.max_param_err_ratio * noise) ||
+        !(hn->design <= cal->cfg.max_design_factor)) {
         return MAGCAL_ERR_UNOBSERVABLE;
     }
     return MAGCAL_OK;

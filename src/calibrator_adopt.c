@@ -135,6 +135,7 @@ void magcal_cal_harmonics(const magcal_vec2_t *pts, size_t n, const uint8_t *mas
         out->err2 = 0.5f * b2;
         out->noise2 = 0.5f * s2 * dup_factor * tr;
         out->noise2_sd = sqrtf(0.5f * tr2) * s2 * dup_factor;
+        out->design = 0.25f * (float)k * sqrtf(tr2);
         out->bias2 = MAGCAL_CAL_BIAS_K * MAGCAL_CAL_BIAS_K * 0.5f * s2 * s2 * (float)k *
                      (float)k * tr2;
     }

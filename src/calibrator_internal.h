@@ -25,6 +25,8 @@ typedef struct {
     float noise2;     /* 1/2 tr(Sigma_1..4): its expectation from noise alone */
     float noise2_sd;  /* sd of err2 under noise alone: sqrt(1/2 tr(Sigma_1..4^2)) */
     float bias2;      /* mean square heading bias of a fit on these headings at this noise */
+    float design;     /* |k (G^T G)^-1|_F / 4 over the harmonics: 1 for uniformly spread headings,
+                         large when a harmonic rests on the spread inside clumps */
     float sigma_rel;  /* residual sd of d after the harmonic fit (dof n - 5) */
     float mean_radius;/* mean |c(p_i)|, output unit */
     uint8_t ok;       /* 0: fewer than 6 samples, zero radius or a singular harmonic design */

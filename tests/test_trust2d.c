@@ -13,6 +13,7 @@
  */
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "magcal/calibrator.h"
@@ -167,15 +168,18 @@ static void run_ring(const ring_t *r, magcal_cal2d_t *current, outcome_t *o)
     o->rms = magcal_cal2d_validate(&o->rep.cal) == MAGCAL_OK ? new_rms(&o->rep.cal) : INFINITY;
 }
 
+/* A ring of radius 1000, 1 % noise, 300 samples; soft iron (axis ratio 0.55..1, any direction)
+ * and hard iron (up to 1 R per axis) drawn from the seed. */
 static ring_t base_ring(uint32_t seed)
 {
     ring_t r;
+    uint32_t rng = seed * 747796405u + 2891336453u;
     memset(&r, 0, sizeof r);
     r.R = 1000.0;
-    r.axis_ratio = 0.8;
-    r.angle_deg = 25.0;
-    r.bx = 0.6;
-    r.by = -0.4;
+    r.axis_ratio = 0.55 + 0.45 * test_rand_uniform(&rng);
+    r.angle_deg = 180.0 * test_rand_uniform(&rng);
+    r.bx = 2.0 * test_rand_uniform(&rng) - 1.0;
+    r.by = 2.0 * test_rand_uniform(&rng) - 1.0;
     r.noise = 0.01;
     r.n = 300;
     r.seed = seed;
@@ -252,6 +256,12 @@ static void test_estimate_monte_carlo_within_half_to_double(void)
             double q;
             size_t b;
             run_ring(&r, &cur, &o);
+            if (getenv("T2D_DEBUG") != NULL && atoi(getenv("T2D_DEBUG")) == cl) {
+                printf("  dbg R %.0f clumps %d noise %.3f st %d distinct %u used %u rms %.3f floor %.3f act_param %.3f est_param %.3f est_noise %.3f design %.2f\n",
+                       r.R, r.clumps, r.noise, (int)o.st, (unsigned)o.rep.distinct, (unsigned)o.rep.used, o.rms, o.floor,
+                       sqrt(fmax(o.rms * o.rms - o.floor * o.floor, 0.0)), (double)o.rep.est_param_err_deg,
+                       (double)o.rep.est_noise_deg, (double)o.rep.design_factor);
+            }
             if (o.st != MAGCAL_OK) {
                 ++ref_cl[cl];
                 TEST_ASSERT_TRUE(o.st == MAGCAL_ERR_UNOBSERVABLE || o.st == MAGCAL_ERR_COVERAGE ||
@@ -259,6 +269,13 @@ static void test_estimate_monte_carlo_within_half_to_double(void)
                 continue;
             }
             q = (double)o.rep.est_heading_err_deg / o.rms;
+            if (o.rms > FLOOR_RATIO * o.floor) {
+                printf("  beyond 1.2 floor: %s R %.0f noise %.3f quant %d clumps %d n %u out %.2f: rms %.3f floor %.3f "
+                       "(x%.2f) param %.3f noise %.3f design %.1f\n",
+                       g_cl_name[cl], r.R, r.noise, r.quant, r.clumps, (unsigned)r.n, r.out_frac, o.rms, o.floor,
+                       o.rms / o.floor, (double)o.rep.est_param_err_deg, (double)o.rep.est_noise_deg,
+                       (double)o.rep.design_factor);
+            }
             for (b = 0; b < N_BINS; ++b) {
                 if (q >= edges[b] && q < edges[b + 1u]) {
                     hist[cl][b]++;

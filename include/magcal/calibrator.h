@@ -182,14 +182,16 @@ typedef struct {
     magcal_corr_form_t form;/**< correction form (default MAGCAL_CORR_SYMMETRIC) */
     float output_radius;    /**< rho for magcal_ellipse_to_cal; <= 0: sqrt(r1 r2), point unit (default 0) */
     float max_param_err_ratio; /**< observability gate: est_param_err_deg above this multiple of
-                                    est_noise_deg gives UNOBSERVABLE, > 0 (default 0.75) */
+                                    est_noise_deg gives UNOBSERVABLE, > 0 (default 0.6) */
+    float max_design_factor; /**< observability gate: report design_factor above this gives
+                                  UNOBSERVABLE (headings in 4 clumps: 13..19), >= 1 (default 8) */
 } magcal_calibrator_cfg_t;
 
 /** Defaults that work without tuning (automatic filter parameters, accept every sample). */
 #define MAGCAL_CALIBRATOR_CFG_DEFAULT                                                              \
     {                                                                                              \
         MAGCAL_FILTER_OPTICS_GRID, 0.0f, 0u, 1u, MAGCAL_CONSENSUS_CFG_DEFAULT, 0.0f, 0u, 20u,      \
-            270.0f, 0.5f, 0.5f, 0.0f, 0.0f, 0.1f, 0.2f, MAGCAL_CORR_SYMMETRIC, 0.0f, 0.75f         \
+            270.0f, 0.5f, 0.5f, 0.0f, 0.0f, 0.1f, 0.2f, MAGCAL_CORR_SYMMETRIC, 0.0f, 0.6f, 8.0f    \
     }
 
 /** Adoption rule (b): `current` must be worse than the new calibration by this factor. */
@@ -244,6 +246,8 @@ typedef struct {
     float est_noise_deg;        /**< per-sample heading noise of the data (incl. quantisation), deg */
     float current_err_z;        /**< significance of current_err_deg: (err^2 - E_noise) / sd_noise */
     uint16_t distinct;          /**< distinct sample values among the inliers (quantisation) */
+    float design_factor;        /**< weakness of the headings' design for the calibration: 1 for
+                                     uniformly spread headings, large for clumps (file comment) */
     magcal_adopt_rule_t adopt_rule; /**< the rule that installed the new calibration */
 } magcal_cal_report_t;
 
