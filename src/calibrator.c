@@ -950,9 +950,18 @@ static MAGCAL_NOINLINE magcal_status_t cal_stage_estimate(magcal_calibrator_t *c
     rep->est_param_err_deg = MAGCAL_DEG_PER_RAD_F * sqrtf(hn->noise2 + hn->bias2);
     rep->est_heading_err_deg =
         MAGCAL_DEG_PER_RAD_F * sqrtf(noise * noise + hn->noise2 + hn->bias2);
-    if (!(sqrtf(hn->noise2 + hn->bias2) <= cal->cfg.max_param_err_ratio * noise) ||
-        !(hn->design <= cal->cfg.max_design_factor)) {
-        return MAGCAL_ERR_UNOBSERVABLE;
+    {
+        /* repeated values (quantisation): the estimate rests on the distinct values only, so the
+         * gate uses its upper confidence bound, (1 + 1 / sqrt(2 dof)) with dof = distinct - 5 */
+        float par = sqrtf(hn->noise2 + hn->bias2);
+        if (distinct < (size_t)rep->used) {
+            float dof = distinct > 6u ? (float)distinct - 5.0f : 1.0f;
+            par *= 1.0f + 1.0f / sqrtf(2.0f * dof);
+        }
+        if (!(par <= cal->cfg.max_param_err_ratio * noise) ||
+            !(hn->design <= cal->cfg.max_design_factor)) {
+            return MAGCAL_ERR_UNOBSERVABLE;
+        }
     }
     return MAGCAL_OK;
 }

@@ -45,6 +45,7 @@ void magcal_cal_harmonics(const magcal_vec2_t *pts, size_t n, const uint8_t *mas
     float ss = 0.0f;
     float mean;
     float s2;
+    float s2p; /* noise variance seen by the parameters */
     size_t k = 0u;
     size_t i;
     size_t r;
@@ -105,8 +106,16 @@ void magcal_cal_harmonics(const magcal_vec2_t *pts, size_t n, const uint8_t *mas
             ss += e * e;
         }
     }
-    out->sigma_rel = fmaxf(sqrtf(ss / (float)(k - HARM_K)), sigma_floor);
-    s2 = out->sigma_rel * out->sigma_rel;
+    {
+        /* measured residual noise vs the rounding noise of the samples' LSB: rounding not seen in
+         * the residuals (a lattice lying almost on a conic) is systematic along the ring, one
+         * independent error per MAGCAL_CAL_LATTICE_K distinct values */
+        const float sm2 = ss / (float)(k - HARM_K);
+        const float hid = fmaxf(sigma_floor * sigma_floor - sm2, 0.0f);
+        out->sigma_rel = sqrtf(sm2 + hid);
+        s2 = out->sigma_rel * out->sigma_rel;
+        s2p = sm2 + MAGCAL_CAL_LATTICE_K * hid;
+    }
     /* (G^T G)^-1 restricted to the four harmonics: columns 1..4 */
     for (q = 1u; q < HARM_K; ++q) {
         (void)memset(col, 0, HARM_K * sizeof(float));
@@ -133,8 +142,8 @@ void magcal_cal_harmonics(const magcal_vec2_t *pts, size_t n, const uint8_t *mas
          * bias of a least-squares fit whose regressors are noisy too: sigma^2 (G^T G / k)^-1,
          * large exactly where the design is weak (clumps: short arcs) */
         out->err2 = 0.5f * b2;
-        out->noise2 = 0.5f * s2 * dup_factor * tr;
-        out->noise2_sd = sqrtf(0.5f * tr2) * s2 * dup_factor;
+        out->noise2 = 0.5f * s2p * dup_factor * tr;
+        out->noise2_sd = sqrtf(0.5f * tr2) * s2p * dup_factor;
         out->design = 0.25f * (float)k * sqrtf(tr2);
         out->bias2 = MAGCAL_CAL_BIAS_K * MAGCAL_CAL_BIAS_K * 0.5f * s2 * s2 * (float)k *
                      (float)k * tr2;

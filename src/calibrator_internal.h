@@ -35,6 +35,11 @@ typedef struct {
 /* Scale of the O(sigma^2) bias term (docs/calibrator.md: calibrated by tests/test_trust2d.c). */
 #define MAGCAL_CAL_BIAS_K 1.5f
 
+/* Rounding errors of a quantised ring that its residuals do not show (the lattice lies almost on
+ * a conic) are correlated along the ring: one independent error per this many distinct values
+ * (calibrated on the quantised rings of tests/test_trust2d.c, 2..50 LSB radius). */
+#define MAGCAL_CAL_LATTICE_K 8.0f
+
 /* Scratch floats magcal_cal_harmonics() needs (two 5x5 matrices and two vectors). */
 #define MAGCAL_CAL_HARM_SCRATCH_FLOATS 60u
 

@@ -195,10 +195,10 @@ typedef struct {
     }
 
 /** Adoption rule (b): `current` must be worse than the new calibration by this factor. */
-#define MAGCAL_CALIBRATOR_ADOPT_MARGIN 2.0f
+#define MAGCAL_CALIBRATOR_ADOPT_MARGIN 3.0f
 /** Adoption rule (c): `current`'s error on the new inliers is "demonstrably" non-zero above this
  *  many standard deviations of its noise-only distribution (report current_err_z). */
-#define MAGCAL_CALIBRATOR_STALE_Z 5.0f
+#define MAGCAL_CALIBRATOR_STALE_Z 10.0f
 /** Rules (b) and (c) need a current error above this (degrees): float32 rounding, not data. */
 #define MAGCAL_CALIBRATOR_ADOPT_MIN_DEG 1.0e-3f
 
