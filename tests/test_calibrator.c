@@ -457,6 +457,39 @@ static void test_init_bad_cfg_returns_arg(void)
     cfg = (magcal_calibrator_cfg_t)MAGCAL_CALIBRATOR_CFG_DEFAULT;
     cfg.min_pts = 1u;
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
+    /* min_samples beyond the capacity could never be reached: refused (was accepted) */
+    cfg = (magcal_calibrator_cfg_t)MAGCAL_CALIBRATOR_CFG_DEFAULT;
+    cfg.min_samples = 600u;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_calibrator_init(&g_cal, &cfg, g_buf, 512u, g_work, sizeof g_work));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_cal, &cfg, g_buf, 600u, g_work, sizeof g_work));
+    cfg = (magcal_calibrator_cfg_t)MAGCAL_CALIBRATOR_CFG_DEFAULT;
+    cfg.max_param_err_ratio = 0.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
+    cfg.max_param_err_ratio = NAN;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
+    cfg = (magcal_calibrator_cfg_t)MAGCAL_CALIBRATOR_CFG_DEFAULT;
+    cfg.max_design_factor = 0.5f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
+}
+
+/* A failed run reads NaN in every estimate, never 0 (which looked perfect). */
+static void test_run_failure_reports_nan_estimates(void)
+{
+    magcal_cal2d_t c = prev_cal();
+    magcal_cal_report_t rep;
+    init_default();
+    push_rows(&dump_synthetic_clean, 75); /* 90 deg: COVERAGE */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_COVERAGE, magcal_calibrator_run(&g_cal, &c, &rep));
+    TEST_ASSERT_TRUE(isnan(rep.est_heading_err_deg));
+    TEST_ASSERT_TRUE(isnan(rep.est_param_err_deg));
+    TEST_ASSERT_TRUE(isnan(rep.est_noise_deg));
+    TEST_ASSERT_TRUE(isnan(rep.current_err_deg));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ADOPT_NONE, rep.adopt_rule);
+    TEST_ASSERT_EQUAL_STRING("none", magcal_adopt_rule_str(rep.adopt_rule));
+    TEST_ASSERT_EQUAL_STRING("better", magcal_adopt_rule_str(MAGCAL_ADOPT_BETTER));
+    TEST_ASSERT_EQUAL_STRING("stale", magcal_adopt_rule_str(MAGCAL_ADOPT_STALE));
+    TEST_ASSERT_EQUAL_STRING("unusable", magcal_adopt_rule_str(MAGCAL_ADOPT_UNUSABLE));
+    TEST_ASSERT_EQUAL_STRING("unknown", magcal_adopt_rule_str((magcal_adopt_rule_t)9));
 }
 
 /* ---------------------------------------------------------------- adoption rule */
@@ -475,10 +508,16 @@ static void test_run_better_fit_adopted_reports_shift(void)
     c.offset.x += 4.0f;
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_run(&g_cal, &c, &rep));
     TEST_ASSERT_EQUAL_UINT8(1u, rep.adopted);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ADOPT_BETTER, rep.adopt_rule);
     TEST_ASSERT_EQUAL_MEMORY(&r.cal, &c, sizeof c);
-    printf("adopt: est %.4f deg, current %.3f deg, shift max %.3f rms %.3f deg\n", (double)rep.est_heading_err_deg,
-           (double)rep.current_err_deg, (double)rep.shift_max_deg, (double)rep.shift_rms_deg);
-    TEST_ASSERT_TRUE(rep.current_err_deg > rep.est_heading_err_deg);
+    printf("adopt: est heading %.4f deg (param %.4f, noise %.4f), current %.3f deg (z %.0f), shift max %.3f rms "
+           "%.3f deg\n",
+           (double)rep.est_heading_err_deg, (double)rep.est_param_err_deg, (double)rep.est_noise_deg,
+           (double)rep.current_err_deg, (double)rep.current_err_z, (double)rep.shift_max_deg,
+           (double)rep.shift_rms_deg);
+    TEST_ASSERT_TRUE(rep.current_err_deg > MAGCAL_CALIBRATOR_ADOPT_MARGIN * rep.est_param_err_deg);
+    /* the estimate of the current error is close to its true error (the shift RMS) */
+    TEST_ASSERT_FLOAT_WITHIN(0.2f * rep.shift_rms_deg, rep.shift_rms_deg, rep.current_err_deg);
     TEST_ASSERT_FLOAT_WITHIN(2.0f, 6.0f, rep.shift_max_deg);
     TEST_ASSERT_FLOAT_WITHIN(1.5f, 4.1f, rep.shift_rms_deg); /* 5.8/sqrt(2) */
 }
@@ -800,6 +839,7 @@ int main(void)
     RUN_TEST(test_run_spikes_without_rejection_returns_hyperbola_keeps_cal);
     RUN_TEST(test_run_gates_each_return_own_status_keep_cal);
     RUN_TEST(test_init_bad_cfg_returns_arg);
+    RUN_TEST(test_run_failure_reports_nan_estimates);
     RUN_TEST(test_run_better_fit_adopted_reports_shift);
     RUN_TEST(test_run_implausible_radius_not_better_keeps_cal);
     RUN_TEST(test_run_corrupted_current_is_replaced);

@@ -241,16 +241,17 @@ static void test_estimate_monte_carlo_within_half_to_double(void)
     unsigned total = 0u, inside = 0u, unobs = 0u, unobs_in = 0u;
     double unobs_lo = INFINITY, unobs_hi = 0.0;
     unsigned ok_cl[CL_N], in_cl[CL_N], ref_cl[CL_N];
-    double lo_cl[CL_N], hi_cl[CL_N];
+    double lo_cl[CL_N], hi_cl[CL_N], old_lo_cl[CL_N], old_hi_cl[CL_N];
+    unsigned old_in_cl[CL_N];
     int cl;
     memset(hist, 0, sizeof hist);
     printf("\nMonte-Carlo of est_heading_err_deg (ratio = estimate / measured heading RMS on new data)\n");
     for (cl = 0; cl < CL_N; ++cl) {
         unsigned k;
         ring_t r;
-        ok_cl[cl] = in_cl[cl] = ref_cl[cl] = 0u;
-        lo_cl[cl] = INFINITY;
-        hi_cl[cl] = 0.0;
+        ok_cl[cl] = in_cl[cl] = ref_cl[cl] = old_in_cl[cl] = 0u;
+        lo_cl[cl] = old_lo_cl[cl] = INFINITY;
+        hi_cl[cl] = old_hi_cl[cl] = 0.0;
         for (k = 0u; mc_case(cl, k, &r); ++k) {
             magcal_cal2d_t cur = MAGCAL_CAL2D_IDENTITY;
             outcome_t o;
@@ -292,6 +293,14 @@ static void test_estimate_monte_carlo_within_half_to_double(void)
             }
             ++ok_cl[cl];
             ++total;
+            {
+                /* the pre-issue-12 formula on the same run: parameter error only */
+                double cr = 360.0 / (double)o.rep.coverage_deg;
+                double qo = DEG * (double)o.rep.residual_rel * sqrt(5.0 / (double)o.rep.used) * cr * cr / o.rms;
+                old_in_cl[cl] += (qo >= 0.5 && qo <= 2.0) ? 1u : 0u;
+                old_lo_cl[cl] = fmin(old_lo_cl[cl], qo);
+                old_hi_cl[cl] = fmax(old_hi_cl[cl], qo);
+            }
             if (q >= 0.5 && q <= 2.0) {
                 ++in_cl[cl];
                 ++inside;
@@ -307,10 +316,12 @@ static void test_estimate_monte_carlo_within_half_to_double(void)
             }
         }
     }
-    printf("%-20s %4s %4s %8s %8s %8s\n", "class", "OK", "ref", "in[.5,2]", "min", "max");
+    printf("%-20s %4s %4s %8s %8s %8s   %s\n", "class", "OK", "ref", "in[.5,2]", "min", "max",
+           "old formula: in[.5,2] min max");
     for (cl = 0; cl < CL_N; ++cl) {
-        printf("%-20s %4u %4u %8.3f %8.3f %8.3f\n", g_cl_name[cl], ok_cl[cl], ref_cl[cl],
-               ok_cl[cl] ? (double)in_cl[cl] / ok_cl[cl] : 0.0, lo_cl[cl], hi_cl[cl]);
+        printf("%-20s %4u %4u %8.3f %8.3f %8.3f   %8.3f %8.4f %8.3f\n", g_cl_name[cl], ok_cl[cl], ref_cl[cl],
+               ok_cl[cl] ? (double)in_cl[cl] / ok_cl[cl] : 0.0, lo_cl[cl], hi_cl[cl],
+               ok_cl[cl] ? (double)old_in_cl[cl] / ok_cl[cl] : 0.0, old_lo_cl[cl], old_hi_cl[cl]);
     }
     printf("histogram of the ratio (OK runs):\n%-20s", "bin lower edge");
     {

@@ -18,35 +18,54 @@
  *     least-squares fit of the filter inliers);
  *  5. gates, each with its own status: too many outliers, not an ellipse (hyperbola, parabola,
  *     imaginary), radius range, axis ratio, residual, coverage (around the fitted centre);
- *  6. correction (magcal_ellipse_to_cal) and the adoption rule (below).
+ *  6. correction (magcal_ellipse_to_cal), the heading-error estimate and the observability gate
+ *     (UNOBSERVABLE, below), then the adoption rule (below).
+ *
+ * Heading-error estimate (radians in the formulas, degrees in the report; docs/calibrator.md).
+ * The inliers are corrected by the new calibration; d_i = |h_i| / mean - 1 is fitted by least
+ * squares on G = [1, cos phi, sin phi, cos 2phi, sin 2phi] (phi = direction of h_i). A centre error
+ * makes a first harmonic of d, a soft-iron error a second, each with the same relative amplitude
+ * as the heading error it causes, and the mean square heading error over uniformly spread
+ * headings is 1/2 the sum of the four harmonic coefficients squared. With s^2 = the residual
+ * variance after the harmonics (dof n - 5), floored by the rounding noise (LSB / sqrt(12) / R,
+ * LSB = the data's smallest coordinate step), S = (G^T G)^-1 restricted to the harmonics and
+ * dup = used / distinct values:
+ *     est_noise_deg       = s                                   (per-sample noise of new data)
+ *     est_param_err_deg   = sqrt(1/2 s_p^2 dup tr(S) + bias^2)  (the calibration's own error)
+ *     bias^2              = 1/2 (1.5 s^2 n)^2 tr(S^2)           (O(sigma^2) bias of weak designs)
+ *     est_heading_err_deg = sqrt(est_noise^2 + est_param^2)      (what a user sees on new data)
+ * where s_p^2 counts rounding the residuals do not show 8 times (a lattice's errors are
+ * correlated along the ring). design_factor = n |S|_F / 4 (1 for uniformly spread headings).
+ * Validated by Monte-Carlo (tests/test_trust2d.c): within [0.5, 2] x the measured heading RMS.
+ * Observability gate: est_param_err_deg > cfg.max_param_err_ratio x est_noise_deg (with repeated
+ * values: its upper bound x (1 + 1/sqrt(2 (distinct - 5)))), or design_factor >
+ * cfg.max_design_factor, or a singular harmonic design gives MAGCAL_ERR_UNOBSERVABLE: the
+ * headings (clumps, gaps) or the resolution (a few LSB) do not determine the calibration to
+ * better than the per-sample noise; turn through the missing headings (report missing_*) or raise
+ * the sensor gain. The default 0.6 keeps the expected heading RMS within 1.17 x the noise floor.
  *
  * Adoption rule. The caller's calibration `current` is replaced only when the new one passes
- * every gate AND one of:
- *  (a) `current` is not a usable calibration (magcal_cal2d_validate fails) or its radius is 0
- *      (unknown, e.g. MAGCAL_CAL2D_IDENTITY);
- *  (b) the new calibration is better: est_heading_err_deg(new) <= current_err_deg, where
- *      current_err_deg is the heading error of `current` estimated on the new inliers (below);
- *  (c) the new data are fresher (they always are: they were just collected) AND the field
- *      radius is plausible: the new inliers corrected by `current` have a mean radius within
- *      cfg.max_radius_change (relative) of current->radius, i.e. the same field strength was
- *      seen, so the new data describe the same installation in the same field, and a slowly
- *      drifting hard iron is tracked.
- * Otherwise run() returns MAGCAL_ERR_NOT_BETTER and `current` is untouched.
- *
- * Heading-error estimates (degrees, documented formulas, see also docs/calibrator.md):
- *  - new calibration: per-sample noise sigma_rel = residual_rms / R (R = sqrt(r1 r2)) gives the
- *    CRLB heading noise sigma_rel rad (algorithms.md 9); the calibration error of a 5-parameter
- *    fit on N inliers is that divided by sqrt(N / 5); a partial arc is inflated by
- *    (360 / coverage_deg)^2 (extrapolation of the fit over the gap):
- *        est_heading_err_deg = 57.2958 * sigma_rel * sqrt(5 / N) * (360 / coverage_deg)^2
- *  - current calibration on the new inliers: a wrong centre or soft-iron matrix modulates the
- *    corrected radius with the same relative amplitude as the heading error it causes. With
- *    V(c) = mean(d_i^2), d_i = |c(p_i)| / mean_j |c(p_j)| - 1 over the new inliers, the excess
- *    modulation of `current` over the new calibration (which removes the common noise) is
- *        current_err_deg = 57.2958 * sqrt(max(0, V(current) - V(new)))
- *  - heading shift if adopted: for headings psi = 0, 5, ..., 355 deg the raw point of the new
- *    ellipse that the new calibration maps to psi is corrected with `current` (identity when
- *    `current` is unusable); max and RMS of wrap(psi_current - psi).
+ * every gate AND one of (report adopt_rule names it):
+ *  (a) UNUSABLE: `current` is not a usable calibration (magcal_cal2d_validate fails) or its radius
+ *      is 0 (never fitted, e.g. MAGCAL_CAL2D_IDENTITY);
+ *  (b) BETTER: current_err_deg > MAGCAL_CALIBRATOR_ADOPT_MARGIN (3) x est_param_err_deg (and
+ *      > MAGCAL_CALIBRATOR_ADOPT_MIN_DEG): `current` is clearly worse than the new calibration
+ *      by the new data's own estimate;
+ *  (c) STALE: `current` is demonstrably wrong on the new data, current_err_z >
+ *      MAGCAL_CALIBRATOR_STALE_Z (10: far outside what noise does to a correct calibration, i.e.
+ *      the installation changed), AND the same field strength was seen (the new inliers corrected
+ *      by `current` have a mean radius within cfg.max_radius_change of current->radius) AND the
+ *      new calibration is not worse (est_param_err_deg <= current_err_deg).
+ * A tie, or a new calibration that is better only within the noise of the comparison, never
+ * replaces `current`: run() returns MAGCAL_ERR_NOT_BETTER and `current` is untouched. (Rule (c)
+ * is data-based only; ageing of the current calibration over time is not modelled here.)
+ * current_err_deg: the same harmonic analysis of `current` on the new inliers, with the noise
+ * projection's expectation removed, so noise does not read as error:
+ *     current_err_deg = sqrt(max(0, 1/2 |beta_1..4|^2 - 1/2 s_p^2 dup tr(S)))
+ *     current_err_z   = (1/2 |beta|^2 - 1/2 s_p^2 dup tr(S)) / sqrt(1/2 tr((s_p^2 dup S)^2))
+ * Heading shift if adopted: for headings psi = 0, 5, ..., 355 deg the raw point of the new
+ * ellipse that the new calibration maps to psi is corrected with `current` (identity when
+ * `current` is unusable); max and RMS of wrap(psi_current - psi).
  *
  * Memory: caller-allocated instance, sample buffer (capacity <= MAGCAL_MAX_SAMPLES) and one
  * workspace of MAGCAL_CALIBRATOR_WORKSPACE_LEN(capacity) bytes (4-byte aligned) that also keeps
@@ -211,7 +230,8 @@ typedef enum {
                                     radius, new one not worse */
 } magcal_adopt_rule_t;
 
-/** What run() did and found. Fields not reached by a failing run are 0 (or NaN where noted). */
+/** What run() did and found. Fields not reached by a failing run are 0, or NaN for the estimates
+ *  (est_*, current_err_*): a failed run never reads as a perfect one. */
 typedef struct {
     magcal_status_t status;   /**< same as run()'s return value */
     magcal_calibrator_state_t state; /**< state after the run */
@@ -234,8 +254,12 @@ typedef struct {
     float min_pivot;          /**< smallest equilibrated pivot of the final fit (condition) */
     float threshold;          /**< residual threshold used by classify(), point unit */
     magcal_ellipse_t ellipse; /**< final fit */
-    float est_heading_err_deg;  /**< estimated heading error of the new calibration (formula above) */
-    float current_err_deg;      /**< estimated error of `current` on the new data; NaN if unusable */
+    float est_heading_err_deg;  /**< honest heading error a user sees on new data with the new
+                                     calibration: noise + parameter error + bias (file comment),
+                                     degrees; NaN when the run failed before the estimate */
+    float current_err_deg;      /**< error of `current` on the new data, noise removed (file
+                                     comment), deg; NaN if unusable or not reached; +Inf if it
+                                     maps the new data onto no usable ring */
     float shift_max_deg;        /**< max |heading change| over 0..360 if adopted */
     float shift_rms_deg;        /**< RMS heading change over 0..360 if adopted */
     magcal_cal2d_t cal;         /**< the new calibration (also when not adopted: inspect only) */
@@ -292,7 +316,8 @@ typedef struct {
  * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_ARG (capacity out of range, misaligned work, a cfg
  *         value out of range: filter enum, eps < 0 or NaN, min_pts 1 or > MAGCAL_MAX_MIN_PTS,
  *         consensus settings, min_samples < 5, coverage outside 0..360, fractions outside 0..1,
- *         radius limits < 0 or min > max, form enum); MAGCAL_ERR_NONFINITE (a non-finite
+ *         radius limits < 0 or min > max, form enum, max_param_err_ratio <= 0, max_design_factor
+ *         < 1, min_samples > capacity); MAGCAL_ERR_NONFINITE (a non-finite
  *         cfg value); MAGCAL_ERR_WORKSPACE (work_len too small). cal untouched on failure.
  */
 magcal_status_t magcal_calibrator_init(magcal_calibrator_t *cal, const magcal_calibrator_cfg_t *cfg,
@@ -339,7 +364,9 @@ magcal_status_t magcal_calibrator_poll(magcal_calibrator_t *cal);
  *         MAGCAL_ERR_COVERAGE (arc below cfg.min_coverage_deg; see report->missing_*);
  *         MAGCAL_ERR_TOO_MANY_OUTLIERS; MAGCAL_ERR_HYPERBOLA; MAGCAL_ERR_PARABOLA;
  *         MAGCAL_ERR_IMAGINARY; MAGCAL_ERR_ILL_CONDITIONED; MAGCAL_ERR_RADIUS_RANGE;
- *         MAGCAL_ERR_AXIS_RATIO; MAGCAL_ERR_RESIDUAL; MAGCAL_ERR_NOT_BETTER (gates passed, adoption
+ *         MAGCAL_ERR_AXIS_RATIO; MAGCAL_ERR_RESIDUAL; MAGCAL_ERR_UNOBSERVABLE (the observability
+ *         gate: clumped headings or a coarse lattice leave the calibration error above
+ *         cfg.max_param_err_ratio x the noise); MAGCAL_ERR_NOT_BETTER (gates passed, adoption
  *         rule kept `current`); MAGCAL_ERR_ARG / MAGCAL_ERR_WORKSPACE from a stage (explicit eps or
  *         min_pts the stage rejects).
  */
