@@ -72,7 +72,7 @@ static float cons_median(float *a, size_t n) { return cons_select(a, n, (n - 1u)
  * entries are set to -1 (below every |residual|) and the median is taken over the ranks above
  * them. a is reordered. Needs n > 5 (n == 5: the plain median of the five zeros).
  */
-static float cons_median_excl5(float *a, size_t n, const uint16_t idx[5])
+static MAGCAL_NOINLINE float cons_median_excl5(float *a, size_t n, const uint16_t idx[5])
 {
     size_t j;
     if (n <= 5u) {
@@ -348,7 +348,7 @@ static void cons_expand(uint16_t *wm, size_t n, size_t k)
 }
 
 /* New threshold from the current inliers' residuals, new inlier mask; returns the changed count. */
-static size_t cons_rethreshold(cons_state_t *S, uint16_t *wm)
+static MAGCAL_NOINLINE size_t cons_rethreshold(cons_state_t *S, uint16_t *wm)
 {
     const size_t n = S->n;
     size_t changed = 0u;
