@@ -346,6 +346,7 @@ static void test_estimate_monte_carlo_within_half_to_double(void)
     TEST_ASSERT_TRUE((double)inside >= 0.95 * total);
     TEST_ASSERT_TRUE(lo_cl[CL_CLUMP] >= 0.5);
     TEST_ASSERT_TRUE(lo_cl[CL_QUANT] >= 0.5);
+    TEST_ASSERT_TRUE(unobs_lo >= 0.5); /* refused calibrations were not understated either */
 #undef N_BINS
 }
 
@@ -402,6 +403,24 @@ static double old_current_err(const magcal_cal2d_t *cur, const magcal_cal2d_t *n
     return DEG * sqrt(fmax(v[0] - v[1], 0.0));
 }
 
+/* The reported rule agrees with the documented rule and the reported numbers. */
+static void check_rule(const outcome_t *o)
+{
+    const double cur = (double)o->rep.current_err_deg;
+    const double par = (double)o->rep.est_param_err_deg;
+    const int better = cur > MAGCAL_CALIBRATOR_ADOPT_MARGIN * par && cur > MAGCAL_CALIBRATOR_ADOPT_MIN_DEG;
+    if (o->st == MAGCAL_OK) {
+        TEST_ASSERT_TRUE(o->rep.adopt_rule != MAGCAL_ADOPT_NONE);
+    }
+    if (o->rep.adopt_rule == MAGCAL_ADOPT_BETTER) {
+        TEST_ASSERT_TRUE(better);
+    } else if (o->rep.adopt_rule == MAGCAL_ADOPT_STALE) {
+        TEST_ASSERT_TRUE(!better && o->rep.current_err_z > MAGCAL_CALIBRATOR_STALE_Z && cur >= par);
+    } else if (o->st == MAGCAL_ERR_NOT_BETTER) {
+        TEST_ASSERT_FALSE(better);
+    }
+}
+
 /* World of the adoption tests (one installation) and its run kinds. */
 static ring_t adopt_world(uint32_t seed, int kind)
 {
@@ -438,6 +457,7 @@ static void test_adopt_good_then_worse_refused_current_err_not_inflated(void)
         double oldv;
         r = adopt_world(100u + s, 1);
         run_ring(&r, &cur, &o);
+        check_rule(&o);
         if (o.st == MAGCAL_OK) {
             ++ok;
         }
@@ -495,6 +515,7 @@ static void test_adopt_twenty_mediocre_runs_do_not_drift(void)
         double e;
         r = adopt_world(200u + s, 1);
         run_ring(&r, &cur, &o);
+        check_rule(&o);
         if (o.st == MAGCAL_OK) {
             ++adopted;
         } else {
@@ -559,6 +580,7 @@ static void test_adopt_hard_iron_moved_admitted(void)
         r.bx += moves[m];
         e_before = cal_err(&cur, &r);
         run_ring(&r, &cur, &o);
+        check_rule(&o);
         e_after = cal_err(&cur, &r);
         printf("hard iron moved %.0f %% of F: current error %.3f deg (estimated %.3f, z %.0f), new est_param %.3f: "
                "%s, rule %s, installed error %.3f deg\n",
@@ -571,6 +593,42 @@ static void test_adopt_hard_iron_moved_admitted(void)
         /* the current calibration's error is measured within a factor of 2 */
         TEST_ASSERT_TRUE((double)o.rep.current_err_deg >= 0.5 * e_before && (double)o.rep.current_err_deg <= 2.0 * e_before);
     }
+}
+
+/* Small hard-iron moves (0.2 .. 1.6 % of F) seen by runs of 300 samples at 1 % noise: which rule
+ * fires, and an OK never installs a calibration worse than the one it replaced. */
+static void test_adopt_small_moves_rules_and_never_worse(void)
+{
+    static const double moves[] = {0.002, 0.003, 0.004, 0.005, 0.006, 0.008, 0.012, 0.016};
+    unsigned m, s, n_rule[4] = {0u, 0u, 0u, 0u}, refused = 0u;
+    for (m = 0; m < 8u; ++m) {
+        for (s = 0; s < 4u; ++s) {
+            magcal_cal2d_t cur = MAGCAL_CAL2D_IDENTITY;
+            outcome_t o;
+            ring_t r = adopt_world(700u + 10u * m + s, 0);
+            double e_before, e_after;
+            run_ring(&r, &cur, &o);
+            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, o.st);
+            r = adopt_world(800u + 10u * m + s, 0);
+            r.n = 300;
+            r.noise = 0.01;
+            r.bx += moves[m];
+            e_before = cal_err(&cur, &r);
+            run_ring(&r, &cur, &o);
+            check_rule(&o);
+            e_after = cal_err(&cur, &r);
+            if (o.st == MAGCAL_OK) {
+                n_rule[o.rep.adopt_rule]++;
+                TEST_ASSERT_TRUE(e_after <= e_before);
+            } else {
+                TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NOT_BETTER, o.st);
+                ++refused;
+            }
+        }
+    }
+    printf("small hard-iron moves, 32 runs: better %u, stale %u, not better %u\n", n_rule[MAGCAL_ADOPT_BETTER],
+           n_rule[MAGCAL_ADOPT_STALE], refused);
+    TEST_ASSERT_TRUE(n_rule[MAGCAL_ADOPT_BETTER] > 0u && refused > 0u);
 }
 
 /* ---------------------------------------------------------------- the silent-wrong suite */
@@ -701,6 +759,7 @@ static void test_suite_no_silent_wrong_answers(void)
             }
             e_before = cal_err(&before, &m);
             run_ring(&m, &cur, &o);
+            check_rule(&o);
             ta.cases++;
             if (o.st == MAGCAL_OK) {
                 double e_after = cal_err(&cur, &m);
@@ -743,6 +802,7 @@ int main(void)
     RUN_TEST(test_adopt_twenty_mediocre_runs_do_not_drift);
     RUN_TEST(test_adopt_better_replaces_worse);
     RUN_TEST(test_adopt_hard_iron_moved_admitted);
+    RUN_TEST(test_adopt_small_moves_rules_and_never_worse);
     RUN_TEST(test_suite_no_silent_wrong_answers);
     return UNITY_END();
 }
