@@ -310,7 +310,9 @@ static void test_heading_get_flags_uncalibrated_identity(void)
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_heading_get(&c, raw, 200.0f, &hd));
     c.magic = 0u;
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NOT_INITIALISED, magcal_heading_get(&c, raw, 0.0f, &hd));
-    TEST_ASSERT_EQUAL_MEMORY(&keep, &hd, sizeof hd);
+    TEST_ASSERT_EQUAL_FLOAT(keep.magnetic_deg, hd.magnetic_deg);
+    TEST_ASSERT_EQUAL_FLOAT(keep.true_deg, hd.true_deg);
+    TEST_ASSERT_EQUAL_UINT8(keep.flags, hd.flags);
 }
 
 int main(void)
