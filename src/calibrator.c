@@ -948,8 +948,7 @@ static MAGCAL_NOINLINE magcal_status_t cal_stage_estimate(magcal_calibrator_t *c
     rep->est_noise_deg = MAGCAL_DEG_PER_RAD_F * noise;
     rep->design_factor = hn->design;
     rep->est_param_err_deg = MAGCAL_DEG_PER_RAD_F * sqrtf(hn->noise2 + hn->bias2);
-    rep->est_heading_err_deg =
-        MAGCAL_DEG_PER_RAD_F * sqrtf(noise * noise + hn->noise2 + hn->bias2);
+    rep->est_heading_err_deg = MAGCAL_DEG_PER_RAD_F * sqrtf(noise * noise + hn->noise2 + hn->bias2);
     {
         /* repeated values (quantisation): the estimate rests on the distinct values only, so the
          * gate uses its upper confidence bound, (1 + 1 / sqrt(2 dof)) with dof = distinct - 5 */
@@ -1014,10 +1013,11 @@ static MAGCAL_NOINLINE magcal_status_t cal_stage_adopt(magcal_calibrator_t *cal,
     } else {
         float ex = hc.err2 - hc.noise2; /* noise-free mean square error of `current` */
         rep->current_err_deg = MAGCAL_DEG_PER_RAD_F * sqrtf(fmaxf(ex, 0.0f));
-        rep->current_err_z = hc.noise2_sd > 0.0f ? ex / hc.noise2_sd : (ex > 0.0f ? INFINITY : 0.0f);
+        rep->current_err_z =
+            hc.noise2_sd > 0.0f ? ex / hc.noise2_sd : (ex > 0.0f ? INFINITY : 0.0f);
     }
-    if (rep->current_err_deg >
-        fmaxf(MAGCAL_CALIBRATOR_ADOPT_MARGIN * rep->est_param_err_deg, MAGCAL_CALIBRATOR_ADOPT_MIN_DEG)) {
+    if (rep->current_err_deg > fmaxf(MAGCAL_CALIBRATOR_ADOPT_MARGIN * rep->est_param_err_deg,
+                                     MAGCAL_CALIBRATOR_ADOPT_MIN_DEG)) {
         rep->adopt_rule = MAGCAL_ADOPT_BETTER;
     } else if (rep->current_err_z > MAGCAL_CALIBRATOR_STALE_Z &&
                rep->current_err_deg >= rep->est_param_err_deg &&

@@ -10,7 +10,7 @@
 #include "calibrator_internal.h"
 #include "magcal_internal.h"
 
-#define HARM_K 5u        /* 1, cos, sin, cos 2, sin 2 */
+#define HARM_K 5u /* 1, cos, sin, cos 2, sin 2 */
 #define HARM_PIVOT 1.0e-6f
 
 /* Regressors of one corrected sample h (|h| = rho > 0): 1, cos phi, sin phi, cos 2phi, sin 2phi. */
@@ -36,10 +36,10 @@ void magcal_cal_harmonics(const magcal_vec2_t *pts, size_t n, const uint8_t *mas
                           const magcal_cal2d_t *c, float dup_factor, float sigma_floor,
                           float *scratch, magcal_cal_harm_t *out)
 {
-    float *nm = scratch;                      /* 5x5 normal matrix G^T G */
-    float *wk = scratch + HARM_K * HARM_K;    /* solver copy */
-    float *beta = wk + HARM_K * HARM_K;       /* 5: G^T d, then the coefficients */
-    float *col = beta + HARM_K;               /* 5: columns of the inverse */
+    float *nm = scratch;                   /* 5x5 normal matrix G^T G */
+    float *wk = scratch + HARM_K * HARM_K; /* solver copy */
+    float *beta = wk + HARM_K * HARM_K;    /* 5: G^T d, then the coefficients */
+    float *col = beta + HARM_K;            /* 5: columns of the inverse */
     float inv4[4][4];
     float sum = 0.0f;
     float ss = 0.0f;
@@ -145,8 +145,8 @@ void magcal_cal_harmonics(const magcal_vec2_t *pts, size_t n, const uint8_t *mas
         out->noise2 = 0.5f * s2p * dup_factor * tr;
         out->noise2_sd = sqrtf(0.5f * tr2) * s2p * dup_factor;
         out->design = 0.25f * (float)k * sqrtf(tr2);
-        out->bias2 = MAGCAL_CAL_BIAS_K * MAGCAL_CAL_BIAS_K * 0.5f * s2 * s2 * (float)k *
-                     (float)k * tr2;
+        out->bias2 =
+            MAGCAL_CAL_BIAS_K * MAGCAL_CAL_BIAS_K * 0.5f * s2 * s2 * (float)k * (float)k * tr2;
     }
     out->ok = 1u;
 }

@@ -21,15 +21,15 @@
  * All squares are rad^2 (mean square heading error over uniformly spread headings).
  */
 typedef struct {
-    float err2;       /* 1/2 |beta_1..4|^2: raw mean square heading error implied by the harmonics */
-    float noise2;     /* 1/2 tr(Sigma_1..4): its expectation from noise alone */
-    float noise2_sd;  /* sd of err2 under noise alone: sqrt(1/2 tr(Sigma_1..4^2)) */
-    float bias2;      /* mean square heading bias of a fit on these headings at this noise */
-    float design;     /* |k (G^T G)^-1|_F / 4 over the harmonics: 1 for uniformly spread headings,
+    float err2;      /* 1/2 |beta_1..4|^2: raw mean square heading error implied by the harmonics */
+    float noise2;    /* 1/2 tr(Sigma_1..4): its expectation from noise alone */
+    float noise2_sd; /* sd of err2 under noise alone: sqrt(1/2 tr(Sigma_1..4^2)) */
+    float bias2;     /* mean square heading bias of a fit on these headings at this noise */
+    float design;    /* |k (G^T G)^-1|_F / 4 over the harmonics: 1 for uniformly spread headings,
                          large when a harmonic rests on the spread inside clumps */
-    float sigma_rel;  /* residual sd of d after the harmonic fit (dof n - 5) */
-    float mean_radius;/* mean |c(p_i)|, output unit */
-    uint8_t ok;       /* 0: fewer than 6 samples, zero radius or a singular harmonic design */
+    float sigma_rel; /* residual sd of d after the harmonic fit (dof n - 5) */
+    float mean_radius; /* mean |c(p_i)|, output unit */
+    uint8_t ok;        /* 0: fewer than 6 samples, zero radius or a singular harmonic design */
 } magcal_cal_harm_t;
 
 /* Scale of the O(sigma^2) bias term (docs/calibrator.md: calibrated by tests/test_trust2d.c). */

@@ -381,9 +381,9 @@ static MAGCAL_NOINLINE size_t cons_rethreshold(cons_state_t *S, uint16_t *wm)
          * of k_sigma (Cornish-Fisher, first order: x (1 + (z^2 + 1) / (4 dof)); 1.24 at k = 20,
          * 1.005 at k = 600) */
         const float z = S->cfg->k_sigma;
-        nthr = cons_threshold(S->cfg, &S->cur,
-                              nsig * (1.0f + (z * z + 1.0f) /
-                                                 (4.0f * (float)(k - MAGCAL_ELLIPSE_MIN_POINTS))));
+        nthr = cons_threshold(
+            S->cfg, &S->cur,
+            nsig * (1.0f + (z * z + 1.0f) / (4.0f * (float)(k - MAGCAL_ELLIPSE_MIN_POINTS))));
     } else {
         nthr = cons_threshold(S->cfg, &S->cur, nsig);
     }

@@ -136,8 +136,8 @@ magcal_status_t magcal_heading_compute(const magcal_cal2d_t *c, magcal_vec2_t ra
     return MAGCAL_OK;
 }
 
-magcal_status_t magcal_heading_get(const magcal_cal2d_t *c, magcal_vec2_t raw, float declination_deg,
-                                   magcal_heading_t *out)
+magcal_status_t magcal_heading_get(const magcal_cal2d_t *c, magcal_vec2_t raw,
+                                   float declination_deg, magcal_heading_t *out)
 {
     magcal_status_t st;
     float mag;
