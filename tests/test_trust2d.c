@@ -673,7 +673,7 @@ static void tally_print(const char *name, const tally_t *t)
 }
 
 /* Quantised rings (2..50 LSB radius, undithered to lightly noisy), clumped rings (3..8 clumps of
- * 2..15 deg half-width, 0.2..3 % noise), both at once, and adoption sequences (good then worse,
+ * 0.5..15 deg half-width, 0.2..3 % noise), both at once, and adoption sequences (good then worse,
  * 20 mediocre runs, better replaces worse, hard iron moved): every OK within 1.2 x the floor
  * (adoption: an OK may never install a calibration whose true error is larger than the one it
  * replaced), everything else a non-OK status with `current` untouched. */
@@ -682,7 +682,7 @@ static void test_suite_no_silent_wrong_answers(void)
     static const double qR[] = {2, 3, 4, 5, 6, 8, 10, 15, 20, 30, 50};
     static const double qnoise[] = {0.0, 0.005, 0.02};
     static const int kk[] = {3, 4, 5, 6, 7, 8};
-    static const double kw[] = {2.0, 6.0, 15.0};
+    static const double kw[] = {0.5, 2.0, 6.0, 15.0};
     static const double knoise[] = {0.002, 0.01, 0.03};
     tally_t tq, tk, tqk, ta;
     unsigned a, b, c, seed;
@@ -706,7 +706,7 @@ static void test_suite_no_silent_wrong_answers(void)
         }
     }
     for (a = 0; a < 6u; ++a) {
-        for (b = 0; b < 3u; ++b) {
+        for (b = 0; b < 4u; ++b) {
             for (c = 0; c < 3u; ++c) {
                 for (seed = 0; seed < 2u; ++seed) {
                     magcal_cal2d_t cur = MAGCAL_CAL2D_IDENTITY;
