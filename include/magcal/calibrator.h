@@ -92,7 +92,10 @@
  *         (void)magcal_calibrator_poll(&cal);             // one port sample per call
  *     }
  *     if (magcal_calibrator_run(&cal, &stored, &rep) == MAGCAL_OK) {
- *         // rep.adopted == 1: `stored` holds the new calibration; write it to flash
+ *         // rep.adopted == 1, rep.adopt_rule says why: `stored` holds the new calibration;
+ *         // write it to flash; rep.est_heading_err_deg is the heading error to expect
+ *     } else if (rep.status == MAGCAL_ERR_UNOBSERVABLE) {
+ *         // turn through rep.missing_start_deg .. + rep.missing_width_deg and run again
  *     }
  * }
  * @endcode
