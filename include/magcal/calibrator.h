@@ -52,10 +52,11 @@
  *      > MAGCAL_CALIBRATOR_ADOPT_MIN_DEG): `current` is clearly worse than the new calibration
  *      by the new data's own estimate;
  *  (c) STALE: `current` is demonstrably wrong on the new data, current_err_z >
- *      MAGCAL_CALIBRATOR_STALE_Z (10: far outside what noise does to a correct calibration, i.e.
- *      the installation changed), AND the same field strength was seen (the new inliers corrected
- *      by `current` have a mean radius within cfg.max_radius_change of current->radius) AND the
- *      new calibration is not worse (est_param_err_deg <= current_err_deg).
+ *      MAGCAL_CALIBRATOR_STALE_Z (10: far outside what noise does to a correct calibration: the
+ *      installation changed, or `current` came from poorer data), AND the same field strength was
+ *      seen (the new inliers corrected by `current` have a mean radius within
+ *      cfg.max_radius_change of current->radius) AND the new calibration is not worse
+ *      (est_param_err_deg <= current_err_deg).
  * A tie, or a new calibration that is better only within the noise of the comparison, never
  * replaces `current`: run() returns MAGCAL_ERR_NOT_BETTER and `current` is untouched. (Rule (c)
  * is data-based only; ageing of the current calibration over time is not modelled here.)
