@@ -13,7 +13,6 @@
  */
 #include <math.h>
 #include <stdio.h>
-#include <stdlib.h>
 #include <string.h>
 
 #include "magcal/calibrator.h"
@@ -258,12 +257,6 @@ static void test_estimate_monte_carlo_within_half_to_double(void)
             double q;
             size_t b;
             run_ring(&r, &cur, &o);
-            if (getenv("T2D_DEBUG") != NULL && atoi(getenv("T2D_DEBUG")) == cl) {
-                printf("  dbg R %.0f clumps %d noise %.3f st %d distinct %u used %u rms %.3f floor %.3f act_param %.3f est_param %.3f est_noise %.3f design %.2f\n",
-                       r.R, r.clumps, r.noise, (int)o.st, (unsigned)o.rep.distinct, (unsigned)o.rep.used, o.rms, o.floor,
-                       sqrt(fmax(o.rms * o.rms - o.floor * o.floor, 0.0)), (double)o.rep.est_param_err_deg,
-                       (double)o.rep.est_noise_deg, (double)o.rep.design_factor);
-            }
             if (o.st == MAGCAL_ERR_UNOBSERVABLE && isfinite(o.rms)) {
                 /* refused by the estimate itself: how honest was it about the calibration it refused? */
                 q = (double)o.rep.est_heading_err_deg / o.rms;
