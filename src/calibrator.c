@@ -8,6 +8,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "calibrator_internal.h"
 #include "magcal_internal.h"
 
 #define CAL_MAGIC MAGCAL_CALIBRATOR_MAGIC
@@ -114,6 +115,7 @@ static magcal_status_t cal_check_cfg(const magcal_calibrator_cfg_t *c)
         !cal_finite_cfg_f(c->min_axis_ratio) || !cal_finite_cfg_f(c->min_radius) ||
         !cal_finite_cfg_f(c->max_radius) || !cal_finite_cfg_f(c->max_residual_rel) ||
         !cal_finite_cfg_f(c->max_radius_change) || !cal_finite_cfg_f(c->output_radius) ||
+        !cal_finite_cfg_f(c->max_param_err_ratio) || !cal_finite_cfg_f(c->max_design_factor) ||
         !cal_finite_cfg_f(c->consensus.k_sigma) || !cal_finite_cfg_f(c->consensus.min_thr_rel) ||
         !cal_finite_cfg_f(c->consensus.max_thr_rel)) {
         return MAGCAL_ERR_NONFINITE;
@@ -138,7 +140,8 @@ static magcal_status_t cal_check_cfg(const magcal_calibrator_cfg_t *c)
         c->max_outlier_frac > 1.0f || c->min_axis_ratio < 0.0f || c->min_axis_ratio > 1.0f ||
         c->min_radius < 0.0f || c->max_radius < 0.0f ||
         (c->max_radius > 0.0f && c->min_radius > c->max_radius) || !(c->max_residual_rel > 0.0f) ||
-        c->max_radius_change < 0.0f) {
+        c->max_radius_change < 0.0f || !(c->max_param_err_ratio > 0.0f) ||
+        !(c->max_design_factor >= 1.0f)) {
         return MAGCAL_ERR_ARG;
     }
     if ((unsigned)c->form > (unsigned)MAGCAL_CORR_LAST) {
@@ -196,6 +199,9 @@ magcal_status_t magcal_calibrator_init(magcal_calibrator_t *cal, const magcal_ca
     st = cal_check_cfg(cfg);
     if (st != MAGCAL_OK) {
         return st;
+    }
+    if ((size_t)cfg->min_samples > capacity) {
+        return MAGCAL_ERR_ARG; /* the buffer could never hold enough samples to run */
     }
     if (work_len < MAGCAL_CALIBRATOR_WORKSPACE_LEN(capacity)) {
         return MAGCAL_ERR_WORKSPACE;
@@ -682,32 +688,6 @@ static MAGCAL_NOINLINE void cal_shift(const magcal_cal2d_t *cur, const magcal_ca
     *rms_deg = cnt > 0u ? sqrtf(ss / (float)cnt) : NAN;
 }
 
-/* Mean corrected radius of the masked samples under c, and mean(d^2) with d = rho/mean - 1. */
-static void cal_radius_stats(const magcal_vec2_t *p, size_t n, const uint8_t *mask,
-                             const magcal_cal2d_t *c, float *mean, float *var_rel)
-{
-    float sum = 0.0f;
-    float sum2 = 0.0f;
-    size_t k = 0u;
-    size_t i;
-    for (i = 0u; i < n; ++i) {
-        magcal_vec2_t h;
-        if (mask[i] != 0u && magcal_correct_apply(c, p[i], &h) == MAGCAL_OK) {
-            float rho = sqrtf(h.x * h.x + h.y * h.y);
-            sum += rho;
-            sum2 += rho * rho;
-            ++k;
-        }
-    }
-    if (k == 0u || !(sum > 0.0f)) {
-        *mean = 0.0f;
-        *var_rel = 0.0f;
-        return;
-    }
-    *mean = sum / (float)k;
-    *var_rel = (sum2 / (float)k) / (*mean * *mean) - 1.0f;
-}
-
 static void cal_set_flags(magcal_calibrator_t *cal, int with_residual)
 {
     size_t i;
@@ -936,6 +916,55 @@ static MAGCAL_NOINLINE magcal_status_t cal_stage_gates(magcal_calibrator_t *cal,
     return MAGCAL_OK;
 }
 
+/* 6 (cont.): estimates of the new calibration (report fields est_*) and the observability gate.
+ * Scratch: the consensus workspace (free after the fit; the masks live behind it). */
+static MAGCAL_NOINLINE magcal_status_t cal_stage_estimate(magcal_calibrator_t *cal,
+                                                          magcal_cal_report_t *rep,
+                                                          magcal_cal_harm_t *hn, float *dup,
+                                                          float *floor_rel)
+{
+    cal_run_t *run = (cal_run_t *)cal->run;
+    float *fs = (float *)cal->scratch;
+    uint16_t *idx = (uint16_t *)(void *)(fs + MAGCAL_CAL_HARM_SCRATCH_FLOATS);
+    float step = 0.0f;
+    size_t distinct = magcal_cal_distinct(cal->buf, cal->n, cal->mask_b, idx, &step);
+    float noise;
+    *dup = distinct > 0u ? (float)rep->used / (float)distinct : 1.0f;
+    if (*dup < 1.0f) {
+        *dup = 1.0f;
+    }
+    rep->distinct = (uint16_t)distinct;
+    /* quantisation: a lattice of few distinct values can lie on a conic far from the truth with
+     * almost no residual; its heading noise is at least that of a uniform error of one step */
+    *floor_rel = rep->radius > 0.0f ? step / (rep->radius * 3.4641016f) : 0.0f;
+    magcal_cal_harmonics(cal->buf, cal->n, cal->mask_b, &run->next, *dup, *floor_rel, fs, hn);
+    if (hn->ok == 0u) {
+        return MAGCAL_ERR_UNOBSERVABLE; /* headings too clumped to separate centre and soft iron */
+    }
+    /* per-sample heading noise of new data: the relative radial residual after the harmonics
+     * (the fit's own residual, dof corrected); tangential and radial noise have the same RMS
+     * over uniformly spread headings */
+    noise = hn->sigma_rel;
+    rep->est_noise_deg = MAGCAL_DEG_PER_RAD_F * noise;
+    rep->design_factor = hn->design;
+    rep->est_param_err_deg = MAGCAL_DEG_PER_RAD_F * sqrtf(hn->noise2 + hn->bias2);
+    rep->est_heading_err_deg = MAGCAL_DEG_PER_RAD_F * sqrtf(noise * noise + hn->noise2 + hn->bias2);
+    {
+        /* repeated values (quantisation): the estimate rests on the distinct values only, so the
+         * gate uses its upper confidence bound, (1 + 1 / sqrt(2 dof)) with dof = distinct - 5 */
+        float par = sqrtf(hn->noise2 + hn->bias2);
+        if (distinct < (size_t)rep->used) {
+            float dof = distinct > 6u ? (float)distinct - 5.0f : 1.0f;
+            par *= 1.0f + 1.0f / sqrtf(2.0f * dof);
+        }
+        if (!(par <= cal->cfg.max_param_err_ratio * noise) ||
+            !(hn->design <= cal->cfg.max_design_factor)) {
+            return MAGCAL_ERR_UNOBSERVABLE;
+        }
+    }
+    return MAGCAL_OK;
+}
+
 /* 6. correction, final coverage (corrected headings of the inliers), estimates; 7. adoption. */
 static MAGCAL_NOINLINE magcal_status_t cal_stage_adopt(magcal_calibrator_t *cal,
                                                        magcal_cal2d_t *current,
@@ -946,7 +975,10 @@ static MAGCAL_NOINLINE magcal_status_t cal_stage_adopt(magcal_calibrator_t *cal,
     const size_t n = cal->n;
     magcal_status_t st;
     float cov;
-    int cur_usable = 0;
+    float dup = 1.0f;
+    float floor_rel = 0.0f;
+    magcal_cal_harm_t hn;
+    magcal_cal_harm_t hc;
 
     st = magcal_ellipse_to_cal(&run->cres.fit, cal->cfg.form, cal->cfg.output_radius, next);
     if (st != MAGCAL_OK) {
@@ -959,36 +991,41 @@ static MAGCAL_NOINLINE magcal_status_t cal_stage_adopt(magcal_calibrator_t *cal,
     if (cov < cal->cfg.min_coverage_deg || !(cov > 0.0f)) {
         return MAGCAL_ERR_COVERAGE;
     }
-    {
-        float sig_rel = rep->residual_rel;
-        float infl = 360.0f / cov;
-        rep->est_heading_err_deg =
-            MAGCAL_DEG_PER_RAD_F * sig_rel * sqrtf(5.0f / (float)rep->used) * infl * infl;
+    st = cal_stage_estimate(cal, rep, &hn, &dup, &floor_rel);
+    if (st != MAGCAL_OK) {
+        return st;
     }
 
-    /* 7. adoption rule */
-    if (magcal_cal2d_validate(current) == MAGCAL_OK && current->radius > 0.0f) {
-        cur_usable = 1;
+    /* 7. adoption rule (file comment of calibrator.h) */
+    if (magcal_cal2d_validate(current) != MAGCAL_OK || !(current->radius > 0.0f)) {
+        cal_shift(NULL, next, &rep->shift_max_deg, &rep->shift_rms_deg);
+        rep->adopt_rule = MAGCAL_ADOPT_UNUSABLE;
+        *current = *next;
+        return MAGCAL_OK;
     }
-    cal_shift(cur_usable != 0 ? current : NULL, next, &rep->shift_max_deg, &rep->shift_rms_deg);
-    if (cur_usable != 0) {
-        float var_cur;
-        float var_new;
-        float mean_cur;
-        float mean_new;
-        cal_radius_stats(cal->buf, n, cal->mask_b, current, &mean_cur, &var_cur);
-        cal_radius_stats(cal->buf, n, cal->mask_b, next, &mean_new, &var_new);
-        if (!(mean_cur > 0.0f) || !(mean_new > 0.0f)) {
-            rep->current_err_deg = INFINITY;
-        } else {
-            rep->current_err_deg = MAGCAL_DEG_PER_RAD_F * sqrtf(fmaxf(var_cur - var_new, 0.0f));
-        }
-        if (!(rep->est_heading_err_deg <= rep->current_err_deg)) {
-            float change = mean_cur > 0.0f ? fabsf(mean_cur / current->radius - 1.0f) : INFINITY;
-            if (!(change <= cal->cfg.max_radius_change)) {
-                return MAGCAL_ERR_NOT_BETTER;
-            }
-        }
+    cal_shift(current, next, &rep->shift_max_deg, &rep->shift_rms_deg);
+    magcal_cal_harmonics(cal->buf, n, cal->mask_b, current, dup, floor_rel, (float *)cal->scratch,
+                         &hc);
+    if (hc.ok == 0u) {
+        /* the current calibration maps the new inliers onto a point or leaves no usable radius */
+        rep->current_err_deg = INFINITY;
+        rep->current_err_z = INFINITY;
+    } else {
+        float ex = hc.err2 - hc.noise2; /* noise-free mean square error of `current` */
+        rep->current_err_deg = MAGCAL_DEG_PER_RAD_F * sqrtf(fmaxf(ex, 0.0f));
+        rep->current_err_z =
+            hc.noise2_sd > 0.0f ? ex / hc.noise2_sd : (ex > 0.0f ? INFINITY : 0.0f);
+    }
+    if (rep->current_err_deg > fmaxf(MAGCAL_CALIBRATOR_ADOPT_MARGIN * rep->est_param_err_deg,
+                                     MAGCAL_CALIBRATOR_ADOPT_MIN_DEG)) {
+        rep->adopt_rule = MAGCAL_ADOPT_BETTER;
+    } else if (rep->current_err_z > MAGCAL_CALIBRATOR_STALE_Z &&
+               rep->current_err_deg >= rep->est_param_err_deg &&
+               rep->current_err_deg > MAGCAL_CALIBRATOR_ADOPT_MIN_DEG && hc.ok != 0u &&
+               fabsf(hc.mean_radius / current->radius - 1.0f) <= cal->cfg.max_radius_change) {
+        rep->adopt_rule = MAGCAL_ADOPT_STALE;
+    } else {
+        return MAGCAL_ERR_NOT_BETTER;
     }
     *current = *next;
     return MAGCAL_OK;
@@ -1009,6 +1046,11 @@ magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *
     rep = &((cal_run_t *)cal->run)->rep;
     (void)memset(rep, 0, sizeof *rep);
     rep->current_err_deg = NAN;
+    rep->current_err_z = NAN;
+    rep->est_heading_err_deg = NAN;
+    rep->est_param_err_deg = NAN;
+    rep->est_noise_deg = NAN;
+    rep->adopt_rule = MAGCAL_ADOPT_NONE;
     rep->samples = (uint16_t)cal->n;
     cal->has_fit = 0u;
     cal->n_judged = 0u;
@@ -1095,6 +1137,17 @@ magcal_status_t magcal_calibrator_classify(const magcal_calibrator_t *cal, magca
         *is_outlier = 1;
     }
     return MAGCAL_OK;
+}
+
+const char *magcal_adopt_rule_str(magcal_adopt_rule_t rule)
+{
+    switch (rule) {
+    case MAGCAL_ADOPT_NONE: return "none";
+    case MAGCAL_ADOPT_UNUSABLE: return "unusable";
+    case MAGCAL_ADOPT_BETTER: return "better";
+    case MAGCAL_ADOPT_STALE: return "stale";
+    default: return "unknown";
+    }
 }
 
 magcal_calibrator_state_t magcal_calibrator_state(const magcal_calibrator_t *cal)

@@ -135,3 +135,23 @@ magcal_status_t magcal_heading_compute(const magcal_cal2d_t *c, magcal_vec2_t ra
     }
     return MAGCAL_OK;
 }
+
+magcal_status_t magcal_heading_get(const magcal_cal2d_t *c, magcal_vec2_t raw,
+                                   float declination_deg, magcal_heading_t *out)
+{
+    magcal_status_t st;
+    float mag;
+    float tru;
+    if (out == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    st = magcal_heading_compute(c, raw, declination_deg, &mag, &tru);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    out->magnetic_deg = mag;
+    out->true_deg = tru;
+    /* validated by magcal_heading_compute: radius >= 0, so > 0 means "fitted" */
+    out->flags = (uint8_t)(c->radius > 0.0f ? 0u : MAGCAL_HEADING_FLAG_UNCALIBRATED);
+    return MAGCAL_OK;
+}

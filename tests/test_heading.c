@@ -278,6 +278,43 @@ static void test_heading_compute_bad_input_returns_status(void)
     TEST_ASSERT_EQUAL_FLOAT(77.0f, tru);
 }
 
+/* magcal_heading_get: the same heading as magcal_heading_compute, and a flag that tells a heading
+ * from an unfitted calibration (radius 0: MAGCAL_CAL2D_IDENTITY) from a calibrated one. */
+static void test_heading_get_flags_uncalibrated_identity(void)
+{
+    magcal_cal2d_t id = MAGCAL_CAL2D_IDENTITY;
+    magcal_cal2d_t c = MAGCAL_CAL2D_IDENTITY;
+    magcal_heading_t hd;
+    magcal_heading_t keep;
+    float mag, tru;
+    magcal_vec2_t raw = field_at(123.0, 30.0);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_heading_get(&id, raw, 10.0f, &hd));
+    TEST_ASSERT_EQUAL_UINT8(MAGCAL_HEADING_FLAG_UNCALIBRATED, hd.flags);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_heading_compute(&id, raw, 10.0f, &mag, &tru));
+    TEST_ASSERT_EQUAL_FLOAT(mag, hd.magnetic_deg);
+    TEST_ASSERT_EQUAL_FLOAT(tru, hd.true_deg);
+    TEST_ASSERT_FLOAT_WITHIN(1e-3f, 123.0f, hd.magnetic_deg);
+    TEST_ASSERT_FLOAT_WITHIN(1e-3f, 133.0f, hd.true_deg);
+    /* a fitted calibration states its radius: no flag */
+    c.offset.x = 2.0f;
+    c.radius = 30.0f;
+    raw.x += 2.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_heading_get(&c, raw, -5.0f, &hd));
+    TEST_ASSERT_EQUAL_UINT8(0u, hd.flags);
+    TEST_ASSERT_FLOAT_WITHIN(1e-3f, 123.0f, hd.magnetic_deg);
+    TEST_ASSERT_FLOAT_WITHIN(1e-3f, 118.0f, hd.true_deg);
+    /* failures: a status, the result untouched */
+    keep = hd;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_heading_get(&c, raw, 0.0f, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_heading_get(NULL, raw, 0.0f, &hd));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_heading_get(&c, raw, 200.0f, &hd));
+    c.magic = 0u;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NOT_INITIALISED, magcal_heading_get(&c, raw, 0.0f, &hd));
+    TEST_ASSERT_EQUAL_FLOAT(keep.magnetic_deg, hd.magnetic_deg);
+    TEST_ASSERT_EQUAL_FLOAT(keep.true_deg, hd.true_deg);
+    TEST_ASSERT_EQUAL_UINT8(keep.flags, hd.flags);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -291,5 +328,6 @@ int main(void)
     RUN_TEST(test_heading_compute_declination_gives_true_heading);
     RUN_TEST(test_heading_compute_true_heading_in_half_open_range);
     RUN_TEST(test_heading_compute_bad_input_returns_status);
+    RUN_TEST(test_heading_get_flags_uncalibrated_identity);
     return UNITY_END();
 }

@@ -18,35 +18,55 @@
  *     least-squares fit of the filter inliers);
  *  5. gates, each with its own status: too many outliers, not an ellipse (hyperbola, parabola,
  *     imaginary), radius range, axis ratio, residual, coverage (around the fitted centre);
- *  6. correction (magcal_ellipse_to_cal) and the adoption rule (below).
+ *  6. correction (magcal_ellipse_to_cal), the heading-error estimate and the observability gate
+ *     (UNOBSERVABLE, below), then the adoption rule (below).
+ *
+ * Heading-error estimate (radians in the formulas, degrees in the report; docs/calibrator.md).
+ * The inliers are corrected by the new calibration; d_i = |h_i| / mean - 1 is fitted by least
+ * squares on G = [1, cos phi, sin phi, cos 2phi, sin 2phi] (phi = direction of h_i). A centre error
+ * makes a first harmonic of d, a soft-iron error a second, each with the same relative amplitude
+ * as the heading error it causes, and the mean square heading error over uniformly spread
+ * headings is 1/2 the sum of the four harmonic coefficients squared. With s^2 = the residual
+ * variance after the harmonics (dof n - 5), floored by the rounding noise (LSB / sqrt(12) / R,
+ * LSB = the data's smallest coordinate step), S = (G^T G)^-1 restricted to the harmonics and
+ * dup = used / distinct values:
+ *     est_noise_deg       = s                                   (per-sample noise of new data)
+ *     est_param_err_deg   = sqrt(1/2 s_p^2 dup tr(S) + bias^2)  (the calibration's own error)
+ *     bias^2              = 1/2 (1.5 s^2 n)^2 tr(S^2)           (O(sigma^2) bias of weak designs)
+ *     est_heading_err_deg = sqrt(est_noise^2 + est_param^2)      (what a user sees on new data)
+ * where s_p^2 counts rounding the residuals do not show 8 times (a lattice's errors are
+ * correlated along the ring). design_factor = n |S|_F / 4 (1 for uniformly spread headings).
+ * Validated by Monte-Carlo (tests/test_trust2d.c): within [0.5, 2] x the measured heading RMS.
+ * Observability gate: est_param_err_deg > cfg.max_param_err_ratio x est_noise_deg (with repeated
+ * values: its upper bound x (1 + 1/sqrt(2 (distinct - 5)))), or design_factor >
+ * cfg.max_design_factor, or a singular harmonic design gives MAGCAL_ERR_UNOBSERVABLE: the
+ * headings (clumps, gaps) or the resolution (a few LSB) do not determine the calibration to
+ * better than the per-sample noise; turn through the missing headings (report missing_*) or raise
+ * the sensor gain. The default 0.6 keeps the expected heading RMS within 1.17 x the noise floor.
  *
  * Adoption rule. The caller's calibration `current` is replaced only when the new one passes
- * every gate AND one of:
- *  (a) `current` is not a usable calibration (magcal_cal2d_validate fails) or its radius is 0
- *      (unknown, e.g. MAGCAL_CAL2D_IDENTITY);
- *  (b) the new calibration is better: est_heading_err_deg(new) <= current_err_deg, where
- *      current_err_deg is the heading error of `current` estimated on the new inliers (below);
- *  (c) the new data are fresher (they always are: they were just collected) AND the field
- *      radius is plausible: the new inliers corrected by `current` have a mean radius within
- *      cfg.max_radius_change (relative) of current->radius, i.e. the same field strength was
- *      seen, so the new data describe the same installation in the same field, and a slowly
- *      drifting hard iron is tracked.
- * Otherwise run() returns MAGCAL_ERR_NOT_BETTER and `current` is untouched.
- *
- * Heading-error estimates (degrees, documented formulas, see also docs/calibrator.md):
- *  - new calibration: per-sample noise sigma_rel = residual_rms / R (R = sqrt(r1 r2)) gives the
- *    CRLB heading noise sigma_rel rad (algorithms.md 9); the calibration error of a 5-parameter
- *    fit on N inliers is that divided by sqrt(N / 5); a partial arc is inflated by
- *    (360 / coverage_deg)^2 (extrapolation of the fit over the gap):
- *        est_heading_err_deg = 57.2958 * sigma_rel * sqrt(5 / N) * (360 / coverage_deg)^2
- *  - current calibration on the new inliers: a wrong centre or soft-iron matrix modulates the
- *    corrected radius with the same relative amplitude as the heading error it causes. With
- *    V(c) = mean(d_i^2), d_i = |c(p_i)| / mean_j |c(p_j)| - 1 over the new inliers, the excess
- *    modulation of `current` over the new calibration (which removes the common noise) is
- *        current_err_deg = 57.2958 * sqrt(max(0, V(current) - V(new)))
- *  - heading shift if adopted: for headings psi = 0, 5, ..., 355 deg the raw point of the new
- *    ellipse that the new calibration maps to psi is corrected with `current` (identity when
- *    `current` is unusable); max and RMS of wrap(psi_current - psi).
+ * every gate AND one of (report adopt_rule names it):
+ *  (a) UNUSABLE: `current` is not a usable calibration (magcal_cal2d_validate fails) or its radius
+ *      is 0 (never fitted, e.g. MAGCAL_CAL2D_IDENTITY);
+ *  (b) BETTER: current_err_deg > MAGCAL_CALIBRATOR_ADOPT_MARGIN (3) x est_param_err_deg (and
+ *      > MAGCAL_CALIBRATOR_ADOPT_MIN_DEG): `current` is clearly worse than the new calibration
+ *      by the new data's own estimate;
+ *  (c) STALE: `current` is demonstrably wrong on the new data, current_err_z >
+ *      MAGCAL_CALIBRATOR_STALE_Z (10: far outside what noise does to a correct calibration: the
+ *      installation changed, or `current` came from poorer data), AND the same field strength was
+ *      seen (the new inliers corrected by `current` have a mean radius within
+ *      cfg.max_radius_change of current->radius) AND the new calibration is not worse
+ *      (est_param_err_deg <= current_err_deg).
+ * A tie, or a new calibration that is better only within the noise of the comparison, never
+ * replaces `current`: run() returns MAGCAL_ERR_NOT_BETTER and `current` is untouched. (Rule (c)
+ * is data-based only; ageing of the current calibration over time is not modelled here.)
+ * current_err_deg: the same harmonic analysis of `current` on the new inliers, with the noise
+ * projection's expectation removed, so noise does not read as error:
+ *     current_err_deg = sqrt(max(0, 1/2 |beta_1..4|^2 - 1/2 s_p^2 dup tr(S)))
+ *     current_err_z   = (1/2 |beta|^2 - 1/2 s_p^2 dup tr(S)) / sqrt(1/2 tr((s_p^2 dup S)^2))
+ * Heading shift if adopted: for headings psi = 0, 5, ..., 355 deg the raw point of the new
+ * ellipse that the new calibration maps to psi is corrected with `current` (identity when
+ * `current` is unusable); max and RMS of wrap(psi_current - psi).
  *
  * Memory: caller-allocated instance, sample buffer (capacity <= MAGCAL_MAX_SAMPLES) and one
  * workspace of MAGCAL_CALIBRATOR_WORKSPACE_LEN(capacity) bytes (4-byte aligned) that also keeps
@@ -73,7 +93,10 @@
  *         (void)magcal_calibrator_poll(&cal);             // one port sample per call
  *     }
  *     if (magcal_calibrator_run(&cal, &stored, &rep) == MAGCAL_OK) {
- *         // rep.adopted == 1: `stored` holds the new calibration; write it to flash
+ *         // rep.adopted == 1, rep.adopt_rule says why: `stored` holds the new calibration;
+ *         // write it to flash; rep.est_heading_err_deg is the heading error to expect
+ *     } else if (rep.status == MAGCAL_ERR_UNOBSERVABLE) {
+ *         // turn through rep.missing_start_deg .. + rep.missing_width_deg and run again
  *     }
  * }
  * @endcode
@@ -181,16 +204,38 @@ typedef struct {
     float max_radius_change;/**< adoption rule (c): relative field-radius change still plausible (0.2) */
     magcal_corr_form_t form;/**< correction form (default MAGCAL_CORR_SYMMETRIC) */
     float output_radius;    /**< rho for magcal_ellipse_to_cal; <= 0: sqrt(r1 r2), point unit (default 0) */
+    float max_param_err_ratio; /**< observability gate: est_param_err_deg above this multiple of
+                                    est_noise_deg gives UNOBSERVABLE, > 0 (default 0.6) */
+    float max_design_factor; /**< observability gate: report design_factor above this gives
+                                  UNOBSERVABLE (headings in 4 clumps: 13..19), >= 1 (default 8) */
 } magcal_calibrator_cfg_t;
 
 /** Defaults that work without tuning (automatic filter parameters, accept every sample). */
 #define MAGCAL_CALIBRATOR_CFG_DEFAULT                                                              \
     {                                                                                              \
         MAGCAL_FILTER_OPTICS_GRID, 0.0f, 0u, 1u, MAGCAL_CONSENSUS_CFG_DEFAULT, 0.0f, 0u, 20u,      \
-            270.0f, 0.5f, 0.5f, 0.0f, 0.0f, 0.1f, 0.2f, MAGCAL_CORR_SYMMETRIC, 0.0f                \
+            270.0f, 0.5f, 0.5f, 0.0f, 0.0f, 0.1f, 0.2f, MAGCAL_CORR_SYMMETRIC, 0.0f, 0.6f, 8.0f    \
     }
 
-/** What run() did and found. Fields not reached by a failing run are 0 (or NaN where noted). */
+/** Adoption rule (b): `current` must be worse than the new calibration by this factor. */
+#define MAGCAL_CALIBRATOR_ADOPT_MARGIN 3.0f
+/** Adoption rule (c): `current`'s error on the new inliers is "demonstrably" non-zero above this
+ *  many standard deviations of its noise-only distribution (report current_err_z). */
+#define MAGCAL_CALIBRATOR_STALE_Z 10.0f
+/** Rules (b) and (c) need a current error above this (degrees): float32 rounding, not data. */
+#define MAGCAL_CALIBRATOR_ADOPT_MIN_DEG 1.0e-3f
+
+/** Which adoption rule installed the new calibration (report adopt_rule). */
+typedef enum {
+    MAGCAL_ADOPT_NONE = 0,     /**< not adopted (failure, or NOT_BETTER) */
+    MAGCAL_ADOPT_UNUSABLE = 1, /**< (a) `current` unusable: invalid, or radius 0 (never fitted) */
+    MAGCAL_ADOPT_BETTER = 2,   /**< (b) `current` worse than the new one by MAGCAL_CALIBRATOR_ADOPT_MARGIN */
+    MAGCAL_ADOPT_STALE = 3     /**< (c) `current` demonstrably wrong on the new data, same field
+                                    radius, new one not worse */
+} magcal_adopt_rule_t;
+
+/** What run() did and found. Fields not reached by a failing run are 0, or NaN for the estimates
+ *  (est_*, current_err_*): a failed run never reads as a perfect one. */
 typedef struct {
     magcal_status_t status;   /**< same as run()'s return value */
     magcal_calibrator_state_t state; /**< state after the run */
@@ -213,14 +258,29 @@ typedef struct {
     float min_pivot;          /**< smallest equilibrated pivot of the final fit (condition) */
     float threshold;          /**< residual threshold used by classify(), point unit */
     magcal_ellipse_t ellipse; /**< final fit */
-    float est_heading_err_deg;  /**< estimated heading error of the new calibration (formula above) */
-    float current_err_deg;      /**< estimated error of `current` on the new data; NaN if unusable */
+    float est_heading_err_deg;  /**< honest heading error a user sees on new data with the new
+                                     calibration: noise + parameter error + bias (file comment),
+                                     degrees; NaN when the run failed before the estimate */
+    float current_err_deg;      /**< error of `current` on the new data, noise removed (file
+                                     comment), deg; NaN if unusable or not reached; +Inf if it
+                                     maps the new data onto no usable ring */
     float shift_max_deg;        /**< max |heading change| over 0..360 if adopted */
     float shift_rms_deg;        /**< RMS heading change over 0..360 if adopted */
     magcal_cal2d_t cal;         /**< the new calibration (also when not adopted: inspect only) */
     uint8_t filter_fragmented;  /**< 1: the filter inliers alone missed the coverage gate (ring split
                                      into arcs by bursts), so the consensus drew from every sample */
+    float est_param_err_deg;    /**< RMS heading error of the new calibration's parameters alone
+                                     (centre and soft iron), degrees; NaN before the estimate */
+    float est_noise_deg;        /**< per-sample heading noise of the data (incl. quantisation), deg */
+    float current_err_z;        /**< significance of current_err_deg: (err^2 - E_noise) / sd_noise */
+    uint16_t distinct;          /**< distinct sample values among the inliers (quantisation) */
+    float design_factor;        /**< weakness of the headings' design for the calibration: 1 for
+                                     uniformly spread headings, large for clumps (file comment) */
+    magcal_adopt_rule_t adopt_rule; /**< the rule that installed the new calibration */
 } magcal_cal_report_t;
+
+/** @brief Short constant name of an adoption rule ("unusable", "better", ...; "unknown"). */
+const char *magcal_adopt_rule_str(magcal_adopt_rule_t rule);
 
 /** Calibrator instance. Allocate it anywhere; every field is PRIVATE (use the functions). */
 typedef struct {
@@ -260,7 +320,8 @@ typedef struct {
  * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_ARG (capacity out of range, misaligned work, a cfg
  *         value out of range: filter enum, eps < 0 or NaN, min_pts 1 or > MAGCAL_MAX_MIN_PTS,
  *         consensus settings, min_samples < 5, coverage outside 0..360, fractions outside 0..1,
- *         radius limits < 0 or min > max, form enum); MAGCAL_ERR_NONFINITE (a non-finite
+ *         radius limits < 0 or min > max, form enum, max_param_err_ratio <= 0, max_design_factor
+ *         < 1, min_samples > capacity); MAGCAL_ERR_NONFINITE (a non-finite
  *         cfg value); MAGCAL_ERR_WORKSPACE (work_len too small). cal untouched on failure.
  */
 magcal_status_t magcal_calibrator_init(magcal_calibrator_t *cal, const magcal_calibrator_cfg_t *cfg,
@@ -307,7 +368,9 @@ magcal_status_t magcal_calibrator_poll(magcal_calibrator_t *cal);
  *         MAGCAL_ERR_COVERAGE (arc below cfg.min_coverage_deg; see report->missing_*);
  *         MAGCAL_ERR_TOO_MANY_OUTLIERS; MAGCAL_ERR_HYPERBOLA; MAGCAL_ERR_PARABOLA;
  *         MAGCAL_ERR_IMAGINARY; MAGCAL_ERR_ILL_CONDITIONED; MAGCAL_ERR_RADIUS_RANGE;
- *         MAGCAL_ERR_AXIS_RATIO; MAGCAL_ERR_RESIDUAL; MAGCAL_ERR_NOT_BETTER (gates passed, adoption
+ *         MAGCAL_ERR_AXIS_RATIO; MAGCAL_ERR_RESIDUAL; MAGCAL_ERR_UNOBSERVABLE (the observability
+ *         gate: clumped headings or a coarse lattice leave the calibration error above
+ *         cfg.max_param_err_ratio x the noise); MAGCAL_ERR_NOT_BETTER (gates passed, adoption
  *         rule kept `current`); MAGCAL_ERR_ARG / MAGCAL_ERR_WORKSPACE from a stage (explicit eps or
  *         min_pts the stage rejects).
  */

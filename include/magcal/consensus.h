@@ -14,15 +14,24 @@
  *  2. max_iter draws of a minimal set: 5 candidates spread over the angular order (one random
  *     candidate in each fifth of the order, starting at a random rank: well conditioned sets
  *     even on partial arcs). The conic through them (magcal_ellipse_fit_idx, exact 5-point path)
- *     is kept only if it is an ellipse. Score = median over EVERY sample of
- *     |magcal_ellipse_residual| (least median of squares: no threshold needed, breakdown 50%).
+ *     is kept only if it is an ellipse. Score = median over every sample EXCEPT the five of the
+ *     minimal set (their residuals are 0 by construction) of |magcal_ellipse_residual| (least
+ *     median of squares: no threshold needed, breakdown 50%).
  *     If no draw gives an ellipse the least-squares fit of all candidates is the start model.
- *  3. sigma = 1.4826 * median |r| (of every sample for the start model, of the current inliers
- *     afterwards); threshold = clamp(k_sigma * sigma, min_thr_rel * R, max_thr_rel * R) with
+ *  3. Start: sigma = 1.4826 (1 + 5 / (n - 5)) * score (Rousseeuw & Leroy's finite-sample
+ *     factor). Each refit round on k inliers: sigma = max(1.4826 median |r|, RMS |r|) *
+ *     sqrt(k / (k - 5)) over the current inliers (the RMS is the efficient scale; the inliers are
+ *     already cut at the threshold), and the threshold uses the Student-t quantile of k_sigma,
+ *     k_sigma (1 + (k_sigma^2 + 1) / (4 (k - 5))) (k > 10). sigma is floored at LSB / sqrt(12),
+ *     LSB = the smallest positive step between the candidates' sorted x or y values (rounding
+ *     noise of quantised samples; ~0 for continuous data).
+ *     threshold = clamp(that, min_thr_rel * R, max_thr_rel * R) with
  *     R = sqrt(semi_minor * semi_major); inliers = { i : |r_i| <= threshold } over EVERY sample
  *     (a point the density filter rejected but that lies on the ellipse is taken back);
  *     refit on the inliers (magcal_ellipse_fit with the mask), recompute every residual.
  *     Repeat until the inlier set stops changing or refine_iter rounds were done.
+ *     Measured (tests/test_consensus.c): 0.47 % of exactly 20 clean samples rejected (was 7.6 %),
+ *     all 300 samples of a 5-LSB quantised ring kept.
  *
  * Units: residuals, sigma and threshold in the unit of the points (raw LSB, uT, ...).
  * Axes: x right, y forward.
@@ -86,7 +95,7 @@ typedef struct {
 /** Result and statistics of one consensus run. */
 typedef struct {
     magcal_ellipse_t fit;   /**< final least-squares fit of the inliers */
-    float sigma;            /**< robust residual scale 1.4826 * MAD of the inliers, point unit */
+    float sigma;            /**< residual scale of the inliers (step 3), point unit */
     float threshold;        /**< |residual| <= threshold is an inlier, point unit */
     float best_score;       /**< median |residual| of the best minimal-set model, point unit */
     uint16_t n_candidates;  /**< samples the minimal sets were drawn from */

@@ -22,9 +22,10 @@
  *
  * void on_sample(magcal_vec2_t raw, float declination_deg)
  * {
- *     float mag_deg, true_deg;
- *     if (magcal_heading_compute(&cal, raw, declination_deg, &mag_deg, &true_deg) == MAGCAL_OK) {
- *         // use mag_deg / true_deg, both in [0, 360)
+ *     magcal_heading_t hd;
+ *     if (magcal_heading_get(&cal, raw, declination_deg, &hd) == MAGCAL_OK &&
+ *         (hd.flags & MAGCAL_HEADING_FLAG_UNCALIBRATED) == 0u) {
+ *         // use hd.magnetic_deg / hd.true_deg, both in [0, 360)
  *     }
  * }
  * @endcode
@@ -111,9 +112,39 @@ magcal_status_t magcal_heading_from_field(magcal_vec2_t h, float *heading_deg);
  *         declination); MAGCAL_ERR_ARG (|declination| > 180); any status of
  *         magcal_cal2d_validate(); MAGCAL_ERR_ZERO_FIELD (as magcal_heading_from_field(), or,
  *         when c->radius > 0, |h| < MAGCAL_HEADING_ZERO_FIELD_FRAC * radius).
+ * @note MAGCAL_OK says nothing about whether `c` was ever fitted: MAGCAL_CAL2D_IDENTITY (radius 0)
+ *       gives the raw heading with MAGCAL_OK. Use magcal_heading_get(), which flags it.
  */
 magcal_status_t magcal_heading_compute(const magcal_cal2d_t *c, magcal_vec2_t raw,
                                        float declination_deg, float *magnetic_deg, float *true_deg);
+
+/** magcal_heading_t::flags: the calibration was never fitted (radius 0, e.g.
+ *  MAGCAL_CAL2D_IDENTITY): the heading is the raw one, off by the whole hard and soft iron. */
+#define MAGCAL_HEADING_FLAG_UNCALIBRATED 0x01u
+
+/** One heading with the facts a consumer needs to trust it. */
+typedef struct {
+    float magnetic_deg; /**< magnetic heading in [0, 360) */
+    float true_deg;     /**< wrap360(magnetic + declination) in [0, 360) */
+    uint8_t flags;      /**< MAGCAL_HEADING_FLAG_* bits; 0 = from a fitted calibration */
+} magcal_heading_t;
+
+/**
+ * @brief As magcal_heading_compute(), into one result that also says whether the calibration was
+ *        ever fitted.
+ *
+ * A calibration with radius 0 (MAGCAL_CAL2D_IDENTITY, or a hand-made one that does not state its
+ * field radius) gives a heading, but flags it MAGCAL_HEADING_FLAG_UNCALIBRATED: on a vehicle the
+ * raw heading can be off by up to 180 degrees. Every calibration from magcal_ellipse_to_cal() or
+ * magcal_calibrator_run() has radius > 0 and flags 0.
+ * @param[in]  c               calibration.
+ * @param[in]  raw             raw level horizontal sample (x right, y forward), raw units.
+ * @param[in]  declination_deg magnetic declination, east positive, in [-180, 180].
+ * @param[out] out             result; untouched on failure.
+ * @return every status of magcal_heading_compute() (MAGCAL_ERR_NULL also for out NULL).
+ */
+magcal_status_t magcal_heading_get(const magcal_cal2d_t *c, magcal_vec2_t raw, float declination_deg,
+                                   magcal_heading_t *out);
 
 #ifdef __cplusplus
 }

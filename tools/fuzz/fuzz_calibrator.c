@@ -49,6 +49,7 @@ static int fz_run_status_ok(magcal_status_t st)
     case MAGCAL_ERR_RADIUS_RANGE:
     case MAGCAL_ERR_AXIS_RATIO:
     case MAGCAL_ERR_RESIDUAL:
+    case MAGCAL_ERR_UNOBSERVABLE:
     case MAGCAL_ERR_NOT_BETTER:
     case MAGCAL_ERR_ARG:
     case MAGCAL_ERR_WORKSPACE:
@@ -118,6 +119,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     size_t n_kept = 0u;
     size_t i;
 
+    if (cfg.min_samples > cap) {
+        cfg.min_samples = (uint16_t)cap; /* init refuses min_samples > capacity (issue 12) */
+    }
     cfg.filter = (magcal_calibrator_filter_t)(mode & 3u);
     cfg.use_consensus = (uint8_t)((mode >> 2) & 1u);
     cfg.form = (magcal_corr_form_t)(((unsigned)mode >> 3) % 4u); /* every form, KPHI included */
@@ -204,6 +208,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         FUZZ_CHECK(rep.coverage_deg >= cfg.min_coverage_deg && rep.coverage_deg <= 360.0f,
                    "coverage of an adopted calibration");
         FUZZ_CHECK(rep.used >= cfg.min_samples && rep.used <= rep.samples, "used count");
+        FUZZ_CHECK(rep.adopt_rule != MAGCAL_ADOPT_NONE && isfinite(rep.est_param_err_deg), "adoption rule");
         FUZZ_CHECK(magcal_calibrator_state(&cal) == MAGCAL_CALIBRATOR_CALIBRATED, "state after OK");
     }
 
