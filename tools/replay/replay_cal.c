@@ -115,13 +115,12 @@ double replay_est_heading_err_deg(const magcal_cal_report_t *rep, magcal_status_
     return (double)rep->est_heading_err_deg;
 }
 
-/* The rule that adopted the calibration or the stage that refused it. The replay always starts
- * from MAGCAL_CAL2D_IDENTITY (radius 0, no usable current calibration), so a success is rule (a)
- * of calibrator.h; a failure names the gate (its status). */
+/* The rule that adopted the calibration (the library's report names it, calibrator.h) or what
+ * refused it: the adoption rule (NOT_BETTER) or a gate (its status). */
 const char *replay_adopt_rule(const magcal_cal_report_t *rep, magcal_status_t st)
 {
     if (st == MAGCAL_OK && rep->adopted != 0u) {
-        return "a: no usable current calibration";
+        return magcal_adopt_rule_str(rep->adopt_rule);
     }
     if (st == MAGCAL_ERR_NOT_BETTER) {
         return "refused: not better than the current calibration";
