@@ -20,6 +20,11 @@
 #define MAX_REFITS_LIMIT 8u
 #define INVITER_STEPS 8u
 #define INVITER_SHIFT_TRIES 3u
+#define MED_BINS 32u           /* histogram bins per refinement pass of the median |residual| */
+#define MED_PASSES 4u          /* refinement passes: resolution (max |r|) / 32^4 at worst */
+#define MAD_TO_SIGMA 1.4826f   /* sigma of a normal distribution = 1.4826 x median |r| */
+#define PLANAR_MAX 0.15f       /* planarity below this: one rotation axis dominates (SINGLE_AXIS) */
+#define INFO_MAX_N 9u          /* centre information: 3 offset + 6 symmetric shape parameters */
 
 /* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
 MAGCAL_STATIC_ASSERT(COV_CELLS <= 96u, coverage_cells_fit_three_words);
@@ -62,6 +67,15 @@ static float residual_of(const magcal_ellipsoid_cal_t *cal, const magcal_vec3_t 
     correct3(cal, m, h);
     return sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) - cal->field;
 }
+
+/* Which residual a median is taken of: geometric under `cal`, or (cal NULL) the algebraic
+ * residual r.theta - 1 of the 9-parameter quadric `theta` in coordinates (m - mu) * inv_s. */
+typedef struct {
+    const magcal_ellipsoid_cal_t *cal;
+    const float *theta;
+    const float *mu;
+    float inv_s;
+} resid_src_t;
 
 static int gate_keeps(const quad_gate_t *gate, const magcal_vec3_t *m)
 {
@@ -533,15 +547,28 @@ static magcal_status_t ellipsoid_check_cfg(const magcal_ellipsoid_cfg_t *cfg)
     if (!(cfg->pivot_tau >= 0.0f && cfg->pivot_tau <= 0.1f)) {
         return MAGCAL_ERR_ARG;
     }
+    if (!(cfg->min_motion_snr >= 0.0f && cfg->min_motion_snr <= 1000.0f) ||
+        !(cfg->max_centre_std_rel >= 0.0f && cfg->max_centre_std_rel <= 1.0f) ||
+        !(cfg->max_shape_std >= 0.0f && cfg->max_shape_std <= 1.0f) ||
+        !(cfg->max_residual_rel >= 0.0f && cfg->max_residual_rel <= 1.0f) ||
+        !(cfg->max_residual_rel_sphere >= 0.0f && cfg->max_residual_rel_sphere <= 1.0f)) {
+        return MAGCAL_ERR_ARG;
+    }
+    if (!magcal_isfinite_f(cfg->field_expected) || cfg->field_expected < 0.0f ||
+        !(cfg->field_band_lo > 0.0f && cfg->field_band_lo <= 1.0f) ||
+        !(cfg->field_band_hi >= 1.0f && cfg->field_band_hi <= 100.0f)) {
+        return MAGCAL_ERR_ARG;
+    }
     return MAGCAL_OK;
 }
 
-/* RMS of the residuals under `cal` of the samples kept by `gate`; also counts |r| >= thr_new. */
+/* RMS of the residuals under `cal` of the samples kept by `gate`; their count and max |r|. */
 static float residual_pass(const magcal_vec3_t *m, size_t n, const magcal_ellipsoid_cal_t *cal,
-                           const quad_gate_t *gate, size_t *kept)
+                           const quad_gate_t *gate, size_t *kept, float *max_abs)
 {
     float sum = 0.0f;
     float comp = 0.0f;
+    float mx = 0.0f;
     size_t k;
     size_t cnt = 0u;
     for (k = 0u; k < n; ++k) {
@@ -551,10 +578,444 @@ static float residual_pass(const magcal_vec3_t *m, size_t n, const magcal_ellips
         }
         r = residual_of(cal, &m[k]);
         magcal_kahan_add(&sum, &comp, r * r);
+        if (fabsf(r) > mx) {
+            mx = fabsf(r);
+        }
         cnt++;
     }
     *kept = cnt;
+    if (max_abs != NULL) {
+        *max_abs = mx;
+    }
     return (cnt > 0u) ? sqrtf(sum / (float)cnt) : 0.0f;
+}
+
+static float alg_residual(const resid_src_t *src, const magcal_vec3_t *m)
+{
+    const float *b = src->theta;
+    const float x = (m->x - src->mu[0]) * src->inv_s;
+    const float y = (m->y - src->mu[1]) * src->inv_s;
+    const float z = (m->z - src->mu[2]) * src->inv_s;
+    return b[0] * x * x + b[1] * y * y + b[2] * z * z +
+           2.0f * (b[3] * y * z + b[4] * x * z + b[5] * x * y + b[6] * x + b[7] * y + b[8] * z) - 1.0f;
+}
+
+static float abs_residual(const resid_src_t *src, const magcal_vec3_t *m)
+{
+    return fabsf((src->cal != NULL) ? residual_of(src->cal, m) : alg_residual(src, m));
+}
+
+/*
+ * Median of |r| over the `kept` samples that `gate` keeps, without per-sample storage: the bin of
+ * a 32-bin histogram of [lo, hi) that holds the median becomes the next [lo, hi), at most
+ * MED_PASSES passes (stops once the bin is narrower than 0.1 % of its lower edge).
+ */
+static float median_abs_residual(const magcal_vec3_t *m, size_t n, const resid_src_t *src,
+                                 const quad_gate_t *gate, size_t kept, float max_abs)
+{
+    uint32_t cnt[MED_BINS];
+    float lo = 0.0f;
+    float hi = max_abs * 1.0001f + 1e-30f;
+    size_t below = 0u;
+    const size_t target = (kept + 1u) / 2u; /* rank (1-based) of the median */
+    size_t pass;
+    size_t k;
+    for (pass = 0u; pass < MED_PASSES; ++pass) {
+        const float width = (hi - lo) / (float)MED_BINS;
+        size_t acc = below;
+        size_t b;
+        if (!(width > 0.0f)) {
+            break;
+        }
+        (void)memset(cnt, 0, sizeof(cnt));
+        for (k = 0u; k < n; ++k) {
+            float a;
+            if (!gate_keeps(gate, &m[k])) {
+                continue;
+            }
+            a = abs_residual(src, &m[k]);
+            if (a >= lo && a < hi) {
+                b = (size_t)((a - lo) / width);
+                cnt[(b < MED_BINS) ? b : (MED_BINS - 1u)]++;
+            }
+        }
+        for (b = 0u; b < MED_BINS; ++b) {
+            if (acc + cnt[b] >= target) {
+                break;
+            }
+            acc += cnt[b];
+        }
+        if (b == MED_BINS) { /* float rounding at the edge: keep the current interval */
+            break;
+        }
+        lo = lo + (float)b * width;
+        hi = lo + width;
+        below = acc;
+        if (width <= 1e-3f * lo) {
+            break;
+        }
+    }
+    return 0.5f * (lo + hi);
+}
+
+/* Jacobian row of the linearised total-field model at one corrected sample (see centre_info). */
+static size_t info_row(const float h[3], int sphere, float row[INFO_MAX_N])
+{
+    const float r = sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
+    size_t i;
+    if (!(r > 0.0f)) {
+        return 0u;
+    }
+    for (i = 0u; i < 3u; ++i) {
+        row[i] = h[i] / r;
+    }
+    if (sphere != 0) {
+        row[3] = 1.0f;
+        return 4u;
+    }
+    row[3] = row[0] * row[0];
+    row[4] = row[1] * row[1];
+    row[5] = row[2] * row[2];
+    row[6] = 2.0f * row[1] * row[2];
+    row[7] = 2.0f * row[0] * row[2];
+    row[8] = 2.0f * row[0] * row[1];
+    return INFO_MAX_N;
+}
+
+/* Largest eigenvalue of a symmetric 3x3 (lower triangle used); NaN/Inf/failure give +Inf. */
+static float max_eig3(float c[3][3])
+{
+    float w[3];
+    float e[3][3];
+    float wmax;
+    size_t i;
+    size_t j;
+    for (i = 0u; i < 3u; ++i) {
+        for (j = 0u; j < i; ++j) {
+            c[j][i] = c[i][j];
+        }
+    }
+    if (magcal_jacobi_sym(&c[0][0], 3u, w, &e[0][0]) != MAGCAL_OK) {
+        return INFINITY;
+    }
+    wmax = fmaxf(w[0], fmaxf(w[1], w[2]));
+    return (magcal_isfinite_f(wmax) && wmax >= 0.0f) ? wmax : INFINITY;
+}
+
+/* sqrt(smallest / middle eigenvalue) of a symmetric 3x3 scatter (lower triangle used). */
+static float planarity3(float c[3][3])
+{
+    float w[3];
+    float e[3][3];
+    float lo;
+    float mid;
+    float hi;
+    size_t i;
+    size_t j;
+    for (i = 0u; i < 3u; ++i) {
+        for (j = 0u; j < i; ++j) {
+            c[j][i] = c[i][j];
+        }
+    }
+    if (magcal_jacobi_sym(&c[0][0], 3u, w, &e[0][0]) != MAGCAL_OK) {
+        return 0.0f;
+    }
+    lo = fminf(w[0], fminf(w[1], w[2]));
+    hi = fmaxf(w[0], fmaxf(w[1], w[2]));
+    mid = w[0] + w[1] + w[2] - lo - hi;
+    if (!(mid > 0.0f)) {
+        return 0.0f;
+    }
+    return sqrtf(fmaxf(lo, 0.0f) / mid);
+}
+
+/*
+ * Observability of the calibration (issue 12, docs/calibration_3d.md "Trust gates"). Linearised
+ * total-field model about the fit, r_i = |(I + E)(h_i - dc)| - F with h_i = G (m_i - V): the
+ * Jacobian row is J_i = [-n_i, n_i^T E n_i terms] (n_i = h_i / |h_i|; E symmetric, 6 terms, carries
+ * the scale and the soft iron) or [-n_i, -1] for the sphere (scale only). The covariance is the
+ * heteroscedasticity-robust sandwich C = (J^T J)^-1 (sum r_i^2 J_i J_i^T) (J^T J)^-1, so noise that
+ * G amplifies along one axis (strong soft iron) counts where it acts. Pass 1 accumulates J^T J
+ * (packed, Kahan, in `acc`) and the scatter of the directions n_i; np solves give (J^T J)^-1 in
+ * `inv`; pass 2 sums r_i^2 (J_i . inv_k)(J_i . inv_l) for the offset block and the shape diagonal.
+ * Outputs, relative to F: worst 1-sigma offset error (largest eigenvalue of the 3x3 block, through
+ * G: output units) and worst soft-iron term; +Inf when J^T J is singular (every n_i on one cone).
+ * `dir_planarity`: planarity of the corrected directions (~0 for rotation about one axis).
+ */
+static void centre_info(const magcal_vec3_t *m, size_t n, const magcal_ellipsoid_cal_t *cal,
+                        const quad_gate_t *gate, int sphere, quad_acc_t *acc,
+                        magcal_ellipsoid_result_t *res)
+{
+    const size_t np = (sphere != 0) ? 4u : INFO_MAX_N;
+    float a[INFO_MAX_N * INFO_MAX_N];
+    float inv[INFO_MAX_N][INFO_MAX_N];
+    float cc[3][3];
+    float sn[3] = {0.0f, 0.0f, 0.0f};
+    float sd[INFO_MAX_N];
+    float emax = 0.0f;
+    size_t cnt = 0u;
+    size_t i;
+    size_t j;
+    size_t k;
+    res->centre_std_rel = INFINITY;
+    res->shape_std = (sphere != 0) ? 0.0f : INFINITY;
+    res->planarity = 0.0f;
+    (void)memset(acc, 0, sizeof(*acc));
+    for (k = 0u; k < n; ++k) {
+        float h[3];
+        float row[INFO_MAX_N];
+        if (!gate_keeps(gate, &m[k])) {
+            continue;
+        }
+        correct3(cal, &m[k], h);
+        if (info_row(h, sphere, row) == 0u) {
+            continue;
+        }
+        for (i = 0u; i < np; ++i) {
+            for (j = 0u; j <= i; ++j) {
+                size_t p = pidx(i, j);
+                magcal_kahan_add(&acc->sum[p], &acc->comp[p], row[i] * row[j]);
+            }
+        }
+        for (i = 0u; i < 3u; ++i) {
+            sn[i] += row[i];
+        }
+        cnt++;
+    }
+    if (cnt < np) {
+        return;
+    }
+    /* planarity of the directions: scatter of n about its mean, from the n n^T block */
+    for (i = 0u; i < 3u; ++i) {
+        for (j = 0u; j <= i; ++j) {
+            cc[i][j] = acc_at(acc, i, j) / (float)cnt - (sn[i] / (float)cnt) * (sn[j] / (float)cnt);
+        }
+    }
+    res->planarity = planarity3(cc);
+    for (k = 0u; k < np; ++k) {
+        float b[INFO_MAX_N];
+        for (i = 0u; i < np; ++i) {
+            for (j = 0u; j < np; ++j) {
+                a[i * np + j] = acc_at(acc, i, j);
+            }
+            b[i] = (i == k) ? 1.0f : 0.0f;
+        }
+        if (magcal_ldlt_solve(a, b, np, 0.0f, NULL) != MAGCAL_OK) {
+            return;
+        }
+        for (i = 0u; i < np; ++i) {
+            inv[k][i] = b[i];
+        }
+    }
+    /* pass 2: sandwich, offset block (6 sums) and shape diagonal (np - 3 sums), no Kahan needed
+     * for a 1-significant-digit gate */
+    (void)memset(cc, 0, sizeof(cc));
+    (void)memset(sd, 0, sizeof(sd));
+    for (k = 0u; k < n; ++k) {
+        float h[3];
+        float row[INFO_MAX_N];
+        float pr[INFO_MAX_N];
+        float r2;
+        if (!gate_keeps(gate, &m[k])) {
+            continue;
+        }
+        correct3(cal, &m[k], h);
+        if (info_row(h, sphere, row) == 0u) {
+            continue;
+        }
+        r2 = sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) - cal->field;
+        r2 *= r2;
+        for (i = 0u; i < np; ++i) {
+            float d = 0.0f;
+            for (j = 0u; j < np; ++j) {
+                d += row[j] * inv[i][j];
+            }
+            pr[i] = d;
+        }
+        for (i = 0u; i < 3u; ++i) {
+            for (j = 0u; j <= i; ++j) {
+                cc[i][j] += r2 * pr[i] * pr[j];
+            }
+        }
+        for (i = 3u; i < np; ++i) {
+            sd[i] += r2 * pr[i] * pr[i];
+        }
+    }
+    res->centre_std_rel = sqrtf(max_eig3(cc)) / cal->field;
+    if (sphere == 0) {
+        for (i = 3u; i < np; ++i) {
+            if (!(sd[i] <= emax)) { /* NaN propagates as unobservable */
+                emax = sd[i];
+            }
+        }
+        res->shape_std = magcal_isfinite_f(emax) ? (sqrtf(emax) / cal->field) : INFINITY;
+    }
+}
+
+/*
+ * Centre-free, model-free noise scale: the RMS algebraic residual of the 9-parameter quadric
+ * (d = -1) of ALL samples in normalised coordinates, from the moments alone:
+ * sum (r.theta - 1)^2 = theta^T A theta - 2 theta^T b + N. On a shell of radius ~1 a geometric
+ * error delta gives ~2 delta, so motion SNR = 2 / rms: ~2.5 for noise around one point (any model
+ * of it), the radius / noise for a rotation (any soft iron, any quadric). 0 when not solvable.
+ */
+static float algebraic_motion_snr(const magcal_vec3_t *m, size_t n, const float mu[3], float inv_s,
+                                  const quad_acc_t *acc)
+{
+    float a[9u * 9u];
+    float b[9];
+    float mx = 0.0f;
+    float med;
+    const quad_gate_t all = {NULL, 0.0f};
+    resid_src_t src;
+    size_t i;
+    size_t j;
+    size_t k;
+    for (i = 0u; i < 9u; ++i) {
+        for (j = 0u; j < 9u; ++j) {
+            a[i * 9u + j] = acc_at(acc, i, j);
+        }
+        b[i] = acc_at(acc, i, 9u);
+    }
+    if (magcal_ldlt_solve(a, b, 9u, 0.0f, NULL) != MAGCAL_OK) {
+        return INFINITY; /* singular: a degenerate quadric fits exactly, this is not noise */
+    }
+    src.cal = NULL;
+    src.theta = b;
+    src.mu = mu;
+    src.inv_s = inv_s;
+    for (k = 0u; k < n; ++k) {
+        mx = fmaxf(mx, fabsf(alg_residual(&src, &m[k])));
+    }
+    /* robust (median) scale: outliers far off the shell must not make a rotation look like noise */
+    med = MAD_TO_SIGMA * median_abs_residual(m, n, &src, &all, n, mx);
+    if (!(med > 0.0f)) {
+        return INFINITY; /* exact quadric */
+    }
+    return 2.0f / med;
+}
+
+/* sqrt(smallest / middle eigenvalue) of the samples' scatter (packed xx, yx, yy, zx, zy, zz). */
+static float planarity_of(const float sc[6])
+{
+    float c[3][3];
+    c[0][0] = sc[0];
+    c[1][0] = sc[1];
+    c[1][1] = sc[2];
+    c[2][0] = sc[3];
+    c[2][1] = sc[4];
+    c[2][2] = sc[5];
+    return planarity3(c);
+}
+
+/* Cube root of det G (> 0 for both square roots): the mean gain, raw -> output units. */
+static float mean_gain(const magcal_ellipsoid_cal_t *cal)
+{
+    float g[3][3];
+    (void)memcpy(g, cal->g, sizeof(g));
+    return cbrtf(fabsf(magcal_det3(g)));
+}
+
+/* What the motion test needs: the samples, their RMS spread about the mean (raw units), the
+ * algebraic-quadric SNR and the provisional sphere (NULL when its fit failed). */
+typedef struct {
+    const magcal_vec3_t *m;
+    size_t n;
+    float s;
+    float snr_alg;
+    const magcal_ellipsoid_cal_t *sphere;
+} motion_ctx_t;
+
+/*
+ * Motion SNR: the largest of `snr_model` (the final fit's), the algebraic quadric's and, only when
+ * both are below `limit` (about to say NO_MOTION), the sphere's with a robust (median) scale. Each
+ * can be fooled alone: a far burst drags the least-squares quadric (and any model) but not a
+ * median-scaled sphere; strong soft iron spoils the sphere but not the quadric. Noise around one
+ * point fools none of them (all ~2.5).
+ */
+static float motion_snr(const motion_ctx_t *mc, float snr_model, float limit)
+{
+    float snr = fmaxf(snr_model, mc->snr_alg);
+    if (snr < limit && mc->sphere != NULL) {
+        const quad_gate_t all = {NULL, 0.0f};
+        resid_src_t src = {NULL, NULL, NULL, 0.0f};
+        float mx;
+        size_t kept;
+        float med;
+        src.cal = mc->sphere;
+        (void)residual_pass(mc->m, mc->n, mc->sphere, &all, &kept, &mx);
+        med = MAD_TO_SIGMA * median_abs_residual(mc->m, mc->n, &src, &all, kept, mx) /
+              mc->sphere->g[0][0];
+        snr = fmaxf(snr, (med > 0.0f) ? (mc->s / med) : INFINITY);
+    }
+    return snr;
+}
+
+/*
+ * A failed fit of data that never moved, or that rotate about one axis only, gets the status that
+ * says so (the user must move the sensor differently, not retry with the same motion).
+ */
+static magcal_status_t explain_failure(magcal_status_t st, const motion_ctx_t *mc, float planarity,
+                                       const magcal_ellipsoid_cfg_t *cfg)
+{
+    if (st == MAGCAL_ERR_NULL || st == MAGCAL_ERR_ARG || st == MAGCAL_ERR_NONFINITE ||
+        st == MAGCAL_ERR_DEGENERATE) {
+        return st;
+    }
+    if (cfg->min_motion_snr > 0.0f &&
+        motion_snr(mc, 0.0f, cfg->min_motion_snr) < cfg->min_motion_snr) {
+        return MAGCAL_ERR_NO_MOTION;
+    }
+    if ((cfg->max_centre_std_rel > 0.0f || cfg->max_shape_std > 0.0f) && planarity < PLANAR_MAX) {
+        return MAGCAL_ERR_SINGLE_AXIS;
+    }
+    return st;
+}
+
+/*
+ * Trust gates on a finished fit (issue 12, docs/calibration_3d.md "Trust gates"), in this order:
+ * no motion; one rotation axis; residual; observability (ill-conditioned); field magnitude.
+ * Writes the diagnostics into res.
+ */
+static magcal_status_t trust_gates(const magcal_vec3_t *m, size_t n, const magcal_ellipsoid_cfg_t *cfg,
+                                   magcal_ellipsoid_result_t *res, const quad_gate_t *gate,
+                                   const motion_ctx_t *mc, quad_acc_t *scratch)
+{
+    const int sphere = (res->model == MAGCAL_ELLIPSOID_MODEL_SPHERE) ? 1 : 0;
+    const float gmean = mean_gain(&res->cal);
+    const float f = res->cal.field;
+    float lim;
+    int observable;
+    if (!(gmean > 0.0f) || !magcal_isfinite_f(gmean)) {
+        return MAGCAL_ERR_NOT_ELLIPSOID;
+    }
+    res->field_raw = f / gmean;
+    /* motion: spread against the best noise scale (the fitted model's residual, raw units, after
+     * outlier rejection; the algebraic quadric of all samples; the robust sphere) */
+    res->motion_snr =
+        motion_snr(mc, (res->residual_rms > 0.0f) ? (mc->s * gmean / res->residual_rms) : INFINITY,
+                   cfg->min_motion_snr);
+    centre_info(m, n, &res->cal, gate, sphere, scratch, res);
+    if (cfg->min_motion_snr > 0.0f && res->motion_snr < cfg->min_motion_snr) {
+        return MAGCAL_ERR_NO_MOTION;
+    }
+    observable = !((cfg->max_centre_std_rel > 0.0f && !(res->centre_std_rel <= cfg->max_centre_std_rel)) ||
+                   (cfg->max_shape_std > 0.0f && !(res->shape_std <= cfg->max_shape_std)));
+    if (observable == 0 && res->planarity < PLANAR_MAX) {
+        return MAGCAL_ERR_SINGLE_AXIS;
+    }
+    lim = (sphere != 0) ? cfg->max_residual_rel_sphere : cfg->max_residual_rel;
+    if (lim > 0.0f && !(res->residual_rms <= lim * f)) {
+        return MAGCAL_ERR_RESIDUAL;
+    }
+    if (observable == 0) {
+        return MAGCAL_ERR_ILL_CONDITIONED;
+    }
+    if (cfg->field_expected > 0.0f && !(res->field_raw >= cfg->field_band_lo * cfg->field_expected &&
+                                        res->field_raw <= cfg->field_band_hi * cfg->field_expected)) {
+        return MAGCAL_ERR_FIELD_MAGNITUDE;
+    }
+    return MAGCAL_OK;
 }
 
 magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
@@ -563,13 +1024,15 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
 {
     float mu[3] = {0.0f, 0.0f, 0.0f};
     float comp[3] = {0.0f, 0.0f, 0.0f};
-    float s2 = 0.0f;
-    float s2c = 0.0f;
+    float sc[6] = {0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
+    float scc[6] = {0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
     float s;
     float inv_s;
     float cov_centre[3];
     float coverage;
     float min_pivot = 0.0f;
+    motion_ctx_t mc;
+    float planarity;
     size_t k;
     size_t iter;
     size_t kept = 0u;
@@ -578,10 +1041,13 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
     magcal_ellipsoid_cal_t cal;
     magcal_ellipsoid_cal_t gate_cal;
     magcal_ellipsoid_cal_t sphere_cal;
+    magcal_ellipsoid_result_t res;
     quad_acc_t acc;
     quad_gate_t gate = {NULL, 0.0f};
+    resid_src_t src = {NULL, NULL, NULL, 0.0f};
     magcal_status_t st;
     float rms;
+    float rmax;
 
     if (m == NULL || cfg == NULL || out == NULL) {
         return MAGCAL_ERR_NULL;
@@ -609,21 +1075,28 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
     for (k = 0u; k < 3u; ++k) {
         mu[k] /= (float)n;
     }
-    /* Pass 2: RMS distance from the mean = scale. */
+    /* Pass 2: scatter about the mean (packed xx, yx, yy, zx, zy, zz); its trace gives the scale. */
     for (k = 0u; k < n; ++k) {
         float dx = m[k].x - mu[0];
         float dy = m[k].y - mu[1];
         float dz = m[k].z - mu[2];
-        magcal_kahan_add(&s2, &s2c, dx * dx + dy * dy + dz * dz);
+        magcal_kahan_add(&sc[0], &scc[0], dx * dx);
+        magcal_kahan_add(&sc[1], &scc[1], dy * dx);
+        magcal_kahan_add(&sc[2], &scc[2], dy * dy);
+        magcal_kahan_add(&sc[3], &scc[3], dz * dx);
+        magcal_kahan_add(&sc[4], &scc[4], dz * dy);
+        magcal_kahan_add(&sc[5], &scc[5], dz * dz);
     }
-    s = sqrtf(s2 / (float)n);
+    s = sqrtf((sc[0] + sc[2] + sc[5]) / (float)n);
     if (!(s > 1e-6f * (fabsf(mu[0]) + fabsf(mu[1]) + fabsf(mu[2]))) || !(s > 0.0f) ||
         !magcal_isfinite_f(s)) {
         return MAGCAL_ERR_DEGENERATE;
     }
     inv_s = 1.0f / s;
+    planarity = planarity_of(sc);
 
-    /* Pass 3: the normal matrix of every sample; sphere fit gives the provisional centre. */
+    /* Pass 3: the normal matrix of every sample; sphere fit gives the provisional centre, the
+     * quadric's algebraic residual a noise scale that needs neither centre nor model. */
     accumulate(m, n, mu, inv_s, &gate, &acc);
     model = cfg->model;
     cov_centre[0] = mu[0];
@@ -635,10 +1108,15 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
         cov_centre[1] = sphere_cal.v.y;
         cov_centre[2] = sphere_cal.v.z;
     }
+    mc.m = m;
+    mc.n = n;
+    mc.s = s;
+    mc.snr_alg = algebraic_motion_snr(m, n, mu, inv_s, &acc);
+    mc.sphere = (st == MAGCAL_OK) ? &sphere_cal : NULL;
     coverage = coverage_of(m, n, cov_centre, 1e-6f * s);
     if (model == MAGCAL_ELLIPSOID_MODEL_AUTO) {
         if (coverage < cfg->min_coverage_sphere) {
-            return MAGCAL_ERR_COVERAGE;
+            return explain_failure(MAGCAL_ERR_COVERAGE, &mc, planarity, cfg);
         }
         model = (coverage >= cfg->min_coverage_full && n >= MIN_QUADRIC_POINTS)
                     ? MAGCAL_ELLIPSOID_MODEL_QUADRIC9
@@ -646,27 +1124,30 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
     }
     st = fit_model(&acc, model, mu, s, cfg, &cal, &min_pivot);
     if (st != MAGCAL_OK) {
-        return st;
+        return explain_failure(st, &mc, planarity, cfg);
     }
 
-    /* Outlier rejection: residual gate + refit (no per-sample storage; the array is read again). */
+    /* Outlier rejection: robust residual gate + refit (no per-sample storage; the array is read
+     * again). The scale is 1.4826 x median |r| of the kept samples, not their RMS: a dense burst
+     * pulls the first fit towards itself and inflates the RMS enough to hide (issue 12). */
     for (iter = 0u; iter < cfg->max_refits && cfg->outlier_k > 0.0f; ++iter) {
         size_t rejected;
         size_t kept_new;
         quad_gate_t next;
-        rms = residual_pass(m, n, &cal, &gate, &kept);
+        (void)residual_pass(m, n, &cal, &gate, &kept, &rmax);
         next.cal = &cal;
-        next.thr = cfg->outlier_k * rms;
+        src.cal = &cal;
+        next.thr = cfg->outlier_k * MAD_TO_SIGMA * median_abs_residual(m, n, &src, &gate, kept, rmax);
         if (next.thr < cfg->outlier_floor_rel * cal.field) {
             next.thr = cfg->outlier_floor_rel * cal.field;
         }
-        (void)residual_pass(m, n, &cal, &next, &kept_new);
+        (void)residual_pass(m, n, &cal, &next, &kept_new, NULL);
         rejected = n - kept_new;
         if (rejected == prev_rejected) {
             break;
         }
         if ((float)rejected > cfg->max_reject_frac * (float)n) {
-            return MAGCAL_ERR_TOO_MANY_OUTLIERS;
+            return explain_failure(MAGCAL_ERR_TOO_MANY_OUTLIERS, &mc, planarity, cfg);
         }
         gate_cal = cal;
         gate.cal = &gate_cal;
@@ -674,25 +1155,30 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
         accumulate(m, n, mu, inv_s, &gate, &acc);
         st = fit_model(&acc, model, mu, s, cfg, &cal, &min_pivot);
         if (st != MAGCAL_OK) {
-            return st;
+            return explain_failure(st, &mc, planarity, cfg);
         }
         prev_rejected = rejected;
     }
-    rms = residual_pass(m, n, &cal, &gate, &kept);
+    rms = residual_pass(m, n, &cal, &gate, &kept, NULL);
     if (kept <
         ((model == MAGCAL_ELLIPSOID_MODEL_SPHERE) ? MIN_SPHERE_POINTS : MIN_QUADRIC_POINTS)) {
         return MAGCAL_ERR_TOO_FEW_POINTS;
     }
-    out->cal = cal;
-    out->residual_rms = rms;
-    out->coverage = coverage;
-    out->min_pivot = min_pivot;
-    out->n_used = kept;
-    out->n_rejected = n - kept;
-    out->model = model;
+    res.cal = cal;
+    res.residual_rms = rms;
+    res.coverage = coverage;
+    res.min_pivot = min_pivot;
+    res.n_used = kept;
+    res.n_rejected = n - kept;
+    res.model = model;
     /* the final pass's gate, for magcal_ellipsoid_outliers (thr 0: no gate) */
-    out->gate_cal = (gate.cal != NULL) ? gate_cal : cal;
-    out->gate_thr = (gate.cal != NULL) ? gate.thr : 0.0f;
+    res.gate_cal = (gate.cal != NULL) ? gate_cal : cal;
+    res.gate_thr = (gate.cal != NULL) ? gate.thr : 0.0f;
+    st = trust_gates(m, n, cfg, &res, &gate, &mc, &acc);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    *out = res;
     return MAGCAL_OK;
 }
 

@@ -68,25 +68,43 @@ typedef enum {
     MAGCAL_ELLIPSOID_SQRT_CHOLESKY = 1   /**< G = U, upper triangular, Q = U^T U */
 } magcal_ellipsoid_sqrt_t;
 
-/** Fit configuration. Start from MAGCAL_ELLIPSOID_CFG_DEFAULT. */
+/** Fit configuration. Start from MAGCAL_ELLIPSOID_CFG_DEFAULT (fields are only ever appended). */
 typedef struct {
     magcal_ellipsoid_model_t model;    /**< model to fit (default AUTO) */
     magcal_ellipsoid_sqrt_t sqrt_method; /**< square root of Q (default SYMMETRIC) */
     float field;               /**< F > 0: output magnitude (e.g. WMM |B| in uT); 0: choose F so det(G) = 1 */
     float min_coverage_full;   /**< AUTO: coverage needed for the 9-parameter model, [0,1] (default 0.45) */
     float min_coverage_sphere; /**< AUTO: coverage needed for the sphere, [0,1] (default 0.20); below: MAGCAL_ERR_COVERAGE */
-    float outlier_k;           /**< outlier gate in RMS multiples; 0 disables rejection (default 3) */
+    float outlier_k;           /**< outlier gate in robust-sigma (1.4826 MAD) multiples; 0 disables rejection (default 3) */
     float outlier_floor_rel;   /**< outlier gate never below this fraction of F (default 0.005) */
-    uint32_t max_refits;       /**< refits after outlier rejection, 0..8 (default 3) */
+    uint32_t max_refits;       /**< refits after outlier rejection, 0..8 (default 5) */
     float max_reject_frac;     /**< more rejected than this fraction: MAGCAL_ERR_TOO_MANY_OUTLIERS (default 0.25) */
     float pivot_tau;           /**< relative LDL^T pivot threshold (default 1e-6) */
+    /* ---- trust gates (issue 12): every model, AUTO and forced; 0 disables a gate ---- */
+    float min_motion_snr;      /**< NO_MOTION when the samples' RMS spread about their mean is below this many
+                                    noise sigmas (noise = the best fit's residual, raw units) (default 4) */
+    float max_centre_std_rel;  /**< observability: predicted 1-sigma error of V along its worst direction,
+                                    through G, relative to F; above: SINGLE_AXIS (planar samples) or
+                                    ILL_CONDITIONED (default 0.002) */
+    float max_shape_std;       /**< observability: predicted 1-sigma error of the worst soft-iron term of G
+                                    (relative, ~ radians of heading); above: as max_centre_std_rel
+                                    (default 0.005; the sphere has no such term) */
+    float max_residual_rel;    /**< quadric models: residual RMS / F above: MAGCAL_ERR_RESIDUAL (default 0.05) */
+    float max_residual_rel_sphere; /**< sphere model: residual RMS / F above: MAGCAL_ERR_RESIDUAL (default 0.01:
+                                    unmodelled soft iron of 3.5 %, ~1 deg of heading, leaves ~1 % F) */
+    float field_expected;      /**< > 0: expected |B| in the unit of the samples (e.g. magcal_geomag_eval in uT
+                                    for a uT sensor); the fitted raw radius F / det(G)^(1/3) must lie in
+                                    [field_band_lo, field_band_hi] x field_expected, else
+                                    MAGCAL_ERR_FIELD_MAGNITUDE. 0: no check (default) */
+    float field_band_lo;       /**< lower bound of the field band, relative (default 0.85, as ArduPilot) */
+    float field_band_hi;       /**< upper bound of the field band, relative (default 1.4, as ArduPilot) */
 } magcal_ellipsoid_cfg_t;
 
 /** Defaults that work without tuning. */
 #define MAGCAL_ELLIPSOID_CFG_DEFAULT                                                                \
     {                                                                                               \
         MAGCAL_ELLIPSOID_MODEL_AUTO, MAGCAL_ELLIPSOID_SQRT_SYMMETRIC, 0.0f, 0.45f, 0.20f, 3.0f,     \
-            0.005f, 3u, 0.25f, 1e-6f                                                                \
+            0.005f, 5u, 0.25f, 1e-6f, 4.0f, 0.005f, 0.008f, 0.05f, 0.01f, 0.0f, 0.85f, 1.4f         \
     }
 
 /** Result of a fit. */
@@ -105,6 +123,16 @@ typedef struct {
      *  F_gate | >= gate_thr. 0: no gate was applied (outlier_k == 0, max_refits == 0 or nothing
      *  was ever rejected), every sample was used. */
     float gate_thr;
+    /* ---- trust diagnostics (issue 12); like every field, written only on MAGCAL_OK: to see the
+     *      value that made a gate refuse, fit again with that gate set to 0 ---- */
+    float motion_snr;     /**< RMS spread of the samples about their mean / noise sigma (raw units) */
+    float centre_std_rel; /**< predicted 1-sigma error of V along its worst direction (through G) / F;
+                               +Inf when that direction is not observable at all */
+    float shape_std;      /**< predicted 1-sigma error of the worst soft-iron term of G (relative); 0 for
+                               the sphere, +Inf when not observable */
+    float planarity;      /**< sqrt(smallest / middle eigenvalue) of the samples' 3-D scatter: ~0 for one
+                               rotation axis (a circle), ~1 for a sphere */
+    float field_raw;      /**< fitted raw radius F / det(G)^(1/3), unit of the samples */
 } magcal_ellipsoid_result_t;
 
 /**
