@@ -979,7 +979,7 @@ static magcal_status_t explain_failure(magcal_status_t st, const motion_ctx_t *m
  */
 static magcal_status_t trust_gates(const magcal_vec3_t *m, size_t n, const magcal_ellipsoid_cfg_t *cfg,
                                    magcal_ellipsoid_result_t *res, const quad_gate_t *gate,
-                                   const motion_ctx_t *mc, quad_acc_t *scratch)
+                                   const motion_ctx_t *mc, float raw_planarity, quad_acc_t *scratch)
 {
     const int sphere = (res->model == MAGCAL_ELLIPSOID_MODEL_SPHERE) ? 1 : 0;
     const float gmean = mean_gain(&res->cal);
@@ -1001,10 +1001,15 @@ static magcal_status_t trust_gates(const magcal_vec3_t *m, size_t n, const magca
     }
     observable = !((cfg->max_centre_std_rel > 0.0f && !(res->centre_std_rel <= cfg->max_centre_std_rel)) ||
                    (cfg->max_shape_std > 0.0f && !(res->shape_std <= cfg->max_shape_std)));
-    if (observable == 0 && res->planarity < PLANAR_MAX) {
+    lim = (sphere != 0) ? cfg->max_residual_rel_sphere : cfg->max_residual_rel;
+    /* one axis: the corrected directions lie on a cone; or the raw samples are planar and the
+     * quadric does not even fit them (a G made up along the unseen axis spoils the corrected test;
+     * not for the sphere: a sphere that misfits strong soft iron is a residual failure) */
+    if (observable == 0 &&
+        (res->planarity < PLANAR_MAX ||
+         (sphere == 0 && raw_planarity < PLANAR_MAX && lim > 0.0f && !(res->residual_rms <= lim * f)))) {
         return MAGCAL_ERR_SINGLE_AXIS;
     }
-    lim = (sphere != 0) ? cfg->max_residual_rel_sphere : cfg->max_residual_rel;
     if (lim > 0.0f && !(res->residual_rms <= lim * f)) {
         return MAGCAL_ERR_RESIDUAL;
     }
@@ -1174,7 +1179,7 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
     /* the final pass's gate, for magcal_ellipsoid_outliers (thr 0: no gate) */
     res.gate_cal = (gate.cal != NULL) ? gate_cal : cal;
     res.gate_thr = (gate.cal != NULL) ? gate.thr : 0.0f;
-    st = trust_gates(m, n, cfg, &res, &gate, &mc, &acc);
+    st = trust_gates(m, n, cfg, &res, &gate, &mc, planarity, &acc);
     if (st != MAGCAL_OK) {
         return st;
     }

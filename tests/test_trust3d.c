@@ -42,6 +42,7 @@ typedef struct {
     unsigned refused;
     unsigned wrong;
     unsigned ok_floor; /* of ok_good: beyond 1 deg at some attitude, within the floor ratio */
+    unsigned info;     /* 1: a measured class beyond the issue's spec, not asserted, not in TOTAL */
     unsigned by_status[48]; /* index -status */
 } tally_t;
 
@@ -223,9 +224,9 @@ static magcal_status_t judge(tally_t *t, size_t n, double w[3][3], magcal_ellips
             }
         } else {
             t->wrong++;
-            printf("  SILENT WRONG [%s] %s model %d: heading %.2f deg (floor ratio %.2f), |dV| %.2f %% F, resid %.4f F, "
+            printf("  %s [%s] %s model %d: heading %.2f deg (floor ratio %.2f), |dV| %.2f %% F, resid %.4f F, "
                    "centre_std %.4f, snr %.1f, planarity %.3f, cov %.2f\n",
-                   t->name, what, (int)r.model, hmax, ratio, 100.0 * vrel, (double)(r.residual_rms / r.cal.field),
+                   t->info ? "(info, not asserted) wrong" : "SILENT WRONG", t->name, what, (int)r.model, hmax, ratio, 100.0 * vrel, (double)(r.residual_rms / r.cal.field),
                    (double)r.centre_std_rel, (double)r.motion_snr, (double)r.planarity, (double)r.coverage);
         }
     } else {
@@ -272,7 +273,9 @@ static void report(const tally_t *t)
            t->cases, t->ok_good, t->ok_floor, t->refused, t->wrong);
     for (i = 1; i < 48; ++i) {
         if (t->by_status[i] != 0u) {
-            printf(" %s:%u", magcal_status_str((magcal_status_t)(-i)), t->by_status[i]);
+            const char *nm = magcal_status_str((magcal_status_t)(-i));
+            const char *par = strstr(nm, " (");
+            printf(" %.*s:%u", (int)((par != NULL) ? (size_t)(par - nm) : strlen(nm)), nm, t->by_status[i]);
         }
     }
     printf("\n");
@@ -440,7 +443,7 @@ static void test_trust3d_cone_sweeps_never_silently_wrong(void)
     static const double tilts[7] = {0, 15, 30, 45, 60, 75, 90};
     static const double cones[9] = {10, 30, 50, 70, 90, 110, 130, 150, 170};
     static const double sig[2] = {0.001, 0.005};
-    tally_t t0 = {"cone, no wobble", 0, 0, 0, 0, 0, {0}}, t2 = {"cone, 2 deg wobble", 0, 0, 0, 0, 0, {0}};
+    tally_t t0 = {"cone, no wobble", 0, 0, 0, 0, 0, 0, {0}}, t2 = {"cone, 2 deg wobble", 0, 0, 0, 0, 0, 0, {0}};
     double w[3][3];
     int a, c, s, wb;
     char what[64];
@@ -468,11 +471,45 @@ static void test_trust3d_cone_sweeps_never_silently_wrong(void)
     TEST_ASSERT_EQUAL_UINT(0u, t2.wrong);
 }
 
+/* Beyond the issue's sweep: more wobble (5 and 10 deg: a car on rough ground, a boat), higher
+ * noise and fewer samples, where the offset along the axis becomes observable gradually. */
+static void test_trust3d_cone_wobble_sweep_never_silently_wrong(void)
+{
+    static const double tilts[4] = {0, 30, 60, 90};
+    static const double cones[5] = {20, 50, 90, 130, 160};
+    static const double wob[2] = {5.0, 10.0};
+    static const double sig[2] = {0.005, 0.02};
+    static const size_t ns[2] = {150, 600};
+    tally_t t = {"cone, 5/10 deg wobble", 0, 0, 0, 0, 0, 0, {0}};
+    double w[3][3];
+    int a, c, s, wb, j;
+    char what[80];
+    w_mild(w);
+    for (wb = 0; wb < 2; ++wb) {
+        for (s = 0; s < 2; ++s) {
+            for (j = 0; j < 2; ++j) {
+                for (a = 0; a < 4; ++a) {
+                    for (c = 0; c < 5; ++c) {
+                        size_t n = gen_cone(w, tilts[a], cones[c], wob[wb], sig[s] * f_ref(), ns[j],
+                                            (uint32_t)(9000 + a * 10 + c + s * 100 + wb * 1000 + j * 50));
+                        (void)snprintf(what, sizeof what, "tilt %.0f cone %.0f wobble %.0f noise %.1f%% n %u",
+                                       tilts[a], cones[c], wob[wb], 100.0 * sig[s], (unsigned)ns[j]);
+                        judge_all(&t, n, w, what);
+                    }
+                }
+            }
+        }
+    }
+    report(&t);
+    add_total(&t);
+    TEST_ASSERT_EQUAL_UINT(0u, t.wrong);
+}
+
 static void test_trust3d_rest_noise_balls_return_no_motion(void)
 {
     static const double sig[3] = {0.005, 0.014, 0.03};
     static const size_t ns[2] = {200, 2000};
-    tally_t t = {"stationary noise ball", 0, 0, 0, 0, 0, {0}};
+    tally_t t = {"stationary noise ball", 0, 0, 0, 0, 0, 0, {0}};
     double w[3][3];
     int s, j, seed, k;
     char what[64];
@@ -494,34 +531,43 @@ static void test_trust3d_rest_noise_balls_return_no_motion(void)
 
 static void test_trust3d_narrow_bands_never_silently_wrong(void)
 {
-    tally_t tv = {"+-15 deg tilt band", 0, 0, 0, 0, 0, {0}}, td = {"+-15 deg direction band", 0, 0, 0, 0, 0, {0}};
+    tally_t tv = {"+-15 deg tilt band", 0, 0, 0, 0, 0, 0, {0}}, td = {"+-15 deg direction band", 0, 0, 0, 0, 0, 0, {0}};
+    tally_t tv30 = {"+-30 deg tilt band", 0, 0, 0, 0, 0, 0, {0}}, td30 = {"+-30 deg direction band", 0, 0, 0, 0, 0, 0, {0}};
     double w[3][3], wi[3][3];
     int seed, wk;
     char what[64];
     w_mild(w);
     mat_ident(wi, 1.0);
-    for (wk = 0; wk < 2; ++wk) {
-        for (seed = 0; seed < 4; ++seed) {
-            size_t n = gen_attitudes(wk ? w : wi, 15.0, 0.005 * f_ref(), 400, (uint32_t)(31 + seed));
-            (void)snprintf(what, sizeof what, "tilt band W %s seed %d", wk ? "mild" : "I", seed);
-            judge_all(&tv, n, wk ? w : wi, what);
-            n = gen_dir_band(wk ? w : wi, 15.0, 0.005 * f_ref(), 400, (uint32_t)(41 + seed));
-            (void)snprintf(what, sizeof what, "dir band W %s seed %d", wk ? "mild" : "I", seed);
-            judge_all(&td, n, wk ? w : wi, what);
+    static const double half[2] = {15.0, 30.0};
+    int hb;
+    for (hb = 0; hb < 2; ++hb) {
+        tally_t *pv = hb ? &tv30 : &tv, *pd = hb ? &td30 : &td;
+        for (wk = 0; wk < 2; ++wk) {
+            for (seed = 0; seed < 4; ++seed) {
+                size_t n = gen_attitudes(wk ? w : wi, half[hb], 0.005 * f_ref(), 400, (uint32_t)(31 + seed + 100 * hb));
+                (void)snprintf(what, sizeof what, "tilt band %.0f W %s seed %d", half[hb], wk ? "mild" : "I", seed);
+                judge_all(pv, n, wk ? w : wi, what);
+                n = gen_dir_band(wk ? w : wi, half[hb], 0.005 * f_ref(), 400, (uint32_t)(41 + seed + 100 * hb));
+                (void)snprintf(what, sizeof what, "dir band %.0f W %s seed %d", half[hb], wk ? "mild" : "I", seed);
+                judge_all(pd, n, wk ? w : wi, what);
+            }
         }
     }
     report(&tv);
     report(&td);
+    report(&tv30);
+    report(&td30);
     add_total(&tv);
     add_total(&td);
-    TEST_ASSERT_EQUAL_UINT(0u, tv.wrong);
-    TEST_ASSERT_EQUAL_UINT(0u, td.wrong);
+    add_total(&tv30);
+    add_total(&td30);
+    TEST_ASSERT_EQUAL_UINT(0u, tv.wrong + td.wrong + tv30.wrong + td30.wrong);
 }
 
 static void test_trust3d_strong_soft_iron_never_silently_wrong(void)
 {
     static const double ratio[6] = {1.5, 3.0, 5.0, 11.0, 15.0, 20.0};
-    tally_t tf = {"soft iron, full rotation", 0, 0, 0, 0, 0, {0}}, tb = {"soft iron, +-15 deg band", 0, 0, 0, 0, 0, {0}};
+    tally_t tf = {"soft iron, full rotation", 0, 0, 0, 0, 0, 0, {0}}, tb = {"soft iron, +-15 deg band", 0, 0, 0, 0, 0, 0, {0}};
     double w[3][3];
     int i, seed;
     char what[64];
@@ -547,25 +593,46 @@ static void test_trust3d_strong_soft_iron_never_silently_wrong(void)
 
 static void test_trust3d_bursts_without_filter_never_silently_wrong(void)
 {
-    tally_t td = {"6 % dense burst, 7 uT", 0, 0, 0, 0, 0, {0}}, ts = {"6 % spread burst, 7 uT", 0, 0, 0, 0, 0, {0}};
+    static const double shifts[3] = {7.0, 15.0, 30.0};
+    tally_t td = {"6 % dense burst, 7-30 uT", 0, 0, 0, 0, 0, 0, {0}}, ts = {"6 % spread burst, 7-30 uT", 0, 0, 0, 0, 0, 0, {0}};
+    tally_t t12 = {"12 % dense burst (info)", 0, 0, 0, 0, 0, 1, {0}};
     double w[3][3];
-    int seed;
+    int seed, si;
+    unsigned caught = 0u, ok_auto = 0u;
     char what[64];
     w_mild(w);
-    for (seed = 0; seed < 8; ++seed) {
-        size_t n = gen_burst(w, 0.06, 7.0, 1, 0.005 * f_ref(), 600, (uint32_t)(71 + seed));
-        (void)snprintf(what, sizeof what, "dense seed %d", seed);
-        judge_all(&td, n, w, what);
-        n = gen_burst(w, 0.06, 7.0, 0, 0.005 * f_ref(), 600, (uint32_t)(81 + seed));
-        (void)snprintf(what, sizeof what, "spread seed %d", seed);
-        judge_all(&ts, n, w, what);
+    for (si = 0; si < 3; ++si) {
+        for (seed = 0; seed < 8; ++seed) {
+            magcal_ellipsoid_cfg_t cfg = MAGCAL_ELLIPSOID_CFG_DEFAULT;
+            magcal_ellipsoid_result_t r;
+            size_t n = gen_burst(w, 0.06, shifts[si], 1, 0.005 * f_ref(), 600, (uint32_t)(71 + seed));
+            (void)snprintf(what, sizeof what, "dense %.0f uT seed %d", shifts[si], seed);
+            judge_all(&td, n, w, what);
+            /* the fit's own gate (robust MAD scale) takes the burst out (36 samples) */
+            if (magcal_ellipsoid_fit(g_m, n, &cfg, &r) == MAGCAL_OK) {
+                ok_auto++;
+                caught += (r.n_rejected >= 34u) ? 1u : 0u;
+            }
+            n = gen_burst(w, 0.06, shifts[si], 0, 0.005 * f_ref(), 600, (uint32_t)(81 + seed));
+            (void)snprintf(what, sizeof what, "spread %.0f uT seed %d", shifts[si], seed);
+            judge_all(&ts, n, w, what);
+            /* beyond the issue (not asserted, docs/calibration_3d.md "Weak points"): 12 % */
+            n = gen_burst(w, 0.12, shifts[si], 1, 0.005 * f_ref(), 600, (uint32_t)(71 + seed));
+            (void)snprintf(what, sizeof what, "dense 12%% %.0f uT seed %d", shifts[si], seed);
+            judge_all(&t12, n, w, what);
+        }
     }
     report(&td);
     report(&ts);
+    report(&t12);
+    printf("6 %% dense bursts, AUTO: %u of 24 OK, the fit's gate took >= 34 of the 36 burst samples out in %u\n",
+           ok_auto, caught);
     add_total(&td);
     add_total(&ts);
     TEST_ASSERT_EQUAL_UINT(0u, td.wrong);
     TEST_ASSERT_EQUAL_UINT(0u, ts.wrong);
+    TEST_ASSERT_TRUE(ok_auto >= 20u); /* measured 24 of 24 */
+    TEST_ASSERT_TRUE(caught >= 18u);  /* measured 21; the others: nearly tangential shifts, harmless */
 }
 
 /* No over-refusal: good full-rotation data (mild soft iron) with AUTO. The gates refuse where the
@@ -575,7 +642,7 @@ static void test_trust3d_good_full_rotations_return_ok(void)
 {
     static const double sig[4] = {0.0025, 0.005, 0.01, 0.02};
     static const size_t ns[3] = {100, 300, 600};
-    tally_t t = {"good full rotation (AUTO)", 0, 0, 0, 0, 0, {0}};
+    tally_t t = {"good full rotation (AUTO)", 0, 0, 0, 0, 0, 0, {0}};
     double w[3][3];
     int s, j, seed;
     unsigned easy = 0u, easy_ok = 0u;
@@ -617,6 +684,7 @@ int main(int argc, char **argv)
     g_verbose = (argc > 1 && strcmp(argv[1], "-v") == 0);
     UNITY_BEGIN();
     RUN_TEST(test_trust3d_cone_sweeps_never_silently_wrong);
+    RUN_TEST(test_trust3d_cone_wobble_sweep_never_silently_wrong);
     RUN_TEST(test_trust3d_rest_noise_balls_return_no_motion);
     RUN_TEST(test_trust3d_narrow_bands_never_silently_wrong);
     RUN_TEST(test_trust3d_strong_soft_iron_never_silently_wrong);
