@@ -68,6 +68,15 @@ static float residual_of(const magcal_ellipsoid_cal_t *cal, const magcal_vec3_t 
     return sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) - cal->field;
 }
 
+/* The trust diagnostics of a fit (copied into the result on success). */
+typedef struct {
+    float motion_snr;
+    float centre_std_rel;
+    float shape_std;
+    float planarity;
+    float field_raw;
+} trust_diag_t;
+
 /* Which residual a median is taken of: geometric under `cal`, or (cal NULL) the algebraic
  * residual r.theta - 1 of the 9-parameter quadric `theta` in coordinates (m - mu) * inv_s. */
 typedef struct {
@@ -610,7 +619,7 @@ static float abs_residual(const resid_src_t *src, const magcal_vec3_t *m)
  * a 32-bin histogram of [lo, hi) that holds the median becomes the next [lo, hi), at most
  * MED_PASSES passes (stops once the bin is narrower than 0.1 % of its lower edge).
  */
-static float median_abs_residual(const magcal_vec3_t *m, size_t n, const resid_src_t *src,
+static MAGCAL_NOINLINE float median_abs_residual(const magcal_vec3_t *m, size_t n, const resid_src_t *src,
                                  const quad_gate_t *gate, size_t kept, float max_abs)
 {
     uint32_t cnt[MED_BINS];
@@ -683,7 +692,7 @@ static size_t info_row(const float h[3], int sphere, float row[INFO_MAX_N])
 }
 
 /* Largest eigenvalue of a symmetric 3x3 (lower triangle used); NaN/Inf/failure give +Inf. */
-static float max_eig3(float c[3][3])
+static MAGCAL_NOINLINE float max_eig3(float c[3][3])
 {
     float w[3];
     float e[3][3];
@@ -703,7 +712,7 @@ static float max_eig3(float c[3][3])
 }
 
 /* sqrt(smallest / middle eigenvalue) of a symmetric 3x3 scatter (lower triangle used). */
-static float planarity3(float c[3][3])
+static MAGCAL_NOINLINE float planarity3(float c[3][3])
 {
     float w[3];
     float e[3][3];
@@ -742,9 +751,9 @@ static float planarity3(float c[3][3])
  * G: output units) and worst soft-iron term; +Inf when J^T J is singular (every n_i on one cone).
  * `dir_planarity`: planarity of the corrected directions (~0 for rotation about one axis).
  */
-static void centre_info(const magcal_vec3_t *m, size_t n, const magcal_ellipsoid_cal_t *cal,
+static MAGCAL_NOINLINE void centre_info(const magcal_vec3_t *m, size_t n, const magcal_ellipsoid_cal_t *cal,
                         const quad_gate_t *gate, int sphere, quad_acc_t *acc,
-                        magcal_ellipsoid_result_t *res)
+                        trust_diag_t *res)
 {
     const size_t np = (sphere != 0) ? 4u : INFO_MAX_N;
     float a[INFO_MAX_N * INFO_MAX_N];
@@ -859,7 +868,7 @@ static void centre_info(const magcal_vec3_t *m, size_t n, const magcal_ellipsoid
  * error delta gives ~2 delta, so motion SNR = 2 / rms: ~2.5 for noise around one point (any model
  * of it), the radius / noise for a rotation (any soft iron, any quadric). 0 when not solvable.
  */
-static float algebraic_motion_snr(const magcal_vec3_t *m, size_t n, const float mu[3], float inv_s,
+static MAGCAL_NOINLINE float algebraic_motion_snr(const magcal_vec3_t *m, size_t n, const float mu[3], float inv_s,
                                   const quad_acc_t *acc)
 {
     float a[9u * 9u];
@@ -896,7 +905,7 @@ static float algebraic_motion_snr(const magcal_vec3_t *m, size_t n, const float 
 }
 
 /* sqrt(smallest / middle eigenvalue) of the samples' scatter (packed xx, yx, yy, zx, zy, zz). */
-static float planarity_of(const float sc[6])
+static MAGCAL_NOINLINE float planarity_of(const float sc[6])
 {
     float c[3][3];
     c[0][0] = sc[0];
@@ -933,7 +942,7 @@ typedef struct {
  * median-scaled sphere; strong soft iron spoils the sphere but not the quadric. Noise around one
  * point fools none of them (all ~2.5).
  */
-static float motion_snr(const motion_ctx_t *mc, float snr_model, float limit)
+static MAGCAL_NOINLINE float motion_snr(const motion_ctx_t *mc, float snr_model, float limit)
 {
     float snr = fmaxf(snr_model, mc->snr_alg);
     if (snr < limit && mc->sphere != NULL) {
@@ -955,7 +964,7 @@ static float motion_snr(const motion_ctx_t *mc, float snr_model, float limit)
  * A failed fit of data that never moved, or that rotate about one axis only, gets the status that
  * says so (the user must move the sensor differently, not retry with the same motion).
  */
-static magcal_status_t explain_failure(magcal_status_t st, const motion_ctx_t *mc, float planarity,
+static MAGCAL_NOINLINE magcal_status_t explain_failure(magcal_status_t st, const motion_ctx_t *mc, float planarity,
                                        const magcal_ellipsoid_cfg_t *cfg)
 {
     if (st == MAGCAL_ERR_NULL || st == MAGCAL_ERR_ARG || st == MAGCAL_ERR_NONFINITE ||
@@ -975,49 +984,50 @@ static magcal_status_t explain_failure(magcal_status_t st, const motion_ctx_t *m
 /*
  * Trust gates on a finished fit (issue 12, docs/calibration_3d.md "Trust gates"), in this order:
  * no motion; one rotation axis; residual; observability (ill-conditioned); field magnitude.
- * Writes the diagnostics into res.
+ * Writes the diagnostics into dg.
  */
-static magcal_status_t trust_gates(const magcal_vec3_t *m, size_t n, const magcal_ellipsoid_cfg_t *cfg,
-                                   magcal_ellipsoid_result_t *res, const quad_gate_t *gate,
-                                   const motion_ctx_t *mc, float raw_planarity, quad_acc_t *scratch)
+static MAGCAL_NOINLINE magcal_status_t trust_gates(const magcal_vec3_t *m, size_t n,
+                                                   const magcal_ellipsoid_cfg_t *cfg,
+                                                   const magcal_ellipsoid_cal_t *cal, float rms,
+                                                   magcal_ellipsoid_model_t model, const quad_gate_t *gate,
+                                                   const motion_ctx_t *mc, float raw_planarity,
+                                                   quad_acc_t *scratch, trust_diag_t *dg)
 {
-    const int sphere = (res->model == MAGCAL_ELLIPSOID_MODEL_SPHERE) ? 1 : 0;
-    const float gmean = mean_gain(&res->cal);
-    const float f = res->cal.field;
+    const int sphere = (model == MAGCAL_ELLIPSOID_MODEL_SPHERE) ? 1 : 0;
+    const float gmean = mean_gain(cal);
+    const float f = cal->field;
     float lim;
     int observable;
     if (!(gmean > 0.0f) || !magcal_isfinite_f(gmean)) {
         return MAGCAL_ERR_NOT_ELLIPSOID;
     }
-    res->field_raw = f / gmean;
+    dg->field_raw = f / gmean;
     /* motion: spread against the best noise scale (the fitted model's residual, raw units, after
      * outlier rejection; the algebraic quadric of all samples; the robust sphere) */
-    res->motion_snr =
-        motion_snr(mc, (res->residual_rms > 0.0f) ? (mc->s * gmean / res->residual_rms) : INFINITY,
-                   cfg->min_motion_snr);
-    centre_info(m, n, &res->cal, gate, sphere, scratch, res);
-    if (cfg->min_motion_snr > 0.0f && res->motion_snr < cfg->min_motion_snr) {
+    dg->motion_snr = motion_snr(mc, (rms > 0.0f) ? (mc->s * gmean / rms) : INFINITY, cfg->min_motion_snr);
+    centre_info(m, n, cal, gate, sphere, scratch, dg);
+    if (cfg->min_motion_snr > 0.0f && dg->motion_snr < cfg->min_motion_snr) {
         return MAGCAL_ERR_NO_MOTION;
     }
-    observable = !((cfg->max_centre_std_rel > 0.0f && !(res->centre_std_rel <= cfg->max_centre_std_rel)) ||
-                   (cfg->max_shape_std > 0.0f && !(res->shape_std <= cfg->max_shape_std)));
+    observable = !((cfg->max_centre_std_rel > 0.0f && !(dg->centre_std_rel <= cfg->max_centre_std_rel)) ||
+                   (cfg->max_shape_std > 0.0f && !(dg->shape_std <= cfg->max_shape_std)));
     lim = (sphere != 0) ? cfg->max_residual_rel_sphere : cfg->max_residual_rel;
     /* one axis: the corrected directions lie on a cone; or the raw samples are planar and the
      * quadric does not even fit them (a G made up along the unseen axis spoils the corrected test;
      * not for the sphere: a sphere that misfits strong soft iron is a residual failure) */
     if (observable == 0 &&
-        (res->planarity < PLANAR_MAX ||
-         (sphere == 0 && raw_planarity < PLANAR_MAX && lim > 0.0f && !(res->residual_rms <= lim * f)))) {
+        (dg->planarity < PLANAR_MAX ||
+         (sphere == 0 && raw_planarity < PLANAR_MAX && lim > 0.0f && !(rms <= lim * f)))) {
         return MAGCAL_ERR_SINGLE_AXIS;
     }
-    if (lim > 0.0f && !(res->residual_rms <= lim * f)) {
+    if (lim > 0.0f && !(rms <= lim * f)) {
         return MAGCAL_ERR_RESIDUAL;
     }
     if (observable == 0) {
         return MAGCAL_ERR_ILL_CONDITIONED;
     }
-    if (cfg->field_expected > 0.0f && !(res->field_raw >= cfg->field_band_lo * cfg->field_expected &&
-                                        res->field_raw <= cfg->field_band_hi * cfg->field_expected)) {
+    if (cfg->field_expected > 0.0f && !(dg->field_raw >= cfg->field_band_lo * cfg->field_expected &&
+                                        dg->field_raw <= cfg->field_band_hi * cfg->field_expected)) {
         return MAGCAL_ERR_FIELD_MAGNITUDE;
     }
     return MAGCAL_OK;
@@ -1029,8 +1039,8 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
 {
     float mu[3] = {0.0f, 0.0f, 0.0f};
     float comp[3] = {0.0f, 0.0f, 0.0f};
-    float sc[6] = {0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
-    float scc[6] = {0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
+    float *sc;
+    float *scc;
     float s;
     float inv_s;
     float cov_centre[3];
@@ -1046,10 +1056,9 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
     magcal_ellipsoid_cal_t cal;
     magcal_ellipsoid_cal_t gate_cal;
     magcal_ellipsoid_cal_t sphere_cal;
-    magcal_ellipsoid_result_t res;
+    trust_diag_t dg;
     quad_acc_t acc;
     quad_gate_t gate = {NULL, 0.0f};
-    resid_src_t src = {NULL, NULL, NULL, 0.0f};
     magcal_status_t st;
     float rms;
     float rmax;
@@ -1080,7 +1089,11 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
     for (k = 0u; k < 3u; ++k) {
         mu[k] /= (float)n;
     }
-    /* Pass 2: scatter about the mean (packed xx, yx, yy, zx, zy, zz); its trace gives the scale. */
+    /* Pass 2: scatter about the mean (packed xx, yx, yy, zx, zy, zz, in the accumulator's storage,
+     * which pass 3 clears); its trace gives the scale. */
+    (void)memset(&acc, 0, sizeof(acc));
+    sc = acc.sum;
+    scc = acc.comp;
     for (k = 0u; k < n; ++k) {
         float dx = m[k].x - mu[0];
         float dy = m[k].y - mu[1];
@@ -1139,6 +1152,7 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
         size_t rejected;
         size_t kept_new;
         quad_gate_t next;
+        resid_src_t src = {NULL, NULL, NULL, 0.0f};
         (void)residual_pass(m, n, &cal, &gate, &kept, &rmax);
         next.cal = &cal;
         src.cal = &cal;
@@ -1169,21 +1183,25 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
         ((model == MAGCAL_ELLIPSOID_MODEL_SPHERE) ? MIN_SPHERE_POINTS : MIN_QUADRIC_POINTS)) {
         return MAGCAL_ERR_TOO_FEW_POINTS;
     }
-    res.cal = cal;
-    res.residual_rms = rms;
-    res.coverage = coverage;
-    res.min_pivot = min_pivot;
-    res.n_used = kept;
-    res.n_rejected = n - kept;
-    res.model = model;
-    /* the final pass's gate, for magcal_ellipsoid_outliers (thr 0: no gate) */
-    res.gate_cal = (gate.cal != NULL) ? gate_cal : cal;
-    res.gate_thr = (gate.cal != NULL) ? gate.thr : 0.0f;
-    st = trust_gates(m, n, cfg, &res, &gate, &mc, planarity, &acc);
+    st = trust_gates(m, n, cfg, &cal, rms, model, &gate, &mc, planarity, &acc, &dg);
     if (st != MAGCAL_OK) {
         return st;
     }
-    *out = res;
+    out->cal = cal;
+    out->residual_rms = rms;
+    out->coverage = coverage;
+    out->min_pivot = min_pivot;
+    out->n_used = kept;
+    out->n_rejected = n - kept;
+    out->model = model;
+    /* the final pass's gate, for magcal_ellipsoid_outliers (thr 0: no gate) */
+    out->gate_cal = (gate.cal != NULL) ? gate_cal : cal;
+    out->gate_thr = (gate.cal != NULL) ? gate.thr : 0.0f;
+    out->motion_snr = dg.motion_snr;
+    out->centre_std_rel = dg.centre_std_rel;
+    out->shape_std = dg.shape_std;
+    out->planarity = dg.planarity;
+    out->field_raw = dg.field_raw;
     return MAGCAL_OK;
 }
 
