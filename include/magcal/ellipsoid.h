@@ -11,23 +11,45 @@
  * - 9-parameter quadric (d = -1) after centring and scaling (default),
  * - 10-parameter quadric (smallest eigenvector of D^T D by inverse iteration),
  * - 4-parameter sphere (hard iron only, G = (F/R) I), used automatically (model AUTO) when the
- *   direction coverage is too poor for the full model.
+ *   direction coverage is too poor for the full model (and then held to a 1 % F residual).
  *
  * Coverage: the directions of `m - c` around the provisional centre c (the sphere-fit centre) are
  * binned in 12 azimuth x 6 equal-area elevation cells (bands of equal z/|m - c|); coverage is the
  * filled fraction of the 72 cells, in [0, 1].
  *
  * Outliers: after each fit, samples whose total-field residual `| |G(m - V)| - F |` exceeds
- * `outlier_k` times the RMS of the kept residuals (never less than `outlier_floor_rel * F`) are
+ * `outlier_k` times the robust sigma (1.4826 x median |r|) of the kept residuals, found by histogram
+ * refinement without storage (never less than `outlier_floor_rel * F`), are
  * dropped and the model is fitted again, at most `max_refits` times. No per-sample storage is needed:
  * the sample array is read again on each pass (2 + 2 * refits passes at most). The gate of the final
  * pass (the calibration it was computed with, which is the fit BEFORE the last refit, and its
  * threshold) is returned in the result, so magcal_ellipsoid_outliers() can give the per-sample mask
  * afterwards without storage inside the fit.
  *
+ * Trust gates (issue 12, docs/calibration_3d.md "Trust gates"): an OK is a promise, so every model,
+ * AUTO and forced, must also pass, after the fit:
+ * - motion: the samples' RMS spread about their mean >= `min_motion_snr` x the noise (the best of
+ *   the fit's residual, the algebraic quadric's and a median-scaled sphere's), else
+ *   MAGCAL_ERR_NO_MOTION (the sensor was at rest; noise around one point gives about 2.5);
+ * - observability: predicted 1-sigma error (robust sandwich covariance of the linearised model)
+ *   of V along its worst direction <= `max_centre_std_rel` x F and of the worst soft-iron term
+ *   <= `max_shape_std`, else MAGCAL_ERR_SINGLE_AXIS when the corrected field directions lie on one
+ *   cone (rotation about one axis: level turns, a turntable) and MAGCAL_ERR_ILL_CONDITIONED
+ *   otherwise (a narrow band of directions, or too few samples for the noise);
+ * - residual: residual RMS <= `max_residual_rel` x F (quadrics) or `max_residual_rel_sphere` x F
+ *   (sphere: unmodelled soft iron shows only here), else MAGCAL_ERR_RESIDUAL;
+ * - field (optional): `field_expected` > 0 and the raw radius outside the band:
+ *   MAGCAL_ERR_FIELD_MAGNITUDE.
+ * What to do: NO_MOTION -> rotate the sensor through many orientations; SINGLE_AXIS -> also turn
+ * about another axis (pitch and roll), or use the 2-D calibrator (calibrator.h) or the aided module
+ * (aided.h) when the vehicle cannot; ILL_CONDITIONED -> more orientations or more samples (the
+ * error falls as 1/sqrt(n)); RESIDUAL -> outliers or disturbances (run the density stage,
+ * optics.h), or, for the sphere, soft iron: rotate over more directions for the full model;
+ * FIELD_MAGNITUDE -> wrong unit, wrong expected field, or iron next to the sensor.
+ *
  * Units: any consistent raw unit for m; G maps raw units to the unit of `cfg.field` (e.g. LSB to uT).
  * All arithmetic is float32 with Kahan-compensated sums; no workspace is needed (worst-case stack
- * about 2.5 KiB on Cortex-M4 -Os, 10-parameter path; the 9-parameter path needs about 1.6 KiB).
+ * 2480 B on Cortex-M4F -Os, 10-parameter path; tools/stack/budgets.txt).
  */
 #ifndef MAGCAL_ELLIPSOID_H
 #define MAGCAL_ELLIPSOID_H
@@ -57,9 +79,9 @@ typedef struct {
 /** Which model to fit. */
 typedef enum {
     MAGCAL_ELLIPSOID_MODEL_AUTO = 0, /**< 9-parameter quadric if coverage allows, else sphere */
-    MAGCAL_ELLIPSOID_MODEL_QUADRIC9 = 1,  /**< 9-parameter quadric (d = -1), coverage not gated */
-    MAGCAL_ELLIPSOID_MODEL_QUADRIC10 = 2, /**< 10-parameter quadric (||v|| = 1), coverage not gated */
-    MAGCAL_ELLIPSOID_MODEL_SPHERE = 3     /**< 4-parameter sphere (hard iron only), coverage not gated */
+    MAGCAL_ELLIPSOID_MODEL_QUADRIC9 = 1,  /**< 9-parameter quadric (d = -1), coverage not gated, trust gates apply */
+    MAGCAL_ELLIPSOID_MODEL_QUADRIC10 = 2, /**< 10-parameter quadric (||v|| = 1), coverage not gated, trust gates apply */
+    MAGCAL_ELLIPSOID_MODEL_SPHERE = 3     /**< 4-parameter sphere (hard iron only), coverage not gated, trust gates apply */
 } magcal_ellipsoid_model_t;
 
 /** How G is taken from Q (both satisfy G^T G = Q). */
@@ -82,13 +104,15 @@ typedef struct {
     float pivot_tau;           /**< relative LDL^T pivot threshold (default 1e-6) */
     /* ---- trust gates (issue 12): every model, AUTO and forced; 0 disables a gate ---- */
     float min_motion_snr;      /**< NO_MOTION when the samples' RMS spread about their mean is below this many
-                                    noise sigmas (noise = the best fit's residual, raw units) (default 4) */
+                                    noise sigmas (best of the fit's residual, the algebraic quadric's and a
+                                    median-scaled sphere's, raw units); noise around one point gives ~2.5
+                                    (default 4) */
     float max_centre_std_rel;  /**< observability: predicted 1-sigma error of V along its worst direction,
-                                    through G, relative to F; above: SINGLE_AXIS (planar samples) or
-                                    ILL_CONDITIONED (default 0.002) */
+                                    through G (output units), relative to F; above: SINGLE_AXIS (corrected
+                                    directions on one cone) or ILL_CONDITIONED (default 0.005) */
     float max_shape_std;       /**< observability: predicted 1-sigma error of the worst soft-iron term of G
                                     (relative, ~ radians of heading); above: as max_centre_std_rel
-                                    (default 0.005; the sphere has no such term) */
+                                    (default 0.008; the sphere has no such term) */
     float max_residual_rel;    /**< quadric models: residual RMS / F above: MAGCAL_ERR_RESIDUAL (default 0.05) */
     float max_residual_rel_sphere; /**< sphere model: residual RMS / F above: MAGCAL_ERR_RESIDUAL (default 0.01:
                                     unmodelled soft iron of 3.5 %, ~1 deg of heading, leaves ~1 % F) */
@@ -149,8 +173,17 @@ typedef struct {
  *         MAGCAL_ERR_NONFINITE (a sample is NaN/Inf);
  *         MAGCAL_ERR_TOO_FEW_POINTS (n below the model's minimum, also after outlier rejection);
  *         MAGCAL_ERR_DEGENERATE (all samples identical);
- *         MAGCAL_ERR_COVERAGE (AUTO: coverage below min_coverage_sphere);
- *         MAGCAL_ERR_ILL_CONDITIONED (normal equations fail the pivot test: too little rotation);
+ *         MAGCAL_ERR_COVERAGE (AUTO: coverage below min_coverage_sphere, samples neither at rest
+ *         nor planar);
+ *         MAGCAL_ERR_NO_MOTION (samples are noise around one point: rotate the sensor);
+ *         MAGCAL_ERR_SINGLE_AXIS (rotation about one axis: offset unobservable along it; turn
+ *         about another axis, or use the 2-D / aided calibration);
+ *         MAGCAL_ERR_ILL_CONDITIONED (normal equations fail the pivot test, or the predicted error
+ *         of V or G is above max_centre_std_rel / max_shape_std: too little rotation or too few
+ *         samples for the noise);
+ *         MAGCAL_ERR_RESIDUAL (residual RMS above max_residual_rel(_sphere) x F);
+ *         MAGCAL_ERR_FIELD_MAGNITUDE (field_expected set and the fitted raw radius outside
+ *         [field_band_lo, field_band_hi] x field_expected);
  *         MAGCAL_ERR_NOT_ELLIPSOID (quadric is not an ellipsoid: k <= 0 or A_q/k not positive definite);
  *         MAGCAL_ERR_NOT_CONVERGED (Jacobi eigen-decomposition of Q did not converge);
  *         MAGCAL_ERR_TOO_MANY_OUTLIERS (rejected fraction above max_reject_frac).
