@@ -79,9 +79,9 @@ typedef struct {
 /** Which model to fit. */
 typedef enum {
     MAGCAL_ELLIPSOID_MODEL_AUTO = 0, /**< 9-parameter quadric if coverage allows, else sphere */
-    MAGCAL_ELLIPSOID_MODEL_QUADRIC9 = 1,  /**< 9-parameter quadric (d = -1), coverage not gated, trust gates apply */
-    MAGCAL_ELLIPSOID_MODEL_QUADRIC10 = 2, /**< 10-parameter quadric (||v|| = 1), coverage not gated, trust gates apply */
-    MAGCAL_ELLIPSOID_MODEL_SPHERE = 3     /**< 4-parameter sphere (hard iron only), coverage not gated, trust gates apply */
+    MAGCAL_ELLIPSOID_MODEL_QUADRIC9 = 1,  /**< 9-parameter quadric (d = -1), coverage not gated */
+    MAGCAL_ELLIPSOID_MODEL_QUADRIC10 = 2, /**< 10-parameter quadric (||v|| = 1), coverage not gated */
+    MAGCAL_ELLIPSOID_MODEL_SPHERE = 3     /**< 4-parameter sphere (hard iron only), coverage not gated */
 } magcal_ellipsoid_model_t;
 
 /** How G is taken from Q (both satisfy G^T G = Q). */
