@@ -9,11 +9,9 @@
 #include <math.h>
 #include <string.h>
 
-#include "magcal/ellipsoid.h"
-#include "magcal_internal.h"
+#include "ellipsoid_internal.h"
 
-#define NQ 10u                        /* quadric row length */
-#define NPACK ((NQ * (NQ + 1u)) / 2u) /* packed lower triangle */
+#define NQ MAGCAL_ELL_NQ
 #define COV_CELLS ((size_t)MAGCAL_ELLIPSOID_COV_AZ * MAGCAL_ELLIPSOID_COV_EL)
 #define MIN_QUADRIC_POINTS 10u
 #define MIN_SPHERE_POINTS 4u
@@ -23,53 +21,6 @@
 
 /* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
 MAGCAL_STATIC_ASSERT(COV_CELLS <= 96u, coverage_cells_fit_three_words);
-
-/* Normalisation and Kahan-compensated normal matrix. */
-typedef struct {
-    float sum[NPACK];
-    float comp[NPACK];
-    size_t count;
-} quad_acc_t;
-
-/* Optional gate applied while accumulating: keep samples with | |G(m-V)| - F | < thr. */
-typedef struct {
-    const magcal_ellipsoid_cal_t *cal; /* NULL: keep every sample */
-    float thr;
-} quad_gate_t;
-
-static size_t pidx(size_t i, size_t j)
-{
-    /* packed lower triangle, i >= j */
-    return (i * (i + 1u)) / 2u + j;
-}
-
-/* h = G (m - V): the correction of one sample. */
-static void correct3(const magcal_ellipsoid_cal_t *cal, const magcal_vec3_t *m, float h[3])
-{
-    float e[3];
-    size_t i;
-    e[0] = m->x - cal->v.x;
-    e[1] = m->y - cal->v.y;
-    e[2] = m->z - cal->v.z;
-    for (i = 0u; i < 3u; ++i) {
-        h[i] = cal->g[i][0] * e[0] + cal->g[i][1] * e[1] + cal->g[i][2] * e[2];
-    }
-}
-
-static float residual_of(const magcal_ellipsoid_cal_t *cal, const magcal_vec3_t *m)
-{
-    float h[3];
-    correct3(cal, m, h);
-    return sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) - cal->field;
-}
-
-static int gate_keeps(const quad_gate_t *gate, const magcal_vec3_t *m)
-{
-    if (gate->cal == NULL) {
-        return 1;
-    }
-    return fabsf(residual_of(gate->cal, m)) < gate->thr;
-}
 
 static void accumulate(const magcal_vec3_t *m, size_t n, const float mu[3], float inv_s,
                        const quad_gate_t *gate, quad_acc_t *acc)
@@ -83,7 +34,7 @@ static void accumulate(const magcal_vec3_t *m, size_t n, const float mu[3], floa
         float x;
         float y;
         float z;
-        if (!gate_keeps(gate, &m[k])) {
+        if (!magcal_ell_gate_keeps(gate, &m[k])) {
             continue;
         }
         x = (m[k].x - mu[0]) * inv_s;
@@ -101,17 +52,12 @@ static void accumulate(const magcal_vec3_t *m, size_t n, const float mu[3], floa
         row[9] = 1.0f;
         for (i = 0u; i < NQ; ++i) {
             for (j = 0u; j <= i; ++j) {
-                size_t p = pidx(i, j);
+                size_t p = magcal_ell_pidx(i, j);
                 magcal_kahan_add(&acc->sum[p], &acc->comp[p], row[i] * row[j]);
             }
         }
         acc->count++;
     }
-}
-
-static float acc_at(const quad_acc_t *acc, size_t i, size_t j)
-{
-    return (i >= j) ? acc->sum[pidx(i, j)] : acc->sum[pidx(j, i)];
 }
 
 /* G with G^T G = q (q positive definite). */
@@ -282,9 +228,9 @@ static magcal_status_t solve_quadric9(const quad_acc_t *acc, float tau, float co
     magcal_status_t st;
     for (i = 0u; i < 9u; ++i) {
         for (j = 0u; j < 9u; ++j) {
-            a[i * 9u + j] = acc_at(acc, i, j);
+            a[i * 9u + j] = magcal_ell_acc_at(acc, i, j);
         }
-        b[i] = acc_at(acc, i, 9u); /* D^T 1: the column of the constant term */
+        b[i] = magcal_ell_acc_at(acc, i, 9u); /* D^T 1: the column of the constant term */
     }
     st = magcal_ldlt_solve(a, b, 9u, tau, min_pivot);
     if (st != MAGCAL_OK) {
@@ -312,7 +258,7 @@ static magcal_status_t solve_quadric10(const quad_acc_t *acc, float tau, float c
     magcal_status_t st = MAGCAL_ERR_ILL_CONDITIONED;
 
     for (i = 0u; i < NQ; ++i) {
-        trace += acc_at(acc, i, i);
+        trace += magcal_ell_acc_at(acc, i, i);
     }
     if (!(trace > 0.0f)) {
         return MAGCAL_ERR_DEGENERATE;
@@ -330,7 +276,7 @@ static magcal_status_t solve_quadric10(const quad_acc_t *acc, float tau, float c
         for (it = 0u; it < INVITER_STEPS; ++it) {
             for (i = 0u; i < NQ; ++i) {
                 for (j = 0u; j < NQ; ++j) {
-                    a[i * NQ + j] = acc_at(acc, i, j);
+                    a[i * NQ + j] = magcal_ell_acc_at(acc, i, j);
                 }
                 a[i * NQ + i] += shift;
             }
@@ -367,7 +313,7 @@ static magcal_status_t solve_quadric10(const quad_acc_t *acc, float tau, float c
         float a9[81];
         for (i = 0u; i < 9u; ++i) {
             for (j = 0u; j < 9u; ++j) {
-                a9[i * 9u + j] = acc_at(acc, i, j);
+                a9[i * 9u + j] = magcal_ell_acc_at(acc, i, j);
             }
             b9[i] = 0.0f;
         }
@@ -401,10 +347,11 @@ static magcal_status_t solve_sphere(const quad_acc_t *acc, const float mu[3], fl
     static const float fac[4] = {0.5f, 0.5f, 0.5f, 1.0f};
     for (i = 0u; i < 4u; ++i) {
         for (j = 0u; j < 4u; ++j) {
-            a[i * 4u + j] = acc_at(acc, lin[i], lin[j]) * fac[i] * fac[j];
+            a[i * 4u + j] = magcal_ell_acc_at(acc, lin[i], lin[j]) * fac[i] * fac[j];
         }
-        b[i] =
-            -(acc_at(acc, lin[i], 0u) + acc_at(acc, lin[i], 1u) + acc_at(acc, lin[i], 2u)) * fac[i];
+        b[i] = -(magcal_ell_acc_at(acc, lin[i], 0u) + magcal_ell_acc_at(acc, lin[i], 1u) +
+                 magcal_ell_acc_at(acc, lin[i], 2u)) *
+               fac[i];
     }
     st = magcal_ldlt_solve(a, b, 4u, tau, min_pivot);
     if (st != MAGCAL_OK) {
@@ -533,27 +480,46 @@ static magcal_status_t ellipsoid_check_cfg(const magcal_ellipsoid_cfg_t *cfg)
     if (!(cfg->pivot_tau >= 0.0f && cfg->pivot_tau <= 0.1f)) {
         return MAGCAL_ERR_ARG;
     }
+    if (!(cfg->min_motion_snr >= 0.0f && cfg->min_motion_snr <= 1000.0f) ||
+        !(cfg->max_centre_std_rel >= 0.0f && cfg->max_centre_std_rel <= 1.0f) ||
+        !(cfg->max_shape_std >= 0.0f && cfg->max_shape_std <= 1.0f) ||
+        !(cfg->max_residual_rel >= 0.0f && cfg->max_residual_rel <= 1.0f) ||
+        !(cfg->max_residual_rel_sphere >= 0.0f && cfg->max_residual_rel_sphere <= 1.0f)) {
+        return MAGCAL_ERR_ARG;
+    }
+    if (!magcal_isfinite_f(cfg->field_expected) || cfg->field_expected < 0.0f ||
+        !(cfg->field_band_lo > 0.0f && cfg->field_band_lo <= 1.0f) ||
+        !(cfg->field_band_hi >= 1.0f && cfg->field_band_hi <= 100.0f)) {
+        return MAGCAL_ERR_ARG;
+    }
     return MAGCAL_OK;
 }
 
-/* RMS of the residuals under `cal` of the samples kept by `gate`; also counts |r| >= thr_new. */
-static float residual_pass(const magcal_vec3_t *m, size_t n, const magcal_ellipsoid_cal_t *cal,
-                           const quad_gate_t *gate, size_t *kept)
+/* RMS of the residuals under `cal` of the samples kept by `gate`; their count and max |r|. */
+float magcal_ell_residual_pass(const magcal_vec3_t *m, size_t n, const magcal_ellipsoid_cal_t *cal,
+                               const quad_gate_t *gate, size_t *kept, float *max_abs)
 {
     float sum = 0.0f;
     float comp = 0.0f;
+    float mx = 0.0f;
     size_t k;
     size_t cnt = 0u;
     for (k = 0u; k < n; ++k) {
         float r;
-        if (!gate_keeps(gate, &m[k])) {
+        if (!magcal_ell_gate_keeps(gate, &m[k])) {
             continue;
         }
-        r = residual_of(cal, &m[k]);
+        r = magcal_ell_residual(cal, &m[k]);
         magcal_kahan_add(&sum, &comp, r * r);
+        if (fabsf(r) > mx) {
+            mx = fabsf(r);
+        }
         cnt++;
     }
     *kept = cnt;
+    if (max_abs != NULL) {
+        *max_abs = mx;
+    }
     return (cnt > 0u) ? sqrtf(sum / (float)cnt) : 0.0f;
 }
 
@@ -563,13 +529,15 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
 {
     float mu[3] = {0.0f, 0.0f, 0.0f};
     float comp[3] = {0.0f, 0.0f, 0.0f};
-    float s2 = 0.0f;
-    float s2c = 0.0f;
+    float *sc;
+    float *scc;
     float s;
     float inv_s;
     float cov_centre[3];
     float coverage;
     float min_pivot = 0.0f;
+    motion_ctx_t mc;
+    float planarity;
     size_t k;
     size_t iter;
     size_t kept = 0u;
@@ -578,10 +546,12 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
     magcal_ellipsoid_cal_t cal;
     magcal_ellipsoid_cal_t gate_cal;
     magcal_ellipsoid_cal_t sphere_cal;
+    trust_diag_t dg;
     quad_acc_t acc;
     quad_gate_t gate = {NULL, 0.0f};
     magcal_status_t st;
     float rms;
+    float rmax;
 
     if (m == NULL || cfg == NULL || out == NULL) {
         return MAGCAL_ERR_NULL;
@@ -609,21 +579,32 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
     for (k = 0u; k < 3u; ++k) {
         mu[k] /= (float)n;
     }
-    /* Pass 2: RMS distance from the mean = scale. */
+    /* Pass 2: scatter about the mean (packed xx, yx, yy, zx, zy, zz, in the accumulator's storage,
+     * which pass 3 clears); its trace gives the scale. */
+    (void)memset(&acc, 0, sizeof(acc));
+    sc = acc.sum;
+    scc = acc.comp;
     for (k = 0u; k < n; ++k) {
         float dx = m[k].x - mu[0];
         float dy = m[k].y - mu[1];
         float dz = m[k].z - mu[2];
-        magcal_kahan_add(&s2, &s2c, dx * dx + dy * dy + dz * dz);
+        magcal_kahan_add(&sc[0], &scc[0], dx * dx);
+        magcal_kahan_add(&sc[1], &scc[1], dy * dx);
+        magcal_kahan_add(&sc[2], &scc[2], dy * dy);
+        magcal_kahan_add(&sc[3], &scc[3], dz * dx);
+        magcal_kahan_add(&sc[4], &scc[4], dz * dy);
+        magcal_kahan_add(&sc[5], &scc[5], dz * dz);
     }
-    s = sqrtf(s2 / (float)n);
+    s = sqrtf((sc[0] + sc[2] + sc[5]) / (float)n);
     if (!(s > 1e-6f * (fabsf(mu[0]) + fabsf(mu[1]) + fabsf(mu[2]))) || !(s > 0.0f) ||
         !magcal_isfinite_f(s)) {
         return MAGCAL_ERR_DEGENERATE;
     }
     inv_s = 1.0f / s;
+    planarity = magcal_ell_planarity(sc);
 
-    /* Pass 3: the normal matrix of every sample; sphere fit gives the provisional centre. */
+    /* Pass 3: the normal matrix of every sample; sphere fit gives the provisional centre, the
+     * quadric's algebraic residual a noise scale that needs neither centre nor model. */
     accumulate(m, n, mu, inv_s, &gate, &acc);
     model = cfg->model;
     cov_centre[0] = mu[0];
@@ -635,10 +616,15 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
         cov_centre[1] = sphere_cal.v.y;
         cov_centre[2] = sphere_cal.v.z;
     }
+    mc.m = m;
+    mc.n = n;
+    mc.s = s;
+    mc.snr_alg = magcal_ell_algebraic_snr(m, n, mu, inv_s, &acc);
+    mc.sphere = (st == MAGCAL_OK) ? &sphere_cal : NULL;
     coverage = coverage_of(m, n, cov_centre, 1e-6f * s);
     if (model == MAGCAL_ELLIPSOID_MODEL_AUTO) {
         if (coverage < cfg->min_coverage_sphere) {
-            return MAGCAL_ERR_COVERAGE;
+            return magcal_ell_explain_failure(MAGCAL_ERR_COVERAGE, &mc, planarity, cfg);
         }
         model = (coverage >= cfg->min_coverage_full && n >= MIN_QUADRIC_POINTS)
                     ? MAGCAL_ELLIPSOID_MODEL_QUADRIC9
@@ -646,27 +632,32 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
     }
     st = fit_model(&acc, model, mu, s, cfg, &cal, &min_pivot);
     if (st != MAGCAL_OK) {
-        return st;
+        return magcal_ell_explain_failure(st, &mc, planarity, cfg);
     }
 
-    /* Outlier rejection: residual gate + refit (no per-sample storage; the array is read again). */
+    /* Outlier rejection: robust residual gate + refit (no per-sample storage; the array is read
+     * again). The scale is 1.4826 x median |r| of the kept samples, not their RMS: a dense burst
+     * pulls the first fit towards itself and inflates the RMS enough to hide (issue 12). */
     for (iter = 0u; iter < cfg->max_refits && cfg->outlier_k > 0.0f; ++iter) {
         size_t rejected;
         size_t kept_new;
         quad_gate_t next;
-        rms = residual_pass(m, n, &cal, &gate, &kept);
+        resid_src_t src = {NULL, NULL, NULL, 0.0f};
+        (void)magcal_ell_residual_pass(m, n, &cal, &gate, &kept, &rmax);
         next.cal = &cal;
-        next.thr = cfg->outlier_k * rms;
+        src.cal = &cal;
+        next.thr = cfg->outlier_k * MAGCAL_ELL_MAD_TO_SIGMA *
+                   magcal_ell_median_abs(m, n, &src, &gate, kept, rmax);
         if (next.thr < cfg->outlier_floor_rel * cal.field) {
             next.thr = cfg->outlier_floor_rel * cal.field;
         }
-        (void)residual_pass(m, n, &cal, &next, &kept_new);
+        (void)magcal_ell_residual_pass(m, n, &cal, &next, &kept_new, NULL);
         rejected = n - kept_new;
         if (rejected == prev_rejected) {
             break;
         }
         if ((float)rejected > cfg->max_reject_frac * (float)n) {
-            return MAGCAL_ERR_TOO_MANY_OUTLIERS;
+            return magcal_ell_explain_failure(MAGCAL_ERR_TOO_MANY_OUTLIERS, &mc, planarity, cfg);
         }
         gate_cal = cal;
         gate.cal = &gate_cal;
@@ -674,14 +665,18 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
         accumulate(m, n, mu, inv_s, &gate, &acc);
         st = fit_model(&acc, model, mu, s, cfg, &cal, &min_pivot);
         if (st != MAGCAL_OK) {
-            return st;
+            return magcal_ell_explain_failure(st, &mc, planarity, cfg);
         }
         prev_rejected = rejected;
     }
-    rms = residual_pass(m, n, &cal, &gate, &kept);
+    rms = magcal_ell_residual_pass(m, n, &cal, &gate, &kept, NULL);
     if (kept <
         ((model == MAGCAL_ELLIPSOID_MODEL_SPHERE) ? MIN_SPHERE_POINTS : MIN_QUADRIC_POINTS)) {
         return MAGCAL_ERR_TOO_FEW_POINTS;
+    }
+    st = magcal_ell_trust_gates(m, n, cfg, &cal, rms, model, &gate, &mc, planarity, &acc, &dg);
+    if (st != MAGCAL_OK) {
+        return st;
     }
     out->cal = cal;
     out->residual_rms = rms;
@@ -693,6 +688,11 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
     /* the final pass's gate, for magcal_ellipsoid_outliers (thr 0: no gate) */
     out->gate_cal = (gate.cal != NULL) ? gate_cal : cal;
     out->gate_thr = (gate.cal != NULL) ? gate.thr : 0.0f;
+    out->motion_snr = dg.motion_snr;
+    out->centre_std_rel = dg.centre_std_rel;
+    out->shape_std = dg.shape_std;
+    out->planarity = dg.planarity;
+    out->field_raw = dg.field_raw;
     return MAGCAL_OK;
 }
 
@@ -739,7 +739,7 @@ magcal_status_t magcal_ellipsoid_outliers(const magcal_ellipsoid_result_t *res,
     gate.cal = (res->gate_thr > 0.0f) ? &res->gate_cal : NULL;
     gate.thr = res->gate_thr;
     for (k = 0u; k < n; ++k) {
-        if (gate_keeps(&gate, &m[k]) != 0) {
+        if (magcal_ell_gate_keeps(&gate, &m[k]) != 0) {
             outlier[k] = 0u;
         } else {
             outlier[k] = 1u;
@@ -758,7 +758,7 @@ magcal_status_t magcal_ellipsoid_apply(const magcal_ellipsoid_cal_t *cal, const 
     if (cal == NULL || m == NULL || h == NULL) {
         return MAGCAL_ERR_NULL;
     }
-    correct3(cal, m, r);
+    magcal_ell_correct(cal, m, r);
     for (i = 0u; i < 3u; ++i) {
         if (!magcal_isfinite_f(r[i])) {
             return MAGCAL_ERR_NONFINITE;

@@ -39,9 +39,9 @@ const char *magcal_status_str(magcal_status_t status)
     case MAGCAL_ERR_NOT_CONVERGED: return "not converged";
     case MAGCAL_ERR_ZERO_FIELD: return "field too small";
     case MAGCAL_ERR_GATED: return "rejected by gate";
-    case MAGCAL_ERR_NO_MOTION: return "no motion";
-    case MAGCAL_ERR_SINGLE_AXIS: return "single rotation axis";
-    case MAGCAL_ERR_FIELD_MAGNITUDE: return "field magnitude implausible";
+    case MAGCAL_ERR_NO_MOTION: return "no motion (sensor at rest: rotate it through many orientations)";
+    case MAGCAL_ERR_SINGLE_AXIS: return "single rotation axis (turn about another axis too, or use the 2-D or aided calibration)";
+    case MAGCAL_ERR_FIELD_MAGNITUDE: return "field magnitude implausible (check units, expected field, nearby iron)";
     case MAGCAL_ERR_CONFIG_MISMATCH: return "configuration mismatch";
     case MAGCAL_ERR_ALIGNMENT: return "misaligned buffer";
     case MAGCAL_ERR_CRC: return "record CRC mismatch";

@@ -294,23 +294,34 @@ static void test_ellipsoid_fit_poor_coverage_falls_back_to_sphere(void)
     TEST_ASSERT_EQUAL_FLOAT(0.0f, r.cal.g[0][1]);
 }
 
-static void test_ellipsoid_fit_level_ring_auto_returns_coverage(void)
+static void test_ellipsoid_fit_level_ring_every_model_returns_single_axis(void)
 {
     /* Level yaw-only: every direction in one cone (12 of 72 cells); no model is identifiable. With
-     * noise the normal equations pass the (scale-free) pivot test, so only the coverage gate of AUTO
-     * protects: an explicitly requested quadric returns a confident but wrong V. */
+     * noise the normal equations pass the (scale-free) pivot test: before the trust gates (issue 12)
+     * an explicitly requested quadric returned a confident but wrong V (46.7 uT). Now AUTO and every
+     * forced model say why: one rotation axis. */
     double w[3][3];
     magcal_ellipsoid_cfg_t cfg = cfg_with_field();
     magcal_ellipsoid_result_t r;
     test_make_w_full(w);
     make_set(w, NFIT, 0.0, 0.0, 0.05, 66u);
     memset(&r, 0xA5, sizeof(r));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_COVERAGE, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_SINGLE_AXIS, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
     TEST_ASSERT_EQUAL_HEX8(0xA5, ((unsigned char *)&r)[0]); /* untouched on failure */
     cfg.model = MAGCAL_ELLIPSOID_MODEL_QUADRIC9;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_SINGLE_AXIS, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    cfg.model = MAGCAL_ELLIPSOID_MODEL_QUADRIC10;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_SINGLE_AXIS, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    cfg.model = MAGCAL_ELLIPSOID_MODEL_SPHERE;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_SINGLE_AXIS, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_HEX8(0xA5, ((unsigned char *)&r)[0]);
+    /* with the observability gates off the old failure is still there: the gates are what refuse */
+    cfg.model = MAGCAL_ELLIPSOID_MODEL_QUADRIC9;
+    cfg.max_centre_std_rel = 0.0f;
+    cfg.max_shape_std = 0.0f;
+    cfg.max_residual_rel = 0.0f;
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
-    TEST_ASSERT_TRUE(r.coverage < cfg.min_coverage_sphere);
-    TEST_ASSERT_TRUE(v_err(&r.cal) > 5.0); /* measured 46.7 uT */
+    TEST_ASSERT_TRUE(v_err(&r.cal) > 5.0);
 }
 
 static void test_ellipsoid_fit_hyperboloid_returns_not_ellipsoid(void)
@@ -514,9 +525,13 @@ static void test_ellipsoid_outliers_clean_data_all_zero(void)
     for (k = 0; k < NFIT; ++k) {
         TEST_ASSERT_EQUAL_UINT8(0u, flag[k]);
     }
-    /* rejection disabled: no gate even with injected outliers */
+    /* rejection disabled: no gate even with injected outliers (the residual and observability
+     * gates refuse such a fit; switched off here to see the mask of a gate-free result) */
     make_radial_outliers(w, 2718u);
     cfg.outlier_k = 0.0f;
+    cfg.max_residual_rel = 0.0f;
+    cfg.max_centre_std_rel = 0.0f;
+    cfg.max_shape_std = 0.0f;
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
     TEST_ASSERT_EQUAL_FLOAT(0.0f, r.gate_thr);
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_outliers(&r, g_m, NFIT, flag, &n_out));
@@ -591,6 +606,127 @@ static void test_ellipsoid_apply_known_matrix_and_offset(void)
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_apply(NULL, &m, &h));
 }
 
+/* ---- trust gates (issue 12); the hostile suite is tests/test_trust3d.c ---------------------- */
+
+static void test_ellipsoid_fit_field_band_returns_field_magnitude(void)
+{
+    /* raw data in uT: the raw radius F / det(G)^(1/3) is compared with field_expected (same unit),
+     * whatever output scale cfg.field asks for */
+    double w[3][3];
+    magcal_ellipsoid_cfg_t cfg = MAGCAL_ELLIPSOID_CFG_DEFAULT;
+    magcal_ellipsoid_result_t r;
+    const float f = (float)f_ref();
+    make_w_sym(w);
+    make_set(w, NFIT, 180.0, 180.0, 0.1, 4343u);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_FLOAT_WITHIN(0.02f * f, f, r.field_raw); /* det W = 1.052: raw radius 49.2 uT */
+    cfg.field_expected = f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    cfg.field = 1000.0f; /* output in nT: G absorbs the scale, the raw radius is unchanged */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_FLOAT_WITHIN(0.02f * f, f, r.field_raw);
+    cfg.field_expected = 0.70f * f; /* raw 1.45 x expected: above the 1.4 band */
+    memset(&r, 0xA5, sizeof(r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_FIELD_MAGNITUDE, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_HEX8(0xA5, ((unsigned char *)&r)[0]);
+    cfg.field_expected = 1.25f * f; /* raw 0.81 x expected: below 0.85 */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_FIELD_MAGNITUDE, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    cfg.field_band_lo = 0.75f; /* a wider band admits it */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    cfg.field_band_lo = 0.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    cfg.field_band_lo = 0.85f;
+    cfg.field_band_hi = 0.9f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    cfg.field_band_hi = 1.4f;
+    cfg.field_expected = -1.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    cfg.field_expected = NAN;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+}
+
+static void test_ellipsoid_fit_at_rest_returns_no_motion(void)
+{
+    /* one attitude, noise 0.5 uT: every model, and the gate can be switched off */
+    static const magcal_ellipsoid_model_t models[4] = {MAGCAL_ELLIPSOID_MODEL_AUTO, MAGCAL_ELLIPSOID_MODEL_QUADRIC9,
+                                                       MAGCAL_ELLIPSOID_MODEL_QUADRIC10, MAGCAL_ELLIPSOID_MODEL_SPHERE};
+    double w[3][3], att[3] = {0.1, -0.2, 1.0};
+    magcal_ellipsoid_cfg_t cfg = MAGCAL_ELLIPSOID_CFG_DEFAULT;
+    magcal_ellipsoid_result_t r;
+    uint32_t rng = 77u;
+    size_t k;
+    int i;
+    make_w_sym(w);
+    for (k = 0; k < NFIT; ++k) {
+        g_m[k] = sample(w, V_TRUE, att, 0.5, &rng);
+    }
+    for (i = 0; i < 4; ++i) {
+        cfg.model = models[i];
+        memset(&r, 0xA5, sizeof(r));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NO_MOTION, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+        TEST_ASSERT_EQUAL_HEX8(0xA5, ((unsigned char *)&r)[0]);
+    }
+    /* the diagnostic: every noise scale says ~2.5 sigma of spread */
+    cfg.model = MAGCAL_ELLIPSOID_MODEL_QUADRIC9;
+    cfg.min_motion_snr = 0.0f;
+    cfg.max_centre_std_rel = 0.0f;
+    cfg.max_shape_std = 0.0f;
+    cfg.max_residual_rel = 0.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_TRUE(r.motion_snr > 1.5f && r.motion_snr < 4.0f);
+    TEST_ASSERT_TRUE(v_err(&r.cal) > 10.0); /* the answer it used to return as OK */
+}
+
+static void test_ellipsoid_fit_sphere_on_soft_iron_returns_residual(void)
+{
+    /* 5 % stretch along x: the sphere leaves ~0.3 x 5 % = 1.5 % F of residual and up to ~1.4 deg of
+     * heading; forced SPHERE is refused, the quadric on the same data is OK */
+    static double w[3][3] = {{1.05, 0, 0}, {0, 1.0, 0}, {0, 0, 1.0}};
+    magcal_ellipsoid_cfg_t cfg = cfg_with_field();
+    magcal_ellipsoid_result_t r;
+    make_set(w, NFIT, 180.0, 180.0, 0.05, 5353u);
+    cfg.model = MAGCAL_ELLIPSOID_MODEL_SPHERE;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_RESIDUAL, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    cfg.max_residual_rel_sphere = 0.05f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_TRUE(r.residual_rms > 0.01f * r.cal.field && r.residual_rms < 0.02f * r.cal.field);
+    cfg.model = MAGCAL_ELLIPSOID_MODEL_AUTO;
+    cfg.max_residual_rel_sphere = 0.01f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ELLIPSOID_MODEL_QUADRIC9, r.model);
+    TEST_ASSERT_TRUE(v_err(&r.cal) < 0.02);
+    /* diagnostics of a good fit: observable, not planar, moving */
+    TEST_ASSERT_TRUE(r.centre_std_rel > 0.0f && r.centre_std_rel < 1e-3f);
+    TEST_ASSERT_TRUE(r.shape_std > 0.0f && r.shape_std < 1e-3f);
+    TEST_ASSERT_TRUE(r.planarity > 0.8f);
+    TEST_ASSERT_TRUE(r.motion_snr > 100.0f);
+}
+
+static void test_ellipsoid_fit_trust_cfg_out_of_range_returns_arg(void)
+{
+    magcal_ellipsoid_cfg_t cfg = MAGCAL_ELLIPSOID_CFG_DEFAULT;
+    magcal_ellipsoid_result_t r;
+    double w[3][3];
+    make_w_sym(w);
+    make_set(w, 100, 180.0, 180.0, 0.05, 3u);
+    cfg.min_motion_snr = -1.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    cfg.min_motion_snr = 4.0f;
+    cfg.max_centre_std_rel = NAN;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    cfg.max_centre_std_rel = 0.005f;
+    cfg.max_shape_std = 2.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    cfg.max_shape_std = 0.008f;
+    cfg.max_residual_rel = -0.1f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    cfg.max_residual_rel = 0.05f;
+    cfg.max_residual_rel_sphere = 1.5f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    cfg.max_residual_rel_sphere = 0.01f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -601,7 +737,7 @@ int main(void)
     RUN_TEST(test_ellipsoid_fit_outliers_rejected_by_residual_gate);
     RUN_TEST(test_ellipsoid_fit_rejections_above_limit_return_too_many_outliers);
     RUN_TEST(test_ellipsoid_fit_poor_coverage_falls_back_to_sphere);
-    RUN_TEST(test_ellipsoid_fit_level_ring_auto_returns_coverage);
+    RUN_TEST(test_ellipsoid_fit_level_ring_every_model_returns_single_axis);
     RUN_TEST(test_ellipsoid_fit_hyperboloid_returns_not_ellipsoid);
     RUN_TEST(test_ellipsoid_fit_unknown_field_gives_unit_determinant);
     RUN_TEST(test_ellipsoid_fit_bad_input_returns_status);
@@ -612,5 +748,9 @@ int main(void)
     RUN_TEST(test_ellipsoid_outliers_bad_input_returns_status);
     RUN_TEST(test_ellipsoid_coverage_counts_direction_cells);
     RUN_TEST(test_ellipsoid_apply_known_matrix_and_offset);
+    RUN_TEST(test_ellipsoid_fit_field_band_returns_field_magnitude);
+    RUN_TEST(test_ellipsoid_fit_at_rest_returns_no_motion);
+    RUN_TEST(test_ellipsoid_fit_sphere_on_soft_iron_returns_residual);
+    RUN_TEST(test_ellipsoid_fit_trust_cfg_out_of_range_returns_arg);
     return UNITY_END();
 }

@@ -664,6 +664,7 @@ static void test_optics_filter3_real_tumbles_keep_samples_and_reject_injected(vo
         magcal_optics_result_t info;
         const magcal_ellipsoid_cfg_t fc = MAGCAL_ELLIPSOID_CFG_DEFAULT;
         magcal_ellipsoid_result_t ref, fit, gate;
+        magcal_status_t gst;
         const magcal_test_dump_t *dp = dumps[d];
         size_t nb = dp->n, m = 0u, kept_out = 0u, lost = 0u;
         magcal_vec3_t v;
@@ -697,12 +698,16 @@ static void test_optics_filter3_real_tumbles_keep_samples_and_reject_injected(vo
             }
         }
         TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_in, m, &fc, &fit));
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_pts, nb, &fc, &gate));
+        /* the fit's own gate alone cannot undo this contamination (|dV| 4.6 / 8.8 % F before
+         * issue 12); its trust gates must then refuse, never return that as OK */
+        gst = magcal_ellipsoid_fit(g_pts, nb, &fc, &gate);
         printf("%s: %u samples all kept; %u injected: %u kept, %u recorded lost; |dV|/F "
-               "density+fit %.2e, gate only %.2e (%u used)\n",
+               "density+fit %.2e, gate only: %s %.2e (%u used)\n",
                dp->name, (unsigned)dp->n, (unsigned)(nb - dp->n), (unsigned)kept_out,
-               (unsigned)lost, v_dist(&fit.cal, &ref.cal) / (double)ref.cal.field,
-               v_dist(&gate.cal, &ref.cal) / (double)ref.cal.field, (unsigned)gate.n_used);
+               (unsigned)lost, v_dist(&fit.cal, &ref.cal) / (double)ref.cal.field, magcal_status_str(gst),
+               (gst == MAGCAL_OK) ? v_dist(&gate.cal, &ref.cal) / (double)ref.cal.field : -1.0,
+               (gst == MAGCAL_OK) ? (unsigned)gate.n_used : 0u);
+        TEST_ASSERT_TRUE(gst != MAGCAL_OK || v_dist(&gate.cal, &ref.cal) < 0.02 * (double)ref.cal.field);
         TEST_ASSERT_TRUE(kept_out <= 2u);
         TEST_ASSERT_EQUAL_UINT(0u, lost);
         TEST_ASSERT_TRUE(v_dist(&fit.cal, &ref.cal) < 2e-3 * (double)ref.cal.field);

@@ -11,23 +11,45 @@
  * - 9-parameter quadric (d = -1) after centring and scaling (default),
  * - 10-parameter quadric (smallest eigenvector of D^T D by inverse iteration),
  * - 4-parameter sphere (hard iron only, G = (F/R) I), used automatically (model AUTO) when the
- *   direction coverage is too poor for the full model.
+ *   direction coverage is too poor for the full model (and then held to a 1 % F residual).
  *
  * Coverage: the directions of `m - c` around the provisional centre c (the sphere-fit centre) are
  * binned in 12 azimuth x 6 equal-area elevation cells (bands of equal z/|m - c|); coverage is the
  * filled fraction of the 72 cells, in [0, 1].
  *
  * Outliers: after each fit, samples whose total-field residual `| |G(m - V)| - F |` exceeds
- * `outlier_k` times the RMS of the kept residuals (never less than `outlier_floor_rel * F`) are
+ * `outlier_k` times the robust sigma (1.4826 x median |r|) of the kept residuals, found by histogram
+ * refinement without storage (never less than `outlier_floor_rel * F`), are
  * dropped and the model is fitted again, at most `max_refits` times. No per-sample storage is needed:
  * the sample array is read again on each pass (2 + 2 * refits passes at most). The gate of the final
  * pass (the calibration it was computed with, which is the fit BEFORE the last refit, and its
  * threshold) is returned in the result, so magcal_ellipsoid_outliers() can give the per-sample mask
  * afterwards without storage inside the fit.
  *
+ * Trust gates (issue 12, docs/calibration_3d.md "Trust gates"): an OK is a promise, so every model,
+ * AUTO and forced, must also pass, after the fit:
+ * - motion: the samples' RMS spread about their mean >= `min_motion_snr` x the noise (the best of
+ *   the fit's residual, the algebraic quadric's and a median-scaled sphere's), else
+ *   MAGCAL_ERR_NO_MOTION (the sensor was at rest; noise around one point gives about 2.5);
+ * - observability: predicted 1-sigma error (robust sandwich covariance of the linearised model)
+ *   of V along its worst direction <= `max_centre_std_rel` x F and of the worst soft-iron term
+ *   <= `max_shape_std`, else MAGCAL_ERR_SINGLE_AXIS when the corrected field directions lie on one
+ *   cone (rotation about one axis: level turns, a turntable) and MAGCAL_ERR_ILL_CONDITIONED
+ *   otherwise (a narrow band of directions, or too few samples for the noise);
+ * - residual: residual RMS <= `max_residual_rel` x F (quadrics) or `max_residual_rel_sphere` x F
+ *   (sphere: unmodelled soft iron shows only here), else MAGCAL_ERR_RESIDUAL;
+ * - field (optional): `field_expected` > 0 and the raw radius outside the band:
+ *   MAGCAL_ERR_FIELD_MAGNITUDE.
+ * What to do: NO_MOTION -> rotate the sensor through many orientations; SINGLE_AXIS -> also turn
+ * about another axis (pitch and roll), or use the 2-D calibrator (calibrator.h) or the aided module
+ * (aided.h) when the vehicle cannot; ILL_CONDITIONED -> more orientations or more samples (the
+ * error falls as 1/sqrt(n)); RESIDUAL -> outliers or disturbances (run the density stage,
+ * optics.h), or, for the sphere, soft iron: rotate over more directions for the full model;
+ * FIELD_MAGNITUDE -> wrong unit, wrong expected field, or iron next to the sensor.
+ *
  * Units: any consistent raw unit for m; G maps raw units to the unit of `cfg.field` (e.g. LSB to uT).
  * All arithmetic is float32 with Kahan-compensated sums; no workspace is needed (worst-case stack
- * about 2.5 KiB on Cortex-M4 -Os, 10-parameter path; the 9-parameter path needs about 1.6 KiB).
+ * 2480 B on Cortex-M4F -Os, 10-parameter path; tools/stack/budgets.txt).
  */
 #ifndef MAGCAL_ELLIPSOID_H
 #define MAGCAL_ELLIPSOID_H
@@ -68,25 +90,45 @@ typedef enum {
     MAGCAL_ELLIPSOID_SQRT_CHOLESKY = 1   /**< G = U, upper triangular, Q = U^T U */
 } magcal_ellipsoid_sqrt_t;
 
-/** Fit configuration. Start from MAGCAL_ELLIPSOID_CFG_DEFAULT. */
+/** Fit configuration. Start from MAGCAL_ELLIPSOID_CFG_DEFAULT (fields are only ever appended). */
 typedef struct {
     magcal_ellipsoid_model_t model;    /**< model to fit (default AUTO) */
     magcal_ellipsoid_sqrt_t sqrt_method; /**< square root of Q (default SYMMETRIC) */
     float field;               /**< F > 0: output magnitude (e.g. WMM |B| in uT); 0: choose F so det(G) = 1 */
     float min_coverage_full;   /**< AUTO: coverage needed for the 9-parameter model, [0,1] (default 0.45) */
     float min_coverage_sphere; /**< AUTO: coverage needed for the sphere, [0,1] (default 0.20); below: MAGCAL_ERR_COVERAGE */
-    float outlier_k;           /**< outlier gate in RMS multiples; 0 disables rejection (default 3) */
+    float outlier_k;           /**< outlier gate in robust-sigma (1.4826 MAD) multiples; 0 disables rejection (default 3) */
     float outlier_floor_rel;   /**< outlier gate never below this fraction of F (default 0.005) */
-    uint32_t max_refits;       /**< refits after outlier rejection, 0..8 (default 3) */
+    uint32_t max_refits;       /**< refits after outlier rejection, 0..8 (default 5) */
     float max_reject_frac;     /**< more rejected than this fraction: MAGCAL_ERR_TOO_MANY_OUTLIERS (default 0.25) */
     float pivot_tau;           /**< relative LDL^T pivot threshold (default 1e-6) */
+    /* ---- trust gates (issue 12): every model, AUTO and forced; 0 disables a gate ---- */
+    float min_motion_snr;      /**< NO_MOTION when the samples' RMS spread about their mean is below this many
+                                    noise sigmas (best of the fit's residual, the algebraic quadric's and a
+                                    median-scaled sphere's, raw units); noise around one point gives ~2.5
+                                    (default 4) */
+    float max_centre_std_rel;  /**< observability: predicted 1-sigma error of V along its worst direction,
+                                    through G (output units), relative to F; above: SINGLE_AXIS (corrected
+                                    directions on one cone) or ILL_CONDITIONED (default 0.005) */
+    float max_shape_std;       /**< observability: predicted 1-sigma error of the worst soft-iron term of G
+                                    (relative, ~ radians of heading); above: as max_centre_std_rel
+                                    (default 0.008; the sphere has no such term) */
+    float max_residual_rel;    /**< quadric models: residual RMS / F above: MAGCAL_ERR_RESIDUAL (default 0.05) */
+    float max_residual_rel_sphere; /**< sphere model: residual RMS / F above: MAGCAL_ERR_RESIDUAL (default 0.01:
+                                    unmodelled soft iron of 3.5 %, ~1 deg of heading, leaves ~1 % F) */
+    float field_expected;      /**< > 0: expected |B| in the unit of the samples (e.g. magcal_geomag_eval in uT
+                                    for a uT sensor); the fitted raw radius F / det(G)^(1/3) must lie in
+                                    [field_band_lo, field_band_hi] x field_expected, else
+                                    MAGCAL_ERR_FIELD_MAGNITUDE. 0: no check (default) */
+    float field_band_lo;       /**< lower bound of the field band, relative (default 0.85, as ArduPilot) */
+    float field_band_hi;       /**< upper bound of the field band, relative (default 1.4, as ArduPilot) */
 } magcal_ellipsoid_cfg_t;
 
 /** Defaults that work without tuning. */
 #define MAGCAL_ELLIPSOID_CFG_DEFAULT                                                                \
     {                                                                                               \
         MAGCAL_ELLIPSOID_MODEL_AUTO, MAGCAL_ELLIPSOID_SQRT_SYMMETRIC, 0.0f, 0.45f, 0.20f, 3.0f,     \
-            0.005f, 3u, 0.25f, 1e-6f                                                                \
+            0.005f, 5u, 0.25f, 1e-6f, 4.0f, 0.005f, 0.008f, 0.05f, 0.01f, 0.0f, 0.85f, 1.4f         \
     }
 
 /** Result of a fit. */
@@ -105,6 +147,16 @@ typedef struct {
      *  F_gate | >= gate_thr. 0: no gate was applied (outlier_k == 0, max_refits == 0 or nothing
      *  was ever rejected), every sample was used. */
     float gate_thr;
+    /* ---- trust diagnostics (issue 12); like every field, written only on MAGCAL_OK: to see the
+     *      value that made a gate refuse, fit again with that gate set to 0 ---- */
+    float motion_snr;     /**< RMS spread of the samples about their mean / noise sigma (raw units) */
+    float centre_std_rel; /**< predicted 1-sigma error of V along its worst direction (through G) / F;
+                               +Inf when that direction is not observable at all */
+    float shape_std;      /**< predicted 1-sigma error of the worst soft-iron term of G (relative); 0 for
+                               the sphere, +Inf when not observable */
+    float planarity;      /**< sqrt(smallest / middle eigenvalue) of the samples' 3-D scatter: ~0 for one
+                               rotation axis (a circle), ~1 for a sphere */
+    float field_raw;      /**< fitted raw radius F / det(G)^(1/3), unit of the samples */
 } magcal_ellipsoid_result_t;
 
 /**
@@ -121,8 +173,17 @@ typedef struct {
  *         MAGCAL_ERR_NONFINITE (a sample is NaN/Inf);
  *         MAGCAL_ERR_TOO_FEW_POINTS (n below the model's minimum, also after outlier rejection);
  *         MAGCAL_ERR_DEGENERATE (all samples identical);
- *         MAGCAL_ERR_COVERAGE (AUTO: coverage below min_coverage_sphere);
- *         MAGCAL_ERR_ILL_CONDITIONED (normal equations fail the pivot test: too little rotation);
+ *         MAGCAL_ERR_COVERAGE (AUTO: coverage below min_coverage_sphere, samples neither at rest
+ *         nor planar);
+ *         MAGCAL_ERR_NO_MOTION (samples are noise around one point: rotate the sensor);
+ *         MAGCAL_ERR_SINGLE_AXIS (rotation about one axis: offset unobservable along it; turn
+ *         about another axis, or use the 2-D / aided calibration);
+ *         MAGCAL_ERR_ILL_CONDITIONED (normal equations fail the pivot test, or the predicted error
+ *         of V or G is above max_centre_std_rel / max_shape_std: too little rotation or too few
+ *         samples for the noise);
+ *         MAGCAL_ERR_RESIDUAL (residual RMS above max_residual_rel(_sphere) x F);
+ *         MAGCAL_ERR_FIELD_MAGNITUDE (field_expected set and the fitted raw radius outside
+ *         [field_band_lo, field_band_hi] x field_expected);
  *         MAGCAL_ERR_NOT_ELLIPSOID (quadric is not an ellipsoid: k <= 0 or A_q/k not positive definite);
  *         MAGCAL_ERR_NOT_CONVERGED (Jacobi eigen-decomposition of Q did not converge);
  *         MAGCAL_ERR_TOO_MANY_OUTLIERS (rejected fraction above max_reject_frac).

@@ -147,11 +147,16 @@ static void fz_ellipsoid(size_t n, uint8_t flags)
                    st == MAGCAL_ERR_COVERAGE || st == MAGCAL_ERR_DEGENERATE ||
                    st == MAGCAL_ERR_ILL_CONDITIONED || st == MAGCAL_ERR_NOT_ELLIPSOID ||
                    st == MAGCAL_ERR_NOT_CONVERGED || st == MAGCAL_ERR_TOO_MANY_OUTLIERS ||
-                   st == MAGCAL_ERR_ARG,
+                   st == MAGCAL_ERR_ARG || st == MAGCAL_ERR_NO_MOTION || st == MAGCAL_ERR_SINGLE_AXIS ||
+                   st == MAGCAL_ERR_RESIDUAL || st == MAGCAL_ERR_FIELD_MAGNITUDE,
                "ellipsoid_fit status");
     if (st != MAGCAL_OK) {
         return;
     }
+    /* an OK passed every trust gate (issue 12) */
+    FUZZ_CHECK(res.motion_snr >= cfg.min_motion_snr && res.centre_std_rel <= cfg.max_centre_std_rel &&
+                   res.shape_std <= cfg.max_shape_std,
+               "ellipsoid trust gates");
     fz_check_cal(&res.cal, "ellipsoid cal finite");
     FUZZ_CHECK(isfinite(res.cal.field) && res.cal.field > 0.0f, "ellipsoid field");
     FUZZ_CHECK(res.n_used + res.n_rejected == n, "ellipsoid counts");

@@ -55,6 +55,9 @@ const char *replay_status_id(magcal_status_t st)
     case MAGCAL_ERR_NOT_CONVERGED: return "not_converged";
     case MAGCAL_ERR_ZERO_FIELD: return "zero_field";
     case MAGCAL_ERR_GATED: return "gated";
+    case MAGCAL_ERR_NO_MOTION: return "no_motion";
+    case MAGCAL_ERR_SINGLE_AXIS: return "single_axis";
+    case MAGCAL_ERR_FIELD_MAGNITUDE: return "field_magnitude";
     default: return "error";
     }
 }

@@ -172,11 +172,16 @@ int replay_fit_3d(const magcal_vec3_t *m, size_t n, const char *filter, double e
         } else {
             r->coverage3 = NAN;
         }
-        (void)snprintf(r->reason, sizeof r->reason,
-                       "%s: %lu samples (%lu removed by the density stage); direction coverage about the "
-                       "sample mean %.2f of the 72 cells (sphere needs %.2f, quadric %.2f)",
-                       magcal_status_str(st), (unsigned long)nk, (unsigned long)r->n_density3, (double)cov,
-                       (double)cfg.min_coverage_sphere, (double)cfg.min_coverage_full);
+        if (st == MAGCAL_ERR_COVERAGE) {
+            (void)snprintf(r->reason, sizeof r->reason,
+                           "%s: %lu samples (%lu removed by the density stage); direction coverage about the "
+                           "sample mean %.2f of the 72 cells (sphere needs %.2f, quadric %.2f)",
+                           magcal_status_str(st), (unsigned long)nk, (unsigned long)r->n_density3, (double)cov,
+                           (double)cfg.min_coverage_sphere, (double)cfg.min_coverage_full);
+        } else { /* the trust gates' statuses say what to do (ellipsoid.h, docs/calibration_3d.md) */
+            (void)snprintf(r->reason, sizeof r->reason, "%s: %lu samples (%lu removed by the density stage)",
+                           magcal_status_str(st), (unsigned long)nk, (unsigned long)r->n_density3);
+        }
         r->have_3d = 0;
         free(mask);
         free(kept);

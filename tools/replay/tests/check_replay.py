@@ -456,13 +456,14 @@ def case_tilt_3d(a):
 def case_burst_3d(a):
     """3d mode: a dense burst 80 % outside the shell + 10 far spikes. The OPTICS density stage
     (default --filter optics) takes them out; the fit's residual gate alone (--filter none)
-    accepts the burst as a compromise fit."""
+    cannot: before issue 12 it returned the compromise fit as OK (V error 12-24 uT), now the
+    3-D trust gates refuse it (exit 3, not ok)."""
     truth = load_truth(a, "tumble_burst")
     path = extra_data(a, "tumble_burst.csv")
     n_cal = truth["n_cal"]
     base = ["--mode", "3d", "--cal-range", "0:%d" % n_cal, path]
     rep = run_json(a, base)
-    off = run_json(a, ["--filter", "none"] + base)
+    off = run_json(a, ["--filter", "none"] + base, 3)
     dn, tf = rep.get("density", {}), rep.get("truth_flags", {})
     verr = math.dist(rep.get("offset", [0, 0, 0]), truth["V"])
     verr_off = math.dist(off.get("offset", [0, 0, 0]), truth["V"])
@@ -479,10 +480,9 @@ def case_burst_3d(a):
     check(rep.get("n_outliers") == dn.get("rejected", 0) + rep.get("n_residual_rejected", 0), "n_outliers %r" % rep.get("n_outliers"))
     check(verr < 0.1, "V error %.3f uT >= 0.1 (measured 0.019)" % verr)
     check(rep.get("heading_rms_deg", 99) <= FLOOR_FACTOR * truth["floor_deg"], "heading RMS %r" % rep.get("heading_rms_deg"))
-    # without the density stage the burst drags the fit (measured V error 12 uT, heading RMS 52 deg)
-    check(off.get("density", {}).get("rejected") == 0 and off.get("filter") == "none", "filter none: %r" % off.get("density"))
-    check(verr_off > 5.0 and off.get("truth_flags", {}).get("missed", 0) >= 20, "filter none: V error %.3f, truth %r" % (
-        verr_off, off.get("truth_flags")))
+    # without the density stage the burst drags the fit (V error 24 uT, residual 36 % F): refused
+    check(off.get("filter") == "none" and off.get("status") not in (None, "ok") and "offset" not in off,
+          "filter none: status %r, offset %r" % (off.get("status"), off.get("offset")))
     # the 2-D-only DBSCAN filter is refused in 3d mode
     run(a, ["--filter", "dbscan"] + base, 1)
 

@@ -1,0 +1,129 @@
+/*
+ * Private to the 3-D fit (src/ellipsoid.c: normalisation, normal equations, solvers, outlier gate;
+ * src/ellipsoid_trust.c: the trust gates of issue 12). Never installed.
+ */
+#ifndef MAGCAL_ELLIPSOID_INTERNAL_H
+#define MAGCAL_ELLIPSOID_INTERNAL_H
+
+#include <math.h>
+#include <stddef.h>
+
+#include "magcal/ellipsoid.h"
+#include "magcal_internal.h"
+
+#define MAGCAL_ELL_NQ 10u                                              /* quadric row length */
+#define MAGCAL_ELL_NPACK ((MAGCAL_ELL_NQ * (MAGCAL_ELL_NQ + 1u)) / 2u) /* packed lower triangle */
+#define MAGCAL_ELL_MAD_TO_SIGMA 1.4826f /* sigma of a normal distribution = 1.4826 x median |r| */
+
+/* Normalisation and Kahan-compensated normal matrix. */
+typedef struct {
+    float sum[MAGCAL_ELL_NPACK];
+    float comp[MAGCAL_ELL_NPACK];
+    size_t count;
+} quad_acc_t;
+
+/* Optional gate applied while accumulating: keep samples with | |G(m-V)| - F | < thr. */
+typedef struct {
+    const magcal_ellipsoid_cal_t *cal; /* NULL: keep every sample */
+    float thr;
+} quad_gate_t;
+
+static inline size_t magcal_ell_pidx(size_t i, size_t j)
+{
+    /* packed lower triangle, i >= j */
+    return (i * (i + 1u)) / 2u + j;
+}
+
+/* h = G (m - V): the correction of one sample. */
+static inline void magcal_ell_correct(const magcal_ellipsoid_cal_t *cal, const magcal_vec3_t *m,
+                                      float h[3])
+{
+    float e[3];
+    size_t i;
+    e[0] = m->x - cal->v.x;
+    e[1] = m->y - cal->v.y;
+    e[2] = m->z - cal->v.z;
+    for (i = 0u; i < 3u; ++i) {
+        h[i] = cal->g[i][0] * e[0] + cal->g[i][1] * e[1] + cal->g[i][2] * e[2];
+    }
+}
+
+static inline float magcal_ell_residual(const magcal_ellipsoid_cal_t *cal, const magcal_vec3_t *m)
+{
+    float h[3];
+    magcal_ell_correct(cal, m, h);
+    return sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) - cal->field;
+}
+
+/* The trust diagnostics of a fit (copied into the result on success). */
+typedef struct {
+    float motion_snr;
+    float centre_std_rel;
+    float shape_std;
+    float planarity;
+    float field_raw;
+} trust_diag_t;
+
+/* Which residual a median is taken of: geometric under `cal`, or (cal NULL) the algebraic
+ * residual r.theta - 1 of the 9-parameter quadric `theta` in coordinates (m - mu) * inv_s. */
+typedef struct {
+    const magcal_ellipsoid_cal_t *cal;
+    const float *theta;
+    const float *mu;
+    float inv_s;
+} resid_src_t;
+
+static inline int magcal_ell_gate_keeps(const quad_gate_t *gate, const magcal_vec3_t *m)
+{
+    if (gate->cal == NULL) {
+        return 1;
+    }
+    return fabsf(magcal_ell_residual(gate->cal, m)) < gate->thr;
+}
+
+static inline float magcal_ell_acc_at(const quad_acc_t *acc, size_t i, size_t j)
+{
+    return (i >= j) ? acc->sum[magcal_ell_pidx(i, j)] : acc->sum[magcal_ell_pidx(j, i)];
+}
+
+/* What the motion test needs: the samples, their RMS spread about the mean (raw units), the
+ * algebraic-quadric SNR and the provisional sphere (NULL when its fit failed). */
+typedef struct {
+    const magcal_vec3_t *m;
+    size_t n;
+    float s;
+    float snr_alg;
+    const magcal_ellipsoid_cal_t *sphere;
+} motion_ctx_t;
+
+/* RMS of the residuals under `cal` of the samples kept by `gate`; their count and max |r|
+ * (max_abs may be NULL). */
+float magcal_ell_residual_pass(const magcal_vec3_t *m, size_t n, const magcal_ellipsoid_cal_t *cal,
+                               const quad_gate_t *gate, size_t *kept, float *max_abs);
+
+/* Median of |r| (residual `src`) over the `kept` samples that `gate` keeps, max |r| = max_abs. */
+float magcal_ell_median_abs(const magcal_vec3_t *m, size_t n, const resid_src_t *src,
+                            const quad_gate_t *gate, size_t kept, float max_abs);
+
+/* Motion SNR of the 9-parameter algebraic quadric of all samples (acc = their normal matrix in
+ * coordinates (m - mu) * inv_s); +Inf when it cannot be solved or fits exactly. */
+float magcal_ell_algebraic_snr(const magcal_vec3_t *m, size_t n, const float mu[3], float inv_s,
+                               const quad_acc_t *acc);
+
+/* sqrt(smallest / middle eigenvalue) of a packed scatter (xx, yx, yy, zx, zy, zz). */
+float magcal_ell_planarity(const float sc[6]);
+
+/* Status for a fit that failed on its own: NO_MOTION / SINGLE_AXIS when the data say so. */
+magcal_status_t magcal_ell_explain_failure(magcal_status_t st, const motion_ctx_t *mc,
+                                           float planarity, const magcal_ellipsoid_cfg_t *cfg);
+
+/* The trust gates on a finished fit (order: motion, one axis, residual, observability, field);
+ * writes the diagnostics into dg; `scratch` is overwritten. */
+magcal_status_t magcal_ell_trust_gates(const magcal_vec3_t *m, size_t n,
+                                       const magcal_ellipsoid_cfg_t *cfg,
+                                       const magcal_ellipsoid_cal_t *cal, float rms,
+                                       magcal_ellipsoid_model_t model, const quad_gate_t *gate,
+                                       const motion_ctx_t *mc, float raw_planarity,
+                                       quad_acc_t *scratch, trust_diag_t *dg);
+
+#endif /* MAGCAL_ELLIPSOID_INTERNAL_H */

@@ -1,0 +1,458 @@
+/*
+ * The trust gates of the 3-D fit (issue 12, docs/calibration_3d.md "Trust gates"): is the sensor
+ * moving (motion SNR from three noise scales), is the answer observable (sandwich covariance of the
+ * offset and soft-iron terms; planarity of the field directions), does the model fit (residual),
+ * is the field plausible (optional band). Also the storage-free median used by the outlier gate.
+ * Called by magcal_ellipsoid_fit (src/ellipsoid.c) after its own fit; no state, no workspace.
+ */
+#include <math.h>
+#include <string.h>
+
+#include "ellipsoid_internal.h"
+
+#define MED_BINS 32u     /* histogram bins per refinement pass of the median |residual| */
+#define MED_PASSES 4u    /* refinement passes: resolution (max |r|) / 32^4 at worst */
+#define PLANAR_MAX 0.15f /* planarity below this: one rotation axis dominates (SINGLE_AXIS) */
+#define INFO_MAX_N 9u    /* centre information: 3 offset + 6 symmetric shape parameters */
+
+static float alg_residual(const resid_src_t *src, const magcal_vec3_t *m)
+{
+    const float *b = src->theta;
+    const float x = (m->x - src->mu[0]) * src->inv_s;
+    const float y = (m->y - src->mu[1]) * src->inv_s;
+    const float z = (m->z - src->mu[2]) * src->inv_s;
+    return b[0] * x * x + b[1] * y * y + b[2] * z * z +
+           2.0f * (b[3] * y * z + b[4] * x * z + b[5] * x * y + b[6] * x + b[7] * y + b[8] * z) -
+           1.0f;
+}
+
+static float abs_residual(const resid_src_t *src, const magcal_vec3_t *m)
+{
+    return fabsf((src->cal != NULL) ? magcal_ell_residual(src->cal, m) : alg_residual(src, m));
+}
+
+/*
+ * Median of |r| over the `kept` samples that `gate` keeps, without per-sample storage: the bin of
+ * a 32-bin histogram of [lo, hi) that holds the median becomes the next [lo, hi), at most
+ * MED_PASSES passes (stops once the bin is narrower than 0.1 % of its lower edge).
+ */
+MAGCAL_NOINLINE float magcal_ell_median_abs(const magcal_vec3_t *m, size_t n,
+                                            const resid_src_t *src, const quad_gate_t *gate,
+                                            size_t kept, float max_abs)
+{
+    uint32_t cnt[MED_BINS];
+    float lo = 0.0f;
+    float hi = max_abs * 1.0001f + 1e-30f;
+    size_t below = 0u;
+    const size_t target = (kept + 1u) / 2u; /* rank (1-based) of the median */
+    size_t pass;
+    size_t k;
+    int done = 0;
+    for (pass = 0u; (pass < MED_PASSES) && (done == 0); ++pass) {
+        const float width = (hi - lo) / (float)MED_BINS;
+        size_t acc = below;
+        size_t b = 0u;
+        int found = 0;
+        if (!(width > 0.0f)) {
+            done = 1;
+            continue;
+        }
+        (void)memset(cnt, 0, sizeof(cnt));
+        for (k = 0u; k < n; ++k) {
+            if (magcal_ell_gate_keeps(gate, &m[k]) != 0) {
+                const float a = abs_residual(src, &m[k]);
+                if (a >= lo && a < hi) {
+                    const float q = (a - lo) / width;
+                    const size_t bin = (size_t)q;
+                    cnt[(bin < MED_BINS) ? bin : (MED_BINS - 1u)]++;
+                }
+            }
+        }
+        while (b < MED_BINS && found == 0) {
+            if (acc + cnt[b] >= target) {
+                found = 1;
+            } else {
+                acc += cnt[b];
+                ++b;
+            }
+        }
+        if (found == 0) { /* float rounding at the edge: keep the current interval */
+            done = 1;
+        } else {
+            lo = lo + (float)b * width;
+            hi = lo + width;
+            below = acc;
+            if (width <= 1e-3f * lo) {
+                done = 1;
+            }
+        }
+    }
+    return 0.5f * (lo + hi);
+}
+
+/* Jacobian row of the linearised total-field model at one corrected sample (see centre_info). */
+static size_t info_row(const float h[3], int sphere, float row[INFO_MAX_N])
+{
+    const float r = sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
+    size_t i;
+    if (!(r > 0.0f)) {
+        return 0u;
+    }
+    for (i = 0u; i < 3u; ++i) {
+        row[i] = h[i] / r;
+    }
+    if (sphere != 0) {
+        row[3] = 1.0f;
+        return 4u;
+    }
+    row[3] = row[0] * row[0];
+    row[4] = row[1] * row[1];
+    row[5] = row[2] * row[2];
+    row[6] = 2.0f * row[1] * row[2];
+    row[7] = 2.0f * row[0] * row[2];
+    row[8] = 2.0f * row[0] * row[1];
+    return INFO_MAX_N;
+}
+
+/* Largest eigenvalue of a symmetric 3x3 (lower triangle used); NaN/Inf/failure give +Inf. */
+static MAGCAL_NOINLINE float max_eig3(float c[3][3])
+{
+    float w[3];
+    float e[3][3];
+    float wmax;
+    size_t i;
+    size_t j;
+    for (i = 0u; i < 3u; ++i) {
+        for (j = 0u; j < i; ++j) {
+            c[j][i] = c[i][j];
+        }
+    }
+    if (magcal_jacobi_sym(&c[0][0], 3u, w, &e[0][0]) != MAGCAL_OK) {
+        return INFINITY;
+    }
+    wmax = fmaxf(w[0], fmaxf(w[1], w[2]));
+    return (magcal_isfinite_f(wmax) && wmax >= 0.0f) ? wmax : INFINITY;
+}
+
+/* sqrt(smallest / middle eigenvalue) of a symmetric 3x3 scatter (lower triangle used). */
+static MAGCAL_NOINLINE float planarity3(float c[3][3])
+{
+    float w[3];
+    float e[3][3];
+    float lo;
+    float mid;
+    float hi;
+    size_t i;
+    size_t j;
+    for (i = 0u; i < 3u; ++i) {
+        for (j = 0u; j < i; ++j) {
+            c[j][i] = c[i][j];
+        }
+    }
+    if (magcal_jacobi_sym(&c[0][0], 3u, w, &e[0][0]) != MAGCAL_OK) {
+        return 0.0f;
+    }
+    lo = fminf(w[0], fminf(w[1], w[2]));
+    hi = fmaxf(w[0], fmaxf(w[1], w[2]));
+    mid = w[0] + w[1] + w[2] - lo - hi;
+    if (!(mid > 0.0f)) {
+        return 0.0f;
+    }
+    return sqrtf(fmaxf(lo, 0.0f) / mid);
+}
+
+/*
+ * Observability of the calibration (issue 12, docs/calibration_3d.md "Trust gates"). Linearised
+ * total-field model about the fit, r_i = |(I + E)(h_i - dc)| - F with h_i = G (m_i - V): the
+ * Jacobian row is J_i = [-n_i, n_i^T E n_i terms] (n_i = h_i / |h_i|; E symmetric, 6 terms, carries
+ * the scale and the soft iron) or [-n_i, -1] for the sphere (scale only). The covariance is the
+ * heteroscedasticity-robust sandwich C = (J^T J)^-1 (sum r_i^2 J_i J_i^T) (J^T J)^-1, so noise that
+ * G amplifies along one axis (strong soft iron) counts where it acts. Pass 1 accumulates J^T J
+ * (packed, Kahan, in `acc`) and the scatter of the directions n_i; np solves give (J^T J)^-1 in
+ * `inv`; pass 2 sums r_i^2 (J_i . inv_k)(J_i . inv_l) for the offset block and the shape diagonal.
+ * Outputs, relative to F: worst 1-sigma offset error (largest eigenvalue of the 3x3 block, through
+ * G: output units) and worst soft-iron term; +Inf when J^T J is singular (every n_i on one cone).
+ * `dir_planarity`: planarity of the corrected directions (~0 for rotation about one axis).
+ */
+static MAGCAL_NOINLINE void centre_info(const magcal_vec3_t *m, size_t n,
+                                        const magcal_ellipsoid_cal_t *cal, const quad_gate_t *gate,
+                                        int sphere, quad_acc_t *acc, trust_diag_t *res)
+{
+    const size_t np = (sphere != 0) ? (size_t)4u : (size_t)INFO_MAX_N;
+    float a[INFO_MAX_N * INFO_MAX_N];
+    float inv[INFO_MAX_N][INFO_MAX_N];
+    float cc[3][3];
+    float sn[3] = {0.0f, 0.0f, 0.0f};
+    float sd[INFO_MAX_N];
+    size_t cnt = 0u;
+    size_t i;
+    size_t j;
+    size_t k;
+    res->centre_std_rel = INFINITY;
+    res->shape_std = (sphere != 0) ? 0.0f : INFINITY;
+    res->planarity = 0.0f;
+    (void)memset(acc, 0, sizeof(*acc));
+    for (k = 0u; k < n; ++k) {
+        float h[3];
+        float row[INFO_MAX_N];
+        if (!magcal_ell_gate_keeps(gate, &m[k])) {
+            continue;
+        }
+        magcal_ell_correct(cal, &m[k], h);
+        if (info_row(h, sphere, row) == 0u) {
+            continue;
+        }
+        for (i = 0u; i < np; ++i) {
+            for (j = 0u; j <= i; ++j) {
+                size_t p = magcal_ell_pidx(i, j);
+                magcal_kahan_add(&acc->sum[p], &acc->comp[p], row[i] * row[j]);
+            }
+        }
+        for (i = 0u; i < 3u; ++i) {
+            sn[i] += row[i];
+        }
+        cnt++;
+    }
+    if (cnt < np) {
+        return;
+    }
+    /* planarity of the directions: scatter of n about its mean, from the n n^T block */
+    for (i = 0u; i < 3u; ++i) {
+        for (j = 0u; j <= i; ++j) {
+            cc[i][j] = magcal_ell_acc_at(acc, i, j) / (float)cnt -
+                       (sn[i] / (float)cnt) * (sn[j] / (float)cnt);
+        }
+    }
+    res->planarity = planarity3(cc);
+    for (k = 0u; k < np; ++k) {
+        float b[INFO_MAX_N];
+        for (i = 0u; i < np; ++i) {
+            for (j = 0u; j < np; ++j) {
+                a[i * np + j] = magcal_ell_acc_at(acc, i, j);
+            }
+            b[i] = (i == k) ? 1.0f : 0.0f;
+        }
+        if (magcal_ldlt_solve(a, b, np, 0.0f, NULL) != MAGCAL_OK) {
+            return;
+        }
+        for (i = 0u; i < np; ++i) {
+            inv[k][i] = b[i];
+        }
+    }
+    /* pass 2: sandwich, offset block (6 sums) and shape diagonal (np - 3 sums), no Kahan needed
+     * for a 1-significant-digit gate */
+    (void)memset(cc, 0, sizeof(cc));
+    (void)memset(sd, 0, sizeof(sd));
+    for (k = 0u; k < n; ++k) {
+        float h[3];
+        float row[INFO_MAX_N];
+        float pr[INFO_MAX_N];
+        float r2;
+        if (!magcal_ell_gate_keeps(gate, &m[k])) {
+            continue;
+        }
+        magcal_ell_correct(cal, &m[k], h);
+        if (info_row(h, sphere, row) == 0u) {
+            continue;
+        }
+        r2 = sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) - cal->field;
+        r2 *= r2;
+        for (i = 0u; i < np; ++i) {
+            float d = 0.0f;
+            for (j = 0u; j < np; ++j) {
+                d += row[j] * inv[i][j];
+            }
+            pr[i] = d;
+        }
+        for (i = 0u; i < 3u; ++i) {
+            for (j = 0u; j <= i; ++j) {
+                cc[i][j] += r2 * pr[i] * pr[j];
+            }
+        }
+        for (i = 3u; i < np; ++i) {
+            sd[i] += r2 * pr[i] * pr[i];
+        }
+    }
+    res->centre_std_rel = sqrtf(max_eig3(cc)) / cal->field;
+    if (sphere == 0) {
+        float emax = 0.0f;
+        for (i = 3u; i < np; ++i) {
+            if (!(sd[i] <= emax)) { /* NaN propagates as unobservable */
+                emax = sd[i];
+            }
+        }
+        res->shape_std = magcal_isfinite_f(emax) ? (sqrtf(emax) / cal->field) : INFINITY;
+    }
+}
+
+/*
+ * Centre-free, model-free noise scale: the RMS algebraic residual of the 9-parameter quadric
+ * (d = -1) of ALL samples in normalised coordinates, from the moments alone:
+ * sum (r.theta - 1)^2 = theta^T A theta - 2 theta^T b + N. On a shell of radius ~1 a geometric
+ * error delta gives ~2 delta, so motion SNR = 2 / rms: ~2.5 for noise around one point (any model
+ * of it), the radius / noise for a rotation (any soft iron, any quadric). 0 when not solvable.
+ */
+MAGCAL_NOINLINE float magcal_ell_algebraic_snr(const magcal_vec3_t *m, size_t n, const float mu[3],
+                                               float inv_s, const quad_acc_t *acc)
+{
+    float a[9u * 9u];
+    float b[9];
+    float mx = 0.0f;
+    float med;
+    const quad_gate_t all = {NULL, 0.0f};
+    resid_src_t src;
+    size_t i;
+    size_t j;
+    size_t k;
+    for (i = 0u; i < 9u; ++i) {
+        for (j = 0u; j < 9u; ++j) {
+            a[i * 9u + j] = magcal_ell_acc_at(acc, i, j);
+        }
+        b[i] = magcal_ell_acc_at(acc, i, 9u);
+    }
+    if (magcal_ldlt_solve(a, b, 9u, 0.0f, NULL) != MAGCAL_OK) {
+        return INFINITY; /* singular: a degenerate quadric fits exactly, this is not noise */
+    }
+    src.cal = NULL;
+    src.theta = b;
+    src.mu = mu;
+    src.inv_s = inv_s;
+    for (k = 0u; k < n; ++k) {
+        mx = fmaxf(mx, fabsf(alg_residual(&src, &m[k])));
+    }
+    /* robust (median) scale: outliers far off the shell must not make a rotation look like noise */
+    med = MAGCAL_ELL_MAD_TO_SIGMA * magcal_ell_median_abs(m, n, &src, &all, n, mx);
+    if (!(med > 0.0f)) {
+        return INFINITY; /* exact quadric */
+    }
+    return 2.0f / med;
+}
+
+/* sqrt(smallest / middle eigenvalue) of the samples' scatter (packed xx, yx, yy, zx, zy, zz). */
+MAGCAL_NOINLINE float magcal_ell_planarity(const float sc[6])
+{
+    float c[3][3];
+    c[0][0] = sc[0];
+    c[1][0] = sc[1];
+    c[1][1] = sc[2];
+    c[2][0] = sc[3];
+    c[2][1] = sc[4];
+    c[2][2] = sc[5];
+    return planarity3(c);
+}
+
+/* Cube root of det G (> 0 for both square roots): the mean gain, raw -> output units. */
+static float mean_gain(const magcal_ellipsoid_cal_t *cal)
+{
+    float g[3][3];
+    (void)memcpy(g, cal->g, sizeof(g));
+    return cbrtf(fabsf(magcal_det3(g)));
+}
+
+/*
+ * Motion SNR: the largest of `snr_model` (the final fit's), the algebraic quadric's and, only when
+ * both are below `limit` (about to say NO_MOTION), the sphere's with a robust (median) scale. Each
+ * can be fooled alone: a far burst drags the least-squares quadric (and any model) but not a
+ * median-scaled sphere; strong soft iron spoils the sphere but not the quadric. Noise around one
+ * point fools none of them (all ~2.5).
+ */
+static MAGCAL_NOINLINE float motion_snr(const motion_ctx_t *mc, float snr_model, float limit)
+{
+    float snr = fmaxf(snr_model, mc->snr_alg);
+    if (snr < limit && mc->sphere != NULL) {
+        const quad_gate_t all = {NULL, 0.0f};
+        resid_src_t src = {NULL, NULL, NULL, 0.0f};
+        float mx;
+        size_t kept;
+        float med;
+        src.cal = mc->sphere;
+        (void)magcal_ell_residual_pass(mc->m, mc->n, mc->sphere, &all, &kept, &mx);
+        med = MAGCAL_ELL_MAD_TO_SIGMA * magcal_ell_median_abs(mc->m, mc->n, &src, &all, kept, mx) /
+              mc->sphere->g[0][0];
+        snr = fmaxf(snr, (med > 0.0f) ? (mc->s / med) : INFINITY);
+    }
+    return snr;
+}
+
+/*
+ * A failed fit of data that never moved, or that rotate about one axis only, gets the status that
+ * says so (the user must move the sensor differently, not retry with the same motion).
+ */
+MAGCAL_NOINLINE magcal_status_t magcal_ell_explain_failure(magcal_status_t st,
+                                                           const motion_ctx_t *mc, float planarity,
+                                                           const magcal_ellipsoid_cfg_t *cfg)
+{
+    if (st == MAGCAL_ERR_NULL || st == MAGCAL_ERR_ARG || st == MAGCAL_ERR_NONFINITE ||
+        st == MAGCAL_ERR_DEGENERATE) {
+        return st;
+    }
+    if (cfg->min_motion_snr > 0.0f &&
+        motion_snr(mc, 0.0f, cfg->min_motion_snr) < cfg->min_motion_snr) {
+        return MAGCAL_ERR_NO_MOTION;
+    }
+    if ((cfg->max_centre_std_rel > 0.0f || cfg->max_shape_std > 0.0f) && planarity < PLANAR_MAX) {
+        return MAGCAL_ERR_SINGLE_AXIS;
+    }
+    return st;
+}
+
+/*
+ * Trust gates on a finished fit (issue 12, docs/calibration_3d.md "Trust gates"), in this order:
+ * no motion; one rotation axis; residual; observability (ill-conditioned); field magnitude.
+ * Writes the diagnostics into dg.
+ */
+MAGCAL_NOINLINE magcal_status_t magcal_ell_trust_gates(const magcal_vec3_t *m, size_t n,
+                                                       const magcal_ellipsoid_cfg_t *cfg,
+                                                       const magcal_ellipsoid_cal_t *cal, float rms,
+                                                       magcal_ellipsoid_model_t model,
+                                                       const quad_gate_t *gate,
+                                                       const motion_ctx_t *mc, float raw_planarity,
+                                                       quad_acc_t *scratch, trust_diag_t *dg)
+{
+    int sphere = 0;
+    const float gmean = mean_gain(cal);
+    const float f = cal->field;
+    float lim;
+    int observable;
+    if (model == MAGCAL_ELLIPSOID_MODEL_SPHERE) {
+        sphere = 1;
+    }
+    if (!(gmean > 0.0f) || !magcal_isfinite_f(gmean)) {
+        return MAGCAL_ERR_NOT_ELLIPSOID;
+    }
+    dg->field_raw = f / gmean;
+    /* motion: spread against the best noise scale (the fitted model's residual, raw units, after
+     * outlier rejection; the algebraic quadric of all samples; the robust sphere) */
+    dg->motion_snr =
+        motion_snr(mc, (rms > 0.0f) ? (mc->s * gmean / rms) : INFINITY, cfg->min_motion_snr);
+    centre_info(m, n, cal, gate, sphere, scratch, dg);
+    if (cfg->min_motion_snr > 0.0f && dg->motion_snr < cfg->min_motion_snr) {
+        return MAGCAL_ERR_NO_MOTION;
+    }
+    observable = 1;
+    if ((cfg->max_centre_std_rel > 0.0f && !(dg->centre_std_rel <= cfg->max_centre_std_rel)) ||
+        (cfg->max_shape_std > 0.0f && !(dg->shape_std <= cfg->max_shape_std))) {
+        observable = 0;
+    }
+    lim = (sphere != 0) ? cfg->max_residual_rel_sphere : cfg->max_residual_rel;
+    /* one axis: the corrected directions lie on a cone; or the raw samples are planar and the
+     * quadric does not even fit them (a G made up along the unseen axis spoils the corrected test;
+     * not for the sphere: a sphere that misfits strong soft iron is a residual failure) */
+    if (observable == 0 &&
+        (dg->planarity < PLANAR_MAX ||
+         (sphere == 0 && raw_planarity < PLANAR_MAX && lim > 0.0f && !(rms <= lim * f)))) {
+        return MAGCAL_ERR_SINGLE_AXIS;
+    }
+    if (lim > 0.0f && !(rms <= lim * f)) {
+        return MAGCAL_ERR_RESIDUAL;
+    }
+    if (observable == 0) {
+        return MAGCAL_ERR_ILL_CONDITIONED;
+    }
+    if (cfg->field_expected > 0.0f &&
+        !(dg->field_raw >= cfg->field_band_lo * cfg->field_expected &&
+          dg->field_raw <= cfg->field_band_hi * cfg->field_expected)) {
+        return MAGCAL_ERR_FIELD_MAGNITUDE;
+    }
+    return MAGCAL_OK;
+}
