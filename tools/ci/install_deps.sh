@@ -23,17 +23,10 @@ for p in "${pkgs[@]}"; do
   fi
 done
 
-# deb-src entries: Unity 2.4.3 ships inside Debian's cjson source package (tests/unity/).
-if ! grep -rqsE '^(Types:.*deb-src|deb-src )' /etc/apt/sources.list /etc/apt/sources.list.d/ 2>/dev/null; then
-  if [ -f /etc/apt/sources.list.d/debian.sources ]; then
-    $SUDO sed -i -E 's/^Types: deb$/Types: deb deb-src/' /etc/apt/sources.list.d/debian.sources
-  elif [ -f /etc/apt/sources.list ]; then
-    $SUDO sh -c "sed -n 's/^deb /deb-src /p' /etc/apt/sources.list >> /etc/apt/sources.list"
-  fi
-  NEED_UPDATE=1
-fi
+# No deb-src entry is added to the system: tools/get_debian_cjson.sh (Unity 2.4.3 and the cJSON
+# fallback, run by the configure step) derives its own from these sources in a private apt state.
 
-if [ ${#missing[@]} -gt 0 ] || [ -n "${NEED_UPDATE:-}" ]; then
+if [ ${#missing[@]} -gt 0 ]; then
   export DEBIAN_FRONTEND=noninteractive
   $SUDO apt-get update -qq
 fi
