@@ -39,5 +39,6 @@
 #include "magcal/tilt.h"
 #include "magcal/swing.h"
 #include "magcal/errmodel.h"
+#include "magcal/record.h"
 
 #endif /* MAGCAL_H */
