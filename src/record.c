@@ -117,7 +117,8 @@ magcal_status_t magcal_record_check(const magcal_record_t *rec)
     }
     cov_max = (rec->kind == MAGCAL_RECORD_KIND_2D) ? 360.0f : 1.0f;
     if (rec->n_used == 0u || !(rec->radius > 0.0f) || !(rec->residual_rms >= 0.0f) ||
-        !(rec->coverage > 0.0f && rec->coverage <= cov_max) || rec->est_heading_err_deg < 0.0f) {
+        !(rec->coverage <= cov_max) || rec->est_heading_err_deg < 0.0f ||
+        !(rec->coverage > 0.0f || (rec->kind == MAGCAL_RECORD_KIND_3D && rec->coverage == 0.0f))) {
         return MAGCAL_ERR_ARG;
     }
     if (rec->kind == MAGCAL_RECORD_KIND_2D) {

@@ -24,7 +24,7 @@
  * | 24 | 4 | float est_heading_err_deg (NaN: not estimated) |
  * | 28 | 4 | float radius (2-D: sqrt(r1 r2), raw units; 3-D: field F, output units) |
  * | 32 | 4 | float residual_rms (the fit's RMS residual, same unit as radius) |
- * | 36 | 4 | float coverage (2-D: covered arc, degrees; 3-D: filled direction cells, 0..1) |
+ * | 36 | 4 | float coverage (2-D: covered arc, degrees; 3-D: filled direction cells, 0..1, 0 = not measured) |
  * | 40 | 52 | calibration: 2-D offset.x, offset.y, m[0][0], m[0][1], m[1][0], m[1][1], radius, then 24 zero bytes; 3-D g[0][0]..g[2][2] row-major, v.x, v.y, v.z, field |
  * | 92 | 4 | CRC-32 (IEEE 802.3: reflected 0xEDB88320, init and final XOR 0xFFFFFFFF) of bytes 0..91 |
  *
@@ -108,7 +108,8 @@ typedef struct {
     float est_heading_err_deg; /**< estimated heading error, degrees (>= 0); NaN: not estimated */
     float radius;              /**< 2-D: sqrt(r1 r2), raw units; 3-D: field F, output units (> 0) */
     float residual_rms;        /**< RMS residual of the fit, unit of radius (>= 0) */
-    float coverage;            /**< 2-D: covered arc in degrees (0..360]; 3-D: fraction (0..1] */
+    float coverage;            /**< 2-D: covered arc in degrees (0..360]; 3-D: filled fraction of the
+                                    direction cells [0..1], 0 = not measured (aided estimator) */
     magcal_cal2d_t cal2d;      /**< kind 2-D: the calibration (magic MAGCAL_CAL2D_MAGIC) */
     magcal_ellipsoid_cal_t cal3d; /**< kind 3-D: h = G (m - V), |h| = field */
 } magcal_record_t;

@@ -14,6 +14,7 @@
 #include "magcal/ellipsoid.h"
 #include "magcal/heading.h"
 #include "magcal/status.h"
+#include "replay_record.h" /* --export-record (issue 15) */
 #include "magcal/tilt.h"
 #include "magcal_port_replay.h"
 #include "replay_cal.h"
@@ -46,6 +47,8 @@ static const char k_usage[] =
     "  --model M           aided: reference field model wmm2025 (default, 2025-2030) | igrf14 (1900-2030)\n"
     "  --prior FILE.json   aided: prior (factory) calibration: the JSON report of a --mode 3d or aided run\n"
     "                      (keys matrix, offset; dump units) (default: identity G, zero V)\n"
+    "  --export-record F   write the calibration's flash record (magcal/record.h, 96 bytes) to F\n"
+    "  --sensor-id ID      sensor id stored in that record (decimal or 0x hex; default 0)\n"
     "  -h, --help          this text\n"
     "exit status: 0 ok, 1 usage, 2 input error, 3 calibration failed, 4 output error, 5 internal error\n";
 
@@ -245,6 +248,8 @@ typedef struct {
     const char *prior_path;  /* aided: --prior, NULL = identity */
     const char *aided_objective; /* aided: --aided-objective, NULL = combined */
     const char *model;           /* aided: --model wmm2025 | igrf14, NULL = wmm2025 */
+    const char *record_path;     /* --export-record FILE (replay_record.c), NULL = none */
+    uint32_t sensor_id;          /* --sensor-id */
 } cli_t;
 
 static int parse_args(int argc, char **argv, cli_t *c)
@@ -356,6 +361,14 @@ static int parse_args(int argc, char **argv, cli_t *c)
             ++i;
         } else if (strcmp(a, "--prior") == 0) {
             c->prior_path = v;
+            ++i;
+        } else if (strcmp(a, "--export-record") == 0) { /* issue 15: replay_record.c */
+            c->record_path = v;
+            ++i;
+        } else if (strcmp(a, "--sensor-id") == 0) {
+            if (replay_parse_sensor_id(v, &c->sensor_id) != 0) {
+                return usage_error("--sensor-id needs 0..0xFFFFFFFF, got \"%s\"", v);
+            }
             ++i;
         } else if (strcmp(a, "--year") == 0) {
             if (parse_double(v, &c->year) != 0 || c->year < 1900.0 || c->year > 2100.0) {
@@ -915,6 +928,11 @@ int main(int argc, char **argv)
     }
     if (rc == REPLAY_EXIT_CAL_FAILED) {
         fprintf(stderr, "magcal-replay: %s: calibration failed: %s: %s\n", c.path, r.status, r.reason);
+    } else if (c.record_path != NULL && rc == REPLAY_EXIT_OK) { /* issue 15: replay_record.c */
+        rc = replay_export_record(c.record_path, &r, &res.cal, &cal3, c.sensor_id, err, sizeof err);
+        if (rc != REPLAY_EXIT_OK) {
+            fprintf(stderr, "magcal-replay: %s\n", err);
+        }
     }
     if (fflush(stdout) != 0 && rc == REPLAY_EXIT_OK) {
         rc = REPLAY_EXIT_OUTPUT;

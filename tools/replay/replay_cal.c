@@ -265,6 +265,7 @@ int replay_calibrate(const replay_options_t *o, const magcal_replay_csv_t *d, si
         r->angle_deg = a;
     }
     r->residual_rms = rep.residual_rms;
+    r->est_heading_err_deg = rep.est_heading_err_deg;
     return REPLAY_EXIT_OK;
 }
 

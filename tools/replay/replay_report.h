@@ -66,6 +66,7 @@ typedef struct {
     double angle_deg;    /* direction of the major axis, ccw from +x, (-90, 90] */
     double radius;
     double residual_rms;
+    double est_heading_err_deg; /* 2d: the calibrator's heading-error estimate (--export-record) */
     double spread_raw;       /* std/mean of |raw| (from the origin) over the samples used */
     double spread_raw_all;   /* the same over every fed calibration sample, outliers included */
     double spread_corrected; /* std/mean of |M (raw - centre)| over the samples used */
