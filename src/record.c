@@ -9,6 +9,7 @@
 #include "magcal_internal.h"
 
 /* The encoding copies float bit patterns: they must be IEEE-754 binary32. */
+/* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
 MAGCAL_STATIC_ASSERT(sizeof(float) == 4u && FLT_MANT_DIG == 24 && FLT_MAX_EXP == 128, float_is_binary32);
 
 #define REC_OFF_MAGIC 0u
@@ -27,6 +28,7 @@ MAGCAL_STATIC_ASSERT(sizeof(float) == 4u && FLT_MANT_DIG == 24 && FLT_MAX_EXP ==
 #define REC_OFF_CAL 40u
 #define REC_CAL_FLOATS 13u /* 3-D: 9 + 3 + 1; 2-D uses the first 7 */
 #define REC_OFF_CRC (REC_OFF_CAL + 4u * REC_CAL_FLOATS)
+/* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
 MAGCAL_STATIC_ASSERT(REC_OFF_CRC + 4u == MAGCAL_RECORD_LEN, record_layout_fills_len);
 
 uint32_t magcal_record_crc32(const uint8_t *data, size_t n)
@@ -58,7 +60,7 @@ static void put_u32(uint8_t *p, uint32_t v)
 static void put_f32(uint8_t *p, float f)
 {
     uint32_t u;
-    memcpy(&u, &f, sizeof u);
+    (void)memcpy(&u, &f, sizeof u);
     put_u32(p, u);
 }
 
@@ -70,7 +72,7 @@ static float get_f32(const uint8_t *p)
 {
     uint32_t u = get_u32(p);
     float f;
-    memcpy(&f, &u, sizeof f);
+    (void)memcpy(&f, &u, sizeof f);
     return f;
 }
 
@@ -102,7 +104,6 @@ static magcal_status_t check_cal3d(const magcal_ellipsoid_cal_t *c)
 magcal_status_t magcal_record_check(const magcal_record_t *rec)
 {
     float cov_max;
-    magcal_status_t st;
     if (rec == NULL) {
         return MAGCAL_ERR_NULL;
     }
@@ -122,7 +123,7 @@ magcal_status_t magcal_record_check(const magcal_record_t *rec)
         return MAGCAL_ERR_ARG;
     }
     if (rec->kind == MAGCAL_RECORD_KIND_2D) {
-        st = magcal_cal2d_validate(&rec->cal2d);
+        magcal_status_t st = magcal_cal2d_validate(&rec->cal2d);
         if (st == MAGCAL_OK && !(rec->cal2d.radius > 0.0f)) {
             st = MAGCAL_ERR_ARG; /* radius unknown: the adoption rule (c) needs it */
         }
@@ -147,8 +148,8 @@ magcal_status_t magcal_record_pack(const magcal_record_t *rec, uint8_t *out, siz
     if (st != MAGCAL_OK) {
         return st;
     }
-    memset(b, 0, sizeof b);
-    memset(cal, 0, sizeof cal);
+    (void)memset(b, 0, sizeof b);
+    (void)memset(cal, 0, sizeof cal);
     put_u32(b + REC_OFF_MAGIC, MAGCAL_RECORD_MAGIC);
     put_u16(b + REC_OFF_VERSION, MAGCAL_RECORD_VERSION);
     put_u16(b + REC_OFF_LEN, MAGCAL_RECORD_LEN);
@@ -182,7 +183,7 @@ magcal_status_t magcal_record_pack(const magcal_record_t *rec, uint8_t *out, siz
         put_f32(b + REC_OFF_CAL + 4u * i, cal[i]);
     }
     put_u32(b + REC_OFF_CRC, magcal_record_crc32(b, REC_OFF_CRC));
-    memcpy(out, b, sizeof b);
+    (void)memcpy(out, b, sizeof b);
     return MAGCAL_OK;
 }
 
@@ -209,7 +210,7 @@ magcal_status_t magcal_record_unpack(const uint8_t *buf, size_t len, magcal_reco
     if (get_u16(buf + REC_OFF_RESERVED) != 0u) {
         return MAGCAL_ERR_ARG;
     }
-    memset(&r, 0, sizeof r);
+    (void)memset(&r, 0, sizeof r);
     if ((buf[REC_OFF_KIND] != (uint8_t)MAGCAL_RECORD_KIND_2D && buf[REC_OFF_KIND] != (uint8_t)MAGCAL_RECORD_KIND_3D) ||
         buf[REC_OFF_UNIT] > (uint8_t)MAGCAL_RECORD_UNIT_MGAUSS) {
         return MAGCAL_ERR_ARG; /* enums are assigned from the known set only */
@@ -273,7 +274,7 @@ magcal_status_t magcal_record_from_report(magcal_record_t *rec, const magcal_cal
     if (report->status != MAGCAL_OK || report->adopted != 1u) {
         return MAGCAL_ERR_STATE;
     }
-    memset(&r, 0, sizeof r);
+    (void)memset(&r, 0, sizeof r);
     r.kind = MAGCAL_RECORD_KIND_2D;
     r.unit = unit;
     r.sensor_id = sensor_id;
@@ -300,7 +301,7 @@ magcal_status_t magcal_record_from_ellipsoid(magcal_record_t *rec, const magcal_
     if (rec == NULL || res == NULL) {
         return MAGCAL_ERR_NULL;
     }
-    memset(&r, 0, sizeof r);
+    (void)memset(&r, 0, sizeof r);
     r.kind = MAGCAL_RECORD_KIND_3D;
     r.unit = unit;
     r.sensor_id = sensor_id;

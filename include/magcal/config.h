@@ -151,10 +151,10 @@
  * Alignment unit of every caller workspace: a workspace declared as an array of it is aligned for
  * pointers, float and uint32_t, whatever the library carves out of it.
  */
-typedef union {
-    void *p;
-    float f;
-    uint32_t u;
+typedef struct {
+    void *align_p;
+    float align_f;
+    uint32_t align_u;
 } magcal_workspace_t;
 
 /**
@@ -163,7 +163,7 @@ typedef union {
  * e.g. MAGCAL_CALIBRATOR_WORKSPACE_DECLARE(work, CAP).
  */
 #define MAGCAL_WORKSPACE_DECLARE(name, len)                                                        \
-    magcal_workspace_t name[((size_t)(len) + sizeof(magcal_workspace_t) - 1u) / sizeof(magcal_workspace_t)]
+    magcal_workspace_t(name)[((size_t)(len) + sizeof(magcal_workspace_t) - 1u) / sizeof(magcal_workspace_t)]
 
 #ifdef __cplusplus
 extern "C" {
