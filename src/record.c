@@ -60,6 +60,7 @@ static void put_u32(uint8_t *p, uint32_t v)
 static void put_f32(uint8_t *p, float f)
 {
     uint32_t u;
+    /* cppcheck-suppress misra-c2012-21.15 ; deviation D11: float bit pattern of the record */
     (void)memcpy(&u, &f, sizeof u);
     put_u32(p, u);
 }
@@ -72,6 +73,7 @@ static float get_f32(const uint8_t *p)
 {
     uint32_t u = get_u32(p);
     float f;
+    /* cppcheck-suppress misra-c2012-21.15 ; deviation D11: float bit pattern of the record */
     (void)memcpy(&f, &u, sizeof f);
     return f;
 }
