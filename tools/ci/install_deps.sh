@@ -11,7 +11,7 @@ if [ "$(id -u)" != 0 ]; then SUDO="sudo"; fi
 base_pkgs=(build-essential cmake git ca-certificates dpkg-dev)
 full_pkgs=(gcc-arm-none-eabi libnewlib-arm-none-eabi binutils-arm-none-eabi
            qemu-system-arm valgrind cppcheck clang clang-tidy libclang-rt-14-dev
-           libcjson-dev ruby python3 python3-numpy python3-sklearn python3-matplotlib)
+           libcjson-dev pkgconf ruby python3 python3-numpy python3-sklearn python3-matplotlib)
 
 pkgs=("${base_pkgs[@]}")
 if [ "${1:-}" != "--minimal" ]; then pkgs+=("${full_pkgs[@]}"); fi
