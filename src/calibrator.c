@@ -141,7 +141,7 @@ static magcal_status_t cal_check_cfg(const magcal_calibrator_cfg_t *c)
         c->max_radius_change < 0.0f) {
         return MAGCAL_ERR_ARG;
     }
-    if ((unsigned)c->form > (unsigned)MAGCAL_CORR_TRIANGULAR) {
+    if ((unsigned)c->form > (unsigned)MAGCAL_CORR_LAST) {
         return MAGCAL_ERR_ARG;
     }
     return MAGCAL_OK;

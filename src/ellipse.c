@@ -685,6 +685,69 @@ static int ell_axis_dir(const float q[3], float *cc, float *ss, float *cs)
     return 0;
 }
 
+/* Validate e for the corrections; returns the axes and the axis direction of qform. */
+static magcal_status_t ell_corr_input(const magcal_ellipse_t *e, float *r1, float *r2, float *cc,
+                                      float *ss, float *cs)
+{
+    *r1 = e->semi_minor;
+    *r2 = e->semi_major;
+    if (!magcal_isfinite_f(*r2) || !magcal_isfinite_f(e->angle_rad) ||
+        !magcal_isfinite_f(e->center.x) || !magcal_isfinite_f(e->center.y) || !(*r1 > 0.0f) ||
+        !(*r1 <= *r2) || ell_axis_dir(e->qform, cc, ss, cs) != 0) {
+        return MAGCAL_ERR_ARG;
+    }
+    return MAGCAL_OK;
+}
+
+/*
+ * The documents' coefficients from the geometry. Q = R diag(1/r1^2, 1/r2^2) R^T is taken scaled by
+ * r2^2 (q' = r2^2 Q, entries in [1, (r2/r1)^2], no overflow for tiny axes). With T = K Phi_p,
+ * T T^T = K Phi_p^2 K = [[1, ky sin 2p], [ky sin 2p, ky^2]] (Phi_p^2 = [[1, sin 2p], [sin 2p, 1]])
+ * proportional to Q^-1, so ky = sqrt(q11/q22), sin 2p = -q12/sqrt(q11 q22) and
+ * cos 2p = sqrt(det Q/(q11 q22)) = 1/(r1 r2 sqrt(q11 q22)): 2p = atan2(-q12', r2/r1) without
+ * cancellation. *sq11 = sqrt(q11') (M = rho sqrt(q11) [[cos p, -sin p/ky], [-sin p, cos p/ky]]).
+ */
+static void ell_kphi_coef(float r1, float r2, float cc, float ss, float cs, float *ky, float *phi,
+                          float *hx, float *sq11)
+{
+    float a1 = (r2 / r1) * (r2 / r1);
+    float q11 = cc * a1 + ss;
+    float q12 = cs * (a1 - 1.0f);
+    float q22 = ss * a1 + cc;
+    *ky = sqrtf(q11 / q22);
+    *phi = 0.5f * atan2f(-q12, r2 / r1);
+    *hx = sqrtf(q22) * r1;
+    *sq11 = sqrtf(q11);
+}
+
+magcal_status_t magcal_ellipse_kphi(const magcal_ellipse_t *e, magcal_ellipse_kphi_t *out)
+{
+    float r1;
+    float r2;
+    float cc;
+    float ss;
+    float cs;
+    float sq11;
+    magcal_ellipse_kphi_t k;
+    magcal_status_t st;
+
+    if (e == NULL || out == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    st = ell_corr_input(e, &r1, &r2, &cc, &ss, &cs);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    ell_kphi_coef(r1, r2, cc, ss, cs, &k.ky, &k.phi_p_rad, &k.h_x, &sq11);
+    k.beta_rad = atan2f((k.ky - 1.0f) * sinf(k.phi_p_rad), (1.0f + k.ky) * cosf(k.phi_p_rad));
+    k.b = e->center;
+    if (!magcal_isfinite_f(k.ky) || !magcal_isfinite_f(k.h_x) || !(k.ky > 0.0f)) {
+        return MAGCAL_ERR_ARG;
+    }
+    *out = k;
+    return MAGCAL_OK;
+}
+
 magcal_status_t magcal_ellipse_to_cal(const magcal_ellipse_t *e, magcal_corr_form_t form, float rho,
                                       magcal_cal2d_t *out)
 {
@@ -695,6 +758,7 @@ magcal_status_t magcal_ellipse_to_cal(const magcal_ellipse_t *e, magcal_corr_for
     float cs; /* cos theta sin theta */
     float out_r;
     magcal_cal2d_t cal;
+    magcal_status_t st;
 
     if (e == NULL || out == NULL) {
         return MAGCAL_ERR_NULL;
@@ -702,12 +766,9 @@ magcal_status_t magcal_ellipse_to_cal(const magcal_ellipse_t *e, magcal_corr_for
     if (!magcal_isfinite_f(rho)) {
         return MAGCAL_ERR_NONFINITE;
     }
-    r1 = e->semi_minor;
-    r2 = e->semi_major;
-    if (!magcal_isfinite_f(r2) || !magcal_isfinite_f(e->angle_rad) ||
-        !magcal_isfinite_f(e->center.x) || !magcal_isfinite_f(e->center.y) || !(r1 > 0.0f) ||
-        !(r1 <= r2) || ell_axis_dir(e->qform, &cc, &ss, &cs) != 0) {
-        return MAGCAL_ERR_ARG;
+    st = ell_corr_input(e, &r1, &r2, &cc, &ss, &cs);
+    if (st != MAGCAL_OK) {
+        return st;
     }
     switch (form) {
     case MAGCAL_CORR_SYMMETRIC:
@@ -745,13 +806,30 @@ magcal_status_t magcal_ellipse_to_cal(const magcal_ellipse_t *e, magcal_corr_for
         cal.m[1][1] = out_r / (r1 * r2 * sq);
         break;
     }
+    case MAGCAL_CORR_KPHI: {
+        /* M = rho/h_x (K Phi_p)^-1 = rho sqrt(q11) [[cos p, -sin p/ky], [-sin p, cos p/ky]]
+         * (Phi_p^-1 = [[cos p, -sin p], [-sin p, cos p]]/cos 2p; see ell_kphi_coef). */
+        float ky;
+        float phi;
+        float hx;
+        float sq11;
+        float g;
+        ell_kphi_coef(r1, r2, cc, ss, cs, &ky, &phi, &hx, &sq11);
+        out_r = (rho > 0.0f) ? rho : hx;
+        g = out_r * sq11 / r2;
+        cal.m[0][0] = g * cosf(phi);
+        cal.m[0][1] = -g * sinf(phi) / ky;
+        cal.m[1][0] = -g * sinf(phi);
+        cal.m[1][1] = g * cosf(phi) / ky;
+        break;
+    }
     default: return MAGCAL_ERR_ARG;
     }
     cal.offset = e->center;
     cal.radius = out_r;
     cal.magic = MAGCAL_CAL2D_MAGIC;
     if (!magcal_isfinite_f(cal.m[0][0]) || !magcal_isfinite_f(cal.m[0][1]) ||
-        !magcal_isfinite_f(cal.m[1][1])) {
+        !magcal_isfinite_f(cal.m[1][0]) || !magcal_isfinite_f(cal.m[1][1])) {
         return MAGCAL_ERR_ARG;
     }
     *out = cal;

@@ -210,3 +210,133 @@ magcal_status_t magcal_errmodel_apply(const magcal_errmodel_t *model, float psi_
     *psi_deg = magcal_wrap360_deg(psi_c_deg + d);
     return MAGCAL_OK;
 }
+
+/* ------------------------------------------------------------------------------------------- */
+/* The patent's power series in radians (error = measured - true) */
+
+magcal_status_t magcal_errmodel_poly_to_power(const magcal_errmodel_t *model,
+                                              magcal_errmodel_power_order_t order, float *coef_rad,
+                                              size_t cap, size_t *n_coef)
+{
+    float tkm1[EM_MAXC]; /* T_{k-1}(phi/pi - 1) in powers of phi */
+    float tk[EM_MAXC];   /* T_k */
+    float acc[EM_MAXC];
+    const float s = 1.0f / MAGCAL_PI_F;
+    size_t nc;
+    size_t k;
+    size_t i;
+
+    if (model == NULL || coef_rad == NULL || n_coef == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (model->kind != MAGCAL_ERRMODEL_POLY || model->order < 1u ||
+        (size_t)model->order > (size_t)MAGCAL_ERRMODEL_MAX_POLY_ORDER ||
+        (order != MAGCAL_ERRMODEL_POWER_ASCENDING && order != MAGCAL_ERRMODEL_POWER_DESCENDING)) {
+        return MAGCAL_ERR_ARG;
+    }
+    nc = (size_t)model->order + 1u;
+    if (cap < nc) {
+        return MAGCAL_ERR_ARG;
+    }
+    for (i = 0u; i < nc; ++i) {
+        if (!magcal_isfinite_f(model->coef[i])) {
+            return MAGCAL_ERR_NONFINITE;
+        }
+    }
+    (void)memset(tkm1, 0, sizeof tkm1);
+    (void)memset(tk, 0, sizeof tk);
+    (void)memset(acc, 0, sizeof acc);
+    tkm1[0] = 1.0f; /* T_0 = 1 */
+    tk[0] = -1.0f;  /* T_1 = s phi - 1 */
+    tk[1] = s;
+    acc[0] = model->coef[0] - model->coef[1];
+    acc[1] = model->coef[1] * s;
+    for (k = 1u; k + 1u < nc; ++k) {
+        /* T_{k+1} = 2 (s phi - 1) T_k - T_{k-1}, degree k + 1 */
+        float tn[EM_MAXC];
+        for (i = 0u; i <= k + 1u; ++i) {
+            float v = -2.0f * tk[i] - tkm1[i];
+            if (i >= 1u) {
+                v += 2.0f * s * tk[i - 1u];
+            }
+            tn[i] = v;
+        }
+        for (i = 0u; i <= k + 1u; ++i) {
+            tkm1[i] = tk[i];
+            tk[i] = tn[i];
+            acc[i] += model->coef[k + 1u] * tn[i];
+        }
+    }
+    for (i = 0u; i < nc; ++i) {
+        float v =
+            -acc[i] * MAGCAL_RAD_PER_DEG_F; /* degrees -> radians, reference - measured -> error */
+        if (!magcal_isfinite_f(v)) {
+            return MAGCAL_ERR_NONFINITE;
+        }
+        acc[i] = v;
+    }
+    for (i = 0u; i < nc; ++i) {
+        coef_rad[i] = (order == MAGCAL_ERRMODEL_POWER_ASCENDING) ? acc[i] : acc[nc - 1u - i];
+    }
+    *n_coef = nc;
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_errmodel_poly_from_power(const float *coef_rad, size_t n_coef,
+                                                magcal_errmodel_power_order_t order,
+                                                magcal_errmodel_t *model)
+{
+    float c[EM_MAXC]; /* Chebyshev coefficients in t = phi/pi - 1 */
+    size_t j;
+    size_t k;
+    size_t n;
+
+    if (coef_rad == NULL || model == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (n_coef < 2u || n_coef > (size_t)MAGCAL_ERRMODEL_MAX_POLY_ORDER + 1u ||
+        (order != MAGCAL_ERRMODEL_POWER_ASCENDING && order != MAGCAL_ERRMODEL_POWER_DESCENDING)) {
+        return MAGCAL_ERR_ARG;
+    }
+    for (j = 0u; j < n_coef; ++j) {
+        if (!magcal_isfinite_f(coef_rad[j])) {
+            return MAGCAL_ERR_NONFINITE;
+        }
+    }
+    /* Horner in the Chebyshev basis: c <- c (pi t + pi) + a_j, from a_N down to a_0, using
+     * t T_0 = T_1 and t T_k = (T_{k+1} + T_{k-1})/2. After step m, c has degree m. */
+    (void)memset(c, 0, sizeof c);
+    n = n_coef - 1u; /* N */
+    c[0] = (order == MAGCAL_ERRMODEL_POWER_ASCENDING) ? coef_rad[n] : coef_rad[0];
+    for (j = 1u; j <= n; ++j) {
+        float tc[EM_MAXC];
+        size_t deg = j - 1u; /* degree of c before this step */
+        float a = (order == MAGCAL_ERRMODEL_POWER_ASCENDING) ? coef_rad[n - j] : coef_rad[j];
+        (void)memset(tc, 0, sizeof tc);
+        for (k = 0u; k <= deg; ++k) {
+            if (k == 0u) {
+                tc[1] += c[0];
+            } else {
+                tc[k + 1u] += 0.5f * c[k];
+                tc[k - 1u] += 0.5f * c[k];
+            }
+        }
+        for (k = 0u; k <= deg + 1u; ++k) {
+            c[k] = MAGCAL_PI_F * (tc[k] + c[k]);
+        }
+        c[0] += a;
+    }
+    for (k = 0u; k <= n; ++k) {
+        float v = -c[k] / MAGCAL_RAD_PER_DEG_F; /* error (rad) -> deviation (deg) */
+        if (!magcal_isfinite_f(v)) {
+            return MAGCAL_ERR_NONFINITE;
+        }
+        c[k] = v;
+    }
+    model->kind = MAGCAL_ERRMODEL_POLY;
+    model->order = (uint8_t)n;
+    for (k = 0u; k < EM_MAXC; ++k) {
+        model->coef[k] = (k <= n) ? c[k] : 0.0f;
+    }
+    return MAGCAL_OK;
+}

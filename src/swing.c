@@ -256,6 +256,58 @@ magcal_status_t magcal_swing_apply(const magcal_swing_model_t *model, float psi_
     return MAGCAL_OK;
 }
 
+magcal_status_t magcal_swing_model_from_error(const float err_coef_deg[MAGCAL_SWING_NCOEF],
+                                              magcal_swing_regressor_t regressor,
+                                              uint8_t iterations, magcal_swing_model_t *model)
+{
+    magcal_swing_model_t m;
+    size_t i;
+    if (err_coef_deg == NULL || model == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    for (i = 0u; i < SWING_N; ++i) {
+        if (!magcal_isfinite_f(err_coef_deg[i])) {
+            return MAGCAL_ERR_NONFINITE;
+        }
+        m.coef_deg[i] = -err_coef_deg[i];
+    }
+    if (regressor == MAGCAL_SWING_REG_MEASURED) {
+        m.iterations = 1u;
+    } else if (regressor == MAGCAL_SWING_REG_REFERENCE) {
+        float slope = (fabsf(m.coef_deg[1]) + fabsf(m.coef_deg[2]) + 2.0f * fabsf(m.coef_deg[3]) +
+                       2.0f * fabsf(m.coef_deg[4])) *
+                      MAGCAL_RAD_PER_DEG_F;
+        if (iterations < 1u || iterations > SWING_MAX_ITER) {
+            return MAGCAL_ERR_ARG;
+        }
+        if (!(slope < SWING_MAX_SLOPE)) {
+            return MAGCAL_ERR_NOT_CONVERGED;
+        }
+        m.iterations = iterations;
+    } else {
+        return MAGCAL_ERR_ARG;
+    }
+    m.regressor = regressor;
+    *model = m;
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_swing_model_to_error(const magcal_swing_model_t *model,
+                                            float err_coef_deg[MAGCAL_SWING_NCOEF])
+{
+    size_t i;
+    if (model == NULL || err_coef_deg == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (!swing_model_finite(model)) {
+        return MAGCAL_ERR_NONFINITE;
+    }
+    for (i = 0u; i < SWING_N; ++i) {
+        err_coef_deg[i] = -model->coef_deg[i];
+    }
+    return MAGCAL_OK;
+}
+
 /* ------------------------------------------------------------------------------------------- */
 /* Motion swing */
 

@@ -908,6 +908,156 @@ static void test_ellipse_to_cal_matches_trig_construction(void)
     }
 }
 
+/* ------------------------------------- the source documents' form (K Phi_p, kx = 1) */
+
+/* The documents' distortion Hm = s K Phi_p H + b, K = diag(1, ky), Phi_p = [[c, s], [s, c]]
+ * (OPTICS ellipse paper eq. 8 / compass-swing article, phi_s = 0), in the library's axes. */
+static test_distortion_t make_kphi(double h0, double scale, double ky, double phip_deg, double bx,
+                                   double by)
+{
+    test_distortion_t d;
+    double c = cos(phip_deg / DEG_D), sn = sin(phip_deg / DEG_D);
+    d.h0 = (float)h0;
+    d.t[0][0] = (float)(scale * c);
+    d.t[0][1] = (float)(scale * sn);
+    d.t[1][0] = (float)(scale * ky * sn);
+    d.t[1][1] = (float)(scale * ky * c);
+    d.bx = (float)bx;
+    d.by = (float)by;
+    return d;
+}
+
+/* beta = atan2((ky - kx) sin p, (kx + ky) cos p): the rotation of the polar decomposition of
+ * K Phi_p, in degrees (issue 17). */
+static double kphi_beta_deg(double ky, double phip_deg)
+{
+    return atan2((ky - 1.0) * sin(phip_deg / DEG_D), (1.0 + ky) * cos(phip_deg / DEG_D)) * DEG_D;
+}
+
+static void test_ellipse_kphi_recovers_documents_coefficients(void)
+{
+    /* Noise-free rings of the documents' model: ky, phi_p, h_x = scale * H0 and b come back to
+     * float rounding; ky > 1, negative phi_p and a large offset included. */
+    static const double cases[][3] = {{0.9, 3.0, 1.0},  {0.8, 5.0, 0.7},   {0.7, 10.0, 1.3},
+                                      {1.25, -7.0, 1.0}, {0.6, -30.0, 2.0}, {1.0, 0.0, 1.0}};
+    size_t k;
+    for (k = 0; k < sizeof cases / sizeof cases[0]; ++k) {
+        test_distortion_t d = make_kphi(0.35, cases[k][2], cases[k][0], cases[k][1], 0.42, -1.27);
+        magcal_ellipse_t e;
+        magcal_ellipse_kphi_t c;
+        test_make_ring(&d, 400, 0.0, 360.0, 0.0, 17u, g_pts, g_psi);
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_fit(g_pts, 400, NULL, &e));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_kphi(&e, &c));
+        check_within(2e-5 * cases[k][0], cases[k][0], c.ky, "ky");
+        check_within(2e-4, cases[k][1], c.phi_p_rad * DEG_D, "phi_p (deg)");
+        check_within(2e-5 * 0.35 * cases[k][2], 0.35 * cases[k][2], c.h_x, "h_x = H0 kx");
+        check_within(2e-4, kphi_beta_deg(cases[k][0], cases[k][1]), c.beta_rad * DEG_D, "beta");
+        check_within(2e-6, 0.42, c.b.x, "bx");
+        check_within(2e-6, -1.27, c.b.y, "by");
+    }
+}
+
+static void test_ellipse_to_cal_kphi_documents_model_leaves_no_rotation(void)
+{
+    /* Data from the documents' model: the documents' form leaves no constant heading rotation,
+     * the product's symmetric forms leave beta. Issue 17 measured -0.16 / -0.56 / -1.78 deg at
+     * (ky, phi_p) = (0.9, 3), (0.8, 5), (0.7, 10). Errors are measured minus true. */
+    static const double cases[][3] = {{0.9, 3.0, -0.16}, {0.8, 5.0, -0.56}, {0.7, 10.0, -1.78}};
+    size_t k;
+    for (k = 0; k < sizeof cases / sizeof cases[0]; ++k) {
+        test_distortion_t d = make_kphi(20.0, 1.0, cases[k][0], cases[k][1], 12.0, -7.0);
+        magcal_ellipse_t e;
+        magcal_cal2d_t cal;
+        double m_kphi, m_sym, m_kx1, m_tri, ptp, r;
+        double beta = kphi_beta_deg(cases[k][0], cases[k][1]);
+        test_make_ring(&d, 720, 0.0, 360.0, 0.0, 23u, g_pts, g_psi);
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_fit(g_pts, 720, NULL, &e));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_to_cal(&e, MAGCAL_CORR_KPHI, 0.0f, &cal));
+        cal_heading_offset(&cal, g_pts, g_psi, 720, &m_kphi, &ptp);
+        check_within(0.002, 0.0, m_kphi, "documents' form on documents' model: no rotation");
+        check_within(0.002, 0.0, ptp, "documents' form: heading error constant");
+        /* default radius h_x = H0 kx = 20 (the documents' inverse with kx = 1 exactly) */
+        r = test_radius_spread(&cal, g_pts, NULL, 720);
+        check_within(1e-5, 0.0, r, "documents' form maps onto a circle");
+        check_within(1e-4, 20.0, cal.radius, "default radius h_x = H0");
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_to_cal(&e, MAGCAL_CORR_SYMMETRIC, 0.0f, &cal));
+        cal_heading_offset(&cal, g_pts, g_psi, 720, &m_sym, &ptp);
+        check_within(0.002, beta, m_sym, "symmetric form leaves beta");
+        check_within(0.002, 0.0, ptp, "symmetric: heading error constant");
+        check_within(0.005, cases[k][2], m_sym, "issue 17's measured value");
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_to_cal(&e, MAGCAL_CORR_KX1, 0.0f, &cal));
+        cal_heading_offset(&cal, g_pts, g_psi, 720, &m_kx1, &ptp);
+        check_within(0.002, beta, m_kx1, "kx1 (symmetric, radius r1) leaves beta");
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_to_cal(&e, MAGCAL_CORR_TRIANGULAR, 0.0f, &cal));
+        cal_heading_offset(&cal, g_pts, g_psi, 720, &m_tri, &ptp);
+        printf("documents' model ky %.2f phi_p %.0f: KPHI %+.4f, SYMMETRIC %+.4f, KX1 %+.4f, "
+               "TRIANGULAR %+.4f deg (beta %+.4f)\n",
+               cases[k][0], cases[k][1], m_kphi, m_sym, m_kx1, m_tri, beta);
+    }
+}
+
+static void test_ellipse_to_cal_kphi_symmetric_soft_iron_leaves_minus_beta(void)
+{
+    /* Data from a symmetric soft iron T = R(a) diag(k1, k2) R(-a): the symmetric form leaves no
+     * rotation, the documents' form leaves -beta of the (ky, phi_p) it fits. beta is computed
+     * here in double from the true T: S = T T^T, ky = sqrt(S22/S11), sin 2p = S12/sqrt(S11 S22). */
+    static const double cases[][3] = {{1.10, 0.92, 25.0}, {1.2, 0.8, 20.0}, {1.25, 0.75, -35.0}};
+    size_t k;
+    for (k = 0; k < sizeof cases / sizeof cases[0]; ++k) {
+        test_distortion_t d =
+            make_dist(20.0, cases[k][0], cases[k][1], cases[k][2], -cases[k][2], -30.0, 18.0);
+        double t00 = d.t[0][0], t01 = d.t[0][1], t10 = d.t[1][0], t11 = d.t[1][1];
+        double s00 = t00 * t00 + t01 * t01, s01 = t00 * t10 + t01 * t11;
+        double s11 = t10 * t10 + t11 * t11;
+        double ky = sqrt(s11 / s00), p = 0.5 * asin(s01 / sqrt(s00 * s11)) * DEG_D;
+        double beta = kphi_beta_deg(ky, p);
+        magcal_ellipse_t e;
+        magcal_ellipse_kphi_t c;
+        magcal_cal2d_t cal;
+        double m_kphi, m_sym, ptp;
+        test_make_ring(&d, 720, 0.0, 360.0, 0.0, 29u, g_pts, g_psi);
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_fit(g_pts, 720, NULL, &e));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_kphi(&e, &c));
+        check_within(2e-5, ky, c.ky, "fitted ky");
+        check_within(2e-4, p, c.phi_p_rad * DEG_D, "fitted phi_p");
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_to_cal(&e, MAGCAL_CORR_SYMMETRIC, 0.0f, &cal));
+        cal_heading_offset(&cal, g_pts, g_psi, 720, &m_sym, &ptp);
+        check_within(0.002, 0.0, m_sym, "symmetric form on symmetric soft iron: no rotation");
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_to_cal(&e, MAGCAL_CORR_KPHI, 0.0f, &cal));
+        cal_heading_offset(&cal, g_pts, g_psi, 720, &m_kphi, &ptp);
+        check_within(0.002, -beta, m_kphi, "documents' form leaves -beta");
+        check_within(0.002, 0.0, ptp, "documents' form: heading error constant");
+        TEST_ASSERT_TRUE(fabs(beta) > 0.2); /* the cases are chosen so the difference shows */
+        printf("symmetric soft iron %.2f/%.2f at %.0f deg: SYMMETRIC %+.4f, KPHI %+.4f deg "
+               "(-beta %+.4f; fitted ky %.4f phi_p %.3f)\n",
+               cases[k][0], cases[k][1], cases[k][2], m_sym, m_kphi, -beta, c.ky,
+               c.phi_p_rad * DEG_D);
+    }
+}
+
+static void test_ellipse_kphi_bad_input_returns_status(void)
+{
+    magcal_ellipse_t e;
+    magcal_ellipse_kphi_t c;
+    magcal_cal2d_t cal;
+    float coef[5] = {0.0f, 1.0f, 0.0f, 0.0f, -1.0f};
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_from_conic(coef, (magcal_vec2_t){0.0f, 0.0f},
+                                                               1.0f, &e));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipse_kphi(NULL, &c));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipse_kphi(&e, NULL));
+    /* circle: ky = 1, phi_p = 0, M = I */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_kphi(&e, &c));
+    check_within(1e-6, 1.0, c.ky, "circle ky");
+    check_within(1e-6, 0.0, c.phi_p_rad, "circle phi_p");
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipse_to_cal(&e, MAGCAL_CORR_KPHI, 0.0f, &cal));
+    check_within(1e-6, 1.0, cal.m[0][0], "circle M00");
+    check_within(1e-6, 0.0, cal.m[0][1], "circle M01");
+    check_within(1e-6, 1.0, cal.m[1][1], "circle M11");
+    e.semi_minor = -1.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipse_kphi(&e, &c));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipse_to_cal(&e, MAGCAL_CORR_KPHI, 1.0f, &cal));
+}
+
 static void test_ellipse_to_cal_bad_input_returns_status(void)
 {
     static const float ell[5] = {0.0f, 0.25f, 0.0f, 0.0f, -1.0f};
@@ -969,5 +1119,9 @@ int main(void)
     RUN_TEST(test_ellipse_to_cal_pure_soft_iron_recovers_heading);
     RUN_TEST(test_ellipse_to_cal_matches_trig_construction);
     RUN_TEST(test_ellipse_to_cal_bad_input_returns_status);
+    RUN_TEST(test_ellipse_kphi_recovers_documents_coefficients);
+    RUN_TEST(test_ellipse_to_cal_kphi_documents_model_leaves_no_rotation);
+    RUN_TEST(test_ellipse_to_cal_kphi_symmetric_soft_iron_leaves_minus_beta);
+    RUN_TEST(test_ellipse_kphi_bad_input_returns_status);
     return UNITY_END();
 }

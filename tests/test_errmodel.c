@@ -247,6 +247,127 @@ static void test_errmodel_fit_bad_input_returns_status(void)
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_errmodel_eval(&m, 0.0f, &d));
 }
 
+/* ---------------------------------------------------- the indoor patent's embodiment */
+
+/* The patent's published curve (embodiment, N = 4), highest power first as printed (MATLAB
+ * polyfit order; ascending order would reach 440 rad at 2 pi): error e = measured - true in
+ * radians as a function of the measured heading phi in radians. */
+static const float k_patent[5] = {-0.0068f, 0.0944f, -0.3545f, 0.2051f, 0.2844f};
+
+static double patent_e(double phi)
+{
+    double r = 0.0;
+    int j;
+    for (j = 0; j < 5; ++j) {
+        r = r * phi + (double)k_patent[j];
+    }
+    return r;
+}
+
+/* The embodiment: 12 reference directions 30 deg apart; the measured heading phi satisfies
+ * phi = true + e(phi) (fixed point, |e'| < 0.3). */
+static void patent_set(float *pc, float *pr)
+{
+    int k, it;
+    for (k = 0; k < 12; ++k) {
+        double truth = 30.0 * k * D2R, phi = truth;
+        for (it = 0; it < 200; ++it) {
+            phi = truth + patent_e(phi);
+        }
+        pr[k] = (float)(30.0 * k);
+        pc[k] = (float)(phi / D2R);
+    }
+}
+
+static void test_errmodel_patent_embodiment_selects_n4_and_exports_its_coefficients(void)
+{
+    float pc[12], pr[12], exported[MAGCAL_ERRMODEL_MAX_COEF];
+    size_t n = 0, k;
+    magcal_errmodel_cfg_t cfg = {MAGCAL_ERRMODEL_POLY, 0.1f, 11u, 1e-6f};
+    magcal_errmodel_t m, m3;
+    magcal_errmodel_stats_t st, st3;
+    double jump;
+    float d0 = 0.0f, d360 = 0.0f;
+    patent_set(pc, pr);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_errmodel_fit(&cfg, pc, pr, 12u, &m, &st));
+    TEST_ASSERT_EQUAL_INT(4, m.order); /* the adaptive rule selects the patent's N = 4 */
+    TEST_ASSERT_TRUE(st.max_abs_deg < 0.01f);
+    /* N = 3 misses by 4.4 deg, so every threshold in (0.01, 4.4) deg selects N = 4 */
+    cfg.max_order = 3u;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_THRESHOLD, magcal_errmodel_fit(&cfg, pc, pr, 12u, &m3, &st3));
+    TEST_ASSERT_FLOAT_WITHIN(0.05f, 4.42f, st3.max_abs_deg);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_errmodel_poly_to_power(&m, MAGCAL_ERRMODEL_POWER_DESCENDING,
+                                                                   exported, MAGCAL_ERRMODEL_MAX_COEF, &n));
+    TEST_ASSERT_EQUAL_UINT(5u, n);
+    printf("patent embodiment: N = %u (N = 3 max residual %.2f deg); exported", (unsigned)m.order,
+           (double)st3.max_abs_deg);
+    for (k = 0; k < n; ++k) {
+        printf(" %.5f", (double)exported[k]);
+        TEST_ASSERT_FLOAT_WITHIN(2e-4f, k_patent[k], exported[k]);
+    }
+    /* the jump at north the periodic model avoids: e(2 pi) - e(0) of the curve */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_errmodel_eval(&m, 0.0f, &d0));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_errmodel_eval(&m, 359.9999f, &d360));
+    jump = (double)(d0 - d360); /* delta = -e */
+    printf("; jump at north %.3f deg (curve %.3f)\n", jump,
+           (patent_e(2.0 * 3.14159265358979323846) - patent_e(0.0)) / D2R);
+    TEST_ASSERT_FLOAT_WITHIN(0.01f, 6.38f, (float)jump);
+}
+
+static void test_errmodel_poly_from_power_loads_the_patent_curve(void)
+{
+    float asc[5];
+    magcal_errmodel_t m, back;
+    float round[MAGCAL_ERRMODEL_MAX_COEF];
+    size_t n = 0;
+    double worst = 0.0;
+    int k;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_errmodel_poly_from_power(k_patent, 5u,
+                                                                     MAGCAL_ERRMODEL_POWER_DESCENDING, &m));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERRMODEL_POLY, m.kind);
+    TEST_ASSERT_EQUAL_INT(4, m.order);
+    for (k = 0; k < 3600; ++k) { /* delta = -e in degrees at every measured heading */
+        float d = 0.0f;
+        double psi = 0.1 * k;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_errmodel_eval(&m, (float)psi, &d));
+        worst = fmax(worst, fabs((double)d + patent_e(psi * D2R) / D2R));
+    }
+    printf("patent curve loaded: max |delta + e| %.2e deg\n", worst);
+    TEST_ASSERT_TRUE(worst < 2e-3);
+    for (k = 0; k < 5; ++k) {
+        asc[k] = k_patent[4 - k];
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_errmodel_poly_from_power(asc, 5u,
+                                                                     MAGCAL_ERRMODEL_POWER_ASCENDING, &back));
+    for (k = 0; k < 5; ++k) {
+        TEST_ASSERT_FLOAT_WITHIN(1e-5f, m.coef[k], back.coef[k]);
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_errmodel_poly_to_power(&m, MAGCAL_ERRMODEL_POWER_ASCENDING,
+                                                                   round, 5u, &n));
+    for (k = 0; k < 5; ++k) {
+        TEST_ASSERT_FLOAT_WITHIN(1e-5f + 1e-4f * fabsf(asc[k]), asc[k], round[k]);
+    }
+}
+
+static void test_errmodel_power_bad_input_returns_status(void)
+{
+    magcal_errmodel_t m;
+    float out[MAGCAL_ERRMODEL_MAX_COEF];
+    float big[13] = {0};
+    size_t n;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_errmodel_poly_from_power(NULL, 5u, MAGCAL_ERRMODEL_POWER_ASCENDING, &m));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_errmodel_poly_from_power(k_patent, 1u, MAGCAL_ERRMODEL_POWER_ASCENDING, &m));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_errmodel_poly_from_power(big, 13u, MAGCAL_ERRMODEL_POWER_ASCENDING, &m));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_errmodel_poly_from_power(k_patent, 5u, (magcal_errmodel_power_order_t)5, &m));
+    big[1] = NAN;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_errmodel_poly_from_power(big, 3u, MAGCAL_ERRMODEL_POWER_ASCENDING, &m));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_errmodel_poly_from_power(k_patent, 5u, MAGCAL_ERRMODEL_POWER_DESCENDING, &m));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_errmodel_poly_to_power(&m, MAGCAL_ERRMODEL_POWER_ASCENDING, out, 4u, &n));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_errmodel_poly_to_power(&m, MAGCAL_ERRMODEL_POWER_ASCENDING, NULL, 5u, &n));
+    m.kind = MAGCAL_ERRMODEL_FOURIER;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_errmodel_poly_to_power(&m, MAGCAL_ERRMODEL_POWER_ASCENDING, out, 12u, &n));
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -255,5 +376,8 @@ int main(void)
     RUN_TEST(test_errmodel_fit_fourier_k2_equals_smith_coefficients);
     RUN_TEST(test_errmodel_fit_poly_cubic_recovers_chebyshev_coefficients);
     RUN_TEST(test_errmodel_fit_bad_input_returns_status);
+    RUN_TEST(test_errmodel_patent_embodiment_selects_n4_and_exports_its_coefficients);
+    RUN_TEST(test_errmodel_poly_from_power_loads_the_patent_curve);
+    RUN_TEST(test_errmodel_power_bad_input_returns_status);
     return UNITY_END();
 }

@@ -78,7 +78,11 @@ static void test_parse_aided_columns_are_recognised_and_required_ones_checked(vo
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, parse("mx,my,roll_deg,height_km\n1,2,nan,0.5\n", req));
     TEST_ASSERT_EQUAL_STRING("dump.csv:2:3: column \"roll_deg\" is required, got \"nan\"", g_err);
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, parse("mx,my,roll_deg\n1,2,3\n", req));
-    TEST_ASSERT_EQUAL_STRING("dump.csv:1: missing required column \"height_km\" in the header", g_err);
+    TEST_ASSERT_EQUAL_STRING("dump.csv:1: missing required column \"height_km\" in the header (read as "
+                             "comma-separated; found: mx, my, roll_deg; accepted names: t, mx, my, mz, ax, ay, "
+                             "az, heading_ref_deg, cog_deg, speed_mps, glitch, outlier, roll_deg, pitch_deg, "
+                             "yaw_deg, lat_deg, lon_deg, height_km, decimal_year, dop)",
+                             g_err);
 }
 
 static void test_parse_bad_number_names_file_line_and_field(void)
@@ -130,7 +134,57 @@ static void test_parse_missing_cell_in_required_column_is_an_error(void)
 static void test_parse_missing_required_column_names_it(void)
 {
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, parse("# c\nt,mx,mz\n0,1,2\n", REQ_XY));
-    TEST_ASSERT_EQUAL_STRING("dump.csv:2: missing required column \"my\" in the header", g_err);
+    TEST_ASSERT_EQUAL_STRING("dump.csv:2: missing required column \"my\" in the header (read as "
+                             "comma-separated; found: t, mx, mz; accepted names: t, mx, my, mz, ax, ay, az, "
+                             "heading_ref_deg, cog_deg, speed_mps, glitch, outlier, roll_deg, pitch_deg, "
+                             "yaw_deg, lat_deg, lon_deg, height_km, decimal_year, dop)",
+                             g_err);
+    TEST_ASSERT_EQUAL_STRING("", g_d.note);
+}
+
+/* The usual header mistakes: the message lists what it found and suggests the rename. */
+static void test_parse_missing_column_suggests_aliases(void)
+{
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, parse("mag_x,mag_y,mag_z\n1,2,3\n", REQ_XY));
+    TEST_ASSERT_NOT_NULL(strstr(g_err, "found: \"mag_x\", \"mag_y\", \"mag_z\"; did you mean \"mag_x\" -> mx, "
+                                       "\"mag_y\" -> my, \"mag_z\" -> mz?"));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, parse("x,y,z\n1,2,3\n", REQ_XY));
+    TEST_ASSERT_NOT_NULL(strstr(g_err, "did you mean \"x\" -> mx, \"y\" -> my, \"z\" -> mz?"));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, parse("mx (uT),my (uT)\n1,2\n", REQ_XY));
+    TEST_ASSERT_NOT_NULL(strstr(g_err, "\"mx (uT)\" -> mx (unit ut), \"my (uT)\" -> my (unit ut)"));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, parse("t mx my\n0 1 2\n", REQ_XY));
+    TEST_ASSERT_NOT_NULL(strstr(g_err, "space-separated?"));
+    /* a recognised column is never "suggested" again */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, parse("mx,x,y\n1,2,3\n", REQ_XY));
+    TEST_ASSERT_NOT_NULL(strstr(g_err, "did you mean \"y\" -> my?"));
+}
+
+static void test_parse_semicolon_and_tab_separators_are_detected(void)
+{
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, parse("t;mx;my\n0;1.5;-2\n0.1;3;4\n", REQ_XY));
+    TEST_ASSERT_EQUAL_INT(';', g_d.sep);
+    ASSERT_SIZE(2u, g_d.n_rows);
+    TEST_ASSERT_EQUAL_DOUBLE(-2.0, g_d.col[MAGCAL_REPLAY_COL_MY][0]);
+    magcal_replay_csv_free(&g_d);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, parse("t\tmx\tmy\n0\t1.5\t-2\n", REQ_XY));
+    TEST_ASSERT_EQUAL_INT('\t', g_d.sep);
+    TEST_ASSERT_EQUAL_DOUBLE(1.5, g_d.col[MAGCAL_REPLAY_COL_MX][0]);
+    magcal_replay_csv_free(&g_d);
+    /* a decimal comma in a ';' file is a number error, not a silent split */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, parse("mx;my\n1,5;2\n", REQ_XY));
+    TEST_ASSERT_EQUAL_STRING("dump.csv:2:1: expected a number, got \"1,5\" (column mx)", g_err);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, parse("mx,my\n1,2\n", REQ_XY));
+    TEST_ASSERT_EQUAL_INT(',', g_d.sep);
+}
+
+static void test_parse_unknown_columns_are_described_in_the_note(void)
+{
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, parse("mx,my,heading_deg,foo\n1,2,30,x\n", REQ_XY));
+    TEST_ASSERT_EQUAL_STRING(" \"heading_deg\", \"foo\"; did you mean \"heading_deg\" -> heading_ref_deg (unit "
+                             "deg)? (rename the header; units are not read from it); accepted names: t, mx, my, "
+                             "mz, ax, ay, az, heading_ref_deg, cog_deg, speed_mps, glitch, outlier, roll_deg, "
+                             "pitch_deg, yaw_deg, lat_deg, lon_deg, height_km, decimal_year, dop",
+                             g_d.note);
 }
 
 static void test_parse_duplicate_column_is_an_error(void)
@@ -383,6 +437,9 @@ int main(void)
     RUN_TEST(test_parse_garbage_in_optional_recognised_column_is_an_error);
     RUN_TEST(test_parse_missing_cell_in_required_column_is_an_error);
     RUN_TEST(test_parse_missing_required_column_names_it);
+    RUN_TEST(test_parse_missing_column_suggests_aliases);
+    RUN_TEST(test_parse_semicolon_and_tab_separators_are_detected);
+    RUN_TEST(test_parse_unknown_columns_are_described_in_the_note);
     RUN_TEST(test_parse_duplicate_column_is_an_error);
     RUN_TEST(test_parse_field_count_mismatch_reports_truncation);
     RUN_TEST(test_parse_truncated_file_at_every_byte_never_crashes);

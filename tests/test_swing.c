@@ -587,6 +587,77 @@ static void test_swing_cog_table_has_36_bins_and_merges_within_a_bin(void)
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NOT_INITIALISED, magcal_swing_cog_flush(&acc));
 }
 
+/* The compass-swing article's sign: error e = measured - true = A + B sin psi_c + ... (its
+ * formula (3), regressor the measured heading, 8 positions). A set in that sign loads with
+ * magcal_swing_model_from_error and gives back the truth; fitted models export to it. */
+static void test_swing_model_from_error_loads_documents_sign(void)
+{
+    static const float err_doc[5] = {1.5f, -2.0f, 3.2f, 0.8f, -0.6f}; /* e = psi_c - psi_true */
+    const double e_d[5] = {1.5, -2.0, 3.2, 0.8, -0.6};
+    float psi_c[8], psi_ref[8], back[5];
+    magcal_swing_cfg_t cfg = MAGCAL_SWING_CFG_DEFAULT;
+    magcal_swing_model_t fitted, loaded, naive;
+    double worst_loaded = 0.0, worst_naive = 0.0;
+    int k;
+    for (k = 0; k < 8; ++k) {
+        psi_c[k] = (float)(45.0 * k); /* the article steers to equally spaced MEASURED headings */
+        psi_ref[k] = (float)(45.0 * k - smith(e_d, 45.0 * k));
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_swing_fit(&cfg, psi_c, psi_ref, NULL, 8u,
+                                                      MAGCAL_SWING_REG_MEASURED, &fitted, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_swing_model_to_error(&fitted, back));
+    for (k = 0; k < 5; ++k) {
+        TEST_ASSERT_FLOAT_WITHIN(1e-4f, err_doc[k], back[k]);       /* export = document's set */
+        TEST_ASSERT_FLOAT_WITHIN(1e-4f, -err_doc[k], fitted.coef_deg[k]); /* delta = -e */
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_swing_model_from_error(err_doc, MAGCAL_SWING_REG_MEASURED,
+                                                                   5u, &loaded));
+    naive = loaded;
+    for (k = 0; k < 5; ++k) {
+        naive.coef_deg[k] = err_doc[k]; /* loading the document's numbers without the sign */
+    }
+    for (k = 0; k < 72; ++k) {
+        double truth = 5.0 * k; /* psi_c is the measured heading at truth */
+        double pc = truth, dpsi;
+        float out;
+        int it;
+        for (it = 0; it < 50; ++it) {
+            pc = truth + smith(e_d, pc); /* psi_c = truth + e(psi_c) */
+        }
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_swing_apply(&loaded, (float)pc, &out));
+        dpsi = fabs(test_angle_diff_deg(out, truth));
+        worst_loaded = dpsi > worst_loaded ? dpsi : worst_loaded;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_swing_apply(&naive, (float)pc, &out));
+        dpsi = fabs(test_angle_diff_deg(out, truth));
+        worst_naive = dpsi > worst_naive ? dpsi : worst_naive;
+    }
+    printf("documents' A..E loaded: max heading error %.2e deg; without the sign flip %.2f deg\n",
+           worst_loaded, worst_naive);
+    TEST_ASSERT_TRUE(worst_loaded < 1e-3);
+    TEST_ASSERT_TRUE(worst_naive > 5.0); /* the mistake doubles the deviation instead */
+}
+
+static void test_swing_model_from_error_bad_input_returns_status(void)
+{
+    float c[5] = {0.0f, 1.0f, 0.0f, 0.0f, 0.0f};
+    float big[5] = {0.0f, 40.0f, 20.0f, 0.0f, 0.0f}; /* slope bound 60 deg = 1.05 rad >= 0.9 */
+    magcal_swing_model_t m;
+    float out[5];
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_swing_model_from_error(NULL, MAGCAL_SWING_REG_MEASURED, 5u, &m));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_swing_model_from_error(c, MAGCAL_SWING_REG_MEASURED, 5u, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_swing_model_from_error(c, (magcal_swing_regressor_t)9, 5u, &m));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_swing_model_from_error(c, MAGCAL_SWING_REG_REFERENCE, 0u, &m));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NOT_CONVERGED,
+                          magcal_swing_model_from_error(big, MAGCAL_SWING_REG_REFERENCE, 5u, &m));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_swing_model_from_error(c, MAGCAL_SWING_REG_REFERENCE, 5u, &m));
+    TEST_ASSERT_EQUAL_FLOAT(-1.0f, m.coef_deg[1]);
+    c[2] = NAN;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_swing_model_from_error(c, MAGCAL_SWING_REG_MEASURED, 5u, &m));
+    m.coef_deg[0] = INFINITY;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_swing_model_to_error(&m, out));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_swing_model_to_error(NULL, out));
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -601,5 +672,7 @@ int main(void)
     RUN_TEST(test_swing_cog_drive_recovers_coefficients_and_rejects_turns);
     RUN_TEST(test_swing_cog_marked_directions_fit_and_gates);
     RUN_TEST(test_swing_cog_table_has_36_bins_and_merges_within_a_bin);
+    RUN_TEST(test_swing_model_from_error_loads_documents_sign);
+    RUN_TEST(test_swing_model_from_error_bad_input_returns_status);
     return UNITY_END();
 }

@@ -201,6 +201,61 @@ static void test_tilt_heading_header_example_gives_30deg(void)
     TEST_ASSERT_FLOAT_WITHIN(1e-3f, (float)(atan2(10.0, 17.3) / D2R), psi);
 }
 
+/* The indoor heading patent's tilt step taken literally in its own y-forward frame (x right,
+ * z up, ENU): roll = arctan(ay/az), pitch = arctan(-ax/sqrt(ay^2 + az^2)), M_t = Rx(r) Ry(theta) M_b
+ * with the matrices as printed (Rx = [[1,0,0],[0,cos r,sin r],[0,-sin r,cos r]],
+ * Ry = [[cos t,0,-sin t],[0,1,0],[sin t,0,cos t]]), heading atan2(-Mxt, Myt). Those are the
+ * x-forward formulas; here they rotate the field away from level instead of back. */
+static double patent_literal_heading(const magcal_vec3_t *f, const magcal_vec3_t *m)
+{
+    double ax = f->x, ay = f->y, az = f->z;
+    double r = atan(ay / az), t = atan(-ax / sqrt(ay * ay + az * az));
+    double cr = cos(r), sr = sin(r), ct = cos(t), st = sin(t);
+    double rbt[3][3] = {{ct, 0.0, -st}, {st * sr, cr, ct * sr}, {st * cr, -sr, ct * cr}};
+    double mx = rbt[0][0] * m->x + rbt[0][1] * m->y + rbt[0][2] * m->z;
+    double my = rbt[1][0] * m->x + rbt[1][1] * m->y + rbt[1][2] * m->z;
+    double h = atan2(-mx, my) / D2R;
+    return h < 0.0 ? h + 360.0 : h;
+}
+
+static void test_tilt_patent_formulas_literal_in_y_forward_frame_err_39deg(void)
+{
+    /* Inclination 60 deg, every heading (1 deg steps), 10 deg of tilt about one axis (pitch or
+     * roll, either sign) and about both. The product's tilt module on the same data stays at
+     * float rounding. */
+    static const double tilts[][2] = {{10.0, 0.0}, {-10.0, 0.0}, {0.0, 10.0}, {0.0, -10.0},
+                                      {10.0, 10.0}, {-10.0, 10.0}, {10.0, -10.0}, {-10.0, -10.0}};
+    const magcal_tilt_cfg_t cfg = MAGCAL_TILT_CFG_DEFAULT;
+    double worst_one = 0.0, worst_both = 0.0, worst_lib = 0.0, at_level = 0.0;
+    size_t k;
+    int h;
+    for (h = 0; h < 360; ++h) {
+        magcal_vec3_t f, m;
+        synth((double)h, 0.0, 0.0, 50.0, 60.0, &f, &m);
+        at_level = fmax(at_level, fabs(test_angle_diff_deg(patent_literal_heading(&f, &m), h)));
+        for (k = 0; k < sizeof tilts / sizeof tilts[0]; ++k) {
+            float psi = 0.0f;
+            double e;
+            synth((double)h, tilts[k][0], tilts[k][1], 50.0, 60.0, &f, &m);
+            e = fabs(test_angle_diff_deg(patent_literal_heading(&f, &m), h));
+            if (k < 4) {
+                worst_one = fmax(worst_one, e);
+            } else {
+                worst_both = fmax(worst_both, e);
+            }
+            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_tilt_heading(&cfg, &f, &m, &psi, NULL));
+            worst_lib = fmax(worst_lib, fabs(test_angle_diff_deg(psi, h)));
+        }
+    }
+    printf("patent tilt formulas taken literally (I = 60 deg): level %.1e deg, 10 deg about one "
+           "axis %.1f deg, about both %.1f deg; magcal_tilt_heading %.1e deg\n",
+           at_level, worst_one, worst_both, worst_lib);
+    TEST_ASSERT_TRUE(at_level < 1e-4); /* level: the formulas agree (float inputs) */
+    TEST_ASSERT_TRUE(worst_one > 38.0 && worst_one < 41.0); /* 39.2 deg */
+    TEST_ASSERT_TRUE(worst_both > worst_one);
+    TEST_ASSERT_TRUE(worst_lib < 1e-3);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -211,5 +266,6 @@ int main(void)
     RUN_TEST(test_tilt_heading_degenerate_input_returns_status_untouched);
     RUN_TEST(test_tilt_cfg_out_of_range_returns_arg);
     RUN_TEST(test_tilt_heading_header_example_gives_30deg);
+    RUN_TEST(test_tilt_patent_formulas_literal_in_y_forward_frame_err_39deg);
     return UNITY_END();
 }

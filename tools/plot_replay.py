@@ -6,8 +6,10 @@
 DUMP.csv is the dump given to magcal-replay; H.csv its --headings output; R.json its --json
 report (stdout of `magcal-replay --json`). Writes OUT.png (default: DUMP stem + "_replay.png").
 Panels:
-  1. raw horizontal samples (dump units) -- calibration inliers, outliers (off-scale ones pinned
-     to the frame edge), non-calibration rows -- with the fitted ellipse and its centre;
+  1. raw horizontal samples (in the report's field_unit, else dump units) -- the calibration
+     samples used and the outliers (counted as the report counts them: fed rows only, so the
+     legend gives n_used and n_outliers; rows skipped by the decimation are drawn apart),
+     non-calibration rows -- with the fitted ellipse and its centre;
   2. the same samples after the correction h = M (raw - centre), with the circle of the
      calibrated radius (inliers should sit on it);
   3. heading over rows: raw (uncalibrated) and calibrated heading, and the reference if the
@@ -23,12 +25,6 @@ import math
 import os
 import sys
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-from matplotlib.patches import Ellipse, Circle  # noqa: E402
-
 C_IN, C_OUT, C_OTHER, C_FIT, C_REF = "#1f77b4", "#d62728", "#9e9e9e", "#2ca02c", "#ff7f0e"
 
 
@@ -43,7 +39,10 @@ def fnum(s):
 def read_dump(path):
     with open(path, newline="") as f:
         lines = [ln for ln in f if ln.strip() and not ln.lstrip().startswith("#")]
-    rd = csv.reader(lines)
+    head = lines[0] if lines else ""
+    # the separator magcal-replay uses: ',' unless the header has none and has ';' (else a tab)
+    sep = "," if "," in head else ";" if ";" in head else "\t" if "\t" in head else ","
+    rd = csv.reader(lines, delimiter=sep)
     header = [h.strip().strip('"').lower() for h in next(rd)]
     cols = {h: [] for h in header}
     for row in rd:
@@ -57,6 +56,49 @@ def read_headings(path):
         rows = list(csv.DictReader(f))
     out = {k: [fnum(r[k]) for r in rows] for k in rows[0].keys()} if rows else {}
     return out
+
+
+def unit_of(rep):
+    """The field unit the report carries (--field-unit), or "dump units"."""
+    u = rep.get("field_unit", "dump")
+    return "dump units" if u in (None, "dump") else u
+
+
+def title_of(rep, dump_path):
+    """Figure title: the dump's basename (the report's `file` keeps the path as given)."""
+    t = "magcal-replay: %s   (status: %s" % (os.path.basename(dump_path), rep.get("status"))
+    e = rep.get("est_heading_err_deg")
+    if isinstance(e, (int, float)):
+        t += "; estimated heading error %.2f deg" % e
+    return t + ")"
+
+
+def row_groups(rep, flag, n):
+    """Rows of panel 1, counted as the report counts them: `used` and `outliers` are the FED
+    calibration rows (every k-th with decimation k), so len(used) == n_used and len(outliers) ==
+    n_outliers; `not_fed` are calibration rows the decimation skipped; `other` the rest."""
+    c0, c1 = rep.get("cal_range", [0, n])
+    k = max(int(rep.get("decimation", 1)), 1)
+    fed = [c0 <= i < c1 and (i - c0) % k == 0 for i in range(n)]
+    return {
+        "used": [i for i in range(n) if fed[i] and not flag[i]],
+        "outliers": [i for i in range(n) if fed[i] and flag[i]],
+        "not_fed": [i for i in range(n) if c0 <= i < c1 and not fed[i]],
+        "other": [i for i in range(n) if not c0 <= i < c1],
+    }
+
+
+def legend_labels(rep, groups):
+    """Legend texts of panel 1 (their counts match the report's n_used / n_outliers)."""
+    lab = {
+        "used": "calibration samples used (%d)" % len(groups["used"]),
+        "outliers": "outliers (%d)" % len(groups["outliers"]),
+        "other": "not calibration rows (%d)" % len(groups["other"]),
+    }
+    if groups["not_fed"]:
+        lab["not_fed"] = "calibration rows skipped by the decimation k = %d (%d)" % (
+            int(rep.get("decimation", 1)), len(groups["not_fed"]))
+    return lab
 
 
 def robust_limits(xs, ys, pad=0.25):
@@ -94,6 +136,12 @@ def main(argv=None):
     ap.add_argument("-o", "--output")
     a = ap.parse_args(argv)
 
+    import matplotlib  # here, so the helpers above import without matplotlib (tests)
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Ellipse, Circle
+
     with open(a.report) as f:
         rep = json.load(f)
     if rep.get("mode", "2d") != "2d":
@@ -115,21 +163,24 @@ def main(argv=None):
     ok = rep.get("status") == "ok"
 
     fig, axs = plt.subplots(2, 2, figsize=(13, 12))
-    fig.suptitle("magcal-replay: %s   (status: %s)" % (os.path.basename(a.dump), rep.get("status")),
-                 fontsize=13, fontweight="bold")
+    fig.suptitle(title_of(rep, a.dump), fontsize=13, fontweight="bold")
+    unit = unit_of(rep)
 
     # ---- 1. raw samples and the fitted ellipse
     ax = axs[0][0]
-    inl = [i for i in idx if is_cal[i] and not flag[i]]
-    outl = [i for i in idx if is_cal[i] and flag[i]]
-    oth = [i for i in idx if not is_cal[i]]
+    groups = row_groups(rep, flag, n)
+    labels = legend_labels(rep, groups)
+    inl, outl, oth = groups["used"], groups["outliers"], groups["other"] + groups["not_fed"]
     lim = robust_limits([mx[i] for i in inl] + [0.0], [my[i] for i in inl] + [0.0], pad=0.35)
-    scatter_clipped(ax, [mx[i] for i in oth], [my[i] for i in oth], lim, s=10, c=C_OTHER,
-                    label="not calibration rows (%d)" % len(oth))
+    scatter_clipped(ax, [mx[i] for i in groups["other"]], [my[i] for i in groups["other"]], lim, s=10,
+                    c=C_OTHER, label=labels["other"])
+    if groups["not_fed"]:
+        scatter_clipped(ax, [mx[i] for i in groups["not_fed"]], [my[i] for i in groups["not_fed"]], lim, s=6,
+                        c="#c7d7ea", label=labels["not_fed"])
     scatter_clipped(ax, [mx[i] for i in inl], [my[i] for i in inl], lim, s=12, c=C_IN,
-                    label="calibration inliers (%d)" % len(inl))
+                    label=labels["used"])
     off = scatter_clipped(ax, [mx[i] for i in outl], [my[i] for i in outl], lim, s=36, c=C_OUT,
-                          marker="x", label="outliers (%d)" % len(outl))
+                          marker="x", label=labels["outliers"])
     if ok:
         e = rep["ellipse"]
         ax.add_patch(Ellipse(e["center"], 2 * e["semi_axes"][0], 2 * e["semi_axes"][1],
@@ -139,8 +190,8 @@ def main(argv=None):
     ax.set_xlim(*lim[0])
     ax.set_ylim(*lim[1])
     ax.set_aspect("equal")
-    ax.set_xlabel("%s (dump units)" % kx)
-    ax.set_ylabel("%s (dump units)" % ky)
+    ax.set_xlabel("%s (%s)" % (kx, unit))
+    ax.set_ylabel("%s (%s)" % (ky, unit))
     ax.set_title("1. Raw samples and fitted ellipse" + ("\n%d outliers off-scale, pinned to the frame edge" % off if off else ""))
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=3, fontsize=8)
     ax.grid(alpha=0.3)
@@ -159,10 +210,10 @@ def main(argv=None):
         hoth = [corr(i) for i in oth]
         lim2 = ((-1.5 * r, 1.5 * r), (-1.5 * r, 1.5 * r))
         scatter_clipped(ax, [p[0] for p in hoth], [p[1] for p in hoth], lim2, s=10, c=C_OTHER)
-        scatter_clipped(ax, [p[0] for p in hin], [p[1] for p in hin], lim2, s=12, c=C_IN, label="inliers")
+        scatter_clipped(ax, [p[0] for p in hin], [p[1] for p in hin], lim2, s=12, c=C_IN, label=labels["used"])
         scatter_clipped(ax, [p[0] for p in hout], [p[1] for p in hout], lim2, s=36, c=C_OUT, marker="x",
-                        label="outliers")
-        ax.add_patch(Circle((0, 0), r, fill=False, lw=2, color=C_FIT, label="radius %.4g" % r))
+                        label=labels["outliers"])
+        ax.add_patch(Circle((0, 0), r, fill=False, lw=2, color=C_FIT, label="radius %.4g %s" % (r, unit)))
         ax.plot(0, 0, marker="+", ms=12, color="k")
         ax.set_xlim(*lim2[0])
         ax.set_ylim(*lim2[1])
@@ -174,8 +225,8 @@ def main(argv=None):
         ax.text(0.5, 0.5, "calibration failed:\n%s" % rep.get("reason", ""), ha="center", va="center",
                 wrap=True, transform=ax.transAxes)
         ax.set_title("2. Corrected samples")
-    ax.set_xlabel("h.x (right)")
-    ax.set_ylabel("h.y (forward)")
+    ax.set_xlabel("h.x (right, %s)" % unit)
+    ax.set_ylabel("h.y (forward, %s)" % unit)
     ax.grid(alpha=0.3)
 
     # ---- 3. heading over rows
@@ -243,14 +294,17 @@ def main(argv=None):
     # ---- summary line
     if ok:
         s = ("%d rows, %d calibration rows fed (decimation %d), %d used, %d outliers, coverage %.0f deg | "
-             "centre (%.4g, %.4g), radius %.4g, residual RMS %.3g (dump units) | filter %s" % (
+             "centre (%.4g, %.4g), radius %.4g, residual RMS %.3g (%s)\nfilter %s, %s fit" % (
                  rep["n_rows"], rep["n_fed"], rep["decimation"], rep["n_used"], rep["n_outliers"],
                  rep["coverage_deg"], rep["center"][0], rep["center"][1], rep["radius"],
-                 rep["residual_rms"], rep["filter"]))
+                 rep["residual_rms"], unit, rep["filter"], rep.get("fit", "consensus")))
+        ms = rep.get("missing_sector") or {}
+        if ms.get("width_deg"):
+            s += " | largest gap %.0f deg from heading %.0f deg" % (ms["width_deg"], ms["start_deg"])
     else:
         s = "calibration failed (%s): %s" % (rep.get("status"), rep.get("reason", ""))
-    fig.text(0.5, 0.01, s, ha="center", fontsize=9)
-    fig.tight_layout(rect=(0, 0.025, 1, 0.97))
+    fig.text(0.5, 0.008, s, ha="center", fontsize=9)
+    fig.tight_layout(rect=(0, 0.035, 1, 0.97))
     fig.savefig(out, dpi=110)
     print(out)
     return 0

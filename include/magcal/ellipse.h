@@ -90,15 +90,56 @@ typedef struct {
     uint16_t n_used;
 } magcal_ellipse_t;
 
-/** Correction form built by magcal_ellipse_to_cal() (algorithms.md 2.4). */
+/**
+ * Correction form built by magcal_ellipse_to_cal() (algorithms.md 2.4; docs/ellipse.md).
+ *
+ * Every form maps the ellipse onto a circle; they differ only by a rotation, i.e. a constant heading
+ * offset, so the right one is the one whose distortion model matches the hardware:
+ * - SYMMETRIC (and KX1) assume a symmetric soft iron T = P (no rotation of its own);
+ * - KPHI assumes the source documents' model Hm = K Phi_p H + b (OPTICS ellipse paper eq. 8 and
+ *   the compass-swing article, installation rotation phi_s = 0, kx = 1), see magcal_ellipse_kphi().
+ * Under the documents' model the symmetric forms leave beta = atan2((ky - 1) sin phi_p,
+ * (1 + ky) cos phi_p) (magcal_ellipse_kphi_t::beta_rad); under a symmetric soft iron KPHI leaves
+ * -beta. Neither sees the installation rotation (swing coefficient A does).
+ */
 typedef enum {
     /** M = rho R(theta) diag(1/r1, 1/r2) R(theta)^T (whitening, default) */
     MAGCAL_CORR_SYMMETRIC = 0,
-    /** seed "kx = 1": M = R diag(1, r1/r2) R^T, circle radius r1 */
+    /** the symmetric form scaled to the semi-minor radius: M = R diag(1, r1/r2) R^T (= r1 M_sym).
+     *  NOT the documents' "kx = 1" form (that is MAGCAL_CORR_KPHI); the name is historical. */
     MAGCAL_CORR_KX1 = 1,
     /** upper triangular M (the y axis keeps its direction) */
-    MAGCAL_CORR_TRIANGULAR = 2
+    MAGCAL_CORR_TRIANGULAR = 2,
+    /** the source documents' form: M = rho/h_x (K Phi_p)^-1, K = diag(1, ky) (kx = 1),
+     *  Phi_p = [[cos phi_p, sin phi_p], [sin phi_p, cos phi_p]], in the library's axes */
+    MAGCAL_CORR_KPHI = 3
 } magcal_corr_form_t;
+
+/** Largest valid magcal_corr_form_t value (for range checks of stored configurations). */
+#define MAGCAL_CORR_LAST MAGCAL_CORR_KPHI
+
+/**
+ * The source documents' error coefficients of an ellipse (the hypothesis Hm = K Phi_p H + b with
+ * the installation rotation phi_s = 0 and kx = 1; algorithms.md 1.3 with T = K Phi_p).
+ *
+ * Axes are the library's (x right, y forward), which are the OPTICS ellipse paper's axes. The
+ * compass-swing article writes its model in x-forward axes (Hx = H0 cos phi); the same hardware
+ * there has ky_article = 1/ky and the same phi_p.
+ */
+typedef struct {
+    /** ky / kx: y-axis sensitivity relative to the x axis (only the ratio is observable) */
+    float ky;
+    /** phi_p: non-orthogonality / soft-iron angle, radians, in (-pi/4, pi/4) */
+    float phi_p_rad;
+    /** H0 kx: the horizontal field as the x axis sees it (= the ellipse's half-width in x),
+     *  input units; the default output radius of MAGCAL_CORR_KPHI */
+    float h_x;
+    /** heading(SYMMETRIC) - heading(KPHI) for the same sample, radians:
+     *  atan2((ky - 1) sin phi_p, (1 + ky) cos phi_p) */
+    float beta_rad;
+    /** hard iron (bx, by) = the ellipse centre, input units */
+    magcal_vec2_t b;
+} magcal_ellipse_kphi_t;
 
 /**
  * @brief Least-squares ellipse fit of the points selected by mask (normalised, float32 safe).
@@ -199,9 +240,11 @@ float magcal_ellipse_residual(const magcal_ellipse_t *e, magcal_vec2_t p);
  * All forms differ only by a rotation, i.e. a constant heading offset (algorithms.md 1.3, 2.4).
  * Output radius (stored in out->radius):
  * - MAGCAL_CORR_SYMMETRIC: rho if rho > 0, else the geometric mean sqrt(r1 r2) (input units);
- * - MAGCAL_CORR_KX1: rho > 0 gives rho (then M equals the symmetric form), else r1 (the seed's
- *   form R diag(1, r1/r2) R^T);
- * - MAGCAL_CORR_TRIANGULAR: rho if rho > 0, else sqrt(r1 r2).
+ * - MAGCAL_CORR_KX1: rho > 0 gives rho (then M equals the symmetric form), else r1
+ *   (R diag(1, r1/r2) R^T);
+ * - MAGCAL_CORR_TRIANGULAR: rho if rho > 0, else sqrt(r1 r2);
+ * - MAGCAL_CORR_KPHI: rho if rho > 0, else h_x of magcal_ellipse_kphi() (then M = (K Phi_p)^-1
+ *   exactly, the documents' inverse with kx = 1).
  * @param[in]  e    ellipse from a successful fit (its axes, centre and qform are used: the axis
  *                  direction is the eigenvector of qform, the direction angle_rad describes).
  * @param[in]  form correction form.
@@ -212,6 +255,18 @@ float magcal_ellipse_residual(const magcal_ellipse_t *e, magcal_vec2_t p);
  */
 magcal_status_t magcal_ellipse_to_cal(const magcal_ellipse_t *e, magcal_corr_form_t form, float rho,
                                       magcal_cal2d_t *out);
+
+/**
+ * @brief The source documents' error coefficients (ky, phi_p, hard iron) of a fitted ellipse.
+ *
+ * Inverts the ellipse's quadratic form Q ~ (K Phi_p^2 K)^-1: ky = sqrt(q11/q22),
+ * sin 2phi_p = -q12 / sqrt(q11 q22). Every ellipse has exactly one such (ky > 0, |phi_p| < 45 deg).
+ * @param[in]  e   ellipse from a successful fit.
+ * @param[out] out coefficients; untouched on failure.
+ * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_ARG (e not a valid ellipse, as in
+ *         magcal_ellipse_to_cal()).
+ */
+magcal_status_t magcal_ellipse_kphi(const magcal_ellipse_t *e, magcal_ellipse_kphi_t *out);
 
 #ifdef __cplusplus
 }

@@ -15,6 +15,13 @@
  *
  * Deviation convention as in swing.h: delta = wrap(psi_ref - psi_c) in degrees, regressor psi_c
  * (the measured heading), correction psi = psi_c + delta(psi_c).
+ *
+ * Against the indoor heading patent: it defines the heading error as measured minus true,
+ * e = psi_c - psi_ref = -delta, as a power series in the measured heading in RADIANS,
+ * e(phi) = sum_j a_j phi^j, phi in [0, 2 pi), and prints the coefficients highest power first
+ * (its embodiment: N = 4, [-0.0068, 0.0944, -0.3545, 0.2051, 0.2844]). The product fits
+ * Chebyshev polynomials in degrees; magcal_errmodel_poly_to_power() and
+ * magcal_errmodel_poly_from_power() convert between the two (sign, unit and basis).
  */
 #ifndef MAGCAL_ERRMODEL_H
 #define MAGCAL_ERRMODEL_H
@@ -40,6 +47,12 @@ typedef enum {
     MAGCAL_ERRMODEL_POLY = 0,   /**< Chebyshev polynomial in t = psi/180 - 1 (the patent's model) */
     MAGCAL_ERRMODEL_FOURIER = 1 /**< Fourier series in psi (periodic; recommended) */
 } magcal_errmodel_kind_t;
+
+/** Coefficient order of a power series (the patent prints MAGCAL_ERRMODEL_POWER_DESCENDING). */
+typedef enum {
+    MAGCAL_ERRMODEL_POWER_ASCENDING = 0, /**< a_0, a_1, ..., a_N */
+    MAGCAL_ERRMODEL_POWER_DESCENDING = 1 /**< a_N, ..., a_1, a_0 (MATLAB polyfit order) */
+} magcal_errmodel_power_order_t;
 
 /** A fitted model. */
 typedef struct {
@@ -114,6 +127,40 @@ magcal_status_t magcal_errmodel_eval(const magcal_errmodel_t *model, float psi_c
  */
 magcal_status_t magcal_errmodel_apply(const magcal_errmodel_t *model, float psi_c_deg,
                                       float *psi_deg);
+
+/**
+ * @brief Export a polynomial model as the patent's power series: error e = measured - true in
+ *        radians, e(phi) = sum_j a_j phi^j with phi the measured heading in radians.
+ *
+ * Exact algebra (T_k(phi/pi - 1) expanded in powers of phi, times -pi/180) in float32. The power
+ * basis is ill conditioned: its terms cancel at phi = 2 pi, so accuracy falls as N grows (the
+ * patent's N = 4 curve round-trips to 7e-5 deg in test_errmodel). Use the export to compare with
+ * a document, not as the run-time model.
+ * @param[in]  model  MAGCAL_ERRMODEL_POLY model.
+ * @param[in]  order  coefficient order of coef_rad.
+ * @param[out] coef_rad N + 1 coefficients, radians per radian^j; untouched on failure.
+ * @param[in]  cap    capacity of coef_rad, >= N + 1 (MAGCAL_ERRMODEL_MAX_COEF always suffices).
+ * @param[out] n_coef N + 1.
+ * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_ARG (not a POLY model, order out of range, or
+ *         cap too small); MAGCAL_ERR_NONFINITE (a coefficient, or the result, is NaN/Inf).
+ */
+magcal_status_t magcal_errmodel_poly_to_power(const magcal_errmodel_t *model,
+                                              magcal_errmodel_power_order_t order, float *coef_rad,
+                                              size_t cap, size_t *n_coef);
+
+/**
+ * @brief Load the patent's power series (error = measured - true, radians, measured heading in
+ *        radians) as a polynomial model (delta = reference - measured, degrees, Chebyshev).
+ * @param[in]  coef_rad a_0..a_N (or a_N..a_0, see order).
+ * @param[in]  n_coef   N + 1, 2..MAGCAL_ERRMODEL_MAX_POLY_ORDER + 1 (the patent: N != 0).
+ * @param[in]  order    coefficient order of coef_rad.
+ * @param[out] model    MAGCAL_ERRMODEL_POLY model of order N; untouched on failure.
+ * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_ARG (n_coef or order out of range);
+ *         MAGCAL_ERR_NONFINITE.
+ */
+magcal_status_t magcal_errmodel_poly_from_power(const float *coef_rad, size_t n_coef,
+                                                magcal_errmodel_power_order_t order,
+                                                magcal_errmodel_t *model);
 
 #ifdef __cplusplus
 }

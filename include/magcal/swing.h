@@ -5,8 +5,8 @@
  *        from reference headings, and a fixed-size accumulator that collects reference headings
  *        from GNSS course over ground on straight, steady legs (or from marked directions).
  *
- * Conventions (algorithms.md section 5): deviation `delta = wrap(psi_ref - psi_c)` in degrees,
- * east positive, where psi_c is the compass (measured) heading and psi_ref the reference MAGNETIC
+ * Conventions (algorithms.md section 5): deviation `delta = wrap(psi_ref - psi_c)` in degrees
+ * (reference minus measured: the navigator's deviation, added to the compass reading), east positive, where psi_c is the compass (measured) heading and psi_ref the reference MAGNETIC
  * heading (convert a true bearing or COG first: psi_ref = COG - declination, declination east
  * positive). Headings in degrees [0, 360) clockwise from north; deviations wrapped to (-180, 180].
  *
@@ -17,6 +17,12 @@
  *   as regressor, e.g. a turntable at equally spaced reference headings); apply by fixed-point
  *   iteration `psi_{j+1} = psi_c + delta(psi_j)`, psi_0 = psi_c, which converges while
  *   |d delta / d psi| < 1 (checked at fit time). See docs/heading_models.md.
+ *
+ * Sign against the source documents: the compass-swing article (and the indoor heading patent)
+ * define the heading ERROR as measured minus true, `e = psi_c - psi_ref = -delta`, and correct
+ * with `psi = psi_c - e(psi_c)`. Same basis, same regressor (the measured heading), so an
+ * article coefficient set A..E is this model with every coefficient negated:
+ * magcal_swing_model_from_error() loads one, magcal_swing_model_to_error() exports one.
  *
  * "Ellipse + swing": correct the raw field with the ellipse calibration first, then fit the swing
  * on the corrected headings; coefficient A then also removes the installation rotation the
@@ -139,6 +145,32 @@ magcal_status_t magcal_swing_deviation(const magcal_swing_model_t *model, float 
  */
 magcal_status_t magcal_swing_apply(const magcal_swing_model_t *model, float psi_c_deg,
                                    float *psi_deg);
+
+/**
+ * @brief Load a coefficient set given in the source documents' sign (error = measured - true).
+ *
+ * delta = -e, coefficient by coefficient (exact for either regressor: e(psi) = -delta(psi)).
+ * @param[in]  err_coef_deg A..E of e(psi) = A + B sin psi + C cos psi + D sin 2psi + E cos 2psi,
+ *                          degrees (the compass-swing article's formula (3)).
+ * @param[in]  regressor    which heading psi is (the article's: MAGCAL_SWING_REG_MEASURED).
+ * @param[in]  iterations   fixed-point iterations for REG_REFERENCE (1..16; ignored otherwise).
+ * @param[out] model        the model in this library's sign; untouched on failure.
+ * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_NONFINITE; MAGCAL_ERR_ARG (regressor or
+ *         iterations); MAGCAL_ERR_NOT_CONVERGED (REG_REFERENCE set whose slope bound is >= 0.9,
+ *         as in magcal_swing_fit()).
+ */
+magcal_status_t magcal_swing_model_from_error(const float err_coef_deg[MAGCAL_SWING_NCOEF],
+                                              magcal_swing_regressor_t regressor,
+                                              uint8_t iterations, magcal_swing_model_t *model);
+
+/**
+ * @brief Export a model in the source documents' sign (error = measured - true = -delta).
+ * @param[in]  model        model (its regressor is unchanged by the conversion).
+ * @param[out] err_coef_deg A..E of the error, degrees; untouched on failure.
+ * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_NONFINITE.
+ */
+magcal_status_t magcal_swing_model_to_error(const magcal_swing_model_t *model,
+                                            float err_coef_deg[MAGCAL_SWING_NCOEF]);
 
 /* ------------------------------------------------------------------------------------------- */
 /* Swing from motion: reference headings from GNSS course over ground on straight, steady legs. */

@@ -29,6 +29,7 @@ typedef struct {
     const char *name;
     char *err;
     size_t err_len;
+    char sep; /* field separator of the file: ',' (default), ';' or '\t' (from the header) */
 } ctx_t;
 
 static void set_err(const ctx_t *cx, size_t line, size_t col, const char *fmt, ...)
@@ -241,13 +242,208 @@ typedef struct {
     signed char *id; /* n_fields entries */
 } header_t;
 
+/* ------------------------------------------------------------------ header help */
+
+/* Likely meanings of common header spellings (the name reduced by norm_name()), so a message can
+ * say "mag_x -> mx". Only suggested, never applied: nothing is guessed. */
+typedef struct {
+    const char *alias;
+    int col;
+} alias_t;
+
+static const alias_t k_aliases[] = {
+    {"time", MAGCAL_REPLAY_COL_T}, {"timestamp", MAGCAL_REPLAY_COL_T}, {"ts", MAGCAL_REPLAY_COL_T},
+    {"sec", MAGCAL_REPLAY_COL_T}, {"seconds", MAGCAL_REPLAY_COL_T},
+    {"mx", MAGCAL_REPLAY_COL_MX}, {"magx", MAGCAL_REPLAY_COL_MX}, {"x", MAGCAL_REPLAY_COL_MX},
+    {"bx", MAGCAL_REPLAY_COL_MX}, {"hx", MAGCAL_REPLAY_COL_MX}, {"magnetometerx", MAGCAL_REPLAY_COL_MX},
+    {"magneticx", MAGCAL_REPLAY_COL_MX}, {"compassx", MAGCAL_REPLAY_COL_MX}, {"xmag", MAGCAL_REPLAY_COL_MX},
+    {"my", MAGCAL_REPLAY_COL_MY}, {"magy", MAGCAL_REPLAY_COL_MY}, {"y", MAGCAL_REPLAY_COL_MY},
+    {"by", MAGCAL_REPLAY_COL_MY}, {"hy", MAGCAL_REPLAY_COL_MY}, {"magnetometery", MAGCAL_REPLAY_COL_MY},
+    {"magneticy", MAGCAL_REPLAY_COL_MY}, {"compassy", MAGCAL_REPLAY_COL_MY}, {"ymag", MAGCAL_REPLAY_COL_MY},
+    {"mz", MAGCAL_REPLAY_COL_MZ}, {"magz", MAGCAL_REPLAY_COL_MZ}, {"z", MAGCAL_REPLAY_COL_MZ},
+    {"bz", MAGCAL_REPLAY_COL_MZ}, {"hz", MAGCAL_REPLAY_COL_MZ}, {"magnetometerz", MAGCAL_REPLAY_COL_MZ},
+    {"magneticz", MAGCAL_REPLAY_COL_MZ}, {"compassz", MAGCAL_REPLAY_COL_MZ}, {"zmag", MAGCAL_REPLAY_COL_MZ},
+    {"ax", MAGCAL_REPLAY_COL_AX}, {"accx", MAGCAL_REPLAY_COL_AX}, {"accelx", MAGCAL_REPLAY_COL_AX},
+    {"accelerometerx", MAGCAL_REPLAY_COL_AX}, {"xacc", MAGCAL_REPLAY_COL_AX},
+    {"ay", MAGCAL_REPLAY_COL_AY}, {"accy", MAGCAL_REPLAY_COL_AY}, {"accely", MAGCAL_REPLAY_COL_AY},
+    {"accelerometery", MAGCAL_REPLAY_COL_AY}, {"yacc", MAGCAL_REPLAY_COL_AY},
+    {"az", MAGCAL_REPLAY_COL_AZ}, {"accz", MAGCAL_REPLAY_COL_AZ}, {"accelz", MAGCAL_REPLAY_COL_AZ},
+    {"accelerometerz", MAGCAL_REPLAY_COL_AZ}, {"zacc", MAGCAL_REPLAY_COL_AZ},
+    {"heading", MAGCAL_REPLAY_COL_HEADING_REF}, {"headingref", MAGCAL_REPLAY_COL_HEADING_REF},
+    {"refheading", MAGCAL_REPLAY_COL_HEADING_REF}, {"hdg", MAGCAL_REPLAY_COL_HEADING_REF},
+    {"headingtrue", MAGCAL_REPLAY_COL_HEADING_REF}, {"trueheading", MAGCAL_REPLAY_COL_HEADING_REF},
+    {"reference", MAGCAL_REPLAY_COL_HEADING_REF}, {"ref", MAGCAL_REPLAY_COL_HEADING_REF},
+    {"cog", MAGCAL_REPLAY_COL_COG}, {"course", MAGCAL_REPLAY_COL_COG},
+    {"speed", MAGCAL_REPLAY_COL_SPEED}, {"groundspeed", MAGCAL_REPLAY_COL_SPEED},
+    {"roll", MAGCAL_REPLAY_COL_ROLL}, {"pitch", MAGCAL_REPLAY_COL_PITCH}, {"yaw", MAGCAL_REPLAY_COL_YAW},
+    {"lat", MAGCAL_REPLAY_COL_LAT}, {"latitude", MAGCAL_REPLAY_COL_LAT},
+    {"lon", MAGCAL_REPLAY_COL_LON}, {"lng", MAGCAL_REPLAY_COL_LON}, {"longitude", MAGCAL_REPLAY_COL_LON},
+    {"height", MAGCAL_REPLAY_COL_HEIGHT}, {"alt", MAGCAL_REPLAY_COL_HEIGHT},
+    {"altitude", MAGCAL_REPLAY_COL_HEIGHT}, {"year", MAGCAL_REPLAY_COL_YEAR},
+    {"decimalyear", MAGCAL_REPLAY_COL_YEAR}, {"hdop", MAGCAL_REPLAY_COL_DOP},
+    {"pdop", MAGCAL_REPLAY_COL_DOP}};
+
+/* Unit words dropped from a header name ("mx (uT)", "mag_x_ut", "heading_deg"). */
+static const char *const k_units[] = {"ut", "nt", "gauss", "mgauss", "g", "mg", "lsb", "counts",
+                                      "mps2", "ms2", "deg", "degrees", "rad", "s", "ms", "m", "km"};
+
+static int is_alnum(char c)
+{
+    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9');
+}
+
+/* Reduce a header name to its lower-case alphanumeric tokens joined, without a trailing unit
+ * word or a bracketed part: "Mag_X (uT)" -> "magx", "heading_deg" -> "heading". The dropped unit
+ * (first one found) goes to unit (lower case, "" when none). 0 when nothing is left. */
+static size_t norm_name(const char *s, size_t n, char *out, size_t out_len, char *unit, size_t unit_len)
+{
+    char tok[8][24];
+    size_t nt = 0u, i = 0u, o = 0u, k;
+    unit[0] = '\0';
+    while (i < n && nt < 8u) {
+        size_t t = 0u;
+        int bracket = 0;
+        while (i < n && !is_alnum(s[i])) {
+            bracket |= (s[i] == '(' || s[i] == '[' || s[i] == '{');
+            ++i;
+        }
+        while (i < n && is_alnum(s[i])) {
+            if (t + 1u < sizeof tok[0]) {
+                tok[nt][t++] = (char)lower((unsigned char)s[i]);
+            }
+            ++i;
+        }
+        tok[nt][t] = '\0';
+        if (t == 0u) {
+            break;
+        }
+        if (bracket) { /* "(uT)": a unit, or a remark; not part of the name */
+            if (unit[0] == '\0') {
+                (void)snprintf(unit, unit_len, "%s", tok[nt]);
+            }
+            while (i < n && s[i] != ')' && s[i] != ']' && s[i] != '}') {
+                ++i;
+            }
+            continue;
+        }
+        ++nt;
+    }
+    if (nt > 1u) { /* a trailing unit word: "mag_x_ut", "heading_deg" */
+        for (k = 0u; k < sizeof k_units / sizeof k_units[0]; ++k) {
+            if (strcmp(tok[nt - 1u], k_units[k]) == 0) {
+                if (unit[0] == '\0') {
+                    (void)snprintf(unit, unit_len, "%s", tok[nt - 1u]);
+                }
+                --nt;
+                break;
+            }
+        }
+    }
+    for (k = 0u; k < nt; ++k) {
+        size_t t = strlen(tok[k]);
+        if (o + t + 1u > out_len) {
+            break;
+        }
+        memcpy(out + o, tok[k], t);
+        o += t;
+    }
+    out[o] = '\0';
+    return o;
+}
+
+/* Recognised column a header name probably means (-1: no idea). */
+static int suggest_col(const char *s, size_t n, char *unit, size_t unit_len)
+{
+    char key[64];
+    size_t k;
+    if (norm_name(s, n, key, sizeof key, unit, unit_len) == 0u) {
+        return -1;
+    }
+    for (k = 0u; k < (size_t)MAGCAL_REPLAY_COL_COUNT; ++k) { /* "roll_deg" -> "rolldeg" */
+        char canon[64], u2[16];
+        (void)norm_name(k_col_names[k], strlen(k_col_names[k]), canon, sizeof canon, u2, sizeof u2);
+        if (strcmp(canon, key) == 0) {
+            return (int)k;
+        }
+    }
+    for (k = 0u; k < sizeof k_aliases / sizeof k_aliases[0]; ++k) {
+        if (strcmp(k_aliases[k].alias, key) == 0) {
+            return k_aliases[k].col;
+        }
+    }
+    return -1;
+}
+
+/* Append printf text to out[len] (bounded; the end is cut, never overrun). */
+static void append(char *out, size_t len, const char *fmt, ...)
+{
+    size_t used = strlen(out);
+    va_list ap;
+    if (used + 1u >= len) {
+        return;
+    }
+    va_start(ap, fmt);
+    (void)vsnprintf(out + used, len - used, fmt, ap);
+    va_end(ap);
+}
+
+/* What the header holds, for messages: the names found (quoted), the suggested renames of the
+ * unrecognised ones, and the accepted names. `unknown_only`: list only the unrecognised names
+ * (the note of a successful read). Returns the number of unrecognised fields. */
+static size_t describe_header(const char *p, size_t n, char sep, const header_t *h, const int *seen,
+                              int unknown_only, char *out, size_t len)
+{
+    size_t i, f = 0u, start = 0u, n_unknown = 0u, n_sugg = 0u, n_listed = 0u;
+    char sugg[MAGCAL_REPLAY_CSV_NOTE_LEN];
+    char shown[80], unit[16];
+    out[0] = '\0';
+    sugg[0] = '\0';
+    if (!unknown_only) {
+        append(out, len, "found:");
+    }
+    for (i = 0u; i <= n && f < h->n_fields; ++i) {
+        if (i == n || p[i] == sep) {
+            const char *s = p + start;
+            size_t l = i - start;
+            trim(&s, &l);
+            quote_cell(s, l, shown, sizeof shown);
+            if (h->id[f] < 0) {
+                int c = suggest_col(s, l, unit, sizeof unit);
+                append(out, len, "%s\"%s\"", n_listed ? ", " : " ", shown);
+                ++n_listed;
+                ++n_unknown;
+                if (c >= 0 && seen[c] == 0) {
+                    append(sugg, sizeof sugg, "%s\"%s\" -> %s%s%s%s", n_sugg ? ", " : "", shown,
+                           k_col_names[c], unit[0] ? " (unit " : "", unit, unit[0] ? ")" : "");
+                    ++n_sugg;
+                }
+            } else if (!unknown_only) {
+                append(out, len, "%s%s", n_listed ? ", " : " ", k_col_names[h->id[f]]);
+                ++n_listed;
+            }
+            ++f;
+            start = i + 1u;
+        }
+    }
+    if (n_sugg > 0u) {
+        append(out, len, "; did you mean %s? (rename the header; units are not read from it)", sugg);
+    }
+    if (!unknown_only || n_unknown > 0u) {
+        append(out, len, "; accepted names:");
+        for (i = 0u; i < (size_t)MAGCAL_REPLAY_COL_COUNT; ++i) {
+            append(out, len, "%s %s", i ? "," : "", k_col_names[i]);
+        }
+    }
+    return n_unknown;
+}
+
 static magcal_status_t parse_header(const ctx_t *cx, const char *p, size_t n, size_t line_no,
                                     uint32_t required, header_t *h, magcal_replay_csv_t *d)
 {
     size_t nf = 1u, i, f = 0u, start = 0u;
     int seen[MAGCAL_REPLAY_COL_COUNT];
     for (i = 0u; i < n; ++i) {
-        nf += (p[i] == ',') ? 1u : 0u;
+        nf += (p[i] == cx->sep) ? 1u : 0u;
     }
     if (nf > MAGCAL_REPLAY_CSV_MAX_FIELDS) {
         set_err(cx, line_no, 0u, "header has %lu fields, more than the limit %u",
@@ -262,7 +458,7 @@ static magcal_status_t parse_header(const ctx_t *cx, const char *p, size_t n, si
     h->n_fields = nf;
     memset(seen, 0, sizeof seen);
     for (i = 0u; i <= n; ++i) {
-        if (i == n || p[i] == ',') {
+        if (i == n || p[i] == cx->sep) {
             const char *s = p + start;
             size_t len = i - start;
             int c, id = -1;
@@ -286,10 +482,21 @@ static magcal_status_t parse_header(const ctx_t *cx, const char *p, size_t n, si
     }
     for (i = 0u; i < (size_t)MAGCAL_REPLAY_COL_COUNT; ++i) {
         if ((required & MAGCAL_REPLAY_COL_BIT(i)) != 0u && seen[i] == 0) {
-            set_err(cx, line_no, 0u, "missing required column \"%s\" in the header", k_col_names[i]);
+            char what[MAGCAL_REPLAY_CSV_NOTE_LEN];
+            (void)describe_header(p, n, cx->sep, h, seen, 0, what, sizeof what);
+            set_err(cx, line_no, 0u, "missing required column \"%s\" in the header (%s; %s)%s",
+                    k_col_names[i],
+                    cx->sep == ';' ? "read as ';'-separated" : cx->sep == '\t' ? "read as tab-separated"
+                                                                                : "read as comma-separated",
+                    what,
+                    (nf == 1u && memchr(p, ' ', n) != NULL)
+                        ? "; the header is one field: space-separated? (fields are separated by ',', ';' or tab)"
+                        : "");
             return MAGCAL_ERR_ARG;
         }
     }
+    /* d->note: the columns that are not read, with suggestions ("" when none; the caller warns) */
+    (void)describe_header(p, n, cx->sep, h, seen, 1, d->note, sizeof d->note);
     for (i = 0u; i < (size_t)MAGCAL_REPLAY_COL_COUNT; ++i) {
         if (seen[i] != 0) {
             d->col[i] = (double *)malloc(sizeof(double)); /* grown per row; non-NULL = present */
@@ -308,7 +515,7 @@ static magcal_status_t parse_row(const ctx_t *cx, const char *p, size_t n, size_
 {
     size_t nf = 1u, i, f = 0u, start = 0u;
     for (i = 0u; i < n; ++i) {
-        nf += (p[i] == ',') ? 1u : 0u;
+        nf += (p[i] == cx->sep) ? 1u : 0u;
     }
     if (nf != h->n_fields) {
         set_err(cx, line_no, (nf < h->n_fields ? nf : h->n_fields) + 1u,
@@ -317,7 +524,7 @@ static magcal_status_t parse_row(const ctx_t *cx, const char *p, size_t n, size_
         return MAGCAL_ERR_ARG;
     }
     for (i = 0u; i <= n; ++i) {
-        if (i == n || p[i] == ',') {
+        if (i == n || p[i] == cx->sep) {
             int id = h->id[f];
             if (id >= 0) {
                 const char *s = p + start;
@@ -373,6 +580,7 @@ magcal_status_t magcal_replay_csv_parse(const char *text, size_t len, const char
     cx.name = (name != NULL) ? name : "<input>";
     cx.err = err;
     cx.err_len = err_len;
+    cx.sep = ',';
     if (err != NULL && err_len > 0u) {
         err[0] = '\0';
     }
@@ -414,6 +622,13 @@ magcal_status_t magcal_replay_csv_parse(const char *text, size_t len, const char
             continue; /* blank or comment */
         }
         if (!have_header) {
+            /* separator: ',' unless the header has none and is ';'- or tab-separated */
+            if (memchr(p, ',', n) == NULL && memchr(p, ';', n) != NULL) {
+                cx.sep = ';';
+            } else if (memchr(p, ',', n) == NULL && memchr(p, '\t', n) != NULL) {
+                cx.sep = '\t';
+            }
+            d.sep = cx.sep;
             st = parse_header(&cx, p, n, line_no, required, &h, &d);
             have_header = 1;
             continue;
@@ -462,6 +677,7 @@ magcal_status_t magcal_replay_csv_read(const char *path, uint32_t required,
     cx.name = (path != NULL) ? path : "<null>";
     cx.err = err;
     cx.err_len = err_len;
+    cx.sep = ',';
     if (path == NULL || out == NULL) {
         set_err(&cx, 0u, 0u, "internal error: NULL argument");
         return MAGCAL_ERR_NULL;

@@ -10,6 +10,11 @@
  *   and for the aided mode `roll_deg, pitch_deg, yaw_deg, lat_deg, lon_deg, height_km,
  *   decimal_year, dop`;
  *   every other column is ignored (its cells are not even looked at);
+ * - fields are separated by `,`; a header without a comma that has `;` (or else a tab) makes that
+ *   the separator of the whole file (magcal_replay_csv_t::sep);
+ * - a missing required column's message lists the header's names, suggests the likely renames of
+ *   unrecognised ones (`mag_x`, `x`, `mx (uT)` -> mx) and lists the accepted names; on success the
+ *   unrecognised columns are described in magcal_replay_csv_t::note;
  * - lines whose first non-blank character is `#`, and blank lines, are skipped anywhere;
  * - LF or CRLF line ends, an optional UTF-8 byte order mark, spaces/tabs around cells, and cells
  *   wrapped in double quotes (without commas inside) are accepted;
@@ -50,7 +55,9 @@ extern "C" {
 /** Longest numeric cell, in characters after trimming. */
 #define MAGCAL_REPLAY_CSV_MAX_NUMBER_LEN 63u
 /** A message buffer of this size always holds a whole error message. */
-#define MAGCAL_REPLAY_CSV_ERR_LEN 512u
+#define MAGCAL_REPLAY_CSV_ERR_LEN 2048u
+/** Size of the header note (magcal_replay_csv_t::note). */
+#define MAGCAL_REPLAY_CSV_NOTE_LEN 1024u
 
 /** Recognised columns. */
 typedef enum {
@@ -86,6 +93,10 @@ typedef struct {
     double *col[MAGCAL_REPLAY_COL_COUNT];    /**< n_rows values each (NaN = missing cell);
                                                   NULL when the header lacks the column */
     size_t *line;                            /**< 1-based source line of each data row */
+    char sep;                                /**< field separator found: ',', ';' or '\t' */
+    char note[MAGCAL_REPLAY_CSV_NOTE_LEN];   /**< "" or the header's columns that are not read,
+                                                  quoted, with suggested names ("\"mag_x\" -> mx")
+                                                  and the accepted names: for a warning */
 } magcal_replay_csv_t;
 
 /**

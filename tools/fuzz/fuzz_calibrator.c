@@ -4,7 +4,7 @@
  * calibration, then classify, flags and heading on every stored sample.
  *
  * Input layout (little endian; missing bytes read as 0):
- *   u8  mode      bits 0-1 filter, bit 2 use_consensus, bits 3-4 form (mod 3),
+ *   u8  mode      bits 0-1 filter, bit 2 use_consensus, bits 3-4 form (all four),
  *                 bits 5-6 previous calibration (0 identity, 1 usable, 2 blank flash, 3 radius 0),
  *                 bit 7 sample format (0: raw float32 pairs, 1: int16 pairs times `scale`)
  *   u16 capacity  16 + value mod (MAGCAL_MAX_SAMPLES - 15)
@@ -120,7 +120,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 
     cfg.filter = (magcal_calibrator_filter_t)(mode & 3u);
     cfg.use_consensus = (uint8_t)((mode >> 2) & 1u);
-    cfg.form = (magcal_corr_form_t)(((unsigned)mode >> 3) % 4u % 3u);
+    cfg.form = (magcal_corr_form_t)(((unsigned)mode >> 3) % 4u); /* every form, KPHI included */
     cfg.max_per_bin = (uint16_t)(gates & 0x0Fu);
     cfg.min_spacing_deg = 2.0f * (float)(gates >> 4);
     if ((ovr & 1u) != 0u) {

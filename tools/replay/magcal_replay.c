@@ -4,6 +4,7 @@
  * the calibration and its heading accuracy. Usage and every output field: docs/replay.md.
  */
 #include <errno.h>
+#include <getopt.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -14,21 +15,24 @@
 #include "magcal/ellipsoid.h"
 #include "magcal/heading.h"
 #include "magcal/status.h"
-#include "replay_record.h" /* --export-record (issue 15) */
 #include "magcal/tilt.h"
 #include "magcal_port_replay.h"
 #include "replay_cal.h"
+#include "replay_checks.h"
 #include "replay_csv.h"
 #include "replay_modes.h"
+#include "replay_record.h" /* --export-record (issue 15) */
 #include "replay_report.h"
 
 static const char k_usage[] =
-    "usage: magcal-replay [options] DUMP.csv\n"
+    "usage: magcal-replay [options] DUMP.csv   (--opt value or --opt=value)\n"
     "  --cal-range A:B     rows [A,B) are the calibration segment (default: all rows;\n"
     "                      A: or :B leave one end open)\n"
     "  --filter MODE       optics (default, automatic parameters) | optics-classic | dbscan | none\n"
-    "  --eps F             override the automatic OPTICS/DBSCAN radius (dump units)\n"
-    "  --min-pts N         override the automatic MinPts\n"
+    "  --eps F             override the automatic OPTICS/DBSCAN radius (dump units, up to 1e15)\n"
+    "  --min-pts N         override the automatic MinPts (2..MAGCAL_MAX_MIN_PTS)\n"
+    "  --no-consensus      the plain least-squares baseline: unfiltered, unweighted 5-parameter fit of\n"
+    "                      every calibration sample (same as --fit plain; --fit consensus = default)\n"
     "  --declination DEG   magnetic declination, east positive (default 0)\n"
     "  --plane XY|XZ|YZ    dump axes forming the horizontal plane (default XY; YX, ZX, ZY mirror)\n"
     "  --headings OUT.csv  per row: index,raw_heading_deg,heading_deg,outlier[,heading_ref_deg,error_deg]\n"
@@ -39,9 +43,10 @@ static const char k_usage[] =
     "  --ref-rows A:B      rows [A,B) with heading_ref_deg fit a compass swing on the calibrated heading\n"
     "  --swing-model M     smith (default, 5 coefficients A..E) | fourier (adaptive order)\n"
     "  --tilt | --no-tilt  tilt compensation with ax,ay,az (default: on when ax,ay,az,mz exist)\n"
-    "  --accel-unit U      g | mps2 (default: detected from the median |a|)\n"
+    "  --accel-unit U      g | mg | mps2 (default: detected from the median |a|)\n"
     "  --inclination DEG   2d + tilt: inclination giving the level vertical field (default 0)\n"
-    "  --field-unit U      aided: unit of mx,my,mz: uT (default) | nT | gauss\n"
+    "  --field-unit U      unit of mx,my,mz: uT | nT | gauss (reports and plots carry it; default:\n"
+    "                      \"dump units\", aided: uT, compared with the WMM field)\n"
     "  --year Y            aided: decimal year of the dump (default: decimal_year column, else t as Unix time)\n"
     "  --aided-objective O aided: combined (vector + total-field residual, default) | vector\n"
     "  --model M           aided: reference field model wmm2025 (default, 2025-2030) | igrf14 (1900-2030)\n"
@@ -241,9 +246,9 @@ typedef struct {
     const char *ref_rows;    /* NULL = no swing */
     int fourier;             /* --swing-model fourier */
     int tilt;                /* -1 auto, 0 off, 1 on */
-    int accel_unit;          /* 0 detect, 1 g, 2 m/s^2 */
+    int accel_unit;          /* 0 detect, 1 g, 2 m/s^2, 3 mg */
     double inclination;      /* NaN = not given */
-    const char *field_unit;  /* aided */
+    const char *field_unit;  /* --field-unit, NULL = not given (aided: uT) */
     double year;             /* NaN = from the dump */
     const char *prior_path;  /* aided: --prior, NULL = identity */
     const char *aided_objective; /* aided: --aided-objective, NULL = combined */
@@ -252,136 +257,240 @@ typedef struct {
     uint32_t sensor_id;          /* --sensor-id */
 } cli_t;
 
+/* Largest --eps accepted: the fits handle coordinates up to about 1e15 (ellipse.h). */
+#define REPLAY_EPS_MAX 1e15
+
+/* "A:B", "A:", ":B" with decimal row numbers (checked against the dump later). */
+static int range_syntax_ok(const char *s)
+{
+    const char *colon = strchr(s, ':');
+    size_t v;
+    if (colon == NULL) {
+        return 0;
+    }
+    if (colon > s && parse_size(s, (size_t)(colon - s), &v) != 0) {
+        return 0;
+    }
+    return colon[1] == '\0' || parse_size(colon + 1, strlen(colon + 1), &v) == 0;
+}
+
+/* Long options (getopt_long: "--opt value" and "--opt=value"). Values >= 256 have no short form. */
+enum {
+    OPT_CAL_RANGE = 256, OPT_FILTER, OPT_EPS, OPT_MIN_PTS, OPT_DECLINATION, OPT_PLANE, OPT_HEADINGS,
+    OPT_JSON, OPT_MODE, OPT_REF_ROWS, OPT_SWING_MODEL, OPT_TILT, OPT_NO_TILT, OPT_ACCEL_UNIT,
+    OPT_INCLINATION, OPT_FIELD_UNIT, OPT_YEAR, OPT_MODEL, OPT_AIDED_OBJECTIVE, OPT_PRIOR,
+    OPT_NO_CONSENSUS, OPT_FIT, OPT_EXPORT_RECORD, OPT_SENSOR_ID
+};
+
+static const struct option k_long_opts[] = {
+    {"cal-range", required_argument, NULL, OPT_CAL_RANGE},
+    {"filter", required_argument, NULL, OPT_FILTER},
+    {"eps", required_argument, NULL, OPT_EPS},
+    {"min-pts", required_argument, NULL, OPT_MIN_PTS},
+    {"declination", required_argument, NULL, OPT_DECLINATION},
+    {"plane", required_argument, NULL, OPT_PLANE},
+    {"headings", required_argument, NULL, OPT_HEADINGS},
+    {"json", no_argument, NULL, OPT_JSON},
+    {"mode", required_argument, NULL, OPT_MODE},
+    {"ref-rows", required_argument, NULL, OPT_REF_ROWS},
+    {"swing-model", required_argument, NULL, OPT_SWING_MODEL},
+    {"tilt", no_argument, NULL, OPT_TILT},
+    {"no-tilt", no_argument, NULL, OPT_NO_TILT},
+    {"accel-unit", required_argument, NULL, OPT_ACCEL_UNIT},
+    {"inclination", required_argument, NULL, OPT_INCLINATION},
+    {"field-unit", required_argument, NULL, OPT_FIELD_UNIT},
+    {"year", required_argument, NULL, OPT_YEAR},
+    {"model", required_argument, NULL, OPT_MODEL},
+    {"aided-objective", required_argument, NULL, OPT_AIDED_OBJECTIVE},
+    {"prior", required_argument, NULL, OPT_PRIOR},
+    {"no-consensus", no_argument, NULL, OPT_NO_CONSENSUS},
+    {"fit", required_argument, NULL, OPT_FIT},
+    {"export-record", required_argument, NULL, OPT_EXPORT_RECORD},
+    {"sensor-id", required_argument, NULL, OPT_SENSOR_ID},
+    {"help", no_argument, NULL, 'h'},
+    {NULL, 0, NULL, 0}};
+
+static int one_of(const char *v, const char *const *names)
+{
+    size_t k;
+    for (k = 0u; names[k] != NULL; ++k) {
+        if (strcmp(v, names[k]) == 0) {
+            return (int)k;
+        }
+    }
+    return -1;
+}
+
+/* One option with its value (getopt_long has checked the name and the presence of a value). */
+static int parse_opt(int opt, const char *v, cli_t *c)
+{
+    static const char *const k_filters[] = {"optics", "optics-classic", "dbscan", "none", NULL};
+    static const char *const k_modes[] = {"2d", "3d", "aided", NULL};
+    static const char *const k_accel[] = {"g", "mps2", "mg", NULL};
+    static const char *const k_units[] = {"uT", "nT", "gauss", NULL};
+    static const char *const k_models[] = {"wmm2025", "igrf14", NULL};
+    static const char *const k_objectives[] = {"combined", "vector", NULL};
+    static const char *const k_fits[] = {"consensus", "plain", NULL};
+    size_t n;
+    int k;
+    switch (opt) {
+    case OPT_JSON: c->json = 1; break;
+    case OPT_TILT: c->tilt = 1; break;
+    case OPT_NO_TILT: c->tilt = 0; break;
+    case OPT_NO_CONSENSUS: c->cal.plain = 1; break;
+    case OPT_FIT:
+        if ((k = one_of(v, k_fits)) < 0) {
+            return usage_error("--fit must be consensus or plain, got \"%s\"", v);
+        }
+        c->cal.plain = k;
+        break;
+    case OPT_CAL_RANGE:
+        if (!range_syntax_ok(v)) {
+            return usage_error("--cal-range must be A:B, A: or :B with row numbers, got \"%s\"", v);
+        }
+        c->range = v;
+        break;
+    case OPT_REF_ROWS:
+        if (!range_syntax_ok(v)) {
+            return usage_error("--ref-rows must be A:B, A: or :B with row numbers, got \"%s\"", v);
+        }
+        c->ref_rows = v;
+        break;
+    case OPT_FILTER:
+        if (one_of(v, k_filters) < 0) {
+            return usage_error("unknown filter \"%s\" (optics, optics-classic, dbscan, none)", v);
+        }
+        c->cal.filter = v;
+        break;
+    case OPT_EPS:
+        if (parse_double(v, &c->cal.eps) != 0 || !(c->cal.eps > 0.0) || c->cal.eps > REPLAY_EPS_MAX) {
+            return usage_error("--eps needs a positive number up to 1e15 (dump units), got \"%s\"", v);
+        }
+        break;
+    case OPT_MIN_PTS:
+        if (parse_size(v, strlen(v), &n) != 0 || n < 2u || n > (size_t)MAGCAL_MAX_MIN_PTS) {
+            char m[96];
+            (void)snprintf(m, sizeof m, "--min-pts needs an integer in 2..%u (MAGCAL_MAX_MIN_PTS), got \"%%s\"",
+                           (unsigned)MAGCAL_MAX_MIN_PTS);
+            return usage_error(m, v);
+        }
+        c->cal.min_pts = (long)n;
+        break;
+    case OPT_DECLINATION:
+        if (parse_double(v, &c->declination) != 0 || fabs(c->declination) > 180.0) {
+            return usage_error("--declination needs degrees in [-180, 180], got \"%s\"", v);
+        }
+        break;
+    case OPT_PLANE:
+        if (magcal_replay_csv_plane(v, &c->cal.plane) != MAGCAL_OK) {
+            return usage_error("--plane must be XY, XZ or YZ (or YX, ZX, ZY), got \"%s\"", v);
+        }
+        c->plane_name = v;
+        break;
+    case OPT_HEADINGS: c->headings_path = v; break;
+    case OPT_MODE:
+        if (one_of(v, k_modes) < 0) {
+            return usage_error("--mode must be 2d, 3d or aided, got \"%s\"", v);
+        }
+        c->mode = v;
+        break;
+    case OPT_SWING_MODEL:
+        if (strcmp(v, "smith") != 0 && strcmp(v, "fourier") != 0) {
+            return usage_error("--swing-model must be smith or fourier, got \"%s\"", v);
+        }
+        c->fourier = strcmp(v, "fourier") == 0;
+        break;
+    case OPT_ACCEL_UNIT:
+        if ((k = one_of(v, k_accel)) < 0) {
+            return usage_error("--accel-unit must be g, mg or mps2, got \"%s\"", v);
+        }
+        c->accel_unit = (k == 0) ? 1 : (k == 1) ? 2 : 3;
+        break;
+    case OPT_INCLINATION:
+        if (parse_double(v, &c->inclination) != 0 || fabs(c->inclination) >= 90.0) {
+            return usage_error("--inclination needs degrees in (-90, 90), got \"%s\"", v);
+        }
+        break;
+    case OPT_FIELD_UNIT:
+        if (one_of(v, k_units) < 0) {
+            return usage_error("--field-unit must be uT, nT or gauss, got \"%s\"", v);
+        }
+        c->field_unit = v;
+        break;
+    case OPT_MODEL:
+        if (one_of(v, k_models) < 0) {
+            return usage_error("--model must be wmm2025 or igrf14, got \"%s\"", v);
+        }
+        c->model = v;
+        break;
+    case OPT_AIDED_OBJECTIVE:
+        if (one_of(v, k_objectives) < 0) {
+            return usage_error("--aided-objective must be combined or vector, got \"%s\"", v);
+        }
+        c->aided_objective = v;
+        break;
+    case OPT_PRIOR: c->prior_path = v; break;
+    case OPT_EXPORT_RECORD: c->record_path = v; break; /* issue 15: replay_record.c */
+    case OPT_SENSOR_ID:
+        if (replay_parse_sensor_id(v, &c->sensor_id) != 0) {
+            return usage_error("--sensor-id needs 0..0xFFFFFFFF, got \"%s\"", v);
+        }
+        break;
+    case OPT_YEAR:
+        if (parse_double(v, &c->year) != 0 || c->year < 1900.0 || c->year > 2100.0) {
+            return usage_error("--year needs a decimal year in [1900, 2100], got \"%s\"", v);
+        }
+        break;
+    default:
+        return usage_error("%s", "internal: unhandled option");
+    }
+    return -1;
+}
+
 static int parse_args(int argc, char **argv, cli_t *c)
 {
-    int i;
+    int opt, rc;
     memset(c, 0, sizeof *c);
     c->cal.filter = "optics";
     c->cal.eps = NAN;
     c->cal.min_pts = 0;
     c->plane_name = "XY";
+    (void)magcal_replay_csv_plane("XY", &c->cal.plane);
     c->mode = "2d";
     c->tilt = -1;
     c->inclination = NAN;
-    c->field_unit = "uT";
     c->year = NAN;
-    for (i = 1; i < argc; ++i) {
-        const char *a = argv[i];
-        const char *v = (i + 1 < argc) ? argv[i + 1] : NULL;
-        if (strcmp(a, "-h") == 0 || strcmp(a, "--help") == 0) {
+    opterr = 0; /* our own messages */
+    optind = 1;
+    while ((opt = getopt_long(argc, argv, ":h", k_long_opts, NULL)) != -1) {
+        const char *a = argv[optind - 1];
+        if (opt == 'h') {
             fputs(k_usage, stdout);
             exit(REPLAY_EXIT_OK);
-        } else if (strcmp(a, "--json") == 0) {
-            c->json = 1;
-        } else if (strcmp(a, "--tilt") == 0) {
-            c->tilt = 1;
-        } else if (strcmp(a, "--no-tilt") == 0) {
-            c->tilt = 0;
-        } else if (a[0] == '-' && a[1] == '-' && v == NULL) {
-            return usage_error("option %s needs a value", a);
-        } else if (strcmp(a, "--cal-range") == 0) {
-            c->range = v;
-            ++i;
-        } else if (strcmp(a, "--filter") == 0) {
-            if (strcmp(v, "optics") != 0 && strcmp(v, "optics-classic") != 0 &&
-                strcmp(v, "dbscan") != 0 && strcmp(v, "none") != 0) {
-                return usage_error("unknown filter \"%s\" (optics, optics-classic, dbscan, none)", v);
-            }
-            c->cal.filter = v;
-            ++i;
-        } else if (strcmp(a, "--eps") == 0) {
-            if (parse_double(v, &c->cal.eps) != 0 || !(c->cal.eps > 0.0)) {
-                return usage_error("--eps needs a positive number, got \"%s\"", v);
-            }
-            ++i;
-        } else if (strcmp(a, "--min-pts") == 0) {
-            size_t n;
-            if (parse_size(v, strlen(v), &n) != 0 || n < 1u || n > 100000u) {
-                return usage_error("--min-pts needs a positive integer, got \"%s\"", v);
-            }
-            c->cal.min_pts = (long)n;
-            ++i;
-        } else if (strcmp(a, "--declination") == 0) {
-            if (parse_double(v, &c->declination) != 0 || fabs(c->declination) > 180.0) {
-                return usage_error("--declination needs degrees in [-180, 180], got \"%s\"", v);
-            }
-            ++i;
-        } else if (strcmp(a, "--plane") == 0) {
-            c->plane_name = v;
-            ++i;
-        } else if (strcmp(a, "--headings") == 0) {
-            c->headings_path = v;
-            ++i;
-        } else if (strcmp(a, "--mode") == 0) {
-            if (strcmp(v, "2d") != 0 && strcmp(v, "3d") != 0 && strcmp(v, "aided") != 0) {
-                return usage_error("--mode must be 2d, 3d or aided, got \"%s\"", v);
-            }
-            c->mode = v;
-            ++i;
-        } else if (strcmp(a, "--ref-rows") == 0) {
-            c->ref_rows = v;
-            ++i;
-        } else if (strcmp(a, "--swing-model") == 0) {
-            if (strcmp(v, "smith") != 0 && strcmp(v, "fourier") != 0) {
-                return usage_error("--swing-model must be smith or fourier, got \"%s\"", v);
-            }
-            c->fourier = strcmp(v, "fourier") == 0;
-            ++i;
-        } else if (strcmp(a, "--accel-unit") == 0) {
-            if (strcmp(v, "g") == 0) {
-                c->accel_unit = 1;
-            } else if (strcmp(v, "mps2") == 0) {
-                c->accel_unit = 2;
-            } else {
-                return usage_error("--accel-unit must be g or mps2, got \"%s\"", v);
-            }
-            ++i;
-        } else if (strcmp(a, "--inclination") == 0) {
-            if (parse_double(v, &c->inclination) != 0 || fabs(c->inclination) >= 90.0) {
-                return usage_error("--inclination needs degrees in (-90, 90), got \"%s\"", v);
-            }
-            ++i;
-        } else if (strcmp(a, "--field-unit") == 0) {
-            if (strcmp(v, "uT") != 0 && strcmp(v, "nT") != 0 && strcmp(v, "gauss") != 0) {
-                return usage_error("--field-unit must be uT, nT or gauss, got \"%s\"", v);
-            }
-            c->field_unit = v;
-            ++i;
-        } else if (strcmp(a, "--model") == 0) {
-            if (strcmp(v, "wmm2025") != 0 && strcmp(v, "igrf14") != 0) {
-                return usage_error("--model must be wmm2025 or igrf14, got \"%s\"", v);
-            }
-            c->model = v;
-            ++i;
-        } else if (strcmp(a, "--aided-objective") == 0) {
-            if (strcmp(v, "combined") != 0 && strcmp(v, "vector") != 0) {
-                return usage_error("--aided-objective must be combined or vector, got \"%s\"", v);
-            }
-            c->aided_objective = v;
-            ++i;
-        } else if (strcmp(a, "--prior") == 0) {
-            c->prior_path = v;
-            ++i;
-        } else if (strcmp(a, "--export-record") == 0) { /* issue 15: replay_record.c */
-            c->record_path = v;
-            ++i;
-        } else if (strcmp(a, "--sensor-id") == 0) {
-            if (replay_parse_sensor_id(v, &c->sensor_id) != 0) {
-                return usage_error("--sensor-id needs 0..0xFFFFFFFF, got \"%s\"", v);
-            }
-            ++i;
-        } else if (strcmp(a, "--year") == 0) {
-            if (parse_double(v, &c->year) != 0 || c->year < 1900.0 || c->year > 2100.0) {
-                return usage_error("--year needs a decimal year, got \"%s\"", v);
-            }
-            ++i;
-        } else if (a[0] == '-' && a[1] != '\0') {
-            return usage_error("unknown option %s", a);
-        } else if (c->path != NULL) {
-            return usage_error("more than one dump given (%s)", a);
-        } else {
-            c->path = a;
         }
+        if (opt == ':') {
+            return usage_error("option %s needs a value", a);
+        }
+        if (opt == '?') {
+            if (optopt != 0 && optopt < 256) {
+                char s[3] = {'-', (char)optopt, '\0'};
+                return usage_error("unknown option %s", s);
+            }
+            if (optopt >= 256) { /* a known long option that takes no value, given one */
+                return usage_error("option %s takes no value", a);
+            }
+            return usage_error("unknown (or ambiguous) option %s", a);
+        }
+        rc = parse_opt(opt, optarg, c);
+        if (rc >= 0) {
+            return rc;
+        }
+    }
+    for (; optind < argc; ++optind) {
+        if (c->path != NULL) {
+            return usage_error("more than one dump given (%s)", argv[optind]);
+        }
+        c->path = argv[optind];
     }
     if (c->path == NULL) {
         return usage_error("%s", "no dump file given");
@@ -389,8 +498,13 @@ static int parse_args(int argc, char **argv, cli_t *c)
     if (strcmp(c->cal.filter, "none") == 0 && (isfinite(c->cal.eps) || c->cal.min_pts > 0)) {
         return usage_error("%s", "--eps/--min-pts make no sense with --filter none");
     }
-    if (magcal_replay_csv_plane(c->plane_name, &c->cal.plane) != MAGCAL_OK) {
-        return usage_error("--plane must be XY, XZ or YZ (or YX, ZX, ZY), got \"%s\"", c->plane_name);
+    if (c->cal.plain && (strcmp(c->cal.filter, "optics") != 0 || isfinite(c->cal.eps) || c->cal.min_pts > 0)) {
+        return usage_error("%s", "--no-consensus (--fit plain) is the unfiltered least-squares fit: no --filter, "
+                                 "--eps or --min-pts");
+    }
+    if (c->cal.plain && strcmp(c->mode, "2d") != 0) {
+        return usage_error("%s", "--no-consensus (--fit plain) is for the 2d mode (3d: --filter none skips the "
+                                 "density stage; the ellipsoid fit's gate stays)");
     }
     if (strcmp(c->mode, "aided") == 0 && c->tilt == 1) {
         return usage_error("%s", "--tilt: the aided mode levels the field with the INS roll and pitch");
@@ -492,7 +606,7 @@ int main(int argc, char **argv)
     magcal_ellipsoid_result_t fit3;
     char err[MAGCAL_REPLAY_CSV_ERR_LEN];
     uint32_t required;
-    int rc, mode3d, aided;
+    int rc, mode3d, aided, vehicle = 0;
     size_t i, n;
     magcal_vec3_t *fed = NULL;
     double *raw_rad = NULL, *cor_rad = NULL, *err_deg = NULL, *hdg = NULL, *raw_hdg = NULL;
@@ -532,9 +646,23 @@ int main(int argc, char **argv)
         return REPLAY_EXIT_INPUT;
     }
     n = d.n_rows;
+    if (aided && c.field_unit == NULL) {
+        c.field_unit = "uT"; /* the aided mode compares with the WMM field: it needs a unit */
+    }
     r.mode = c.mode;
     r.file = c.path;
-    r.filter = c.cal.filter;
+    r.filter = c.cal.plain ? "none" : c.cal.filter;
+    r.fit = c.cal.plain ? "plain" : "consensus";
+    r.unit = c.field_unit;
+    r.sep = d.sep;
+    r.est_heading_err_deg = NAN;
+    r.missing_start_deg = NAN;
+    r.missing_width_deg = NAN;
+    replay_check_columns(&d, &r.warnings);
+    replay_check_ref_units(&d, &r.warnings);
+    if (aided) {
+        replay_check_ins_angles(&d, &r.warnings);
+    }
     r.plane = c.plane_name;
     r.declination_deg = c.declination;
     r.eps = c.cal.eps;
@@ -577,11 +705,31 @@ int main(int argc, char **argv)
             return REPLAY_EXIT_INPUT;
         }
         r.tilt_on = !aided && c.tilt != 0 && have_acc && have_z;
+        if (!aided && have_acc) {
+            double share = 0.0, excess = NAN;
+            vehicle = replay_check_vehicle(&d, &c.cal.plane, &share, &excess);
+            if (vehicle && r.tilt_on && !mode3d && c.tilt == -1) {
+                r.tilt_on = 0;
+                replay_warn(&r.warnings, "centripetal",
+                            "tilt compensation is off: the accelerometer sees centripetal acceleration (%.0f %% "
+                            "of the rows have a horizontal acceleration above 0.15 g with |a| rising %.2f x as "
+                            "on a level road: a turning vehicle), which 2-D tilt compensation would read as tilt "
+                            "(--inclination makes that worse). Give --tilt to force it; --mode aided levels "
+                            "with INS attitude instead",
+                            100.0 * share, excess);
+            } else if (vehicle && r.tilt_on) {
+                replay_warn(&r.warnings, "centripetal",
+                            "the accelerometer sees centripetal acceleration (%.0f %% of the rows, |a| rising "
+                            "%.2f x as on a level road: a turning vehicle): tilt compensation reads it as tilt "
+                            "and the heading error grows in turns; consider --no-tilt",
+                            100.0 * share, excess);
+            }
+        }
     }
     if (r.tilt_on) {
         r.accel_median_norm = median_accel_norm(&d);
         if (c.accel_unit != 0) {
-            r.accel_unit = (c.accel_unit == 1) ? "g" : "mps2";
+            r.accel_unit = (c.accel_unit == 1) ? "g" : (c.accel_unit == 2) ? "mps2" : "mg";
             r.accel_unit_source = "given";
         } else if (r.accel_median_norm >= 0.5 && r.accel_median_norm <= 2.0) {
             r.accel_unit = "g";
@@ -589,15 +737,22 @@ int main(int argc, char **argv)
         } else if (r.accel_median_norm >= 4.9 && r.accel_median_norm <= 19.6) {
             r.accel_unit = "mps2";
             r.accel_unit_source = "detected";
+        } else if (r.accel_median_norm >= 500.0 && r.accel_median_norm <= 2000.0) {
+            r.accel_unit = "mg";
+            r.accel_unit_source = "detected";
         } else {
             fprintf(stderr,
                     "magcal-replay: %s: cannot tell the accelerometer unit (median |a| = %g; about 1 "
-                    "means g, about 9.8 m/s^2): give --accel-unit g|mps2 or --no-tilt\n",
+                    "means g, about 9.8 m/s^2, about 1000 mg; raw counts must be converted first): give "
+                    "--accel-unit g|mg|mps2 or --no-tilt\n",
                     c.path, r.accel_median_norm);
             magcal_replay_csv_free(&d);
             return REPLAY_EXIT_INPUT;
         }
-        accel_scale = (strcmp(r.accel_unit, "g") == 0) ? 1.0 : 1.0 / 9.80665;
+        accel_scale = (strcmp(r.accel_unit, "g") == 0)    ? 1.0
+                      : (strcmp(r.accel_unit, "mg") == 0) ? 1e-3
+                                                          : 1.0 / 9.80665;
+        replay_check_accel_down(&d, &c.cal.plane, &r.warnings);
     }
 
     /* Decimation (2d): the calibrator holds at most `capacity` samples; feed every k-th row.
@@ -641,6 +796,7 @@ int main(int argc, char **argv)
     for (i = 0u; i < n; ++i) {
         decl[i] = c.declination;
     }
+    replay_check_eps(fed + r.cal_first, r.n_cal, mode3d, c.cal.eps, r.unit, &r.warnings);
 
     /* Calibrate. */
     if (aided) {
@@ -659,6 +815,8 @@ int main(int argc, char **argv)
             fprintf(stderr, "magcal-replay: %s: %s\n", c.path, err);
             goto done;
         }
+        replay_check_field_wmm(fed, bned, r.cal_first, r.cal_end, ao.unit_per_nt, c.field_unit, r.geomag_model,
+                               &r.warnings);
         r.prior_g_scale = 1.0;
         if (c.prior_path != NULL) {
             double fref = NAN; /* |B_ref| of the first calibration row that has one */
@@ -719,7 +877,7 @@ int main(int argc, char **argv)
         r.tilt_z_offset = (kz > 0u) ? sz / (double)kz : 0.0;
         r.tilt_hz_level = isfinite(c.inclination) ? -(double)res.cal.radius * tan(c.inclination * 3.14159265358979323846 / 180.0) : 0.0;
         r.tilt_field = "2d: h = (M (raw_xy - centre), mz - z_offset + hz_level)";
-        if (!isfinite(c.inclination)) {
+        if (!isfinite(c.inclination) && !vehicle) {
             fprintf(stderr, "magcal-replay: note: 2d tilt compensation without --inclination takes the "
                             "level vertical field as 0, which leaves most of the tilt error (docs/replay.md, "
                             "\"Tilt compensation\"); give --inclination, use --mode 3d, or --no-tilt\n");
@@ -841,6 +999,13 @@ int main(int argc, char **argv)
         r.spread_raw_all = spread(raw_rad, fedmask, n);
         r.spread_corrected = spread(cor_rad, use, n);
         heading_metrics(&r, ref != NULL ? ref : &k_nan, err_deg, flag, ref != NULL ? n : 0u);
+        if (!aided) {
+            replay_check_field_range(mode3d ? r.field3 : r.radius, !mode3d, r.unit, &r.warnings);
+        }
+        if (!aided && r.n_heading > 0u) {
+            double ratio = (mode3d ? r.spread_raw_all : r.spread_raw) / fmax(r.spread_corrected, 1e-12);
+            replay_check_heading_pattern(hdg, ref, n, &r, ratio, &r.warnings);
+        }
         /* Compass swing on the reference rows, on the calibrated magnetic heading. */
         if (r.swing_requested) {
             rc = replay_swing_fit(hmag, refmag, r.ref_first, r.ref_end, c.fourier, &r, &sw);
@@ -861,6 +1026,9 @@ int main(int argc, char **argv)
                 heading_metrics(&r, ref != NULL ? ref : &k_nan, err_deg, flag, ref != NULL ? n : 0u);
             }
         }
+    }
+    if (!mode3d && !aided) {
+        replay_check_level(&d, fed, &c.cal.plane, vehicle, &r, &r.warnings);
     }
     /* truth flags of the dump (glitch on recorded dumps, outlier on synthetic ones) */
     {

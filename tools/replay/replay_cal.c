@@ -101,8 +101,43 @@ static void explain(magcal_status_t st, const magcal_calibrator_cfg_t *cfg,
     }
 }
 
+/* ---- What the report says the calibration is worth. These two read the library's report in
+ * ONE place each, so a change of magcal_cal_report_t (an honest estimate, an adoption-rule field)
+ * is re-wired here only. */
+
+/* Estimated heading error of the new calibration, degrees (calibrator.h, "Heading-error
+ * estimates"); NaN when the run did not get that far. */
+double replay_est_heading_err_deg(const magcal_cal_report_t *rep, magcal_status_t st)
+{
+    if (st != MAGCAL_OK && st != MAGCAL_ERR_NOT_BETTER) {
+        return NAN;
+    }
+    return (double)rep->est_heading_err_deg;
+}
+
+/* The rule that adopted the calibration or the stage that refused it. The replay always starts
+ * from MAGCAL_CAL2D_IDENTITY (radius 0, no usable current calibration), so a success is rule (a)
+ * of calibrator.h; a failure names the gate (its status). */
+const char *replay_adopt_rule(const magcal_cal_report_t *rep, magcal_status_t st)
+{
+    if (st == MAGCAL_OK && rep->adopted != 0u) {
+        return "a: no usable current calibration";
+    }
+    if (st == MAGCAL_ERR_NOT_BETTER) {
+        return "refused: not better than the current calibration";
+    }
+    return "refused by a gate (status)";
+}
+
 static int set_filter(const replay_options_t *o, magcal_calibrator_cfg_t *cfg)
 {
+    if (o->plain) {
+        /* The textbook baseline: no density filter and no residual stage, so run() fits every
+         * sample with one unweighted 5-parameter least-squares fit (calibrator.h, stage 4). */
+        cfg->filter = MAGCAL_FILTER_NONE;
+        cfg->use_consensus = 0u;
+        return 0;
+    }
     if (strcmp(o->filter, "optics") == 0) {
         cfg->filter = MAGCAL_FILTER_OPTICS_GRID;
     } else if (strcmp(o->filter, "optics-classic") == 0) {
@@ -225,6 +260,11 @@ int replay_calibrate(const replay_options_t *o, const magcal_replay_csv_t *d, si
     r->n_used = rep.used;
     r->n_outliers = rep.outliers;
     r->coverage_deg = rep.coverage_deg;
+    r->missing_start_deg = rep.missing_start_deg;
+    r->missing_width_deg = rep.missing_width_deg;
+    r->est_heading_err_deg = replay_est_heading_err_deg(&rep, st);
+    r->adopt_rule = replay_adopt_rule(&rep, st);
+    r->filter_eps_used = rep.filter_eps;
     if (st != MAGCAL_OK) {
         explain(st, &cfg, &rep, r->reason, sizeof r->reason);
         r->have_geometry = 0;
@@ -265,7 +305,6 @@ int replay_calibrate(const replay_options_t *o, const magcal_replay_csv_t *d, si
         r->angle_deg = a;
     }
     r->residual_rms = rep.residual_rms;
-    r->est_heading_err_deg = rep.est_heading_err_deg;
     return REPLAY_EXIT_OK;
 }
 

@@ -14,6 +14,7 @@ typedef struct {
     double eps;                  /* NaN = automatic */
     long min_pts;                /* 0 = automatic */
     magcal_replay_plane_t plane; /* dump axes -> library axes */
+    int plain;                   /* --no-consensus: filter none + cfg.use_consensus = 0 */
 } replay_options_t;
 
 typedef struct {
@@ -36,6 +37,13 @@ size_t replay_capacity(void);
  */
 int replay_calibrate(const replay_options_t *o, const magcal_replay_csv_t *d, size_t first,
                      size_t n_fed, size_t step, replay_report_t *r, replay_result_t *res);
+
+/** Estimated heading error (deg) of the run's calibration from the library's report (NaN when
+ *  the run stopped before the estimate). The one place that reads it. */
+double replay_est_heading_err_deg(const magcal_cal_report_t *rep, magcal_status_t st);
+
+/** The adoption rule that adopted the run's calibration, or what refused it (text). */
+const char *replay_adopt_rule(const magcal_cal_report_t *rep, magcal_status_t st);
 
 /** 1 when the last run's final fit judges raw as an outlier (0 when there is no fit). */
 int replay_classify(const replay_result_t *res, magcal_vec2_t raw);

@@ -2,10 +2,32 @@
 #include "replay_report.h"
 
 #include <math.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include <cjson/cJSON.h>
+
+/* ------------------------------------------------------------------ warnings */
+
+void replay_warn(replay_warnings_t *ws, const char *id, const char *fmt, ...)
+{
+    char text[sizeof ws->w[0].text];
+    va_list ap;
+    va_start(ap, fmt);
+    (void)vsnprintf(text, sizeof text, fmt, ap);
+    va_end(ap);
+    fprintf(stderr, "magcal-replay: warning: %s\n", text);
+    if (ws->n < REPLAY_MAX_WARNINGS) {
+        ws->w[ws->n].id = id;
+        memcpy(ws->w[ws->n].text, text, sizeof text);
+        ws->n++;
+    }
+}
+
+/* The field unit as printed: the given one, or "dump units". */
+static const char *unit_of(const replay_report_t *r) { return r->unit != NULL ? r->unit : "dump units"; }
 
 /* ------------------------------------------------------------------ JSON */
 
@@ -164,6 +186,11 @@ int replay_print_json(const replay_report_t *r)
     }
     cJSON_AddStringToObject(o, "plane", r->plane);
     cJSON_AddNumberToObject(o, "declination_deg", r->declination_deg);
+    cJSON_AddStringToObject(o, "field_unit", r->unit != NULL ? r->unit : "dump");
+    cJSON_AddStringToObject(o, "separator", r->sep == ';' ? ";" : r->sep == '\t' ? "tab" : ",");
+    if (r->mode[0] == '2') {
+        cJSON_AddStringToObject(o, "fit", r->fit != NULL ? r->fit : "consensus");
+    }
     cJSON_AddItemToObject(o, "cal_range", pair((double)r->cal_first, (double)r->cal_end));
     cJSON_AddNumberToObject(o, "n_rows", (double)r->n_rows);
     cJSON_AddNumberToObject(o, "n_cal", (double)r->n_cal);
@@ -179,7 +206,19 @@ int replay_print_json(const replay_report_t *r)
         cJSON_AddNumberToObject(o, "n_outlier_rows", (double)r->n_outlier_rows);
     }
     if (r->mode[0] == '2') {
+        cJSON *ms = cJSON_CreateObject();
         cJSON_AddNumberToObject(o, "coverage_deg", sig7(r->coverage_deg));
+        cJSON_AddNumberToObject(ms, "start_deg", sig7(r->missing_start_deg));
+        cJSON_AddNumberToObject(ms, "width_deg", sig7(r->missing_width_deg));
+        cJSON_AddItemToObject(o, "missing_sector", ms);
+        if (isfinite(r->est_heading_err_deg)) {
+            cJSON_AddNumberToObject(o, "est_heading_err_deg", sig7(r->est_heading_err_deg));
+        } else {
+            cJSON_AddNullToObject(o, "est_heading_err_deg");
+        }
+        if (r->adopt_rule != NULL) {
+            cJSON_AddStringToObject(o, "adopt_rule", r->adopt_rule);
+        }
     } else if (r->mode[0] == '3') {
         cJSON_AddNumberToObject(o, "coverage", sig7(r->coverage3));
     }
@@ -264,6 +303,16 @@ int replay_print_json(const replay_report_t *r)
         cJSON_AddItemToObject(o, "heading_rms_by_ref", arr);
         cJSON_AddStringToObject(o, "heading_by_ref_grouping", r->by_ref_sectors ? "sector45" : "exact");
     }
+    {
+        cJSON *wa = cJSON_CreateArray();
+        for (g = 0u; g < r->warnings.n; ++g) {
+            cJSON *it = cJSON_CreateObject();
+            cJSON_AddStringToObject(it, "id", r->warnings.w[g].id);
+            cJSON_AddStringToObject(it, "text", r->warnings.w[g].text);
+            cJSON_AddItemToArray(wa, it);
+        }
+        cJSON_AddItemToObject(o, "warnings", wa);
+    }
     text = cJSON_PrintUnformatted(o);
     cJSON_Delete(o);
     if (text == NULL) {
@@ -303,11 +352,11 @@ static void print_tilt(const replay_report_t *r)
 
 static void print_3d(const replay_report_t *r)
 {
-    printf("  offset V          (%.6g, %.6g, %.6g) dump units\n", r->off3[0], r->off3[1], r->off3[2]);
+    printf("  offset V          (%.6g, %.6g, %.6g) %s\n", r->off3[0], r->off3[1], r->off3[2], unit_of(r));
     printf("  matrix G          [%.6g %.6g %.6g; %.6g %.6g %.6g; %.6g %.6g %.6g]  h = G (m - V)\n",
            r->mat3[0][0], r->mat3[0][1], r->mat3[0][2], r->mat3[1][0], r->mat3[1][1], r->mat3[1][2],
            r->mat3[2][0], r->mat3[2][1], r->mat3[2][2]);
-    printf("  field F           %.6g\n", r->field3);
+    printf("  field F           %.6g %s\n", r->field3, unit_of(r));
     if (r->mode[0] == '3') {
         if (isfinite(r->eps3)) {
             printf("  density stage     3-D OPTICS (%s): eps %.6g, eps' %.6g, MinPts %ld: %lu rejected; residual gate: %lu\n",
@@ -370,9 +419,20 @@ static void print_swing(const replay_report_t *r)
     }
 }
 
+static void print_body(const replay_report_t *r);
+
 void replay_print_table(const replay_report_t *r)
 {
-    printf("magcal-replay %s (mode %s)\n", r->file, r->mode);
+    size_t k;
+    print_body(r);
+    for (k = 0u; k < r->warnings.n; ++k) {
+        printf("  warning           %s\n", r->warnings.w[k].text);
+    }
+}
+
+static void print_body(const replay_report_t *r)
+{
+    printf("magcal-replay %s (mode %s; field unit %s)\n", r->file, r->mode, unit_of(r));
     printf("  status            %s%s%s\n", r->status, r->reason[0] ? ": " : "", r->reason);
     printf("  rows              %lu; calibration rows [%lu, %lu) = %lu", (unsigned long)r->n_rows,
            (unsigned long)r->cal_first, (unsigned long)r->cal_end, (unsigned long)r->n_cal);
@@ -451,14 +511,21 @@ static void print_2d(const replay_report_t *r)
                (unsigned long)r->truth_flagged, r->truth_column, (unsigned long)r->truth_detected,
                (unsigned long)r->truth_missed, (unsigned long)r->false_alarms);
     }
-    printf("  arc coverage      %.0f deg\n", r->coverage_deg);
-    printf("  hard-iron centre  (%.6g, %.6g) dump units\n", r->center[0], r->center[1]);
+    printf("  arc coverage      %.0f deg", r->coverage_deg);
+    if (r->missing_width_deg > 0.0) {
+        printf("; largest gap %.0f deg from heading %.0f deg", r->missing_width_deg, r->missing_start_deg);
+    }
+    printf("\n");
+    printf("  est. heading err  %.3g deg (the library's estimate; needs no reference)\n", r->est_heading_err_deg);
+    printf("  fit, adoption     %s fit; adopted by rule %s\n", r->fit != NULL ? r->fit : "consensus",
+           r->adopt_rule != NULL ? r->adopt_rule : "?");
+    printf("  hard-iron centre  (%.6g, %.6g) %s\n", r->center[0], r->center[1], unit_of(r));
     printf("  ellipse           semi-axes %.6g / %.6g, major axis at %.1f deg (ccw from +x)\n",
            r->semi_axes[0], r->semi_axes[1], r->angle_deg);
     printf("  correction M      [%.6g %.6g; %.6g %.6g]  h = M (raw - centre)\n", r->correction[0][0],
            r->correction[0][1], r->correction[1][0], r->correction[1][1]);
-    printf("  radius            %.6g dump units (corrected field magnitude)\n", r->radius);
-    printf("  residual RMS      %.6g dump units (%.2f %% of radius)\n", r->residual_rms,
+    printf("  radius            %.6g %s (corrected field magnitude)\n", r->radius, unit_of(r));
+    printf("  residual RMS      %.6g %s (%.2f %% of radius)\n", r->residual_rms, unit_of(r),
            r->radius > 0.0 ? 100.0 * r->residual_rms / r->radius : NAN);
     printf("  radius spread     raw %.2f %% -> corrected %.2f %% over the samples used (std/mean; %.1fx smaller)\n",
            100.0 * r->spread_raw, 100.0 * r->spread_corrected,

@@ -36,6 +36,20 @@ enum {
     REPLAY_TILT_COUNT
 };
 
+/** Most warnings one report carries. */
+#define REPLAY_MAX_WARNINGS 16u
+
+typedef struct {
+    const char *id;  /* stable key, e.g. "ref_radians" (docs/replay.md "Warnings") */
+    char text[480];  /* what looks wrong, the numbers, and the fix */
+} replay_warning_t;
+
+/** Warnings of a report (kept apart from replay_report_t so it can be cleared in one go). */
+typedef struct {
+    size_t n;
+    replay_warning_t w[REPLAY_MAX_WARNINGS];
+} replay_warnings_t;
+
 /** Most coefficients a reported swing / Fourier model has. */
 #define REPLAY_MAX_SWING_COEF 12u
 
@@ -59,6 +73,13 @@ typedef struct {
     size_t capacity;
     /* geometry (dump units) */
     double coverage_deg;
+    double missing_start_deg, missing_width_deg; /* 2d: largest uncovered sector (width 0: none) */
+    double est_heading_err_deg;  /* 2d: the library's estimate of the heading error; NaN = none */
+    const char *adopt_rule;      /* 2d: the rule that adopted, or what refused */
+    const char *fit;             /* 2d: "consensus" (default) | "plain" (--no-consensus) */
+    double filter_eps_used;      /* 2d: eps' the density filter used (0: no filter) */
+    const char *unit;            /* field unit of the report: "uT" | "nT" | "gauss" | NULL = dump units */
+    char sep;                    /* the dump's field separator */
     double center[2];
     double correction[2][2];
     double ell_center[2];
@@ -66,7 +87,6 @@ typedef struct {
     double angle_deg;    /* direction of the major axis, ccw from +x, (-90, 90] */
     double radius;
     double residual_rms;
-    double est_heading_err_deg; /* 2d: the calibrator's heading-error estimate (--export-record) */
     double spread_raw;       /* std/mean of |raw| (from the origin) over the samples used */
     double spread_raw_all;   /* the same over every fed calibration sample, outliers included */
     double spread_corrected; /* std/mean of |M (raw - centre)| over the samples used */
@@ -142,7 +162,17 @@ typedef struct {
     const char *geomag_model;     /* aided: "WMM2025" | "IGRF-14" (--model) */
     double resid_f_rms_aided;     /* a-priori total-field residual RMS of the last window */
     size_t n_total_field;         /* accepted epochs whose total-field residual entered the objective */
+
+    /* ---- plausibility warnings (replay_checks.c) */
+    replay_warnings_t warnings;
 } replay_report_t;
+
+/** Add a warning (printf format) and print it on stderr ("magcal-replay: warning: ..."). */
+void replay_warn(replay_warnings_t *ws, const char *id, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 3, 4)))
+#endif
+    ;
 
 /** Print the report as a readable table. */
 void replay_print_table(const replay_report_t *r);

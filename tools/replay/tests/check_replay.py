@@ -239,8 +239,12 @@ def case_usage(a):
         check("usage: magcal-replay" in p.stderr, "%r: no usage text" % args)
     p = run(a, ["--help"], 0)
     check("--cal-range" in p.stdout, "--help text")
-    p = run(a, ["--cal-range", "5", dump], 2)
+    # a malformed range is a usage error (exit 1, before the dump is read); one that does not fit
+    # the dump is an input error (exit 2)
+    p = run(a, ["--cal-range", "5", dump], 1)
     check("--cal-range must be A:B" in p.stderr, "cal-range syntax: %r" % p.stderr)
+    p = run(a, ["--cal-range", "0:5000", dump], 2)
+    check("beyond the dump" in p.stderr, "cal-range beyond the dump: %r" % p.stderr)
 
 
 def case_plane_xz(a):
