@@ -116,11 +116,15 @@ magcal_status_t magcal_aided_dcm(float roll_rad, float pitch_rad, float yaw_rad,
     return MAGCAL_OK;
 }
 
-magcal_status_t magcal_aided_init(magcal_aided_t *inst, const magcal_aided_cfg_t *cfg)
+magcal_status_t magcal_aided_init_checked(magcal_aided_t *inst, const magcal_aided_cfg_t *cfg,
+                                          uint32_t config, size_t inst_size)
 {
     size_t i;
     size_t j;
     float g0[3][3];
+    if (magcal_config_check_fingerprint(config) != MAGCAL_OK || inst_size != sizeof *inst) {
+        return MAGCAL_ERR_CONFIG_MISMATCH; /* caller's struct layout is not ours: write nothing */
+    }
     if (inst == NULL || cfg == NULL) {
         return MAGCAL_ERR_NULL;
     }

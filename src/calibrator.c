@@ -183,18 +183,24 @@ static void cal_update_state(magcal_calibrator_t *cal)
 
 /* ------------------------------------------------------------------ lifecycle */
 
-magcal_status_t magcal_calibrator_init(magcal_calibrator_t *cal, const magcal_calibrator_cfg_t *cfg,
-                                       magcal_vec2_t *sample_buf, size_t capacity, void *work,
-                                       size_t work_len)
+magcal_status_t magcal_calibrator_init_checked(magcal_calibrator_t *cal, const magcal_calibrator_cfg_t *cfg,
+                                               magcal_vec2_t *sample_buf, size_t capacity, void *work,
+                                               size_t work_len, uint32_t config, size_t inst_size)
 {
     magcal_status_t st;
     uint8_t *w;
     size_t masks;
+    if (magcal_config_check_fingerprint(config) != MAGCAL_OK || inst_size != sizeof *cal) {
+        return MAGCAL_ERR_CONFIG_MISMATCH; /* caller's struct layout is not ours: write nothing */
+    }
     if (cal == NULL || cfg == NULL || sample_buf == NULL || work == NULL) {
         return MAGCAL_ERR_NULL;
     }
-    if (capacity < 16u || capacity > MAGCAL_MAX_SAMPLES || magcal_misalign(work, 4u) != 0u) {
+    if (capacity < 16u || capacity > MAGCAL_MAX_SAMPLES) {
         return MAGCAL_ERR_ARG;
+    }
+    if (magcal_misalign(work, 4u) != 0u) {
+        return MAGCAL_ERR_ALIGNMENT;
     }
     st = cal_check_cfg(cfg);
     if (st != MAGCAL_OK) {
@@ -1152,7 +1158,7 @@ const char *magcal_adopt_rule_str(magcal_adopt_rule_t rule)
 
 magcal_calibrator_state_t magcal_calibrator_state(const magcal_calibrator_t *cal)
 {
-    return cal_ok(cal) ? cal->state : MAGCAL_CALIBRATOR_FAILED;
+    return cal_ok(cal) ? cal->state : MAGCAL_CALIBRATOR_INVALID;
 }
 
 magcal_status_t magcal_calibrator_last_status(const magcal_calibrator_t *cal)

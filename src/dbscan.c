@@ -48,8 +48,11 @@ magcal_status_t magcal_dbscan_run(const magcal_dbscan_cfg_t *cfg, const magcal_v
     if (magcal_nbr_eps_ok(cfg->eps) == 0 || cfg->min_pts < 2u ||
         cfg->min_pts > MAGCAL_MAX_MIN_PTS ||
         (cfg->neighbors != MAGCAL_NEIGHBORS_BRUTE && cfg->neighbors != MAGCAL_NEIGHBORS_GRID) ||
-        magcal_misalign(work, 4u) != 0u || n > MAGCAL_MAX_SAMPLES) {
+        n > MAGCAL_MAX_SAMPLES) {
         return MAGCAL_ERR_ARG;
+    }
+    if (magcal_misalign(work, 4u) != 0u) {
+        return MAGCAL_ERR_ALIGNMENT;
     }
     if (n < cfg->min_pts) {
         return MAGCAL_ERR_TOO_FEW_POINTS;

@@ -233,7 +233,7 @@ magcal_status_t magcal_optics_run(const magcal_optics_cfg_t *cfg, const magcal_v
         return st;
     }
     if (magcal_misalign(work, 4u) != 0u) {
-        return MAGCAL_ERR_ARG;
+        return MAGCAL_ERR_ALIGNMENT;
     }
     st = check_points(pts, n, cfg->min_pts);
     if (st != MAGCAL_OK) {
@@ -302,8 +302,11 @@ magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, v
     if (labels == NULL || work == NULL || inlier_mask == NULL) {
         return MAGCAL_ERR_NULL;
     }
-    if (n == 0u || n > MAGCAL_MAX_SAMPLES || magcal_misalign(work, 2u) != 0u) {
+    if (n == 0u || n > MAGCAL_MAX_SAMPLES) {
         return MAGCAL_ERR_ARG;
+    }
+    if (magcal_misalign(work, 2u) != 0u) {
+        return MAGCAL_ERR_ALIGNMENT;
     }
     if (work_len < MAGCAL_OPTICS_LARGEST_WORKSPACE_LEN(n)) {
         return MAGCAL_ERR_WORKSPACE;
@@ -599,7 +602,7 @@ magcal_status_t magcal_optics_auto_params(const magcal_vec2_t *pts, size_t n, vo
         return MAGCAL_ERR_NULL;
     }
     if (magcal_misalign(work, 4u) != 0u) {
-        return MAGCAL_ERR_ARG;
+        return MAGCAL_ERR_ALIGNMENT;
     }
     st = check_points(pts, n, AUTO_MIN_N);
     if (st != MAGCAL_OK) {
@@ -634,7 +637,7 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
         return MAGCAL_ERR_NULL;
     }
     if (magcal_misalign(work, 4u) != 0u) {
-        return MAGCAL_ERR_ARG;
+        return MAGCAL_ERR_ALIGNMENT;
     }
     use = *cfg;
     if (!(cfg->eps > 0.0f)) {

@@ -409,7 +409,7 @@ magcal_status_t magcal_optics_run3(const magcal_optics_cfg_t *cfg, const magcal_
         return st;
     }
     if (magcal_misalign(work, 4u) != 0u) {
-        return MAGCAL_ERR_ARG;
+        return MAGCAL_ERR_ALIGNMENT;
     }
     st = check_points3(pts, n, cfg->min_pts);
     if (st != MAGCAL_OK) {
@@ -622,7 +622,7 @@ magcal_status_t magcal_optics_auto_params3(const magcal_vec3_t *pts, size_t n, v
         return MAGCAL_ERR_NULL;
     }
     if (magcal_misalign(work, 4u) != 0u) {
-        return MAGCAL_ERR_ARG;
+        return MAGCAL_ERR_ALIGNMENT;
     }
     st = check_points3(pts, n, AUTO3_MIN_N);
     if (st != MAGCAL_OK) {
@@ -654,7 +654,7 @@ magcal_status_t magcal_optics_filter3(const magcal_optics_cfg_t *cfg, const magc
         return MAGCAL_ERR_NULL;
     }
     if (magcal_misalign(work, 4u) != 0u) {
-        return MAGCAL_ERR_ARG;
+        return MAGCAL_ERR_ALIGNMENT;
     }
     use = *cfg;
     if (!(cfg->eps > 0.0f)) {

@@ -49,3 +49,11 @@ const char *magcal_status_str(magcal_status_t status)
     default: return "unknown";
     }
 }
+
+int magcal_status_is_outcome(magcal_status_t status)
+{
+    return (status == MAGCAL_OK || status == MAGCAL_ERR_NOT_BETTER || status == MAGCAL_ERR_GATED ||
+            status == MAGCAL_ERR_NO_DATA || status == MAGCAL_ERR_NOT_CONVERGED)
+               ? 1
+               : 0;
+}

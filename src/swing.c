@@ -375,9 +375,13 @@ static void swing_cog_close_leg(magcal_swing_cog_t *acc)
     swing_cog_reset_leg(acc);
 }
 
-magcal_status_t magcal_swing_cog_init(magcal_swing_cog_t *acc, const magcal_swing_cog_cfg_t *cfg)
+magcal_status_t magcal_swing_cog_init_checked(magcal_swing_cog_t *acc, const magcal_swing_cog_cfg_t *cfg,
+                                              uint32_t config, size_t inst_size)
 {
     magcal_status_t st;
+    if (magcal_config_check_fingerprint(config) != MAGCAL_OK || inst_size != sizeof *acc) {
+        return MAGCAL_ERR_CONFIG_MISMATCH; /* caller's struct layout is not ours: write nothing */
+    }
     if (acc == NULL || cfg == NULL) {
         return MAGCAL_ERR_NULL;
     }

@@ -447,7 +447,7 @@ static void test_init_bad_cfg_returns_arg(void)
     magcal_calibrator_cfg_t cfg = MAGCAL_CALIBRATOR_CFG_DEFAULT;
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_calibrator_init(NULL, &cfg, g_buf, CAP, g_work, sizeof g_work));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP + 1u, g_work, sizeof g_work));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ALIGNMENT,
                           magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, (uint8_t *)g_work + 1, sizeof g_work - 4u));
     cfg.min_samples = 4u;
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));

@@ -267,7 +267,7 @@ static void test_dbscan_run_bad_input_returns_status(void)
                           magcal_dbscan_run(&c, g_pts, 50u, g_work, len - 1u, g_lab_b, NULL, NULL));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE,
                           magcal_dbscan_run(&c, g_pts, 51u, g_work, len, g_lab_b, NULL, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_dbscan_run(&c, g_pts, 50u, (uint8_t *)g_work + 2,
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ALIGNMENT, magcal_dbscan_run(&c, g_pts, 50u, (uint8_t *)g_work + 2,
                                                             len, g_lab_b, NULL, NULL));
     c.min_pts = 1u;
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,

@@ -385,7 +385,7 @@ static void test_optics_run_bad_input_returns_status_and_leaves_outputs(void)
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
                           magcal_optics_run(&c, g_pts, MAGCAL_MAX_SAMPLES + 1u, g_work,
                                             sizeof g_work, o, r, k, NULL, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_run(&c, g_pts, 50u, (uint8_t *)g_work + 2,
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ALIGNMENT, magcal_optics_run(&c, g_pts, 50u, (uint8_t *)g_work + 2,
                                                             len, o, r, k, NULL, NULL));
     c.eps = 0.0f;
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
@@ -559,7 +559,7 @@ static void test_optics_filter_bad_input_returns_status(void)
         TEST_ASSERT_EQUAL_INT(
             MAGCAL_ERR_NULL,
             magcal_optics_auto_params(g_pts, 100u, g_work, sizeof g_work, NULL, &mp, &ep));
-        TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+        TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ALIGNMENT,
                               magcal_optics_auto_params(g_pts, 100u, (uint8_t *)g_work + 1,
                                                         sizeof g_work - 4u, &e, &mp, &ep));
     }

@@ -785,7 +785,7 @@ static void test_optics_run3_bad_input_returns_specific_status(void)
     bad = cfg;
     bad.neighbors = (magcal_neighbors_t)2;
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, run3_with(&bad, g_pts, n, g_work, wl));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, run3_with(&cfg, g_pts, n, w1, wl));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ALIGNMENT, run3_with(&cfg, g_pts, n, w1, wl));
     /* counts: n < min_pts, n > MAGCAL_MAX_SAMPLES (uint16 indices) */
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, run3_with(&cfg, g_pts, 3u, g_work, wl));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, run3_with(&cfg, g_pts, 0u, g_work, wl));
@@ -829,7 +829,7 @@ static void test_optics_filter3_and_auto_bad_input_returns_specific_status(void)
                           magcal_optics_filter3(&cfg, g_pts, n, NULL, wl, g_mask, &info));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
                           magcal_optics_filter3(&cfg, g_pts, n, g_work, wl, NULL, &info));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ALIGNMENT,
                           magcal_optics_filter3(&cfg, g_pts, n, w1, wl, g_mask, &info));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS,
                           magcal_optics_filter3(&cfg, g_pts, 15u, g_work, wl, g_mask, &info));
@@ -895,7 +895,7 @@ static void test_optics_filter3_and_auto_bad_input_returns_specific_status(void)
                           magcal_optics_auto_params3(g_pts, n, g_work, wl, &e, NULL, &ep));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
                           magcal_optics_auto_params3(g_pts, n, g_work, wl, &e, &mp, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ALIGNMENT,
                           magcal_optics_auto_params3(g_pts, n, w1, wl, &e, &mp, &ep));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS,
                           magcal_optics_auto_params3(g_pts, 15u, g_work, wl, &e, &mp, &ep));

@@ -5,25 +5,7 @@
 # docs/decisions/0004-on-target-tests-qemu.md.
 include_guard(GLOBAL)
 
-find_program(MAGCAL_QEMU_ARM qemu-system-arm REQUIRED)
-find_program(MAGCAL_TIMEOUT timeout REQUIRED)
-set(MAGCAL_TARGET_MACHINE "mps2-an386" CACHE STRING "QEMU machine for the on-target tests")
-set(MAGCAL_TARGET_TIMEOUT_S 120 CACHE STRING "Wall-clock limit (s) of one on-target test run")
-
-set(_tdir ${CMAKE_CURRENT_LIST_DIR})
-add_library(magcal_target_rt OBJECT ${_tdir}/startup_mps2_an386.c)
-set_target_properties(magcal_target_rt PROPERTIES C_STANDARD 99 C_EXTENSIONS OFF)
-target_compile_options(magcal_target_rt PRIVATE ${MAGCAL_WARNINGS})
-# Linking this OBJECT library adds the start-up object; its usage requirements add our linker script, newlib + rdimon
-# (semihosting stdio), and the _exit wrapper that reports the real exit status to QEMU.
-target_link_options(magcal_target_rt INTERFACE
-    -T${_tdir}/mps2_an386.ld -nostartfiles --specs=rdimon.specs -Wl,--wrap=_exit)
-
-# The QEMU command line (toolchain.md): -display none, not -nographic (which exits 1 with stdin
-# closed, as in CI); `timeout` turns a hang into a failure.
-set(MAGCAL_TARGET_RUN ${MAGCAL_TIMEOUT} ${MAGCAL_TARGET_TIMEOUT_S} ${MAGCAL_QEMU_ARM}
-    -M ${MAGCAL_TARGET_MACHINE} -display none -monitor none -serial null
-    -semihosting-config enable=on,target=native -kernel)
+include(${CMAKE_CURRENT_LIST_DIR}/MagcalTargetRuntime.cmake)
 
 # out_var <- TRUE when tests/<src> can run on the target. Excluded: test_shared_* (read
 # ../shared files), *replay* (load CSV files), test_mock_* (CMock is host-only), and any test
@@ -44,11 +26,7 @@ endfunction()
 
 # Make executable `name` a target image and register it as CTest test `name` (label `target`).
 function(magcal_target_add_test name)
-    target_link_libraries(${name} PRIVATE magcal_target_rt)
-    target_link_options(${name} PRIVATE -Wl,-Map=$<TARGET_FILE:${name}>.map)
-    set_target_properties(${name} PROPERTIES SUFFIX ".elf")
-    add_test(NAME ${name} COMMAND ${MAGCAL_TARGET_RUN} $<TARGET_FILE:${name}>)
-    set_tests_properties(${name} PROPERTIES LABELS target TIMEOUT 300)
+    magcal_target_add_qemu_test(${name})
     if(name MATCHES "^test_xcheck")
         magcal_target_add_xcheck(${name})
     endif()

@@ -59,6 +59,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "magcal/config.h"
 #include "magcal/ellipsoid.h"
 #include "magcal/status.h"
 #include "magcal/types.h"
@@ -191,10 +192,16 @@ typedef struct {
  * @brief Initialise an instance (validates and copies the configuration).
  * @param[out] inst instance.
  * @param[in]  cfg  configuration (MAGCAL_AIDED_CFG_DEFAULT).
- * @return MAGCAL_OK, MAGCAL_ERR_NULL, MAGCAL_ERR_ARG (a value out of its documented range, or a
- *         singular prior G0), MAGCAL_ERR_NONFINITE (non-finite prior).
+ * magcal_aided_init() is a macro passing the caller's MAGCAL_CONFIG_FINGERPRINT and
+ * sizeof(magcal_aided_t) to magcal_aided_init_checked() (config.h).
+ * @return MAGCAL_OK, MAGCAL_ERR_CONFIG_MISMATCH (caller compiled with other config.h limits or
+ *         another magcal_aided_t layout: nothing written), MAGCAL_ERR_NULL, MAGCAL_ERR_ARG (a value
+ *         out of its documented range, or a singular prior G0), MAGCAL_ERR_NONFINITE (non-finite prior).
  */
-magcal_status_t magcal_aided_init(magcal_aided_t *inst, const magcal_aided_cfg_t *cfg);
+magcal_status_t magcal_aided_init_checked(magcal_aided_t *inst, const magcal_aided_cfg_t *cfg,
+                                          uint32_t config, size_t inst_size);
+#define magcal_aided_init(inst, cfg)                                                               \
+    magcal_aided_init_checked((inst), (cfg), MAGCAL_CONFIG_FINGERPRINT, sizeof(magcal_aided_t))
 
 /**
  * @brief Offer one epoch: gate it, and if accepted update the estimate (bounded work).

@@ -81,7 +81,7 @@
  * #define CAP 512u
  * static magcal_calibrator_t cal;
  * static magcal_vec2_t buf[CAP];
- * static uint32_t work[(MAGCAL_CALIBRATOR_WORKSPACE_LEN(CAP) + 3u) / 4u];
+ * static MAGCAL_CALIBRATOR_WORKSPACE_DECLARE(work, CAP);  // aligned, >= the size macro
  * static magcal_cal2d_t stored = MAGCAL_CAL2D_IDENTITY;    // or restored from flash
  *
  * void calibration_task(void)
@@ -160,6 +160,10 @@ extern "C" {
              MAGCAL_CALIBRATOR_MAX_(MAGCAL_DBSCAN_WORKSPACE_LEN(cap),                              \
                                     MAGCAL_OPTICS_LARGEST_WORKSPACE_LEN(cap))))
 
+/** Declare `name` as a correctly aligned workspace for a calibrator of capacity `cap` (config.h). */
+#define MAGCAL_CALIBRATOR_WORKSPACE_DECLARE(name, cap)                                             \
+    MAGCAL_WORKSPACE_DECLARE(name, MAGCAL_CALIBRATOR_WORKSPACE_LEN(cap))
+
 /** Private: value of magcal_calibrator_t::magic in an initialised instance ("MCAL"). */
 #define MAGCAL_CALIBRATOR_MAGIC 0x4D43414Cu
 
@@ -181,7 +185,8 @@ typedef enum {
     MAGCAL_CALIBRATOR_COLLECTING = 0, /**< collecting; coverage not complete yet */
     MAGCAL_CALIBRATOR_READY = 1,      /**< coverage >= cfg.min_coverage_deg and >= min_samples: run() */
     MAGCAL_CALIBRATOR_CALIBRATED = 2, /**< last run() adopted a calibration */
-    MAGCAL_CALIBRATOR_FAILED = 3      /**< last run() failed or kept the old one; see last status */
+    MAGCAL_CALIBRATOR_FAILED = 3,     /**< last run() failed or kept the old one; see last status */
+    MAGCAL_CALIBRATOR_INVALID = 4     /**< not a calibrator: NULL, never initialised, or corrupted */
 } magcal_calibrator_state_t;
 
 /** Runtime configuration (copied at init; validated there). */
@@ -315,18 +320,28 @@ typedef struct {
  * @param[in]  cfg        configuration (copied); MAGCAL_CALIBRATOR_CFG_DEFAULT works untuned.
  * @param[in]  sample_buf buffer of `capacity` samples owned by the caller.
  * @param[in]  capacity   16..MAGCAL_MAX_SAMPLES.
- * @param[in]  work       workspace, 4-byte aligned, >= MAGCAL_CALIBRATOR_WORKSPACE_LEN(capacity).
+ * @param[in]  work       workspace, 4-byte aligned, >= MAGCAL_CALIBRATOR_WORKSPACE_LEN(capacity):
+ *                        declare it with MAGCAL_CALIBRATOR_WORKSPACE_DECLARE(work, capacity).
  * @param[in]  work_len   bytes at work.
- * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_ARG (capacity out of range, misaligned work, a cfg
+ *
+ * magcal_calibrator_init() is a macro: it passes the caller's MAGCAL_CONFIG_FINGERPRINT and
+ * sizeof(magcal_calibrator_t) to magcal_calibrator_init_checked(), which refuses a caller compiled
+ * with other limits (config.h) before writing anything.
+ * @return MAGCAL_OK; MAGCAL_ERR_CONFIG_MISMATCH (caller compiled with other config.h limits than
+ *         the library: its magcal_calibrator_t has another layout); MAGCAL_ERR_NULL;
+ *         MAGCAL_ERR_ALIGNMENT (work not 4-byte aligned); MAGCAL_ERR_ARG (capacity out of range, a cfg
  *         value out of range: filter enum, eps < 0 or NaN, min_pts 1 or > MAGCAL_MAX_MIN_PTS,
  *         consensus settings, min_samples < 5, coverage outside 0..360, fractions outside 0..1,
  *         radius limits < 0 or min > max, form enum, max_param_err_ratio <= 0, max_design_factor
  *         < 1, min_samples > capacity); MAGCAL_ERR_NONFINITE (a non-finite
  *         cfg value); MAGCAL_ERR_WORKSPACE (work_len too small). cal untouched on failure.
  */
-magcal_status_t magcal_calibrator_init(magcal_calibrator_t *cal, const magcal_calibrator_cfg_t *cfg,
-                                       magcal_vec2_t *sample_buf, size_t capacity, void *work,
-                                       size_t work_len);
+magcal_status_t magcal_calibrator_init_checked(magcal_calibrator_t *cal, const magcal_calibrator_cfg_t *cfg,
+                                               magcal_vec2_t *sample_buf, size_t capacity, void *work,
+                                               size_t work_len, uint32_t config, size_t inst_size);
+#define magcal_calibrator_init(cal, cfg, sample_buf, capacity, work, work_len)                     \
+    magcal_calibrator_init_checked((cal), (cfg), (sample_buf), (capacity), (work), (work_len),     \
+                                   MAGCAL_CONFIG_FINGERPRINT, sizeof(magcal_calibrator_t))
 
 /** @brief Forget every sample and the last fit (state COLLECTING). @return MAGCAL_OK; MAGCAL_ERR_NULL;
  *  MAGCAL_ERR_NOT_INITIALISED. */
@@ -399,7 +414,7 @@ magcal_status_t magcal_calibrator_flags(const magcal_calibrator_t *cal, size_t i
  */
 magcal_status_t magcal_calibrator_classify(const magcal_calibrator_t *cal, magcal_vec2_t p, int *is_outlier);
 
-/** @brief Current state (MAGCAL_CALIBRATOR_FAILED also for a NULL or uninitialised cal). */
+/** @brief Current state; MAGCAL_CALIBRATOR_INVALID for a NULL, uninitialised or corrupted cal. */
 magcal_calibrator_state_t magcal_calibrator_state(const magcal_calibrator_t *cal);
 
 /**

@@ -5,12 +5,36 @@
  * Every value is a default under `#ifndef`: override it with `-D` on the compiler command line or
  * in a user config header named by `MAGCAL_USER_CONFIG` (e.g. `-DMAGCAL_USER_CONFIG=\"my_cfg.h\"`).
  * Sanity rules are checked with C99 static asserts at the end of this file.
+ *
+ * The library and every translation unit that uses it must agree on these values: the integer
+ * limits size public structs (magcal_calibrator_t, magcal_swing_cog_t) and the workspace size
+ * macros. Two guards (docs/integration.md "Build configuration"):
+ *  - an installed package (CMake find_package, pkg-config) defines MAGCAL_PACKAGE_CONFIG, which
+ *    includes the generated `magcal/config_build.h`: the values libmagcal.a was built with, and
+ *    an `#error` when a translation unit overrides one of them with another value;
+ *  - at run time every stateful init (magcal_calibrator_init, magcal_aided_init,
+ *    magcal_swing_cog_init) is a macro that passes MAGCAL_CONFIG_FINGERPRINT and the caller's
+ *    sizeof of the instance; the library compares them with its own and returns
+ *    MAGCAL_ERR_CONFIG_MISMATCH before writing anything. magcal_config_check() does the same
+ *    for firmware that uses only the stateless calls (whose work_len checks already refuse a
+ *    workspace smaller than the library's own size macro with MAGCAL_ERR_WORKSPACE).
+ * The floating-point tolerances below are used inside the library only: overriding one needs a
+ * rebuild of the library (the installed config_build.h records the values it was built with).
  */
 #ifndef MAGCAL_CONFIG_H
 #define MAGCAL_CONFIG_H
 
+#include <stddef.h>
+#include <stdint.h>
+
+#include "magcal/status.h"
+
 #ifdef MAGCAL_USER_CONFIG
 #include MAGCAL_USER_CONFIG
+#endif
+
+#ifdef MAGCAL_PACKAGE_CONFIG
+#include "magcal/config_build.h"
 #endif
 
 /** Largest number of samples a calibration buffer may hold (indices are uint16_t). */
@@ -102,6 +126,73 @@
 #else
 #define MAGCAL_NOINLINE
 #endif
+#endif
+
+/**
+ * Fingerprint of the integer limits above (FNV-1a style mix, 32 bits): equal in the library and
+ * in a caller exactly when they were compiled with the same values (up to a 2^-32 collision).
+ */
+#define MAGCAL_CONFIG_MIX_(h, v) ((uint32_t)(((uint32_t)(h) ^ (uint32_t)(v)) * 16777619u))
+#define MAGCAL_CONFIG_FINGERPRINT                                                                  \
+    MAGCAL_CONFIG_MIX_(                                                                            \
+        MAGCAL_CONFIG_MIX_(                                                                        \
+            MAGCAL_CONFIG_MIX_(                                                                    \
+                MAGCAL_CONFIG_MIX_(                                                                \
+                    MAGCAL_CONFIG_MIX_(MAGCAL_CONFIG_MIX_(MAGCAL_CONFIG_MIX_(2166136261u,          \
+                                                                             MAGCAL_MAX_SAMPLES),  \
+                                                          MAGCAL_MAX_MIN_PTS),                     \
+                                       MAGCAL_GRID_MAX_CELLS),                                     \
+                    MAGCAL_COVERAGE_BINS),                                                         \
+                MAGCAL_SWING_COG_BINS),                                                            \
+            MAGCAL_CONSENSUS_MAX_ITER),                                                            \
+        MAGCAL_CONSENSUS_MAX_REFINE)
+
+/**
+ * Alignment unit of every caller workspace: a workspace declared as an array of it is aligned for
+ * pointers, float and uint32_t, whatever the library carves out of it.
+ */
+typedef struct {
+    void *align_p;
+    float align_f;
+    uint32_t align_u;
+} magcal_workspace_t;
+
+/**
+ * Declare `name` as a workspace of at least `len` bytes (a size macro), correctly aligned; prefix
+ * with `static` as needed and pass `name, sizeof name`. Each module has its own helper built on it,
+ * e.g. MAGCAL_CALIBRATOR_WORKSPACE_DECLARE(work, CAP).
+ */
+#define MAGCAL_WORKSPACE_DECLARE(name, len)                                                        \
+    magcal_workspace_t(name)[((size_t)(len) + sizeof(magcal_workspace_t) - 1u) / sizeof(magcal_workspace_t)]
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/** @brief MAGCAL_CONFIG_FINGERPRINT as the library was compiled. */
+uint32_t magcal_config_fingerprint(void);
+
+/**
+ * @brief Check a caller's configuration fingerprint against the library's (use the macro
+ *        magcal_config_check(), which passes the caller's MAGCAL_CONFIG_FINGERPRINT).
+ * @return MAGCAL_OK; MAGCAL_ERR_CONFIG_MISMATCH (compiled with other limits than the library).
+ */
+magcal_status_t magcal_config_check_fingerprint(uint32_t caller_fingerprint);
+
+/** Boot-time check of this translation unit's configuration against the library's. */
+#define magcal_config_check() magcal_config_check_fingerprint(MAGCAL_CONFIG_FINGERPRINT)
+
+/**
+ * @brief Version of the library that is linked: MAGCAL_VERSION (magcal.h) of its build,
+ *        major * 10000 + minor * 100 + patch. Compare with the header's MAGCAL_VERSION.
+ */
+uint32_t magcal_version(void);
+
+/** @brief The linked library's version as "MAJOR.MINOR.PATCH" (static string). */
+const char *magcal_version_str(void);
+
+#ifdef __cplusplus
+}
 #endif
 
 /* C99 static assert without _Static_assert (negative array size on failure). */

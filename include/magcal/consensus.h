@@ -39,7 +39,7 @@
  * @code
  * static magcal_vec2_t pts[600];                // filled by the caller
  * static uint8_t cand[600], inl[600];           // cand: density filter output (optics.h)
- * static uint32_t work[(MAGCAL_CONSENSUS_WORKSPACE_LEN(600) + 3u) / 4u];
+ * static MAGCAL_CONSENSUS_WORKSPACE_DECLARE(work, 600);
  * magcal_consensus_cfg_t cfg = MAGCAL_CONSENSUS_CFG_DEFAULT;
  * magcal_consensus_result_t res;
  * magcal_status_t st = magcal_consensus_run(&cfg, pts, 600, cand, work, sizeof work, inl, &res);
@@ -78,6 +78,9 @@ extern "C" {
  */
 #define MAGCAL_CONSENSUS_WORKSPACE_LEN(n)                                                          \
     (((((size_t)(n) * 10u) + 3u + 4u) & ~(size_t)3u) + MAGCAL_CONSENSUS_STATE_LEN_)
+
+/** Declare `name` as a correctly aligned workspace of MAGCAL_CONSENSUS_WORKSPACE_LEN(n) bytes (config.h). */
+#define MAGCAL_CONSENSUS_WORKSPACE_DECLARE(name, n) MAGCAL_WORKSPACE_DECLARE(name, MAGCAL_CONSENSUS_WORKSPACE_LEN(n))
 
 /** Configuration of the consensus stage (validated by every call). */
 typedef struct {

@@ -14,7 +14,7 @@
  *
  * @code
  * static magcal_vec2_t pts[300];
- * static uint32_t work[(MAGCAL_DBSCAN_WORKSPACE_LEN(300) + 3u) / 4u];
+ * static MAGCAL_DBSCAN_WORKSPACE_DECLARE(work, 300);
  * static int16_t labels[300];
  * magcal_dbscan_cfg_t cfg = MAGCAL_DBSCAN_CFG_DEFAULT;
  * uint16_t n_clusters;
@@ -40,6 +40,9 @@ extern "C" {
 /** Workspace bytes for magcal_dbscan_run() on n points: queue uint16[n] + spatial index. */
 #define MAGCAL_DBSCAN_WORKSPACE_LEN(n)                                                             \
     ((2u * (size_t)(n) + MAGCAL_NEIGHBORS_WORKSPACE_LEN(n) + 3u) & ~(size_t)3u)
+
+/** Declare `name` as a correctly aligned workspace of MAGCAL_DBSCAN_WORKSPACE_LEN(n) bytes (config.h). */
+#define MAGCAL_DBSCAN_WORKSPACE_DECLARE(name, n) MAGCAL_WORKSPACE_DECLARE(name, MAGCAL_DBSCAN_WORKSPACE_LEN(n))
 
 /** DBSCAN configuration. */
 typedef struct {
@@ -67,7 +70,8 @@ typedef struct {
  * @return MAGCAL_OK; MAGCAL_ERR_NULL (cfg, pts, work or labels NULL); MAGCAL_ERR_ARG (eps not > 0,
  *         finite eps whose square is below FLT_MIN/1024 or overflows: eps < 3.4e-21 or eps > 1.8e19
  *         (use +INFINITY for "everything"),
- *         min_pts out of range, bad enum, misaligned work, n > MAGCAL_MAX_SAMPLES);
+ *         min_pts out of range, bad enum, n > MAGCAL_MAX_SAMPLES); MAGCAL_ERR_ALIGNMENT (work
+ *         not 4-byte aligned);
  *         MAGCAL_ERR_TOO_FEW_POINTS (n < min_pts); MAGCAL_ERR_NONFINITE; MAGCAL_ERR_WORKSPACE.
  *         labels untouched on failure.
  */

@@ -44,7 +44,7 @@
  *
  * @code
  * static magcal_vec2_t pts[512];                       // filled by the caller
- * static uint32_t work[(MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(512) + 3u) / 4u];
+ * static MAGCAL_OPTICS_FILTER_WORKSPACE_DECLARE(work, 512);
  * static uint8_t inlier[512];
  * magcal_optics_cfg_t cfg = MAGCAL_OPTICS_CFG_DEFAULT;  // eps = 0: automatic parameters
  * magcal_optics_result_t info;
@@ -136,6 +136,13 @@ typedef enum {
 /** Workspace bytes for magcal_optics_largest_cluster() on n labels (cluster counts, uint16[n]). */
 #define MAGCAL_OPTICS_LARGEST_WORKSPACE_LEN(n) ((2u * (size_t)(n) + 3u) & ~(size_t)3u)
 
+/** Declare `name` as a correctly aligned workspace of MAGCAL_OPTICS_WORKSPACE_LEN(n) bytes (config.h). */
+#define MAGCAL_OPTICS_WORKSPACE_DECLARE(name, n) MAGCAL_WORKSPACE_DECLARE(name, MAGCAL_OPTICS_WORKSPACE_LEN(n))
+/** Declare `name` as a correctly aligned workspace of MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n) bytes (config.h). */
+#define MAGCAL_OPTICS_FILTER_WORKSPACE_DECLARE(name, n) MAGCAL_WORKSPACE_DECLARE(name, MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n))
+/** Declare `name` as a correctly aligned workspace of MAGCAL_OPTICS_LARGEST_WORKSPACE_LEN(n) bytes (config.h). */
+#define MAGCAL_OPTICS_LARGEST_WORKSPACE_DECLARE(name, n) MAGCAL_WORKSPACE_DECLARE(name, MAGCAL_OPTICS_LARGEST_WORKSPACE_LEN(n))
+
 /** OPTICS configuration (validated by every call that takes it). */
 typedef struct {
     /** Neighbourhood radius eps > 0 (may be +INFINITY). magcal_optics_filter: eps <= 0 selects
@@ -193,8 +200,8 @@ typedef struct {
  * @return MAGCAL_OK; MAGCAL_ERR_NULL (cfg, pts, work, order, reach or core NULL);
  *         MAGCAL_ERR_ARG (eps not > 0 or NaN, finite eps whose square is below FLT_MIN/1024 or overflows,
  *         i.e. eps < 3.4e-21 or eps > 1.8e19 (use +INFINITY for "everything"), min_pts outside
- *         2..MAGCAL_MAX_MIN_PTS, bad enum,
- *         work not 4-byte aligned); MAGCAL_ERR_TOO_FEW_POINTS (n < min_pts);
+ *         2..MAGCAL_MAX_MIN_PTS, bad enum); MAGCAL_ERR_ALIGNMENT (work not 4-byte aligned);
+ *         MAGCAL_ERR_TOO_FEW_POINTS (n < min_pts);
  *         MAGCAL_ERR_ARG also for n > MAGCAL_MAX_SAMPLES; MAGCAL_ERR_NONFINITE (a NaN/Inf point);
  *         MAGCAL_ERR_WORKSPACE (work_len too small). Outputs are untouched on failure.
  */
@@ -230,7 +237,8 @@ magcal_status_t magcal_optics_extract_dbscan(const uint16_t *order, const float 
  * @param[out] inlier_mask n bytes: 1 for the points of the kept cluster, else 0.
  * @param[out] cluster_id optional (NULL): id of the kept cluster.
  * @param[out] count      optional (NULL): its size.
- * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_ARG (n = 0, a label < -1 or >= n, misaligned work);
+ * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_ARG (n = 0, a label < -1 or >= n);
+ *         MAGCAL_ERR_ALIGNMENT (work not 2-byte aligned);
  *         MAGCAL_ERR_ARG also for n > MAGCAL_MAX_SAMPLES; MAGCAL_ERR_WORKSPACE;
  *         MAGCAL_ERR_ALL_NOISE (no cluster). Outputs untouched on failure.
  */
@@ -247,7 +255,7 @@ magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, v
  * @param[out] eps        eps for the ordering (= eps').
  * @param[out] min_pts    MinPts (4).
  * @param[out] eps_prime  extraction radius.
- * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_ARG (misaligned work);
+ * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_ALIGNMENT (work not 4-byte aligned);
  *         MAGCAL_ERR_TOO_FEW_POINTS (n < 16); MAGCAL_ERR_ARG also for n > MAGCAL_MAX_SAMPLES;
  *         MAGCAL_ERR_NONFINITE; MAGCAL_ERR_WORKSPACE; MAGCAL_ERR_DEGENERATE (median radius 0 or
  *         fewer than 10 points in the ring band). Outputs untouched on failure.
@@ -317,7 +325,7 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
  *
  * @code
  * static magcal_vec3_t pts3[600];                      // filled by the caller
- * static uint32_t work3[(MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(600) + 3u) / 4u];
+ * static MAGCAL_OPTICS3_FILTER_WORKSPACE_DECLARE(work3, 600);
  * static uint8_t inlier3[600];
  * magcal_optics_cfg_t cfg3 = MAGCAL_OPTICS_CFG_DEFAULT; // eps = 0: automatic parameters
  * magcal_optics_result_t info3;
@@ -360,6 +368,11 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
 #define MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n)                                                     \
     (MAGCAL_OPTICS3_FILTER_RUN_OFFSET_(n) + MAGCAL_OPTICS3_WORKSPACE_LEN(n))
 
+/** Declare `name` as a correctly aligned workspace of MAGCAL_OPTICS3_WORKSPACE_LEN(n) bytes (config.h). */
+#define MAGCAL_OPTICS3_WORKSPACE_DECLARE(name, n) MAGCAL_WORKSPACE_DECLARE(name, MAGCAL_OPTICS3_WORKSPACE_LEN(n))
+/** Declare `name` as a correctly aligned workspace of MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n) bytes (config.h). */
+#define MAGCAL_OPTICS3_FILTER_WORKSPACE_DECLARE(name, n) MAGCAL_WORKSPACE_DECLARE(name, MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n))
+
 /**
  * @brief Run the OPTICS ordering loop on 3-D points (algorithms.md 4.1-4.2).
  * @param[in]  cfg       eps (> 0, may be +INF), min_pts, order, neighbors; eps_prime ignored.
@@ -374,8 +387,8 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
  * @param[out] info      optional (NULL): eps, min_pts and the neighbour search used.
  * @return MAGCAL_OK; MAGCAL_ERR_NULL (cfg, pts, work, order, reach or core NULL);
  *         MAGCAL_ERR_ARG (eps not > 0 or NaN, finite eps < 3.4e-21 or > 1.8e19 as in
- *         magcal_optics_run, min_pts outside 2..MAGCAL_MAX_MIN_PTS, bad enum, work not 4-byte
- *         aligned, n > MAGCAL_MAX_SAMPLES); MAGCAL_ERR_TOO_FEW_POINTS (n < min_pts);
+ *         magcal_optics_run, min_pts outside 2..MAGCAL_MAX_MIN_PTS, bad enum,
+ *         n > MAGCAL_MAX_SAMPLES); MAGCAL_ERR_ALIGNMENT (work not 4-byte aligned); MAGCAL_ERR_TOO_FEW_POINTS (n < min_pts);
  *         MAGCAL_ERR_NONFINITE (a NaN/Inf coordinate); MAGCAL_ERR_WORKSPACE (work_len too small).
  *         Outputs are untouched on failure.
  */
@@ -393,7 +406,8 @@ magcal_status_t magcal_optics_run3(const magcal_optics_cfg_t *cfg, const magcal_
  * @param[out] eps        eps for the ordering (= R, the robust shell radius).
  * @param[out] min_pts    MinPts (4).
  * @param[out] eps_prime  extraction radius (<= eps).
- * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_ARG (misaligned work, n > MAGCAL_MAX_SAMPLES);
+ * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_ARG (n > MAGCAL_MAX_SAMPLES);
+ *         MAGCAL_ERR_ALIGNMENT (work not 4-byte aligned);
  *         MAGCAL_ERR_TOO_FEW_POINTS (n < 16); MAGCAL_ERR_NONFINITE; MAGCAL_ERR_WORKSPACE;
  *         MAGCAL_ERR_DEGENERATE (median radius 0 or outside the eps range of magcal_optics_run3,
  *         or fewer than 10 points in the shell band).

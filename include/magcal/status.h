@@ -2,10 +2,22 @@
  * @file status.h
  * @brief Status codes shared by every magcal module.
  *
- * `MAGCAL_OK` is 0; every failure is a specific negative code whose value is stable across
+ * `MAGCAL_OK` is 0; every other result is a specific negative code whose value is stable across
  * releases (firmware may log or store it). Fallible functions return a status and write their
  * results through out-pointers; on failure they leave caller-owned results untouched unless the
  * function's documentation says otherwise.
+ *
+ * Convention for normal outcomes. Every non-OK code means "the result you asked for was not
+ * produced", but a few of them are expected outcomes of a working system, not faults of the
+ * caller, the data or the hardware; they keep the MAGCAL_ERR_ prefix (the values are stable and
+ * shared with released firmware) and magcal_status_is_outcome() tells them apart:
+ *  - MAGCAL_ERR_NOT_BETTER: the new calibration passed every gate and the adoption rule kept the
+ *    caller's (better or equally good) one: nothing to do, nothing to log as an error;
+ *  - MAGCAL_ERR_GATED: a sample or epoch adds no information (or is rejected by a documented gate):
+ *    not stored, keep feeding;
+ *  - MAGCAL_ERR_NO_DATA: the (replayed) data source is exhausted;
+ *  - MAGCAL_ERR_NOT_CONVERGED: an estimate is still converging (aided): ask again later.
+ * Every other negative code is a fault or a refusal the firmware should log and act on.
  */
 #ifndef MAGCAL_STATUS_H
 #define MAGCAL_STATUS_H
@@ -66,6 +78,13 @@ typedef enum {
  * @return pointer to a static string, never NULL.
  */
 const char *magcal_status_str(magcal_status_t status);
+
+/**
+ * @brief Is `status` MAGCAL_OK or one of the normal outcomes listed in the file comment
+ *        (NOT_BETTER, GATED, NO_DATA, NOT_CONVERGED)?
+ * @return 1 for those, 0 for every fault or refusal (and for unknown values).
+ */
+int magcal_status_is_outcome(magcal_status_t status);
 
 #ifdef __cplusplus
 }

@@ -234,9 +234,15 @@ typedef struct {
  * @brief Initialise the accumulator (all bins empty).
  * @param[out] acc  accumulator.
  * @param[in]  cfg  gates (copied); MAGCAL_SWING_COG_CFG_DEFAULT works without tuning.
- * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_ARG (cfg value out of range).
+ * magcal_swing_cog_init() is a macro passing the caller's MAGCAL_CONFIG_FINGERPRINT and
+ * sizeof(magcal_swing_cog_t) (which depends on MAGCAL_SWING_COG_BINS) to the checked function.
+ * @return MAGCAL_OK; MAGCAL_ERR_CONFIG_MISMATCH (caller compiled with other config.h limits:
+ *         nothing written); MAGCAL_ERR_NULL; MAGCAL_ERR_ARG (cfg value out of range).
  */
-magcal_status_t magcal_swing_cog_init(magcal_swing_cog_t *acc, const magcal_swing_cog_cfg_t *cfg);
+magcal_status_t magcal_swing_cog_init_checked(magcal_swing_cog_t *acc, const magcal_swing_cog_cfg_t *cfg,
+                                              uint32_t config, size_t inst_size);
+#define magcal_swing_cog_init(acc, cfg)                                                            \
+    magcal_swing_cog_init_checked((acc), (cfg), MAGCAL_CONFIG_FINGERPRINT, sizeof(magcal_swing_cog_t))
 
 /**
  * @brief Feed one epoch. Epochs that are slow or turning are rejected; a run of accepted epochs

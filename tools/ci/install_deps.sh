@@ -11,7 +11,7 @@ if [ "$(id -u)" != 0 ]; then SUDO="sudo"; fi
 base_pkgs=(build-essential cmake git ca-certificates dpkg-dev)
 full_pkgs=(gcc-arm-none-eabi libnewlib-arm-none-eabi binutils-arm-none-eabi
            qemu-system-arm valgrind cppcheck clang clang-tidy libclang-rt-14-dev
-           libcjson-dev ruby python3 python3-numpy python3-sklearn python3-matplotlib)
+           libcjson-dev pkgconf ruby python3 python3-numpy python3-sklearn python3-matplotlib)
 
 pkgs=("${base_pkgs[@]}")
 if [ "${1:-}" != "--minimal" ]; then pkgs+=("${full_pkgs[@]}"); fi
@@ -23,17 +23,10 @@ for p in "${pkgs[@]}"; do
   fi
 done
 
-# deb-src entries: Unity 2.4.3 ships inside Debian's cjson source package (tests/unity/).
-if ! grep -rqsE '^(Types:.*deb-src|deb-src )' /etc/apt/sources.list /etc/apt/sources.list.d/ 2>/dev/null; then
-  if [ -f /etc/apt/sources.list.d/debian.sources ]; then
-    $SUDO sed -i -E 's/^Types: deb$/Types: deb deb-src/' /etc/apt/sources.list.d/debian.sources
-  elif [ -f /etc/apt/sources.list ]; then
-    $SUDO sh -c "sed -n 's/^deb /deb-src /p' /etc/apt/sources.list >> /etc/apt/sources.list"
-  fi
-  NEED_UPDATE=1
-fi
+# No deb-src entry is added to the system: tools/get_debian_cjson.sh (Unity 2.4.3 and the cJSON
+# fallback, run by the configure step) derives its own from these sources in a private apt state.
 
-if [ ${#missing[@]} -gt 0 ] || [ -n "${NEED_UPDATE:-}" ]; then
+if [ ${#missing[@]} -gt 0 ]; then
   export DEBIAN_FRONTEND=noninteractive
   $SUDO apt-get update -qq
 fi

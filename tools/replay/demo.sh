@@ -16,6 +16,8 @@ stem=$(basename "$dump" .csv)
 "$bin" --json "${unit[@]}" --headings "$out/$stem.headings.csv" "$dump" > "$out/$stem.json"
 echo "report (JSON): $out/$stem.json"
 echo "per-row headings: $out/$stem.headings.csv"
+"$bin" --export-record "$out/$stem.rec" "$dump" > /dev/null
+echo "flash record (magcal/record.h, 96 bytes): $out/$stem.rec"
 if /usr/bin/python3 -c "import matplotlib" 2>/dev/null; then
   /usr/bin/python3 "$root/tools/plot_replay.py" "$dump" --headings "$out/$stem.headings.csv" \
       --report "$out/$stem.json" -o "$out/$stem.png"

@@ -21,6 +21,7 @@
 #include "replay_checks.h"
 #include "replay_csv.h"
 #include "replay_modes.h"
+#include "replay_record.h" /* --export-record (issue 15) */
 #include "replay_report.h"
 
 static const char k_usage[] =
@@ -51,6 +52,8 @@ static const char k_usage[] =
     "  --model M           aided: reference field model wmm2025 (default, 2025-2030) | igrf14 (1900-2030)\n"
     "  --prior FILE.json   aided: prior (factory) calibration: the JSON report of a --mode 3d or aided run\n"
     "                      (keys matrix, offset; dump units) (default: identity G, zero V)\n"
+    "  --export-record F   write the calibration's flash record (magcal/record.h, 96 bytes) to F\n"
+    "  --sensor-id ID      sensor id stored in that record (decimal or 0x hex; default 0)\n"
     "  -h, --help          this text\n"
     "exit status: 0 ok, 1 usage, 2 input error, 3 calibration failed, 4 output error, 5 internal error\n";
 
@@ -250,6 +253,8 @@ typedef struct {
     const char *prior_path;  /* aided: --prior, NULL = identity */
     const char *aided_objective; /* aided: --aided-objective, NULL = combined */
     const char *model;           /* aided: --model wmm2025 | igrf14, NULL = wmm2025 */
+    const char *record_path;     /* --export-record FILE (replay_record.c), NULL = none */
+    uint32_t sensor_id;          /* --sensor-id */
 } cli_t;
 
 /* Largest --eps accepted: the fits handle coordinates up to about 1e15 (ellipse.h). */
@@ -274,7 +279,7 @@ enum {
     OPT_CAL_RANGE = 256, OPT_FILTER, OPT_EPS, OPT_MIN_PTS, OPT_DECLINATION, OPT_PLANE, OPT_HEADINGS,
     OPT_JSON, OPT_MODE, OPT_REF_ROWS, OPT_SWING_MODEL, OPT_TILT, OPT_NO_TILT, OPT_ACCEL_UNIT,
     OPT_INCLINATION, OPT_FIELD_UNIT, OPT_YEAR, OPT_MODEL, OPT_AIDED_OBJECTIVE, OPT_PRIOR,
-    OPT_NO_CONSENSUS, OPT_FIT
+    OPT_NO_CONSENSUS, OPT_FIT, OPT_EXPORT_RECORD, OPT_SENSOR_ID
 };
 
 static const struct option k_long_opts[] = {
@@ -300,6 +305,8 @@ static const struct option k_long_opts[] = {
     {"prior", required_argument, NULL, OPT_PRIOR},
     {"no-consensus", no_argument, NULL, OPT_NO_CONSENSUS},
     {"fit", required_argument, NULL, OPT_FIT},
+    {"export-record", required_argument, NULL, OPT_EXPORT_RECORD},
+    {"sensor-id", required_argument, NULL, OPT_SENSOR_ID},
     {"help", no_argument, NULL, 'h'},
     {NULL, 0, NULL, 0}};
 
@@ -423,6 +430,12 @@ static int parse_opt(int opt, const char *v, cli_t *c)
         c->aided_objective = v;
         break;
     case OPT_PRIOR: c->prior_path = v; break;
+    case OPT_EXPORT_RECORD: c->record_path = v; break; /* issue 15: replay_record.c */
+    case OPT_SENSOR_ID:
+        if (replay_parse_sensor_id(v, &c->sensor_id) != 0) {
+            return usage_error("--sensor-id needs 0..0xFFFFFFFF, got \"%s\"", v);
+        }
+        break;
     case OPT_YEAR:
         if (parse_double(v, &c->year) != 0 || c->year < 1900.0 || c->year > 2100.0) {
             return usage_error("--year needs a decimal year in [1900, 2100], got \"%s\"", v);
@@ -1083,6 +1096,11 @@ int main(int argc, char **argv)
     }
     if (rc == REPLAY_EXIT_CAL_FAILED) {
         fprintf(stderr, "magcal-replay: %s: calibration failed: %s: %s\n", c.path, r.status, r.reason);
+    } else if (c.record_path != NULL && rc == REPLAY_EXIT_OK) { /* issue 15: replay_record.c */
+        rc = replay_export_record(c.record_path, &r, &res.cal, &cal3, c.sensor_id, err, sizeof err);
+        if (rc != REPLAY_EXIT_OK) {
+            fprintf(stderr, "magcal-replay: %s\n", err);
+        }
     }
     if (fflush(stdout) != 0 && rc == REPLAY_EXIT_OK) {
         rc = REPLAY_EXIT_OUTPUT;
