@@ -25,5 +25,6 @@
 #include "magcal/tilt.h"
 #include "magcal/swing.h"
 #include "magcal/errmodel.h"
+#include "magcal/intake.h"
 
 #endif /* MAGCAL_H */
