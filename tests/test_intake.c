@@ -209,7 +209,7 @@ static void test_intake_bad_calls_return_status(void)
 static void test_intake_newest_replaces_oldest_in_its_bin(void)
 {
     /* 12 samples inside one 10-degree sector (raw angles 2.0 .. 7.5 deg around the installed
-     * centre, radius 20, 0.17 uT apart; spacing 0.5 % of R = 0.1 uT), cap 4 per bin */
+     * centre, radius 20, 0.17 uT apart), cap 4 per bin */
     magcal_intake_cfg_t cfg = MAGCAL_INTAKE_CFG_DEFAULT_2D;
     const magcal_vec3_t c = {(float)CX, (float)CY, (float)CZ};
     magcal_intake_counters_t ctr;
@@ -217,7 +217,7 @@ static void test_intake_newest_replaces_oldest_in_its_bin(void)
     magcal_vec3_t seq[12];
     size_t n = 0, i;
     cfg.per_bin = 4u;
-    cfg.min_spacing_rel = 0.005f;
+    cfg.min_spacing_rel = 0.004f; /* 0.08 uT, 0.16 uT in a full bin */
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_init(&g_st, &cfg, g_slots, 144u));
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_set_centre(&g_st, &c, (float)H));
     for (i = 0; i < 12; ++i) {

@@ -9,8 +9,9 @@
  * - a cap per bin (cfg.per_bin): when a bin is full, the newest sample replaces its oldest, so the
  *   store ages and follows the current installation;
  * - a minimum spacing: a sample closer than cfg.min_spacing_rel x R (R: the radius of the field
- *   around the centre) to a sample already in its bin is refused (a parked or straight-driving
- *   vehicle repeats one direction: it fills at most its own bins);
+ *   around the centre; twice that when the bin is full) to a sample already in its bin is refused
+ *   (a parked or straight-driving vehicle repeats one direction: it fills at most its own bins,
+ *   and its noise does not churn a full bin);
  * - samples at the declared range limit are refused (cfg.range_limit: a saturated axis is a fault,
  *   not data) with MAGCAL_ERR_SATURATED, and counted.
  *
@@ -175,9 +176,11 @@ typedef struct {
     float fit_zz;                  /**< private: sum of |u|^4 (fit residual) */
     float ell_a[15];               /**< private: 2-D conic fit normal matrix, packed 5 x 5 */
     float ell_b[5];                /**< private: its right-hand side */
+    float ell_tt;                  /**< private: sum of its squared targets (residual) */
     uint32_t sweeps;               /**< private: completed sweeps */
     magcal_vec3_t ref_c;           /**< private: reference centre of the fit's normalisation and trim */
     float ref_r;                   /**< private: reference radius (0 = none yet) */
+    uint8_t ref_fit;               /**< private: 1 when the reference is a ring fit */
     magcal_intake_counters_t ctr;  /**< private */
 } magcal_intake_t;
 

@@ -147,6 +147,9 @@ magcal_status_t magcal_intake_push(magcal_intake_t *st, const magcal_vec3_t *m,
             r = sqrtf(ux * ux + uy * uy + uz * uz);
         }
         dmin2 = st->cfg.min_spacing_rel * r;
+        if (st->count[b] >= st->cfg.per_bin) {
+            dmin2 *= 2.0f; /* a full bin: replacing needs twice the spacing (noise does not churn it) */
+        }
         dmin2 *= dmin2;
         oc = MAGCAL_INTAKE_STORED;
         for (k = base; k < base + st->count[b]; ++k) {
@@ -266,6 +269,7 @@ magcal_status_t magcal_intake_reset(magcal_intake_t *st)
     st->seq = 0u;
     (void)memset(&st->ref_c, 0, sizeof(st->ref_c));
     st->ref_r = 0.0f;
+    st->ref_fit = 0u;
     magcal_intake_survey_clear(st);
     return MAGCAL_OK;
 }

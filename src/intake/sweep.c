@@ -8,16 +8,18 @@
  *     so fewer than t outliers on one side of an axis cannot move them (a bounding box would follow
  *     one spike); their midpoint and largest half-spread are the first REFERENCE (c_ref, R_ref);
  *  2. an algebraic circle (2-D) or sphere (3-D) fit (Kasa: |u|^2 + D.u + F = 0) of the samples
- *     within [0.3, 3] R_ref of c_ref, in coordinates u = (m - c_ref) / R_ref (float32 stays well
+ *     within [0.3, 3] R_ref of c_ref ([0.7, 1.3] R_ref once the reference is itself a fit: transient
+ *     disturbances of +30 % stay out; its radius may then change by at most 1.5x), in coordinates u = (m - c_ref) / R_ref (float32 stays well
  *     scaled); trimmed this way a spike never enters it. The fit is used only when the samples
  *     form a ring that a centre can be read from: their covariance is not degenerate (smallest /
- *     largest eigenvalue >= FIT_MIN_RATIO), spans an arc (largest std >= FIT_MIN_ARC x R, about
+ *     largest eigenvalue >= FIT_MIN_RATIO, 3-D FIT_MIN_RATIO3: a car's hills never make a sphere), spans an arc (largest std >= FIT_MIN_ARC x R, about
  *     70 degrees) and the radial RMS is <= FIT_MAX_RESID x R (a ring, not a filled blob: a parked
  *     or straight-driving vehicle, hills included, never qualifies); it then becomes the next
  *     sweep's reference too, otherwise the trimmed extremes do. In 2-D, once the arc is long
  *     enough (covariance ratio >= ELL_MIN_RATIO, about 200 degrees) the centre of a conic fit of
  *     the same samples replaces the circle's (soft iron moves a circle fit's centre towards the
- *     arc by up to the axis difference); it must be an ellipse with axis ratio < 2 near the circle. A fit that moves the centre by more than
+ *     arc by up to the axis difference) when it fits at least twice as tightly (radial RMS) and is
+ *     an ellipse near the circle; a ring thickened by hills keeps the circle's centre. A fit that moves the centre by more than
  *     cfg.recentre_rel x R starts a re-bin. Until the first usable fit the bins stay around the
  *     origin (the raw sensor frame), where a straight drive fills one direction only.
  */
@@ -28,7 +30,11 @@
 #include "magcal_internal.h"
 
 #define SURVEY_MIN 8u         /* samples before a survey may give a reference or a fit */
-#define FIT_MIN_RATIO 0.02f   /* smallest / largest covariance eigenvalue of a usable fit */
+#define FIT_MIN_RATIO 0.02f   /* 2-D: smallest / largest covariance eigenvalue of a usable fit */
+#define FIT_MIN_RATIO3 0.1f   /* 3-D: the same (a car's +-6 deg hills around a cone: about 0.01) */
+#define FIT_TIGHT_LO2 0.49f   /* once the reference is a fit: (0.7 R_ref)^2 .. (1.3 R_ref)^2 */
+#define FIT_TIGHT_HI2 1.69f
+#define FIT_R_JUMP 1.5f       /* a fit's R within R_ref / 1.5 .. 1.5 R_ref of a fitted reference */
 #define FIT_MIN_ARC 0.33f     /* largest covariance std / R: an arc of about 70 degrees */
 #define ELL_MIN_RATIO 0.2f    /* 2-D: covariance ratio (about 200 degrees of arc) for the ellipse centre */
 #define FIT_MAX_RESID 0.2f    /* radial RMS / R of a usable fit (a ring, not a filled blob) */
@@ -42,6 +48,7 @@ void magcal_intake_survey_clear(magcal_intake_t *st)
     st->fit_zz = 0.0f;
     (void)memset(st->ell_a, 0, sizeof(st->ell_a));
     (void)memset(st->ell_b, 0, sizeof(st->ell_b));
+    st->ell_tt = 0.0f;
     (void)memset(st->fit_a, 0, sizeof(st->fit_a));
     (void)memset(st->fit_b, 0, sizeof(st->fit_b));
 }
@@ -93,7 +100,9 @@ static void survey_add(magcal_intake_t *st, const magcal_vec3_t *m)
             d2 += r[a] * r[a];
         }
         r[dims] = 1.0f;
-        if (d2 >= FIT_BAND_LO2 && d2 <= FIT_BAND_HI2) {
+        const float lo2 = (st->ref_fit != 0u) ? FIT_TIGHT_LO2 : FIT_BAND_LO2;
+        const float hi2 = (st->ref_fit != 0u) ? FIT_TIGHT_HI2 : FIT_BAND_HI2;
+        if (d2 >= lo2 && d2 <= hi2) {
             for (i = 0u; i <= dims; ++i) {
                 for (j = 0u; j <= i; ++j) {
                     st->fit_a[pk(i, j)] += r[i] * r[j];
@@ -111,6 +120,7 @@ static void survey_add(magcal_intake_t *st, const magcal_vec3_t *m)
                     }
                     st->ell_b[i] += e[i] * t;
                 }
+                st->ell_tt += t * t;
             }
         }
     }
@@ -159,7 +169,7 @@ static int survey_fit(const magcal_intake_t *st, magcal_vec3_t *c, float *r)
         wmin = (w[i] < wmin) ? w[i] : wmin;
         wmax = (w[i] > wmax) ? w[i] : wmax;
     }
-    if (!(wmax > 0.0f) || !(wmin >= FIT_MIN_RATIO * wmax)) {
+    if (!(wmax > 0.0f) || !(wmin >= ((dims == 3u) ? FIT_MIN_RATIO3 : FIT_MIN_RATIO) * wmax)) {
         return 0; /* degenerate scatter: a point, a line, a flat ring in 3-D */
     }
     zz = st->fit_zz * inv_n;
@@ -191,11 +201,18 @@ static int survey_fit(const magcal_intake_t *st, magcal_vec3_t *c, float *r)
     if (!(res <= 4.0f * r2 * (FIT_MAX_RESID * FIT_MAX_RESID) * r2) || !(wmax >= (FIT_MIN_ARC * FIT_MIN_ARC) * r2)) {
         return 0;
     }
+    /* the field's magnitude does not jump: a fitted reference bounds the next radius (a mixture
+     * of rings after an installation change must not produce a giant circle) */
+    if (st->ref_fit != 0u && !(r2 <= FIT_R_JUMP * FIT_R_JUMP && r2 * (FIT_R_JUMP * FIT_R_JUMP) >= 1.0f)) {
+        return 0;
+    }
     if (dims == 2u && wmin >= ELL_MIN_RATIO * wmax) {
         /* most of the turn seen: the ellipse centre (soft iron shifts a circle fit's centre
          * towards the arc by up to the axis difference) */
         float ea[25];
         float eb[5];
+        float eb0[5];
+        float eres = st->ell_tt * inv_n;
         for (i = 0u; i < 5u; ++i) {
             for (j = 0u; j < 5u; ++j) {
                 const uint32_t hi = (i > j) ? i : j;
@@ -203,8 +220,17 @@ static int survey_fit(const magcal_intake_t *st, magcal_vec3_t *c, float *r)
                 ea[i * 5u + j] = st->ell_a[pk(hi, lo)] * inv_n;
             }
             eb[i] = st->ell_b[i] * inv_n;
+            eb0[i] = eb[i];
         }
         if (magcal_ldlt_solve(ea, eb, 5u, 1e-6f, NULL) == MAGCAL_OK) {
+            for (i = 0u; i < 5u; ++i) {
+                eres -= eb[i] * eb0[i];
+            }
+        }
+        /* only when the samples really are an ellipse: its radial RMS at most half the circle's
+         * (a ring thickened by hills in a 2-D install fits a conic no better, and its centre is
+         * then worse than the circle's) */
+        if (eres <= 0.25f * res && magcal_isfinite_f(eres)) {
             const float bb = eb[0];
             const float cc = eb[1];
             const float det = 4.0f * cc - bb * bb; /* ellipse: > 0; [2 B; B 2C] c = -[D; E] */
@@ -249,6 +275,7 @@ static void survey_finish(magcal_intake_t *st)
     if (fit_ok != 0) {
         st->ref_c = fc;
         st->ref_r = fr;
+        st->ref_fit = 1u;
         if (st->centre_source != (uint8_t)MAGCAL_INTAKE_CENTRE_INSTALLED) {
             const float dx = fc.x - st->centre.x;
             const float dy = fc.y - st->centre.y;
@@ -278,6 +305,7 @@ static void survey_finish(magcal_intake_t *st)
         st->ref_c.y = c[1];
         st->ref_c.z = c[2];
         st->ref_r = r;
+        st->ref_fit = 0u;
     } else {
         /* too few samples for a reference */
     }
