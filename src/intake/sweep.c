@@ -90,38 +90,70 @@ static void survey_add(magcal_intake_t *st, const magcal_vec3_t *m)
     }
     st->sv_n++;
     if (st->ref_r > 0.0f) {
-        float r[4];
-        float d2 = 0.0f;
         const float inv = 1.0f / st->ref_r;
-        uint32_t i;
-        uint32_t j;
+        const float lo2 = (st->ref_fit != 0u) ? FIT_TIGHT_LO2 : FIT_BAND_LO2;
+        const float hi2 = (st->ref_fit != 0u) ? FIT_TIGHT_HI2 : FIT_BAND_HI2;
+        float r[3] = {0.0f, 0.0f, 0.0f};
+        float d2 = 0.0f;
         for (a = 0u; a < dims; ++a) {
             r[a] = (v3[a] - c3[a]) * inv;
             d2 += r[a] * r[a];
         }
-        r[dims] = 1.0f;
-        const float lo2 = (st->ref_fit != 0u) ? FIT_TIGHT_LO2 : FIT_BAND_LO2;
-        const float hi2 = (st->ref_fit != 0u) ? FIT_TIGHT_HI2 : FIT_BAND_HI2;
         if (d2 >= lo2 && d2 <= hi2) {
-            for (i = 0u; i <= dims; ++i) {
-                for (j = 0u; j <= i; ++j) {
-                    st->fit_a[pk(i, j)] += r[i] * r[j];
-                }
-                st->fit_b[i] -= r[i] * d2;
-            }
-            st->fit_zz += d2 * d2;
-            st->fit_n++;
-            if (dims == 2u) { /* conic x^2 + B xy + C y^2 + D x + E y + F = 0 */
-                const float e[5] = {r[0] * r[1], r[1] * r[1], r[0], r[1], 1.0f};
-                const float t = -r[0] * r[0];
-                for (i = 0u; i < 5u; ++i) {
-                    for (j = 0u; j <= i; ++j) {
-                        st->ell_a[pk(i, j)] += e[i] * e[j];
-                    }
-                    st->ell_b[i] += e[i] * t;
-                }
+            /* packed lower triangle of r r^T, written out (the sweep's hot loop) */
+            float *fa = st->fit_a;
+            const float x = r[0];
+            const float y = r[1];
+            fa[0] += x * x;
+            fa[1] += y * x;
+            fa[2] += y * y;
+            if (dims == 3u) {
+                const float z = r[2];
+                fa[3] += z * x;
+                fa[4] += z * y;
+                fa[5] += z * z;
+                fa[6] += x;
+                fa[7] += y;
+                fa[8] += z;
+                fa[9] += 1.0f;
+                st->fit_b[2] -= z * d2;
+                st->fit_b[3] -= d2;
+            } else {
+                float *ea = st->ell_a;
+                float *eb = st->ell_b;
+                const float xy = x * y;
+                const float yy = y * y;
+                const float t = -x * x; /* conic x^2 + B xy + C y^2 + D x + E y + F = 0: e = (xy, yy, x, y, 1) */
+                fa[3] += x;
+                fa[4] += y;
+                fa[5] += 1.0f;
+                st->fit_b[2] -= d2;
+                ea[0] += xy * xy;
+                ea[1] += yy * xy;
+                ea[2] += yy * yy;
+                ea[3] += x * xy;
+                ea[4] += x * yy;
+                ea[5] += x * x;
+                ea[6] += y * xy;
+                ea[7] += y * yy;
+                ea[8] += y * x;
+                ea[9] += yy;
+                ea[10] += xy;
+                ea[11] += yy;
+                ea[12] += x;
+                ea[13] += y;
+                ea[14] += 1.0f;
+                eb[0] += xy * t;
+                eb[1] += yy * t;
+                eb[2] += x * t;
+                eb[3] += y * t;
+                eb[4] += t;
                 st->ell_tt += t * t;
             }
+            st->fit_b[0] -= x * d2;
+            st->fit_b[1] -= y * d2;
+            st->fit_zz += d2 * d2;
+            st->fit_n++;
         }
     }
 }

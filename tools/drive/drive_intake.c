@@ -2,7 +2,7 @@
  * magcal_drive_intake: feed a drive CSV (tools/gen_drive.py columns; docs/replay.md format) row by
  * row through a 2-D and a 3-D intake store and print, as one JSON object, what the stores did.
  *
- *   magcal_drive_intake [--range UT] DUMP.csv
+ *   magcal_drive_intake [--range UT] [--only 2|3] DUMP.csv
  *
  * Per park (rows with parked = 1, consecutive): the bins newly filled during it (re-binning after a
  * centre change included), and the clean parked samples (glitch = disturbed = 0) stored during it
@@ -120,6 +120,7 @@ int main(int argc, char **argv)
     int header = 0, in_park = 0, stepped = 0;
     const char *path = NULL;
     float range = 0.0f;
+    int only = 0; /* 0: both stores, 2 or 3: that one only (for per-push instruction counts) */
     unsigned long rows = 0;
     snap_t p2, p3;
     park_stats_t ps2 = {0, 0, 0, 0, 0, 0}, ps3 = {0, 0, 0, 0, 0, 0};
@@ -128,6 +129,8 @@ int main(int argc, char **argv)
     for (i = 1; i < argc; ++i) {
         if (strcmp(argv[i], "--range") == 0 && i + 1 < argc) {
             range = strtof(argv[++i], NULL);
+        } else if (strcmp(argv[i], "--only") == 0 && i + 1 < argc) {
+            only = atoi(argv[++i]);
         } else {
             path = argv[i];
         }
@@ -197,8 +200,14 @@ int main(int argc, char **argv)
             in_park = parked;
             {
                 magcal_intake_outcome_t o2, o3;
-                (void)magcal_intake_push(&g_s2, &m, &o2);
-                (void)magcal_intake_push(&g_s3, &m, &o3);
+                o2 = MAGCAL_INTAKE_REFUSED_SPACING;
+                o3 = MAGCAL_INTAKE_REFUSED_SPACING;
+                if (only != 3) {
+                    (void)magcal_intake_push(&g_s2, &m, &o2);
+                }
+                if (only != 2) {
+                    (void)magcal_intake_push(&g_s3, &m, &o3);
+                }
                 if (parked && clean && (o2 == MAGCAL_INTAKE_STORED || o2 == MAGCAL_INTAKE_REPLACED)) {
                     magcal_intake_progress_t p;
                     double a;
