@@ -10,6 +10,27 @@
 #include "intake_internal.h"
 #include "magcal_internal.h"
 
+/* Cells of band b of a `bands`-band mask. */
+static uint32_t band_cells(uint32_t b, uint32_t bands)
+{
+    const float mid = ((float)b + 0.5f) * MAGCAL_PI_F / (float)bands;
+    const uint32_t cells = (uint32_t)(2.0f * (float)bands * sinf(mid) + 0.5f);
+    return (cells < 1u) ? 1u : cells;
+}
+
+uint16_t magcal_intake_cells_3d(uint16_t bands)
+{
+    uint32_t total = 0u;
+    uint32_t b;
+    if (bands < 1u || bands > MAGCAL_INTAKE_MAX_BANDS) {
+        return 0u;
+    }
+    for (b = 0u; b < bands; ++b) {
+        total += band_cells(b, bands);
+    }
+    return (total <= MAGCAL_INTAKE_MAX_BINS) ? (uint16_t)total : 0u;
+}
+
 uint16_t magcal_intake_build_mask(magcal_intake_t *st, uint16_t bands)
 {
     uint32_t total = 0u;
@@ -18,12 +39,7 @@ uint16_t magcal_intake_build_mask(magcal_intake_t *st, uint16_t bands)
         return 0u;
     }
     for (b = 0u; b < bands; ++b) {
-        const float mid = ((float)b + 0.5f) * MAGCAL_PI_F / (float)bands;
-        const float w = 2.0f * (float)bands * sinf(mid);
-        uint32_t cells = (uint32_t)(w + 0.5f);
-        if (cells < 1u) {
-            cells = 1u;
-        }
+        const uint32_t cells = band_cells(b, bands);
         st->band_start[b] = (uint16_t)total;
         st->band_cos[b] = cosf((float)b * MAGCAL_PI_F / (float)bands);
         total += cells;

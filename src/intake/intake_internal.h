@@ -15,6 +15,9 @@
 /* Bin of a raw sample around the store's centre. */
 uint16_t magcal_intake_bin_of(const magcal_intake_t *st, const magcal_vec3_t *m);
 
+/* Cells of a 3-D mask of `bands` bands (0: out of range or more than MAGCAL_INTAKE_MAX_BINS). */
+uint16_t magcal_intake_cells_3d(uint16_t bands);
+
 /* Build the 3-D band tables (st->n_bands, band_start, band_cos); returns the cell count or 0. */
 uint16_t magcal_intake_build_mask(magcal_intake_t *st, uint16_t bands);
 

@@ -11,7 +11,6 @@
 
 magcal_status_t magcal_intake_bins(const magcal_intake_cfg_t *cfg, uint16_t *bins)
 {
-    magcal_intake_t tmp; /* only the band tables are used: about 0.2 KiB of the ~1.4 KiB struct */
     uint16_t n;
     if (cfg == NULL || bins == NULL) {
         return MAGCAL_ERR_NULL;
@@ -26,7 +25,7 @@ magcal_status_t magcal_intake_bins(const magcal_intake_cfg_t *cfg, uint16_t *bin
     if (cfg->dims != 3u || cfg->bins < 4u || cfg->bins > MAGCAL_INTAKE_MAX_BANDS) {
         return MAGCAL_ERR_ARG;
     }
-    n = magcal_intake_build_mask(&tmp, cfg->bins);
+    n = magcal_intake_cells_3d(cfg->bins);
     if (n == 0u) {
         return MAGCAL_ERR_ARG;
     }

@@ -158,30 +158,17 @@ static void survey_add(magcal_intake_t *st, const magcal_vec3_t *m)
     }
 }
 
-/* The survey's circle / sphere fit: 1 and (c, R) when usable. */
-static int survey_fit(const magcal_intake_t *st, magcal_vec3_t *c, float *r)
+/* Scatter of the fit's samples: the extreme eigenvalues of their covariance (normalised units);
+ * 0 when it cannot be computed. Own frame (Jacobi), so the stages' frames do not add up. */
+static MAGCAL_NOINLINE int fit_scatter(const magcal_intake_t *st, float inv_n, float *wmin, float *wmax)
 {
     const uint32_t dims = st->cfg.dims;
-    const uint32_t q = dims + 1u;
-    const float inv_n = 1.0f / (float)st->fit_n;
-    float a[16];
-    float b[4];
     float cov[9];
     float w[3];
     float e[9];
     float mean[3];
-    float wmin;
-    float wmax;
-    float r2;
-    float zz;
-    float res;
-    float bz[4];
-    float cu[3] = {0.0f, 0.0f, 0.0f};
     uint32_t i;
     uint32_t j;
-    if (st->fit_n < SURVEY_MIN || !(st->ref_r > 0.0f)) {
-        return 0;
-    }
     for (i = 0u; i < dims; ++i) {
         mean[i] = st->fit_a[pk(dims, i)] * inv_n;
     }
@@ -195,16 +182,25 @@ static int survey_fit(const magcal_intake_t *st, magcal_vec3_t *c, float *r)
     if (magcal_jacobi_sym(cov, dims, w, e) != MAGCAL_OK) {
         return 0;
     }
-    wmin = w[0];
-    wmax = w[0];
+    *wmin = w[0];
+    *wmax = w[0];
     for (i = 1u; i < dims; ++i) {
-        wmin = (w[i] < wmin) ? w[i] : wmin;
-        wmax = (w[i] > wmax) ? w[i] : wmax;
+        *wmin = (w[i] < *wmin) ? w[i] : *wmin;
+        *wmax = (w[i] > *wmax) ? w[i] : *wmax;
     }
-    if (!(wmax > 0.0f) || !(wmin >= ((dims == 3u) ? FIT_MIN_RATIO3 : FIT_MIN_RATIO) * wmax)) {
-        return 0; /* degenerate scatter: a point, a line, a flat ring in 3-D */
-    }
-    zz = st->fit_zz * inv_n;
+    return 1;
+}
+
+/* Kasa circle / sphere: centre cu (normalised), R^2 and the mean squared algebraic residual. */
+static MAGCAL_NOINLINE int fit_circle(const magcal_intake_t *st, float inv_n, float cu[3], float *r2, float *res)
+{
+    const uint32_t dims = st->cfg.dims;
+    const uint32_t q = dims + 1u;
+    float a[16];
+    float b[4];
+    float bz[4];
+    uint32_t i;
+    uint32_t j;
     for (i = 0u; i < q; ++i) {
         for (j = 0u; j < q; ++j) {
             const uint32_t hi = (i > j) ? i : j;
@@ -217,16 +213,79 @@ static int survey_fit(const magcal_intake_t *st, magcal_vec3_t *c, float *r)
     if (magcal_ldlt_solve(a, b, q, 1e-6f, NULL) != MAGCAL_OK) {
         return 0;
     }
-    r2 = -b[dims];
-    res = zz;
+    *r2 = -b[dims];
+    *res = st->fit_zz * inv_n;
     for (i = 0u; i < q; ++i) { /* algebraic residual at the solution: z.z - x.b (per sample) */
-        res -= b[i] * bz[i];
+        *res -= b[i] * bz[i];
     }
     for (i = 0u; i < dims; ++i) {
         cu[i] = -0.5f * b[i];
-        r2 += cu[i] * cu[i];
+        *r2 += cu[i] * cu[i];
     }
-    if (!(r2 > 0.0f) || !magcal_isfinite_f(r2)) {
+    return (*r2 > 0.0f && magcal_isfinite_f(*r2)) ? 1 : 0;
+}
+
+/* 2-D conic centre (normalised) when the samples really are an ellipse: its radial RMS at most
+ * half the circle's (res_circle), an ellipse near the circle (a ring thickened by hills in a 2-D
+ * install fits a conic no better, and its centre is then worse than the circle's). */
+static MAGCAL_NOINLINE int fit_conic(const magcal_intake_t *st, float inv_n, float res_circle, float ec[2])
+{
+    float ea[25];
+    float eb[5];
+    float eb0[5];
+    float eres = st->ell_tt * inv_n;
+    uint32_t i;
+    uint32_t j;
+    for (i = 0u; i < 5u; ++i) {
+        for (j = 0u; j < 5u; ++j) {
+            const uint32_t hi = (i > j) ? i : j;
+            const uint32_t lo = (i > j) ? j : i;
+            ea[i * 5u + j] = st->ell_a[pk(hi, lo)] * inv_n;
+        }
+        eb[i] = st->ell_b[i] * inv_n;
+        eb0[i] = eb[i];
+    }
+    if (magcal_ldlt_solve(ea, eb, 5u, 1e-6f, NULL) != MAGCAL_OK) {
+        return 0;
+    }
+    for (i = 0u; i < 5u; ++i) {
+        eres -= eb[i] * eb0[i];
+    }
+    if (!(eres <= 0.25f * res_circle) || !magcal_isfinite_f(eres)) {
+        return 0;
+    }
+    {
+        const float bb = eb[0];
+        const float cc = eb[1];
+        const float det = 4.0f * cc - bb * bb; /* ellipse: > 0; [2 B; B 2C] c = -[D; E] */
+        if (!(det > 0.25f && cc > 0.25f && cc < 4.0f)) {
+            return 0;
+        }
+        ec[0] = (-2.0f * cc * eb[2] + bb * eb[3]) / det;
+        ec[1] = (bb * eb[2] - 2.0f * eb[3]) / det;
+    }
+    return (magcal_isfinite_f(ec[0]) && magcal_isfinite_f(ec[1])) ? 1 : 0;
+}
+
+/* The survey's circle / sphere fit: 1 and (c, R) when usable. */
+static int survey_fit(const magcal_intake_t *st, magcal_vec3_t *c, float *r)
+{
+    const uint32_t dims = st->cfg.dims;
+    float inv_n;
+    float wmin = 0.0f;
+    float wmax = 0.0f;
+    float r2 = 0.0f;
+    float res = 0.0f;
+    float cu[3] = {0.0f, 0.0f, 0.0f};
+    if (st->fit_n < SURVEY_MIN || !(st->ref_r > 0.0f)) {
+        return 0;
+    }
+    inv_n = 1.0f / (float)st->fit_n;
+    if (fit_scatter(st, inv_n, &wmin, &wmax) == 0 || !(wmax > 0.0f) ||
+        !(wmin >= ((dims == 3u) ? FIT_MIN_RATIO3 : FIT_MIN_RATIO) * wmax)) {
+        return 0; /* degenerate scatter: a point, a line, a flat ring in 3-D */
+    }
+    if (fit_circle(st, inv_n, cu, &r2, &res) == 0) {
         return 0;
     }
     /* a ring, not a blob: radial RMS (algebraic residual ~ 2 R dr) and the arc the data spans */
@@ -241,40 +300,13 @@ static int survey_fit(const magcal_intake_t *st, magcal_vec3_t *c, float *r)
     if (dims == 2u && wmin >= ELL_MIN_RATIO * wmax) {
         /* most of the turn seen: the ellipse centre (soft iron shifts a circle fit's centre
          * towards the arc by up to the axis difference) */
-        float ea[25];
-        float eb[5];
-        float eb0[5];
-        float eres = st->ell_tt * inv_n;
-        for (i = 0u; i < 5u; ++i) {
-            for (j = 0u; j < 5u; ++j) {
-                const uint32_t hi = (i > j) ? i : j;
-                const uint32_t lo = (i > j) ? j : i;
-                ea[i * 5u + j] = st->ell_a[pk(hi, lo)] * inv_n;
-            }
-            eb[i] = st->ell_b[i] * inv_n;
-            eb0[i] = eb[i];
-        }
-        if (magcal_ldlt_solve(ea, eb, 5u, 1e-6f, NULL) == MAGCAL_OK) {
-            for (i = 0u; i < 5u; ++i) {
-                eres -= eb[i] * eb0[i];
-            }
-        }
-        /* only when the samples really are an ellipse: its radial RMS at most half the circle's
-         * (a ring thickened by hills in a 2-D install fits a conic no better, and its centre is
-         * then worse than the circle's) */
-        if (eres <= 0.25f * res && magcal_isfinite_f(eres)) {
-            const float bb = eb[0];
-            const float cc = eb[1];
-            const float det = 4.0f * cc - bb * bb; /* ellipse: > 0; [2 B; B 2C] c = -[D; E] */
-            if (det > 0.25f && cc > 0.25f && cc < 4.0f) {
-                const float ex = (-2.0f * cc * eb[2] + bb * eb[3]) / det;
-                const float ey = (bb * eb[2] - 2.0f * eb[3]) / det;
-                const float dx = ex - cu[0];
-                const float dy = ey - cu[1];
-                if (magcal_isfinite_f(ex) && magcal_isfinite_f(ey) && dx * dx + dy * dy < 0.25f * r2) {
-                    cu[0] = ex;
-                    cu[1] = ey;
-                }
+        float ec[2];
+        if (fit_conic(st, inv_n, res, ec) != 0) {
+            const float dx = ec[0] - cu[0];
+            const float dy = ec[1] - cu[1];
+            if (dx * dx + dy * dy < 0.25f * r2) {
+                cu[0] = ec[0];
+                cu[1] = ec[1];
             }
         }
     }
