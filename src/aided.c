@@ -612,9 +612,12 @@ static int aided_still(magcal_aided_t *inst, const float phi[NPHI])
     const float rn = 8.0f * inst->cfg.noise_rel; /* noise alone (max of 3 axes, 2 samples) stays inside */
     const float r = (inst->cfg.still_field_rel > rn) ? inst->cfg.still_field_rel : rn;
     size_t i;
-    int inside = (inst->still_run > 0u) ? 1 : 0;
+    int inside = 0;
     if (inst->cfg.still_epochs == 0u) {
         return 0;
+    }
+    if (inst->still_run > 0u) {
+        inside = 1;
     }
     for (i = 0u; i < 3u && inside != 0; ++i) {
         if (!(fabsf(phi[i] - inst->still_phi[i]) <= r)) {

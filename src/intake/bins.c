@@ -14,7 +14,8 @@
 static uint32_t band_cells(uint32_t b, uint32_t bands)
 {
     const float mid = ((float)b + 0.5f) * MAGCAL_PI_F / (float)bands;
-    const uint32_t cells = (uint32_t)(2.0f * (float)bands * sinf(mid) + 0.5f);
+    const float w = 2.0f * (float)bands * sinf(mid) + 0.5f;
+    const uint32_t cells = (uint32_t)w;
     return (cells < 1u) ? 1u : cells;
 }
 

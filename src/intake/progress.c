@@ -72,7 +72,8 @@ magcal_status_t magcal_intake_progress(const magcal_intake_t *st, magcal_intake_
         const float w = 360.0f / (float)st->n_bins;
         uint32_t start = 0u;
         const uint32_t run = longest_empty_run(st, &start);
-        out->coverage_deg = (float)(st->n_bins - run) * w;
+        const uint32_t covered = (uint32_t)st->n_bins - run;
+        out->coverage_deg = (float)covered * w;
         out->missing_start_deg = (run > 0u) ? (float)start * w : 0.0f;
         out->missing_width_deg = (float)run * w;
     } else {

@@ -73,7 +73,6 @@ int magcal_intake_insert(magcal_intake_t *st, uint16_t b, const magcal_vec3_t *m
     const uint32_t base = (uint32_t)b * per;
     uint32_t k;
     uint32_t oldest = base;
-    uint32_t oldest_age = 0u;
     if (st->count[b] < per) {
         st->slots[base + st->count[b]].m = *m;
         st->slots[base + st->count[b]].seq = seq;
@@ -96,6 +95,7 @@ int magcal_intake_insert(magcal_intake_t *st, uint16_t b, const magcal_vec3_t *m
             }
         }
     } else {
+        uint32_t oldest_age = 0u;
         for (k = base; k < base + per; ++k) { /* ages modulo 2^32 pushes */
             const uint32_t age = st->seq - st->slots[k].seq;
             if (age >= oldest_age) {
@@ -135,10 +135,13 @@ magcal_status_t magcal_intake_push(magcal_intake_t *st, const magcal_vec3_t *m,
     } else {
         const uint16_t b = magcal_intake_bin_of(st, m);
         const uint32_t base = (uint32_t)b * st->cfg.per_bin;
-        const int d3 = (st->cfg.dims == 3u) ? 1 : 0;
+        int d3 = 0;
         float r = st->radius;
         float dmin2;
         uint32_t k;
+        if (st->cfg.dims == 3u) {
+            d3 = 1;
+        }
         if (!(r > 0.0f)) { /* no radius yet: the sample's own distance from the centre */
             const float ux = m->x - st->centre.x;
             const float uy = m->y - st->centre.y;

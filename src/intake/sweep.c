@@ -355,14 +355,14 @@ static void survey_finish(magcal_intake_t *st)
     } else if (st->sv_n >= SURVEY_MIN) {
         /* no usable fit: the next reference from the trimmed extremes (the first survey, a
          * reference band that missed the data, or data that moved away from the old fit) */
-        uint32_t t = 2u + st->sv_n / 16u;
+        /* index of the t-th extreme, t = min(TRIM, 2 + n / 16) */
+        const uint32_t ti = (st->sv_n / 16u >= MAGCAL_INTAKE_TRIM - 2u) ? MAGCAL_INTAKE_TRIM - 1u : 1u + st->sv_n / 16u;
         float c[3] = {0.0f, 0.0f, 0.0f};
         float r = 0.0f;
         uint32_t a;
-        t = (t > MAGCAL_INTAKE_TRIM) ? MAGCAL_INTAKE_TRIM : t;
         for (a = 0u; a < (uint32_t)st->cfg.dims; ++a) {
-            const float half = 0.5f * (st->sv_hi[a][t - 1u] - st->sv_lo[a][t - 1u]);
-            c[a] = 0.5f * (st->sv_hi[a][t - 1u] + st->sv_lo[a][t - 1u]);
+            const float half = 0.5f * (st->sv_hi[a][ti] - st->sv_lo[a][ti]);
+            c[a] = 0.5f * (st->sv_hi[a][ti] + st->sv_lo[a][ti]);
             r = (half > r) ? half : r;
         }
         st->ref_c.x = c[0];
