@@ -39,6 +39,7 @@
 #include "magcal/tilt.h"
 #include "magcal/swing.h"
 #include "magcal/errmodel.h"
+#include "magcal/intake.h"
 #include "magcal/record.h"
 
 #endif /* MAGCAL_H */

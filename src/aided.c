@@ -133,7 +133,9 @@ magcal_status_t magcal_aided_init_checked(magcal_aided_t *inst, const magcal_aid
         !(cfg->gate_vector_rel > 0.0f) || !(cfg->sigma_rel > 0.0f) || !(cfg->sigma_f_rel > 0.0f) ||
         !(cfg->max_weak_std > 0.0f) ||
         !(cfg->min_eig >= 0.0f && cfg->min_eig < 1.0f) || !(cfg->conv_dg > 0.0f) ||
-        !(cfg->conv_dv_rel > 0.0f) || !(cfg->noise_rel >= 0.0f && cfg->noise_rel < 0.1f)) {
+        !(cfg->conv_dv_rel > 0.0f) || !(cfg->noise_rel >= 0.0f && cfg->noise_rel < 0.1f) ||
+        !(cfg->still_field_rel >= 0.0f && cfg->still_field_rel < 1.0f) ||
+        (cfg->still_epochs > 0u && !(cfg->still_field_rel > 0.0f))) {
         return MAGCAL_ERR_ARG;
     }
     if (!magcal_isfinite_f(cfg->max_dop) || !magcal_isfinite_f(cfg->gate_raw_rel) ||
@@ -602,6 +604,44 @@ static void aided_total_field(magcal_aided_t *inst, const float h[3], const floa
     inst->n_tf++;
 }
 
+/*
+ * Stationarity: 1 when this accepted epoch is held back. A run starts at an epoch (its regressor the
+ * anchor) and lasts while the regressor stays within max(still_field_rel, 8 noise_rel) (max axis,
+ * normalised units) of the anchor; its first still_epochs epochs are used, the rest only counted. Exciting motion leaves
+ * the ball (about 1.4 deg of yaw at the default) long before still_epochs, so a drive is never
+ * thinned; a parked vehicle adds still_epochs epochs per stop instead of one per epoch.
+ */
+static int aided_still(magcal_aided_t *inst, const float phi[NPHI])
+{
+    const float rn = 8.0f * inst->cfg.noise_rel; /* noise alone (max of 3 axes, 2 samples) stays inside */
+    const float r = (inst->cfg.still_field_rel > rn) ? inst->cfg.still_field_rel : rn;
+    size_t i;
+    int inside = 0;
+    if (inst->cfg.still_epochs == 0u) {
+        return 0;
+    }
+    if (inst->still_run > 0u) {
+        inside = 1;
+    }
+    for (i = 0u; i < 3u && inside != 0; ++i) {
+        if (!(fabsf(phi[i] - inst->still_phi[i]) <= r)) {
+            inside = 0;
+        }
+    }
+    if (inside == 0) {
+        for (i = 0u; i < 3u; ++i) {
+            inst->still_phi[i] = phi[i];
+        }
+        inst->still_run = 1u;
+        return 0;
+    }
+    if (inst->still_run >= inst->cfg.still_epochs) {
+        return 1;
+    }
+    inst->still_run++;
+    return 0;
+}
+
 magcal_status_t magcal_aided_update(magcal_aided_t *inst, const magcal_aided_epoch_t *ep,
                                     magcal_aided_gate_t *reason)
 {
@@ -663,6 +703,10 @@ magcal_status_t magcal_aided_update(magcal_aided_t *inst, const magcal_aided_epo
     phi[1] = (ep->m.y - inst->cfg.prior.v.y) * inv_s;
     phi[2] = (ep->m.z - inst->cfg.prior.v.z) * inv_s;
     phi[3] = 1.0f;
+    if (aided_still(inst, phi) != 0) {
+        inst->n_still++;
+        return MAGCAL_OK; /* stationary: no new information, nothing forgotten */
+    }
     for (i = 0u; i < 3u; ++i) { /* y = C^T B / s: reference field in body axes */
         y[i] = (c[0][i] * b[0] + c[1][i] * b[1] + c[2][i] * b[2]) * inv_s;
     }
@@ -739,6 +783,7 @@ magcal_status_t magcal_aided_get(const magcal_aided_t *inst, magcal_aided_result
     out->resid_rms = inst->resid_rms;
     out->resid_f_rms = inst->resid_f_rms;
     out->n_total_field = inst->n_tf;
+    out->n_still = inst->n_still;
     if (inst->n_prior_dirs > 0u) {
         return MAGCAL_ERR_UNOBSERVABLE;
     }

@@ -46,6 +46,7 @@ const char *magcal_status_str(magcal_status_t status)
     case MAGCAL_ERR_ALIGNMENT: return "misaligned buffer";
     case MAGCAL_ERR_CRC: return "record CRC mismatch";
     case MAGCAL_ERR_VERSION: return "record version mismatch";
+    case MAGCAL_ERR_SATURATED: return "sample at the sensor range limit";
     default: return "unknown";
     }
 }

@@ -123,6 +123,14 @@ typedef struct {
     float conv_dg;         /**< converged: max |dG_ij| over a window below this (default 2e-3) */
     float conv_dv_rel;     /**< converged: |dV| / F over a window below this (default 2e-3) */
     magcal_ellipsoid_cal_t prior; /**< prior / factory calibration (G0, V0; field unused); V0 also centres the data */
+    uint32_t still_epochs; /**< stationarity: after this many consecutive accepted epochs whose regressor
+                                stays within still_field_rel of the first one, further epochs add no
+                                information (counted in n_still, no forgetting, estimate unchanged)
+                                until the field leaves that ball; 0 = off (default 50: 1 s at 50 Hz) */
+    float still_field_rel; /**< radius of the stationarity ball, max-axis |m - m_anchor| / |B_ref| (> 0,
+                                default 0.01: 0.5 uT at 48 uT, about 1.4 deg of yaw at 65 deg inclination,
+                                10x the noise of a 0.05 uT sensor); the radius used is
+                                max(still_field_rel, 8 noise_rel), so set noise_rel for a noisy sensor */
 } magcal_aided_cfg_t;
 
 /** Defaults that work without tuning (prior: G0 = I, V0 = 0: raw data already in the B_ref unit). */
@@ -130,7 +138,8 @@ typedef struct {
     {                                                                                               \
         1.0f, 3.0f, 1.0f, 0.05f, 0.15f, 0.005f, 0.002f, MAGCAL_AIDED_OBJ_COMBINED, 0.03f, 2e-5f, 0.0f,  \
             50u, 50u, 2e-3f, 2e-3f,                                                                 \
-        {{{1.0f, 0.0f, 0.0f}, {0.0f, 1.0f, 0.0f}, {0.0f, 0.0f, 1.0f}}, {0.0f, 0.0f, 0.0f}, 0.0f}    \
+        {{{1.0f, 0.0f, 0.0f}, {0.0f, 1.0f, 0.0f}, {0.0f, 0.0f, 1.0f}}, {0.0f, 0.0f, 0.0f}, 0.0f},   \
+            50u, 0.01f                                                                               \
     }
 
 /** Instance. Allocate statically; all fields are private (read them through magcal_aided_get). */
@@ -168,6 +177,9 @@ typedef struct {
     uint32_t converged_at;   /**< private: accepted-epoch count at first convergence, 0 = never */
     uint32_t n_prior_dirs;   /**< private: directions frozen at the prior */
     uint32_t flags;          /**< private: MAGCAL_AIDED_FLAG_* */
+    float still_phi[3];      /**< private: regressor of the first epoch of the current stationary run */
+    uint32_t still_run;      /**< private: accepted epochs in the current stationary run */
+    uint32_t n_still;        /**< private: epochs passed the gates but held back as stationary */
 } magcal_aided_t;
 
 /** Snapshot of the estimate. */
@@ -186,6 +198,7 @@ typedef struct {
                                       each epoch with the estimate in force when it arrived (a-priori,
                                       innovation RMS), output units; 0 until a window is complete */
     uint32_t n_total_field;      /**< accepted epochs whose total-field residual entered the objective */
+    uint32_t n_still;            /**< epochs that passed the gates but added nothing: stationary (cfg.still_epochs) */
 } magcal_aided_result_t;
 
 /**
@@ -208,7 +221,13 @@ magcal_status_t magcal_aided_init_checked(magcal_aided_t *inst, const magcal_aid
  * @param[in,out] inst   initialised instance.
  * @param[in]     ep     epoch.
  * @param[out]    reason optional (may be NULL): gate that rejected the epoch, or MAGCAL_AIDED_GATE_NONE.
- * @return MAGCAL_OK (accepted), MAGCAL_ERR_GATED (rejected by a gate; counted, state unchanged otherwise),
+ * Stationarity (docs/calibration_3d.md, "Parking"): a parked vehicle (or one on a long straight) repeats
+ * one regressor; summing it for hours would dilute the per-epoch excitation of every other direction
+ * until the observability test freezes them at the prior, and with lambda < 1 forget them. Once
+ * cfg.still_epochs consecutive accepted epochs stay within cfg.still_field_rel of the first, further
+ * epochs of that run return MAGCAL_OK but are only counted (n_still): no sums, no forgetting, no
+ * solve; the first epoch outside the ball starts a new run and is used.
+ * @return MAGCAL_OK (accepted, or held back as stationary), MAGCAL_ERR_GATED (rejected by a gate; counted, state unchanged otherwise),
  *         MAGCAL_ERR_NULL, MAGCAL_ERR_NOT_INITIALISED, MAGCAL_ERR_NONFINITE (a non-finite input),
  *         MAGCAL_ERR_ARG (dop < 0, |pitch| >= pi/2, |B_ref| not representable in float32 or more than
  *         16x away from the first accepted epoch's |B_ref|: a unit mix-up), MAGCAL_ERR_ZERO_FIELD

@@ -1,0 +1,43 @@
+/*
+ * Internals shared by the intake store's files (never installed):
+ *   bins.c     direction -> bin (2-D sectors, 3-D igloo cells) and the mask geometry;
+ *   store.c    init, push (spacing, cap, newest-replaces-oldest), snapshot, counters;
+ *   sweep.c    the bounded survey / re-bin sweep that keeps the provisional centre robust;
+ *   progress.c live coverage, completion and the filled-bin mask.
+ */
+#ifndef MAGCAL_INTAKE_INTERNAL_H
+#define MAGCAL_INTAKE_INTERNAL_H
+
+#include "magcal/intake.h"
+
+#define INTAKE_MAGIC 0x494e544bu /* "INTK" */
+
+/* Bin of a raw sample around the store's centre. */
+uint16_t magcal_intake_bin_of(const magcal_intake_t *st, const magcal_vec3_t *m);
+
+/* Cells of a 3-D mask of `bands` bands (0: out of range or more than MAGCAL_INTAKE_MAX_BINS). */
+uint16_t magcal_intake_cells_3d(uint16_t bands);
+
+/* Build the 3-D band tables (st->n_bands, band_start, band_cos); returns the cell count or 0. */
+uint16_t magcal_intake_build_mask(magcal_intake_t *st, uint16_t bands);
+
+/* Insert m (push count seq) into bin b: a free slot, else over the bin's oldest sample.
+ * Returns 1 when the oldest sample was replaced. */
+int magcal_intake_insert(magcal_intake_t *st, uint16_t b, const magcal_vec3_t *m, uint32_t seq);
+
+/* Survey / re-bin up to `steps` slots (sweep.c). */
+void magcal_intake_sweep(magcal_intake_t *st, uint32_t steps);
+
+/* Move the centre (z = 0 in 2-D), set the radius and start a re-bin sweep. */
+void magcal_intake_recentre(magcal_intake_t *st, const magcal_vec3_t *c, float radius);
+
+/* Clear the survey accumulators. */
+void magcal_intake_survey_clear(magcal_intake_t *st);
+
+/* Slots in use by the mask (bins x per_bin). */
+static inline uint32_t magcal_intake_nslots(const magcal_intake_t *st)
+{
+    return (uint32_t)st->n_bins * (uint32_t)st->cfg.per_bin;
+}
+
+#endif /* MAGCAL_INTAKE_INTERNAL_H */

@@ -1,0 +1,330 @@
+/*
+ * Intake store: init, push (range check, spacing, cap per bin with newest-replaces-oldest),
+ * centre control, snapshot and counters. The binning geometry is in bins.c, the bounded survey /
+ * re-bin sweep in sweep.c, progress in progress.c.
+ */
+#include <math.h>
+#include <string.h>
+
+#include "intake_internal.h"
+#include "magcal_internal.h"
+
+magcal_status_t magcal_intake_bins(const magcal_intake_cfg_t *cfg, uint16_t *bins)
+{
+    uint16_t n;
+    if (cfg == NULL || bins == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (cfg->dims == 2u) {
+        if (cfg->bins < 8u || cfg->bins > MAGCAL_INTAKE_MAX_BINS) {
+            return MAGCAL_ERR_ARG;
+        }
+        *bins = cfg->bins;
+        return MAGCAL_OK;
+    }
+    if (cfg->dims != 3u || cfg->bins < 4u || cfg->bins > MAGCAL_INTAKE_MAX_BANDS) {
+        return MAGCAL_ERR_ARG;
+    }
+    n = magcal_intake_cells_3d(cfg->bins);
+    if (n == 0u) {
+        return MAGCAL_ERR_ARG;
+    }
+    *bins = n;
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_intake_init(magcal_intake_t *st, const magcal_intake_cfg_t *cfg,
+                                   magcal_intake_slot_t *slots, size_t n_slots)
+{
+    uint16_t nb = 0u;
+    magcal_status_t s;
+    if (st == NULL || cfg == NULL || slots == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    s = magcal_intake_bins(cfg, &nb);
+    if (s != MAGCAL_OK) {
+        return s;
+    }
+    if (cfg->per_bin < 1u || cfg->per_bin > MAGCAL_INTAKE_MAX_PER_BIN || cfg->sweep_steps < 1u ||
+        !magcal_isfinite_f(cfg->min_spacing_rel) || !(cfg->min_spacing_rel >= 0.0f && cfg->min_spacing_rel <= 0.5f) ||
+        !magcal_isfinite_f(cfg->recentre_rel) || !(cfg->recentre_rel > 0.0f && cfg->recentre_rel <= 1.0f) ||
+        !magcal_isfinite_f(cfg->range_limit) || !(cfg->range_limit >= 0.0f)) {
+        return MAGCAL_ERR_ARG;
+    }
+    if (n_slots < (size_t)nb * (size_t)cfg->per_bin) {
+        return MAGCAL_ERR_WORKSPACE;
+    }
+    (void)memset(st, 0, sizeof(*st));
+    st->cfg = *cfg;
+    st->slots = slots;
+    if (cfg->dims == 3u) {
+        (void)magcal_intake_build_mask(st, cfg->bins);
+    }
+    st->n_bins = nb;
+    st->centre_source = (uint8_t)MAGCAL_INTAKE_CENTRE_NONE;
+    magcal_intake_survey_clear(st);
+    st->magic = INTAKE_MAGIC;
+    return MAGCAL_OK;
+}
+
+int magcal_intake_insert(magcal_intake_t *st, uint16_t b, const magcal_vec3_t *m, uint32_t seq)
+{
+    const uint32_t per = st->cfg.per_bin;
+    const uint32_t base = (uint32_t)b * per;
+    uint32_t k;
+    uint32_t oldest = base;
+    if (st->count[b] < per) {
+        st->slots[base + st->count[b]].m = *m;
+        st->slots[base + st->count[b]].seq = seq;
+        st->count[b]++;
+        st->ctr.stored++;
+        return 0;
+    }
+    if (st->centre_source == (uint8_t)MAGCAL_INTAKE_CENTRE_NONE) {
+        /* no centre yet: a bin around the origin spans more of the ring than it will around the
+         * centre, so keep its spread (replace the nearest sample) rather than its newest */
+        float best = -1.0f;
+        for (k = base; k < base + per; ++k) {
+            const float dx = m->x - st->slots[k].m.x;
+            const float dy = m->y - st->slots[k].m.y;
+            const float dz = m->z - st->slots[k].m.z;
+            const float d2 = dx * dx + dy * dy + dz * dz;
+            if (best < 0.0f || d2 < best) {
+                best = d2;
+                oldest = k;
+            }
+        }
+    } else {
+        uint32_t oldest_age = 0u;
+        for (k = base; k < base + per; ++k) { /* ages modulo 2^32 pushes */
+            const uint32_t age = st->seq - st->slots[k].seq;
+            if (age >= oldest_age) {
+                oldest_age = age;
+                oldest = k;
+            }
+        }
+    }
+    st->slots[oldest].m = *m;
+    st->slots[oldest].seq = seq;
+    return 1;
+}
+
+magcal_status_t magcal_intake_push(magcal_intake_t *st, const magcal_vec3_t *m,
+                                   magcal_intake_outcome_t *outcome)
+{
+    magcal_intake_outcome_t oc;
+    magcal_status_t ret = MAGCAL_OK;
+    if (st == NULL || m == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (st->magic != INTAKE_MAGIC) {
+        return MAGCAL_ERR_NOT_INITIALISED;
+    }
+    st->ctr.pushed++;
+    st->seq++;
+    if (!magcal_isfinite_f(m->x) || !magcal_isfinite_f(m->y) || !magcal_isfinite_f(m->z)) {
+        st->ctr.refused_nonfinite++;
+        oc = MAGCAL_INTAKE_REFUSED_NONFINITE;
+        ret = MAGCAL_ERR_NONFINITE;
+    } else if (st->cfg.range_limit > 0.0f &&
+               (fabsf(m->x) >= st->cfg.range_limit || fabsf(m->y) >= st->cfg.range_limit ||
+                fabsf(m->z) >= st->cfg.range_limit)) {
+        st->ctr.refused_saturated++;
+        oc = MAGCAL_INTAKE_REFUSED_SATURATED;
+        ret = MAGCAL_ERR_SATURATED;
+    } else {
+        const uint16_t b = magcal_intake_bin_of(st, m);
+        const uint32_t base = (uint32_t)b * st->cfg.per_bin;
+        int d3 = 0;
+        float r = st->radius;
+        float dmin2;
+        uint32_t k;
+        if (st->cfg.dims == 3u) {
+            d3 = 1;
+        }
+        if (!(r > 0.0f)) { /* no radius yet: the sample's own distance from the centre */
+            const float ux = m->x - st->centre.x;
+            const float uy = m->y - st->centre.y;
+            const float uz = (d3 != 0) ? (m->z - st->centre.z) : 0.0f;
+            r = sqrtf(ux * ux + uy * uy + uz * uz);
+        }
+        dmin2 = st->cfg.min_spacing_rel * r;
+        if (st->count[b] >= st->cfg.per_bin) {
+            dmin2 *= 2.0f; /* a full bin: replacing needs twice the spacing (noise does not churn it) */
+        }
+        dmin2 *= dmin2;
+        oc = MAGCAL_INTAKE_STORED;
+        for (k = base; k < base + st->count[b]; ++k) {
+            const float dx = m->x - st->slots[k].m.x;
+            const float dy = m->y - st->slots[k].m.y;
+            const float dz = (d3 != 0) ? (m->z - st->slots[k].m.z) : 0.0f;
+            if (dx * dx + dy * dy + dz * dz < dmin2) {
+                oc = MAGCAL_INTAKE_REFUSED_SPACING;
+                break;
+            }
+        }
+        if (oc == MAGCAL_INTAKE_REFUSED_SPACING) {
+            st->ctr.refused_spacing++;
+        } else if (magcal_intake_insert(st, b, m, st->seq) != 0) {
+            st->ctr.replaced++;
+            oc = MAGCAL_INTAKE_REPLACED;
+        } else {
+            st->ctr.added++;
+        }
+    }
+    magcal_intake_sweep(st, st->cfg.sweep_steps);
+    if (outcome != NULL) {
+        *outcome = oc;
+    }
+    return ret;
+}
+
+/* A new centre: every bin must be swept again (O(bins)). */
+static void intake_recentre(magcal_intake_t *st)
+{
+    uint32_t b;
+    for (b = 0u; b < st->n_bins; ++b) {
+        st->bin_gen[b] = st->gen;
+    }
+    st->gen++;
+    st->rebin_pending = 1u;
+    st->ctr.recentres++;
+}
+
+void magcal_intake_recentre(magcal_intake_t *st, const magcal_vec3_t *c, float radius)
+{
+    st->centre = *c;
+    if (st->cfg.dims == 2u) {
+        st->centre.z = 0.0f;
+    }
+    st->radius = radius;
+    intake_recentre(st);
+}
+
+magcal_status_t magcal_intake_set_centre(magcal_intake_t *st, const magcal_vec3_t *centre, float radius)
+{
+    if (st == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (st->magic != INTAKE_MAGIC) {
+        return MAGCAL_ERR_NOT_INITIALISED;
+    }
+    if (centre == NULL) { /* keep the centre until the next survey moves it */
+        st->centre_source = (uint8_t)MAGCAL_INTAKE_CENTRE_PROVISIONAL;
+        return MAGCAL_OK;
+    }
+    if (!magcal_isfinite_f(centre->x) || !magcal_isfinite_f(centre->y) || !magcal_isfinite_f(centre->z) ||
+        !magcal_isfinite_f(radius)) {
+        return MAGCAL_ERR_NONFINITE;
+    }
+    if (!(radius > 0.0f)) {
+        return MAGCAL_ERR_ARG;
+    }
+    st->centre_source = (uint8_t)MAGCAL_INTAKE_CENTRE_INSTALLED;
+    magcal_intake_recentre(st, centre, radius);
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_intake_settle(magcal_intake_t *st)
+{
+    /* one sweep visits every slot once, plus one step per moved sample (<= slots) and per bin
+     * jump: 2 slots + bins + 1 steps always complete a sweep. Two sweeps: the survey of the
+     * current one is applied, a re-bin it starts is finished by the second. */
+    uint32_t i;
+    if (st == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (st->magic != INTAKE_MAGIC) {
+        return MAGCAL_ERR_NOT_INITIALISED;
+    }
+    for (i = 0u; i < 3u; ++i) {
+        const uint32_t target = st->sweeps + 1u;
+        const uint32_t bound = 2u * magcal_intake_nslots(st) + (uint32_t)st->n_bins + 1u;
+        uint32_t k;
+        for (k = 0u; k < bound && st->sweeps != target; ++k) {
+            magcal_intake_sweep(st, 1u);
+        }
+        if (i >= 1u && st->rebin_pending == 0u) {
+            break;
+        }
+    }
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_intake_reset(magcal_intake_t *st)
+{
+    if (st == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (st->magic != INTAKE_MAGIC) {
+        return MAGCAL_ERR_NOT_INITIALISED;
+    }
+    (void)memset(st->count, 0, sizeof(st->count));
+    (void)memset(st->bin_gen, 0, sizeof(st->bin_gen));
+    (void)memset(&st->ctr, 0, sizeof(st->ctr));
+    (void)memset(&st->centre, 0, sizeof(st->centre));
+    st->gen = 0u;
+    st->radius = 0.0f;
+    st->rebin_pending = 0u;
+    st->centre_source = (uint8_t)MAGCAL_INTAKE_CENTRE_NONE;
+    st->cursor = 0u;
+    st->seq = 0u;
+    (void)memset(&st->ref_c, 0, sizeof(st->ref_c));
+    st->ref_r = 0.0f;
+    st->ref_fit = 0u;
+    magcal_intake_survey_clear(st);
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_intake_counters(const magcal_intake_t *st, magcal_intake_counters_t *out)
+{
+    if (st == NULL || out == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (st->magic != INTAKE_MAGIC) {
+        return MAGCAL_ERR_NOT_INITIALISED;
+    }
+    *out = st->ctr;
+    return MAGCAL_OK;
+}
+
+static magcal_status_t intake_snapshot(const magcal_intake_t *st, magcal_vec3_t *out3, magcal_vec2_t *out2,
+                                       size_t cap, size_t *n)
+{
+    uint32_t b;
+    size_t w = 0u;
+    if (st == NULL || n == NULL || (out3 == NULL && out2 == NULL)) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (st->magic != INTAKE_MAGIC) {
+        return MAGCAL_ERR_NOT_INITIALISED;
+    }
+    if (cap < (size_t)st->ctr.stored) {
+        return MAGCAL_ERR_WORKSPACE;
+    }
+    for (b = 0u; b < st->n_bins; ++b) {
+        const uint32_t base = b * (uint32_t)st->cfg.per_bin;
+        uint32_t k;
+        for (k = base; k < base + st->count[b]; ++k) {
+            if (out3 != NULL) {
+                out3[w] = st->slots[k].m;
+            } else {
+                out2[w].x = st->slots[k].m.x;
+                out2[w].y = st->slots[k].m.y;
+            }
+            w++;
+        }
+    }
+    *n = w;
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_intake_snapshot3(const magcal_intake_t *st, magcal_vec3_t *out, size_t cap, size_t *n)
+{
+    return intake_snapshot(st, out, NULL, cap, (out == NULL) ? NULL : n);
+}
+
+magcal_status_t magcal_intake_snapshot2(const magcal_intake_t *st, magcal_vec2_t *out, size_t cap, size_t *n)
+{
+    return intake_snapshot(st, NULL, out, cap, (out == NULL) ? NULL : n);
+}
