@@ -28,7 +28,7 @@ static void harm_row(magcal_vec2_t h, float rho, float g[HARM_K])
 /* Solve (copy of the lower triangle of) nm x = b; 0 on success. */
 static int harm_solve(const float *nm, float *work, float *b)
 {
-    (void)memcpy(work, nm, HARM_K * HARM_K * sizeof(float));
+    (void)memcpy(work, nm, (size_t)HARM_K * HARM_K * sizeof(float));
     return magcal_ldlt_solve(work, b, HARM_K, HARM_PIVOT, NULL) == MAGCAL_OK ? 0 : -1;
 }
 
@@ -37,8 +37,8 @@ void magcal_cal_harmonics(const magcal_vec2_t *pts, size_t n, const uint8_t *mas
                           float *scratch, magcal_cal_harm_t *out)
 {
     float *nm = scratch;                   /* 5x5 normal matrix G^T G */
-    float *wk = scratch + HARM_K * HARM_K; /* solver copy */
-    float *beta = wk + HARM_K * HARM_K;    /* 5: G^T d, then the coefficients */
+    float *wk = scratch + (size_t)HARM_K * HARM_K; /* solver copy */
+    float *beta = wk + (size_t)HARM_K * HARM_K;    /* 5: G^T d, then the coefficients */
     float *col = beta + HARM_K;            /* 5: columns of the inverse */
     float inv4[4][4];
     float sum = 0.0f;
@@ -64,7 +64,7 @@ void magcal_cal_harmonics(const magcal_vec2_t *pts, size_t n, const uint8_t *mas
     }
     mean = sum / (float)k;
     out->mean_radius = mean;
-    (void)memset(nm, 0, HARM_K * HARM_K * sizeof(float));
+    (void)memset(nm, 0, (size_t)HARM_K * HARM_K * sizeof(float));
     (void)memset(beta, 0, HARM_K * sizeof(float));
     for (i = 0u; i < n; ++i) {
         magcal_vec2_t h;
@@ -110,7 +110,8 @@ void magcal_cal_harmonics(const magcal_vec2_t *pts, size_t n, const uint8_t *mas
         /* measured residual noise vs the rounding noise of the samples' LSB: rounding not seen in
          * the residuals (a lattice lying almost on a conic) is systematic along the ring, one
          * independent error per MAGCAL_CAL_LATTICE_K distinct values */
-        const float sm2 = ss / (float)(k - HARM_K);
+        const size_t k_dof = k - HARM_K;
+        const float sm2 = ss / (float)k_dof;
         const float hid = fmaxf(sigma_floor * sigma_floor - sm2, 0.0f);
         out->sigma_rel = sqrtf(sm2 + hid);
         s2 = out->sigma_rel * out->sigma_rel;

@@ -367,8 +367,9 @@ static MAGCAL_NOINLINE size_t cons_rethreshold(cons_state_t *S, uint16_t *wm)
     /* residuals of a 5-parameter least-squares fit of its own k inliers are smaller than the
      * noise by sqrt((k - 5) / k): undo it so small sets are not trimmed (k = 20: 13 %) */
     nsig = CONS_MAD_TO_SIGMA * cons_median(S->scr, k);
-    if (k > 2u * MAGCAL_ELLIPSE_MIN_POINTS) {
-        float dof = (float)k / (float)(k - MAGCAL_ELLIPSE_MIN_POINTS);
+    if (k > (size_t)2u * MAGCAL_ELLIPSE_MIN_POINTS) {
+        const size_t k_dof = k - MAGCAL_ELLIPSE_MIN_POINTS;
+        float dof = (float)k / (float)k_dof;
         /* the MAD has 37 % efficiency: at k = 20 it fell to 0.6 sigma often enough to reject a
          * clean sample in 18 % of the runs. The RMS of the current inliers (already cut at the
          * threshold, so outliers beyond it cannot inflate it) is the efficient scale; the larger
@@ -376,14 +377,15 @@ static MAGCAL_NOINLINE size_t cons_rethreshold(cons_state_t *S, uint16_t *wm)
         nsig = fmaxf(nsig * sqrtf(dof), sqrtf(ss / (float)k * dof));
     }
     nsig = fmaxf(nsig, S->sig_floor);
-    if (k > 2u * MAGCAL_ELLIPSE_MIN_POINTS) {
+    if (k > (size_t)2u * MAGCAL_ELLIPSE_MIN_POINTS) {
         /* sigma is itself estimated from k - 5 residuals: the threshold is the Student-t quantile
          * of k_sigma (Cornish-Fisher, first order: x (1 + (z^2 + 1) / (4 dof)); 1.24 at k = 20,
          * 1.005 at k = 600) */
+        const size_t k_dof = k - MAGCAL_ELLIPSE_MIN_POINTS;
         const float z = S->cfg->k_sigma;
         nthr = cons_threshold(
             S->cfg, &S->cur,
-            nsig * (1.0f + (z * z + 1.0f) / (4.0f * (float)(k - MAGCAL_ELLIPSE_MIN_POINTS))));
+            nsig * (1.0f + (z * z + 1.0f) / (4.0f * (float)k_dof)));
     } else {
         nthr = cons_threshold(S->cfg, &S->cur, nsig);
     }
@@ -409,7 +411,8 @@ static MAGCAL_NOINLINE void cons_refine_init(cons_state_t *S, uint16_t *wm)
      * the plain 1.4826 * median started the refits on a trimmed subset they never left */
     S->sigma = CONS_MAD_TO_SIGMA * S->best_score;
     if (S->n > MAGCAL_ELLIPSE_MIN_POINTS) {
-        S->sigma *= 1.0f + 5.0f / (float)(S->n - MAGCAL_ELLIPSE_MIN_POINTS);
+        const size_t n_dof = S->n - MAGCAL_ELLIPSE_MIN_POINTS;
+        S->sigma *= 1.0f + 5.0f / (float)n_dof;
     }
     S->sigma = fmaxf(S->sigma, S->sig_floor);
     S->thr = cons_threshold(S->cfg, &S->cur, S->sigma);

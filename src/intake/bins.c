@@ -52,6 +52,34 @@ uint16_t magcal_intake_build_mask(magcal_intake_t *st, uint16_t bands)
     return (total <= MAGCAL_INTAKE_MAX_BINS) ? (uint16_t)total : 0u;
 }
 
+/* 3-D: the cell of the igloo mask holding direction (ux, uy, uz) from the centre. */
+static uint16_t bin_of_cell(const magcal_intake_t *st, float ux, float uy, float uz)
+{
+    const float r = sqrtf(ux * ux + uy * uy + uz * uz);
+    const float c = (r > 0.0f) ? uz / r : 1.0f;
+    uint32_t lo = 0u;
+    uint32_t hi = st->n_bands; /* band_cos[lo] >= c > band_cos[hi] */
+    uint32_t cells;
+    uint32_t k;
+    float a;
+    while (hi - lo > 1u) { /* at most log2(MAGCAL_INTAKE_MAX_BANDS) + 1 steps */
+        const uint32_t mid = (lo + hi) / 2u;
+        if (c <= st->band_cos[mid]) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    cells = (uint32_t)st->band_start[lo + 1u] - (uint32_t)st->band_start[lo];
+    a = atan2f(uy, ux) * (1.0f / (2.0f * MAGCAL_PI_F));
+    if (a < 0.0f) {
+        a += 1.0f;
+    }
+    k = (uint32_t)(a * (float)cells);
+    k = (k >= cells) ? cells - 1u : k;
+    return (uint16_t)((uint32_t)st->band_start[lo] + k);
+}
+
 uint16_t magcal_intake_bin_of(const magcal_intake_t *st, const magcal_vec3_t *m)
 {
     const float ux = m->x - st->centre.x;
@@ -64,30 +92,6 @@ uint16_t magcal_intake_bin_of(const magcal_intake_t *st, const magcal_vec3_t *m)
         }
         k = (uint32_t)(a * (float)st->n_bins);
         return (k >= st->n_bins) ? (uint16_t)(st->n_bins - 1u) : (uint16_t)k;
-    } else {
-        const float uz = m->z - st->centre.z;
-        const float r = sqrtf(ux * ux + uy * uy + uz * uz);
-        const float c = (r > 0.0f) ? uz / r : 1.0f;
-        uint32_t lo = 0u;
-        uint32_t hi = st->n_bands; /* band_cos[lo] >= c > band_cos[hi] */
-        uint32_t cells;
-        uint32_t k;
-        float a;
-        while (hi - lo > 1u) { /* at most log2(MAGCAL_INTAKE_MAX_BANDS) + 1 steps */
-            const uint32_t mid = (lo + hi) / 2u;
-            if (c <= st->band_cos[mid]) {
-                lo = mid;
-            } else {
-                hi = mid;
-            }
-        }
-        cells = (uint32_t)st->band_start[lo + 1u] - (uint32_t)st->band_start[lo];
-        a = atan2f(uy, ux) * (1.0f / (2.0f * MAGCAL_PI_F));
-        if (a < 0.0f) {
-            a += 1.0f;
-        }
-        k = (uint32_t)(a * (float)cells);
-        k = (k >= cells) ? cells - 1u : k;
-        return (uint16_t)((uint32_t)st->band_start[lo] + k);
     }
+    return bin_of_cell(st, ux, uy, m->z - st->centre.z);
 }

@@ -66,7 +66,7 @@ static void survey_add(magcal_intake_t *st, const magcal_vec3_t *m)
     const uint32_t dims = st->cfg.dims;
     const uint32_t fill = (st->sv_n < MAGCAL_INTAKE_TRIM) ? st->sv_n : MAGCAL_INTAKE_TRIM;
     uint32_t a;
-    for (a = 0u; a < dims; ++a) { /* keep the TRIM largest (descending) and smallest (ascending) */
+    for (a = 0u; (a < dims) && (a < 3u); ++a) { /* keep the TRIM largest (descending) and smallest (ascending) */
         const float v = v3[a];
         float *hi = st->sv_hi[a];
         float *lo = st->sv_lo[a];
