@@ -37,9 +37,13 @@ disturbed, step, parked. docs/replay.md describes the format; `glitch` is the re
 import argparse
 import json
 import math
+import os
 import sys
 
 import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from gen_aided_dump import rot  # noqa: E402  (one rotation helper for both generators)
 
 B_NED = np.array([21.036072, 1.592762, 44.001344])  # uT, WMM2025 at SITE (see gen_aided_dump.py)
 SITE = (48.1, 11.6, 0.5, 2026.5)
@@ -48,15 +52,6 @@ SIGMA_M = 0.1
 SENSOR_RANGE = 800.0  # uT: the declared range of the simulated magnetometer
 HEADER = ("t,mx,my,mz,ax,ay,az,roll_deg,pitch_deg,yaw_deg,lat_deg,lon_deg,height_km,decimal_year,"
           "dop,heading_ref_deg,glitch,disturbed,step,parked")
-
-
-def rot(axis, a):
-    c, s = math.cos(a), math.sin(a)
-    if axis == 0:
-        return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
-    if axis == 1:
-        return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
-    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
 
 
 def dcm_ned_batch(roll, pitch, yaw):
