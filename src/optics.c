@@ -354,6 +354,14 @@ magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, v
 #define AUTO_TRIM_PASSES 2u
 #define AUTO_MIN_REL (1.0f / 256.0f)
 #define AUTO_MAX_REL 1.0f
+#define AUTO_PAIRS 256u          /* pairs of the clump-proof scale */
+#define AUTO_SEED 0x9E3779B9u    /* their fixed pseudo-random seed */
+#define AUTO_THIN_PAIR (1.0f / 32.0f) /* first thinning cell: pair scale / 32 (about R / 23) */
+#define AUTO_THIN_REL (1.0f / 16.0f)  /* later cells: R / 16 */
+#define AUTO_THIN_ROUNDS 2u
+#define AUTO_CELL_HALF 2048u     /* cell coordinates clamped to +-2048: exact float keys */
+#define AUTO_SECTORS 64u         /* angular sectors of the ring selection */
+#define AUTO_PI 3.14159265f
 
 /* (declared in optics_core.h: the 3-D automatic parameters use it too) */
 float magcal_ocore_select_kth(float *a, size_t n, size_t k)
@@ -442,13 +450,136 @@ static float dist(const magcal_vec2_t *a, const magcal_vec2_t *b)
     return sqrtf(dx * dx + dy * dy);
 }
 
-/* The rule of optics.h, also returning the robust centre and radius (grid window). */
+/* Copy coordinate `axis` (0 x, 1 y, 2 distance to (ex, ey)) of the counted points (use[i] != 0,
+ * or every point when use is NULL) within sqrt(lim2) of (cx, cy) into a; returns how many. */
+static size_t gather2(const magcal_vec2_t *pts, size_t n, const uint8_t *use, const float c[2],
+                      float lim2, unsigned axis, const float e[2], float *a)
+{
+    size_t i;
+    size_t k = 0u;
+    for (i = 0; i < n; ++i) {
+        const float dx = pts[i].x - c[0];
+        const float dy = pts[i].y - c[1];
+        if ((use == NULL || use[i] != 0u) && (lim2 == INFINITY || dx * dx + dy * dy <= lim2)) {
+            if (axis == 0u) {
+                a[k] = pts[i].x;
+            } else if (axis == 1u) {
+                a[k] = pts[i].y;
+            } else {
+                const float ex = pts[i].x - e[0];
+                const float ey = pts[i].y - e[1];
+                a[k] = sqrtf(ex * ex + ey * ey);
+            }
+            ++k;
+        }
+    }
+    return k;
+}
+
+/*
+ * Robust centre and radius over the counted points: coordinate medians, R = median |p - c|;
+ * passes 1..AUTO_TRIM_PASSES use only the points within AUTO_TRIM * R of the previous centre, so
+ * a far cluster (e.g. 23 % driver glitches 36 R away) cannot drag the centre off the ring.
+ * cr = {cx, cy, R}; a: float[n] scratch.
+ */
+static magcal_status_t robust_centre(const magcal_vec2_t *pts, size_t n, const uint8_t *use,
+                                     float *a, float cr[3])
+{
+    float c[2] = {0.0f, 0.0f};
+    float rad = INFINITY;
+    unsigned pass;
+    for (pass = 0; pass <= AUTO_TRIM_PASSES; ++pass) {
+        const float lim2 = pass == 0u ? INFINITY : (AUTO_TRIM * rad) * (AUTO_TRIM * rad);
+        float nc[2];
+        size_t k = gather2(pts, n, use, c, lim2, 0u, c, a);
+        if (k < AUTO_MIN_N) {
+            break; /* keep the previous estimate */
+        }
+        nc[0] = magcal_ocore_select_kth(a, k, k / 2u);
+        (void)gather2(pts, n, use, c, lim2, 1u, c, a);
+        nc[1] = magcal_ocore_select_kth(a, k, k / 2u);
+        (void)gather2(pts, n, use, c, lim2, 2u, nc, a);
+        rad = magcal_ocore_select_kth(a, k, k / 2u);
+        c[0] = nc[0];
+        c[1] = nc[1];
+        if (!(rad > 0.0f) || !magcal_isfinite_f(rad)) {
+            return MAGCAL_ERR_DEGENERATE;
+        }
+    }
+    if (rad == INFINITY) {
+        return MAGCAL_ERR_DEGENERATE; /* fewer than AUTO_MIN_N counted points */
+    }
+    cr[0] = c[0];
+    cr[1] = c[1];
+    cr[2] = rad;
+    return MAGCAL_OK;
+}
+
+/*
+ * Scale of the cloud that a clump cannot shrink: the median distance between AUTO_PAIRS
+ * pseudo-random pairs of points. A pair lies inside one clump with probability f^2 for a clump
+ * of a fraction f of the samples, so up to f = 0.7 the median is a distance across the ring
+ * (about 1.4 R), whatever the order of the samples. a: float[n] scratch.
+ */
+static float pair_scale(const magcal_vec2_t *pts, size_t n, float *a)
+{
+    uint32_t state = AUTO_SEED;
+    size_t k;
+    const size_t m = n < AUTO_PAIRS ? n : AUTO_PAIRS;
+    for (k = 0; k < m; ++k) {
+        const size_t i = (size_t)(magcal_ocore_rand(&state) % (uint32_t)n);
+        const size_t j = (size_t)(magcal_ocore_rand(&state) % (uint32_t)n);
+        a[k] = dist(&pts[i], &pts[j]);
+    }
+    return magcal_ocore_select_kth(a, m, m / 2u);
+}
+
+/*
+ * Thinning: one representative (the lowest index) per square cell of side h around c, so a
+ * clump of near-identical samples (a vehicle parked at one heading) counts as one sample in the
+ * centre and in the core-distance quantile. Cell coordinates are clamped to +-AUTO_CELL_HALF
+ * (far points share the border cells); the cell number is exact in a float key. key: float[n],
+ * idx: uint16[n] scratch; rep[i] = 1 for the representatives. Returns how many.
+ */
+static size_t thin2(const magcal_vec2_t *pts, size_t n, const float cr[3], float h, float *key,
+                    uint16_t *idx, uint8_t *rep)
+{
+    size_t i;
+    size_t m = 0u;
+    const float lim = (float)AUTO_CELL_HALF;
+    for (i = 0; i < n; ++i) {
+        float u = floorf((pts[i].x - cr[0]) / h);
+        float v = floorf((pts[i].y - cr[1]) / h);
+        u = u < -lim ? -lim : (u > lim - 1.0f ? lim - 1.0f : u);
+        v = v < -lim ? -lim : (v > lim - 1.0f ? lim - 1.0f : v);
+        key[i] = (u + lim) * (2.0f * lim) + (v + lim);
+        idx[i] = (uint16_t)i;
+        rep[i] = 0u;
+    }
+    heapsort_idx(idx, key, n);
+    for (i = 0; i < n; ++i) {
+        if (i == 0u || key[idx[i]] != key[idx[i - 1u]]) {
+            rep[idx[i]] = 1u;
+            ++m;
+        }
+    }
+    return m;
+}
+
+/*
+ * The rule of optics.h, also returning the robust centre and radius (grid window) and, when
+ * sectors is not NULL, each point's angular sector around the centre (0..AUTO_SECTORS-1 in the
+ * ring band, -1 outside) for the ring selection of the filter.
+ * Layout of w: a float[n] | idx uint16[n] | b float[n] | rep uint8[n] (11 n bytes).
+ */
 static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *w, float *eps_prime,
-                                   float *centre_radius)
+                                   float *centre_radius, int16_t *sectors)
 {
     float *a = (float *)(void *)w;
     uint16_t *idx = (uint16_t *)(void *)(w + 4u * n);
-    float *b = (float *)(void *)(w + 8u * n);
+    float *b = (float *)(void *)(w + 6u * n);
+    uint8_t *rep = w + 10u * n;
+    float cr[3];
     float cx;
     float cy;
     float rad;
@@ -458,61 +589,32 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
     float link2 = 0.0f;
     float coreq;
     float e;
+    float h;
     size_t i;
     size_t m = 0u;
-    unsigned pass;
+    size_t nq = 0u;
+    unsigned round;
+    magcal_status_t st;
 
-    /* Pass 0 uses every point; passes 1..AUTO_TRIM_PASSES only the points within
-     * AUTO_TRIM * R of the previous centre, so a far cluster (e.g. 23 % driver glitches 36 R
-     * away) cannot drag the median centre off the ring. */
-    cx = 0.0f;
-    cy = 0.0f;
-    rad = INFINITY;
-    for (pass = 0; pass <= AUTO_TRIM_PASSES; ++pass) {
-        float lim2 = (AUTO_TRIM * rad) * (AUTO_TRIM * rad);
-        float ncx;
-        float ncy;
-        size_t k = 0u;
-        for (i = 0; i < n; ++i) {
-            float dx = pts[i].x - cx;
-            float dy = pts[i].y - cy;
-            if (pass == 0u || dx * dx + dy * dy <= lim2) {
-                a[k] = pts[i].x;
-                ++k;
-            }
-        }
-        if (k < AUTO_MIN_N) {
-            break; /* keep the previous estimate */
-        }
-        ncx = magcal_ocore_select_kth(a, k, k / 2u);
-        k = 0u;
-        for (i = 0; i < n; ++i) {
-            float dx = pts[i].x - cx;
-            float dy = pts[i].y - cy;
-            if (pass == 0u || dx * dx + dy * dy <= lim2) {
-                a[k] = pts[i].y;
-                ++k;
-            }
-        }
-        ncy = magcal_ocore_select_kth(a, k, k / 2u);
-        k = 0u;
-        for (i = 0; i < n; ++i) {
-            float dx = pts[i].x - cx;
-            float dy = pts[i].y - cy;
-            if (pass == 0u || dx * dx + dy * dy <= lim2) {
-                float ex = pts[i].x - ncx;
-                float ey = pts[i].y - ncy;
-                a[k] = sqrtf(ex * ex + ey * ey);
-                ++k;
-            }
-        }
-        cx = ncx;
-        cy = ncy;
-        rad = magcal_ocore_select_kth(a, k, k / 2u);
-        if (!(rad > 0.0f) || !magcal_isfinite_f(rad)) {
-            return MAGCAL_ERR_DEGENERATE;
-        }
+    /* centre and radius of the ring, each clump of near-identical samples counted once: cells of
+     * a fraction of the pair scale first (a clump cannot shrink it), then of the radius found */
+    h = pair_scale(pts, n, a) * AUTO_THIN_PAIR;
+    if (!(h > 0.0f) || !magcal_isfinite_f(h)) {
+        return MAGCAL_ERR_DEGENERATE;
     }
+    st = robust_centre(pts, n, NULL, a, cr);
+    for (round = 0u; st == MAGCAL_OK && round < AUTO_THIN_ROUNDS; ++round) {
+        if (thin2(pts, n, cr, h, a, idx, rep) >= AUTO_MIN_N) {
+            st = robust_centre(pts, n, rep, a, cr);
+        }
+        h = cr[2] * AUTO_THIN_REL;
+    }
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    cx = cr[0];
+    cy = cr[1];
+    rad = cr[2];
     lo = rad - AUTO_BAND * rad;
     hi = rad + AUTO_BAND * rad;
     for (i = 0; i < n; ++i) {
@@ -551,6 +653,9 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
         } else {
             /* neither of the two longest links */
         }
+        if (rep[idx[i]] == 0u) {
+            continue; /* the core quantile counts each clump once */
+        }
         /* core requirement: (MinPts-1)-th nearest of the AUTO_WIN angular neighbours each side */
         for (q = 1u; q <= AUTO_WIN; ++q) {
             near[2u * q - 2u] = dist(p0, &pts[idx[(i + m - q) % m]]);
@@ -566,12 +671,14 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
             }
             near[u] = v;
         }
-        b[i] = near[AUTO_MIN_PTS - 2u];
+        b[nq] = near[AUTO_MIN_PTS - 2u];
+        ++nq;
     }
-    {
-        const size_t last = m - 1u;
+    coreq = 0.0f;
+    if (nq > 0u) {
+        const size_t last = nq - 1u;
         const float qpos = AUTO_CORE_Q * (float)last;
-        coreq = magcal_ocore_select_kth(b, m, (size_t)qpos);
+        coreq = magcal_ocore_select_kth(b, nq, (size_t)qpos);
     }
     e = AUTO_SAFETY * (link2 > coreq ? link2 : coreq);
     if (e < AUTO_MIN_REL * rad) {
@@ -585,6 +692,22 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
         centre_radius[0] = cx;
         centre_radius[1] = cy;
         centre_radius[2] = rad;
+    }
+    if (sectors != NULL) {
+        /* a[] still holds the angles; sectors may overlay idx (no longer needed) */
+        for (i = 0; i < n; ++i) {
+            float dx = pts[i].x - cx;
+            float dy = pts[i].y - cy;
+            float r = sqrtf(dx * dx + dy * dy);
+            int16_t sec = -1;
+            if (r >= lo && r <= hi) {
+                float f = (a[i] + AUTO_PI) * ((float)AUTO_SECTORS / (2.0f * AUTO_PI));
+                int32_t k = (int32_t)f;
+                k = k < 0 ? 0 : (k > (int32_t)AUTO_SECTORS - 1 ? (int32_t)AUTO_SECTORS - 1 : k);
+                sec = (int16_t)k;
+            }
+            sectors[i] = sec;
+        }
     }
     return MAGCAL_OK;
 }
@@ -608,7 +731,7 @@ magcal_status_t magcal_optics_auto_params(const magcal_vec2_t *pts, size_t n, vo
     if (work_len < MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n)) {
         return MAGCAL_ERR_WORKSPACE;
     }
-    st = auto_params(pts, n, (uint8_t *)work, &e, NULL);
+    st = auto_params(pts, n, (uint8_t *)work, &e, NULL, NULL);
     if (st != MAGCAL_OK) {
         return st;
     }
@@ -651,7 +774,7 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
             st = MAGCAL_ERR_WORKSPACE;
         }
         if (st == MAGCAL_OK) {
-            st = auto_params(pts, n, w, &eps_prime, cr);
+            st = auto_params(pts, n, w, &eps_prime, cr, (int16_t *)(void *)(w + 4u * n));
         }
         if (st != MAGCAL_OK) {
             return st;
@@ -684,6 +807,7 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
     c->oc.reach = (float *)work;
     c->oc.labels = (int16_t *)(void *)(w + 4u * n);
     c->oc.eps_prime = eps_prime;
+    c->oc.use_sectors = win != NULL ? 1 : 0; /* automatic mode: labels hold the sectors */
     optics_loop(c);
     magcal_ocore_fill_info(info, &c->oc, c->nb.use_grid, use.eps, eps_prime);
     return magcal_ocore_filter_out(&c->oc, n, inlier_mask, info);

@@ -46,9 +46,57 @@ typedef struct {
     int32_t best_id;
     size_t best_count;
     size_t n_noise;
+    /* ring selection (automatic filter): labels[p] holds p's angular sector (0..63, -1 outside
+     * the band) until p is labelled; the kept cluster is the one of most sectors, then count */
+    uint32_t sec_cur[2];
+    uint32_t best_ext;
+    int use_sectors;
     magcal_optics_order_t mode;
     uint16_t min_pts;
 } magcal_ocore_t;
+
+/* Number of set bits of v (at most 32 rounds: one bit cleared per round). */
+static inline uint32_t magcal_ocore_popcount(uint32_t v)
+{
+    uint32_t x = v;
+    uint32_t c = 0u;
+    while (x != 0u) {
+        x &= x - 1u;
+        ++c;
+    }
+    return c;
+}
+
+/* Close the cluster being extracted: it becomes the kept one when it spans more sectors (ring
+ * selection) or, at equal extent (always equal without ring selection), holds more points;
+ * strict, so ties keep the smaller id. */
+static inline void magcal_ocore_close(magcal_ocore_t *o)
+{
+    uint32_t ext = 0u;
+    if (o->id < 0) {
+        return;
+    }
+    if (o->use_sectors != 0) {
+        ext = magcal_ocore_popcount(o->sec_cur[0]) + magcal_ocore_popcount(o->sec_cur[1]);
+    }
+    if (ext > o->best_ext || (ext == o->best_ext && o->cur_count > o->best_count)) {
+        o->best_ext = ext;
+        o->best_count = o->cur_count;
+        o->best_id = o->id;
+    }
+}
+
+/* Deterministic pseudo-random stream (xorshift32, state != 0) for the pair sample of the
+ * automatic parameters: the same data always give the same parameters. */
+static inline uint32_t magcal_ocore_rand(uint32_t *state)
+{
+    uint32_t x = *state;
+    x ^= x << 13;
+    x ^= x >> 17;
+    x ^= x << 5;
+    *state = x;
+    return x;
+}
 
 static inline int magcal_ocore_is_done(const magcal_ocore_t *o, size_t i)
 {
@@ -148,14 +196,14 @@ static inline uint16_t magcal_ocore_pop_min(magcal_ocore_t *o)
 static inline void magcal_ocore_extract_step(magcal_ocore_t *o, size_t p, float core_p)
 {
     int16_t lab;
+    const int16_t sec = o->use_sectors != 0 ? o->labels[p] : (int16_t)-1;
     if (o->reach[p] > o->eps_prime) {
         if (core_p <= o->eps_prime) {
-            if (o->id >= 0 && o->cur_count > o->best_count) {
-                o->best_count = o->cur_count;
-                o->best_id = o->id;
-            }
+            magcal_ocore_close(o);
             o->id++;
             o->cur_count = 1u;
+            o->sec_cur[0] = 0u;
+            o->sec_cur[1] = 0u;
             lab = (int16_t)o->id;
         } else {
             lab = MAGCAL_OPTICS_NOISE;
@@ -168,6 +216,10 @@ static inline void magcal_ocore_extract_step(magcal_ocore_t *o, size_t p, float 
         } else {
             o->n_noise++; /* unreachable in practice: the first point has reach = inf */
         }
+    }
+    if (sec >= 0 && lab >= 0) {
+        const unsigned sb = (unsigned)sec;
+        o->sec_cur[sb >> 5] |= 1u << (sb & 31u);
     }
     o->labels[p] = lab;
 }
@@ -259,9 +311,8 @@ static inline void magcal_ocore_start(magcal_ocore_t *o, size_t n)
 /* End of a run: the last cluster of the on-the-fly extraction competes for the largest. */
 static inline void magcal_ocore_finish(magcal_ocore_t *o)
 {
-    if (o->labels != NULL && o->id >= 0 && o->cur_count > o->best_count) {
-        o->best_count = o->cur_count;
-        o->best_id = o->id;
+    if (o->labels != NULL) {
+        magcal_ocore_close(o);
     }
 }
 
