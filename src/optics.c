@@ -542,12 +542,18 @@ static float pair_scale(const magcal_vec2_t *pts, size_t n, float *a)
  * idx: uint16[n] scratch; rep[i] = 1 for the representatives. Returns how many.
  */
 static size_t thin2(const magcal_vec2_t *pts, size_t n, const float cr[3], float h, float *key,
-                    uint16_t *idx, uint8_t *rep)
+                    uint16_t *idx, uint8_t *rep, const uint8_t *use)
 {
     size_t i;
     size_t m = 0u;
     const float lim = (float)AUTO_CELL_HALF;
     for (i = 0; i < n; ++i) {
+        if (use != NULL && use[i] == 0u) {
+            key[i] = 4.0f * lim * lim; /* after every cell: never a representative */
+            idx[i] = (uint16_t)i;
+            rep[i] = 0u;
+            continue;
+        }
         float u = floorf((pts[i].x - cr[0]) / h);
         float v = floorf((pts[i].y - cr[1]) / h);
         u = u < -lim ? -lim : (u > lim - 1.0f ? lim - 1.0f : u);
@@ -558,7 +564,7 @@ static size_t thin2(const magcal_vec2_t *pts, size_t n, const float cr[3], float
     }
     heapsort_idx(idx, key, n);
     for (i = 0; i < n; ++i) {
-        if (i == 0u || key[idx[i]] != key[idx[i - 1u]]) {
+        if (key[idx[i]] < 4.0f * lim * lim && (i == 0u || key[idx[i]] != key[idx[i - 1u]])) {
             rep[idx[i]] = 1u;
             ++m;
         }
@@ -604,7 +610,7 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
     }
     st = robust_centre(pts, n, NULL, a, cr);
     for (round = 0u; st == MAGCAL_OK && round < AUTO_THIN_ROUNDS; ++round) {
-        if (thin2(pts, n, cr, h, a, idx, rep) >= AUTO_MIN_N) {
+        if (thin2(pts, n, cr, h, a, idx, rep, NULL) >= AUTO_MIN_N) {
             st = robust_centre(pts, n, rep, a, cr);
         }
         h = cr[2] * AUTO_THIN_REL;
@@ -811,4 +817,34 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
     optics_loop(c);
     magcal_ocore_fill_info(info, &c->oc, c->nb.use_grid, use.eps, eps_prime);
     return magcal_ocore_filter_out(&c->oc, n, inlier_mask, info);
+}
+
+magcal_status_t magcal_optics_thin(const magcal_vec2_t *pts, size_t n, const uint8_t *cand,
+                                   void *work, size_t work_len, uint8_t *rep_mask)
+{
+    uint8_t *w = (uint8_t *)work;
+    float e;
+    float cr[3];
+    magcal_status_t st;
+    if (pts == NULL || work == NULL || rep_mask == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (magcal_misalign(work, 4u) != 0u) {
+        return MAGCAL_ERR_ARG;
+    }
+    st = check_points(pts, n, AUTO_MIN_N);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    if (work_len < MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n)) {
+        return MAGCAL_ERR_WORKSPACE;
+    }
+    st = auto_params(pts, n, w, &e, cr, NULL);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    (void)thin2(pts, n, cr, cr[2] * AUTO_THIN_REL, (float *)(void *)w,
+                (uint16_t *)(void *)(w + 4u * n), w + 10u * n, cand);
+    (void)memcpy(rep_mask, w + 10u * n, n);
+    return MAGCAL_OK;
 }

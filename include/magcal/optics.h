@@ -275,6 +275,29 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
                                      size_t n, void *work, size_t work_len, uint8_t *inlier_mask,
                                      magcal_optics_result_t *info);
 
+/**
+ * @brief One representative per clump: the thinning of the automatic rule as a mask.
+ * Square cells of side R/16 around the automatic centre (c, R of the rule above, clumps counted
+ * once); in each cell the lowest-index candidate is the representative. A vehicle parked at one
+ * heading leaves hundreds of near-identical samples in one or two cells: a stage that draws
+ * samples (the consensus' minimal sets, consensus.h) should draw from the representatives, or the
+ * clump fills the draws. A ring keeps about 100 to 300 representatives (2 pi R / (R/16) cells
+ * along it, more with radial noise), so the mask is for drawing, not for fitting.
+ * @param[in]  pts       n points, finite.
+ * @param[in]  n         16..MAGCAL_MAX_SAMPLES.
+ * @param[in]  cand      NULL (every point is a candidate) or n bytes, != 0 = candidate; only
+ *                       candidates can be representatives.
+ * @param[out] work      scratch, 4-byte aligned, >= MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n) bytes.
+ * @param[in]  work_len  bytes at work.
+ * @param[out] rep_mask  n bytes: 1 = representative of its cell, 0 = not (or not a candidate).
+ * @return MAGCAL_OK; MAGCAL_ERR_NULL (pts, work or rep_mask); MAGCAL_ERR_ARG (misaligned work,
+ *         n > MAGCAL_MAX_SAMPLES); MAGCAL_ERR_TOO_FEW_POINTS (n < 16); MAGCAL_ERR_NONFINITE;
+ *         MAGCAL_ERR_WORKSPACE; MAGCAL_ERR_DEGENERATE (as magcal_optics_auto_params).
+ *         rep_mask untouched on failure.
+ */
+magcal_status_t magcal_optics_thin(const magcal_vec2_t *pts, size_t n, const uint8_t *cand,
+                                   void *work, size_t work_len, uint8_t *rep_mask);
+
 /* ---- 3-D samples (src/optics3.c) --------------------------------------------------------- */
 
 /*
