@@ -426,7 +426,8 @@ static void sort_sift(uint16_t *idx, const float *key, size_t k0, size_t m)
     idx[k] = v;
 }
 
-static void heapsort_idx(uint16_t *idx, const float *key, size_t m)
+/* (declared in optics_core.h: the 3-D thinning sorts its cells with it too) */
+void magcal_ocore_sort_idx(uint16_t *idx, const float *key, size_t m)
 {
     size_t k;
     if (m < 2u) {
@@ -562,7 +563,7 @@ static size_t thin2(const magcal_vec2_t *pts, size_t n, const float cr[3], float
         idx[i] = (uint16_t)i;
         rep[i] = 0u;
     }
-    heapsort_idx(idx, key, n);
+    magcal_ocore_sort_idx(idx, key, n);
     for (i = 0; i < n; ++i) {
         if (key[idx[i]] < 4.0f * lim * lim && (i == 0u || key[idx[i]] != key[idx[i - 1u]])) {
             rep[idx[i]] = 1u;
@@ -636,7 +637,7 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
     if (m < 2u * AUTO_WIN + 2u) { /* the cyclic windows need distinct neighbours */
         return MAGCAL_ERR_DEGENERATE;
     }
-    heapsort_idx(idx, a, m);
+    magcal_ocore_sort_idx(idx, a, m);
     for (i = 0; i < m; ++i) {
         const magcal_vec2_t *p0 = &pts[idx[i]];
         float near[2u * AUTO_WIN];

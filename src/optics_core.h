@@ -381,4 +381,8 @@ magcal_status_t magcal_ocore_check_cfg(const magcal_optics_cfg_t *cfg);
  * recursion. Defined in optics.c (the automatic parameters of both dimensions). */
 float magcal_ocore_select_kth(float *a, size_t n, size_t k);
 
+/* Heapsort of idx[0..m-1] by key[idx] ascending, ties by index (iterative). Defined in optics.c
+ * (the thinning of both dimensions' automatic parameters). */
+void magcal_ocore_sort_idx(uint16_t *idx, const float *key, size_t m);
+
 #endif
