@@ -601,7 +601,7 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
     size_t m = 0u;
     size_t nq = 0u;
     unsigned round;
-    magcal_status_t st;
+    int have;
 
     /* centre and radius of the ring, each clump of near-identical samples counted once: cells of
      * a fraction of the pair scale first (a clump cannot shrink it), then of the radius found */
@@ -609,15 +609,21 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
     if (!(h > 0.0f) || !magcal_isfinite_f(h)) {
         return MAGCAL_ERR_DEGENERATE;
     }
-    st = robust_centre(pts, n, NULL, a, cr);
-    for (round = 0u; st == MAGCAL_OK && round < AUTO_THIN_ROUNDS; ++round) {
-        if (thin2(pts, n, cr, h, a, idx, rep, NULL) >= AUTO_MIN_N) {
-            st = robust_centre(pts, n, rep, a, cr);
-        }
-        h = cr[2] * AUTO_THIN_REL;
+    have = robust_centre(pts, n, NULL, a, cr) == MAGCAL_OK ? 1 : 0;
+    if (have == 0) {
+        /* more than half the samples identical (R = 0): the first grid's origin is any sample */
+        cr[0] = pts[0].x;
+        cr[1] = pts[0].y;
     }
-    if (st != MAGCAL_OK) {
-        return st;
+    for (round = 0u; round < AUTO_THIN_ROUNDS; ++round) {
+        if (thin2(pts, n, cr, h, a, idx, rep, NULL) >= AUTO_MIN_N &&
+            robust_centre(pts, n, rep, a, cr) == MAGCAL_OK) {
+            have = 1;
+            h = cr[2] * AUTO_THIN_REL;
+        }
+    }
+    if (have == 0) {
+        return MAGCAL_ERR_DEGENERATE;
     }
     cx = cr[0];
     cy = cr[1];

@@ -636,7 +636,7 @@ static magcal_status_t auto_run3(const magcal_optics_cfg_t *cfg, const magcal_ve
     size_t m = 0u;
     size_t target;
     unsigned round;
-    magcal_status_t st;
+    int have;
     /* thinning scratch before the run: key float[n] | idx uint16[n] | rep bits; after the run in
      * the run's workspace (free again), where rep survives the bisection */
     uint8_t *rw = w + MAGCAL_OPTICS3_FILTER_RUN_OFFSET_(n);
@@ -648,16 +648,20 @@ static magcal_status_t auto_run3(const magcal_optics_cfg_t *cfg, const magcal_ve
     if (!(h > 0.0f) || !magcal_isfinite_f(h)) {
         return MAGCAL_ERR_DEGENERATE;
     }
-    st = robust_centre3(pts, n, NULL, a, &cen, &rad);
-    for (round = 0u; st == MAGCAL_OK && round < AUTO3_THIN_ROUNDS; ++round) {
-        if (thin3(pts, n, &cen, h, (float *)(void *)rw, (uint16_t *)(void *)(rw + 4u * n), rep) >=
-            AUTO3_MIN_N) {
-            st = robust_centre3(pts, n, rep, a, &cen, &rad);
-        }
-        h = rad * AUTO3_THIN_REL;
+    have = robust_centre3(pts, n, NULL, a, &cen, &rad) == MAGCAL_OK ? 1 : 0;
+    if (have == 0) {
+        cen = pts[0]; /* more than half the samples identical: the first grid's origin */
     }
-    if (st != MAGCAL_OK) {
-        return st;
+    for (round = 0u; round < AUTO3_THIN_ROUNDS; ++round) {
+        if (thin3(pts, n, &cen, h, (float *)(void *)rw, (uint16_t *)(void *)(rw + 4u * n), rep) >=
+                AUTO3_MIN_N &&
+            robust_centre3(pts, n, rep, a, &cen, &rad) == MAGCAL_OK) {
+            have = 1;
+            h = rad * AUTO3_THIN_REL;
+        }
+    }
+    if (have == 0) {
+        return MAGCAL_ERR_DEGENERATE;
     }
     lo = rad - AUTO3_BAND * rad;
     hi = rad + AUTO3_BAND * rad;

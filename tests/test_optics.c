@@ -684,6 +684,90 @@ static void test_optics_auto_params_real_glitches_rejects_every_glitch(void)
     TEST_ASSERT_TRUE(kept_good * 100u >= good * 95u);
 }
 
+/*
+ * Ring selection of the automatic filter: a dense burst 0.7 R outside the ring (a vehicle parked
+ * beside a magnet) with more samples (150) than the ring (100) is a cluster of its own (outside
+ * the ring band, so it spans no sector); counting points would keep the burst, the angular extent
+ * keeps the ring. The same points with explicit parameters keep the larger cluster (the
+ * documents' rule). (A burst inside the band, within 0.5 R of the ring, is bridged by eps' and
+ * merges with the ring: the consensus stage rejects it, algorithms.md 4.3.)
+ */
+static void test_optics_filter_auto_keeps_ring_over_larger_burst(void)
+{
+    const test_distortion_t d = {1.0f, {{1.0f, 0.0f}, {0.0f, 1.0f}}, 0.3f, -0.2f};
+    magcal_optics_cfg_t a = MAGCAL_OPTICS_CFG_DEFAULT;
+    magcal_optics_result_t info;
+    uint32_t rng = 77u;
+    size_t i, ring_kept = 0u, burst_kept = 0u;
+    test_make_ring(&d, 100u, 0.0, 360.0, 0.005, 5u, g_pts, NULL);
+    for (i = 100u; i < 250u; ++i) {
+        g_pts[i].x = (float)(0.3 + 1.7 * cos(0.7) + 0.005 * test_rand_normal(&rng));
+        g_pts[i].y = (float)(-0.2 + 1.7 * sin(0.7) + 0.005 * test_rand_normal(&rng));
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                          magcal_optics_filter(&a, g_pts, 250u, g_work, sizeof g_work, g_mask, &info));
+    for (i = 0; i < 250u; ++i) {
+        ring_kept += i < 100u && g_mask[i] != 0u;
+        burst_kept += i >= 100u && g_mask[i] != 0u;
+    }
+    TEST_ASSERT_TRUE(info.n_clusters >= 2u);
+    TEST_ASSERT_EQUAL_UINT(100u, ring_kept);
+    TEST_ASSERT_EQUAL_UINT(0u, burst_kept);
+    TEST_ASSERT_EQUAL_UINT16(100u, info.n_inliers);
+    /* explicit parameters (the same eps'): the largest cluster, i.e. the burst */
+    a.eps = info.eps_prime;
+    a.eps_prime = info.eps_prime;
+    a.min_pts = info.min_pts;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                          magcal_optics_filter(&a, g_pts, 250u, g_work, sizeof g_work, g_mask, &info));
+    TEST_ASSERT_EQUAL_UINT16(150u, info.n_inliers);
+    TEST_ASSERT_EQUAL_UINT8(1u, g_mask[100]);
+}
+
+/* magcal_optics_thin: a clump of 300 identical samples keeps one representative; a ring keeps
+ * one per cell of side R/16 (at most about 2 pi 16 = 100 plus radial noise); only candidates are
+ * representatives; bad input gives the documented status and leaves the mask. */
+static void test_optics_thin_one_representative_per_clump(void)
+{
+    const test_distortion_t d = {1.0f, {{1.0f, 0.0f}, {0.0f, 1.0f}}, 0.0f, 0.0f};
+    static uint8_t cand[NMAX];
+    size_t i, reps = 0u, clump_reps = 0u;
+    test_make_ring(&d, 200u, 0.0, 360.0, 0.0, 1u, g_pts, NULL);
+    for (i = 200u; i < 500u; ++i) {
+        g_pts[i] = g_pts[17];
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_thin(g_pts, 500u, NULL, g_work, sizeof g_work, g_mask));
+    for (i = 0; i < 500u; ++i) {
+        reps += g_mask[i];
+        clump_reps += i >= 200u && g_mask[i] != 0u;
+    }
+    TEST_ASSERT_EQUAL_UINT(0u, clump_reps); /* point 17 (or a lower index) holds the cell */
+    TEST_ASSERT_TRUE(reps >= 80u && reps <= 130u);
+    for (i = 0; i < 500u; ++i) {
+        cand[i] = i >= 200u; /* only the clump */
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_thin(g_pts, 500u, cand, g_work, sizeof g_work, g_mask));
+    reps = 0u;
+    for (i = 0; i < 500u; ++i) {
+        reps += g_mask[i];
+    }
+    TEST_ASSERT_EQUAL_UINT(1u, reps);
+    TEST_ASSERT_EQUAL_UINT8(1u, g_mask[200]); /* the clump's lowest index */
+    memset(g_mask2, 0xAA, sizeof g_mask2);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_thin(NULL, 500u, NULL, g_work, sizeof g_work, g_mask2));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_thin(g_pts, 500u, NULL, NULL, sizeof g_work, g_mask2));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_thin(g_pts, 500u, NULL, g_work, sizeof g_work, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_optics_thin(g_pts, 15u, NULL, g_work, sizeof g_work, g_mask2));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE,
+                          magcal_optics_thin(g_pts, 500u, NULL, g_work, MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(500u) - 1u, g_mask2));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_thin(g_pts, 500u, NULL, (uint8_t *)g_work + 1, 1000u, g_mask2));
+    g_pts[3].x = NAN;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_optics_thin(g_pts, 500u, NULL, g_work, sizeof g_work, g_mask2));
+    for (i = 0; i < 500u; ++i) {
+        TEST_ASSERT_EQUAL_HEX8(0xAAu, g_mask2[i]);
+    }
+}
+
 /* ---- parked rings: a vehicle stopped at one or two headings (issue 12 item 7) ------------- */
 
 static uint8_t g_parked[NMAX];
@@ -845,6 +929,8 @@ int main(void)
     RUN_TEST(test_optics_filter_bad_input_returns_status);
     RUN_TEST(test_optics_filter_auto_keeps_ring_rejects_spikes_at_every_scale);
     RUN_TEST(test_optics_auto_params_real_glitches_rejects_every_glitch);
+    RUN_TEST(test_optics_filter_auto_keeps_ring_over_larger_burst);
+    RUN_TEST(test_optics_thin_one_representative_per_clump);
     RUN_TEST(test_optics_filter_parked_rings_keep_drive_calibrate_within_floor);
     return UNITY_END();
 }

@@ -1003,12 +1003,21 @@ static void test_optics_filter3_and_auto_bad_input_returns_specific_status(void)
                                                      sizeof g_work, &e, &mp, &ep));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE,
                           magcal_optics_auto_params3(g_pts, n, g_work, wl - 1u, &e, &mp, &ep));
-    /* more than half the samples identical: median radius 0 */
+    /* more than half the samples identical is a rest phase, counted once: 29 shell samples
+     * remain, enough for the rule (OK); with only 10 others fewer than 16 distinct cells remain:
+     * median radius 0 whatever is thinned */
     for (i = 0; i < 31u; ++i) {
         g_in[i] = g_pts[0];
     }
     for (; i < n; ++i) {
         g_in[i] = g_pts[i];
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_auto_params3(g_in, n, g_work, wl, &e, &mp, &ep));
+    e = -7.0f;
+    ep = -7.0f;
+    mp = 77u;
+    for (i = 0; i < 50u; ++i) {
+        g_in[i] = g_pts[0];
     }
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_DEGENERATE,
                           magcal_optics_auto_params3(g_in, n, g_work, wl, &e, &mp, &ep));
