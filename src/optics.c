@@ -135,9 +135,40 @@ static void process(optics_ctx_t *c, size_t p)
     }
 }
 
+/* 1 when p has >= MinPts points (itself included) within eps: the start test of START_CORE. */
+static int is_core(const optics_ctx_t *c, size_t p)
+{
+    const magcal_vec2_t *pts = c->pts;
+    const float px = pts[p].x;
+    const float py = pts[p].y;
+    const size_t m = c->oc.min_pts;
+    size_t cnt = 0u;
+    size_t ri;
+    size_t k;
+    magcal_nbr_ranges_t rg;
+    magcal_nbr_query(&c->nb, p, &rg);
+    if (rg.idx == NULL) {
+        for (k = 0; k < c->n && cnt < m; ++k) {
+            const float dx = pts[k].x - px;
+            const float dy = pts[k].y - py;
+            cnt += (dx * dx + dy * dy <= c->eps2) ? 1u : 0u;
+        }
+    }
+    for (ri = 0; rg.idx != NULL && ri < rg.n_ranges; ++ri) {
+        for (k = rg.begin[ri]; k < rg.end[ri] && cnt < m; ++k) {
+            const size_t j = rg.idx[k];
+            const float dx = pts[j].x - px;
+            const float dy = pts[j].y - py;
+            cnt += (dx * dx + dy * dy <= c->eps2) ? 1u : 0u;
+        }
+    }
+    return cnt >= m ? 1 : 0;
+}
+
 static void optics_loop(optics_ctx_t *c)
 {
     size_t s;
+    unsigned pass;
     magcal_ocore_start(&c->oc, c->n);
     if (!c->nb.use_grid) {
         size_t i;
@@ -148,13 +179,16 @@ static void optics_loop(optics_ctx_t *c)
         c->n_live = c->n;
     }
 
-    for (s = 0; s < c->n; ++s) {
-        if (magcal_ocore_is_done(&c->oc, s) != 0) {
-            continue;
-        }
-        process(c, s);
-        while (c->oc.n_seeds > 0u) {
-            process(c, magcal_ocore_pop_min(&c->oc));
+    /* pass 0 (START_CORE only): runs start at unprocessed core points; pass 1: at any point */
+    for (pass = c->oc.core_start != 0 ? 0u : 1u; pass < 2u; ++pass) {
+        for (s = 0; s < c->n; ++s) {
+            if (magcal_ocore_is_done(&c->oc, s) != 0 || (pass == 0u && is_core(c, s) == 0)) {
+                continue;
+            }
+            process(c, s);
+            while (c->oc.n_seeds > 0u) {
+                process(c, magcal_ocore_pop_min(&c->oc));
+            }
         }
     }
     magcal_ocore_finish(&c->oc);
@@ -184,6 +218,9 @@ magcal_status_t magcal_ocore_check_cfg(const magcal_optics_cfg_t *cfg)
     if (cfg->neighbors != MAGCAL_NEIGHBORS_BRUTE && cfg->neighbors != MAGCAL_NEIGHBORS_GRID) {
         return MAGCAL_ERR_ARG;
     }
+    if (cfg->start != MAGCAL_OPTICS_START_INDEX && cfg->start != MAGCAL_OPTICS_START_CORE) {
+        return MAGCAL_ERR_ARG;
+    }
     return MAGCAL_OK;
 }
 
@@ -207,6 +244,7 @@ static optics_ctx_t *ctx_setup(const magcal_optics_cfg_t *cfg, const magcal_vec2
     c->eps2 = cfg->eps * cfg->eps;
     c->oc.min_pts = cfg->min_pts;
     c->oc.mode = cfg->order;
+    c->oc.core_start = cfg->start == MAGCAL_OPTICS_START_CORE ? 1 : 0;
     c->oc.seeds = (uint16_t *)(void *)w;
     c->oc.pos = c->oc.seeds + n;
     c->oc.done = w + 4u * n + MAGCAL_NEIGHBORS_WORKSPACE_LEN(n);

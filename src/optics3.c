@@ -327,9 +327,34 @@ static void process3(optics3_ctx_t *c, size_t p)
     c->n_live = w;
 }
 
+/* 1 when p has >= MinPts points (itself included) within eps: the start test of START_CORE. */
+static int is_core3(optics3_ctx_t *c, size_t p)
+{
+    const magcal_vec3_t *pts = c->pts;
+    const magcal_vec3_t *pp = &pts[p];
+    const size_t m = c->oc.min_pts;
+    size_t cnt = 0u;
+    size_t k;
+    if (c->use_grid != 0) {
+        const size_t nb = grid3_query(c, p, c->bk);
+        size_t t;
+        for (t = 0; t < nb && cnt < m; ++t) {
+            for (k = c->start[c->bk[t]]; k < c->start[c->bk[t] + 1u] && cnt < m; ++k) {
+                cnt += dist2(&pts[c->live[k]], pp) <= c->eps2 ? 1u : 0u;
+            }
+        }
+    } else {
+        for (k = 0; k < c->n && cnt < m; ++k) {
+            cnt += dist2(&pts[k], pp) <= c->eps2 ? 1u : 0u;
+        }
+    }
+    return cnt >= m ? 1 : 0;
+}
+
 static void optics3_loop(optics3_ctx_t *c)
 {
     size_t s;
+    unsigned pass;
     magcal_ocore_start(&c->oc, c->n);
     if (c->use_grid == 0) {
         size_t i;
@@ -338,13 +363,16 @@ static void optics3_loop(optics3_ctx_t *c)
         }
     }
     c->n_live = c->n;
-    for (s = 0; s < c->n; ++s) {
-        if (magcal_ocore_is_done(&c->oc, s) != 0) {
-            continue;
-        }
-        process3(c, s);
-        while (c->oc.n_seeds > 0u) { /* each pop processes one new point: <= n rounds in total */
-            process3(c, magcal_ocore_pop_min(&c->oc));
+    /* pass 0 (START_CORE only): runs start at unprocessed core points; pass 1: at any point */
+    for (pass = c->oc.core_start != 0 ? 0u : 1u; pass < 2u; ++pass) {
+        for (s = 0; s < c->n; ++s) {
+            if (magcal_ocore_is_done(&c->oc, s) != 0 || (pass == 0u && is_core3(c, s) == 0)) {
+                continue;
+            }
+            process3(c, s);
+            while (c->oc.n_seeds > 0u) { /* each pop processes one new point: <= n rounds */
+                process3(c, magcal_ocore_pop_min(&c->oc));
+            }
         }
     }
     magcal_ocore_finish(&c->oc);
@@ -381,6 +409,7 @@ static optics3_ctx_t *ctx3_setup(const magcal_optics_cfg_t *cfg, const magcal_ve
     c->eps2 = cfg->eps * cfg->eps;
     c->oc.min_pts = cfg->min_pts;
     c->oc.mode = cfg->order;
+    c->oc.core_start = cfg->start == MAGCAL_OPTICS_START_CORE ? 1 : 0;
     c->oc.seeds = (uint16_t *)(void *)w;
     c->oc.pos = c->oc.seeds + n;
     c->live = c->oc.pos + n;

@@ -51,6 +51,7 @@ typedef struct {
     uint32_t sec_cur[2];
     uint32_t best_ext;
     int use_sectors;
+    int core_start; /* MAGCAL_OPTICS_START_CORE */
     magcal_optics_order_t mode;
     uint16_t min_pts;
 } magcal_ocore_t;

@@ -472,6 +472,139 @@ static void test_optics_workspace_macros_are_what_functions_check(void)
 }
 
 /* magcal_optics_filter == run + extract + largest_cluster (the on-the-fly extraction is exact). */
+/*
+ * Start rule (issue 17): 7 points on a line, x = 0, 9, 15, 18, 21, 24, 27, eps = 10, MinPts = 4
+ * (p counted). P0 has 2 points within eps (itself and P1): a border point of core point P1.
+ * START_INDEX (scikit-learn's rule, the default) processes P0 first, alone: reach inf, noise at
+ * eps' = 10, the cluster is P1..P6. START_CORE (the documents' rule) starts at P1, which reaches
+ * P0 at max(core 9, d 9) = 9: all 7 in one cluster. Core distances and the reach of P1..P6 are the
+ * same under both rules, in all four variants and in 3-D.
+ */
+static void test_optics_run_start_core_reaches_border_point_index_start_freezes_it(void)
+{
+    static const float xs[7] = {0.0f, 9.0f, 15.0f, 18.0f, 21.0f, 24.0f, 27.0f};
+    static magcal_vec3_t p3[7];
+    size_t i, v;
+    uint16_t nc;
+    for (i = 0; i < 7u; ++i) {
+        g_pts[i].x = xs[i];
+        g_pts[i].y = 0.0f;
+        p3[i].x = 0.0f;
+        p3[i].y = xs[i];
+        p3[i].z = 0.0f;
+    }
+    for (v = 0; v < 4u; ++v) {
+        magcal_optics_cfg_t c =
+            cfg_of(10.0f, 4u, (v & 1u) ? MAGCAL_OPTICS_IMPROVED : MAGCAL_OPTICS_CLASSIC,
+                   (v & 2u) ? MAGCAL_NEIGHBORS_GRID : MAGCAL_NEIGHBORS_BRUTE);
+        magcal_optics_result_t info;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OPTICS_START_INDEX, c.start);
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_run(&c, g_pts, 7u, g_work, sizeof g_work,
+                                                           g_order[0], g_reach[0], g_core[0], NULL,
+                                                           NULL));
+        TEST_ASSERT_EQUAL_UINT16(0u, g_order[0][0]);
+        TEST_ASSERT_TRUE(isinf(g_reach[0][0]) && isinf(g_core[0][0]));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_extract_dbscan(g_order[0], g_reach[0],
+                                                                      g_core[0], 7u, 10.0f, 10.0f,
+                                                                      g_labels, &nc));
+        TEST_ASSERT_EQUAL_INT16(MAGCAL_OPTICS_NOISE, g_labels[0]);
+        c.start = MAGCAL_OPTICS_START_CORE;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_run(&c, g_pts, 7u, g_work, sizeof g_work,
+                                                           g_order[1], g_reach[1], g_core[1],
+                                                           g_pred[1], NULL));
+        TEST_ASSERT_EQUAL_UINT16(1u, g_order[1][0]);
+        TEST_ASSERT_EQUAL_UINT16(0u, g_order[1][1]); /* reach 9, ties with P2, P3: lowest index */
+        TEST_ASSERT_EQUAL_FLOAT(9.0f, g_reach[1][0]);
+        TEST_ASSERT_EQUAL_UINT16(1u, g_pred[1][0]);
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_extract_dbscan(g_order[1], g_reach[1],
+                                                                      g_core[1], 7u, 10.0f, 10.0f,
+                                                                      g_labels, &nc));
+        TEST_ASSERT_EQUAL_UINT16(1u, nc);
+        for (i = 0; i < 7u; ++i) {
+            TEST_ASSERT_EQUAL_INT16(0, g_labels[i]);
+            TEST_ASSERT_EQUAL_FLOAT(g_core[0][i], g_core[1][i]);
+            if (i > 0u) {
+                TEST_ASSERT_EQUAL_FLOAT(g_reach[0][i], g_reach[1][i]);
+            }
+        }
+        /* the filter: 7 kept against 6 */
+        c.eps_prime = 10.0f;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                              magcal_optics_filter(&c, g_pts, 7u, g_work, sizeof g_work, g_mask, &info));
+        TEST_ASSERT_EQUAL_UINT16(7u, info.n_inliers);
+        c.start = MAGCAL_OPTICS_START_INDEX;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                              magcal_optics_filter(&c, g_pts, 7u, g_work, sizeof g_work, g_mask, &info));
+        TEST_ASSERT_EQUAL_UINT16(6u, info.n_inliers);
+        TEST_ASSERT_EQUAL_UINT8(0u, g_mask[0]);
+        /* 3-D: the same example along y */
+        c.start = MAGCAL_OPTICS_START_CORE;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_filter3(&c, p3, 7u, g_work, sizeof g_work,
+                                                               g_mask, &info));
+        TEST_ASSERT_EQUAL_UINT16(7u, info.n_inliers);
+        c.start = MAGCAL_OPTICS_START_INDEX;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_filter3(&c, p3, 7u, g_work, sizeof g_work,
+                                                               g_mask, &info));
+        TEST_ASSERT_EQUAL_UINT16(6u, info.n_inliers);
+    }
+    /* an unknown start rule is an argument error */
+    {
+        magcal_optics_cfg_t c = cfg_of(10.0f, 4u, MAGCAL_OPTICS_IMPROVED, MAGCAL_NEIGHBORS_GRID);
+        c.start = (magcal_optics_start_t)2;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_run(&c, g_pts, 7u, g_work, sizeof g_work,
+                                                                g_order[0], g_reach[0], g_core[0],
+                                                                NULL, NULL));
+    }
+}
+
+/*
+ * START_CORE on random rings with outliers and ties: the four variants stay bit-identical, core
+ * distances equal START_INDEX's, and at every eps' no point that START_INDEX puts in a cluster
+ * is noise under START_CORE (a border point can only gain a reach <= eps).
+ */
+static void test_optics_run_start_core_variants_identical_noise_never_grows(void)
+{
+    uint32_t seed;
+    for (seed = 1u; seed <= 8u; ++seed) {
+        const size_t n = 40u + 53u * seed;
+        const float eps = 0.08f + 0.03f * (float)(seed % 3u);
+        size_t v, i;
+        make_points(g_pts, n, seed * 7u, (int)(seed & 1u));
+        for (v = 0; v < 4u; ++v) {
+            magcal_optics_cfg_t c =
+                cfg_of(eps, 4u, (v & 1u) ? MAGCAL_OPTICS_IMPROVED : MAGCAL_OPTICS_CLASSIC,
+                       (v & 2u) ? MAGCAL_NEIGHBORS_GRID : MAGCAL_NEIGHBORS_BRUTE);
+            c.start = MAGCAL_OPTICS_START_CORE;
+            TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                                  magcal_optics_run(&c, g_pts, n, g_work, sizeof g_work, g_order[v],
+                                                    g_reach[v], g_core[v], g_pred[v], NULL));
+            if (v > 0u) {
+                TEST_ASSERT_EQUAL_UINT16_ARRAY(g_order[0], g_order[v], n);
+                TEST_ASSERT_EQUAL_MEMORY(g_reach[0], g_reach[v], n * sizeof(float));
+                TEST_ASSERT_EQUAL_MEMORY(g_core[0], g_core[v], n * sizeof(float));
+                TEST_ASSERT_EQUAL_UINT16_ARRAY(g_pred[0], g_pred[v], n);
+            }
+        }
+        {
+            magcal_optics_cfg_t c = cfg_of(eps, 4u, MAGCAL_OPTICS_IMPROVED, MAGCAL_NEIGHBORS_GRID);
+            int16_t lab_core[NMAX];
+            TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                                  magcal_optics_run(&c, g_pts, n, g_work, sizeof g_work, g_order[1],
+                                                    g_reach[1], g_core[1], NULL, NULL));
+            TEST_ASSERT_EQUAL_MEMORY(g_core[0], g_core[1], n * sizeof(float));
+            TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                                  magcal_optics_extract_dbscan(g_order[0], g_reach[0], g_core[0], n,
+                                                               eps, eps, lab_core, NULL));
+            TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                                  magcal_optics_extract_dbscan(g_order[1], g_reach[1], g_core[1], n,
+                                                               eps, eps, g_labels, NULL));
+            for (i = 0; i < n; ++i) {
+                TEST_ASSERT_FALSE(g_labels[i] >= 0 && lab_core[i] < 0);
+            }
+        }
+    }
+}
+
 static void test_optics_filter_equals_run_extract_largest(void)
 {
     uint32_t seed;
@@ -925,6 +1058,8 @@ int main(void)
     RUN_TEST(test_optics_largest_cluster_errors_return_status);
     RUN_TEST(test_optics_run_bad_input_returns_status_and_leaves_outputs);
     RUN_TEST(test_optics_workspace_macros_are_what_functions_check);
+    RUN_TEST(test_optics_run_start_core_reaches_border_point_index_start_freezes_it);
+    RUN_TEST(test_optics_run_start_core_variants_identical_noise_never_grows);
     RUN_TEST(test_optics_filter_equals_run_extract_largest);
     RUN_TEST(test_optics_filter_bad_input_returns_status);
     RUN_TEST(test_optics_filter_auto_keeps_ring_rejects_spikes_at_every_scale);

@@ -78,6 +78,24 @@ typedef enum {
     MAGCAL_OPTICS_IMPROVED = 1 /**< unordered seed list, one linear scan for the minimum */
 } magcal_optics_order_t;
 
+/**
+ * Where each run of the ordering loop starts once the seed list is empty (docs/optics.md "Start
+ * rule"). Core distance and reachability are defined the same way under both rules; only which
+ * points get processed first differs, and with it the ordering and the reach of border points.
+ */
+typedef enum {
+    /** the lowest unprocessed index, core or not (scikit-learn's rule; the default, which the
+     *  golden vectors pin): a border point met before its core neighbours is processed alone and
+     *  keeps reach = inf, so ExtractDBSCAN labels it noise */
+    MAGCAL_OPTICS_START_INDEX = 0,
+    /** the lowest unprocessed CORE point (the source documents' rule: each run starts at an
+     *  unprocessed core object); points that are neither core nor reachable from one are
+     *  processed after every core point, by index. A border point within eps of a core point is
+     *  then always reached and joins its cluster. Costs one extra eps-query per non-core start
+     *  candidate. */
+    MAGCAL_OPTICS_START_CORE = 1
+} magcal_optics_start_t;
+
 /** Neighbour search used for the eps-queries; outputs are identical. */
 typedef enum {
     MAGCAL_NEIGHBORS_BRUTE = 0, /**< test every point, O(n) per query */
@@ -144,18 +162,24 @@ typedef struct {
     /** Extraction radius eps' (filter only), finite, 0 < eps' <= eps; 0 means eps' = eps (then
      *  eps must be finite). Ignored in auto mode. */
     float eps_prime;
-    /** MinPts, counting the point itself: 2..MAGCAL_MAX_MIN_PTS. Ignored in auto mode. */
+    /** MinPts, counting the point itself: 2..MAGCAL_MAX_MIN_PTS. Ignored in auto mode. p is a
+     *  core point when its eps-neighbourhood, p included, holds >= MinPts points (Ankerst et al.,
+     *  scikit-learn's min_samples). The source documents' threshold m ("the number of points in
+     *  the eps-neighbourhood of p >= m") is the same number when that neighbourhood contains p,
+     *  as in the OPTICS paper they cite; a reading without p is MinPts = m + 1. */
     uint16_t min_pts;
     /** Seed-list organisation. */
     magcal_optics_order_t order;
     /** Neighbour search. */
     magcal_neighbors_t neighbors;
+    /** Start rule of each run (MAGCAL_OPTICS_START_INDEX by default). */
+    magcal_optics_start_t start;
 } magcal_optics_cfg_t;
 
 /** Defaults: automatic parameters, improved ordering, grid search (work without tuning). */
 #define MAGCAL_OPTICS_CFG_DEFAULT                                                                  \
     {                                                                                              \
-        0.0f, 0.0f, 4u, MAGCAL_OPTICS_IMPROVED, MAGCAL_NEIGHBORS_GRID                              \
+        0.0f, 0.0f, 4u, MAGCAL_OPTICS_IMPROVED, MAGCAL_NEIGHBORS_GRID, MAGCAL_OPTICS_START_INDEX   \
     }
 
 /** What a run or filter did (diagnostics). */
