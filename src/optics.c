@@ -212,7 +212,11 @@ magcal_status_t magcal_ocore_check_cfg(const magcal_optics_cfg_t *cfg)
     if (cfg->min_pts < 2u || cfg->min_pts > MAGCAL_MAX_MIN_PTS) {
         return MAGCAL_ERR_ARG;
     }
-    if (cfg->order != MAGCAL_OPTICS_CLASSIC && cfg->order != MAGCAL_OPTICS_IMPROVED) {
+    if (cfg->order != MAGCAL_OPTICS_CLASSIC && cfg->order != MAGCAL_OPTICS_IMPROVED
+#ifdef MAGCAL_OPTICS_BENCH_SORTED_LIST
+        && cfg->order != MAGCAL_OPTICS_SORTED_LIST_
+#endif
+    ) {
         return MAGCAL_ERR_ARG;
     }
     if (cfg->neighbors != MAGCAL_NEIGHBORS_BRUTE && cfg->neighbors != MAGCAL_NEIGHBORS_GRID) {
@@ -464,7 +468,7 @@ static void sort_sift(uint16_t *idx, const float *key, size_t k0, size_t m)
     idx[k] = v;
 }
 
-/* (declared in optics_core.h: the 3-D thinning sorts its cells with it too) */
+/* (declared in optics_core.h: the 3-D thinning and the bench's sorted list use it too) */
 void magcal_ocore_sort_idx(uint16_t *idx, const float *key, size_t m)
 {
     size_t k;

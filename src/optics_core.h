@@ -26,6 +26,17 @@
 
 #define MAGCAL_OCORE_POS_NONE 0xFFFFu
 
+#ifdef MAGCAL_OPTICS_BENCH_SORTED_LIST
+/*
+ * Bench-only third seed-list organisation (tools/bench: magcal_bench_sorted, never in a shipped
+ * build): the source paper's classic OPTICS, whose ordered queue is re-sorted by reachability
+ * whenever it changed before the next point is taken (heapsort of the whole list, O(q log q)),
+ * the first element popped. Same (reach, index) key, so its outputs are bit-identical to the two
+ * library modes; it exists to reproduce the paper's Table 2 (docs/performance.md).
+ */
+#define MAGCAL_OPTICS_SORTED_LIST_ ((magcal_optics_order_t)2)
+#endif
+
 /* Dimension-free state of one ordering run; optional outputs are NULL when not wanted. */
 typedef struct {
     float *reach;    /* n, working reach (final when a point is processed) */
@@ -52,9 +63,17 @@ typedef struct {
     uint32_t best_ext;
     int use_sectors;
     int core_start; /* MAGCAL_OPTICS_START_CORE */
+#ifdef MAGCAL_OPTICS_BENCH_SORTED_LIST
+    size_t head; /* sorted list: the list is seeds[head .. head + n_seeds) */
+    int dirty;   /* sorted list: changed since the last sort */
+#endif
     magcal_optics_order_t mode;
     uint16_t min_pts;
 } magcal_ocore_t;
+
+/* Heapsort of idx[0..m-1] by key[idx] ascending, ties by index (iterative). Defined in optics.c
+ * (the thinning of both dimensions' automatic parameters, the bench's sorted-list mode). */
+void magcal_ocore_sort_idx(uint16_t *idx, const float *key, size_t m);
 
 /* Number of set bits of v (at most 32 rounds: one bit cleared per round). */
 static inline uint32_t magcal_ocore_popcount(uint32_t v)
@@ -171,6 +190,16 @@ static inline uint16_t magcal_ocore_pop_min(magcal_ocore_t *o)
             o->seeds[0] = o->seeds[o->n_seeds];
             magcal_ocore_sift_down(o, 0u);
         }
+#ifdef MAGCAL_OPTICS_BENCH_SORTED_LIST
+    } else if (o->mode == MAGCAL_OPTICS_SORTED_LIST_) {
+        if (o->dirty != 0) {
+            magcal_ocore_sort_idx(o->seeds + o->head, o->reach, o->n_seeds);
+            o->dirty = 0;
+        }
+        q = o->seeds[o->head];
+        o->head++;
+        o->n_seeds--;
+#endif
     } else {
         size_t k;
         size_t best = 0u;
@@ -244,6 +273,14 @@ static void magcal_ocore_update(magcal_ocore_t *o, size_t p, size_t j, float r)
         } else {
             magcal_ocore_sift_up(o, o->pos[j]);
         }
+#ifdef MAGCAL_OPTICS_BENCH_SORTED_LIST
+    } else if (o->mode == MAGCAL_OPTICS_SORTED_LIST_) {
+        if (old == INFINITY) {
+            o->seeds[o->head + o->n_seeds] = (uint16_t)j;
+            o->n_seeds++;
+        }
+        o->dirty = 1;
+#endif
     } else if (old == INFINITY) {
         o->seeds[o->n_seeds] = (uint16_t)j;
         o->n_seeds++;
@@ -307,6 +344,10 @@ static inline void magcal_ocore_start(magcal_ocore_t *o, size_t n)
     (void)memset(o->done, 0, (n + 7u) / 8u);
     o->n_seeds = 0u;
     o->n_done = 0u;
+#ifdef MAGCAL_OPTICS_BENCH_SORTED_LIST
+    o->head = 0u;
+    o->dirty = 0;
+#endif
 }
 
 /* End of a run: the last cluster of the on-the-fly extraction competes for the largest. */
@@ -381,9 +422,5 @@ magcal_status_t magcal_ocore_check_cfg(const magcal_optics_cfg_t *cfg);
 /* k-th smallest of a[0..n-1], 0 <= k < n (a is permuted). Iterative Hoare selection, no
  * recursion. Defined in optics.c (the automatic parameters of both dimensions). */
 float magcal_ocore_select_kth(float *a, size_t n, size_t k);
-
-/* Heapsort of idx[0..m-1] by key[idx] ascending, ties by index (iterative). Defined in optics.c
- * (the thinning of both dimensions' automatic parameters). */
-void magcal_ocore_sort_idx(uint16_t *idx, const float *key, size_t m);
 
 #endif

@@ -127,7 +127,11 @@ typedef enum {
      ~(size_t)3u)
 /* Bytes of the ordering loop's context, kept in the workspace (off the stack) after the MinPts
  * buffer, with slack to align it for pointers; optics.c checks the size with a static assert. */
+#ifdef MAGCAL_OPTICS_BENCH_SORTED_LIST /* bench-only seed-list mode (src/optics_core.h): 2 more words */
+#define MAGCAL_OPTICS_CTX_LEN_ (37u * sizeof(void *))
+#else
 #define MAGCAL_OPTICS_CTX_LEN_ (35u * sizeof(void *))
+#endif
 /* Offset of the run workspace inside the filter workspace (4-byte aligned). */
 #define MAGCAL_OPTICS_FILTER_RUN_OFFSET_(n) ((6u * (size_t)(n) + 3u) & ~(size_t)3u)
 /** @endcond */
@@ -383,7 +387,11 @@ magcal_status_t magcal_optics_thin(const magcal_vec2_t *pts, size_t n, const uin
      ~(size_t)3u)
 /* Bytes of the 3-D ordering loop's context (off the stack), with slack to align it for pointers;
  * optics3.c checks the size with a static assert. */
+#ifdef MAGCAL_OPTICS_BENCH_SORTED_LIST
+#define MAGCAL_OPTICS3_CTX_LEN_ (28u * sizeof(void *) + 112u)
+#else
 #define MAGCAL_OPTICS3_CTX_LEN_ (26u * sizeof(void *) + 112u)
+#endif
 /* Offset of the run workspace inside the 3-D filter workspace (4-byte aligned): reach float[n],
  * core float[n], order uint16[n] (the automatic rule keeps the whole ordering). */
 #define MAGCAL_OPTICS3_FILTER_RUN_OFFSET_(n) ((10u * (size_t)(n) + 3u) & ~(size_t)3u)
