@@ -401,6 +401,7 @@ magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, v
 #define AUTO_THIN_PAIR (1.0f / 32.0f) /* first thinning cell: pair scale / 32 (about R / 23) */
 #define AUTO_THIN_REL (1.0f / 16.0f)  /* later cells: R / 16 */
 #define AUTO_THIN_ROUNDS 2u
+#define AUTO_THIN_N 400u              /* above 400 samples the cells shrink like 1/n */
 #define AUTO_CELL_HALF 2048u     /* cell coordinates clamped to +-2048: exact float keys */
 #define AUTO_SECTORS 64u         /* angular sectors of the ring selection */
 #define AUTO_PI 3.14159265f
@@ -578,6 +579,16 @@ static float pair_scale(const magcal_vec2_t *pts, size_t n, float *a)
 }
 
 /*
+ * Cell side factor of the thinning for n samples: 1 up to AUTO_THIN_N, then AUTO_THIN_N / n, so
+ * a ring keeps about n / 4 or more representatives (2 pi R / h cells along it) and sparse
+ * outliers (one representative each, e.g. 6 % scattered samples at n = 4096) stay a minority.
+ */
+static float thin_scale(size_t n)
+{
+    return n > AUTO_THIN_N ? (float)AUTO_THIN_N / (float)n : 1.0f;
+}
+
+/*
  * Thinning: one representative (the lowest index) per square cell of side h around c, so a
  * clump of near-identical samples (a vehicle parked at one heading) counts as one sample in the
  * centre and in the core-distance quantile. Cell coordinates are clamped to +-AUTO_CELL_HALF
@@ -647,7 +658,7 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
 
     /* centre and radius of the ring, each clump of near-identical samples counted once: cells of
      * a fraction of the pair scale first (a clump cannot shrink it), then of the radius found */
-    h = pair_scale(pts, n, a) * AUTO_THIN_PAIR;
+    h = pair_scale(pts, n, a) * AUTO_THIN_PAIR; /* coarse: out of any clump first */
     if (!(h > 0.0f) || !magcal_isfinite_f(h)) {
         return MAGCAL_ERR_DEGENERATE;
     }
@@ -661,7 +672,7 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
         if (thin2(pts, n, cr, h, a, idx, rep, NULL) >= AUTO_MIN_N &&
             robust_centre(pts, n, rep, a, cr) == MAGCAL_OK) {
             have = 1;
-            h = cr[2] * AUTO_THIN_REL;
+            h = cr[2] * AUTO_THIN_REL * thin_scale(n);
         }
     }
     if (have == 0) {

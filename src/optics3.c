@@ -474,6 +474,7 @@ magcal_status_t magcal_optics_run3(const magcal_optics_cfg_t *cfg, const magcal_
 #define AUTO3_THIN_PAIR (1.0f / 32.0f) /* first thinning cell: pair scale / 32 */
 #define AUTO3_THIN_REL (1.0f / 16.0f)  /* later cells: R / 16 */
 #define AUTO3_THIN_ROUNDS 2u
+#define AUTO3_THIN_N 400u              /* above 400 samples the cells shrink like 1/sqrt(n) */
 #define AUTO3_CELL_HALF 128u          /* cell coordinates clamped to +-128: exact float keys */
 #define AUTO3_CELLS 96u               /* direction cells of the shell selection (6 faces x 4 x 4) */
 
@@ -570,6 +571,13 @@ static float pair_scale3(const magcal_vec3_t *pts, size_t n, float *a)
         a[k] = sqrtf(dist2(&pts[i], &pts[j]));
     }
     return magcal_ocore_select_kth(a, m, m / 2u);
+}
+
+/* Cell side factor for n samples: 1 up to AUTO3_THIN_N, then sqrt(AUTO3_THIN_N / n) (a shell
+ * has (4 pi R^2) / h^2 cells: the shell keeps its majority of representatives at every n). */
+static float thin_scale3(size_t n)
+{
+    return n > AUTO3_THIN_N ? sqrtf((float)AUTO3_THIN_N / (float)n) : 1.0f;
 }
 
 /* Cell coordinate of v / h, clamped to +-AUTO3_CELL_HALF (far points share the border cells). */
@@ -673,7 +681,7 @@ static magcal_status_t auto_run3(const magcal_optics_cfg_t *cfg, const magcal_ve
 
     /* centre and radius with each rest phase (noise around one point) counted once: cells of
      * a fraction of the pair scale first (a clump cannot shrink it), then of the radius found */
-    h = pair_scale3(pts, n, a) * AUTO3_THIN_PAIR;
+    h = pair_scale3(pts, n, a) * AUTO3_THIN_PAIR; /* coarse: out of any clump first */
     if (!(h > 0.0f) || !magcal_isfinite_f(h)) {
         return MAGCAL_ERR_DEGENERATE;
     }
@@ -686,7 +694,7 @@ static magcal_status_t auto_run3(const magcal_optics_cfg_t *cfg, const magcal_ve
                 AUTO3_MIN_N &&
             robust_centre3(pts, n, rep, a, &cen, &rad) == MAGCAL_OK) {
             have = 1;
-            h = rad * AUTO3_THIN_REL;
+            h = rad * AUTO3_THIN_REL * thin_scale3(n);
         }
     }
     if (have == 0) {
@@ -724,7 +732,7 @@ static magcal_status_t auto_run3(const magcal_optics_cfg_t *cfg, const magcal_ve
     au->neighbors = c->use_grid != 0 ? MAGCAL_NEIGHBORS_GRID : MAGCAL_NEIGHBORS_BRUTE;
     au->eps = use.eps;
     /* the representatives again (the run used this memory), counted in the band */
-    (void)thin3(pts, n, &cen, rad * AUTO3_THIN_REL, (float *)(void *)rw,
+    (void)thin3(pts, n, &cen, rad * AUTO3_THIN_REL * thin_scale3(n), (float *)(void *)rw,
                 (uint16_t *)(void *)(rw + 4u * n), rep);
     au->rep = rep;
     m = 0u;

@@ -157,8 +157,8 @@ static void test_run_vn100_car_circles_b_stream_windows_starting_parked(void)
  * (rows [off, off + cap * k) every k-th row, >= 2200 rows): capacities 256..1024, k = 1..16,
  * offsets 0..3. Counted: OK, TOO_MANY_OUTLIERS (the clump kept: must be 0), other refusals; every
  * OK must drop the spread over the window's rows >= 4x (no silent wrong answer).
- * Measured before the thinning: 292 of 322 OK, 15 TOO_MANY_OUTLIERS, 15 COVERAGE; after: 320 OK,
- * 2 COVERAGE (the consensus' residual scale, dominated by the parked samples' small noise, cuts
+ * Measured before the thinning: 292 of 322 OK, 15 TOO_MANY_OUTLIERS, 15 COVERAGE; after: 321 OK,
+ * 1 COVERAGE (the consensus' residual scale, dominated by the parked samples' small noise, cuts
  * part of the turn: consensus.c, not the density stage).
  */
 static void test_run_vn100_car_circles_b_every_stream_window_with_a_turn(void)
