@@ -136,7 +136,7 @@ static void process(optics_ctx_t *c, size_t p)
 }
 
 /* 1 when p has >= MinPts points (itself included) within eps: the start test of START_CORE. */
-static int is_core(const optics_ctx_t *c, size_t p)
+static MAGCAL_NOINLINE int is_core(const optics_ctx_t *c, size_t p)
 {
     const magcal_vec2_t *pts = c->pts;
     const float px = pts[p].x;
@@ -494,58 +494,49 @@ static float dist(const magcal_vec2_t *a, const magcal_vec2_t *b)
     return sqrtf(dx * dx + dy * dy);
 }
 
-/* Copy coordinate `axis` (0 x, 1 y, 2 distance to (ex, ey)) of the counted points (use[i] != 0,
- * or every point when use is NULL) within sqrt(lim2) of (cx, cy) into a; returns how many. */
-static size_t gather2(const magcal_vec2_t *pts, size_t n, const uint8_t *use, const float c[2],
-                      float lim2, unsigned axis, const float e[2], float *a)
-{
-    size_t i;
-    size_t k = 0u;
-    for (i = 0; i < n; ++i) {
-        const float dx = pts[i].x - c[0];
-        const float dy = pts[i].y - c[1];
-        if ((use == NULL || use[i] != 0u) && (lim2 == INFINITY || dx * dx + dy * dy <= lim2)) {
-            if (axis == 0u) {
-                a[k] = pts[i].x;
-            } else if (axis == 1u) {
-                a[k] = pts[i].y;
-            } else {
-                const float ex = pts[i].x - e[0];
-                const float ey = pts[i].y - e[1];
-                a[k] = sqrtf(ex * ex + ey * ey);
-            }
-            ++k;
-        }
-    }
-    return k;
-}
-
 /*
- * Robust centre and radius over the counted points: coordinate medians, R = median |p - c|;
- * passes 1..AUTO_TRIM_PASSES use only the points within AUTO_TRIM * R of the previous centre, so
- * a far cluster (e.g. 23 % driver glitches 36 R away) cannot drag the centre off the ring.
- * cr = {cx, cy, R}; a: float[n] scratch.
+ * Robust centre and radius over the counted points (use[i] != 0, or every point when use is
+ * NULL): coordinate medians, R = median |p - c|; passes 1..AUTO_TRIM_PASSES use only the points
+ * within AUTO_TRIM * R of the previous centre, so a far cluster (e.g. 23 % driver glitches 36 R
+ * away) cannot drag the centre off the ring. cr = {cx, cy, R}; a: float[n] scratch. (One loop
+ * per quantity, no helper call: this is on the filter's deepest stack path.)
  */
 static magcal_status_t robust_centre(const magcal_vec2_t *pts, size_t n, const uint8_t *use,
                                      float *a, float cr[3])
 {
-    float c[2] = {0.0f, 0.0f};
+    float cx = 0.0f;
+    float cy = 0.0f;
     float rad = INFINITY;
     unsigned pass;
     for (pass = 0; pass <= AUTO_TRIM_PASSES; ++pass) {
         const float lim2 = pass == 0u ? INFINITY : (AUTO_TRIM * rad) * (AUTO_TRIM * rad);
-        float nc[2];
-        size_t k = gather2(pts, n, use, c, lim2, 0u, c, a);
-        if (k < AUTO_MIN_N) {
-            break; /* keep the previous estimate */
+        float med[3] = {0.0f, 0.0f, 0.0f};
+        unsigned q;
+        size_t k = 0u;
+        for (q = 0u; q < 3u; ++q) { /* x median, y median, then the radius about them */
+            size_t i;
+            k = 0u;
+            for (i = 0; i < n; ++i) {
+                const float dx = pts[i].x - cx;
+                const float dy = pts[i].y - cy;
+                if ((use == NULL || use[i] != 0u) && (pass == 0u || dx * dx + dy * dy <= lim2)) {
+                    const float ex = pts[i].x - med[0];
+                    const float ey = pts[i].y - med[1];
+                    a[k] = q == 0u ? pts[i].x : (q == 1u ? pts[i].y : sqrtf(ex * ex + ey * ey));
+                    ++k;
+                }
+            }
+            if (k < AUTO_MIN_N) {
+                break; /* keep the previous estimate */
+            }
+            med[q] = magcal_ocore_select_kth(a, k, k / 2u);
         }
-        nc[0] = magcal_ocore_select_kth(a, k, k / 2u);
-        (void)gather2(pts, n, use, c, lim2, 1u, c, a);
-        nc[1] = magcal_ocore_select_kth(a, k, k / 2u);
-        (void)gather2(pts, n, use, c, lim2, 2u, nc, a);
-        rad = magcal_ocore_select_kth(a, k, k / 2u);
-        c[0] = nc[0];
-        c[1] = nc[1];
+        if (k < AUTO_MIN_N) {
+            break;
+        }
+        cx = med[0];
+        cy = med[1];
+        rad = med[2];
         if (!(rad > 0.0f) || !magcal_isfinite_f(rad)) {
             return MAGCAL_ERR_DEGENERATE;
         }
@@ -553,8 +544,8 @@ static magcal_status_t robust_centre(const magcal_vec2_t *pts, size_t n, const u
     if (rad == INFINITY) {
         return MAGCAL_ERR_DEGENERATE; /* fewer than AUTO_MIN_N counted points */
     }
-    cr[0] = c[0];
-    cr[1] = c[1];
+    cr[0] = cx;
+    cr[1] = cy;
     cr[2] = rad;
     return MAGCAL_OK;
 }
@@ -627,38 +618,20 @@ static size_t thin2(const magcal_vec2_t *pts, size_t n, const float cr[3], float
 }
 
 /*
- * The rule of optics.h, also returning the robust centre and radius (grid window) and, when
- * sectors is not NULL, each point's angular sector around the centre (0..AUTO_SECTORS-1 in the
- * ring band, -1 outside) for the ring selection of the filter.
- * Layout of w: a float[n] | idx uint16[n] | b float[n] | rep uint8[n] (11 n bytes).
+ * Step 1 of the rule: centre and radius of the ring, each clump of near-identical samples counted
+ * once: cells of a fraction of the pair scale first (a clump cannot shrink it), then of the
+ * radius found. cr = {cx, cy, R}; w as auto_params (a, idx, rep). Its own frame (not inlined),
+ * so the medians' deep path does not sit under auto_params' link and core locals (stack).
  */
-static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *w, float *eps_prime,
-                                   float *centre_radius, int16_t *sectors)
+static MAGCAL_NOINLINE magcal_status_t thinned_centre(const magcal_vec2_t *pts, size_t n,
+                                                      uint8_t *w, float cr[3])
 {
     float *a = (float *)(void *)w;
     uint16_t *idx = (uint16_t *)(void *)(w + 4u * n);
-    float *b = (float *)(void *)(w + 6u * n);
     uint8_t *rep = w + 10u * n;
-    float cr[3];
-    float cx;
-    float cy;
-    float rad;
-    float lo;
-    float hi;
-    float link1 = 0.0f;
-    float link2 = 0.0f;
-    float coreq;
-    float e;
-    float h;
-    size_t i;
-    size_t m = 0u;
-    size_t nq = 0u;
+    float h = pair_scale(pts, n, a) * AUTO_THIN_PAIR; /* coarse: out of any clump first */
     unsigned round;
     int have;
-
-    /* centre and radius of the ring, each clump of near-identical samples counted once: cells of
-     * a fraction of the pair scale first (a clump cannot shrink it), then of the radius found */
-    h = pair_scale(pts, n, a) * AUTO_THIN_PAIR; /* coarse: out of any clump first */
     if (!(h > 0.0f) || !magcal_isfinite_f(h)) {
         return MAGCAL_ERR_DEGENERATE;
     }
@@ -675,9 +648,36 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
             h = cr[2] * AUTO_THIN_REL * thin_scale(n);
         }
     }
-    if (have == 0) {
-        return MAGCAL_ERR_DEGENERATE;
-    }
+    return have != 0 ? MAGCAL_OK : MAGCAL_ERR_DEGENERATE;
+}
+
+/*
+ * Steps 2-4 of the rule of optics.h around the centre and radius cr (thinned_centre; rep[] of w
+ * still marks its representatives) and, when sectors is not NULL, each point's angular sector
+ * around the centre (0..AUTO_SECTORS-1 in the ring band, -1 outside) for the ring selection of
+ * the filter. Layout of w: a float[n] | idx uint16[n] | b float[n] | rep uint8[n] (11 n bytes).
+ */
+static MAGCAL_NOINLINE magcal_status_t auto_eps(const magcal_vec2_t *pts, size_t n, uint8_t *w,
+                                                const float cr[3], float *eps_prime,
+                                                int16_t *sectors)
+{
+    float *a = (float *)(void *)w;
+    uint16_t *idx = (uint16_t *)(void *)(w + 4u * n);
+    float *b = (float *)(void *)(w + 6u * n);
+    uint8_t *rep = w + 10u * n;
+    float cx;
+    float cy;
+    float rad;
+    float lo;
+    float hi;
+    float link1 = 0.0f;
+    float link2 = 0.0f;
+    float coreq;
+    float e;
+    size_t i;
+    size_t m = 0u;
+    size_t nq = 0u;
+
     cx = cr[0];
     cy = cr[1];
     rad = cr[2];
@@ -754,11 +754,6 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
         e = AUTO_MAX_REL * rad;
     }
     *eps_prime = e;
-    if (centre_radius != NULL) {
-        centre_radius[0] = cx;
-        centre_radius[1] = cy;
-        centre_radius[2] = rad;
-    }
     if (sectors != NULL) {
         /* a[] still holds the angles; sectors may overlay idx (no longer needed) */
         for (i = 0; i < n; ++i) {
@@ -778,12 +773,25 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
     return MAGCAL_OK;
 }
 
+/* The rule of optics.h: step 1 (thinned_centre), then steps 2-4 (auto_eps), each in its own
+ * frame so the deepest stack path holds only one of them. cr: the robust centre and radius. */
+static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *w, float *eps_prime,
+                                   float cr[3], int16_t *sectors)
+{
+    magcal_status_t st = thinned_centre(pts, n, w, cr);
+    if (st == MAGCAL_OK) {
+        st = auto_eps(pts, n, w, cr, eps_prime, sectors);
+    }
+    return st;
+}
+
 magcal_status_t magcal_optics_auto_params(const magcal_vec2_t *pts, size_t n, void *work,
                                           size_t work_len, float *eps, uint16_t *min_pts,
                                           float *eps_prime)
 {
     magcal_status_t st;
     float e;
+    float cr[3];
     if (pts == NULL || work == NULL || eps == NULL || min_pts == NULL || eps_prime == NULL) {
         return MAGCAL_ERR_NULL;
     }
@@ -797,7 +805,7 @@ magcal_status_t magcal_optics_auto_params(const magcal_vec2_t *pts, size_t n, vo
     if (work_len < MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n)) {
         return MAGCAL_ERR_WORKSPACE;
     }
-    st = auto_params(pts, n, (uint8_t *)work, &e, NULL, NULL);
+    st = auto_params(pts, n, (uint8_t *)work, &e, cr, NULL);
     if (st != MAGCAL_OK) {
         return st;
     }

@@ -328,7 +328,7 @@ static void process3(optics3_ctx_t *c, size_t p)
 }
 
 /* 1 when p has >= MinPts points (itself included) within eps: the start test of START_CORE. */
-static int is_core3(optics3_ctx_t *c, size_t p)
+static MAGCAL_NOINLINE int is_core3(optics3_ctx_t *c, size_t p)
 {
     const magcal_vec3_t *pts = c->pts;
     const magcal_vec3_t *pp = &pts[p];
