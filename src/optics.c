@@ -891,7 +891,6 @@ magcal_status_t magcal_optics_thin(const magcal_vec2_t *pts, size_t n, const uin
                                    void *work, size_t work_len, uint8_t *rep_mask)
 {
     uint8_t *w = (uint8_t *)work;
-    float e;
     float cr[3];
     magcal_status_t st;
     if (pts == NULL || work == NULL || rep_mask == NULL) {
@@ -907,7 +906,7 @@ magcal_status_t magcal_optics_thin(const magcal_vec2_t *pts, size_t n, const uin
     if (work_len < MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n)) {
         return MAGCAL_ERR_WORKSPACE;
     }
-    st = auto_params(pts, n, w, &e, cr, NULL);
+    st = thinned_centre(pts, n, w, cr);
     if (st != MAGCAL_OK) {
         return st;
     }

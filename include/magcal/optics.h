@@ -340,7 +340,8 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
  * @param[out] rep_mask  n bytes: 1 = representative of its cell, 0 = not (or not a candidate).
  * @return MAGCAL_OK; MAGCAL_ERR_NULL (pts, work or rep_mask); MAGCAL_ERR_ARG (misaligned work,
  *         n > MAGCAL_MAX_SAMPLES); MAGCAL_ERR_TOO_FEW_POINTS (n < 16); MAGCAL_ERR_NONFINITE;
- *         MAGCAL_ERR_WORKSPACE; MAGCAL_ERR_DEGENERATE (as magcal_optics_auto_params).
+ *         MAGCAL_ERR_WORKSPACE; MAGCAL_ERR_DEGENERATE (fewer than 16 distinct cells or median
+ *         radius 0: no centre).
  *         rep_mask untouched on failure.
  */
 magcal_status_t magcal_optics_thin(const magcal_vec2_t *pts, size_t n, const uint8_t *cand,
