@@ -396,14 +396,14 @@ magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, v
 #define AUTO_TRIM_PASSES 2u
 #define AUTO_MIN_REL (1.0f / 256.0f)
 #define AUTO_MAX_REL 1.0f
-#define AUTO_PAIRS 256u          /* pairs of the clump-proof scale */
-#define AUTO_SEED 0x9E3779B9u    /* their fixed pseudo-random seed */
+#define AUTO_PAIRS 256u               /* pairs of the clump-proof scale */
+#define AUTO_SEED 0x9E3779B9u         /* their fixed pseudo-random seed */
 #define AUTO_THIN_PAIR (1.0f / 32.0f) /* first thinning cell: pair scale / 32 (about R / 23) */
 #define AUTO_THIN_REL (1.0f / 16.0f)  /* later cells: R / 16 */
 #define AUTO_THIN_ROUNDS 2u
-#define AUTO_THIN_N 400u              /* above 400 samples the cells shrink like 1/n */
-#define AUTO_CELL_HALF 2048u     /* cell coordinates clamped to +-2048: exact float keys */
-#define AUTO_SECTORS 64u         /* angular sectors of the ring selection */
+#define AUTO_THIN_N 400u     /* above 400 samples the cells shrink like 1/n */
+#define AUTO_CELL_HALF 2048u /* cell coordinates clamped to +-2048: exact float keys */
+#define AUTO_SECTORS 64u     /* angular sectors of the ring selection */
 #define AUTO_PI 3.14159265f
 
 /* (declared in optics_core.h: the 3-D automatic parameters use it too) */
@@ -574,10 +574,7 @@ static float pair_scale(const magcal_vec2_t *pts, size_t n, float *a)
  * a ring keeps about n / 4 or more representatives (2 pi R / h cells along it) and sparse
  * outliers (one representative each, e.g. 6 % scattered samples at n = 4096) stay a minority.
  */
-static float thin_scale(size_t n)
-{
-    return n > AUTO_THIN_N ? (float)AUTO_THIN_N / (float)n : 1.0f;
-}
+static float thin_scale(size_t n) { return n > AUTO_THIN_N ? (float)AUTO_THIN_N / (float)n : 1.0f; }
 
 /*
  * Thinning: one representative (the lowest index) per square cell of side h around c, so a

@@ -469,14 +469,14 @@ magcal_status_t magcal_optics_run3(const magcal_optics_cfg_t *cfg, const magcal_
 #define AUTO3_TRIM_PASSES 2u
 #define AUTO3_MIN_REL (1.0f / 256.0f)
 #define AUTO3_MAX_REL 1.0f
-#define AUTO3_PAIRS 256u              /* pairs of the clump-proof scale */
-#define AUTO3_SEED 0x9E3779B9u        /* their fixed pseudo-random seed */
+#define AUTO3_PAIRS 256u               /* pairs of the clump-proof scale */
+#define AUTO3_SEED 0x9E3779B9u         /* their fixed pseudo-random seed */
 #define AUTO3_THIN_PAIR (1.0f / 32.0f) /* first thinning cell: pair scale / 32 */
 #define AUTO3_THIN_REL (1.0f / 16.0f)  /* later cells: R / 16 */
 #define AUTO3_THIN_ROUNDS 2u
-#define AUTO3_THIN_N 400u              /* above 400 samples the cells shrink like 1/sqrt(n) */
-#define AUTO3_CELL_HALF 128u          /* cell coordinates clamped to +-128: exact float keys */
-#define AUTO3_CELLS 96u               /* direction cells of the shell selection (6 faces x 4 x 4) */
+#define AUTO3_THIN_N 400u    /* above 400 samples the cells shrink like 1/sqrt(n) */
+#define AUTO3_CELL_HALF 128u /* cell coordinates clamped to +-128: exact float keys */
+#define AUTO3_CELLS 96u      /* direction cells of the shell selection (6 faces x 4 x 4) */
 
 /* What the automatic rule measured and ran. */
 typedef struct {
@@ -497,8 +497,8 @@ typedef struct {
 
 /* Copy coordinate `axis` (0 x, 1 y, 2 z) of the counted points (use == NULL: all; else bit i of
  * use set) within sqrt(lim2) of c (all when lim2 is infinite) into a; returns how many. */
-static size_t gather3(const magcal_vec3_t *pts, size_t n, const uint8_t *use, const magcal_vec3_t *c,
-                      float lim2, unsigned axis, float *a)
+static size_t gather3(const magcal_vec3_t *pts, size_t n, const uint8_t *use,
+                      const magcal_vec3_t *c, float lim2, unsigned axis, float *a)
 {
     size_t i;
     size_t k = 0u;
@@ -594,8 +594,8 @@ static float cell3(float v, float h)
  * (n/8 bytes), so a rest phase (noise around one point) counts once. key float[n], idx uint16[n]
  * scratch. Returns the number of representatives.
  */
-static size_t thin3(const magcal_vec3_t *pts, size_t n, const magcal_vec3_t *c, float h,
-                    float *key, uint16_t *idx, uint8_t *rep)
+static size_t thin3(const magcal_vec3_t *pts, size_t n, const magcal_vec3_t *c, float h, float *key,
+                    uint16_t *idx, uint8_t *rep)
 {
     const float side = 2.0f * (float)AUTO3_CELL_HALF;
     size_t i;
@@ -633,7 +633,8 @@ static size_t band_in_largest(const auto3_t *au, float eps_prime)
         const size_t p = au->order[k];
         const float d2 = dist2(&au->pts[p], &au->cen);
         size_t in_band = 0u;
-        if (d2 >= au->lo2 && d2 <= au->hi2 && ((unsigned)au->rep[p >> 3] & (1u << (p & 7u))) != 0u) {
+        if (d2 >= au->lo2 && d2 <= au->hi2 &&
+            ((unsigned)au->rep[p >> 3] & (1u << (p & 7u))) != 0u) {
             in_band = 1u; /* a representative in the band: a rest phase counts once */
         }
         if (au->reach[p] > eps_prime) {

@@ -260,8 +260,8 @@ static void test_optics_run_matches_sklearn_golden_vectors(void)
             TEST_ASSERT_EQUAL_INT(g->n_clusters, n_clusters);
             TEST_ASSERT_EQUAL_INT16_ARRAY(g->labels, g_labels, g->n);
         }
-        printf("golden %s: %u/%u ordering positions equal to sklearn's over 4 variants\n",
-               g->name, (unsigned)order_same, (unsigned)(4u * g->n));
+        printf("golden %s: %u/%u ordering positions equal to sklearn's over 4 variants\n", g->name,
+               (unsigned)order_same, (unsigned)(4u * g->n));
     }
 }
 
@@ -499,26 +499,26 @@ static void test_optics_run_start_core_reaches_border_point_index_start_freezes_
                    (v & 2u) ? MAGCAL_NEIGHBORS_GRID : MAGCAL_NEIGHBORS_BRUTE);
         magcal_optics_result_t info;
         TEST_ASSERT_EQUAL_INT(MAGCAL_OPTICS_START_INDEX, c.start);
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_run(&c, g_pts, 7u, g_work, sizeof g_work,
-                                                           g_order[0], g_reach[0], g_core[0], NULL,
-                                                           NULL));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                              magcal_optics_run(&c, g_pts, 7u, g_work, sizeof g_work, g_order[0],
+                                                g_reach[0], g_core[0], NULL, NULL));
         TEST_ASSERT_EQUAL_UINT16(0u, g_order[0][0]);
         TEST_ASSERT_TRUE(isinf(g_reach[0][0]) && isinf(g_core[0][0]));
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_extract_dbscan(g_order[0], g_reach[0],
-                                                                      g_core[0], 7u, 10.0f, 10.0f,
-                                                                      g_labels, &nc));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                              magcal_optics_extract_dbscan(g_order[0], g_reach[0], g_core[0], 7u,
+                                                           10.0f, 10.0f, g_labels, &nc));
         TEST_ASSERT_EQUAL_INT16(MAGCAL_OPTICS_NOISE, g_labels[0]);
         c.start = MAGCAL_OPTICS_START_CORE;
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_run(&c, g_pts, 7u, g_work, sizeof g_work,
-                                                           g_order[1], g_reach[1], g_core[1],
-                                                           g_pred[1], NULL));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                              magcal_optics_run(&c, g_pts, 7u, g_work, sizeof g_work, g_order[1],
+                                                g_reach[1], g_core[1], g_pred[1], NULL));
         TEST_ASSERT_EQUAL_UINT16(1u, g_order[1][0]);
         TEST_ASSERT_EQUAL_UINT16(0u, g_order[1][1]); /* reach 9, ties with P2, P3: lowest index */
         TEST_ASSERT_EQUAL_FLOAT(9.0f, g_reach[1][0]);
         TEST_ASSERT_EQUAL_UINT16(1u, g_pred[1][0]);
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_extract_dbscan(g_order[1], g_reach[1],
-                                                                      g_core[1], 7u, 10.0f, 10.0f,
-                                                                      g_labels, &nc));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                              magcal_optics_extract_dbscan(g_order[1], g_reach[1], g_core[1], 7u,
+                                                           10.0f, 10.0f, g_labels, &nc));
         TEST_ASSERT_EQUAL_UINT16(1u, nc);
         for (i = 0; i < 7u; ++i) {
             TEST_ASSERT_EQUAL_INT16(0, g_labels[i]);
@@ -529,31 +529,31 @@ static void test_optics_run_start_core_reaches_border_point_index_start_freezes_
         }
         /* the filter: 7 kept against 6 */
         c.eps_prime = 10.0f;
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
-                              magcal_optics_filter(&c, g_pts, 7u, g_work, sizeof g_work, g_mask, &info));
+        TEST_ASSERT_EQUAL_INT(
+            MAGCAL_OK, magcal_optics_filter(&c, g_pts, 7u, g_work, sizeof g_work, g_mask, &info));
         TEST_ASSERT_EQUAL_UINT16(7u, info.n_inliers);
         c.start = MAGCAL_OPTICS_START_INDEX;
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
-                              magcal_optics_filter(&c, g_pts, 7u, g_work, sizeof g_work, g_mask, &info));
+        TEST_ASSERT_EQUAL_INT(
+            MAGCAL_OK, magcal_optics_filter(&c, g_pts, 7u, g_work, sizeof g_work, g_mask, &info));
         TEST_ASSERT_EQUAL_UINT16(6u, info.n_inliers);
         TEST_ASSERT_EQUAL_UINT8(0u, g_mask[0]);
         /* 3-D: the same example along y */
         c.start = MAGCAL_OPTICS_START_CORE;
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_filter3(&c, p3, 7u, g_work, sizeof g_work,
-                                                               g_mask, &info));
+        TEST_ASSERT_EQUAL_INT(
+            MAGCAL_OK, magcal_optics_filter3(&c, p3, 7u, g_work, sizeof g_work, g_mask, &info));
         TEST_ASSERT_EQUAL_UINT16(7u, info.n_inliers);
         c.start = MAGCAL_OPTICS_START_INDEX;
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_filter3(&c, p3, 7u, g_work, sizeof g_work,
-                                                               g_mask, &info));
+        TEST_ASSERT_EQUAL_INT(
+            MAGCAL_OK, magcal_optics_filter3(&c, p3, 7u, g_work, sizeof g_work, g_mask, &info));
         TEST_ASSERT_EQUAL_UINT16(6u, info.n_inliers);
     }
     /* an unknown start rule is an argument error */
     {
         magcal_optics_cfg_t c = cfg_of(10.0f, 4u, MAGCAL_OPTICS_IMPROVED, MAGCAL_NEIGHBORS_GRID);
         c.start = (magcal_optics_start_t)2;
-        TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_run(&c, g_pts, 7u, g_work, sizeof g_work,
-                                                                g_order[0], g_reach[0], g_core[0],
-                                                                NULL, NULL));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG,
+                              magcal_optics_run(&c, g_pts, 7u, g_work, sizeof g_work, g_order[0],
+                                                g_reach[0], g_core[0], NULL, NULL));
     }
 }
 
@@ -837,8 +837,8 @@ static void test_optics_filter_auto_keeps_ring_over_larger_burst(void)
         g_pts[i].x = (float)(0.3 + 1.7 * cos(0.7) + 0.005 * test_rand_normal(&rng));
         g_pts[i].y = (float)(-0.2 + 1.7 * sin(0.7) + 0.005 * test_rand_normal(&rng));
     }
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
-                          magcal_optics_filter(&a, g_pts, 250u, g_work, sizeof g_work, g_mask, &info));
+    TEST_ASSERT_EQUAL_INT(
+        MAGCAL_OK, magcal_optics_filter(&a, g_pts, 250u, g_work, sizeof g_work, g_mask, &info));
     for (i = 0; i < 250u; ++i) {
         ring_kept += i < 100u && g_mask[i] != 0u;
         burst_kept += i >= 100u && g_mask[i] != 0u;
@@ -851,8 +851,8 @@ static void test_optics_filter_auto_keeps_ring_over_larger_burst(void)
     a.eps = info.eps_prime;
     a.eps_prime = info.eps_prime;
     a.min_pts = info.min_pts;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
-                          magcal_optics_filter(&a, g_pts, 250u, g_work, sizeof g_work, g_mask, &info));
+    TEST_ASSERT_EQUAL_INT(
+        MAGCAL_OK, magcal_optics_filter(&a, g_pts, 250u, g_work, sizeof g_work, g_mask, &info));
     TEST_ASSERT_EQUAL_UINT16(150u, info.n_inliers);
     TEST_ASSERT_EQUAL_UINT8(1u, g_mask[100]);
 }
@@ -869,7 +869,8 @@ static void test_optics_thin_one_representative_per_clump(void)
     for (i = 200u; i < 500u; ++i) {
         g_pts[i] = g_pts[17];
     }
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_thin(g_pts, 500u, NULL, g_work, sizeof g_work, g_mask));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                          magcal_optics_thin(g_pts, 500u, NULL, g_work, sizeof g_work, g_mask));
     for (i = 0; i < 500u; ++i) {
         reps += g_mask[i];
         clump_reps += i >= 200u && g_mask[i] != 0u;
@@ -879,7 +880,8 @@ static void test_optics_thin_one_representative_per_clump(void)
     for (i = 0; i < 500u; ++i) {
         cand[i] = i >= 200u; /* only the clump */
     }
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_thin(g_pts, 500u, cand, g_work, sizeof g_work, g_mask));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                          magcal_optics_thin(g_pts, 500u, cand, g_work, sizeof g_work, g_mask));
     reps = 0u;
     for (i = 0; i < 500u; ++i) {
         reps += g_mask[i];
@@ -887,15 +889,24 @@ static void test_optics_thin_one_representative_per_clump(void)
     TEST_ASSERT_EQUAL_UINT(1u, reps);
     TEST_ASSERT_EQUAL_UINT8(1u, g_mask[200]); /* the clump's lowest index */
     memset(g_mask2, 0xAA, sizeof g_mask2);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_thin(NULL, 500u, NULL, g_work, sizeof g_work, g_mask2));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_thin(g_pts, 500u, NULL, NULL, sizeof g_work, g_mask2));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_thin(g_pts, 500u, NULL, g_work, sizeof g_work, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_optics_thin(g_pts, 15u, NULL, g_work, sizeof g_work, g_mask2));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
+                          magcal_optics_thin(NULL, 500u, NULL, g_work, sizeof g_work, g_mask2));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
+                          magcal_optics_thin(g_pts, 500u, NULL, NULL, sizeof g_work, g_mask2));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
+                          magcal_optics_thin(g_pts, 500u, NULL, g_work, sizeof g_work, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS,
+                          magcal_optics_thin(g_pts, 15u, NULL, g_work, sizeof g_work, g_mask2));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE,
-                          magcal_optics_thin(g_pts, 500u, NULL, g_work, MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(500u) - 1u, g_mask2));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_thin(g_pts, 500u, NULL, (uint8_t *)g_work + 1, 1000u, g_mask2));
+                          magcal_optics_thin(g_pts, 500u, NULL, g_work,
+                                             MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(500u) - 1u,
+                                             g_mask2));
+    TEST_ASSERT_EQUAL_INT(
+        MAGCAL_ERR_ARG,
+        magcal_optics_thin(g_pts, 500u, NULL, (uint8_t *)g_work + 1, 1000u, g_mask2));
     g_pts[3].x = NAN;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_optics_thin(g_pts, 500u, NULL, g_work, sizeof g_work, g_mask2));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE,
+                          magcal_optics_thin(g_pts, 500u, NULL, g_work, sizeof g_work, g_mask2));
     for (i = 0; i < 500u; ++i) {
         TEST_ASSERT_EQUAL_HEX8(0xAAu, g_mask2[i]);
     }
@@ -910,7 +921,8 @@ static magcal_vec2_t g_cal_buf[NMAX];
 
 /* Symmetric soft iron (the ellipse correction's own form, so the floor is reachable) and a hard
  * iron of 0.5 h0. */
-static const test_distortion_t g_park_dist = {50.0f, {{1.12f, 0.06f}, {0.06f, 0.91f}}, 24.0f, -17.0f};
+static const test_distortion_t g_park_dist = {
+    50.0f, {{1.12f, 0.06f}, {0.06f, 0.91f}}, 24.0f, -17.0f};
 
 /*
  * n samples in stream order: frac * n parked (all at heading psi1, or 2/3 at psi1 first and 1/3
@@ -991,18 +1003,17 @@ static void test_optics_filter_parked_rings_keep_drive_calibrate_within_floor(vo
                         char msg[128];
                         make_parked_ring(n, fracs[ifr], (int)two, sigmas[is],
                                          (uint32_t)(101u * seed + 7u * in + 3u * ifr + two));
-                        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_filter(&a, g_pts, n, g_work,
-                                                                              sizeof g_work,
-                                                                              g_mask, &info));
+                        TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                                              magcal_optics_filter(&a, g_pts, n, g_work,
+                                                                   sizeof g_work, g_mask, &info));
                         for (i = 0; i < n; ++i) {
                             drive += g_parked[i] == 0u;
                             kept += g_parked[i] == 0u && g_mask[i] != 0u;
                         }
                         kept_low += kept * 100u < drive * 95u;
-                        TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
-                                              magcal_calibrator_init(&g_cal, &cc, g_cal_buf, NMAX,
-                                                                     g_cal_work,
-                                                                     sizeof g_cal_work));
+                        TEST_ASSERT_EQUAL_INT(
+                            MAGCAL_OK, magcal_calibrator_init(&g_cal, &cc, g_cal_buf, NMAX,
+                                                              g_cal_work, sizeof g_cal_work));
                         for (i = 0; i < n; ++i) {
                             TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
                                                   magcal_calibrator_push(&g_cal, g_pts[i]));
@@ -1017,8 +1028,8 @@ static void test_optics_filter_parked_rings_keep_drive_calibrate_within_floor(vo
                                     test_distorted_sample(&g_park_dist, psi, sigmas[is], &vrng);
                                 float h;
                                 double e;
-                                TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
-                                                      magcal_heading_compute(&cal, p, 0.0f, &h, NULL));
+                                TEST_ASSERT_EQUAL_INT(
+                                    MAGCAL_OK, magcal_heading_compute(&cal, p, 0.0f, &h, NULL));
                                 e = test_angle_diff_deg((double)h, psi);
                                 ss += e * e;
                                 e = test_angle_diff_deg(true_heading_deg(p), psi);

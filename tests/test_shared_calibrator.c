@@ -73,7 +73,8 @@ static void check_dump(const char *name, const char *xcol, const char *ycol, dou
     n = read_csv(path, xcol, ycol);
     TEST_ASSERT_TRUE(n >= 20u);
     step = (n + CAP - 1u) / CAP;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                          magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
     for (i = 0; i < n; i += step) {
         TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_push(&g_cal, g_rows[i]));
     }
@@ -81,10 +82,12 @@ static void check_dump(const char *name, const char *xcol, const char *ycol, dou
     raw = spread(n, &ident);
     cor = st == MAGCAL_OK ? spread(n, &c) : INFINITY;
     want = 0.95 * ref_drop < 5.0 ? 0.95 * ref_drop : 5.0;
-    printf("%-44s (%s,%s) rows %5u used %4u/%4u (filter -%u, residual -%u) cov %3.0f  spread %.4f -> %.4f  "
+    printf("%-44s (%s,%s) rows %5u used %4u/%4u (filter -%u, residual -%u) cov %3.0f  spread %.4f "
+           "-> %.4f  "
            "x%5.1f (float64 LS x%5.1f, need x%.1f)  est err %.2f deg  st %d\n",
-           name, xcol, ycol, (unsigned)n, (unsigned)rep.used, (unsigned)rep.samples, (unsigned)rep.rejected_filter,
-           (unsigned)rep.rejected_consensus, (double)rep.coverage_deg, raw, cor, raw / cor, ref_drop, want,
+           name, xcol, ycol, (unsigned)n, (unsigned)rep.used, (unsigned)rep.samples,
+           (unsigned)rep.rejected_filter, (unsigned)rep.rejected_consensus,
+           (double)rep.coverage_deg, raw, cor, raw / cor, ref_drop, want,
            (double)rep.est_heading_err_deg, (int)st);
     TEST_ASSERT_EQUAL_INT_MESSAGE(MAGCAL_OK, st, name);
     TEST_ASSERT_TRUE_MESSAGE(raw / cor >= want, name);
@@ -126,7 +129,8 @@ static void check_window(size_t cap, size_t step)
     snprintf(path, sizeof path, "%s/data/real/vn100_car_circles_b/data.csv", MAGCAL_SHARED_DIR);
     n = read_csv(path, "mx", "my");
     TEST_ASSERT_TRUE(n > cap * step);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_cal, &cfg, g_buf, cap, g_work, sizeof g_work));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                          magcal_calibrator_init(&g_cal, &cfg, g_buf, cap, g_work, sizeof g_work));
     for (i = 0; fed < cap; i += step, ++fed) {
         TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_push(&g_cal, g_rows[i]));
     }
@@ -134,10 +138,12 @@ static void check_window(size_t cap, size_t step)
     st = magcal_calibrator_run(&g_cal, &c, &rep);
     raw = spread(end, &ident);
     cor = st == MAGCAL_OK ? spread(end, &c) : INFINITY;
-    printf("vn100_car_circles_b rows [0, %4u) every %2u-th: used %4u/%4u (filter -%u, residual -%u) cov %3.0f "
+    printf("vn100_car_circles_b rows [0, %4u) every %2u-th: used %4u/%4u (filter -%u, residual "
+           "-%u) cov %3.0f "
            "spread %.4f -> %.4f x%5.1f  st %d\n",
-           (unsigned)end, (unsigned)step, (unsigned)rep.used, (unsigned)rep.samples, (unsigned)rep.rejected_filter,
-           (unsigned)rep.rejected_consensus, (double)rep.coverage_deg, raw, cor, raw / cor, (int)st);
+           (unsigned)end, (unsigned)step, (unsigned)rep.used, (unsigned)rep.samples,
+           (unsigned)rep.rejected_filter, (unsigned)rep.rejected_consensus,
+           (double)rep.coverage_deg, raw, cor, raw / cor, (int)st);
     snprintf(msg, sizeof msg, "capacity %u every %u-th row", (unsigned)cap, (unsigned)step);
     TEST_ASSERT_EQUAL_INT_MESSAGE(MAGCAL_OK, st, msg);
     TEST_ASSERT_TRUE_MESSAGE(raw / cor >= 5.0, msg);
@@ -182,8 +188,9 @@ static void test_run_vn100_car_circles_b_every_stream_window_with_a_turn(void)
                 if (caps[ci] * step < 2200u) {
                     continue;
                 }
-                TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_cal, &cfg, g_buf, caps[ci], g_work,
-                                                                        sizeof g_work));
+                TEST_ASSERT_EQUAL_INT(
+                    MAGCAL_OK,
+                    magcal_calibrator_init(&g_cal, &cfg, g_buf, caps[ci], g_work, sizeof g_work));
                 for (i = off; i < n && fed < caps[ci]; i += step, ++fed) {
                     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_push(&g_cal, g_rows[i]));
                 }
@@ -200,9 +207,10 @@ static void test_run_vn100_car_circles_b_every_stream_window_with_a_turn(void)
             }
         }
     }
-    printf("vn100_car_circles_b stream windows with a turn: %u, OK %u (smallest spread drop x%.1f), "
-           "TOO_MANY_OUTLIERS %u, other refusals %u\n",
-           tot, ok, worst, clump, tot - ok - clump);
+    printf(
+        "vn100_car_circles_b stream windows with a turn: %u, OK %u (smallest spread drop x%.1f), "
+        "TOO_MANY_OUTLIERS %u, other refusals %u\n",
+        tot, ok, worst, clump, tot - ok - clump);
     TEST_ASSERT_EQUAL_UINT(322u, tot);
     TEST_ASSERT_EQUAL_UINT(0u, clump);
     TEST_ASSERT_TRUE(ok >= 320u);
