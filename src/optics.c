@@ -403,6 +403,8 @@ magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, v
 #define AUTO_THIN_ROUNDS 2u
 #define AUTO_THIN_N 400u     /* above 400 samples the cells shrink like 1/n */
 #define AUTO_CELL_HALF 2048u /* cell coordinates clamped to +-2048: exact float keys */
+#define AUTO_REP 1u          /* thinning flags: representative of its cell */
+#define AUTO_CAPPED 2u       /* among the first K (mean occupancy) of its cell */
 #define AUTO_SECTORS 64u     /* angular sectors of the ring selection */
 #define AUTO_PI 3.14159265f
 
@@ -519,7 +521,8 @@ static magcal_status_t robust_centre(const magcal_vec2_t *pts, size_t n, const u
             for (i = 0; i < n; ++i) {
                 const float dx = pts[i].x - cx;
                 const float dy = pts[i].y - cy;
-                if ((use == NULL || use[i] != 0u) && (pass == 0u || dx * dx + dy * dy <= lim2)) {
+                if ((use == NULL || (use[i] & AUTO_REP) != 0u) &&
+                    (pass == 0u || dx * dx + dy * dy <= lim2)) {
                     const float ex = pts[i].x - med[0];
                     const float ey = pts[i].y - med[1];
                     a[k] = q == 0u ? pts[i].x : (q == 1u ? pts[i].y : sqrtf(ex * ex + ey * ey));
@@ -577,6 +580,28 @@ static float pair_scale(const magcal_vec2_t *pts, size_t n, float *a)
 static float thin_scale(size_t n) { return n > AUTO_THIN_N ? (float)AUTO_THIN_N / (float)n : 1.0f; }
 
 /*
+ * Mean occupancy K = ceil(candidates / occupied cells) of idx[0..n) sorted by key (keys >=
+ * invalid not counted): the core quantile keeps at most K samples per cell, so a clump (hundreds
+ * of samples in one or two cells) is cut to K while the ring and sparse points keep their weight.
+ */
+static size_t cell_cap(const uint16_t *idx, const float *key, size_t n, float invalid)
+{
+    size_t i;
+    size_t cells = 0u;
+    size_t m = 0u;
+    for (i = 0; i < n; ++i) {
+        const float k = key[idx[i]];
+        if (k < invalid) {
+            ++m;
+            if (i == 0u || k != key[idx[i - 1u]]) {
+                ++cells;
+            }
+        }
+    }
+    return cells == 0u ? 0u : (m + cells - 1u) / cells;
+}
+
+/*
  * Thinning: one representative (the lowest index) per square cell of side h around c, so a
  * clump of near-identical samples (a vehicle parked at one heading) counts as one sample in the
  * centre and in the core-distance quantile. Cell coordinates are clamped to +-AUTO_CELL_HALF
@@ -588,6 +613,8 @@ static size_t thin2(const magcal_vec2_t *pts, size_t n, const float cr[3], float
 {
     size_t i;
     size_t m = 0u;
+    size_t cap;
+    size_t run = 0u;
     const float lim = (float)AUTO_CELL_HALF;
     for (i = 0; i < n; ++i) {
         if (use != NULL && use[i] == 0u) {
@@ -605,10 +632,17 @@ static size_t thin2(const magcal_vec2_t *pts, size_t n, const float cr[3], float
         rep[i] = 0u;
     }
     magcal_ocore_sort_idx(idx, key, n);
+    cap = cell_cap(idx, key, n, 4.0f * lim * lim);
     for (i = 0; i < n; ++i) {
-        if (key[idx[i]] < 4.0f * lim * lim && (i == 0u || key[idx[i]] != key[idx[i - 1u]])) {
-            rep[idx[i]] = 1u;
-            ++m;
+        run = (i == 0u || key[idx[i]] != key[idx[i - 1u]]) ? 0u : run + 1u;
+        if (key[idx[i]] < 4.0f * lim * lim) {
+            if (run == 0u) {
+                rep[idx[i]] = AUTO_REP;
+                ++m;
+            }
+            if (run < cap) {
+                rep[idx[i]] = (uint8_t)(rep[idx[i]] | AUTO_CAPPED);
+            }
         }
     }
     return m;
@@ -716,8 +750,8 @@ static MAGCAL_NOINLINE magcal_status_t auto_eps(const magcal_vec2_t *pts, size_t
         } else {
             /* neither of the two longest links */
         }
-        if (rep[idx[i]] == 0u) {
-            continue; /* the core quantile counts each clump once */
+        if ((rep[idx[i]] & AUTO_CAPPED) == 0u) {
+            continue; /* the core quantile counts a clump as K samples (mean cell occupancy) */
         }
         /* core requirement: (MinPts-1)-th nearest of the AUTO_WIN angular neighbours each side */
         for (q = 1u; q <= AUTO_WIN; ++q) {
@@ -889,6 +923,7 @@ magcal_status_t magcal_optics_thin(const magcal_vec2_t *pts, size_t n, const uin
 {
     uint8_t *w = (uint8_t *)work;
     float cr[3];
+    size_t i;
     magcal_status_t st;
     if (pts == NULL || work == NULL || rep_mask == NULL) {
         return MAGCAL_ERR_NULL;
@@ -909,6 +944,8 @@ magcal_status_t magcal_optics_thin(const magcal_vec2_t *pts, size_t n, const uin
     }
     (void)thin2(pts, n, cr, cr[2] * AUTO_THIN_REL, (float *)(void *)w,
                 (uint16_t *)(void *)(w + 4u * n), w + 10u * n, cand);
-    (void)memcpy(rep_mask, w + 10u * n, n);
+    for (i = 0; i < n; ++i) {
+        rep_mask[i] = (uint8_t)(w[10u * n + i] & AUTO_REP);
+    }
     return MAGCAL_OK;
 }
