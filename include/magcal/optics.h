@@ -40,8 +40,9 @@
  *     before i and a point after i, bypassing at most 3 points (|p_i-a p_i+b|, a >= 0, b >= 1,
  *     a + b <= 4): the gap the chain must jump there, with isolated off-ring points skipped;
  *     core_i = 3rd smallest distance from p_i to its 4 angular neighbours on each side (the
- *     radius that makes p_i a core point for MinPts = 4); the quantile below is taken over the
- *     representatives only (a clump's tiny core distances count once).
+ *     radius that makes p_i a core point for MinPts = 4); the quantile below counts at most K
+ *     samples per cell, K = the mean cell occupancy (a clump's tiny core distances count K times,
+ *     not hundreds).
  *  4. eps' = 1.5 * max(second largest link_i, 90th percentile of core_i), clamped to
  *     [R/256, R]; eps = eps'; MinPts = 4. One cut in the cyclic chain leaves an arc, which is
  *     still one cluster, so only the second largest gap must be bridged (a 300 deg arc is not
