@@ -403,6 +403,10 @@ magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, v
 #define AUTO_THIN_ROUNDS 2u
 #define AUTO_THIN_N 400u     /* above 400 samples the cells shrink like 1/n */
 #define AUTO_CELL_HALF 2048u /* cell coordinates clamped to +-2048: exact float keys */
+/* Layout of the automatic rule's workspace: a float[n] | idx uint16[n] | b float[n] (4-byte
+ * aligned) | rep uint8[n]: at most 11 n + 3 bytes, inside MAGCAL_OPTICS_FILTER_WORKSPACE_LEN. */
+#define AUTO_B_OFF(n) ((6u * (size_t)(n) + 3u) & ~(size_t)3u)
+#define AUTO_REP_OFF(n) (AUTO_B_OFF(n) + 4u * (size_t)(n))
 #define AUTO_REP 1u          /* thinning flags: representative of its cell */
 #define AUTO_CAPPED 2u       /* among the first K (mean occupancy) of its cell */
 #define AUTO_SECTORS 64u     /* angular sectors of the ring selection */
@@ -659,7 +663,7 @@ static MAGCAL_NOINLINE magcal_status_t thinned_centre(const magcal_vec2_t *pts, 
 {
     float *a = (float *)(void *)w;
     uint16_t *idx = (uint16_t *)(void *)(w + 4u * n);
-    uint8_t *rep = w + 10u * n;
+    uint8_t *rep = w + AUTO_REP_OFF(n);
     float h = pair_scale(pts, n, a) * AUTO_THIN_PAIR; /* coarse: out of any clump first */
     unsigned round;
     int have;
@@ -686,7 +690,7 @@ static MAGCAL_NOINLINE magcal_status_t thinned_centre(const magcal_vec2_t *pts, 
  * Steps 2-4 of the rule of optics.h around the centre and radius cr (thinned_centre; rep[] of w
  * still marks its representatives) and, when sectors is not NULL, each point's angular sector
  * around the centre (0..AUTO_SECTORS-1 in the ring band, -1 outside) for the ring selection of
- * the filter. Layout of w: a float[n] | idx uint16[n] | b float[n] | rep uint8[n] (11 n bytes).
+ * the filter. Layout of w: AUTO_B_OFF / AUTO_REP_OFF.
  */
 static MAGCAL_NOINLINE magcal_status_t auto_eps(const magcal_vec2_t *pts, size_t n, uint8_t *w,
                                                 const float cr[3], float *eps_prime,
@@ -694,8 +698,8 @@ static MAGCAL_NOINLINE magcal_status_t auto_eps(const magcal_vec2_t *pts, size_t
 {
     float *a = (float *)(void *)w;
     uint16_t *idx = (uint16_t *)(void *)(w + 4u * n);
-    float *b = (float *)(void *)(w + 6u * n);
-    uint8_t *rep = w + 10u * n;
+    float *b = (float *)(void *)(w + AUTO_B_OFF(n));
+    uint8_t *rep = w + AUTO_REP_OFF(n);
     float cx;
     float cy;
     float rad;
@@ -943,9 +947,9 @@ magcal_status_t magcal_optics_thin(const magcal_vec2_t *pts, size_t n, const uin
         return st;
     }
     (void)thin2(pts, n, cr, cr[2] * AUTO_THIN_REL, (float *)(void *)w,
-                (uint16_t *)(void *)(w + 4u * n), w + 10u * n, cand);
+                (uint16_t *)(void *)(w + 4u * n), w + AUTO_REP_OFF(n), cand);
     for (i = 0; i < n; ++i) {
-        rep_mask[i] = (uint8_t)(w[10u * n + i] & AUTO_REP);
+        rep_mask[i] = (uint8_t)(w[AUTO_REP_OFF(n) + i] & AUTO_REP);
     }
     return MAGCAL_OK;
 }
