@@ -407,9 +407,9 @@ magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, v
  * aligned) | rep uint8[n]: at most 11 n + 3 bytes, inside MAGCAL_OPTICS_FILTER_WORKSPACE_LEN. */
 #define AUTO_B_OFF(n) ((6u * (size_t)(n) + 3u) & ~(size_t)3u)
 #define AUTO_REP_OFF(n) (AUTO_B_OFF(n) + 4u * (size_t)(n))
-#define AUTO_REP 1u          /* thinning flags: representative of its cell */
-#define AUTO_CAPPED 2u       /* among the first K (mean occupancy) of its cell */
-#define AUTO_SECTORS 64u     /* angular sectors of the ring selection */
+#define AUTO_REP 1u      /* thinning flags: representative of its cell */
+#define AUTO_CAPPED 2u   /* among the first K (mean occupancy) of its cell */
+#define AUTO_SECTORS 64u /* angular sectors of the ring selection */
 #define AUTO_PI 3.14159265f
 
 /* (declared in optics_core.h: the 3-D automatic parameters use it too) */
