@@ -856,10 +856,21 @@ static MAGCAL_NOINLINE magcal_status_t cal_stage_fit(magcal_calibrator_t *cal)
     if (cal->cfg.use_consensus == 0u) {
         return cal_plain_fit(cal, &run->cres);
     }
-    return magcal_consensus_run(&cal->cfg.consensus, cal->buf, cal->n,
-                                run->rep.filter_fragmented != 0u ? NULL : cal->mask_a, cal->scratch,
-                                MAGCAL_CONSENSUS_WORKSPACE_LEN(cal->capacity), cal->mask_b,
-                                &run->cres);
+    {
+        const uint8_t *cand = run->rep.filter_fragmented != 0u ? NULL : cal->mask_a;
+        magcal_status_t st;
+        /* minimal sets from one candidate per clump (optics.h magcal_optics_thin): samples of a
+         * vehicle parked at one heading must not fill the draws; flags hold the mask meanwhile */
+        if (cal->n >= 16u && magcal_optics_thin(cal->buf, cal->n, cand, cal->scratch,
+                                                cal->scratch_len, cal->flags) == MAGCAL_OK) {
+            cand = cal->flags;
+        }
+        st = magcal_consensus_run(&cal->cfg.consensus, cal->buf, cal->n, cand, cal->scratch,
+                                  MAGCAL_CONSENSUS_WORKSPACE_LEN(cal->capacity), cal->mask_b,
+                                  &run->cres);
+        cal_set_flags(cal, 0); /* the filter flags again (the gates set the residual bits) */
+        return st;
+    }
 }
 
 /* 4 (cont.) and 5: keep the fit, count, fill the report, gates. */

@@ -135,9 +135,40 @@ static void process(optics_ctx_t *c, size_t p)
     }
 }
 
+/* 1 when p has >= MinPts points (itself included) within eps: the start test of START_CORE. */
+static MAGCAL_NOINLINE int is_core(const optics_ctx_t *c, size_t p)
+{
+    const magcal_vec2_t *pts = c->pts;
+    const float px = pts[p].x;
+    const float py = pts[p].y;
+    const size_t m = c->oc.min_pts;
+    size_t cnt = 0u;
+    size_t ri;
+    size_t k;
+    magcal_nbr_ranges_t rg;
+    magcal_nbr_query(&c->nb, p, &rg);
+    if (rg.idx == NULL) {
+        for (k = 0; k < c->n && cnt < m; ++k) {
+            const float dx = pts[k].x - px;
+            const float dy = pts[k].y - py;
+            cnt += (dx * dx + dy * dy <= c->eps2) ? 1u : 0u;
+        }
+    }
+    for (ri = 0; rg.idx != NULL && ri < rg.n_ranges; ++ri) {
+        for (k = rg.begin[ri]; k < rg.end[ri] && cnt < m; ++k) {
+            const size_t j = rg.idx[k];
+            const float dx = pts[j].x - px;
+            const float dy = pts[j].y - py;
+            cnt += (dx * dx + dy * dy <= c->eps2) ? 1u : 0u;
+        }
+    }
+    return cnt >= m ? 1 : 0;
+}
+
 static void optics_loop(optics_ctx_t *c)
 {
     size_t s;
+    unsigned pass;
     magcal_ocore_start(&c->oc, c->n);
     if (!c->nb.use_grid) {
         size_t i;
@@ -148,13 +179,16 @@ static void optics_loop(optics_ctx_t *c)
         c->n_live = c->n;
     }
 
-    for (s = 0; s < c->n; ++s) {
-        if (magcal_ocore_is_done(&c->oc, s) != 0) {
-            continue;
-        }
-        process(c, s);
-        while (c->oc.n_seeds > 0u) {
-            process(c, magcal_ocore_pop_min(&c->oc));
+    /* pass 0 (START_CORE only): runs start at unprocessed core points; pass 1: at any point */
+    for (pass = c->oc.core_start != 0 ? 0u : 1u; pass < 2u; ++pass) {
+        for (s = 0; s < c->n; ++s) {
+            if (magcal_ocore_is_done(&c->oc, s) != 0 || (pass == 0u && is_core(c, s) == 0)) {
+                continue;
+            }
+            process(c, s);
+            while (c->oc.n_seeds > 0u) {
+                process(c, magcal_ocore_pop_min(&c->oc));
+            }
         }
     }
     magcal_ocore_finish(&c->oc);
@@ -178,10 +212,17 @@ magcal_status_t magcal_ocore_check_cfg(const magcal_optics_cfg_t *cfg)
     if (cfg->min_pts < 2u || cfg->min_pts > MAGCAL_MAX_MIN_PTS) {
         return MAGCAL_ERR_ARG;
     }
-    if (cfg->order != MAGCAL_OPTICS_CLASSIC && cfg->order != MAGCAL_OPTICS_IMPROVED) {
+    if (cfg->order != MAGCAL_OPTICS_CLASSIC && cfg->order != MAGCAL_OPTICS_IMPROVED
+#ifdef MAGCAL_OPTICS_BENCH_SORTED_LIST
+        && cfg->order != MAGCAL_OPTICS_SORTED_LIST_
+#endif
+    ) {
         return MAGCAL_ERR_ARG;
     }
     if (cfg->neighbors != MAGCAL_NEIGHBORS_BRUTE && cfg->neighbors != MAGCAL_NEIGHBORS_GRID) {
+        return MAGCAL_ERR_ARG;
+    }
+    if (cfg->start != MAGCAL_OPTICS_START_INDEX && cfg->start != MAGCAL_OPTICS_START_CORE) {
         return MAGCAL_ERR_ARG;
     }
     return MAGCAL_OK;
@@ -207,6 +248,7 @@ static optics_ctx_t *ctx_setup(const magcal_optics_cfg_t *cfg, const magcal_vec2
     c->eps2 = cfg->eps * cfg->eps;
     c->oc.min_pts = cfg->min_pts;
     c->oc.mode = cfg->order;
+    c->oc.core_start = cfg->start == MAGCAL_OPTICS_START_CORE ? 1 : 0;
     c->oc.seeds = (uint16_t *)(void *)w;
     c->oc.pos = c->oc.seeds + n;
     c->oc.done = w + 4u * n + MAGCAL_NEIGHBORS_WORKSPACE_LEN(n);
@@ -357,6 +399,21 @@ magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, v
 #define AUTO_TRIM_PASSES 2u
 #define AUTO_MIN_REL (1.0f / 256.0f)
 #define AUTO_MAX_REL 1.0f
+#define AUTO_PAIRS 256u               /* pairs of the clump-proof scale */
+#define AUTO_SEED 0x9E3779B9u         /* their fixed pseudo-random seed */
+#define AUTO_THIN_PAIR (1.0f / 32.0f) /* first thinning cell: pair scale / 32 (about R / 23) */
+#define AUTO_THIN_REL (1.0f / 16.0f)  /* later cells: R / 16 */
+#define AUTO_THIN_ROUNDS 2u
+#define AUTO_THIN_N 400u     /* above 400 samples the cells shrink like 1/n */
+#define AUTO_CELL_HALF 2048u /* cell coordinates clamped to +-2048: exact float keys */
+/* Layout of the automatic rule's workspace: a float[n] | idx uint16[n] | b float[n] (4-byte
+ * aligned) | rep uint8[n]: at most 11 n + 3 bytes, inside MAGCAL_OPTICS_FILTER_WORKSPACE_LEN. */
+#define AUTO_B_OFF(n) ((6u * (size_t)(n) + 3u) & ~(size_t)3u)
+#define AUTO_REP_OFF(n) (AUTO_B_OFF(n) + 4u * (size_t)(n))
+#define AUTO_REP 1u      /* thinning flags: representative of its cell */
+#define AUTO_CAPPED 2u   /* among the first K (mean occupancy) of its cell */
+#define AUTO_SECTORS 64u /* angular sectors of the ring selection */
+#define AUTO_PI 3.14159265f
 
 /* (declared in optics_core.h: the 3-D automatic parameters use it too) */
 float magcal_ocore_select_kth(float *a, size_t n, size_t k)
@@ -421,7 +478,8 @@ static void sort_sift(uint16_t *idx, const float *key, size_t k0, size_t m)
     idx[k] = v;
 }
 
-static void heapsort_idx(uint16_t *idx, const float *key, size_t m)
+/* (declared in optics_core.h: the 3-D thinning and the bench's sorted list use it too) */
+void magcal_ocore_sort_idx(uint16_t *idx, const float *key, size_t m)
 {
     size_t k;
     if (m < 2u) {
@@ -445,13 +503,206 @@ static float dist(const magcal_vec2_t *a, const magcal_vec2_t *b)
     return sqrtf(dx * dx + dy * dy);
 }
 
-/* The rule of optics.h, also returning the robust centre and radius (grid window). */
-static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *w, float *eps_prime,
-                                   float *centre_radius)
+/*
+ * Robust centre and radius over the counted points (use[i] != 0, or every point when use is
+ * NULL): coordinate medians, R = median |p - c|; passes 1..AUTO_TRIM_PASSES use only the points
+ * within AUTO_TRIM * R of the previous centre, so a far cluster (e.g. 23 % driver glitches 36 R
+ * away) cannot drag the centre off the ring. cr = {cx, cy, R}; a: float[n] scratch. (One loop
+ * per quantity, no helper call: this is on the filter's deepest stack path.)
+ */
+static magcal_status_t robust_centre(const magcal_vec2_t *pts, size_t n, const uint8_t *use,
+                                     float *a, float cr[3])
+{
+    float cx = 0.0f;
+    float cy = 0.0f;
+    float rad = INFINITY;
+    unsigned pass;
+    for (pass = 0; pass <= AUTO_TRIM_PASSES; ++pass) {
+        const float lim2 = pass == 0u ? INFINITY : (AUTO_TRIM * rad) * (AUTO_TRIM * rad);
+        float med[3] = {0.0f, 0.0f, 0.0f};
+        unsigned q;
+        size_t k = 0u;
+        for (q = 0u; q < 3u; ++q) { /* x median, y median, then the radius about them */
+            size_t i;
+            k = 0u;
+            for (i = 0; i < n; ++i) {
+                const float dx = pts[i].x - cx;
+                const float dy = pts[i].y - cy;
+                if ((use == NULL || (use[i] & AUTO_REP) != 0u) &&
+                    (pass == 0u || dx * dx + dy * dy <= lim2)) {
+                    const float ex = pts[i].x - med[0];
+                    const float ey = pts[i].y - med[1];
+                    a[k] = q == 0u ? pts[i].x : (q == 1u ? pts[i].y : sqrtf(ex * ex + ey * ey));
+                    ++k;
+                }
+            }
+            if (k < AUTO_MIN_N) {
+                break; /* keep the previous estimate */
+            }
+            med[q] = magcal_ocore_select_kth(a, k, k / 2u);
+        }
+        if (k < AUTO_MIN_N) {
+            break;
+        }
+        cx = med[0];
+        cy = med[1];
+        rad = med[2];
+        if (!(rad > 0.0f) || !magcal_isfinite_f(rad)) {
+            return MAGCAL_ERR_DEGENERATE;
+        }
+    }
+    if (rad == INFINITY) {
+        return MAGCAL_ERR_DEGENERATE; /* fewer than AUTO_MIN_N counted points */
+    }
+    cr[0] = cx;
+    cr[1] = cy;
+    cr[2] = rad;
+    return MAGCAL_OK;
+}
+
+/*
+ * Scale of the cloud that a clump cannot shrink: the median distance between AUTO_PAIRS
+ * pseudo-random pairs of points. A pair lies inside one clump with probability f^2 for a clump
+ * of a fraction f of the samples, so up to f = 0.7 the median is a distance across the ring
+ * (about 1.4 R), whatever the order of the samples. a: float[n] scratch.
+ */
+static float pair_scale(const magcal_vec2_t *pts, size_t n, float *a)
+{
+    uint32_t state = AUTO_SEED;
+    size_t k;
+    const size_t m = n < AUTO_PAIRS ? n : AUTO_PAIRS;
+    for (k = 0; k < m; ++k) {
+        const size_t i = (size_t)(magcal_ocore_rand(&state) % (uint32_t)n);
+        const size_t j = (size_t)(magcal_ocore_rand(&state) % (uint32_t)n);
+        a[k] = dist(&pts[i], &pts[j]);
+    }
+    return magcal_ocore_select_kth(a, m, m / 2u);
+}
+
+/*
+ * Cell side factor of the thinning for n samples: 1 up to AUTO_THIN_N, then AUTO_THIN_N / n, so
+ * a ring keeps about n / 4 or more representatives (2 pi R / h cells along it) and sparse
+ * outliers (one representative each, e.g. 6 % scattered samples at n = 4096) stay a minority.
+ */
+static float thin_scale(size_t n) { return n > AUTO_THIN_N ? (float)AUTO_THIN_N / (float)n : 1.0f; }
+
+/*
+ * Mean occupancy K = ceil(candidates / occupied cells) of idx[0..n) sorted by key (keys >=
+ * invalid not counted): the core quantile keeps at most K samples per cell, so a clump (hundreds
+ * of samples in one or two cells) is cut to K while the ring and sparse points keep their weight.
+ */
+static size_t cell_cap(const uint16_t *idx, const float *key, size_t n, float invalid)
+{
+    size_t i;
+    size_t cells = 0u;
+    size_t m = 0u;
+    for (i = 0; i < n; ++i) {
+        const float k = key[idx[i]];
+        if (k < invalid) {
+            ++m;
+            if (i == 0u || k != key[idx[i - 1u]]) {
+                ++cells;
+            }
+        }
+    }
+    return cells == 0u ? 0u : (m + cells - 1u) / cells;
+}
+
+/*
+ * Thinning: one representative (the lowest index) per square cell of side h around c, so a
+ * clump of near-identical samples (a vehicle parked at one heading) counts as one sample in the
+ * centre and in the core-distance quantile. Cell coordinates are clamped to +-AUTO_CELL_HALF
+ * (far points share the border cells); the cell number is exact in a float key. key: float[n],
+ * idx: uint16[n] scratch; rep[i] = 1 for the representatives. Returns how many.
+ */
+static size_t thin2(const magcal_vec2_t *pts, size_t n, const float cr[3], float h, float *key,
+                    uint16_t *idx, uint8_t *rep, const uint8_t *use)
+{
+    size_t i;
+    size_t m = 0u;
+    size_t cap;
+    size_t run = 0u;
+    const float lim = (float)AUTO_CELL_HALF;
+    for (i = 0; i < n; ++i) {
+        if (use != NULL && use[i] == 0u) {
+            key[i] = 4.0f * lim * lim; /* after every cell: never a representative */
+            idx[i] = (uint16_t)i;
+            rep[i] = 0u;
+            continue;
+        }
+        float u = floorf((pts[i].x - cr[0]) / h);
+        float v = floorf((pts[i].y - cr[1]) / h);
+        u = u < -lim ? -lim : (u > lim - 1.0f ? lim - 1.0f : u);
+        v = v < -lim ? -lim : (v > lim - 1.0f ? lim - 1.0f : v);
+        key[i] = (u + lim) * (2.0f * lim) + (v + lim);
+        idx[i] = (uint16_t)i;
+        rep[i] = 0u;
+    }
+    magcal_ocore_sort_idx(idx, key, n);
+    cap = cell_cap(idx, key, n, 4.0f * lim * lim);
+    for (i = 0; i < n; ++i) {
+        run = (i == 0u || key[idx[i]] != key[idx[i - 1u]]) ? 0u : run + 1u;
+        if (key[idx[i]] < 4.0f * lim * lim) {
+            if (run == 0u) {
+                rep[idx[i]] = AUTO_REP;
+                ++m;
+            }
+            if (run < cap) {
+                rep[idx[i]] = (uint8_t)(rep[idx[i]] | AUTO_CAPPED);
+            }
+        }
+    }
+    return m;
+}
+
+/*
+ * Step 1 of the rule: centre and radius of the ring, each clump of near-identical samples counted
+ * once: cells of a fraction of the pair scale first (a clump cannot shrink it), then of the
+ * radius found. cr = {cx, cy, R}; w as auto_params (a, idx, rep). Its own frame (not inlined),
+ * so the medians' deep path does not sit under auto_params' link and core locals (stack).
+ */
+static MAGCAL_NOINLINE magcal_status_t thinned_centre(const magcal_vec2_t *pts, size_t n,
+                                                      uint8_t *w, float cr[3])
 {
     float *a = (float *)(void *)w;
     uint16_t *idx = (uint16_t *)(void *)(w + 4u * n);
-    float *b = (float *)(void *)(w + 8u * n);
+    uint8_t *rep = w + AUTO_REP_OFF(n);
+    float h = pair_scale(pts, n, a) * AUTO_THIN_PAIR; /* coarse: out of any clump first */
+    unsigned round;
+    int have;
+    if (!(h > 0.0f) || !magcal_isfinite_f(h)) {
+        return MAGCAL_ERR_DEGENERATE;
+    }
+    have = robust_centre(pts, n, NULL, a, cr) == MAGCAL_OK ? 1 : 0;
+    if (have == 0) {
+        /* more than half the samples identical (R = 0): the first grid's origin is any sample */
+        cr[0] = pts[0].x;
+        cr[1] = pts[0].y;
+    }
+    for (round = 0u; round < AUTO_THIN_ROUNDS; ++round) {
+        if (thin2(pts, n, cr, h, a, idx, rep, NULL) >= AUTO_MIN_N &&
+            robust_centre(pts, n, rep, a, cr) == MAGCAL_OK) {
+            have = 1;
+            h = cr[2] * AUTO_THIN_REL * thin_scale(n);
+        }
+    }
+    return have != 0 ? MAGCAL_OK : MAGCAL_ERR_DEGENERATE;
+}
+
+/*
+ * Steps 2-4 of the rule of optics.h around the centre and radius cr (thinned_centre; rep[] of w
+ * still marks its representatives) and, when sectors is not NULL, each point's angular sector
+ * around the centre (0..AUTO_SECTORS-1 in the ring band, -1 outside) for the ring selection of
+ * the filter. Layout of w: AUTO_B_OFF / AUTO_REP_OFF.
+ */
+static MAGCAL_NOINLINE magcal_status_t auto_eps(const magcal_vec2_t *pts, size_t n, uint8_t *w,
+                                                const float cr[3], float *eps_prime,
+                                                int16_t *sectors)
+{
+    float *a = (float *)(void *)w;
+    uint16_t *idx = (uint16_t *)(void *)(w + 4u * n);
+    float *b = (float *)(void *)(w + AUTO_B_OFF(n));
+    uint8_t *rep = w + AUTO_REP_OFF(n);
     float cx;
     float cy;
     float rad;
@@ -463,59 +714,11 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
     float e;
     size_t i;
     size_t m = 0u;
-    unsigned pass;
+    size_t nq = 0u;
 
-    /* Pass 0 uses every point; passes 1..AUTO_TRIM_PASSES only the points within
-     * AUTO_TRIM * R of the previous centre, so a far cluster (e.g. 23 % driver glitches 36 R
-     * away) cannot drag the median centre off the ring. */
-    cx = 0.0f;
-    cy = 0.0f;
-    rad = INFINITY;
-    for (pass = 0; pass <= AUTO_TRIM_PASSES; ++pass) {
-        float lim2 = (AUTO_TRIM * rad) * (AUTO_TRIM * rad);
-        float ncx;
-        float ncy;
-        size_t k = 0u;
-        for (i = 0; i < n; ++i) {
-            float dx = pts[i].x - cx;
-            float dy = pts[i].y - cy;
-            if (pass == 0u || dx * dx + dy * dy <= lim2) {
-                a[k] = pts[i].x;
-                ++k;
-            }
-        }
-        if (k < AUTO_MIN_N) {
-            break; /* keep the previous estimate */
-        }
-        ncx = magcal_ocore_select_kth(a, k, k / 2u);
-        k = 0u;
-        for (i = 0; i < n; ++i) {
-            float dx = pts[i].x - cx;
-            float dy = pts[i].y - cy;
-            if (pass == 0u || dx * dx + dy * dy <= lim2) {
-                a[k] = pts[i].y;
-                ++k;
-            }
-        }
-        ncy = magcal_ocore_select_kth(a, k, k / 2u);
-        k = 0u;
-        for (i = 0; i < n; ++i) {
-            float dx = pts[i].x - cx;
-            float dy = pts[i].y - cy;
-            if (pass == 0u || dx * dx + dy * dy <= lim2) {
-                float ex = pts[i].x - ncx;
-                float ey = pts[i].y - ncy;
-                a[k] = sqrtf(ex * ex + ey * ey);
-                ++k;
-            }
-        }
-        cx = ncx;
-        cy = ncy;
-        rad = magcal_ocore_select_kth(a, k, k / 2u);
-        if (!(rad > 0.0f) || !magcal_isfinite_f(rad)) {
-            return MAGCAL_ERR_DEGENERATE;
-        }
-    }
+    cx = cr[0];
+    cy = cr[1];
+    rad = cr[2];
     lo = rad - AUTO_BAND * rad;
     hi = rad + AUTO_BAND * rad;
     for (i = 0; i < n; ++i) {
@@ -531,7 +734,7 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
     if (m < 2u * AUTO_WIN + 2u) { /* the cyclic windows need distinct neighbours */
         return MAGCAL_ERR_DEGENERATE;
     }
-    heapsort_idx(idx, a, m);
+    magcal_ocore_sort_idx(idx, a, m);
     for (i = 0; i < m; ++i) {
         const magcal_vec2_t *p0 = &pts[idx[i]];
         float near[2u * AUTO_WIN];
@@ -554,6 +757,9 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
         } else {
             /* neither of the two longest links */
         }
+        if ((rep[idx[i]] & AUTO_CAPPED) == 0u) {
+            continue; /* the core quantile counts a clump as K samples (mean cell occupancy) */
+        }
         /* core requirement: (MinPts-1)-th nearest of the AUTO_WIN angular neighbours each side */
         for (q = 1u; q <= AUTO_WIN; ++q) {
             near[2u * q - 2u] = dist(p0, &pts[idx[(i + m - q) % m]]);
@@ -569,12 +775,14 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
             }
             near[u] = v;
         }
-        b[i] = near[AUTO_MIN_PTS - 2u];
+        b[nq] = near[AUTO_MIN_PTS - 2u];
+        ++nq;
     }
-    {
-        const size_t last = m - 1u;
+    coreq = 0.0f;
+    if (nq > 0u) {
+        const size_t last = nq - 1u;
         const float qpos = AUTO_CORE_Q * (float)last;
-        coreq = magcal_ocore_select_kth(b, m, (size_t)qpos);
+        coreq = magcal_ocore_select_kth(b, nq, (size_t)qpos);
     }
     e = AUTO_SAFETY * (link2 > coreq ? link2 : coreq);
     if (e < AUTO_MIN_REL * rad) {
@@ -584,12 +792,35 @@ static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *
         e = AUTO_MAX_REL * rad;
     }
     *eps_prime = e;
-    if (centre_radius != NULL) {
-        centre_radius[0] = cx;
-        centre_radius[1] = cy;
-        centre_radius[2] = rad;
+    if (sectors != NULL) {
+        /* a[] still holds the angles; sectors may overlay idx (no longer needed) */
+        for (i = 0; i < n; ++i) {
+            float dx = pts[i].x - cx;
+            float dy = pts[i].y - cy;
+            float r = sqrtf(dx * dx + dy * dy);
+            int16_t sec = -1;
+            if (r >= lo && r <= hi) {
+                float f = (a[i] + AUTO_PI) * ((float)AUTO_SECTORS / (2.0f * AUTO_PI));
+                int32_t k = (int32_t)f;
+                k = k < 0 ? 0 : (k > (int32_t)AUTO_SECTORS - 1 ? (int32_t)AUTO_SECTORS - 1 : k);
+                sec = (int16_t)k;
+            }
+            sectors[i] = sec;
+        }
     }
     return MAGCAL_OK;
+}
+
+/* The rule of optics.h: step 1 (thinned_centre), then steps 2-4 (auto_eps), each in its own
+ * frame so the deepest stack path holds only one of them. cr: the robust centre and radius. */
+static magcal_status_t auto_params(const magcal_vec2_t *pts, size_t n, uint8_t *w, float *eps_prime,
+                                   float cr[3], int16_t *sectors)
+{
+    magcal_status_t st = thinned_centre(pts, n, w, cr);
+    if (st == MAGCAL_OK) {
+        st = auto_eps(pts, n, w, cr, eps_prime, sectors);
+    }
+    return st;
 }
 
 magcal_status_t magcal_optics_auto_params(const magcal_vec2_t *pts, size_t n, void *work,
@@ -598,6 +829,7 @@ magcal_status_t magcal_optics_auto_params(const magcal_vec2_t *pts, size_t n, vo
 {
     magcal_status_t st;
     float e;
+    float cr[3];
     if (pts == NULL || work == NULL || eps == NULL || min_pts == NULL || eps_prime == NULL) {
         return MAGCAL_ERR_NULL;
     }
@@ -611,7 +843,7 @@ magcal_status_t magcal_optics_auto_params(const magcal_vec2_t *pts, size_t n, vo
     if (work_len < MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n)) {
         return MAGCAL_ERR_WORKSPACE;
     }
-    st = auto_params(pts, n, (uint8_t *)work, &e, NULL);
+    st = auto_params(pts, n, (uint8_t *)work, &e, cr, NULL);
     if (st != MAGCAL_OK) {
         return st;
     }
@@ -654,7 +886,7 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
             st = MAGCAL_ERR_WORKSPACE;
         }
         if (st == MAGCAL_OK) {
-            st = auto_params(pts, n, w, &eps_prime, cr);
+            st = auto_params(pts, n, w, &eps_prime, cr, (int16_t *)(void *)(w + 4u * n));
         }
         if (st != MAGCAL_OK) {
             return st;
@@ -687,7 +919,40 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
     c->oc.reach = (float *)work;
     c->oc.labels = (int16_t *)(void *)(w + 4u * n);
     c->oc.eps_prime = eps_prime;
+    c->oc.use_sectors = win != NULL ? 1 : 0; /* automatic mode: labels hold the sectors */
     optics_loop(c);
     magcal_ocore_fill_info(info, &c->oc, c->nb.use_grid, use.eps, eps_prime);
     return magcal_ocore_filter_out(&c->oc, n, inlier_mask, info);
+}
+
+magcal_status_t magcal_optics_thin(const magcal_vec2_t *pts, size_t n, const uint8_t *cand,
+                                   void *work, size_t work_len, uint8_t *rep_mask)
+{
+    uint8_t *w = (uint8_t *)work;
+    float cr[3];
+    size_t i;
+    magcal_status_t st;
+    if (pts == NULL || work == NULL || rep_mask == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (magcal_misalign(work, 4u) != 0u) {
+        return MAGCAL_ERR_ARG;
+    }
+    st = check_points(pts, n, AUTO_MIN_N);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    if (work_len < MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n)) {
+        return MAGCAL_ERR_WORKSPACE;
+    }
+    st = thinned_centre(pts, n, w, cr);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    (void)thin2(pts, n, cr, cr[2] * AUTO_THIN_REL, (float *)(void *)w,
+                (uint16_t *)(void *)(w + 4u * n), w + AUTO_REP_OFF(n), cand);
+    for (i = 0; i < n; ++i) {
+        rep_mask[i] = (uint8_t)(w[AUTO_REP_OFF(n) + i] & AUTO_REP);
+    }
+    return MAGCAL_OK;
 }

@@ -327,9 +327,34 @@ static void process3(optics3_ctx_t *c, size_t p)
     c->n_live = w;
 }
 
+/* 1 when p has >= MinPts points (itself included) within eps: the start test of START_CORE. */
+static MAGCAL_NOINLINE int is_core3(optics3_ctx_t *c, size_t p)
+{
+    const magcal_vec3_t *pts = c->pts;
+    const magcal_vec3_t *pp = &pts[p];
+    const size_t m = c->oc.min_pts;
+    size_t cnt = 0u;
+    size_t k;
+    if (c->use_grid != 0) {
+        const size_t nb = grid3_query(c, p, c->bk);
+        size_t t;
+        for (t = 0; t < nb && cnt < m; ++t) {
+            for (k = c->start[c->bk[t]]; k < c->start[c->bk[t] + 1u] && cnt < m; ++k) {
+                cnt += dist2(&pts[c->live[k]], pp) <= c->eps2 ? 1u : 0u;
+            }
+        }
+    } else {
+        for (k = 0; k < c->n && cnt < m; ++k) {
+            cnt += dist2(&pts[k], pp) <= c->eps2 ? 1u : 0u;
+        }
+    }
+    return cnt >= m ? 1 : 0;
+}
+
 static void optics3_loop(optics3_ctx_t *c)
 {
     size_t s;
+    unsigned pass;
     magcal_ocore_start(&c->oc, c->n);
     if (c->use_grid == 0) {
         size_t i;
@@ -338,13 +363,16 @@ static void optics3_loop(optics3_ctx_t *c)
         }
     }
     c->n_live = c->n;
-    for (s = 0; s < c->n; ++s) {
-        if (magcal_ocore_is_done(&c->oc, s) != 0) {
-            continue;
-        }
-        process3(c, s);
-        while (c->oc.n_seeds > 0u) { /* each pop processes one new point: <= n rounds in total */
-            process3(c, magcal_ocore_pop_min(&c->oc));
+    /* pass 0 (START_CORE only): runs start at unprocessed core points; pass 1: at any point */
+    for (pass = c->oc.core_start != 0 ? 0u : 1u; pass < 2u; ++pass) {
+        for (s = 0; s < c->n; ++s) {
+            if (magcal_ocore_is_done(&c->oc, s) != 0 || (pass == 0u && is_core3(c, s) == 0)) {
+                continue;
+            }
+            process3(c, s);
+            while (c->oc.n_seeds > 0u) { /* each pop processes one new point: <= n rounds */
+                process3(c, magcal_ocore_pop_min(&c->oc));
+            }
         }
     }
     magcal_ocore_finish(&c->oc);
@@ -381,6 +409,7 @@ static optics3_ctx_t *ctx3_setup(const magcal_optics_cfg_t *cfg, const magcal_ve
     c->eps2 = cfg->eps * cfg->eps;
     c->oc.min_pts = cfg->min_pts;
     c->oc.mode = cfg->order;
+    c->oc.core_start = cfg->start == MAGCAL_OPTICS_START_CORE ? 1 : 0;
     c->oc.seeds = (uint16_t *)(void *)w;
     c->oc.pos = c->oc.seeds + n;
     c->live = c->oc.pos + n;
@@ -440,6 +469,14 @@ magcal_status_t magcal_optics_run3(const magcal_optics_cfg_t *cfg, const magcal_
 #define AUTO3_TRIM_PASSES 2u
 #define AUTO3_MIN_REL (1.0f / 256.0f)
 #define AUTO3_MAX_REL 1.0f
+#define AUTO3_PAIRS 256u               /* pairs of the clump-proof scale */
+#define AUTO3_SEED 0x9E3779B9u         /* their fixed pseudo-random seed */
+#define AUTO3_THIN_PAIR (1.0f / 32.0f) /* first thinning cell: pair scale / 32 */
+#define AUTO3_THIN_REL (1.0f / 16.0f)  /* later cells: R / 16 */
+#define AUTO3_THIN_ROUNDS 2u
+#define AUTO3_THIN_N 400u    /* above 400 samples the cells shrink like 1/sqrt(n) */
+#define AUTO3_CELL_HALF 128u /* cell coordinates clamped to +-128: exact float keys */
+#define AUTO3_CELLS 96u      /* direction cells of the shell selection (6 faces x 4 x 4) */
 
 /* What the automatic rule measured and ran. */
 typedef struct {
@@ -452,20 +489,22 @@ typedef struct {
     const float *reach; /* the ordering at eps = R, in the workspace */
     const float *core;
     const uint16_t *order;
+    const uint8_t *rep; /* thinning representatives (bits), after the run */
     float eps;
     float eps_prime;
     magcal_neighbors_t neighbors;
 } auto3_t;
 
-/* Copy coordinate `axis` (0 x, 1 y, 2 z) of the points within sqrt(lim2) of c (all when lim2 is
- * infinite) into a; returns how many. */
-static size_t gather3(const magcal_vec3_t *pts, size_t n, const magcal_vec3_t *c, float lim2,
-                      unsigned axis, float *a)
+/* Copy coordinate `axis` (0 x, 1 y, 2 z) of the counted points (use == NULL: all; else bit i of
+ * use set) within sqrt(lim2) of c (all when lim2 is infinite) into a; returns how many. */
+static size_t gather3(const magcal_vec3_t *pts, size_t n, const uint8_t *use,
+                      const magcal_vec3_t *c, float lim2, unsigned axis, float *a)
 {
     size_t i;
     size_t k = 0u;
     for (i = 0; i < n; ++i) {
-        if (lim2 == INFINITY || dist2(&pts[i], c) <= lim2) {
+        if ((use == NULL || ((unsigned)use[i >> 3] & (1u << (i & 7u))) != 0u) &&
+            (lim2 == INFINITY || dist2(&pts[i], c) <= lim2)) {
             a[k] = axis == 0u ? pts[i].x : (axis == 1u ? pts[i].y : pts[i].z);
             ++k;
         }
@@ -473,9 +512,114 @@ static size_t gather3(const magcal_vec3_t *pts, size_t n, const magcal_vec3_t *c
     return k;
 }
 
+/*
+ * Robust centre and radius over the counted points (bits of use, NULL = all): coordinate
+ * medians, R = median distance; passes after the first use only the points within AUTO3_TRIM R
+ * of the previous centre (a far cluster cannot drag the centre). a: float[n] scratch.
+ */
+static magcal_status_t robust_centre3(const magcal_vec3_t *pts, size_t n, const uint8_t *use,
+                                      float *a, magcal_vec3_t *cen_out, float *rad_out)
+{
+    magcal_vec3_t cen = {0.0f, 0.0f, 0.0f};
+    float rad = INFINITY;
+    size_t i;
+    unsigned pass;
+    for (pass = 0; pass <= AUTO3_TRIM_PASSES; ++pass) {
+        const float lim2 = pass == 0u ? INFINITY : (AUTO3_TRIM * rad) * (AUTO3_TRIM * rad);
+        magcal_vec3_t nc;
+        size_t k = gather3(pts, n, use, &cen, lim2, 0u, a);
+        if (k < AUTO3_MIN_N) {
+            break; /* keep the previous estimate */
+        }
+        nc.x = magcal_ocore_select_kth(a, k, k / 2u);
+        (void)gather3(pts, n, use, &cen, lim2, 1u, a);
+        nc.y = magcal_ocore_select_kth(a, k, k / 2u);
+        (void)gather3(pts, n, use, &cen, lim2, 2u, a);
+        nc.z = magcal_ocore_select_kth(a, k, k / 2u);
+        k = 0u;
+        for (i = 0; i < n; ++i) {
+            if ((use == NULL || ((unsigned)use[i >> 3] & (1u << (i & 7u))) != 0u) &&
+                (lim2 == INFINITY || dist2(&pts[i], &cen) <= lim2)) {
+                a[k] = sqrtf(dist2(&pts[i], &nc));
+                ++k;
+            }
+        }
+        cen = nc;
+        rad = magcal_ocore_select_kth(a, k, k / 2u);
+        if (!(rad > 0.0f) || !magcal_isfinite_f(rad) || magcal_nbr_eps_ok(rad) == 0) {
+            return MAGCAL_ERR_DEGENERATE;
+        }
+    }
+    if (rad == INFINITY) {
+        return MAGCAL_ERR_DEGENERATE;
+    }
+    *cen_out = cen;
+    *rad_out = rad;
+    return MAGCAL_OK;
+}
+
+/* Median distance of AUTO3_PAIRS pseudo-random pairs: a scale a clump of up to 70 % of the
+ * samples cannot shrink (a pair falls inside one clump with probability f^2). */
+static float pair_scale3(const magcal_vec3_t *pts, size_t n, float *a)
+{
+    uint32_t state = AUTO3_SEED;
+    size_t k;
+    const size_t m = n < AUTO3_PAIRS ? n : AUTO3_PAIRS;
+    for (k = 0; k < m; ++k) {
+        const size_t i = (size_t)(magcal_ocore_rand(&state) % (uint32_t)n);
+        const size_t j = (size_t)(magcal_ocore_rand(&state) % (uint32_t)n);
+        a[k] = sqrtf(dist2(&pts[i], &pts[j]));
+    }
+    return magcal_ocore_select_kth(a, m, m / 2u);
+}
+
+/* Cell side factor for n samples: 1 up to AUTO3_THIN_N, then sqrt(AUTO3_THIN_N / n) (a shell
+ * has (4 pi R^2) / h^2 cells: the shell keeps its majority of representatives at every n). */
+static float thin_scale3(size_t n)
+{
+    return n > AUTO3_THIN_N ? sqrtf((float)AUTO3_THIN_N / (float)n) : 1.0f;
+}
+
+/* Cell coordinate of v / h, clamped to +-AUTO3_CELL_HALF (far points share the border cells). */
+static float cell3(float v, float h)
+{
+    const float lim = (float)AUTO3_CELL_HALF;
+    float u = floorf(v / h);
+    u = u < -lim ? -lim : (u > lim - 1.0f ? lim - 1.0f : u);
+    return u + lim;
+}
+
+/*
+ * Thinning: one representative (lowest index) per cubic cell of side h around c, as bits in rep
+ * (n/8 bytes), so a rest phase (noise around one point) counts once. key float[n], idx uint16[n]
+ * scratch. Returns the number of representatives.
+ */
+static size_t thin3(const magcal_vec3_t *pts, size_t n, const magcal_vec3_t *c, float h, float *key,
+                    uint16_t *idx, uint8_t *rep)
+{
+    const float side = 2.0f * (float)AUTO3_CELL_HALF;
+    size_t i;
+    size_t m = 0u;
+    for (i = 0; i < n; ++i) {
+        key[i] = (cell3(pts[i].x - c->x, h) * side + cell3(pts[i].y - c->y, h)) * side +
+                 cell3(pts[i].z - c->z, h);
+        idx[i] = (uint16_t)i;
+    }
+    (void)memset(rep, 0, (n + 7u) / 8u);
+    magcal_ocore_sort_idx(idx, key, n);
+    for (i = 0; i < n; ++i) {
+        if (i == 0u || key[idx[i]] != key[idx[i - 1u]]) {
+            const unsigned p = idx[i];
+            rep[p >> 3] = (uint8_t)(rep[p >> 3] | (1u << (p & 7u)));
+            ++m;
+        }
+    }
+    return m;
+}
+
 /* The rule of optics.h. w holds a float[n], b float[n] and the band list uint16[n] (10 n bytes). */
 /*
- * Band samples in the largest cluster of ExtractDBSCAN at eps' (4.3 over the stored ordering):
+ * Band representatives in the largest cluster of ExtractDBSCAN at eps' (4.3 over the stored ordering):
  * clusters start at a point with reach > eps' and core <= eps' and collect every later point
  * with reach <= eps' (noise points in between do not end them).
  */
@@ -489,8 +633,9 @@ static size_t band_in_largest(const auto3_t *au, float eps_prime)
         const size_t p = au->order[k];
         const float d2 = dist2(&au->pts[p], &au->cen);
         size_t in_band = 0u;
-        if (d2 >= au->lo2 && d2 <= au->hi2) {
-            in_band = 1u;
+        if (d2 >= au->lo2 && d2 <= au->hi2 &&
+            ((unsigned)au->rep[p >> 3] & (1u << (p & 7u))) != 0u) {
+            in_band = 1u; /* a representative in the band: a rest phase counts once */
         }
         if (au->reach[p] > eps_prime) {
             if (au->core[p] <= eps_prime) {
@@ -524,35 +669,37 @@ static magcal_status_t auto_run3(const magcal_optics_cfg_t *cfg, const magcal_ve
     float lo;
     float hi;
     float e;
+    float h;
     size_t i;
     size_t m = 0u;
     size_t target;
-    unsigned pass;
+    unsigned round;
+    int have;
+    /* thinning scratch before the run: key float[n] | idx uint16[n] | rep bits; after the run in
+     * the run's workspace (free again), where rep survives the bisection */
+    uint8_t *rw = w + MAGCAL_OPTICS3_FILTER_RUN_OFFSET_(n);
+    uint8_t *rep = rw + 6u * n;
 
-    for (pass = 0; pass <= AUTO3_TRIM_PASSES; ++pass) {
-        const float lim2 = pass == 0u ? INFINITY : (AUTO3_TRIM * rad) * (AUTO3_TRIM * rad);
-        magcal_vec3_t nc;
-        size_t k = gather3(pts, n, &cen, lim2, 0u, a);
-        if (k < AUTO3_MIN_N) {
-            break; /* keep the previous estimate */
+    /* centre and radius with each rest phase (noise around one point) counted once: cells of
+     * a fraction of the pair scale first (a clump cannot shrink it), then of the radius found */
+    h = pair_scale3(pts, n, a) * AUTO3_THIN_PAIR; /* coarse: out of any clump first */
+    if (!(h > 0.0f) || !magcal_isfinite_f(h)) {
+        return MAGCAL_ERR_DEGENERATE;
+    }
+    have = robust_centre3(pts, n, NULL, a, &cen, &rad) == MAGCAL_OK ? 1 : 0;
+    if (have == 0) {
+        cen = pts[0]; /* more than half the samples identical: the first grid's origin */
+    }
+    for (round = 0u; round < AUTO3_THIN_ROUNDS; ++round) {
+        if (thin3(pts, n, &cen, h, (float *)(void *)rw, (uint16_t *)(void *)(rw + 4u * n), rep) >=
+                AUTO3_MIN_N &&
+            robust_centre3(pts, n, rep, a, &cen, &rad) == MAGCAL_OK) {
+            have = 1;
+            h = rad * AUTO3_THIN_REL * thin_scale3(n);
         }
-        nc.x = magcal_ocore_select_kth(a, k, k / 2u);
-        (void)gather3(pts, n, &cen, lim2, 1u, a);
-        nc.y = magcal_ocore_select_kth(a, k, k / 2u);
-        (void)gather3(pts, n, &cen, lim2, 2u, a);
-        nc.z = magcal_ocore_select_kth(a, k, k / 2u);
-        k = 0u;
-        for (i = 0; i < n; ++i) {
-            if (lim2 == INFINITY || dist2(&pts[i], &cen) <= lim2) {
-                a[k] = sqrtf(dist2(&pts[i], &nc));
-                ++k;
-            }
-        }
-        cen = nc;
-        rad = magcal_ocore_select_kth(a, k, k / 2u);
-        if (!(rad > 0.0f) || !magcal_isfinite_f(rad) || magcal_nbr_eps_ok(rad) == 0) {
-            return MAGCAL_ERR_DEGENERATE;
-        }
+    }
+    if (have == 0) {
+        return MAGCAL_ERR_DEGENERATE;
     }
     lo = rad - AUTO3_BAND * rad;
     hi = rad + AUTO3_BAND * rad;
@@ -585,6 +732,17 @@ static magcal_status_t auto_run3(const magcal_optics_cfg_t *cfg, const magcal_ve
     optics3_loop(c);
     au->neighbors = c->use_grid != 0 ? MAGCAL_NEIGHBORS_GRID : MAGCAL_NEIGHBORS_BRUTE;
     au->eps = use.eps;
+    /* the representatives again (the run used this memory), counted in the band */
+    (void)thin3(pts, n, &cen, rad * AUTO3_THIN_REL * thin_scale3(n), (float *)(void *)rw,
+                (uint16_t *)(void *)(rw + 4u * n), rep);
+    au->rep = rep;
+    m = 0u;
+    for (i = 0; i < n; ++i) {
+        const float d2 = dist2(&pts[i], &cen);
+        if (d2 >= au->lo2 && d2 <= au->hi2 && ((unsigned)rep[i >> 3] & (1u << (i & 7u))) != 0u) {
+            ++m;
+        }
+    }
 
     target = m - m / 4u; /* 75 % of the band */
     lo = AUTO3_MIN_REL * rad;
@@ -641,6 +799,101 @@ magcal_status_t magcal_optics_auto_params3(const magcal_vec3_t *pts, size_t n, v
     return MAGCAL_OK;
 }
 
+/* Direction cell (0..AUTO3_CELLS-1) of d on the cube around the centre: the face of its largest
+ * component (6), then 4 x 4 bins of the other two over [-1, 1] (no trigonometry). */
+static unsigned dir_cell3(float dx, float dy, float dz)
+{
+    const float ax = fabsf(dx);
+    const float ay = fabsf(dy);
+    const float az = fabsf(dz);
+    unsigned face;
+    float m;
+    float u;
+    float v;
+    int32_t iu;
+    int32_t iv;
+    if (ax >= ay && ax >= az) {
+        face = dx >= 0.0f ? 0u : 1u;
+        m = ax;
+        u = dy;
+        v = dz;
+    } else if (ay >= az) {
+        face = dy >= 0.0f ? 2u : 3u;
+        m = ay;
+        u = dx;
+        v = dz;
+    } else {
+        face = dz >= 0.0f ? 4u : 5u;
+        m = az;
+        u = dx;
+        v = dy;
+    }
+    iu = (int32_t)((u / m + 1.0f) * 2.0f);
+    iv = (int32_t)((v / m + 1.0f) * 2.0f);
+    iu = iu < 0 ? 0 : (iu > 3 ? 3 : iu);
+    iv = iv < 0 ? 0 : (iv > 3 ? 3 : iv);
+    return face * 16u + (unsigned)iu * 4u + (unsigned)iv;
+}
+
+/*
+ * Shell selection of the automatic filter: among the clusters of labels (ExtractDBSCAN over
+ * au->order: each cluster is one stretch of the ordering, noise in between), keep the one whose
+ * shell-band samples occupy the most direction cells around the centre, then the most samples,
+ * then the smaller id. A rest phase (one direction) cannot win over the rotation.
+ * Returns MAGCAL_ERR_ALL_NOISE (mask untouched) when there is no cluster.
+ */
+static magcal_status_t keep_widest3(const auto3_t *au, const int16_t *labels, uint8_t *inlier_mask,
+                                    int16_t *id_out, uint16_t *count_out)
+{
+    uint32_t cur[3] = {0u, 0u, 0u};
+    uint32_t best_ext = 0u;
+    size_t best_count = 0u;
+    size_t cur_count = 0u;
+    int32_t cur_id = -1;
+    int32_t best_id = -1;
+    size_t k;
+    for (k = 0; k <= au->n; ++k) {
+        const size_t p = k < au->n ? au->order[k] : 0u;
+        const int32_t lab = k < au->n ? (int32_t)labels[p] : -2;
+        if (lab == -2 || (lab >= 0 && lab != cur_id)) {
+            if (cur_id >= 0) {
+                const uint32_t ext = magcal_ocore_popcount(cur[0]) + magcal_ocore_popcount(cur[1]) +
+                                     magcal_ocore_popcount(cur[2]);
+                if (ext > best_ext || (ext == best_ext && cur_count > best_count)) {
+                    best_ext = ext;
+                    best_count = cur_count;
+                    best_id = cur_id;
+                }
+            }
+            cur_id = lab;
+            cur_count = 0u;
+            cur[0] = 0u;
+            cur[1] = 0u;
+            cur[2] = 0u;
+        }
+        if (lab >= 0) {
+            const float dx = au->pts[p].x - au->cen.x;
+            const float dy = au->pts[p].y - au->cen.y;
+            const float dz = au->pts[p].z - au->cen.z;
+            const float d2 = dx * dx + dy * dy + dz * dz;
+            ++cur_count;
+            if (d2 >= au->lo2 && d2 <= au->hi2) {
+                const unsigned cell = dir_cell3(dx, dy, dz);
+                cur[cell >> 5] |= 1u << (cell & 31u);
+            }
+        }
+    }
+    if (best_id < 0) {
+        return MAGCAL_ERR_ALL_NOISE;
+    }
+    for (k = 0; k < au->n; ++k) {
+        inlier_mask[k] = (int32_t)labels[k] == best_id ? 1u : 0u;
+    }
+    *id_out = (int16_t)best_id;
+    *count_out = (uint16_t)best_count;
+    return MAGCAL_OK;
+}
+
 magcal_status_t magcal_optics_filter3(const magcal_optics_cfg_t *cfg, const magcal_vec3_t *pts,
                                       size_t n, void *work, size_t work_len, uint8_t *inlier_mask,
                                       magcal_optics_result_t *info)
@@ -660,8 +913,6 @@ magcal_status_t magcal_optics_filter3(const magcal_optics_cfg_t *cfg, const magc
     if (!(cfg->eps > 0.0f)) {
         auto3_t au;
         int16_t *labels = (int16_t *)(void *)(w + MAGCAL_OPTICS3_FILTER_RUN_OFFSET_(n));
-        uint8_t *cnt_work =
-            w + MAGCAL_OPTICS3_FILTER_RUN_OFFSET_(n) + MAGCAL_OPTICS_LARGEST_WORKSPACE_LEN(n);
         uint16_t n_clusters = 0u;
         uint16_t count = 0u;
         int16_t id = MAGCAL_OPTICS_NOISE;
@@ -691,8 +942,7 @@ magcal_status_t magcal_optics_filter3(const magcal_optics_cfg_t *cfg, const magc
         for (i = 0; i < n; ++i) {
             n_noise += labels[i] == MAGCAL_OPTICS_NOISE ? 1u : 0u;
         }
-        st = magcal_optics_largest_cluster(
-            labels, n, cnt_work, MAGCAL_OPTICS_LARGEST_WORKSPACE_LEN(n), inlier_mask, &id, &count);
+        st = keep_widest3(&au, labels, inlier_mask, &id, &count);
         if (info != NULL) {
             (void)memset(info, 0, sizeof *info);
             info->eps = au.eps;

@@ -26,6 +26,17 @@
 
 #define MAGCAL_OCORE_POS_NONE 0xFFFFu
 
+#ifdef MAGCAL_OPTICS_BENCH_SORTED_LIST
+/*
+ * Bench-only third seed-list organisation (tools/bench: magcal_bench_sorted, never in a shipped
+ * build): the source paper's classic OPTICS, whose ordered queue is re-sorted by reachability
+ * whenever it changed before the next point is taken (heapsort of the whole list, O(q log q)),
+ * the first element popped. Same (reach, index) key, so its outputs are bit-identical to the two
+ * library modes; it exists to reproduce the paper's Table 2 (docs/performance.md).
+ */
+#define MAGCAL_OPTICS_SORTED_LIST_ ((magcal_optics_order_t)2)
+#endif
+
 /* Dimension-free state of one ordering run; optional outputs are NULL when not wanted. */
 typedef struct {
     float *reach;    /* n, working reach (final when a point is processed) */
@@ -46,9 +57,66 @@ typedef struct {
     int32_t best_id;
     size_t best_count;
     size_t n_noise;
+    /* ring selection (automatic filter): labels[p] holds p's angular sector (0..63, -1 outside
+     * the band) until p is labelled; the kept cluster is the one of most sectors, then count */
+    uint32_t sec_cur[2];
+    uint32_t best_ext;
+    int use_sectors;
+    int core_start; /* MAGCAL_OPTICS_START_CORE */
+#ifdef MAGCAL_OPTICS_BENCH_SORTED_LIST
+    size_t head; /* sorted list: the list is seeds[head .. head + n_seeds) */
+    int dirty;   /* sorted list: changed since the last sort */
+#endif
     magcal_optics_order_t mode;
     uint16_t min_pts;
 } magcal_ocore_t;
+
+/* Heapsort of idx[0..m-1] by key[idx] ascending, ties by index (iterative). Defined in optics.c
+ * (the thinning of both dimensions' automatic parameters, the bench's sorted-list mode). */
+void magcal_ocore_sort_idx(uint16_t *idx, const float *key, size_t m);
+
+/* Number of set bits of v (at most 32 rounds: one bit cleared per round). */
+static inline uint32_t magcal_ocore_popcount(uint32_t v)
+{
+    uint32_t x = v;
+    uint32_t c = 0u;
+    while (x != 0u) {
+        x &= x - 1u;
+        ++c;
+    }
+    return c;
+}
+
+/* Close the cluster being extracted: it becomes the kept one when it spans more sectors (ring
+ * selection) or, at equal extent (always equal without ring selection), holds more points;
+ * strict, so ties keep the smaller id. */
+static inline void magcal_ocore_close(magcal_ocore_t *o)
+{
+    uint32_t ext = 0u;
+    if (o->id < 0) {
+        return;
+    }
+    if (o->use_sectors != 0) {
+        ext = magcal_ocore_popcount(o->sec_cur[0]) + magcal_ocore_popcount(o->sec_cur[1]);
+    }
+    if (ext > o->best_ext || (ext == o->best_ext && o->cur_count > o->best_count)) {
+        o->best_ext = ext;
+        o->best_count = o->cur_count;
+        o->best_id = o->id;
+    }
+}
+
+/* Deterministic pseudo-random stream (xorshift32, state != 0) for the pair sample of the
+ * automatic parameters: the same data always give the same parameters. */
+static inline uint32_t magcal_ocore_rand(uint32_t *state)
+{
+    uint32_t x = *state;
+    x ^= x << 13;
+    x ^= x >> 17;
+    x ^= x << 5;
+    *state = x;
+    return x;
+}
 
 static inline int magcal_ocore_is_done(const magcal_ocore_t *o, size_t i)
 {
@@ -122,6 +190,16 @@ static inline uint16_t magcal_ocore_pop_min(magcal_ocore_t *o)
             o->seeds[0] = o->seeds[o->n_seeds];
             magcal_ocore_sift_down(o, 0u);
         }
+#ifdef MAGCAL_OPTICS_BENCH_SORTED_LIST
+    } else if (o->mode == MAGCAL_OPTICS_SORTED_LIST_) {
+        if (o->dirty != 0) {
+            magcal_ocore_sort_idx(o->seeds + o->head, o->reach, o->n_seeds);
+            o->dirty = 0;
+        }
+        q = o->seeds[o->head];
+        o->head++;
+        o->n_seeds--;
+#endif
     } else {
         size_t k;
         size_t best = 0u;
@@ -148,14 +226,14 @@ static inline uint16_t magcal_ocore_pop_min(magcal_ocore_t *o)
 static inline void magcal_ocore_extract_step(magcal_ocore_t *o, size_t p, float core_p)
 {
     int16_t lab;
+    const int16_t sec = o->use_sectors != 0 ? o->labels[p] : (int16_t)-1;
     if (o->reach[p] > o->eps_prime) {
         if (core_p <= o->eps_prime) {
-            if (o->id >= 0 && o->cur_count > o->best_count) {
-                o->best_count = o->cur_count;
-                o->best_id = o->id;
-            }
+            magcal_ocore_close(o);
             o->id++;
             o->cur_count = 1u;
+            o->sec_cur[0] = 0u;
+            o->sec_cur[1] = 0u;
             lab = (int16_t)o->id;
         } else {
             lab = MAGCAL_OPTICS_NOISE;
@@ -168,6 +246,10 @@ static inline void magcal_ocore_extract_step(magcal_ocore_t *o, size_t p, float 
         } else {
             o->n_noise++; /* unreachable in practice: the first point has reach = inf */
         }
+    }
+    if (sec >= 0 && lab >= 0) {
+        const unsigned sb = (unsigned)sec;
+        o->sec_cur[sb >> 5] |= 1u << (sb & 31u);
     }
     o->labels[p] = lab;
 }
@@ -191,6 +273,14 @@ static void magcal_ocore_update(magcal_ocore_t *o, size_t p, size_t j, float r)
         } else {
             magcal_ocore_sift_up(o, o->pos[j]);
         }
+#ifdef MAGCAL_OPTICS_BENCH_SORTED_LIST
+    } else if (o->mode == MAGCAL_OPTICS_SORTED_LIST_) {
+        if (old == INFINITY) {
+            o->seeds[o->head + o->n_seeds] = (uint16_t)j;
+            o->n_seeds++;
+        }
+        o->dirty = 1;
+#endif
     } else if (old == INFINITY) {
         o->seeds[o->n_seeds] = (uint16_t)j;
         o->n_seeds++;
@@ -254,14 +344,17 @@ static inline void magcal_ocore_start(magcal_ocore_t *o, size_t n)
     (void)memset(o->done, 0, (n + 7u) / 8u);
     o->n_seeds = 0u;
     o->n_done = 0u;
+#ifdef MAGCAL_OPTICS_BENCH_SORTED_LIST
+    o->head = 0u;
+    o->dirty = 0;
+#endif
 }
 
 /* End of a run: the last cluster of the on-the-fly extraction competes for the largest. */
 static inline void magcal_ocore_finish(magcal_ocore_t *o)
 {
-    if (o->labels != NULL && o->id >= 0 && o->cur_count > o->best_count) {
-        o->best_count = o->cur_count;
-        o->best_id = o->id;
+    if (o->labels != NULL) {
+        magcal_ocore_close(o);
     }
 }
 

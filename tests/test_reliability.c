@@ -405,7 +405,8 @@ static void test_optics_filter_eps_inf_one_cluster_subnormal_eps_arg_tiny_eps_al
 {
     static uint8_t mask[200];
     /* eps' must be finite (0 would mean eps' = eps = Inf, rejected with MAGCAL_ERR_ARG) */
-    magcal_optics_cfg_t cfg = {INFINITY, 1000.0f, 4u, MAGCAL_OPTICS_IMPROVED, MAGCAL_NEIGHBORS_GRID};
+    magcal_optics_cfg_t cfg = {INFINITY, 1000.0f, 4u, MAGCAL_OPTICS_IMPROVED, MAGCAL_NEIGHBORS_GRID,
+                               MAGCAL_OPTICS_START_INDEX};
     magcal_optics_result_t info;
     size_t i;
     exact_ring(200u, 5.0f, 5.0f, 40.0f, 30.0f);
@@ -443,7 +444,8 @@ static void test_dbscan_run_eps_whose_square_overflows_or_underflows_returns_arg
     static uint16_t order[20];
     static float reach[20], core[20];
     magcal_dbscan_cfg_t dc = {1.8e19f, 4u, MAGCAL_NEIGHBORS_BRUTE};
-    magcal_optics_cfg_t oc = {1.9e19f, 0.0f, 4u, MAGCAL_OPTICS_IMPROVED, MAGCAL_NEIGHBORS_BRUTE};
+    magcal_optics_cfg_t oc = {1.9e19f, 0.0f, 4u, MAGCAL_OPTICS_IMPROVED, MAGCAL_NEIGHBORS_BRUTE,
+                              MAGCAL_OPTICS_START_INDEX};
     uint16_t n_cl = 0u;
     size_t i;
     for (i = 0; i < 20u; ++i) {

@@ -14,7 +14,13 @@
  * Determinism: both ordering modes (CLASSIC binary heap with decrease-key, IMPROVED unordered
  * seed list with one linear scan) and both neighbour searches (BRUTE, GRID) produce bit-identical
  * ordering, reachability, core distance and predecessor arrays: the next point is the argmin of
- * (reach, index) among the seeds, and the first unprocessed index when no seed is left.
+ * (reach, index) among the seeds, and the first unprocessed index when no seed is left
+ * (cfg.start = MAGCAL_OPTICS_START_INDEX, scikit-learn's rule) or the first unprocessed core
+ * point (MAGCAL_OPTICS_START_CORE, the source documents' rule; docs/optics.md "Start rule").
+ *
+ * MinPts counts the point itself (p is core when >= MinPts points, p included, lie within eps),
+ * as in Ankerst et al. and scikit-learn's min_samples; the documents' threshold m is the same
+ * number when their neighbourhood contains p (a reading without p is MinPts = m + 1).
  *
  * Memory: no heap, no recursion. The caller owns every buffer; `work` must be aligned to 4 bytes
  * (declare it as `uint32_t` or `float`) and at least the size macro's length in bytes.
@@ -22,14 +28,21 @@
  * Automatic parameters (magcal_optics_auto_params, used by magcal_optics_filter when cfg->eps <= 0):
  *  1. centre c = (median x, median y), radius R = median |p - c|; then twice more over only the
  *     points within 3 R of the previous centre (a far cluster, e.g. 23 % driver glitches 36 R
- *     away, cannot drag the centre). Everything below is a multiple of distances measured on the
+ *     away, cannot drag the centre). These medians count each clump once: they run over one
+ *     representative per square cell (the lowest index in it), cells of S/32 first, S = median
+ *     distance of 256 pseudo-random pairs (fixed seed; a clump of up to 70 % of the samples
+ *     cannot shrink it), then of R/16 * min(1, 400/n) around the centre found. A vehicle parked
+ *     at one or two headings (40-60 % of the samples) then no longer pulls c into its clump and
+ *     shrinks R to the clump's noise. Everything below is a multiple of distances measured on the
  *     data, so raw counts and microtesla behave identically (scale invariant).
  *  2. the "ring band" = points with | |p - c| - R | <= 0.5 R, sorted by angle around c.
  *  3. along that angular order (cyclic), link_i = the shortest distance between a point at or
  *     before i and a point after i, bypassing at most 3 points (|p_i-a p_i+b|, a >= 0, b >= 1,
  *     a + b <= 4): the gap the chain must jump there, with isolated off-ring points skipped;
  *     core_i = 3rd smallest distance from p_i to its 4 angular neighbours on each side (the
- *     radius that makes p_i a core point for MinPts = 4).
+ *     radius that makes p_i a core point for MinPts = 4); the quantile below counts at most K
+ *     samples per cell, K = the mean cell occupancy (a clump's tiny core distances count K times,
+ *     not hundreds).
  *  4. eps' = 1.5 * max(second largest link_i, 90th percentile of core_i), clamped to
  *     [R/256, R]; eps = eps'; MinPts = 4. One cut in the cyclic chain leaves an arc, which is
  *     still one cluster, so only the second largest gap must be bridged (a 300 deg arc is not
@@ -41,6 +54,13 @@
  *  absorbs radial noise between the sampled links. Bursts of displaced samples close to the
  *  ring are NOT rejected here (they leave gaps the rule must bridge, so they merge with the
  *  ring); a model-residual stage after this filter handles them. Measurements: docs/optics.md.
+ *
+ * Kept cluster. With given parameters (cfg->eps > 0) the filter keeps the largest cluster, as the
+ * documents do. With automatic parameters it keeps the cluster whose ring-band samples occupy
+ * the most of 64 angular sectors around c (ties: more points, then the smaller id): the normal
+ * data are the cluster that spans the turn, not the densest one (a clump off the ring with more
+ * samples than the ring, a parked phase the eps' rule could not join). The 3-D filter does the
+ * same with 96 direction cells (6 cube faces x 4 x 4).
  *
  * @code
  * static magcal_vec2_t pts[512];                       // filled by the caller
@@ -78,6 +98,24 @@ typedef enum {
     MAGCAL_OPTICS_IMPROVED = 1 /**< unordered seed list, one linear scan for the minimum */
 } magcal_optics_order_t;
 
+/**
+ * Where each run of the ordering loop starts once the seed list is empty (docs/optics.md "Start
+ * rule"). Core distance and reachability are defined the same way under both rules; only which
+ * points get processed first differs, and with it the ordering and the reach of border points.
+ */
+typedef enum {
+    /** the lowest unprocessed index, core or not (scikit-learn's rule; the default, which the
+     *  golden vectors pin): a border point met before its core neighbours is processed alone and
+     *  keeps reach = inf, so ExtractDBSCAN labels it noise */
+    MAGCAL_OPTICS_START_INDEX = 0,
+    /** the lowest unprocessed CORE point (the source documents' rule: each run starts at an
+     *  unprocessed core object); points that are neither core nor reachable from one are
+     *  processed after every core point, by index. A border point within eps of a core point is
+     *  then always reached and joins its cluster. Costs one extra eps-query per non-core start
+     *  candidate. */
+    MAGCAL_OPTICS_START_CORE = 1
+} magcal_optics_start_t;
+
 /** Neighbour search used for the eps-queries; outputs are identical. */
 typedef enum {
     MAGCAL_NEIGHBORS_BRUTE = 0, /**< test every point, O(n) per query */
@@ -109,7 +147,11 @@ typedef enum {
      ~(size_t)3u)
 /* Bytes of the ordering loop's context, kept in the workspace (off the stack) after the MinPts
  * buffer, with slack to align it for pointers; optics.c checks the size with a static assert. */
-#define MAGCAL_OPTICS_CTX_LEN_ (35u * sizeof(void *))
+#ifdef MAGCAL_OPTICS_BENCH_SORTED_LIST /* bench-only seed-list mode (src/optics_core.h): 2 more words */
+#define MAGCAL_OPTICS_CTX_LEN_ (42u * sizeof(void *))
+#else
+#define MAGCAL_OPTICS_CTX_LEN_ (40u * sizeof(void *))
+#endif
 /* Offset of the run workspace inside the filter workspace (4-byte aligned). */
 #define MAGCAL_OPTICS_FILTER_RUN_OFFSET_(n) ((6u * (size_t)(n) + 3u) & ~(size_t)3u)
 /** @endcond */
@@ -117,8 +159,8 @@ typedef enum {
 /**
  * Workspace bytes for magcal_optics_run() on n points: seed heap/list uint16[n], heap position
  * map uint16[n], spatial index, one "processed" bit per point and the MinPts insertion buffer
- * (4 * MAGCAL_MAX_MIN_PTS bytes) and the loop's context (35 pointers' worth, 140 bytes on a 32-bit
- * target), both kept off the stack. About 8.1 bytes per sample + 268 bytes (32-bit);
+ * (4 * MAGCAL_MAX_MIN_PTS bytes) and the loop's context (40 pointers' worth, 160 bytes on a 32-bit
+ * target), both kept off the stack. About 8.1 bytes per sample + 288 bytes (32-bit);
  * the outputs (order 2 + reach 4 + core 4 bytes per sample) are separate caller arrays.
  */
 #define MAGCAL_OPTICS_WORKSPACE_LEN(n)                                                             \
@@ -127,7 +169,7 @@ typedef enum {
 /**
  * Workspace bytes for magcal_optics_filter() and magcal_optics_auto_params() on n points:
  * reach float[n] + labels int16[n] + MAGCAL_OPTICS_WORKSPACE_LEN(n). About 14.1 bytes per
- * sample + 268 bytes (32-bit); with the caller's uint8 inlier mask the whole filter needs about 15.1 bytes
+ * sample + 288 bytes (32-bit); with the caller's uint8 inlier mask the whole filter needs about 15.1 bytes
  * per sample besides the points (ordering and core distances are consumed on the fly).
  */
 #define MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n)                                                      \
@@ -151,18 +193,24 @@ typedef struct {
     /** Extraction radius eps' (filter only), finite, 0 < eps' <= eps; 0 means eps' = eps (then
      *  eps must be finite). Ignored in auto mode. */
     float eps_prime;
-    /** MinPts, counting the point itself: 2..MAGCAL_MAX_MIN_PTS. Ignored in auto mode. */
+    /** MinPts, counting the point itself: 2..MAGCAL_MAX_MIN_PTS. Ignored in auto mode. p is a
+     *  core point when its eps-neighbourhood, p included, holds >= MinPts points (Ankerst et al.,
+     *  scikit-learn's min_samples). The source documents' threshold m ("the number of points in
+     *  the eps-neighbourhood of p >= m") is the same number when that neighbourhood contains p,
+     *  as in the OPTICS paper they cite; a reading without p is MinPts = m + 1. */
     uint16_t min_pts;
     /** Seed-list organisation. */
     magcal_optics_order_t order;
     /** Neighbour search. */
     magcal_neighbors_t neighbors;
+    /** Start rule of each run (MAGCAL_OPTICS_START_INDEX by default). */
+    magcal_optics_start_t start;
 } magcal_optics_cfg_t;
 
 /** Defaults: automatic parameters, improved ordering, grid search (work without tuning). */
 #define MAGCAL_OPTICS_CFG_DEFAULT                                                                  \
     {                                                                                              \
-        0.0f, 0.0f, 4u, MAGCAL_OPTICS_IMPROVED, MAGCAL_NEIGHBORS_GRID                              \
+        0.0f, 0.0f, 4u, MAGCAL_OPTICS_IMPROVED, MAGCAL_NEIGHBORS_GRID, MAGCAL_OPTICS_START_INDEX   \
     }
 
 /** What a run or filter did (diagnostics). */
@@ -265,9 +313,10 @@ magcal_status_t magcal_optics_auto_params(const magcal_vec2_t *pts, size_t n, vo
                                           float *eps_prime);
 
 /**
- * @brief Points to inlier mask in one call: (auto params), OPTICS, ExtractDBSCAN at eps', largest
- * cluster. Ordering and core distances are consumed on the fly; the result equals
- * magcal_optics_run + magcal_optics_extract_dbscan + magcal_optics_largest_cluster.
+ * @brief Points to inlier mask in one call: (auto params), OPTICS, ExtractDBSCAN at eps', kept
+ * cluster. Ordering and core distances are consumed on the fly; with given parameters the result
+ * equals magcal_optics_run + magcal_optics_extract_dbscan + magcal_optics_largest_cluster, with
+ * automatic ones the kept cluster is the one of widest angular extent (file comment).
  * @param[in]  cfg        cfg->eps <= 0: automatic parameters; otherwise eps, eps_prime, min_pts as given.
  * @param[in]  pts        n points, finite.
  * @param[in]  n          cfg->min_pts (16 in auto mode)..MAGCAL_MAX_SAMPLES.
@@ -282,6 +331,30 @@ magcal_status_t magcal_optics_auto_params(const magcal_vec2_t *pts, size_t n, vo
 magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magcal_vec2_t *pts,
                                      size_t n, void *work, size_t work_len, uint8_t *inlier_mask,
                                      magcal_optics_result_t *info);
+
+/**
+ * @brief One representative per clump: the thinning of the automatic rule as a mask.
+ * Square cells of side R/16 around the automatic centre (c, R of the rule above, clumps counted
+ * once); in each cell the lowest-index candidate is the representative. A vehicle parked at one
+ * heading leaves hundreds of near-identical samples in one or two cells: a stage that draws
+ * samples (the consensus' minimal sets, consensus.h) should draw from the representatives, or the
+ * clump fills the draws. A ring keeps about 100 to 300 representatives (2 pi R / (R/16) cells
+ * along it, more with radial noise), so the mask is for drawing, not for fitting.
+ * @param[in]  pts       n points, finite.
+ * @param[in]  n         16..MAGCAL_MAX_SAMPLES.
+ * @param[in]  cand      NULL (every point is a candidate) or n bytes, != 0 = candidate; only
+ *                       candidates can be representatives.
+ * @param[out] work      scratch, 4-byte aligned, >= MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n) bytes.
+ * @param[in]  work_len  bytes at work.
+ * @param[out] rep_mask  n bytes: 1 = representative of its cell, 0 = not (or not a candidate).
+ * @return MAGCAL_OK; MAGCAL_ERR_NULL (pts, work or rep_mask); MAGCAL_ERR_ARG (misaligned work,
+ *         n > MAGCAL_MAX_SAMPLES); MAGCAL_ERR_TOO_FEW_POINTS (n < 16); MAGCAL_ERR_NONFINITE;
+ *         MAGCAL_ERR_WORKSPACE; MAGCAL_ERR_DEGENERATE (fewer than 16 distinct cells or median
+ *         radius 0: no centre).
+ *         rep_mask untouched on failure.
+ */
+magcal_status_t magcal_optics_thin(const magcal_vec2_t *pts, size_t n, const uint8_t *cand,
+                                   void *work, size_t work_len, uint8_t *rep_mask);
 
 /* ---- 3-D samples (src/optics3.c) --------------------------------------------------------- */
 
@@ -306,11 +379,13 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
  * Automatic parameters (magcal_optics_auto_params3, used by magcal_optics_filter3 when
  * cfg->eps <= 0), every quantity a multiple of distances measured on the data (scale invariant):
  *  1. centre c = coordinate medians, R = median |p - c|; twice more over only the points within
- *     3 R of the previous centre (a far cluster cannot drag the centre), as in 2-D.
+ *     3 R of the previous centre (a far cluster cannot drag the centre), as in 2-D, and as in 2-D
+ *     over one representative per cubic cell (S/32 with the pair scale S, then
+ *     R/16 * min(1, sqrt(400/n))): a rest phase (noise around one point) counts once.
  *  2. the "shell band" = points with | |p - c| - R | <= 0.5 R (at least 10 points).
  *  3. one OPTICS run with eps = R, MinPts = 4 (its ordering serves every eps' <= R).
  *  4. r75 = the smallest eps' (geometric bisection over [R/256, R], 5e-6 relative) at which the
- *     largest ExtractDBSCAN cluster holds 75 % of the band points; eps' = 2 r75, at most R
+ *     largest ExtractDBSCAN cluster holds 75 % of the band's representatives; eps' = 2 r75, at most R
  *     (eps' = R when even R does not reach 75 %); eps = R; MinPts = 4.
  *  Why: the samples of a real calibration are a trajectory on the ellipsoid (dense along the
  *  path, gaps between passes), not independent points, so a spacing statistic (k-distance)
@@ -344,7 +419,11 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
      ~(size_t)3u)
 /* Bytes of the 3-D ordering loop's context (off the stack), with slack to align it for pointers;
  * optics3.c checks the size with a static assert. */
-#define MAGCAL_OPTICS3_CTX_LEN_ (26u * sizeof(void *) + 112u)
+#ifdef MAGCAL_OPTICS_BENCH_SORTED_LIST
+#define MAGCAL_OPTICS3_CTX_LEN_ (33u * sizeof(void *) + 112u)
+#else
+#define MAGCAL_OPTICS3_CTX_LEN_ (31u * sizeof(void *) + 112u)
+#endif
 /* Offset of the run workspace inside the 3-D filter workspace (4-byte aligned): reach float[n],
  * core float[n], order uint16[n] (the automatic rule keeps the whole ordering). */
 #define MAGCAL_OPTICS3_FILTER_RUN_OFFSET_(n) ((10u * (size_t)(n) + 3u) & ~(size_t)3u)
@@ -354,8 +433,8 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
  * Workspace bytes for magcal_optics_run3() on n points: seed heap/list uint16[n], heap position
  * map uint16[n], unprocessed list or grid index uint16[n], grid bucket starts
  * uint16[MAGCAL_OPTICS_GRID_CELLS(n) + 1], one "processed" bit per point, the MinPts insertion
- * buffer (4 * MAGCAL_MAX_MIN_PTS bytes) and the loop's context (216 bytes on a 32-bit target).
- * About 8.1 bytes per sample + 346 bytes (32-bit, n >= 16); the outputs are separate caller arrays.
+ * buffer (4 * MAGCAL_MAX_MIN_PTS bytes) and the loop's context (236 bytes on a 32-bit target).
+ * About 8.1 bytes per sample + 366 bytes (32-bit, n >= 16); the outputs are separate caller arrays.
  */
 #define MAGCAL_OPTICS3_WORKSPACE_LEN(n)                                                            \
     (MAGCAL_OPTICS3_BEST_OFFSET_(n) + 4u * (size_t)MAGCAL_MAX_MIN_PTS + MAGCAL_OPTICS3_CTX_LEN_)
@@ -363,7 +442,7 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
 /**
  * Workspace bytes for magcal_optics_filter3() and magcal_optics_auto_params3() on n points:
  * reach float[n] + core float[n] + order uint16[n] (the automatic rule keeps the whole ordering)
- * + MAGCAL_OPTICS3_WORKSPACE_LEN(n). About 18.1 bytes per sample + 346 bytes (32-bit, n >= 16).
+ * + MAGCAL_OPTICS3_WORKSPACE_LEN(n). About 18.1 bytes per sample + 366 bytes (32-bit, n >= 16).
  */
 #define MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n)                                                     \
     (MAGCAL_OPTICS3_FILTER_RUN_OFFSET_(n) + MAGCAL_OPTICS3_WORKSPACE_LEN(n))
@@ -419,8 +498,10 @@ magcal_status_t magcal_optics_auto_params3(const magcal_vec3_t *pts, size_t n, v
 
 /**
  * @brief 3-D points to inlier mask in one call: (auto params), OPTICS, ExtractDBSCAN at eps',
- * largest cluster. The result equals magcal_optics_run3 + magcal_optics_extract_dbscan +
- * magcal_optics_largest_cluster.
+ * kept cluster. With given parameters the result equals magcal_optics_run3 +
+ * magcal_optics_extract_dbscan + magcal_optics_largest_cluster; with automatic ones the kept
+ * cluster is the one whose shell-band samples occupy the most of 96 direction cells (then the
+ * most samples), so a rest phase cannot be kept as the shell while the rotation is rejected.
  * @param[in]  cfg        cfg->eps <= 0: automatic parameters; otherwise eps, eps_prime, min_pts as given.
  * @param[in]  pts        n points, finite.
  * @param[in]  n          cfg->min_pts (16 in auto mode)..MAGCAL_MAX_SAMPLES.

@@ -50,6 +50,12 @@
  *                    1 deg RMS tilt, 90-degree turns; default cfg, combined objective); callgrind
  *                    counts all N calls, the runner divides by N
  *   aided_vector     the same with the vector objective
+ * Only in magcal_bench_sorted (built against a library copy with MAGCAL_OPTICS_BENCH_SORTED_LIST,
+ * tools/bench/CMakeLists.txt; never in a shipped build):
+ *   optics_sorted_list      magcal_optics_run with the source paper's classic seed list (re-sorted
+ *                           by reachability whenever it changed), BRUTE, eps = automatic eps
+ *   optics_sorted_list_inf  the same with eps = +INF
+ *   ("info" then also checks that the sorted list gives the improved mode's outputs bit for bit)
  */
 #define _POSIX_C_SOURCE 199309L
 
@@ -67,6 +73,11 @@
 #include "magcal/ellipsoid.h"
 #include "magcal/heading.h"
 #include "magcal/optics.h"
+
+#ifdef MAGCAL_OPTICS_BENCH_SORTED_LIST
+/* the bench-only seed-list mode of src/optics_core.h (MAGCAL_OPTICS_SORTED_LIST_) */
+#define BENCH_SORTED_LIST ((magcal_optics_order_t)2)
+#endif
 
 #include "bench_data.h"
 
@@ -213,6 +224,15 @@ static int run_kernel(const char *k, size_t n, int quiet)
         } else if (strcmp(k, "optics_classic_grid") == 0) {
             st = optics_variant(n, MAGCAL_OPTICS_CLASSIC, MAGCAL_NEIGHBORS_GRID, g_order, g_reach,
                                 g_core);
+#ifdef MAGCAL_OPTICS_BENCH_SORTED_LIST
+        } else if (strcmp(k, "optics_sorted_list") == 0 ||
+                   strcmp(k, "optics_sorted_list_inf") == 0) {
+            if (strcmp(k, "optics_sorted_list_inf") == 0) {
+                g_eps = INFINITY;
+            }
+            st = optics_variant(n, BENCH_SORTED_LIST, MAGCAL_NEIGHBORS_BRUTE, g_order, g_reach,
+                                g_core);
+#endif
         } else {
             fprintf(stderr, "magcal_bench: unknown kernel %s\n", k);
             return 1;
@@ -459,6 +479,10 @@ static int mode_info(size_t n)
                         g_core2);
     same = same && st == MAGCAL_OK && same_arrays(n);
     printf("optics_variants_identical=%d\n", same);
+#ifdef MAGCAL_OPTICS_BENCH_SORTED_LIST
+    st = optics_variant(n, BENCH_SORTED_LIST, MAGCAL_NEIGHBORS_BRUTE, g_order2, g_reach2, g_core2);
+    printf("optics_sorted_list_identical=%d\n", st == MAGCAL_OK && same_arrays(n));
+#endif
 
     st = optics_filter(n, &info);
     if (st != MAGCAL_OK) {
