@@ -406,6 +406,8 @@ magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, v
 #define AUTO_THIN_ROUNDS 2u
 #define AUTO_THIN_N 400u     /* above 400 samples the cells shrink like 1/n */
 #define AUTO_CELL_HALF 2048u /* cell coordinates clamped to +-2048: exact float keys */
+#define THIN_INVALID (4.0f * (float)AUTO_CELL_HALF * (float)AUTO_CELL_HALF) /* key of a non-candidate */
+#define AUTO_CLUMP_RATIO 8u  /* a clump: a cell holding more than 8 x the mean cell count */
 /* Layout of the automatic rule's workspace: a float[n] | idx uint16[n] | b float[n] (4-byte
  * aligned) | rep uint8[n]: at most 11 n + 3 bytes, inside MAGCAL_OPTICS_FILTER_WORKSPACE_LEN. */
 #define AUTO_B_OFF(n) ((6u * (size_t)(n) + 3u) & ~(size_t)3u)
@@ -925,6 +927,23 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
     return magcal_ocore_filter_out(&c->oc, n, inlier_mask, info);
 }
 
+/* Largest number of candidates in one thinning cell (w as thin2 left it: keys, sorted idx). */
+static size_t max_cell_run(const uint8_t *w, size_t n)
+{
+    const float *key = (const float *)(const void *)w;
+    const uint16_t *idx = (const uint16_t *)(const void *)(w + 4u * n);
+    size_t i;
+    size_t run = 0u;
+    size_t best = 0u;
+    for (i = 0; i < n; ++i) {
+        run = (i == 0u || key[idx[i]] != key[idx[i - 1u]]) ? 1u : run + 1u;
+        if (key[idx[i]] < THIN_INVALID && run > best) {
+            best = run;
+        }
+    }
+    return best;
+}
+
 magcal_status_t magcal_optics_thin(const magcal_vec2_t *pts, size_t n, const uint8_t *cand,
                                    void *work, size_t work_len, uint8_t *rep_mask)
 {
@@ -951,6 +970,16 @@ magcal_status_t magcal_optics_thin(const magcal_vec2_t *pts, size_t n, const uin
     }
     (void)thin2(pts, n, cr, cr[2] * AUTO_THIN_REL, (float *)(void *)w,
                 (uint16_t *)(void *)(w + 4u * n), w + AUTO_REP_OFF(n), cand);
+    if (max_cell_run(w, n) <= AUTO_CLUMP_RATIO * cell_cap((const uint16_t *)(const void *)(w + 4u * n),
+                                                          (const float *)(const void *)w, n,
+                                                          THIN_INVALID)) {
+        /* no clump: every candidate stays (thinning a plain ring only changes which minimal sets
+         * are drawn, and on noisy real rings that moved the consensus' fixed point) */
+        for (i = 0; i < n; ++i) {
+            rep_mask[i] = (uint8_t)((cand == NULL || cand[i] != 0u) ? 1u : 0u);
+        }
+        return MAGCAL_OK;
+    }
     for (i = 0; i < n; ++i) {
         rep_mask[i] = (uint8_t)(w[AUTO_REP_OFF(n) + i] & AUTO_REP);
     }

@@ -859,7 +859,8 @@ static void test_optics_filter_auto_keeps_ring_over_larger_burst(void)
 
 /* magcal_optics_thin: a clump of 300 identical samples keeps one representative; a ring keeps
  * one per cell of side R/16 (at most about 2 pi 16 = 100 plus radial noise); only candidates are
- * representatives; bad input gives the documented status and leaves the mask. */
+ * representatives; without a clump (no cell above 8 x the mean) every candidate stays; bad input
+ * gives the documented status and leaves the mask. */
 static void test_optics_thin_one_representative_per_clump(void)
 {
     const test_distortion_t d = {1.0f, {{1.0f, 0.0f}, {0.0f, 1.0f}}, 0.0f, 0.0f};
@@ -886,8 +887,17 @@ static void test_optics_thin_one_representative_per_clump(void)
     for (i = 0; i < 500u; ++i) {
         reps += g_mask[i];
     }
-    TEST_ASSERT_EQUAL_UINT(1u, reps);
-    TEST_ASSERT_EQUAL_UINT8(1u, g_mask[200]); /* the clump's lowest index */
+    /* the candidates alone are one cell: no cell above 8 x the mean, nothing to thin */
+    TEST_ASSERT_EQUAL_UINT(300u, reps);
+    TEST_ASSERT_EQUAL_UINT8(0u, g_mask[17]); /* not a candidate */
+    /* a plain ring (no clump): every candidate stays a candidate */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                          magcal_optics_thin(g_pts, 200u, NULL, g_work, sizeof g_work, g_mask));
+    reps = 0u;
+    for (i = 0; i < 200u; ++i) {
+        reps += g_mask[i];
+    }
+    TEST_ASSERT_EQUAL_UINT(200u, reps);
     memset(g_mask2, 0xAA, sizeof g_mask2);
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
                           magcal_optics_thin(NULL, 500u, NULL, g_work, sizeof g_work, g_mask2));

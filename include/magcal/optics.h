@@ -339,7 +339,10 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
  * heading leaves hundreds of near-identical samples in one or two cells: a stage that draws
  * samples (the consensus' minimal sets, consensus.h) should draw from the representatives, or the
  * clump fills the draws. A ring keeps about 100 to 300 representatives (2 pi R / (R/16) cells
- * along it, more with radial noise), so the mask is for drawing, not for fitting.
+ * along it, more with radial noise), so the mask is for drawing, not for fitting. Without a
+ * clump (no cell holds more than 8 x the mean candidates per occupied cell) nothing is thinned:
+ * the mask is the candidates (on noisy real rings thinning alone moved the consensus' fixed point
+ * and its parameter-error gate refused the bundled glitch recording).
  * @param[in]  pts       n points, finite.
  * @param[in]  n         16..MAGCAL_MAX_SAMPLES.
  * @param[in]  cand      NULL (every point is a candidate) or n bytes, != 0 = candidate; only
