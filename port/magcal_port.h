@@ -37,6 +37,20 @@ extern "C" {
  */
 magcal_status_t magcal_port_mag_read(magcal_vec3_t *out);
 
+/** Largest sensor index + 1 that magcal_calibrator_poll_n() accepts (override with -D). */
+#ifndef MAGCAL_PORT_MAX_SENSORS
+#define MAGCAL_PORT_MAX_SENSORS 4u
+#endif
+
+/**
+ * @brief Read one sample of magnetometer `sensor` (multi-sensor ports only, see the file comment).
+ * @param[in]  sensor 0..MAGCAL_PORT_MAX_SENSORS-1; 0 is the sensor of magcal_port_mag_read(), and
+ *                    the two calls must serve the same stream for it.
+ * @param[out] out    as magcal_port_mag_read(); written only on MAGCAL_OK.
+ * @return as magcal_port_mag_read(); MAGCAL_ERR_ARG for a sensor the port does not have.
+ */
+magcal_status_t magcal_port_mag_read_n(uint8_t sensor, magcal_vec3_t *out);
+
 /**
  * @brief Read one accelerometer sample.
  * @param[out] out specific force in g, body frame x right / y forward / z up. Written only on OK.
