@@ -15,6 +15,11 @@
  * The calibration struct is plain data (32 bytes, no pointers) so firmware can store it in flash
  * and restore it; magcal_cal2d_validate() checks a restored copy before use.
  *
+ * Heading trust (docs/heading_models.md section 4): every magcal_heading_t carries a trust state
+ * judged from the corrected field's magnitude against the calibration, with a tolerance of
+ * k x the calibration's own residual held in a magcal_trust_t context (magcal_heading_get_trusted()),
+ * or a generic 15 % band without one (magcal_heading_get()).
+ *
  * @code
  * #include "magcal/heading.h"
  *
@@ -24,9 +29,10 @@
  * {
  *     magcal_heading_t hd;
  *     if (magcal_heading_get(&cal, raw, declination_deg, &hd) == MAGCAL_OK &&
- *         (hd.flags & MAGCAL_HEADING_FLAG_UNCALIBRATED) == 0u) {
+ *         hd.trust == MAGCAL_TRUST_OK) {
  *         // use hd.magnetic_deg / hd.true_deg, both in [0, 360)
  *     }
+ *     // else hd.trust says why not: uncalibrated, disturbed or changed (magcal_trust_str())
  * }
  * @endcode
  */
