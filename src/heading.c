@@ -301,12 +301,14 @@ magcal_status_t magcal_heading_get_trusted(const magcal_cal2d_t *c, const magcal
         a = fmaxf(fabsf(h.x), fabsf(h.y));
         b = fminf(fabsf(h.x), fabsf(h.y)) / a; /* a > 0: the zero-field gate passed */
         rel = (a / c->radius) * sqrtf(1.0f + b * b);
-        if (!magcal_isfinite_f(rel)) {
-            rel = FLT_MAX; /* beyond any tolerance: judged disturbed below */
-        }
-        st = magcal_trust_judge(t, rel, NAN, &flags);
+        /* |h| / R overflows (tiny radius, huge sample): judged as the largest float, which is
+         * beyond any tolerance, and reported as +Inf (not a clamped number) */
+        st = magcal_trust_judge(t, magcal_isfinite_f(rel) ? rel : FLT_MAX, NAN, &flags);
         if (st != MAGCAL_OK) {
             return st;
+        }
+        if (!magcal_isfinite_f(rel)) {
+            rel = INFINITY;
         }
     }
     out->magnetic_deg = mag;

@@ -209,15 +209,16 @@ magcal_status_t magcal_tilt_heading_get(const magcal_tilt_cfg_t *cfg, const magc
         incl = atan2f(-l.z, h) * MAGCAL_DEG_PER_RAD_F;
         if (field > 0.0f) {
             rel = (mnorm / field) * sqrtf(ms.x * ms.x + ms.y * ms.y + ms.z * ms.z);
-            if (!magcal_isfinite_f(rel)) {
-                rel = FLT_MAX; /* beyond any tolerance: judged disturbed */
-            }
         }
     }
     if (field > 0.0f) {
-        st = magcal_trust_judge(t, rel, incl, &flags);
+        /* |m| / F overflows: judged as the largest float (beyond any tolerance), reported +Inf */
+        st = magcal_trust_judge(t, magcal_isfinite_f(rel) ? rel : FLT_MAX, incl, &flags);
         if (st != MAGCAL_OK) {
             return st;
+        }
+        if (!magcal_isfinite_f(rel)) {
+            rel = INFINITY;
         }
     }
     {

@@ -521,6 +521,14 @@ static void test_trust_set_changed_marks_every_heading(void)
     TEST_ASSERT_EQUAL_STRING("disturbed", magcal_trust_str(MAGCAL_TRUST_DISTURBED));
     TEST_ASSERT_EQUAL_STRING("changed", magcal_trust_str(MAGCAL_TRUST_CHANGED));
     TEST_ASSERT_EQUAL_STRING("unknown", magcal_trust_str((magcal_trust_state_t)9));
+    /* |h| / R beyond float: +Inf and DISTURBED, never a clamped ratio that reads plausible */
+    cal = id;
+    cal.radius = 1e-30f;
+    loud.x = 1e30f;
+    loud.y = 2e30f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_heading_get_trusted(&cal, &t, loud, 0.0f, &hd));
+    TEST_ASSERT_EQUAL_UINT8(MAGCAL_TRUST_DISTURBED, hd.trust);
+    TEST_ASSERT_TRUE(isinf(hd.field_rel) && hd.field_rel > 0.0f);
 }
 
 static void test_trust_init_bad_input_returns_status(void)

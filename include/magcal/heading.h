@@ -152,7 +152,8 @@ typedef struct {
     float magnetic_deg;    /**< magnetic heading in [0, 360) */
     float true_deg;        /**< wrap360(magnetic + declination) in [0, 360) */
     float field_rel;       /**< |corrected field| / calibration radius (1 = as calibrated);
-                                NaN when the calibration states no radius (uncalibrated) */
+                                NaN when the calibration states no radius (uncalibrated);
+                                +Inf when the ratio overflows float (then DISTURBED) */
     float inclination_deg; /**< tilt path: inclination of the field, down positive, degrees;
                                 NaN on the 2-D path (not measured) */
     uint8_t flags;         /**< MAGCAL_HEADING_FLAG_* bits; 0 = trusted */
