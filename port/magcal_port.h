@@ -14,6 +14,13 @@
  * - accelerometer: in g (1 g = 9.80665 m/s^2), reading about +1 on z when level and at rest;
  * - functions are called from one thread (the calibration loop) and must not block longer than
  *   one sensor sample period.
+ *
+ * Several magnetometers (docs/decisions/0008-multi-sensor-port.md): a port that serves more than
+ * one magnetometer also implements magcal_port_mag_read_n(), indexed 0..MAGCAL_PORT_MAX_SENSORS-1,
+ * where sensor 0 is the one magcal_port_mag_read() reads. Only magcal_calibrator_poll_n() calls
+ * it, from its own translation unit: a single-sensor port that does not define it still links as
+ * long as the firmware does not call magcal_calibrator_poll_n(). The accelerometer and the clock
+ * stay single (one attitude reference and one time base per board).
  */
 #ifndef MAGCAL_PORT_H
 #define MAGCAL_PORT_H

@@ -1,6 +1,6 @@
 /*
  * magcal_calibrator_poll_n(): polling of one of several magnetometers (port/magcal_port.h,
- * docs/decisions/0006-multi-sensor-port.md). Its own translation unit: only a firmware that calls
+ * docs/decisions/0008-multi-sensor-port.md). Its own translation unit: only a firmware that calls
  * it needs a port with magcal_port_mag_read_n().
  */
 #include "magcal/calibrator.h"
