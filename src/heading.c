@@ -136,22 +136,186 @@ magcal_status_t magcal_heading_compute(const magcal_cal2d_t *c, magcal_vec2_t ra
     return MAGCAL_OK;
 }
 
+/* ---- heading trust (docs/heading_models.md, "Heading trust") ---- */
+
+magcal_status_t magcal_trust_init(magcal_trust_t *t, const magcal_trust_cfg_t *cfg,
+                                  float residual_rel)
+{
+    float tol;
+    float incl_tol;
+    if (t == NULL || cfg == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (!magcal_isfinite_f(cfg->k) || !magcal_isfinite_f(cfg->floor_rel) ||
+        !magcal_isfinite_f(cfg->incl_floor_deg) || !magcal_isfinite_f(residual_rel)) {
+        return MAGCAL_ERR_NONFINITE;
+    }
+    if (!(cfg->k > 0.0f) || cfg->floor_rel < 0.0f || cfg->floor_rel >= 1.0f ||
+        cfg->incl_floor_deg < 0.0f || cfg->incl_floor_deg > 90.0f || residual_rel < 0.0f) {
+        return MAGCAL_ERR_ARG;
+    }
+    tol = cfg->k * residual_rel;
+    if (!magcal_isfinite_f(tol)) { /* huge k * huge residual: nothing is ever disturbed */
+        return MAGCAL_ERR_NONFINITE;
+    }
+    /* the radial residual over R is the angular noise of the field direction in radians */
+    incl_tol = tol * MAGCAL_DEG_PER_RAD_F;
+    t->tol_rel = fmaxf(tol, cfg->floor_rel);
+    t->incl_tol_deg = fmaxf(incl_tol, cfg->incl_floor_deg);
+    t->incl_deg = NAN;
+    t->changed = 0u;
+    t->magic = MAGCAL_TRUST_MAGIC;
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_trust_set_inclination(magcal_trust_t *t, float incl_deg)
+{
+    if (t == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (t->magic != MAGCAL_TRUST_MAGIC) {
+        return MAGCAL_ERR_NOT_INITIALISED;
+    }
+    if (!magcal_isfinite_f(incl_deg)) {
+        return MAGCAL_ERR_NONFINITE;
+    }
+    if (incl_deg < -90.0f || incl_deg > 90.0f) {
+        return MAGCAL_ERR_ARG;
+    }
+    t->incl_deg = incl_deg;
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_trust_set_changed(magcal_trust_t *t, uint8_t changed)
+{
+    if (t == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (t->magic != MAGCAL_TRUST_MAGIC) {
+        return MAGCAL_ERR_NOT_INITIALISED;
+    }
+    if (changed > 1u) {
+        return MAGCAL_ERR_ARG;
+    }
+    t->changed = changed;
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_trust_judge(const magcal_trust_t *t, float field_rel, float incl_deg,
+                                   uint8_t *flags)
+{
+    float tol = MAGCAL_TRUST_TOL_REL_NO_CONTEXT;
+    uint8_t f = 0u;
+    if (flags == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (t != NULL && t->magic != MAGCAL_TRUST_MAGIC) {
+        return MAGCAL_ERR_NOT_INITIALISED;
+    }
+    /* incl_deg: NaN means "not measured"; an infinity is a caller bug */
+    if (!magcal_isfinite_f(field_rel) || (incl_deg == incl_deg && !magcal_isfinite_f(incl_deg))) {
+        return MAGCAL_ERR_NONFINITE;
+    }
+    if (field_rel < 0.0f) {
+        return MAGCAL_ERR_ARG;
+    }
+    if (t != NULL) {
+        tol = t->tol_rel;
+        if (t->changed != 0u) {
+            f |= (uint8_t)MAGCAL_HEADING_FLAG_CHANGED;
+        }
+        if (incl_deg == incl_deg && t->incl_deg == t->incl_deg &&
+            fabsf(incl_deg - t->incl_deg) > t->incl_tol_deg) {
+            f |= (uint8_t)MAGCAL_HEADING_FLAG_DISTURBED;
+        }
+    }
+    if (fabsf(field_rel - 1.0f) > tol) {
+        f |= (uint8_t)MAGCAL_HEADING_FLAG_DISTURBED;
+    }
+    *flags = f;
+    return MAGCAL_OK;
+}
+
+magcal_trust_state_t magcal_trust_from_flags(uint8_t flags)
+{
+    if ((flags & MAGCAL_HEADING_FLAG_UNCALIBRATED) != 0u) {
+        return MAGCAL_TRUST_UNCALIBRATED;
+    }
+    if ((flags & MAGCAL_HEADING_FLAG_CHANGED) != 0u) {
+        return MAGCAL_TRUST_CHANGED;
+    }
+    if ((flags & MAGCAL_HEADING_FLAG_DISTURBED) != 0u) {
+        return MAGCAL_TRUST_DISTURBED;
+    }
+    return MAGCAL_TRUST_OK;
+}
+
+const char *magcal_trust_str(magcal_trust_state_t s)
+{
+    switch (s) {
+    case MAGCAL_TRUST_OK:
+        return "ok";
+    case MAGCAL_TRUST_UNCALIBRATED:
+        return "uncalibrated";
+    case MAGCAL_TRUST_DISTURBED:
+        return "disturbed";
+    case MAGCAL_TRUST_CHANGED:
+        return "changed";
+    default:
+        return "unknown";
+    }
+}
+
 magcal_status_t magcal_heading_get(const magcal_cal2d_t *c, magcal_vec2_t raw,
                                    float declination_deg, magcal_heading_t *out)
+{
+    return magcal_heading_get_trusted(c, NULL, raw, declination_deg, out);
+}
+
+magcal_status_t magcal_heading_get_trusted(const magcal_cal2d_t *c, const magcal_trust_t *t,
+                                           magcal_vec2_t raw, float declination_deg,
+                                           magcal_heading_t *out)
 {
     magcal_status_t st;
     float mag;
     float tru;
+    float rel = NAN;
+    uint8_t flags = (uint8_t)MAGCAL_HEADING_FLAG_UNCALIBRATED;
     if (out == NULL) {
         return MAGCAL_ERR_NULL;
+    }
+    if (t != NULL && t->magic != MAGCAL_TRUST_MAGIC) {
+        return MAGCAL_ERR_NOT_INITIALISED;
     }
     st = magcal_heading_compute(c, raw, declination_deg, &mag, &tru);
     if (st != MAGCAL_OK) {
         return st;
     }
+    /* validated by magcal_heading_compute: radius >= 0, so > 0 means "fitted" */
+    if (c->radius > 0.0f) {
+        magcal_vec2_t h;
+        float a;
+        float b;
+        (void)magcal_correct_apply(c, raw, &h); /* succeeded inside magcal_heading_compute */
+        /* |h| without overflow: scale by the larger component */
+        a = fmaxf(fabsf(h.x), fabsf(h.y));
+        b = fminf(fabsf(h.x), fabsf(h.y)) / a; /* a > 0: the zero-field gate passed */
+        rel = (a / c->radius) * sqrtf(1.0f + b * b);
+        /* |h| / R overflows (tiny radius, huge sample): judged as the largest float, which is
+         * beyond any tolerance, and reported as +Inf (not a clamped number) */
+        st = magcal_trust_judge(t, magcal_isfinite_f(rel) ? rel : FLT_MAX, NAN, &flags);
+        if (st != MAGCAL_OK) {
+            return st;
+        }
+        if (!magcal_isfinite_f(rel)) {
+            rel = INFINITY;
+        }
+    }
     out->magnetic_deg = mag;
     out->true_deg = tru;
-    /* validated by magcal_heading_compute: radius >= 0, so > 0 means "fitted" */
-    out->flags = (uint8_t)(c->radius > 0.0f ? 0u : MAGCAL_HEADING_FLAG_UNCALIBRATED);
+    out->field_rel = rel;
+    out->inclination_deg = NAN;
+    out->flags = flags;
+    out->trust = (uint8_t)magcal_trust_from_flags(flags);
     return MAGCAL_OK;
 }

@@ -1,4 +1,5 @@
 /* Tilt compensation (algorithms.md section 6): pitch about x (right), roll about y (forward). */
+#include <float.h>
 #include <math.h>
 
 #include "magcal/tilt.h"
@@ -163,5 +164,71 @@ magcal_status_t magcal_tilt_heading(const magcal_tilt_cfg_t *cfg, const magcal_v
         att->pitch_deg = atan2f(t.sp, t.cp) * MAGCAL_DEG_PER_RAD_F;
         att->roll_deg = atan2f(t.sr, t.cr) * MAGCAL_DEG_PER_RAD_F;
     }
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_tilt_heading_get(const magcal_tilt_cfg_t *cfg, const magcal_trust_t *t,
+                                        const magcal_vec3_t *accel_g, const magcal_vec3_t *mag,
+                                        float field, float declination_deg, magcal_heading_t *out)
+{
+    magcal_tilt_t att;
+    magcal_vec3_t l;
+    magcal_status_t st;
+    float psi;
+    float mnorm;
+    float rel = NAN;
+    float incl;
+    uint8_t flags = (uint8_t)MAGCAL_HEADING_FLAG_UNCALIBRATED;
+    if (out == NULL || mag == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (t != NULL && t->magic != MAGCAL_TRUST_MAGIC) {
+        return MAGCAL_ERR_NOT_INITIALISED;
+    }
+    if (!magcal_isfinite_f(field) || !magcal_isfinite_f(declination_deg)) {
+        return MAGCAL_ERR_NONFINITE;
+    }
+    if (field < 0.0f || declination_deg > 180.0f || declination_deg < -180.0f) {
+        return MAGCAL_ERR_ARG;
+    }
+    st = magcal_tilt_heading(cfg, accel_g, mag, &psi, &att);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    /* heading passed: mag finite and non-zero. Scale before squaring (no overflow). */
+    mnorm = fmaxf(fabsf(mag->x), fmaxf(fabsf(mag->y), fabsf(mag->z)));
+    {
+        magcal_vec3_t ms;
+        float inv = 1.0f / mnorm;
+        float h;
+        ms.x = mag->x * inv;
+        ms.y = mag->y * inv;
+        ms.z = mag->z * inv;
+        (void)magcal_tilt_level_field(&att, &ms, &l);
+        h = sqrtf(l.x * l.x + l.y * l.y);
+        incl = atan2f(-l.z, h) * MAGCAL_DEG_PER_RAD_F;
+        if (field > 0.0f) {
+            rel = (mnorm / field) * sqrtf(ms.x * ms.x + ms.y * ms.y + ms.z * ms.z);
+        }
+    }
+    if (field > 0.0f) {
+        /* |m| / F overflows: judged as the largest float (beyond any tolerance), reported +Inf */
+        st = magcal_trust_judge(t, magcal_isfinite_f(rel) ? rel : FLT_MAX, incl, &flags);
+        if (st != MAGCAL_OK) {
+            return st;
+        }
+        if (!magcal_isfinite_f(rel)) {
+            rel = INFINITY;
+        }
+    }
+    {
+        float tr = psi + declination_deg; /* [0,360) + [-180,180]: one wrap */
+        out->true_deg = magcal_wrap360_deg(tr);
+    }
+    out->magnetic_deg = psi;
+    out->field_rel = rel;
+    out->inclination_deg = incl;
+    out->flags = flags;
+    out->trust = (uint8_t)magcal_trust_from_flags(flags);
     return MAGCAL_OK;
 }

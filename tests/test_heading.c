@@ -7,6 +7,9 @@
 #include <math.h>
 #include <string.h>
 
+#include <stdio.h>
+
+#include "magcal/calibrator.h"
 #include "magcal/heading.h"
 #include "test_util.h"
 #include "unity.h"
@@ -313,6 +316,271 @@ static void test_heading_get_flags_uncalibrated_identity(void)
     TEST_ASSERT_EQUAL_FLOAT(keep.magnetic_deg, hd.magnetic_deg);
     TEST_ASSERT_EQUAL_FLOAT(keep.true_deg, hd.true_deg);
     TEST_ASSERT_EQUAL_UINT8(keep.flags, hd.flags);
+    /* the trust state agrees with the flags */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_heading_get(&id, raw, 0.0f, &hd));
+    TEST_ASSERT_EQUAL_UINT8(MAGCAL_TRUST_UNCALIBRATED, hd.trust);
+    TEST_ASSERT_TRUE(hd.field_rel != hd.field_rel); /* NaN: no radius to compare with */
+}
+
+/* ---- heading trust ----------------------------------------------------------------------- */
+
+#define TRUST_CAP 400u
+#define TRUST_ROWS 6000u /* 120 s at 50 Hz */
+static magcal_calibrator_t g_tcal;
+static magcal_vec2_t g_tbuf[TRUST_CAP];
+static uint32_t g_twork[(MAGCAL_CALIBRATOR_WORKSPACE_LEN(TRUST_CAP) + 3u) / 4u];
+
+/* Known installation: radius 40 (uT), soft iron axis ratio about 0.8, hard iron (12, -7). */
+static const test_distortion_t k_dist = {40.0f, {{1.05f, 0.12f}, {0.12f, 0.85f}}, 12.0f, -7.0f};
+
+/* Calibrate k_dist from a full noisy ring with the calibrator (the residual it reports is the
+ * one the trust thresholds are built from). */
+static void calibrate_known(double sigma, uint32_t seed, magcal_cal2d_t *cal, magcal_cal_report_t *rep)
+{
+    magcal_calibrator_cfg_t cfg = MAGCAL_CALIBRATOR_CFG_DEFAULT;
+    magcal_vec2_t pts[TRUST_CAP];
+    magcal_cal2d_t cur = MAGCAL_CAL2D_IDENTITY;
+    size_t i;
+    cfg.min_spacing_deg = 0.0f;
+    cfg.max_per_bin = 0u;
+    test_make_ring(&k_dist, TRUST_CAP, 3.0, 360.0, sigma, seed, pts, NULL);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_tcal, &cfg, g_tbuf, TRUST_CAP, g_twork,
+                                                            sizeof g_twork));
+    for (i = 0; i < TRUST_CAP; ++i) {
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_push(&g_tcal, pts[i]));
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_run(&g_tcal, &cur, rep));
+    *cal = cur;
+}
+
+typedef struct {
+    size_t dist_rows, dist_flagged, clean_rows, clean_flagged, ok_rows;
+    double ok_err2; /* sum of squared heading errors of OK rows vs truth (constant offset removed) */
+} trust_stats_t;
+
+/*
+ * A drive of TRUST_ROWS rows at 50 Hz with fresh noise (seed): heading turning at a varying rate,
+ * four transient disturbances of 2, 3, 4 and 5 s where the field is 30 % stronger (a passing
+ * truck), the rest clean. Every row is judged with `t` (NULL: generic band); counts by truth.
+ */
+static void drive_trust(const magcal_cal2d_t *cal, const magcal_trust_t *t, double sigma, uint32_t seed,
+                        double gain, trust_stats_t *s)
+{
+    static const size_t d_start[4] = {700u, 1900u, 3300u, 4700u};
+    static const size_t d_len[4] = {100u, 150u, 200u, 250u};
+    test_distortion_t strong = k_dist;
+    uint32_t rng = seed;
+    double psi = 17.0;
+    double offset = 0.0;
+    size_t i;
+    memset(s, 0, sizeof *s);
+    strong.h0 = (float)(k_dist.h0 * gain);
+    for (i = 0; i < TRUST_ROWS; ++i) {
+        int disturbed = 0;
+        size_t k;
+        magcal_vec2_t raw;
+        magcal_heading_t hd;
+        for (k = 0; k < 4u; ++k) {
+            disturbed |= (i >= d_start[k] && i < d_start[k] + d_len[k]);
+        }
+        psi += 0.6 * sin((double)i * 0.002) + 0.2; /* deg per row: straights and turns */
+        raw = test_distorted_sample(disturbed ? &strong : &k_dist, psi, sigma, &rng);
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_heading_get_trusted(cal, t, raw, 0.0f, &hd));
+        TEST_ASSERT_EQUAL_UINT8(magcal_trust_from_flags(hd.flags), hd.trust);
+        if (disturbed) {
+            s->dist_rows++;
+            s->dist_flagged += (hd.trust == MAGCAL_TRUST_DISTURBED);
+        } else {
+            double e;
+            s->clean_rows++;
+            s->clean_flagged += (hd.trust != MAGCAL_TRUST_OK);
+            if (hd.trust == MAGCAL_TRUST_OK) {
+                /* the calibration's heading differs from the truth by a constant rotation
+                 * (correction form): take it from the first OK row */
+                e = test_angle_diff_deg(hd.magnetic_deg, fmod(psi, 360.0));
+                if (s->ok_rows == 0u) {
+                    offset = e;
+                }
+                e = test_angle_diff_deg(e, offset);
+                s->ok_err2 += e * e;
+                s->ok_rows++;
+            }
+        }
+    }
+}
+
+/* The trust thresholds come from the calibration's own residual: a passing truck (+30 % field
+ * for 2 to 5 s) is flagged on >= 90 % of its rows, clean noisy rows on <= 2 %, at two noise
+ * levels (1 % and 3 % of the radius per axis). The OK rows keep the calibration's accuracy. */
+static void test_heading_get_trusted_truck_flagged_clean_passes(void)
+{
+    static const double sigmas[2] = {0.4, 1.2};
+    size_t j;
+    for (j = 0; j < 2u; ++j) {
+        magcal_cal2d_t cal;
+        magcal_cal_report_t rep;
+        magcal_trust_cfg_t tc = MAGCAL_TRUST_CFG_DEFAULT;
+        magcal_trust_t t;
+        trust_stats_t s;
+        double recall, false_rate, rms;
+        char msg[160];
+        calibrate_known(sigmas[j], 101u + (uint32_t)j, &cal, &rep);
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_trust_init(&t, &tc, rep.residual_rel));
+        drive_trust(&cal, &t, sigmas[j], 9001u + (uint32_t)j, 1.3, &s);
+        recall = (double)s.dist_flagged / (double)s.dist_rows;
+        false_rate = (double)s.clean_flagged / (double)s.clean_rows;
+        rms = sqrt(s.ok_err2 / (double)s.ok_rows);
+        snprintf(msg, sizeof msg,
+                 "sigma %.1f: residual_rel %.4f tol_rel %.4f recall %.4f (%u/%u) false %.4f (%u/%u) "
+                 "OK rms %.3f deg",
+                 sigmas[j], (double)rep.residual_rel, (double)t.tol_rel, recall,
+                 (unsigned)s.dist_flagged, (unsigned)s.dist_rows, false_rate,
+                 (unsigned)s.clean_flagged, (unsigned)s.clean_rows, rms);
+        printf("%s\n", msg);
+        TEST_ASSERT_TRUE_MESSAGE(recall >= 0.90, msg);
+        TEST_ASSERT_TRUE_MESSAGE(false_rate <= 0.02, msg);
+        /* tolerance = k x residual (the residual estimates the per-axis noise over R) */
+        TEST_ASSERT_FLOAT_WITHIN(0.25f * (float)(sigmas[j] / 40.0), (float)(sigmas[j] / 40.0),
+                                 rep.residual_rel);
+        TEST_ASSERT_FLOAT_WITHIN(1e-6f, fmaxf(3.0f * rep.residual_rel, 0.01f), t.tol_rel);
+        /* trusted rows are accurate: noise sigma/R rad ~ 0.6 / 1.7 deg RMS, well below 3x */
+        TEST_ASSERT_TRUE_MESSAGE(rms < 3.0 * (sigmas[j] / 40.0) * 57.2958, msg);
+    }
+}
+
+/* A disturbance inside the tolerance (+1 % field, below k x residual) is not flagged: the
+ * detector measures magnitude, so a stronger disturbance is needed to be seen. The recall rises
+ * with the disturbance: >= 90 % from +10 % at 1 % noise. */
+static void test_heading_get_trusted_small_disturbance_below_tolerance(void)
+{
+    magcal_cal2d_t cal;
+    magcal_cal_report_t rep;
+    magcal_trust_cfg_t tc = MAGCAL_TRUST_CFG_DEFAULT;
+    magcal_trust_t t;
+    trust_stats_t s;
+    calibrate_known(0.4, 101u, &cal, &rep);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_trust_init(&t, &tc, rep.residual_rel));
+    drive_trust(&cal, &t, 0.4, 77u, 1.01, &s);
+    TEST_ASSERT_TRUE((double)s.dist_flagged / (double)s.dist_rows < 0.05);
+    drive_trust(&cal, &t, 0.4, 78u, 1.10, &s);
+    TEST_ASSERT_TRUE((double)s.dist_flagged / (double)s.dist_rows >= 0.90);
+    drive_trust(&cal, &t, 0.4, 79u, 0.80, &s); /* a weaker field (shielding) is flagged too */
+    TEST_ASSERT_TRUE((double)s.dist_flagged / (double)s.dist_rows >= 0.90);
+}
+
+/* Without a context (magcal_heading_get), the generic 15 % band: +30 % flagged, clean passes. */
+static void test_heading_get_generic_band_flags_truck(void)
+{
+    magcal_cal2d_t cal;
+    magcal_cal_report_t rep;
+    trust_stats_t s;
+    calibrate_known(0.4, 101u, &cal, &rep);
+    drive_trust(&cal, NULL, 0.4, 9001u, 1.3, &s);
+    TEST_ASSERT_TRUE((double)s.dist_flagged / (double)s.dist_rows >= 0.90);
+    TEST_ASSERT_EQUAL_UINT(0u, (unsigned)s.clean_flagged); /* 15 % is 15 sigma here */
+}
+
+/* CHANGED is set and cleared by the context's owner, and wins over DISTURBED; UNCALIBRATED wins
+ * over everything. */
+static void test_trust_set_changed_marks_every_heading(void)
+{
+    magcal_cal2d_t cal;
+    magcal_cal2d_t id = MAGCAL_CAL2D_IDENTITY;
+    magcal_cal_report_t rep;
+    magcal_trust_cfg_t tc = MAGCAL_TRUST_CFG_DEFAULT;
+    magcal_trust_t t;
+    magcal_heading_t hd;
+    test_distortion_t strong = k_dist;
+    uint32_t rng = 5u;
+    magcal_vec2_t clean, loud;
+    calibrate_known(0.4, 101u, &cal, &rep);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_trust_init(&t, &tc, rep.residual_rel));
+    strong.h0 = 52.0f;
+    clean = test_distorted_sample(&k_dist, 40.0, 0.0, &rng);
+    loud = test_distorted_sample(&strong, 40.0, 0.0, &rng);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_heading_get_trusted(&cal, &t, clean, 0.0f, &hd));
+    TEST_ASSERT_EQUAL_UINT8(MAGCAL_TRUST_OK, hd.trust);
+    TEST_ASSERT_EQUAL_UINT8(0u, hd.flags);
+    TEST_ASSERT_FLOAT_WITHIN(0.01f, 1.0f, hd.field_rel);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_heading_get_trusted(&cal, &t, loud, 0.0f, &hd));
+    TEST_ASSERT_EQUAL_UINT8(MAGCAL_TRUST_DISTURBED, hd.trust);
+    TEST_ASSERT_FLOAT_WITHIN(0.01f, 1.3f, hd.field_rel);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_trust_set_changed(&t, 1u));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_heading_get_trusted(&cal, &t, clean, 0.0f, &hd));
+    TEST_ASSERT_EQUAL_UINT8(MAGCAL_TRUST_CHANGED, hd.trust);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_heading_get_trusted(&cal, &t, loud, 0.0f, &hd));
+    TEST_ASSERT_EQUAL_UINT8(MAGCAL_TRUST_CHANGED, hd.trust);
+    TEST_ASSERT_EQUAL_UINT8(MAGCAL_HEADING_FLAG_CHANGED | MAGCAL_HEADING_FLAG_DISTURBED, hd.flags);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_heading_get_trusted(&id, &t, clean, 0.0f, &hd));
+    TEST_ASSERT_EQUAL_UINT8(MAGCAL_TRUST_UNCALIBRATED, hd.trust);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_trust_set_changed(&t, 0u));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_heading_get_trusted(&cal, &t, clean, 0.0f, &hd));
+    TEST_ASSERT_EQUAL_UINT8(MAGCAL_TRUST_OK, hd.trust);
+    TEST_ASSERT_EQUAL_STRING("ok", magcal_trust_str(MAGCAL_TRUST_OK));
+    TEST_ASSERT_EQUAL_STRING("uncalibrated", magcal_trust_str(MAGCAL_TRUST_UNCALIBRATED));
+    TEST_ASSERT_EQUAL_STRING("disturbed", magcal_trust_str(MAGCAL_TRUST_DISTURBED));
+    TEST_ASSERT_EQUAL_STRING("changed", magcal_trust_str(MAGCAL_TRUST_CHANGED));
+    TEST_ASSERT_EQUAL_STRING("unknown", magcal_trust_str((magcal_trust_state_t)9));
+    /* |h| / R beyond float: +Inf and DISTURBED, never a clamped ratio that reads plausible */
+    cal = id;
+    cal.radius = 1e-30f;
+    loud.x = 1e30f;
+    loud.y = 2e30f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_heading_get_trusted(&cal, &t, loud, 0.0f, &hd));
+    TEST_ASSERT_EQUAL_UINT8(MAGCAL_TRUST_DISTURBED, hd.trust);
+    TEST_ASSERT_TRUE(isinf(hd.field_rel) && hd.field_rel > 0.0f);
+}
+
+static void test_trust_init_bad_input_returns_status(void)
+{
+    magcal_trust_cfg_t tc = MAGCAL_TRUST_CFG_DEFAULT;
+    magcal_trust_t t;
+    magcal_trust_t keep;
+    uint8_t f = 0xFFu;
+    memset(&t, 0, sizeof t);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NOT_INITIALISED, magcal_trust_set_changed(&t, 1u));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NOT_INITIALISED, magcal_trust_judge(&t, 1.0f, NAN, &f));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_trust_init(NULL, &tc, 0.01f));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_trust_init(&t, NULL, 0.01f));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_trust_init(&t, &tc, -0.01f));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_trust_init(&t, &tc, NAN));
+    tc.k = 0.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_trust_init(&t, &tc, 0.01f));
+    tc.k = 3.0f;
+    tc.floor_rel = 1.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_trust_init(&t, &tc, 0.01f));
+    tc.floor_rel = 0.01f;
+    tc.incl_floor_deg = 91.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_trust_init(&t, &tc, 0.01f));
+    tc.incl_floor_deg = 5.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_trust_init(&t, &tc, 0.02f));
+    TEST_ASSERT_FLOAT_WITHIN(1e-7f, 0.06f, t.tol_rel);
+    TEST_ASSERT_FLOAT_WITHIN(1e-4f, 5.0f, t.incl_tol_deg); /* 0.06 rad = 3.4 deg < floor */
+    keep = t;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_trust_set_changed(&t, 2u));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_trust_set_inclination(&t, 91.0f));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_trust_set_inclination(&t, NAN));
+    TEST_ASSERT_EQUAL_MEMORY(&keep, &t, sizeof t);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_trust_judge(&t, 1.0f, NAN, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_trust_judge(&t, -1.0f, NAN, &f));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_trust_judge(&t, INFINITY, NAN, &f));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_trust_judge(&t, 1.0f, INFINITY, &f));
+    TEST_ASSERT_EQUAL_UINT8(0xFFu, f);
+    /* the boundary: exactly inside passes, just outside is disturbed */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_trust_judge(&t, 1.059f, NAN, &f));
+    TEST_ASSERT_EQUAL_UINT8(0u, f);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_trust_judge(&t, 0.939f, NAN, &f));
+    TEST_ASSERT_EQUAL_UINT8(MAGCAL_HEADING_FLAG_DISTURBED, f);
+    /* inclination is checked only once an expected one is set, and only when measured */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_trust_judge(&t, 1.0f, 40.0f, &f));
+    TEST_ASSERT_EQUAL_UINT8(0u, f);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_trust_set_inclination(&t, 60.0f));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_trust_judge(&t, 1.0f, 54.9f, &f));
+    TEST_ASSERT_EQUAL_UINT8(MAGCAL_HEADING_FLAG_DISTURBED, f);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_trust_judge(&t, 1.0f, 64.0f, &f));
+    TEST_ASSERT_EQUAL_UINT8(0u, f);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_trust_judge(&t, 1.0f, NAN, &f));
+    TEST_ASSERT_EQUAL_UINT8(0u, f);
 }
 
 int main(void)
@@ -329,5 +597,10 @@ int main(void)
     RUN_TEST(test_heading_compute_true_heading_in_half_open_range);
     RUN_TEST(test_heading_compute_bad_input_returns_status);
     RUN_TEST(test_heading_get_flags_uncalibrated_identity);
+    RUN_TEST(test_heading_get_trusted_truck_flagged_clean_passes);
+    RUN_TEST(test_heading_get_trusted_small_disturbance_below_tolerance);
+    RUN_TEST(test_heading_get_generic_band_flags_truck);
+    RUN_TEST(test_trust_set_changed_marks_every_heading);
+    RUN_TEST(test_trust_init_bad_input_returns_status);
     return UNITY_END();
 }

@@ -2,7 +2,7 @@
  * MAGCAL_USE_CMOCK=ON; test_calibrator.c checks the same path with the hand-written fake).
  * Strict expectations: poll() reads exactly one magnetometer sample per call, never the
  * accelerometer or the clock, stores x/y of a good sample and passes port failures through
- * without storing anything. */
+ * without storing anything; poll_n() reads the indexed port the same way. */
 #include <math.h>
 
 #include "Mockmagcal_port.h"
@@ -52,4 +52,19 @@ void test_poll_nonfinite_sample_is_rejected(void)
     magcal_port_mag_read_ReturnThruPtr_out(&v);
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_calibrator_poll(&g_cal));
     TEST_ASSERT_EQUAL_UINT(0u, (unsigned)magcal_calibrator_count(&g_cal));
+}
+
+/* poll_n() reads through magcal_port_mag_read_n() only (never the single-sensor read), once per
+ * call, and refuses an index beyond MAGCAL_PORT_MAX_SENSORS without calling the port at all. */
+void test_poll_n_reads_through_indexed_port_only(void)
+{
+    magcal_vec3_t v = {7.0f, 8.0f, 9.0f};
+    magcal_port_mag_read_n_ExpectAnyArgsAndReturn(MAGCAL_OK);
+    magcal_port_mag_read_n_ReturnThruPtr_out(&v);
+    magcal_port_mag_read_n_ExpectAnyArgsAndReturn(MAGCAL_ERR_ARG);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_poll_n(&g_cal, 1u));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_calibrator_poll_n(&g_cal, 3u));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_calibrator_poll_n(&g_cal, (uint8_t)MAGCAL_PORT_MAX_SENSORS));
+    TEST_ASSERT_EQUAL_UINT(1u, (unsigned)magcal_calibrator_count(&g_cal));
+    TEST_ASSERT_EQUAL_FLOAT(7.0f, g_buf[0].x);
 }

@@ -65,6 +65,18 @@ static void test_replay_without_timestamps_uses_period(void)
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NO_DATA, magcal_port_accel_read(&v));
 }
 
+/* The replay port is one source: sensor 0 is the same stream as magcal_port_mag_read(), any
+ * other index is refused without consuming a row. */
+static void test_replay_mag_read_n_is_sensor_zero_only(void)
+{
+    magcal_vec3_t v;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_port_mag_read(&v));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_port_mag_read_n(1u, &v));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_port_mag_read_n(0u, &v));
+    TEST_ASSERT_EQUAL_FLOAT(2.0f, v.x);
+    TEST_ASSERT_EQUAL_UINT(2u, (unsigned)magcal_port_replay_position());
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -72,5 +84,6 @@ int main(void)
     RUN_TEST(test_replay_injected_error_consumes_its_row);
     RUN_TEST(test_replay_periodic_timeouts);
     RUN_TEST(test_replay_without_timestamps_uses_period);
+    RUN_TEST(test_replay_mag_read_n_is_sensor_zero_only);
     return UNITY_END();
 }

@@ -256,6 +256,130 @@ static void test_tilt_patent_formulas_literal_in_y_forward_frame_err_39deg(void)
     TEST_ASSERT_TRUE(worst_lib < 1e-3);
 }
 
+/* ---- heading trust on the tilt path ------------------------------------------------------ */
+
+#define TT_ROWS 5000u
+#define TT_F 50.0
+#define TT_INCL 60.0
+#define TT_SIGMA 0.5 /* uT per axis: 1 % of F */
+
+/* One row: attitude on hills (pitch/roll up to 6 deg), heading turning; accelerometer noise
+ * 0.01 g, field noise TT_SIGMA. kind 1: field 30 % stronger (truck); kind 2: a disturbance that
+ * bends the field 20 deg steeper at the same magnitude (seen only by the inclination). */
+static void tt_row(size_t i, int kind, uint32_t *rng, magcal_vec3_t *acc, magcal_vec3_t *mag,
+                   double *psi_out)
+{
+    double psi = fmod(17.0 + 0.13 * (double)i + 40.0 * sin((double)i * 0.003), 360.0);
+    double theta = 6.0 * sin((double)i * 0.0021);
+    double phi = 4.0 * sin((double)i * 0.0017 + 1.0);
+    double f = kind == 1 ? 1.3 * TT_F : TT_F;
+    double incl = kind == 2 ? TT_INCL + 20.0 : TT_INCL;
+    synth(psi, theta, phi, f, incl, acc, mag);
+    acc->x += (float)(0.01 * test_rand_normal(rng));
+    acc->y += (float)(0.01 * test_rand_normal(rng));
+    acc->z += (float)(0.01 * test_rand_normal(rng));
+    mag->x += (float)(TT_SIGMA * test_rand_normal(rng));
+    mag->y += (float)(TT_SIGMA * test_rand_normal(rng));
+    mag->z += (float)(TT_SIGMA * test_rand_normal(rng));
+    *psi_out = psi < 0.0 ? psi + 360.0 : psi;
+}
+
+/* Magnitude and inclination against the calibration: the residual comes from the calibration's
+ * own data (RMS of |m| - F over 2000 clean noisy samples, what the ellipsoid fit reports as
+ * residual_rms); the expected inclination is the median the calibration data showed. */
+static void test_tilt_heading_get_flags_truck_and_bent_field(void)
+{
+    magcal_tilt_cfg_t cfg = MAGCAL_TILT_CFG_DEFAULT;
+    magcal_trust_cfg_t tc = MAGCAL_TRUST_CFG_DEFAULT;
+    magcal_trust_t t;
+    uint32_t rng = 4242u;
+    double ss = 0.0, incl_sum = 0.0;
+    size_t i, n_res = 2000u;
+    size_t rows[3] = {0, 0, 0}, flagged[3] = {0, 0, 0};
+    double err2 = 0.0;
+    size_t n_ok = 0u;
+    char msg[200];
+    for (i = 0; i < n_res; ++i) {
+        magcal_vec3_t a, m;
+        magcal_heading_t hd;
+        double psi, r;
+        tt_row(i * 7u, 0, &rng, &a, &m, &psi);
+        r = sqrt((double)m.x * m.x + (double)m.y * m.y + (double)m.z * m.z) - TT_F;
+        ss += r * r;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_tilt_heading_get(&cfg, NULL, &a, &m, (float)TT_F, 0.0f, &hd));
+        incl_sum += (double)hd.inclination_deg;
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_trust_init(&t, &tc, (float)(sqrt(ss / (double)n_res) / TT_F)));
+    TEST_ASSERT_FLOAT_WITHIN(0.3f, (float)TT_INCL, (float)(incl_sum / (double)n_res));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_trust_set_inclination(&t, (float)(incl_sum / (double)n_res)));
+    rng = 777u; /* fresh noise for the drive */
+    for (i = 0; i < TT_ROWS; ++i) {
+        magcal_vec3_t a, m;
+        magcal_heading_t hd;
+        double psi;
+        int kind = (i >= 1000u && i < 1250u) ? 1 : (i >= 3000u && i < 3200u) ? 2 : 0;
+        tt_row(i, kind, &rng, &a, &m, &psi);
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_tilt_heading_get(&cfg, &t, &a, &m, (float)TT_F, 3.0f, &hd));
+        rows[kind]++;
+        if (kind == 0) {
+            flagged[0] += (hd.trust != MAGCAL_TRUST_OK);
+            if (hd.trust == MAGCAL_TRUST_OK) {
+                double e = test_angle_diff_deg(hd.magnetic_deg, psi);
+                err2 += e * e;
+                n_ok++;
+                TEST_ASSERT_FLOAT_WITHIN(1e-3f, 3.0f, (float)test_angle_diff_deg(hd.true_deg, hd.magnetic_deg));
+            }
+        } else {
+            flagged[kind] += (hd.trust == MAGCAL_TRUST_DISTURBED);
+        }
+    }
+    snprintf(msg, sizeof msg,
+             "tilt: tol_rel %.4f incl_tol %.2f deg; truck recall %u/%u, bent-field recall %u/%u, "
+             "clean false %u/%u, OK rms %.3f deg",
+             (double)t.tol_rel, (double)t.incl_tol_deg, (unsigned)flagged[1], (unsigned)rows[1],
+             (unsigned)flagged[2], (unsigned)rows[2], (unsigned)flagged[0], (unsigned)rows[0],
+             sqrt(err2 / (double)n_ok));
+    printf("%s\n", msg);
+    TEST_ASSERT_TRUE_MESSAGE((double)flagged[1] >= 0.90 * (double)rows[1], msg);
+    TEST_ASSERT_TRUE_MESSAGE((double)flagged[2] >= 0.90 * (double)rows[2], msg);
+    TEST_ASSERT_TRUE_MESSAGE((double)flagged[0] <= 0.02 * (double)rows[0], msg);
+    TEST_ASSERT_TRUE_MESSAGE(sqrt(err2 / (double)n_ok) < 2.0, msg);
+}
+
+/* No calibration (field 0): flagged UNCALIBRATED, heading still computed; bad input: a status. */
+static void test_tilt_heading_get_uncalibrated_and_bad_input(void)
+{
+    magcal_tilt_cfg_t cfg = MAGCAL_TILT_CFG_DEFAULT;
+    magcal_trust_t bad;
+    magcal_vec3_t a, m;
+    magcal_heading_t hd;
+    magcal_heading_t keep;
+    float psi;
+    synth(123.0, 5.0, -3.0, 50.0, 60.0, &a, &m);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_tilt_heading_get(&cfg, NULL, &a, &m, 0.0f, 0.0f, &hd));
+    TEST_ASSERT_EQUAL_UINT8(MAGCAL_TRUST_UNCALIBRATED, hd.trust);
+    TEST_ASSERT_EQUAL_UINT8(MAGCAL_HEADING_FLAG_UNCALIBRATED, hd.flags);
+    TEST_ASSERT_TRUE(hd.field_rel != hd.field_rel);
+    TEST_ASSERT_FLOAT_WITHIN(0.01f, 60.0f, hd.inclination_deg);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_tilt_heading(&cfg, &a, &m, &psi, NULL));
+    TEST_ASSERT_EQUAL_FLOAT(psi, hd.magnetic_deg);
+    TEST_ASSERT_FLOAT_WITHIN(0.01f, 123.0f, hd.magnetic_deg);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_tilt_heading_get(&cfg, NULL, &a, &m, 50.0f, -150.0f, &hd));
+    TEST_ASSERT_EQUAL_UINT8(MAGCAL_TRUST_OK, hd.trust);
+    TEST_ASSERT_FLOAT_WITHIN(1e-3f, 1.0f, hd.field_rel);
+    TEST_ASSERT_FLOAT_WITHIN(0.01f, 333.0f, hd.true_deg);
+    keep = hd;
+    memset(&bad, 0, sizeof bad);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NOT_INITIALISED, magcal_tilt_heading_get(&cfg, &bad, &a, &m, 50.0f, 0.0f, &hd));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_tilt_heading_get(&cfg, NULL, &a, &m, 50.0f, 0.0f, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_tilt_heading_get(&cfg, NULL, &a, &m, -1.0f, 0.0f, &hd));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_tilt_heading_get(&cfg, NULL, &a, &m, 50.0f, 181.0f, &hd));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_tilt_heading_get(&cfg, NULL, &a, &m, NAN, 0.0f, &hd));
+    a.z = 0.0f; a.x = 0.0f; a.y = 0.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_FREE_FALL, magcal_tilt_heading_get(&cfg, NULL, &a, &m, 50.0f, 0.0f, &hd));
+    TEST_ASSERT_EQUAL_MEMORY(&keep, &hd, sizeof hd);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -267,5 +391,7 @@ int main(void)
     RUN_TEST(test_tilt_cfg_out_of_range_returns_arg);
     RUN_TEST(test_tilt_heading_header_example_gives_30deg);
     RUN_TEST(test_tilt_patent_formulas_literal_in_y_forward_frame_err_39deg);
+    RUN_TEST(test_tilt_heading_get_flags_truck_and_bent_field);
+    RUN_TEST(test_tilt_heading_get_uncalibrated_and_bad_input);
     return UNITY_END();
 }

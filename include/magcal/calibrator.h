@@ -368,6 +368,14 @@ magcal_status_t magcal_calibrator_push(magcal_calibrator_t *cal, magcal_vec2_t p
 magcal_status_t magcal_calibrator_poll(magcal_calibrator_t *cal);
 
 /**
+ * @brief As magcal_calibrator_poll(), from magnetometer `sensor` through magcal_port_mag_read_n()
+ *        (port/magcal_port.h): one calibrator instance per sensor, each polled with its own index.
+ * @return MAGCAL_ERR_ARG (sensor >= MAGCAL_PORT_MAX_SENSORS, or a sensor the port lacks); else as
+ *         magcal_calibrator_poll().
+ */
+magcal_status_t magcal_calibrator_poll_n(magcal_calibrator_t *cal, uint8_t sensor);
+
+/**
  * @brief Run the pipeline on the stored samples and apply the adoption rule (file comment).
  * @param[in]     cal     instance (samples are kept; flags and the final fit are updated).
  * @param[in,out] current caller's calibration: read (may be MAGCAL_CAL2D_IDENTITY or invalid);

@@ -19,6 +19,7 @@
 #ifndef MAGCAL_TILT_H
 #define MAGCAL_TILT_H
 
+#include "magcal/heading.h"
 #include "magcal/status.h"
 #include "magcal/types.h"
 
@@ -97,6 +98,31 @@ magcal_status_t magcal_tilt_level_field(const magcal_tilt_t *att, const magcal_v
  */
 magcal_status_t magcal_tilt_heading(const magcal_tilt_cfg_t *cfg, const magcal_vec3_t *accel_g,
                                     const magcal_vec3_t *mag, float *heading_deg, magcal_tilt_t *att);
+
+/**
+ * @brief Tilt-compensated heading with its trust state: magnitude and inclination of the
+ *        calibrated field judged against the 3-D calibration (heading.h, magcal_trust_judge()).
+ *
+ * `field_rel` = |mag| / field; the inclination (down positive) = atan2(-Lz, sqrt(Lx^2 + Ly^2)) of
+ * the level field. With an expected inclination in `t` (magcal_trust_set_inclination()) a sample
+ * whose inclination is off by more than the context's tolerance is DISTURBED as well: this
+ * catches a disturbance that bends the field without changing its length.
+ * @param[in]  cfg             tilt gates (MAGCAL_TILT_CFG_DEFAULT).
+ * @param[in]  t               trust context of the 3-D calibration (built from residual_rms /
+ *                             field), or NULL (generic band, no inclination check).
+ * @param[in]  accel_g         specific force in g, body frame.
+ * @param[in]  mag             calibrated field (magcal_ellipsoid_apply()), body frame.
+ * @param[in]  field           the calibration's field magnitude F (magcal_ellipsoid_cal_t::field),
+ *                             same unit as mag; 0 = uncalibrated (flag UNCALIBRATED, no judgement).
+ * @param[in]  declination_deg east positive, [-180, 180].
+ * @param[out] out             heading, trust, field_rel, inclination_deg; untouched on failure.
+ * @return every status of magcal_tilt_heading(); MAGCAL_ERR_NULL (out); MAGCAL_ERR_ARG (field < 0,
+ *         |declination| > 180); MAGCAL_ERR_NONFINITE (field, declination);
+ *         MAGCAL_ERR_NOT_INITIALISED (t bad magic).
+ */
+magcal_status_t magcal_tilt_heading_get(const magcal_tilt_cfg_t *cfg, const magcal_trust_t *t,
+                                        const magcal_vec3_t *accel_g, const magcal_vec3_t *mag,
+                                        float field, float declination_deg, magcal_heading_t *out);
 
 #ifdef __cplusplus
 }

@@ -83,6 +83,15 @@ magcal_status_t magcal_port_mag_read(magcal_vec3_t *out)
     return MAGCAL_OK;
 }
 
+/* One replay source per program: sensor 0 only. */
+magcal_status_t magcal_port_mag_read_n(uint8_t sensor, magcal_vec3_t *out)
+{
+    if (sensor != 0u) {
+        return MAGCAL_ERR_ARG;
+    }
+    return magcal_port_mag_read(out);
+}
+
 magcal_status_t magcal_port_accel_read(magcal_vec3_t *out)
 {
     if (out == NULL) {
