@@ -1074,6 +1074,79 @@ magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *
     return cal_finish(cal, st, rep, report);
 }
 
+/*
+ * Sliced run for the continuous calibrator (src/loop/): the same stages as run(), one per call, the
+ * state kept in the workspace between calls. Stage 0 takes the first n samples the caller wrote
+ * into the sample buffer (bounding box recomputed); stages 1..4 are prepare, fit, gates, adopt.
+ * Returns MAGCAL_OK to continue (stages 0..3), otherwise the run's final status (stage 4 always
+ * ends it); *done is set to 1 when the run ended (report written as by run()).
+ */
+magcal_status_t magcal_calibrator_run_stage(magcal_calibrator_t *cal, unsigned stage, size_t n,
+                                            magcal_cal2d_t *current, magcal_cal_report_t *report,
+                                            int *done)
+{
+    magcal_cal_report_t *rep;
+    magcal_status_t st = MAGCAL_OK;
+    size_t i;
+
+    if (cal == NULL || current == NULL || done == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (!cal_ok(cal)) {
+        return MAGCAL_ERR_NOT_INITIALISED;
+    }
+    *done = 0;
+    rep = &((cal_run_t *)cal->run)->rep;
+    switch (stage) {
+    case 0u:
+        if (n > cal->capacity) {
+            return MAGCAL_ERR_ARG;
+        }
+        cal->n = n;
+        if (n > 0u) {
+            cal->bb_min = cal->buf[0];
+            cal->bb_max = cal->buf[0];
+        }
+        for (i = 1u; i < n; ++i) {
+            cal->bb_min.x = fminf(cal->bb_min.x, cal->buf[i].x);
+            cal->bb_min.y = fminf(cal->bb_min.y, cal->buf[i].y);
+            cal->bb_max.x = fmaxf(cal->bb_max.x, cal->buf[i].x);
+            cal->bb_max.y = fmaxf(cal->bb_max.y, cal->buf[i].y);
+        }
+        (void)memset(rep, 0, sizeof *rep);
+        rep->current_err_deg = NAN;
+        rep->current_err_z = NAN;
+        rep->est_heading_err_deg = NAN;
+        rep->est_param_err_deg = NAN;
+        rep->est_noise_deg = NAN;
+        rep->adopt_rule = MAGCAL_ADOPT_NONE;
+        rep->samples = (uint16_t)cal->n;
+        cal->has_fit = 0u;
+        cal->n_judged = 0u;
+        return MAGCAL_OK;
+    case 1u:
+        st = cal_stage_prepare(cal, rep);
+        break;
+    case 2u:
+        st = cal_stage_fit(cal);
+        break;
+    case 3u:
+        st = cal_stage_gates(cal, rep);
+        break;
+    case 4u:
+        st = cal_stage_adopt(cal, current, rep);
+        *done = 1;
+        return cal_finish(cal, st, rep, report);
+    default:
+        return MAGCAL_ERR_ARG;
+    }
+    if (st != MAGCAL_OK) {
+        *done = 1;
+        return cal_finish(cal, st, rep, report);
+    }
+    return MAGCAL_OK;
+}
+
 /* ------------------------------------------------------------------ queries */
 
 /* Shared argument and state checks of the per-sample queries: need_fit selects whether a final

@@ -57,4 +57,10 @@ void magcal_cal_harmonics(const magcal_vec2_t *pts, size_t n, const uint8_t *mas
 size_t magcal_cal_distinct(const magcal_vec2_t *pts, size_t n, const uint8_t *mask, uint16_t *idx,
                            float *step);
 
+/* Sliced run (calibrator.c): stage 0 loads the first n samples of the caller's buffer, 1..4 are
+ * prepare, fit, gates, adopt; MAGCAL_OK = continue, else the final status (*done = 1). */
+magcal_status_t magcal_calibrator_run_stage(magcal_calibrator_t *cal, unsigned stage, size_t n,
+                                            magcal_cal2d_t *current, magcal_cal_report_t *report,
+                                            int *done);
+
 #endif /* MAGCAL_CALIBRATOR_INTERNAL_H */
