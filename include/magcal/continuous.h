@@ -21,7 +21,9 @@
  *
  * States (no sticky state; every state returns to COLLECTING by itself):
  *  COLLECTING -> SOLVING   when coverage >= cfg.solve_coverage_deg AND at least cfg.min_new
- *                          samples were stored since the last solve (new information);
+ *                          samples were stored since the last solve (new information), or,
+ *                          after a NOT_BETTER verdict, cfg.age_ms / 4 later (the installed
+ *                          calibration has aged: the same data are judged with a lower margin);
  *  SOLVING -> COLLECTING   when the solve ends (adopted, refused or failed: collection never
  *                          stops; pushes continue during the solve);
  *  any -> RELEARNING       when a change is declared (old samples dropped);
@@ -51,10 +53,10 @@
  *     (void)magcal_cont_init(&cc, &cfg, from_flash, slots, SLOTS, solve_buf, work, sizeof work);
  * }
  * void mag_isr(magcal_vec3_t m, uint32_t now_ms) { (void)magcal_cont_push(&cc, &m, now_ms); }
- * void control_task_100hz(magcal_vec2_t raw) {
+ * void control_task_100hz(magcal_vec3_t raw) {
  *     magcal_cont_heading_t hd;
  *     if (magcal_cont_step(&cc) == MAGCAL_CONT_ADOPTED) { save_to_flash(&cc.cal); }
- *     if (magcal_cont_heading(&cc, raw, 0.0f, &hd) == MAGCAL_OK && hd.trust == MAGCAL_CONT_TRUST_OK) {
+ *     if (magcal_cont_heading(&cc, &raw, 0.0f, &hd) == MAGCAL_OK && hd.trust == MAGCAL_CONT_TRUST_OK) {
  *         use(hd.heading_deg);
  *     }
  * }
@@ -127,10 +129,11 @@ typedef struct {
     float solve_coverage_deg;       /**< live coverage that starts a solve (default 290) */
     uint16_t min_new;               /**< samples stored since the last solve to start one (default 24) */
     uint16_t drain_per_step;        /**< ring samples moved into the store per step, >= 1 (default 4) */
-    float age_turnovers;            /**< ageing: the adoption margin falls from
+    float age_ms;                   /**< ageing: the adoption margin falls from
                                          MAGCAL_CALIBRATOR_ADOPT_MARGIN towards 1 as
-                                         1 + (margin - 1) / (1 + a / age_turnovers), a = samples
-                                         stored since adoption / slots (default 2) */
+                                         1 + (margin - 1) / (1 + t / age_ms), t = ms of push
+                                         stamps since the installed calibration's adoption (or
+                                         init) (default 600000: 10 min to margin 2) */
     float mismatch_k;               /**< sample mismatch: | |h| / R - 1 | > max(k sigma, min) (default 4) */
     float mismatch_min_rel;         /**< floor of that threshold (default 0.06) */
     uint32_t change_ms;             /**< mismatch time of an open episode to declare a change (8000) */
@@ -141,7 +144,7 @@ typedef struct {
 /** Defaults: work untuned from 10 to 100 Hz (time constants are in ms of the push stamps). */
 #define MAGCAL_CONT_CFG_DEFAULT                                                                    \
     {                                                                                              \
-        MAGCAL_INTAKE_CFG_DEFAULT_2D, MAGCAL_CALIBRATOR_CFG_DEFAULT, 290.0f, 24u, 4u, 2.0f, 4.0f,  \
+        MAGCAL_INTAKE_CFG_DEFAULT_2D, MAGCAL_CALIBRATOR_CFG_DEFAULT, 290.0f, 24u, 2u, 600000.0f, 4.0f,  \
             0.06f, 8000u, 3u, 4000u                                                                \
     }
 
@@ -194,6 +197,8 @@ typedef struct {
     uint32_t stored_total;         /* store additions + replacements ever */
     uint32_t stored_at_solve;
     uint32_t stored_at_adopt;
+    uint32_t age_ms_acc;
+    uint32_t solve_ms_acc;         /* ms of stamps since the last solve finished */           /* ms of stamps since the installed calibration was adopted */
     magcal_cal2d_t cand;           /* calibration passed to the adopt stage */
     /* ring (push writes ring[head % N] then head; step reads then writes tail) */
     magcal_vec3_t ring[MAGCAL_CONT_RING];
@@ -210,6 +215,9 @@ typedef struct {
     uint32_t clean_ms;
     uint32_t mis_bins[2];          /* 36 sector bits of the open episode (corrected heading) */
     uint8_t change_flag;           /* a change was declared in the current step */
+    uint8_t fz_on;                 /* 1: the judge uses the total-field model below */
+    float fz_u0;                   /* mean raw z of the store at adoption */
+    float fz_abc[3];               /* |h|^2 = a + b u + c u^2, u = z - fz_u0 (h corrected x, y) */
     uint32_t aged_adopts;          /* adoptions won by the ageing rule (cont_adopt.c) */
     float adopted_err;             /**< read-only: est_heading_err_deg of the installed calibration (NaN: none / from flash) */
 } magcal_cont_t;
@@ -251,12 +259,12 @@ magcal_cont_outcome_t magcal_cont_step(magcal_cont_t *cc);
 magcal_cont_outcome_t magcal_cont_solve_blocking(magcal_cont_t *cc, int force);
 
 /**
- * @brief Heading of a raw sample with the installed calibration and its trust (uses the ring-free
- *        judge of step(), no state change). Task context.
+ * @brief Heading of a raw sample (x, y give the heading; z feeds the total-field judge) with the
+ *        installed calibration and its trust (the judge of step(), no state change). Task context.
  * @return MAGCAL_OK, MAGCAL_ERR_NULL, MAGCAL_ERR_NOT_INITIALISED, MAGCAL_ERR_NONFINITE,
  *         MAGCAL_ERR_ZERO_FIELD (as magcal_heading_compute()).
  */
-magcal_status_t magcal_cont_heading(const magcal_cont_t *cc, magcal_vec2_t raw, float declination_deg,
+magcal_status_t magcal_cont_heading(const magcal_cont_t *cc, const magcal_vec3_t *raw, float declination_deg,
                                     magcal_cont_heading_t *out);
 
 /** @brief Live progress. @return MAGCAL_OK, MAGCAL_ERR_NULL, MAGCAL_ERR_NOT_INITIALISED. */

@@ -1,12 +1,12 @@
 /*
  * Continuous calibrator, adoption over time. A finished solve has the batch verdict (the gates and
  * the never-worse rule of calibrator.h, applied to the calibration installed when the solve
- * started). Ageing: the installed calibration's confidence decays with the information seen since
- * its adoption, a = samples stored since then / store slots (store turnovers: a parked or
- * straight-driving vehicle adds almost none). The margin by which the new calibration must be
- * better falls from MAGCAL_CALIBRATOR_ADOPT_MARGIN towards 1:
- *     margin(a) = 1 + (MAGCAL_CALIBRATOR_ADOPT_MARGIN - 1) / (1 + a / cfg.age_turnovers)
- * and a NOT_BETTER verdict is overturned when current_err_deg > margin(a) x est_param_err_deg:
+ * started). Ageing (as NXP ages its fit error with time): the installed calibration's confidence
+ * decays with the time t since its adoption (ms of the push stamps; gaps count at most 1 s).
+ * The margin by which the new calibration must be better falls from
+ * MAGCAL_CALIBRATOR_ADOPT_MARGIN towards 1:
+ *     margin(t) = 1 + (MAGCAL_CALIBRATOR_ADOPT_MARGIN - 1) / (1 + t / cfg.age_ms)
+ * and a NOT_BETTER verdict is overturned when current_err_deg > margin(t) x est_param_err_deg:
  * the installed calibration's error measured on the new data exceeds the new one's own estimate,
  * so a genuinely better calibration wins eventually, and never one estimated worse (margin >= 1).
  */
@@ -28,6 +28,7 @@ void magcal_cont_install(magcal_cont_t *cc, const magcal_cal2d_t *c, float r_raw
     if (r_raw > 0.0f) {
         (void)magcal_intake_set_centre(&cc->store, &centre, r_raw);
     }
+    cc->fz_on = 0u;
     cc->episode_open = 0u;
     cc->mis_ms = 0u;
     cc->clean_ms = 0u;
@@ -37,8 +38,7 @@ void magcal_cont_install(magcal_cont_t *cc, const magcal_cal2d_t *c, float r_raw
 
 static float cont_margin(const magcal_cont_t *cc)
 {
-    float a = (float)(cc->stored_total - cc->stored_at_adopt) / (float)cc->slots;
-    return 1.0f + (MAGCAL_CALIBRATOR_ADOPT_MARGIN - 1.0f) / (1.0f + a / cc->cfg.age_turnovers);
+    return 1.0f + (MAGCAL_CALIBRATOR_ADOPT_MARGIN - 1.0f) / (1.0f + (float)cc->age_ms_acc / cc->cfg.age_ms);
 }
 
 magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_t st)
@@ -46,6 +46,7 @@ magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_
     magcal_cal_report_t *r = &cc->last;
     cc->solves++;
     cc->stored_at_solve = cc->stored_total;
+    cc->solve_ms_acc = 0u;
     if (st == MAGCAL_ERR_NOT_BETTER && cc->has_cal != 0u && magcal_isfinite_f(r->current_err_deg) &&
         magcal_isfinite_f(r->est_param_err_deg) &&
         r->current_err_deg > fmaxf(cont_margin(cc) * r->est_param_err_deg, MAGCAL_CALIBRATOR_ADOPT_MIN_DEG)) {
@@ -61,7 +62,9 @@ magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_
         magcal_cont_install(cc, &cc->cand, r->radius, r->est_noise_deg / MAGCAL_DEG_PER_RAD_F);
         cc->generation++;
         cc->adopted_err = r->est_heading_err_deg;
+        magcal_cont_fit_field(cc);
         cc->stored_at_adopt = cc->stored_total;
+        cc->age_ms_acc = 0u;
         cc->state = (uint8_t)MAGCAL_CONT_COLLECTING;
         return MAGCAL_CONT_ADOPTED;
     }

@@ -22,7 +22,9 @@ typedef struct {
 
 int magcal_cont_ok(const magcal_cont_t *cc);
 /* Judge raw (x, y) under cc->cal: 0 when no calibration is installed (j->mismatch 0). */
-int magcal_cont_judge(const magcal_cont_t *cc, magcal_vec2_t raw, magcal_cont_judge_t *j);
+int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *raw, magcal_cont_judge_t *j);
+/* Fit the judge's total-field model and noise on the store under cc->cal (at an adoption). */
+void magcal_cont_fit_field(magcal_cont_t *cc);
 /* Episode update with one judged sample at t_ms; returns 1 when a change is declared now. */
 int magcal_cont_episode(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint32_t t_ms);
 /* Declare a change: drop the store, relearn. */

@@ -19,11 +19,11 @@ static magcal_status_t cont_check_cfg(const magcal_cont_cfg_t *c)
         c->change_bins > MAGCAL_CONT_SECTORS) {
         return MAGCAL_ERR_ARG;
     }
-    if (!magcal_isfinite_f(c->solve_coverage_deg) || !magcal_isfinite_f(c->age_turnovers) ||
+    if (!magcal_isfinite_f(c->solve_coverage_deg) || !magcal_isfinite_f(c->age_ms) ||
         !magcal_isfinite_f(c->mismatch_k) || !magcal_isfinite_f(c->mismatch_min_rel)) {
         return MAGCAL_ERR_NONFINITE;
     }
-    if (c->solve_coverage_deg < 0.0f || c->solve_coverage_deg > 360.0f || !(c->age_turnovers > 0.0f) ||
+    if (c->solve_coverage_deg < 0.0f || c->solve_coverage_deg > 360.0f || !(c->age_ms > 0.0f) ||
         !(c->mismatch_k > 0.0f) || !(c->mismatch_min_rel > 0.0f)) {
         return MAGCAL_ERR_ARG;
     }
@@ -114,10 +114,18 @@ magcal_status_t magcal_cont_progress(const magcal_cont_t *cc, magcal_cont_progre
     (void)magcal_intake_progress(&cc->store, &p);
     (void)memset(out, 0, sizeof *out);
     out->state = (magcal_cont_state_t)cc->state;
-    out->coverage_deg = p.coverage_deg;
+    if (p.centre_source == MAGCAL_INTAKE_CENTRE_NONE) {
+        /* bins around the raw origin say nothing about the ring's coverage (a start-up spike
+         * alone spans half of them): nothing is covered until the store has a centre */
+        out->coverage_deg = 0.0f;
+        out->missing_start_deg = 0.0f;
+        out->missing_width_deg = 360.0f;
+    } else {
+        out->coverage_deg = p.coverage_deg;
+        out->missing_start_deg = p.missing_start_deg;
+        out->missing_width_deg = p.missing_width_deg;
+    }
     out->completion_pct = p.completion_pct;
-    out->missing_start_deg = p.missing_start_deg;
-    out->missing_width_deg = p.missing_width_deg;
     out->stored = p.stored;
     out->new_since_solve = cc->stored_total - cc->stored_at_solve;
     out->generation = cc->generation;
@@ -149,19 +157,22 @@ const char *magcal_cont_trust_str(magcal_cont_trust_t t)
     }
 }
 
-magcal_status_t magcal_cont_heading(const magcal_cont_t *cc, magcal_vec2_t raw, float declination_deg,
+magcal_status_t magcal_cont_heading(const magcal_cont_t *cc, const magcal_vec3_t *m, float declination_deg,
                                     magcal_cont_heading_t *out)
 {
     magcal_status_t st;
     magcal_cont_judge_t j;
     const magcal_cal2d_t id = MAGCAL_CAL2D_IDENTITY;
     float mag_deg;
-    if (cc == NULL || out == NULL) {
+    magcal_vec2_t raw;
+    if (cc == NULL || out == NULL || m == NULL) {
         return MAGCAL_ERR_NULL;
     }
     if (!magcal_cont_ok(cc)) {
         return MAGCAL_ERR_NOT_INITIALISED;
     }
+    raw.x = m->x;
+    raw.y = m->y;
     st = magcal_heading_compute(&id, raw, declination_deg, &mag_deg, &out->raw_heading_deg);
     if (st != MAGCAL_OK) {
         return st;
@@ -177,7 +188,7 @@ magcal_status_t magcal_cont_heading(const magcal_cont_t *cc, magcal_vec2_t raw, 
     if (st != MAGCAL_OK) {
         return st;
     }
-    (void)magcal_cont_judge(cc, raw, &j);
+    (void)magcal_cont_judge(cc, m, &j);
     out->radius_rel = j.rel;
     if (cc->state == (uint8_t)MAGCAL_CONT_RELEARNING) {
         out->trust = MAGCAL_CONT_TRUST_CHANGED;

@@ -13,11 +13,8 @@
 static void cont_take(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms)
 {
     magcal_intake_outcome_t oc = MAGCAL_INTAKE_REFUSED_SPACING;
-    magcal_vec2_t raw;
     magcal_cont_judge_t j;
-    raw.x = m->x;
-    raw.y = m->y;
-    if (cc->state != (uint8_t)MAGCAL_CONT_RELEARNING && magcal_cont_judge(cc, raw, &j) != 0) {
+    if (cc->state != (uint8_t)MAGCAL_CONT_RELEARNING && magcal_cont_judge(cc, m, &j) != 0) {
         if (magcal_cont_episode(cc, &j, t_ms) != 0) {
             magcal_cont_declare_change(cc); /* the store restarts with this sample */
         } else if (j.mismatch != 0u) {
@@ -55,8 +52,10 @@ static int cont_worth(const magcal_cont_t *cc)
 {
     magcal_intake_progress_t p;
     (void)magcal_intake_progress(&cc->store, &p);
-    return p.coverage_deg >= cc->cfg.solve_coverage_deg && p.stored >= cc->cfg.solver.min_samples &&
-           cc->stored_total - cc->stored_at_solve >= cc->cfg.min_new;
+    return p.centre_source != MAGCAL_INTAKE_CENTRE_NONE && p.coverage_deg >= cc->cfg.solve_coverage_deg && p.stored >= cc->cfg.solver.min_samples &&
+           (cc->stored_total - cc->stored_at_solve >= cc->cfg.min_new ||
+            (cc->last_status == MAGCAL_ERR_NOT_BETTER &&
+             (float)cc->solve_ms_acc >= 0.25f * cc->cfg.age_ms));
 }
 
 /* Snapshot the store into the solver buffer and load it (stage 0). */

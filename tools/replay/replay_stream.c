@@ -206,7 +206,6 @@ int replay_stream_main(int argc, char **argv)
     ev = cJSON_CreateArray();
     for (i = 0u; i < d.n_rows; ++i) {
         magcal_vec3_t m;
-        magcal_vec2_t raw;
         magcal_cont_heading_t hd;
         magcal_cont_outcome_t oc;
         uint32_t t_ms;
@@ -231,9 +230,7 @@ int replay_stream_main(int argc, char **argv)
         } else {
             /* idle or in progress */
         }
-        raw.x = m.x;
-        raw.y = m.y;
-        if (magcal_cont_heading(&g_cc, raw, (float)decl, &hd) != MAGCAL_OK) {
+        if (magcal_cont_heading(&g_cc, &m, (float)decl, &hd) != MAGCAL_OK) {
             hd.trust = MAGCAL_CONT_TRUST_DISTURBED;
             hd.heading_deg = NAN;
             hd.raw_heading_deg = NAN;
