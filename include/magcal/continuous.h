@@ -194,8 +194,7 @@ typedef struct {
     uint32_t generation;
     uint32_t solves;
     uint32_t changes;
-    uint32_t stored_total;         /* store additions + replacements ever */
-    uint32_t stored_at_solve;
+    uint32_t stored_at_solve;      /* store added + replaced (its counters) at the last solve */
     uint32_t stored_at_adopt;
     uint32_t age_ms_acc;
     uint32_t solve_ms_acc;         /* ms of stamps since the last solve finished */           /* ms of stamps since the installed calibration was adopted */
@@ -215,6 +214,7 @@ typedef struct {
     uint32_t clean_ms;
     uint32_t mis_bins[2];          /* 36 sector bits of the open episode (corrected heading) */
     uint8_t change_flag;           /* a change was declared in the current step */
+    uint8_t force;                 /* solve_blocking(force) in progress */
     uint8_t fz_on;                 /* 1: the judge uses the total-field model below */
     float fz_u0;                   /* mean raw z of the store at adoption */
     float fz_abc[3];               /* |h|^2 = a + b u + c u^2, u = z - fz_u0 (h corrected x, y) */

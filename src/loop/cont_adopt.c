@@ -45,7 +45,7 @@ magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_
 {
     magcal_cal_report_t *r = &cc->last;
     cc->solves++;
-    cc->stored_at_solve = cc->stored_total;
+    cc->stored_at_solve = (cc->store.ctr.added + cc->store.ctr.replaced);
     cc->solve_ms_acc = 0u;
     if (st == MAGCAL_ERR_NOT_BETTER && cc->has_cal != 0u && magcal_isfinite_f(r->current_err_deg) &&
         magcal_isfinite_f(r->est_param_err_deg) &&
@@ -63,7 +63,7 @@ magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_
         cc->generation++;
         cc->adopted_err = r->est_heading_err_deg;
         magcal_cont_fit_field(cc);
-        cc->stored_at_adopt = cc->stored_total;
+        cc->stored_at_adopt = (cc->store.ctr.added + cc->store.ctr.replaced);
         cc->age_ms_acc = 0u;
         cc->state = (uint8_t)MAGCAL_CONT_COLLECTING;
         return MAGCAL_CONT_ADOPTED;

@@ -121,7 +121,6 @@ void magcal_cont_declare_change(magcal_cont_t *cc)
     cc->clean_ms = 0u;
     cc->mis_bins[0] = 0u;
     cc->mis_bins[1] = 0u;
-    cc->stored_total = 0u;
     cc->stored_at_solve = 0u;
     cc->stored_at_adopt = 0u;
     cc->change_flag = 1u;

@@ -127,7 +127,7 @@ magcal_status_t magcal_cont_progress(const magcal_cont_t *cc, magcal_cont_progre
     }
     out->completion_pct = p.completion_pct;
     out->stored = p.stored;
-    out->new_since_solve = cc->stored_total - cc->stored_at_solve;
+    out->new_since_solve = (cc->store.ctr.added + cc->store.ctr.replaced) - cc->stored_at_solve;
     out->generation = cc->generation;
     out->solves = cc->solves;
     out->changes = cc->changes;

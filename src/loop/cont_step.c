@@ -7,44 +7,42 @@
 #include <math.h>
 
 #include "../calibrator_internal.h"
+#include "magcal/config.h"
 #include "cont_internal.h"
 
-/* One ring sample into the store. */
-static void cont_take(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms)
+/* Judge one sample against the installed calibration (change detection): 1 = do not store it. */
+static MAGCAL_NOINLINE int cont_screen(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms)
 {
-    magcal_intake_outcome_t oc = MAGCAL_INTAKE_REFUSED_SPACING;
     magcal_cont_judge_t j;
     if (cc->state != (uint8_t)MAGCAL_CONT_RELEARNING && magcal_cont_judge(cc, m, &j) != 0) {
         if (magcal_cont_episode(cc, &j, t_ms) != 0) {
             magcal_cont_declare_change(cc); /* the store restarts with this sample */
         } else if (j.mismatch != 0u) {
-            return; /* inconsistent with the installed calibration: never stored */
+            return 1; /* inconsistent with the installed calibration: never stored */
         } else {
             /* consistent: stored */
         }
     }
-    if (magcal_intake_push(&cc->store, m, &oc) == MAGCAL_OK &&
-        (oc == MAGCAL_INTAKE_STORED || oc == MAGCAL_INTAKE_REPLACED)) {
-        cc->stored_total++;
-    }
+    return 0;
 }
 
+/* Ring samples into the store, read in place (push does not reuse a slot before tail moves past
+ * it). The store's push is called from here directly: it is the deep path (its survey fits). */
 static void cont_drain(magcal_cont_t *cc, uint32_t max)
 {
     uint32_t k;
     for (k = 0u; k < max; ++k) {
         uint32_t t = cc->tail;
-        magcal_vec3_t m;
-        uint32_t tm;
         if (t == cc->head) {
             break;
         }
         MAGCAL_CONT_BARRIER(); /* the slot was written before head */
-        m = cc->ring[t % MAGCAL_CONT_RING];
-        tm = cc->ring_t[t % MAGCAL_CONT_RING];
+        if (cont_screen(cc, &cc->ring[t % MAGCAL_CONT_RING], cc->ring_t[t % MAGCAL_CONT_RING]) == 0) {
+            /* stored samples are counted by the store (added + replaced) */
+            (void)magcal_intake_push(&cc->store, &cc->ring[t % MAGCAL_CONT_RING], NULL);
+        }
         MAGCAL_CONT_BARRIER(); /* read before the slot is handed back */
         cc->tail = t + 1u;
-        cont_take(cc, &m, tm);
     }
 }
 
@@ -53,18 +51,17 @@ static int cont_worth(const magcal_cont_t *cc)
     magcal_intake_progress_t p;
     (void)magcal_intake_progress(&cc->store, &p);
     return p.centre_source != MAGCAL_INTAKE_CENTRE_NONE && p.coverage_deg >= cc->cfg.solve_coverage_deg && p.stored >= cc->cfg.solver.min_samples &&
-           (cc->stored_total - cc->stored_at_solve >= cc->cfg.min_new ||
+           ((cc->store.ctr.added + cc->store.ctr.replaced) - cc->stored_at_solve >= cc->cfg.min_new ||
             (cc->last_status == MAGCAL_ERR_NOT_BETTER &&
              (float)cc->solve_ms_acc >= 0.25f * cc->cfg.age_ms));
 }
 
-/* Snapshot the store into the solver buffer and load it (stage 0). */
+/* Snapshot the store into the solver buffer and load it. */
 static magcal_cont_outcome_t cont_start(magcal_cont_t *cc)
 {
     size_t n = 0u;
-    int done = 0;
     if (magcal_intake_snapshot2(&cc->store, cc->buf, cc->slots, &n) != MAGCAL_OK ||
-        magcal_calibrator_run_stage(&cc->solver, 0u, n, &cc->cand, &cc->last, &done) != MAGCAL_OK) {
+        magcal_calibrator_stage_load(&cc->solver, n) != MAGCAL_OK) {
         return MAGCAL_CONT_IDLE; /* cannot happen with a consistent instance */
     }
     cc->cand = cc->cal;
@@ -72,18 +69,34 @@ static magcal_cont_outcome_t cont_start(magcal_cont_t *cc)
     return MAGCAL_CONT_IN_PROGRESS;
 }
 
-/* One stage of the solve under way. */
-static magcal_cont_outcome_t cont_stage(magcal_cont_t *cc)
+/* After a stage returned st: next stage, or the end of the solve. */
+static magcal_cont_outcome_t cont_after(magcal_cont_t *cc, magcal_status_t st)
 {
-    int done = 0;
-    magcal_status_t st =
-        magcal_calibrator_run_stage(&cc->solver, cc->stage, 0u, &cc->cand, &cc->last, &done);
-    if (done == 0 && st == MAGCAL_OK) {
+    if (st == MAGCAL_OK && cc->stage < 4u) {
         cc->stage++;
         return MAGCAL_CONT_IN_PROGRESS;
     }
     cc->stage = 0u;
-    return magcal_cont_finish_solve(cc, st);
+    st = magcal_calibrator_stage_end(&cc->solver, st, &cc->last);
+    cc->last_outcome = magcal_cont_finish_solve(cc, st);
+    return cc->last_outcome;
+}
+
+/* One stage, called from here directly: the stages' deep paths (density filter, consensus) then
+ * have only the caller's frame above them (stack budget, tools/stack/budgets.txt). */
+static MAGCAL_NOINLINE magcal_status_t cont_run_stage(magcal_cont_t *cc)
+{
+    magcal_cal_report_t *rep = magcal_calibrator_stage_report(&cc->solver);
+    switch (cc->stage) {
+    case 1u:
+        return magcal_calibrator_stage_prepare(&cc->solver, rep);
+    case 2u:
+        return magcal_calibrator_stage_fit(&cc->solver);
+    case 3u:
+        return magcal_calibrator_stage_gates(&cc->solver, rep);
+    default:
+        return magcal_calibrator_stage_adopt(&cc->solver, &cc->cand, rep);
+    }
 }
 
 magcal_cont_outcome_t magcal_cont_step(magcal_cont_t *cc)
@@ -97,7 +110,7 @@ magcal_cont_outcome_t magcal_cont_step(magcal_cont_t *cc)
         return MAGCAL_CONT_CHANGE;
     }
     if (cc->stage != 0u) {
-        return cont_stage(cc);
+        return cont_after(cc, cont_run_stage(cc));
     }
     if (cont_worth(cc) != 0) {
         return cont_start(cc);
@@ -105,22 +118,34 @@ magcal_cont_outcome_t magcal_cont_step(magcal_cont_t *cc)
     return MAGCAL_CONT_IDLE;
 }
 
+/* Blocking call, first part: drain the ring, start a solve if worth it (or forced). 1 = a solve
+ * is under way. */
+static MAGCAL_NOINLINE int cont_begin(magcal_cont_t *cc)
+{
+    if (cc->stage == 0u) {
+        if (cc->force == 0u && cont_worth(cc) == 0) {
+            return 0;
+        }
+        (void)cont_start(cc);
+    }
+    return cc->stage != 0u;
+}
+
 magcal_cont_outcome_t magcal_cont_solve_blocking(magcal_cont_t *cc, int force)
 {
-    magcal_cont_outcome_t oc = MAGCAL_CONT_IDLE;
-    unsigned k;
-    if (!magcal_cont_ok(cc)) {
+    if (cc == NULL || cc->magic != MAGCAL_CONT_MAGIC) {
         return MAGCAL_CONT_IDLE;
     }
+    cc->force = (uint8_t)(force != 0 ? 1u : 0u); /* kept in cc: nothing but cc live across calls */
     cont_drain(cc, MAGCAL_CONT_RING);
-    if (cc->stage == 0u) {
-        if (force == 0 && cont_worth(cc) == 0) {
-            return MAGCAL_CONT_IDLE;
-        }
-        oc = cont_start(cc);
+    if (cont_begin(cc) == 0) {
+        return MAGCAL_CONT_IDLE;
     }
-    for (k = 0u; k < 8u && cc->stage != 0u; ++k) {
-        oc = cont_stage(cc);
+    /* bounded: every pass moves stage 1 -> 2 -> 3 -> 4, or ends it (0); at most 4 passes. Only
+     * cc is live across the calls (the outcome is read back from it): one 8-byte frame above
+     * the stages' deep paths. */
+    while (cc->stage != 0u) {
+        (void)cont_after(cc, cont_run_stage(cc));
     }
-    return oc;
+    return (magcal_cont_outcome_t)cc->last_outcome;
 }
