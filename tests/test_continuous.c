@@ -215,7 +215,7 @@ void test_cont_ageing_replaces_mildly_worse(void)
     drive_turn(&dr, 720.0, 15.0);
     TEST_ASSERT_TRUE(dr.adopted >= 1u);
     flash = g_cc.cal;
-    flash.offset.x += 0.05f;
+    flash.offset.x += 0.08f;
     r_flash = truth_rms(&flash, &k_d);
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, &flash, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
     drive_init(&dr, &k_d, 8u);

@@ -126,7 +126,7 @@ typedef enum {
 typedef struct {
     magcal_intake_cfg_t intake;     /**< store (2-D; default MAGCAL_INTAKE_CFG_DEFAULT_2D) */
     magcal_calibrator_cfg_t solver; /**< batch solver (default MAGCAL_CALIBRATOR_CFG_DEFAULT) */
-    float solve_coverage_deg;       /**< live coverage that starts a solve (default 290) */
+    float solve_coverage_deg;       /**< live coverage that starts a solve (default 270: the solver's gate) */
     uint16_t min_new;               /**< samples stored since the last solve to start one (default 24) */
     uint16_t drain_per_step;        /**< ring samples moved into the store per step, >= 1 (default 4) */
     float age_ms;                   /**< ageing: the adoption margin falls from
@@ -144,7 +144,7 @@ typedef struct {
 /** Defaults: work untuned from 10 to 100 Hz (time constants are in ms of the push stamps). */
 #define MAGCAL_CONT_CFG_DEFAULT                                                                    \
     {                                                                                              \
-        MAGCAL_INTAKE_CFG_DEFAULT_2D, MAGCAL_CALIBRATOR_CFG_DEFAULT, 290.0f, 24u, 2u, 600000.0f, 4.0f,  \
+        MAGCAL_INTAKE_CFG_DEFAULT_2D, MAGCAL_CALIBRATOR_CFG_DEFAULT, 270.0f, 24u, 2u, 600000.0f, 4.0f,  \
             0.06f, 8000u, 3u, 4000u                                                                \
     }
 
