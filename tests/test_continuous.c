@@ -4,9 +4,12 @@
  * + step exactly as firmware does. Every adoption is checked against the truth: never worse than
  * the calibration it replaced (heading RMS over 72 true headings, noiseless).
  */
+#if defined(__unix__) && !defined(__arm__)
+#define CONT_TEST_THREADS 1 /* host: the ISR is a POSIX thread */
 #define _POSIX_C_SOURCE 200809L
-#include <math.h>
 #include <pthread.h>
+#endif
+#include <math.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -313,6 +316,7 @@ void test_cont_transient_flagged_not_discarded(void)
     TEST_ASSERT_TRUE(clean_flag <= 17u);      /* <= 2 % of 850 */
 }
 
+#ifdef CONT_TEST_THREADS
 /* Interrupt / task interleaving: a producer thread pushes (as an ISR would) while the task steps
  * and reads headings; every sample is either taken by step or counted as dropped, and the
  * calibrator calibrates. */
@@ -374,6 +378,7 @@ void test_cont_isr_push_interleaved_with_task(void)
     TEST_ASSERT_TRUE(g_cc.generation >= 1u);
     TEST_ASSERT_TRUE(truth_rms(&g_cc.cal, &k_d) < 1.0);
 }
+#endif
 
 int main(void)
 {
@@ -384,6 +389,8 @@ int main(void)
     RUN_TEST(test_cont_ageing_replaces_mildly_worse);
     RUN_TEST(test_cont_hard_iron_step_relearned);
     RUN_TEST(test_cont_transient_flagged_not_discarded);
+#ifdef CONT_TEST_THREADS
     RUN_TEST(test_cont_isr_push_interleaved_with_task);
+#endif
     return UNITY_END();
 }
