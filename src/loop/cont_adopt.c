@@ -41,8 +41,9 @@ static float cont_margin(const magcal_cont_t *cc)
     return 1.0f + (MAGCAL_CALIBRATOR_ADOPT_MARGIN - 1.0f) / (1.0f + (float)cc->age_ms_acc / cc->cfg.age_ms);
 }
 
-magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_t st)
+magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_t verdict)
 {
+    magcal_status_t st = verdict;
     magcal_cal_report_t *r = &cc->last;
     cc->solves++;
     cc->stored_at_solve = (cc->store.ctr.added + cc->store.ctr.replaced);

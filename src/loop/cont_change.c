@@ -144,8 +144,15 @@ void magcal_cont_fit_field(magcal_cont_t *cc)
     uint32_t k;
     float var;
     float det;
-    float m00, m01, m02, m11, m12, m22;
-    float a0, a1, a2;
+    float m00;
+    float m01;
+    float m02;
+    float m11;
+    float m12;
+    float m22;
+    float a0;
+    float a1;
+    float a2;
     cc->fz_on = 0u;
     for (b = 0u; b < st->n_bins; ++b) {
         for (k = 0u; k < st->count[b]; ++k) {
@@ -163,7 +170,10 @@ void magcal_cont_fit_field(magcal_cont_t *cc)
             const magcal_vec3_t *m = &st->slots[b * per + k].m;
             magcal_vec2_t raw;
             magcal_vec2_t h;
-            float y, u, u2, rel;
+            float y;
+            float u;
+            float u2;
+            float rel;
             raw.x = m->x;
             raw.y = m->y;
             if (magcal_correct_apply(&cc->cal, raw, &h) != MAGCAL_OK) {
@@ -214,7 +224,9 @@ void magcal_cont_fit_field(magcal_cont_t *cc)
                 const magcal_vec3_t *m = &st->slots[b * per + k].m;
                 magcal_vec2_t raw;
                 magcal_vec2_t h;
-                float u, tt, rel;
+                float u;
+                float tt;
+                float rel;
                 raw.x = m->x;
                 raw.y = m->y;
                 if (magcal_correct_apply(&cc->cal, raw, &h) != MAGCAL_OK) {

@@ -77,8 +77,7 @@ static magcal_cont_outcome_t cont_after(magcal_cont_t *cc, magcal_status_t st)
         return MAGCAL_CONT_IN_PROGRESS;
     }
     cc->stage = 0u;
-    st = magcal_calibrator_stage_end(&cc->solver, st, &cc->last);
-    cc->last_outcome = magcal_cont_finish_solve(cc, st);
+    cc->last_outcome = magcal_cont_finish_solve(cc, magcal_calibrator_stage_end(&cc->solver, st, &cc->last));
     return cc->last_outcome;
 }
 
