@@ -17,6 +17,26 @@
 #include "test_util.h"
 #include "unity.h"
 
+#if defined(__arm__)
+/* Target only: SysTick around each call (under `qemu-system-arm -icount shift=0` one tick = 40
+ * instructions, tools/bench/m4f_image/main_cycles.c). Printed, never asserted: a measurement. */
+#define SYST_CSR (*(volatile uint32_t *)0xE000E010u)
+#define SYST_RVR (*(volatile uint32_t *)0xE000E014u)
+#define SYST_CVR (*(volatile uint32_t *)0xE000E018u)
+static uint32_t g_tmax[3];
+#define TICK_START() uint32_t t0_ = SYST_CVR
+#define TICK_END(k)                                                                                \
+    do {                                                                                           \
+        uint32_t d_ = (t0_ - SYST_CVR) & 0xFFFFFFu;                                                \
+        if (d_ > g_tmax[k]) {                                                                      \
+            g_tmax[k] = d_;                                                                        \
+        }                                                                                          \
+    } while (0)
+#else
+#define TICK_START() ((void)0)
+#define TICK_END(k) ((void)0)
+#endif
+
 void setUp(void) {}
 void tearDown(void) {}
 
@@ -80,8 +100,18 @@ static magcal_cont_outcome_t drive_row(drive_t *dr, float ex, float ey)
     m.y = p.y + ey;
     m.z = 40.0f;
     dr->before = g_cc.cal;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_push(&g_cc, &m, dr->t_ms));
-    oc = magcal_cont_step(&g_cc);
+    {
+        magcal_status_t st;
+        TICK_START();
+        st = magcal_cont_push(&g_cc, &m, dr->t_ms);
+        TICK_END(0);
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, st);
+    }
+    {
+        TICK_START();
+        oc = magcal_cont_step(&g_cc);
+        TICK_END(1);
+    }
     dr->t_ms += RATE_MS;
     if (oc == MAGCAL_CONT_IN_PROGRESS) {
         dr->in_progress_run++;
@@ -382,6 +412,11 @@ void test_cont_isr_push_interleaved_with_task(void)
 
 int main(void)
 {
+#if defined(__arm__)
+    SYST_RVR = 0xFFFFFFu;
+    SYST_CVR = 0u;
+    SYST_CSR = 5u; /* enable, processor clock */
+#endif
     UNITY_BEGIN();
     RUN_TEST(test_cont_init_bad_args_refused);
     RUN_TEST(test_cont_stream_first_adoption_accurate);
@@ -391,6 +426,10 @@ int main(void)
     RUN_TEST(test_cont_transient_flagged_not_discarded);
 #ifdef CONT_TEST_THREADS
     RUN_TEST(test_cont_isr_push_interleaved_with_task);
+#endif
+#if defined(__arm__)
+    printf("largest call, SysTick ticks (x 40 = instructions under -icount shift=0): push %lu, step %lu\n",
+           (unsigned long)g_tmax[0], (unsigned long)g_tmax[1]);
 #endif
     return UNITY_END();
 }
