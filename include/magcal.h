@@ -40,6 +40,7 @@
 #include "magcal/swing.h"
 #include "magcal/errmodel.h"
 #include "magcal/intake.h"
+#include "magcal/continuous.h"
 #include "magcal/record.h"
 
 #endif /* MAGCAL_H */

@@ -770,7 +770,7 @@ static magcal_status_t cal_finish(magcal_calibrator_t *cal, magcal_status_t st,
  */
 
 /* 1-3: pre-checks, density filter, collinearity of its inliers, coverage pre-gate. */
-static MAGCAL_NOINLINE magcal_status_t cal_stage_prepare(magcal_calibrator_t *cal,
+MAGCAL_NOINLINE magcal_status_t magcal_calibrator_stage_prepare(magcal_calibrator_t *cal,
                                                          magcal_cal_report_t *rep)
 {
     const size_t n = cal->n;
@@ -848,8 +848,9 @@ static MAGCAL_NOINLINE magcal_status_t cal_stage_prepare(magcal_calibrator_t *ca
     return MAGCAL_OK;
 }
 
-/* 4. consensus (or plain fit) into run->cres: nothing else on this frame. */
-static MAGCAL_NOINLINE magcal_status_t cal_stage_fit(magcal_calibrator_t *cal)
+/* 4. consensus (or plain fit) into run->cres: nothing else on this frame. Also the fit slice of
+ * the continuous calibrator (calibrator_internal.h), called there straight from its step(). */
+MAGCAL_NOINLINE magcal_status_t magcal_calibrator_stage_fit(magcal_calibrator_t *cal)
 {
     cal_run_t *run = (cal_run_t *)cal->run;
     (void)memset(&run->cres, 0, sizeof run->cres);
@@ -874,7 +875,7 @@ static MAGCAL_NOINLINE magcal_status_t cal_stage_fit(magcal_calibrator_t *cal)
 }
 
 /* 4 (cont.) and 5: keep the fit, count, fill the report, gates. */
-static MAGCAL_NOINLINE magcal_status_t cal_stage_gates(magcal_calibrator_t *cal,
+MAGCAL_NOINLINE magcal_status_t magcal_calibrator_stage_gates(magcal_calibrator_t *cal,
                                                        magcal_cal_report_t *rep)
 {
     const magcal_consensus_result_t *cres = &((const cal_run_t *)cal->run)->cres;
@@ -983,7 +984,7 @@ static MAGCAL_NOINLINE magcal_status_t cal_stage_estimate(magcal_calibrator_t *c
 }
 
 /* 6. correction, final coverage (corrected headings of the inliers), estimates; 7. adoption. */
-static MAGCAL_NOINLINE magcal_status_t cal_stage_adopt(magcal_calibrator_t *cal,
+MAGCAL_NOINLINE magcal_status_t magcal_calibrator_stage_adopt(magcal_calibrator_t *cal,
                                                        magcal_cal2d_t *current,
                                                        magcal_cal_report_t *rep)
 {
@@ -1072,17 +1073,71 @@ magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *
     cal->has_fit = 0u;
     cal->n_judged = 0u;
 
-    st = cal_stage_prepare(cal, rep);
+    st = magcal_calibrator_stage_prepare(cal, rep);
     if (st == MAGCAL_OK) {
-        st = cal_stage_fit(cal);
+        st = magcal_calibrator_stage_fit(cal);
     }
     if (st == MAGCAL_OK) {
-        st = cal_stage_gates(cal, rep);
+        st = magcal_calibrator_stage_gates(cal, rep);
     }
     if (st == MAGCAL_OK) {
-        st = cal_stage_adopt(cal, current, rep);
+        st = magcal_calibrator_stage_adopt(cal, current, rep);
     }
     return cal_finish(cal, st, rep, report);
+}
+
+/*
+ * Sliced run for the continuous calibrator (src/loop/): the stages of run() called one per step,
+ * the state kept in the workspace between calls (calibrator_internal.h). load takes the first n
+ * samples the caller wrote into the sample buffer; end writes the report as run() does.
+ */
+magcal_status_t magcal_calibrator_stage_load(magcal_calibrator_t *cal, size_t n)
+{
+    magcal_cal_report_t *rep;
+    size_t i;
+    if (cal == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (!cal_ok(cal)) {
+        return MAGCAL_ERR_NOT_INITIALISED;
+    }
+    if (n > cal->capacity) {
+        return MAGCAL_ERR_ARG;
+    }
+    rep = &((cal_run_t *)cal->run)->rep;
+    cal->n = n;
+    if (n > 0u) {
+        cal->bb_min = cal->buf[0];
+        cal->bb_max = cal->buf[0];
+    }
+    for (i = 1u; i < n; ++i) {
+        cal->bb_min.x = fminf(cal->bb_min.x, cal->buf[i].x);
+        cal->bb_min.y = fminf(cal->bb_min.y, cal->buf[i].y);
+        cal->bb_max.x = fmaxf(cal->bb_max.x, cal->buf[i].x);
+        cal->bb_max.y = fmaxf(cal->bb_max.y, cal->buf[i].y);
+    }
+    (void)memset(rep, 0, sizeof *rep);
+    rep->current_err_deg = NAN;
+    rep->current_err_z = NAN;
+    rep->est_heading_err_deg = NAN;
+    rep->est_param_err_deg = NAN;
+    rep->est_noise_deg = NAN;
+    rep->adopt_rule = MAGCAL_ADOPT_NONE;
+    rep->samples = (uint16_t)cal->n;
+    cal->has_fit = 0u;
+    cal->n_judged = 0u;
+    return MAGCAL_OK;
+}
+
+magcal_cal_report_t *magcal_calibrator_stage_report(magcal_calibrator_t *cal)
+{
+    return &((cal_run_t *)cal->run)->rep;
+}
+
+magcal_status_t magcal_calibrator_stage_end(magcal_calibrator_t *cal, magcal_status_t st,
+                                            magcal_cal_report_t *report)
+{
+    return cal_finish(cal, st, &((cal_run_t *)cal->run)->rep, report);
 }
 
 /* ------------------------------------------------------------------ queries */

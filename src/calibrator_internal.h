@@ -57,4 +57,19 @@ void magcal_cal_harmonics(const magcal_vec2_t *pts, size_t n, const uint8_t *mas
 size_t magcal_cal_distinct(const magcal_vec2_t *pts, size_t n, const uint8_t *mask, uint16_t *idx,
                            float *step);
 
+/* Sliced run (calibrator.c), for the continuous calibrator (src/loop/): the stages of run(),
+ * each called directly by its step() (no frame between a step and the deepest stage paths).
+ * load: take the first n samples of the caller-filled buffer; then prepare, fit, gates, adopt in
+ * order, each MAGCAL_OK to continue, else the final status; end: finish with the final status
+ * (state, report) as run() does. rep: magcal_calibrator_stage_report(). */
+magcal_status_t magcal_calibrator_stage_load(magcal_calibrator_t *cal, size_t n);
+magcal_cal_report_t *magcal_calibrator_stage_report(magcal_calibrator_t *cal);
+magcal_status_t magcal_calibrator_stage_prepare(magcal_calibrator_t *cal, magcal_cal_report_t *rep);
+magcal_status_t magcal_calibrator_stage_fit(magcal_calibrator_t *cal);
+magcal_status_t magcal_calibrator_stage_gates(magcal_calibrator_t *cal, magcal_cal_report_t *rep);
+magcal_status_t magcal_calibrator_stage_adopt(magcal_calibrator_t *cal, magcal_cal2d_t *current,
+                                              magcal_cal_report_t *rep);
+magcal_status_t magcal_calibrator_stage_end(magcal_calibrator_t *cal, magcal_status_t st,
+                                            magcal_cal_report_t *report);
+
 #endif /* MAGCAL_CALIBRATOR_INTERNAL_H */

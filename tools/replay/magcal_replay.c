@@ -23,9 +23,11 @@
 #include "replay_modes.h"
 #include "replay_record.h" /* --export-record (issue 15) */
 #include "replay_report.h"
+#include "replay_stream.h" /* --stream (issue 13) */
 
 static const char k_usage[] =
     "usage: magcal-replay [options] DUMP.csv   (--opt value or --opt=value)\n"
+    "  --stream            stream mode: every row through the continuous calibrator (--stream --help)\n"
     "  --cal-range A:B     rows [A,B) are the calibration segment (default: all rows;\n"
     "                      A: or :B leave one end open)\n"
     "  --filter MODE       optics (default, automatic parameters) | optics-classic | dbscan | none\n"
@@ -616,6 +618,9 @@ int main(int argc, char **argv)
     double accel_scale = 1.0;
     static const double k_nan = NAN;
 
+    if (replay_stream_requested(argc, argv)) {
+        return replay_stream_main(argc, argv);
+    }
     rc = parse_args(argc, argv, &c);
     if (rc >= 0) {
         return rc;

@@ -1,0 +1,283 @@
+/**
+ * @file continuous.h
+ * @brief Continuous 2-D calibrator (issue 13): a calibrator a vehicle runs from power-up for its
+ *        whole life. Informative samples go into the intake store (intake.h); the batch solver
+ *        (calibrator.h, its algorithms unchanged) runs in slices, one stage per step() call, on a
+ *        snapshot of the store; adoption uses the batch never-worse rule plus ageing of the
+ *        installed calibration; a persistent mismatch of new samples with the installed
+ *        calibration is declared a change and relearned. docs/calibrator.md "Continuous
+ *        calibrator" has the state diagram and the maths.
+ *
+ * Per loop iteration the firmware calls, in any order and as often as it likes:
+ *  - magcal_cont_push(): one raw sample and its time stamp (ms). O(1): it only writes into a
+ *    MAGCAL_CONT_RING-sample single-producer / single-consumer ring inside the instance.
+ *  - magcal_cont_step(): bounded work: drains up to cfg.drain_per_step ring samples into the store
+ *    (each judged against the installed calibration: trust, change detection), then does at most
+ *    ONE unit of solve work: the snapshot of the store into the solver buffer, or one stage of
+ *    the batch pipeline (prepare, fit, gates, adopt). Returns MAGCAL_CONT_IN_PROGRESS while a solve
+ *    is under way, MAGCAL_CONT_IDLE while collecting, or the outcome of a solve that just ended.
+ *  - magcal_cont_heading(): heading of a raw sample with the installed calibration, its trust and
+ *    the generation (adoptions so far).
+ *
+ * States (no sticky state; every state returns to COLLECTING by itself):
+ *  COLLECTING -> SOLVING   when coverage >= cfg.solve_coverage_deg AND at least cfg.min_new
+ *                          samples were stored since the last solve (new information), or,
+ *                          after a NOT_BETTER verdict, cfg.age_ms / 4 later (the installed
+ *                          calibration has aged: the same data are judged with a lower margin);
+ *  SOLVING -> COLLECTING   when the solve ends (adopted, refused or failed: collection never
+ *                          stops; pushes continue during the solve);
+ *  any -> RELEARNING       when a change is declared (old samples dropped);
+ *  RELEARNING -> SOLVING   as COLLECTING; a solve that adopts, or that confirms the installed
+ *                          calibration on fresh data (NOT_BETTER), ends the relearning.
+ *
+ * Concurrency contract. magcal_cont_push() may run in an interrupt (or another task) while ANY
+ * other call on the same instance runs in one task: the ring is the only state push writes
+ * (its head index, after the sample; step only writes the tail index). Everything else (step,
+ * solve_blocking, heading, progress, status, reset) must run in ONE task context (not
+ * concurrently with each other). Two push callers on one instance need the caller's own lock.
+ * When the ring is full the sample is dropped and counted (MAGCAL_ERR_BUFFER_FULL). The index
+ * handover uses MAGCAL_CONT_BARRIER() (a compiler + hardware memory barrier on GCC/Clang).
+ *
+ * Memory: caller-owned store slots MAGCAL_CONT_SLOTS(sectors, per_bin), solver buffer of as many
+ * magcal_vec2_t, and a solver workspace of MAGCAL_CONT_WORKSPACE_LEN(sectors, per_bin) bytes.
+ *
+ * @code
+ * #include "magcal/continuous.h"
+ * #define SLOTS MAGCAL_CONT_SLOTS(36u, 8u)
+ * static magcal_intake_slot_t slots[SLOTS];
+ * static magcal_vec2_t solve_buf[SLOTS];
+ * static MAGCAL_CALIBRATOR_WORKSPACE_DECLARE(work, SLOTS);
+ * static magcal_cont_t cc;
+ * void init(const magcal_cal2d_t *from_flash) {
+ *     magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
+ *     (void)magcal_cont_init(&cc, &cfg, from_flash, slots, SLOTS, solve_buf, work, sizeof work);
+ * }
+ * void mag_isr(magcal_vec3_t m, uint32_t now_ms) { (void)magcal_cont_push(&cc, &m, now_ms); }
+ * void control_task_100hz(magcal_vec3_t raw) {
+ *     magcal_cont_heading_t hd;
+ *     if (magcal_cont_step(&cc) == MAGCAL_CONT_ADOPTED) { save_to_flash(&cc.cal); }
+ *     if (magcal_cont_heading(&cc, &raw, 0.0f, &hd) == MAGCAL_OK && hd.trust == MAGCAL_CONT_TRUST_OK) {
+ *         use(hd.heading_deg);
+ *     }
+ * }
+ * @endcode
+ */
+#ifndef MAGCAL_CONTINUOUS_H
+#define MAGCAL_CONTINUOUS_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "magcal/calibrator.h"
+#include "magcal/heading.h"
+#include "magcal/intake.h"
+#include "magcal/status.h"
+#include "magcal/types.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#ifndef MAGCAL_CONT_RING
+#define MAGCAL_CONT_RING 32u /**< push ring: samples (power of two) */
+#endif
+
+#ifndef MAGCAL_CONT_BARRIER
+#if defined(__GNUC__) || defined(__clang__)
+#define MAGCAL_CONT_BARRIER() __atomic_thread_fence(__ATOMIC_SEQ_CST)
+#else
+#define MAGCAL_CONT_BARRIER() ((void)0) /**< define it for your compiler (a full memory barrier) */
+#endif
+#endif
+
+/** Store slots = solver buffer samples of a configuration (2-D intake: sectors x per_bin). */
+#define MAGCAL_CONT_SLOTS(sectors, per_bin) MAGCAL_INTAKE_SLOTS_2D(sectors, per_bin)
+/** Solver workspace bytes. */
+#define MAGCAL_CONT_WORKSPACE_LEN(sectors, per_bin)                                                \
+    MAGCAL_CALIBRATOR_WORKSPACE_LEN(MAGCAL_CONT_SLOTS(sectors, per_bin))
+
+/** Lifecycle state. */
+typedef enum {
+    MAGCAL_CONT_COLLECTING = 0, /**< collecting; a solve starts when worth it */
+    MAGCAL_CONT_SOLVING = 1,    /**< a sliced solve is under way (pushes continue) */
+    MAGCAL_CONT_RELEARNING = 2  /**< a change was declared: collecting fresh data */
+} magcal_cont_state_t;
+
+/** Trust of a heading (this module's own enum; the lead reconciles it with heading.h). */
+typedef enum {
+    MAGCAL_CONT_TRUST_OK = 0,           /**< calibrated, sample consistent with the calibration */
+    MAGCAL_CONT_TRUST_UNCALIBRATED = 1, /**< no calibration installed yet (raw heading) */
+    MAGCAL_CONT_TRUST_DISTURBED = 2,    /**< corrected radius off the calibration's by more than the
+                                             mismatch threshold, or a multi-bin mismatch is open */
+    MAGCAL_CONT_TRUST_CHANGED = 3       /**< a change was declared: relearning */
+} magcal_cont_trust_t;
+
+/** Outcome of step(). */
+typedef enum {
+    MAGCAL_CONT_IDLE = 0,        /**< collecting, no solve under way */
+    MAGCAL_CONT_IN_PROGRESS = 1, /**< a solve is under way: call step() again */
+    MAGCAL_CONT_ADOPTED = 2,     /**< a solve ended and installed a new calibration */
+    MAGCAL_CONT_REFUSED = 3,     /**< a solve passed the gates but the installed one was kept */
+    MAGCAL_CONT_FAILED = 4,      /**< a solve failed a gate (status in magcal_cont_status) */
+    MAGCAL_CONT_CHANGE = 5       /**< a change was declared during this step's intake */
+} magcal_cont_outcome_t;
+
+/** Configuration: start from MAGCAL_CONT_CFG_DEFAULT. */
+typedef struct {
+    magcal_intake_cfg_t intake;     /**< store (2-D; default MAGCAL_INTAKE_CFG_DEFAULT_2D) */
+    magcal_calibrator_cfg_t solver; /**< batch solver (default MAGCAL_CALIBRATOR_CFG_DEFAULT) */
+    float solve_coverage_deg;       /**< live coverage that starts a solve (default 270: the solver's gate) */
+    uint16_t min_new;               /**< samples stored since the last solve to start one (default 24) */
+    uint16_t drain_per_step;        /**< ring samples moved into the store per step, >= 1 (default 4) */
+    float age_ms;                   /**< ageing: the adoption margin falls from
+                                         MAGCAL_CALIBRATOR_ADOPT_MARGIN towards 1 as
+                                         1 + (margin - 1) / (1 + t / age_ms), t = ms of push
+                                         stamps since the installed calibration's adoption (or
+                                         init) (default 600000: 10 min to margin 2) */
+    float mismatch_k;               /**< sample mismatch: | |h| / R - 1 | > max(k sigma, min) (default 4) */
+    float mismatch_min_rel;         /**< floor of that threshold (default 0.06) */
+    uint32_t change_ms;             /**< mismatch time of an open episode to declare a change (8000) */
+    uint16_t change_bins;           /**< distinct 10-degree sectors an episode must span (default 3) */
+    uint32_t clear_ms;              /**< consistent time that closes an episode (default 4000) */
+} magcal_cont_cfg_t;
+
+/** Defaults: work untuned from 10 to 100 Hz (time constants are in ms of the push stamps). */
+#define MAGCAL_CONT_CFG_DEFAULT                                                                    \
+    {                                                                                              \
+        MAGCAL_INTAKE_CFG_DEFAULT_2D, MAGCAL_CALIBRATOR_CFG_DEFAULT, 270.0f, 24u, 2u, 600000.0f, 4.0f,  \
+            0.06f, 8000u, 3u, 4000u                                                                \
+    }
+
+/** A heading with its trust. */
+typedef struct {
+    float heading_deg;          /**< [0, 360), calibrated (raw when uncalibrated) */
+    float raw_heading_deg;      /**< raw axes */
+    magcal_cont_trust_t trust;  /**< trust state */
+    uint32_t generation;        /**< adoptions so far (0 = none) */
+    float radius_rel;           /**< |h| / R - 1 under the installed calibration (NaN if none) */
+} magcal_cont_heading_t;
+
+/** Live progress. */
+typedef struct {
+    magcal_cont_state_t state;  /**< lifecycle */
+    float coverage_deg;         /**< store coverage (intake.h definition) */
+    float completion_pct;       /**< store completion */
+    float missing_start_deg;    /**< longest empty run */
+    float missing_width_deg;    /**< its width */
+    uint32_t stored;            /**< samples in the store */
+    uint32_t new_since_solve;   /**< samples stored since the last solve */
+    uint32_t generation;        /**< adoptions so far */
+    uint32_t solves;            /**< solves finished */
+    uint32_t changes;           /**< changes declared */
+    uint32_t dropped;           /**< ring overflows */
+    uint8_t episode_open;       /**< 1 while a mismatch episode is open */
+} magcal_cont_progress_t;
+
+/** Instance (allocate statically). Fields private except `cal` (read-only: installed calibration)
+ *  and `last` (read-only: report of the last finished solve). */
+typedef struct {
+    magcal_cont_cfg_t cfg;
+    uint32_t magic;
+    magcal_intake_t store;
+    magcal_calibrator_t solver;
+    magcal_vec2_t *buf;
+    size_t slots;
+    magcal_cal2d_t cal;            /**< read-only: installed calibration (IDENTITY until one) */
+    magcal_cal_report_t last;      /**< read-only: report of the last finished solve */
+    float cal_raw_radius;          /* raw-unit radius of the installed ellipse */
+    float cal_sigma_rel;           /* its per-sample relative noise */
+    uint8_t has_cal;
+    uint8_t state;
+    uint8_t stage;                 /* next solve stage, 0 = none */
+    magcal_cont_outcome_t last_outcome;
+    magcal_status_t last_status;
+    uint32_t generation;
+    uint32_t solves;
+    uint32_t changes;
+    uint32_t stored_at_solve;      /* store added + replaced (its counters) at the last solve */
+    uint32_t stored_at_adopt;
+    uint32_t age_ms_acc;
+    uint32_t solve_ms_acc;         /* ms of stamps since the last solve finished */           /* ms of stamps since the installed calibration was adopted */
+    magcal_cal2d_t cand;           /* calibration passed to the adopt stage */
+    /* ring (push writes ring[head % N] then head; step reads then writes tail) */
+    magcal_vec3_t ring[MAGCAL_CONT_RING];
+    uint32_t ring_t[MAGCAL_CONT_RING];
+    volatile uint32_t head;
+    volatile uint32_t tail;
+    volatile uint32_t dropped;
+    /* change detection */
+    uint32_t last_t;
+    uint8_t have_t;
+    uint8_t episode_open;
+    uint8_t last_mismatch;
+    uint32_t mis_ms;
+    uint32_t clean_ms;
+    uint32_t mis_bins[2];          /* 36 sector bits of the open episode (corrected heading) */
+    uint8_t change_flag;           /* a change was declared in the current step */
+    uint8_t force;                 /* solve_blocking(force) in progress */
+    uint8_t fz_on;                 /* 1: the judge uses the total-field model below */
+    float fz_u0;                   /* mean raw z of the store at adoption */
+    float fz_abc[3];               /* |h|^2 = a + b u + c u^2, u = z - fz_u0 (h corrected x, y) */
+    uint32_t aged_adopts;          /* adoptions won by the ageing rule (cont_adopt.c) */
+    float adopted_err;             /**< read-only: est_heading_err_deg of the installed calibration (NaN: none / from flash) */
+} magcal_cont_t;
+
+/**
+ * @brief Initialise on caller storage.
+ * @param[out] cc      instance.
+ * @param[in]  cfg     configuration (copied); cfg->intake.dims must be 2.
+ * @param[in]  installed optional (NULL): calibration restored from flash (validated; its centre
+ *                     then indexes the store; generation stays 0).
+ * @param[in]  slots   store slots, n_slots >= MAGCAL_CONT_SLOTS(intake.bins, intake.per_bin),
+ *                     16..MAGCAL_MAX_SAMPLES.
+ * @param[in]  buf     solver buffer of n_slots samples.
+ * @param[in]  work    solver workspace, 4-aligned, >= MAGCAL_CALIBRATOR_WORKSPACE_LEN(n_slots).
+ * @param[in]  work_len its bytes.
+ * @return MAGCAL_OK, MAGCAL_ERR_NULL, MAGCAL_ERR_ARG (a cfg value out of range, dims != 2),
+ *         MAGCAL_ERR_NONFINITE, MAGCAL_ERR_WORKSPACE, MAGCAL_ERR_ALIGNMENT, any status of
+ *         magcal_cal2d_validate() for `installed`.
+ */
+magcal_status_t magcal_cont_init(magcal_cont_t *cc, const magcal_cont_cfg_t *cfg,
+                                 const magcal_cal2d_t *installed, magcal_intake_slot_t *slots,
+                                 size_t n_slots, magcal_vec2_t *buf, void *work, size_t work_len);
+
+/**
+ * @brief Offer one raw sample (x right, y forward, z up; sensor unit) with its time in ms
+ *        (wrapping uint32 allowed). ISR-safe (file comment). O(1).
+ * @return MAGCAL_OK (queued), MAGCAL_ERR_BUFFER_FULL (ring full: dropped, counted),
+ *         MAGCAL_ERR_NULL, MAGCAL_ERR_NOT_INITIALISED.
+ */
+magcal_status_t magcal_cont_push(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms);
+
+/** @brief One bounded unit of work (file comment); MAGCAL_CONT_IDLE for NULL / uninitialised. */
+magcal_cont_outcome_t magcal_cont_step(magcal_cont_t *cc);
+
+/**
+ * @brief Host / test convenience: drain the ring, then, if a solve is worth running (or force),
+ *        run it to its end. @return the final outcome (MAGCAL_CONT_IDLE when no solve ran).
+ */
+magcal_cont_outcome_t magcal_cont_solve_blocking(magcal_cont_t *cc, int force);
+
+/**
+ * @brief Heading of a raw sample (x, y give the heading; z feeds the total-field judge) with the
+ *        installed calibration and its trust (the judge of step(), no state change). Task context.
+ * @return MAGCAL_OK, MAGCAL_ERR_NULL, MAGCAL_ERR_NOT_INITIALISED, MAGCAL_ERR_NONFINITE,
+ *         MAGCAL_ERR_ZERO_FIELD (as magcal_heading_compute()).
+ */
+magcal_status_t magcal_cont_heading(const magcal_cont_t *cc, const magcal_vec3_t *raw, float declination_deg,
+                                    magcal_cont_heading_t *out);
+
+/** @brief Live progress. @return MAGCAL_OK, MAGCAL_ERR_NULL, MAGCAL_ERR_NOT_INITIALISED. */
+magcal_status_t magcal_cont_progress(const magcal_cont_t *cc, magcal_cont_progress_t *out);
+
+/** @brief Status of the last finished solve (MAGCAL_OK before any). */
+magcal_status_t magcal_cont_status(const magcal_cont_t *cc);
+
+/** @brief Short name of a trust state ("ok", "uncalibrated", "disturbed", "changed"). */
+const char *magcal_cont_trust_str(magcal_cont_trust_t t);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* MAGCAL_CONTINUOUS_H */

@@ -1,0 +1,78 @@
+/*
+ * Continuous calibrator, adoption over time. A finished solve has the batch verdict (the gates and
+ * the never-worse rule of calibrator.h, applied to the calibration installed when the solve
+ * started). Ageing (as NXP ages its fit error with time): the installed calibration's confidence
+ * decays with the time t since its adoption (ms of the push stamps; gaps count at most 1 s).
+ * The margin by which the new calibration must be better falls from
+ * MAGCAL_CALIBRATOR_ADOPT_MARGIN towards 1:
+ *     margin(t) = 1 + (MAGCAL_CALIBRATOR_ADOPT_MARGIN - 1) / (1 + t / cfg.age_ms)
+ * and a NOT_BETTER verdict is overturned when current_err_deg > margin(t) x est_param_err_deg:
+ * the installed calibration's error measured on the new data exceeds the new one's own estimate,
+ * so a genuinely better calibration wins eventually, and never one estimated worse (margin >= 1).
+ */
+#include <math.h>
+
+#include "cont_internal.h"
+#include "magcal_internal.h"
+
+void magcal_cont_install(magcal_cont_t *cc, const magcal_cal2d_t *c, float r_raw, float sigma)
+{
+    magcal_vec3_t centre;
+    cc->cal = *c;
+    cc->has_cal = 1u;
+    cc->cal_raw_radius = r_raw;
+    cc->cal_sigma_rel = magcal_isfinite_f(sigma) && sigma > 0.0f ? sigma : 0.0f;
+    centre.x = c->offset.x;
+    centre.y = c->offset.y;
+    centre.z = 0.0f;
+    if (r_raw > 0.0f) {
+        (void)magcal_intake_set_centre(&cc->store, &centre, r_raw);
+    }
+    cc->fz_on = 0u;
+    cc->episode_open = 0u;
+    cc->mis_ms = 0u;
+    cc->clean_ms = 0u;
+    cc->mis_bins[0] = 0u;
+    cc->mis_bins[1] = 0u;
+}
+
+static float cont_margin(const magcal_cont_t *cc)
+{
+    return 1.0f + (MAGCAL_CALIBRATOR_ADOPT_MARGIN - 1.0f) / (1.0f + (float)cc->age_ms_acc / cc->cfg.age_ms);
+}
+
+magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_t verdict)
+{
+    magcal_status_t st = verdict;
+    magcal_cal_report_t *r = &cc->last;
+    cc->solves++;
+    cc->stored_at_solve = (cc->store.ctr.added + cc->store.ctr.replaced);
+    cc->solve_ms_acc = 0u;
+    if (st == MAGCAL_ERR_NOT_BETTER && cc->has_cal != 0u && magcal_isfinite_f(r->current_err_deg) &&
+        magcal_isfinite_f(r->est_param_err_deg) &&
+        r->current_err_deg > fmaxf(cont_margin(cc) * r->est_param_err_deg, MAGCAL_CALIBRATOR_ADOPT_MIN_DEG)) {
+        cc->cand = r->cal;
+        r->adopted = 1u;
+        r->adopt_rule = MAGCAL_ADOPT_BETTER;
+        r->status = MAGCAL_OK;
+        st = MAGCAL_OK;
+        cc->aged_adopts++;
+    }
+    cc->last_status = st;
+    if (st == MAGCAL_OK) {
+        magcal_cont_install(cc, &cc->cand, r->radius, r->est_noise_deg / MAGCAL_DEG_PER_RAD_F);
+        cc->generation++;
+        cc->adopted_err = r->est_heading_err_deg;
+        magcal_cont_fit_field(cc);
+        cc->stored_at_adopt = (cc->store.ctr.added + cc->store.ctr.replaced);
+        cc->age_ms_acc = 0u;
+        cc->state = (uint8_t)MAGCAL_CONT_COLLECTING;
+        return MAGCAL_CONT_ADOPTED;
+    }
+    if (st == MAGCAL_ERR_NOT_BETTER) {
+        /* fresh data confirm the installed calibration: a declared change is refuted */
+        cc->state = (uint8_t)MAGCAL_CONT_COLLECTING;
+        return MAGCAL_CONT_REFUSED;
+    }
+    return MAGCAL_CONT_FAILED;
+}

@@ -1,0 +1,39 @@
+/*
+ * Internal interface of the continuous calibrator (src/loop/): lifecycle and push (cont_life.c),
+ * step and sliced solve (cont_step.c), adoption over time (cont_adopt.c), per-sample judge and
+ * change detection (cont_change.c). Not installed. docs/calibrator.md "Continuous calibrator".
+ */
+#ifndef MAGCAL_CONT_INTERNAL_H
+#define MAGCAL_CONT_INTERNAL_H
+
+#include "magcal/continuous.h"
+
+#define MAGCAL_CONT_MAGIC 0x434F4E54u /* "CONT" */
+#define MAGCAL_CONT_SECTORS 36u       /* change-detection sectors of the corrected heading */
+#define MAGCAL_CONT_MAX_DT_MS 1000u   /* a gap in the stamps counts at most this much */
+
+/* Verdict of one sample under the installed calibration. */
+typedef struct {
+    float rel;      /* |h| / R - 1 (NaN without a calibration) */
+    float heading;  /* corrected heading, deg */
+    uint8_t sector; /* 0..35 */
+    uint8_t mismatch; /* 1: |rel| above the threshold */
+} magcal_cont_judge_t;
+
+int magcal_cont_ok(const magcal_cont_t *cc);
+/* Judge raw (x, y) under cc->cal: 0 when no calibration is installed (j->mismatch 0). */
+int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *raw, magcal_cont_judge_t *j);
+/* Fit the judge's total-field model and noise on the store under cc->cal (at an adoption). */
+void magcal_cont_fit_field(magcal_cont_t *cc);
+/* Episode update with one judged sample at t_ms; returns 1 when a change is declared now. */
+int magcal_cont_episode(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint32_t t_ms);
+/* Declare a change: drop the store, relearn. */
+void magcal_cont_declare_change(magcal_cont_t *cc);
+/* 1 when an open episode spans at least cfg.change_bins sectors (every heading suspect). */
+int magcal_cont_episode_wide(const magcal_cont_t *cc);
+/* Finish a solve: the batch verdict `st` with cc->last, ageing rule, install. Returns the outcome. */
+magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_t st);
+/* Install calibration c (raw radius r_raw, relative noise sigma) and index the store around it. */
+void magcal_cont_install(magcal_cont_t *cc, const magcal_cal2d_t *c, float r_raw, float sigma);
+
+#endif /* MAGCAL_CONT_INTERNAL_H */

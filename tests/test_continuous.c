@@ -1,0 +1,435 @@
+/*
+ * Tests of the continuous 2-D calibrator (include/magcal/continuous.h, src/loop/): synthetic level
+ * drives with known truth (test_util.h distortion, fixed seeds), fed in stream order through push
+ * + step exactly as firmware does. Every adoption is checked against the truth: never worse than
+ * the calibration it replaced (heading RMS over 72 true headings, noiseless).
+ */
+#if defined(__unix__) && !defined(__arm__)
+#define CONT_TEST_THREADS 1 /* host: the ISR is a POSIX thread */
+#define _POSIX_C_SOURCE 200809L
+#include <pthread.h>
+#endif
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "magcal/continuous.h"
+#include "test_util.h"
+#include "unity.h"
+
+#if defined(__arm__)
+/* Target only: SysTick around each call (under `qemu-system-arm -icount shift=0` one tick = 40
+ * instructions, tools/bench/m4f_image/main_cycles.c). Printed, never asserted: a measurement. */
+#define SYST_CSR (*(volatile uint32_t *)0xE000E010u)
+#define SYST_RVR (*(volatile uint32_t *)0xE000E014u)
+#define SYST_CVR (*(volatile uint32_t *)0xE000E018u)
+static uint32_t g_tmax[3];
+#define TICK_START() uint32_t t0_ = SYST_CVR
+#define TICK_END(k)                                                                                \
+    do {                                                                                           \
+        uint32_t d_ = (t0_ - SYST_CVR) & 0xFFFFFFu;                                                \
+        if (d_ > g_tmax[k]) {                                                                      \
+            g_tmax[k] = d_;                                                                        \
+        }                                                                                          \
+    } while (0)
+#else
+#define TICK_START() ((void)0)
+#define TICK_END(k) ((void)0)
+#endif
+
+void setUp(void) {}
+void tearDown(void) {}
+
+#define SLOTS MAGCAL_CONT_SLOTS(36u, 8u)
+#define RATE_MS 20u /* 50 Hz */
+
+static magcal_intake_slot_t g_slots[SLOTS];
+static magcal_vec2_t g_buf[SLOTS];
+static MAGCAL_CALIBRATOR_WORKSPACE_DECLARE(g_work, SLOTS);
+static magcal_cont_t g_cc;
+
+static const test_distortion_t k_d = {30.0f, {{1.10f, 0.05f}, {0.05f, 0.90f}}, 12.0f, -7.0f};
+static const test_distortion_t k_d_step = {30.0f, {{1.10f, 0.05f}, {0.05f, 0.90f}}, 24.0f, -14.0f};
+
+/* truth heading RMS of calibration c on distortion d (72 noiseless headings), degrees */
+static double truth_rms(const magcal_cal2d_t *c, const test_distortion_t *d)
+{
+    double ss = 0.0;
+    int k;
+    uint32_t rng = 1u;
+    for (k = 0; k < 72; ++k) {
+        double psi = 5.0 * k;
+        magcal_vec2_t p = test_distorted_sample(d, psi, 0.0, &rng);
+        float mag = 0.0f, tru = 0.0f;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_heading_compute(c, p, 0.0f, &mag, &tru));
+        ss += test_angle_diff_deg(mag, psi) * test_angle_diff_deg(mag, psi);
+    }
+    return sqrt(ss / 72.0);
+}
+
+typedef struct {
+    uint32_t t_ms;
+    double psi;
+    uint32_t rng;
+    unsigned adopted;
+    unsigned changes;
+    unsigned in_progress_run; /* IN_PROGRESS outcomes of the current solve */
+    unsigned max_run;
+    magcal_cal2d_t before;     /* installed before the last adoption */
+    const test_distortion_t *d; /* truth in force */
+    double turn_deg;           /* cumulative turning */
+    double turn_at_first;
+    double turn_at_change;
+} drive_t;
+
+static void drive_init(drive_t *dr, const test_distortion_t *d, uint32_t seed)
+{
+    memset(dr, 0, sizeof *dr);
+    dr->rng = seed;
+    dr->d = d;
+    dr->turn_at_first = -1.0;
+}
+
+/* one row: sample at dr->psi (+ extra field ex, ey), push, step; never-worse check on adoption */
+static magcal_cont_outcome_t drive_row(drive_t *dr, float ex, float ey)
+{
+    magcal_vec2_t p = test_distorted_sample(dr->d, dr->psi, 0.15, &dr->rng);
+    magcal_vec3_t m;
+    magcal_cont_outcome_t oc;
+    m.x = p.x + ex;
+    m.y = p.y + ey;
+    m.z = 40.0f;
+    dr->before = g_cc.cal;
+    {
+        magcal_status_t st;
+        TICK_START();
+        st = magcal_cont_push(&g_cc, &m, dr->t_ms);
+        TICK_END(0);
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, st);
+    }
+    {
+        TICK_START();
+        oc = magcal_cont_step(&g_cc);
+        TICK_END(1);
+    }
+    dr->t_ms += RATE_MS;
+    if (oc == MAGCAL_CONT_IN_PROGRESS) {
+        dr->in_progress_run++;
+        if (dr->in_progress_run > dr->max_run) {
+            dr->max_run = dr->in_progress_run;
+        }
+    } else {
+        dr->in_progress_run = 0u;
+    }
+    if (oc == MAGCAL_CONT_ADOPTED) {
+        dr->adopted++;
+        if (dr->turn_at_first < 0.0) {
+            dr->turn_at_first = dr->turn_deg;
+        }
+        if (dr->before.radius > 0.0f && g_cc.state != (uint8_t)MAGCAL_CONT_RELEARNING && dr->changes == 0u) {
+            /* never worse on the truth (0.05 deg: float noise of two good calibrations) */
+            TEST_ASSERT_TRUE(truth_rms(&g_cc.cal, dr->d) <= truth_rms(&dr->before, dr->d) + 0.05);
+        }
+    }
+    if (oc == MAGCAL_CONT_CHANGE) {
+        dr->turn_at_change = dr->turn_deg;
+        dr->changes++;
+    }
+    return oc;
+}
+
+static void drive_turn(drive_t *dr, double deg, double dps)
+{
+    size_t rows = (size_t)(fabs(deg) / dps * 50.0);
+    size_t i;
+    double inc = deg / (double)rows;
+    for (i = 0u; i < rows; ++i) {
+        dr->psi = fmod(dr->psi + inc + 360.0, 360.0);
+        dr->turn_deg += fabs(inc);
+        (void)drive_row(dr, 0.0f, 0.0f);
+    }
+}
+
+static void cont_init_default(const magcal_cal2d_t *installed)
+{
+    magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, installed, g_slots, SLOTS, g_buf, g_work,
+                                                      sizeof g_work));
+}
+
+void test_cont_init_bad_args_refused(void)
+{
+    magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_cont_init(NULL, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS - 1u, g_buf, g_work, sizeof g_work));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, 64u));
+    cfg.intake.dims = 3u;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    cfg.intake.dims = 2u;
+    cfg.drain_per_step = 0u;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    cfg.drain_per_step = 2u;
+    cfg.mismatch_k = NAN;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_CONT_IDLE, magcal_cont_step(NULL));
+}
+
+/* First adoption within 540 deg of turning from power-up (row 0 a spike), accurate on the truth,
+ * the live coverage within one sector of the solve's; the solve is sliced (>= 5 calls). */
+void test_cont_stream_first_adoption_accurate(void)
+{
+    drive_t dr;
+    magcal_cont_progress_t pr;
+    magcal_vec3_t spike = {900.0f, -700.0f, 40.0f};
+    cont_init_default(NULL);
+    drive_init(&dr, &k_d, 11u);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_push(&g_cc, &spike, 0u));
+    (void)magcal_cont_step(&g_cc);
+    drive_turn(&dr, 60.0, 20.0);
+    dr.psi = 60.0;
+    {
+        size_t i;
+        for (i = 0u; i < 50u * 60u; ++i) { /* parked a minute: fills its own bins only */
+            (void)drive_row(&dr, 0.0f, 0.0f);
+        }
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_progress(&g_cc, &pr));
+    TEST_ASSERT_TRUE(pr.coverage_deg <= 90.0f);
+    TEST_ASSERT_EQUAL_UINT(0u, dr.adopted);
+    drive_turn(&dr, 480.0, 15.0);
+    TEST_ASSERT_TRUE(dr.adopted >= 1u);
+    TEST_ASSERT_TRUE(dr.turn_at_first <= 540.0);
+    TEST_ASSERT_TRUE(truth_rms(&g_cc.cal, &k_d) < 1.0);
+    TEST_ASSERT_TRUE(dr.max_run >= 4u); /* snapshot + prepare + fit + gates: one call each */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_progress(&g_cc, &pr));
+    TEST_ASSERT_FLOAT_WITHIN(10.0f, g_cc.last.coverage_deg, pr.coverage_deg);
+    printf("first adoption after %.0f deg of turning, truth RMS %.3f deg, est %.3f deg\n", dr.turn_at_first,
+           truth_rms(&g_cc.cal, &k_d), (double)g_cc.adopted_err);
+}
+
+/* A failed solve does not stop collection; after an adoption it keeps collecting and solving. */
+void test_cont_failed_solve_not_sticky(void)
+{
+    drive_t dr;
+    magcal_cont_progress_t pr;
+    magcal_cont_outcome_t oc;
+    cont_init_default(NULL);
+    drive_init(&dr, &k_d, 5u);
+    drive_turn(&dr, 100.0, 15.0);
+    oc = magcal_cont_solve_blocking(&g_cc, 1);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_CONT_FAILED, oc);
+    TEST_ASSERT_NOT_EQUAL(MAGCAL_OK, magcal_cont_status(&g_cc));
+    drive_turn(&dr, 400.0, 15.0);
+    TEST_ASSERT_TRUE(dr.adopted >= 1u);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_progress(&g_cc, &pr));
+    {
+        uint32_t solves = pr.solves;
+        magcal_cont_cfg_t dflt = MAGCAL_CONT_CFG_DEFAULT;
+        drive_turn(&dr, 3.0 * 360.0, 15.0);
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_progress(&g_cc, &pr));
+        /* either it solved again, or it is waiting for new information (not stuck) */
+        TEST_ASSERT_TRUE(pr.solves > solves || pr.new_since_solve < dflt.min_new);
+        TEST_ASSERT_NOT_EQUAL(MAGCAL_CONT_RELEARNING, pr.state);
+    }
+}
+
+/* Ageing: a flash calibration slightly worse than what the data support (about 1.5 x the new
+ * one's error, inside the batch margin of 3) is kept at first, replaced once it has aged; the
+ * replacement is better on the truth. */
+void test_cont_ageing_replaces_mildly_worse(void)
+{
+    drive_t dr;
+    magcal_cal2d_t flash;
+    magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
+    double r_flash;
+    /* the true calibration of k_d, then a small offset error */
+    cont_init_default(NULL);
+    drive_init(&dr, &k_d, 7u);
+    drive_turn(&dr, 720.0, 15.0);
+    TEST_ASSERT_TRUE(dr.adopted >= 1u);
+    flash = g_cc.cal;
+    flash.offset.x += 0.08f;
+    r_flash = truth_rms(&flash, &k_d);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, &flash, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    drive_init(&dr, &k_d, 8u);
+    drive_turn(&dr, 360.0 * 3.0, 15.0); /* 72 s: margin still ~2.8 */
+    TEST_ASSERT_TRUE(g_cc.solves >= 1u);
+    TEST_ASSERT_EQUAL_UINT32(0u, g_cc.generation); /* within the batch margin: kept */
+    drive_turn(&dr, 360.0 * 60.0, 15.0); /* 24 min: margin about 1.6 */
+    printf("ageing: solves %u last %s cur_err %.3f new_param %.3f\n", (unsigned)g_cc.solves,
+           magcal_status_str(g_cc.last.status), (double)g_cc.last.current_err_deg, (double)g_cc.last.est_param_err_deg);
+    printf("ageing: flash truth RMS %.3f, now %.3f, generation %u, aged adoptions %u\n", r_flash,
+           truth_rms(&g_cc.cal, &k_d), (unsigned)g_cc.generation, (unsigned)g_cc.aged_adopts);
+    TEST_ASSERT_TRUE(g_cc.aged_adopts >= 1u);
+    TEST_ASSERT_TRUE(truth_rms(&g_cc.cal, &k_d) < r_flash);
+}
+
+/* A hard-iron step (40 % of the field) is declared a change within 720 deg of turning, the rows
+ * between are not trusted, the old samples are dropped and the relearned calibration fits the new
+ * truth. */
+void test_cont_hard_iron_step_relearned(void)
+{
+    drive_t dr;
+    magcal_cont_heading_t hd;
+    double t0;
+    unsigned untrusted = 0u, rows = 0u;
+    cont_init_default(NULL);
+    drive_init(&dr, &k_d, 21u);
+    drive_turn(&dr, 720.0, 15.0);
+    TEST_ASSERT_TRUE(dr.adopted >= 1u);
+    dr.d = &k_d_step;
+    t0 = dr.turn_deg;
+    {
+        unsigned gen0 = g_cc.generation;
+        size_t i;
+        for (i = 0u; i < 50u * 200u && (dr.changes == 0u || g_cc.generation == gen0 ||
+                                        g_cc.state == (uint8_t)MAGCAL_CONT_RELEARNING); ++i) {
+            magcal_vec2_t p;
+            magcal_vec3_t m;
+            dr.psi = fmod(dr.psi + 15.0 / 50.0, 360.0);
+            dr.turn_deg += 15.0 / 50.0;
+            (void)drive_row(&dr, 0.0f, 0.0f);
+            p = test_distorted_sample(dr.d, dr.psi, 0.0, &dr.rng);
+            m.x = p.x;
+            m.y = p.y;
+            m.z = 40.0f;
+            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_heading(&g_cc, &m, 0.0f, &hd));
+            if (g_cc.generation == gen0) {
+                rows++;
+                untrusted += hd.trust != MAGCAL_CONT_TRUST_OK ? 1u : 0u;
+            }
+        }
+    }
+    printf("step: change after %.0f deg, relearned after %.0f deg, untrusted %u of %u rows before relearn\n",
+           dr.turn_at_change - t0, dr.turn_deg - t0, untrusted, rows);
+    TEST_ASSERT_EQUAL_UINT(1u, dr.changes);
+    TEST_ASSERT_TRUE(dr.turn_deg - t0 <= 720.0);
+    TEST_ASSERT_TRUE(truth_rms(&g_cc.cal, &k_d_step) < 1.0);
+    TEST_ASSERT_TRUE((double)untrusted >= 0.9 * (double)rows);
+}
+
+/* A transient (+30 % of the field for 3 s, parked: one sector) is flagged but discards nothing. */
+void test_cont_transient_flagged_not_discarded(void)
+{
+    drive_t dr;
+    magcal_cont_progress_t p0, p1;
+    magcal_cont_heading_t hd;
+    size_t i;
+    unsigned flagged = 0u, clean_flag = 0u;
+    cont_init_default(NULL);
+    drive_init(&dr, &k_d, 31u);
+    drive_turn(&dr, 720.0, 15.0);
+    TEST_ASSERT_TRUE(dr.adopted >= 1u);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_progress(&g_cc, &p0));
+    for (i = 0u; i < 50u * 20u; ++i) {
+        int dist = i >= 250u && i < 400u;
+        float ey = dist ? 9.0f : 0.0f; /* +30 % of h0 = 30 along the field (heading ~0) */
+        magcal_vec2_t p;
+        magcal_vec3_t m;
+        (void)drive_row(&dr, 0.0f, ey);
+        p = test_distorted_sample(dr.d, dr.psi, 0.0, &dr.rng);
+        m.x = p.x;
+        m.y = p.y + ey;
+        m.z = 40.0f;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_heading(&g_cc, &m, 0.0f, &hd));
+        if (dist) {
+            flagged += hd.trust == MAGCAL_CONT_TRUST_DISTURBED ? 1u : 0u;
+        } else {
+            clean_flag += hd.trust != MAGCAL_CONT_TRUST_OK ? 1u : 0u;
+        }
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_progress(&g_cc, &p1));
+    TEST_ASSERT_EQUAL_UINT(0u, dr.changes);
+    TEST_ASSERT_EQUAL_UINT32(p0.changes, p1.changes);
+    TEST_ASSERT_TRUE(p1.stored >= p0.stored); /* nothing discarded */
+    TEST_ASSERT_TRUE(flagged >= 135u);        /* >= 90 % of 150 */
+    TEST_ASSERT_TRUE(clean_flag <= 17u);      /* <= 2 % of 850 */
+}
+
+#ifdef CONT_TEST_THREADS
+/* Interrupt / task interleaving: a producer thread pushes (as an ISR would) while the task steps
+ * and reads headings; every sample is either taken by step or counted as dropped, and the
+ * calibrator calibrates. */
+typedef struct {
+    uint32_t n;
+    uint32_t ok;
+    uint32_t full;
+    volatile int done;
+} producer_t;
+
+static void *producer(void *arg)
+{
+    producer_t *pr = (producer_t *)arg;
+    uint32_t rng = 99u;
+    uint32_t i;
+    for (i = 0u; i < pr->n; ++i) {
+        double psi = fmod(0.3 * (double)i, 360.0);
+        magcal_vec2_t p = test_distorted_sample(&k_d, psi, 0.15, &rng);
+        magcal_vec3_t m = {p.x, p.y, 40.0f};
+        magcal_status_t st;
+        do {
+            st = magcal_cont_push(&g_cc, &m, i * RATE_MS);
+            if (st == MAGCAL_OK) {
+                pr->ok++;
+            } else {
+                pr->full++;
+            }
+        } while (st != MAGCAL_OK);
+    }
+    pr->done = 1;
+    return NULL;
+}
+
+void test_cont_isr_push_interleaved_with_task(void)
+{
+    pthread_t th;
+    producer_t pr;
+    magcal_cont_progress_t p;
+    magcal_cont_heading_t hd;
+    magcal_vec3_t probe = {12.0f, 23.0f, 40.0f};
+    uint32_t steps = 0u;
+    cont_init_default(NULL);
+    memset(&pr, 0, sizeof pr);
+    pr.n = 3000u; /* 900 deg */
+    TEST_ASSERT_EQUAL_INT(0, pthread_create(&th, NULL, producer, &pr));
+    while (!pr.done || g_cc.tail != g_cc.head) {
+        (void)magcal_cont_step(&g_cc);
+        (void)magcal_cont_heading(&g_cc, &probe, 0.0f, &hd);
+        (void)magcal_cont_progress(&g_cc, &p);
+        steps++;
+        TEST_ASSERT_TRUE(steps < 50000000u);
+    }
+    TEST_ASSERT_EQUAL_INT(0, pthread_join(th, NULL));
+    while (magcal_cont_step(&g_cc) == MAGCAL_CONT_IN_PROGRESS) {
+    }
+    TEST_ASSERT_EQUAL_UINT32(pr.n, pr.ok);
+    TEST_ASSERT_EQUAL_UINT32(pr.n, g_cc.tail); /* every queued sample taken exactly once */
+    TEST_ASSERT_EQUAL_UINT32(pr.full, g_cc.dropped);
+    TEST_ASSERT_TRUE(g_cc.generation >= 1u);
+    TEST_ASSERT_TRUE(truth_rms(&g_cc.cal, &k_d) < 1.0);
+}
+#endif
+
+int main(void)
+{
+#if defined(__arm__)
+    SYST_RVR = 0xFFFFFFu;
+    SYST_CVR = 0u;
+    SYST_CSR = 5u; /* enable, processor clock */
+#endif
+    UNITY_BEGIN();
+    RUN_TEST(test_cont_init_bad_args_refused);
+    RUN_TEST(test_cont_stream_first_adoption_accurate);
+    RUN_TEST(test_cont_failed_solve_not_sticky);
+    RUN_TEST(test_cont_ageing_replaces_mildly_worse);
+    RUN_TEST(test_cont_hard_iron_step_relearned);
+    RUN_TEST(test_cont_transient_flagged_not_discarded);
+#ifdef CONT_TEST_THREADS
+    RUN_TEST(test_cont_isr_push_interleaved_with_task);
+#endif
+#if defined(__arm__)
+    printf("largest call, SysTick ticks (x 40 = instructions under -icount shift=0): push %lu, step %lu\n",
+           (unsigned long)g_tmax[0], (unsigned long)g_tmax[1]);
+#endif
+    return UNITY_END();
+}
