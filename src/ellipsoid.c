@@ -25,15 +25,19 @@ MAGCAL_STATIC_ASSERT(COV_CELLS <= 96u, coverage_cells_fit_three_words);
 static void accumulate(const magcal_vec3_t *m, size_t n, const float mu[3], float inv_s,
                        const quad_gate_t *gate, quad_acc_t *acc)
 {
+    float part[MAGCAL_ELL_NPACK];
     size_t k;
     size_t i;
     size_t j;
+    size_t in_block = 0u;
     (void)memset(acc, 0, sizeof(*acc));
+    (void)memset(part, 0, sizeof(part));
     for (k = 0u; k < n; ++k) {
         float row[NQ];
         float x;
         float y;
         float z;
+        size_t p = 0u;
         if (!magcal_ell_gate_keeps(gate, &m[k])) {
             continue;
         }
@@ -50,17 +54,21 @@ static void accumulate(const magcal_vec3_t *m, size_t n, const float mu[3], floa
         row[7] = 2.0f * y;
         row[8] = 2.0f * z;
         row[9] = 1.0f;
-        for (i = 0u; i < NQ; ++i) {
+        for (i = 0u; i < NQ; ++i) { /* packed order: p = pidx(i, j) */
             for (j = 0u; j <= i; ++j) {
-                size_t p = magcal_ell_pidx(i, j);
-                magcal_kahan_add(&acc->sum[p], &acc->comp[p], row[i] * row[j]);
+                part[p] += row[i] * row[j];
+                ++p;
             }
         }
         acc->count++;
+        if (++in_block == MAGCAL_ELL_BLOCK) {
+            magcal_ell_flush(acc->sum, acc->comp, part, MAGCAL_ELL_NPACK);
+            in_block = 0u;
+        }
     }
+    magcal_ell_flush(acc->sum, acc->comp, part, MAGCAL_ELL_NPACK);
 }
 
-/* G with G^T G = q (q positive definite). */
 static magcal_status_t sqrt_spd3(float q[3][3], magcal_ellipsoid_sqrt_t method, float g[3][3])
 {
     if (method == MAGCAL_ELLIPSOID_SQRT_CHOLESKY) {
