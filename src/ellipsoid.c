@@ -69,6 +69,56 @@ static void accumulate(const magcal_vec3_t *m, size_t n, const float mu[3], floa
     magcal_ell_flush(acc->sum, acc->comp, part, MAGCAL_ELL_NPACK);
 }
 
+/*
+ * Move the normal matrix `acc` (of the samples `old_gate` keeps) to the samples `new_gate` keeps:
+ * only the samples whose verdict changes are added or removed (a refit after rejecting a few
+ * outliers costs one residual pass, not a new accumulation). Returns the count `new_gate` keeps.
+ */
+static size_t regate(const magcal_vec3_t *m, size_t n, const float mu[3], float inv_s,
+                     const quad_gate_t *old_gate, const quad_gate_t *new_gate, quad_acc_t *acc)
+{
+    size_t k;
+    size_t i;
+    size_t j;
+    size_t kept = 0u;
+    for (k = 0u; k < n; ++k) {
+        const int was = magcal_ell_gate_keeps(old_gate, &m[k]);
+        const int is = magcal_ell_gate_keeps(new_gate, &m[k]);
+        float row[NQ];
+        float sign;
+        float x;
+        float y;
+        float z;
+        size_t p = 0u;
+        kept += (is != 0) ? 1u : 0u;
+        if (was == is) {
+            continue;
+        }
+        sign = (is != 0) ? 1.0f : -1.0f;
+        x = (m[k].x - mu[0]) * inv_s;
+        y = (m[k].y - mu[1]) * inv_s;
+        z = (m[k].z - mu[2]) * inv_s;
+        row[0] = x * x;
+        row[1] = y * y;
+        row[2] = z * z;
+        row[3] = 2.0f * y * z;
+        row[4] = 2.0f * x * z;
+        row[5] = 2.0f * x * y;
+        row[6] = 2.0f * x;
+        row[7] = 2.0f * y;
+        row[8] = 2.0f * z;
+        row[9] = 1.0f;
+        for (i = 0u; i < NQ; ++i) {
+            for (j = 0u; j <= i; ++j) {
+                magcal_kahan_add(&acc->sum[p], &acc->comp[p], sign * row[i] * row[j]);
+                ++p;
+            }
+        }
+    }
+    acc->count = kept;
+    return kept;
+}
+
 static magcal_status_t sqrt_spd3(float q[3][3], magcal_ellipsoid_sqrt_t method, float g[3][3])
 {
     if (method == MAGCAL_ELLIPSOID_SQRT_CHOLESKY) {
@@ -558,8 +608,9 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
     quad_acc_t acc;
     quad_gate_t gate = {NULL, 0.0f};
     magcal_status_t st;
-    float rms;
+    float rms = 0.0f;
     float rmax;
+    int rms_valid = 0;
 
     if (m == NULL || cfg == NULL || out == NULL) {
         return MAGCAL_ERR_NULL;
@@ -651,7 +702,8 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
         size_t kept_new;
         quad_gate_t next;
         resid_src_t src = {NULL, NULL, NULL, 0.0f};
-        (void)magcal_ell_residual_pass(m, n, &cal, &gate, &kept, &rmax);
+        rms = magcal_ell_residual_pass(m, n, &cal, &gate, &kept, &rmax);
+        rms_valid = 1;
         next.cal = &cal;
         src.cal = &cal;
         next.thr = cfg->outlier_k * MAGCAL_ELL_MAD_TO_SIGMA *
@@ -659,25 +711,28 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
         if (next.thr < cfg->outlier_floor_rel * cal.field) {
             next.thr = cfg->outlier_floor_rel * cal.field;
         }
-        (void)magcal_ell_residual_pass(m, n, &cal, &next, &kept_new, NULL);
+        /* the count under the new gate; acc follows it (unused when the loop ends here) */
+        kept_new = regate(m, n, mu, inv_s, &gate, &next, &acc);
         rejected = n - kept_new;
         if (rejected == prev_rejected) {
-            break;
+            break; /* cal and gate unchanged: rms and kept of this pass are final */
         }
         if ((float)rejected > cfg->max_reject_frac * (float)n) {
             return magcal_ell_explain_failure(MAGCAL_ERR_TOO_MANY_OUTLIERS, &mc, planarity, cfg);
         }
+        rms_valid = 0;
         gate_cal = cal;
         gate.cal = &gate_cal;
         gate.thr = next.thr;
-        accumulate(m, n, mu, inv_s, &gate, &acc);
         st = fit_model(&acc, model, mu, s, cfg, &cal, &min_pivot);
         if (st != MAGCAL_OK) {
             return magcal_ell_explain_failure(st, &mc, planarity, cfg);
         }
         prev_rejected = rejected;
     }
-    rms = magcal_ell_residual_pass(m, n, &cal, &gate, &kept, NULL);
+    if (rms_valid == 0) {
+        rms = magcal_ell_residual_pass(m, n, &cal, &gate, &kept, NULL);
+    }
     if (kept <
         ((model == MAGCAL_ELLIPSOID_MODEL_SPHERE) ? MIN_SPHERE_POINTS : MIN_QUADRIC_POINTS)) {
         return MAGCAL_ERR_TOO_FEW_POINTS;
