@@ -21,6 +21,8 @@
 
 /* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
 MAGCAL_STATIC_ASSERT(COV_CELLS <= 96u, coverage_cells_fit_three_words);
+/* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
+MAGCAL_STATIC_ASSERT(MAGCAL_ELLIPSOID_COV_AZ == 12u, azimuth_boundaries_are_30_degrees);
 
 static void accumulate(const magcal_vec3_t *m, size_t n, const float mu[3], float inv_s,
                        const quad_gate_t *gate, quad_acc_t *acc)
@@ -462,23 +464,38 @@ static magcal_status_t fit_model(const quad_acc_t *acc, magcal_ellipsoid_model_t
     return extract_quadric(coef, mu, s, cfg->field, cfg->sqrt_method, cal);
 }
 
+/* tan-free sector boundaries of the azimuth cells: cos / sin of 30, 60, 90, 120, 150 degrees */
+static const float k_bound_c[5] = {0.8660254f, 0.5f, 0.0f, -0.5f, -0.8660254f};
+static const float k_bound_s[5] = {0.5f, 0.8660254f, 1.0f, 0.8660254f, 0.5f};
+
 static int cell_of(float x, float y, float z, size_t *cell)
 {
     float r = sqrtf(x * x + y * y + z * z);
-    float az;
     float sz;
-    size_t ia;
+    float u = -x; /* azimuth measured from -x, as atan2f(y, x) + pi, in [0, 2 pi) */
+    float v = -y;
+    size_t ia = 0u;
     size_t ie;
+    size_t b;
     if (!(r > 0.0f)) {
         return 0;
     }
-    az = atan2f(y, x) + MAGCAL_PI_F; /* [0, 2pi] */
-    sz = z / r + 1.0f;               /* [0, 2]: equal-area bands */
-    ia = (size_t)(az * ((float)MAGCAL_ELLIPSOID_COV_AZ / (2.0f * MAGCAL_PI_F)));
-    ie = (size_t)(sz * ((float)MAGCAL_ELLIPSOID_COV_EL / 2.0f));
-    if (ia >= MAGCAL_ELLIPSOID_COV_AZ) {
-        ia = MAGCAL_ELLIPSOID_COV_AZ - 1u;
+    if (v == 0.0f && u >= 0.0f) { /* as atan2f: (0, 0) -> pi (cell 6), y = 0 < x -> 2 pi (cell 11) */
+        ia = (u > 0.0f) ? (MAGCAL_ELLIPSOID_COV_AZ - 1u) : (MAGCAL_ELLIPSOID_COV_AZ / 2u);
+    } else {
+        if (!(v > 0.0f)) { /* lower half: cells 6..11 */
+            u = -u;
+            v = -v;
+            ia = MAGCAL_ELLIPSOID_COV_AZ / 2u;
+        }
+        for (b = 0u; b < 5u; ++b) { /* angle >= boundary b: one cell further (no atan2f) */
+            if (k_bound_c[b] * v - k_bound_s[b] * u >= 0.0f) {
+                ++ia;
+            }
+        }
     }
+    sz = z / r + 1.0f; /* [0, 2]: equal-area bands */
+    ie = (size_t)(sz * ((float)MAGCAL_ELLIPSOID_COV_EL / 2.0f));
     if (ie >= MAGCAL_ELLIPSOID_COV_EL) {
         ie = MAGCAL_ELLIPSOID_COV_EL - 1u;
     }
