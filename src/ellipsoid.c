@@ -24,8 +24,8 @@ MAGCAL_STATIC_ASSERT(COV_CELLS <= 96u, coverage_cells_fit_three_words);
 /* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
 MAGCAL_STATIC_ASSERT(MAGCAL_ELLIPSOID_COV_AZ == 12u, azimuth_boundaries_are_30_degrees);
 
-static void accumulate(const magcal_vec3_t *m, size_t n, const float mu[3], float inv_s,
-                       const quad_gate_t *gate, quad_acc_t *acc)
+static MAGCAL_NOINLINE void accumulate(const magcal_vec3_t *m, size_t n, const float mu[3],
+                                       float inv_s, const quad_gate_t *gate, quad_acc_t *acc)
 {
     float part[MAGCAL_ELL_NPACK];
     size_t k;
@@ -76,8 +76,9 @@ static void accumulate(const magcal_vec3_t *m, size_t n, const float mu[3], floa
  * only the samples whose verdict changes are added or removed (a refit after rejecting a few
  * outliers costs one residual pass, not a new accumulation). Returns the count `new_gate` keeps.
  */
-static size_t regate(const magcal_vec3_t *m, size_t n, const float mu[3], float inv_s,
-                     const quad_gate_t *old_gate, const quad_gate_t *new_gate, quad_acc_t *acc)
+static MAGCAL_NOINLINE size_t regate(const magcal_vec3_t *m, size_t n, const float mu[3],
+                                     float inv_s, const quad_gate_t *old_gate,
+                                     const quad_gate_t *new_gate, quad_acc_t *acc)
 {
     size_t k;
     size_t i;

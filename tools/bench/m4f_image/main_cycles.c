@@ -33,6 +33,7 @@ static uint32_t g_work[(MAGCAL_CALIBRATOR_WORKSPACE_LEN(CAP) + 3u) / 4u];
 static magcal_calibrator_t g_cal;
 static magcal_vec3_t g_pts3[CAP];
 static magcal_vec3_t g_kept3[CAP];
+static MAGCAL_ELLIPSOID_CALIBRATE_WORKSPACE_DECLARE(g_cwork3, 1024u);
 static uint32_t g_work3[(MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(CAP) + 3u) / 4u];
 #define N_EPOCHS 2000u
 static magcal_aided_epoch_t g_ep[N_EPOCHS];
@@ -45,9 +46,11 @@ static unsigned long insn_since(uint32_t t0)
     return (unsigned long)((t0 - ticks()) & 0xFFFFFFu) * INSN_PER_TICK;
 }
 
-/* One complete 3-D calibration of a ~320-sample tumble: the ellipsoid fit alone ("cal3d_fit") and
- * the density stage + fit on its inliers ("cal3d_density_fit"). */
-static int cal3d_one(const char *name, const magcal_vec3_t *src, size_t n)
+/* One complete 3-D calibration of a ~320-sample tumble: the ellipsoid fit alone ("cal3d_fit"), the
+ * density stage + fit on its inliers ("cal3d_density_fit", the composition before issue 14) and
+ * magcal_ellipsoid_calibrate ("cal3d_calibrate": pre-test, density stage only when needed, fit;
+ * the last number is 1 when the density stage ran). */
+static int cal3d_one(const char *name, const magcal_vec3_t *src, size_t n, int clean)
 {
     const magcal_ellipsoid_cfg_t ec = MAGCAL_ELLIPSOID_CFG_DEFAULT;
     magcal_optics_cfg_t c3 = MAGCAL_OPTICS_CFG_DEFAULT;
@@ -62,7 +65,7 @@ static int cal3d_one(const char *name, const magcal_vec3_t *src, size_t n)
     t0 = ticks();
     st = magcal_ellipsoid_fit(g_pts3, n, &ec, &er);
     printf("M4F cal3d_fit_%s %u %lu %d\n", name, (unsigned)n, insn_since(t0), (int)st);
-    fails += st != MAGCAL_OK;
+    fails += clean != 0 && st != MAGCAL_OK; /* the fit alone may refuse a burst */
     t0 = ticks();
     st = magcal_optics_filter3(&c3, g_pts3, n, g_work3, sizeof g_work3, g_mask, NULL);
     for (i = 0u; st == MAGCAL_OK && i < n; ++i) {
@@ -75,6 +78,17 @@ static int cal3d_one(const char *name, const magcal_vec3_t *src, size_t n)
     }
     printf("M4F cal3d_density_fit_%s %u %lu %d\n", name, (unsigned)n, insn_since(t0), (int)st);
     fails += st != MAGCAL_OK;
+    {
+        const magcal_ellipsoid_calibrate_cfg_t cc = MAGCAL_ELLIPSOID_CALIBRATE_CFG_DEFAULT;
+        magcal_ellipsoid_calibrate_info_t info;
+        unsigned long ins;
+        t0 = ticks();
+        st = magcal_ellipsoid_calibrate(&cc, g_pts3, n, g_cwork3, sizeof g_cwork3, NULL, &er, &info);
+        ins = insn_since(t0);
+        printf("M4F cal3d_calibrate_%s %u %lu %d\n", name, (unsigned)n, ins, (int)st);
+        printf("M4F cal3d_density_ran_%s %u %u 0\n", name, (unsigned)n, (unsigned)info.density_ran);
+        fails += st != MAGCAL_OK;
+    }
     return fails;
 }
 
@@ -82,14 +96,16 @@ static int cal3d(void)
 {
     int fails = 0;
     bench_generate_tumble(g_kept3, 324u, 0x7A7A0324u);
-    fails += cal3d_one("gen324", g_kept3, 324u);
+    fails += cal3d_one("gen324", g_kept3, 324u, 1);
     bench_generate_tumble(g_kept3, 301u, 0x7A7A0301u);
-    fails += cal3d_one("gen301", g_kept3, 301u);
+    fails += cal3d_one("gen301", g_kept3, 301u, 1);
+    bench_generate3(g_kept3, 300u); /* 5 % scattered + 3 % stuck burst: the pre-test must see them */
+    fails += cal3d_one("burst300", g_kept3, 300u, 0);
 #ifdef BENCH_TUMBLES_H
     {
         size_t k;
         for (k = 0u; k < sizeof g_tumble_n / sizeof g_tumble_n[0]; ++k) {
-            fails += cal3d_one(g_tumble_name[k], g_tumble[k], g_tumble_n[k]);
+            fails += cal3d_one(g_tumble_name[k], g_tumble[k], g_tumble_n[k], 1);
         }
     }
 #endif
