@@ -21,19 +21,25 @@
 
 /* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
 MAGCAL_STATIC_ASSERT(COV_CELLS <= 96u, coverage_cells_fit_three_words);
+/* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
+MAGCAL_STATIC_ASSERT(MAGCAL_ELLIPSOID_COV_AZ == 12u, azimuth_boundaries_are_30_degrees);
 
-static void accumulate(const magcal_vec3_t *m, size_t n, const float mu[3], float inv_s,
-                       const quad_gate_t *gate, quad_acc_t *acc)
+static MAGCAL_NOINLINE void accumulate(const magcal_vec3_t *m, size_t n, const float mu[3],
+                                       float inv_s, const quad_gate_t *gate, quad_acc_t *acc)
 {
+    float part[MAGCAL_ELL_NPACK];
     size_t k;
     size_t i;
     size_t j;
+    size_t in_block = 0u;
     (void)memset(acc, 0, sizeof(*acc));
+    (void)memset(part, 0, sizeof(part));
     for (k = 0u; k < n; ++k) {
         float row[NQ];
         float x;
         float y;
         float z;
+        size_t p = 0u;
         if (!magcal_ell_gate_keeps(gate, &m[k])) {
             continue;
         }
@@ -50,17 +56,72 @@ static void accumulate(const magcal_vec3_t *m, size_t n, const float mu[3], floa
         row[7] = 2.0f * y;
         row[8] = 2.0f * z;
         row[9] = 1.0f;
-        for (i = 0u; i < NQ; ++i) {
+        for (i = 0u; i < NQ; ++i) { /* packed order: p = pidx(i, j) */
             for (j = 0u; j <= i; ++j) {
-                size_t p = magcal_ell_pidx(i, j);
-                magcal_kahan_add(&acc->sum[p], &acc->comp[p], row[i] * row[j]);
+                part[p] += row[i] * row[j];
+                ++p;
             }
         }
         acc->count++;
+        if (++in_block == MAGCAL_ELL_BLOCK) {
+            magcal_ell_flush(acc->sum, acc->comp, part, MAGCAL_ELL_NPACK);
+            in_block = 0u;
+        }
     }
+    magcal_ell_flush(acc->sum, acc->comp, part, MAGCAL_ELL_NPACK);
 }
 
-/* G with G^T G = q (q positive definite). */
+/*
+ * Move the normal matrix `acc` (of the samples `old_gate` keeps) to the samples `new_gate` keeps:
+ * only the samples whose verdict changes are added or removed (a refit after rejecting a few
+ * outliers costs one residual pass, not a new accumulation). Returns the count `new_gate` keeps.
+ */
+static MAGCAL_NOINLINE size_t regate(const magcal_vec3_t *m, size_t n, const float mu[3],
+                                     float inv_s, const quad_gate_t *old_gate,
+                                     const quad_gate_t *new_gate, quad_acc_t *acc)
+{
+    size_t k;
+    size_t i;
+    size_t j;
+    size_t kept = 0u;
+    for (k = 0u; k < n; ++k) {
+        const int was = magcal_ell_gate_keeps(old_gate, &m[k]);
+        const int is = magcal_ell_gate_keeps(new_gate, &m[k]);
+        float row[NQ];
+        float sign;
+        float x;
+        float y;
+        float z;
+        size_t p = 0u;
+        kept += (is != 0) ? 1u : 0u;
+        if (was == is) {
+            continue;
+        }
+        sign = (is != 0) ? 1.0f : -1.0f;
+        x = (m[k].x - mu[0]) * inv_s;
+        y = (m[k].y - mu[1]) * inv_s;
+        z = (m[k].z - mu[2]) * inv_s;
+        row[0] = x * x;
+        row[1] = y * y;
+        row[2] = z * z;
+        row[3] = 2.0f * y * z;
+        row[4] = 2.0f * x * z;
+        row[5] = 2.0f * x * y;
+        row[6] = 2.0f * x;
+        row[7] = 2.0f * y;
+        row[8] = 2.0f * z;
+        row[9] = 1.0f;
+        for (i = 0u; i < NQ; ++i) {
+            for (j = 0u; j <= i; ++j) {
+                magcal_kahan_add(&acc->sum[p], &acc->comp[p], sign * row[i] * row[j]);
+                ++p;
+            }
+        }
+    }
+    acc->count = kept;
+    return kept;
+}
+
 static magcal_status_t sqrt_spd3(float q[3][3], magcal_ellipsoid_sqrt_t method, float g[3][3])
 {
     if (method == MAGCAL_ELLIPSOID_SQRT_CHOLESKY) {
@@ -404,23 +465,38 @@ static magcal_status_t fit_model(const quad_acc_t *acc, magcal_ellipsoid_model_t
     return extract_quadric(coef, mu, s, cfg->field, cfg->sqrt_method, cal);
 }
 
+/* tan-free sector boundaries of the azimuth cells: cos / sin of 30, 60, 90, 120, 150 degrees */
+static const float k_bound_c[5] = {0.8660254f, 0.5f, 0.0f, -0.5f, -0.8660254f};
+static const float k_bound_s[5] = {0.5f, 0.8660254f, 1.0f, 0.8660254f, 0.5f};
+
 static int cell_of(float x, float y, float z, size_t *cell)
 {
     float r = sqrtf(x * x + y * y + z * z);
-    float az;
     float sz;
-    size_t ia;
+    float u = -x; /* azimuth measured from -x, as atan2f(y, x) + pi, in [0, 2 pi) */
+    float v = -y;
+    size_t ia = 0u;
     size_t ie;
+    size_t b;
     if (!(r > 0.0f)) {
         return 0;
     }
-    az = atan2f(y, x) + MAGCAL_PI_F; /* [0, 2pi] */
-    sz = z / r + 1.0f;               /* [0, 2]: equal-area bands */
-    ia = (size_t)(az * ((float)MAGCAL_ELLIPSOID_COV_AZ / (2.0f * MAGCAL_PI_F)));
-    ie = (size_t)(sz * ((float)MAGCAL_ELLIPSOID_COV_EL / 2.0f));
-    if (ia >= MAGCAL_ELLIPSOID_COV_AZ) {
-        ia = MAGCAL_ELLIPSOID_COV_AZ - 1u;
+    if (v == 0.0f && u >= 0.0f) { /* as atan2f: (0, 0) -> pi (cell 6), y = 0 < x -> 2 pi (cell 11) */
+        ia = (u > 0.0f) ? (MAGCAL_ELLIPSOID_COV_AZ - 1u) : (MAGCAL_ELLIPSOID_COV_AZ / 2u);
+    } else {
+        if (!(v > 0.0f)) { /* lower half: cells 6..11 */
+            u = -u;
+            v = -v;
+            ia = MAGCAL_ELLIPSOID_COV_AZ / 2u;
+        }
+        for (b = 0u; b < 5u; ++b) { /* angle >= boundary b: one cell further (no atan2f) */
+            if (k_bound_c[b] * v - k_bound_s[b] * u >= 0.0f) {
+                ++ia;
+            }
+        }
     }
+    sz = z / r + 1.0f; /* [0, 2]: equal-area bands */
+    ie = (size_t)(sz * ((float)MAGCAL_ELLIPSOID_COV_EL / 2.0f));
     if (ie >= MAGCAL_ELLIPSOID_COV_EL) {
         ie = MAGCAL_ELLIPSOID_COV_EL - 1u;
     }
@@ -550,8 +626,9 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
     quad_acc_t acc;
     quad_gate_t gate = {NULL, 0.0f};
     magcal_status_t st;
-    float rms;
+    float rms = 0.0f;
     float rmax;
+    int rms_valid = 0;
 
     if (m == NULL || cfg == NULL || out == NULL) {
         return MAGCAL_ERR_NULL;
@@ -643,7 +720,8 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
         size_t kept_new;
         quad_gate_t next;
         resid_src_t src = {NULL, NULL, NULL, 0.0f};
-        (void)magcal_ell_residual_pass(m, n, &cal, &gate, &kept, &rmax);
+        rms = magcal_ell_residual_pass(m, n, &cal, &gate, &kept, &rmax);
+        rms_valid = 1;
         next.cal = &cal;
         src.cal = &cal;
         next.thr = cfg->outlier_k * MAGCAL_ELL_MAD_TO_SIGMA *
@@ -651,25 +729,28 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
         if (next.thr < cfg->outlier_floor_rel * cal.field) {
             next.thr = cfg->outlier_floor_rel * cal.field;
         }
-        (void)magcal_ell_residual_pass(m, n, &cal, &next, &kept_new, NULL);
+        /* the count under the new gate; acc follows it (unused when the loop ends here) */
+        kept_new = regate(m, n, mu, inv_s, &gate, &next, &acc);
         rejected = n - kept_new;
         if (rejected == prev_rejected) {
-            break;
+            break; /* cal and gate unchanged: rms and kept of this pass are final */
         }
         if ((float)rejected > cfg->max_reject_frac * (float)n) {
             return magcal_ell_explain_failure(MAGCAL_ERR_TOO_MANY_OUTLIERS, &mc, planarity, cfg);
         }
+        rms_valid = 0;
         gate_cal = cal;
         gate.cal = &gate_cal;
         gate.thr = next.thr;
-        accumulate(m, n, mu, inv_s, &gate, &acc);
         st = fit_model(&acc, model, mu, s, cfg, &cal, &min_pivot);
         if (st != MAGCAL_OK) {
             return magcal_ell_explain_failure(st, &mc, planarity, cfg);
         }
         prev_rejected = rejected;
     }
-    rms = magcal_ell_residual_pass(m, n, &cal, &gate, &kept, NULL);
+    if (rms_valid == 0) {
+        rms = magcal_ell_residual_pass(m, n, &cal, &gate, &kept, NULL);
+    }
     if (kept <
         ((model == MAGCAL_ELLIPSOID_MODEL_SPHERE) ? MIN_SPHERE_POINTS : MIN_QUADRIC_POINTS)) {
         return MAGCAL_ERR_TOO_FEW_POINTS;

@@ -22,6 +22,21 @@ typedef struct {
     size_t count;
 } quad_acc_t;
 
+/* Samples summed in plain float32 before the block sum is added (Kahan) to the running total:
+ * one add per product instead of Kahan's four, the rounding error of a block (32 eps) stays
+ * far below the fit's noise while the total keeps Kahan's n-independent error. */
+#define MAGCAL_ELL_BLOCK 32u
+
+/* Add the packed block sums `part` (np entries, cleared afterwards) to the Kahan total. */
+static inline void magcal_ell_flush(float *sum, float *comp, float *part, size_t np)
+{
+    size_t p;
+    for (p = 0u; p < np; ++p) {
+        magcal_kahan_add(&sum[p], &comp[p], part[p]);
+        part[p] = 0.0f;
+    }
+}
+
 /* Optional gate applied while accumulating: keep samples with | |G(m-V)| - F | < thr. */
 typedef struct {
     const magcal_ellipsoid_cal_t *cal; /* NULL: keep every sample */

@@ -10,8 +10,8 @@
 
 #include "ellipsoid_internal.h"
 
-#define MED_BINS 32u     /* histogram bins per refinement pass of the median |residual| */
-#define MED_PASSES 4u    /* refinement passes: resolution (max |r|) / 32^4 at worst */
+#define MED_BINS 128u    /* histogram bins per pass of the median |residual|: 2 passes reach 0.1 % on a shell */
+#define MED_PASSES 4u    /* refinement passes: resolution (max |r|) / 128^4 at worst */
 #define PLANAR_MAX 0.15f /* planarity below this: one rotation axis dominates (SINGLE_AXIS) */
 #define INFO_MAX_N 9u    /* centre information: 3 offset + 6 symmetric shape parameters */
 
@@ -33,7 +33,7 @@ static float abs_residual(const resid_src_t *src, const magcal_vec3_t *m)
 
 /*
  * Median of |r| over the `kept` samples that `gate` keeps, without per-sample storage: the bin of
- * a 32-bin histogram of [lo, hi) that holds the median becomes the next [lo, hi), at most
+ * a 128-bin histogram of [lo, hi) that holds the median becomes the next [lo, hi), at most
  * MED_PASSES passes (stops once the bin is narrower than 0.1 % of its lower edge).
  */
 MAGCAL_NOINLINE float magcal_ell_median_abs(const magcal_vec3_t *m, size_t n,
@@ -161,88 +161,72 @@ static MAGCAL_NOINLINE float planarity3(float c[3][3])
     return sqrtf(fmaxf(lo, 0.0f) / mid);
 }
 
-/*
- * Observability of the calibration (issue 12, docs/calibration_3d.md "Trust gates"). Linearised
- * total-field model about the fit, r_i = |(I + E)(h_i - dc)| - F with h_i = G (m_i - V): the
- * Jacobian row is J_i = [-n_i, n_i^T E n_i terms] (n_i = h_i / |h_i|; E symmetric, 6 terms, carries
- * the scale and the soft iron) or [-n_i, -1] for the sphere (scale only). The covariance is the
- * heteroscedasticity-robust sandwich C = (J^T J)^-1 (sum r_i^2 J_i J_i^T) (J^T J)^-1, so noise that
- * G amplifies along one axis (strong soft iron) counts where it acts. Pass 1 accumulates J^T J
- * (packed, Kahan, in `acc`) and the scatter of the directions n_i; np solves give (J^T J)^-1 in
- * `inv`; pass 2 sums r_i^2 (J_i . inv_k)(J_i . inv_l) for the offset block and the shape diagonal.
- * Outputs, relative to F: worst 1-sigma offset error (largest eigenvalue of the 3x3 block, through
- * G: output units) and worst soft-iron term; +Inf when J^T J is singular (every n_i on one cone).
- * `dir_planarity`: planarity of the corrected directions (~0 for rotation about one axis).
- */
-static MAGCAL_NOINLINE void centre_info(const magcal_vec3_t *m, size_t n,
-                                        const magcal_ellipsoid_cal_t *cal, const quad_gate_t *gate,
-                                        int sphere, quad_acc_t *acc, trust_diag_t *res)
+/* C = inv meat inv (see centre_info): offset block into cc (lower triangle), shape diagonal into
+ * sd[3..np); 0 when a rounding bound is above 1 % of its diagonal term (then nothing is trusted). */
+static MAGCAL_NOINLINE int sandwich_from_meat(const float *meat, float inv[INFO_MAX_N][INFO_MAX_N],
+                                              size_t np, int sphere, size_t cnt, float cc[3][3],
+                                              float sd[INFO_MAX_N])
 {
-    const size_t np = (sphere != 0) ? (size_t)4u : (size_t)INFO_MAX_N;
-    float a[INFO_MAX_N * INFO_MAX_N];
-    float inv[INFO_MAX_N][INFO_MAX_N];
-    float cc[3][3];
-    float sn[3] = {0.0f, 0.0f, 0.0f};
-    float sd[INFO_MAX_N];
-    size_t cnt = 0u;
+    const float eps = ((float)cnt + (float)np) * 6e-8f;
     size_t i;
     size_t j;
     size_t k;
-    res->centre_std_rel = INFINITY;
-    res->shape_std = (sphere != 0) ? 0.0f : INFINITY;
-    res->planarity = 0.0f;
-    (void)memset(acc, 0, sizeof(*acc));
-    for (k = 0u; k < n; ++k) {
-        float h[3];
-        float row[INFO_MAX_N];
-        if (!magcal_ell_gate_keeps(gate, &m[k])) {
-            continue;
-        }
-        magcal_ell_correct(cal, &m[k], h);
-        if (info_row(h, sphere, row) == 0u) {
-            continue;
-        }
-        for (i = 0u; i < np; ++i) {
-            for (j = 0u; j <= i; ++j) {
-                size_t p = magcal_ell_pidx(i, j);
-                magcal_kahan_add(&acc->sum[p], &acc->comp[p], row[i] * row[j]);
-            }
-        }
-        for (i = 0u; i < 3u; ++i) {
-            sn[i] += row[i];
-        }
-        cnt++;
-    }
-    if (cnt < np) {
-        return;
-    }
-    /* planarity of the directions: scatter of n about its mean, from the n n^T block */
-    for (i = 0u; i < 3u; ++i) {
-        for (j = 0u; j <= i; ++j) {
-            cc[i][j] = magcal_ell_acc_at(acc, i, j) / (float)cnt -
-                       (sn[i] / (float)cnt) * (sn[j] / (float)cnt);
-        }
-    }
-    res->planarity = planarity3(cc);
+    (void)memset(cc, 0, 9u * sizeof(float));
+    (void)memset(sd, 0, INFO_MAX_N * sizeof(float));
     for (k = 0u; k < np; ++k) {
-        float b[INFO_MAX_N];
+        float w[INFO_MAX_N];
+        float wa[INFO_MAX_N];
+        float d = 0.0f;
+        float da = 0.0f;
+        if (k >= 3u && sphere != 0) {
+            break;
+        }
         for (i = 0u; i < np; ++i) {
+            float e = 0.0f;
+            float ea = 0.0f;
             for (j = 0u; j < np; ++j) {
-                a[i * np + j] = magcal_ell_acc_at(acc, i, j);
+                const float mij = meat[(i >= j) ? magcal_ell_pidx(i, j) : magcal_ell_pidx(j, i)];
+                e += mij * inv[k][j];
+                ea += fabsf(mij) * fabsf(inv[k][j]);
             }
-            b[i] = (i == k) ? 1.0f : 0.0f;
-        }
-        if (magcal_ldlt_solve(a, b, np, 0.0f, NULL) != MAGCAL_OK) {
-            return;
+            w[i] = e;
+            wa[i] = ea;
         }
         for (i = 0u; i < np; ++i) {
-            inv[k][i] = b[i];
+            d += inv[k][i] * w[i];
+            da += fabsf(inv[k][i]) * wa[i];
+        }
+        if (!(eps * da <= 0.01f * d)) { /* also NaN */
+            return 0;
+        }
+        if (k < 3u) {
+            for (j = 0u; j < k; ++j) {
+                float c = 0.0f;
+                for (i = 0u; i < np; ++i) {
+                    c += inv[j][i] * w[i];
+                }
+                cc[k][j] = c;
+            }
+            cc[k][k] = d;
+        } else {
+            sd[k] = d;
         }
     }
-    /* pass 2: sandwich, offset block (6 sums) and shape diagonal (np - 3 sums), no Kahan needed
-     * for a 1-significant-digit gate */
-    (void)memset(cc, 0, sizeof(cc));
-    (void)memset(sd, 0, sizeof(sd));
+    return 1;
+}
+
+/* The same sandwich from a second pass over the samples: sum r_i^2 (J_i . inv_k)(J_i . inv_l). */
+static MAGCAL_NOINLINE void sandwich_pass(const magcal_vec3_t *m, size_t n,
+                                          const magcal_ellipsoid_cal_t *cal, const quad_gate_t *gate,
+                                          int sphere, float inv[INFO_MAX_N][INFO_MAX_N],
+                                          float cc[3][3], float sd[INFO_MAX_N])
+{
+    const size_t np = (sphere != 0) ? (size_t)4u : (size_t)INFO_MAX_N;
+    size_t i;
+    size_t j;
+    size_t k;
+    (void)memset(cc, 0, 9u * sizeof(float));
+    (void)memset(sd, 0, INFO_MAX_N * sizeof(float));
     for (k = 0u; k < n; ++k) {
         float h[3];
         float row[INFO_MAX_N];
@@ -272,6 +256,115 @@ static MAGCAL_NOINLINE void centre_info(const magcal_vec3_t *m, size_t n,
         for (i = 3u; i < np; ++i) {
             sd[i] += r2 * pr[i] * pr[i];
         }
+    }
+}
+
+/*
+ * Observability of the calibration (issue 12, docs/calibration_3d.md "Trust gates"). Linearised
+ * total-field model about the fit, r_i = |(I + E)(h_i - dc)| - F with h_i = G (m_i - V): the
+ * Jacobian row is J_i = [-n_i, n_i^T E n_i terms] (n_i = h_i / |h_i|; E symmetric, 6 terms, carries
+ * the scale and the soft iron) or [-n_i, -1] for the sphere (scale only). The covariance is the
+ * heteroscedasticity-robust sandwich C = (J^T J)^-1 (sum r_i^2 J_i J_i^T) (J^T J)^-1, so noise that
+ * G amplifies along one axis (strong soft iron) counts where it acts. One pass accumulates J^T J
+ * (packed, blocked Kahan, in `acc`), the meat sum r_i^2 J_i J_i^T and the scatter of the directions
+ * n_i; np solves give (J^T J)^-1 in `inv`; the offset block and the shape diagonal follow from the
+ * meat, or (rounding bound above 1 %: near-singular J^T J) from an exact second pass.
+ * Outputs, relative to F: worst 1-sigma offset error (largest eigenvalue of the 3x3 block, through
+ * G: output units) and worst soft-iron term; +Inf when J^T J is singular (every n_i on one cone).
+ * `dir_planarity`: planarity of the corrected directions (~0 for rotation about one axis).
+ */
+static MAGCAL_NOINLINE void centre_info(const magcal_vec3_t *m, size_t n,
+                                        const magcal_ellipsoid_cal_t *cal, const quad_gate_t *gate,
+                                        int sphere, quad_acc_t *acc, trust_diag_t *res)
+{
+    const size_t np = (sphere != 0) ? (size_t)4u : (size_t)INFO_MAX_N;
+    const size_t npk = (np * (np + 1u)) / 2u;
+    float a[INFO_MAX_N * INFO_MAX_N];
+    float inv[INFO_MAX_N][INFO_MAX_N];
+    float part[(INFO_MAX_N * (INFO_MAX_N + 1u)) / 2u];
+    float meat[(INFO_MAX_N * (INFO_MAX_N + 1u)) / 2u]; /* sum r_i^2 J_i J_i^T, packed */
+    float cc[3][3];
+    float sn[3] = {0.0f, 0.0f, 0.0f};
+    float sd[INFO_MAX_N];
+    size_t cnt = 0u;
+    size_t in_block = 0u;
+    size_t i;
+    size_t j;
+    size_t k;
+    res->centre_std_rel = INFINITY;
+    res->shape_std = (sphere != 0) ? 0.0f : INFINITY;
+    res->planarity = 0.0f;
+    (void)memset(acc, 0, sizeof(*acc));
+    (void)memset(part, 0, sizeof(part));
+    (void)memset(meat, 0, sizeof(meat));
+    /* one pass: J^T J (blocked Kahan) and the sandwich's meat (plain sums: a 1-significant-digit
+     * gate), so the covariance needs no second pass over the samples */
+    for (k = 0u; k < n; ++k) {
+        float h[3];
+        float row[INFO_MAX_N];
+        float r2;
+        size_t p = 0u;
+        if (!magcal_ell_gate_keeps(gate, &m[k])) {
+            continue;
+        }
+        magcal_ell_correct(cal, &m[k], h);
+        if (info_row(h, sphere, row) == 0u) {
+            continue;
+        }
+        r2 = sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) - cal->field;
+        r2 *= r2;
+        for (i = 0u; i < np; ++i) { /* packed order: p = pidx(i, j) */
+            for (j = 0u; j <= i; ++j) {
+                const float jj = row[i] * row[j];
+                part[p] += jj;
+                meat[p] += r2 * jj;
+                ++p;
+            }
+        }
+        for (i = 0u; i < 3u; ++i) {
+            sn[i] += row[i];
+        }
+        cnt++;
+        if (++in_block == MAGCAL_ELL_BLOCK) {
+            magcal_ell_flush(acc->sum, acc->comp, part, npk);
+            in_block = 0u;
+        }
+    }
+    magcal_ell_flush(acc->sum, acc->comp, part, npk);
+    if (cnt < np) {
+        return;
+    }
+    /* planarity of the directions: scatter of n about its mean, from the n n^T block */
+    for (i = 0u; i < 3u; ++i) {
+        for (j = 0u; j <= i; ++j) {
+            cc[i][j] = magcal_ell_acc_at(acc, i, j) / (float)cnt -
+                       (sn[i] / (float)cnt) * (sn[j] / (float)cnt);
+        }
+    }
+    res->planarity = planarity3(cc);
+    for (k = 0u; k < np; ++k) {
+        float b[INFO_MAX_N];
+        for (i = 0u; i < np; ++i) {
+            for (j = 0u; j < np; ++j) {
+                a[i * np + j] = magcal_ell_acc_at(acc, i, j);
+            }
+            b[i] = (i == k) ? 1.0f : 0.0f;
+        }
+        if (magcal_ldlt_solve(a, b, np, 0.0f, NULL) != MAGCAL_OK) {
+            return;
+        }
+        for (i = 0u; i < np; ++i) {
+            inv[k][i] = b[i];
+        }
+    }
+    /* sandwich (J^T J)^-1 meat (J^T J)^-1 from the summed meat: the offset block (rows 0..2) and
+     * the shape diagonal, C_kl = inv_l . (meat inv_k). Near a singular J^T J the rounding of the
+     * summed meat can swamp its tiny component along the weak direction (and make an unobservable
+     * offset look fine), so each diagonal term carries a bound of that rounding,
+     * (cnt + np) eps |inv_k|^T |meat| |inv_k|; if any bound is above 1 % of its term, the exact
+     * per-sample second pass decides instead. */
+    if (sandwich_from_meat(meat, inv, np, sphere, cnt, cc, sd) == 0) {
+        sandwich_pass(m, n, cal, gate, sphere, inv, cc, sd);
     }
     res->centre_std_rel = sqrtf(max_eig3(cc)) / cal->field;
     if (sphere == 0) {

@@ -727,6 +727,96 @@ static void test_ellipsoid_fit_trust_cfg_out_of_range_returns_arg(void)
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
 }
 
+/* ---- magcal_ellipsoid_calibrate (issue 14): pre-test -> density stage when needed -> fit ---- */
+static MAGCAL_ELLIPSOID_CALIBRATE_WORKSPACE_DECLARE(g_cwork, NFIT + NOUT);
+static uint8_t g_cin[NFIT + NOUT];
+
+/* Clean tumble: the density stage is skipped and the result is the plain fit, bit for bit. */
+static void test_ellipsoid_calibrate_clean_data_skips_density_stage(void)
+{
+    double w[3][3];
+    magcal_ellipsoid_calibrate_cfg_t cc = MAGCAL_ELLIPSOID_CALIBRATE_CFG_DEFAULT;
+    magcal_ellipsoid_calibrate_info_t info;
+    magcal_ellipsoid_result_t r, rf;
+    size_t k;
+    test_make_w_full(w);
+    make_set(w, 320u, 180.0, 180.0, 0.3, 4242u);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, 320u, &cc.fit, &rf));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                          magcal_ellipsoid_calibrate(&cc, g_m, 320u, g_cwork, sizeof g_cwork, g_cin, &r, &info));
+    TEST_ASSERT_EQUAL_UINT32(0u, info.density_ran);
+    TEST_ASSERT_EQUAL_UINT32(0u, (uint32_t)info.n_density_rejected);
+    TEST_ASSERT_TRUE(info.pretest_max_rel > 0.0f && info.pretest_max_rel <= cc.pretest_max_rel);
+    TEST_ASSERT_EQUAL_MEMORY(&rf, &r, sizeof r);
+    TEST_ASSERT_TRUE(v_err(&r.cal) < 0.1);
+    for (k = 0; k < 320u; ++k) {
+        TEST_ASSERT_EQUAL_UINT8(1u, g_cin[k]);
+    }
+}
+
+/* A stuck burst 80 % outside the shell (5 %): the pre-test sees it, the density stage runs and the
+ * result equals the full composition (filter3, then the fit of its inliers) bit for bit. */
+static void test_ellipsoid_calibrate_burst_runs_density_stage_as_composition(void)
+{
+    static magcal_vec3_t kept[NFIT + NOUT];
+    static uint8_t mask[NFIT + NOUT];
+    static MAGCAL_OPTICS3_FILTER_WORKSPACE_DECLARE(fwork, NFIT + NOUT);
+    double w[3][3];
+    magcal_ellipsoid_calibrate_cfg_t cc = MAGCAL_ELLIPSOID_CALIBRATE_CFG_DEFAULT;
+    magcal_optics_cfg_t oc = MAGCAL_OPTICS_CFG_DEFAULT;
+    magcal_ellipsoid_calibrate_info_t info;
+    magcal_ellipsoid_result_t r, rf;
+    size_t k, nk = 0u;
+    test_make_w_full(w);
+    make_set(w, NFIT, 180.0, 180.0, 0.3, 777u);
+    for (k = 0; k < NOUT; ++k) { /* stuck at 1.8 x the field along one direction */
+        g_m[NFIT + k].x = (float)(V_TRUE[0] + 1.8 * f_ref() * 0.48);
+        g_m[NFIT + k].y = (float)(V_TRUE[1] - 1.8 * f_ref() * 0.6);
+        g_m[NFIT + k].z = (float)(V_TRUE[2] + 1.8 * f_ref() * 0.64);
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_calibrate(&cc, g_m, NFIT + NOUT, g_cwork, sizeof g_cwork,
+                                                                g_cin, &r, &info));
+    TEST_ASSERT_EQUAL_UINT32(1u, info.density_ran);
+    TEST_ASSERT_TRUE(info.n_density_rejected >= NOUT);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_filter3(&oc, g_m, NFIT + NOUT, fwork, sizeof fwork, mask, NULL));
+    for (k = 0; k < NFIT + NOUT; ++k) {
+        TEST_ASSERT_EQUAL_UINT8(mask[k], g_cin[k]);
+        if (mask[k] != 0u) {
+            kept[nk++] = g_m[k];
+        }
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(kept, nk, &cc.fit, &rf));
+    TEST_ASSERT_EQUAL_MEMORY(&rf, &r, sizeof r);
+    TEST_ASSERT_TRUE(v_err(&r.cal) < 0.1);
+    for (k = NFIT; k < NFIT + NOUT; ++k) {
+        TEST_ASSERT_EQUAL_UINT8(0u, g_cin[k]);
+    }
+}
+
+static void test_ellipsoid_calibrate_bad_input_returns_status(void)
+{
+    magcal_ellipsoid_calibrate_cfg_t cc = MAGCAL_ELLIPSOID_CALIBRATE_CFG_DEFAULT;
+    magcal_ellipsoid_result_t r;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_calibrate(NULL, g_m, 320u, g_cwork, sizeof g_cwork,
+                                                                      NULL, &r, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_calibrate(&cc, g_m, 320u, NULL, sizeof g_cwork,
+                                                                      NULL, &r, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE,
+                          magcal_ellipsoid_calibrate(&cc, g_m, 320u, g_cwork,
+                                                     MAGCAL_ELLIPSOID_CALIBRATE_WORKSPACE_LEN(320u) - 1u, NULL,
+                                                     &r, NULL));
+    cc.pretest_max_rel = 0.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_calibrate(&cc, g_m, 320u, g_cwork, sizeof g_cwork,
+                                                                     NULL, &r, NULL));
+    cc.pretest_max_rel = 0.15f;
+    cc.mode = (magcal_ellipsoid_density_t)3;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_calibrate(&cc, g_m, 320u, g_cwork, sizeof g_cwork,
+                                                                     NULL, &r, NULL));
+    /* the size macro: the inlier copy + the density stage's workspace */
+    TEST_ASSERT_EQUAL_UINT32((uint32_t)(320u * sizeof(magcal_vec3_t) + MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(320u)),
+                             (uint32_t)MAGCAL_ELLIPSOID_CALIBRATE_WORKSPACE_LEN(320u));
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -752,5 +842,8 @@ int main(void)
     RUN_TEST(test_ellipsoid_fit_at_rest_returns_no_motion);
     RUN_TEST(test_ellipsoid_fit_sphere_on_soft_iron_returns_residual);
     RUN_TEST(test_ellipsoid_fit_trust_cfg_out_of_range_returns_arg);
+    RUN_TEST(test_ellipsoid_calibrate_clean_data_skips_density_stage);
+    RUN_TEST(test_ellipsoid_calibrate_burst_runs_density_stage_as_composition);
+    RUN_TEST(test_ellipsoid_calibrate_bad_input_returns_status);
     return UNITY_END();
 }

@@ -48,8 +48,11 @@
  * FIELD_MAGNITUDE -> wrong unit, wrong expected field, or iron next to the sensor.
  *
  * Units: any consistent raw unit for m; G maps raw units to the unit of `cfg.field` (e.g. LSB to uT).
- * All arithmetic is float32 with Kahan-compensated sums; no workspace is needed (worst-case stack
- * 2480 B on Cortex-M4F -Os, 10-parameter path; tools/stack/budgets.txt).
+ * All arithmetic is float32 with (blocked) Kahan-compensated sums; no workspace is needed (worst-case
+ * stack 2480 B on Cortex-M4F -Os, 10-parameter path; tools/stack/budgets.txt).
+ *
+ * The complete 3-D calibration, magcal_ellipsoid_calibrate(), adds the density stage (optics.h,
+ * magcal_optics_filter3) only when a pre-test fit of all samples shows a gross outlier.
  */
 #ifndef MAGCAL_ELLIPSOID_H
 #define MAGCAL_ELLIPSOID_H
@@ -57,6 +60,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "magcal/optics.h"
 #include "magcal/status.h"
 #include "magcal/types.h"
 
@@ -258,6 +262,91 @@ magcal_status_t magcal_ellipsoid_apply(const magcal_ellipsoid_cal_t *cal, const 
  */
 magcal_status_t magcal_ellipsoid_coverage(const magcal_vec3_t *m, size_t n, const magcal_vec3_t *centre,
                                           float *coverage);
+
+/* ---- the complete 3-D calibration: pre-test -> density stage when needed -> fit (issue 14) ---- */
+
+/** When magcal_ellipsoid_calibrate runs the OPTICS density stage (magcal_optics_filter3). */
+typedef enum {
+    MAGCAL_ELLIPSOID_DENSITY_AUTO = 0,   /**< only when the pre-test finds a gross outlier (default) */
+    MAGCAL_ELLIPSOID_DENSITY_ALWAYS = 1, /**< always (the composition of issue 6) */
+    MAGCAL_ELLIPSOID_DENSITY_NEVER = 2   /**< never: the fit's own residual gate only */
+} magcal_ellipsoid_density_t;
+
+/** Configuration of magcal_ellipsoid_calibrate. Start from MAGCAL_ELLIPSOID_CALIBRATE_CFG_DEFAULT. */
+typedef struct {
+    magcal_ellipsoid_cfg_t fit;       /**< the fit (MAGCAL_ELLIPSOID_CFG_DEFAULT) */
+    magcal_optics_cfg_t density;      /**< the density stage (MAGCAL_OPTICS_CFG_DEFAULT: automatic parameters) */
+    magcal_ellipsoid_density_t mode;  /**< when the density stage runs (default AUTO) */
+    float pretest_max_rel;            /**< AUTO: the density stage is skipped when the fit of ALL samples is
+                                           MAGCAL_OK and no sample's | |G(m - V)| - F | exceeds this x F
+                                           (default 0.15: the bursts, glitches and spikes the density stage
+                                           exists for sit >= 0.3 F off the shell); (0, 1] */
+} magcal_ellipsoid_calibrate_cfg_t;
+
+/** Defaults that work without tuning. */
+#define MAGCAL_ELLIPSOID_CALIBRATE_CFG_DEFAULT                                                      \
+    {                                                                                               \
+        MAGCAL_ELLIPSOID_CFG_DEFAULT, MAGCAL_OPTICS_CFG_DEFAULT, MAGCAL_ELLIPSOID_DENSITY_AUTO, 0.15f \
+    }
+
+/** What magcal_ellipsoid_calibrate did besides the fit. */
+typedef struct {
+    uint32_t density_ran;           /**< 1: the density stage ran and the fit saw only its inliers */
+    size_t n_density_rejected;      /**< samples the density stage removed (0 when it did not run) */
+    float pretest_max_rel;          /**< largest | |G(m - V)| - F | / F of the pre-test fit over all samples;
+                                         NaN when no pre-test fit was made or it failed */
+    magcal_optics_result_t density; /**< the density stage's parameters (valid when density_ran) */
+} magcal_ellipsoid_calibrate_info_t;
+
+/** Workspace bytes of magcal_ellipsoid_calibrate for n samples: the inlier copy (n x 12 B) + the
+ *  density stage's MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n). */
+#define MAGCAL_ELLIPSOID_CALIBRATE_WORKSPACE_LEN(n)                                                 \
+    ((size_t)(n) * sizeof(magcal_vec3_t) + MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n))
+/** Declare `name` as a correctly aligned workspace of MAGCAL_ELLIPSOID_CALIBRATE_WORKSPACE_LEN(n) bytes. */
+#define MAGCAL_ELLIPSOID_CALIBRATE_WORKSPACE_DECLARE(name, n)                                       \
+    MAGCAL_WORKSPACE_DECLARE(name, MAGCAL_ELLIPSOID_CALIBRATE_WORKSPACE_LEN(n))
+
+/**
+ * @brief One complete 3-D calibration: a cheap pre-test, the density stage only when the data show
+ *        gross outliers, then the ellipsoid fit (docs/calibration_3d.md, docs/performance.md).
+ *
+ * AUTO: the fit of all n samples is the pre-test; it is returned as it is when MAGCAL_OK and every
+ * sample lies within pretest_max_rel x F of its shell (the density stage would find nothing the
+ * fit's own residual gate does not). Otherwise (any gross outlier, or the pre-test fit failed) the
+ * result is exactly that of ALWAYS: magcal_optics_filter3 on all samples, then magcal_ellipsoid_fit
+ * on its inliers, so bursts and glitches get the density stage they need.
+ *
+ * @param[in]  cfg      configuration (MAGCAL_ELLIPSOID_CALIBRATE_CFG_DEFAULT).
+ * @param[in]  m        n raw samples (as magcal_ellipsoid_fit).
+ * @param[in]  n        number of samples (>= 10; <= MAGCAL_MAX_SAMPLES when the density stage may run).
+ * @param[out] work     scratch, 4-byte aligned, >= MAGCAL_ELLIPSOID_CALIBRATE_WORKSPACE_LEN(n) bytes
+ *                      (untouched when the density stage is skipped).
+ * @param[in]  work_len bytes at work.
+ * @param[out] inlier   NULL, or n flags: 1 = given to the fit (kept by the density stage, or every
+ *                      sample when it did not run); written only on MAGCAL_OK.
+ * @param[out] out      the fit; written only on MAGCAL_OK (out->n_used etc. count the fit's input).
+ * @param[out] info     NULL, or what was done; written on MAGCAL_OK and on a failure of the fit.
+ * @return MAGCAL_OK; MAGCAL_ERR_NULL (cfg, m, work or out NULL); MAGCAL_ERR_ARG (mode or
+ *         pretest_max_rel out of range, or a stage's config invalid); MAGCAL_ERR_WORKSPACE (work_len
+ *         too small or work misaligned); every status of magcal_optics_filter3 (density stage) and
+ *         of magcal_ellipsoid_fit.
+ *
+ * @code
+ * #define N3 320u
+ * static magcal_vec3_t samples[N3];             // filled by the application
+ * static MAGCAL_ELLIPSOID_CALIBRATE_WORKSPACE_DECLARE(work, N3);
+ * const magcal_ellipsoid_calibrate_cfg_t cfg = MAGCAL_ELLIPSOID_CALIBRATE_CFG_DEFAULT;
+ * magcal_ellipsoid_result_t fit;
+ * if (magcal_ellipsoid_calibrate(&cfg, samples, N3, work, sizeof work, NULL, &fit, NULL) == MAGCAL_OK) {
+ *     // fit.cal: h = G (m - V)
+ * }
+ * @endcode
+ */
+magcal_status_t magcal_ellipsoid_calibrate(const magcal_ellipsoid_calibrate_cfg_t *cfg,
+                                           const magcal_vec3_t *m, size_t n, void *work,
+                                           size_t work_len, uint8_t *inlier,
+                                           magcal_ellipsoid_result_t *out,
+                                           magcal_ellipsoid_calibrate_info_t *info);
 
 #ifdef __cplusplus
 }

@@ -199,3 +199,26 @@ void bench_generate_drive(magcal_aided_epoch_t *ep, size_t n)
         ep[k].dop = 1.2f;
     }
 }
+
+void bench_generate_tumble(magcal_vec3_t *pts3, size_t n, uint32_t seed)
+{
+    static const double w[3][3] = {{1.04, 0.03, -0.02}, {0.03, 0.97, 0.01}, {-0.02, 0.01, 1.01}};
+    static const double off[3] = {28.6, -40.0, -27.4};
+    uint32_t s = seed | 1u;
+    size_t i;
+    int a;
+    for (i = 0u; i < n; ++i) {
+        /* a hand tumble: a spiral from the south to the north pole, 6 turns, jittered */
+        const double t = ((double)i + 0.5) / (double)n;
+        const double el = asin(2.0 * t - 1.0) + 0.05 * gauss3(&s);
+        const double az = 6.0 * 6.283185307179586 * t + 0.1 * gauss3(&s);
+        const double u[3] = {50.0 * cos(el) * cos(az), 50.0 * cos(el) * sin(az), 50.0 * sin(el)};
+        double v[3];
+        for (a = 0; a < 3; ++a) {
+            v[a] = off[a] + w[a][0] * u[0] + w[a][1] * u[1] + w[a][2] * u[2] + 0.4 * gauss3(&s);
+        }
+        pts3[i].x = (float)v[0];
+        pts3[i].y = (float)v[1];
+        pts3[i].z = (float)v[2];
+    }
+}

@@ -16,6 +16,11 @@ void bench_generate(magcal_vec2_t *pts, uint8_t *kind, size_t n);
  *  (radius x 1.7..2.5) and 3 % one stuck burst 0.8 R outside (n >= 16). */
 void bench_generate3(magcal_vec3_t *pts3, size_t n);
 
+/** A clean hand tumble shaped like the shared fxos8700 / lsm9ds1 tumbles (no outliers): F = 50 uT
+ *  through a soft-iron matrix (axes ~1.04 / 0.97 / 1.01, 0.03 off-diagonal), offset (28.6, -40,
+ *  -27.4) uT, Gaussian noise 0.4 uT, directions along a 6-turn pole-to-pole spiral with jitter. */
+void bench_generate_tumble(magcal_vec3_t *pts3, size_t n, uint32_t seed);
+
 /** n epochs of a synthetic road drive for magcal_aided_update: B = (20, 1.2, 44) uT NED, soft iron
  *  + scale W, V = (18, -11, 27) uT, 0.05 uT noise, straight legs of 60 epochs joined by 90-degree
  *  turns, pitch/roll AR(1) with 1 deg RMS, INS errors 0.01 / 0.05 deg, DOP 1.2. */

@@ -105,6 +105,26 @@ static int density_3d(const magcal_vec3_t *m, size_t n, const char *filter, doub
     return REPLAY_EXIT_OK;
 }
 
+/* issue 14: the library's pre-test (magcal_ellipsoid_calibrate): with the default density stage,
+ * the fit of all samples is kept (*pre, returns 1) and the density stage skipped when it is OK and
+ * no sample lies pretest_max_rel x F off its shell; 0: run the density stage as before. */
+static int pretest_3d(const magcal_vec3_t *m, size_t n, magcal_ellipsoid_result_t *pre)
+{
+    magcal_ellipsoid_calibrate_cfg_t pc = MAGCAL_ELLIPSOID_CALIBRATE_CFG_DEFAULT;
+    magcal_ellipsoid_calibrate_info_t info;
+    size_t wlen = MAGCAL_ELLIPSOID_CALIBRATE_WORKSPACE_LEN(n);
+    uint32_t *work = (uint32_t *)malloc(wlen + 4u);
+    int clean;
+    if (work == NULL) {
+        return 0;
+    }
+    pc.mode = MAGCAL_ELLIPSOID_DENSITY_NEVER; /* the pre-test alone; AUTO's rule applied below */
+    clean = magcal_ellipsoid_calibrate(&pc, m, n, work, wlen, NULL, pre, &info) == MAGCAL_OK &&
+            info.pretest_max_rel <= pc.pretest_max_rel;
+    free(work);
+    return clean;
+}
+
 int replay_fit_3d(const magcal_vec3_t *m, size_t n, const char *filter, double eps, long min_pts,
                   replay_report_t *r, magcal_ellipsoid_result_t *fit, unsigned char *flags)
 {
@@ -115,7 +135,7 @@ int replay_fit_3d(const magcal_vec3_t *m, size_t n, const char *filter, double e
     size_t n_flag = 0u, k3, nk = 0u;
     uint8_t *mask, *inlier;
     magcal_vec3_t *kept;
-    int i, j, rc;
+    int i, j, rc, prefit = 0;
 
     r->eps3 = NAN;
     r->eps_prime3 = NAN;
@@ -138,6 +158,10 @@ int replay_fit_3d(const magcal_vec3_t *m, size_t n, const char *filter, double e
                             "--cal-range\n",
                     (unsigned long)n, (unsigned)MAGCAL_MAX_SAMPLES);
             r->filter = "none (n > MAGCAL_MAX_SAMPLES)";
+        } else if (strcmp(filter, "optics") == 0 && !(isfinite(eps) && eps > 0.0) && min_pts <= 0 &&
+                   pretest_3d(m, n, &res)) {
+            r->filter = "optics (skipped: pre-test fit, no sample 0.15 F off the shell)";
+            prefit = 1;
         } else {
             rc = density_3d(m, n, filter, eps, min_pts, r, inlier);
             if (rc != REPLAY_EXIT_OK) {
@@ -154,8 +178,12 @@ int replay_fit_3d(const magcal_vec3_t *m, size_t n, const char *filter, double e
     }
     r->n_density3 = n - nk;
 
-    memset(&res, 0, sizeof res);
-    st = magcal_ellipsoid_fit(kept, nk, &cfg, &res);
+    if (prefit == 0) {
+        memset(&res, 0, sizeof res);
+        st = magcal_ellipsoid_fit(kept, nk, &cfg, &res);
+    } else {
+        st = MAGCAL_OK; /* the pre-test's fit of all samples: what magcal_ellipsoid_calibrate returns */
+    }
     r->status = replay_status_id(st);
     r->status_code = (int)st;
     if (st != MAGCAL_OK) {
