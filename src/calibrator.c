@@ -1049,6 +1049,22 @@ MAGCAL_NOINLINE magcal_status_t magcal_calibrator_stage_adopt(magcal_calibrator_
     return MAGCAL_OK;
 }
 
+/* Start of a solve: an empty report (estimates NaN: a failed run never reads as a perfect one),
+ * no fit, nothing judged. */
+static void cal_solve_reset(magcal_calibrator_t *cal, magcal_cal_report_t *rep)
+{
+    (void)memset(rep, 0, sizeof *rep);
+    rep->current_err_deg = NAN;
+    rep->current_err_z = NAN;
+    rep->est_heading_err_deg = NAN;
+    rep->est_param_err_deg = NAN;
+    rep->est_noise_deg = NAN;
+    rep->adopt_rule = MAGCAL_ADOPT_NONE;
+    rep->samples = (uint16_t)cal->n;
+    cal->has_fit = 0u;
+    cal->n_judged = 0u;
+}
+
 magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *current,
                                       magcal_cal_report_t *report)
 {
@@ -1062,16 +1078,7 @@ magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *
         return MAGCAL_ERR_NOT_INITIALISED;
     }
     rep = &((cal_run_t *)cal->run)->rep;
-    (void)memset(rep, 0, sizeof *rep);
-    rep->current_err_deg = NAN;
-    rep->current_err_z = NAN;
-    rep->est_heading_err_deg = NAN;
-    rep->est_param_err_deg = NAN;
-    rep->est_noise_deg = NAN;
-    rep->adopt_rule = MAGCAL_ADOPT_NONE;
-    rep->samples = (uint16_t)cal->n;
-    cal->has_fit = 0u;
-    cal->n_judged = 0u;
+    cal_solve_reset(cal, rep);
 
     st = magcal_calibrator_stage_prepare(cal, rep);
     if (st == MAGCAL_OK) {
@@ -1116,16 +1123,7 @@ magcal_status_t magcal_calibrator_stage_load(magcal_calibrator_t *cal, size_t n)
         cal->bb_max.x = fmaxf(cal->bb_max.x, cal->buf[i].x);
         cal->bb_max.y = fmaxf(cal->bb_max.y, cal->buf[i].y);
     }
-    (void)memset(rep, 0, sizeof *rep);
-    rep->current_err_deg = NAN;
-    rep->current_err_z = NAN;
-    rep->est_heading_err_deg = NAN;
-    rep->est_param_err_deg = NAN;
-    rep->est_noise_deg = NAN;
-    rep->adopt_rule = MAGCAL_ADOPT_NONE;
-    rep->samples = (uint16_t)cal->n;
-    cal->has_fit = 0u;
-    cal->n_judged = 0u;
+    cal_solve_reset(cal, rep);
     return MAGCAL_OK;
 }
 

@@ -24,6 +24,25 @@ MAGCAL_STATIC_ASSERT(COV_CELLS <= 96u, coverage_cells_fit_three_words);
 /* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
 MAGCAL_STATIC_ASSERT(MAGCAL_ELLIPSOID_COV_AZ == 12u, azimuth_boundaries_are_30_degrees);
 
+/* One row of the normalised quadric design: x^2, y^2, z^2, 2yz, 2xz, 2xy, 2x, 2y, 2z, 1 of
+ * (p - mu) / s. */
+static void design_row(const magcal_vec3_t *p, const float mu[3], float inv_s, float row[NQ])
+{
+    const float x = (p->x - mu[0]) * inv_s;
+    const float y = (p->y - mu[1]) * inv_s;
+    const float z = (p->z - mu[2]) * inv_s;
+    row[0] = x * x;
+    row[1] = y * y;
+    row[2] = z * z;
+    row[3] = 2.0f * y * z;
+    row[4] = 2.0f * x * z;
+    row[5] = 2.0f * x * y;
+    row[6] = 2.0f * x;
+    row[7] = 2.0f * y;
+    row[8] = 2.0f * z;
+    row[9] = 1.0f;
+}
+
 static MAGCAL_NOINLINE void accumulate(const magcal_vec3_t *m, size_t n, const float mu[3],
                                        float inv_s, const quad_gate_t *gate, quad_acc_t *acc)
 {
@@ -36,26 +55,11 @@ static MAGCAL_NOINLINE void accumulate(const magcal_vec3_t *m, size_t n, const f
     (void)memset(part, 0, sizeof(part));
     for (k = 0u; k < n; ++k) {
         float row[NQ];
-        float x;
-        float y;
-        float z;
         size_t p = 0u;
         if (!magcal_ell_gate_keeps(gate, &m[k])) {
             continue;
         }
-        x = (m[k].x - mu[0]) * inv_s;
-        y = (m[k].y - mu[1]) * inv_s;
-        z = (m[k].z - mu[2]) * inv_s;
-        row[0] = x * x;
-        row[1] = y * y;
-        row[2] = z * z;
-        row[3] = 2.0f * y * z;
-        row[4] = 2.0f * x * z;
-        row[5] = 2.0f * x * y;
-        row[6] = 2.0f * x;
-        row[7] = 2.0f * y;
-        row[8] = 2.0f * z;
-        row[9] = 1.0f;
+        design_row(&m[k], mu, inv_s, row);
         for (i = 0u; i < NQ; ++i) { /* packed order: p = pidx(i, j) */
             for (j = 0u; j <= i; ++j) {
                 part[p] += row[i] * row[j];
@@ -89,28 +93,13 @@ static MAGCAL_NOINLINE size_t regate(const magcal_vec3_t *m, size_t n, const flo
         const int is = magcal_ell_gate_keeps(new_gate, &m[k]);
         float row[NQ];
         float sign;
-        float x;
-        float y;
-        float z;
         size_t p = 0u;
         kept += (is != 0) ? 1u : 0u;
         if (was == is) {
             continue;
         }
         sign = (is != 0) ? 1.0f : -1.0f;
-        x = (m[k].x - mu[0]) * inv_s;
-        y = (m[k].y - mu[1]) * inv_s;
-        z = (m[k].z - mu[2]) * inv_s;
-        row[0] = x * x;
-        row[1] = y * y;
-        row[2] = z * z;
-        row[3] = 2.0f * y * z;
-        row[4] = 2.0f * x * z;
-        row[5] = 2.0f * x * y;
-        row[6] = 2.0f * x;
-        row[7] = 2.0f * y;
-        row[8] = 2.0f * z;
-        row[9] = 1.0f;
+        design_row(&m[k], mu, inv_s, row);
         for (i = 0u; i < NQ; ++i) {
             for (j = 0u; j <= i; ++j) {
                 magcal_kahan_add(&acc->sum[p], &acc->comp[p], sign * row[i] * row[j]);
