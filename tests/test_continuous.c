@@ -296,7 +296,7 @@ void test_cont_hard_iron_step_relearned(void)
             TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_heading(&g_cc, &m, 0.0f, &hd));
             if (g_cc.generation == gen0) {
                 rows++;
-                untrusted += hd.trust != MAGCAL_CONT_TRUST_OK ? 1u : 0u;
+                untrusted += hd.trust != MAGCAL_TRUST_OK ? 1u : 0u;
             }
         }
     }
@@ -333,9 +333,9 @@ void test_cont_transient_flagged_not_discarded(void)
         m.z = 40.0f;
         TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_heading(&g_cc, &m, 0.0f, &hd));
         if (dist) {
-            flagged += hd.trust == MAGCAL_CONT_TRUST_DISTURBED ? 1u : 0u;
+            flagged += hd.trust == MAGCAL_TRUST_DISTURBED ? 1u : 0u;
         } else {
-            clean_flag += hd.trust != MAGCAL_CONT_TRUST_OK ? 1u : 0u;
+            clean_flag += hd.trust != MAGCAL_TRUST_OK ? 1u : 0u;
         }
     }
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_progress(&g_cc, &p1));

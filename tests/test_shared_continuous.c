@@ -74,7 +74,7 @@ static void check_stream(const char *name, double ref_drop)
             first = (long)i;
         }
         TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_heading(&g_cc, &m, 0.0f, &hd));
-        trusted += hd.trust == MAGCAL_CONT_TRUST_OK ? 1u : 0u;
+        trusted += hd.trust == MAGCAL_TRUST_OK ? 1u : 0u;
     }
     raw = test_radius_spread(&ident, g_rows, g_glitch, n);
     cor = g_cc.generation > 0u ? test_radius_spread(&g_cc.cal, g_rows, g_glitch, n) : INFINITY;

@@ -56,7 +56,7 @@
  * void control_task_100hz(magcal_vec3_t raw) {
  *     magcal_cont_heading_t hd;
  *     if (magcal_cont_step(&cc) == MAGCAL_CONT_ADOPTED) { save_to_flash(&cc.cal); }
- *     if (magcal_cont_heading(&cc, &raw, 0.0f, &hd) == MAGCAL_OK && hd.trust == MAGCAL_CONT_TRUST_OK) {
+ *     if (magcal_cont_heading(&cc, &raw, 0.0f, &hd) == MAGCAL_OK && hd.trust == MAGCAL_TRUST_OK) {
  *         use(hd.heading_deg);
  *     }
  * }
@@ -103,14 +103,6 @@ typedef enum {
     MAGCAL_CONT_RELEARNING = 2  /**< a change was declared: collecting fresh data */
 } magcal_cont_state_t;
 
-/** Trust of a heading (this module's own enum; the lead reconciles it with heading.h). */
-typedef enum {
-    MAGCAL_CONT_TRUST_OK = 0,           /**< calibrated, sample consistent with the calibration */
-    MAGCAL_CONT_TRUST_UNCALIBRATED = 1, /**< no calibration installed yet (raw heading) */
-    MAGCAL_CONT_TRUST_DISTURBED = 2,    /**< corrected radius off the calibration's by more than the
-                                             mismatch threshold, or a multi-bin mismatch is open */
-    MAGCAL_CONT_TRUST_CHANGED = 3       /**< a change was declared: relearning */
-} magcal_cont_trust_t;
 
 /** Outcome of step(). */
 typedef enum {
@@ -152,7 +144,7 @@ typedef struct {
 typedef struct {
     float heading_deg;          /**< [0, 360), calibrated (raw when uncalibrated) */
     float raw_heading_deg;      /**< raw axes */
-    magcal_cont_trust_t trust;  /**< trust state */
+    magcal_trust_state_t trust;  /**< trust state (heading.h: the states magcal_heading_get_trusted() uses) */
     uint32_t generation;        /**< adoptions so far (0 = none) */
     float radius_rel;           /**< |h| / R - 1 under the installed calibration (NaN if none) */
 } magcal_cont_heading_t;
@@ -273,8 +265,6 @@ magcal_status_t magcal_cont_progress(const magcal_cont_t *cc, magcal_cont_progre
 /** @brief Status of the last finished solve (MAGCAL_OK before any). */
 magcal_status_t magcal_cont_status(const magcal_cont_t *cc);
 
-/** @brief Short name of a trust state ("ok", "uncalibrated", "disturbed", "changed"). */
-const char *magcal_cont_trust_str(magcal_cont_trust_t t);
 
 #ifdef __cplusplus
 }

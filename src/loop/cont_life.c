@@ -141,22 +141,6 @@ magcal_status_t magcal_cont_status(const magcal_cont_t *cc)
     return magcal_cont_ok(cc) ? cc->last_status : MAGCAL_ERR_NOT_INITIALISED;
 }
 
-const char *magcal_cont_trust_str(magcal_cont_trust_t t)
-{
-    switch (t) {
-    case MAGCAL_CONT_TRUST_OK:
-        return "ok";
-    case MAGCAL_CONT_TRUST_UNCALIBRATED:
-        return "uncalibrated";
-    case MAGCAL_CONT_TRUST_DISTURBED:
-        return "disturbed";
-    case MAGCAL_CONT_TRUST_CHANGED:
-        return "changed";
-    default:
-        return "unknown";
-    }
-}
-
 magcal_status_t magcal_cont_heading(const magcal_cont_t *cc, const magcal_vec3_t *m, float declination_deg,
                                     magcal_cont_heading_t *out)
 {
@@ -181,7 +165,7 @@ magcal_status_t magcal_cont_heading(const magcal_cont_t *cc, const magcal_vec3_t
     out->radius_rel = NAN;
     if (cc->has_cal == 0u) {
         out->heading_deg = out->raw_heading_deg;
-        out->trust = MAGCAL_CONT_TRUST_UNCALIBRATED;
+        out->trust = MAGCAL_TRUST_UNCALIBRATED;
         return MAGCAL_OK;
     }
     st = magcal_heading_compute(&cc->cal, raw, declination_deg, &mag_deg, &out->heading_deg);
@@ -191,11 +175,11 @@ magcal_status_t magcal_cont_heading(const magcal_cont_t *cc, const magcal_vec3_t
     (void)magcal_cont_judge(cc, m, &j);
     out->radius_rel = j.rel;
     if (cc->state == (uint8_t)MAGCAL_CONT_RELEARNING) {
-        out->trust = MAGCAL_CONT_TRUST_CHANGED;
+        out->trust = MAGCAL_TRUST_CHANGED;
     } else if (j.mismatch != 0u || magcal_cont_episode_wide(cc) != 0) {
-        out->trust = MAGCAL_CONT_TRUST_DISTURBED;
+        out->trust = MAGCAL_TRUST_DISTURBED;
     } else {
-        out->trust = MAGCAL_CONT_TRUST_OK;
+        out->trust = MAGCAL_TRUST_OK;
     }
     return MAGCAL_OK;
 }

@@ -231,28 +231,28 @@ int replay_stream_main(int argc, char **argv)
             /* idle or in progress */
         }
         if (magcal_cont_heading(&g_cc, &m, (float)decl, &hd) != MAGCAL_OK) {
-            hd.trust = MAGCAL_CONT_TRUST_DISTURBED;
+            hd.trust = MAGCAL_TRUST_DISTURBED;
             hd.heading_deg = NAN;
             hd.raw_heading_deg = NAN;
             hd.generation = g_cc.generation;
         }
-        if (hd.trust == MAGCAL_CONT_TRUST_DISTURBED && !prev_dist) {
+        if (hd.trust == MAGCAL_TRUST_DISTURBED && !prev_dist) {
             add_event(ev, i, "disturbance", "disturbed", NAN);
         }
-        prev_dist = hd.trust == MAGCAL_CONT_TRUST_DISTURBED;
-        if (hd.trust == MAGCAL_CONT_TRUST_OK) {
+        prev_dist = hd.trust == MAGCAL_TRUST_DISTURBED;
+        if (hd.trust == MAGCAL_TRUST_OK) {
             ++trusted;
         }
         if (hf != NULL) {
             fprintf(hf, "%zu,%.4f,%.4f,%s,%u", i, (double)hd.raw_heading_deg, (double)hd.heading_deg,
-                    magcal_cont_trust_str(hd.trust), (unsigned)hd.generation);
+                    magcal_trust_str(hd.trust), (unsigned)hd.generation);
             if (ref != NULL) {
                 double e = wrap180((double)hd.heading_deg - ref[i]);
                 fprintf(hf, ",%.4f,%.4f", ref[i], e);
             }
             fputc('\n', hf);
         }
-        if (ref != NULL && hd.trust == MAGCAL_CONT_TRUST_OK && isfinite(ref[i])) {
+        if (ref != NULL && hd.trust == MAGCAL_TRUST_OK && isfinite(ref[i])) {
             double e = wrap180((double)hd.heading_deg - ref[i]);
             ref_ss += e * e;
             ref_n++;
