@@ -105,6 +105,37 @@ static int density_3d(const magcal_vec3_t *m, size_t n, const char *filter, doub
     return REPLAY_EXIT_OK;
 }
 
+/* More rows than one density run takes (MAGCAL_MAX_SAMPLES): the stage runs on `stride`
+ * interleaved subsets (rows k, k + stride, ...), each a thinner copy of the whole trajectory, so
+ * every row is judged; the reported eps/MinPts are those of the last subset. sub: n bytes. */
+static int density_3d_interleaved(const magcal_vec3_t *m, size_t n, const char *filter, double eps,
+                                  long min_pts, replay_report_t *r, uint8_t *inlier, uint8_t *sub)
+{
+    const size_t stride = (n + MAGCAL_MAX_SAMPLES - 1u) / MAGCAL_MAX_SAMPLES;
+    magcal_vec3_t *part = (magcal_vec3_t *)malloc((n / stride + 1u) * sizeof *part);
+    size_t k, i, np;
+    int rc = REPLAY_EXIT_OK;
+    if (part == NULL) {
+        fprintf(stderr, "magcal-replay: out of memory\n");
+        return REPLAY_EXIT_INTERNAL;
+    }
+    fprintf(stderr, "magcal-replay: note: %lu calibration samples exceed MAGCAL_MAX_SAMPLES (%u): "
+                    "3-D density stage run on %lu interleaved subsets (every %lu-th row)\n",
+            (unsigned long)n, (unsigned)MAGCAL_MAX_SAMPLES, (unsigned long)stride,
+            (unsigned long)stride);
+    for (k = 0u; k < stride && rc == REPLAY_EXIT_OK; ++k) {
+        for (np = 0u, i = k; i < n; i += stride) {
+            part[np++] = m[i];
+        }
+        rc = density_3d(part, np, filter, eps, min_pts, r, sub);
+        for (np = 0u, i = k; rc == REPLAY_EXIT_OK && i < n; i += stride) {
+            inlier[i] = sub[np++];
+        }
+    }
+    free(part);
+    return rc;
+}
+
 /* issue 14: the library's pre-test (magcal_ellipsoid_calibrate): with the default density stage,
  * the fit of all samples is kept (*pre, returns 1) and the density stage skipped when it is OK and
  * no sample lies pretest_max_rel x F off its shell; 0: run the density stage as before. */
@@ -135,7 +166,7 @@ int replay_fit_3d(const magcal_vec3_t *m, size_t n, const char *filter, double e
     size_t n_flag = 0u, k3, nk = 0u;
     uint8_t *mask, *inlier;
     magcal_vec3_t *kept;
-    int i, j, rc, prefit = 0;
+    int i, j, rc = REPLAY_EXIT_OK, prefit = 0;
 
     r->eps3 = NAN;
     r->eps_prime3 = NAN;
@@ -152,23 +183,19 @@ int replay_fit_3d(const magcal_vec3_t *m, size_t n, const char *filter, double e
     inlier = mask + n;
     (void)memset(inlier, 1, n);
     if (strcmp(filter, "none") != 0) {
-        if (n > (size_t)MAGCAL_MAX_SAMPLES) {
-            fprintf(stderr, "magcal-replay: note: %lu calibration samples exceed MAGCAL_MAX_SAMPLES (%u): "
-                            "3-D density stage skipped (fit's residual gate only); use --decimate or "
-                            "--cal-range\n",
-                    (unsigned long)n, (unsigned)MAGCAL_MAX_SAMPLES);
-            r->filter = "none (n > MAGCAL_MAX_SAMPLES)";
-        } else if (strcmp(filter, "optics") == 0 && !(isfinite(eps) && eps > 0.0) && min_pts <= 0 &&
-                   pretest_3d(m, n, &res)) {
+        if (strcmp(filter, "optics") == 0 && !(isfinite(eps) && eps > 0.0) && min_pts <= 0 &&
+            pretest_3d(m, n, &res)) {
             r->filter = "optics (skipped: pre-test fit, no sample 0.15 F off the shell)";
             prefit = 1;
+        } else if (n > (size_t)MAGCAL_MAX_SAMPLES) {
+            rc = density_3d_interleaved(m, n, filter, eps, min_pts, r, inlier, mask);
         } else {
             rc = density_3d(m, n, filter, eps, min_pts, r, inlier);
-            if (rc != REPLAY_EXIT_OK) {
-                free(mask);
-                free(kept);
-                return rc;
-            }
+        }
+        if (prefit == 0 && rc != REPLAY_EXIT_OK) {
+            free(mask);
+            free(kept);
+            return rc;
         }
     }
     for (k3 = 0u; k3 < n; ++k3) {

@@ -453,6 +453,26 @@ def rows_decimation_legend(a):
     del rng
 
 
+def rows_3d_large(a):
+    """More 3-D rows than one density run takes: the stage runs on interleaved subsets, every row judged."""
+    src = os.path.join(a.source_dir, "tools", "replay", "tests", "data", "tumble_burst.csv")
+    lines = [ln for ln in open(src).read().splitlines() if ln and not ln.startswith("#")]
+    out = [lines[0]]
+    for k in range(2):  # the tumble and its burst twice: 1520 rows > MAGCAL_MAX_SAMPLES
+        for ln in lines[1:]:
+            f = ln.split(",")
+            f[0] = "%.3f" % (float(f[0]) + 1000.0 * k)
+            out.append(",".join(f))
+    path = os.path.join(a.work_dir, "burst_x2.csv")
+    with open(path, "w") as fh:
+        fh.write("\n".join(out) + "\n")
+    _, rep = row(a, "3-D dump above MAGCAL_MAX_SAMPLES: density stage on interleaved subsets",
+                 ["--json", "--mode", "3d", path], 0, "interleaved subsets")
+    tf = (rep or {}).get("truth_flags", {})
+    check(tf.get("flagged") == 60 and tf.get("missed") == 0 and tf.get("false_alarms", 99) <= 4,
+          "3-D large dump: burst rows %r" % tf)
+
+
 def ls_ellipse(pts):
     """Textbook unweighted 5-parameter LS: x^2 + A xy + B y^2 + C x + D y + E = 0 (float64, normal
     equations by Gaussian elimination with partial pivoting, centred and scaled for conditioning:
@@ -589,7 +609,7 @@ def rows_schema(a):
 
 
 ROWS = [rows_header, rows_unknown_column, rows_ref_radians, rows_gnu_options, rows_ned, rows_accel_down, rows_eps,
-        rows_accel_mg, rows_aided, rows_tumble_2d, rows_car, rows_bad_values, rows_report, rows_decimation_legend,
+        rows_accel_mg, rows_aided, rows_tumble_2d, rows_car, rows_bad_values, rows_report, rows_decimation_legend, rows_3d_large,
         rows_no_consensus, rows_schema]
 
 
