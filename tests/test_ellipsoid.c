@@ -3,6 +3,7 @@
  * Truth: m = W h + V + n, h = C_n^b B_ref, |B_ref| = F (algorithms.md 7.1/7.2).
  */
 #include <math.h>
+#include <stddef.h>
 #include <string.h>
 
 #include "magcal/ellipsoid.h"
@@ -731,6 +732,17 @@ static void test_ellipsoid_fit_trust_cfg_out_of_range_returns_arg(void)
 static MAGCAL_ELLIPSOID_CALIBRATE_WORKSPACE_DECLARE(g_cwork, NFIT + NOUT);
 static uint8_t g_cin[NFIT + NOUT];
 
+/* Two results equal bit for bit, field by field: the bytes after `model` are padding (a 1-byte
+ * enum with arm-none-eabi's short enums), whatever the stack held. */
+static void assert_same_result(const magcal_ellipsoid_result_t *a, const magcal_ellipsoid_result_t *b)
+{
+    const size_t head = offsetof(magcal_ellipsoid_result_t, model) + sizeof a->model;
+    const size_t tail = offsetof(magcal_ellipsoid_result_t, gate_cal);
+    TEST_ASSERT_EQUAL_MEMORY(a, b, head);
+    TEST_ASSERT_EQUAL_MEMORY((const unsigned char *)a + tail, (const unsigned char *)b + tail,
+                             sizeof *a - tail);
+}
+
 /* Clean tumble: the density stage is skipped and the result is the plain fit, bit for bit. */
 static void test_ellipsoid_calibrate_clean_data_skips_density_stage(void)
 {
@@ -747,7 +759,7 @@ static void test_ellipsoid_calibrate_clean_data_skips_density_stage(void)
     TEST_ASSERT_EQUAL_UINT32(0u, info.density_ran);
     TEST_ASSERT_EQUAL_UINT32(0u, (uint32_t)info.n_density_rejected);
     TEST_ASSERT_TRUE(info.pretest_max_rel > 0.0f && info.pretest_max_rel <= cc.pretest_max_rel);
-    TEST_ASSERT_EQUAL_MEMORY(&rf, &r, sizeof r);
+    assert_same_result(&rf, &r);
     TEST_ASSERT_TRUE(v_err(&r.cal) < 0.1);
     for (k = 0; k < 320u; ++k) {
         TEST_ASSERT_EQUAL_UINT8(1u, g_cin[k]);
@@ -786,7 +798,7 @@ static void test_ellipsoid_calibrate_burst_runs_density_stage_as_composition(voi
         }
     }
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(kept, nk, &cc.fit, &rf));
-    TEST_ASSERT_EQUAL_MEMORY(&rf, &r, sizeof r);
+    assert_same_result(&rf, &r);
     TEST_ASSERT_TRUE(v_err(&r.cal) < 0.1);
     for (k = NFIT; k < NFIT + NOUT; ++k) {
         TEST_ASSERT_EQUAL_UINT8(0u, g_cin[k]);
