@@ -454,25 +454,27 @@ static magcal_status_t fit_model(const quad_acc_t *acc, magcal_ellipsoid_model_t
     return extract_quadric(coef, mu, s, cfg->field, cfg->sqrt_method, cal);
 }
 
-/* tan-free sector boundaries of the azimuth cells: cos / sin of 30, 60, 90, 120, 150 degrees */
-static const float k_bound_c[5] = {0.8660254f, 0.5f, 0.0f, -0.5f, -0.8660254f};
-static const float k_bound_s[5] = {0.5f, 0.8660254f, 1.0f, 0.8660254f, 0.5f};
-
 static int cell_of(float x, float y, float z, size_t *cell)
 {
+    /* tan-free sector boundaries of the azimuth cells: cos / sin of 30, 60, 90, 120, 150 degrees */
+    static const float k_bound_c[5] = {0.8660254f, 0.5f, 0.0f, -0.5f, -0.8660254f};
+    static const float k_bound_s[5] = {0.5f, 0.8660254f, 1.0f, 0.8660254f, 0.5f};
     float r = sqrtf(x * x + y * y + z * z);
     float sz;
     float u = -x; /* azimuth measured from -x, as atan2f(y, x) + pi, in [0, 2 pi) */
     float v = -y;
     size_t ia = 0u;
     size_t ie;
-    size_t b;
     if (!(r > 0.0f)) {
         return 0;
     }
     if (v == 0.0f && u >= 0.0f) { /* as atan2f: (0, 0) -> pi (cell 6), y = 0 < x -> 2 pi (cell 11) */
-        ia = (u > 0.0f) ? (MAGCAL_ELLIPSOID_COV_AZ - 1u) : (MAGCAL_ELLIPSOID_COV_AZ / 2u);
+        ia = (size_t)MAGCAL_ELLIPSOID_COV_AZ / 2u;
+        if (u > 0.0f) {
+            ia = (size_t)MAGCAL_ELLIPSOID_COV_AZ - 1u;
+        }
     } else {
+        size_t b;
         if (!(v > 0.0f)) { /* lower half: cells 6..11 */
             u = -u;
             v = -v;

@@ -10,6 +10,7 @@
 #include "ellipsoid_internal.h"
 #include "magcal/ellipsoid.h"
 #include "magcal/optics.h"
+#include "magcal_internal.h"
 
 /* Largest | |G(m - V)| - F | / F over all samples (NaN for a non-positive F). */
 static float max_residual_rel(const magcal_vec3_t *m, size_t n, const magcal_ellipsoid_cal_t *cal)
@@ -54,7 +55,8 @@ static magcal_status_t density_then_fit(const magcal_ellipsoid_calibrate_cfg_t *
             inlier[k] = keep;
         }
         if (keep != 0u) {
-            kept[nk++] = m[k];
+            kept[nk] = m[k];
+            ++nk;
         }
     }
     info->n_density_rejected = n - nk;
@@ -68,9 +70,12 @@ magcal_status_t magcal_ellipsoid_calibrate(const magcal_ellipsoid_calibrate_cfg_
                                            magcal_ellipsoid_calibrate_info_t *info)
 {
     magcal_ellipsoid_calibrate_info_t local;
-    magcal_ellipsoid_calibrate_info_t *inf = (info != NULL) ? info : &local;
+    magcal_ellipsoid_calibrate_info_t *inf = &local;
     magcal_ellipsoid_result_t first;
-    magcal_status_t st;
+    (void)memset(&local, 0, sizeof local);
+    if (info != NULL) {
+        inf = info;
+    }
     if (cfg == NULL || m == NULL || work == NULL || out == NULL) {
         return MAGCAL_ERR_NULL;
     }
@@ -79,14 +84,16 @@ magcal_status_t magcal_ellipsoid_calibrate(const magcal_ellipsoid_calibrate_cfg_
         !(cfg->pretest_max_rel > 0.0f && cfg->pretest_max_rel <= 1.0f)) {
         return MAGCAL_ERR_ARG;
     }
-    if ((((uintptr_t)work) & 3u) != 0u ||
-        work_len < MAGCAL_ELLIPSOID_CALIBRATE_WORKSPACE_LEN(n)) {
+    if (magcal_misalign(work, 4u) != 0u) {
+        return MAGCAL_ERR_ALIGNMENT;
+    }
+    if (work_len < MAGCAL_ELLIPSOID_CALIBRATE_WORKSPACE_LEN(n)) {
         return MAGCAL_ERR_WORKSPACE;
     }
     (void)memset(inf, 0, sizeof(*inf));
     inf->pretest_max_rel = NAN;
     if (cfg->mode != MAGCAL_ELLIPSOID_DENSITY_ALWAYS) {
-        st = magcal_ellipsoid_fit(m, n, &cfg->fit, &first);
+        const magcal_status_t st = magcal_ellipsoid_fit(m, n, &cfg->fit, &first);
         if (st == MAGCAL_OK) {
             inf->pretest_max_rel = max_residual_rel(m, n, &first.cal);
         }

@@ -180,7 +180,11 @@ static void optics_loop(optics_ctx_t *c)
     }
 
     /* pass 0 (START_CORE only): runs start at unprocessed core points; pass 1: at any point */
-    for (pass = c->oc.core_start != 0 ? 0u : 1u; pass < 2u; ++pass) {
+    pass = 1u;
+    if (c->oc.core_start != 0) {
+        pass = 0u;
+    }
+    for (; pass < 2u; ++pass) {
         for (s = 0; s < c->n; ++s) {
             if (magcal_ocore_is_done(&c->oc, s) != 0 || (pass == 0u && is_core(c, s) == 0)) {
                 continue;
@@ -248,7 +252,10 @@ static optics_ctx_t *ctx_setup(const magcal_optics_cfg_t *cfg, const magcal_vec2
     c->eps2 = cfg->eps * cfg->eps;
     c->oc.min_pts = cfg->min_pts;
     c->oc.mode = cfg->order;
-    c->oc.core_start = cfg->start == MAGCAL_OPTICS_START_CORE ? 1 : 0;
+    c->oc.core_start = 0;
+    if (cfg->start == MAGCAL_OPTICS_START_CORE) {
+        c->oc.core_start = 1;
+    }
     c->oc.seeds = (uint16_t *)(void *)w;
     c->oc.pos = c->oc.seeds + n;
     c->oc.done = w + 4u * n + MAGCAL_NEIGHBORS_WORKSPACE_LEN(n);
@@ -573,6 +580,7 @@ static float pair_scale(const magcal_vec2_t *pts, size_t n, float *a)
     uint32_t state = AUTO_SEED;
     size_t k;
     const size_t m = n < AUTO_PAIRS ? n : AUTO_PAIRS;
+    /* cppcheck-suppress knownConditionTrueFalse ; false positive: m = min(n, 256) >= 16 (check_points) */
     for (k = 0; k < m; ++k) {
         const size_t i = (size_t)(magcal_ocore_rand(&state) % (uint32_t)n);
         const size_t j = (size_t)(magcal_ocore_rand(&state) % (uint32_t)n);
@@ -675,7 +683,10 @@ static MAGCAL_NOINLINE magcal_status_t thinned_centre(const magcal_vec2_t *pts, 
     if (!(h > 0.0f) || !magcal_isfinite_f(h)) {
         return MAGCAL_ERR_DEGENERATE;
     }
-    have = robust_centre(pts, n, NULL, a, cr) == MAGCAL_OK ? 1 : 0;
+    have = 0;
+    if (robust_centre(pts, n, NULL, a, cr) == MAGCAL_OK) {
+        have = 1;
+    }
     if (have == 0) {
         /* more than half the samples identical (R = 0): the first grid's origin is any sample */
         cr[0] = pts[0].x;
@@ -921,7 +932,10 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
     c->oc.reach = (float *)work;
     c->oc.labels = (int16_t *)(void *)(w + 4u * n);
     c->oc.eps_prime = eps_prime;
-    c->oc.use_sectors = win != NULL ? 1 : 0; /* automatic mode: labels hold the sectors */
+    c->oc.use_sectors = 0; /* automatic mode: labels hold the sectors */
+    if (win != NULL) {
+        c->oc.use_sectors = 1;
+    }
     optics_loop(c);
     magcal_ocore_fill_info(info, &c->oc, c->nb.use_grid, use.eps, eps_prime);
     return magcal_ocore_filter_out(&c->oc, n, inlier_mask, info);

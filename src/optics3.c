@@ -364,7 +364,11 @@ static void optics3_loop(optics3_ctx_t *c)
     }
     c->n_live = c->n;
     /* pass 0 (START_CORE only): runs start at unprocessed core points; pass 1: at any point */
-    for (pass = c->oc.core_start != 0 ? 0u : 1u; pass < 2u; ++pass) {
+    pass = 1u;
+    if (c->oc.core_start != 0) {
+        pass = 0u;
+    }
+    for (; pass < 2u; ++pass) {
         for (s = 0; s < c->n; ++s) {
             if (magcal_ocore_is_done(&c->oc, s) != 0 || (pass == 0u && is_core3(c, s) == 0)) {
                 continue;
@@ -409,7 +413,10 @@ static optics3_ctx_t *ctx3_setup(const magcal_optics_cfg_t *cfg, const magcal_ve
     c->eps2 = cfg->eps * cfg->eps;
     c->oc.min_pts = cfg->min_pts;
     c->oc.mode = cfg->order;
-    c->oc.core_start = cfg->start == MAGCAL_OPTICS_START_CORE ? 1 : 0;
+    c->oc.core_start = 0;
+    if (cfg->start == MAGCAL_OPTICS_START_CORE) {
+        c->oc.core_start = 1;
+    }
     c->oc.seeds = (uint16_t *)(void *)w;
     c->oc.pos = c->oc.seeds + n;
     c->live = c->oc.pos + n;
@@ -476,7 +483,6 @@ magcal_status_t magcal_optics_run3(const magcal_optics_cfg_t *cfg, const magcal_
 #define AUTO3_THIN_ROUNDS 2u
 #define AUTO3_THIN_N 400u    /* above 400 samples the cells shrink like 1/sqrt(n) */
 #define AUTO3_CELL_HALF 128u /* cell coordinates clamped to +-128: exact float keys */
-#define AUTO3_CELLS 96u      /* direction cells of the shell selection (6 faces x 4 x 4) */
 
 /* What the automatic rule measured and ran. */
 typedef struct {
@@ -565,6 +571,7 @@ static float pair_scale3(const magcal_vec3_t *pts, size_t n, float *a)
     uint32_t state = AUTO3_SEED;
     size_t k;
     const size_t m = n < AUTO3_PAIRS ? n : AUTO3_PAIRS;
+    /* cppcheck-suppress knownConditionTrueFalse ; false positive: m = min(n, pairs) >= 16 (check_points) */
     for (k = 0; k < m; ++k) {
         const size_t i = (size_t)(magcal_ocore_rand(&state) % (uint32_t)n);
         const size_t j = (size_t)(magcal_ocore_rand(&state) % (uint32_t)n);
@@ -686,7 +693,10 @@ static magcal_status_t auto_run3(const magcal_optics_cfg_t *cfg, const magcal_ve
     if (!(h > 0.0f) || !magcal_isfinite_f(h)) {
         return MAGCAL_ERR_DEGENERATE;
     }
-    have = robust_centre3(pts, n, NULL, a, &cen, &rad) == MAGCAL_OK ? 1 : 0;
+    have = 0;
+    if (robust_centre3(pts, n, NULL, a, &cen, &rad) == MAGCAL_OK) {
+        have = 1;
+    }
     if (have == 0) {
         cen = pts[0]; /* more than half the samples identical: the first grid's origin */
     }
@@ -799,7 +809,7 @@ magcal_status_t magcal_optics_auto_params3(const magcal_vec3_t *pts, size_t n, v
     return MAGCAL_OK;
 }
 
-/* Direction cell (0..AUTO3_CELLS-1) of d on the cube around the centre: the face of its largest
+/* Direction cell (0..95) of d on the cube around the centre: the face of its largest
  * component (6), then 4 x 4 bins of the other two over [-1, 1] (no trigonometry). */
 static unsigned dir_cell3(float dx, float dy, float dz)
 {
@@ -810,26 +820,39 @@ static unsigned dir_cell3(float dx, float dy, float dz)
     float m;
     float u;
     float v;
+    float fu;
+    float fv;
     int32_t iu;
     int32_t iv;
     if (ax >= ay && ax >= az) {
-        face = dx >= 0.0f ? 0u : 1u;
+        face = 1u;
+        if (dx >= 0.0f) {
+            face = 0u;
+        }
         m = ax;
         u = dy;
         v = dz;
     } else if (ay >= az) {
-        face = dy >= 0.0f ? 2u : 3u;
+        face = 3u;
+        if (dy >= 0.0f) {
+            face = 2u;
+        }
         m = ay;
         u = dx;
         v = dz;
     } else {
-        face = dz >= 0.0f ? 4u : 5u;
+        face = 5u;
+        if (dz >= 0.0f) {
+            face = 4u;
+        }
         m = az;
         u = dx;
         v = dy;
     }
-    iu = (int32_t)((u / m + 1.0f) * 2.0f);
-    iv = (int32_t)((v / m + 1.0f) * 2.0f);
+    fu = (u / m + 1.0f) * 2.0f;
+    fv = (v / m + 1.0f) * 2.0f;
+    iu = (int32_t)fu;
+    iv = (int32_t)fv;
     iu = iu < 0 ? 0 : (iu > 3 ? 3 : iu);
     iv = iv < 0 ? 0 : (iv > 3 ? 3 : iv);
     return face * 16u + (unsigned)iu * 4u + (unsigned)iv;

@@ -34,6 +34,7 @@
  * the first element popped. Same (reach, index) key, so its outputs are bit-identical to the two
  * library modes; it exists to reproduce the paper's Table 2 (docs/performance.md).
  */
+/* cppcheck-suppress misra-c2012-2.5 ; used only in the bench build (MAGCAL_OPTICS_BENCH_SORTED_LIST) */
 #define MAGCAL_OPTICS_SORTED_LIST_ ((magcal_optics_order_t)2)
 #endif
 
@@ -226,7 +227,10 @@ static inline uint16_t magcal_ocore_pop_min(magcal_ocore_t *o)
 static inline void magcal_ocore_extract_step(magcal_ocore_t *o, size_t p, float core_p)
 {
     int16_t lab;
-    const int16_t sec = o->use_sectors != 0 ? o->labels[p] : (int16_t)-1;
+    int16_t sec = -1;
+    if (o->use_sectors != 0) {
+        sec = o->labels[p];
+    }
     if (o->reach[p] > o->eps_prime) {
         if (core_p <= o->eps_prime) {
             magcal_ocore_close(o);

@@ -817,6 +817,9 @@ static void test_ellipsoid_calibrate_bad_input_returns_status(void)
                           magcal_ellipsoid_calibrate(&cc, g_m, 320u, g_cwork,
                                                      MAGCAL_ELLIPSOID_CALIBRATE_WORKSPACE_LEN(320u) - 1u, NULL,
                                                      &r, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ALIGNMENT,
+                          magcal_ellipsoid_calibrate(&cc, g_m, 320u, (uint8_t *)(void *)g_cwork + 1,
+                                                     sizeof g_cwork - 1u, NULL, &r, NULL));
     cc.pretest_max_rel = 0.0f;
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_calibrate(&cc, g_m, 320u, g_cwork, sizeof g_cwork,
                                                                      NULL, &r, NULL));

@@ -256,7 +256,7 @@ magcal_cont_outcome_t magcal_cont_solve_blocking(magcal_cont_t *cc, int force);
  * @return MAGCAL_OK, MAGCAL_ERR_NULL, MAGCAL_ERR_NOT_INITIALISED, MAGCAL_ERR_NONFINITE,
  *         MAGCAL_ERR_ZERO_FIELD (as magcal_heading_compute()).
  */
-magcal_status_t magcal_cont_heading(const magcal_cont_t *cc, const magcal_vec3_t *raw, float declination_deg,
+magcal_status_t magcal_cont_heading(const magcal_cont_t *cc, const magcal_vec3_t *m, float declination_deg,
                                     magcal_cont_heading_t *out);
 
 /** @brief Live progress. @return MAGCAL_OK, MAGCAL_ERR_NULL, MAGCAL_ERR_NOT_INITIALISED. */

@@ -327,8 +327,9 @@ typedef struct {
  * @param[out] out      the fit; written only on MAGCAL_OK (out->n_used etc. count the fit's input).
  * @param[out] info     NULL, or what was done; written on MAGCAL_OK and on a failure of the fit.
  * @return MAGCAL_OK; MAGCAL_ERR_NULL (cfg, m, work or out NULL); MAGCAL_ERR_ARG (mode or
- *         pretest_max_rel out of range, or a stage's config invalid); MAGCAL_ERR_WORKSPACE (work_len
- *         too small or work misaligned); every status of magcal_optics_filter3 (density stage) and
+ *         pretest_max_rel out of range, or a stage's config invalid); MAGCAL_ERR_ALIGNMENT (work not
+ *         4-byte aligned); MAGCAL_ERR_WORKSPACE (work_len too small); every status of
+ *         magcal_optics_filter3 (density stage) and
  *         of magcal_ellipsoid_fit.
  *
  * @code

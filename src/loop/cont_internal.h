@@ -22,7 +22,7 @@ typedef struct {
 
 int magcal_cont_ok(const magcal_cont_t *cc);
 /* Judge raw (x, y) under cc->cal: 0 when no calibration is installed (j->mismatch 0). */
-int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *raw, magcal_cont_judge_t *j);
+int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_cont_judge_t *j);
 /* Fit the judge's total-field model and noise on the store under cc->cal (at an adoption). */
 void magcal_cont_fit_field(magcal_cont_t *cc);
 /* Episode update with one judged sample at t_ms; returns 1 when a change is declared now. */
@@ -32,7 +32,7 @@ void magcal_cont_declare_change(magcal_cont_t *cc);
 /* 1 when an open episode spans at least cfg.change_bins sectors (every heading suspect). */
 int magcal_cont_episode_wide(const magcal_cont_t *cc);
 /* Finish a solve: the batch verdict `st` with cc->last, ageing rule, install. Returns the outcome. */
-magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_t st);
+magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_t verdict);
 /* Install calibration c (raw radius r_raw, relative noise sigma) and index the store around it. */
 void magcal_cont_install(magcal_cont_t *cc, const magcal_cal2d_t *c, float r_raw, float sigma);
 
