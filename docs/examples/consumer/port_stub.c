@@ -5,6 +5,15 @@
 #include "magcal/magcal_port.h"
 
 static unsigned g_tick;
+static uint32_t g_lcg = 12345u;
+
+/* A real sensor's noise, +-1.5 LSB uniform (deterministic): without it the samples repeat every
+ * turn exactly, and the calibrator cannot tell their noise from its parameter error. */
+static float noise(void)
+{
+    g_lcg = g_lcg * 1664525u + 1013904223u;
+    return 3.0f * ((float)(g_lcg >> 8) / 16777216.0f) - 1.5f;
+}
 
 magcal_status_t magcal_port_mag_read(magcal_vec3_t *out)
 {
@@ -13,9 +22,9 @@ magcal_status_t magcal_port_mag_read(magcal_vec3_t *out)
         return MAGCAL_ERR_NULL;
     }
     a = 0.1f * (float)(g_tick++ % 63u); /* about one turn every 63 samples */
-    out->x = 120.0f + 300.0f * cosf(a);
-    out->y = -40.0f + 250.0f * sinf(a);
-    out->z = 400.0f;
+    out->x = 120.0f + 300.0f * cosf(a) + noise();
+    out->y = -40.0f + 250.0f * sinf(a) + noise();
+    out->z = 400.0f + noise();
     return MAGCAL_OK;
 }
 
