@@ -114,12 +114,10 @@ static size_t info_row(const float h[3], int sphere, float row[INFO_MAX_N])
     return INFO_MAX_N;
 }
 
-/* Largest eigenvalue of a symmetric 3x3 (lower triangle used); NaN/Inf/failure give +Inf. */
-static MAGCAL_NOINLINE float max_eig3(float c[3][3])
+/* Eigenvalues w of a symmetric 3x3 given by its lower triangle (c is mirrored, then overwritten). */
+static magcal_status_t eig3(float c[3][3], float w[3])
 {
-    float w[3];
     float e[3][3];
-    float wmax;
     size_t i;
     size_t j;
     for (i = 0u; i < 3u; ++i) {
@@ -127,7 +125,15 @@ static MAGCAL_NOINLINE float max_eig3(float c[3][3])
             c[j][i] = c[i][j];
         }
     }
-    if (magcal_jacobi_sym(&c[0][0], 3u, w, &e[0][0]) != MAGCAL_OK) {
+    return magcal_jacobi_sym(&c[0][0], 3u, w, &e[0][0]);
+}
+
+/* Largest eigenvalue of a symmetric 3x3 (lower triangle used); NaN/Inf/failure give +Inf. */
+static MAGCAL_NOINLINE float max_eig3(float c[3][3])
+{
+    float w[3];
+    float wmax;
+    if (eig3(c, w) != MAGCAL_OK) {
         return INFINITY;
     }
     wmax = fmaxf(w[0], fmaxf(w[1], w[2]));
@@ -138,18 +144,10 @@ static MAGCAL_NOINLINE float max_eig3(float c[3][3])
 static MAGCAL_NOINLINE float planarity3(float c[3][3])
 {
     float w[3];
-    float e[3][3];
     float lo;
     float mid;
     float hi;
-    size_t i;
-    size_t j;
-    for (i = 0u; i < 3u; ++i) {
-        for (j = 0u; j < i; ++j) {
-            c[j][i] = c[i][j];
-        }
-    }
-    if (magcal_jacobi_sym(&c[0][0], 3u, w, &e[0][0]) != MAGCAL_OK) {
+    if (eig3(c, w) != MAGCAL_OK) {
         return 0.0f;
     }
     lo = fminf(w[0], fminf(w[1], w[2]));
