@@ -47,6 +47,7 @@ const char *magcal_status_str(magcal_status_t status)
     case MAGCAL_ERR_CRC: return "record CRC mismatch";
     case MAGCAL_ERR_VERSION: return "record version mismatch";
     case MAGCAL_ERR_SATURATED: return "sample at the sensor range limit";
+    case MAGCAL_IN_PROGRESS: return "in progress (call step again)";
     default: return "unknown";
     }
 }
@@ -54,7 +55,8 @@ const char *magcal_status_str(magcal_status_t status)
 int magcal_status_is_outcome(magcal_status_t status)
 {
     return (status == MAGCAL_OK || status == MAGCAL_ERR_NOT_BETTER || status == MAGCAL_ERR_GATED ||
-            status == MAGCAL_ERR_NO_DATA || status == MAGCAL_ERR_NOT_CONVERGED)
+            status == MAGCAL_ERR_NO_DATA || status == MAGCAL_ERR_NOT_CONVERGED ||
+            status == MAGCAL_IN_PROGRESS)
                ? 1
                : 0;
 }

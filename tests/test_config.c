@@ -145,17 +145,18 @@ static void test_status_is_outcome_only_for_normal_outcomes(void)
 {
     int c;
     int n = 0;
-    for (c = 0; c >= (int)MAGCAL_ERR_VERSION; --c) {
+    for (c = 1; c >= (int)MAGCAL_ERR_SATURATED; --c) {
         n += magcal_status_is_outcome((magcal_status_t)c);
     }
-    TEST_ASSERT_EQUAL_INT(5, n);
+    TEST_ASSERT_EQUAL_INT(6, n);
     TEST_ASSERT_EQUAL_INT(1, magcal_status_is_outcome(MAGCAL_OK));
     TEST_ASSERT_EQUAL_INT(1, magcal_status_is_outcome(MAGCAL_ERR_NOT_BETTER));
     TEST_ASSERT_EQUAL_INT(1, magcal_status_is_outcome(MAGCAL_ERR_GATED));
     TEST_ASSERT_EQUAL_INT(1, magcal_status_is_outcome(MAGCAL_ERR_NO_DATA));
     TEST_ASSERT_EQUAL_INT(1, magcal_status_is_outcome(MAGCAL_ERR_NOT_CONVERGED));
     TEST_ASSERT_EQUAL_INT(0, magcal_status_is_outcome(MAGCAL_ERR_CONFIG_MISMATCH));
-    TEST_ASSERT_EQUAL_INT(0, magcal_status_is_outcome((magcal_status_t)1));
+    TEST_ASSERT_EQUAL_INT(1, magcal_status_is_outcome(MAGCAL_IN_PROGRESS));
+    TEST_ASSERT_EQUAL_INT(0, magcal_status_is_outcome((magcal_status_t)2));
 }
 
 static void test_version_has_one_source(void)

@@ -90,7 +90,8 @@ static void test_status_str_names_every_code(void)
     for (c = 0; c >= (int)MAGCAL_ERR_SATURATED; --c) {
         TEST_ASSERT_NOT_EQUAL(0, strcmp("unknown", magcal_status_str((magcal_status_t)c)));
     }
-    TEST_ASSERT_EQUAL_STRING("unknown", magcal_status_str((magcal_status_t)1));
+    TEST_ASSERT_EQUAL_STRING("unknown", magcal_status_str((magcal_status_t)2));
+    TEST_ASSERT_NOT_EQUAL(0, strcmp("unknown", magcal_status_str(MAGCAL_IN_PROGRESS)));
     TEST_ASSERT_EQUAL_STRING("ok", magcal_status_str(MAGCAL_OK));
 }
 

@@ -17,6 +17,8 @@
  *    not stored, keep feeding;
  *  - MAGCAL_ERR_NO_DATA: the (replayed) data source is exhausted;
  *  - MAGCAL_ERR_NOT_CONVERGED: an estimate is still converging (aided): ask again later.
+ * MAGCAL_IN_PROGRESS (+1, the only positive code) is returned only by the *_step() functions of
+ * time-sliced work: the budget of this call is spent, the work is not finished, call again.
  * Every other negative code is a fault or a refusal the firmware should log and act on.
  */
 #ifndef MAGCAL_STATUS_H
@@ -28,6 +30,7 @@ extern "C" {
 
 /** Result of a magcal call. Values are stable: append new codes, never renumber. */
 typedef enum {
+    MAGCAL_IN_PROGRESS = 1,           /**< a time-sliced call did its budget of work: call its step again (not an error) */
     MAGCAL_OK = 0,                    /**< success */
     MAGCAL_ERR_NULL = -1,             /**< a required pointer argument is NULL */
     MAGCAL_ERR_ARG = -2,              /**< an argument or config value is out of its documented range */
