@@ -313,6 +313,16 @@ static void test_intake_spike_in_first_sample_does_not_move_centre(void)
     TEST_ASSERT_EQUAL_DOUBLE(360.0, posthoc_coverage2(&g_st, occ));
 }
 
+/* An hour at 50 Hz on the host. On the QEMU target (cortex-m4f-tests preset) the test's double
+ * generator runs in software double: the hour took ~60 s per test there, against the 120 s
+ * limit of one on-target run, so the target variant drives 10 minutes (the hills' full period,
+ * the lane-change wander twice) with the same per-sample bounds. */
+#if defined(__arm__)
+#define LONG_N 30000u
+#else
+#define LONG_N 180000u
+#endif
+
 static void test_intake_parked_hour_fills_only_its_own_bin(void)
 {
     /* one turn to settle the centre, then 180 000 samples (an hour at 50 Hz) parked at 137 deg
@@ -331,7 +341,7 @@ static void test_intake_parked_hour_fills_only_its_own_bin(void)
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_counters(&g_st, &c0));
     (void)posthoc_coverage2(&g_st, occ0);
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_snapshot3(&g_st, before, 288u, &n0));
-    for (k = 0; k < 180000u; ++k) {
+    for (k = 0; k < LONG_N; ++k) {
         magcal_vec3_t m = sample2(137.0, 0.0, 0.15, &rng);
         push_ok(&g_st, &m);
     }
@@ -347,12 +357,12 @@ static void test_intake_parked_hour_fills_only_its_own_bin(void)
      * samples are refused for spacing */
     printf("parked: added %u replaced %u refused %u\n", (unsigned)(c1.added - c0.added),
            (unsigned)(c1.replaced - c0.replaced), (unsigned)(c1.refused_spacing - c0.refused_spacing));
-    TEST_ASSERT_TRUE(c1.refused_spacing - c0.refused_spacing >= 171000u);
+    TEST_ASSERT_TRUE(c1.refused_spacing - c0.refused_spacing >= LONG_N - LONG_N / 20u);
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_snapshot3(&g_st, g_out, 288u, &n1));
     TEST_ASSERT_TRUE(n1 >= n0 - PER_BIN && n1 <= n0 + PER_BIN);
     /* parked from power-up: one or two sectors, at most two bins of samples */
     init2(&g_st, g_slots, &cfg);
-    for (k = 0; k < 180000u; ++k) {
+    for (k = 0; k < LONG_N; ++k) {
         magcal_vec3_t m = sample2(137.0, 0.0, 0.15, &rng);
         push_ok(&g_st, &m);
     }
@@ -378,7 +388,7 @@ static void test_intake_straight_hour_with_hills_fills_only_its_own_bins(void)
     size_t k;
     init2(&g_st, g_slots, &cfg);
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_init(&g_st_b, &cfg3, g_slots3, MAGCAL_INTAKE_SLOTS_3D(BANDS, PER_CELL)));
-    for (k = 0; k < 180000u; ++k) {
+    for (k = 0; k < LONG_N; ++k) {
         const double t = (double)k / 50.0;
         const double psi = 250.0 + 1.5 * sin(t / 40.0), pitch = 6.0 * sin(2.0 * PI_D * t / 600.0);
         magcal_vec3_t m = sample2(psi, pitch, 0.15, &rng);
