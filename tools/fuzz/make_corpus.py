@@ -3,11 +3,11 @@
 
   make_corpus.py --source-dir REPO --out DIR [--shared-dir /work/shared]
 
-Writes DIR/replay_csv/, DIR/calibrator/, DIR/cluster/, DIR/3d/ (one file per seed, named by content hash).
+Writes DIR/replay_csv/, DIR/calibrator/, DIR/cluster/, DIR/3d/, DIR/cont/ (one file per seed, named by content hash).
 Inputs: REPO/tests/data/{real,synthetic}/*.csv, SHARED/data/real/*/data.csv when given, and the
 committed seeds in tools/fuzz/seeds/<harness>/ (hand-written CSVs, reproducers of fixed crashes). The corpora are build products: never commit them.
 
-Seed formats are those documented at the top of fuzz_calibrator.c and fuzz_cluster.c.
+Seed formats are those documented at the top of fuzz_calibrator.c, fuzz_cluster.c, fuzz_3d.c and fuzz_cont.c.
 """
 import argparse
 import glob
@@ -145,6 +145,73 @@ def seeds_3d(out):
     write_seed(out, bytes(raw))
 
 
+def read_xyz(path):
+    """(x, y, z) of the mx, my, mz columns (z = 0 without mz); rows with a bad cell are skipped."""
+    pts = []
+    header = None
+    with open(path, "r", encoding="utf-8", errors="replace") as f:
+        for line in f:
+            s = line.strip()
+            if not s or s.startswith("#"):
+                continue
+            cells = [c.strip().strip('"').lower() for c in s.split(",")]
+            if header is None:
+                header = cells
+                if "mx" not in header or "my" not in header:
+                    return []
+                ix, iy = header.index("mx"), header.index("my")
+                iz = header.index("mz") if "mz" in header else None
+                continue
+            try:
+                p = (float(cells[ix]), float(cells[iy]), float(cells[iz]) if iz is not None else 0.0)
+            except (ValueError, IndexError):
+                continue
+            if all(math.isfinite(v) for v in p):
+                pts.append(p)
+    return pts
+
+
+# fuzz_cont.c header at MAGCAL_CONT_CFG_DEFAULT (36 x 8, sweep 8, spacing 0.02, recentre 0.05,
+# coverage 270, min_new 24, drain 2, age 600 s, k 4, rel 0.06, change 8 s over 3 bins, clear 4 s)
+CONT_HDR = "<BBHBBBfHBBHBBHBHf"
+
+
+def cont_header(flags, rng=0.0, drain=1, scale=0.0):
+    return struct.pack(CONT_HDR, flags, 7, 28, 7, 10, 12, rng, 270, 24, drain, 6000, 60, 30, 2000, 2, 1000, scale)
+
+
+def cont_ops(pts, dt_ms, every_heading=5, extra=b""):
+    """push + step per sample (what a firmware does), a heading every few rows, progress at the end."""
+    body = bytearray()
+    for k, (x, y, z) in enumerate(pts):
+        body += struct.pack("<BHfff", 0, dt_ms, x, y, z) + bytes([5])
+        if k % every_heading == 0:
+            body += bytes([6]) + struct.pack("<ffff", x, y, z, 2.5)
+    return bytes(body) + extra + bytes([7])
+
+
+def cont_seeds(dumps, out):
+    """Stream seeds: each dump (up to 400 rows), and a synthetic ring with a glitch in row 0, a
+    transient and every other op (solve_blocking, re-init, trust, the standalone store)."""
+    for path in dumps:
+        pts = read_xyz(path)
+        if len(pts) >= 40:
+            p = subsample(pts, 400) if len(pts) > 400 else pts
+            write_seed(out, cont_header(0x10) + cont_ops(p, 20))
+    rng = random.Random(13)
+    ring = [(350.0, -420.0, 510.0)]
+    for k in range(720):
+        a = 2.0 * math.pi * k / 240.0
+        f = 1.3 if 400 <= k < 420 else 1.0
+        ring.append((120.0 + f * 48.0 * math.cos(a) + rng.gauss(0, 0.3), -40.0 + f * 39.0 * math.sin(a) +
+                     rng.gauss(0, 0.3), 30.0 + rng.gauss(0, 0.3)))
+    tail = bytes([8, 1]) + bytes([10]) + struct.pack("<fffffB", 60.0, -10.0, 0.02, 1.0, 60.0, 1) + \
+        bytes([11, 2]) + struct.pack("<fff", 120.0, -40.0, 50.0) + bytes([11, 1]) + \
+        struct.pack("<fff", 120.0, -40.0, 50.0) + bytes([9, 1]) + bytes([6]) + struct.pack("<ffff", 168.0, -40.0, 30.0, 0.0)
+    write_seed(out, cont_header(0x19, rng=800.0) + cont_ops(ring, 20, 7, tail))
+    write_seed(out, cont_header(0x15, drain=0) + cont_ops(ring[:400], 10, 11, tail))
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--source-dir", required=True)
@@ -162,11 +229,13 @@ def main():
     out_cal = os.path.join(a.out, "calibrator")
     out_clu = os.path.join(a.out, "cluster")
     out_3d = os.path.join(a.out, "3d")
-    for d in (out_csv, out_cal, out_clu, out_3d):
+    out_cont = os.path.join(a.out, "cont")
+    for d in (out_csv, out_cal, out_clu, out_3d, out_cont):
         shutil.rmtree(d, ignore_errors=True)       # regenerated from scratch every time
         os.makedirs(d)
     # committed seeds: hand-written CSVs and the reproducers of fixed crashes (regressions)
-    for harness, out in (("replay_csv", out_csv), ("calibrator", out_cal), ("cluster", out_clu), ("3d", out_3d)):
+    for harness, out in (("replay_csv", out_csv), ("calibrator", out_cal), ("cluster", out_clu), ("3d", out_3d),
+                         ("cont", out_cont)):
         for h in sorted(glob.glob(os.path.join(seeds, harness, "*"))):
             with open(h, "rb") as f:
                 write_seed(out, f.read())
@@ -177,7 +246,8 @@ def main():
             calibrator_seeds(pts, out_cal)
             cluster_seeds(pts, out_clu)
     seeds_3d(out_3d)
-    for d in (out_csv, out_cal, out_clu, out_3d):
+    cont_seeds(dumps, out_cont)
+    for d in (out_csv, out_cal, out_clu, out_3d, out_cont):
         print("%s: %d seeds" % (d, len(os.listdir(d))))
 
 
