@@ -530,6 +530,8 @@ def m4f_cont(build_dir, tmp_root, python, real=True):
             d["solves"].append({"start_row": int(f[4]), "end_row": int(f[5]), "steps": int(f[6]),
                                 "total": int(f[7]), "largest_step": int(f[8]), "outcome": f[9],
                                 "status": int(f[10])})
+        elif f[2] == "first_adopted_steps":
+            d["first_adopted_steps"] = [int(v) for v in f[3:]]
         elif f[2] == "summary":
             d.update(dict(zip(["adoptions", "solves_finished", "solves_aborted", "changes", "ok_headings",
                                "trusted_rows"], [int(v) for v in f[3:9]])))
@@ -610,6 +612,15 @@ def cont_markdown(cont):
             ("%d..%d, %d, **%s**" % (a["start_row"], a["end_row"], a["steps"], fmt_int(a["total"]))) if a else "none",
             fmt_int(d.get("largest_solve_total"))))
     L.append("")
+    for name in cont.get("order") or sorted(cont["drives"]):
+        st = cont["drives"].get(name, {}).get("first_adopted_steps")
+        if st:
+            srt = sorted(st)
+            L.append("`%s`, first adopted solve, instructions per step call in order: %s." % (
+                name, ", ".join(fmt_int(v) for v in st) if len(st) <= 12 else
+                "%d steps, largest %s, median %s, sum %s" % (len(st), fmt_int(srt[-1]), fmt_int(srt[(len(st) - 1) // 2]),
+                                                             fmt_int(sum(st)))))
+            L.append("")
     if cont.get("cal2d_source"):
         L.append("`m4f_cal2d_total_instr` is the first adopted solve of `%s`; `m4f_max_call_instr` the largest "
                  "call over every drive." % cont["cal2d_source"])

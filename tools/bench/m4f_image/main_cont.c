@@ -21,6 +21,7 @@
  *   CONT <drive> rows <n> <reps>
  *   CONT <drive> call <push|step|heading> <max> <p99> <median> <max_row>
  *   CONT <drive> solve <k> <start_row> <end_row> <steps> <total_instr> <largest_step> <outcome> <status>
+ *   CONT <drive> first_adopted_steps <instr of each step of the first adopted solve, in order>
  *   CONT <drive> summary <adoptions> <solves> <aborted> <changes> <ok_headings> <trusted_rows>
  * Exit status: 0, or 1 when a call broke its contract (a status push/heading may not return, an
  * OK heading outside [0, 360) or not finite, a generation that went down, no solve at all). */
@@ -58,6 +59,8 @@ static magcal_vec2_t g_solve_buf[SLOTS];
 static MAGCAL_CALIBRATOR_WORKSPACE_DECLARE(g_work, SLOTS);
 static magcal_cont_t g_cc;
 static uint32_t g_call[3][BENCH_DRIVE_MAX_ROWS]; /* push, step, heading: instructions per row */
+#define N_SOLVE_STEPS_MAX 4096u
+static uint32_t g_solve_step[N_SOLVE_STEPS_MAX]; /* the steps of the solve under way */
 
 static const char *const k_call_name[3] = {"push", "step", "heading"};
 
@@ -159,6 +162,9 @@ static int run_drive(const bench_drive_t *d)
                 s_max = 0u;
             }
             if (in_solve) {
+                if (s_steps < N_SOLVE_STEPS_MAX) {
+                    g_solve_step[s_steps] = c;
+                }
                 s_steps++;
                 s_total += c;
                 s_max = c > s_max ? c : s_max;
@@ -173,6 +179,14 @@ static int run_drive(const bench_drive_t *d)
                 } else {
                     solves++;
                     adoptions += o == MAGCAL_CONT_ADOPTED;
+                    if (o == MAGCAL_CONT_ADOPTED && adoptions == 1u) { /* per stage (today) or slice */
+                        uint32_t k, nk = s_steps < N_SOLVE_STEPS_MAX ? s_steps : N_SOLVE_STEPS_MAX;
+                        printf("CONT %s first_adopted_steps", d->name);
+                        for (k = 0u; k < nk; ++k) {
+                            printf(" %lu", (unsigned long)g_solve_step[k]);
+                        }
+                        printf("\n");
+                    }
                 }
                 if (solves + aborted <= N_SOLVE_MAX) {
                     printf("CONT %s solve %lu %lu %lu %lu %lu %lu %s %d\n", d->name,
