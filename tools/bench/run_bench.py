@@ -543,6 +543,31 @@ def m4f_cont(build_dir, tmp_root, python, real=True):
     return res
 
 
+def host_cont(build_dir, tmp_root, no_build, real):
+    """Host x86-64 instructions (callgrind) of the first adopted solve's step calls, on the same
+    drive as m4f_cal2d_total_instr (magcal_bench_cont.c). Full mode only: on the generated drive
+    the first adoption comes after ~60k rows, ~1 min under callgrind."""
+    if not no_build:
+        run(["cmake", "--build", build_dir, "--target", "magcal_bench_cont", "-j2"])
+    exe = os.path.join(build_dir, "tools", "bench", "magcal_bench_cont")
+    if not os.path.exists(exe):
+        return {"error": "magcal_bench_cont not built"}
+    d = shared_dir()
+    fn = os.path.join(d, "data", "real", CONT_REAL["name"], "data.csv") if d and real else None
+    if fn and os.path.exists(fn):
+        args, src = [fn, repr(CONT_REAL["range"]), str(CONT_REAL["reps"])], CONT_REAL["name"]
+    else:
+        args, src = [os.path.join(tmp_root, "cont_drive.csv"), repr(CONT_GEN["range"])], CONT_GEN["name"]
+    p = run(["valgrind", "--tool=callgrind", "--callgrind-out-file=/dev/null",
+             "--toggle-collect=bench_cont_collect_step", exe] + args, env=dict(os.environ, LD_BIND_NOW="1"))
+    m = re.search(r"Collected\s*:\s*(\d+)", p.stderr)
+    r = re.search(r"^CONT_HOST (\d+) (\d+) (\d+) (\d+) adopted$", p.stdout, re.M)
+    if p.returncode != 0 or not m or not r:
+        return {"error": "magcal_bench_cont failed (%d): %s" % (p.returncode, (p.stdout + p.stderr)[-500:])}
+    return {"drive": src, "cal2d_total_instr": int(m.group(1)), "rows_fed": int(r.group(1)),
+            "start_row": int(r.group(2)), "end_row": int(r.group(3)), "steps": int(r.group(4))}
+
+
 def cont_results(res, extra, cont):
     """results.json keys of the per-call run: m4f_max_call_instr = the largest push / step / heading
     over every drive; m4f_cal2d_total_instr = the first solve that ends ADOPTED (a complete 2-D
@@ -624,6 +649,16 @@ def cont_markdown(cont):
     if cont.get("cal2d_source"):
         L.append("`m4f_cal2d_total_instr` is the first adopted solve of `%s`; `m4f_max_call_instr` the largest "
                  "call over every drive." % cont["cal2d_source"])
+        L.append("")
+    h = cont.get("host")
+    if h and "error" not in h:
+        L.append("Host equivalent (x86-64, gcc -O2, callgrind `--toggle-collect=bench_cont_collect_step`, "
+                 "`tools/bench/magcal_bench_cont.c`): the same first adopted solve of `%s` (rows %d..%d, %d steps) "
+                 "costs **%s** host instructions." % (h["drive"], h["start_row"], h["end_row"], h["steps"],
+                                                      fmt_int(h["cal2d_total_instr"])))
+        L.append("")
+    elif h:
+        L.append("Host equivalent not measured: %s" % h["error"].splitlines()[0])
         L.append("")
     return L
 
@@ -747,6 +782,8 @@ def main(argv):
             log("   " + cont["error"])
         log("   %s (%.0f s, QEMU %.0f s)" % (", ".join(cont.get("order") or []), cont.get("total_s", 0),
                                           cont.get("qemu_s", 0)))
+        if not args.quick and "error" not in cont:
+            cont["host"] = host_cont(build_dir, out_dir, args.no_build, real=True)
 
     # ------------------------------------------------------------------ assemble
     def series(k):
