@@ -211,7 +211,8 @@ typedef struct {
  * @param[in]  residual_rel RMS radial residual of the calibration's fit / its radius, >= 0
  *                          (magcal_cal_report_t::residual_rel; ellipsoid residual_rms / field).
  *                          Store it beside a calibration saved to flash.
- * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_NONFINITE (residual_rel or a cfg value);
+ * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_NONFINITE (residual_rel or a cfg value, or k x residual_rel
+ *         overflows a float);
  *         MAGCAL_ERR_ARG (k <= 0, floor_rel outside [0, 1), incl_floor_deg outside [0, 90],
  *         residual_rel < 0).
  */
