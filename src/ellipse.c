@@ -699,6 +699,7 @@ static magcal_status_t ell_corr_input(const magcal_ellipse_t *e, float *r1, floa
     return MAGCAL_OK;
 }
 
+#if MAGCAL_CFG_ENABLE_PAPER
 /* Outputs of ell_kphi_coef(): ky, cos/sin of phi_p, h_x and sqrt(q11'). */
 typedef struct {
     float ky;
@@ -766,6 +767,7 @@ magcal_status_t magcal_ellipse_kphi(const magcal_ellipse_t *e, magcal_ellipse_kp
     *out = k;
     return MAGCAL_OK;
 }
+#endif /* MAGCAL_CFG_ENABLE_PAPER */
 
 magcal_status_t magcal_ellipse_to_cal(const magcal_ellipse_t *e, magcal_corr_form_t form, float rho,
                                       magcal_cal2d_t *out)
@@ -825,6 +827,7 @@ magcal_status_t magcal_ellipse_to_cal(const magcal_ellipse_t *e, magcal_corr_for
         cal.m[1][1] = out_r / (r1 * r2 * sq);
         break;
     }
+#if MAGCAL_CFG_ENABLE_PAPER
     case MAGCAL_CORR_KPHI: {
         /* M = rho/h_x (K Phi_p)^-1 = rho sqrt(q11) [[cos p, -sin p/ky], [-sin p, cos p/ky]]
          * (Phi_p^-1 = [[cos p, -sin p], [-sin p, cos p]]/cos 2p; see ell_kphi_coef). */
@@ -839,6 +842,7 @@ magcal_status_t magcal_ellipse_to_cal(const magcal_ellipse_t *e, magcal_corr_for
         cal.m[1][1] = g * c.cp / c.ky;
         break;
     }
+#endif /* MAGCAL_CFG_ENABLE_PAPER: without it KPHI is an unknown form */
     default: return MAGCAL_ERR_ARG;
     }
     cal.offset = e->center;
