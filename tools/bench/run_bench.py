@@ -406,6 +406,9 @@ def m4f_footprint(build_dir, tmp_root):
     res["min2d"] = image_sizes(bdir, "min2d")
     mg = res["min2d"]["groups"]
     res["min_flash"] = sum(mg.get(k, {}).get("flash", 0) for k in ("magcal", "libm", "libgcc"))
+    res["pipeline2d_min"] = image_sizes(bdir, "pipeline2d_min")  # calibrator image, switches at 0
+    pg = res["pipeline2d_min"]["groups"]
+    res["pipeline2d_min_flash"] = sum(pg.get(k, {}).get("flash", 0) for k in ("magcal", "libm", "libgcc"))
     cyc = os.path.join(bdir, "cycles.elf")
     if os.path.exists(cyc) and shutil.which("qemu-system-arm"):
         p = run(["timeout", "120", "qemu-system-arm", "-M", "mps2-an386", "-display", "none", "-monitor", "none",
@@ -907,6 +910,13 @@ def render_markdown(res, ns, i_ref, m4f, sk_info):
                          mg_.get("libgcc", {}).get("flash", 0),
                          ", ".join("%s %d" % (k.replace(".c.obj", ""), v) for k, v in
                                    sorted(mn["per_object"].items(), key=lambda kv: -kv[1])), top_line(mn)))
+            L.append("")
+        if mm.get("pipeline2d_min_flash") is not None:
+            L.append("The calibrator image (`main.c`) linked against that switches-at-0 library (`pipeline2d_min.elf`; "
+                     "DBSCAN and the KPHI form are run-time choices there, so only the switches remove them): "
+                     "library + libm + libgcc %d B against %d B in the shipped configuration." % (
+                         mm["pipeline2d_min_flash"], sum(mm["groups"].get(k, {}).get("flash", 0)
+                                                         for k in ("magcal", "libm", "libgcc"))))
             L.append("")
         Q = []
         qi = mm.get("qemu_insn")
