@@ -30,6 +30,8 @@
 #include "magcal/aided.h"
 #include "magcal_internal.h"
 
+#if MAGCAL_CFG_ENABLE_AIDED /* whole file: config.h feature switch */
+
 #define AIDED_MAGIC 0x41494433u /* "AID3" */
 #define NPHI 4u
 #define NPACK4 10u
@@ -792,3 +794,5 @@ magcal_status_t magcal_aided_get(const magcal_aided_t *inst, magcal_aided_result
     }
     return MAGCAL_OK;
 }
+
+#endif /* MAGCAL_CFG_ENABLE_AIDED */

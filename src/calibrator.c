@@ -519,6 +519,7 @@ static MAGCAL_NOINLINE magcal_status_t cal_filter(magcal_calibrator_t *cal,
         return MAGCAL_OK;
     }
     if (c->filter == MAGCAL_FILTER_DBSCAN) {
+#if MAGCAL_CFG_ENABLE_DBSCAN
         static const magcal_dbscan_cfg_t dc_default = MAGCAL_DBSCAN_CFG_DEFAULT;
         magcal_dbscan_cfg_t *dc = &run->dc;
         int16_t *labels = (int16_t *)cal->scratch;
@@ -552,6 +553,9 @@ static MAGCAL_NOINLINE magcal_status_t cal_filter(magcal_calibrator_t *cal,
         rep->filter_eps = dc->eps;
         rep->filter_min_pts = dc->min_pts;
         return MAGCAL_OK;
+#else
+        return MAGCAL_ERR_ARG; /* DBSCAN compiled out (config.h MAGCAL_CFG_ENABLE_DBSCAN = 0) */
+#endif
     }
     {
         static const magcal_optics_cfg_t oc_default = MAGCAL_OPTICS_CFG_DEFAULT;

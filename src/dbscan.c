@@ -6,6 +6,8 @@
 #include "magcal_internal.h"
 #include "neighbors.h"
 
+#if MAGCAL_CFG_ENABLE_DBSCAN /* whole file: config.h feature switch */
+
 #define LABEL_UNSEEN ((int16_t)-2)
 
 /* Number of points within eps of p (p included). */
@@ -125,3 +127,5 @@ magcal_status_t magcal_dbscan_run(const magcal_dbscan_cfg_t *cfg, const magcal_v
     }
     return MAGCAL_OK;
 }
+
+#endif /* MAGCAL_CFG_ENABLE_DBSCAN */

@@ -699,6 +699,16 @@ static magcal_status_t ell_corr_input(const magcal_ellipse_t *e, float *r1, floa
     return MAGCAL_OK;
 }
 
+#if MAGCAL_CFG_ENABLE_PAPER
+/* Outputs of ell_kphi_coef(): ky, cos/sin of phi_p, h_x and sqrt(q11'). */
+typedef struct {
+    float ky;
+    float cp;
+    float sp;
+    float hx;
+    float sq11;
+} ell_kphi_coef_t;
+
 /*
  * The documents' coefficients from the geometry. Q = R diag(1/r1^2, 1/r2^2) R^T is taken scaled by
  * r2^2 (q' = r2^2 Q, entries in [1, (r2/r1)^2], no overflow for tiny axes). With T = K Phi_p,
@@ -706,18 +716,25 @@ static magcal_status_t ell_corr_input(const magcal_ellipse_t *e, float *r1, floa
  * proportional to Q^-1, so ky = sqrt(q11/q22), sin 2p = -q12/sqrt(q11 q22) and
  * cos 2p = sqrt(det Q/(q11 q22)) = 1/(r1 r2 sqrt(q11 q22)): 2p = atan2(-q12', r2/r1) without
  * cancellation. *sq11 = sqrt(q11') (M = rho sqrt(q11) [[cos p, -sin p/ky], [-sin p, cos p/ky]]).
+ * cos p, sin p come from the half-angle forms of cos 2p = (r2/r1)/h, sin 2p = -q12'/h,
+ * h = |(-q12', r2/r1)|, not from sinf/cosf of an angle (their argument reduction is ~3.9 KB of
+ * libm in every 2-D image): cos 2p > 0 (|p| < pi/4), so cos p = sqrt((1 + cos 2p)/2) is in
+ * [0.707, 1] without cancellation and sin p = sin 2p/(2 cos p) keeps its relative precision.
  */
-static void ell_kphi_coef(float r1, float r2, float cc, float ss, float cs, float *ky, float *phi,
-                          float *hx, float *sq11)
+static void ell_kphi_coef(float r1, float r2, float cc, float ss, float cs, ell_kphi_coef_t *k)
 {
-    float a1 = (r2 / r1) * (r2 / r1);
+    float u = r2 / r1;
+    float a1 = u * u;
     float q11 = cc * a1 + ss;
     float q12 = cs * (a1 - 1.0f);
     float q22 = ss * a1 + cc;
-    *ky = sqrtf(q11 / q22);
-    *phi = 0.5f * atan2f(-q12, r2 / r1);
-    *hx = sqrtf(q22) * r1;
-    *sq11 = sqrtf(q11);
+    float t = -q12 / u; /* tan 2p, |t| = |cs| (u - 1/u) <= u/2: no overflow where a1 is finite */
+    float c2 = 1.0f / sqrtf(1.0f + t * t);
+    k->ky = sqrtf(q11 / q22);
+    k->cp = sqrtf(0.5f * (1.0f + c2));
+    k->sp = (0.5f * t * c2) / k->cp;
+    k->hx = sqrtf(q22) * r1;
+    k->sq11 = sqrtf(q11);
 }
 
 magcal_status_t magcal_ellipse_kphi(const magcal_ellipse_t *e, magcal_ellipse_kphi_t *out)
@@ -727,7 +744,7 @@ magcal_status_t magcal_ellipse_kphi(const magcal_ellipse_t *e, magcal_ellipse_kp
     float cc;
     float ss;
     float cs;
-    float sq11;
+    ell_kphi_coef_t c;
     magcal_ellipse_kphi_t k;
     magcal_status_t st;
 
@@ -738,8 +755,11 @@ magcal_status_t magcal_ellipse_kphi(const magcal_ellipse_t *e, magcal_ellipse_kp
     if (st != MAGCAL_OK) {
         return st;
     }
-    ell_kphi_coef(r1, r2, cc, ss, cs, &k.ky, &k.phi_p_rad, &k.h_x, &sq11);
-    k.beta_rad = atan2f((k.ky - 1.0f) * sinf(k.phi_p_rad), (1.0f + k.ky) * cosf(k.phi_p_rad));
+    ell_kphi_coef(r1, r2, cc, ss, cs, &c);
+    k.ky = c.ky;
+    k.phi_p_rad = atan2f(c.sp, c.cp); /* cp > 0: (-pi/4, pi/4) */
+    k.h_x = c.hx;
+    k.beta_rad = atan2f((c.ky - 1.0f) * c.sp, (1.0f + c.ky) * c.cp);
     k.b = e->center;
     if (!magcal_isfinite_f(k.ky) || !magcal_isfinite_f(k.h_x) || !(k.ky > 0.0f)) {
         return MAGCAL_ERR_ARG;
@@ -747,6 +767,7 @@ magcal_status_t magcal_ellipse_kphi(const magcal_ellipse_t *e, magcal_ellipse_kp
     *out = k;
     return MAGCAL_OK;
 }
+#endif /* MAGCAL_CFG_ENABLE_PAPER */
 
 magcal_status_t magcal_ellipse_to_cal(const magcal_ellipse_t *e, magcal_corr_form_t form, float rho,
                                       magcal_cal2d_t *out)
@@ -806,23 +827,22 @@ magcal_status_t magcal_ellipse_to_cal(const magcal_ellipse_t *e, magcal_corr_for
         cal.m[1][1] = out_r / (r1 * r2 * sq);
         break;
     }
+#if MAGCAL_CFG_ENABLE_PAPER
     case MAGCAL_CORR_KPHI: {
         /* M = rho/h_x (K Phi_p)^-1 = rho sqrt(q11) [[cos p, -sin p/ky], [-sin p, cos p/ky]]
          * (Phi_p^-1 = [[cos p, -sin p], [-sin p, cos p]]/cos 2p; see ell_kphi_coef). */
-        float ky;
-        float phi;
-        float hx;
-        float sq11;
+        ell_kphi_coef_t c;
         float g;
-        ell_kphi_coef(r1, r2, cc, ss, cs, &ky, &phi, &hx, &sq11);
-        out_r = (rho > 0.0f) ? rho : hx;
-        g = out_r * sq11 / r2;
-        cal.m[0][0] = g * cosf(phi);
-        cal.m[0][1] = -g * sinf(phi) / ky;
-        cal.m[1][0] = -g * sinf(phi);
-        cal.m[1][1] = g * cosf(phi) / ky;
+        ell_kphi_coef(r1, r2, cc, ss, cs, &c);
+        out_r = (rho > 0.0f) ? rho : c.hx;
+        g = out_r * c.sq11 / r2;
+        cal.m[0][0] = g * c.cp;
+        cal.m[0][1] = -g * c.sp / c.ky;
+        cal.m[1][0] = -g * c.sp;
+        cal.m[1][1] = g * c.cp / c.ky;
         break;
     }
+#endif /* MAGCAL_CFG_ENABLE_PAPER: without it KPHI is an unknown form */
     default: return MAGCAL_ERR_ARG;
     }
     cal.offset = e->center;

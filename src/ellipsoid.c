@@ -11,6 +11,8 @@
 
 #include "ellipsoid_internal.h"
 
+#if MAGCAL_CFG_ENABLE_3D /* whole file: config.h feature switch */
+
 #define NQ MAGCAL_ELL_NQ
 #define COV_CELLS ((size_t)MAGCAL_ELLIPSOID_COV_AZ * MAGCAL_ELLIPSOID_COV_EL)
 #define MIN_QUADRIC_POINTS 10u
@@ -875,3 +877,5 @@ magcal_status_t magcal_ellipsoid_coverage(const magcal_vec3_t *m, size_t n,
     *coverage = coverage_of(m, n, c, 1e-6f * mag);
     return MAGCAL_OK;
 }
+
+#endif /* MAGCAL_CFG_ENABLE_3D */

@@ -12,6 +12,8 @@
 #include "magcal/optics.h"
 #include "magcal_internal.h"
 
+#if MAGCAL_CFG_ENABLE_3D /* whole file: config.h feature switch */
+
 /* Largest | |G(m - V)| - F | / F over all samples (NaN for a non-positive F). */
 static float max_residual_rel(const magcal_vec3_t *m, size_t n, const magcal_ellipsoid_cal_t *cal)
 {
@@ -110,3 +112,5 @@ magcal_status_t magcal_ellipsoid_calibrate(const magcal_ellipsoid_calibrate_cfg_
     }
     return density_then_fit(cfg, m, n, work, work_len, inlier, out, inf);
 }
+
+#endif /* MAGCAL_CFG_ENABLE_3D */

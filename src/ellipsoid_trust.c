@@ -10,6 +10,8 @@
 
 #include "ellipsoid_internal.h"
 
+#if MAGCAL_CFG_ENABLE_3D /* whole file: config.h feature switch */
+
 #define MED_BINS 128u    /* histogram bins per pass of the median |residual|: 2 passes reach 0.1 % on a shell */
 #define MED_PASSES 4u    /* refinement passes: resolution (max |r|) / 128^4 at worst */
 #define PLANAR_MAX 0.15f /* planarity below this: one rotation axis dominates (SINGLE_AXIS) */
@@ -547,3 +549,5 @@ MAGCAL_NOINLINE magcal_status_t magcal_ell_trust_gates(const magcal_vec3_t *m, s
     }
     return MAGCAL_OK;
 }
+
+#endif /* MAGCAL_CFG_ENABLE_3D */

@@ -5,6 +5,8 @@
 #include "magcal/errmodel.h"
 #include "magcal_internal.h"
 
+#if MAGCAL_CFG_ENABLE_PAPER /* whole file: config.h feature switch */
+
 #define EM_MAXC MAGCAL_ERRMODEL_MAX_COEF
 
 /* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
@@ -340,3 +342,5 @@ magcal_status_t magcal_errmodel_poly_from_power(const float *coef_rad, size_t n_
     }
     return MAGCAL_OK;
 }
+
+#endif /* MAGCAL_CFG_ENABLE_PAPER */

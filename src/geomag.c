@@ -20,6 +20,8 @@
 #include "geomag_internal.h"
 #include "magcal_internal.h"
 
+#if MAGCAL_CFG_ENABLE_GEOMAG /* whole file: config.h feature switch */
+
 #define GEOMAG_A_REF_KM 6371.2f           /* geomagnetic reference radius */
 #define GEOMAG_WGS84_A_KM 6378.137f       /* WGS 84 semi-major axis */
 #define GEOMAG_WGS84_E2 6.69437999014e-3f /* e^2 = f (2 - f), 1/f = 298.257223563 */
@@ -442,3 +444,5 @@ magcal_status_t magcal_geomag_decimal_year(int year, int month, int day, float *
     *out = (float)year + (float)doy / (float)ylen;
     return MAGCAL_OK;
 }
+
+#endif /* MAGCAL_CFG_ENABLE_GEOMAG */

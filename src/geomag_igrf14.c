@@ -3,6 +3,8 @@
 
 #include "magcal/geomag.h"
 
+#if MAGCAL_CFG_ENABLE_GEOMAG /* config.h feature switch */
+
 static const float igrf14_coef[3570] = {
     -31543.0f, -2298.0f, 5922.0f, -677.0f, 2905.0f, -1061.0f,
     924.0f, 1121.0f, 1022.0f, -1469.0f, -330.0f, 1256.0f,
@@ -645,3 +647,4 @@ const magcal_geomag_model_t magcal_geomag_igrf14 = {
     13u, /* nmax */
     8u  /* sv nmax */
 };
+#endif /* MAGCAL_CFG_ENABLE_GEOMAG */

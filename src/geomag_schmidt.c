@@ -3,6 +3,8 @@
 
 #include "geomag_internal.h"
 
+#if MAGCAL_CFG_ENABLE_GEOMAG /* config.h feature switch */
+
 /* a[n(n-1)/2 + m] = (2n-1)/sqrt(n^2-m^2), n = 1..13, m = 0..n-1 */
 const float magcal_geomag_schmidt_a[91] = {
     1.0f, 1.5f, 1.7320508075688774f, 1.6666666666666667f, 1.7677669529663687f, 2.23606797749979f,
@@ -49,3 +51,5 @@ const float magcal_geomag_schmidt_s[14] = {
     0.9574271077563381f, 0.9636241116594315f, 0.9682458365518543f, 0.97182531580755f, 0.9746794344808963f, 0.9770084209183945f,
     0.9789450103725609f, 0.9805806756909202f,
 };
+
+#endif /* MAGCAL_CFG_ENABLE_GEOMAG */

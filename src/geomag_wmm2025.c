@@ -3,6 +3,8 @@
 
 #include "magcal/geomag.h"
 
+#if MAGCAL_CFG_ENABLE_GEOMAG /* config.h feature switch */
+
 static const float wmm2025_coef[168] = {
     -29351.8f, -1410.8f, 4545.4f, -2556.6f, 2951.1f, -3133.6f,
     1649.3f, -815.1f, 1361.0f, -2404.1f, -56.6f, 1243.8f,
@@ -89,3 +91,4 @@ const magcal_geomag_model_t magcal_geomag_wmm2025 = {
     12u, /* nmax */
     12u  /* sv nmax */
 };
+#endif /* MAGCAL_CFG_ENABLE_GEOMAG */

@@ -11,6 +11,8 @@
 #include "magcal/optics.h"
 #include "magcal_internal.h"
 #include "neighbors.h"
+
+#if MAGCAL_CFG_ENABLE_3D /* whole file: config.h feature switch (optics_core.h's static helpers inside) */
 #include "optics_core.h"
 
 /* Everything the ordering loop needs: the dimension-free state (optics_core.h, shared with the
@@ -1002,3 +1004,5 @@ magcal_status_t magcal_optics_filter3(const magcal_optics_cfg_t *cfg, const magc
     magcal_ocore_fill_info(info, &c->oc, c->use_grid, use.eps, eps_prime);
     return magcal_ocore_filter_out(&c->oc, n, inlier_mask, info);
 }
+
+#endif /* MAGCAL_CFG_ENABLE_3D */

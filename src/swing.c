@@ -5,6 +5,8 @@
 #include "magcal/swing.h"
 #include "magcal_internal.h"
 
+#if MAGCAL_CFG_ENABLE_SWING /* whole file: config.h feature switch */
+
 #define SWING_N MAGCAL_SWING_NCOEF
 #define SWING_COG_MAGIC 0x53574E47u /* "SWNG" */
 #define SWING_MAX_ITER 16u
@@ -543,3 +545,5 @@ magcal_status_t magcal_swing_cog_fit(const magcal_swing_cog_t *acc, magcal_swing
     return magcal_swing_fit(&acc->cfg.fit, psi_c, psi_ref, NULL, n, MAGCAL_SWING_REG_MEASURED,
                             model, stats);
 }
+
+#endif /* MAGCAL_CFG_ENABLE_SWING */

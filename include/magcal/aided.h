@@ -201,6 +201,7 @@ typedef struct {
     uint32_t n_still;            /**< epochs that passed the gates but added nothing: stationary (cfg.still_epochs) */
 } magcal_aided_result_t;
 
+#if MAGCAL_CFG_ENABLE_AIDED
 /**
  * @brief Initialise an instance (validates and copies the configuration).
  * @param[out] inst instance.
@@ -270,6 +271,7 @@ magcal_status_t magcal_aided_get(const magcal_aided_t *inst, magcal_aided_result
  * @return MAGCAL_OK, MAGCAL_ERR_NULL, MAGCAL_ERR_NONFINITE.
  */
 magcal_status_t magcal_aided_dcm(float roll_rad, float pitch_rad, float yaw_rad, float c[3][3]);
+#endif /* MAGCAL_CFG_ENABLE_AIDED */
 
 #ifdef __cplusplus
 }

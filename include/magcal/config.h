@@ -106,6 +106,58 @@
 #define MAGCAL_CONSENSUS_MAX_REFINE 32u
 #endif
 
+/* ---- Feature switches (issue 14): leave out what a firmware does not use ------------------------
+ * Each is 1 (compiled) by default; define it to 0 (-D, MAGCAL_USER_CONFIG, or the CMake options
+ * MAGCAL_ENABLE_* of the library build) to leave the feature out of libmagcal. A disabled
+ * feature's public functions are not declared (its header puts them under the same #if) and not
+ * compiled, so a call fails at compile time, not at run time; where a configuration value selects
+ * the feature inside a module that stays (magcal_calibrator_cfg_t::filter = MAGCAL_FILTER_DBSCAN,
+ * form = MAGCAL_CORR_KPHI), the call returns MAGCAL_ERR_ARG. Types, configuration structs and
+ * size macros stay declared (records and instance structs embed them). The library and every
+ * caller must see the same values (the CMake target exports them as compile definitions).
+ * Checked by the ctest `config_switches_off` (tests/switches/): the library with every switch at
+ * 0 links and runs a 2-D calibration. */
+
+/** DBSCAN (dbscan.h) and the calibrator's MAGCAL_FILTER_DBSCAN. */
+#ifndef MAGCAL_CFG_ENABLE_DBSCAN
+#define MAGCAL_CFG_ENABLE_DBSCAN 1
+#endif
+
+/** The classic OPTICS ordering (MAGCAL_OPTICS_CLASSIC, its seed heap; src/optics.c, optics_core.h). */
+#ifndef MAGCAL_CFG_ENABLE_OPTICS_CLASSIC
+#define MAGCAL_CFG_ENABLE_OPTICS_CLASSIC 1
+#endif
+
+/**
+ * The source documents' variants that the product's default path does not use: the indoor heading
+ * patent's adaptive heading-error models (errmodel.h), the documents' K Phi_p correction form
+ * (MAGCAL_CORR_KPHI) and coefficients (magcal_ellipse_kphi()).
+ */
+#ifndef MAGCAL_CFG_ENABLE_PAPER
+#define MAGCAL_CFG_ENABLE_PAPER 1
+#endif
+
+/** 3-D calibration: the ellipsoid fit and calibrate (ellipsoid.h) and the 3-D OPTICS stage
+ *  (optics.h "3-D samples", src/optics3.c). */
+#ifndef MAGCAL_CFG_ENABLE_3D
+#define MAGCAL_CFG_ENABLE_3D 1
+#endif
+
+/** The geomagnetic reference field (geomag.h: WMM2025, IGRF-14 and their coefficient tables). */
+#ifndef MAGCAL_CFG_ENABLE_GEOMAG
+#define MAGCAL_CFG_ENABLE_GEOMAG 1
+#endif
+
+/** The INS/GNSS-aided 3-D calibration (aided.h). */
+#ifndef MAGCAL_CFG_ENABLE_AIDED
+#define MAGCAL_CFG_ENABLE_AIDED 1
+#endif
+
+/** The compass swing (deviation coefficients A..E, course-over-ground accumulator; swing.h). */
+#ifndef MAGCAL_CFG_ENABLE_SWING
+#define MAGCAL_CFG_ENABLE_SWING 1
+#endif
+
 /**
  * Internal invariant check. Defaults to nothing (stripped); define it (e.g. to a breakpoint or
  * a call into the firmware's fault handler) to enable. Bad caller input is never checked with
@@ -206,5 +258,13 @@ MAGCAL_STATIC_ASSERT(MAGCAL_SWING_COG_BINS >= 4u && MAGCAL_SWING_COG_BINS <= 360
 MAGCAL_STATIC_ASSERT(MAGCAL_CONSENSUS_MAX_ITER >= 1u && MAGCAL_CONSENSUS_MAX_ITER <= 65535u, consensus_iter_fits_uint16);
 MAGCAL_STATIC_ASSERT(MAGCAL_CONSENSUS_MAX_REFINE >= 1u && MAGCAL_CONSENSUS_MAX_REFINE <= 65535u, consensus_refine_fits_uint16);
 MAGCAL_STATIC_ASSERT(MAGCAL_COVERAGE_BINS >= 8u && MAGCAL_COVERAGE_BINS <= 360u, coverage_bins_range);
+MAGCAL_STATIC_ASSERT((MAGCAL_CFG_ENABLE_DBSCAN == 0 || MAGCAL_CFG_ENABLE_DBSCAN == 1) &&
+                         (MAGCAL_CFG_ENABLE_OPTICS_CLASSIC == 0 || MAGCAL_CFG_ENABLE_OPTICS_CLASSIC == 1) &&
+                         (MAGCAL_CFG_ENABLE_PAPER == 0 || MAGCAL_CFG_ENABLE_PAPER == 1) &&
+                         (MAGCAL_CFG_ENABLE_3D == 0 || MAGCAL_CFG_ENABLE_3D == 1) &&
+                         (MAGCAL_CFG_ENABLE_GEOMAG == 0 || MAGCAL_CFG_ENABLE_GEOMAG == 1) &&
+                         (MAGCAL_CFG_ENABLE_AIDED == 0 || MAGCAL_CFG_ENABLE_AIDED == 1) &&
+                         (MAGCAL_CFG_ENABLE_SWING == 0 || MAGCAL_CFG_ENABLE_SWING == 1),
+                     feature_switches_are_0_or_1);
 
 #endif /* MAGCAL_CONFIG_H */

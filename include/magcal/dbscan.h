@@ -57,6 +57,7 @@ typedef struct {
         0.0f, 4u, MAGCAL_NEIGHBORS_GRID                                                            \
     }
 
+#if MAGCAL_CFG_ENABLE_DBSCAN
 /**
  * @brief Label n points with DBSCAN(eps, MinPts).
  * @param[in]  cfg        eps, min_pts, neighbors.
@@ -78,6 +79,7 @@ typedef struct {
 magcal_status_t magcal_dbscan_run(const magcal_dbscan_cfg_t *cfg, const magcal_vec2_t *pts,
                                   size_t n, void *work, size_t work_len, int16_t *labels,
                                   uint16_t *n_clusters, magcal_neighbors_t *used);
+#endif /* MAGCAL_CFG_ENABLE_DBSCAN */
 
 #ifdef __cplusplus
 }

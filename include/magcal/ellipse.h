@@ -250,12 +250,14 @@ float magcal_ellipse_residual(const magcal_ellipse_t *e, magcal_vec2_t p);
  * @param[in]  form correction form.
  * @param[in]  rho  output radius (e.g. 1, or H0 from the geomagnetic model), or <= 0 (see above).
  * @param[out] out  calibration (magic set); untouched on failure.
- * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_ARG (unknown form, or e not a valid ellipse:
- *         non-positive or non-finite axes, r1 > r2); MAGCAL_ERR_NONFINITE (rho NaN/Inf).
+ * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_ARG (unknown form, MAGCAL_CORR_KPHI in a build
+ *         with MAGCAL_CFG_ENABLE_PAPER = 0, or e not a valid ellipse: non-positive or non-finite
+ *         axes, r1 > r2); MAGCAL_ERR_NONFINITE (rho NaN/Inf).
  */
 magcal_status_t magcal_ellipse_to_cal(const magcal_ellipse_t *e, magcal_corr_form_t form, float rho,
                                       magcal_cal2d_t *out);
 
+#if MAGCAL_CFG_ENABLE_PAPER
 /**
  * @brief The source documents' error coefficients (ky, phi_p, hard iron) of a fitted ellipse.
  *
@@ -267,6 +269,7 @@ magcal_status_t magcal_ellipse_to_cal(const magcal_ellipse_t *e, magcal_corr_for
  *         magcal_ellipse_to_cal()).
  */
 magcal_status_t magcal_ellipse_kphi(const magcal_ellipse_t *e, magcal_ellipse_kphi_t *out);
+#endif /* MAGCAL_CFG_ENABLE_PAPER */
 
 #ifdef __cplusplus
 }

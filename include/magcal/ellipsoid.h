@@ -60,6 +60,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "magcal/config.h"
 #include "magcal/optics.h"
 #include "magcal/status.h"
 #include "magcal/types.h"
@@ -163,6 +164,7 @@ typedef struct {
     float field_raw;      /**< fitted raw radius F / det(G)^(1/3), unit of the samples */
 } magcal_ellipsoid_result_t;
 
+#if MAGCAL_CFG_ENABLE_3D
 /**
  * @brief Fit V and G to raw 3-D field samples.
  *
@@ -262,6 +264,7 @@ magcal_status_t magcal_ellipsoid_apply(const magcal_ellipsoid_cal_t *cal, const 
  */
 magcal_status_t magcal_ellipsoid_coverage(const magcal_vec3_t *m, size_t n, const magcal_vec3_t *centre,
                                           float *coverage);
+#endif /* MAGCAL_CFG_ENABLE_3D */
 
 /* ---- the complete 3-D calibration: pre-test -> density stage when needed -> fit (issue 14) ---- */
 
@@ -306,6 +309,7 @@ typedef struct {
 #define MAGCAL_ELLIPSOID_CALIBRATE_WORKSPACE_DECLARE(name, n)                                       \
     MAGCAL_WORKSPACE_DECLARE(name, MAGCAL_ELLIPSOID_CALIBRATE_WORKSPACE_LEN(n))
 
+#if MAGCAL_CFG_ENABLE_3D
 /**
  * @brief One complete 3-D calibration: a cheap pre-test, the density stage only when the data show
  *        gross outliers, then the ellipsoid fit (docs/calibration_3d.md, docs/performance.md).
@@ -348,6 +352,7 @@ magcal_status_t magcal_ellipsoid_calibrate(const magcal_ellipsoid_calibrate_cfg_
                                            size_t work_len, uint8_t *inlier,
                                            magcal_ellipsoid_result_t *out,
                                            magcal_ellipsoid_calibrate_info_t *info);
+#endif /* MAGCAL_CFG_ENABLE_3D */
 
 #ifdef __cplusplus
 }

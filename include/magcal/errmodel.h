@@ -29,6 +29,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "magcal/config.h"
 #include "magcal/status.h"
 
 #ifdef __cplusplus
@@ -80,6 +81,7 @@ typedef struct {
     float rms_deg;       /**< RMS residual at the points for that order */
 } magcal_errmodel_stats_t;
 
+#if MAGCAL_CFG_ENABLE_PAPER
 /**
  * @brief Adaptive fit: orders 1, 2, ... until max |residual| < threshold_deg.
  *
@@ -161,6 +163,7 @@ magcal_status_t magcal_errmodel_poly_to_power(const magcal_errmodel_t *model,
 magcal_status_t magcal_errmodel_poly_from_power(const float *coef_rad, size_t n_coef,
                                                 magcal_errmodel_power_order_t order,
                                                 magcal_errmodel_t *model);
+#endif /* MAGCAL_CFG_ENABLE_PAPER */
 
 #ifdef __cplusplus
 }

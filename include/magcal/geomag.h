@@ -42,6 +42,7 @@
 
 #include <stdint.h>
 
+#include "magcal/config.h"
 #include "magcal/status.h"
 
 #ifdef __cplusplus
@@ -94,6 +95,7 @@ typedef struct {
     uint8_t sv_nmax;             /**< degree of `sv` (<= nmax) */
 } magcal_geomag_model_t;
 
+#if MAGCAL_CFG_ENABLE_GEOMAG
 /**
  * World Magnetic Model WMM2025 (NOAA NCEI / BGS): degree 12, epoch 2025.0, valid 2025.0-2030.0,
  * heights -1 km to 850 km above the WGS 84 ellipsoid (the range the WMM report states).
@@ -107,6 +109,7 @@ extern const magcal_geomag_model_t magcal_geomag_wmm2025;
  * none).
  */
 extern const magcal_geomag_model_t magcal_geomag_igrf14;
+#endif /* MAGCAL_CFG_ENABLE_GEOMAG */
 
 /** Reliability of the declination, from the horizontal intensity H (WMM report definition). */
 typedef enum {
@@ -138,6 +141,7 @@ typedef struct {
                                 grid variation D - lon north, D + lon south) */
 } magcal_geomag_result_t;
 
+#if MAGCAL_CFG_ENABLE_GEOMAG
 /**
  * @brief Evaluate a main-field model at a geodetic position and date.
  *
@@ -188,6 +192,7 @@ magcal_status_t magcal_geomag_eval_geocentric(const magcal_geomag_model_t *model
  * @return MAGCAL_OK, MAGCAL_ERR_NULL, MAGCAL_ERR_ARG (date out of range or invalid).
  */
 magcal_status_t magcal_geomag_decimal_year(int year, int month, int day, float *out);
+#endif /* MAGCAL_CFG_ENABLE_GEOMAG */
 
 #ifdef __cplusplus
 }

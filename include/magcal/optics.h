@@ -455,6 +455,7 @@ magcal_status_t magcal_optics_thin(const magcal_vec2_t *pts, size_t n, const uin
 /** Declare `name` as a correctly aligned workspace of MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n) bytes (config.h). */
 #define MAGCAL_OPTICS3_FILTER_WORKSPACE_DECLARE(name, n) MAGCAL_WORKSPACE_DECLARE(name, MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n))
 
+#if MAGCAL_CFG_ENABLE_3D
 /**
  * @brief Run the OPTICS ordering loop on 3-D points (algorithms.md 4.1-4.2).
  * @param[in]  cfg       eps (> 0, may be +INF), min_pts, order, neighbors; eps_prime ignored.
@@ -519,6 +520,7 @@ magcal_status_t magcal_optics_auto_params3(const magcal_vec3_t *pts, size_t n, v
 magcal_status_t magcal_optics_filter3(const magcal_optics_cfg_t *cfg, const magcal_vec3_t *pts,
                                       size_t n, void *work, size_t work_len, uint8_t *inlier_mask,
                                       magcal_optics_result_t *info);
+#endif /* MAGCAL_CFG_ENABLE_3D */
 
 #ifdef __cplusplus
 }

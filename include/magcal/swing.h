@@ -88,6 +88,7 @@ typedef struct {
     size_t n_used;         /**< points with non-zero weight */
 } magcal_swing_stats_t;
 
+#if MAGCAL_CFG_ENABLE_SWING
 /**
  * @brief Fit A..E by least squares from n pairs of compass and reference headings.
  * @param[in]  cfg          options (MAGCAL_SWING_CFG_DEFAULT).
@@ -171,6 +172,7 @@ magcal_status_t magcal_swing_model_from_error(const float err_coef_deg[MAGCAL_SW
  */
 magcal_status_t magcal_swing_model_to_error(const magcal_swing_model_t *model,
                                             float err_coef_deg[MAGCAL_SWING_NCOEF]);
+#endif /* MAGCAL_CFG_ENABLE_SWING */
 
 /* ------------------------------------------------------------------------------------------- */
 /* Swing from motion: reference headings from GNSS course over ground on straight, steady legs. */
@@ -230,6 +232,7 @@ typedef struct {
     uint8_t have_last;      /* last_t_s/last_cog_deg valid */
 } magcal_swing_cog_t;
 
+#if MAGCAL_CFG_ENABLE_SWING
 /**
  * @brief Initialise the accumulator (all bins empty).
  * @param[out] acc  accumulator.
@@ -292,6 +295,7 @@ magcal_status_t magcal_swing_cog_count(const magcal_swing_cog_t *acc, size_t *bi
  */
 magcal_status_t magcal_swing_cog_fit(const magcal_swing_cog_t *acc, magcal_swing_model_t *model,
                                      magcal_swing_stats_t *stats);
+#endif /* MAGCAL_CFG_ENABLE_SWING */
 
 #ifdef __cplusplus
 }

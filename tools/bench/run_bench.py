@@ -289,7 +289,7 @@ def parse_map(map_path, elf_path):
 
 def classify(fname):
     base = os.path.basename(fname)
-    if base.startswith("libmagcal.a"):
+    if base.startswith(("libmagcal.a", "libmagcal_min.a")):  # min2d: the library with the switches at 0
         return "magcal"
     if base.startswith("libm.a"):
         return "libm"
@@ -310,9 +310,28 @@ def per_object(map_path):
     with open(map_path) as f:
         text = f.read()
     text = text[text.index("Linker script and memory map"):]
-    for m in re.finditer(r"^ \.(text|rodata)[^\n]*?\n?\s+0x[0-9a-f]+\s+0x([0-9a-f]+)\s+\S*libmagcal\.a\(([^)]+)\)", text, re.M):
+    for m in re.finditer(r"^ \.(text|rodata)[^\n]*?\n?\s+0x[0-9a-f]+\s+0x([0-9a-f]+)\s+\S*libmagcal(?:_min)?\.a\(([^)]+)\)", text, re.M):
         objs[m.group(3)] = objs.get(m.group(3), 0) + int(m.group(2), 16)
     return objs
+
+
+def top_flash(map_path, k=15):
+    """The k largest input sections of the counted groups (libmagcal, libm, libgcc): with
+    -ffunction-sections one per library function; libm/libgcc objects are one section each."""
+    with open(map_path) as f:
+        text = f.read()
+    text = text[text.index("Linker script and memory map"):]
+    items = []
+    for m in re.finditer(r"^ \.(text|rodata)(\.[^\s]*)?\s*\n?\s+0x[0-9a-f]+\s+0x([0-9a-f]+)\s+(\S+)$", text, re.M):
+        size, path = int(m.group(3), 16), m.group(4)
+        grp = classify(path)
+        if grp not in ("magcal", "libm", "libgcc") or size == 0:
+            continue
+        obj = re.search(r"\(([^)]+)\)$", path)
+        obj = obj.group(1).replace(".c.obj", "").replace("lib_a-", "") if obj else os.path.basename(path)
+        sym = (m.group(2) or "")[1:] or m.group(1)
+        items.append({"group": grp, "object": obj, "symbol": sym, "bytes": size})
+    return sorted(items, key=lambda r: -r["bytes"])[:k]
 
 
 def image_sizes(bdir, name):
@@ -327,7 +346,7 @@ def image_sizes(bdir, name):
         b = totals.get((g, "bss"), 0)
         rows[g] = {"flash": fo + d, "ram": d + b, "text_rodata": fo, "data": d, "bss": b}
     return {"groups": rows, "elf_text": int(size_out[0]), "elf_data": int(size_out[1]),
-            "elf_bss": int(size_out[2]), "per_object": per_object(mp)}
+            "elf_bss": int(size_out[2]), "per_object": per_object(mp), "top_symbols": top_flash(mp)}
 
 
 TUMBLES = ("fxos8700_tumble", "lsm9ds1_adafruit_tumble")  # issue 14: the real ~320-sample 3-D samples
@@ -387,6 +406,9 @@ def m4f_footprint(build_dir, tmp_root):
     res["min2d"] = image_sizes(bdir, "min2d")
     mg = res["min2d"]["groups"]
     res["min_flash"] = sum(mg.get(k, {}).get("flash", 0) for k in ("magcal", "libm", "libgcc"))
+    res["pipeline2d_min"] = image_sizes(bdir, "pipeline2d_min")  # calibrator image, switches at 0
+    pg = res["pipeline2d_min"]["groups"]
+    res["pipeline2d_min_flash"] = sum(pg.get(k, {}).get("flash", 0) for k in ("magcal", "libm", "libgcc"))
     cyc = os.path.join(bdir, "cycles.elf")
     if os.path.exists(cyc) and shutil.which("qemu-system-arm"):
         p = run(["timeout", "120", "qemu-system-arm", "-M", "mps2-an386", "-display", "none", "-monitor", "none",
@@ -398,7 +420,7 @@ def m4f_footprint(build_dir, tmp_root):
         res["qemu_insn"] = insn
         if p.returncode != 0:
             res["qemu_error"] = "cycles.elf exited with %d" % p.returncode
-    nm = run(["arm-none-eabi-nm", "-u", os.path.join(bdir, "libmagcal.a")]).stdout
+    nm = run(["arm-none-eabi-nm", "-u", os.path.join(bdir, "libmagcal.a"), os.path.join(bdir, "libmagcal_min.a")]).stdout
     res["double_helpers"] = sorted(set(re.findall(r"__aeabi_(?:d[a-z0-9]+|f2d|i2d|ui2d|l2d|ul2d)", nm)))
     # stack: tools/stack/stack_usage.py over the library + the image's own objects (port stub)
     script = os.path.join(ROOT, "tools", "stack", "stack_usage.py")
@@ -1124,6 +1146,32 @@ def render_markdown(res, ns, i_ref, m4f, sk_info):
         L.append("Library flash per object (text + rodata): " + ", ".join("%s %d" % (k.replace(".c.obj", ""), v)
                                                                         for k, v in po) + ".")
         L.append("")
+
+        def top_line(img):
+            return ", ".join("%s (%s) %d" % (t["symbol"], t["object"], t["bytes"]) for t in img.get("top_symbols", []))
+        L.append("Largest counted sections of `pipeline2d.elf` (libmagcal functions, libm/libgcc objects; map file): "
+                 + top_line(mm) + ".")
+        L.append("")
+        mn = mm.get("min2d")
+        if mn:
+            mg_ = mn["groups"]
+            L.append("Minimal 2-D image (`min2d.elf`, `m4f_flash_min_bytes`: samples through the port, "
+                     "`magcal_optics_filter` improved + grid with automatic parameters, `magcal_consensus_run`, "
+                     "`magcal_ellipse_to_cal`, `magcal_heading_compute`; the library built with every "
+                     "`MAGCAL_CFG_ENABLE_*` at 0): libmagcal %d B + libm %d B + libgcc %d B; per object: %s. "
+                     "Largest: %s." % (
+                         mg_.get("magcal", {}).get("flash", 0), mg_.get("libm", {}).get("flash", 0),
+                         mg_.get("libgcc", {}).get("flash", 0),
+                         ", ".join("%s %d" % (k.replace(".c.obj", ""), v) for k, v in
+                                   sorted(mn["per_object"].items(), key=lambda kv: -kv[1])), top_line(mn)))
+            L.append("")
+        if mm.get("pipeline2d_min_flash") is not None:
+            L.append("The calibrator image (`main.c`) linked against that switches-at-0 library (`pipeline2d_min.elf`; "
+                     "DBSCAN and the KPHI form are run-time choices there, so only the switches remove them): "
+                     "library + libm + libgcc %d B against %d B in the shipped configuration." % (
+                         mm["pipeline2d_min_flash"], sum(mm["groups"].get(k, {}).get("flash", 0)
+                                                         for k in ("magcal", "libm", "libgcc"))))
+            L.append("")
         Q = []
         qi = mm.get("qemu_insn")
         if qi and qi.get("calibration"):

@@ -369,6 +369,7 @@ def emit_model(model, sym, source, prov, valid, heights):
             raise ValueError("epochs not evenly spaced")
     body = [GEN_NOTE % (source, prov),
             "#include \"magcal/geomag.h\"\n",
+            "#if MAGCAL_CFG_ENABLE_GEOMAG /* config.h feature switch */\n",
             emit_array("float", sym + "_coef", packed, cfloat), "",
             emit_array("uint16_t", sym + "_start", starts, str, 10), "",
             emit_array("uint8_t", sym + "_nmax", nmaxes, str, 14), "",
@@ -385,7 +386,7 @@ def emit_model(model, sym, source, prov, valid, heights):
             "    %du, /* epochs */" % len(ep),
             "    %du, /* nmax */" % max(nmaxes),
             "    %du  /* sv nmax */" % sv_n,
-            "};", ""]
+            "};", "#endif /* MAGCAL_CFG_ENABLE_GEOMAG */", ""]
     return "\n".join(body)
 
 
@@ -400,12 +401,14 @@ def emit_schmidt():
     s = [0.0, 1.0] + [math.sqrt((2.0 * n - 1.0) / (2.0 * n)) for n in range(2, NMAX + 1)]
     txt = [GEN_NOTE % ("the Schmidt recurrences of algorithms.md 8.4", "Degree 13 triangle."),
            "#include \"geomag_internal.h\"\n",
+           "#if MAGCAL_CFG_ENABLE_GEOMAG /* config.h feature switch */\n",
            "/* a[n(n-1)/2 + m] = (2n-1)/sqrt(n^2-m^2), n = 1..13, m = 0..n-1 */",
            emit_array("float", "a_tab", a, cfloat).replace("static ", ""), "",
            "/* b[n(n-1)/2 + m] = sqrt(((n-1)^2-m^2)/(n^2-m^2)) */",
            emit_array("float", "b_tab", b, cfloat).replace("static ", ""), "",
            "/* s[n] = sqrt((2n-1)/(2n)) for n >= 2 (s[0] unused, s[1] = 1) */",
-           emit_array("float", "s_tab", s, cfloat).replace("static ", ""), ""]
+           emit_array("float", "s_tab", s, cfloat).replace("static ", ""), "",
+           "#endif /* MAGCAL_CFG_ENABLE_GEOMAG */", ""]
     out = "\n".join(txt)
     out = out.replace("const float a_tab", "const float magcal_geomag_schmidt_a")
     out = out.replace("const float b_tab", "const float magcal_geomag_schmidt_b")
