@@ -140,7 +140,7 @@ typedef struct {
 #define MAGCAL_CONT_CFG_DEFAULT                                                                    \
     {                                                                                              \
         MAGCAL_INTAKE_CFG_DEFAULT_2D, MAGCAL_CALIBRATOR_CFG_DEFAULT, 270.0f, 24u, 2u, 600000.0f, 4.0f,  \
-            0.06f, 8000u, 3u, 4000u, 150u, 200u, 5.0f                                              \
+            0.06f, 8000u, 3u, 4000u, 150u, 200u, 4.0f                                              \
     }
 
 /** A heading with its trust. */
@@ -223,6 +223,10 @@ typedef struct {
     uint32_t dist_quiet_ms;        /* ms since the transient judge last exceeded its threshold */
     uint32_t dist_n;               /* samples since install that fed the transient judge */
     uint32_t fz_cover[2];          /* sectors of corrected heading the store covered at the fit */
+    float fz_l[28];                /* Cholesky factor (packed lower) of the model's scaled normal matrix */
+    float fz_s[7];                 /* feature scales of that matrix */
+    uint32_t dist_flag_ms;         /* ms the transient judge has been above its threshold */
+    uint8_t fz_skip;               /* model form: u terms dropped (0: none, 1: u^2, 2: u and u^2) */
     uint8_t dist_flag;             /* 1: transient flagged (trust DISTURBED, not stored) */
 } magcal_cont_t;
 

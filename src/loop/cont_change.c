@@ -28,10 +28,12 @@
 #define CONT_DIST_MIN_REL 0.004f  /* floor of the transient threshold (relative) */
 #define CONT_DIST_CLAMP 0.15f     /* a sample enters the smoothed residual clamped to this */
 #define CONT_DIST_GROSS 0.5f      /* |rel| above: a glitch, it does not feed the transient judge */
-#define CONT_DIST_BASE_MS 20000.0f /* baseline and variance time constant of the transient judge */
-#define CONT_DIST_STORE_K 1.5f    /* transient threshold >= this x the model's sigma on the store */
+#define CONT_DIST_BASE_MS 4000.0f /* baseline time constant (hills drift the model's bias) */
+#define CONT_DIST_VAR_MS 20000.0f /* variance time constant of the transient judge */
+#define CONT_DIST_STORE_K 1.0f    /* transient threshold >= this x the model's sigma on the store */
 #define CONT_DIST_VAR0 0.4f       /* initial RMS of the smoothed residual, x the store's sigma */
 #define CONT_FZ_MIN_N 30.0f       /* store samples the total-field model needs */
+#define CONT_CHANGE_X 2.0f        /* a change counts samples beyond this x the per-sample threshold */
 
 static unsigned cont_popcount(uint32_t v)
 {
@@ -41,6 +43,82 @@ static unsigned cont_popcount(uint32_t v)
         n += (unsigned)((v >> k) & 1u);
     }
     return n;
+}
+
+/* Features of the judge's model: 1, u, u^2, hx, hy, hx^2 - hy^2, hx hy (unit radius; the last
+ * two absorb a residual shape error of the calibration). `skip` drops the leading u terms:
+ * 0 keeps both, 1 drops u^2, 2 drops u and u^2. Returns the count written to f. */
+static uint32_t cont_fz_feat(float u, float hx, float hy, uint32_t skip, float *f)
+{
+    uint32_t n = 0u;
+    f[n++] = 1.0f;
+    if (skip < 2u) {
+        f[n++] = u;
+    }
+    if (skip < 1u) {
+        f[n++] = u * u;
+    }
+    f[n++] = hx;
+    f[n++] = hy;
+    f[n++] = hx * hx - hy * hy;
+    f[n++] = hx * hy;
+    return n;
+}
+
+
+/* Prediction variance of the model at a sample over its noise variance: |L^-1 f|^2 with f the
+ * scaled features and L the Cholesky factor of the store's scaled normal matrix (F^T F). Large
+ * where the store could not separate the pitch from the calibration's shape (u collinear with
+ * the heading terms), or outside the pitch range the store saw. */
+static float cont_fz_unc(const magcal_cont_t *cc, float u, float hx, float hy)
+{
+    float f[7];
+    float w[7];
+    float q = 0.0f;
+    const uint32_t nf = cont_fz_feat(u, hx, hy, cc->fz_skip, f);
+    uint32_t p;
+    uint32_t k;
+    for (p = 0u; p < nf; ++p) {
+        float v = f[p] / cc->fz_s[p];
+        for (k = 0u; k < p; ++k) {
+            v -= cc->fz_l[p * (p + 1u) / 2u + k] * w[k];
+        }
+        w[p] = v / cc->fz_l[p * (p + 1u) / 2u + p];
+        q += w[p] * w[p];
+    }
+    return q;
+}
+
+/* Cholesky of the nf x nf normal matrix a (lower triangle read), scaled by its diagonal: packed
+ * factor into cc->fz_l, scales into cc->fz_s. 0 when not positive definite. */
+static int cont_fz_chol(magcal_cont_t *cc, const float *a, uint32_t nf)
+{
+    uint32_t p;
+    uint32_t q;
+    uint32_t k;
+    for (p = 0u; p < nf; ++p) {
+        if (!(a[p * nf + p] > 0.0f)) {
+            return 0;
+        }
+        cc->fz_s[p] = sqrtf(a[p * nf + p]);
+    }
+    for (p = 0u; p < nf; ++p) {
+        for (q = 0u; q <= p; ++q) {
+            float v = a[p * nf + q] / (cc->fz_s[p] * cc->fz_s[q]);
+            for (k = 0u; k < q; ++k) {
+                v -= cc->fz_l[p * (p + 1u) / 2u + k] * cc->fz_l[q * (q + 1u) / 2u + k];
+            }
+            if (p == q) {
+                if (!(v > 1e-6f)) {
+                    return 0;
+                }
+                cc->fz_l[p * (p + 1u) / 2u + p] = sqrtf(v);
+            } else {
+                cc->fz_l[p * (p + 1u) / 2u + q] = v / cc->fz_l[q * (q + 1u) / 2u + q];
+            }
+        }
+    }
+    return 1;
 }
 
 /* Per-sample threshold on |rel|. */
@@ -60,6 +138,7 @@ int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_co
     j->rel = NAN;
     j->heading = 0.0f;
     j->sector = 0u;
+    j->unc = 0.0f;
     j->mismatch = 0u;
     raw.x = m->x;
     raw.y = m->y;
@@ -68,6 +147,7 @@ int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_co
         return 0;
     }
     r = sqrtf(h.x * h.x + h.y * h.y);
+    j->unc = 0.0f;
     if (cc->fz_on != 0u) {
         /* total field: |h|^2 - c1 u - c2 u^2 - c3 hx - c4 hy stays c0 while the vehicle pitches */
         const float hx = h.x / cc->cal.radius;
@@ -77,6 +157,7 @@ int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_co
                          cc->fz_hxy[0] * hx - cc->fz_hxy[1] * hy - cc->fz_hxy[2] * (hx * hx - hy * hy) -
                          cc->fz_hxy[3] * (hx * hy);
         j->rel = sqrtf(fmaxf(tt, 0.0f) / cc->fz_abc[0]) - 1.0f;
+        j->unc = cont_fz_unc(cc, u, hx, hy);
     } else {
         j->rel = r / cc->cal.radius - 1.0f;
     }
@@ -93,7 +174,7 @@ int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_co
         sec = (int)MAGCAL_CONT_SECTORS - 1;
     }
     j->sector = (uint8_t)sec;
-    thr = cont_threshold(cc);
+    thr = cont_threshold(cc) * sqrtf(1.0f + j->unc);
     if (cc->fz_on != 0u && ((cc->fz_cover[j->sector / 32u] >> (j->sector % 32u)) & 1u) == 0u) {
         /* a sector the store did not cover: the calibration and the model are extrapolated
          * there; such samples are what the next solve needs, so they are stored, never judged */
@@ -139,19 +220,25 @@ static void cont_transient(magcal_cont_t *cc, float rel, uint32_t dt)
     thr = fmaxf(fmaxf(cc->cfg.disturb_k * sqrtf(cc->dist_var), CONT_DIST_STORE_K * cc->cal_sigma_rel),
                 CONT_DIST_MIN_REL);
     if (!(fabsf(d) <= thr)) {
-        /* flagged: the baseline follows 8 x slower, so a lasting small offset (below the
-         * per-sample threshold) is absorbed in minutes instead of blocking the store for ever,
-         * while a 2 to 5 s transient moves it by < 4 % of its size */
-        cc->dist_base += (float)dt / (8.0f * CONT_DIST_BASE_MS + (float)dt) * d;
+        /* flagged: the baseline holds for cfg.change_ms (a transient is shorter), then follows
+         * 8 x slower, so a lasting small offset (below the per-sample threshold) is absorbed in
+         * a minute instead of blocking the store for ever */
+        if (cc->dist_flag_ms <= UINT32_MAX - dt) {
+            cc->dist_flag_ms += dt;
+        }
+        if (cc->dist_flag_ms > cc->cfg.change_ms) {
+            cc->dist_base += (float)dt / (8.0f * CONT_DIST_BASE_MS + (float)dt) * d;
+        }
         cc->dist_quiet_ms = 0u;
     } else {
+        cc->dist_flag_ms = 0u;
         if (cc->dist_quiet_ms <= UINT32_MAX - dt) {
             cc->dist_quiet_ms += dt;
         }
         if ((float)cc->dist_quiet_ms >= hold) {
             /* clean: the baseline follows the model's slow bias, the variance its noise */
-            const float w = (float)dt / (CONT_DIST_BASE_MS + (float)dt);
-            cc->dist_base += w * d;
+            const float w = (float)dt / (CONT_DIST_VAR_MS + (float)dt);
+            cc->dist_base += (float)dt / (CONT_DIST_BASE_MS + (float)dt) * d;
             cc->dist_var += w * (d * d - cc->dist_var);
         }
     }
@@ -164,6 +251,7 @@ void magcal_cont_transient_reset(magcal_cont_t *cc)
     const float s0 = CONT_DIST_VAR0 * cc->cal_sigma_rel;
     cc->dist_n = 0u;
     cc->dist_flag = 0u;
+    cc->dist_flag_ms = 0u;
     cc->dist_quiet_ms = cc->cfg.disturb_hold_ms;
     cc->dist_var = s0 * s0;
     cc->dist_e = 0.0f;
@@ -187,10 +275,10 @@ int magcal_cont_episode(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint32_
     if (cc->solve_ms_acc <= UINT32_MAX - dt) {
         cc->solve_ms_acc += dt;
     }
-    cont_transient(cc, j->rel, dt);
+    cont_transient(cc, j->rel / sqrtf(1.0f + j->unc), dt);
     /* the episode counts the per-sample judge only (a transient flag must never add up to a change),
      * in covered sectors (the judge's mismatch is 0 elsewhere) */
-    if (j->mismatch != 0u && !(fabsf(j->rel) <= cont_threshold(cc))) {
+    if (j->mismatch != 0u && !(fabsf(j->rel) <= CONT_CHANGE_X * cont_threshold(cc) * sqrtf(1.0f + j->unc))) {
         cc->episode_open = 1u;
         cc->mis_ms += dt;
         cc->clean_ms = 0u;
@@ -226,26 +314,6 @@ void magcal_cont_declare_change(magcal_cont_t *cc)
     cc->change_flag = 1u;
 }
 
-
-/* Features of the judge's model: 1, u, u^2, hx, hy, hx^2 - hy^2, hx hy (unit radius; the last
- * two absorb a residual shape error of the calibration). `skip` drops the leading u terms:
- * 0 keeps both, 1 drops u^2, 2 drops u and u^2. Returns the count written to f. */
-static uint32_t cont_fz_feat(float u, float hx, float hy, uint32_t skip, float *f)
-{
-    uint32_t n = 0u;
-    f[n++] = 1.0f;
-    if (skip < 2u) {
-        f[n++] = u;
-    }
-    if (skip < 1u) {
-        f[n++] = u * u;
-    }
-    f[n++] = hx;
-    f[n++] = hy;
-    f[n++] = hx * hx - hy * hy;
-    f[n++] = hx * hy;
-    return n;
-}
 
 /* One pass over the store: normal equations of |h|^2 = f . c over the samples with
  * | |h| / R - 1 | <= 0.35 (hills move the horizontal radius by up to ~20 %). Unit-radius
@@ -366,6 +434,20 @@ void magcal_cont_fit_field(magcal_cont_t *cc)
     if (ok == 0) {
         return;
     }
+    {
+        /* the solve destroyed a: the sums again (b saved) for the factor of the uncertainty */
+        float c[7];
+        for (k = 0u; k < nf; ++k) {
+            c[k] = b[k];
+        }
+        if (cont_fz_sums(cc, skip, a, b, &nf) < CONT_FZ_MIN_N || cont_fz_chol(cc, a, nf) == 0) {
+            return;
+        }
+        for (k = 0u; k < nf; ++k) {
+            b[k] = c[k];
+        }
+    }
+    cc->fz_skip = (uint8_t)skip;
     cc->fz_abc[0] = b[0];
     cc->fz_abc[1] = skip < 2u ? b[1] : 0.0f;
     cc->fz_abc[2] = skip < 1u ? b[2] : 0.0f;

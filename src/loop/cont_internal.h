@@ -18,6 +18,7 @@ typedef struct {
     float heading;  /* corrected heading, deg */
     uint8_t sector; /* 0..35 */
     uint8_t mismatch; /* 1: |rel| above the threshold */
+    float unc;      /* model's prediction variance at this sample / its noise variance (0: none) */
 } magcal_cont_judge_t;
 
 int magcal_cont_ok(const magcal_cont_t *cc);
