@@ -226,6 +226,8 @@ typedef struct {
     float fz_l[28];                /* Cholesky factor (packed lower) of the model's scaled normal matrix */
     float fz_s[7];                 /* feature scales of that matrix */
     uint32_t dist_flag_ms;         /* ms the transient judge has been above its threshold */
+    float fz_u_prior[2];           /* u, u^2 terms of the last model that determined them */
+    uint8_t fz_have_u;             /* 1: fz_u_prior holds them (the vertical field is kept by a change) */
     uint8_t fz_skip;               /* model form: u terms dropped (0: none, 1: u^2, 2: u and u^2) */
     uint8_t dist_flag;             /* 1: transient flagged (trust DISTURBED, not stored) */
 } magcal_cont_t;

@@ -89,36 +89,56 @@ static float cont_fz_unc(const magcal_cont_t *cc, float u, float hx, float hy)
     return q;
 }
 
-/* Cholesky of the nf x nf normal matrix a (lower triangle read), scaled by its diagonal: packed
- * factor into cc->fz_l, scales into cc->fz_s. 0 when not positive definite. */
-static int cont_fz_chol(magcal_cont_t *cc, const float *a, uint32_t nf)
+/* Cholesky in place of the nf x nf normal matrix held packed (lower) in cc->fz_l, scaled by its
+ * diagonal (scales into cc->fz_s), then the solve of (F^T F) c = b in place. 0 when not
+ * positive definite (a relative pivot below 1e-6: the store cannot separate the terms). */
+static int cont_fz_chol_solve(magcal_cont_t *cc, uint32_t nf, float *b)
 {
+    float *l = cc->fz_l;
     uint32_t p;
     uint32_t q;
     uint32_t k;
     for (p = 0u; p < nf; ++p) {
-        if (!(a[p * nf + p] > 0.0f)) {
+        if (!(l[p * (p + 1u) / 2u + p] > 0.0f)) {
             return 0;
         }
-        cc->fz_s[p] = sqrtf(a[p * nf + p]);
+        cc->fz_s[p] = sqrtf(l[p * (p + 1u) / 2u + p]);
     }
     for (p = 0u; p < nf; ++p) {
         for (q = 0u; q <= p; ++q) {
-            float v = a[p * nf + q] / (cc->fz_s[p] * cc->fz_s[q]);
+            float v = l[p * (p + 1u) / 2u + q] / (cc->fz_s[p] * cc->fz_s[q]);
             for (k = 0u; k < q; ++k) {
-                v -= cc->fz_l[p * (p + 1u) / 2u + k] * cc->fz_l[q * (q + 1u) / 2u + k];
+                v -= l[p * (p + 1u) / 2u + k] * l[q * (q + 1u) / 2u + k];
             }
             if (p == q) {
                 if (!(v > 1e-6f)) {
                     return 0;
                 }
-                cc->fz_l[p * (p + 1u) / 2u + p] = sqrtf(v);
+                l[p * (p + 1u) / 2u + p] = sqrtf(v);
             } else {
-                cc->fz_l[p * (p + 1u) / 2u + q] = v / cc->fz_l[q * (q + 1u) / 2u + q];
+                l[p * (p + 1u) / 2u + q] = v / l[q * (q + 1u) / 2u + q];
             }
         }
     }
-    return 1;
+    /* L L^T z = S^-1 b, c = S^-1 z */
+    for (p = 0u; p < nf; ++p) {
+        float v = b[p] / cc->fz_s[p];
+        for (k = 0u; k < p; ++k) {
+            v -= l[p * (p + 1u) / 2u + k] * b[k];
+        }
+        b[p] = v / l[p * (p + 1u) / 2u + p];
+    }
+    for (p = nf; p-- > 0u;) {
+        float v = b[p];
+        for (k = p + 1u; k < nf; ++k) {
+            v -= l[k * (k + 1u) / 2u + p] * b[k];
+        }
+        b[p] = v / l[p * (p + 1u) / 2u + p];
+    }
+    for (p = 0u; p < nf; ++p) {
+        b[p] /= cc->fz_s[p];
+    }
+    return magcal_isfinite_f(b[0]) ? 1 : 0;
 }
 
 /* Per-sample threshold on |rel|. */
@@ -318,7 +338,7 @@ void magcal_cont_declare_change(magcal_cont_t *cc)
 /* One pass over the store: normal equations of |h|^2 = f . c over the samples with
  * | |h| / R - 1 | <= 0.35 (hills move the horizontal radius by up to ~20 %). Unit-radius
  * variables (file comment). Returns the samples used; *nf the order. */
-static float cont_fz_sums(const magcal_cont_t *cc, uint32_t skip, float *a, float *b, uint32_t *nf_out)
+static float cont_fz_sums(magcal_cont_t *cc, uint32_t skip, float *b, uint32_t *nf_out)
 {
     const magcal_intake_t *st = &cc->store;
     const uint32_t per = st->cfg.per_bin;
@@ -329,7 +349,8 @@ static float cont_fz_sums(const magcal_cont_t *cc, uint32_t skip, float *a, floa
     uint32_t q;
     const uint32_t nf = 7u - skip;
     *nf_out = nf;
-    for (p = 0u; p < nf * nf; ++p) {
+    float *a = cc->fz_l; /* packed lower triangle: row p, column q at p (p + 1) / 2 + q */
+    for (p = 0u; p < nf * (nf + 1u) / 2u; ++p) {
         a[p] = 0.0f;
     }
     for (p = 0u; p < nf; ++p) {
@@ -353,10 +374,17 @@ static float cont_fz_sums(const magcal_cont_t *cc, uint32_t skip, float *a, floa
             if (!(fabsf(sqrtf(y) - 1.0f) <= 0.35f)) {
                 continue;
             }
-            (void)cont_fz_feat((m->z - cc->fz_u0) / cc->cal_raw_radius, h.x, h.y, skip, f);
+            {
+                const float u = (m->z - cc->fz_u0) / cc->cal_raw_radius;
+                (void)cont_fz_feat(u, h.x, h.y, skip, f);
+                if (skip == 2u && cc->fz_have_u != 0u) {
+                    /* the u terms of an earlier model: the store alone cannot determine them */
+                    y -= cc->fz_u_prior[0] * u + cc->fz_u_prior[1] * u * u;
+                }
+            }
             for (p = 0u; p < nf; ++p) {
                 for (q = 0u; q <= p; ++q) {
-                    a[p * nf + q] += f[p] * f[q];
+                    a[p * (p + 1u) / 2u + q] += f[p] * f[q];
                 }
                 b[p] += f[p] * y;
             }
@@ -389,13 +417,14 @@ static float cont_fz_sigma(const magcal_cont_t *cc)
 
 /* The judge's model at an adoption (file comment): the total-field form with its u terms when
  * the store's raw z spreads by at least 2 % of the raw radius (u^2 kept only when physical,
- * c2 < 0), else the shape form without u; c0 > 0. Then the judge's noise on the store.
+ * c2 < 0), else the shape form with the u terms of the last model that determined them (the
+ * vertical field survives a re-magnetised chassis; a store filled on the flat after a relearn
+ * cannot tell them) or without u; c0 > 0. Then the judge's noise on the store.
  * Bounded: at most five passes over the store slots. */
 void magcal_cont_fit_field(magcal_cont_t *cc)
 {
     const magcal_intake_t *st = &cc->store;
     const uint32_t per = st->cfg.per_bin;
-    float a[49];
     float b[7];
     float zs = 0.0f;
     float zz = 0.0f;
@@ -424,8 +453,8 @@ void magcal_cont_fit_field(magcal_cont_t *cc)
         skip = 2u;
     }
     for (; skip < 3u && ok == 0; ++skip) {
-        ok = cont_fz_sums(cc, skip, a, b, &nf) >= CONT_FZ_MIN_N &&
-             magcal_ldlt_solve(a, b, (size_t)nf, 1e-6f, NULL) == MAGCAL_OK && b[0] > 0.0f &&
+        ok = cont_fz_sums(cc, skip, b, &nf) >= CONT_FZ_MIN_N && cont_fz_chol_solve(cc, nf, b) != 0 &&
+             b[0] > 0.0f &&
              (skip != 0u || b[2] < 0.0f);
         if (ok != 0) {
             break;
@@ -434,23 +463,18 @@ void magcal_cont_fit_field(magcal_cont_t *cc)
     if (ok == 0) {
         return;
     }
-    {
-        /* the solve destroyed a: the sums again (b saved) for the factor of the uncertainty */
-        float c[7];
-        for (k = 0u; k < nf; ++k) {
-            c[k] = b[k];
-        }
-        if (cont_fz_sums(cc, skip, a, b, &nf) < CONT_FZ_MIN_N || cont_fz_chol(cc, a, nf) == 0) {
-            return;
-        }
-        for (k = 0u; k < nf; ++k) {
-            b[k] = c[k];
-        }
-    }
     cc->fz_skip = (uint8_t)skip;
     cc->fz_abc[0] = b[0];
-    cc->fz_abc[1] = skip < 2u ? b[1] : 0.0f;
-    cc->fz_abc[2] = skip < 1u ? b[2] : 0.0f;
+    if (skip < 2u) {
+        cc->fz_abc[1] = b[1];
+        cc->fz_abc[2] = skip < 1u ? b[2] : 0.0f;
+        cc->fz_u_prior[0] = cc->fz_abc[1];
+        cc->fz_u_prior[1] = cc->fz_abc[2];
+        cc->fz_have_u = 1u;
+    } else {
+        cc->fz_abc[1] = cc->fz_have_u != 0u ? cc->fz_u_prior[0] : 0.0f;
+        cc->fz_abc[2] = cc->fz_have_u != 0u ? cc->fz_u_prior[1] : 0.0f;
+    }
     for (k = 0u; k < 4u; ++k) {
         cc->fz_hxy[k] = b[nf - 4u + k];
     }
