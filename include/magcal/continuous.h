@@ -133,7 +133,7 @@ typedef struct {
     uint32_t clear_ms;              /**< consistent time that closes an episode (default 4000) */
     uint32_t disturb_tau_ms;        /**< transient judge: time constant of the smoothed residual (150) */
     uint32_t disturb_hold_ms;       /**< transient judge: flag held after the residual returns (200) */
-    float disturb_k;                /**< transient judge: flag at |smoothed - baseline| > k sigma (5) */
+    float disturb_k;                /**< transient judge: flag at |smoothed - baseline| > k sigma (4) */
 } magcal_cont_cfg_t;
 
 /** Defaults: work untuned from 10 to 100 Hz (time constants are in ms of the push stamps). */

@@ -1,24 +1,29 @@
 /*
- * Continuous calibrator, the judge and change detection. Every drained sample is judged under the
- * installed calibration by its relative residual `rel` against a model of the field it must show:
+ * Continuous calibrator, the judge and change detection (docs/calibrator.md "Judge and change
+ * detection"). Every drained sample is judged under the installed calibration by its relative
+ * residual `rel` against a model of the field it must show:
  *  - total field (when the store supports it): a level sensor that pitches (hills) keeps
  *    |h|^2 + z_b^2 = F^2, and its raw z is z_b plus a heading-dependent leak of x, y (soft iron,
- *    misalignment), so |h|^2 = c0 + c1 u + c2 u^2 + c3 hx + c4 hy (u = raw z - its store mean,
- *    h corrected, both scaled to unit radius) fitted over the store at each adoption; without the
- *    hx, hy terms the leak alone (about 5 % of |h|) hides a disturbance; rel = sqrt(model) - 1;
+ *    misalignment), so |h|^2 = c0 + c1 u + c2 u^2 + c3 hx + c4 hy + c5 (hx^2 - hy^2) + c6 hx hy
+ *    (u = raw z - its store mean, h corrected, both scaled to unit radius), fitted over the store
+ *    at each adoption; without the hx, hy terms the leak alone (about 5 % of |h|) hides a
+ *    disturbance; c5, c6 absorb a residual shape error of the calibration; rel = sqrt(model) - 1;
  *  - otherwise rel = |h| / R - 1.
+ * Every threshold is widened by sqrt(1 + unc), unc = the model's prediction variance at the
+ * sample over its noise variance (f^T (F^T F)^-1 f): one circle cannot separate the pitch from
+ * the calibration's shape. Sectors the store did not cover at the fit are stored, never judged.
  * Two judges use it:
  *  - per sample: |rel| > max(cfg.mismatch_k sigma, cfg.mismatch_min_rel), sigma = the relative
- *    residual of the model on the store. Mismatching samples are not stored and open an
- *    episode (its sectors of corrected heading and its mismatch time); cfg.clear_ms of
- *    consistent samples close it; cfg.change_ms of mismatch over cfg.change_bins sectors is a
- *    lasting change (the store is dropped, cont_step.c relearns);
+ *    residual of the model on the store. Mismatching samples are not stored; those beyond twice
+ *    the threshold open or extend an episode (its sectors of corrected heading and its mismatch
+ *    time); cfg.clear_ms of consistent samples close it; cfg.change_ms of mismatch over
+ *    cfg.change_bins sectors is a lasting change (the store is dropped, cont_step.c relearns);
  *  - transient: rel smoothed over cfg.disturb_tau_ms (the noise of z, amplified by 2 z / |h|,
- *    dominates one sample; 3 x faster back towards the baseline) minus a slow baseline (model bias, 20 s) against cfg.disturb_k
- *    times the RMS of that difference on clean samples (learnt on the stream from the store's
- *    sigma); the flag is held cfg.disturb_hold_ms after it falls back. A flagged sample is
- *    DISTURBED and not stored, but drops nothing (2 to 5 s of a passing truck span one or two
- *    sectors and never reach cfg.change_ms).
+ *    dominates one sample; 3 x faster back towards the baseline) minus a slow baseline (4 s:
+ *    the model's bias drifts with the hills) against cfg.disturb_k times the RMS of that
+ *    difference on clean samples (learnt on the stream, at least the store's sigma); the flag
+ *    is held cfg.disturb_hold_ms after it falls back. A flagged sample is DISTURBED and not
+ *    stored, but drops nothing and never adds up to a change.
  */
 #include <math.h>
 
