@@ -131,13 +131,16 @@ typedef struct {
     uint32_t change_ms;             /**< mismatch time of an open episode to declare a change (8000) */
     uint16_t change_bins;           /**< distinct 10-degree sectors an episode must span (default 3) */
     uint32_t clear_ms;              /**< consistent time that closes an episode (default 4000) */
+    uint32_t disturb_tau_ms;        /**< transient judge: time constant of the smoothed residual (150) */
+    uint32_t disturb_hold_ms;       /**< transient judge: flag held after the residual returns (200) */
+    float disturb_k;                /**< transient judge: flag at |smoothed - baseline| > k sigma (4) */
 } magcal_cont_cfg_t;
 
 /** Defaults: work untuned from 10 to 100 Hz (time constants are in ms of the push stamps). */
 #define MAGCAL_CONT_CFG_DEFAULT                                                                    \
     {                                                                                              \
         MAGCAL_INTAKE_CFG_DEFAULT_2D, MAGCAL_CALIBRATOR_CFG_DEFAULT, 270.0f, 24u, 2u, 600000.0f, 4.0f,  \
-            0.06f, 8000u, 3u, 4000u                                                                \
+            0.06f, 8000u, 3u, 4000u, 150u, 200u, 4.0f                                              \
     }
 
 /** A heading with its trust. */
@@ -212,6 +215,21 @@ typedef struct {
     float fz_abc[3];               /* |h|^2 = a + b u + c u^2, u = z - fz_u0 (h corrected x, y) */
     uint32_t aged_adopts;          /* adoptions won by the ageing rule (cont_adopt.c) */
     float adopted_err;             /**< read-only: est_heading_err_deg of the installed calibration (NaN: none / from flash) */
+    /* judge (cont_change.c): linear terms of the total-field model, transient judge state */
+    float fz_hxy[4];               /* |h|^2 model terms hx, hy, hx^2 - hy^2, hx hy (unit radius) */
+    float dist_e;                  /* smoothed relative residual */
+    float dist_base;               /* its slow baseline (model bias) */
+    float dist_var;                /* variance of (dist_e - dist_base) on clean samples */
+    uint32_t dist_quiet_ms;        /* ms since the transient judge last exceeded its threshold */
+    uint32_t dist_n;               /* samples since install that fed the transient judge */
+    uint32_t fz_cover[2];          /* sectors of corrected heading the store covered at the fit */
+    float fz_l[28];                /* Cholesky factor (packed lower) of the model's scaled normal matrix */
+    float fz_s[7];                 /* feature scales of that matrix */
+    uint32_t dist_flag_ms;         /* ms the transient judge has been above its threshold */
+    float fz_u_prior[2];           /* u, u^2 terms of the last model that determined them */
+    uint8_t fz_have_u;             /* 1: fz_u_prior holds them (the vertical field is kept by a change) */
+    uint8_t fz_skip;               /* model form: u terms dropped (0: none, 1: u^2, 2: u and u^2) */
+    uint8_t dist_flag;             /* 1: transient flagged (trust DISTURBED, not stored) */
 } magcal_cont_t;
 
 /**

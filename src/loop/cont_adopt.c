@@ -34,6 +34,7 @@ void magcal_cont_install(magcal_cont_t *cc, const magcal_cal2d_t *c, float r_raw
     cc->clean_ms = 0u;
     cc->mis_bins[0] = 0u;
     cc->mis_bins[1] = 0u;
+    magcal_cont_transient_reset(cc);
 }
 
 static float cont_margin(const magcal_cont_t *cc)

@@ -1,16 +1,44 @@
 /*
- * Continuous calibrator, change detection: every drained sample is judged under the installed
- * calibration by its corrected radius, rel = |h| / R - 1, against a threshold from the
- * calibration's own residual, max(cfg.mismatch_k sigma, cfg.mismatch_min_rel). Mismatching
- * samples open an episode; the episode records the sectors (10 deg of corrected heading) and the
- * time (ms of the push stamps) it mismatched; cfg.clear_ms of consistent samples close it. An
- * episode that mismatched for cfg.change_ms over at least cfg.change_bins sectors is a change:
- * a transient (seconds, one or two sectors) is flagged (trust DISTURBED) but discards nothing.
+ * Continuous calibrator, the judge and change detection (docs/calibrator.md "Judge and change
+ * detection"). Every drained sample is judged under the installed calibration by its relative
+ * residual `rel` against a model of the field it must show:
+ *  - total field (when the store supports it): a level sensor that pitches (hills) keeps
+ *    |h|^2 + z_b^2 = F^2, and its raw z is z_b plus a heading-dependent leak of x, y (soft iron,
+ *    misalignment), so |h|^2 = c0 + c1 u + c2 u^2 + c3 hx + c4 hy + c5 (hx^2 - hy^2) + c6 hx hy
+ *    (u = raw z - its store mean, h corrected, both scaled to unit radius), fitted over the store
+ *    at each adoption; without the hx, hy terms the leak alone (about 5 % of |h|) hides a
+ *    disturbance; c5, c6 absorb a residual shape error of the calibration; rel = sqrt(model) - 1;
+ *  - otherwise rel = |h| / R - 1.
+ * Every threshold is widened by sqrt(1 + unc), unc = the model's prediction variance at the
+ * sample over its noise variance (f^T (F^T F)^-1 f): one circle cannot separate the pitch from
+ * the calibration's shape. Sectors the store did not cover at the fit are stored, never judged.
+ * Two judges use it:
+ *  - per sample: |rel| > max(cfg.mismatch_k sigma, cfg.mismatch_min_rel), sigma = the relative
+ *    residual of the model on the store. Mismatching samples are not stored; those beyond twice
+ *    the threshold open or extend an episode (its sectors of corrected heading and its mismatch
+ *    time); cfg.clear_ms of consistent samples close it; cfg.change_ms of mismatch over
+ *    cfg.change_bins sectors is a lasting change (the store is dropped, cont_step.c relearns);
+ *  - transient: rel smoothed over cfg.disturb_tau_ms (the noise of z, amplified by 2 z / |h|,
+ *    dominates one sample; 3 x faster back towards the baseline) minus a slow baseline (4 s:
+ *    the model's bias drifts with the hills) against cfg.disturb_k times the RMS of that
+ *    difference on clean samples (learnt on the stream, at least the store's sigma); the flag
+ *    is held cfg.disturb_hold_ms after it falls back. A flagged sample is DISTURBED and not
+ *    stored, but drops nothing and never adds up to a change.
  */
 #include <math.h>
 
 #include "cont_internal.h"
 #include "magcal_internal.h"
+
+#define CONT_DIST_MIN_REL 0.004f  /* floor of the transient threshold (relative) */
+#define CONT_DIST_CLAMP 0.15f     /* a sample enters the smoothed residual clamped to this */
+#define CONT_DIST_GROSS 0.5f      /* |rel| above: a glitch, it does not feed the transient judge */
+#define CONT_DIST_BASE_MS 4000.0f /* baseline time constant (hills drift the model's bias) */
+#define CONT_DIST_VAR_MS 20000.0f /* variance time constant of the transient judge */
+#define CONT_DIST_STORE_K 1.0f    /* transient threshold >= this x the model's sigma on the store */
+#define CONT_DIST_VAR0 0.4f       /* initial RMS of the smoothed residual, x the store's sigma */
+#define CONT_FZ_MIN_N 30.0f       /* store samples the total-field model needs */
+#define CONT_CHANGE_X 2.0f        /* a change counts samples beyond this x the per-sample threshold */
 
 static unsigned cont_popcount(uint32_t v)
 {
@@ -20,6 +48,108 @@ static unsigned cont_popcount(uint32_t v)
         n += (unsigned)((v >> k) & 1u);
     }
     return n;
+}
+
+/* Features of the judge's model: 1, u, u^2, hx, hy, hx^2 - hy^2, hx hy (unit radius; the last
+ * two absorb a residual shape error of the calibration). `skip` drops the leading u terms:
+ * 0 keeps both, 1 drops u^2, 2 drops u and u^2. Returns the count written to f. */
+static uint32_t cont_fz_feat(float u, float hx, float hy, uint32_t skip, float *f)
+{
+    uint32_t n = 0u;
+    f[n++] = 1.0f;
+    if (skip < 2u) {
+        f[n++] = u;
+    }
+    if (skip < 1u) {
+        f[n++] = u * u;
+    }
+    f[n++] = hx;
+    f[n++] = hy;
+    f[n++] = hx * hx - hy * hy;
+    f[n++] = hx * hy;
+    return n;
+}
+
+
+/* Prediction variance of the model at a sample over its noise variance: |L^-1 f|^2 with f the
+ * scaled features and L the Cholesky factor of the store's scaled normal matrix (F^T F). Large
+ * where the store could not separate the pitch from the calibration's shape (u collinear with
+ * the heading terms), or outside the pitch range the store saw. */
+static float cont_fz_unc(const magcal_cont_t *cc, float u, float hx, float hy)
+{
+    float f[7];
+    float w[7];
+    float q = 0.0f;
+    const uint32_t nf = cont_fz_feat(u, hx, hy, cc->fz_skip, f);
+    uint32_t p;
+    uint32_t k;
+    for (p = 0u; p < nf; ++p) {
+        float v = f[p] / cc->fz_s[p];
+        for (k = 0u; k < p; ++k) {
+            v -= cc->fz_l[p * (p + 1u) / 2u + k] * w[k];
+        }
+        w[p] = v / cc->fz_l[p * (p + 1u) / 2u + p];
+        q += w[p] * w[p];
+    }
+    return q;
+}
+
+/* Cholesky in place of the nf x nf normal matrix held packed (lower) in cc->fz_l, scaled by its
+ * diagonal (scales into cc->fz_s), then the solve of (F^T F) c = b in place. 0 when not
+ * positive definite (a relative pivot below 1e-6: the store cannot separate the terms). */
+static int cont_fz_chol_solve(magcal_cont_t *cc, uint32_t nf, float *b)
+{
+    float *l = cc->fz_l;
+    uint32_t p;
+    uint32_t q;
+    uint32_t k;
+    for (p = 0u; p < nf; ++p) {
+        if (!(l[p * (p + 1u) / 2u + p] > 0.0f)) {
+            return 0;
+        }
+        cc->fz_s[p] = sqrtf(l[p * (p + 1u) / 2u + p]);
+    }
+    for (p = 0u; p < nf; ++p) {
+        for (q = 0u; q <= p; ++q) {
+            float v = l[p * (p + 1u) / 2u + q] / (cc->fz_s[p] * cc->fz_s[q]);
+            for (k = 0u; k < q; ++k) {
+                v -= l[p * (p + 1u) / 2u + k] * l[q * (q + 1u) / 2u + k];
+            }
+            if (p == q) {
+                if (!(v > 1e-6f)) {
+                    return 0;
+                }
+                l[p * (p + 1u) / 2u + p] = sqrtf(v);
+            } else {
+                l[p * (p + 1u) / 2u + q] = v / l[q * (q + 1u) / 2u + q];
+            }
+        }
+    }
+    /* L L^T z = S^-1 b, c = S^-1 z */
+    for (p = 0u; p < nf; ++p) {
+        float v = b[p] / cc->fz_s[p];
+        for (k = 0u; k < p; ++k) {
+            v -= l[p * (p + 1u) / 2u + k] * b[k];
+        }
+        b[p] = v / l[p * (p + 1u) / 2u + p];
+    }
+    for (p = nf; p-- > 0u;) {
+        float v = b[p];
+        for (k = p + 1u; k < nf; ++k) {
+            v -= l[k * (k + 1u) / 2u + p] * b[k];
+        }
+        b[p] = v / l[p * (p + 1u) / 2u + p];
+    }
+    for (p = 0u; p < nf; ++p) {
+        b[p] /= cc->fz_s[p];
+    }
+    return magcal_isfinite_f(b[0]) ? 1 : 0;
+}
+
+/* Per-sample threshold on |rel|. */
+static float cont_threshold(const magcal_cont_t *cc)
+{
+    return fmaxf(cc->cfg.mismatch_k * cc->cal_sigma_rel, cc->cfg.mismatch_min_rel);
 }
 
 int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_cont_judge_t *j)
@@ -33,6 +163,7 @@ int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_co
     j->rel = NAN;
     j->heading = 0.0f;
     j->sector = 0u;
+    j->unc = 0.0f;
     j->mismatch = 0u;
     raw.x = m->x;
     raw.y = m->y;
@@ -41,11 +172,17 @@ int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_co
         return 0;
     }
     r = sqrtf(h.x * h.x + h.y * h.y);
+    j->unc = 0.0f;
     if (cc->fz_on != 0u) {
-        /* total field: |h|^2 - b u - c u^2 stays a while the vehicle pitches (hills) */
-        const float u = m->z - cc->fz_u0;
-        const float tt = h.x * h.x + h.y * h.y - cc->fz_abc[1] * u - cc->fz_abc[2] * u * u;
+        /* total field: |h|^2 - c1 u - c2 u^2 - c3 hx - c4 hy stays c0 while the vehicle pitches */
+        const float hx = h.x / cc->cal.radius;
+        const float hy = h.y / cc->cal.radius;
+        const float u = (m->z - cc->fz_u0) / cc->cal_raw_radius;
+        const float tt = hx * hx + hy * hy - cc->fz_abc[1] * u - cc->fz_abc[2] * u * u -
+                         cc->fz_hxy[0] * hx - cc->fz_hxy[1] * hy - cc->fz_hxy[2] * (hx * hx - hy * hy) -
+                         cc->fz_hxy[3] * (hx * hy);
         j->rel = sqrtf(fmaxf(tt, 0.0f) / cc->fz_abc[0]) - 1.0f;
+        j->unc = cont_fz_unc(cc, u, hx, hy);
     } else {
         j->rel = r / cc->cal.radius - 1.0f;
     }
@@ -62,15 +199,88 @@ int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_co
         sec = (int)MAGCAL_CONT_SECTORS - 1;
     }
     j->sector = (uint8_t)sec;
-    thr = fmaxf(cc->cfg.mismatch_k * cc->cal_sigma_rel, cc->cfg.mismatch_min_rel);
-    j->mismatch = (uint8_t)(!(fabsf(j->rel) <= thr) ? 1u : 0u);
+    thr = cont_threshold(cc) * sqrtf(1.0f + j->unc);
+    if (cc->fz_on != 0u && ((cc->fz_cover[j->sector / 32u] >> (j->sector % 32u)) & 1u) == 0u) {
+        /* a sector the store did not cover: the calibration and the model are extrapolated
+         * there; such samples are what the next solve needs, so they are stored, never judged */
+        return 1;
+    }
+    /* the transient judge's flag (state of the stream up to the last drained sample) counts too */
+    j->mismatch = (uint8_t)((!(fabsf(j->rel) <= thr) || cc->dist_flag != 0u) ? 1u : 0u);
     return 1;
 }
 
+/* Wide: the episode spans change_bins sectors and has lasted 3/4 of change_ms (a 2 to 5 s transient
+ * through a turn spans many sectors but must not flag the clean headings after it). */
 int magcal_cont_episode_wide(const magcal_cont_t *cc)
 {
-    return cc->episode_open != 0u &&
+    return cc->episode_open != 0u && cc->mis_ms >= cc->cfg.change_ms - cc->cfg.change_ms / 4u &&
            cont_popcount(cc->mis_bins[0]) + cont_popcount(cc->mis_bins[1]) >= cc->cfg.change_bins;
+}
+
+/* Transient judge: one drained sample's rel after dt ms (file comment). */
+static void cont_transient(magcal_cont_t *cc, float rel, uint32_t dt)
+{
+    const float hold = (float)cc->cfg.disturb_hold_ms;
+    float d;
+    float thr;
+    float x;
+    if (!magcal_isfinite_f(rel) || !(fabsf(rel) <= CONT_DIST_GROSS)) {
+        return; /* a glitch: flagged by the per-sample judge, the smoothed state keeps its value */
+    }
+    x = fminf(fmaxf(rel, -CONT_DIST_CLAMP), CONT_DIST_CLAMP);
+    if (cc->dist_n == 0u) {
+        cc->dist_e = x; /* the baseline starts at 0: the model is centred on the store */
+    } else {
+        /* towards the baseline 3 x faster: the flag ends within a fraction of tau of the cause */
+        const float tau = fabsf(x - cc->dist_base) < fabsf(cc->dist_e - cc->dist_base)
+                              ? (float)cc->cfg.disturb_tau_ms / 3.0f
+                              : (float)cc->cfg.disturb_tau_ms;
+        cc->dist_e += (float)dt / (tau + (float)dt) * (x - cc->dist_e);
+    }
+    if (cc->dist_n < UINT32_MAX) {
+        cc->dist_n++;
+    }
+    d = cc->dist_e - cc->dist_base;
+    thr = fmaxf(fmaxf(cc->cfg.disturb_k * sqrtf(cc->dist_var), CONT_DIST_STORE_K * cc->cal_sigma_rel),
+                CONT_DIST_MIN_REL);
+    if (!(fabsf(d) <= thr)) {
+        /* flagged: the baseline holds for cfg.change_ms (a transient is shorter), then follows
+         * 8 x slower, so a lasting small offset (below the per-sample threshold) is absorbed in
+         * a minute instead of blocking the store for ever */
+        if (cc->dist_flag_ms <= UINT32_MAX - dt) {
+            cc->dist_flag_ms += dt;
+        }
+        if (cc->dist_flag_ms > cc->cfg.change_ms) {
+            cc->dist_base += (float)dt / (8.0f * CONT_DIST_BASE_MS + (float)dt) * d;
+        }
+        cc->dist_quiet_ms = 0u;
+    } else {
+        cc->dist_flag_ms = 0u;
+        if (cc->dist_quiet_ms <= UINT32_MAX - dt) {
+            cc->dist_quiet_ms += dt;
+        }
+        if ((float)cc->dist_quiet_ms >= hold) {
+            /* clean: the baseline follows the model's slow bias, the variance its noise */
+            const float w = (float)dt / (CONT_DIST_VAR_MS + (float)dt);
+            cc->dist_base += (float)dt / (CONT_DIST_BASE_MS + (float)dt) * d;
+            cc->dist_var += w * (d * d - cc->dist_var);
+        }
+    }
+    cc->dist_flag = (uint8_t)((float)cc->dist_quiet_ms < hold ? 1u : 0u);
+}
+
+/* Reset the transient judge (a new calibration or model): no flag, noise from the store's sigma. */
+void magcal_cont_transient_reset(magcal_cont_t *cc)
+{
+    const float s0 = CONT_DIST_VAR0 * cc->cal_sigma_rel;
+    cc->dist_n = 0u;
+    cc->dist_flag = 0u;
+    cc->dist_flag_ms = 0u;
+    cc->dist_quiet_ms = cc->cfg.disturb_hold_ms;
+    cc->dist_var = s0 * s0;
+    cc->dist_e = 0.0f;
+    cc->dist_base = 0.0f;
 }
 
 int magcal_cont_episode(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint32_t t_ms)
@@ -90,7 +300,10 @@ int magcal_cont_episode(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint32_
     if (cc->solve_ms_acc <= UINT32_MAX - dt) {
         cc->solve_ms_acc += dt;
     }
-    if (j->mismatch != 0u) {
+    cont_transient(cc, j->rel / sqrtf(1.0f + j->unc), dt);
+    /* the episode counts the per-sample judge only (a transient flag must never add up to a change),
+     * in covered sectors (the judge's mismatch is 0 elsewhere) */
+    if (j->mismatch != 0u && !(fabsf(j->rel) <= CONT_CHANGE_X * cont_threshold(cc) * sqrtf(1.0f + j->unc))) {
         cc->episode_open = 1u;
         cc->mis_ms += dt;
         cc->clean_ms = 0u;
@@ -126,125 +339,169 @@ void magcal_cont_declare_change(magcal_cont_t *cc)
     cc->change_flag = 1u;
 }
 
-/* Least squares of y = a + b u + c u^2 over the consistent store samples (|h| / R - 1 within
- * +-0.35: hills move the horizontal radius by up to ~20 %), then the judge's noise: the RMS of its
- * relative residual over the samples within 0.1 of the model. Used only when the samples' z spread
- * is at least 2 % of the raw radius and the model is physical (c < 0, a > 0): otherwise the judge
- * compares the horizontal radius with R, and its noise is the solve's est_noise_deg. Bounded:
- * two passes over the store slots. */
-void magcal_cont_fit_field(magcal_cont_t *cc)
+
+/* One pass over the store: normal equations of |h|^2 = f . c over the samples with
+ * | |h| / R - 1 | <= 0.35 (hills move the horizontal radius by up to ~20 %). Unit-radius
+ * variables (file comment). Returns the samples used; *nf the order. */
+static float cont_fz_sums(magcal_cont_t *cc, uint32_t skip, float *b, uint32_t *nf_out)
 {
     const magcal_intake_t *st = &cc->store;
     const uint32_t per = st->cfg.per_bin;
-    float s[5] = {0.0f, 0.0f, 0.0f, 0.0f, 0.0f}; /* sums of u^0..u^4 */
-    float t[3] = {0.0f, 0.0f, 0.0f};            /* sums of y u^0..2 */
-    float zs = 0.0f;
     float n = 0.0f;
-    uint32_t b;
+    uint32_t bin;
     uint32_t k;
-    float var;
-    float det;
-    float m00;
-    float m01;
-    float m02;
-    float m11;
-    float m12;
-    float m22;
-    float a0;
-    float a1;
-    float a2;
-    cc->fz_on = 0u;
-    for (b = 0u; b < st->n_bins; ++b) {
-        for (k = 0u; k < st->count[b]; ++k) {
-            zs += st->slots[b * per + k].m.z;
-            n += 1.0f;
-        }
+    uint32_t p;
+    uint32_t q;
+    const uint32_t nf = 7u - skip;
+    *nf_out = nf;
+    float *a = cc->fz_l; /* packed lower triangle: row p, column q at p (p + 1) / 2 + q */
+    for (p = 0u; p < nf * (nf + 1u) / 2u; ++p) {
+        a[p] = 0.0f;
     }
-    if (n < 30.0f) {
-        return;
+    for (p = 0u; p < nf; ++p) {
+        b[p] = 0.0f;
     }
-    cc->fz_u0 = zs / n;
-    n = 0.0f;
-    for (b = 0u; b < st->n_bins; ++b) {
-        for (k = 0u; k < st->count[b]; ++k) {
-            const magcal_vec3_t *m = &st->slots[b * per + k].m;
+    for (bin = 0u; bin < st->n_bins; ++bin) {
+        for (k = 0u; k < st->count[bin]; ++k) {
+            const magcal_vec3_t *m = &st->slots[bin * per + k].m;
             magcal_vec2_t raw;
             magcal_vec2_t h;
+            float f[7];
             float y;
-            float u;
-            float u2;
-            float rel;
             raw.x = m->x;
             raw.y = m->y;
             if (magcal_correct_apply(&cc->cal, raw, &h) != MAGCAL_OK) {
                 continue;
             }
+            h.x /= cc->cal.radius;
+            h.y /= cc->cal.radius;
             y = h.x * h.x + h.y * h.y;
-            rel = sqrtf(y) / cc->cal.radius - 1.0f;
-            if (!(fabsf(rel) <= 0.35f)) {
+            if (!(fabsf(sqrtf(y) - 1.0f) <= 0.35f)) {
                 continue;
             }
-            u = m->z - cc->fz_u0;
-            u2 = u * u;
-            s[0] += 1.0f;
-            s[1] += u;
-            s[2] += u2;
-            s[3] += u2 * u;
-            s[4] += u2 * u2;
-            t[0] += y;
-            t[1] += y * u;
-            t[2] += y * u2;
-        }
-    }
-    if (s[0] < 30.0f) {
-        return;
-    }
-    var = s[2] / s[0] - (s[1] / s[0]) * (s[1] / s[0]);
-    if (!(var > (0.02f * cc->cal_raw_radius) * (0.02f * cc->cal_raw_radius))) {
-        return;
-    }
-    m00 = s[0]; m01 = s[1]; m02 = s[2]; m11 = s[2]; m12 = s[3]; m22 = s[4];
-    det = m00 * (m11 * m22 - m12 * m12) - m01 * (m01 * m22 - m12 * m02) + m02 * (m01 * m12 - m11 * m02);
-    if (!(fabsf(det) > 0.0f)) {
-        return;
-    }
-    a0 = (t[0] * (m11 * m22 - m12 * m12) - m01 * (t[1] * m22 - m12 * t[2]) + m02 * (t[1] * m12 - m11 * t[2])) / det;
-    a1 = (m00 * (t[1] * m22 - m12 * t[2]) - t[0] * (m01 * m22 - m12 * m02) + m02 * (m01 * t[2] - t[1] * m02)) / det;
-    a2 = (m00 * (m11 * t[2] - t[1] * m12) - m01 * (m01 * t[2] - t[1] * m02) + t[0] * (m01 * m12 - m11 * m02)) / det;
-    if (!(a0 > 0.0f) || !(a2 < 0.0f) || !magcal_isfinite_f(a1)) {
-        return;
-    }
-    cc->fz_abc[0] = a0;
-    cc->fz_abc[1] = a1;
-    cc->fz_abc[2] = a2;
-    {
-        float ss = 0.0f;
-        for (b = 0u; b < st->n_bins; ++b) {
-            for (k = 0u; k < st->count[b]; ++k) {
-                const magcal_vec3_t *m = &st->slots[b * per + k].m;
-                magcal_vec2_t raw;
-                magcal_vec2_t h;
-                float u;
-                float tt;
-                float rel;
-                raw.x = m->x;
-                raw.y = m->y;
-                if (magcal_correct_apply(&cc->cal, raw, &h) != MAGCAL_OK) {
-                    continue;
-                }
-                u = m->z - cc->fz_u0;
-                tt = h.x * h.x + h.y * h.y - a1 * u - a2 * u * u;
-                rel = sqrtf(fmaxf(tt, 0.0f) / a0) - 1.0f;
-                if (fabsf(rel) <= 0.1f) {
-                    ss += rel * rel;
-                    n += 1.0f;
+            {
+                const float u = (m->z - cc->fz_u0) / cc->cal_raw_radius;
+                (void)cont_fz_feat(u, h.x, h.y, skip, f);
+                if (skip == 2u && cc->fz_have_u != 0u) {
+                    /* the u terms of an earlier model: the store alone cannot determine them */
+                    y -= cc->fz_u_prior[0] * u + cc->fz_u_prior[1] * u * u;
                 }
             }
+            for (p = 0u; p < nf; ++p) {
+                for (q = 0u; q <= p; ++q) {
+                    a[p * (p + 1u) / 2u + q] += f[p] * f[q];
+                }
+                b[p] += f[p] * y;
+            }
+            n += 1.0f;
         }
-        if (n < 30.0f) {
-            return;
+    }
+    return n;
+}
+
+/* RMS of the model's relative residual over the store samples within 0.1 of it (0: too few). */
+static float cont_fz_sigma(const magcal_cont_t *cc)
+{
+    const magcal_intake_t *st = &cc->store;
+    const uint32_t per = st->cfg.per_bin;
+    float ss = 0.0f;
+    float n = 0.0f;
+    uint32_t bin;
+    uint32_t k;
+    for (bin = 0u; bin < st->n_bins; ++bin) {
+        for (k = 0u; k < st->count[bin]; ++k) {
+            magcal_cont_judge_t j;
+            if (magcal_cont_judge(cc, &st->slots[bin * per + k].m, &j) != 0 && fabsf(j.rel) <= 0.1f) {
+                ss += j.rel * j.rel;
+                n += 1.0f;
+            }
         }
-        cc->cal_sigma_rel = sqrtf(ss / n);
+    }
+    return n >= CONT_FZ_MIN_N ? sqrtf(ss / n) : 0.0f;
+}
+
+/* The judge's model at an adoption (file comment): the total-field form with its u terms when
+ * the store's raw z spreads by at least 2 % of the raw radius (u^2 kept only when physical,
+ * c2 < 0), else the shape form with the u terms of the last model that determined them (the
+ * vertical field survives a re-magnetised chassis; a store filled on the flat after a relearn
+ * cannot tell them) or without u; c0 > 0. Then the judge's noise on the store.
+ * Bounded: at most five passes over the store slots. */
+void magcal_cont_fit_field(magcal_cont_t *cc)
+{
+    const magcal_intake_t *st = &cc->store;
+    const uint32_t per = st->cfg.per_bin;
+    float b[7];
+    float zs = 0.0f;
+    float zz = 0.0f;
+    float n = 0.0f;
+    float var;
+    uint32_t bin;
+    uint32_t k;
+    uint32_t skip = 0u;
+    uint32_t nf = 0u;
+    int ok = 0;
+    cc->fz_on = 0u;
+    for (bin = 0u; bin < st->n_bins; ++bin) {
+        for (k = 0u; k < st->count[bin]; ++k) {
+            const float z = st->slots[bin * per + k].m.z;
+            zs += z;
+            zz += z * z;
+            n += 1.0f;
+        }
+    }
+    if (n < CONT_FZ_MIN_N || !(cc->cal_raw_radius > 0.0f) || !(cc->cal.radius > 0.0f)) {
+        return;
+    }
+    cc->fz_u0 = zs / n;
+    var = zz / n - cc->fz_u0 * cc->fz_u0;
+    if (!(var > (0.02f * cc->cal_raw_radius) * (0.02f * cc->cal_raw_radius))) {
+        skip = 2u;
+    }
+    for (; skip < 3u && ok == 0; ++skip) {
+        ok = cont_fz_sums(cc, skip, b, &nf) >= CONT_FZ_MIN_N && cont_fz_chol_solve(cc, nf, b) != 0 &&
+             b[0] > 0.0f &&
+             (skip != 0u || b[2] < 0.0f);
+        if (ok != 0) {
+            break;
+        }
+    }
+    if (ok == 0) {
+        return;
+    }
+    cc->fz_skip = (uint8_t)skip;
+    cc->fz_abc[0] = b[0];
+    if (skip < 2u) {
+        cc->fz_abc[1] = b[1];
+        cc->fz_abc[2] = skip < 1u ? b[2] : 0.0f;
+        cc->fz_u_prior[0] = cc->fz_abc[1];
+        cc->fz_u_prior[1] = cc->fz_abc[2];
+        cc->fz_have_u = 1u;
+    } else {
+        cc->fz_abc[1] = cc->fz_have_u != 0u ? cc->fz_u_prior[0] : 0.0f;
+        cc->fz_abc[2] = cc->fz_have_u != 0u ? cc->fz_u_prior[1] : 0.0f;
+    }
+    for (k = 0u; k < 4u; ++k) {
+        cc->fz_hxy[k] = b[nf - 4u + k];
     }
     cc->fz_on = 1u;
+    cc->dist_flag = 0u;
+    cc->fz_cover[0] = 0u;
+    cc->fz_cover[1] = 0u;
+    for (bin = 0u; bin < st->n_bins; ++bin) {
+        for (k = 0u; k < st->count[bin]; ++k) {
+            magcal_cont_judge_t j;
+            if (magcal_cont_judge(cc, &st->slots[bin * per + k].m, &j) != 0) {
+                cc->fz_cover[j.sector / 32u] |= 1u << (j.sector % 32u);
+            }
+        }
+    }
+    {
+        const float sg = cont_fz_sigma(cc);
+        if (!(sg > 0.0f)) {
+            cc->fz_on = 0u;
+            return;
+        }
+        cc->cal_sigma_rel = sg;
+    }
+    magcal_cont_transient_reset(cc);
 }

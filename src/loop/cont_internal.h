@@ -18,6 +18,7 @@ typedef struct {
     float heading;  /* corrected heading, deg */
     uint8_t sector; /* 0..35 */
     uint8_t mismatch; /* 1: |rel| above the threshold */
+    float unc;      /* model's prediction variance at this sample / its noise variance (0: none) */
 } magcal_cont_judge_t;
 
 int magcal_cont_ok(const magcal_cont_t *cc);
@@ -27,6 +28,8 @@ int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_co
 void magcal_cont_fit_field(magcal_cont_t *cc);
 /* Episode update with one judged sample at t_ms; returns 1 when a change is declared now. */
 int magcal_cont_episode(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint32_t t_ms);
+/* Reset the transient-disturbance judge (cont_change.c) after a new calibration or model. */
+void magcal_cont_transient_reset(magcal_cont_t *cc);
 /* Declare a change: drop the store, relearn. */
 void magcal_cont_declare_change(magcal_cont_t *cc);
 /* 1 when an open episode spans at least cfg.change_bins sectors (every heading suspect). */

@@ -20,11 +20,13 @@ static magcal_status_t cont_check_cfg(const magcal_cont_cfg_t *c)
         return MAGCAL_ERR_ARG;
     }
     if (!magcal_isfinite_f(c->solve_coverage_deg) || !magcal_isfinite_f(c->age_ms) ||
-        !magcal_isfinite_f(c->mismatch_k) || !magcal_isfinite_f(c->mismatch_min_rel)) {
+        !magcal_isfinite_f(c->mismatch_k) || !magcal_isfinite_f(c->mismatch_min_rel) ||
+        !magcal_isfinite_f(c->disturb_k)) {
         return MAGCAL_ERR_NONFINITE;
     }
     if (c->solve_coverage_deg < 0.0f || c->solve_coverage_deg > 360.0f || !(c->age_ms > 0.0f) ||
-        !(c->mismatch_k > 0.0f) || !(c->mismatch_min_rel > 0.0f)) {
+        !(c->mismatch_k > 0.0f) || !(c->mismatch_min_rel > 0.0f) || !(c->disturb_k > 0.0f) ||
+        c->disturb_tau_ms < 1u) {
         return MAGCAL_ERR_ARG;
     }
     return MAGCAL_OK;

@@ -9,7 +9,9 @@ Generates a drive (tools/gen_drive.py: known truth), runs `magcal-replay --strea
 rows, trusted rows, adoption rows and the cumulative turning at the first adoption, heading RMS
 over trusted rows after the first adoption vs the floor (the TRUE calibration on the same rows:
 G (m - V) of the truth JSON, heading from its x, y like the 2-D calibrator), the hard-iron step's
-detection delay (degrees of turning and seconds) and relearning, disturbance recall (rows with
+detection delay (degrees of turning and seconds) and relearning (a drive that ends with less
+than 720 deg of turning after the step is reported, not failed, when its rows from the step on are
+untrusted), disturbance recall (rows with
 disturbed = 1 not marked ok) and the false-flag rate (clean rows marked disturbed), and per
 adoption the truth RMS of the new against the old calibration's generation. Prints one JSON
 object; exit 1 when a requirement of issue 13 fails (unless --report-only), 77 without numpy.
@@ -123,6 +125,15 @@ def main():
                     fails.append("relearned after %.0f deg of turning (> 720)" % (turn[relearn_row] - turn[srow]))
                 seg = slice(srow, relearn_row)
                 res["untrusted_share_step_to_relearn"] = round(float(np.mean(trust[seg] != "ok")), 4)
+            elif turn[-1] - turn[srow] <= 720.0:
+                # the drive ends before 720 deg of turning after the step: the requirement cannot
+                # have failed yet; every row from the step on must be untrusted meanwhile
+                res["relearn_note"] = "not relearned; the drive has only %.0f deg of turning after the step" % (
+                    turn[-1] - turn[srow])
+                res["untrusted_share_step_to_end"] = round(float(np.mean(trust[srow:] != "ok")), 4)
+                if res["untrusted_share_step_to_end"] < 0.9:
+                    fails.append("rows after the undetected relearn trusted (%.3f untrusted)" %
+                                 res["untrusted_share_step_to_end"])
             else:
                 fails.append("step detected but not relearned")
         else:
