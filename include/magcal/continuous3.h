@@ -27,9 +27,12 @@
  *
  * States (no sticky state; every state returns to COLLECTING by itself):
  *  COLLECTING -> SOLVING   when the store has a centre, fills at least cfg.solve_fill of its
- *                          cells AND at least cfg.min_new samples were stored since the last
- *                          solve (new information), or, after a NOT_BETTER verdict, cfg.age_ms / 4
- *                          later (the installed calibration has aged: a lower margin);
+ *                          cells AND at least cfg.min_new x 2^min(f, 6) x (1 + min(r, 63))
+ *                          samples were stored since the last solve (new information; f = failed
+ *                          solves in a row, r = refusals in a row: a sensor at rest, or a store
+ *                          that keeps confirming the installed calibration, does not solve again
+ *                          and again), or, after a NOT_BETTER verdict, cfg.age_ms / 4 later (the
+ *                          installed calibration has aged: a lower margin);
  *  SOLVING -> COLLECTING   when the solve ends (adopted, refused or failed: collection never
  *                          stops; pushes continue during the solve);
  *  any -> RELEARNING       when a change is declared (old samples dropped);
@@ -165,7 +168,8 @@ typedef struct {
     float heading_deg;      /**< [0, 360): calibrated (raw when uncalibrated); tilt compensated when
                                  gravity was given, else atan2(-h.x, h.y) of the corrected field
                                  (valid only while the body is level: x right, y forward, z up) */
-    float raw_heading_deg;  /**< the same formula on the raw sample */
+    float raw_heading_deg;  /**< the same formula on the raw sample (NaN when a calibration is installed
+                                 and the raw field has no horizontal part) */
     float field_rel;        /**< |h| / F - 1 under the installed calibration (NaN if none) */
     float inclination_deg;  /**< with gravity: inclination of the corrected field, down positive
                                  (reported, not judged: the store has no gravity); else NaN */
@@ -217,6 +221,8 @@ typedef struct {
     uint32_t solves;
     uint32_t changes;
     uint32_t aged_adopts;           /* adoptions that needed the aged margin */
+    uint8_t fail_run;               /* failed solves in a row (back-off, c3_step.c) */
+    uint8_t refuse_run;             /* refusals in a row since the last adoption (back-off) */
     uint32_t stored_at_solve;
     uint32_t age_ms_acc;
     uint32_t solve_ms_acc;

@@ -86,6 +86,9 @@ magcal_cont3_outcome_t magcal_c3_adopt(magcal_cont3_t *cc)
     cc->inst_spread = NAN;
     cc->cand_spread = NAN;
     if (cc->solve_status != MAGCAL_OK) {
+        if (cc->fail_run < 255u) {
+            cc->fail_run++;
+        }
         cc->last_status = cc->solve_status;
         return MAGCAL_CONT3_FAILED; /* collection goes on; the installed calibration is untouched */
     }
@@ -106,11 +109,18 @@ magcal_cont3_outcome_t magcal_c3_adopt(magcal_cont3_t *cc)
         adopt = 1;
     }
     if (!adopt) {
-        /* fresh data confirm the installed calibration: a declared change is refuted */
+        /* fresh data confirm the installed calibration: a declared change is refuted; the next
+         * solve waits for more new samples (linear back-off) */
+        cc->fail_run = 0u;
+        if (cc->refuse_run < 255u) {
+            cc->refuse_run++;
+        }
         cc->last_status = MAGCAL_ERR_NOT_BETTER;
         cc->state = (uint8_t)MAGCAL_CONT3_COLLECTING;
         return MAGCAL_CONT3_REFUSED;
     }
+    cc->fail_run = 0u;
+    cc->refuse_run = 0u;
     cc->last = *r;
     magcal_c3_install(cc, &r->cal, r->residual_rms / r->cal.field);
     cc->generation++;

@@ -122,5 +122,7 @@ void magcal_c3_declare_change(magcal_cont3_t *cc)
     cc->changes++;
     c3_episode_close(cc);
     cc->stored_at_solve = 0u;
+    cc->fail_run = 0u;
+    cc->refuse_run = 0u;
     cc->change_flag = 1u;
 }

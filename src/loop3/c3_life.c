@@ -213,10 +213,13 @@ magcal_status_t magcal_cont3_heading(const magcal_cont3_t *cc, const magcal_vec3
     r.inclination_deg = NAN;
     r.generation = cc->generation;
     st = c3_heading_of(m, accel_g, &r.raw_heading_deg, NULL);
-    if (st != MAGCAL_OK) {
-        return st;
+    if (st == MAGCAL_OK) {
+        r.raw_heading_deg = c3_wrap360(r.raw_heading_deg + declination_deg);
+    } else if (cc->has_cal != 0u && st == MAGCAL_ERR_ZERO_FIELD) {
+        r.raw_heading_deg = NAN; /* the raw field (hard iron included) may point straight up */
+    } else {
+        return st; /* the attitude gates, or no field at all */
     }
-    r.raw_heading_deg = c3_wrap360(r.raw_heading_deg + declination_deg);
     if (cc->has_cal == 0u) {
         r.heading_deg = r.raw_heading_deg;
         r.trust = MAGCAL_TRUST_UNCALIBRATED;

@@ -43,13 +43,22 @@ static void c3_drain(magcal_cont3_t *cc, uint32_t max)
     }
 }
 
+/* New stored samples a solve needs: cfg.min_new, x 2^f after f failed solves in a row (at most
+ * x 64), x (1 + r) after r refusals in a row (at most x 64). */
+static uint32_t c3_new_needed(const magcal_cont3_t *cc)
+{
+    const uint32_t f = cc->fail_run < 6u ? cc->fail_run : 6u;
+    const uint32_t r = cc->refuse_run < 63u ? cc->refuse_run : 63u;
+    return ((uint32_t)cc->cfg.min_new << f) * (1u + r);
+}
+
 static int c3_worth(const magcal_cont3_t *cc)
 {
     magcal_intake_progress_t p;
     (void)magcal_intake_progress(&cc->store, &p);
     return p.centre_source != MAGCAL_INTAKE_CENTRE_NONE && p.fill_fraction >= cc->cfg.solve_fill &&
            p.stored >= cc->cfg.min_samples &&
-           ((cc->store.ctr.added + cc->store.ctr.replaced) - cc->stored_at_solve >= cc->cfg.min_new ||
+           ((cc->store.ctr.added + cc->store.ctr.replaced) - cc->stored_at_solve >= c3_new_needed(cc) ||
             (cc->last_status == MAGCAL_ERR_NOT_BETTER && (float)cc->solve_ms_acc >= 0.25f * cc->cfg.age_ms));
 }
 
