@@ -101,14 +101,18 @@ magcal_cont3_outcome_t magcal_c3_adopt(magcal_cont3_t *cc)
         const float m = c3_margin(cc);
         cc->inst_spread = magcal_c3_spread(cc, &cc->cal, &r->cal);
         /* an installed calibration that is not finite on these samples is worse than any */
-        adopt = !magcal_isfinite_f(cc->inst_spread) || cc->cand_spread * m < cc->inst_spread;
-        if (adopt && magcal_isfinite_f(cc->inst_spread) && !(cc->cand_spread * cc->cfg.adopt_margin < cc->inst_spread)) {
+        adopt = 0;
+        if (!magcal_isfinite_f(cc->inst_spread) || cc->cand_spread * m < cc->inst_spread) {
+            adopt = 1;
+        }
+        if (adopt != 0 && magcal_isfinite_f(cc->inst_spread) &&
+            !(cc->cand_spread * cc->cfg.adopt_margin < cc->inst_spread)) {
             cc->aged_adopts++;
         }
     } else {
         adopt = 1;
     }
-    if (!adopt) {
+    if (adopt == 0) {
         /* fresh data confirm the installed calibration: a declared change is refuted; the next
          * solve waits for more new samples (linear back-off) */
         cc->fail_run = 0u;

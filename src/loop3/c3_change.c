@@ -31,17 +31,35 @@ static uint8_t c3_cell(const magcal_vec3_t *h)
     const float ax = fabsf(h->x);
     const float ay = fabsf(h->y);
     const float az = fabsf(h->z);
-    unsigned face;
-    unsigned q;
+    float s0; /* the dominant component */
+    float s1; /* the other two, in axis order */
+    float s2;
+    uint32_t face;
+    uint32_t q = 0u;
     if (ax >= ay && ax >= az) {
-        face = h->x >= 0.0f ? 0u : 1u;
-        q = (h->y >= 0.0f ? 0u : 1u) | (h->z >= 0.0f ? 0u : 2u);
+        face = 0u;
+        s0 = h->x;
+        s1 = h->y;
+        s2 = h->z;
     } else if (ay >= az) {
-        face = h->y >= 0.0f ? 2u : 3u;
-        q = (h->x >= 0.0f ? 0u : 1u) | (h->z >= 0.0f ? 0u : 2u);
+        face = 2u;
+        s0 = h->y;
+        s1 = h->x;
+        s2 = h->z;
     } else {
-        face = h->z >= 0.0f ? 4u : 5u;
-        q = (h->x >= 0.0f ? 0u : 1u) | (h->y >= 0.0f ? 0u : 2u);
+        face = 4u;
+        s0 = h->z;
+        s1 = h->x;
+        s2 = h->y;
+    }
+    if (s0 < 0.0f) {
+        face += 1u;
+    }
+    if (s1 < 0.0f) {
+        q |= 1u;
+    }
+    if (s2 < 0.0f) {
+        q |= 2u;
     }
     return (uint8_t)(face * 4u + q);
 }

@@ -180,7 +180,8 @@ static magcal_status_t c3_heading_of(const magcal_vec3_t *f, const magcal_vec3_t
             *incl = MAGCAL_DEG_PER_RAD_F * atan2f(-lv.z, sqrtf(lv.x * lv.x + lv.y * lv.y));
         }
         return st;
-    } else {
+    }
+    {
         magcal_vec2_t h2;
         h2.x = f->x;
         h2.y = f->y;
