@@ -257,6 +257,9 @@ static void test_cont3_init_bad_args_refused(void)
     cfg.intake.dims = 2u;
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, init_k(0, &cfg, NULL));
     cfg.intake.dims = 3u;
+    cfg.intake.per_bin = 9u; /* 128 cells x 9 > MAGCAL_MAX_SAMPLES: a full store could not be solved */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, init_k(0, &cfg, NULL));
+    cfg.intake.per_bin = 4u;
     cfg.solve_fill = 0.0f;
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, init_k(0, &cfg, NULL));
     cfg.solve_fill = NAN;

@@ -245,7 +245,8 @@ typedef struct {
 /**
  * @brief Initialise on caller storage.
  * @param[out] cc        instance.
- * @param[in]  cfg       configuration (copied); cfg->intake.dims must be 3.
+ * @param[in]  cfg       configuration (copied); cfg->intake.dims must be 3 and its cells x
+ *                       per_bin at most MAGCAL_MAX_SAMPLES (the solve's density-stage limit).
  * @param[in]  installed optional (NULL): 3-D calibration restored from flash (finite, F > 0,
  *                       det G > 0; its centre then indexes the store; generation stays 0).
  * @param[in]  slots     store slots, n_slots >= cells x per_bin (MAGCAL_CONT3_SLOTS), <= 65535.
@@ -253,8 +254,8 @@ typedef struct {
  * @param[in]  buf       solver buffer of n_slots samples.
  * @param[in]  work      solver workspace, 4-aligned, >= MAGCAL_CONT3_WORKSPACE_LEN(n_slots).
  * @param[in]  work_len  its bytes.
- * @return MAGCAL_OK, MAGCAL_ERR_NULL, MAGCAL_ERR_ARG (a cfg value out of range, dims != 3, or
- *         `installed` not a calibration), MAGCAL_ERR_NONFINITE (cfg or installed),
+ * @return MAGCAL_OK, MAGCAL_ERR_NULL, MAGCAL_ERR_ARG (a cfg value out of range, dims != 3, a
+ *         store larger than MAGCAL_MAX_SAMPLES, or `installed` not a calibration), MAGCAL_ERR_NONFINITE (cfg or installed),
  *         MAGCAL_ERR_WORKSPACE (n_slots or work_len too small), MAGCAL_ERR_ALIGNMENT.
  */
 magcal_status_t magcal_cont3_init(magcal_cont3_t *cc, const magcal_cont3_cfg_t *cfg,

@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "c3_internal.h"
+#include "magcal/config.h"
 #include "magcal/tilt.h"
 #include "magcal_internal.h"
 
@@ -75,6 +76,14 @@ magcal_status_t magcal_cont3_init(magcal_cont3_t *cc, const magcal_cont3_cfg_t *
     }
     if (st != MAGCAL_OK) {
         return st;
+    }
+    {
+        /* a full store must fit the solve's density stage (magcal_ellipsoid_calibrate) */
+        uint16_t nb = 0u;
+        if (magcal_intake_bins(&cfg->intake, &nb) != MAGCAL_OK ||
+            (size_t)nb * (size_t)cfg->intake.per_bin > (size_t)MAGCAL_MAX_SAMPLES) {
+            return MAGCAL_ERR_ARG;
+        }
     }
     if (n_slots > 65535u || work_len < MAGCAL_CONT3_WORKSPACE_LEN(n_slots)) {
         return MAGCAL_ERR_WORKSPACE;
