@@ -1,5 +1,5 @@
 #!/bin/sh
-# Build the libFuzzer harnesses and run each one for SECONDS (default 20; CI: 20 -> 80 s total).
+# Build the libFuzzer harnesses and run each one for SECONDS (default 20; CI: 20 -> 100 s total).
 #   tools/fuzz/run_fuzz.sh [SECONDS] [HARNESS...]
 # Environment: BUILD_DIR (default build/fuzz), CC (default clang), MAGCAL_SHARED_DIR (optional
 # extra dumps for the seed corpus), FUZZ_FLAGS (extra libFuzzer flags, e.g. -workers=1 -jobs=1).
@@ -8,7 +8,7 @@
 set -eu
 SECS=${1:-20}
 [ $# -gt 0 ] && shift
-HARNESSES=${*:-"replay_csv calibrator cluster 3d"}
+HARNESSES=${*:-"replay_csv calibrator cluster 3d cont3"}
 SRC=$(cd "$(dirname "$0")/../.." && pwd)
 BUILD_DIR=${BUILD_DIR:-$SRC/build/fuzz}
 CC=${CC:-clang}
@@ -32,6 +32,7 @@ for h in $HARNESSES; do
     case $h in
         replay_csv) maxlen=8192 ;;
         3d) maxlen=9200 ;;      # ~1300 synthetic epochs (7 bytes) + header
+        cont3) maxlen=12000 ;;  # ~1000 synthetic pushes (8 bytes) + steps + header
         *) maxlen=8300 ;;       # 1024 float32 samples + header
     esac
     work=$FZ/work/$h            # grows across runs; seeds stay in $FZ/corpus/$h
