@@ -5,8 +5,7 @@
  * raw m = W C^T B + V + n (W symmetric positive definite, so the fit's symmetric G is W^-1 up to
  * scale and the tilt-compensated heading is exact up to noise); accelerometer f = C^T (0, 0, 1) g.
  * Truth calibration: G = W^-1, V, F = |B|.
- * magcal:host-only (POSIX thread for the interrupt / task interleaving test; static buffers of
- * several solver stores)
+ * On the QEMU target the interleaving test is left out (it needs a POSIX thread).
  */
 #if defined(__unix__) && !defined(__arm__)
 #define CONT3_TEST_THREADS 1 /* host: the ISR is a POSIX thread */
