@@ -41,6 +41,7 @@
 #include "magcal/errmodel.h"
 #include "magcal/intake.h"
 #include "magcal/continuous.h"
+#include "magcal/continuous3.h"
 #include "magcal/record.h"
 
 #endif /* MAGCAL_H */

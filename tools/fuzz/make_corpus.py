@@ -210,6 +210,34 @@ def cont_seeds(dumps, out):
         struct.pack("<fff", 120.0, -40.0, 50.0) + bytes([9, 1]) + bytes([6]) + struct.pack("<ffff", 168.0, -40.0, 30.0, 0.0)
     write_seed(out, cont_header(0x19, rng=800.0) + cont_ops(ring, 20, 7, tail))
     write_seed(out, cont_header(0x15, drain=0) + cont_ops(ring[:400], 10, 11, tail))
+def seeds_cont3(out):
+    """fuzz_cont3.c: synthetic tumbles (the harness's V = (20, -10, 30), B = (0, 20, -40)) long
+    enough to reach solves and adoptions: per sample a push op with its angle steps (x 0.05 rad),
+    noise and a 20 ms time step, then a step op; a heading and a progress op now and then. One at
+    the default configuration, one with short change / clear times, one with a calibration
+    restored from flash (identity G, the true V)."""
+    rng = random.Random(33)
+    for flags, n in ((0x00, 1000), (0x10, 1000), (0x20, 900)):
+        hdr = bytes([flags])
+        if flags & 0x10:
+            hdr += bytes([40, 20])                       # change_ms 400, clear_ms 200
+        if flags & 0x20:
+            hdr += struct.pack("<9f3ff", 1, 0, 0, 0, 1, 0, 0, 0, 1, 20.0, -10.0, 30.0, 44.72)
+        body = bytearray()
+        prev = [0, 0, 0]                                 # integer angle state (x 0.05 rad)
+        for k in range(n):
+            t = 0.02 * k
+            want = [round((2.5 * t) / 0.05), round((1.3 * math.sin(1.1 * t)) / 0.05),
+                    round((2.8 * math.sin(0.83 * t)) / 0.05)]
+            steps = [max(-127, min(127, w - p)) for w, p in zip(want, prev)]
+            prev = [p + d for p, d in zip(prev, steps)]
+            body += bytes([0]) + bytes(d & 0xFF for d in steps) + \
+                bytes(rng.randrange(-15, 16) & 0xFF for _ in range(3)) + bytes([20, 4])
+            if k % 50 == 49:
+                body += bytes([5 | (8 if k % 100 == 99 else 0), 30, 10, 0xF0])
+            if k % 200 == 199:
+                body += bytes([7])
+        write_seed(out, hdr + bytes(body))
 
 
 def main():
@@ -230,7 +258,8 @@ def main():
     out_clu = os.path.join(a.out, "cluster")
     out_3d = os.path.join(a.out, "3d")
     out_cont = os.path.join(a.out, "cont")
-    for d in (out_csv, out_cal, out_clu, out_3d, out_cont):
+    out_c3 = os.path.join(a.out, "cont3")
+    for d in (out_csv, out_cal, out_clu, out_3d, out_cont, out_c3):
         shutil.rmtree(d, ignore_errors=True)       # regenerated from scratch every time
         os.makedirs(d)
     # committed seeds: hand-written CSVs and the reproducers of fixed crashes (regressions)
@@ -247,7 +276,8 @@ def main():
             cluster_seeds(pts, out_clu)
     seeds_3d(out_3d)
     cont_seeds(dumps, out_cont)
-    for d in (out_csv, out_cal, out_clu, out_3d, out_cont):
+    seeds_cont3(out_c3)
+    for d in (out_csv, out_cal, out_clu, out_3d, out_cont, out_c3):
         print("%s: %d seeds" % (d, len(os.listdir(d))))
 
 

@@ -8,7 +8,7 @@
 set -eu
 SECS=${1:-20}
 [ $# -gt 0 ] && shift
-HARNESSES=${*:-"replay_csv calibrator cluster 3d cont"}
+HARNESSES=${*:-"replay_csv calibrator cluster 3d cont cont3"}
 SRC=$(cd "$(dirname "$0")/../.." && pwd)
 BUILD_DIR=${BUILD_DIR:-$SRC/build/fuzz}
 CC=${CC:-clang}
@@ -33,6 +33,7 @@ for h in $HARNESSES; do
         replay_csv) maxlen=8192 ;;
         3d) maxlen=9200 ;;      # ~1300 synthetic epochs (7 bytes) + header
         cont) maxlen=16384 ;;   # ~1000 push ops (15 bytes) + the other ops + header
+        cont3) maxlen=12000 ;;  # ~1000 synthetic pushes (8 bytes) + steps + header
         *) maxlen=8300 ;;       # 1024 float32 samples + header
     esac
     work=$FZ/work/$h            # grows across runs; seeds stay in $FZ/corpus/$h

@@ -1,7 +1,8 @@
 /*
- * magcal-replay --stream [--mode 2d] [--headings OUT.csv] [--json] [--declination DEG] DUMP.csv
+ * magcal-replay --stream [--mode 2d|3d] [--headings OUT.csv] [--json] [--declination DEG] DUMP.csv
  * Feeds every row (no limit, no decimation) through magcal_cont_push + magcal_cont_step at the
- * default configuration, then magcal_cont_heading for the row. Headings CSV:
+ * default configuration, then magcal_cont_heading for the row (--mode 3d: the continuous 3-D
+ * calibrator, magcal_cont3_*, tilt compensated when the dump has ax, ay, az). Headings CSV:
  * index,raw_heading_deg,heading_deg,trust,generation[,heading_ref_deg,error_deg]. JSON: the
  * calibration in force at the end (the batch report's fields), "events", "rows", "trusted_rows".
  */
@@ -15,6 +16,7 @@
 #include <string.h>
 
 #include "magcal/continuous.h"
+#include "magcal/continuous3.h"
 #include "replay_csv.h"
 
 #define RS_SECTORS 36u
@@ -26,12 +28,20 @@ static magcal_vec2_t g_buf[RS_SLOTS];
 static MAGCAL_CALIBRATOR_WORKSPACE_DECLARE(g_work, RS_SLOTS);
 static magcal_cont_t g_cc;
 
+#define RS3_SLOTS MAGCAL_CONT3_SLOTS(10u, 4u)
+static magcal_intake_slot_t g_slots3[RS3_SLOTS];
+static magcal_vec3_t g_buf3[RS3_SLOTS];
+static MAGCAL_CONT3_WORKSPACE_DECLARE(g_work3, RS3_SLOTS);
+static magcal_cont3_t g_c3;
+
 static const char k_stream_usage[] =
-    "usage: magcal-replay --stream [--mode 2d] [--headings OUT.csv] [--json] [--declination DEG]\n"
+    "usage: magcal-replay --stream [--mode 2d|3d] [--headings OUT.csv] [--json] [--declination DEG]\n"
     "                        [--range R] DUMP.csv   (R: the sensor's declared range, dump unit)\n"
     "  every row in file order through magcal_cont_push + magcal_cont_step (default budget) and\n"
     "  magcal_cont_heading; --headings: index,raw_heading_deg,heading_deg,trust,generation\n"
-    "  [,heading_ref_deg,error_deg]; --json: calibration in force at the end, events, rows, trusted_rows\n";
+    "  [,heading_ref_deg,error_deg]; --json: calibration in force at the end, events, rows, trusted_rows\n"
+    "  --mode 3d: magcal_cont3_* (3-D store, ellipsoid solve), tilt-compensated headings when the\n"
+    "  dump has ax, ay, az in g, mg or m/s^2 (else the level formula)\n";
 
 int replay_stream_requested(int argc, char **argv)
 {
@@ -103,6 +113,264 @@ static void add_cal(cJSON *o, const magcal_cont_t *cc)
     }
 }
 
+/* ---- --mode 3d: the continuous 3-D calibrator (magcal_cont3_*) ---- */
+
+static int cmp_double(const void *a, const void *b)
+{
+    const double x = *(const double *)a;
+    const double y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* Scale of the dump's accelerometer to g from its median |a| (g, mg, m/s^2 as the batch mode
+ * detects them); 0 when there is no accelerometer or its unit cannot be told (raw counts). */
+static double stream3_accel_scale(const magcal_replay_csv_t *d)
+{
+    double *nrm;
+    size_t i, k = 0u;
+    double med, scale = 0.0;
+    if (d->col[MAGCAL_REPLAY_COL_AX] == NULL || d->col[MAGCAL_REPLAY_COL_AY] == NULL ||
+        d->col[MAGCAL_REPLAY_COL_AZ] == NULL || d->n_rows == 0u) {
+        return 0.0;
+    }
+    nrm = (double *)malloc(d->n_rows * sizeof *nrm);
+    if (nrm == NULL) {
+        return 0.0;
+    }
+    for (i = 0u; i < d->n_rows; ++i) {
+        const double ax = d->col[MAGCAL_REPLAY_COL_AX][i], ay = d->col[MAGCAL_REPLAY_COL_AY][i],
+                     az = d->col[MAGCAL_REPLAY_COL_AZ][i];
+        if (isfinite(ax) && isfinite(ay) && isfinite(az)) {
+            nrm[k++] = sqrt(ax * ax + ay * ay + az * az);
+        }
+    }
+    if (k > 0u) {
+        qsort(nrm, k, sizeof *nrm, cmp_double);
+        med = nrm[k / 2u];
+        scale = (med >= 0.5 && med <= 2.0)      ? 1.0
+                : (med >= 4.9 && med <= 19.6)   ? 1.0 / 9.80665
+                : (med >= 500.0 && med <= 2000.0) ? 1e-3
+                                                  : 0.0;
+    }
+    free(nrm);
+    return scale;
+}
+
+/* |B| spread (std / mean of |G (m - V)|) of the calibration in force over every finite row. */
+static double stream3_spread(const magcal_replay_csv_t *d, const magcal_ellipsoid_cal_t *cal)
+{
+    double s = 0.0, s2 = 0.0;
+    size_t i, k = 0u;
+    for (i = 0u; i < d->n_rows; ++i) {
+        magcal_vec3_t m, h;
+        m.x = (float)d->col[MAGCAL_REPLAY_COL_MX][i];
+        m.y = (float)d->col[MAGCAL_REPLAY_COL_MY][i];
+        m.z = (float)d->col[MAGCAL_REPLAY_COL_MZ][i];
+        if (magcal_ellipsoid_apply(cal, &m, &h) == MAGCAL_OK) {
+            const double r = sqrt((double)h.x * h.x + (double)h.y * h.y + (double)h.z * h.z);
+            s += r;
+            s2 += r * r;
+            k++;
+        }
+    }
+    if (k < 2u || s <= 0.0) {
+        return NAN;
+    }
+    return sqrt(fmax(s2 / (double)k - (s / (double)k) * (s / (double)k), 0.0)) / (s / (double)k);
+}
+
+static void add_cal3(cJSON *o, const magcal_cont3_t *c3, const magcal_replay_csv_t *d)
+{
+    const magcal_ellipsoid_result_t *r = &c3->last;
+    cJSON *off = cJSON_CreateArray();
+    cJSON *m = cJSON_CreateArray();
+    int i;
+    cJSON_AddItemToArray(off, cJSON_CreateNumber((double)c3->cal.v.x));
+    cJSON_AddItemToArray(off, cJSON_CreateNumber((double)c3->cal.v.y));
+    cJSON_AddItemToArray(off, cJSON_CreateNumber((double)c3->cal.v.z));
+    for (i = 0; i < 3; ++i) {
+        cJSON *row = cJSON_CreateArray();
+        cJSON_AddItemToArray(row, cJSON_CreateNumber((double)c3->cal.g[i][0]));
+        cJSON_AddItemToArray(row, cJSON_CreateNumber((double)c3->cal.g[i][1]));
+        cJSON_AddItemToArray(row, cJSON_CreateNumber((double)c3->cal.g[i][2]));
+        cJSON_AddItemToArray(m, row);
+    }
+    cJSON_AddStringToObject(o, "status", c3->generation > 0u ? "ok" : magcal_status_str(magcal_cont3_status(c3)));
+    cJSON_AddNumberToObject(o, "status_code", c3->generation > 0u ? 0.0 : (double)magcal_cont3_status(c3));
+    cJSON_AddStringToObject(o, "mode", "3d");
+    cJSON_AddItemToObject(o, "offset", off);
+    cJSON_AddItemToObject(o, "matrix", m);
+    cJSON_AddNumberToObject(o, "field", (double)c3->cal.field);
+    cJSON_AddNumberToObject(o, "generation", (double)c3->generation);
+    cJSON_AddStringToObject(o, "last_solve_status", magcal_status_str(magcal_cont3_status(c3)));
+    if (c3->generation > 0u) {
+        /* the fit of the calibration in force */
+        cJSON_AddNumberToObject(o, "n_used", (double)r->n_used);
+        cJSON_AddNumberToObject(o, "n_outliers", (double)r->n_rejected);
+        cJSON_AddNumberToObject(o, "coverage", (double)r->coverage);
+        cJSON_AddNumberToObject(o, "residual_rel", (double)(r->residual_rms / r->cal.field));
+        cJSON_AddNumberToObject(o, "bfield_spread_all_rows", stream3_spread(d, &c3->cal));
+    }
+}
+
+/* One row's heading; 1 when the heading was computed (tilt failures give 0: no heading). */
+static int stream3_heading(const magcal_replay_csv_t *d, size_t i, double ascale, const magcal_vec3_t *m,
+                           double decl, magcal_cont3_heading_t *hd)
+{
+    magcal_vec3_t a;
+    const magcal_vec3_t *ap = NULL;
+    if (ascale > 0.0) {
+        const double ax = d->col[MAGCAL_REPLAY_COL_AX][i], ay = d->col[MAGCAL_REPLAY_COL_AY][i],
+                     az = d->col[MAGCAL_REPLAY_COL_AZ][i];
+        if (!(isfinite(ax) && isfinite(ay) && isfinite(az))) {
+            return 0;
+        }
+        a.x = (float)(ax * ascale);
+        a.y = (float)(ay * ascale);
+        a.z = (float)(az * ascale);
+        ap = &a;
+    }
+    return magcal_cont3_heading(&g_c3, m, ap, (float)decl, hd) == MAGCAL_OK;
+}
+
+static int replay_stream3(const char *path, const char *hpath, int json, double decl, float range)
+{
+    magcal_replay_csv_t d;
+    char err[MAGCAL_REPLAY_CSV_ERR_LEN];
+    magcal_cont3_cfg_t cfg = MAGCAL_CONT3_CFG_DEFAULT;
+    FILE *hf = NULL;
+    cJSON *root;
+    cJSON *ev;
+    size_t i, trusted = 0u, ref_n = 0u, no_att = 0u;
+    double ref_ss = 0.0, ascale;
+    int prev_dist = 0;
+    const double *ref;
+    const double *tc;
+    cfg.intake.range_limit = range;
+    memset(&d, 0, sizeof d);
+    if (magcal_replay_csv_read(path,
+                               MAGCAL_REPLAY_COL_BIT(MAGCAL_REPLAY_COL_MX) | MAGCAL_REPLAY_COL_BIT(MAGCAL_REPLAY_COL_MY) |
+                                   MAGCAL_REPLAY_COL_BIT(MAGCAL_REPLAY_COL_MZ),
+                               &d, err, sizeof err) != MAGCAL_OK) {
+        fprintf(stderr, "magcal-replay: %s\n", err);
+        return 2;
+    }
+    if (magcal_cont3_init(&g_c3, &cfg, NULL, g_slots3, RS3_SLOTS, g_buf3, g_work3, sizeof g_work3) != MAGCAL_OK) {
+        magcal_replay_csv_free(&d);
+        return 5;
+    }
+    ascale = stream3_accel_scale(&d);
+    if (ascale == 0.0 && d.col[MAGCAL_REPLAY_COL_AX] != NULL) {
+        fprintf(stderr, "magcal-replay: %s: accelerometer unit not g, mg or m/s^2 (raw counts?): "
+                        "headings use the level formula\n", path);
+    }
+    if (hpath != NULL) {
+        hf = fopen(hpath, "w");
+        if (hf == NULL) {
+            fprintf(stderr, "magcal-replay: cannot write %s\n", hpath);
+            magcal_replay_csv_free(&d);
+            return 4;
+        }
+    }
+    ref = d.col[MAGCAL_REPLAY_COL_HEADING_REF];
+    tc = d.col[MAGCAL_REPLAY_COL_T];
+    if (hf != NULL) {
+        fprintf(hf, "index,raw_heading_deg,heading_deg,trust,generation%s\n",
+                ref != NULL ? ",heading_ref_deg,error_deg" : "");
+    }
+    root = cJSON_CreateObject();
+    ev = cJSON_CreateArray();
+    for (i = 0u; i < d.n_rows; ++i) {
+        magcal_vec3_t m;
+        magcal_cont3_heading_t hd;
+        magcal_cont3_outcome_t oc;
+        uint32_t t_ms;
+        const char *trust;
+        int have;
+        m.x = (float)d.col[MAGCAL_REPLAY_COL_MX][i];
+        m.y = (float)d.col[MAGCAL_REPLAY_COL_MY][i];
+        m.z = (float)d.col[MAGCAL_REPLAY_COL_MZ][i];
+        if (tc != NULL && isfinite(tc[i]) && isfinite(tc[0])) {
+            t_ms = (uint32_t)(int64_t)llround((tc[i] - tc[0]) * 1000.0);
+        } else {
+            t_ms = (uint32_t)(i * 20u); /* no time column: 50 Hz */
+        }
+        (void)magcal_cont3_push(&g_c3, &m, t_ms);
+        oc = magcal_cont3_step(&g_c3);
+        if (oc == MAGCAL_CONT3_ADOPTED) {
+            add_event(ev, i, "adopted", "ok", NAN);
+        } else if (oc == MAGCAL_CONT3_REFUSED || oc == MAGCAL_CONT3_FAILED) {
+            add_event(ev, i, "refused", magcal_status_str(magcal_cont3_status(&g_c3)), NAN);
+        } else if (oc == MAGCAL_CONT3_CHANGE) {
+            add_event(ev, i, "change", "changed", NAN);
+        } else {
+            /* idle or in progress */
+        }
+        have = stream3_heading(&d, i, ascale, &m, decl, &hd);
+        if (!have) {
+            /* no attitude (tilt gate: accelerating, free fall, gimbal) or no field: no heading */
+            hd.heading_deg = NAN;
+            hd.raw_heading_deg = NAN;
+            hd.generation = g_c3.generation;
+            no_att++;
+            trust = "no_heading";
+            prev_dist = 0;
+        } else {
+            trust = magcal_trust_str(hd.trust);
+            if (hd.trust == MAGCAL_TRUST_DISTURBED && !prev_dist) {
+                add_event(ev, i, "disturbance", "disturbed", NAN);
+            }
+            prev_dist = hd.trust == MAGCAL_TRUST_DISTURBED;
+            if (hd.trust == MAGCAL_TRUST_OK) {
+                ++trusted;
+            }
+        }
+        if (hf != NULL) {
+            fprintf(hf, "%zu,%.4f,%.4f,%s,%u", i, (double)hd.raw_heading_deg, (double)hd.heading_deg, trust,
+                    (unsigned)hd.generation);
+            if (ref != NULL) {
+                fprintf(hf, ",%.4f,%.4f", ref[i], wrap180((double)hd.heading_deg - ref[i]));
+            }
+            fputc('\n', hf);
+        }
+        if (ref != NULL && have && hd.trust == MAGCAL_TRUST_OK && isfinite(ref[i])) {
+            double e = wrap180((double)hd.heading_deg - ref[i]);
+            ref_ss += e * e;
+            ref_n++;
+        }
+    }
+    add_cal3(root, &g_c3, &d);
+    cJSON_AddStringToObject(root, "file", path);
+    cJSON_AddNumberToObject(root, "rows", (double)d.n_rows);
+    cJSON_AddNumberToObject(root, "trusted_rows", (double)trusted);
+    cJSON_AddNumberToObject(root, "no_heading_rows", (double)no_att);
+    cJSON_AddBoolToObject(root, "tilt_compensated", ascale > 0.0);
+    cJSON_AddNumberToObject(root, "solves", (double)g_c3.solves);
+    cJSON_AddNumberToObject(root, "changes", (double)g_c3.changes);
+    cJSON_AddNumberToObject(root, "dropped", (double)g_c3.dropped);
+    if (ref_n > 0u) {
+        cJSON_AddNumberToObject(root, "heading_rms_trusted_deg", sqrt(ref_ss / (double)ref_n));
+    }
+    cJSON_AddItemToObject(root, "events", ev);
+    if (json) {
+        char *s = cJSON_Print(root);
+        if (s != NULL) {
+            puts(s);
+            free(s);
+        }
+    } else {
+        printf("stream 3d: %zu rows, %zu trusted, %u adoptions, %u solves, %u changes\n", d.n_rows, trusted,
+               (unsigned)g_c3.generation, (unsigned)g_c3.solves, (unsigned)g_c3.changes);
+    }
+    cJSON_Delete(root);
+    if (hf != NULL && fclose(hf) != 0) {
+        magcal_replay_csv_free(&d);
+        return 4;
+    }
+    magcal_replay_csv_free(&d);
+    return g_c3.has_cal != 0u ? 0 : 3;
+}
+
 int replay_stream_main(int argc, char **argv)
 {
     static const struct option k_opts[] = {{"stream", no_argument, NULL, 's'},
@@ -128,6 +396,7 @@ int replay_stream_main(int argc, char **argv)
     int prev_dist = 0;
     const double *ref;
     const double *tc;
+    int mode3 = 0;
 
     optind = 1;
     while ((opt = getopt_long(argc, argv, "h", k_opts, NULL)) != -1) {
@@ -135,8 +404,12 @@ int replay_stream_main(int argc, char **argv)
         case 's':
             break;
         case 'm':
-            if (strcmp(optarg, "2d") != 0) {
-                fprintf(stderr, "magcal-replay: --stream supports --mode 2d only (3d: not built yet)\n");
+            if (strcmp(optarg, "3d") == 0) {
+                mode3 = 1;
+            } else if (strcmp(optarg, "2d") == 0) {
+                mode3 = 0;
+            } else {
+                fprintf(stderr, "magcal-replay: --stream --mode must be 2d or 3d, got \"%s\"\n", optarg);
                 return 1;
             }
             break;
@@ -176,6 +449,9 @@ int replay_stream_main(int argc, char **argv)
     if (optind != argc - 1) {
         fputs(k_stream_usage, stderr);
         return 1;
+    }
+    if (mode3) {
+        return replay_stream3(argv[optind], hpath, json, decl, cfg.intake.range_limit);
     }
     memset(&d, 0, sizeof d);
     if (magcal_replay_csv_read(argv[optind],
