@@ -10,10 +10,10 @@
 
 #include "ellipsoid_internal.h"
 
-#define MED_BINS 128u    /* histogram bins per pass of the median |residual|: 2 passes reach 0.1 % on a shell */
+#define MED_BINS MAGCAL_ELL_MED_BINS /* histogram bins per pass of the median |residual|: 2 passes reach 0.1 % on a shell */
 #define MED_PASSES 4u    /* refinement passes: resolution (max |r|) / 128^4 at worst */
 #define PLANAR_MAX 0.15f /* planarity below this: one rotation axis dominates (SINGLE_AXIS) */
-#define INFO_MAX_N 9u    /* centre information: 3 offset + 6 symmetric shape parameters */
+#define INFO_MAX_N MAGCAL_ELL_INFO_N /* centre information: 3 offset + 6 symmetric shape parameters */
 
 static float alg_residual(const resid_src_t *src, const magcal_vec3_t *m)
 {
@@ -38,9 +38,9 @@ static float abs_residual(const resid_src_t *src, const magcal_vec3_t *m)
  */
 MAGCAL_NOINLINE float magcal_ell_median_abs(const magcal_vec3_t *m, size_t n,
                                             const resid_src_t *src, const quad_gate_t *gate,
-                                            size_t kept, float max_abs)
+                                            const ell_ws_t *ws, size_t kept, float max_abs)
 {
-    uint32_t cnt[MED_BINS];
+    uint32_t *cnt = ws->s->cnt;
     float lo = 0.0f;
     float hi = max_abs * 1.0001f + 1e-30f;
     size_t below = 0u;
@@ -57,10 +57,10 @@ MAGCAL_NOINLINE float magcal_ell_median_abs(const magcal_vec3_t *m, size_t n,
             done = 1;
             continue;
         }
-        (void)memset(cnt, 0, sizeof(cnt));
+        (void)memset(cnt, 0, sizeof(ws->s->cnt));
         for (k = 0u; k < n; ++k) {
-            if (magcal_ell_gate_keeps(gate, &m[k]) != 0) {
-                const float a = abs_residual(src, &m[k]);
+            if (magcal_ell_kept(ws, gate, m, k) != 0) {
+                const float a = (ws->res != NULL) ? fabsf(ws->res[k]) : abs_residual(src, &m[k]);
                 if (a >= lo && a < hi) {
                     const float q = (a - lo) / width;
                     const size_t bin = (size_t)q;
@@ -163,7 +163,7 @@ static MAGCAL_NOINLINE float planarity3(float c[3][3])
  * sd[3..np); 0 when a rounding bound is above 1 % of its diagonal term (then nothing is trusted). */
 static MAGCAL_NOINLINE int sandwich_from_meat(const float *meat, float inv[INFO_MAX_N][INFO_MAX_N],
                                               size_t np, int sphere, size_t cnt, float cc[3][3],
-                                              float sd[INFO_MAX_N])
+                                              float sd[INFO_MAX_N], float vec[2][INFO_MAX_N])
 {
     const float eps = ((float)cnt + (float)np) * 6e-8f;
     size_t i;
@@ -172,8 +172,8 @@ static MAGCAL_NOINLINE int sandwich_from_meat(const float *meat, float inv[INFO_
     (void)memset(cc, 0, 9u * sizeof(float));
     (void)memset(sd, 0, INFO_MAX_N * sizeof(float));
     for (k = 0u; k < np; ++k) {
-        float w[INFO_MAX_N];
-        float wa[INFO_MAX_N];
+        float *w = vec[0];
+        float *wa = vec[1];
         float d = 0.0f;
         float da = 0.0f;
         if (k >= 3u && sphere != 0) {
@@ -216,8 +216,9 @@ static MAGCAL_NOINLINE int sandwich_from_meat(const float *meat, float inv[INFO_
 /* The same sandwich from a second pass over the samples: sum r_i^2 (J_i . inv_k)(J_i . inv_l). */
 static MAGCAL_NOINLINE void sandwich_pass(const magcal_vec3_t *m, size_t n,
                                           const magcal_ellipsoid_cal_t *cal, const quad_gate_t *gate,
-                                          int sphere, float inv[INFO_MAX_N][INFO_MAX_N],
-                                          float cc[3][3], float sd[INFO_MAX_N])
+                                          const ell_ws_t *ws, int sphere,
+                                          float inv[INFO_MAX_N][INFO_MAX_N], float cc[3][3],
+                                          float sd[INFO_MAX_N])
 {
     const size_t np = (sphere != 0) ? (size_t)4u : (size_t)INFO_MAX_N;
     size_t i;
@@ -230,14 +231,15 @@ static MAGCAL_NOINLINE void sandwich_pass(const magcal_vec3_t *m, size_t n,
         float row[INFO_MAX_N];
         float pr[INFO_MAX_N];
         float r2;
-        if (!magcal_ell_gate_keeps(gate, &m[k])) {
+        if (magcal_ell_kept(ws, gate, m, k) == 0) {
             continue;
         }
         magcal_ell_correct(cal, &m[k], h);
         if (info_row(h, sphere, row) == 0u) {
             continue;
         }
-        r2 = sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) - cal->field;
+        r2 = (ws->res != NULL) ? ws->res[k]
+                               : (sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) - cal->field);
         r2 *= r2;
         for (i = 0u; i < np; ++i) {
             float d = 0.0f;
@@ -271,30 +273,27 @@ static MAGCAL_NOINLINE void sandwich_pass(const magcal_vec3_t *m, size_t n,
  * G: output units) and worst soft-iron term; +Inf when J^T J is singular (every n_i on one cone).
  * `dir_planarity`: planarity of the corrected directions (~0 for rotation about one axis).
  */
-static MAGCAL_NOINLINE void centre_info(const magcal_vec3_t *m, size_t n,
-                                        const magcal_ellipsoid_cal_t *cal, const quad_gate_t *gate,
-                                        int sphere, quad_acc_t *acc, trust_diag_t *res)
+static MAGCAL_NOINLINE size_t info_accumulate(const magcal_vec3_t *m, size_t n,
+                                              const magcal_ellipsoid_cal_t *cal,
+                                              const quad_gate_t *gate, const ell_ws_t *ws,
+                                              int sphere, float sn[3])
 {
     const size_t np = (sphere != 0) ? (size_t)4u : (size_t)INFO_MAX_N;
     const size_t npk = (np * (np + 1u)) / 2u;
-    float a[INFO_MAX_N * INFO_MAX_N];
-    float inv[INFO_MAX_N][INFO_MAX_N];
-    float part[(INFO_MAX_N * (INFO_MAX_N + 1u)) / 2u];
-    float meat[(INFO_MAX_N * (INFO_MAX_N + 1u)) / 2u]; /* sum r_i^2 J_i J_i^T, packed */
-    float cc[3][3];
-    float sn[3] = {0.0f, 0.0f, 0.0f};
-    float sd[INFO_MAX_N];
+    quad_acc_t *acc = &ws->s->acc;
+    float *part = ws->s->part;
+    float *meat = ws->s->meat; /* sum r_i^2 J_i J_i^T, packed */
     size_t cnt = 0u;
     size_t in_block = 0u;
     size_t i;
     size_t j;
     size_t k;
-    res->centre_std_rel = INFINITY;
-    res->shape_std = (sphere != 0) ? 0.0f : INFINITY;
-    res->planarity = 0.0f;
     (void)memset(acc, 0, sizeof(*acc));
-    (void)memset(part, 0, sizeof(part));
-    (void)memset(meat, 0, sizeof(meat));
+    (void)memset(part, 0, sizeof(ws->s->part));
+    (void)memset(meat, 0, sizeof(ws->s->meat));
+    sn[0] = 0.0f;
+    sn[1] = 0.0f;
+    sn[2] = 0.0f;
     /* one pass: J^T J (blocked Kahan) and the sandwich's meat (plain sums: a 1-significant-digit
      * gate), so the covariance needs no second pass over the samples */
     for (k = 0u; k < n; ++k) {
@@ -302,14 +301,15 @@ static MAGCAL_NOINLINE void centre_info(const magcal_vec3_t *m, size_t n,
         float row[INFO_MAX_N];
         float r2;
         size_t p = 0u;
-        if (!magcal_ell_gate_keeps(gate, &m[k])) {
+        if (magcal_ell_kept(ws, gate, m, k) == 0) {
             continue;
         }
         magcal_ell_correct(cal, &m[k], h);
         if (info_row(h, sphere, row) == 0u) {
             continue;
         }
-        r2 = sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) - cal->field;
+        r2 = (ws->res != NULL) ? ws->res[k]
+                               : (sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) - cal->field);
         r2 *= r2;
         for (i = 0u; i < np; ++i) { /* packed order: p = pidx(i, j) */
             for (j = 0u; j <= i; ++j) {
@@ -329,31 +329,63 @@ static MAGCAL_NOINLINE void centre_info(const magcal_vec3_t *m, size_t n,
         }
     }
     magcal_ell_flush(acc->sum, acc->comp, part, npk);
+    return cnt;
+}
+
+/* (J^T J)^-1 into ws->s->inv: one factorisation, np substitutions; 0 when singular. */
+static MAGCAL_NOINLINE int info_inverse(const ell_ws_t *ws, size_t np)
+{
+    float *a = ws->s->mat;
+    size_t i;
+    size_t j;
+    size_t k;
+    for (i = 0u; i < np; ++i) {
+        for (j = 0u; j < np; ++j) {
+            a[i * np + j] = magcal_ell_acc_at(&ws->s->acc, i, j);
+        }
+    }
+    if (magcal_ldlt_factor(a, np, 0.0f, NULL) != MAGCAL_OK) {
+        return 0;
+    }
+    for (k = 0u; k < np; ++k) {
+        float *b = ws->s->inv[k];
+        for (i = 0u; i < np; ++i) {
+            b[i] = (i == k) ? 1.0f : 0.0f;
+        }
+        if (magcal_ldlt_subst(a, b, np) != MAGCAL_OK) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* The passes of the observability gate (see the comment above): ws->s->dir gets the scatter of
+ * the directions, ws->s->cc / sd the offset covariance and shape variances. Returns 0 (too few
+ * samples: nothing), 1 (J^T J singular: the scatter only) or 2 (all). The eigenvalues are taken
+ * by the caller, so the Jacobi's stack does not sit on top of this frame. */
+static MAGCAL_NOINLINE int centre_info(const magcal_vec3_t *m, size_t n,
+                                       const magcal_ellipsoid_cal_t *cal, const quad_gate_t *gate,
+                                       const ell_ws_t *ws, int sphere)
+{
+    const size_t np = (sphere != 0) ? (size_t)4u : (size_t)INFO_MAX_N;
+    ell_scratch_t *sw = ws->s;
+    float sn[3];
+    size_t cnt;
+    size_t i;
+    size_t j;
+    cnt = info_accumulate(m, n, cal, gate, ws, sphere, sn);
     if (cnt < np) {
-        return;
+        return 0;
     }
     /* planarity of the directions: scatter of n about its mean, from the n n^T block */
     for (i = 0u; i < 3u; ++i) {
         for (j = 0u; j <= i; ++j) {
-            cc[i][j] = magcal_ell_acc_at(acc, i, j) / (float)cnt -
-                       (sn[i] / (float)cnt) * (sn[j] / (float)cnt);
+            sw->dir[i][j] = magcal_ell_acc_at(&sw->acc, i, j) / (float)cnt -
+                            (sn[i] / (float)cnt) * (sn[j] / (float)cnt);
         }
     }
-    res->planarity = planarity3(cc);
-    for (k = 0u; k < np; ++k) {
-        float b[INFO_MAX_N];
-        for (i = 0u; i < np; ++i) {
-            for (j = 0u; j < np; ++j) {
-                a[i * np + j] = magcal_ell_acc_at(acc, i, j);
-            }
-            b[i] = (i == k) ? 1.0f : 0.0f;
-        }
-        if (magcal_ldlt_solve(a, b, np, 0.0f, NULL) != MAGCAL_OK) {
-            return;
-        }
-        for (i = 0u; i < np; ++i) {
-            inv[k][i] = b[i];
-        }
+    if (info_inverse(ws, np) == 0) {
+        return 1;
     }
     /* sandwich (J^T J)^-1 meat (J^T J)^-1 from the summed meat: the offset block (rows 0..2) and
      * the shape diagonal, C_kl = inv_l . (meat inv_k). Near a singular J^T J the rounding of the
@@ -361,18 +393,36 @@ static MAGCAL_NOINLINE void centre_info(const magcal_vec3_t *m, size_t n,
      * offset look fine), so each diagonal term carries a bound of that rounding,
      * (cnt + np) eps |inv_k|^T |meat| |inv_k|; if any bound is above 1 % of its term, the exact
      * per-sample second pass decides instead. */
-    if (sandwich_from_meat(meat, inv, np, sphere, cnt, cc, sd) == 0) {
-        sandwich_pass(m, n, cal, gate, sphere, inv, cc, sd);
+    if (sandwich_from_meat(sw->meat, sw->inv, np, sphere, cnt, sw->cc, sw->sd, sw->vec) == 0) {
+        sandwich_pass(m, n, cal, gate, ws, sphere, sw->inv, sw->cc, sw->sd);
     }
-    res->centre_std_rel = sqrtf(max_eig3(cc)) / cal->field;
+    return 2;
+}
+
+/* The observability diagnostics from centre_info's matrices (relative to F). */
+static MAGCAL_NOINLINE void centre_diag(const ell_ws_t *ws, int stage, int sphere, float f,
+                                        trust_diag_t *res)
+{
+    ell_scratch_t *sw = ws->s;
+    size_t i;
+    res->centre_std_rel = INFINITY;
+    res->shape_std = (sphere != 0) ? 0.0f : INFINITY;
+    res->planarity = 0.0f;
+    if (stage >= 1) {
+        res->planarity = planarity3(sw->dir);
+    }
+    if (stage < 2) {
+        return;
+    }
+    res->centre_std_rel = sqrtf(max_eig3(sw->cc)) / f;
     if (sphere == 0) {
         float emax = 0.0f;
-        for (i = 3u; i < np; ++i) {
-            if (!(sd[i] <= emax)) { /* NaN propagates as unobservable */
-                emax = sd[i];
+        for (i = 3u; i < INFO_MAX_N; ++i) {
+            if (!(sw->sd[i] <= emax)) { /* NaN propagates as unobservable */
+                emax = sw->sd[i];
             }
         }
-        res->shape_std = magcal_isfinite_f(emax) ? (sqrtf(emax) / cal->field) : INFINITY;
+        res->shape_std = magcal_isfinite_f(emax) ? (sqrtf(emax) / f) : INFINITY;
     }
 }
 
@@ -384,9 +434,11 @@ static MAGCAL_NOINLINE void centre_info(const magcal_vec3_t *m, size_t n,
  * of it), the radius / noise for a rotation (any soft iron, any quadric). 0 when not solvable.
  */
 MAGCAL_NOINLINE float magcal_ell_algebraic_snr(const magcal_vec3_t *m, size_t n, const float mu[3],
-                                               float inv_s, const quad_acc_t *acc)
+                                               float inv_s, const ell_ws_t *ws)
 {
-    float a[9u * 9u];
+    const quad_acc_t *acc = &ws->s->acc;
+    float *a = ws->s->mat;
+    ell_ws_t all_ws = *ws;
     float b[9];
     float mx = 0.0f;
     float med;
@@ -408,11 +460,16 @@ MAGCAL_NOINLINE float magcal_ell_algebraic_snr(const magcal_vec3_t *m, size_t n,
     src.theta = b;
     src.mu = mu;
     src.inv_s = inv_s;
+    all_ws.keep = NULL; /* every sample; residuals stored (when there is room) for the median */
     for (k = 0u; k < n; ++k) {
-        mx = fmaxf(mx, fabsf(alg_residual(&src, &m[k])));
+        const float r = alg_residual(&src, &m[k]);
+        if (all_ws.res != NULL) {
+            all_ws.res[k] = r;
+        }
+        mx = fmaxf(mx, fabsf(r));
     }
     /* robust (median) scale: outliers far off the shell must not make a rotation look like noise */
-    med = MAGCAL_ELL_MAD_TO_SIGMA * magcal_ell_median_abs(m, n, &src, &all, n, mx);
+    med = MAGCAL_ELL_MAD_TO_SIGMA * magcal_ell_median_abs(m, n, &src, &all, &all_ws, n, mx);
     if (!(med > 0.0f)) {
         return INFINITY; /* exact quadric */
     }
@@ -435,9 +492,11 @@ MAGCAL_NOINLINE float magcal_ell_planarity(const float sc[6])
 /* Cube root of det G (> 0 for both square roots): the mean gain, raw -> output units. */
 static float mean_gain(const magcal_ellipsoid_cal_t *cal)
 {
-    float g[3][3];
-    (void)memcpy(g, cal->g, sizeof(g));
-    return cbrtf(fabsf(magcal_det3(g)));
+    const float(*a)[3] = cal->g; /* magcal_det3's expression, without a copy */
+    const float det = a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) -
+                      a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) +
+                      a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
+    return cbrtf(fabsf(det));
 }
 
 /*
@@ -447,7 +506,8 @@ static float mean_gain(const magcal_ellipsoid_cal_t *cal)
  * median-scaled sphere; strong soft iron spoils the sphere but not the quadric. Noise around one
  * point fools none of them (all ~2.5).
  */
-static MAGCAL_NOINLINE float motion_snr(const motion_ctx_t *mc, float snr_model, float limit)
+static MAGCAL_NOINLINE float motion_snr(const motion_ctx_t *mc, float snr_model, float limit,
+                                        const ell_ws_t *ws)
 {
     float snr = fmaxf(snr_model, mc->snr_alg);
     if (snr < limit && mc->sphere != NULL) {
@@ -456,9 +516,13 @@ static MAGCAL_NOINLINE float motion_snr(const motion_ctx_t *mc, float snr_model,
         float mx;
         size_t kept;
         float med;
+        ell_ws_t rw = *ws; /* recomputed: the stored residuals belong to the fit */
+        rw.res = NULL;
+        rw.keep = NULL;
         src.cal = mc->sphere;
-        (void)magcal_ell_residual_pass(mc->m, mc->n, mc->sphere, &all, &kept, &mx);
-        med = MAGCAL_ELL_MAD_TO_SIGMA * magcal_ell_median_abs(mc->m, mc->n, &src, &all, kept, mx) /
+        (void)magcal_ell_residual_pass(mc->m, mc->n, mc->sphere, &all, &rw, &kept, &mx);
+        med = MAGCAL_ELL_MAD_TO_SIGMA *
+              magcal_ell_median_abs(mc->m, mc->n, &src, &all, &rw, kept, mx) /
               mc->sphere->g[0][0];
         snr = fmaxf(snr, (med > 0.0f) ? (mc->s / med) : INFINITY);
     }
@@ -471,14 +535,15 @@ static MAGCAL_NOINLINE float motion_snr(const motion_ctx_t *mc, float snr_model,
  */
 MAGCAL_NOINLINE magcal_status_t magcal_ell_explain_failure(magcal_status_t st,
                                                            const motion_ctx_t *mc, float planarity,
-                                                           const magcal_ellipsoid_cfg_t *cfg)
+                                                           const magcal_ellipsoid_cfg_t *cfg,
+                                                           const ell_ws_t *ws)
 {
     if (st == MAGCAL_ERR_NULL || st == MAGCAL_ERR_ARG || st == MAGCAL_ERR_NONFINITE ||
         st == MAGCAL_ERR_DEGENERATE) {
         return st;
     }
     if (cfg->min_motion_snr > 0.0f &&
-        motion_snr(mc, 0.0f, cfg->min_motion_snr) < cfg->min_motion_snr) {
+        motion_snr(mc, 0.0f, cfg->min_motion_snr, ws) < cfg->min_motion_snr) {
         return MAGCAL_ERR_NO_MOTION;
     }
     if ((cfg->max_centre_std_rel > 0.0f || cfg->max_shape_std > 0.0f) && planarity < PLANAR_MAX) {
@@ -498,7 +563,7 @@ MAGCAL_NOINLINE magcal_status_t magcal_ell_trust_gates(const magcal_vec3_t *m, s
                                                        magcal_ellipsoid_model_t model,
                                                        const quad_gate_t *gate,
                                                        const motion_ctx_t *mc, float raw_planarity,
-                                                       quad_acc_t *scratch, trust_diag_t *dg)
+                                                       const ell_ws_t *ws, trust_diag_t *dg)
 {
     int sphere = 0;
     const float gmean = mean_gain(cal);
@@ -515,8 +580,8 @@ MAGCAL_NOINLINE magcal_status_t magcal_ell_trust_gates(const magcal_vec3_t *m, s
     /* motion: spread against the best noise scale (the fitted model's residual, raw units, after
      * outlier rejection; the algebraic quadric of all samples; the robust sphere) */
     dg->motion_snr =
-        motion_snr(mc, (rms > 0.0f) ? (mc->s * gmean / rms) : INFINITY, cfg->min_motion_snr);
-    centre_info(m, n, cal, gate, sphere, scratch, dg);
+        motion_snr(mc, (rms > 0.0f) ? (mc->s * gmean / rms) : INFINITY, cfg->min_motion_snr, ws);
+    centre_diag(ws, centre_info(m, n, cal, gate, ws, sphere), sphere, f, dg);
     if (cfg->min_motion_snr > 0.0f && dg->motion_snr < cfg->min_motion_snr) {
         return MAGCAL_ERR_NO_MOTION;
     }
