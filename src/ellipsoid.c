@@ -47,27 +47,50 @@ static void design_row(const magcal_vec3_t *p, const float mu[3], float inv_s, f
     row[9] = 1.0f;
 }
 
+/* part += r r^T, packed lower triangle (p = pidx(i, j)), written out: the ten row values stay
+ * in FPU registers (the loop form loads both factors and the index for each of the 55 terms). */
+static void outer10_add(float *p, const float r[NQ])
+{
+    const float r0 = r[0];
+    const float r1 = r[1];
+    const float r2 = r[2];
+    const float r3 = r[3];
+    const float r4 = r[4];
+    const float r5 = r[5];
+    const float r6 = r[6];
+    const float r7 = r[7];
+    const float r8 = r[8];
+    const float r9 = r[9];
+    p[0] += r0 * r0;
+    p[1] += r1 * r0; p[2] += r1 * r1;
+    p[3] += r2 * r0; p[4] += r2 * r1; p[5] += r2 * r2;
+    p[6] += r3 * r0; p[7] += r3 * r1; p[8] += r3 * r2; p[9] += r3 * r3;
+    p[10] += r4 * r0; p[11] += r4 * r1; p[12] += r4 * r2; p[13] += r4 * r3; p[14] += r4 * r4;
+    p[15] += r5 * r0; p[16] += r5 * r1; p[17] += r5 * r2;
+    p[18] += r5 * r3; p[19] += r5 * r4; p[20] += r5 * r5;
+    p[21] += r6 * r0; p[22] += r6 * r1; p[23] += r6 * r2;
+    p[24] += r6 * r3; p[25] += r6 * r4; p[26] += r6 * r5; p[27] += r6 * r6;
+    p[28] += r7 * r0; p[29] += r7 * r1; p[30] += r7 * r2; p[31] += r7 * r3;
+    p[32] += r7 * r4; p[33] += r7 * r5; p[34] += r7 * r6; p[35] += r7 * r7;
+    p[36] += r8 * r0; p[37] += r8 * r1; p[38] += r8 * r2; p[39] += r8 * r3;
+    p[40] += r8 * r4; p[41] += r8 * r5; p[42] += r8 * r6; p[43] += r8 * r7; p[44] += r8 * r8;
+    p[45] += r9 * r0; p[46] += r9 * r1; p[47] += r9 * r2; p[48] += r9 * r3; p[49] += r9 * r4;
+    p[50] += r9 * r5; p[51] += r9 * r6; p[52] += r9 * r7; p[53] += r9 * r8; p[54] += r9 * r9;
+}
+
 static MAGCAL_NOINLINE void accumulate(const magcal_vec3_t *m, size_t n, const float mu[3],
                                        float inv_s, ell_scratch_t *ws)
 {
     quad_acc_t *acc = &ws->acc;
     float *part = ws->part;
     size_t k;
-    size_t i;
-    size_t j;
     size_t in_block = 0u;
     (void)memset(acc, 0, sizeof(*acc));
     (void)memset(part, 0, sizeof(ws->part));
     for (k = 0u; k < n; ++k) {
         float row[NQ];
-        size_t p = 0u;
         design_row(&m[k], mu, inv_s, row);
-        for (i = 0u; i < NQ; ++i) { /* packed order: p = pidx(i, j) */
-            for (j = 0u; j <= i; ++j) {
-                part[p] += row[i] * row[j];
-                ++p;
-            }
-        }
+        outer10_add(part, row);
         acc->count++;
         if (++in_block == MAGCAL_ELL_BLOCK) {
             magcal_ell_flush(acc->sum, acc->comp, part, MAGCAL_ELL_NPACK);
@@ -477,7 +500,7 @@ static int cell_of(float x, float y, float z, size_t *cell)
     /* tan-free sector boundaries of the azimuth cells: cos / sin of 30, 60, 90, 120, 150 degrees */
     static const float k_bound_c[5] = {0.8660254f, 0.5f, 0.0f, -0.5f, -0.8660254f};
     static const float k_bound_s[5] = {0.5f, 0.8660254f, 1.0f, 0.8660254f, 0.5f};
-    float r = sqrtf(x * x + y * y + z * z);
+    float r = magcal_ell_sqrtf(x * x + y * y + z * z);
     float sz;
     float u = -x; /* azimuth measured from -x, as atan2f(y, x) + pi, in [0, 2 pi) */
     float v = -y;

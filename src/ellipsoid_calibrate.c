@@ -12,16 +12,20 @@
 #include "magcal/optics.h"
 #include "magcal_internal.h"
 
-/* Largest | |G(m - V)| - F | / F over all samples (NaN for a non-positive F). */
-static float max_residual_rel(const magcal_vec3_t *m, size_t n, const magcal_ellipsoid_cal_t *cal)
+/* Largest | |G(m - V)| - F | / F over all samples (NaN for a non-positive F): read from the
+ * residuals magcal_ellipsoid_fit_ws left in its workspace `fwork` (every sample's, under the
+ * returned calibration; the same float operations as recomputing them). */
+static float max_residual_rel(const void *fwork, size_t n, const magcal_ellipsoid_cal_t *cal)
 {
+    const float *res =
+        (const float *)(const void *)((const uint8_t *)fwork + MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES);
     float mx = 0.0f;
     size_t k;
     if (!(cal->field > 0.0f)) {
         return NAN;
     }
     for (k = 0u; k < n; ++k) {
-        const float r = fabsf(magcal_ell_residual(cal, &m[k]));
+        const float r = fabsf(res[k]);
         if (!(r <= mx)) {
             mx = r;
         }
@@ -101,7 +105,7 @@ magcal_status_t magcal_ellipsoid_calibrate(const magcal_ellipsoid_calibrate_cfg_
     if (cfg->mode != MAGCAL_ELLIPSOID_DENSITY_ALWAYS) {
         const magcal_status_t st = magcal_ellipsoid_fit_ws(m, n, &cfg->fit, rest, rest_len, first);
         if (st == MAGCAL_OK) {
-            inf->pretest_max_rel = max_residual_rel(m, n, &first->cal);
+            inf->pretest_max_rel = max_residual_rel(rest, n, &first->cal);
         }
         if (cfg->mode == MAGCAL_ELLIPSOID_DENSITY_NEVER ||
             (st == MAGCAL_OK && inf->pretest_max_rel <= cfg->pretest_max_rel)) {

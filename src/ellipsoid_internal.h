@@ -49,6 +49,23 @@ static inline size_t magcal_ell_pidx(size_t i, size_t j)
     return (i * (i + 1u)) / 2u + j;
 }
 
+/*
+ * Square root for the per-sample passes: one VSQRT on a single-precision FPU target (newlib's
+ * sqrtf wraps the same instruction in an errno check of about 20 instructions, per call; the fit
+ * never reads errno), sqrtf elsewhere. Both are the correctly rounded IEEE square root: identical
+ * results, NaN for a negative argument.
+ */
+static inline float magcal_ell_sqrtf(float x)
+{
+#if defined(__GNUC__) && defined(__ARM_FP) && ((__ARM_FP & 4) != 0)
+    float r;
+    __asm__("vsqrt.f32 %0, %1" : "=t"(r) : "t"(x));
+    return r;
+#else
+    return sqrtf(x);
+#endif
+}
+
 /* h = G (m - V): the correction of one sample. */
 static inline void magcal_ell_correct(const magcal_ellipsoid_cal_t *cal, const magcal_vec3_t *m,
                                       float h[3])
@@ -67,7 +84,7 @@ static inline float magcal_ell_residual(const magcal_ellipsoid_cal_t *cal, const
 {
     float h[3];
     magcal_ell_correct(cal, m, h);
-    return sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) - cal->field;
+    return magcal_ell_sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) - cal->field;
 }
 
 
@@ -141,7 +158,8 @@ typedef struct {
  * residual of sample k under the current fit, `keep[k]` its verdict under the current gate (bit 0;
  * bit 1 holds the next gate's while regate decides). Both NULL (magcal_ellipsoid_fit, no
  * workspace): every pass recomputes them from the samples, with the same float operations, so
- * both give bit-identical results.
+ * both give bit-identical results. On MAGCAL_OK `res` holds every sample's residual under the
+ * returned calibration (magcal_ellipsoid_calibrate's pre-test reads its largest from there).
  */
 typedef struct {
     ell_scratch_t *s;

@@ -93,7 +93,7 @@ MAGCAL_NOINLINE float magcal_ell_median_abs(const magcal_vec3_t *m, size_t n,
 /* Jacobian row of the linearised total-field model at one corrected sample (see centre_info). */
 static size_t info_row(const float h[3], int sphere, float row[INFO_MAX_N])
 {
-    const float r = sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
+    const float r = magcal_ell_sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
     size_t i;
     if (!(r > 0.0f)) {
         return 0u;
@@ -239,7 +239,8 @@ static MAGCAL_NOINLINE void sandwich_pass(const magcal_vec3_t *m, size_t n,
             continue;
         }
         r2 = (ws->res != NULL) ? ws->res[k]
-                               : (sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) - cal->field);
+                               : (magcal_ell_sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) -
+                                  cal->field);
         r2 *= r2;
         for (i = 0u; i < np; ++i) {
             float d = 0.0f;
@@ -273,6 +274,56 @@ static MAGCAL_NOINLINE void sandwich_pass(const magcal_vec3_t *m, size_t n,
  * G: output units) and worst soft-iron term; +Inf when J^T J is singular (every n_i on one cone).
  * `dir_planarity`: planarity of the corrected directions (~0 for rotation about one axis).
  */
+/* J^T J and the meat of one sample, packed (p = pidx(i, j)), written out as outer10_add in
+ * ellipsoid.c: p += J J^T, q += (|r| J)(|r| J)^T = r^2 J J^T (rw = |r|: the weighted row costs 9
+ * products instead of 45). */
+static void outer9_add2(float *p, float *q, const float r[INFO_MAX_N], float rw)
+{
+    const float r0 = r[0];
+    const float w0 = rw * r[0];
+    const float r1 = r[1];
+    const float w1 = rw * r[1];
+    const float r2 = r[2];
+    const float w2 = rw * r[2];
+    const float r3 = r[3];
+    const float w3 = rw * r[3];
+    const float r4 = r[4];
+    const float w4 = rw * r[4];
+    const float r5 = r[5];
+    const float w5 = rw * r[5];
+    const float r6 = r[6];
+    const float w6 = rw * r[6];
+    const float r7 = r[7];
+    const float w7 = rw * r[7];
+    const float r8 = r[8];
+    const float w8 = rw * r[8];
+    p[0] += r0 * r0; q[0] += w0 * w0;
+    p[1] += r1 * r0; q[1] += w1 * w0; p[2] += r1 * r1; q[2] += w1 * w1;
+    p[3] += r2 * r0; q[3] += w2 * w0; p[4] += r2 * r1; q[4] += w2 * w1;
+    p[5] += r2 * r2; q[5] += w2 * w2;
+    p[6] += r3 * r0; q[6] += w3 * w0; p[7] += r3 * r1; q[7] += w3 * w1;
+    p[8] += r3 * r2; q[8] += w3 * w2; p[9] += r3 * r3; q[9] += w3 * w3;
+    p[10] += r4 * r0; q[10] += w4 * w0; p[11] += r4 * r1; q[11] += w4 * w1;
+    p[12] += r4 * r2; q[12] += w4 * w2; p[13] += r4 * r3; q[13] += w4 * w3;
+    p[14] += r4 * r4; q[14] += w4 * w4;
+    p[15] += r5 * r0; q[15] += w5 * w0; p[16] += r5 * r1; q[16] += w5 * w1;
+    p[17] += r5 * r2; q[17] += w5 * w2; p[18] += r5 * r3; q[18] += w5 * w3;
+    p[19] += r5 * r4; q[19] += w5 * w4; p[20] += r5 * r5; q[20] += w5 * w5;
+    p[21] += r6 * r0; q[21] += w6 * w0; p[22] += r6 * r1; q[22] += w6 * w1;
+    p[23] += r6 * r2; q[23] += w6 * w2; p[24] += r6 * r3; q[24] += w6 * w3;
+    p[25] += r6 * r4; q[25] += w6 * w4; p[26] += r6 * r5; q[26] += w6 * w5;
+    p[27] += r6 * r6; q[27] += w6 * w6;
+    p[28] += r7 * r0; q[28] += w7 * w0; p[29] += r7 * r1; q[29] += w7 * w1;
+    p[30] += r7 * r2; q[30] += w7 * w2; p[31] += r7 * r3; q[31] += w7 * w3;
+    p[32] += r7 * r4; q[32] += w7 * w4; p[33] += r7 * r5; q[33] += w7 * w5;
+    p[34] += r7 * r6; q[34] += w7 * w6; p[35] += r7 * r7; q[35] += w7 * w7;
+    p[36] += r8 * r0; q[36] += w8 * w0; p[37] += r8 * r1; q[37] += w8 * w1;
+    p[38] += r8 * r2; q[38] += w8 * w2; p[39] += r8 * r3; q[39] += w8 * w3;
+    p[40] += r8 * r4; q[40] += w8 * w4; p[41] += r8 * r5; q[41] += w8 * w5;
+    p[42] += r8 * r6; q[42] += w8 * w6; p[43] += r8 * r7; q[43] += w8 * w7;
+    p[44] += r8 * r8; q[44] += w8 * w8;
+}
+
 static MAGCAL_NOINLINE size_t info_accumulate(const magcal_vec3_t *m, size_t n,
                                               const magcal_ellipsoid_cal_t *cal,
                                               const quad_gate_t *gate, const ell_ws_t *ws,
@@ -300,7 +351,6 @@ static MAGCAL_NOINLINE size_t info_accumulate(const magcal_vec3_t *m, size_t n,
         float h[3];
         float row[INFO_MAX_N];
         float r2;
-        size_t p = 0u;
         if (magcal_ell_kept(ws, gate, m, k) == 0) {
             continue;
         }
@@ -309,14 +359,20 @@ static MAGCAL_NOINLINE size_t info_accumulate(const magcal_vec3_t *m, size_t n,
             continue;
         }
         r2 = (ws->res != NULL) ? ws->res[k]
-                               : (sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) - cal->field);
-        r2 *= r2;
-        for (i = 0u; i < np; ++i) { /* packed order: p = pidx(i, j) */
-            for (j = 0u; j <= i; ++j) {
-                const float jj = row[i] * row[j];
-                part[p] += jj;
-                meat[p] += r2 * jj;
-                ++p;
+                               : (magcal_ell_sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) -
+                                  cal->field);
+        if (sphere == 0) {
+            outer9_add2(part, meat, row, r2); /* r2 still holds r: weighted rows */
+        } else {
+            size_t p = 0u;
+            r2 *= r2;
+            for (i = 0u; i < np; ++i) { /* packed order: p = pidx(i, j) */
+                for (j = 0u; j <= i; ++j) {
+                    const float jj = row[i] * row[j];
+                    part[p] += jj;
+                    meat[p] += r2 * jj;
+                    ++p;
+                }
             }
         }
         for (i = 0u; i < 3u; ++i) {
@@ -466,7 +522,9 @@ MAGCAL_NOINLINE float magcal_ell_algebraic_snr(const magcal_vec3_t *m, size_t n,
         if (all_ws.res != NULL) {
             all_ws.res[k] = r;
         }
-        mx = fmaxf(mx, fabsf(r));
+        if (fabsf(r) > mx) { /* fmaxf(mx, |r|) without the libm call (NaN ignored alike) */
+            mx = fabsf(r);
+        }
     }
     /* robust (median) scale: outliers far off the shell must not make a rotation look like noise */
     med = MAGCAL_ELL_MAD_TO_SIGMA * magcal_ell_median_abs(m, n, &src, &all, &all_ws, n, mx);
