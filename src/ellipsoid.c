@@ -158,9 +158,9 @@ static void regate_settle(const ell_ws_t *ws, size_t n, int adopt)
     }
 }
 
-/* G with G^T G = q (q is destroyed; g must not alias q). */
+/* G with G^T G = q (q is destroyed; g must not alias q; e, w: scratch of the Jacobi). */
 static MAGCAL_NOINLINE magcal_status_t sqrt_spd3(float q[3][3], magcal_ellipsoid_sqrt_t method,
-                                                 float g[3][3])
+                                                 float g[3][3], float e[3][3], float w[3])
 {
     if (method == MAGCAL_ELLIPSOID_SQRT_CHOLESKY) {
         float u00 = q[0][0];
@@ -196,8 +196,6 @@ static MAGCAL_NOINLINE magcal_status_t sqrt_spd3(float q[3][3], magcal_ellipsoid
         g[2][1] = 0.0f;
         g[2][2] = u22;
     } else {
-        float w[3];
-        float e[3][3];
         size_t i;
         size_t j;
         magcal_status_t st;
@@ -226,14 +224,15 @@ static MAGCAL_NOINLINE magcal_status_t sqrt_spd3(float q[3][3], magcal_ellipsoid
  *   a x^2 + b y^2 + c z^2 + 2f yz + 2g xz + 2h xy + 2p x + 2q y + 2r z + d = 0
  * in normalised coordinates -> calibration in raw coordinates (cal is scratch until MAGCAL_OK).
  */
-static MAGCAL_NOINLINE magcal_status_t extract_quadric(const float coef[NQ], const float mu[3],
+static MAGCAL_NOINLINE magcal_status_t extract_quadric(ell_scratch_t *ws, const float mu[3],
                                                        float s, float field_cfg,
                                                        magcal_ellipsoid_sqrt_t method,
                                                        magcal_ellipsoid_cal_t *cal)
 {
+    const float *coef = ws->coef;
     /* the eigenvector's sign is arbitrary: x (+-1) is exact */
     const float sg = (coef[0] + coef[1] + coef[2] < 0.0f) ? -1.0f : 1.0f;
-    float aq[3][3];
+    float(*aq)[3] = ws->q3;
     float u[3];
     float vt[3];
     float i00;
@@ -290,7 +289,7 @@ static MAGCAL_NOINLINE magcal_status_t extract_quadric(const float coef[NQ], con
         !(detq > 0.0f)) {
         return MAGCAL_ERR_NOT_ELLIPSOID;
     }
-    st = sqrt_spd3(aq, method, cal->g);
+    st = sqrt_spd3(aq, method, cal->g, ws->e3, ws->w3);
     if (st != MAGCAL_OK) {
         return st;
     }
@@ -473,7 +472,7 @@ static MAGCAL_NOINLINE magcal_status_t fit_model(ell_scratch_t *ws, magcal_ellip
                                  magcal_ellipsoid_cal_t *cal, float *min_pivot)
 {
     const quad_acc_t *acc = &ws->acc;
-    float coef[NQ];
+    float *coef = ws->coef;
     magcal_status_t st;
     if (model == MAGCAL_ELLIPSOID_MODEL_SPHERE) {
         if (acc->count < MIN_SPHERE_POINTS) {
@@ -492,7 +491,7 @@ static MAGCAL_NOINLINE magcal_status_t fit_model(ell_scratch_t *ws, magcal_ellip
     if (st != MAGCAL_OK) {
         return st;
     }
-    return extract_quadric(coef, mu, s, cfg->field, cfg->sqrt_method, cal);
+    return extract_quadric(ws, mu, s, cfg->field, cfg->sqrt_method, cal);
 }
 
 static int cell_of(float x, float y, float z, size_t *cell)
@@ -699,10 +698,10 @@ static magcal_status_t fit_core(const magcal_vec3_t *m, size_t n,
     magcal_ellipsoid_cal_t *cal = &sw->cal[0];
     magcal_ellipsoid_cal_t *gate_cal = &sw->cal[1];
     magcal_ellipsoid_cal_t *sphere_cal = &sw->cal[2];
-    float mu[3];
+    float *mu = sw->mu;
     float s;
     float inv_s;
-    float cov_centre[3];
+    float *cov_centre = sw->cov_centre;
     float coverage;
     float min_pivot = 0.0f;
     motion_ctx_t *mcp = &sw->mc;
@@ -733,7 +732,7 @@ static magcal_status_t fit_core(const magcal_vec3_t *m, size_t n,
         return st;
     }
     inv_s = 1.0f / s;
-    planarity = magcal_ell_planarity(sw->acc.sum);
+    planarity = magcal_ell_planarity(sw->acc.sum, sw);
 
     /* Pass 3: the normal matrix of every sample; sphere fit gives the provisional centre, the
      * quadric's algebraic residual a noise scale that needs neither centre nor model. */

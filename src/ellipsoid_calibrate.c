@@ -33,7 +33,7 @@ static float max_residual_rel(const void *fwork, size_t n, const magcal_ellipsoi
     return mx / cal->field;
 }
 
-static magcal_status_t density_then_fit(const magcal_ellipsoid_calibrate_cfg_t *cfg,
+static MAGCAL_NOINLINE magcal_status_t density_then_fit(const magcal_ellipsoid_calibrate_cfg_t *cfg,
                                         const magcal_vec3_t *m, size_t n, void *work,
                                         size_t work_len, uint8_t *inlier,
                                         magcal_ellipsoid_result_t *out,

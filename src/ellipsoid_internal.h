@@ -151,6 +151,13 @@ typedef struct {
     float vec[2][MAGCAL_ELL_INFO_N]; /* per-term temporaries of the sandwich */
     motion_ctx_t mc;                 /* the fit's state (kept here: off the stack) */
     trust_diag_t dg;
+    float mu[3];                     /* normalisation centre */
+    float cov_centre[3];             /* centre of the coverage cells */
+    float coef[MAGCAL_ELL_NQ];       /* quadric coefficients of the last solve */
+    float q3[3][3];                  /* extraction: A_q / k, then destroyed by its square root */
+    float e3[3][3];                  /* its eigenvectors */
+    float w3[3];                     /* its eigenvalues */
+    float h3[3];                     /* one corrected sample (second sandwich pass) */
 } ell_scratch_t;
 
 /*
@@ -184,7 +191,7 @@ float magcal_ell_algebraic_snr(const magcal_vec3_t *m, size_t n, const float mu[
                                const ell_ws_t *ws);
 
 /* sqrt(smallest / middle eigenvalue) of a packed scatter (xx, yx, yy, zx, zy, zz). */
-float magcal_ell_planarity(const float sc[6]);
+float magcal_ell_planarity(const float sc[6], ell_scratch_t *ws);
 
 /* Status for a fit that failed on its own: NO_MOTION / SINGLE_AXIS when the data say so. */
 magcal_status_t magcal_ell_explain_failure(magcal_status_t st, const motion_ctx_t *mc,

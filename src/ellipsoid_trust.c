@@ -115,9 +115,8 @@ static size_t info_row(const float h[3], int sphere, float row[INFO_MAX_N])
 }
 
 /* Eigenvalues w of a symmetric 3x3 given by its lower triangle (c is mirrored, then overwritten). */
-static magcal_status_t eig3(float c[3][3], float w[3])
+static magcal_status_t eig3(float c[3][3], float w[3], float e[3][3])
 {
-    float e[3][3];
     size_t i;
     size_t j;
     for (i = 0u; i < 3u; ++i) {
@@ -129,11 +128,10 @@ static magcal_status_t eig3(float c[3][3], float w[3])
 }
 
 /* Largest eigenvalue of a symmetric 3x3 (lower triangle used); NaN/Inf/failure give +Inf. */
-static MAGCAL_NOINLINE float max_eig3(float c[3][3])
+static MAGCAL_NOINLINE float max_eig3(float c[3][3], float w[3], float e[3][3])
 {
-    float w[3];
     float wmax;
-    if (eig3(c, w) != MAGCAL_OK) {
+    if (eig3(c, w, e) != MAGCAL_OK) {
         return INFINITY;
     }
     wmax = fmaxf(w[0], fmaxf(w[1], w[2]));
@@ -141,13 +139,12 @@ static MAGCAL_NOINLINE float max_eig3(float c[3][3])
 }
 
 /* sqrt(smallest / middle eigenvalue) of a symmetric 3x3 scatter (lower triangle used). */
-static MAGCAL_NOINLINE float planarity3(float c[3][3])
+static MAGCAL_NOINLINE float planarity3(float c[3][3], float w[3], float e[3][3])
 {
-    float w[3];
     float lo;
     float mid;
     float hi;
-    if (eig3(c, w) != MAGCAL_OK) {
+    if (eig3(c, w, e) != MAGCAL_OK) {
         return 0.0f;
     }
     lo = fminf(w[0], fminf(w[1], w[2]));
@@ -161,10 +158,13 @@ static MAGCAL_NOINLINE float planarity3(float c[3][3])
 
 /* C = inv meat inv (see centre_info): offset block into cc (lower triangle), shape diagonal into
  * sd[3..np); 0 when a rounding bound is above 1 % of its diagonal term (then nothing is trusted). */
-static MAGCAL_NOINLINE int sandwich_from_meat(const float *meat, float inv[INFO_MAX_N][INFO_MAX_N],
-                                              size_t np, int sphere, size_t cnt, float cc[3][3],
-                                              float sd[INFO_MAX_N], float vec[2][INFO_MAX_N])
+static MAGCAL_NOINLINE int sandwich_from_meat(ell_scratch_t *sw, size_t np, int sphere, size_t cnt)
 {
+    const float *meat = sw->meat;
+    float(*inv)[INFO_MAX_N] = sw->inv;
+    float(*cc)[3] = sw->cc;
+    float *sd = sw->sd;
+    float(*vec)[INFO_MAX_N] = sw->vec;
     const float eps = ((float)cnt + (float)np) * 6e-8f;
     size_t i;
     size_t j;
@@ -216,10 +216,11 @@ static MAGCAL_NOINLINE int sandwich_from_meat(const float *meat, float inv[INFO_
 /* The same sandwich from a second pass over the samples: sum r_i^2 (J_i . inv_k)(J_i . inv_l). */
 static MAGCAL_NOINLINE void sandwich_pass(const magcal_vec3_t *m, size_t n,
                                           const magcal_ellipsoid_cal_t *cal, const quad_gate_t *gate,
-                                          const ell_ws_t *ws, int sphere,
-                                          float inv[INFO_MAX_N][INFO_MAX_N], float cc[3][3],
-                                          float sd[INFO_MAX_N])
+                                          const ell_ws_t *ws, int sphere)
 {
+    float(*inv)[INFO_MAX_N] = ws->s->inv;
+    float(*cc)[3] = ws->s->cc;
+    float *sd = ws->s->sd;
     const size_t np = (sphere != 0) ? (size_t)4u : (size_t)INFO_MAX_N;
     size_t i;
     size_t j;
@@ -227,9 +228,9 @@ static MAGCAL_NOINLINE void sandwich_pass(const magcal_vec3_t *m, size_t n,
     (void)memset(cc, 0, 9u * sizeof(float));
     (void)memset(sd, 0, INFO_MAX_N * sizeof(float));
     for (k = 0u; k < n; ++k) {
-        float h[3];
-        float row[INFO_MAX_N];
-        float pr[INFO_MAX_N];
+        float *h = ws->s->h3; /* per-sample vectors in the scratch: off the stack */
+        float *row = ws->s->vec[0];
+        float *pr = ws->s->vec[1];
         float r2;
         if (magcal_ell_kept(ws, gate, m, k) == 0) {
             continue;
@@ -348,8 +349,8 @@ static MAGCAL_NOINLINE size_t info_accumulate(const magcal_vec3_t *m, size_t n,
     /* one pass: J^T J (blocked Kahan) and the sandwich's meat (plain sums: a 1-significant-digit
      * gate), so the covariance needs no second pass over the samples */
     for (k = 0u; k < n; ++k) {
-        float h[3];
-        float row[INFO_MAX_N];
+        float *h = ws->s->h3; /* per-sample vectors in the scratch: off the stack */
+        float *row = ws->s->vec[0];
         float r2;
         if (magcal_ell_kept(ws, gate, m, k) == 0) {
             continue;
@@ -385,6 +386,14 @@ static MAGCAL_NOINLINE size_t info_accumulate(const magcal_vec3_t *m, size_t n,
         }
     }
     magcal_ell_flush(acc->sum, acc->comp, part, npk);
+    if (cnt >= np) { /* scatter of the directions about their mean, from the n n^T block */
+        for (i = 0u; i < 3u; ++i) {
+            for (j = 0u; j <= i; ++j) {
+                ws->s->dir[i][j] = magcal_ell_acc_at(acc, i, j) / (float)cnt -
+                                   (sn[i] / (float)cnt) * (sn[j] / (float)cnt);
+            }
+        }
+    }
     return cnt;
 }
 
@@ -427,18 +436,9 @@ static MAGCAL_NOINLINE int centre_info(const magcal_vec3_t *m, size_t n,
     ell_scratch_t *sw = ws->s;
     float sn[3];
     size_t cnt;
-    size_t i;
-    size_t j;
     cnt = info_accumulate(m, n, cal, gate, ws, sphere, sn);
     if (cnt < np) {
         return 0;
-    }
-    /* planarity of the directions: scatter of n about its mean, from the n n^T block */
-    for (i = 0u; i < 3u; ++i) {
-        for (j = 0u; j <= i; ++j) {
-            sw->dir[i][j] = magcal_ell_acc_at(&sw->acc, i, j) / (float)cnt -
-                            (sn[i] / (float)cnt) * (sn[j] / (float)cnt);
-        }
     }
     if (info_inverse(ws, np) == 0) {
         return 1;
@@ -449,8 +449,8 @@ static MAGCAL_NOINLINE int centre_info(const magcal_vec3_t *m, size_t n,
      * offset look fine), so each diagonal term carries a bound of that rounding,
      * (cnt + np) eps |inv_k|^T |meat| |inv_k|; if any bound is above 1 % of its term, the exact
      * per-sample second pass decides instead. */
-    if (sandwich_from_meat(sw->meat, sw->inv, np, sphere, cnt, sw->cc, sw->sd, sw->vec) == 0) {
-        sandwich_pass(m, n, cal, gate, ws, sphere, sw->inv, sw->cc, sw->sd);
+    if (sandwich_from_meat(sw, np, sphere, cnt) == 0) {
+        sandwich_pass(m, n, cal, gate, ws, sphere);
     }
     return 2;
 }
@@ -465,12 +465,12 @@ static MAGCAL_NOINLINE void centre_diag(const ell_ws_t *ws, int stage, int spher
     res->shape_std = (sphere != 0) ? 0.0f : INFINITY;
     res->planarity = 0.0f;
     if (stage >= 1) {
-        res->planarity = planarity3(sw->dir);
+        res->planarity = planarity3(sw->dir, sw->w3, sw->e3);
     }
     if (stage < 2) {
         return;
     }
-    res->centre_std_rel = sqrtf(max_eig3(sw->cc)) / f;
+    res->centre_std_rel = sqrtf(max_eig3(sw->cc, sw->w3, sw->e3)) / f;
     if (sphere == 0) {
         float emax = 0.0f;
         for (i = 3u; i < INFO_MAX_N; ++i) {
@@ -535,16 +535,16 @@ MAGCAL_NOINLINE float magcal_ell_algebraic_snr(const magcal_vec3_t *m, size_t n,
 }
 
 /* sqrt(smallest / middle eigenvalue) of the samples' scatter (packed xx, yx, yy, zx, zy, zz). */
-MAGCAL_NOINLINE float magcal_ell_planarity(const float sc[6])
+MAGCAL_NOINLINE float magcal_ell_planarity(const float sc[6], ell_scratch_t *ws)
 {
-    float c[3][3];
+    float(*c)[3] = ws->q3;
     c[0][0] = sc[0];
     c[1][0] = sc[1];
     c[1][1] = sc[2];
     c[2][0] = sc[3];
     c[2][1] = sc[4];
     c[2][2] = sc[5];
-    return planarity3(c);
+    return planarity3(c, ws->w3, ws->e3);
 }
 
 /* Cube root of det G (> 0 for both square roots): the mean gain, raw -> output units. */
