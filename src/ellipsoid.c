@@ -711,12 +711,18 @@ static magcal_status_t fit_core(const magcal_vec3_t *m, size_t n,
     size_t prev_rejected = 0u;
     magcal_ellipsoid_model_t model;
     trust_diag_t *dg = &sw->dg;
-    quad_gate_t gate = {NULL, 0.0f};
+    quad_gate_t *gate = &sw->gate;
     magcal_status_t st;
     float rms = 0.0f;
     float rmax;
     int rms_valid = 0;
 
+    gate->cal = NULL; /* no gate yet */
+    gate->thr = 0.0f;
+    sw->src.cal = NULL;
+    sw->src.theta = NULL;
+    sw->src.mu = NULL;
+    sw->src.inv_s = 0.0f;
     st = ellipsoid_check_cfg(cfg);
     if (st != MAGCAL_OK) {
         return st;
@@ -776,19 +782,19 @@ static magcal_status_t fit_core(const magcal_vec3_t *m, size_t n,
     for (iter = 0u; iter < cfg->max_refits && cfg->outlier_k > 0.0f; ++iter) {
         size_t rejected;
         size_t kept_new;
-        quad_gate_t next;
-        resid_src_t src = {NULL, NULL, NULL, 0.0f};
-        rms = magcal_ell_residual_pass(m, n, cal, &gate, ws, &kept, &rmax);
+        quad_gate_t *next = &sw->next;
+        resid_src_t *src = &sw->src;
+        rms = magcal_ell_residual_pass(m, n, cal, gate, ws, &kept, &rmax);
         rms_valid = 1;
-        next.cal = cal;
-        src.cal = cal;
-        next.thr = cfg->outlier_k * MAGCAL_ELL_MAD_TO_SIGMA *
-                   magcal_ell_median_abs(m, n, &src, &gate, ws, kept, rmax);
-        if (next.thr < cfg->outlier_floor_rel * cal->field) {
-            next.thr = cfg->outlier_floor_rel * cal->field;
+        next->cal = cal;
+        src->cal = cal;
+        next->thr = cfg->outlier_k * MAGCAL_ELL_MAD_TO_SIGMA *
+                   magcal_ell_median_abs(m, n, src, gate, ws, kept, rmax);
+        if (next->thr < cfg->outlier_floor_rel * cal->field) {
+            next->thr = cfg->outlier_floor_rel * cal->field;
         }
         /* the count under the new gate; acc follows it (unused when the loop ends here) */
-        kept_new = regate(m, n, mu, inv_s, &gate, &next, ws);
+        kept_new = regate(m, n, mu, inv_s, gate, next, ws);
         rejected = n - kept_new;
         if (rejected == prev_rejected) {
             regate_settle(ws, n, 0);
@@ -801,8 +807,8 @@ static magcal_status_t fit_core(const magcal_vec3_t *m, size_t n,
         }
         rms_valid = 0;
         *gate_cal = *cal;
-        gate.cal = gate_cal;
-        gate.thr = next.thr;
+        gate->cal = gate_cal;
+        gate->thr = next->thr;
         st = fit_model(sw, model, mu, s, cfg, cal, &min_pivot);
         if (st != MAGCAL_OK) {
             return magcal_ell_explain_failure(st, mcp, planarity, cfg, ws);
@@ -810,13 +816,13 @@ static magcal_status_t fit_core(const magcal_vec3_t *m, size_t n,
         prev_rejected = rejected;
     }
     if (rms_valid == 0) {
-        rms = magcal_ell_residual_pass(m, n, cal, &gate, ws, &kept, NULL);
+        rms = magcal_ell_residual_pass(m, n, cal, gate, ws, &kept, NULL);
     }
     if (kept <
         ((model == MAGCAL_ELLIPSOID_MODEL_SPHERE) ? MIN_SPHERE_POINTS : MIN_QUADRIC_POINTS)) {
         return MAGCAL_ERR_TOO_FEW_POINTS;
     }
-    st = magcal_ell_trust_gates(m, n, cfg, cal, rms, model, &gate, mcp, planarity, ws, dg);
+    st = magcal_ell_trust_gates(m, n, cfg, cal, rms, model, gate, mcp, planarity, ws, dg);
     if (st != MAGCAL_OK) {
         return st;
     }
@@ -828,8 +834,8 @@ static magcal_status_t fit_core(const magcal_vec3_t *m, size_t n,
     out->n_rejected = n - kept;
     out->model = model;
     /* the final pass's gate, for magcal_ellipsoid_outliers (thr 0: no gate) */
-    out->gate_cal = (gate.cal != NULL) ? *gate_cal : *cal;
-    out->gate_thr = (gate.cal != NULL) ? gate.thr : 0.0f;
+    out->gate_cal = (gate->cal != NULL) ? *gate_cal : *cal;
+    out->gate_thr = (gate->cal != NULL) ? gate->thr : 0.0f;
     out->motion_snr = dg->motion_snr;
     out->centre_std_rel = dg->centre_std_rel;
     out->shape_std = dg->shape_std;

@@ -158,6 +158,9 @@ typedef struct {
     float e3[3][3];                  /* its eigenvectors */
     float w3[3];                     /* its eigenvalues */
     float h3[3];                     /* one corrected sample (second sandwich pass) */
+    quad_gate_t gate;                /* the outlier gate in force */
+    quad_gate_t next;                /* the gate being decided */
+    resid_src_t src;                 /* the residual its median is taken of */
 } ell_scratch_t;
 
 /*

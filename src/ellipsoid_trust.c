@@ -275,54 +275,143 @@ static MAGCAL_NOINLINE void sandwich_pass(const magcal_vec3_t *m, size_t n,
  * G: output units) and worst soft-iron term; +Inf when J^T J is singular (every n_i on one cone).
  * `dir_planarity`: planarity of the corrected directions (~0 for rotation about one axis).
  */
-/* J^T J and the meat of one sample, packed (p = pidx(i, j)), written out as outer10_add in
- * ellipsoid.c: p += J J^T, q += (|r| J)(|r| J)^T = r^2 J J^T (rw = |r|: the weighted row costs 9
- * products instead of 45). */
-static void outer9_add2(float *p, float *q, const float r[INFO_MAX_N], float rw)
+/*
+ * The quadric model's J^T J and meat hold products of the row [n, n_x^2, n_y^2, n_z^2, 2 n_y n_z,
+ * 2 n_x n_z, 2 n_x n_y]: moments of the direction n of degree 2 to 4, of which only 31 differ (the
+ * 45 packed terms repeat them with factors 1, 2, 4). Per sample the 31 monomials are summed (p:
+ * plain, q: weighted by w = r^2); k_mom / k_fac map packed term t to k_fac[t] x moment k_mom[t]
+ * (a power of two: exact). 31 products and 62 sums instead of 45 products and 90 sums.
+ */
+#define INFO_NMOM 31u
+static const uint8_t k_mom[(INFO_MAX_N * (INFO_MAX_N + 1u)) / 2u] = {
+    0u,  1u,  2u,  3u,  4u,  5u,  6u,  7u,  8u,  16u, 9u,  10u, 11u, 17u, 18u,
+    12u, 13u, 14u, 19u, 20u, 21u, 15u, 11u, 13u, 22u, 23u, 24u, 20u, 8u,  15u,
+    12u, 25u, 26u, 27u, 30u, 19u, 7u,  9u,  15u, 28u, 29u, 30u, 26u, 22u, 17u};
+static const uint8_t k_fac[(INFO_MAX_N * (INFO_MAX_N + 1u)) / 2u] = {
+    1u, 1u, 1u, 1u, 1u, 1u, 1u, 1u, 1u, 1u, 1u, 1u, 1u, 1u, 1u, 1u, 1u, 1u, 1u, 1u, 1u, 2u, 2u,
+    2u, 2u, 2u, 2u, 4u, 2u, 2u, 2u, 2u, 2u, 2u, 4u, 4u, 2u, 2u, 2u, 2u, 2u, 2u, 4u, 4u, 4u};
+
+static MAGCAL_NOINLINE void moments_add(float *p, float *q, float a, float b, float c, float w)
 {
-    const float r0 = r[0];
-    const float w0 = rw * r[0];
-    const float r1 = r[1];
-    const float w1 = rw * r[1];
-    const float r2 = r[2];
-    const float w2 = rw * r[2];
-    const float r3 = r[3];
-    const float w3 = rw * r[3];
-    const float r4 = r[4];
-    const float w4 = rw * r[4];
-    const float r5 = r[5];
-    const float w5 = rw * r[5];
-    const float r6 = r[6];
-    const float w6 = rw * r[6];
-    const float r7 = r[7];
-    const float w7 = rw * r[7];
-    const float r8 = r[8];
-    const float w8 = rw * r[8];
-    p[0] += r0 * r0; q[0] += w0 * w0;
-    p[1] += r1 * r0; q[1] += w1 * w0; p[2] += r1 * r1; q[2] += w1 * w1;
-    p[3] += r2 * r0; q[3] += w2 * w0; p[4] += r2 * r1; q[4] += w2 * w1;
-    p[5] += r2 * r2; q[5] += w2 * w2;
-    p[6] += r3 * r0; q[6] += w3 * w0; p[7] += r3 * r1; q[7] += w3 * w1;
-    p[8] += r3 * r2; q[8] += w3 * w2; p[9] += r3 * r3; q[9] += w3 * w3;
-    p[10] += r4 * r0; q[10] += w4 * w0; p[11] += r4 * r1; q[11] += w4 * w1;
-    p[12] += r4 * r2; q[12] += w4 * w2; p[13] += r4 * r3; q[13] += w4 * w3;
-    p[14] += r4 * r4; q[14] += w4 * w4;
-    p[15] += r5 * r0; q[15] += w5 * w0; p[16] += r5 * r1; q[16] += w5 * w1;
-    p[17] += r5 * r2; q[17] += w5 * w2; p[18] += r5 * r3; q[18] += w5 * w3;
-    p[19] += r5 * r4; q[19] += w5 * w4; p[20] += r5 * r5; q[20] += w5 * w5;
-    p[21] += r6 * r0; q[21] += w6 * w0; p[22] += r6 * r1; q[22] += w6 * w1;
-    p[23] += r6 * r2; q[23] += w6 * w2; p[24] += r6 * r3; q[24] += w6 * w3;
-    p[25] += r6 * r4; q[25] += w6 * w4; p[26] += r6 * r5; q[26] += w6 * w5;
-    p[27] += r6 * r6; q[27] += w6 * w6;
-    p[28] += r7 * r0; q[28] += w7 * w0; p[29] += r7 * r1; q[29] += w7 * w1;
-    p[30] += r7 * r2; q[30] += w7 * w2; p[31] += r7 * r3; q[31] += w7 * w3;
-    p[32] += r7 * r4; q[32] += w7 * w4; p[33] += r7 * r5; q[33] += w7 * w5;
-    p[34] += r7 * r6; q[34] += w7 * w6; p[35] += r7 * r7; q[35] += w7 * w7;
-    p[36] += r8 * r0; q[36] += w8 * w0; p[37] += r8 * r1; q[37] += w8 * w1;
-    p[38] += r8 * r2; q[38] += w8 * w2; p[39] += r8 * r3; q[39] += w8 * w3;
-    p[40] += r8 * r4; q[40] += w8 * w4; p[41] += r8 * r5; q[41] += w8 * w5;
-    p[42] += r8 * r6; q[42] += w8 * w6; p[43] += r8 * r7; q[43] += w8 * w7;
-    p[44] += r8 * r8; q[44] += w8 * w8;
+    const float aa = a * a;
+    const float ab = a * b;
+    const float bb = b * b;
+    const float ac = a * c;
+    const float bc = b * c;
+    const float cc = c * c;
+    const float aaa = aa * a;
+    const float aab = aa * b;
+    const float aac = aa * c;
+    const float abb = bb * a;
+    const float bbb = bb * b;
+    const float bbc = bb * c;
+    const float acc = cc * a;
+    const float bcc = cc * b;
+    const float ccc = cc * c;
+    const float abc = ab * c;
+    const float aaaa = aa * aa;
+    const float aabb = aa * bb;
+    const float bbbb = bb * bb;
+    const float aacc = aa * cc;
+    const float bbcc = bb * cc;
+    const float cccc = cc * cc;
+    const float aabc = aa * bc;
+    const float bbbc = bb * bc;
+    const float bccc = cc * bc;
+    const float aaac = aa * ac;
+    const float abbc = bb * ac;
+    const float accc = cc * ac;
+    const float aaab = aa * ab;
+    const float abbb = bb * ab;
+    const float abcc = cc * ab;
+    p[0] += aa;
+    q[0] += w * aa;
+    p[1] += ab;
+    q[1] += w * ab;
+    p[2] += bb;
+    q[2] += w * bb;
+    p[3] += ac;
+    q[3] += w * ac;
+    p[4] += bc;
+    q[4] += w * bc;
+    p[5] += cc;
+    q[5] += w * cc;
+    p[6] += aaa;
+    q[6] += w * aaa;
+    p[7] += aab;
+    q[7] += w * aab;
+    p[8] += aac;
+    q[8] += w * aac;
+    p[9] += abb;
+    q[9] += w * abb;
+    p[10] += bbb;
+    q[10] += w * bbb;
+    p[11] += bbc;
+    q[11] += w * bbc;
+    p[12] += acc;
+    q[12] += w * acc;
+    p[13] += bcc;
+    q[13] += w * bcc;
+    p[14] += ccc;
+    q[14] += w * ccc;
+    p[15] += abc;
+    q[15] += w * abc;
+    p[16] += aaaa;
+    q[16] += w * aaaa;
+    p[17] += aabb;
+    q[17] += w * aabb;
+    p[18] += bbbb;
+    q[18] += w * bbbb;
+    p[19] += aacc;
+    q[19] += w * aacc;
+    p[20] += bbcc;
+    q[20] += w * bbcc;
+    p[21] += cccc;
+    q[21] += w * cccc;
+    p[22] += aabc;
+    q[22] += w * aabc;
+    p[23] += bbbc;
+    q[23] += w * bbbc;
+    p[24] += bccc;
+    q[24] += w * bccc;
+    p[25] += aaac;
+    q[25] += w * aaac;
+    p[26] += abbc;
+    q[26] += w * abbc;
+    p[27] += accc;
+    q[27] += w * accc;
+    p[28] += aaab;
+    q[28] += w * aaab;
+    p[29] += abbb;
+    q[29] += w * abbb;
+    p[30] += abcc;
+    q[30] += w * abcc;
+}
+
+/* The packed terms from moment sums: dst[t] = k_fac[t] x mom[k_mom[t]] (dst may not alias mom). */
+static void moments_expand(const float *mom, float *dst)
+{
+    size_t t;
+    for (t = 0u; t < (INFO_MAX_N * (INFO_MAX_N + 1u)) / 2u; ++t) {
+        dst[t] = (float)k_fac[t] * mom[k_mom[t]];
+    }
+}
+
+/* Add a block's sums to the Kahan total of J^T J: packed terms (sphere) or, for the quadric, its
+ * moments expanded term by term; the block sums are cleared. */
+static void info_flush(quad_acc_t *acc, float *part, size_t npk, int sphere)
+{
+    size_t t;
+    if (sphere != 0) {
+        magcal_ell_flush(acc->sum, acc->comp, part, npk);
+        return;
+    }
+    for (t = 0u; t < npk; ++t) {
+        magcal_kahan_add(&acc->sum[t], &acc->comp[t], (float)k_fac[t] * part[k_mom[t]]);
+    }
+    for (t = 0u; t < INFO_NMOM; ++t) {
+        part[t] = 0.0f;
+    }
 }
 
 static MAGCAL_NOINLINE size_t info_accumulate(const magcal_vec3_t *m, size_t n,
@@ -362,11 +451,11 @@ static MAGCAL_NOINLINE size_t info_accumulate(const magcal_vec3_t *m, size_t n,
         r2 = (ws->res != NULL) ? ws->res[k]
                                : (magcal_ell_sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) -
                                   cal->field);
-        if (sphere == 0) {
-            outer9_add2(part, meat, row, r2); /* r2 still holds r: weighted rows */
+        r2 *= r2;
+        if (sphere == 0) { /* moment sums: part[0..30] this block's, meat[0..30] all samples' */
+            moments_add(part, meat, row[0], row[1], row[2], r2);
         } else {
             size_t p = 0u;
-            r2 *= r2;
             for (i = 0u; i < np; ++i) { /* packed order: p = pidx(i, j) */
                 for (j = 0u; j <= i; ++j) {
                     const float jj = row[i] * row[j];
@@ -381,11 +470,15 @@ static MAGCAL_NOINLINE size_t info_accumulate(const magcal_vec3_t *m, size_t n,
         }
         cnt++;
         if (++in_block == MAGCAL_ELL_BLOCK) {
-            magcal_ell_flush(acc->sum, acc->comp, part, npk);
+            info_flush(acc, part, npk, sphere);
             in_block = 0u;
         }
     }
-    magcal_ell_flush(acc->sum, acc->comp, part, npk);
+    info_flush(acc, part, npk, sphere);
+    if (sphere == 0) { /* the meat's moments into its packed terms */
+        (void)memcpy(ws->s->mat, meat, INFO_NMOM * sizeof(float));
+        moments_expand(ws->s->mat, meat);
+    }
     if (cnt >= np) { /* scatter of the directions about their mean, from the n n^T block */
         for (i = 0u; i < 3u; ++i) {
             for (j = 0u; j <= i; ++j) {

@@ -208,7 +208,7 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n, const mag
 /** Fixed part of MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN: the packed 10x10 normal matrix, the solver
  *  matrix, the observability pass's 9x9 inverse and sums, the median histogram (static assert in
  *  src/ellipsoid.c). */
-#define MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES 2688u
+#define MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES 2720u
 /** Workspace bytes of magcal_ellipsoid_fit_ws for n samples: the scratch + per sample its residual
  *  (4 B) and its outlier-gate verdict (1 B). */
 #define MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(n)                                                       \
