@@ -121,9 +121,15 @@ static MAGCAL_NOINLINE size_t regate(const magcal_vec3_t *m, size_t n, const flo
         float sign;
         size_t p = 0u;
         if (ws->res != NULL) { /* stored: the very predicate gate_keeps evaluates */
-            was = (int)(ws->keep[k] & 1u);
-            is = (fabsf(ws->res[k]) < new_gate->thr) ? 1 : 0;
-            ws->keep[k] = (uint8_t)((unsigned)was | ((unsigned)is << 1u));
+            was = 0;
+            is = 0;
+            if ((ws->keep[k] & 1u) != 0u) {
+                was = 1;
+            }
+            if (fabsf(ws->res[k]) < new_gate->thr) {
+                is = 1;
+                ws->keep[k] |= (uint8_t)2u; /* bit 1: the next gate's verdict */
+            }
         } else {
             was = magcal_ell_gate_keeps(old_gate, &m[k]);
             is = magcal_ell_gate_keeps(new_gate, &m[k]);
@@ -153,8 +159,8 @@ static void regate_settle(const ell_ws_t *ws, size_t n, int adopt)
         return;
     }
     for (k = 0u; k < n; ++k) {
-        const unsigned v = ws->keep[k];
-        ws->keep[k] = (uint8_t)((adopt != 0) ? (v >> 1u) : (v & 1u));
+        const uint8_t bit = (adopt != 0) ? (uint8_t)2u : (uint8_t)1u;
+        ws->keep[k] = ((ws->keep[k] & bit) != 0u) ? (uint8_t)1u : (uint8_t)0u;
     }
 }
 

@@ -215,7 +215,7 @@ static inline int magcal_ell_kept(const ell_ws_t *ws, const quad_gate_t *gate,
                                   const magcal_vec3_t *m, size_t k)
 {
     if (ws->keep != NULL) {
-        return (int)(ws->keep[k] & 1u);
+        return ((ws->keep[k] & 1u) != 0u) ? 1 : 0;
     }
     return magcal_ell_gate_keeps(gate, &m[k]);
 }

@@ -553,7 +553,6 @@ static MAGCAL_NOINLINE void centre_diag(const ell_ws_t *ws, int stage, int spher
                                         trust_diag_t *res)
 {
     ell_scratch_t *sw = ws->s;
-    size_t i;
     res->centre_std_rel = INFINITY;
     res->shape_std = (sphere != 0) ? 0.0f : INFINITY;
     res->planarity = 0.0f;
@@ -566,6 +565,7 @@ static MAGCAL_NOINLINE void centre_diag(const ell_ws_t *ws, int stage, int spher
     res->centre_std_rel = sqrtf(max_eig3(sw->cc, sw->w3, sw->e3)) / f;
     if (sphere == 0) {
         float emax = 0.0f;
+        size_t i;
         for (i = 3u; i < INFO_MAX_N; ++i) {
             if (!(sw->sd[i] <= emax)) { /* NaN propagates as unobservable */
                 emax = sw->sd[i];
