@@ -24,7 +24,7 @@ MAGCAL_STATIC_ASSERT(COV_CELLS <= 96u, coverage_cells_fit_three_words);
 /* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
 MAGCAL_STATIC_ASSERT(MAGCAL_ELLIPSOID_COV_AZ == 12u, azimuth_boundaries_are_30_degrees);
 /* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
-MAGCAL_STATIC_ASSERT(sizeof(ell_scratch_t) <= MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES &&
+MAGCAL_STATIC_ASSERT(sizeof(ell_scratch_t) + (MAGCAL_ELL_ALIGN - 4u) <= MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES &&
                          MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES % 4u == 0u,
                      fit_scratch_fits_its_macro);
 
@@ -880,8 +880,8 @@ magcal_status_t magcal_ellipsoid_fit_ws(const magcal_vec3_t *m, size_t n,
         work_len < MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(n)) {
         return MAGCAL_ERR_WORKSPACE;
     }
-    /* layout: scratch | n residuals | n verdicts (each part keeps 4-byte alignment) */
-    ws.s = (ell_scratch_t *)work;
+    /* layout: [0 or 4 B] scratch (8-byte aligned) | n residuals at SCRATCH_BYTES | n verdicts */
+    ws.s = (ell_scratch_t *)(void *)magcal_ell_align_up(work);
     ws.res = (float *)(void *)((uint8_t *)work + MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES);
     ws.keep = (uint8_t *)work + MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES + n * sizeof(float);
     return fit_core(m, n, cfg, &ws, out);

@@ -93,8 +93,9 @@ magcal_status_t magcal_ellipsoid_calibrate(const magcal_ellipsoid_calibrate_cfg_
     }
     /* layout: the pre-test's result | info when the caller gives none | the rest (the pre-test
      * fit's workspace; later the inlier copies, then the density stage's and the final fit's) */
-    first = (magcal_ellipsoid_result_t *)work;
-    inf = (magcal_ellipsoid_calibrate_info_t *)(void *)((uint8_t *)work + MAGCAL_ELLIPSOID_CALIBRATE_RESULT_SLOT);
+    first = (magcal_ellipsoid_result_t *)(void *)magcal_ell_align_up(work); /* size_t inside */
+    inf = (magcal_ellipsoid_calibrate_info_t *)(void *)((uint8_t *)first +
+                                                        MAGCAL_ELLIPSOID_CALIBRATE_RESULT_SLOT);
     if (info != NULL) {
         inf = info;
     }

@@ -88,6 +88,16 @@ static inline float magcal_ell_residual(const magcal_ellipsoid_cal_t *cal, const
 }
 
 
+/* The fit's scratch and magcal_ellipsoid_calibrate's result slots hold pointers and size_t: they
+ * start at the next multiple of this (a workspace is only promised 4-byte aligned; the 0 or 4
+ * bytes of padding are counted in the size macros). */
+#define MAGCAL_ELL_ALIGN 8u
+static inline uint8_t *magcal_ell_align_up(void *p)
+{
+    const size_t mis = magcal_misalign(p, MAGCAL_ELL_ALIGN);
+    return (uint8_t *)p + ((mis == 0u) ? 0u : (MAGCAL_ELL_ALIGN - mis));
+}
+
 /* The trust diagnostics of a fit (copied into the result on success). */
 typedef struct {
     float motion_snr;

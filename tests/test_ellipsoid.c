@@ -820,6 +820,18 @@ static void test_ellipsoid_calibrate_bad_input_returns_status(void)
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ALIGNMENT,
                           magcal_ellipsoid_calibrate(&cc, g_m, 320u, (uint8_t *)(void *)g_cwork + 1,
                                                      sizeof g_cwork - 1u, NULL, &r, NULL));
+    {
+        /* 4-byte aligned only: the same result (the result slots align themselves) */
+        magcal_ellipsoid_result_t r0, r4;
+        double w[3][3];
+        uint8_t *w4 = (uint8_t *)(void *)g_cwork + ((((uintptr_t)(void *)g_cwork) % 8u == 0u) ? 4u : 0u);
+        test_make_w_full(w);
+        make_set(w, 320u, 180.0, 180.0, 0.05, 2024u);
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_calibrate(&cc, g_m, 320u, g_cwork, sizeof g_cwork, NULL, &r0, NULL));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_calibrate(&cc, g_m, 320u, w4, MAGCAL_ELLIPSOID_CALIBRATE_WORKSPACE_LEN(320u),
+                                                                    NULL, &r4, NULL));
+        assert_same_result(&r0, &r4);
+    }
     cc.pretest_max_rel = 0.0f;
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_calibrate(&cc, g_m, 320u, g_cwork, sizeof g_cwork,
                                                                      NULL, &r, NULL));
@@ -827,9 +839,9 @@ static void test_ellipsoid_calibrate_bad_input_returns_status(void)
     cc.mode = (magcal_ellipsoid_density_t)3;
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_calibrate(&cc, g_m, 320u, g_cwork, sizeof g_cwork,
                                                                      NULL, &r, NULL));
-    /* the size macro: the pre-test's result and the info (8-byte slots), the inlier copy, then
+    /* the size macro: the pre-test's result and the info (8-byte slots, aligned: + 4), the inlier copy, then
      * the larger of the density stage's and the fit's workspace */
-    TEST_ASSERT_EQUAL_UINT32((uint32_t)((sizeof(magcal_ellipsoid_result_t) + 7u) / 8u * 8u +
+    TEST_ASSERT_EQUAL_UINT32((uint32_t)(4u + (sizeof(magcal_ellipsoid_result_t) + 7u) / 8u * 8u +
                                         (sizeof(magcal_ellipsoid_calibrate_info_t) + 7u) / 8u * 8u + 320u * sizeof(magcal_vec3_t) +
                                         ((MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(320u) > MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(320u))
                                              ? MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(320u)
@@ -911,6 +923,15 @@ static void test_ellipsoid_fit_ws_bad_input_returns_status(void)
                           magcal_ellipsoid_fit_ws(g_m, 320u, &cfg, g_cwork, MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(320u) - 1u, &r));
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
                           magcal_ellipsoid_fit_ws(g_m, 320u, &cfg, g_cwork, MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(320u), &r));
+    {
+        /* a workspace that is 4-byte aligned only (odd multiple of 4): the same result, at the
+         * macro's size (the scratch aligns itself inside it) */
+        magcal_ellipsoid_result_t r4;
+        uint8_t *w4 = (uint8_t *)(void *)g_cwork + ((((uintptr_t)(void *)g_cwork) % 8u == 0u) ? 4u : 0u);
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                              magcal_ellipsoid_fit_ws(g_m, 320u, &cfg, w4, MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(320u), &r4));
+        assert_same_result(&r, &r4);
+    }
     /* the size macro: the fixed scratch + a residual and a verdict byte per sample */
     TEST_ASSERT_EQUAL_UINT32((uint32_t)(MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES + 320u * 5u),
                              (uint32_t)MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(320u));

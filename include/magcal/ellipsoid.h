@@ -206,8 +206,8 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n, const mag
                                      magcal_ellipsoid_result_t *out);
 
 /** Fixed part of MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN: the packed 10x10 normal matrix, the solver
- *  matrix, the observability pass's 9x9 inverse and sums, the median histogram (static assert in
- *  src/ellipsoid.c). */
+ *  matrix, the observability pass's 9x9 inverse and sums, the median histogram, 8-byte aligned
+ *  inside the 4-byte aligned workspace (static assert in src/ellipsoid.c). */
 #define MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES 2720u
 /** Workspace bytes of magcal_ellipsoid_fit_ws for n samples: the scratch + per sample its residual
  *  (4 B) and its outlier-gate verdict (1 B). */
@@ -341,9 +341,10 @@ typedef struct {
 
 /** Bytes of magcal_ellipsoid_calibrate's workspace that hold the pre-test's result. */
 #define MAGCAL_ELLIPSOID_CALIBRATE_RESULT_SLOT ((sizeof(magcal_ellipsoid_result_t) + 7u) / 8u * 8u)
-/** The result slot + the slot of the info when the caller passes info = NULL (off the stack). */
+/** The result slot + the slot of the info when the caller passes info = NULL (off the stack), both
+ *  8-byte aligned inside a 4-byte aligned workspace (+4 B). */
 #define MAGCAL_ELLIPSOID_CALIBRATE_SLOTS                                                            \
-    (MAGCAL_ELLIPSOID_CALIBRATE_RESULT_SLOT +                                                       \
+    (4u + MAGCAL_ELLIPSOID_CALIBRATE_RESULT_SLOT +                                                  \
      (sizeof(magcal_ellipsoid_calibrate_info_t) + 7u) / 8u * 8u)
 /** Workspace bytes of magcal_ellipsoid_calibrate for n samples: the pre-test's result and info, the inlier
  *  copy (n x 12 B), then the larger of the density stage's MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n)
