@@ -166,6 +166,11 @@ typedef struct {
 /**
  * @brief Fit V and G to raw 3-D field samples.
  *
+ * No workspace: the fit's scratch (MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES) lives on this function's
+ * stack (3.1 KB worst case on the Cortex-M4F) and every pass recomputes the residuals. Firmware
+ * calls magcal_ellipsoid_fit_ws (the same result bit for bit, <= 512 B of stack, half the
+ * instructions); this one stays for hosts, tests and existing callers.
+ *
  * @param[in]  m    n raw samples (body axes x right, y forward, z up; any unit).
  * @param[in]  n    number of samples (>= 4 for the sphere, >= 10 for the quadrics; the sphere needs
  *                  coverage anyway, so in practice use >= 50).
