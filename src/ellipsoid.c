@@ -25,6 +25,10 @@
 MAGCAL_STATIC_ASSERT(COV_CELLS <= 96u, coverage_cells_fit_three_words);
 /* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
 MAGCAL_STATIC_ASSERT(MAGCAL_ELLIPSOID_COV_AZ == 12u, azimuth_boundaries_are_30_degrees);
+/* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
+MAGCAL_STATIC_ASSERT(sizeof(ell_scratch_t) + (MAGCAL_ELL_ALIGN - 4u) <= MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES &&
+                         MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES % 4u == 0u,
+                     fit_scratch_fits_its_macro);
 
 /* One row of the normalised quadric design: x^2, y^2, z^2, 2yz, 2xz, 2xy, 2x, 2y, 2z, 1 of
  * (p - mu) / s. */
@@ -45,29 +49,50 @@ static void design_row(const magcal_vec3_t *p, const float mu[3], float inv_s, f
     row[9] = 1.0f;
 }
 
-static MAGCAL_NOINLINE void accumulate(const magcal_vec3_t *m, size_t n, const float mu[3],
-                                       float inv_s, const quad_gate_t *gate, quad_acc_t *acc)
+/* part += r r^T, packed lower triangle (p = pidx(i, j)), written out: the ten row values stay
+ * in FPU registers (the loop form loads both factors and the index for each of the 55 terms). */
+static void outer10_add(float *p, const float r[NQ])
 {
-    float part[MAGCAL_ELL_NPACK];
+    const float r0 = r[0];
+    const float r1 = r[1];
+    const float r2 = r[2];
+    const float r3 = r[3];
+    const float r4 = r[4];
+    const float r5 = r[5];
+    const float r6 = r[6];
+    const float r7 = r[7];
+    const float r8 = r[8];
+    const float r9 = r[9];
+    p[0] += r0 * r0;
+    p[1] += r1 * r0; p[2] += r1 * r1;
+    p[3] += r2 * r0; p[4] += r2 * r1; p[5] += r2 * r2;
+    p[6] += r3 * r0; p[7] += r3 * r1; p[8] += r3 * r2; p[9] += r3 * r3;
+    p[10] += r4 * r0; p[11] += r4 * r1; p[12] += r4 * r2; p[13] += r4 * r3; p[14] += r4 * r4;
+    p[15] += r5 * r0; p[16] += r5 * r1; p[17] += r5 * r2;
+    p[18] += r5 * r3; p[19] += r5 * r4; p[20] += r5 * r5;
+    p[21] += r6 * r0; p[22] += r6 * r1; p[23] += r6 * r2;
+    p[24] += r6 * r3; p[25] += r6 * r4; p[26] += r6 * r5; p[27] += r6 * r6;
+    p[28] += r7 * r0; p[29] += r7 * r1; p[30] += r7 * r2; p[31] += r7 * r3;
+    p[32] += r7 * r4; p[33] += r7 * r5; p[34] += r7 * r6; p[35] += r7 * r7;
+    p[36] += r8 * r0; p[37] += r8 * r1; p[38] += r8 * r2; p[39] += r8 * r3;
+    p[40] += r8 * r4; p[41] += r8 * r5; p[42] += r8 * r6; p[43] += r8 * r7; p[44] += r8 * r8;
+    p[45] += r9 * r0; p[46] += r9 * r1; p[47] += r9 * r2; p[48] += r9 * r3; p[49] += r9 * r4;
+    p[50] += r9 * r5; p[51] += r9 * r6; p[52] += r9 * r7; p[53] += r9 * r8; p[54] += r9 * r9;
+}
+
+static MAGCAL_NOINLINE void accumulate(const magcal_vec3_t *m, size_t n, const float mu[3],
+                                       float inv_s, ell_scratch_t *ws)
+{
+    quad_acc_t *acc = &ws->acc;
+    float *part = ws->part;
     size_t k;
-    size_t i;
-    size_t j;
     size_t in_block = 0u;
     (void)memset(acc, 0, sizeof(*acc));
-    (void)memset(part, 0, sizeof(part));
+    (void)memset(part, 0, sizeof(ws->part));
     for (k = 0u; k < n; ++k) {
         float row[NQ];
-        size_t p = 0u;
-        if (!magcal_ell_gate_keeps(gate, &m[k])) {
-            continue;
-        }
         design_row(&m[k], mu, inv_s, row);
-        for (i = 0u; i < NQ; ++i) { /* packed order: p = pidx(i, j) */
-            for (j = 0u; j <= i; ++j) {
-                part[p] += row[i] * row[j];
-                ++p;
-            }
-        }
+        outer10_add(part, row);
         acc->count++;
         if (++in_block == MAGCAL_ELL_BLOCK) {
             magcal_ell_flush(acc->sum, acc->comp, part, MAGCAL_ELL_NPACK);
@@ -84,18 +109,33 @@ static MAGCAL_NOINLINE void accumulate(const magcal_vec3_t *m, size_t n, const f
  */
 static MAGCAL_NOINLINE size_t regate(const magcal_vec3_t *m, size_t n, const float mu[3],
                                      float inv_s, const quad_gate_t *old_gate,
-                                     const quad_gate_t *new_gate, quad_acc_t *acc)
+                                     const quad_gate_t *new_gate, const ell_ws_t *ws)
 {
+    quad_acc_t *acc = &ws->s->acc;
     size_t k;
     size_t i;
     size_t j;
     size_t kept = 0u;
     for (k = 0u; k < n; ++k) {
-        const int was = magcal_ell_gate_keeps(old_gate, &m[k]);
-        const int is = magcal_ell_gate_keeps(new_gate, &m[k]);
+        int was;
+        int is;
         float row[NQ];
         float sign;
         size_t p = 0u;
+        if (ws->res != NULL) { /* stored: the very predicate gate_keeps evaluates */
+            was = 0;
+            is = 0;
+            if ((ws->keep[k] & 1u) != 0u) {
+                was = 1;
+            }
+            if (fabsf(ws->res[k]) < new_gate->thr) {
+                is = 1;
+                ws->keep[k] |= (uint8_t)2u; /* bit 1: the next gate's verdict */
+            }
+        } else {
+            was = magcal_ell_gate_keeps(old_gate, &m[k]);
+            is = magcal_ell_gate_keeps(new_gate, &m[k]);
+        }
         kept += (is != 0) ? 1u : 0u;
         if (was == is) {
             continue;
@@ -113,7 +153,22 @@ static MAGCAL_NOINLINE size_t regate(const magcal_vec3_t *m, size_t n, const flo
     return kept;
 }
 
-static magcal_status_t sqrt_spd3(float q[3][3], magcal_ellipsoid_sqrt_t method, float g[3][3])
+/* After regate: the stored verdicts become the next gate's (adopt != 0) or stay the old one's. */
+static void regate_settle(const ell_ws_t *ws, size_t n, int adopt)
+{
+    size_t k;
+    if (ws->keep == NULL) {
+        return;
+    }
+    for (k = 0u; k < n; ++k) {
+        const uint8_t bit = (adopt != 0) ? (uint8_t)2u : (uint8_t)1u;
+        ws->keep[k] = ((ws->keep[k] & bit) != 0u) ? (uint8_t)1u : (uint8_t)0u;
+    }
+}
+
+/* G with G^T G = q (q is destroyed; g must not alias q; e, w: scratch of the Jacobi). */
+static MAGCAL_NOINLINE magcal_status_t sqrt_spd3(float q[3][3], magcal_ellipsoid_sqrt_t method,
+                                                 float g[3][3], float e[3][3], float w[3])
 {
     if (method == MAGCAL_ELLIPSOID_SQRT_CHOLESKY) {
         float u00 = q[0][0];
@@ -149,14 +204,10 @@ static magcal_status_t sqrt_spd3(float q[3][3], magcal_ellipsoid_sqrt_t method, 
         g[2][1] = 0.0f;
         g[2][2] = u22;
     } else {
-        float w[3];
-        float e[3][3];
-        float a[3][3];
         size_t i;
         size_t j;
         magcal_status_t st;
-        (void)memcpy(a, q, sizeof(a)); /* magcal_jacobi_sym destroys its input */
-        st = magcal_jacobi_sym(&a[0][0], 3u, w, &e[0][0]);
+        st = magcal_jacobi_sym(&q[0][0], 3u, w, &e[0][0]); /* destroys q */
         if (st != MAGCAL_OK) {
             return st;
         }
@@ -179,77 +230,74 @@ static magcal_status_t sqrt_spd3(float q[3][3], magcal_ellipsoid_sqrt_t method, 
 /*
  * Quadric coefficients (a, b, c, f, g, h, p, q, r, d) of
  *   a x^2 + b y^2 + c z^2 + 2f yz + 2g xz + 2h xy + 2p x + 2q y + 2r z + d = 0
- * in normalised coordinates -> calibration in raw coordinates.
+ * in normalised coordinates -> calibration in raw coordinates (cal is scratch until MAGCAL_OK).
  */
-static magcal_status_t extract_quadric(const float coef_in[NQ], const float mu[3], float s,
-                                       float field_cfg, magcal_ellipsoid_sqrt_t method,
-                                       magcal_ellipsoid_cal_t *cal)
+static MAGCAL_NOINLINE magcal_status_t extract_quadric(ell_scratch_t *ws, const float mu[3],
+                                                       float s, float field_cfg,
+                                                       magcal_ellipsoid_sqrt_t method,
+                                                       magcal_ellipsoid_cal_t *cal)
 {
-    float coef[NQ];
-    float aq[3][3];
-    float inv[3][3];
+    const float *coef = ws->coef;
+    /* the eigenvector's sign is arbitrary: x (+-1) is exact */
+    const float sg = (coef[0] + coef[1] + coef[2] < 0.0f) ? -1.0f : 1.0f;
+    float(*aq)[3] = ws->q3;
     float u[3];
     float vt[3];
+    float i00;
+    float i01;
+    float i02;
+    float i11;
+    float i12;
+    float i22;
     float det;
     float k;
-    float qn[3][3];
-    float gn[3][3];
     float f;
     float detq;
     size_t i;
     size_t j;
     magcal_status_t st;
 
-    (void)memcpy(coef, coef_in, sizeof(coef));
-    if (coef[0] + coef[1] + coef[2] < 0.0f) { /* eigenvector sign is arbitrary */
-        for (i = 0u; i < NQ; ++i) {
-            coef[i] = -coef[i];
-        }
-    }
-    aq[0][0] = coef[0];
-    aq[1][1] = coef[1];
-    aq[2][2] = coef[2];
-    aq[1][2] = coef[3];
-    aq[2][1] = coef[3];
-    aq[0][2] = coef[4];
-    aq[2][0] = coef[4];
-    aq[0][1] = coef[5];
-    aq[1][0] = coef[5];
-    u[0] = coef[6];
-    u[1] = coef[7];
-    u[2] = coef[8];
+    aq[0][0] = sg * coef[0];
+    aq[1][1] = sg * coef[1];
+    aq[2][2] = sg * coef[2];
+    aq[1][2] = sg * coef[3];
+    aq[2][1] = aq[1][2];
+    aq[0][2] = sg * coef[4];
+    aq[2][0] = aq[0][2];
+    aq[0][1] = sg * coef[5];
+    aq[1][0] = aq[0][1];
+    u[0] = sg * coef[6];
+    u[1] = sg * coef[7];
+    u[2] = sg * coef[8];
     det = magcal_det3(aq);
     if (!magcal_isfinite_f(det) || det == 0.0f) {
         return MAGCAL_ERR_NOT_ELLIPSOID;
     }
-    inv[0][0] = (aq[1][1] * aq[2][2] - aq[1][2] * aq[2][1]) / det;
-    inv[0][1] = (aq[0][2] * aq[2][1] - aq[0][1] * aq[2][2]) / det;
-    inv[0][2] = (aq[0][1] * aq[1][2] - aq[0][2] * aq[1][1]) / det;
-    inv[1][1] = (aq[0][0] * aq[2][2] - aq[0][2] * aq[2][0]) / det;
-    inv[1][2] = (aq[0][2] * aq[1][0] - aq[0][0] * aq[1][2]) / det;
-    inv[2][2] = (aq[0][0] * aq[1][1] - aq[0][1] * aq[1][0]) / det;
-    inv[1][0] = inv[0][1];
-    inv[2][0] = inv[0][2];
-    inv[2][1] = inv[1][2];
-    for (i = 0u; i < 3u; ++i) {
-        vt[i] = -(inv[i][0] * u[0] + inv[i][1] * u[1] + inv[i][2] * u[2]);
-    }
-    k = -(u[0] * vt[0] + u[1] * vt[1] + u[2] * vt[2]) - coef[9];
+    i00 = (aq[1][1] * aq[2][2] - aq[1][2] * aq[2][1]) / det;
+    i01 = (aq[0][2] * aq[2][1] - aq[0][1] * aq[2][2]) / det;
+    i02 = (aq[0][1] * aq[1][2] - aq[0][2] * aq[1][1]) / det;
+    i11 = (aq[0][0] * aq[2][2] - aq[0][2] * aq[2][0]) / det;
+    i12 = (aq[0][2] * aq[1][0] - aq[0][0] * aq[1][2]) / det;
+    i22 = (aq[0][0] * aq[1][1] - aq[0][1] * aq[1][0]) / det;
+    vt[0] = -(i00 * u[0] + i01 * u[1] + i02 * u[2]);
+    vt[1] = -(i01 * u[0] + i11 * u[1] + i12 * u[2]);
+    vt[2] = -(i02 * u[0] + i12 * u[1] + i22 * u[2]);
+    k = -(u[0] * vt[0] + u[1] * vt[1] + u[2] * vt[2]) - sg * coef[9];
     if (!(k > 0.0f) || !magcal_isfinite_f(k)) {
         return MAGCAL_ERR_NOT_ELLIPSOID;
     }
-    for (i = 0u; i < 3u; ++i) {
+    for (i = 0u; i < 3u; ++i) { /* aq becomes qn = A_q / k */
         for (j = 0u; j < 3u; ++j) {
-            qn[i][j] = aq[i][j] / k;
+            aq[i][j] = aq[i][j] / k;
         }
     }
     /* Sylvester: leading minors of A_q/k positive. */
-    detq = magcal_det3(qn);
-    if (!(qn[0][0] > 0.0f) || !(qn[0][0] * qn[1][1] - qn[0][1] * qn[1][0] > 0.0f) ||
+    detq = magcal_det3(aq);
+    if (!(aq[0][0] > 0.0f) || !(aq[0][0] * aq[1][1] - aq[0][1] * aq[1][0] > 0.0f) ||
         !(detq > 0.0f)) {
         return MAGCAL_ERR_NOT_ELLIPSOID;
     }
-    st = sqrt_spd3(qn, method, gn);
+    st = sqrt_spd3(aq, method, cal->g, ws->e3, ws->w3);
     if (st != MAGCAL_OK) {
         return st;
     }
@@ -260,7 +308,7 @@ static magcal_status_t extract_quadric(const float coef_in[NQ], const float mu[3
     }
     for (i = 0u; i < 3u; ++i) {
         for (j = 0u; j < 3u; ++j) {
-            cal->g[i][j] = gn[i][j] * (f / s);
+            cal->g[i][j] = cal->g[i][j] * (f / s);
         }
     }
     cal->v.x = mu[0] + s * vt[0];
@@ -270,10 +318,9 @@ static magcal_status_t extract_quadric(const float coef_in[NQ], const float mu[3
     return MAGCAL_OK;
 }
 
-static magcal_status_t solve_quadric9(const quad_acc_t *acc, float tau, float coef[NQ],
+static MAGCAL_NOINLINE magcal_status_t solve_quadric9(const quad_acc_t *acc, float *a, float tau, float coef[NQ],
                                       float *min_pivot)
 {
-    float a[9u * 9u];
     float b[9];
     size_t i;
     size_t j;
@@ -296,10 +343,9 @@ static magcal_status_t solve_quadric9(const quad_acc_t *acc, float tau, float co
 }
 
 /* Smallest eigenvector of D^T D by inverse iteration with a shifted LDL^T (algorithms.md 3.2). */
-static magcal_status_t solve_quadric10(const quad_acc_t *acc, float tau, float coef[NQ],
+static MAGCAL_NOINLINE magcal_status_t solve_quadric10(const quad_acc_t *acc, float *a, float tau, float coef[NQ],
                                        float *min_pivot)
 {
-    float a[NQ * NQ];
     float v[NQ];
     float trace = 0.0f;
     float shift;
@@ -359,17 +405,17 @@ static magcal_status_t solve_quadric10(const quad_acc_t *acc, float tau, float c
     if (st != MAGCAL_OK) {
         return st;
     }
-    /* Conditioning hint from the unshifted 9x9 block, the same test as the 9-parameter model. */
+    /* Conditioning hint from the unshifted 9x9 block, the same test as the 9-parameter model
+     * (in the solver matrix: the iteration is done with it). */
     {
         float b9[9];
-        float a9[81];
         for (i = 0u; i < 9u; ++i) {
             for (j = 0u; j < 9u; ++j) {
-                a9[i * 9u + j] = magcal_ell_acc_at(acc, i, j);
+                a[i * 9u + j] = magcal_ell_acc_at(acc, i, j);
             }
             b9[i] = 0.0f;
         }
-        st = magcal_ldlt_solve(a9, b9, 9u, tau, min_pivot);
+        st = magcal_ldlt_solve(a, b9, 9u, tau, min_pivot);
         if (st != MAGCAL_OK) {
             return st;
         }
@@ -381,11 +427,10 @@ static magcal_status_t solve_quadric10(const quad_acc_t *acc, float tau, float c
 }
 
 /* Sphere x^2+y^2+z^2 + C x + D y + E z + G0 = 0 from the same moments. */
-static magcal_status_t solve_sphere(const quad_acc_t *acc, const float mu[3], float s,
+static MAGCAL_NOINLINE magcal_status_t solve_sphere(const quad_acc_t *acc, float *a, const float mu[3], float s,
                                     float field_cfg, float tau, magcal_ellipsoid_cal_t *cal,
                                     float *min_pivot)
 {
-    float a[16];
     float b[4];
     float c[3];
     float r2;
@@ -430,30 +475,31 @@ static magcal_status_t solve_sphere(const quad_acc_t *acc, const float mu[3], fl
     return MAGCAL_OK;
 }
 
-static magcal_status_t fit_model(const quad_acc_t *acc, magcal_ellipsoid_model_t model,
+static MAGCAL_NOINLINE magcal_status_t fit_model(ell_scratch_t *ws, magcal_ellipsoid_model_t model,
                                  const float mu[3], float s, const magcal_ellipsoid_cfg_t *cfg,
                                  magcal_ellipsoid_cal_t *cal, float *min_pivot)
 {
-    float coef[NQ];
+    const quad_acc_t *acc = &ws->acc;
+    float *coef = ws->coef;
     magcal_status_t st;
     if (model == MAGCAL_ELLIPSOID_MODEL_SPHERE) {
         if (acc->count < MIN_SPHERE_POINTS) {
             return MAGCAL_ERR_TOO_FEW_POINTS;
         }
-        return solve_sphere(acc, mu, s, cfg->field, cfg->pivot_tau, cal, min_pivot);
+        return solve_sphere(acc, ws->mat, mu, s, cfg->field, cfg->pivot_tau, cal, min_pivot);
     }
     if (acc->count < MIN_QUADRIC_POINTS) {
         return MAGCAL_ERR_TOO_FEW_POINTS;
     }
     if (model == MAGCAL_ELLIPSOID_MODEL_QUADRIC10) {
-        st = solve_quadric10(acc, cfg->pivot_tau, coef, min_pivot);
+        st = solve_quadric10(acc, ws->mat, cfg->pivot_tau, coef, min_pivot);
     } else {
-        st = solve_quadric9(acc, cfg->pivot_tau, coef, min_pivot);
+        st = solve_quadric9(acc, ws->mat, cfg->pivot_tau, coef, min_pivot);
     }
     if (st != MAGCAL_OK) {
         return st;
     }
-    return extract_quadric(coef, mu, s, cfg->field, cfg->sqrt_method, cal);
+    return extract_quadric(ws, mu, s, cfg->field, cfg->sqrt_method, cal);
 }
 
 static int cell_of(float x, float y, float z, size_t *cell)
@@ -461,7 +507,7 @@ static int cell_of(float x, float y, float z, size_t *cell)
     /* tan-free sector boundaries of the azimuth cells: cos / sin of 30, 60, 90, 120, 150 degrees */
     static const float k_bound_c[5] = {0.8660254f, 0.5f, 0.0f, -0.5f, -0.8660254f};
     static const float k_bound_s[5] = {0.5f, 0.8660254f, 1.0f, 0.8660254f, 0.5f};
-    float r = sqrtf(x * x + y * y + z * z);
+    float r = magcal_ell_sqrtf(x * x + y * y + z * z);
     float sz;
     float u = -x; /* azimuth measured from -x, as atan2f(y, x) + pi, in [0, 2 pi) */
     float v = -y;
@@ -564,9 +610,11 @@ static magcal_status_t ellipsoid_check_cfg(const magcal_ellipsoid_cfg_t *cfg)
     return MAGCAL_OK;
 }
 
-/* RMS of the residuals under `cal` of the samples kept by `gate`; their count and max |r|. */
+/* RMS of the residuals under `cal` of the samples kept by `gate`; their count and max |r|.
+ * With ws->res: every sample's residual is stored there (regate reads the rejected ones too). */
 float magcal_ell_residual_pass(const magcal_vec3_t *m, size_t n, const magcal_ellipsoid_cal_t *cal,
-                               const quad_gate_t *gate, size_t *kept, float *max_abs)
+                               const quad_gate_t *gate, const ell_ws_t *ws, size_t *kept,
+                               float *max_abs)
 {
     float sum = 0.0f;
     float comp = 0.0f;
@@ -575,10 +623,18 @@ float magcal_ell_residual_pass(const magcal_vec3_t *m, size_t n, const magcal_el
     size_t cnt = 0u;
     for (k = 0u; k < n; ++k) {
         float r;
-        if (!magcal_ell_gate_keeps(gate, &m[k])) {
-            continue;
+        if (ws->res != NULL) {
+            r = magcal_ell_residual(cal, &m[k]);
+            ws->res[k] = r;
+            if ((ws->keep[k] & 1u) == 0u) {
+                continue;
+            }
+        } else {
+            if (!magcal_ell_gate_keeps(gate, &m[k])) {
+                continue;
+            }
+            r = magcal_ell_residual(cal, &m[k]);
         }
-        r = magcal_ell_residual(cal, &m[k]);
         magcal_kahan_add(&sum, &comp, r * r);
         if (fabsf(r) > mx) {
             mx = fabsf(r);
@@ -592,50 +648,19 @@ float magcal_ell_residual_pass(const magcal_vec3_t *m, size_t n, const magcal_el
     return (cnt > 0u) ? sqrtf(sum / (float)cnt) : 0.0f;
 }
 
-magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
-                                     const magcal_ellipsoid_cfg_t *cfg,
-                                     magcal_ellipsoid_result_t *out)
+/* Mean and scale s (RMS distance from the mean) of the samples; the scatter about the mean
+ * (packed xx, yx, yy, zx, zy, zz) into sc (the accumulator's storage, which pass 3 clears). */
+static magcal_status_t normalise(const magcal_vec3_t *m, size_t n, quad_acc_t *acc, float mu[3],
+                                 float *s_out)
 {
-    float mu[3] = {0.0f, 0.0f, 0.0f};
     float comp[3] = {0.0f, 0.0f, 0.0f};
-    float *sc;
-    float *scc;
+    float *sc = acc->sum;
+    float *scc = acc->comp;
     float s;
-    float inv_s;
-    float cov_centre[3];
-    float coverage;
-    float min_pivot = 0.0f;
-    motion_ctx_t mc;
-    float planarity;
     size_t k;
-    size_t iter;
-    size_t kept = 0u;
-    size_t prev_rejected = 0u;
-    magcal_ellipsoid_model_t model;
-    magcal_ellipsoid_cal_t cal;
-    magcal_ellipsoid_cal_t gate_cal;
-    magcal_ellipsoid_cal_t sphere_cal;
-    trust_diag_t dg;
-    quad_acc_t acc;
-    quad_gate_t gate = {NULL, 0.0f};
-    magcal_status_t st;
-    float rms = 0.0f;
-    float rmax;
-    int rms_valid = 0;
-
-    if (m == NULL || cfg == NULL || out == NULL) {
-        return MAGCAL_ERR_NULL;
-    }
-    st = ellipsoid_check_cfg(cfg);
-    if (st != MAGCAL_OK) {
-        return st;
-    }
-    if (n < ((cfg->model == MAGCAL_ELLIPSOID_MODEL_QUADRIC9 ||
-              cfg->model == MAGCAL_ELLIPSOID_MODEL_QUADRIC10)
-                 ? MIN_QUADRIC_POINTS
-                 : MIN_SPHERE_POINTS)) {
-        return MAGCAL_ERR_TOO_FEW_POINTS;
-    }
+    mu[0] = 0.0f;
+    mu[1] = 0.0f;
+    mu[2] = 0.0f;
     /* Pass 1: mean (Kahan). */
     for (k = 0u; k < n; ++k) {
         if (!magcal_isfinite_f(m[k].x) || !magcal_isfinite_f(m[k].y) ||
@@ -649,11 +674,8 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
     for (k = 0u; k < 3u; ++k) {
         mu[k] /= (float)n;
     }
-    /* Pass 2: scatter about the mean (packed xx, yx, yy, zx, zy, zz, in the accumulator's storage,
-     * which pass 3 clears); its trace gives the scale. */
-    (void)memset(&acc, 0, sizeof(acc));
-    sc = acc.sum;
-    scc = acc.comp;
+    /* Pass 2: scatter about the mean; its trace gives the scale. */
+    (void)memset(acc, 0, sizeof(*acc));
     for (k = 0u; k < n; ++k) {
         float dx = m[k].x - mu[0];
         float dy = m[k].y - mu[1];
@@ -670,89 +692,149 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
         !magcal_isfinite_f(s)) {
         return MAGCAL_ERR_DEGENERATE;
     }
+    *s_out = s;
+    return MAGCAL_OK;
+}
+
+/* The fit itself (magcal_ellipsoid_fit, magcal_ellipsoid_fit_ws): scratch in ws->s, per-sample
+ * residuals and verdicts in ws->res / ws->keep when stored (see ell_ws_t). */
+static magcal_status_t fit_core(const magcal_vec3_t *m, size_t n,
+                                const magcal_ellipsoid_cfg_t *cfg, const ell_ws_t *ws,
+                                magcal_ellipsoid_result_t *out)
+{
+    ell_scratch_t *sw = ws->s;
+    magcal_ellipsoid_cal_t *cal = &sw->cal[0];
+    magcal_ellipsoid_cal_t *gate_cal = &sw->cal[1];
+    magcal_ellipsoid_cal_t *sphere_cal = &sw->cal[2];
+    float *mu = sw->mu;
+    float s;
+    float inv_s;
+    float *cov_centre = sw->cov_centre;
+    float coverage;
+    float min_pivot = 0.0f;
+    motion_ctx_t *mcp = &sw->mc;
+    float planarity;
+    size_t iter;
+    size_t kept = 0u;
+    size_t prev_rejected = 0u;
+    magcal_ellipsoid_model_t model;
+    trust_diag_t *dg = &sw->dg;
+    quad_gate_t *gate = &sw->gate;
+    magcal_status_t st;
+    float rms = 0.0f;
+    float rmax;
+    int rms_valid = 0;
+
+    gate->cal = NULL; /* no gate yet */
+    gate->thr = 0.0f;
+    sw->src.cal = NULL;
+    sw->src.theta = NULL;
+    sw->src.mu = NULL;
+    sw->src.inv_s = 0.0f;
+    st = ellipsoid_check_cfg(cfg);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    if (n < ((cfg->model == MAGCAL_ELLIPSOID_MODEL_QUADRIC9 ||
+              cfg->model == MAGCAL_ELLIPSOID_MODEL_QUADRIC10)
+                 ? MIN_QUADRIC_POINTS
+                 : MIN_SPHERE_POINTS)) {
+        return MAGCAL_ERR_TOO_FEW_POINTS;
+    }
+    st = normalise(m, n, &sw->acc, mu, &s);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
     inv_s = 1.0f / s;
-    planarity = magcal_ell_planarity(sc);
+    planarity = magcal_ell_planarity(sw->acc.sum, sw);
 
     /* Pass 3: the normal matrix of every sample; sphere fit gives the provisional centre, the
      * quadric's algebraic residual a noise scale that needs neither centre nor model. */
-    accumulate(m, n, mu, inv_s, &gate, &acc);
+    accumulate(m, n, mu, inv_s, sw);
     model = cfg->model;
     cov_centre[0] = mu[0];
     cov_centre[1] = mu[1];
     cov_centre[2] = mu[2];
-    st = solve_sphere(&acc, mu, s, cfg->field, cfg->pivot_tau, &sphere_cal, &min_pivot);
+    st = solve_sphere(&sw->acc, sw->mat, mu, s, cfg->field, cfg->pivot_tau, sphere_cal, &min_pivot);
     if (st == MAGCAL_OK) {
-        cov_centre[0] = sphere_cal.v.x;
-        cov_centre[1] = sphere_cal.v.y;
-        cov_centre[2] = sphere_cal.v.z;
+        cov_centre[0] = sphere_cal->v.x;
+        cov_centre[1] = sphere_cal->v.y;
+        cov_centre[2] = sphere_cal->v.z;
     }
-    mc.m = m;
-    mc.n = n;
-    mc.s = s;
-    mc.snr_alg = magcal_ell_algebraic_snr(m, n, mu, inv_s, &acc);
-    mc.sphere = (st == MAGCAL_OK) ? &sphere_cal : NULL;
+    mcp->m = m;
+    mcp->n = n;
+    mcp->s = s;
+    mcp->sphere = (st == MAGCAL_OK) ? sphere_cal : NULL;
+    mcp->snr_alg = magcal_ell_algebraic_snr(m, n, mu, inv_s, ws);
     coverage = coverage_of(m, n, cov_centre, 1e-6f * s);
     if (model == MAGCAL_ELLIPSOID_MODEL_AUTO) {
         if (coverage < cfg->min_coverage_sphere) {
-            return magcal_ell_explain_failure(MAGCAL_ERR_COVERAGE, &mc, planarity, cfg);
+            return magcal_ell_explain_failure(MAGCAL_ERR_COVERAGE, mcp, planarity, cfg, ws);
         }
         model = (coverage >= cfg->min_coverage_full && n >= MIN_QUADRIC_POINTS)
                     ? MAGCAL_ELLIPSOID_MODEL_QUADRIC9
                     : MAGCAL_ELLIPSOID_MODEL_SPHERE;
     }
-    st = fit_model(&acc, model, mu, s, cfg, &cal, &min_pivot);
+    st = fit_model(sw, model, mu, s, cfg, cal, &min_pivot);
     if (st != MAGCAL_OK) {
-        return magcal_ell_explain_failure(st, &mc, planarity, cfg);
+        return magcal_ell_explain_failure(st, mcp, planarity, cfg, ws);
+    }
+    if (ws->keep != NULL) {
+        (void)memset(ws->keep, 1, n); /* no gate yet: every sample kept */
     }
 
-    /* Outlier rejection: robust residual gate + refit (no per-sample storage; the array is read
-     * again). The scale is 1.4826 x median |r| of the kept samples, not their RMS: a dense burst
-     * pulls the first fit towards itself and inflates the RMS enough to hide (issue 12). */
+    /* Outlier rejection: robust residual gate + refit (the samples are read again; with a
+     * workspace their residuals are stored, not recomputed). The scale is 1.4826 x median |r| of
+     * the kept samples, not their RMS: a dense burst pulls the first fit towards itself and
+     * inflates the RMS enough to hide (issue 12). */
     for (iter = 0u; iter < cfg->max_refits && cfg->outlier_k > 0.0f; ++iter) {
         size_t rejected;
         size_t kept_new;
-        quad_gate_t next;
-        resid_src_t src = {NULL, NULL, NULL, 0.0f};
-        rms = magcal_ell_residual_pass(m, n, &cal, &gate, &kept, &rmax);
+        quad_gate_t *next = &sw->next;
+        resid_src_t *src = &sw->src;
+        rms = magcal_ell_residual_pass(m, n, cal, gate, ws, &kept, &rmax);
         rms_valid = 1;
-        next.cal = &cal;
-        src.cal = &cal;
-        next.thr = cfg->outlier_k * MAGCAL_ELL_MAD_TO_SIGMA *
-                   magcal_ell_median_abs(m, n, &src, &gate, kept, rmax);
-        if (next.thr < cfg->outlier_floor_rel * cal.field) {
-            next.thr = cfg->outlier_floor_rel * cal.field;
+        next->cal = cal;
+        src->cal = cal;
+        next->thr = cfg->outlier_k * MAGCAL_ELL_MAD_TO_SIGMA *
+                   magcal_ell_median_abs(m, n, src, gate, ws, kept, rmax);
+        if (next->thr < cfg->outlier_floor_rel * cal->field) {
+            next->thr = cfg->outlier_floor_rel * cal->field;
         }
         /* the count under the new gate; acc follows it (unused when the loop ends here) */
-        kept_new = regate(m, n, mu, inv_s, &gate, &next, &acc);
+        kept_new = regate(m, n, mu, inv_s, gate, next, ws);
         rejected = n - kept_new;
         if (rejected == prev_rejected) {
+            regate_settle(ws, n, 0);
             break; /* cal and gate unchanged: rms and kept of this pass are final */
         }
+        regate_settle(ws, n, 1);
         if ((float)rejected > cfg->max_reject_frac * (float)n) {
-            return magcal_ell_explain_failure(MAGCAL_ERR_TOO_MANY_OUTLIERS, &mc, planarity, cfg);
+            return magcal_ell_explain_failure(MAGCAL_ERR_TOO_MANY_OUTLIERS, mcp, planarity, cfg,
+                                              ws);
         }
         rms_valid = 0;
-        gate_cal = cal;
-        gate.cal = &gate_cal;
-        gate.thr = next.thr;
-        st = fit_model(&acc, model, mu, s, cfg, &cal, &min_pivot);
+        *gate_cal = *cal;
+        gate->cal = gate_cal;
+        gate->thr = next->thr;
+        st = fit_model(sw, model, mu, s, cfg, cal, &min_pivot);
         if (st != MAGCAL_OK) {
-            return magcal_ell_explain_failure(st, &mc, planarity, cfg);
+            return magcal_ell_explain_failure(st, mcp, planarity, cfg, ws);
         }
         prev_rejected = rejected;
     }
     if (rms_valid == 0) {
-        rms = magcal_ell_residual_pass(m, n, &cal, &gate, &kept, NULL);
+        rms = magcal_ell_residual_pass(m, n, cal, gate, ws, &kept, NULL);
     }
     if (kept <
         ((model == MAGCAL_ELLIPSOID_MODEL_SPHERE) ? MIN_SPHERE_POINTS : MIN_QUADRIC_POINTS)) {
         return MAGCAL_ERR_TOO_FEW_POINTS;
     }
-    st = magcal_ell_trust_gates(m, n, cfg, &cal, rms, model, &gate, &mc, planarity, &acc, &dg);
+    st = magcal_ell_trust_gates(m, n, cfg, cal, rms, model, gate, mcp, planarity, ws, dg);
     if (st != MAGCAL_OK) {
         return st;
     }
-    out->cal = cal;
+    out->cal = *cal;
     out->residual_rms = rms;
     out->coverage = coverage;
     out->min_pivot = min_pivot;
@@ -760,14 +842,51 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
     out->n_rejected = n - kept;
     out->model = model;
     /* the final pass's gate, for magcal_ellipsoid_outliers (thr 0: no gate) */
-    out->gate_cal = (gate.cal != NULL) ? gate_cal : cal;
-    out->gate_thr = (gate.cal != NULL) ? gate.thr : 0.0f;
-    out->motion_snr = dg.motion_snr;
-    out->centre_std_rel = dg.centre_std_rel;
-    out->shape_std = dg.shape_std;
-    out->planarity = dg.planarity;
-    out->field_raw = dg.field_raw;
+    out->gate_cal = (gate->cal != NULL) ? *gate_cal : *cal;
+    out->gate_thr = (gate->cal != NULL) ? gate->thr : 0.0f;
+    out->motion_snr = dg->motion_snr;
+    out->centre_std_rel = dg->centre_std_rel;
+    out->shape_std = dg->shape_std;
+    out->planarity = dg->planarity;
+    out->field_raw = dg->field_raw;
     return MAGCAL_OK;
+}
+
+magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
+                                     const magcal_ellipsoid_cfg_t *cfg,
+                                     magcal_ellipsoid_result_t *out)
+{
+    ell_scratch_t scratch; /* no caller workspace: the scratch on the stack (see the header) */
+    ell_ws_t ws;
+    if (m == NULL || cfg == NULL || out == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    ws.s = &scratch;
+    ws.res = NULL;
+    ws.keep = NULL;
+    return fit_core(m, n, cfg, &ws, out);
+}
+
+magcal_status_t magcal_ellipsoid_fit_ws(const magcal_vec3_t *m, size_t n,
+                                        const magcal_ellipsoid_cfg_t *cfg, void *work,
+                                        size_t work_len, magcal_ellipsoid_result_t *out)
+{
+    ell_ws_t ws;
+    if (m == NULL || cfg == NULL || work == NULL || out == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (magcal_misalign(work, 4u) != 0u) {
+        return MAGCAL_ERR_ALIGNMENT;
+    }
+    if (n > (SIZE_MAX - MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES) / (sizeof(float) + 1u) ||
+        work_len < MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(n)) {
+        return MAGCAL_ERR_WORKSPACE;
+    }
+    /* layout: [0 or 4 B] scratch (8-byte aligned) | n residuals at SCRATCH_BYTES | n verdicts */
+    ws.s = (ell_scratch_t *)(void *)magcal_ell_align_up(work);
+    ws.res = (float *)(void *)((uint8_t *)work + MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES);
+    ws.keep = (uint8_t *)work + MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES + n * sizeof(float);
+    return fit_core(m, n, cfg, &ws, out);
 }
 
 static int cal_isfinite(const magcal_ellipsoid_cal_t *cal)

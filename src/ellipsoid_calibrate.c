@@ -14,16 +14,20 @@
 
 #if MAGCAL_CFG_ENABLE_3D /* whole file: config.h feature switch */
 
-/* Largest | |G(m - V)| - F | / F over all samples (NaN for a non-positive F). */
-static float max_residual_rel(const magcal_vec3_t *m, size_t n, const magcal_ellipsoid_cal_t *cal)
+/* Largest | |G(m - V)| - F | / F over all samples (NaN for a non-positive F): read from the
+ * residuals magcal_ellipsoid_fit_ws left in its workspace `fwork` (every sample's, under the
+ * returned calibration; the same float operations as recomputing them). */
+static float max_residual_rel(const void *fwork, size_t n, const magcal_ellipsoid_cal_t *cal)
 {
+    const float *res =
+        (const float *)(const void *)((const uint8_t *)fwork + MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES);
     float mx = 0.0f;
     size_t k;
     if (!(cal->field > 0.0f)) {
         return NAN;
     }
     for (k = 0u; k < n; ++k) {
-        const float r = fabsf(magcal_ell_residual(cal, &m[k]));
+        const float r = fabsf(res[k]);
         if (!(r <= mx)) {
             mx = r;
         }
@@ -31,7 +35,7 @@ static float max_residual_rel(const magcal_vec3_t *m, size_t n, const magcal_ell
     return mx / cal->field;
 }
 
-static magcal_status_t density_then_fit(const magcal_ellipsoid_calibrate_cfg_t *cfg,
+static MAGCAL_NOINLINE magcal_status_t density_then_fit(const magcal_ellipsoid_calibrate_cfg_t *cfg,
                                         const magcal_vec3_t *m, size_t n, void *work,
                                         size_t work_len, uint8_t *inlier,
                                         magcal_ellipsoid_result_t *out,
@@ -42,7 +46,7 @@ static magcal_status_t density_then_fit(const magcal_ellipsoid_calibrate_cfg_t *
      * before copy j <= k is written, both run front to back */
     uint8_t *mask = (uint8_t *)work + n * (sizeof(magcal_vec3_t) - 1u);
     void *fwork = (uint8_t *)work + n * sizeof(magcal_vec3_t);
-    const size_t flen = work_len - n * sizeof(magcal_vec3_t);
+    const size_t flen = work_len - n * sizeof(magcal_vec3_t); /* the density stage's, then the fit's */
     magcal_status_t st;
     size_t k;
     size_t nk = 0u;
@@ -62,7 +66,7 @@ static magcal_status_t density_then_fit(const magcal_ellipsoid_calibrate_cfg_t *
         }
     }
     info->n_density_rejected = n - nk;
-    return magcal_ellipsoid_fit(kept, nk, &cfg->fit, out);
+    return magcal_ellipsoid_fit_ws(kept, nk, &cfg->fit, fwork, flen, out);
 }
 
 magcal_status_t magcal_ellipsoid_calibrate(const magcal_ellipsoid_calibrate_cfg_t *cfg,
@@ -71,13 +75,10 @@ magcal_status_t magcal_ellipsoid_calibrate(const magcal_ellipsoid_calibrate_cfg_
                                            magcal_ellipsoid_result_t *out,
                                            magcal_ellipsoid_calibrate_info_t *info)
 {
-    magcal_ellipsoid_calibrate_info_t local;
-    magcal_ellipsoid_calibrate_info_t *inf = &local;
-    magcal_ellipsoid_result_t first;
-    (void)memset(&local, 0, sizeof local);
-    if (info != NULL) {
-        inf = info;
-    }
+    magcal_ellipsoid_calibrate_info_t *inf;
+    magcal_ellipsoid_result_t *first;
+    uint8_t *rest;
+    size_t rest_len;
     if (cfg == NULL || m == NULL || work == NULL || out == NULL) {
         return MAGCAL_ERR_NULL;
     }
@@ -92,17 +93,27 @@ magcal_status_t magcal_ellipsoid_calibrate(const magcal_ellipsoid_calibrate_cfg_
     if (work_len < MAGCAL_ELLIPSOID_CALIBRATE_WORKSPACE_LEN(n)) {
         return MAGCAL_ERR_WORKSPACE;
     }
+    /* layout: the pre-test's result | info when the caller gives none | the rest (the pre-test
+     * fit's workspace; later the inlier copies, then the density stage's and the final fit's) */
+    first = (magcal_ellipsoid_result_t *)(void *)magcal_ell_align_up(work); /* size_t inside */
+    inf = (magcal_ellipsoid_calibrate_info_t *)(void *)((uint8_t *)first +
+                                                        MAGCAL_ELLIPSOID_CALIBRATE_RESULT_SLOT);
+    if (info != NULL) {
+        inf = info;
+    }
     (void)memset(inf, 0, sizeof(*inf));
     inf->pretest_max_rel = NAN;
+    rest = (uint8_t *)work + MAGCAL_ELLIPSOID_CALIBRATE_SLOTS;
+    rest_len = work_len - MAGCAL_ELLIPSOID_CALIBRATE_SLOTS;
     if (cfg->mode != MAGCAL_ELLIPSOID_DENSITY_ALWAYS) {
-        const magcal_status_t st = magcal_ellipsoid_fit(m, n, &cfg->fit, &first);
+        const magcal_status_t st = magcal_ellipsoid_fit_ws(m, n, &cfg->fit, rest, rest_len, first);
         if (st == MAGCAL_OK) {
-            inf->pretest_max_rel = max_residual_rel(m, n, &first.cal);
+            inf->pretest_max_rel = max_residual_rel(rest, n, &first->cal);
         }
         if (cfg->mode == MAGCAL_ELLIPSOID_DENSITY_NEVER ||
             (st == MAGCAL_OK && inf->pretest_max_rel <= cfg->pretest_max_rel)) {
             if (st == MAGCAL_OK) {
-                *out = first;
+                *out = *first;
                 if (inlier != NULL) {
                     (void)memset(inlier, 1, n);
                 }
@@ -110,7 +121,7 @@ magcal_status_t magcal_ellipsoid_calibrate(const magcal_ellipsoid_calibrate_cfg_
             return st;
         }
     }
-    return density_then_fit(cfg, m, n, work, work_len, inlier, out, inf);
+    return density_then_fit(cfg, m, n, rest, rest_len, inlier, out, inf);
 }
 
 #endif /* MAGCAL_CFG_ENABLE_3D */

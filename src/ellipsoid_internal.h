@@ -49,6 +49,23 @@ static inline size_t magcal_ell_pidx(size_t i, size_t j)
     return (i * (i + 1u)) / 2u + j;
 }
 
+/*
+ * Square root for the per-sample passes: one VSQRT on a single-precision FPU target (newlib's
+ * sqrtf wraps the same instruction in an errno check of about 20 instructions, per call; the fit
+ * never reads errno), sqrtf elsewhere. Both are the correctly rounded IEEE square root: identical
+ * results, NaN for a negative argument.
+ */
+static inline float magcal_ell_sqrtf(float x)
+{
+#if defined(__GNUC__) && defined(__ARM_FP) && ((__ARM_FP & 4) != 0)
+    float r;
+    __asm__("vsqrt.f32 %0, %1" : "=t"(r) : "t"(x));
+    return r;
+#else
+    return sqrtf(x);
+#endif
+}
+
 /* h = G (m - V): the correction of one sample. */
 static inline void magcal_ell_correct(const magcal_ellipsoid_cal_t *cal, const magcal_vec3_t *m,
                                       float h[3])
@@ -67,7 +84,18 @@ static inline float magcal_ell_residual(const magcal_ellipsoid_cal_t *cal, const
 {
     float h[3];
     magcal_ell_correct(cal, m, h);
-    return sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) - cal->field;
+    return magcal_ell_sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) - cal->field;
+}
+
+
+/* The fit's scratch and magcal_ellipsoid_calibrate's result slots hold pointers and size_t: they
+ * start at the next multiple of this (a workspace is only promised 4-byte aligned; the 0 or 4
+ * bytes of padding are counted in the size macros). */
+#define MAGCAL_ELL_ALIGN 8u
+static inline uint8_t *magcal_ell_align_up(void *p)
+{
+    const size_t mis = magcal_misalign(p, MAGCAL_ELL_ALIGN);
+    return (uint8_t *)p + ((mis == 0u) ? 0u : (MAGCAL_ELL_ALIGN - mis));
 }
 
 /* The trust diagnostics of a fit (copied into the result on success). */
@@ -111,34 +139,95 @@ typedef struct {
     const magcal_ellipsoid_cal_t *sphere;
 } motion_ctx_t;
 
+/*
+ * The fit's fixed scratch (issue 14: every matrix lives in the caller's workspace, not on the
+ * stack): the packed normal matrix, the block sums of the accumulations, one solver matrix (10x10
+ * at most), the observability pass's inverse and meat, and the median's histogram.
+ */
+#define MAGCAL_ELL_INFO_N 9u                                                  /* 3 offset + 6 shape */
+#define MAGCAL_ELL_INFO_NPACK ((MAGCAL_ELL_INFO_N * (MAGCAL_ELL_INFO_N + 1u)) / 2u)
+#define MAGCAL_ELL_MED_BINS 128u /* histogram bins per pass of the median |residual| */
+typedef struct {
+    quad_acc_t acc;
+    float part[MAGCAL_ELL_NPACK];
+    float mat[MAGCAL_ELL_NQ * MAGCAL_ELL_NQ];
+    float inv[MAGCAL_ELL_INFO_N][MAGCAL_ELL_INFO_N];
+    float meat[MAGCAL_ELL_INFO_NPACK];
+    uint32_t cnt[MAGCAL_ELL_MED_BINS];
+    magcal_ellipsoid_cal_t cal[3]; /* the fit, the gate's fit, the provisional sphere */
+    float dir[3][3];               /* the observability pass: scatter of the directions */
+    float cc[3][3];                /* its offset covariance */
+    float sd[MAGCAL_ELL_INFO_N];   /* its shape variances */
+    float vec[2][MAGCAL_ELL_INFO_N]; /* per-term temporaries of the sandwich */
+    motion_ctx_t mc;                 /* the fit's state (kept here: off the stack) */
+    trust_diag_t dg;
+    float mu[3];                     /* normalisation centre */
+    float cov_centre[3];             /* centre of the coverage cells */
+    float coef[MAGCAL_ELL_NQ];       /* quadric coefficients of the last solve */
+    float q3[3][3];                  /* extraction: A_q / k, then destroyed by its square root */
+    float e3[3][3];                  /* its eigenvectors */
+    float w3[3];                     /* its eigenvalues */
+    float h3[3];                     /* one corrected sample (second sandwich pass) */
+    quad_gate_t gate;                /* the outlier gate in force */
+    quad_gate_t next;                /* the gate being decided */
+    resid_src_t src;                 /* the residual its median is taken of */
+} ell_scratch_t;
+
+/*
+ * Per-sample state of the fit in the caller's workspace (magcal_ellipsoid_fit_ws): `res[k]` the
+ * residual of sample k under the current fit, `keep[k]` its verdict under the current gate (bit 0;
+ * bit 1 holds the next gate's while regate decides). Both NULL (magcal_ellipsoid_fit, no
+ * workspace): every pass recomputes them from the samples, with the same float operations, so
+ * both give bit-identical results. On MAGCAL_OK `res` holds every sample's residual under the
+ * returned calibration (magcal_ellipsoid_calibrate's pre-test reads its largest from there).
+ */
+typedef struct {
+    ell_scratch_t *s;
+    float *res;
+    uint8_t *keep;
+} ell_ws_t;
+
 /* RMS of the residuals under `cal` of the samples kept by `gate`; their count and max |r|
  * (max_abs may be NULL). */
 float magcal_ell_residual_pass(const magcal_vec3_t *m, size_t n, const magcal_ellipsoid_cal_t *cal,
-                               const quad_gate_t *gate, size_t *kept, float *max_abs);
+                               const quad_gate_t *gate, const ell_ws_t *ws, size_t *kept,
+                               float *max_abs);
 
-/* Median of |r| (residual `src`) over the `kept` samples that `gate` keeps, max |r| = max_abs. */
+/* Median of |r| (residual `src`) over the `kept` samples that `gate` keeps, max |r| = max_abs.
+ * With ws->res (and ws->keep) set, |r| and the verdicts are read from there instead. */
 float magcal_ell_median_abs(const magcal_vec3_t *m, size_t n, const resid_src_t *src,
-                            const quad_gate_t *gate, size_t kept, float max_abs);
+                            const quad_gate_t *gate, const ell_ws_t *ws, size_t kept, float max_abs);
 
 /* Motion SNR of the 9-parameter algebraic quadric of all samples (acc = their normal matrix in
  * coordinates (m - mu) * inv_s); +Inf when it cannot be solved or fits exactly. */
 float magcal_ell_algebraic_snr(const magcal_vec3_t *m, size_t n, const float mu[3], float inv_s,
-                               const quad_acc_t *acc);
+                               const ell_ws_t *ws);
 
 /* sqrt(smallest / middle eigenvalue) of a packed scatter (xx, yx, yy, zx, zy, zz). */
-float magcal_ell_planarity(const float sc[6]);
+float magcal_ell_planarity(const float sc[6], ell_scratch_t *ws);
 
 /* Status for a fit that failed on its own: NO_MOTION / SINGLE_AXIS when the data say so. */
 magcal_status_t magcal_ell_explain_failure(magcal_status_t st, const motion_ctx_t *mc,
-                                           float planarity, const magcal_ellipsoid_cfg_t *cfg);
+                                           float planarity, const magcal_ellipsoid_cfg_t *cfg,
+                                           const ell_ws_t *ws);
 
 /* The trust gates on a finished fit (order: motion, one axis, residual, observability, field);
- * writes the diagnostics into dg; `scratch` is overwritten. */
+ * writes the diagnostics into dg; ws->s->acc and the solver scratch are overwritten. */
 magcal_status_t magcal_ell_trust_gates(const magcal_vec3_t *m, size_t n,
                                        const magcal_ellipsoid_cfg_t *cfg,
                                        const magcal_ellipsoid_cal_t *cal, float rms,
                                        magcal_ellipsoid_model_t model, const quad_gate_t *gate,
                                        const motion_ctx_t *mc, float raw_planarity,
-                                       quad_acc_t *scratch, trust_diag_t *dg);
+                                       const ell_ws_t *ws, trust_diag_t *dg);
+
+/* Sample k kept by the current gate: from ws->keep when stored, else recomputed. */
+static inline int magcal_ell_kept(const ell_ws_t *ws, const quad_gate_t *gate,
+                                  const magcal_vec3_t *m, size_t k)
+{
+    if (ws->keep != NULL) {
+        return ((ws->keep[k] & 1u) != 0u) ? 1 : 0;
+    }
+    return magcal_ell_gate_keeps(gate, &m[k]);
+}
 
 #endif /* MAGCAL_ELLIPSOID_INTERNAL_H */

@@ -12,10 +12,10 @@
 
 #if MAGCAL_CFG_ENABLE_3D /* whole file: config.h feature switch */
 
-#define MED_BINS 128u    /* histogram bins per pass of the median |residual|: 2 passes reach 0.1 % on a shell */
+#define MED_BINS MAGCAL_ELL_MED_BINS /* histogram bins per pass of the median |residual|: 2 passes reach 0.1 % on a shell */
 #define MED_PASSES 4u    /* refinement passes: resolution (max |r|) / 128^4 at worst */
 #define PLANAR_MAX 0.15f /* planarity below this: one rotation axis dominates (SINGLE_AXIS) */
-#define INFO_MAX_N 9u    /* centre information: 3 offset + 6 symmetric shape parameters */
+#define INFO_MAX_N MAGCAL_ELL_INFO_N /* centre information: 3 offset + 6 symmetric shape parameters */
 
 static float alg_residual(const resid_src_t *src, const magcal_vec3_t *m)
 {
@@ -40,9 +40,9 @@ static float abs_residual(const resid_src_t *src, const magcal_vec3_t *m)
  */
 MAGCAL_NOINLINE float magcal_ell_median_abs(const magcal_vec3_t *m, size_t n,
                                             const resid_src_t *src, const quad_gate_t *gate,
-                                            size_t kept, float max_abs)
+                                            const ell_ws_t *ws, size_t kept, float max_abs)
 {
-    uint32_t cnt[MED_BINS];
+    uint32_t *cnt = ws->s->cnt;
     float lo = 0.0f;
     float hi = max_abs * 1.0001f + 1e-30f;
     size_t below = 0u;
@@ -59,10 +59,10 @@ MAGCAL_NOINLINE float magcal_ell_median_abs(const magcal_vec3_t *m, size_t n,
             done = 1;
             continue;
         }
-        (void)memset(cnt, 0, sizeof(cnt));
+        (void)memset(cnt, 0, sizeof(ws->s->cnt));
         for (k = 0u; k < n; ++k) {
-            if (magcal_ell_gate_keeps(gate, &m[k]) != 0) {
-                const float a = abs_residual(src, &m[k]);
+            if (magcal_ell_kept(ws, gate, m, k) != 0) {
+                const float a = (ws->res != NULL) ? fabsf(ws->res[k]) : abs_residual(src, &m[k]);
                 if (a >= lo && a < hi) {
                     const float q = (a - lo) / width;
                     const size_t bin = (size_t)q;
@@ -95,7 +95,7 @@ MAGCAL_NOINLINE float magcal_ell_median_abs(const magcal_vec3_t *m, size_t n,
 /* Jacobian row of the linearised total-field model at one corrected sample (see centre_info). */
 static size_t info_row(const float h[3], int sphere, float row[INFO_MAX_N])
 {
-    const float r = sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
+    const float r = magcal_ell_sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
     size_t i;
     if (!(r > 0.0f)) {
         return 0u;
@@ -117,9 +117,8 @@ static size_t info_row(const float h[3], int sphere, float row[INFO_MAX_N])
 }
 
 /* Eigenvalues w of a symmetric 3x3 given by its lower triangle (c is mirrored, then overwritten). */
-static magcal_status_t eig3(float c[3][3], float w[3])
+static magcal_status_t eig3(float c[3][3], float w[3], float e[3][3])
 {
-    float e[3][3];
     size_t i;
     size_t j;
     for (i = 0u; i < 3u; ++i) {
@@ -131,11 +130,10 @@ static magcal_status_t eig3(float c[3][3], float w[3])
 }
 
 /* Largest eigenvalue of a symmetric 3x3 (lower triangle used); NaN/Inf/failure give +Inf. */
-static MAGCAL_NOINLINE float max_eig3(float c[3][3])
+static MAGCAL_NOINLINE float max_eig3(float c[3][3], float w[3], float e[3][3])
 {
-    float w[3];
     float wmax;
-    if (eig3(c, w) != MAGCAL_OK) {
+    if (eig3(c, w, e) != MAGCAL_OK) {
         return INFINITY;
     }
     wmax = fmaxf(w[0], fmaxf(w[1], w[2]));
@@ -143,13 +141,12 @@ static MAGCAL_NOINLINE float max_eig3(float c[3][3])
 }
 
 /* sqrt(smallest / middle eigenvalue) of a symmetric 3x3 scatter (lower triangle used). */
-static MAGCAL_NOINLINE float planarity3(float c[3][3])
+static MAGCAL_NOINLINE float planarity3(float c[3][3], float w[3], float e[3][3])
 {
-    float w[3];
     float lo;
     float mid;
     float hi;
-    if (eig3(c, w) != MAGCAL_OK) {
+    if (eig3(c, w, e) != MAGCAL_OK) {
         return 0.0f;
     }
     lo = fminf(w[0], fminf(w[1], w[2]));
@@ -163,10 +160,13 @@ static MAGCAL_NOINLINE float planarity3(float c[3][3])
 
 /* C = inv meat inv (see centre_info): offset block into cc (lower triangle), shape diagonal into
  * sd[3..np); 0 when a rounding bound is above 1 % of its diagonal term (then nothing is trusted). */
-static MAGCAL_NOINLINE int sandwich_from_meat(const float *meat, float inv[INFO_MAX_N][INFO_MAX_N],
-                                              size_t np, int sphere, size_t cnt, float cc[3][3],
-                                              float sd[INFO_MAX_N])
+static MAGCAL_NOINLINE int sandwich_from_meat(ell_scratch_t *sw, size_t np, int sphere, size_t cnt)
 {
+    const float *meat = sw->meat;
+    float(*inv)[INFO_MAX_N] = sw->inv;
+    float(*cc)[3] = sw->cc;
+    float *sd = sw->sd;
+    float(*vec)[INFO_MAX_N] = sw->vec;
     const float eps = ((float)cnt + (float)np) * 6e-8f;
     size_t i;
     size_t j;
@@ -174,8 +174,8 @@ static MAGCAL_NOINLINE int sandwich_from_meat(const float *meat, float inv[INFO_
     (void)memset(cc, 0, 9u * sizeof(float));
     (void)memset(sd, 0, INFO_MAX_N * sizeof(float));
     for (k = 0u; k < np; ++k) {
-        float w[INFO_MAX_N];
-        float wa[INFO_MAX_N];
+        float *w = vec[0];
+        float *wa = vec[1];
         float d = 0.0f;
         float da = 0.0f;
         if (k >= 3u && sphere != 0) {
@@ -218,9 +218,11 @@ static MAGCAL_NOINLINE int sandwich_from_meat(const float *meat, float inv[INFO_
 /* The same sandwich from a second pass over the samples: sum r_i^2 (J_i . inv_k)(J_i . inv_l). */
 static MAGCAL_NOINLINE void sandwich_pass(const magcal_vec3_t *m, size_t n,
                                           const magcal_ellipsoid_cal_t *cal, const quad_gate_t *gate,
-                                          int sphere, float inv[INFO_MAX_N][INFO_MAX_N],
-                                          float cc[3][3], float sd[INFO_MAX_N])
+                                          const ell_ws_t *ws, int sphere)
 {
+    float(*inv)[INFO_MAX_N] = ws->s->inv;
+    float(*cc)[3] = ws->s->cc;
+    float *sd = ws->s->sd;
     const size_t np = (sphere != 0) ? (size_t)4u : (size_t)INFO_MAX_N;
     size_t i;
     size_t j;
@@ -228,18 +230,20 @@ static MAGCAL_NOINLINE void sandwich_pass(const magcal_vec3_t *m, size_t n,
     (void)memset(cc, 0, 9u * sizeof(float));
     (void)memset(sd, 0, INFO_MAX_N * sizeof(float));
     for (k = 0u; k < n; ++k) {
-        float h[3];
-        float row[INFO_MAX_N];
-        float pr[INFO_MAX_N];
+        float *h = ws->s->h3; /* per-sample vectors in the scratch: off the stack */
+        float *row = ws->s->vec[0];
+        float *pr = ws->s->vec[1];
         float r2;
-        if (!magcal_ell_gate_keeps(gate, &m[k])) {
+        if (magcal_ell_kept(ws, gate, m, k) == 0) {
             continue;
         }
         magcal_ell_correct(cal, &m[k], h);
         if (info_row(h, sphere, row) == 0u) {
             continue;
         }
-        r2 = sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) - cal->field;
+        r2 = (ws->res != NULL) ? ws->res[k]
+                               : (magcal_ell_sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) -
+                                  cal->field);
         r2 *= r2;
         for (i = 0u; i < np; ++i) {
             float d = 0.0f;
@@ -273,52 +277,194 @@ static MAGCAL_NOINLINE void sandwich_pass(const magcal_vec3_t *m, size_t n,
  * G: output units) and worst soft-iron term; +Inf when J^T J is singular (every n_i on one cone).
  * `dir_planarity`: planarity of the corrected directions (~0 for rotation about one axis).
  */
-static MAGCAL_NOINLINE void centre_info(const magcal_vec3_t *m, size_t n,
-                                        const magcal_ellipsoid_cal_t *cal, const quad_gate_t *gate,
-                                        int sphere, quad_acc_t *acc, trust_diag_t *res)
+/*
+ * The quadric model's J^T J and meat hold products of the row [n, n_x^2, n_y^2, n_z^2, 2 n_y n_z,
+ * 2 n_x n_z, 2 n_x n_y]: moments of the direction n of degree 2 to 4, of which only 31 differ (the
+ * 45 packed terms repeat them with factors 1, 2, 4). Per sample the 31 monomials are summed (p:
+ * plain, q: weighted by w = r^2); k_mom / k_fac map packed term t to k_fac[t] x moment k_mom[t]
+ * (a power of two: exact). 31 products and 62 sums instead of 45 products and 90 sums.
+ */
+#define INFO_NMOM 31u
+static const uint8_t k_mom[(INFO_MAX_N * (INFO_MAX_N + 1u)) / 2u] = {
+    0u,  1u,  2u,  3u,  4u,  5u,  6u,  7u,  8u,  16u, 9u,  10u, 11u, 17u, 18u,
+    12u, 13u, 14u, 19u, 20u, 21u, 15u, 11u, 13u, 22u, 23u, 24u, 20u, 8u,  15u,
+    12u, 25u, 26u, 27u, 30u, 19u, 7u,  9u,  15u, 28u, 29u, 30u, 26u, 22u, 17u};
+static const uint8_t k_fac[(INFO_MAX_N * (INFO_MAX_N + 1u)) / 2u] = {
+    1u, 1u, 1u, 1u, 1u, 1u, 1u, 1u, 1u, 1u, 1u, 1u, 1u, 1u, 1u, 1u, 1u, 1u, 1u, 1u, 1u, 2u, 2u,
+    2u, 2u, 2u, 2u, 4u, 2u, 2u, 2u, 2u, 2u, 2u, 4u, 4u, 2u, 2u, 2u, 2u, 2u, 2u, 4u, 4u, 4u};
+
+static MAGCAL_NOINLINE void moments_add(float *p, float *q, float a, float b, float c, float w)
+{
+    const float aa = a * a;
+    const float ab = a * b;
+    const float bb = b * b;
+    const float ac = a * c;
+    const float bc = b * c;
+    const float cc = c * c;
+    const float aaa = aa * a;
+    const float aab = aa * b;
+    const float aac = aa * c;
+    const float abb = bb * a;
+    const float bbb = bb * b;
+    const float bbc = bb * c;
+    const float acc = cc * a;
+    const float bcc = cc * b;
+    const float ccc = cc * c;
+    const float abc = ab * c;
+    const float aaaa = aa * aa;
+    const float aabb = aa * bb;
+    const float bbbb = bb * bb;
+    const float aacc = aa * cc;
+    const float bbcc = bb * cc;
+    const float cccc = cc * cc;
+    const float aabc = aa * bc;
+    const float bbbc = bb * bc;
+    const float bccc = cc * bc;
+    const float aaac = aa * ac;
+    const float abbc = bb * ac;
+    const float accc = cc * ac;
+    const float aaab = aa * ab;
+    const float abbb = bb * ab;
+    const float abcc = cc * ab;
+    p[0] += aa;
+    q[0] += w * aa;
+    p[1] += ab;
+    q[1] += w * ab;
+    p[2] += bb;
+    q[2] += w * bb;
+    p[3] += ac;
+    q[3] += w * ac;
+    p[4] += bc;
+    q[4] += w * bc;
+    p[5] += cc;
+    q[5] += w * cc;
+    p[6] += aaa;
+    q[6] += w * aaa;
+    p[7] += aab;
+    q[7] += w * aab;
+    p[8] += aac;
+    q[8] += w * aac;
+    p[9] += abb;
+    q[9] += w * abb;
+    p[10] += bbb;
+    q[10] += w * bbb;
+    p[11] += bbc;
+    q[11] += w * bbc;
+    p[12] += acc;
+    q[12] += w * acc;
+    p[13] += bcc;
+    q[13] += w * bcc;
+    p[14] += ccc;
+    q[14] += w * ccc;
+    p[15] += abc;
+    q[15] += w * abc;
+    p[16] += aaaa;
+    q[16] += w * aaaa;
+    p[17] += aabb;
+    q[17] += w * aabb;
+    p[18] += bbbb;
+    q[18] += w * bbbb;
+    p[19] += aacc;
+    q[19] += w * aacc;
+    p[20] += bbcc;
+    q[20] += w * bbcc;
+    p[21] += cccc;
+    q[21] += w * cccc;
+    p[22] += aabc;
+    q[22] += w * aabc;
+    p[23] += bbbc;
+    q[23] += w * bbbc;
+    p[24] += bccc;
+    q[24] += w * bccc;
+    p[25] += aaac;
+    q[25] += w * aaac;
+    p[26] += abbc;
+    q[26] += w * abbc;
+    p[27] += accc;
+    q[27] += w * accc;
+    p[28] += aaab;
+    q[28] += w * aaab;
+    p[29] += abbb;
+    q[29] += w * abbb;
+    p[30] += abcc;
+    q[30] += w * abcc;
+}
+
+/* The packed terms from moment sums: dst[t] = k_fac[t] x mom[k_mom[t]] (dst may not alias mom). */
+static void moments_expand(const float *mom, float *dst)
+{
+    size_t t;
+    for (t = 0u; t < (INFO_MAX_N * (INFO_MAX_N + 1u)) / 2u; ++t) {
+        dst[t] = (float)k_fac[t] * mom[k_mom[t]];
+    }
+}
+
+/* Add a block's sums to the Kahan total of J^T J: packed terms (sphere) or, for the quadric, its
+ * moments expanded term by term; the block sums are cleared. */
+static void info_flush(quad_acc_t *acc, float *part, size_t npk, int sphere)
+{
+    size_t t;
+    if (sphere != 0) {
+        magcal_ell_flush(acc->sum, acc->comp, part, npk);
+        return;
+    }
+    for (t = 0u; t < npk; ++t) {
+        magcal_kahan_add(&acc->sum[t], &acc->comp[t], (float)k_fac[t] * part[k_mom[t]]);
+    }
+    for (t = 0u; t < INFO_NMOM; ++t) {
+        part[t] = 0.0f;
+    }
+}
+
+static MAGCAL_NOINLINE size_t info_accumulate(const magcal_vec3_t *m, size_t n,
+                                              const magcal_ellipsoid_cal_t *cal,
+                                              const quad_gate_t *gate, const ell_ws_t *ws,
+                                              int sphere, float sn[3])
 {
     const size_t np = (sphere != 0) ? (size_t)4u : (size_t)INFO_MAX_N;
     const size_t npk = (np * (np + 1u)) / 2u;
-    float a[INFO_MAX_N * INFO_MAX_N];
-    float inv[INFO_MAX_N][INFO_MAX_N];
-    float part[(INFO_MAX_N * (INFO_MAX_N + 1u)) / 2u];
-    float meat[(INFO_MAX_N * (INFO_MAX_N + 1u)) / 2u]; /* sum r_i^2 J_i J_i^T, packed */
-    float cc[3][3];
-    float sn[3] = {0.0f, 0.0f, 0.0f};
-    float sd[INFO_MAX_N];
+    quad_acc_t *acc = &ws->s->acc;
+    float *part = ws->s->part;
+    float *meat = ws->s->meat; /* sum r_i^2 J_i J_i^T, packed */
     size_t cnt = 0u;
     size_t in_block = 0u;
     size_t i;
     size_t j;
     size_t k;
-    res->centre_std_rel = INFINITY;
-    res->shape_std = (sphere != 0) ? 0.0f : INFINITY;
-    res->planarity = 0.0f;
     (void)memset(acc, 0, sizeof(*acc));
-    (void)memset(part, 0, sizeof(part));
-    (void)memset(meat, 0, sizeof(meat));
+    (void)memset(part, 0, sizeof(ws->s->part));
+    (void)memset(meat, 0, sizeof(ws->s->meat));
+    sn[0] = 0.0f;
+    sn[1] = 0.0f;
+    sn[2] = 0.0f;
     /* one pass: J^T J (blocked Kahan) and the sandwich's meat (plain sums: a 1-significant-digit
      * gate), so the covariance needs no second pass over the samples */
     for (k = 0u; k < n; ++k) {
-        float h[3];
-        float row[INFO_MAX_N];
+        float *h = ws->s->h3; /* per-sample vectors in the scratch: off the stack */
+        float *row = ws->s->vec[0];
         float r2;
-        size_t p = 0u;
-        if (!magcal_ell_gate_keeps(gate, &m[k])) {
+        if (magcal_ell_kept(ws, gate, m, k) == 0) {
             continue;
         }
         magcal_ell_correct(cal, &m[k], h);
         if (info_row(h, sphere, row) == 0u) {
             continue;
         }
-        r2 = sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) - cal->field;
+        r2 = (ws->res != NULL) ? ws->res[k]
+                               : (magcal_ell_sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) -
+                                  cal->field);
         r2 *= r2;
-        for (i = 0u; i < np; ++i) { /* packed order: p = pidx(i, j) */
-            for (j = 0u; j <= i; ++j) {
-                const float jj = row[i] * row[j];
-                part[p] += jj;
-                meat[p] += r2 * jj;
-                ++p;
+        if (sphere == 0) { /* moment sums: part[0..30] this block's, meat[0..30] all samples' */
+            moments_add(part, meat, row[0], row[1], row[2], r2);
+        } else {
+            size_t p = 0u;
+            for (i = 0u; i < np; ++i) { /* packed order: p = pidx(i, j) */
+                for (j = 0u; j <= i; ++j) {
+                    const float jj = row[i] * row[j];
+                    part[p] += jj;
+                    meat[p] += r2 * jj;
+                    ++p;
+                }
             }
         }
         for (i = 0u; i < 3u; ++i) {
@@ -326,36 +472,71 @@ static MAGCAL_NOINLINE void centre_info(const magcal_vec3_t *m, size_t n,
         }
         cnt++;
         if (++in_block == MAGCAL_ELL_BLOCK) {
-            magcal_ell_flush(acc->sum, acc->comp, part, npk);
+            info_flush(acc, part, npk, sphere);
             in_block = 0u;
         }
     }
-    magcal_ell_flush(acc->sum, acc->comp, part, npk);
-    if (cnt < np) {
-        return;
+    info_flush(acc, part, npk, sphere);
+    if (sphere == 0) { /* the meat's moments into its packed terms */
+        (void)memcpy(ws->s->mat, meat, INFO_NMOM * sizeof(float));
+        moments_expand(ws->s->mat, meat);
     }
-    /* planarity of the directions: scatter of n about its mean, from the n n^T block */
-    for (i = 0u; i < 3u; ++i) {
-        for (j = 0u; j <= i; ++j) {
-            cc[i][j] = magcal_ell_acc_at(acc, i, j) / (float)cnt -
-                       (sn[i] / (float)cnt) * (sn[j] / (float)cnt);
+    if (cnt >= np) { /* scatter of the directions about their mean, from the n n^T block */
+        for (i = 0u; i < 3u; ++i) {
+            for (j = 0u; j <= i; ++j) {
+                ws->s->dir[i][j] = magcal_ell_acc_at(acc, i, j) / (float)cnt -
+                                   (sn[i] / (float)cnt) * (sn[j] / (float)cnt);
+            }
         }
     }
-    res->planarity = planarity3(cc);
+    return cnt;
+}
+
+/* (J^T J)^-1 into ws->s->inv: one factorisation, np substitutions; 0 when singular. */
+static MAGCAL_NOINLINE int info_inverse(const ell_ws_t *ws, size_t np)
+{
+    float *a = ws->s->mat;
+    size_t i;
+    size_t j;
+    size_t k;
+    for (i = 0u; i < np; ++i) {
+        for (j = 0u; j < np; ++j) {
+            a[i * np + j] = magcal_ell_acc_at(&ws->s->acc, i, j);
+        }
+    }
+    if (magcal_ldlt_factor(a, np, 0.0f, NULL) != MAGCAL_OK) {
+        return 0;
+    }
     for (k = 0u; k < np; ++k) {
-        float b[INFO_MAX_N];
+        float *b = ws->s->inv[k];
         for (i = 0u; i < np; ++i) {
-            for (j = 0u; j < np; ++j) {
-                a[i * np + j] = magcal_ell_acc_at(acc, i, j);
-            }
             b[i] = (i == k) ? 1.0f : 0.0f;
         }
-        if (magcal_ldlt_solve(a, b, np, 0.0f, NULL) != MAGCAL_OK) {
-            return;
+        if (magcal_ldlt_subst(a, b, np) != MAGCAL_OK) {
+            return 0;
         }
-        for (i = 0u; i < np; ++i) {
-            inv[k][i] = b[i];
-        }
+    }
+    return 1;
+}
+
+/* The passes of the observability gate (see the comment above): ws->s->dir gets the scatter of
+ * the directions, ws->s->cc / sd the offset covariance and shape variances. Returns 0 (too few
+ * samples: nothing), 1 (J^T J singular: the scatter only) or 2 (all). The eigenvalues are taken
+ * by the caller, so the Jacobi's stack does not sit on top of this frame. */
+static MAGCAL_NOINLINE int centre_info(const magcal_vec3_t *m, size_t n,
+                                       const magcal_ellipsoid_cal_t *cal, const quad_gate_t *gate,
+                                       const ell_ws_t *ws, int sphere)
+{
+    const size_t np = (sphere != 0) ? (size_t)4u : (size_t)INFO_MAX_N;
+    ell_scratch_t *sw = ws->s;
+    float sn[3];
+    size_t cnt;
+    cnt = info_accumulate(m, n, cal, gate, ws, sphere, sn);
+    if (cnt < np) {
+        return 0;
+    }
+    if (info_inverse(ws, np) == 0) {
+        return 1;
     }
     /* sandwich (J^T J)^-1 meat (J^T J)^-1 from the summed meat: the offset block (rows 0..2) and
      * the shape diagonal, C_kl = inv_l . (meat inv_k). Near a singular J^T J the rounding of the
@@ -363,18 +544,36 @@ static MAGCAL_NOINLINE void centre_info(const magcal_vec3_t *m, size_t n,
      * offset look fine), so each diagonal term carries a bound of that rounding,
      * (cnt + np) eps |inv_k|^T |meat| |inv_k|; if any bound is above 1 % of its term, the exact
      * per-sample second pass decides instead. */
-    if (sandwich_from_meat(meat, inv, np, sphere, cnt, cc, sd) == 0) {
-        sandwich_pass(m, n, cal, gate, sphere, inv, cc, sd);
+    if (sandwich_from_meat(sw, np, sphere, cnt) == 0) {
+        sandwich_pass(m, n, cal, gate, ws, sphere);
     }
-    res->centre_std_rel = sqrtf(max_eig3(cc)) / cal->field;
+    return 2;
+}
+
+/* The observability diagnostics from centre_info's matrices (relative to F). */
+static MAGCAL_NOINLINE void centre_diag(const ell_ws_t *ws, int stage, int sphere, float f,
+                                        trust_diag_t *res)
+{
+    ell_scratch_t *sw = ws->s;
+    res->centre_std_rel = INFINITY;
+    res->shape_std = (sphere != 0) ? 0.0f : INFINITY;
+    res->planarity = 0.0f;
+    if (stage >= 1) {
+        res->planarity = planarity3(sw->dir, sw->w3, sw->e3);
+    }
+    if (stage < 2) {
+        return;
+    }
+    res->centre_std_rel = sqrtf(max_eig3(sw->cc, sw->w3, sw->e3)) / f;
     if (sphere == 0) {
         float emax = 0.0f;
-        for (i = 3u; i < np; ++i) {
-            if (!(sd[i] <= emax)) { /* NaN propagates as unobservable */
-                emax = sd[i];
+        size_t i;
+        for (i = 3u; i < INFO_MAX_N; ++i) {
+            if (!(sw->sd[i] <= emax)) { /* NaN propagates as unobservable */
+                emax = sw->sd[i];
             }
         }
-        res->shape_std = magcal_isfinite_f(emax) ? (sqrtf(emax) / cal->field) : INFINITY;
+        res->shape_std = magcal_isfinite_f(emax) ? (sqrtf(emax) / f) : INFINITY;
     }
 }
 
@@ -386,9 +585,11 @@ static MAGCAL_NOINLINE void centre_info(const magcal_vec3_t *m, size_t n,
  * of it), the radius / noise for a rotation (any soft iron, any quadric). 0 when not solvable.
  */
 MAGCAL_NOINLINE float magcal_ell_algebraic_snr(const magcal_vec3_t *m, size_t n, const float mu[3],
-                                               float inv_s, const quad_acc_t *acc)
+                                               float inv_s, const ell_ws_t *ws)
 {
-    float a[9u * 9u];
+    const quad_acc_t *acc = &ws->s->acc;
+    float *a = ws->s->mat;
+    ell_ws_t all_ws = *ws;
     float b[9];
     float mx = 0.0f;
     float med;
@@ -410,11 +611,18 @@ MAGCAL_NOINLINE float magcal_ell_algebraic_snr(const magcal_vec3_t *m, size_t n,
     src.theta = b;
     src.mu = mu;
     src.inv_s = inv_s;
+    all_ws.keep = NULL; /* every sample; residuals stored (when there is room) for the median */
     for (k = 0u; k < n; ++k) {
-        mx = fmaxf(mx, fabsf(alg_residual(&src, &m[k])));
+        const float r = alg_residual(&src, &m[k]);
+        if (all_ws.res != NULL) {
+            all_ws.res[k] = r;
+        }
+        if (fabsf(r) > mx) { /* fmaxf(mx, |r|) without the libm call (NaN ignored alike) */
+            mx = fabsf(r);
+        }
     }
     /* robust (median) scale: outliers far off the shell must not make a rotation look like noise */
-    med = MAGCAL_ELL_MAD_TO_SIGMA * magcal_ell_median_abs(m, n, &src, &all, n, mx);
+    med = MAGCAL_ELL_MAD_TO_SIGMA * magcal_ell_median_abs(m, n, &src, &all, &all_ws, n, mx);
     if (!(med > 0.0f)) {
         return INFINITY; /* exact quadric */
     }
@@ -422,24 +630,26 @@ MAGCAL_NOINLINE float magcal_ell_algebraic_snr(const magcal_vec3_t *m, size_t n,
 }
 
 /* sqrt(smallest / middle eigenvalue) of the samples' scatter (packed xx, yx, yy, zx, zy, zz). */
-MAGCAL_NOINLINE float magcal_ell_planarity(const float sc[6])
+MAGCAL_NOINLINE float magcal_ell_planarity(const float sc[6], ell_scratch_t *ws)
 {
-    float c[3][3];
+    float(*c)[3] = ws->q3;
     c[0][0] = sc[0];
     c[1][0] = sc[1];
     c[1][1] = sc[2];
     c[2][0] = sc[3];
     c[2][1] = sc[4];
     c[2][2] = sc[5];
-    return planarity3(c);
+    return planarity3(c, ws->w3, ws->e3);
 }
 
 /* Cube root of det G (> 0 for both square roots): the mean gain, raw -> output units. */
 static float mean_gain(const magcal_ellipsoid_cal_t *cal)
 {
-    float g[3][3];
-    (void)memcpy(g, cal->g, sizeof(g));
-    return cbrtf(fabsf(magcal_det3(g)));
+    const float(*a)[3] = cal->g; /* magcal_det3's expression, without a copy */
+    const float det = a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) -
+                      a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) +
+                      a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
+    return cbrtf(fabsf(det));
 }
 
 /*
@@ -449,7 +659,8 @@ static float mean_gain(const magcal_ellipsoid_cal_t *cal)
  * median-scaled sphere; strong soft iron spoils the sphere but not the quadric. Noise around one
  * point fools none of them (all ~2.5).
  */
-static MAGCAL_NOINLINE float motion_snr(const motion_ctx_t *mc, float snr_model, float limit)
+static MAGCAL_NOINLINE float motion_snr(const motion_ctx_t *mc, float snr_model, float limit,
+                                        const ell_ws_t *ws)
 {
     float snr = fmaxf(snr_model, mc->snr_alg);
     if (snr < limit && mc->sphere != NULL) {
@@ -458,9 +669,13 @@ static MAGCAL_NOINLINE float motion_snr(const motion_ctx_t *mc, float snr_model,
         float mx;
         size_t kept;
         float med;
+        ell_ws_t rw = *ws; /* recomputed: the stored residuals belong to the fit */
+        rw.res = NULL;
+        rw.keep = NULL;
         src.cal = mc->sphere;
-        (void)magcal_ell_residual_pass(mc->m, mc->n, mc->sphere, &all, &kept, &mx);
-        med = MAGCAL_ELL_MAD_TO_SIGMA * magcal_ell_median_abs(mc->m, mc->n, &src, &all, kept, mx) /
+        (void)magcal_ell_residual_pass(mc->m, mc->n, mc->sphere, &all, &rw, &kept, &mx);
+        med = MAGCAL_ELL_MAD_TO_SIGMA *
+              magcal_ell_median_abs(mc->m, mc->n, &src, &all, &rw, kept, mx) /
               mc->sphere->g[0][0];
         snr = fmaxf(snr, (med > 0.0f) ? (mc->s / med) : INFINITY);
     }
@@ -473,14 +688,15 @@ static MAGCAL_NOINLINE float motion_snr(const motion_ctx_t *mc, float snr_model,
  */
 MAGCAL_NOINLINE magcal_status_t magcal_ell_explain_failure(magcal_status_t st,
                                                            const motion_ctx_t *mc, float planarity,
-                                                           const magcal_ellipsoid_cfg_t *cfg)
+                                                           const magcal_ellipsoid_cfg_t *cfg,
+                                                           const ell_ws_t *ws)
 {
     if (st == MAGCAL_ERR_NULL || st == MAGCAL_ERR_ARG || st == MAGCAL_ERR_NONFINITE ||
         st == MAGCAL_ERR_DEGENERATE) {
         return st;
     }
     if (cfg->min_motion_snr > 0.0f &&
-        motion_snr(mc, 0.0f, cfg->min_motion_snr) < cfg->min_motion_snr) {
+        motion_snr(mc, 0.0f, cfg->min_motion_snr, ws) < cfg->min_motion_snr) {
         return MAGCAL_ERR_NO_MOTION;
     }
     if ((cfg->max_centre_std_rel > 0.0f || cfg->max_shape_std > 0.0f) && planarity < PLANAR_MAX) {
@@ -500,7 +716,7 @@ MAGCAL_NOINLINE magcal_status_t magcal_ell_trust_gates(const magcal_vec3_t *m, s
                                                        magcal_ellipsoid_model_t model,
                                                        const quad_gate_t *gate,
                                                        const motion_ctx_t *mc, float raw_planarity,
-                                                       quad_acc_t *scratch, trust_diag_t *dg)
+                                                       const ell_ws_t *ws, trust_diag_t *dg)
 {
     int sphere = 0;
     const float gmean = mean_gain(cal);
@@ -517,8 +733,8 @@ MAGCAL_NOINLINE magcal_status_t magcal_ell_trust_gates(const magcal_vec3_t *m, s
     /* motion: spread against the best noise scale (the fitted model's residual, raw units, after
      * outlier rejection; the algebraic quadric of all samples; the robust sphere) */
     dg->motion_snr =
-        motion_snr(mc, (rms > 0.0f) ? (mc->s * gmean / rms) : INFINITY, cfg->min_motion_snr);
-    centre_info(m, n, cal, gate, sphere, scratch, dg);
+        motion_snr(mc, (rms > 0.0f) ? (mc->s * gmean / rms) : INFINITY, cfg->min_motion_snr, ws);
+    centre_diag(ws, centre_info(m, n, cal, gate, ws, sphere), sphere, f, dg);
     if (cfg->min_motion_snr > 0.0f && dg->motion_snr < cfg->min_motion_snr) {
         return MAGCAL_ERR_NO_MOTION;
     }

@@ -30,6 +30,116 @@ static float *ldlt_scale(float *a, float *small, size_t n, size_t i)
     return slot;
 }
 
+magcal_status_t magcal_ldlt_factor(float *a, size_t n, float tau, float *min_pivot)
+{
+    float small[2];
+    float minp = 1.0f;
+    size_t i;
+    size_t j;
+    size_t k;
+
+    if (a == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (n < 3u || n > MAGCAL_LDLT_MAX_N || !(tau >= 0.0f)) {
+        return MAGCAL_ERR_ARG; /* n < 3: the scales need the strict upper triangle (ldlt_scale) */
+    }
+    /* Equilibrate: a'_ij = a_ij / sqrt(a_ii a_jj) (b'_i = b_i / sqrt(a_ii) in magcal_ldlt_subst). */
+    for (i = 0u; i < n; ++i) {
+        float dii = a[i * n + i];
+        if (!magcal_isfinite_f(dii)) {
+            return MAGCAL_ERR_NONFINITE;
+        }
+        if (!(dii > 0.0f)) {
+            return MAGCAL_ERR_DEGENERATE;
+        }
+        *ldlt_scale(a, small, n, i) = 1.0f / sqrtf(dii);
+    }
+    for (i = 0u; i < n; ++i) {
+        const float si = *ldlt_scale(a, small, n, i);
+        for (j = 0u; j <= i; ++j) {
+            float v = a[i * n + j];
+            if (!magcal_isfinite_f(v)) {
+                return MAGCAL_ERR_NONFINITE;
+            }
+            a[i * n + j] = v * si * *ldlt_scale(a, small, n, j);
+        }
+    }
+    /* LDL^T on the lower triangle: L stored below the diagonal, D on the diagonal (a[k*n+k] is
+     * d_k once column k is done: no separate array on the stack). */
+    for (j = 0u; j < n; ++j) {
+        float dj = a[j * n + j];
+        for (k = 0u; k < j; ++k) {
+            float ljk = a[j * n + k];
+            dj -= ljk * ljk * a[k * n + k];
+        }
+        if (!(dj > tau)) {
+            if (min_pivot != NULL) {
+                *min_pivot = dj;
+            }
+            return MAGCAL_ERR_ILL_CONDITIONED;
+        }
+        if (dj < minp) {
+            minp = dj;
+        }
+        a[j * n + j] = dj;
+        for (i = j + 1u; i < n; ++i) {
+            float s = a[i * n + j];
+            for (k = 0u; k < j; ++k) {
+                s -= a[i * n + k] * a[j * n + k] * a[k * n + k];
+            }
+            a[i * n + j] = s / dj;
+        }
+    }
+    if (min_pivot != NULL) {
+        *min_pivot = minp;
+    }
+    return MAGCAL_OK;
+}
+
+/* The equilibration factor of row i that magcal_ldlt_factor stored (n >= 3: see ldlt_scale). */
+static float ldlt_scale_of(const float *a, size_t n, size_t i)
+{
+    return (i == 0u) ? a[n + 2u] : a[i];
+}
+
+magcal_status_t magcal_ldlt_subst(const float *a, float *b, size_t n)
+{
+    size_t i;
+    size_t j;
+    size_t k;
+    for (i = 0u; i < n; ++i) {
+        b[i] *= ldlt_scale_of(a, n, i);
+    }
+    /* Forward L z = b, scale by D^-1, back L^T x = z. */
+    for (i = 0u; i < n; ++i) {
+        float s = b[i];
+        for (k = 0u; k < i; ++k) {
+            s -= a[i * n + k] * b[k];
+        }
+        b[i] = s;
+    }
+    for (i = 0u; i < n; ++i) {
+        b[i] /= a[i * n + i];
+    }
+    for (j = 0u; j < n; ++j) {
+        float s;
+        i = n - 1u - j; /* back substitution runs i = n-1 .. 0 */
+        s = b[i];
+        for (k = i + 1u; k < n; ++k) {
+            s -= a[k * n + i] * b[k];
+        }
+        b[i] = s;
+    }
+    for (i = 0u; i < n; ++i) {
+        b[i] *= ldlt_scale_of(a, n, i);
+        if (!magcal_isfinite_f(b[i])) {
+            return MAGCAL_ERR_ILL_CONDITIONED;
+        }
+    }
+    return MAGCAL_OK;
+}
+
 magcal_status_t magcal_ldlt_solve(float *a, float *b, size_t n, float tau, float *min_pivot)
 {
     float small[2];

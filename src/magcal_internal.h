@@ -41,6 +41,15 @@ extern "C" {
  */
 magcal_status_t magcal_ldlt_solve(float *a, float *b, size_t n, float tau, float *min_pivot);
 
+/**
+ * The two halves of magcal_ldlt_solve for several right-hand sides (n >= 3): factor `a` once
+ * (equilibration, LDL^T, the same pivot test and statuses), then solve in place for each b with
+ * magcal_ldlt_subst. Each solve gives exactly the numbers of magcal_ldlt_solve on a fresh copy.
+ */
+magcal_status_t magcal_ldlt_factor(float *a, size_t n, float tau, float *min_pivot);
+/** Solve with a matrix factored by magcal_ldlt_factor; MAGCAL_ERR_ILL_CONDITIONED on a non-finite x. */
+magcal_status_t magcal_ldlt_subst(const float *a, float *b, size_t n);
+
 /** True when v is neither NaN nor +/-Inf (works with -ffast-math off, no libm needed). */
 static inline int magcal_isfinite_f(float v) { return (v == v) && (v - v == 0.0f); }
 

@@ -820,6 +820,18 @@ static void test_ellipsoid_calibrate_bad_input_returns_status(void)
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ALIGNMENT,
                           magcal_ellipsoid_calibrate(&cc, g_m, 320u, (uint8_t *)(void *)g_cwork + 1,
                                                      sizeof g_cwork - 1u, NULL, &r, NULL));
+    {
+        /* 4-byte aligned only: the same result (the result slots align themselves) */
+        magcal_ellipsoid_result_t r0, r4;
+        double w[3][3];
+        uint8_t *w4 = (uint8_t *)(void *)g_cwork + ((((uintptr_t)(void *)g_cwork) % 8u == 0u) ? 4u : 0u);
+        test_make_w_full(w);
+        make_set(w, 320u, 180.0, 180.0, 0.05, 2024u);
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_calibrate(&cc, g_m, 320u, g_cwork, sizeof g_cwork, NULL, &r0, NULL));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_calibrate(&cc, g_m, 320u, w4, MAGCAL_ELLIPSOID_CALIBRATE_WORKSPACE_LEN(320u),
+                                                                    NULL, &r4, NULL));
+        assert_same_result(&r0, &r4);
+    }
     cc.pretest_max_rel = 0.0f;
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_calibrate(&cc, g_m, 320u, g_cwork, sizeof g_cwork,
                                                                      NULL, &r, NULL));
@@ -827,9 +839,102 @@ static void test_ellipsoid_calibrate_bad_input_returns_status(void)
     cc.mode = (magcal_ellipsoid_density_t)3;
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_calibrate(&cc, g_m, 320u, g_cwork, sizeof g_cwork,
                                                                      NULL, &r, NULL));
-    /* the size macro: the inlier copy + the density stage's workspace */
-    TEST_ASSERT_EQUAL_UINT32((uint32_t)(320u * sizeof(magcal_vec3_t) + MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(320u)),
+    /* the size macro: the pre-test's result and the info (8-byte slots, aligned: + 4), the inlier copy, then
+     * the larger of the density stage's and the fit's workspace */
+    TEST_ASSERT_EQUAL_UINT32((uint32_t)(4u + (sizeof(magcal_ellipsoid_result_t) + 7u) / 8u * 8u +
+                                        (sizeof(magcal_ellipsoid_calibrate_info_t) + 7u) / 8u * 8u + 320u * sizeof(magcal_vec3_t) +
+                                        ((MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(320u) > MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(320u))
+                                             ? MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(320u)
+                                             : MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(320u))),
                              (uint32_t)MAGCAL_ELLIPSOID_CALIBRATE_WORKSPACE_LEN(320u));
+}
+
+/* One data set through both entry points, every model: the same status and, on OK, the same
+ * result bit for bit (the workspace only stores what the plain fit recomputes). */
+static void assert_fit_ws_same(size_t n, const magcal_ellipsoid_cfg_t *base, int *n_ok)
+{
+    static const magcal_ellipsoid_model_t models[4] = {MAGCAL_ELLIPSOID_MODEL_AUTO, MAGCAL_ELLIPSOID_MODEL_QUADRIC9,
+                                                       MAGCAL_ELLIPSOID_MODEL_QUADRIC10, MAGCAL_ELLIPSOID_MODEL_SPHERE};
+    magcal_ellipsoid_cfg_t cfg = *base;
+    magcal_ellipsoid_result_t a, b;
+    int i;
+    for (i = 0; i < 4; ++i) {
+        magcal_status_t sa, sb;
+        cfg.model = models[i];
+        memset(&b, 0x5A, sizeof b);
+        sa = magcal_ellipsoid_fit(g_m, n, &cfg, &a);
+        sb = magcal_ellipsoid_fit_ws(g_m, n, &cfg, g_cwork, sizeof g_cwork, &b);
+        TEST_ASSERT_EQUAL_INT(sa, sb);
+        if (sa == MAGCAL_OK) {
+            assert_same_result(&a, &b);
+            ++*n_ok;
+        } else {
+            TEST_ASSERT_EQUAL_HEX8(0x5A, ((unsigned char *)&b)[0]); /* untouched */
+        }
+    }
+}
+
+static void test_ellipsoid_fit_ws_matches_fit_bit_for_bit(void)
+{
+    double w[3][3];
+    static double w_hard[3][3] = {{0.9, 0, 0}, {0, 0.9, 0}, {0, 0, 0.9}};
+    const magcal_ellipsoid_cfg_t cfg = cfg_with_field();
+    magcal_ellipsoid_cfg_t cfg0 = MAGCAL_ELLIPSOID_CFG_DEFAULT;
+    int n_ok = 0;
+    size_t k;
+    test_make_w_full(w);
+    make_set(w, NFIT, 180.0, 180.0, 0.05, 2024u); /* full rotations */
+    assert_fit_ws_same(NFIT, &cfg, &n_ok);
+    assert_fit_ws_same(NFIT, &cfg0, &n_ok);
+    make_radial_outliers(w, 4242u); /* outliers: several refits of the gate */
+    assert_fit_ws_same(NFIT, &cfg, &n_ok);
+    for (k = 0; k < NFIT; k += 10) { /* 10 % shifted: TOO_MANY_OUTLIERS at 5 % */
+        g_m[k].x += 10.0f;
+    }
+    cfg0 = cfg;
+    cfg0.max_reject_frac = 0.05f;
+    assert_fit_ws_same(NFIT, &cfg0, &n_ok);
+    cfg0.max_refits = 8u;
+    cfg0.max_reject_frac = 0.25f;
+    assert_fit_ws_same(NFIT, &cfg0, &n_ok);
+    make_set(w_hard, NFIT, 20.0, 20.0, 0.05, 55u); /* a band: the sphere, ill-conditioned quadrics */
+    assert_fit_ws_same(NFIT, &cfg, &n_ok);
+    make_set(w, NFIT, 0.0, 0.0, 0.05, 77u); /* level ring: single axis */
+    assert_fit_ws_same(NFIT, &cfg, &n_ok);
+    make_set(w, 120u, 180.0, 180.0, 1.0, 99u); /* few noisy samples */
+    assert_fit_ws_same(120u, &cfg, &n_ok);
+    TEST_ASSERT_TRUE(n_ok >= 8); /* the comparison covered OK results of several models */
+}
+
+static void test_ellipsoid_fit_ws_bad_input_returns_status(void)
+{
+    const magcal_ellipsoid_cfg_t cfg = MAGCAL_ELLIPSOID_CFG_DEFAULT;
+    magcal_ellipsoid_result_t r;
+    double w[3][3];
+    test_make_w_full(w);
+    make_set(w, 320u, 180.0, 180.0, 0.05, 2024u);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_fit_ws(NULL, 320u, &cfg, g_cwork, sizeof g_cwork, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_fit_ws(g_m, 320u, NULL, g_cwork, sizeof g_cwork, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_fit_ws(g_m, 320u, &cfg, NULL, sizeof g_cwork, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_fit_ws(g_m, 320u, &cfg, g_cwork, sizeof g_cwork, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ALIGNMENT, magcal_ellipsoid_fit_ws(g_m, 320u, &cfg, (uint8_t *)(void *)g_cwork + 1,
+                                                                        sizeof g_cwork - 1u, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE,
+                          magcal_ellipsoid_fit_ws(g_m, 320u, &cfg, g_cwork, MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(320u) - 1u, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                          magcal_ellipsoid_fit_ws(g_m, 320u, &cfg, g_cwork, MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(320u), &r));
+    {
+        /* a workspace that is 4-byte aligned only (odd multiple of 4): the same result, at the
+         * macro's size (the scratch aligns itself inside it) */
+        magcal_ellipsoid_result_t r4;
+        uint8_t *w4 = (uint8_t *)(void *)g_cwork + ((((uintptr_t)(void *)g_cwork) % 8u == 0u) ? 4u : 0u);
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
+                              magcal_ellipsoid_fit_ws(g_m, 320u, &cfg, w4, MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(320u), &r4));
+        assert_same_result(&r, &r4);
+    }
+    /* the size macro: the fixed scratch + a residual and a verdict byte per sample */
+    TEST_ASSERT_EQUAL_UINT32((uint32_t)(MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES + 320u * 5u),
+                             (uint32_t)MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(320u));
 }
 
 int main(void)
@@ -860,5 +965,7 @@ int main(void)
     RUN_TEST(test_ellipsoid_calibrate_clean_data_skips_density_stage);
     RUN_TEST(test_ellipsoid_calibrate_burst_runs_density_stage_as_composition);
     RUN_TEST(test_ellipsoid_calibrate_bad_input_returns_status);
+    RUN_TEST(test_ellipsoid_fit_ws_matches_fit_bit_for_bit);
+    RUN_TEST(test_ellipsoid_fit_ws_bad_input_returns_status);
     return UNITY_END();
 }

@@ -168,6 +168,11 @@ typedef struct {
 /**
  * @brief Fit V and G to raw 3-D field samples.
  *
+ * No workspace: the fit's scratch (MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES) lives on this function's
+ * stack (3.1 KB worst case on the Cortex-M4F) and every pass recomputes the residuals. Firmware
+ * calls magcal_ellipsoid_fit_ws (the same result bit for bit, <= 512 B of stack, half the
+ * instructions); this one stays for hosts, tests and existing callers.
+ *
  * @param[in]  m    n raw samples (body axes x right, y forward, z up; any unit).
  * @param[in]  n    number of samples (>= 4 for the sphere, >= 10 for the quadrics; the sphere needs
  *                  coverage anyway, so in practice use >= 50).
@@ -206,6 +211,47 @@ typedef struct {
  */
 magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n, const magcal_ellipsoid_cfg_t *cfg,
                                      magcal_ellipsoid_result_t *out);
+
+/** Fixed part of MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN: the packed 10x10 normal matrix, the solver
+ *  matrix, the observability pass's 9x9 inverse and sums, the median histogram, 8-byte aligned
+ *  inside the 4-byte aligned workspace (static assert in src/ellipsoid.c). */
+#define MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES 2720u
+/** Workspace bytes of magcal_ellipsoid_fit_ws for n samples: the scratch + per sample its residual
+ *  (4 B) and its outlier-gate verdict (1 B). */
+#define MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(n)                                                       \
+    ((size_t)MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES + (size_t)(n) * (sizeof(float) + 1u))
+/** Declare `name` as a correctly aligned workspace of MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(n) bytes. */
+#define MAGCAL_ELLIPSOID_FIT_WORKSPACE_DECLARE(name, n)                                             \
+    MAGCAL_WORKSPACE_DECLARE(name, MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(n))
+
+/**
+ * @brief magcal_ellipsoid_fit with its scratch in the caller's workspace (issue 14): the same
+ *        result bit for bit, <= 512 B of stack (magcal_ellipsoid_fit keeps the 2.3 KB scratch on
+ *        its own stack), and about half the instructions (each sample's residual is stored once
+ *        per fit instead of being recomputed by every pass of the outlier gate and its median).
+ *
+ * @param[in]  m        n raw samples (as magcal_ellipsoid_fit).
+ * @param[in]  n        number of samples.
+ * @param[in]  cfg      configuration (MAGCAL_ELLIPSOID_CFG_DEFAULT).
+ * @param[out] work     scratch, 4-byte aligned, >= MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(n) bytes.
+ * @param[in]  work_len bytes at work.
+ * @param[out] out      result; written only on MAGCAL_OK.
+ * @return every status of magcal_ellipsoid_fit; MAGCAL_ERR_NULL also for work NULL;
+ *         MAGCAL_ERR_ALIGNMENT (work not 4-byte aligned); MAGCAL_ERR_WORKSPACE (work_len too small).
+ *
+ * @code
+ * static magcal_vec3_t samples[600];            // filled by the application
+ * static MAGCAL_ELLIPSOID_FIT_WORKSPACE_DECLARE(work, 600u);
+ * const magcal_ellipsoid_cfg_t cfg = MAGCAL_ELLIPSOID_CFG_DEFAULT;
+ * magcal_ellipsoid_result_t fit;
+ * if (magcal_ellipsoid_fit_ws(samples, 600u, &cfg, work, sizeof work, &fit) == MAGCAL_OK) {
+ *     // fit.cal: h = G (m - V)
+ * }
+ * @endcode
+ */
+magcal_status_t magcal_ellipsoid_fit_ws(const magcal_vec3_t *m, size_t n,
+                                        const magcal_ellipsoid_cfg_t *cfg, void *work,
+                                        size_t work_len, magcal_ellipsoid_result_t *out);
 
 /**
  * @brief Per-sample outlier mask of a fit: classify each sample with the fit's final gate.
@@ -301,10 +347,22 @@ typedef struct {
     magcal_optics_result_t density; /**< the density stage's parameters (valid when density_ran) */
 } magcal_ellipsoid_calibrate_info_t;
 
-/** Workspace bytes of magcal_ellipsoid_calibrate for n samples: the inlier copy (n x 12 B) + the
- *  density stage's MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n). */
+/** Bytes of magcal_ellipsoid_calibrate's workspace that hold the pre-test's result. */
+#define MAGCAL_ELLIPSOID_CALIBRATE_RESULT_SLOT ((sizeof(magcal_ellipsoid_result_t) + 7u) / 8u * 8u)
+/** The result slot + the slot of the info when the caller passes info = NULL (off the stack), both
+ *  8-byte aligned inside a 4-byte aligned workspace (+4 B). */
+#define MAGCAL_ELLIPSOID_CALIBRATE_SLOTS                                                            \
+    (4u + MAGCAL_ELLIPSOID_CALIBRATE_RESULT_SLOT +                                                  \
+     (sizeof(magcal_ellipsoid_calibrate_info_t) + 7u) / 8u * 8u)
+/** Workspace bytes of magcal_ellipsoid_calibrate for n samples: the pre-test's result and info, the inlier
+ *  copy (n x 12 B), then the larger of the density stage's MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n)
+ *  and the fit's MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(n) (issue 14: the fit's matrices are here, not
+ *  on the stack). */
 #define MAGCAL_ELLIPSOID_CALIBRATE_WORKSPACE_LEN(n)                                                 \
-    ((size_t)(n) * sizeof(magcal_vec3_t) + MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n))
+    (MAGCAL_ELLIPSOID_CALIBRATE_SLOTS + (size_t)(n) * sizeof(magcal_vec3_t) +                       \
+     ((MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n) > MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(n))              \
+          ? MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n)                                                  \
+          : MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(n)))
 /** Declare `name` as a correctly aligned workspace of MAGCAL_ELLIPSOID_CALIBRATE_WORKSPACE_LEN(n) bytes. */
 #define MAGCAL_ELLIPSOID_CALIBRATE_WORKSPACE_DECLARE(name, n)                                       \
     MAGCAL_WORKSPACE_DECLARE(name, MAGCAL_ELLIPSOID_CALIBRATE_WORKSPACE_LEN(n))
@@ -324,7 +382,7 @@ typedef struct {
  * @param[in]  m        n raw samples (as magcal_ellipsoid_fit).
  * @param[in]  n        number of samples (>= 10; <= MAGCAL_MAX_SAMPLES when the density stage may run).
  * @param[out] work     scratch, 4-byte aligned, >= MAGCAL_ELLIPSOID_CALIBRATE_WORKSPACE_LEN(n) bytes
- *                      (untouched when the density stage is skipped).
+ *                      (the fit's scratch too: magcal_ellipsoid_fit_ws).
  * @param[in]  work_len bytes at work.
  * @param[out] inlier   NULL, or n flags: 1 = given to the fit (kept by the density stage, or every
  *                      sample when it did not run); written only on MAGCAL_OK.

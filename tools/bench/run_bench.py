@@ -81,7 +81,7 @@ INF_KERNELS = ["optics_classic_inf", "optics_improved_inf"]  # eps = +inf, n <= 
 ENTRY_POINTS = ["magcal_calibrator_init", "magcal_calibrator_push", "magcal_calibrator_poll",
                 "magcal_calibrator_run", "magcal_heading_compute",
                 # issue 14: the worst public entry point, 3-D included
-                "magcal_ellipsoid_fit", "magcal_ellipsoid_calibrate"]
+                "magcal_ellipsoid_fit", "magcal_ellipsoid_fit_ws", "magcal_ellipsoid_calibrate"]
 
 GOALS = {
     "improved_ratio": 0.56,

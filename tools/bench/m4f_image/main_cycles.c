@@ -62,9 +62,12 @@ static int cal3d_one(const char *name, const magcal_vec3_t *src, size_t n, int c
     for (i = 0u; i < n; ++i) {
         g_pts3[i] = src[i];
     }
-    t0 = ticks();
-    st = magcal_ellipsoid_fit(g_pts3, n, &ec, &er);
+    t0 = ticks(); /* the fit as firmware calls it: magcal_ellipsoid_fit_ws, scratch in the workspace */
+    st = magcal_ellipsoid_fit_ws(g_pts3, n, &ec, g_cwork3, sizeof g_cwork3, &er);
     printf("M4F cal3d_fit_%s %u %lu %d\n", name, (unsigned)n, insn_since(t0), (int)st);
+    t0 = ticks(); /* the workspace-free magcal_ellipsoid_fit (scratch on its stack, recomputes) */
+    st = magcal_ellipsoid_fit(g_pts3, n, &ec, &er);
+    printf("M4F cal3d_stackfit_%s %u %lu %d\n", name, (unsigned)n, insn_since(t0), (int)st);
     fails += clean != 0 && st != MAGCAL_OK; /* the fit alone may refuse a burst */
     t0 = ticks();
     st = magcal_optics_filter3(&c3, g_pts3, n, g_work3, sizeof g_work3, g_mask, NULL);
@@ -74,7 +77,7 @@ static int cal3d_one(const char *name, const magcal_vec3_t *src, size_t n, int c
         }
     }
     if (st == MAGCAL_OK) {
-        st = magcal_ellipsoid_fit(g_kept3, nk, &ec, &er);
+        st = magcal_ellipsoid_fit_ws(g_kept3, nk, &ec, g_cwork3, sizeof g_cwork3, &er);
     }
     printf("M4F cal3d_density_fit_%s %u %lu %d\n", name, (unsigned)n, insn_since(t0), (int)st);
     fails += st != MAGCAL_OK;
