@@ -79,6 +79,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "magcal/config.h"
 #include "magcal/ellipsoid.h"
 #include "magcal/heading.h"
 #include "magcal/intake.h"
@@ -242,6 +243,8 @@ typedef struct {
     uint32_t mis_cells;             /* MAGCAL_CONT3_CELLS bits of the open episode */
 } magcal_cont3_t;
 
+#if MAGCAL_CFG_ENABLE_3D /* config.h feature switch: with 3-D off these functions are not built */
+
 /**
  * @brief Initialise on caller storage.
  * @param[out] cc        instance.
@@ -302,6 +305,8 @@ magcal_status_t magcal_cont3_progress(const magcal_cont3_t *cc, magcal_cont3_pro
 /** @brief Status of the last finished solve (MAGCAL_OK before any; MAGCAL_ERR_NOT_BETTER when the
  *         installed calibration was kept). MAGCAL_ERR_NOT_INITIALISED for NULL / uninitialised. */
 magcal_status_t magcal_cont3_status(const magcal_cont3_t *cc);
+
+#endif /* MAGCAL_CFG_ENABLE_3D */
 
 #ifdef __cplusplus
 }

@@ -22,6 +22,8 @@
 #include "c3_internal.h"
 #include "magcal_internal.h"
 
+#if MAGCAL_CFG_ENABLE_3D /* whole file: config.h feature switch (the 3-D loop needs the ellipsoid fit) */
+
 void magcal_c3_install(magcal_cont3_t *cc, const magcal_ellipsoid_cal_t *c, float sigma)
 {
     const float r_raw = magcal_c3_raw_radius(c);
@@ -133,3 +135,5 @@ magcal_cont3_outcome_t magcal_c3_adopt(magcal_cont3_t *cc)
     cc->state = (uint8_t)MAGCAL_CONT3_COLLECTING;
     return MAGCAL_CONT3_ADOPTED;
 }
+
+#endif /* MAGCAL_CFG_ENABLE_3D */

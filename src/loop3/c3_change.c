@@ -15,6 +15,8 @@
 #include "c3_internal.h"
 #include "magcal_internal.h"
 
+#if MAGCAL_CFG_ENABLE_3D /* whole file: config.h feature switch (the 3-D loop needs the ellipsoid fit) */
+
 static unsigned c3_popcount(uint32_t v)
 {
     unsigned n = 0u;
@@ -144,3 +146,5 @@ void magcal_c3_declare_change(magcal_cont3_t *cc)
     cc->refuse_run = 0u;
     cc->change_flag = 1u;
 }
+
+#endif /* MAGCAL_CFG_ENABLE_3D */

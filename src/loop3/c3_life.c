@@ -13,6 +13,8 @@
 #include "magcal/tilt.h"
 #include "magcal_internal.h"
 
+#if MAGCAL_CFG_ENABLE_3D /* whole file: config.h feature switch (the 3-D loop needs the ellipsoid fit) */
+
 int magcal_c3_ok(const magcal_cont3_t *cc) { return cc != NULL && cc->magic == MAGCAL_CONT3_MAGIC; }
 
 static magcal_status_t c3_check_cfg(const magcal_cont3_cfg_t *c)
@@ -256,3 +258,5 @@ magcal_status_t magcal_cont3_heading(const magcal_cont3_t *cc, const magcal_vec3
     *out = r;
     return MAGCAL_OK;
 }
+
+#endif /* MAGCAL_CFG_ENABLE_3D */

@@ -8,6 +8,8 @@
 #include "c3_internal.h"
 #include "magcal/config.h"
 
+#if MAGCAL_CFG_ENABLE_3D /* whole file: config.h feature switch (the 3-D loop needs the ellipsoid fit) */
+
 /* Judge one sample against the installed calibration (change detection): 1 = do not store it. */
 static MAGCAL_NOINLINE int c3_screen(magcal_cont3_t *cc, const magcal_vec3_t *m, uint32_t t_ms)
 {
@@ -137,3 +139,5 @@ magcal_cont3_outcome_t magcal_cont3_solve_blocking(magcal_cont3_t *cc, int force
     }
     return cc->last_outcome;
 }
+
+#endif /* MAGCAL_CFG_ENABLE_3D */
