@@ -467,16 +467,17 @@ static MAGCAL_NOINLINE magcal_status_t cons_refine(cons_state_t *S)
     return MAGCAL_OK;
 }
 
-magcal_status_t magcal_consensus_run(const magcal_consensus_cfg_t *cfg, const magcal_vec2_t *pts,
-                                     size_t n, const uint8_t *cand_mask, void *work,
-                                     size_t work_len, uint8_t *inlier_mask,
-                                     magcal_consensus_result_t *result)
+#define CONS_PH_RUN 1u
+#define CONS_PH_DONE 2u
+
+magcal_status_t magcal_consensus_begin(magcal_consensus_slice_t *s, const magcal_consensus_cfg_t *cfg,
+                                       const magcal_vec2_t *pts, size_t n, const uint8_t *cand,
+                                       void *work, size_t work_len, uint8_t *inlier,
+                                       magcal_consensus_result_t *res)
 {
-    cons_state_t *S;
-    size_t i;
     magcal_status_t st;
 
-    if (cfg == NULL || pts == NULL || work == NULL || inlier_mask == NULL || result == NULL) {
+    if (s == NULL || cfg == NULL || pts == NULL || work == NULL || inlier == NULL || res == NULL) {
         return MAGCAL_ERR_NULL;
     }
     st = cons_check_cfg(cfg);
@@ -492,16 +493,37 @@ magcal_status_t magcal_consensus_run(const magcal_consensus_cfg_t *cfg, const ma
     if (work_len < MAGCAL_CONSENSUS_WORKSPACE_LEN(n)) {
         return MAGCAL_ERR_WORKSPACE;
     }
+    s->cfg_ = cfg;
+    s->pts_ = pts;
+    s->n_ = n;
+    s->cand_ = cand;
+    s->state_ = (uint8_t *)work + ((sizeof(void *) - magcal_misalign(work, sizeof(void *))) %
+                                   sizeof(void *));
+    s->inlier_ = inlier;
+    s->res_ = res;
+    s->phase_ = CONS_PH_RUN;
+    s->status_ = (int8_t)MAGCAL_IN_PROGRESS;
+    return MAGCAL_OK;
+}
+
+/* the whole run (first version: one step) */
+static magcal_status_t cons_run_all(magcal_consensus_slice_t *sl)
+{
+    const magcal_consensus_cfg_t *cfg = sl->cfg_;
+    const magcal_vec2_t *pts = sl->pts_;
+    const size_t n = sl->n_;
+    const uint8_t *cand_mask = sl->cand_;
+    uint8_t *inlier_mask = sl->inlier_;
+    magcal_consensus_result_t *result = sl->res_;
+    cons_state_t *S = (cons_state_t *)sl->state_;
+    size_t i;
+    magcal_status_t st;
+
     for (i = 0u; i < n; ++i) {
         if (!magcal_isfinite_f(pts[i].x) || !magcal_isfinite_f(pts[i].y)) {
             return MAGCAL_ERR_NONFINITE;
         }
     }
-
-    /* carve the workspace (aligned for pointers): the run state, res[n], scr[n], order[n] */
-    S = (cons_state_t *)(void *)((uint8_t *)work +
-                                 ((sizeof(void *) - magcal_misalign(work, sizeof(void *))) %
-                                  sizeof(void *)));
     S->cfg = cfg;
     S->pts = pts;
     S->n = n;
@@ -561,4 +583,38 @@ magcal_status_t magcal_consensus_run(const magcal_consensus_cfg_t *cfg, const ma
         result->rounds = S->rounds;
     }
     return MAGCAL_OK;
+}
+
+magcal_status_t magcal_consensus_step(magcal_consensus_slice_t *s, uint32_t budget)
+{
+    magcal_status_t st;
+
+    (void)budget;
+    if (s == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (s->phase_ == CONS_PH_DONE) {
+        return (magcal_status_t)s->status_;
+    }
+    if (s->phase_ != CONS_PH_RUN) {
+        return MAGCAL_ERR_ARG;
+    }
+    st = cons_run_all(s);
+    s->phase_ = CONS_PH_DONE;
+    s->status_ = (int8_t)st;
+    return st;
+}
+
+magcal_status_t magcal_consensus_run(const magcal_consensus_cfg_t *cfg, const magcal_vec2_t *pts,
+                                     size_t n, const uint8_t *cand_mask, void *work,
+                                     size_t work_len, uint8_t *inlier_mask,
+                                     magcal_consensus_result_t *result)
+{
+    magcal_consensus_slice_t s;
+    magcal_status_t st = magcal_consensus_begin(&s, cfg, pts, n, cand_mask, work, work_len,
+                                                inlier_mask, result);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    return magcal_consensus_step(&s, UINT32_MAX);
 }

@@ -422,18 +422,6 @@ static magcal_status_t fit_normal(const fit_src_t *src, magcal_ellipse_t *out)
     return conic_finish(mom, nm.mx, nm.my, s, minp, cnt, src, out);
 }
 
-magcal_status_t magcal_ellipse_fit(const magcal_vec2_t *pts, size_t n, const uint8_t *mask,
-                                   magcal_ellipse_t *out)
-{
-    fit_src_t src;
-
-    if (pts == NULL || out == NULL) {
-        return MAGCAL_ERR_NULL;
-    }
-    src_masked(&src, pts, n, mask);
-    return fit_normal(&src, out);
-}
-
 /* Exact conic through 5 points: Gaussian elimination with partial pivoting on W X = Y. */
 /* Exact conic through the 5 normalised points of src: Gaussian elimination with partial pivoting
  * on W X = Y, into coef[5]; *minp gets the smallest pivot. Its own frame (the 5x6 tableau) is not
@@ -544,13 +532,32 @@ static MAGCAL_NOINLINE magcal_status_t fit_five(const fit_src_t *src, magcal_ell
     return conic_finish(coef, nm.mx, nm.my, s, minp, 5u, src, out);
 }
 
-magcal_status_t magcal_ellipse_fit_idx(const magcal_vec2_t *pts, size_t n_pts, const uint16_t *idx,
-                                       size_t m, magcal_ellipse_t *out)
-{
-    fit_src_t src;
-    size_t k;
+#define FIT_PH_RUN 1u
+#define FIT_PH_DONE 2u
 
-    if (pts == NULL || idx == NULL || out == NULL) {
+magcal_status_t magcal_ellipse_fit_begin(magcal_ellipse_fit_slice_t *s, const magcal_vec2_t *pts,
+                                         size_t n, const uint8_t *mask, magcal_ellipse_t *out)
+{
+    if (s == NULL || pts == NULL || out == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    s->pts_ = pts;
+    s->n_ = n;
+    s->mask_ = mask;
+    s->idx_ = NULL;
+    s->n_pts_ = n;
+    s->out_ = out;
+    s->used_ = 0u;
+    s->phase_ = FIT_PH_RUN;
+    s->status_ = (int8_t)MAGCAL_IN_PROGRESS;
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_ellipse_fit_idx_begin(magcal_ellipse_fit_slice_t *s, const magcal_vec2_t *pts,
+                                             size_t n_pts, const uint16_t *idx, size_t m,
+                                             magcal_ellipse_t *out)
+{
+    if (s == NULL || pts == NULL || idx == NULL || out == NULL) {
         return MAGCAL_ERR_NULL;
     }
     if (m > MAGCAL_ELLIPSE_MAX_POINTS) {
@@ -559,19 +566,76 @@ magcal_status_t magcal_ellipse_fit_idx(const magcal_vec2_t *pts, size_t n_pts, c
     if (m < MAGCAL_ELLIPSE_MIN_POINTS) {
         return MAGCAL_ERR_TOO_FEW_POINTS;
     }
-    for (k = 0u; k < m; ++k) {
-        if ((size_t)idx[k] >= n_pts) {
-            return MAGCAL_ERR_ARG;
+    s->pts_ = pts;
+    s->n_ = m;
+    s->mask_ = NULL;
+    s->idx_ = idx;
+    s->n_pts_ = n_pts;
+    s->out_ = out;
+    s->used_ = 0u;
+    s->phase_ = FIT_PH_RUN;
+    s->status_ = (int8_t)MAGCAL_IN_PROGRESS;
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_ellipse_fit_step(magcal_ellipse_fit_slice_t *s, uint32_t budget)
+{
+    fit_src_t src;
+    magcal_status_t st;
+    size_t k;
+
+    (void)budget;
+    if (s == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (s->phase_ == FIT_PH_DONE) {
+        return (magcal_status_t)s->status_;
+    }
+    if (s->phase_ != FIT_PH_RUN) {
+        return MAGCAL_ERR_ARG;
+    }
+    src.pts = s->pts_;
+    src.n = s->n_;
+    src.mask = s->mask_;
+    src.idx = s->idx_;
+    st = MAGCAL_OK;
+    if (s->idx_ != NULL) {
+        for (k = 0u; k < s->n_; ++k) {
+            if ((size_t)s->idx_[k] >= s->n_pts_) {
+                st = MAGCAL_ERR_ARG;
+                break;
+            }
         }
     }
-    src.pts = pts;
-    src.n = m;
-    src.mask = NULL;
-    src.idx = idx;
-    if (m == MAGCAL_ELLIPSE_MIN_POINTS) {
-        return fit_five(&src, out);
+    if (st == MAGCAL_OK) {
+        st = (s->idx_ != NULL && s->n_ == MAGCAL_ELLIPSE_MIN_POINTS) ? fit_five(&src, s->out_)
+                                                                      : fit_normal(&src, s->out_);
     }
-    return fit_normal(&src, out);
+    s->phase_ = FIT_PH_DONE;
+    s->status_ = (int8_t)st;
+    return st;
+}
+
+magcal_status_t magcal_ellipse_fit(const magcal_vec2_t *pts, size_t n, const uint8_t *mask,
+                                   magcal_ellipse_t *out)
+{
+    magcal_ellipse_fit_slice_t s;
+    magcal_status_t st = magcal_ellipse_fit_begin(&s, pts, n, mask, out);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    return magcal_ellipse_fit_step(&s, UINT32_MAX);
+}
+
+magcal_status_t magcal_ellipse_fit_idx(const magcal_vec2_t *pts, size_t n_pts, const uint16_t *idx,
+                                       size_t m, magcal_ellipse_t *out)
+{
+    magcal_ellipse_fit_slice_t s;
+    magcal_status_t st = magcal_ellipse_fit_idx_begin(&s, pts, n_pts, idx, m, out);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    return magcal_ellipse_fit_step(&s, UINT32_MAX);
 }
 
 /* Pass 1 and the seed's max-abs normalisation (no centring), in a frame of their own. */
