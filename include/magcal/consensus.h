@@ -65,9 +65,12 @@ extern "C" {
  * build-time limits in magcal/config.h. */
 
 /** @cond INTERNAL */
-/* Bytes of the run state kept in the workspace (four ellipse models and the loop state, off the
- * stack) with its alignment slack; consensus.c checks the size with a static assert. */
-#define MAGCAL_CONSENSUS_STATE_LEN_ (4u * sizeof(magcal_ellipse_t) + 20u * sizeof(void *))
+/* Bytes of the run state kept in the workspace (three ellipse models, the fit slice, the
+ * resumable selection and sort, the loop state; off the stack) with its alignment slack;
+ * consensus.c checks the size with a static assert. */
+#define MAGCAL_CONSENSUS_STATE_LEN_                                                                \
+    (3u * sizeof(magcal_ellipse_t) + sizeof(magcal_ellipse_fit_slice_t) + 36u * sizeof(void *) +  \
+     64u)
 /** @endcond */
 
 /**
@@ -141,13 +144,7 @@ magcal_status_t magcal_consensus_run(const magcal_consensus_cfg_t *cfg, const ma
  * Fields are private.
  */
 typedef struct {
-    const magcal_consensus_cfg_t *cfg_;
-    const magcal_vec2_t *pts_;
-    size_t n_;
-    const uint8_t *cand_;
-    void *state_; /* the run state, aligned inside the caller's workspace */
-    uint8_t *inlier_;
-    magcal_consensus_result_t *res_;
+    void *state_; /* the run state, aligned at the start of the caller's workspace */
     uint8_t phase_;
     int8_t status_;
 } magcal_consensus_slice_t;
