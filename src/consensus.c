@@ -196,10 +196,14 @@ static size_t cons_visits(uint32_t budget, uint32_t used, uint32_t w, size_t lef
     return ((size_t)v < left) ? (size_t)v : left;
 }
 
-/* Charge a loop chunk: the end of the visits this step pays for from *pos over [*pos, len). */
+/* Charge a loop chunk: the end of the visits this step pays for from pos over [pos, len). When
+ * not one more visit is paid for, the budget counts as spent (the phase returns CONS_SPENT). */
 static size_t cons_chunk(uint32_t budget, uint32_t *used, uint32_t w, size_t pos, size_t len)
 {
     size_t v = cons_visits(budget, *used, w, len - pos);
+    if (v == 0u && pos < len) {
+        *used = (*used > budget) ? *used : budget;
+    }
     *used += (uint32_t)v * w;
     return pos + v;
 }
@@ -951,6 +955,7 @@ magcal_status_t magcal_consensus_begin(magcal_consensus_slice_t *s, const magcal
     S->rounds = 0u;
     S->phase = P_CHECK;
     s->state_ = S;
+    s->used_ = 0u;
     s->phase_ = CONS_PH_RUN;
     s->status_ = (int8_t)MAGCAL_IN_PROGRESS;
     return MAGCAL_OK;
@@ -965,6 +970,7 @@ magcal_status_t magcal_consensus_step(magcal_consensus_slice_t *s, uint32_t budg
     if (s == NULL) {
         return MAGCAL_ERR_NULL;
     }
+    s->used_ = 0u;
     if (s->phase_ == CONS_PH_DONE) {
         return (magcal_status_t)s->status_;
     }
@@ -985,6 +991,7 @@ magcal_status_t magcal_consensus_step(magcal_consensus_slice_t *s, uint32_t budg
             st = cons_finish(S, budget, &used);
         }
     }
+    s->used_ = used;
     if (st == CONS_SPENT) {
         return MAGCAL_IN_PROGRESS;
     }

@@ -144,7 +144,9 @@ magcal_status_t magcal_consensus_run(const magcal_consensus_cfg_t *cfg, const ma
  * Fields are private.
  */
 typedef struct {
-    void *state_; /* the run state, aligned at the start of the caller's workspace */
+    void *state_;   /* the run state, aligned at the start of the caller's workspace */
+    uint32_t used_; /* estimated M4F instructions charged by the last step (a caller sharing one
+                     * budget between stages may read it) */
     uint8_t phase_;
     int8_t status_;
 } magcal_consensus_slice_t;
