@@ -21,18 +21,19 @@
 /* 1 / sqrt(12): standard deviation of a uniform rounding error, in LSB */
 #define CONS_INV_SQRT12 0.28867513f
 
-/* Estimated Cortex-M4F instructions per visit (host callgrind x 1.2 of
- * tools/bench_fit/slice_cost.c; totals in docs/performance.md). */
-#define CONS_W_CHECK 12u /* finiteness of one sample */
-#define CONS_W_COPY 10u  /* one element of a candidate / fill / gather / mask loop */
-#define CONS_W_SORT 12u  /* one shell-sort move or placement */
-#define CONS_W_SEL 10u   /* one quickselect scan step, swap or partition decision */
-#define CONS_W_ATAN 96u  /* atan2f of one candidate's direction */
-#define CONS_W_RES 60u   /* |radial residual| of one sample */
-#define CONS_W_DRAW 3000u /* one minimal set: 6 PRNG draws and the 5-point exact fit */
-#define CONS_W_FIX 200u  /* an O(1) phase change (scale, threshold, model copy, result) */
-/* a refit slice is stepped only when its largest visit (the normal equations) fits the budget */
-#define CONS_W_FIT 1600u
+/* Estimated Cortex-M4F instructions per visit, measured on QEMU mps2-an386 -icount shift=0
+ * (arm-none-eabi-gcc -Os; real/charged per step of each phase at n = 288 and 1024, with ~10 %
+ * margin; docs/performance.md). Over-charging only makes steps smaller. */
+#define CONS_W_CHECK 34u  /* finiteness of one sample */
+#define CONS_W_COPY 30u   /* one element of a candidate / fill / gather / mask / output loop */
+#define CONS_W_SORT 40u   /* one shell-sort move or placement */
+#define CONS_W_SEL 20u    /* one quickselect scan step, swap or partition decision */
+#define CONS_W_ATAN 160u  /* atan2f of one candidate's direction */
+#define CONS_W_RES 140u   /* |radial residual| of one sample */
+#define CONS_W_DRAW 3800u /* one minimal set: 6 PRNG draws and the 5-point exact fit */
+#define CONS_W_FIX 400u   /* an O(1) phase change (scale, threshold, model copy, result) */
+/* a fit slice is stepped only when its largest visit (the normal equations) fits the budget */
+#define CONS_W_FIT 3000u
 
 /* A phase's return: go on with the next phase (MAGCAL_IN_PROGRESS), stop this step (CONS_SPENT)
  * or the run's final status. */
@@ -230,91 +231,107 @@ static void sel_init(cons_sel_t *q, float *a, size_t n, size_t k)
 }
 
 /* Run the selection within the budget; 1 when done (q->val). The phases are the one-shot loop
- * nest: 0 outer test, 1 inner test, 2 scan i up, 3 scan j down, 4 swap, 5 partition decision. */
+ * nest: 0 outer test, 1 inner test, 2 scan i up, 3 scan j down, 4 swap, 5 partition decision.
+ * Each scan step and each swap or partition round is one visit; the indices live in locals
+ * during the call (the scans are as tight as the one-shot loop's). */
 static int sel_run(cons_sel_t *q, uint32_t budget, uint32_t *used)
 {
     float *a = q->a;
-    for (;;) {
-        size_t v = cons_visits(budget, *used, CONS_W_SEL, (size_t)-1);
-        size_t c = 1u;
-        if (v == 0u) {
-            return 0;
-        }
-        switch (q->ph) {
-        case 0u:
-            if (!(q->guard < q->n + 1u && q->lo < q->hi)) {
-                q->val = a[q->k];
-                *used += CONS_W_SEL;
-                return 1;
+    const size_t n = q->n;
+    const size_t k = q->k;
+    float pivot = q->pivot;
+    size_t lo = q->lo;
+    size_t hi = q->hi;
+    size_t i = q->i;
+    size_t j = q->j;
+    size_t s = q->s;
+    size_t guard = q->guard;
+    size_t inner = q->inner;
+    const size_t start = cons_visits(budget, *used, CONS_W_SEL, (size_t)-1);
+    size_t left = start;
+    uint8_t ph = q->ph;
+    int done = 0;
+    while (left > 0u && done == 0) {
+        if (ph == 2u) { /* the scans first: most visits are theirs */
+            while (left > 0u && s < n && a[i] < pivot) {
+                ++i;
+                ++s;
+                --left;
             }
-            q->pivot = a[q->lo + (q->hi - q->lo) / 2u];
-            q->i = q->lo;
-            q->j = q->hi;
-            q->inner = 0u;
-            q->ph = 1u;
-            break;
-        case 1u:
-            if (q->inner <= q->n && q->i <= q->j) {
-                q->s = 0u;
-                q->ph = 2u;
+            if (left > 0u) {
+                s = 0u;
+                ph = 3u;
+            }
+        } else if (ph == 3u) {
+            while (left > 0u && s < n && a[j] > pivot) {
+                --j;
+                ++s;
+                --left;
+            }
+            if (left > 0u) {
+                ph = 4u;
+            }
+        } else if (ph == 4u) {
+            --left;
+            ph = 1u;
+            if (i <= j) {
+                float t = a[i];
+                a[i] = a[j];
+                a[j] = t;
+                ++i;
+                if (j == 0u) {
+                    ph = 5u;
+                    continue;
+                }
+                --j;
+            }
+            ++inner;
+        } else if (ph == 1u) {
+            if (inner <= n && i <= j) {
+                s = 0u;
+                ph = 2u;
             } else {
-                q->ph = 5u;
+                ph = 5u;
             }
-            break;
-        case 2u:
-            for (c = 0u; c < v; ++c) {
-                if (!(q->s < q->n && a[q->i] < q->pivot)) {
-                    q->s = 0u;
-                    q->ph = 3u;
-                    ++c;
-                    break;
-                }
-                ++q->i;
-                ++q->s;
-            }
-            break;
-        case 3u:
-            for (c = 0u; c < v; ++c) {
-                if (!(q->s < q->n && a[q->j] > q->pivot)) {
-                    q->ph = 4u;
-                    ++c;
-                    break;
-                }
-                --q->j;
-                ++q->s;
-            }
-            break;
-        case 4u:
-            q->ph = 1u;
-            if (q->i <= q->j) {
-                float t = a[q->i];
-                a[q->i] = a[q->j];
-                a[q->j] = t;
-                ++q->i;
-                if (q->j == 0u) {
-                    q->ph = 5u;
-                    break;
-                }
-                --q->j;
-            }
-            ++q->inner;
-            break;
-        default:
-            if (q->k <= q->j) {
-                q->hi = q->j;
-            } else if (q->k >= q->i) {
-                q->lo = q->i;
+        } else if (ph == 0u) {
+            --left;
+            if (!(guard < n + 1u && lo < hi)) {
+                done = 1;
             } else {
-                q->val = a[q->k];
-                *used += CONS_W_SEL;
-                return 1;
+                pivot = a[lo + (hi - lo) / 2u];
+                i = lo;
+                j = hi;
+                inner = 0u;
+                ph = 1u;
             }
-            ++q->guard;
-            q->ph = 0u;
-            break;
+        } else {
+            --left;
+            if (k <= j) {
+                hi = j;
+            } else if (k >= i) {
+                lo = i;
+            } else {
+                done = 1;
+                continue;
+            }
+            ++guard;
+            ph = 0u;
         }
-        *used += (uint32_t)c * CONS_W_SEL;
     }
+    if (done != 0) {
+        q->val = a[k];
+    }
+    q->pivot = pivot;
+    q->lo = lo;
+    q->hi = hi;
+    q->i = i;
+    q->j = j;
+    q->s = s;
+    q->guard = guard;
+    q->inner = inner;
+    q->ph = ph;
+    *used += (uint32_t)(start - left) * CONS_W_SEL;
+    return done;
 }
 
 static void sort_init(cons_sort_t *q, float *key, uint16_t *idx, size_t m)
@@ -327,50 +344,63 @@ static void sort_init(cons_sort_t *q, float *key, uint16_t *idx, size_t m)
     q->moving = 0u;
 }
 
-/* Run the shell sort within the budget; 1 when done. One visit per move or placement. */
+/* Run the shell sort within the budget; 1 when done. One visit per move or placement; the
+ * positions live in locals during the call. */
 static int sort_run(cons_sort_t *q, uint32_t budget, uint32_t *used)
 {
     static const uint16_t gaps[] = {701u, 301u, 132u, 57u, 23u, 10u, 4u, 1u};
     float *key = q->key;
-    while (q->g < sizeof gaps / sizeof gaps[0]) {
-        const size_t gap = gaps[q->g];
-        size_t v = cons_visits(budget, *used, CONS_W_SORT, (size_t)-1);
-        size_t c = 0u;
-        if (v == 0u) {
-            return 0;
+    uint16_t *idx = q->idx;
+    const size_t start = cons_visits(budget, *used, CONS_W_SORT, (size_t)-1);
+    size_t left = start;
+    size_t i = q->i;
+    size_t j = q->j;
+    float kv = q->kv;
+    uint16_t iv = q->iv;
+    int done = 0;
+    while (left > 0u) {
+        size_t gap;
+        if (q->g >= sizeof gaps / sizeof gaps[0]) {
+            done = 1;
+            break;
         }
+        gap = gaps[q->g];
         if (q->moving == 0u) {
-            q->i = (q->i < gap) ? gap : q->i;
-            if (q->i >= q->m) {
+            i = (i < gap) ? gap : i;
+            if (i >= q->m) {
                 ++q->g;
-                q->i = 0u;
+                i = 0u;
                 continue;
             }
-            q->kv = key[q->i];
-            q->iv = (q->idx != NULL) ? q->idx[q->i] : 0u;
-            q->j = q->i;
+            kv = key[i];
+            iv = (idx != NULL) ? idx[i] : 0u;
+            j = i;
             q->moving = 1u;
         }
-        while (c < v && q->j >= gap && key[q->j - gap] > q->kv) {
-            key[q->j] = key[q->j - gap];
-            if (q->idx != NULL) {
-                q->idx[q->j] = q->idx[q->j - gap];
+        while (left > 0u && j >= gap && key[j - gap] > kv) {
+            key[j] = key[j - gap];
+            if (idx != NULL) {
+                idx[j] = idx[j - gap];
             }
-            q->j -= gap;
-            ++c;
+            j -= gap;
+            --left;
         }
-        if (c < v) {
-            key[q->j] = q->kv;
-            if (q->idx != NULL) {
-                q->idx[q->j] = q->iv;
+        if (left > 0u) {
+            key[j] = kv;
+            if (idx != NULL) {
+                idx[j] = iv;
             }
             q->moving = 0u;
-            ++q->i;
-            ++c;
+            ++i;
+            --left;
         }
-        *used += (uint32_t)c * CONS_W_SORT;
     }
-    return 1;
+    q->i = i;
+    q->j = j;
+    q->kv = kv;
+    q->iv = iv;
+    *used += (uint32_t)(start - left) * CONS_W_SORT;
+    return done;
 }
 
 /* |residual| of samples pos..end-1. The samples are finite (checked first) and the model comes
