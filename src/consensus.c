@@ -35,6 +35,12 @@
 /* a fit slice is stepped only when its largest visit (the normal equations) fits the budget */
 #define CONS_W_FIT 3000u
 
+/* Minimal sets are ranked by the LMedS score on a fixed subsample of at most about this many
+ * samples (every stride-th sample; all of them up to this count, where the ranking is the full
+ * one); only the winner is scored on every sample (issue 14: the 48 full scorings were 87 % of a
+ * run at n = 288). */
+#define CONS_SUB_TARGET 64u
+
 /* A phase's return: go on with the next phase (MAGCAL_IN_PROGRESS), stop this step (CONS_SPENT)
  * or the run's final status. */
 #define CONS_SPENT ((magcal_status_t)2)
@@ -131,7 +137,9 @@ typedef struct {
     size_t k_in;     /* ones in the working inlier mask; gathered residuals */
     size_t changed;  /* mask entries changed by a rethreshold */
     size_t n_in;
-    float best_score;
+    size_t stride; /* subsample of the scores: samples 0, stride, 2 stride, ... (sub of them) */
+    size_t sub;
+    float best_score; /* LMedS score of best: on the subsample while drawing, then on every sample */
     float sigma;
     float sig_floor; /* quantisation noise of the samples: LSB / sqrt(12) */
     float thr;
@@ -146,6 +154,7 @@ typedef struct {
     uint16_t rescued;
     uint16_t rejected;
     uint16_t idx[5]; /* minimal set; in step 3 the inliers when there are exactly 5 */
+    uint16_t best_idx[5]; /* minimal set of best */
     uint8_t phase;
     uint8_t axis;
     uint8_t stop;
@@ -173,7 +182,6 @@ enum {
     P_START_FIT,
     P_START_RES,
     P_START_SEL,
-    P_BEST_RES,
     P_RINIT,      /* step 3: start scale and threshold, working mask */
     P_RINIT_MASK,
     P_ROUND,      /* one threshold/refit round: refit, residuals, gather, scale, new mask */
@@ -575,11 +583,32 @@ static magcal_status_t cons_prep(cons_state_t *S, uint32_t budget, uint32_t *use
     return (*used < budget) ? MAGCAL_IN_PROGRESS : CONS_SPENT;
 }
 
-/* 2. Minimal sets spread over the angular order (one per visit); LMedS score over every sample
- * except the 5 of the set (which the model passes through exactly: with them, the median of
- * n = 20 samples was the 7th smallest of the 15 real residuals, sigma was 30 % low and 7.6 % of
- * clean samples were rejected). Their entries are set to -1 (below every |residual|) and the
- * median is taken over the ranks above them. */
+/*
+ * LMedS score of a minimal set over cnt residuals in scr (sample t * stride at scr[t]) except the
+ * set's own (which the model passes through exactly: with them, the median of n = 20 samples was
+ * the 7th smallest of the 15 real residuals, sigma was 30 % low and 7.6 % of clean samples were
+ * rejected). Their entries are set to -1 (below every |residual|) and the selection takes the
+ * median of the ranks above them. n <= 5: the plain median.
+ */
+static void cons_score_init(cons_state_t *S, const uint16_t set[5], size_t stride, size_t cnt)
+{
+    size_t c = 0u;
+    size_t j;
+    if (S->n <= 5u) {
+        sel_init(&S->sel, S->scr, cnt, (cnt - 1u) / 2u);
+        return;
+    }
+    for (j = 0u; j < 5u; ++j) {
+        if ((size_t)set[j] % stride == 0u && (size_t)set[j] / stride < cnt) {
+            S->scr[(size_t)set[j] / stride] = -1.0f;
+            ++c;
+        }
+    }
+    sel_init(&S->sel, S->scr, cnt, c + (cnt - c - 1u) / 2u);
+}
+
+/* 2. Minimal sets spread over the angular order (one per visit), ranked by their LMedS score on
+ * the subsample (cons_score_init). */
 static magcal_status_t cons_draw(cons_state_t *S, uint32_t budget, uint32_t *used)
 {
     const size_t n = S->n;
@@ -609,19 +638,21 @@ static magcal_status_t cons_draw(cons_state_t *S, uint32_t budget, uint32_t *use
             S->phase = P_SCORE_RES;
         }
         break;
-    case P_SCORE_RES:
-        if (cons_res_loop(S, &S->cand, budget, used) != 0) {
-            if (n <= 5u) {
-                sel_init(&S->sel, S->res, n, (n - 1u) / 2u);
-            } else {
-                for (j = 0u; j < 5u; ++j) {
-                    S->res[S->idx[j]] = -1.0f;
-                }
-                sel_init(&S->sel, S->res, n, 5u + (n - 6u) / 2u);
-            }
+    case P_SCORE_RES: {
+        /* |residual| of the subsample into scr[0..sub-1] (as cons_residuals) */
+        const size_t end = cons_chunk(budget, used, CONS_W_RES, S->pos, S->sub);
+        size_t t;
+        for (t = S->pos; t < end; ++t) {
+            float v = magcal_ellipse_residual(&S->cand, S->pts[t * S->stride]);
+            S->scr[t] = magcal_isfinite_f(v) ? fabsf(v) : INFINITY;
+        }
+        S->pos = end;
+        if (end == S->sub) {
+            cons_score_init(S, S->idx, S->stride, S->sub);
             S->phase = P_SCORE_SEL;
         }
         break;
+    }
     default: /* P_SCORE_SEL */
         if (sel_run(&S->sel, budget, used) == 0) {
             return CONS_SPENT;
@@ -629,6 +660,9 @@ static magcal_status_t cons_draw(cons_state_t *S, uint32_t budget, uint32_t *use
         if (S->sel.val < S->best_score) {
             S->best_score = S->sel.val;
             S->best = S->cand;
+            for (j = 0u; j < 5u; ++j) {
+                S->best_idx[j] = S->idx[j];
+            }
         }
         S->phase = P_DRAW;
         break;
@@ -636,8 +670,8 @@ static magcal_status_t cons_draw(cons_state_t *S, uint32_t budget, uint32_t *use
     return (*used < budget) ? MAGCAL_IN_PROGRESS : CONS_SPENT;
 }
 
-/* Start model: the best minimal set, or (none valid) the least-squares fit of the candidates
- * (its score the plain median); res gets its residuals. */
+/* Start model: the best minimal set, scored again on every sample, or (none valid) the
+ * least-squares fit of the candidates (its score the plain median); res gets its residuals. */
 static magcal_status_t cons_start(cons_state_t *S, uint32_t budget, uint32_t *used)
 {
     magcal_status_t st;
@@ -655,7 +689,7 @@ static magcal_status_t cons_start(cons_state_t *S, uint32_t budget, uint32_t *us
             }
             S->phase = P_START_FIT;
         } else {
-            S->phase = P_BEST_RES;
+            S->phase = P_START_RES;
         }
         break;
     case P_START_FIT:
@@ -667,26 +701,26 @@ static magcal_status_t cons_start(cons_state_t *S, uint32_t budget, uint32_t *us
         break;
     case P_START_RES: {
         size_t p0 = S->pos;
-        if (cons_res_loop(S, &S->best, budget, used) != 0) {
-            sel_init(&S->sel, S->scr, S->n, (S->n - 1u) / 2u);
-            S->phase = P_START_SEL;
-        }
+        int done = cons_res_loop(S, &S->best, budget, used);
         for (i = p0; i < S->pos; ++i) {
             S->scr[i] = S->res[i];
         }
+        if (done != 0) {
+            if (S->valid == 0u) {
+                sel_init(&S->sel, S->scr, S->n, (S->n - 1u) / 2u);
+            } else {
+                cons_score_init(S, S->best_idx, 1u, S->n);
+            }
+            S->phase = P_START_SEL;
+        }
         break;
     }
-    case P_START_SEL:
+    default: /* P_START_SEL */
         if (sel_run(&S->sel, budget, used) == 0) {
             return CONS_SPENT;
         }
         S->best_score = S->sel.val;
         S->phase = P_RINIT;
-        break;
-    default: /* P_BEST_RES */
-        if (cons_res_loop(S, &S->best, budget, used) != 0) {
-            S->phase = P_RINIT;
-        }
         break;
     }
     return (*used < budget) ? MAGCAL_IN_PROGRESS : CONS_SPENT;
@@ -974,6 +1008,8 @@ magcal_status_t magcal_consensus_begin(magcal_consensus_slice_t *s, const magcal
     S->scr = S->res + n;
     S->order = (uint16_t *)(void *)(S->scr + n);
     S->pos = 0u;
+    S->stride = (n + CONS_SUB_TARGET - 1u) / CONS_SUB_TARGET;
+    S->sub = (n + S->stride - 1u) / S->stride;
     S->best_score = INFINITY;
     S->sigma = 0.0f;
     S->sig_floor = 0.0f;
