@@ -78,15 +78,16 @@ extern "C" {
  * resumable selection and sort, the loop state; off the stack) with its alignment slack;
  * consensus.c checks the size with a static assert. */
 #define MAGCAL_CONSENSUS_STATE_LEN_                                                                \
-    (3u * sizeof(magcal_ellipse_t) + sizeof(magcal_ellipse_fit_slice_t) + 40u * sizeof(void *) +  \
-     64u)
+    (3u * sizeof(magcal_ellipse_t) + sizeof(magcal_ellipse_fit_slice_t) + 32u * sizeof(size_t) +   \
+     160u)
 /** @endcond */
 
 /**
- * Workspace bytes for magcal_consensus_run() on n samples: the run state (four ellipse models:
- * best, current, candidate, refit; the loop state), |residual| float[n], scratch float[n]
- * (angles, then selection), candidate order uint16[n], plus alignment slack.
- * 10 bytes per sample + MAGCAL_CONSENSUS_STATE_LEN_ (384 bytes on a 32-bit target).
+ * Workspace bytes for magcal_consensus_run() / magcal_consensus_begin() on n samples: the run
+ * state (three ellipse models: best, current, candidate/refit; the refit's fit slice, the
+ * resumable selection and sort, the loop state), |residual| float[n], scratch float[n] (angles,
+ * then selection), candidate order uint16[n] (then the working inlier mask), plus alignment slack.
+ * 10 bytes per sample + MAGCAL_CONSENSUS_STATE_LEN_ (740 bytes on a 32-bit target).
  */
 #define MAGCAL_CONSENSUS_WORKSPACE_LEN(n)                                                          \
     (((((size_t)(n) * 10u) + 3u + 4u) & ~(size_t)3u) + MAGCAL_CONSENSUS_STATE_LEN_)
