@@ -11,12 +11,16 @@
  * Algorithm (all steps bounded, deterministic for a given cfg->seed):
  *  1. Candidates = samples with cand_mask[i] != 0 (the density filter's inliers; NULL = all).
  *     They are sorted by angle around their coordinate-wise median.
- *  2. max_iter draws of a minimal set: 5 candidates spread over the angular order (one random
- *     candidate in each fifth of the order, starting at a random rank: well conditioned sets
- *     even on partial arcs). The conic through them (magcal_ellipse_fit_idx, exact 5-point path)
- *     is kept only if it is an ellipse. Score = median over every sample EXCEPT the five of the
- *     minimal set (their residuals are 0 by construction) of |magcal_ellipse_residual| (least
- *     median of squares: no threshold needed, breakdown 50%).
+ *  2. Up to max_iter draws of a minimal set: 5 candidates spread over the angular order (one
+ *     random candidate in each fifth of the order, starting at a random rank: well conditioned
+ *     sets even on partial arcs). The conic through them (magcal_ellipse_fit_idx, exact 5-point
+ *     path) is kept only if it is an ellipse. Score = median over the samples EXCEPT the five of
+ *     the minimal set (their residuals are 0 by construction) of |magcal_ellipse_residual| (least
+ *     median of squares: no threshold needed, breakdown 50%), taken on a fixed subsample (every
+ *     ceil(n / 64)-th sample: all of them up to n = 64); the best set is then scored on every
+ *     sample (best_score). Above 64 samples the draws end early, after at least 16, once
+ *     (1 - w^5)^draws <= 0.001 for the best set's inlier fraction w on the subsample
+ *     (|r| <= 2.5 LMedS sigmas): the RANSAC bound (issue 14: 2.3x cheaper at n = 288).
  *     If no draw gives an ellipse the least-squares fit of all candidates is the start model.
  *  3. Start: sigma = 1.4826 (1 + 5 / (n - 5)) * score (Rousseeuw & Leroy's finite-sample
  *     factor). Each refit round on k inliers: sigma = max(1.4826 median |r|, RMS |r|) *
@@ -32,6 +36,11 @@
  *     Repeat until the inlier set stops changing or refine_iter rounds were done.
  *     Measured (tests/test_consensus.c): 0.47 % of exactly 20 clean samples rejected (was 7.6 %),
  *     all 300 samples of a 5-LSB quantised ring kept.
+ *
+ * Time-sliced: magcal_consensus_begin() + magcal_consensus_step() run the same algorithm in
+ * steps of a bounded number of Cortex-M4F instructions (budget; every loop over the samples, the
+ * selections, sorts and refits resume where the last step stopped), with the outputs of
+ * magcal_consensus_run() bit for bit; magcal_consensus_run() is begin + one unbounded step.
  *
  * Units: residuals, sigma and threshold in the unit of the points (raw LSB, uT, ...).
  * Axes: x right, y forward.
@@ -65,16 +74,20 @@ extern "C" {
  * build-time limits in magcal/config.h. */
 
 /** @cond INTERNAL */
-/* Bytes of the run state kept in the workspace (four ellipse models and the loop state, off the
- * stack) with its alignment slack; consensus.c checks the size with a static assert. */
-#define MAGCAL_CONSENSUS_STATE_LEN_ (4u * sizeof(magcal_ellipse_t) + 20u * sizeof(void *))
+/* Bytes of the run state kept in the workspace (three ellipse models, the fit slice, the
+ * resumable selection and sort, the loop state; off the stack) with its alignment slack;
+ * consensus.c checks the size with a static assert. */
+#define MAGCAL_CONSENSUS_STATE_LEN_                                                                \
+    (3u * sizeof(magcal_ellipse_t) + sizeof(magcal_ellipse_fit_slice_t) + 32u * sizeof(size_t) +   \
+     160u)
 /** @endcond */
 
 /**
- * Workspace bytes for magcal_consensus_run() on n samples: the run state (four ellipse models:
- * best, current, candidate, refit; the loop state), |residual| float[n], scratch float[n]
- * (angles, then selection), candidate order uint16[n], plus alignment slack.
- * 10 bytes per sample + MAGCAL_CONSENSUS_STATE_LEN_ (384 bytes on a 32-bit target).
+ * Workspace bytes for magcal_consensus_run() / magcal_consensus_begin() on n samples: the run
+ * state (three ellipse models: best, current, candidate/refit; the refit's fit slice, the
+ * resumable selection and sort, the loop state), |residual| float[n], scratch float[n] (angles,
+ * then selection), candidate order uint16[n] (then the working inlier mask), plus alignment slack.
+ * 10 bytes per sample + MAGCAL_CONSENSUS_STATE_LEN_ (740 bytes on a 32-bit target).
  */
 #define MAGCAL_CONSENSUS_WORKSPACE_LEN(n)                                                          \
     (((((size_t)(n) * 10u) + 3u + 4u) & ~(size_t)3u) + MAGCAL_CONSENSUS_STATE_LEN_)
@@ -134,6 +147,48 @@ typedef struct {
 magcal_status_t magcal_consensus_run(const magcal_consensus_cfg_t *cfg, const magcal_vec2_t *pts, size_t n,
                                      const uint8_t *cand_mask, void *work, size_t work_len,
                                      uint8_t *inlier_mask, magcal_consensus_result_t *result);
+
+/**
+ * Time-sliced consensus run (docs/performance.md "time-sliced work"): the state of one
+ * magcal_consensus_run() in caller memory; the bulk of the run state lives in the workspace.
+ * Fields are private.
+ */
+typedef struct {
+    void *state_;   /* the run state, aligned at the start of the caller's workspace */
+    uint32_t used_; /* estimated M4F instructions charged by the last step (a caller sharing one
+                     * budget between stages may read it) */
+    uint8_t phase_;
+    int8_t status_;
+} magcal_consensus_slice_t;
+
+/**
+ * @brief Start a time-sliced magcal_consensus_run(): O(1) checks of the arguments (the samples
+ *        are checked by the steps), stores the inputs.
+ *
+ * The inputs (cfg, pts, cand_mask) and the workspace must stay unchanged and alive until the run
+ * has finished; inlier_mask is written by the steps (complete only once the run has finished) and
+ * result by the last step. Parameters as magcal_consensus_run().
+ * @param[out] s slice state, caller memory.
+ * @return MAGCAL_OK (call magcal_consensus_step()); MAGCAL_ERR_NULL (s or an argument NULL),
+ *         MAGCAL_ERR_ARG, MAGCAL_ERR_TOO_FEW_POINTS (n < 5), MAGCAL_ERR_WORKSPACE as
+ *         magcal_consensus_run().
+ */
+magcal_status_t magcal_consensus_begin(magcal_consensus_slice_t *s, const magcal_consensus_cfg_t *cfg,
+                                       const magcal_vec2_t *pts, size_t n, const uint8_t *cand,
+                                       void *work, size_t work_len, uint8_t *inlier,
+                                       magcal_consensus_result_t *res);
+
+/**
+ * @brief Do at most about budget Cortex-M4F instructions of the run started by
+ *        magcal_consensus_begin() (at least one unit of work per call, so any budget >= 1 makes
+ *        progress).
+ * @param[in,out] s      slice state.
+ * @param[in]     budget estimated M4F instructions for this call (MAGCAL_SLICE_BUDGET_DEFAULT).
+ * @return MAGCAL_IN_PROGRESS while work remains; then exactly the status and outputs of
+ *         magcal_consensus_run() (bit for bit), returned again by any further call;
+ *         MAGCAL_ERR_NULL (s NULL); MAGCAL_ERR_ARG (s not started).
+ */
+magcal_status_t magcal_consensus_step(magcal_consensus_slice_t *s, uint32_t budget);
 
 #ifdef __cplusplus
 }
