@@ -87,11 +87,11 @@ magcal_status_t magcal_cont3_init(magcal_cont3_t *cc, const magcal_cont3_cfg_t *
             return MAGCAL_ERR_ARG;
         }
     }
+    if (magcal_misalign(work, 4u) != 0u) {
+        return MAGCAL_ERR_ALIGNMENT; /* before the size, as magcal_calibrator_init */
+    }
     if (n_slots > 65535u || work_len < MAGCAL_CONT3_WORKSPACE_LEN(n_slots)) {
         return MAGCAL_ERR_WORKSPACE;
-    }
-    if (magcal_misalign(work, 4u) != 0u) {
-        return MAGCAL_ERR_ALIGNMENT;
     }
     (void)memset(cc, 0, sizeof *cc);
     st = magcal_intake_init(&cc->store, &cfg->intake, slots, n_slots); /* checks n_slots >= cells x per_bin */
