@@ -136,13 +136,22 @@ extern "C" {
     (MAGCAL_CONSENSUS_WORKSPACE_LEN(cap) + ((2u * (size_t)(cap) + 3u) & ~(size_t)3u))
 
 /**
+ * Bytes of the resumable part of the run state (calibrator_solve.c: budget, cursor, phase, and the
+ * one slice state of the module running: DBSCAN configuration, density filter, thinning,
+ * consensus, plain fit), checked by a static assert there. The prepare and adopt phases keep
+ * their accumulators in the stage scratch.
+ */
+#define MAGCAL_CALIBRATOR_SLICE_LEN                                                                \
+    (24u + sizeof(magcal_dbscan_cfg_t))
+
+/**
  * Bytes of the state of one magcal_calibrator_run() kept in the workspace instead of on the stack
- * (the report, the consensus result, the candidate calibration, the filter's configuration and
- * result), 4-aligned.
+ * (the report, the consensus result, the filter's configuration and result, the slice state),
+ * 4-aligned.
  */
 #define MAGCAL_CALIBRATOR_RUN_LEN                                                                  \
-    ((sizeof(magcal_cal_report_t) + sizeof(magcal_consensus_result_t) + sizeof(magcal_cal2d_t) +  \
-      sizeof(magcal_optics_cfg_t) + sizeof(magcal_optics_result_t) + sizeof(magcal_dbscan_cfg_t) + \
+    ((sizeof(magcal_cal_report_t) + sizeof(magcal_consensus_result_t) +                            \
+      sizeof(magcal_optics_cfg_t) + sizeof(magcal_optics_result_t) + MAGCAL_CALIBRATOR_SLICE_LEN + \
       3u) & ~(size_t)3u)
 
 /**

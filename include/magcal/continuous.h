@@ -69,6 +69,7 @@
 #include <stdint.h>
 
 #include "magcal/calibrator.h"
+#include "magcal/config.h"
 #include "magcal/heading.h"
 #include "magcal/intake.h"
 #include "magcal/status.h"
@@ -131,13 +132,16 @@ typedef struct {
     uint32_t change_ms;             /**< mismatch time of an open episode to declare a change (8000) */
     uint16_t change_bins;           /**< distinct 10-degree sectors an episode must span (default 3) */
     uint32_t clear_ms;              /**< consistent time that closes an episode (default 4000) */
+    uint32_t step_budget;           /**< work per step(), estimated Cortex-M4F instructions, >= 1
+                                         (default MAGCAL_SLICE_BUDGET_DEFAULT = 6000; UINT32_MAX:
+                                         a whole solve per step): "Work per step" above */
 } magcal_cont_cfg_t;
 
 /** Defaults: work untuned from 10 to 100 Hz (time constants are in ms of the push stamps). */
 #define MAGCAL_CONT_CFG_DEFAULT                                                                    \
     {                                                                                              \
         MAGCAL_INTAKE_CFG_DEFAULT_2D, MAGCAL_CALIBRATOR_CFG_DEFAULT, 270.0f, 24u, 2u, 600000.0f, 4.0f,  \
-            0.06f, 8000u, 3u, 4000u                                                                \
+            0.06f, 8000u, 3u, 4000u, MAGCAL_SLICE_BUDGET_DEFAULT                                   \
     }
 
 /** A heading with its trust. */
@@ -212,6 +216,9 @@ typedef struct {
     float fz_abc[3];               /* |h|^2 = a + b u + c u^2, u = z - fz_u0 (h corrected x, y) */
     uint32_t aged_adopts;          /* adoptions won by the ageing rule (cont_adopt.c) */
     float adopted_err;             /**< read-only: est_heading_err_deg of the installed calibration (NaN: none / from flash) */
+    uint32_t snap_bin;             /* snapshot: next store bin to copy */
+    uint32_t snap_n;               /* snapshot: samples copied */
+    uint32_t snap_stored;          /* store added + replaced at the snapshot */
 } magcal_cont_t;
 
 /**
