@@ -999,3 +999,105 @@ magcal_status_t magcal_optics_thin(const magcal_vec2_t *pts, size_t n, const uin
     }
     return MAGCAL_OK;
 }
+
+/* ---- time-sliced filter and thinning (first version: the one-shot inside the first step) ---- */
+
+#define SLICE_MAGIC 0x4F505431u /* "OPT1": a begun slice */
+
+typedef struct {
+    uint32_t magic;
+    magcal_status_t final;
+    int finished;
+    magcal_optics_cfg_t cfg;
+    const magcal_vec2_t *pts;
+    size_t n;
+    void *work;
+    size_t work_len;
+    uint8_t *out_mask;
+    const uint8_t *cand;
+    magcal_optics_result_t *info;
+} slice_state_t;
+
+/* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
+MAGCAL_STATIC_ASSERT(sizeof(slice_state_t) <= sizeof(((magcal_optics_filter_slice_t *)0)->priv_),
+                     optics_slice_state_fits);
+
+magcal_status_t magcal_optics_filter_begin(magcal_optics_filter_slice_t *s,
+                                           const magcal_optics_cfg_t *cfg,
+                                           const magcal_vec2_t *pts, size_t n, void *work,
+                                           size_t work_len, uint8_t *inlier_mask,
+                                           magcal_optics_result_t *info)
+{
+    slice_state_t *t;
+    if (s == NULL || cfg == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    t = (slice_state_t *)(void *)&s->priv_;
+    (void)memset(t, 0, sizeof *t);
+    t->magic = SLICE_MAGIC;
+    t->cfg = *cfg;
+    t->pts = pts;
+    t->n = n;
+    t->work = work;
+    t->work_len = work_len;
+    t->out_mask = inlier_mask;
+    t->info = info;
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_optics_filter_step(magcal_optics_filter_slice_t *s, uint32_t budget)
+{
+    slice_state_t *t;
+    (void)budget;
+    if (s == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    t = (slice_state_t *)(void *)&s->priv_;
+    if (t->magic != SLICE_MAGIC) {
+        return MAGCAL_ERR_ARG;
+    }
+    if (t->finished == 0) {
+        t->final = magcal_optics_filter(&t->cfg, t->pts, t->n, t->work, t->work_len, t->out_mask,
+                                        t->info);
+        t->finished = 1;
+    }
+    return t->final;
+}
+
+magcal_status_t magcal_optics_thin_begin(magcal_optics_thin_slice_t *s, const magcal_vec2_t *pts,
+                                         size_t n, const uint8_t *cand, void *work,
+                                         size_t work_len, uint8_t *rep_mask)
+{
+    slice_state_t *t;
+    if (s == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    t = (slice_state_t *)(void *)&s->priv_;
+    (void)memset(t, 0, sizeof *t);
+    t->magic = SLICE_MAGIC;
+    t->pts = pts;
+    t->n = n;
+    t->cand = cand;
+    t->work = work;
+    t->work_len = work_len;
+    t->out_mask = rep_mask;
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_optics_thin_step(magcal_optics_thin_slice_t *s, uint32_t budget)
+{
+    slice_state_t *t;
+    (void)budget;
+    if (s == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    t = (slice_state_t *)(void *)&s->priv_;
+    if (t->magic != SLICE_MAGIC) {
+        return MAGCAL_ERR_ARG;
+    }
+    if (t->finished == 0) {
+        t->final = magcal_optics_thin(t->pts, t->n, t->cand, t->work, t->work_len, t->out_mask);
+        t->finished = 1;
+    }
+    return t->final;
+}
