@@ -145,12 +145,13 @@ typedef enum {
 #define MAGCAL_OPTICS_BEST_OFFSET_(n)                                                              \
     ((4u * (size_t)(n) + MAGCAL_NEIGHBORS_WORKSPACE_LEN(n) + ((size_t)(n) + 7u) / 8u + 3u) &       \
      ~(size_t)3u)
-/* Bytes of the ordering loop's context, kept in the workspace (off the stack) after the MinPts
- * buffer, with slack to align it for pointers; optics.c checks the size with a static assert. */
+/* Bytes of the loop state (the ordering loop's context and the resumable state of the slice
+ * API), kept in the workspace (off the stack) after the MinPts buffer, with slack to align it for
+ * pointers; optics.c checks the size with a static assert (24 pointer-sized fields + 148 bytes). */
 #ifdef MAGCAL_OPTICS_BENCH_SORTED_LIST /* bench-only seed-list mode (src/optics_core.h): 2 more words */
-#define MAGCAL_OPTICS_CTX_LEN_ (42u * sizeof(void *))
+#define MAGCAL_OPTICS_CTX_LEN_ (26u * sizeof(void *) + 148u)
 #else
-#define MAGCAL_OPTICS_CTX_LEN_ (40u * sizeof(void *))
+#define MAGCAL_OPTICS_CTX_LEN_ (24u * sizeof(void *) + 148u)
 #endif
 /* Offset of the run workspace inside the filter workspace (4-byte aligned). */
 #define MAGCAL_OPTICS_FILTER_RUN_OFFSET_(n) ((6u * (size_t)(n) + 3u) & ~(size_t)3u)
@@ -159,8 +160,8 @@ typedef enum {
 /**
  * Workspace bytes for magcal_optics_run() on n points: seed heap/list uint16[n], heap position
  * map uint16[n], spatial index, one "processed" bit per point and the MinPts insertion buffer
- * (4 * MAGCAL_MAX_MIN_PTS bytes) and the loop's context (40 pointers' worth, 160 bytes on a 32-bit
- * target), both kept off the stack. About 8.1 bytes per sample + 288 bytes (32-bit);
+ * (4 * MAGCAL_MAX_MIN_PTS bytes) and the loop state (24 pointers + 148 bytes, 244 bytes on a 32-bit
+ * target), both kept off the stack. About 8.1 bytes per sample + 372 bytes (32-bit);
  * the outputs (order 2 + reach 4 + core 4 bytes per sample) are separate caller arrays.
  */
 #define MAGCAL_OPTICS_WORKSPACE_LEN(n)                                                             \
@@ -169,7 +170,7 @@ typedef enum {
 /**
  * Workspace bytes for magcal_optics_filter() and magcal_optics_auto_params() on n points:
  * reach float[n] + labels int16[n] + MAGCAL_OPTICS_WORKSPACE_LEN(n). About 14.1 bytes per
- * sample + 288 bytes (32-bit); with the caller's uint8 inlier mask the whole filter needs about 15.1 bytes
+ * sample + 372 bytes (32-bit); with the caller's uint8 inlier mask the whole filter needs about 15.1 bytes
  * per sample besides the points (ordering and core distances are consumed on the fly).
  */
 #define MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n)                                                      \
@@ -378,29 +379,19 @@ magcal_status_t magcal_optics_thin(const magcal_vec2_t *pts, size_t n, const uin
  * Slicing granularity: see the notes at magcal_optics_filter_step().
  */
 
-/** @cond INTERNAL */
-#define MAGCAL_OPTICS_SLICE_PTRS_ 24u  /* pointer-sized fields of the private state */
-#define MAGCAL_OPTICS_SLICE_BYTES_ 320u /* 4-byte fields of the private state */
-/** @endcond */
-
-/** State of a time-sliced magcal_optics_filter() (fields private; caller's memory). */
+/** State of a time-sliced magcal_optics_filter() (fields private; caller's memory). The loop
+ *  state itself lives in the workspace (inside MAGCAL_OPTICS_FILTER_WORKSPACE_LEN). */
 typedef struct {
-    union {
-        void *align_p_;
-        size_t align_z_;
-        float align_f_;
-        uint8_t bytes_[MAGCAL_OPTICS_SLICE_PTRS_ * sizeof(void *) + MAGCAL_OPTICS_SLICE_BYTES_];
-    } priv_;
+    void *state_;            /* loop state in the workspace; NULL once finished */
+    magcal_status_t status_; /* final status once finished */
+    uint32_t magic_;         /* set by begin */
 } magcal_optics_filter_slice_t;
 
 /** State of a time-sliced magcal_optics_thin() (fields private; caller's memory). */
 typedef struct {
-    union {
-        void *align_p_;
-        size_t align_z_;
-        float align_f_;
-        uint8_t bytes_[MAGCAL_OPTICS_SLICE_PTRS_ * sizeof(void *) + MAGCAL_OPTICS_SLICE_BYTES_];
-    } priv_;
+    void *state_;
+    magcal_status_t status_;
+    uint32_t magic_;
 } magcal_optics_thin_slice_t;
 
 /**
