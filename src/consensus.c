@@ -1,6 +1,13 @@
 /*
  * Consensus (model-residual) outlier stage: RANSAC/LMedS over 5-point minimal ellipse sets,
  * MAD-scaled residual threshold, refit. See include/magcal/consensus.h for the algorithm.
+ *
+ * Time-sliced (the slice contract of docs/performance.md): the run is a sequence of phases kept in
+ * the run state (in the workspace); every loop over the samples or candidates keeps its position
+ * there and charges a weight per visit (CONS_W_*), the selections (Hoare quickselect) and sorts
+ * (shell sort) are resumable state machines, the fits are ellipse fit slices. A step stops before
+ * the visit that would pass its budget. magcal_consensus_run() is begin + step(UINT32_MAX): the
+ * same code path, so the sliced run gives its outputs bit for bit.
  */
 #include "magcal/consensus.h"
 
@@ -14,115 +21,22 @@
 /* 1 / sqrt(12): standard deviation of a uniform rounding error, in LSB */
 #define CONS_INV_SQRT12 0.28867513f
 
-/* k-th smallest (0-based) of a[0..n-1]; a is reordered. Iterative Hoare selection, bounded. */
-static float cons_select(float *a, size_t n, size_t k)
-{
-    size_t lo = 0u;
-    size_t hi = n - 1u;
-    size_t guard;
-    for (guard = 0u; guard < n + 1u && lo < hi; ++guard) {
-        float pivot = a[lo + (hi - lo) / 2u];
-        size_t i = lo;
-        size_t j = hi;
-        size_t inner;
-        for (inner = 0u; inner <= n && i <= j; ++inner) {
-            size_t s1;
-            size_t s2;
-            for (s1 = 0u; s1 < n; ++s1) {
-                if (!(a[i] < pivot)) {
-                    break;
-                }
-                ++i;
-            }
-            for (s2 = 0u; s2 < n; ++s2) {
-                if (!(a[j] > pivot)) {
-                    break;
-                }
-                --j;
-            }
-            if (i <= j) {
-                float t = a[i];
-                a[i] = a[j];
-                a[j] = t;
-                ++i;
-                if (j == 0u) {
-                    break;
-                }
-                --j;
-            }
-        }
-        if (k <= j) {
-            hi = j;
-        } else if (k >= i) {
-            lo = i;
-        } else {
-            break;
-        }
-    }
-    return a[k];
-}
+/* Estimated Cortex-M4F instructions per visit (host callgrind x 1.2 of
+ * tools/bench_fit/slice_cost.c; totals in docs/performance.md). */
+#define CONS_W_CHECK 12u /* finiteness of one sample */
+#define CONS_W_COPY 10u  /* one element of a candidate / fill / gather / mask loop */
+#define CONS_W_SORT 12u  /* one shell-sort move or placement */
+#define CONS_W_SEL 10u   /* one quickselect scan step, swap or partition decision */
+#define CONS_W_ATAN 96u  /* atan2f of one candidate's direction */
+#define CONS_W_RES 60u   /* |radial residual| of one sample */
+#define CONS_W_DRAW 3000u /* one minimal set: 6 PRNG draws and the 5-point exact fit */
+#define CONS_W_FIX 200u  /* an O(1) phase change (scale, threshold, model copy, result) */
+/* a refit slice is stepped only when its largest visit (the normal equations) fits the budget */
+#define CONS_W_FIT 1600u
 
-/* Lower median of a[0..n-1] (n >= 1); a is reordered. */
-static float cons_median(float *a, size_t n) { return cons_select(a, n, (n - 1u) / 2u); }
-
-/*
- * Lower median of the residuals of every sample EXCEPT the 5 of the minimal set (which the model
- * passes through exactly: with them, the median of n = 20 samples was the 7th smallest of the 15
- * real residuals, sigma was 30 % low and 7.6 % of clean samples were rejected). The minimal set's
- * entries are set to -1 (below every |residual|) and the median is taken over the ranks above
- * them. a is reordered. Needs n > 5 (n == 5: the plain median of the five zeros).
- */
-static MAGCAL_NOINLINE float cons_median_excl5(float *a, size_t n, const uint16_t idx[5])
-{
-    size_t j;
-    if (n <= 5u) {
-        return cons_median(a, n);
-    }
-    for (j = 0u; j < 5u; ++j) {
-        a[idx[j]] = -1.0f;
-    }
-    return cons_select(a, n, 5u + (n - 6u) / 2u);
-}
-
-/* Sort idx[0..m-1] by key[0..m-1] ascending (keys move with their indices). Shell sort. */
-static void cons_sort(float *key, uint16_t *idx, size_t m)
-{
-    /* Largest rank a shell-sort gap can reach is n; Ciura's gaps, extended. */
-    static const uint16_t cons_gaps[] = {701u, 301u, 132u, 57u, 23u, 10u, 4u, 1u};
-    size_t g;
-    for (g = 0u; g < sizeof cons_gaps / sizeof cons_gaps[0]; ++g) {
-        size_t gap = cons_gaps[g];
-        size_t i;
-        if (gap >= m) {
-            continue;
-        }
-        for (i = gap; i < m; ++i) {
-            float k = key[i];
-            uint16_t v = idx[i];
-            size_t j = i;
-            while (j >= gap && key[j - gap] > k) {
-                key[j] = key[j - gap];
-                idx[j] = idx[j - gap];
-                j -= gap;
-            }
-            key[j] = k;
-            idx[j] = v;
-        }
-    }
-}
-
-/* |residual| of every sample. The samples are finite (checked on entry) and the model comes from a
- * successful fit, so a non-finite residual can only be an overflow of a sample astronomically far
- * from the model (|p - c| above ~1e19): it is stored as +Inf, i.e. always an outlier. Returning an
- * error instead made one such sample veto every minimal set and the run end in NONFINITE. */
-static void cons_residuals(const magcal_ellipse_t *e, const magcal_vec2_t *pts, size_t n, float *r)
-{
-    size_t i;
-    for (i = 0u; i < n; ++i) {
-        float v = magcal_ellipse_residual(e, pts[i]);
-        r[i] = magcal_isfinite_f(v) ? fabsf(v) : INFINITY;
-    }
-}
+/* A phase's return: go on with the next phase (MAGCAL_IN_PROGRESS), stop this step (CONS_SPENT)
+ * or the run's final status. */
+#define CONS_SPENT ((magcal_status_t)2)
 
 static float cons_mean_radius(const magcal_ellipse_t *e)
 {
@@ -160,213 +74,615 @@ static float cons_threshold(const magcal_consensus_cfg_t *cfg, const magcal_elli
     return thr;
 }
 
-/* State of one run, kept in the workspace: the minimal-set and refit loops call the ellipse fits,
- * which are on the deepest stack path of the 2-D pipeline, so the loops' frames stay small. */
+
+/* Resumable Hoare quickselect of the k-th smallest of a[0..n-1] (a is reordered): the loop of
+ * the one-shot selection, each scan step, swap and partition decision one visit. */
+typedef struct {
+    float *a;
+    size_t n;
+    size_t k;
+    size_t lo;
+    size_t hi;
+    size_t i;
+    size_t j;
+    size_t guard;
+    size_t inner;
+    size_t s;
+    float pivot;
+    float val; /* the result once done */
+    uint8_t ph;
+} cons_sel_t;
+
+/* Resumable shell sort (Ciura's gaps, extended) of key[0..m-1] ascending, idx (may be NULL)
+ * moving with the keys. */
+typedef struct {
+    float *key;
+    uint16_t *idx;
+    size_t m;
+    size_t g;
+    size_t i;
+    size_t j;
+    float kv;
+    uint16_t iv;
+    uint8_t moving;
+} cons_sort_t;
+
+/* State of one run, kept in the workspace (off the stack: the fits are on the deepest stack path
+ * of the 2-D pipeline). */
 typedef struct {
     magcal_ellipse_t best; /* best minimal model (LMedS) */
     magcal_ellipse_t cur;  /* current refit */
-    magcal_ellipse_t cand; /* candidate minimal model */
-    magcal_ellipse_t next; /* next refit */
+    magcal_ellipse_t cand; /* candidate minimal model, then the next refit */
+    magcal_ellipse_fit_slice_t fit;
+    cons_sel_t sel;
+    cons_sort_t sort;
     const magcal_consensus_cfg_t *cfg;
     const magcal_vec2_t *pts;
+    const uint8_t *cand_mask;
+    uint8_t *inlier_mask;
+    magcal_consensus_result_t *result;
     size_t n;
     size_t m; /* candidates */
     float *res;
     float *scr;
-    uint16_t *order;
+    uint16_t *order; /* candidates in angular order; in step 3 the working inlier mask (bytes) */
+    size_t pos;      /* position of the current loop */
+    size_t k_in;     /* ones in the working inlier mask; gathered residuals */
+    size_t changed;  /* mask entries changed by a rethreshold */
+    size_t n_in;
     float best_score;
     float sigma;
     float sig_floor; /* quantisation noise of the samples: LSB / sqrt(12) */
     float thr;
-    size_t n_in;
+    float acc;       /* smallest step (cons_min_step), sum of squares (rethreshold) */
+    float ms0;       /* smallest step of the x values */
+    float cx;        /* coordinate-wise median of the candidates */
     uint32_t rng;
     uint16_t draws;
     uint16_t valid;
     uint16_t rounds;
-    uint16_t idx[5];
+    uint16_t round;  /* refine round r */
+    uint16_t rescued;
+    uint16_t rejected;
+    uint16_t idx[5]; /* minimal set; in step 3 the inliers when there are exactly 5 */
+    uint8_t phase;
+    uint8_t axis;
+    uint8_t stop;
 } cons_state_t;
 
 /* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
 MAGCAL_STATIC_ASSERT(sizeof(cons_state_t) + sizeof(void *) - 1u <= MAGCAL_CONSENSUS_STATE_LEN_,
                      consensus_state_fits_workspace);
 
-/*
- * Smallest positive step between the sorted x (axis 0) or y (axis 1) values of the candidates:
- * the LSB of quantised samples (~0 for continuous ones). A lattice of few distinct values can
- * lie almost exactly on a conic, so the median residual is far below the quantisation noise and
- * a MAD threshold rejected a third of a 5-LSB ring's clean samples; sigma is floored at
- * LSB / sqrt(12), the noise of rounding. Uses scr[0..m-1] (shell sort).
- */
-static float cons_min_step(float *scr, const magcal_vec2_t *pts, const uint16_t *order, size_t m,
-                           int axis)
+/* Phases of a run, in order. */
+enum {
+    P_CHECK = 0,  /* every sample finite */
+    P_CAND,       /* candidate list */
+    P_MS_FILL,    /* smallest positive step of x (axis 0) then y: fill, sort, differences */
+    P_MS_SORT,
+    P_MS_DIFF,
+    P_MED_FILL,   /* coordinate-wise median of the candidates: fill, select (x, then y) */
+    P_MED_SEL,
+    P_ANGLE,      /* angle of each candidate around the median, then the angular sort */
+    P_SORT,
+    P_DRAW,       /* one minimal set per visit */
+    P_SCORE_RES,  /* its residuals, LMedS score */
+    P_SCORE_SEL,
+    P_START,      /* start model: best minimal set, or the LS fit of the candidates */
+    P_START_FIT,
+    P_START_RES,
+    P_START_SEL,
+    P_BEST_RES,
+    P_RINIT,      /* step 3: start scale and threshold, working mask */
+    P_RINIT_MASK,
+    P_ROUND,      /* one threshold/refit round: refit, residuals, gather, scale, new mask */
+    P_REFIT,
+    P_REFIT_RES,
+    P_RT_GATHER,
+    P_RT_SEL,
+    P_RT_MASK,
+    P_FINAL_RES,  /* verdict of every sample against the final model, outputs */
+    P_OUT
+};
+
+/* Visits of weight w the rest of the budget pays for (at most left); at least one on a step's
+ * first visit (used == 0). 0: stop this step. */
+static size_t cons_visits(uint32_t budget, uint32_t used, uint32_t w, size_t left)
+{
+    uint32_t v = (used < budget) ? (budget - used) / w : 0u;
+    if (v == 0u && used == 0u) {
+        v = 1u;
+    }
+    return ((size_t)v < left) ? (size_t)v : left;
+}
+
+/* Charge a loop chunk: the end of the visits this step pays for from pos over [pos, len). When
+ * not one more visit is paid for, the budget counts as spent (the phase returns CONS_SPENT). */
+static size_t cons_chunk(uint32_t budget, uint32_t *used, uint32_t w, size_t pos, size_t len)
+{
+    size_t v = cons_visits(budget, *used, w, len - pos);
+    if (v == 0u && pos < len) {
+        *used = (*used > budget) ? *used : budget;
+    }
+    *used += (uint32_t)v * w;
+    return pos + v;
+}
+
+/* Charge one O(1) visit; 0 when the budget is spent. */
+static int cons_pay(uint32_t budget, uint32_t *used, uint32_t w)
+{
+    if (cons_visits(budget, *used, w, 1u) == 0u) {
+        return 0;
+    }
+    *used += w;
+    return 1;
+}
+
+static void sel_init(cons_sel_t *q, float *a, size_t n, size_t k)
+{
+    q->a = a;
+    q->n = n;
+    q->k = k;
+    q->lo = 0u;
+    q->hi = n - 1u;
+    q->guard = 0u;
+    q->ph = 0u;
+}
+
+/* Run the selection within the budget; 1 when done (q->val). The phases are the one-shot loop
+ * nest: 0 outer test, 1 inner test, 2 scan i up, 3 scan j down, 4 swap, 5 partition decision. */
+static int sel_run(cons_sel_t *q, uint32_t budget, uint32_t *used)
+{
+    float *a = q->a;
+    for (;;) {
+        size_t v = cons_visits(budget, *used, CONS_W_SEL, (size_t)-1);
+        size_t c = 1u;
+        if (v == 0u) {
+            return 0;
+        }
+        switch (q->ph) {
+        case 0u:
+            if (!(q->guard < q->n + 1u && q->lo < q->hi)) {
+                q->val = a[q->k];
+                *used += CONS_W_SEL;
+                return 1;
+            }
+            q->pivot = a[q->lo + (q->hi - q->lo) / 2u];
+            q->i = q->lo;
+            q->j = q->hi;
+            q->inner = 0u;
+            q->ph = 1u;
+            break;
+        case 1u:
+            if (q->inner <= q->n && q->i <= q->j) {
+                q->s = 0u;
+                q->ph = 2u;
+            } else {
+                q->ph = 5u;
+            }
+            break;
+        case 2u:
+            for (c = 0u; c < v; ++c) {
+                if (!(q->s < q->n && a[q->i] < q->pivot)) {
+                    q->s = 0u;
+                    q->ph = 3u;
+                    ++c;
+                    break;
+                }
+                ++q->i;
+                ++q->s;
+            }
+            break;
+        case 3u:
+            for (c = 0u; c < v; ++c) {
+                if (!(q->s < q->n && a[q->j] > q->pivot)) {
+                    q->ph = 4u;
+                    ++c;
+                    break;
+                }
+                --q->j;
+                ++q->s;
+            }
+            break;
+        case 4u:
+            q->ph = 1u;
+            if (q->i <= q->j) {
+                float t = a[q->i];
+                a[q->i] = a[q->j];
+                a[q->j] = t;
+                ++q->i;
+                if (q->j == 0u) {
+                    q->ph = 5u;
+                    break;
+                }
+                --q->j;
+            }
+            ++q->inner;
+            break;
+        default:
+            if (q->k <= q->j) {
+                q->hi = q->j;
+            } else if (q->k >= q->i) {
+                q->lo = q->i;
+            } else {
+                q->val = a[q->k];
+                *used += CONS_W_SEL;
+                return 1;
+            }
+            ++q->guard;
+            q->ph = 0u;
+            break;
+        }
+        *used += (uint32_t)c * CONS_W_SEL;
+    }
+}
+
+static void sort_init(cons_sort_t *q, float *key, uint16_t *idx, size_t m)
+{
+    q->key = key;
+    q->idx = idx;
+    q->m = m;
+    q->g = 0u;
+    q->i = 0u;
+    q->moving = 0u;
+}
+
+/* Run the shell sort within the budget; 1 when done. One visit per move or placement. */
+static int sort_run(cons_sort_t *q, uint32_t budget, uint32_t *used)
 {
     static const uint16_t gaps[] = {701u, 301u, 132u, 57u, 23u, 10u, 4u, 1u};
-    size_t g;
-    size_t i;
-    float best = INFINITY;
-    for (i = 0u; i < m; ++i) {
-        scr[i] = axis == 0 ? pts[order[i]].x : pts[order[i]].y;
-    }
-    for (g = 0u; g < sizeof gaps / sizeof gaps[0]; ++g) {
-        size_t gap = gaps[g];
-        if (gap >= m) {
-            continue;
+    float *key = q->key;
+    while (q->g < sizeof gaps / sizeof gaps[0]) {
+        const size_t gap = gaps[q->g];
+        size_t v = cons_visits(budget, *used, CONS_W_SORT, (size_t)-1);
+        size_t c = 0u;
+        if (v == 0u) {
+            return 0;
         }
-        for (i = gap; i < m; ++i) {
-            float k = scr[i];
-            size_t j = i;
-            while (j >= gap && scr[j - gap] > k) {
-                scr[j] = scr[j - gap];
-                j -= gap;
+        if (q->moving == 0u) {
+            q->i = (q->i < gap) ? gap : q->i;
+            if (q->i >= q->m) {
+                ++q->g;
+                q->i = 0u;
+                continue;
             }
-            scr[j] = k;
+            q->kv = key[q->i];
+            q->iv = (q->idx != NULL) ? q->idx[q->i] : 0u;
+            q->j = q->i;
+            q->moving = 1u;
         }
-    }
-    for (i = 1u; i < m; ++i) {
-        float d = scr[i] - scr[i - 1u];
-        if (d > 0.0f && d < best) {
-            best = d;
+        while (c < v && q->j >= gap && key[q->j - gap] > q->kv) {
+            key[q->j] = key[q->j - gap];
+            if (q->idx != NULL) {
+                q->idx[q->j] = q->idx[q->j - gap];
+            }
+            q->j -= gap;
+            ++c;
         }
+        if (c < v) {
+            key[q->j] = q->kv;
+            if (q->idx != NULL) {
+                q->idx[q->j] = q->iv;
+            }
+            q->moving = 0u;
+            ++q->i;
+            ++c;
+        }
+        *used += (uint32_t)c * CONS_W_SORT;
     }
-    return magcal_isfinite_f(best) ? best : 0.0f;
+    return 1;
 }
 
-/* 1. candidates and their angular order around the coordinate-wise median */
-static MAGCAL_NOINLINE magcal_status_t cons_order(cons_state_t *S, const uint8_t *cand_mask)
+/* |residual| of samples pos..end-1. The samples are finite (checked first) and the model comes
+ * from a successful fit, so a non-finite residual can only be an overflow of a sample
+ * astronomically far from the model (|p - c| above ~1e19): it is stored as +Inf, i.e. always an
+ * outlier. Returning an error instead made one such sample veto every minimal set. */
+static void cons_residuals(const magcal_ellipse_t *e, const magcal_vec2_t *pts, size_t pos,
+                           size_t end, float *r)
 {
-    const magcal_vec2_t *pts = S->pts;
-    uint16_t *order = S->order;
-    float *scr = S->scr;
     size_t i;
-    size_t m = 0u;
-    float cx;
-    float cy;
-    for (i = 0u; i < S->n; ++i) {
-        if (cand_mask == NULL || cand_mask[i] != 0u) {
-            order[m] = (uint16_t)i;
-            ++m;
-        }
+    for (i = pos; i < end; ++i) {
+        float v = magcal_ellipse_residual(e, pts[i]);
+        r[i] = magcal_isfinite_f(v) ? fabsf(v) : INFINITY;
     }
-    S->m = m;
-    if (m < MAGCAL_ELLIPSE_MIN_POINTS) {
-        return MAGCAL_ERR_TOO_FEW_POINTS;
-    }
-    S->sig_floor = CONS_INV_SQRT12 * fminf(cons_min_step(scr, pts, order, m, 0),
-                                           cons_min_step(scr, pts, order, m, 1));
-    for (i = 0u; i < m; ++i) {
-        scr[i] = pts[order[i]].x;
-    }
-    cx = cons_median(scr, m);
-    for (i = 0u; i < m; ++i) {
-        scr[i] = pts[order[i]].y;
-    }
-    cy = cons_median(scr, m);
-    for (i = 0u; i < m; ++i) {
-        const magcal_vec2_t *p = &pts[order[i]];
-        scr[i] = atan2f(p->y - cy, p->x - cx);
-    }
-    cons_sort(scr, order, m);
-    return MAGCAL_OK;
 }
 
-/* 2. minimal sets spread over the angular order; LMedS score over every sample */
-static MAGCAL_NOINLINE void cons_draw(cons_state_t *S)
+/* The residual loop of a phase over every sample: 1 when the last chunk is done. */
+static int cons_res_loop(cons_state_t *S, const magcal_ellipse_t *e, uint32_t budget,
+                         uint32_t *used)
 {
+    size_t end = cons_chunk(budget, used, CONS_W_RES, S->pos, S->n);
+    cons_residuals(e, S->pts, S->pos, end, S->res);
+    S->pos = end;
+    return end == S->n;
+}
+
+/* One chunk of a fit slice; CONS_SPENT while it runs, then its status. */
+static magcal_status_t cons_fit(cons_state_t *S, uint32_t budget, uint32_t *used)
+{
+    magcal_status_t st;
+    if (*used != 0u && (*used >= budget || budget - *used < CONS_W_FIT)) {
+        return CONS_SPENT;
+    }
+    st = magcal_ellipse_fit_step(&S->fit, budget - *used);
+    *used += S->fit.used_;
+    return (st == MAGCAL_IN_PROGRESS) ? CONS_SPENT : st;
+}
+
+/* Samples pos..end-1 of the x (axis 0) or y values of the candidates into scr. */
+static void cons_fill_axis(cons_state_t *S, size_t end)
+{
+    size_t i;
+    for (i = S->pos; i < end; ++i) {
+        const magcal_vec2_t *p = &S->pts[S->order[i]];
+        S->scr[i] = (S->axis == 0u) ? p->x : p->y;
+    }
+    S->pos = end;
+}
+
+/*
+ * 1. Checks, candidates and their angular order around the coordinate-wise median. On the way the
+ * smallest positive step between the sorted x or y values of the candidates: the LSB of quantised
+ * samples (~0 for continuous ones). A lattice of few distinct values can lie almost exactly on a
+ * conic, so the median residual is far below the quantisation noise and a MAD threshold rejected a
+ * third of a 5-LSB ring's clean samples; sigma is floored at LSB / sqrt(12), the noise of rounding.
+ */
+static magcal_status_t cons_prep(cons_state_t *S, uint32_t budget, uint32_t *used)
+{
+    const size_t n = S->n;
     const size_t m = S->m;
-    const size_t fifth = m / 5u;
-    uint16_t it;
-    for (it = 0u; it < S->cfg->max_iter; ++it) {
-        uint32_t off = magcal_prng_next(&S->rng, (uint32_t)m);
-        size_t j;
-        for (j = 0u; j < 5u; ++j) {
-            uint32_t jit = magcal_prng_next(&S->rng, (uint32_t)fifth);
-            S->idx[j] = S->order[((size_t)off + j * fifth + (size_t)jit) % m];
+    size_t end;
+    size_t i;
+    switch (S->phase) {
+    case P_CHECK:
+        end = cons_chunk(budget, used, CONS_W_CHECK, S->pos, n);
+        for (i = S->pos; i < end; ++i) {
+            if (!magcal_isfinite_f(S->pts[i].x) || !magcal_isfinite_f(S->pts[i].y)) {
+                return MAGCAL_ERR_NONFINITE;
+            }
+        }
+        S->pos = end;
+        if (end == n) {
+            S->pos = 0u;
+            S->phase = P_CAND;
+        }
+        break;
+    case P_CAND:
+        end = cons_chunk(budget, used, CONS_W_COPY, S->pos, n);
+        for (i = S->pos; i < end; ++i) {
+            if (S->cand_mask == NULL || S->cand_mask[i] != 0u) {
+                S->order[S->m] = (uint16_t)i;
+                ++S->m;
+            }
+        }
+        S->pos = end;
+        if (end == n) {
+            if (S->m < MAGCAL_ELLIPSE_MIN_POINTS) {
+                return MAGCAL_ERR_TOO_FEW_POINTS;
+            }
+            S->pos = 0u;
+            S->axis = 0u;
+            S->phase = P_MS_FILL;
+        }
+        break;
+    case P_MS_FILL:
+    case P_MED_FILL:
+        cons_fill_axis(S, cons_chunk(budget, used, CONS_W_COPY, S->pos, m));
+        if (S->pos == m) {
+            if (S->phase == P_MS_FILL) {
+                sort_init(&S->sort, S->scr, NULL, m);
+                S->phase = P_MS_SORT;
+            } else {
+                sel_init(&S->sel, S->scr, m, (m - 1u) / 2u);
+                S->phase = P_MED_SEL;
+            }
+        }
+        break;
+    case P_MS_SORT:
+        if (sort_run(&S->sort, budget, used) == 0) {
+            return CONS_SPENT;
+        }
+        S->acc = INFINITY;
+        S->pos = 1u;
+        S->phase = P_MS_DIFF;
+        break;
+    case P_MS_DIFF:
+        end = cons_chunk(budget, used, CONS_W_COPY, S->pos, m);
+        for (i = S->pos; i < end; ++i) {
+            float d = S->scr[i] - S->scr[i - 1u];
+            if (d > 0.0f && d < S->acc) {
+                S->acc = d;
+            }
+        }
+        S->pos = end;
+        if (end == m) {
+            float step = magcal_isfinite_f(S->acc) ? S->acc : 0.0f;
+            S->pos = 0u;
+            if (S->axis == 0u) {
+                S->ms0 = step;
+                S->axis = 1u;
+                S->phase = P_MS_FILL;
+            } else {
+                S->sig_floor = CONS_INV_SQRT12 * fminf(S->ms0, step);
+                S->axis = 0u;
+                S->phase = P_MED_FILL;
+            }
+        }
+        break;
+    case P_MED_SEL:
+        if (sel_run(&S->sel, budget, used) == 0) {
+            return CONS_SPENT;
+        }
+        S->pos = 0u;
+        if (S->axis == 0u) {
+            S->cx = S->sel.val;
+            S->axis = 1u;
+            S->phase = P_MED_FILL;
+        } else {
+            S->acc = S->sel.val; /* cy */
+            S->phase = P_ANGLE;
+        }
+        break;
+    case P_ANGLE:
+        end = cons_chunk(budget, used, CONS_W_ATAN, S->pos, m);
+        for (i = S->pos; i < end; ++i) {
+            const magcal_vec2_t *p = &S->pts[S->order[i]];
+            S->scr[i] = atan2f(p->y - S->acc, p->x - S->cx);
+        }
+        S->pos = end;
+        if (end == m) {
+            sort_init(&S->sort, S->scr, S->order, m);
+            S->phase = P_SORT;
+        }
+        break;
+    default: /* P_SORT */
+        if (sort_run(&S->sort, budget, used) == 0) {
+            return CONS_SPENT;
+        }
+        S->phase = P_DRAW;
+        break;
+    }
+    return (*used < budget) ? MAGCAL_IN_PROGRESS : CONS_SPENT;
+}
+
+/* 2. Minimal sets spread over the angular order (one per visit); LMedS score over every sample
+ * except the 5 of the set (which the model passes through exactly: with them, the median of
+ * n = 20 samples was the 7th smallest of the 15 real residuals, sigma was 30 % low and 7.6 % of
+ * clean samples were rejected). Their entries are set to -1 (below every |residual|) and the
+ * median is taken over the ranks above them. */
+static magcal_status_t cons_draw(cons_state_t *S, uint32_t budget, uint32_t *used)
+{
+    const size_t n = S->n;
+    size_t j;
+    switch (S->phase) {
+    case P_DRAW:
+        if (S->draws >= S->cfg->max_iter) {
+            S->phase = P_START;
+            break;
+        }
+        if (cons_pay(budget, used, CONS_W_DRAW) == 0) {
+            return CONS_SPENT;
+        }
+        {
+            const size_t m = S->m;
+            const size_t fifth = m / 5u;
+            uint32_t off = magcal_prng_next(&S->rng, (uint32_t)m);
+            for (j = 0u; j < 5u; ++j) {
+                uint32_t jit = magcal_prng_next(&S->rng, (uint32_t)fifth);
+                S->idx[j] = S->order[((size_t)off + j * fifth + (size_t)jit) % m];
+            }
         }
         ++S->draws;
-        if (magcal_ellipse_fit_idx(S->pts, S->n, S->idx, 5u, &S->cand) == MAGCAL_OK) {
-            float score;
-            cons_residuals(&S->cand, S->pts, S->n, S->res);
+        if (magcal_ellipse_fit_idx(S->pts, n, S->idx, 5u, &S->cand) == MAGCAL_OK) {
             ++S->valid;
-            score = cons_median_excl5(S->res, S->n, S->idx);
-            if (score < S->best_score) {
-                S->best_score = score;
-                S->best = S->cand;
-            }
+            S->pos = 0u;
+            S->phase = P_SCORE_RES;
         }
+        break;
+    case P_SCORE_RES:
+        if (cons_res_loop(S, &S->cand, budget, used) != 0) {
+            if (n <= 5u) {
+                sel_init(&S->sel, S->res, n, (n - 1u) / 2u);
+            } else {
+                for (j = 0u; j < 5u; ++j) {
+                    S->res[S->idx[j]] = -1.0f;
+                }
+                sel_init(&S->sel, S->res, n, 5u + (n - 6u) / 2u);
+            }
+            S->phase = P_SCORE_SEL;
+        }
+        break;
+    default: /* P_SCORE_SEL */
+        if (sel_run(&S->sel, budget, used) == 0) {
+            return CONS_SPENT;
+        }
+        if (S->sel.val < S->best_score) {
+            S->best_score = S->sel.val;
+            S->best = S->cand;
+        }
+        S->phase = P_DRAW;
+        break;
     }
+    return (*used < budget) ? MAGCAL_IN_PROGRESS : CONS_SPENT;
 }
 
-/* Start model: the best minimal set, or (none valid) the least-squares fit of the candidates;
- * res gets its residuals. */
-static MAGCAL_NOINLINE magcal_status_t cons_start(cons_state_t *S)
+/* Start model: the best minimal set, or (none valid) the least-squares fit of the candidates
+ * (its score the plain median); res gets its residuals. */
+static magcal_status_t cons_start(cons_state_t *S, uint32_t budget, uint32_t *used)
 {
-    if (S->valid == 0u) {
-        size_t i;
-        magcal_status_t st = magcal_ellipse_fit_idx(S->pts, S->n, S->order, S->m, &S->best);
+    magcal_status_t st;
+    size_t i;
+    switch (S->phase) {
+    case P_START:
+        if (cons_pay(budget, used, CONS_W_FIX) == 0) {
+            return CONS_SPENT;
+        }
+        S->pos = 0u;
+        if (S->valid == 0u) {
+            st = magcal_ellipse_fit_idx_begin(&S->fit, S->pts, S->n, S->order, S->m, &S->best);
+            if (st != MAGCAL_OK) {
+                return st;
+            }
+            S->phase = P_START_FIT;
+        } else {
+            S->phase = P_BEST_RES;
+        }
+        break;
+    case P_START_FIT:
+        st = cons_fit(S, budget, used);
         if (st != MAGCAL_OK) {
             return st;
         }
-        cons_residuals(&S->best, S->pts, S->n, S->res);
-        for (i = 0u; i < S->n; ++i) {
+        S->phase = P_START_RES;
+        break;
+    case P_START_RES: {
+        size_t p0 = S->pos;
+        if (cons_res_loop(S, &S->best, budget, used) != 0) {
+            sel_init(&S->sel, S->scr, S->n, (S->n - 1u) / 2u);
+            S->phase = P_START_SEL;
+        }
+        for (i = p0; i < S->pos; ++i) {
             S->scr[i] = S->res[i];
         }
-        S->best_score = cons_median(S->scr, S->n);
-    } else {
-        cons_residuals(&S->best, S->pts, S->n, S->res);
+        break;
     }
-    return MAGCAL_OK;
+    case P_START_SEL:
+        if (sel_run(&S->sel, budget, used) == 0) {
+            return CONS_SPENT;
+        }
+        S->best_score = S->sel.val;
+        S->phase = P_RINIT;
+        break;
+    default: /* P_BEST_RES */
+        if (cons_res_loop(S, &S->best, budget, used) != 0) {
+            S->phase = P_RINIT;
+        }
+        break;
+    }
+    return (*used < budget) ? MAGCAL_IN_PROGRESS : CONS_SPENT;
 }
 
-/* Working mask wm (0/1 per sample) -> ascending index list in place; returns its length. */
-static size_t cons_compact(uint16_t *wm, size_t n)
+/* Working-mask entry i (0/1) of step 3; the first five inliers are kept in idx (a refit of
+ * exactly five points is the 5-point exact path, as magcal_ellipse_fit_idx() takes it). */
+static void cons_mask_set(cons_state_t *S, size_t i, uint8_t v)
 {
-    size_t i;
-    size_t k = 0u;
-    for (i = 0u; i < n; ++i) {
-        if (wm[i] != 0u) {
-            wm[k] = (uint16_t)i;
-            ++k;
+    ((uint8_t *)S->order)[i] = v;
+    if (v != 0u) {
+        if (S->k_in < 5u) {
+            S->idx[S->k_in] = (uint16_t)i;
         }
-    }
-    return k;
-}
-
-/* Index list of length k -> 0/1 mask again (backwards keeps entries not yet read). */
-static void cons_expand(uint16_t *wm, size_t n, size_t k)
-{
-    size_t q = k;
-    size_t t;
-    for (t = n; t > 0u; --t) {
-        size_t s = t - 1u;
-        if (q > 0u && wm[q - 1u] == (uint16_t)s) {
-            --q;
-            wm[s] = 1u;
-        } else {
-            wm[s] = 0u;
-        }
+        ++S->k_in;
     }
 }
 
-/* New threshold from the current inliers' residuals, new inlier mask; returns the changed count. */
-static MAGCAL_NOINLINE size_t cons_rethreshold(cons_state_t *S, uint16_t *wm)
+/* New scale and threshold from the gathered residuals of the current inliers (their median in
+ * S->sel.val, their sum of squares in S->acc). */
+static void cons_rescale(cons_state_t *S)
 {
-    const size_t n = S->n;
-    size_t changed = 0u;
-    size_t k = 0u;
-    size_t i;
-    float nsig;
-    float nthr;
-    float ss = 0.0f;
-    for (i = 0u; i < n; ++i) {
-        if (wm[i] != 0u) {
-            S->scr[k] = S->res[i];
-            ss += S->res[i] * S->res[i];
-            ++k;
-        }
-    }
+    const size_t k = S->k_in;
+    float nsig = CONS_MAD_TO_SIGMA * S->sel.val;
     /* residuals of a 5-parameter least-squares fit of its own k inliers are smaller than the
      * noise by sqrt((k - 5) / k): undo it so small sets are not trimmed (k = 20: 13 %) */
-    nsig = CONS_MAD_TO_SIGMA * cons_median(S->scr, k);
     if (k > (size_t)2u * MAGCAL_ELLIPSE_MIN_POINTS) {
         const size_t k_dof = k - MAGCAL_ELLIPSE_MIN_POINTS;
         float dof = (float)k / (float)k_dof;
@@ -374,7 +690,7 @@ static MAGCAL_NOINLINE size_t cons_rethreshold(cons_state_t *S, uint16_t *wm)
          * clean sample in 18 % of the runs. The RMS of the current inliers (already cut at the
          * threshold, so outliers beyond it cannot inflate it) is the efficient scale; the larger
          * of the two is used. */
-        nsig = fmaxf(nsig * sqrtf(dof), sqrtf(ss / (float)k * dof));
+        nsig = fmaxf(nsig * sqrtf(dof), sqrtf(S->acc / (float)k * dof));
     }
     nsig = fmaxf(nsig, S->sig_floor);
     if (k > (size_t)2u * MAGCAL_ELLIPSE_MIN_POINTS) {
@@ -383,32 +699,21 @@ static MAGCAL_NOINLINE size_t cons_rethreshold(cons_state_t *S, uint16_t *wm)
          * 1.005 at k = 600) */
         const size_t k_dof = k - MAGCAL_ELLIPSE_MIN_POINTS;
         const float z = S->cfg->k_sigma;
-        nthr = cons_threshold(
-            S->cfg, &S->cur,
-            nsig * (1.0f + (z * z + 1.0f) / (4.0f * (float)k_dof)));
+        S->thr = cons_threshold(S->cfg, &S->cur,
+                                nsig * (1.0f + (z * z + 1.0f) / (4.0f * (float)k_dof)));
     } else {
-        nthr = cons_threshold(S->cfg, &S->cur, nsig);
-    }
-    for (i = 0u; i < n; ++i) {
-        uint16_t v = (uint16_t)(S->res[i] <= nthr ? 1u : 0u);
-        if (v != wm[i]) {
-            ++changed;
-            wm[i] = v;
-        }
+        S->thr = cons_threshold(S->cfg, &S->cur, nsig);
     }
     S->sigma = nsig;
-    S->thr = nthr;
-    return changed;
 }
 
-/* Start of step 3: current model = best, its threshold, the working inlier mask wm. */
-static MAGCAL_NOINLINE void cons_refine_init(cons_state_t *S, uint16_t *wm)
+/* Start of step 3: current model = best, its LMedS scale with Rousseeuw & Leroy's finite-sample
+ * factor 1 + 5 / (n - p) (at n = 20 the minimal set with the smallest median fits half of the
+ * samples better than the noise, and the plain 1.4826 * median started the refits on a trimmed
+ * subset they never left), its threshold. */
+static void cons_refine_init(cons_state_t *S)
 {
-    size_t i;
     S->cur = S->best;
-    /* LMedS scale with Rousseeuw & Leroy's finite-sample factor 1 + 5 / (n - p): at n = 20 the
-     * minimal set with the smallest median fits half of the samples better than the noise, and
-     * the plain 1.4826 * median started the refits on a trimmed subset they never left */
     S->sigma = CONS_MAD_TO_SIGMA * S->best_score;
     if (S->n > MAGCAL_ELLIPSE_MIN_POINTS) {
         const size_t n_dof = S->n - MAGCAL_ELLIPSE_MIN_POINTS;
@@ -416,67 +721,199 @@ static MAGCAL_NOINLINE void cons_refine_init(cons_state_t *S, uint16_t *wm)
     }
     S->sigma = fmaxf(S->sigma, S->sig_floor);
     S->thr = cons_threshold(S->cfg, &S->cur, S->sigma);
-    for (i = 0u; i < S->n; ++i) {
-        wm[i] = (uint16_t)(S->res[i] <= S->thr ? 1u : 0u);
-    }
+    S->pos = 0u;
+    S->k_in = 0u;
 }
 
-/* 3. threshold, inliers over every sample, refit; until the set is stable */
-static MAGCAL_NOINLINE magcal_status_t cons_refine(cons_state_t *S)
+/* 3. Threshold, inliers over every sample, refit; until the set is stable or refine_iter rounds
+ * were done. The working mask (bytes in order[], the candidate list is no longer needed) is
+ * fitted directly: the same points in the same order as the one-shot index list. */
+static magcal_status_t cons_refine(cons_state_t *S, uint32_t budget, uint32_t *used)
 {
-    /* Working inlier set: order[] (the candidate list is no longer needed) as a 0/1 mask per
-     * sample; inlier_mask is written only on success. */
-    uint16_t *wm = S->order;
+    uint8_t *wm = (uint8_t *)S->order;
     const size_t n = S->n;
+    size_t end;
     size_t i;
-    uint16_t r;
-    int stop = 0;
-    cons_refine_init(S, wm);
-    for (r = 0u; (r < S->cfg->refine_iter) && (stop == 0); ++r) {
-        magcal_status_t st;
-        /* compact the mask into an ascending index list in place, fit, expand it back */
-        const size_t k = cons_compact(wm, n);
-        if (k < MAGCAL_ELLIPSE_MIN_POINTS) {
+    magcal_status_t st;
+    switch (S->phase) {
+    case P_RINIT:
+        if (cons_pay(budget, used, CONS_W_FIX) == 0) {
+            return CONS_SPENT;
+        }
+        cons_refine_init(S);
+        S->phase = P_RINIT_MASK;
+        break;
+    case P_RINIT_MASK:
+        end = cons_chunk(budget, used, CONS_W_COPY, S->pos, n);
+        for (i = S->pos; i < end; ++i) {
+            cons_mask_set(S, i, (uint8_t)(S->res[i] <= S->thr ? 1u : 0u));
+        }
+        S->pos = end;
+        if (end == n) {
+            S->round = 0u;
+            S->stop = 0u;
+            S->phase = P_ROUND;
+        }
+        break;
+    case P_ROUND:
+        if (cons_pay(budget, used, CONS_W_FIX) == 0) {
+            return CONS_SPENT;
+        }
+        S->pos = 0u;
+        if (!(S->round < S->cfg->refine_iter && S->stop == 0u)) {
+            S->n_in = 0u;
+            S->phase = P_FINAL_RES;
+            break;
+        }
+        if (S->k_in < MAGCAL_ELLIPSE_MIN_POINTS) {
             return MAGCAL_ERR_TOO_FEW_POINTS;
         }
-        st = magcal_ellipse_fit_idx(S->pts, n, wm, k, &S->next);
-        cons_expand(wm, n, k);
+        st = (S->k_in == MAGCAL_ELLIPSE_MIN_POINTS)
+                 ? magcal_ellipse_fit_idx_begin(&S->fit, S->pts, n, S->idx, 5u, &S->cand)
+                 : magcal_ellipse_fit_begin(&S->fit, S->pts, n, wm, &S->cand);
         if (st != MAGCAL_OK) {
-            stop = 1; /* keep the last good model */
+            return st;
+        }
+        S->phase = P_REFIT;
+        break;
+    case P_REFIT:
+        st = cons_fit(S, budget, used);
+        if (st == CONS_SPENT) {
+            return st;
+        }
+        if (st != MAGCAL_OK) {
+            S->stop = 1u; /* keep the last good model */
+            ++S->round;
+            S->phase = P_ROUND;
         } else {
             ++S->rounds;
-            cons_residuals(&S->next, S->pts, n, S->res);
-            S->cur = S->next;
-            if (cons_rethreshold(S, wm) == 0u) {
-                stop = 1;
+            S->phase = P_REFIT_RES;
+        }
+        break;
+    case P_REFIT_RES:
+        if (cons_res_loop(S, &S->cand, budget, used) != 0) {
+            S->cur = S->cand;
+            S->pos = 0u;
+            S->k_in = 0u;
+            S->acc = 0.0f;
+            S->phase = P_RT_GATHER;
+        }
+        break;
+    case P_RT_GATHER:
+        end = cons_chunk(budget, used, CONS_W_COPY, S->pos, n);
+        for (i = S->pos; i < end; ++i) {
+            if (wm[i] != 0u) {
+                S->scr[S->k_in] = S->res[i];
+                S->acc += S->res[i] * S->res[i];
+                ++S->k_in;
             }
         }
-    }
-    /* final verdict for every sample against `cur` (res holds cur's residuals unless the
-     * last refit failed; recompute to be exact) */
-    cons_residuals(&S->cur, S->pts, n, S->res);
-    S->n_in = 0u;
-    for (i = 0u; i < n; ++i) {
-        if (S->res[i] <= S->thr) {
-            ++S->n_in;
+        S->pos = end;
+        if (end == n) {
+            sel_init(&S->sel, S->scr, S->k_in, (S->k_in - 1u) / 2u);
+            S->phase = P_RT_SEL;
         }
+        break;
+    case P_RT_SEL:
+        if (sel_run(&S->sel, budget, used) == 0) {
+            return CONS_SPENT;
+        }
+        cons_rescale(S);
+        S->pos = 0u;
+        S->k_in = 0u;
+        S->changed = 0u;
+        S->phase = P_RT_MASK;
+        break;
+    default: /* P_RT_MASK */
+        end = cons_chunk(budget, used, CONS_W_COPY, S->pos, n);
+        for (i = S->pos; i < end; ++i) {
+            uint8_t v = (uint8_t)(S->res[i] <= S->thr ? 1u : 0u);
+            if (v != wm[i]) {
+                ++S->changed;
+            }
+            cons_mask_set(S, i, v);
+        }
+        S->pos = end;
+        if (end == n) {
+            if (S->changed == 0u) {
+                S->stop = 1u;
+            }
+            ++S->round;
+            S->phase = P_ROUND;
+        }
+        break;
     }
-    if (S->n_in < MAGCAL_ELLIPSE_MIN_POINTS) {
-        return MAGCAL_ERR_TOO_FEW_POINTS;
+    return (*used < budget) ? MAGCAL_IN_PROGRESS : CONS_SPENT;
+}
+
+/* Final verdict for every sample against cur (res is recomputed: it holds cur's residuals unless
+ * the last refit failed), then the outputs. */
+static magcal_status_t cons_finish(cons_state_t *S, uint32_t budget, uint32_t *used)
+{
+    const size_t n = S->n;
+    size_t end;
+    size_t i;
+    if (S->phase == P_FINAL_RES) {
+        size_t p0 = S->pos;
+        int done = cons_res_loop(S, &S->cur, budget, used);
+        for (i = p0; i < S->pos; ++i) {
+            if (S->res[i] <= S->thr) {
+                ++S->n_in;
+            }
+        }
+        if (done != 0) {
+            if (S->n_in < MAGCAL_ELLIPSE_MIN_POINTS) {
+                return MAGCAL_ERR_TOO_FEW_POINTS;
+            }
+            S->pos = 0u;
+            S->rescued = 0u;
+            S->rejected = 0u;
+            S->phase = P_OUT;
+        }
+        return (*used < budget) ? MAGCAL_IN_PROGRESS : CONS_SPENT;
     }
+    end = cons_chunk(budget, used, CONS_W_COPY, S->pos, n);
+    for (i = S->pos; i < end; ++i) {
+        uint8_t in = (uint8_t)(S->res[i] <= S->thr ? 1u : 0u);
+        uint8_t c = (uint8_t)((S->cand_mask == NULL || S->cand_mask[i] != 0u) ? 1u : 0u);
+        if (in != 0u && c == 0u) {
+            ++S->rescued;
+        }
+        if (in == 0u && c != 0u) {
+            ++S->rejected;
+        }
+        S->inlier_mask[i] = in;
+    }
+    S->pos = end;
+    if (end < n || cons_pay(budget, used, CONS_W_FIX) == 0) {
+        return CONS_SPENT;
+    }
+    S->result->fit = S->cur;
+    S->result->sigma = S->sigma;
+    S->result->threshold = S->thr;
+    S->result->best_score = S->best_score;
+    S->result->n_candidates = (uint16_t)S->m;
+    S->result->n_inliers = (uint16_t)S->n_in;
+    S->result->n_rescued = S->rescued;
+    S->result->n_rejected = S->rejected;
+    S->result->draws = S->draws;
+    S->result->valid_models = S->valid;
+    S->result->rounds = S->rounds;
     return MAGCAL_OK;
 }
 
-magcal_status_t magcal_consensus_run(const magcal_consensus_cfg_t *cfg, const magcal_vec2_t *pts,
-                                     size_t n, const uint8_t *cand_mask, void *work,
-                                     size_t work_len, uint8_t *inlier_mask,
-                                     magcal_consensus_result_t *result)
+#define CONS_PH_RUN 1u
+#define CONS_PH_DONE 2u
+
+magcal_status_t magcal_consensus_begin(magcal_consensus_slice_t *s, const magcal_consensus_cfg_t *cfg,
+                                       const magcal_vec2_t *pts, size_t n, const uint8_t *cand,
+                                       void *work, size_t work_len, uint8_t *inlier,
+                                       magcal_consensus_result_t *res)
 {
     cons_state_t *S;
-    size_t i;
     magcal_status_t st;
 
-    if (cfg == NULL || pts == NULL || work == NULL || inlier_mask == NULL || result == NULL) {
+    if (s == NULL || cfg == NULL || pts == NULL || work == NULL || inlier == NULL || res == NULL) {
         return MAGCAL_ERR_NULL;
     }
     st = cons_check_cfg(cfg);
@@ -492,23 +929,21 @@ magcal_status_t magcal_consensus_run(const magcal_consensus_cfg_t *cfg, const ma
     if (work_len < MAGCAL_CONSENSUS_WORKSPACE_LEN(n)) {
         return MAGCAL_ERR_WORKSPACE;
     }
-    for (i = 0u; i < n; ++i) {
-        if (!magcal_isfinite_f(pts[i].x) || !magcal_isfinite_f(pts[i].y)) {
-            return MAGCAL_ERR_NONFINITE;
-        }
-    }
-
     /* carve the workspace (aligned for pointers): the run state, res[n], scr[n], order[n] */
     S = (cons_state_t *)(void *)((uint8_t *)work +
                                  ((sizeof(void *) - magcal_misalign(work, sizeof(void *))) %
                                   sizeof(void *)));
     S->cfg = cfg;
     S->pts = pts;
+    S->cand_mask = cand;
+    S->inlier_mask = inlier;
+    S->result = res;
     S->n = n;
     S->m = 0u;
     S->res = (float *)(void *)(S + 1);
     S->scr = S->res + n;
     S->order = (uint16_t *)(void *)(S->scr + n);
+    S->pos = 0u;
     S->best_score = INFINITY;
     S->sigma = 0.0f;
     S->sig_floor = 0.0f;
@@ -518,47 +953,63 @@ magcal_status_t magcal_consensus_run(const magcal_consensus_cfg_t *cfg, const ma
     S->draws = 0u;
     S->valid = 0u;
     S->rounds = 0u;
-
-    st = cons_order(S, cand_mask);
-    if (st != MAGCAL_OK) {
-        return st;
-    }
-    cons_draw(S);
-    st = cons_start(S);
-    if (st != MAGCAL_OK) {
-        return st;
-    }
-    st = cons_refine(S);
-    if (st != MAGCAL_OK) {
-        return st;
-    }
-
-    /* success: write outputs */
-    {
-        uint16_t rescued = 0u;
-        uint16_t rejected = 0u;
-        for (i = 0u; i < n; ++i) {
-            uint8_t in = (uint8_t)(S->res[i] <= S->thr ? 1u : 0u);
-            uint8_t c = (uint8_t)((cand_mask == NULL || cand_mask[i] != 0u) ? 1u : 0u);
-            if (in != 0u && c == 0u) {
-                ++rescued;
-            }
-            if (in == 0u && c != 0u) {
-                ++rejected;
-            }
-            inlier_mask[i] = in;
-        }
-        result->fit = S->cur;
-        result->sigma = S->sigma;
-        result->threshold = S->thr;
-        result->best_score = S->best_score;
-        result->n_candidates = (uint16_t)S->m;
-        result->n_inliers = (uint16_t)S->n_in;
-        result->n_rescued = rescued;
-        result->n_rejected = rejected;
-        result->draws = S->draws;
-        result->valid_models = S->valid;
-        result->rounds = S->rounds;
-    }
+    S->phase = P_CHECK;
+    s->state_ = S;
+    s->used_ = 0u;
+    s->phase_ = CONS_PH_RUN;
+    s->status_ = (int8_t)MAGCAL_IN_PROGRESS;
     return MAGCAL_OK;
+}
+
+magcal_status_t magcal_consensus_step(magcal_consensus_slice_t *s, uint32_t budget)
+{
+    cons_state_t *S;
+    uint32_t used = 0u;
+    magcal_status_t st = MAGCAL_IN_PROGRESS;
+
+    if (s == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    s->used_ = 0u;
+    if (s->phase_ == CONS_PH_DONE) {
+        return (magcal_status_t)s->status_;
+    }
+    if (s->phase_ != CONS_PH_RUN || s->state_ == NULL) {
+        return MAGCAL_ERR_ARG;
+    }
+    S = (cons_state_t *)s->state_;
+    while (st == MAGCAL_IN_PROGRESS) {
+        if (S->phase < P_DRAW) {
+            st = cons_prep(S, budget, &used);
+        } else if (S->phase < P_START) {
+            st = cons_draw(S, budget, &used);
+        } else if (S->phase < P_RINIT) {
+            st = cons_start(S, budget, &used);
+        } else if (S->phase < P_FINAL_RES) {
+            st = cons_refine(S, budget, &used);
+        } else {
+            st = cons_finish(S, budget, &used);
+        }
+    }
+    s->used_ = used;
+    if (st == CONS_SPENT) {
+        return MAGCAL_IN_PROGRESS;
+    }
+    s->phase_ = CONS_PH_DONE;
+    s->status_ = (int8_t)st;
+    return st;
+}
+
+magcal_status_t magcal_consensus_run(const magcal_consensus_cfg_t *cfg, const magcal_vec2_t *pts,
+                                     size_t n, const uint8_t *cand_mask, void *work,
+                                     size_t work_len, uint8_t *inlier_mask,
+                                     magcal_consensus_result_t *result)
+{
+    magcal_consensus_slice_t s;
+    magcal_status_t st = magcal_consensus_begin(&s, cfg, pts, n, cand_mask, work, work_len,
+                                                inlier_mask, result);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    return magcal_consensus_step(&s, UINT32_MAX);
 }

@@ -72,28 +72,23 @@ static int src_point(const fit_src_t *src, size_t k, magcal_vec2_t *p)
     return 1;
 }
 
-/* Pass 1: number of used points, finiteness, bounding box (bb = xmin, xmax, ymin, ymax) and the
- * largest magnitude per axis (amax = max|x|, max|y|, for the seed's scaling). */
-static magcal_status_t src_scan(const fit_src_t *src, size_t *count, float bb[4], float amax[2])
+/* Pass 1 over the points k0..k1-1: number of used points *cnt, finiteness, bounding box (bb = xmin,
+ * xmax, ymin, ymax) and the largest magnitude per axis (amax = max|x|, max|y|, for the seed's
+ * scaling). bb and amax start at 0 with *cnt = 0. */
+static magcal_status_t src_scan_range(const fit_src_t *src, size_t k0, size_t k1, size_t *cnt,
+                                      float bb[4], float amax[2])
 {
     size_t k;
-    size_t cnt = 0u;
     magcal_vec2_t p;
 
-    bb[0] = 0.0f;
-    bb[1] = 0.0f;
-    bb[2] = 0.0f;
-    bb[3] = 0.0f;
-    amax[0] = 0.0f;
-    amax[1] = 0.0f;
-    for (k = 0u; k < src->n; ++k) {
+    for (k = k0; k < k1; ++k) {
         if (src_point(src, k, &p) == 0) {
             continue;
         }
         if (!magcal_isfinite_f(p.x) || !magcal_isfinite_f(p.y)) {
             return MAGCAL_ERR_NONFINITE;
         }
-        if (cnt == 0u) {
+        if (*cnt == 0u) {
             bb[0] = p.x;
             bb[1] = p.x;
             bb[2] = p.y;
@@ -106,13 +101,42 @@ static magcal_status_t src_scan(const fit_src_t *src, size_t *count, float bb[4]
         }
         amax[0] = (fabsf(p.x) > amax[0]) ? fabsf(p.x) : amax[0];
         amax[1] = (fabsf(p.y) > amax[1]) ? fabsf(p.y) : amax[1];
-        ++cnt;
+        ++*cnt;
     }
+    return MAGCAL_OK;
+}
+
+/* The count rule after pass 1. */
+static magcal_status_t scan_count_ok(size_t cnt)
+{
     if (cnt > MAGCAL_ELLIPSE_MAX_POINTS) {
         return MAGCAL_ERR_ARG;
     }
     if (cnt < MAGCAL_ELLIPSE_MIN_POINTS) {
         return MAGCAL_ERR_TOO_FEW_POINTS;
+    }
+    return MAGCAL_OK;
+}
+
+/* Pass 1 over every point of src. */
+static magcal_status_t src_scan(const fit_src_t *src, size_t *count, float bb[4], float amax[2])
+{
+    size_t cnt = 0u;
+    magcal_status_t st;
+    size_t j;
+
+    for (j = 0u; j < 4u; ++j) {
+        bb[j] = 0.0f;
+    }
+    amax[0] = 0.0f;
+    amax[1] = 0.0f;
+    st = src_scan_range(src, 0u, src->n, &cnt, bb, amax);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    st = scan_count_ok(cnt);
+    if (st != MAGCAL_OK) {
+        return st;
     }
     *count = cnt;
     return MAGCAL_OK;
@@ -144,21 +168,18 @@ static magcal_status_t norm_centred(const float bb[4], fit_norm_t *nm, float *sc
     return MAGCAL_OK;
 }
 
-/* Pass 2: power sums of the normalised points, Kahan-compensated unless plain != 0 (the seed's
- * plain float32 accumulation, kept only for magcal_ellipse_fit_seed()). */
-static void src_moments(const fit_src_t *src, const fit_norm_t *nm, int plain, float mom[S_COUNT])
+/* Pass 2 over the points k0..k1-1: power sums of the normalised points into mom (compensation
+ * comp; both start at 0), Kahan-compensated unless plain != 0 (the seed's plain float32
+ * accumulation, kept only for magcal_ellipse_fit_seed()). */
+static void src_moments_range(const fit_src_t *src, const fit_norm_t *nm, int plain, size_t k0,
+                              size_t k1, float mom[S_COUNT], float comp[S_COUNT])
 {
-    float comp[S_COUNT];
     float v[S_COUNT];
     size_t k;
     size_t j;
     magcal_vec2_t p;
 
-    for (j = 0u; j < S_COUNT; ++j) {
-        mom[j] = 0.0f;
-        comp[j] = 0.0f;
-    }
-    for (k = 0u; k < src->n; ++k) {
+    for (k = k0; k < k1; ++k) {
         float x;
         float y;
         if (src_point(src, k, &p) == 0) {
@@ -187,6 +208,23 @@ static void src_moments(const fit_src_t *src, const fit_norm_t *nm, int plain, f
             }
         }
     }
+}
+
+static void moments_zero(float mom[S_COUNT], float comp[S_COUNT])
+{
+    size_t j;
+    for (j = 0u; j < S_COUNT; ++j) {
+        mom[j] = 0.0f;
+        comp[j] = 0.0f;
+    }
+}
+
+/* Pass 2 over every point of src. */
+static void src_moments(const fit_src_t *src, const fit_norm_t *nm, int plain, float mom[S_COUNT])
+{
+    float comp[S_COUNT];
+    moments_zero(mom, comp);
+    src_moments_range(src, nm, plain, 0u, src->n, mom, comp);
 }
 
 /* Collinear (or nearly) points: smaller covariance eigenvalue below a fraction of the larger.
@@ -282,34 +320,31 @@ float magcal_ellipse_residual(const magcal_ellipse_t *e, magcal_vec2_t p)
     return radial_residual(geo, p);
 }
 
-/* Pass 3: RMS of the radial residual over the used points. */
-static float src_residual_rms(const fit_src_t *src, const float geo[6], size_t cnt)
+/* Pass 3 over the points k0..k1-1: sum of squared radial residuals, acc = (sum, compensation). */
+static void src_rms_range(const fit_src_t *src, const float geo[6], size_t k0, size_t k1,
+                          float acc[2])
 {
-    float sum = 0.0f;
-    float comp = 0.0f;
     size_t k;
     magcal_vec2_t p;
 
-    for (k = 0u; k < src->n; ++k) {
+    for (k = k0; k < k1; ++k) {
         float r;
         if (src_point(src, k, &p) == 0) {
             continue;
         }
         r = radial_residual(geo, p);
-        magcal_kahan_add(&sum, &comp, r * r);
+        magcal_kahan_add(&acc[0], &acc[1], r * r);
     }
-    return sqrtf(sum / (float)cnt);
 }
 
 /*
  * Geometry of x^2 + A xy + B y^2 + C x + D y + E = 0 given in coordinates x~ = (x - mx)/s
- * (isotropic s, so angles are unchanged and lengths scale by s; algorithms.md 2.3), then the
- * complete result. *out is written only once every check has passed; src (may be NULL: residual
- * RMS 0) is used for the residual RMS over the cnt used points.
+ * (isotropic s, so angles are unchanged and lengths scale by s; algorithms.md 2.3) into e (every
+ * field but residual_rms, min_pivot and n_used) and geo (centre, qform, semi-minor axis: what the
+ * residual needs).
  */
-static magcal_status_t conic_finish(const float coef[5], float mx, float my, float s,
-                                    float min_pivot, size_t cnt, const fit_src_t *src,
-                                    magcal_ellipse_t *out)
+static magcal_status_t conic_geometry(const float coef[5], float mx, float my, float s,
+                                      magcal_ellipse_t *e, float geo[6])
 {
     float ca = coef[0];
     float cb = coef[1];
@@ -324,7 +359,6 @@ static magcal_status_t conic_finish(const float coef[5], float mx, float my, flo
     float cx;
     float cy;
     float q11;
-    float rms = 0.0f;
     size_t i;
 
     if (fabsf(delta) <= MAGCAL_ELLIPSE_PARABOLA_TOL * fro) {
@@ -350,37 +384,77 @@ static magcal_status_t conic_finish(const float coef[5], float mx, float my, flo
         !magcal_isfinite_f(q11) || !(q11 > 0.0f) || !(r1 > 0.0f)) {
         return MAGCAL_ERR_ILL_CONDITIONED; /* under/overflow of a nearly singular conic */
     }
-    if (src != NULL) {
-        float geo[6];
-        geo[0] = cx;
-        geo[1] = cy;
-        geo[2] = q11;
-        geo[3] = 0.5f * ca * q11;
-        geo[4] = cb * q11;
-        geo[5] = r1;
-        rms = src_residual_rms(src, geo, cnt);
-        if (!magcal_isfinite_f(rms)) {
-            return MAGCAL_ERR_ILL_CONDITIONED; /* residuals of points ~1e19 from the centre overflow */
-        }
-    }
-    out->center.x = cx;
-    out->center.y = cy;
-    out->semi_minor = r1;
-    out->semi_major = r2;
-    out->angle_rad = 0.5f * atan2f(ca, 1.0f - cb);
+    e->center.x = cx;
+    e->center.y = cy;
+    e->semi_minor = r1;
+    e->semi_major = r2;
+    e->angle_rad = 0.5f * atan2f(ca, 1.0f - cb);
     for (i = 0u; i < 5u; ++i) {
-        out->coef[i] = coef[i];
+        e->coef[i] = coef[i];
     }
-    out->norm_center.x = mx;
-    out->norm_center.y = my;
-    out->norm_scale = s;
+    e->norm_center.x = mx;
+    e->norm_center.y = my;
+    e->norm_scale = s;
+    e->qform[0] = q11;
+    e->qform[1] = 0.5f * ca * q11;
+    e->qform[2] = cb * q11;
+    geo[0] = cx;
+    geo[1] = cy;
+    geo[2] = e->qform[0];
+    geo[3] = e->qform[1];
+    geo[4] = e->qform[2];
+    geo[5] = r1;
+    return MAGCAL_OK;
+}
+
+/* The complete result: geometry e, residual RMS (non-finite: residuals of points ~1e19 from the
+ * centre overflow), pivot, count, written field by field to out only once every check passed. */
+static magcal_status_t conic_store(const magcal_ellipse_t *e, float rms, float min_pivot,
+                                   size_t cnt, magcal_ellipse_t *out)
+{
+    size_t i;
+
+    if (!magcal_isfinite_f(rms)) {
+        return MAGCAL_ERR_ILL_CONDITIONED;
+    }
+    out->center = e->center;
+    out->semi_minor = e->semi_minor;
+    out->semi_major = e->semi_major;
+    out->angle_rad = e->angle_rad;
+    for (i = 0u; i < 5u; ++i) {
+        out->coef[i] = e->coef[i];
+    }
+    out->norm_center = e->norm_center;
+    out->norm_scale = e->norm_scale;
     out->min_pivot = min_pivot;
-    out->qform[0] = q11;
-    out->qform[1] = 0.5f * ca * q11;
-    out->qform[2] = cb * q11;
+    out->qform[0] = e->qform[0];
+    out->qform[1] = e->qform[1];
+    out->qform[2] = e->qform[2];
     out->n_used = (uint16_t)cnt;
     out->residual_rms = rms;
     return MAGCAL_OK;
+}
+
+/* Geometry, residual RMS over the cnt used points of src (NULL: RMS 0) and the result in one go
+ * (the seed's fit, the 5-point path, magcal_ellipse_from_conic()). */
+static magcal_status_t conic_finish(const float coef[5], float mx, float my, float s,
+                                    float min_pivot, size_t cnt, const fit_src_t *src,
+                                    magcal_ellipse_t *out)
+{
+    magcal_ellipse_t e;
+    float geo[6];
+    float acc[2] = {0.0f, 0.0f};
+    float rms = 0.0f;
+    magcal_status_t st = conic_geometry(coef, mx, my, s, &e, geo);
+
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    if (src != NULL) {
+        src_rms_range(src, geo, 0u, src->n, acc);
+        rms = sqrtf(acc[0] / (float)cnt);
+    }
+    return conic_store(&e, rms, min_pivot, cnt, out);
 }
 
 /* Pass 1 and the centred normalisation, in a frame of their own. */
@@ -395,43 +469,6 @@ static magcal_status_t prepare_centred(const fit_src_t *src, size_t *count, fit_
         return st;
     }
     return norm_centred(bb, nm, scale);
-}
-
-/* Centred fit through the normal equations (any count >= 5). */
-static magcal_status_t fit_normal(const fit_src_t *src, magcal_ellipse_t *out)
-{
-    float mom[S_COUNT];
-    float s = 1.0f;
-    float minp = 0.0f;
-    size_t cnt = 0u;
-    fit_norm_t nm;
-    magcal_status_t st;
-
-    st = prepare_centred(src, &cnt, &nm, &s);
-    if (st != MAGCAL_OK) {
-        return st;
-    }
-    src_moments(src, &nm, 0, mom);
-    if (moments_collinear(mom, (float)cnt) != 0) {
-        return MAGCAL_ERR_DEGENERATE;
-    }
-    st = moments_solve(mom, (float)cnt, &minp);
-    if (st != MAGCAL_OK) {
-        return st;
-    }
-    return conic_finish(mom, nm.mx, nm.my, s, minp, cnt, src, out);
-}
-
-magcal_status_t magcal_ellipse_fit(const magcal_vec2_t *pts, size_t n, const uint8_t *mask,
-                                   magcal_ellipse_t *out)
-{
-    fit_src_t src;
-
-    if (pts == NULL || out == NULL) {
-        return MAGCAL_ERR_NULL;
-    }
-    src_masked(&src, pts, n, mask);
-    return fit_normal(&src, out);
 }
 
 /* Exact conic through 5 points: Gaussian elimination with partial pivoting on W X = Y. */
@@ -544,13 +581,64 @@ static MAGCAL_NOINLINE magcal_status_t fit_five(const fit_src_t *src, magcal_ell
     return conic_finish(coef, nm.mx, nm.my, s, minp, 5u, src, out);
 }
 
-magcal_status_t magcal_ellipse_fit_idx(const magcal_vec2_t *pts, size_t n_pts, const uint16_t *idx,
-                                       size_t m, magcal_ellipse_t *out)
-{
-    fit_src_t src;
-    size_t k;
+/*
+ * Time-sliced fit. Weights: estimated Cortex-M4F instructions of one visit of each loop (host
+ * callgrind x 1.2, tools/bench_fit/slice_cost.c); a step stops before the visit that would pass its
+ * budget (at least one visit per step).
+ */
+#define FIT_W_IDX 6u     /* one index range check (magcal_ellipse_fit_idx) */
+#define FIT_W_SCAN 24u   /* pass 1: one point */
+#define FIT_W_MOM 110u   /* pass 2: 13 Kahan sums of one point */
+#define FIT_W_SOLVE 1400u /* collinearity test, normal equations, LDL^T, conic geometry */
+#define FIT_W_RMS 48u    /* pass 3: radial residual of one point */
+#define FIT_W_STORE 360u /* conic geometry again, result written */
+#define FIT_W_FIVE 2600u /* the 5-point exact path as a whole (5 points: O(1)) */
 
-    if (pts == NULL || idx == NULL || out == NULL) {
+#define FIT_PH_IDX 1u
+#define FIT_PH_FIVE 2u
+#define FIT_PH_SCAN 3u
+#define FIT_PH_MOM 4u
+#define FIT_PH_SOLVE 5u
+#define FIT_PH_RMS 6u
+#define FIT_PH_STORE 7u
+#define FIT_PH_DONE 8u
+
+static void slice_start(magcal_ellipse_fit_slice_t *s)
+{
+    size_t j;
+    s->k_ = 0u;
+    s->cnt_ = 0u;
+    for (j = 0u; j < 4u; ++j) {
+        s->bb_[j] = 0.0f;
+    }
+    s->amax_[0] = 0.0f;
+    s->amax_[1] = 0.0f;
+    s->used_ = 0u;
+    s->status_ = (int8_t)MAGCAL_IN_PROGRESS;
+}
+
+magcal_status_t magcal_ellipse_fit_begin(magcal_ellipse_fit_slice_t *s, const magcal_vec2_t *pts,
+                                         size_t n, const uint8_t *mask, magcal_ellipse_t *out)
+{
+    if (s == NULL || pts == NULL || out == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    s->pts_ = pts;
+    s->n_ = n;
+    s->mask_ = mask;
+    s->idx_ = NULL;
+    s->n_pts_ = n;
+    s->out_ = out;
+    slice_start(s);
+    s->phase_ = FIT_PH_SCAN;
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_ellipse_fit_idx_begin(magcal_ellipse_fit_slice_t *s, const magcal_vec2_t *pts,
+                                             size_t n_pts, const uint16_t *idx, size_t m,
+                                             magcal_ellipse_t *out)
+{
+    if (s == NULL || pts == NULL || idx == NULL || out == NULL) {
         return MAGCAL_ERR_NULL;
     }
     if (m > MAGCAL_ELLIPSE_MAX_POINTS) {
@@ -559,19 +647,202 @@ magcal_status_t magcal_ellipse_fit_idx(const magcal_vec2_t *pts, size_t n_pts, c
     if (m < MAGCAL_ELLIPSE_MIN_POINTS) {
         return MAGCAL_ERR_TOO_FEW_POINTS;
     }
-    for (k = 0u; k < m; ++k) {
-        if ((size_t)idx[k] >= n_pts) {
-            return MAGCAL_ERR_ARG;
+    s->pts_ = pts;
+    s->n_ = m;
+    s->mask_ = NULL;
+    s->idx_ = idx;
+    s->n_pts_ = n_pts;
+    s->out_ = out;
+    slice_start(s);
+    s->phase_ = FIT_PH_IDX;
+    return MAGCAL_OK;
+}
+
+/* Visits of weight w that the rest of the budget pays for (at most left); at least one on a call's
+ * first visit (used == 0), 0 = stop here. */
+static size_t slice_visits(uint32_t budget, uint32_t used, uint32_t w, size_t left)
+{
+    uint32_t v = (used < budget) ? (budget - used) / w : 0u;
+    if (v == 0u && used == 0u) {
+        v = 1u;
+    }
+    return ((size_t)v < left) ? (size_t)v : left;
+}
+
+/* End of pass 1: count rule, centred normalisation; moments pass next. */
+static magcal_status_t slice_scan_done(magcal_ellipse_fit_slice_t *s)
+{
+    fit_norm_t nm;
+    magcal_status_t st = scan_count_ok(s->cnt_);
+    if (st == MAGCAL_OK) {
+        st = norm_centred(s->bb_, &nm, &s->norm_[4]);
+    }
+    if (st == MAGCAL_OK) {
+        s->norm_[0] = nm.mx;
+        s->norm_[1] = nm.my;
+        s->norm_[2] = nm.isx;
+        s->norm_[3] = nm.isy;
+        moments_zero(s->mom_, s->comp_);
+        s->k_ = 0u;
+        s->phase_ = FIT_PH_MOM;
+    }
+    return st;
+}
+
+/* Collinearity test, normal equations, geometry (for the residuals of pass 3). */
+static magcal_status_t slice_solve(magcal_ellipse_fit_slice_t *s)
+{
+    magcal_ellipse_t e;
+    magcal_status_t st;
+    if (moments_collinear(s->mom_, (float)s->cnt_) != 0) {
+        return MAGCAL_ERR_DEGENERATE;
+    }
+    st = moments_solve(s->mom_, (float)s->cnt_, &s->minp_);
+    if (st == MAGCAL_OK) {
+        st = conic_geometry(s->mom_, s->norm_[0], s->norm_[1], s->norm_[4], &e, s->geo_);
+    }
+    s->acc_[0] = 0.0f;
+    s->acc_[1] = 0.0f;
+    s->k_ = 0u;
+    s->phase_ = FIT_PH_RMS;
+    return st;
+}
+
+/* The result: the geometry again (cheaper than keeping it in the slice), the RMS, *out. */
+static magcal_status_t slice_store(magcal_ellipse_fit_slice_t *s)
+{
+    magcal_ellipse_t e;
+    float geo[6];
+    magcal_status_t st = conic_geometry(s->mom_, s->norm_[0], s->norm_[1], s->norm_[4], &e, geo);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    return conic_store(&e, sqrtf(s->acc_[0] / (float)s->cnt_), s->minp_, s->cnt_, s->out_);
+}
+
+/* One pass chunk or one fixed visit of the current phase; *used is charged. Returns
+ * MAGCAL_IN_PROGRESS to go on, 2 when the budget is spent, or the final status. */
+#define SLICE_SPENT ((magcal_status_t)2)
+static magcal_status_t slice_phase(magcal_ellipse_fit_slice_t *s, const fit_src_t *src,
+                                   uint32_t budget, uint32_t *used)
+{
+    static const uint16_t w_of[FIT_PH_DONE] = {0u, FIT_W_IDX, FIT_W_FIVE, FIT_W_SCAN,
+                                                FIT_W_MOM, FIT_W_SOLVE, FIT_W_RMS, FIT_W_STORE};
+    const uint32_t w = w_of[s->phase_];
+    const size_t v = slice_visits(budget, *used, w, (s->phase_ == FIT_PH_IDX ||
+                                                     s->phase_ == FIT_PH_SCAN ||
+                                                     s->phase_ == FIT_PH_MOM ||
+                                                     s->phase_ == FIT_PH_RMS)
+                                                        ? s->n_ - s->k_
+                                                        : 1u);
+    const size_t k1 = s->k_ + v;
+    magcal_status_t st = MAGCAL_IN_PROGRESS;
+    fit_norm_t nm;
+
+    if (v == 0u && s->k_ < s->n_) {
+        return SLICE_SPENT;
+    }
+    *used += (uint32_t)v * w;
+    switch (s->phase_) {
+    case FIT_PH_IDX:
+        for (; s->k_ < k1; ++s->k_) {
+            if ((size_t)s->idx_[s->k_] >= s->n_pts_) {
+                return MAGCAL_ERR_ARG;
+            }
         }
+        if (s->k_ == s->n_) {
+            s->k_ = 0u;
+            s->phase_ = (s->n_ == MAGCAL_ELLIPSE_MIN_POINTS) ? FIT_PH_FIVE : FIT_PH_SCAN;
+        }
+        break;
+    case FIT_PH_FIVE:
+        return fit_five(src, s->out_);
+    case FIT_PH_SCAN:
+        st = src_scan_range(src, s->k_, k1, &s->cnt_, s->bb_, s->amax_);
+        s->k_ = k1;
+        if (st == MAGCAL_OK) {
+            st = (k1 == s->n_) ? slice_scan_done(s) : MAGCAL_OK;
+        }
+        break;
+    case FIT_PH_MOM:
+        nm.mx = s->norm_[0];
+        nm.my = s->norm_[1];
+        nm.isx = s->norm_[2];
+        nm.isy = s->norm_[3];
+        src_moments_range(src, &nm, 0, s->k_, k1, s->mom_, s->comp_);
+        s->k_ = k1;
+        if (k1 == s->n_) {
+            s->phase_ = FIT_PH_SOLVE;
+        }
+        break;
+    case FIT_PH_SOLVE:
+        st = slice_solve(s);
+        break;
+    case FIT_PH_RMS:
+        src_rms_range(src, s->geo_, s->k_, k1, s->acc_);
+        s->k_ = k1;
+        if (k1 == s->n_) {
+            s->phase_ = FIT_PH_STORE;
+        }
+        break;
+    default: /* FIT_PH_STORE */
+        return slice_store(s);
     }
-    src.pts = pts;
-    src.n = m;
-    src.mask = NULL;
-    src.idx = idx;
-    if (m == MAGCAL_ELLIPSE_MIN_POINTS) {
-        return fit_five(&src, out);
+    return (st == MAGCAL_OK) ? MAGCAL_IN_PROGRESS : st;
+}
+
+magcal_status_t magcal_ellipse_fit_step(magcal_ellipse_fit_slice_t *s, uint32_t budget)
+{
+    fit_src_t src;
+    uint32_t used = 0u;
+    magcal_status_t st = MAGCAL_IN_PROGRESS;
+
+    if (s == NULL) {
+        return MAGCAL_ERR_NULL;
     }
-    return fit_normal(&src, out);
+    if (s->phase_ == FIT_PH_DONE) {
+        s->used_ = 0u;
+        return (magcal_status_t)s->status_;
+    }
+    if (s->phase_ < FIT_PH_IDX || s->phase_ > FIT_PH_STORE) {
+        return MAGCAL_ERR_ARG;
+    }
+    src.pts = s->pts_;
+    src.n = s->n_;
+    src.mask = s->mask_;
+    src.idx = s->idx_;
+    while (st == MAGCAL_IN_PROGRESS) {
+        st = slice_phase(s, &src, budget, &used);
+    }
+    s->used_ = used;
+    if (st == SLICE_SPENT) {
+        return MAGCAL_IN_PROGRESS;
+    }
+    s->phase_ = FIT_PH_DONE;
+    s->status_ = (int8_t)st;
+    return st;
+}
+
+magcal_status_t magcal_ellipse_fit(const magcal_vec2_t *pts, size_t n, const uint8_t *mask,
+                                   magcal_ellipse_t *out)
+{
+    magcal_ellipse_fit_slice_t s;
+    magcal_status_t st = magcal_ellipse_fit_begin(&s, pts, n, mask, out);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    return magcal_ellipse_fit_step(&s, UINT32_MAX);
+}
+
+magcal_status_t magcal_ellipse_fit_idx(const magcal_vec2_t *pts, size_t n_pts, const uint16_t *idx,
+                                       size_t m, magcal_ellipse_t *out)
+{
+    magcal_ellipse_fit_slice_t s;
+    magcal_status_t st = magcal_ellipse_fit_idx_begin(&s, pts, n_pts, idx, m, out);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    return magcal_ellipse_fit_step(&s, UINT32_MAX);
 }
 
 /* Pass 1 and the seed's max-abs normalisation (no centring), in a frame of their own. */

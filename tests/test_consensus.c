@@ -284,6 +284,151 @@ static void test_consensus_run_quantised_ring_keeps_lattice(void)
     TEST_ASSERT_TRUE(worst >= 285u);
 }
 
+/* ---- time-sliced run (slice contract, issue 13) ---- */
+
+static const uint32_t k_budgets[] = {1u, 97u, 1000u, 6000u, UINT32_MAX};
+
+/* The run sliced at budget gives exactly the one-shot status and outputs; returns the number of
+ * step calls. *charged gets the sum of the steps' charged estimates. */
+static unsigned sliced_matches_oneshot(const magcal_consensus_cfg_t *cfg, size_t n, const uint8_t *cand,
+                                       uint32_t budget, uint32_t *charged)
+{
+    static uint8_t ref_mask[NMAX];
+    magcal_consensus_result_t ref, got;
+    magcal_consensus_slice_t sl;
+    magcal_status_t st_ref, st;
+    unsigned steps = 0u;
+    uint32_t total = 0u;
+    memset(&ref, 0xA5, sizeof ref);
+    memset(&got, 0xA5, sizeof got);
+    memset(ref_mask, 0x5A, sizeof ref_mask);
+    memset(g_mask, 0x5A, sizeof g_mask);
+    st_ref = magcal_consensus_run(cfg, g_pts, n, cand, g_work, sizeof g_work, ref_mask, &ref);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_consensus_begin(&sl, cfg, g_pts, n, cand, g_work, sizeof g_work, g_mask, &got));
+    do {
+        st = magcal_consensus_step(&sl, budget);
+        TEST_ASSERT_TRUE(budget == UINT32_MAX || sl.used_ <= budget || sl.used_ <= 3000u);
+        total += sl.used_;
+        ++steps;
+        TEST_ASSERT_TRUE(steps < 20000000u);
+    } while (st == MAGCAL_IN_PROGRESS);
+    TEST_ASSERT_EQUAL_INT(st_ref, st);
+    /* finished: every further step returns the same status and does nothing */
+    TEST_ASSERT_EQUAL_INT(st_ref, magcal_consensus_step(&sl, budget));
+    TEST_ASSERT_EQUAL_UINT32(0u, sl.used_);
+    if (st_ref == MAGCAL_OK) {
+        assert_same_result(&ref, &got);
+        TEST_ASSERT_EQUAL_MEMORY(&ref.fit.norm_center, &got.fit.norm_center, sizeof ref.fit.norm_center);
+        TEST_ASSERT_EQUAL_MEMORY(&ref.fit.norm_scale, &got.fit.norm_scale, sizeof(float));
+        TEST_ASSERT_EQUAL_MEMORY(&ref.fit.min_pivot, &got.fit.min_pivot, sizeof(float));
+        TEST_ASSERT_EQUAL_MEMORY(ref.fit.qform, got.fit.qform, sizeof ref.fit.qform);
+    } else {
+        magcal_consensus_result_t untouched;
+        memset(&untouched, 0xA5, sizeof untouched);
+        TEST_ASSERT_EQUAL_MEMORY(&untouched, &got, sizeof got);
+    }
+    TEST_ASSERT_EQUAL_MEMORY(ref_mask, g_mask, n);
+    *charged = total;
+    return steps;
+}
+
+/* Every budget on one data set. At 6000 every step but the last spends its budget but less than
+ * one visit (the largest, a minimal set, charges 3000): steps <= total / 3000 + 1; from n = 100 on
+ * (where the minimal sets are a small part of the run) steps <= 1.25 x total / 6000 + 2. */
+static void sliced_all_budgets(const char *name, size_t n, const uint8_t *cand)
+{
+    magcal_consensus_cfg_t cfg = MAGCAL_CONSENSUS_CFG_DEFAULT;
+    uint32_t total = 0u;
+    uint32_t charged;
+    size_t b;
+    unsigned steps6000 = 0u;
+    for (b = 0u; b < sizeof k_budgets / sizeof k_budgets[0]; ++b) {
+        unsigned steps = sliced_matches_oneshot(&cfg, n, cand, k_budgets[b], &charged);
+        if (k_budgets[b] == UINT32_MAX) {
+            TEST_ASSERT_EQUAL_UINT(1u, steps);
+            total = charged;
+        }
+        if (k_budgets[b] == 6000u) {
+            steps6000 = steps;
+        }
+    }
+    printf("%-34s n %4u: one-shot charges %7lu estimated M4F instructions, %4u steps at budget 6000\n", name,
+           (unsigned)n, (unsigned long)total, steps6000);
+    TEST_ASSERT_TRUE_MESSAGE((uint64_t)steps6000 * 6000u >= total, name);
+    TEST_ASSERT_TRUE_MESSAGE((uint64_t)steps6000 * 3000u <= (uint64_t)total + 3000u, name);
+    if (n >= 100u) {
+        TEST_ASSERT_TRUE_MESSAGE((uint64_t)steps6000 * 6000u <= (uint64_t)total * 5u / 4u + 12000u, name);
+    }
+}
+
+static void test_consensus_step_any_budget_matches_run_bit_for_bit(void)
+{
+    static const magcal_test_dump_t *const dumps[] = {&dump_synthetic_outliers_10, &dump_synthetic_outliers_35,
+                                                      &dump_synthetic_near_ring, &dump_synthetic_spikes,
+                                                      &dump_synthetic_clean};
+    magcal_optics_cfg_t oc = MAGCAL_OPTICS_CFG_DEFAULT;
+    size_t d;
+    for (d = 0u; d < sizeof dumps / sizeof dumps[0]; ++d) {
+        size_t n = load(dumps[d]);
+        sliced_all_budgets(dumps[d]->name, n, NULL);
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_filter(&oc, g_pts, n, g_owork, sizeof g_owork, g_cand, NULL));
+        sliced_all_budgets(dumps[d]->name, n, g_cand);
+    }
+}
+
+/* Small, quantised and full-capacity sets, and the failures the steps detect (NaN sample, too few
+ * candidates, collinear samples): the same status, outputs untouched. */
+static void test_consensus_step_edge_sets_match_run(void)
+{
+    test_distortion_t d = {5.0f, {{1.1f, 0.05f}, {0.05f, 0.9f}}, 3.3f, -1.7f};
+    test_distortion_t big = {40.0f, {{1.1f, 0.05f}, {0.05f, 0.9f}}, 12.0f, -7.0f};
+    uint32_t rng = 4242u;
+    size_t i;
+    for (i = 0; i < 300u; ++i) {
+        magcal_vec2_t p = test_distorted_sample(&d, 360.0 * test_rand_uniform(&rng), 0.1, &rng);
+        g_pts[i].x = floorf(p.x + 0.5f);
+        g_pts[i].y = floorf(p.y + 0.5f);
+    }
+    sliced_all_budgets("5-LSB quantised ring", 300u, NULL);
+    for (i = 0; i < NMAX; ++i) {
+        g_pts[i] = test_distorted_sample(&big, 360.0 * test_rand_uniform(&rng), 0.4, &rng);
+        if (i % 7u == 3u) { /* 14 % spikes */
+            g_pts[i].x += 25.0f;
+        }
+    }
+    sliced_all_budgets("full capacity, spikes", NMAX, NULL);
+    sliced_all_budgets("twenty samples", 20u, NULL);
+    sliced_all_budgets("five samples", 5u, NULL);
+    memset(g_cand, 0, NMAX);
+    g_cand[0] = g_cand[100] = g_cand[200] = g_cand[300] = 1u;
+    sliced_all_budgets("four candidates (TOO_FEW_POINTS)", 400u, g_cand);
+    g_pts[517].x = INFINITY;
+    sliced_all_budgets("an Inf sample (NONFINITE)", 600u, NULL);
+    for (i = 0; i < 100; ++i) {
+        g_pts[i].x = 1.0f + 0.5f * (float)i;
+        g_pts[i].y = -3.0f + 0.25f * (float)i;
+    }
+    sliced_all_budgets("collinear (no ellipse)", 100u, NULL);
+}
+
+static void test_consensus_begin_checks_arguments_step_refuses_unstarted(void)
+{
+    magcal_consensus_cfg_t cfg = MAGCAL_CONSENSUS_CFG_DEFAULT;
+    magcal_consensus_result_t res;
+    magcal_consensus_slice_t sl;
+    size_t n = load(&dump_synthetic_clean);
+    memset(&sl, 0, sizeof sl);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_consensus_step(NULL, 6000u));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_consensus_step(&sl, 6000u));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_consensus_begin(NULL, &cfg, g_pts, n, NULL, g_work, sizeof g_work, g_mask, &res));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_consensus_begin(&sl, &cfg, g_pts, n, NULL, g_work, sizeof g_work, NULL, &res));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE, magcal_consensus_begin(&sl, &cfg, g_pts, n, NULL, g_work,
+                                                                       MAGCAL_CONSENSUS_WORKSPACE_LEN(n) - 1u, g_mask, &res));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_consensus_begin(&sl, &cfg, g_pts, 4u, NULL, g_work, sizeof g_work, g_mask, &res));
+    cfg.refine_iter = 0u;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_consensus_begin(&sl, &cfg, g_pts, n, NULL, g_work, sizeof g_work, g_mask, &res));
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -294,5 +439,8 @@ int main(void)
     RUN_TEST(test_consensus_run_bad_input_returns_status_outputs_untouched);
     RUN_TEST(test_consensus_run_twenty_clean_samples_keeps_them);
     RUN_TEST(test_consensus_run_quantised_ring_keeps_lattice);
+    RUN_TEST(test_consensus_step_any_budget_matches_run_bit_for_bit);
+    RUN_TEST(test_consensus_step_edge_sets_match_run);
+    RUN_TEST(test_consensus_begin_checks_arguments_step_refuses_unstarted);
     return UNITY_END();
 }

@@ -636,6 +636,117 @@ static void test_ellipse_fit_idx_and_mask_equal_compacted_fit(void)
     check_within(0.1, 5.0, a.center.x, "x0 truth");
 }
 
+/* ------------------------------------------------- time-sliced fit (issue 13) */
+
+/* Every field of two fits bit for bit (field by field: padding bytes are unspecified). */
+static void assert_same_fit(const magcal_ellipse_t *a, const magcal_ellipse_t *b)
+{
+    TEST_ASSERT_EQUAL_MEMORY(&a->center, &b->center, sizeof a->center);
+    TEST_ASSERT_EQUAL_MEMORY(&a->semi_minor, &b->semi_minor, sizeof(float));
+    TEST_ASSERT_EQUAL_MEMORY(&a->semi_major, &b->semi_major, sizeof(float));
+    TEST_ASSERT_EQUAL_MEMORY(&a->angle_rad, &b->angle_rad, sizeof(float));
+    TEST_ASSERT_EQUAL_MEMORY(a->coef, b->coef, sizeof a->coef);
+    TEST_ASSERT_EQUAL_MEMORY(&a->norm_center, &b->norm_center, sizeof a->norm_center);
+    TEST_ASSERT_EQUAL_MEMORY(&a->norm_scale, &b->norm_scale, sizeof(float));
+    TEST_ASSERT_EQUAL_MEMORY(&a->residual_rms, &b->residual_rms, sizeof(float));
+    TEST_ASSERT_EQUAL_MEMORY(&a->min_pivot, &b->min_pivot, sizeof(float));
+    TEST_ASSERT_EQUAL_MEMORY(a->qform, b->qform, sizeof a->qform);
+    TEST_ASSERT_EQUAL_UINT16(a->n_used, b->n_used);
+}
+
+/* Sliced at each budget of the contract: the one-shot status and result; returns the steps at
+ * budget 6000 and the total charged at UINT32_MAX. */
+static void fit_sliced_matches(size_t n, const uint8_t *mask, const uint16_t *idx, size_t m,
+                               const char *what)
+{
+    static const uint32_t budgets[] = {1u, 97u, 1000u, 6000u, UINT32_MAX};
+    magcal_ellipse_t ref, got, untouched;
+    magcal_status_t st_ref;
+    size_t b;
+    uint32_t total = 0u;
+    unsigned steps6000 = 0u;
+    memset(&ref, 0xA5, sizeof ref);
+    memset(&untouched, 0xA5, sizeof untouched);
+    st_ref = (idx != NULL) ? magcal_ellipse_fit_idx(g_pts, n, idx, m, &ref) : magcal_ellipse_fit(g_pts, n, mask, &ref);
+    for (b = 0u; b < sizeof budgets / sizeof budgets[0]; ++b) {
+        magcal_ellipse_fit_slice_t sl;
+        magcal_status_t st;
+        unsigned steps = 0u;
+        uint32_t charged = 0u;
+        memset(&got, 0xA5, sizeof got);
+        st = (idx != NULL) ? magcal_ellipse_fit_idx_begin(&sl, g_pts, n, idx, m, &got)
+                           : magcal_ellipse_fit_begin(&sl, g_pts, n, mask, &got);
+        TEST_ASSERT_EQUAL_INT_MESSAGE(MAGCAL_OK, st, what);
+        do {
+            st = magcal_ellipse_fit_step(&sl, budgets[b]);
+            charged += sl.used_;
+            ++steps;
+            TEST_ASSERT_TRUE(steps < 1000000u);
+        } while (st == MAGCAL_IN_PROGRESS);
+        TEST_ASSERT_EQUAL_INT_MESSAGE(st_ref, st, what);
+        TEST_ASSERT_EQUAL_INT(st_ref, magcal_ellipse_fit_step(&sl, budgets[b]));
+        if (st_ref == MAGCAL_OK) {
+            assert_same_fit(&ref, &got);
+        } else {
+            TEST_ASSERT_EQUAL_MEMORY(&untouched, &got, sizeof got);
+        }
+        if (budgets[b] == UINT32_MAX) {
+            TEST_ASSERT_EQUAL_UINT(1u, steps);
+            total = charged;
+        } else if (budgets[b] == 6000u) {
+            steps6000 = steps;
+        }
+    }
+    /* every step but the last spends its budget but less than one visit (the largest: 2600) */
+    TEST_ASSERT_TRUE_MESSAGE(steps6000 <= total / 3400u + 1u, what);
+    TEST_ASSERT_TRUE_MESSAGE((uint64_t)steps6000 * 6000u >= total, what);
+}
+
+static void test_ellipse_fit_step_any_budget_matches_one_shot_bit_for_bit(void)
+{
+    test_distortion_t d = make_dist(1500.0, 1.15, 0.85, 10.0, 5.0, 6000.0, -4500.0);
+    static uint8_t mask[1024];
+    static uint16_t idx[1024];
+    static const uint16_t five[5] = {3u, 200u, 410u, 600u, 800u};
+    static const uint16_t five_bad[5] = {3u, 200u, 410u, 600u, 1024u};
+    size_t i;
+    test_make_ring(&d, 1024, 0.0, 360.0, 3.5, 7u, g_pts, NULL);
+    for (i = 0; i < 1024; ++i) {
+        mask[i] = (uint8_t)(i % 3u != 1u);
+        idx[i] = (uint16_t)(1023u - i);
+    }
+    fit_sliced_matches(1024, NULL, NULL, 0, "1024 points");
+    fit_sliced_matches(288, mask, NULL, 0, "288 points, mask");
+    fit_sliced_matches(1024, NULL, idx, 700, "700 indices");
+    fit_sliced_matches(1024, NULL, five, 5, "5-point exact path");
+    fit_sliced_matches(1024, NULL, five_bad, 5, "index out of range (ARG)");
+    fit_sliced_matches(4, NULL, NULL, 0, "4 points (TOO_FEW_POINTS)");
+    test_make_ring(&d, 300, 0.0, 60.0, 0.5, 9u, g_pts, NULL);
+    fit_sliced_matches(300, NULL, NULL, 0, "60 degree arc (HYPERBOLA)");
+    for (i = 0; i < 100; ++i) {
+        g_pts[i].x = 1.0f + 0.5f * (float)i;
+        g_pts[i].y = -3.0f + 0.25f * (float)i;
+    }
+    fit_sliced_matches(100, NULL, NULL, 0, "collinear (DEGENERATE)");
+    g_pts[57].y = NAN;
+    fit_sliced_matches(100, NULL, NULL, 0, "NaN point (NONFINITE)");
+}
+
+static void test_ellipse_fit_step_bad_calls_return_status(void)
+{
+    magcal_ellipse_fit_slice_t sl;
+    magcal_ellipse_t e;
+    static const uint16_t idx[6] = {0u, 1u, 2u, 3u, 4u, 5u};
+    memset(&sl, 0, sizeof sl);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipse_fit_step(NULL, 6000u));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipse_fit_step(&sl, 6000u)); /* never begun */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipse_fit_begin(&sl, NULL, 10u, NULL, &e));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipse_fit_begin(&sl, g_pts, 10u, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipse_fit_idx_begin(&sl, g_pts, 10u, NULL, 6u, &e));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_ellipse_fit_idx_begin(&sl, g_pts, 10u, idx, 4u, &e));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipse_fit_idx_begin(&sl, g_pts, 10u, idx, 65536u, &e));
+}
+
 /* ---------------------------------------------------------------- residual */
 
 static void test_ellipse_residual_is_radial_distance(void)
@@ -1111,6 +1222,8 @@ int main(void)
     RUN_TEST(test_ellipse_fit_idx_five_points_exact);
     RUN_TEST(test_ellipse_fit_idx_bad_subsets_return_status);
     RUN_TEST(test_ellipse_fit_idx_and_mask_equal_compacted_fit);
+    RUN_TEST(test_ellipse_fit_step_any_budget_matches_one_shot_bit_for_bit);
+    RUN_TEST(test_ellipse_fit_step_bad_calls_return_status);
     RUN_TEST(test_ellipse_residual_is_radial_distance);
     RUN_TEST(test_ellipse_to_cal_all_forms_map_onto_circle);
     RUN_TEST(test_ellipse_to_cal_noise_free_ring_is_circle_to_float_precision);

@@ -65,9 +65,12 @@ extern "C" {
  * build-time limits in magcal/config.h. */
 
 /** @cond INTERNAL */
-/* Bytes of the run state kept in the workspace (four ellipse models and the loop state, off the
- * stack) with its alignment slack; consensus.c checks the size with a static assert. */
-#define MAGCAL_CONSENSUS_STATE_LEN_ (4u * sizeof(magcal_ellipse_t) + 20u * sizeof(void *))
+/* Bytes of the run state kept in the workspace (three ellipse models, the fit slice, the
+ * resumable selection and sort, the loop state; off the stack) with its alignment slack;
+ * consensus.c checks the size with a static assert. */
+#define MAGCAL_CONSENSUS_STATE_LEN_                                                                \
+    (3u * sizeof(magcal_ellipse_t) + sizeof(magcal_ellipse_fit_slice_t) + 36u * sizeof(void *) +  \
+     64u)
 /** @endcond */
 
 /**
@@ -134,6 +137,48 @@ typedef struct {
 magcal_status_t magcal_consensus_run(const magcal_consensus_cfg_t *cfg, const magcal_vec2_t *pts, size_t n,
                                      const uint8_t *cand_mask, void *work, size_t work_len,
                                      uint8_t *inlier_mask, magcal_consensus_result_t *result);
+
+/**
+ * Time-sliced consensus run (docs/performance.md "time-sliced work"): the state of one
+ * magcal_consensus_run() in caller memory; the bulk of the run state lives in the workspace.
+ * Fields are private.
+ */
+typedef struct {
+    void *state_;   /* the run state, aligned at the start of the caller's workspace */
+    uint32_t used_; /* estimated M4F instructions charged by the last step (a caller sharing one
+                     * budget between stages may read it) */
+    uint8_t phase_;
+    int8_t status_;
+} magcal_consensus_slice_t;
+
+/**
+ * @brief Start a time-sliced magcal_consensus_run(): O(1) checks of the arguments (the samples
+ *        are checked by the steps), stores the inputs.
+ *
+ * The inputs (cfg, pts, cand_mask) and the workspace must stay unchanged and alive until the run
+ * has finished; inlier_mask is written by the steps (complete only once the run has finished) and
+ * result by the last step. Parameters as magcal_consensus_run().
+ * @param[out] s slice state, caller memory.
+ * @return MAGCAL_OK (call magcal_consensus_step()); MAGCAL_ERR_NULL (s or an argument NULL),
+ *         MAGCAL_ERR_ARG, MAGCAL_ERR_TOO_FEW_POINTS (n < 5), MAGCAL_ERR_WORKSPACE as
+ *         magcal_consensus_run().
+ */
+magcal_status_t magcal_consensus_begin(magcal_consensus_slice_t *s, const magcal_consensus_cfg_t *cfg,
+                                       const magcal_vec2_t *pts, size_t n, const uint8_t *cand,
+                                       void *work, size_t work_len, uint8_t *inlier,
+                                       magcal_consensus_result_t *res);
+
+/**
+ * @brief Do at most about budget Cortex-M4F instructions of the run started by
+ *        magcal_consensus_begin() (at least one unit of work per call, so any budget >= 1 makes
+ *        progress).
+ * @param[in,out] s      slice state.
+ * @param[in]     budget estimated M4F instructions for this call (MAGCAL_SLICE_BUDGET_DEFAULT).
+ * @return MAGCAL_IN_PROGRESS while work remains; then exactly the status and outputs of
+ *         magcal_consensus_run() (bit for bit), returned again by any further call;
+ *         MAGCAL_ERR_NULL (s NULL); MAGCAL_ERR_ARG (s not started).
+ */
+magcal_status_t magcal_consensus_step(magcal_consensus_slice_t *s, uint32_t budget);
 
 #ifdef __cplusplus
 }

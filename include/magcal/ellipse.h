@@ -183,6 +183,66 @@ magcal_status_t magcal_ellipse_fit_idx(const magcal_vec2_t *pts, size_t n_pts, c
                                        size_t m, magcal_ellipse_t *out);
 
 /**
+ * Time-sliced least-squares fit (the contract of docs/performance.md "time-sliced work"): the state
+ * of one magcal_ellipse_fit() / magcal_ellipse_fit_idx() in caller memory. Fields are private.
+ */
+typedef struct {
+    const magcal_vec2_t *pts_;
+    size_t n_;
+    const uint8_t *mask_;
+    const uint16_t *idx_;
+    size_t n_pts_;
+    magcal_ellipse_t *out_;
+    size_t k_;       /* position of the current pass */
+    size_t cnt_;     /* used points (pass 1) */
+    float mom_[13];  /* power sums, then A..E in mom_[0..4] */
+    float comp_[13]; /* Kahan compensation of mom_ */
+    float bb_[4];    /* bounding box (pass 1) */
+    float amax_[2];
+    float norm_[5];  /* mx, my, 1/s, 1/s, s */
+    float geo_[6];   /* what the residual needs of the fitted geometry */
+    float acc_[2];   /* residual sum of squares and its compensation (pass 3) */
+    float minp_;
+    uint32_t used_;  /* estimated M4F instructions charged by the last step (read by consensus.c) */
+    uint8_t phase_;
+    int8_t status_;
+} magcal_ellipse_fit_slice_t;
+
+/**
+ * @brief Start a time-sliced magcal_ellipse_fit() (O(1): checks the pointers, stores the inputs).
+ * @param[out] s    slice state, caller memory (kept until the fit has finished).
+ * @param[in]  pts  as magcal_ellipse_fit(); must stay unchanged until the fit has finished.
+ * @param[in]  n    as magcal_ellipse_fit().
+ * @param[in]  mask as magcal_ellipse_fit(); must stay unchanged until the fit has finished.
+ * @param[out] out  result, written by the last step; untouched on failure.
+ * @return MAGCAL_OK (call magcal_ellipse_fit_step()); MAGCAL_ERR_NULL (s, pts or out NULL).
+ */
+magcal_status_t magcal_ellipse_fit_begin(magcal_ellipse_fit_slice_t *s, const magcal_vec2_t *pts,
+                                         size_t n, const uint8_t *mask, magcal_ellipse_t *out);
+
+/**
+ * @brief Start a time-sliced magcal_ellipse_fit_idx() (O(1); the index range is checked by the
+ *        steps).
+ * @return MAGCAL_OK; MAGCAL_ERR_NULL (s, pts, idx or out NULL); MAGCAL_ERR_ARG
+ *         (m > MAGCAL_ELLIPSE_MAX_POINTS); MAGCAL_ERR_TOO_FEW_POINTS (m < 5).
+ */
+magcal_status_t magcal_ellipse_fit_idx_begin(magcal_ellipse_fit_slice_t *s, const magcal_vec2_t *pts,
+                                             size_t n_pts, const uint16_t *idx, size_t m,
+                                             magcal_ellipse_t *out);
+
+/**
+ * @brief Do at most about budget Cortex-M4F instructions of the fit started by
+ *        magcal_ellipse_fit_begin() or magcal_ellipse_fit_idx_begin() (at least one unit of work,
+ *        so every budget >= 1 makes progress).
+ * @param[in,out] s      slice state.
+ * @param[in]     budget estimated M4F instructions for this call.
+ * @return MAGCAL_IN_PROGRESS while work remains; then exactly the status of the one-shot call
+ *         (and *out bit for bit), returned again by any further call; MAGCAL_ERR_NULL (s NULL);
+ *         MAGCAL_ERR_ARG (s not started).
+ */
+magcal_status_t magcal_ellipse_fit_step(magcal_ellipse_fit_slice_t *s, uint32_t budget);
+
+/**
  * @brief The seed paper's variant: max-abs scaling only (x~ = x/max|x|, y~ = y/max|y|, no
  *        centring), coefficients mapped back to input units, geometry extracted there.
  *
