@@ -14,15 +14,15 @@
 #define HARM_PIVOT 1.0e-6f
 
 /* Per-visit weights, estimated M4F instructions (host callgrind x 1.2, docs/calibrator.md). */
-#define HARM_W_SKIP 12u    /* a sample outside the mask, or a pass switch */
-#define HARM_W_SUM 80u     /* correction + radius */
-#define HARM_W_NORMAL 150u /* correction, radius, regressors, 15 + 5 products */
-#define HARM_W_RESID 110u  /* correction, radius, regressors, residual */
-#define HARM_W_SOLVE1 500u /* one 5x5 LDL^T solve */
-#define HARM_W_FINISH 2600u /* four 5x5 solves and the traces */
-#define DIST_W_COLLECT 10u /* one mask test and index write */
-#define DIST_W_SORT 24u    /* one comparison (and move) of the shell sort */
-#define DIST_W_COUNT 24u   /* one neighbour comparison */
+#define HARM_W_SKIP 33u     /* a sample outside the mask, or a pass switch */
+#define HARM_W_SUM 220u     /* correction + radius */
+#define HARM_W_NORMAL 410u  /* correction, radius, regressors, 15 + 5 products */
+#define HARM_W_RESID 300u   /* correction, radius, regressors, residual */
+#define HARM_W_SOLVE1 1500u /* one 5x5 LDL^T solve (copy + factorisation + substitutions) */
+#define HARM_W_FINISH 400u  /* the traces and estimates */
+#define DIST_W_COLLECT 20u /* one mask test and index write */
+#define DIST_W_SORT 50u    /* one comparison (and move) of the shell sort */
+#define DIST_W_COUNT 40u   /* one neighbour comparison */
 
 /* Regressors of one corrected sample h (|h| = rho > 0): 1, cos phi, sin phi, cos 2phi, sin 2phi. */
 static void harm_row(magcal_vec2_t h, float rho, float g[HARM_K])
@@ -130,63 +130,67 @@ static int harm_pass_fit(magcal_cal_harm_slice_t *h, magcal_cal_budget_t *b, int
     return 1;
 }
 
-/* Pass 3: noise, the inverse's harmonic block, the estimates (one visit: five 5x5 solves). */
-static void harm_finish(magcal_cal_harm_slice_t *h)
+/* Pass 3: the residual noise (measured vs the rounding noise of the samples' LSB: rounding not
+ * seen in the residuals, a lattice lying almost on a conic, is systematic along the ring, one
+ * independent error per MAGCAL_CAL_LATTICE_K distinct values). */
+static void harm_noise(magcal_cal_harm_slice_t *h)
 {
-    float *nm = h->scratch;                         /* 5x5 normal matrix G^T G */
-    float *wk = h->scratch + (size_t)HARM_K * HARM_K; /* solver copy */
-    float *beta = wk + (size_t)HARM_K * HARM_K;    /* 5: the coefficients */
-    float *col = beta + HARM_K;                     /* 5: columns of the inverse */
+    const size_t k_dof = h->k - HARM_K;
+    const float sm2 = h->ss / (float)k_dof;
+    const float hid = fmaxf(h->floor * h->floor - sm2, 0.0f);
+    h->out->sigma_rel = sqrtf(sm2 + hid);
+    h->s2 = h->out->sigma_rel * h->out->sigma_rel;
+    h->s2p = sm2 + MAGCAL_CAL_LATTICE_K * hid; /* noise variance seen by the parameters */
+}
+
+/* Passes 4..7: column q of (G^T G)^-1 restricted to the four harmonics (one 5x5 solve per
+ * visit) into inv4 (scratch); 0 when singular. */
+static int harm_column(magcal_cal_harm_slice_t *h, size_t q)
+{
+    float *nm = h->scratch;
+    float *wk = h->scratch + (size_t)HARM_K * HARM_K;
+    float *col = wk + (size_t)HARM_K * HARM_K + HARM_K;
+    float *inv4 = col + HARM_K; /* 4x4, row-major */
+    size_t r;
+    (void)memset(col, 0, HARM_K * sizeof(float));
+    col[q] = 1.0f;
+    if (harm_solve(nm, wk, col) != 0) {
+        return 0;
+    }
+    for (r = 1u; r < HARM_K; ++r) {
+        inv4[(r - 1u) * 4u + (q - 1u)] = col[r];
+    }
+    return 1;
+}
+
+/* Last visit: the estimates from the harmonics' coefficients and covariance. */
+static void harm_estimates(magcal_cal_harm_slice_t *h)
+{
+    const float *beta = h->scratch + 2u * (size_t)HARM_K * HARM_K;
+    const float *inv4 = beta + 2u * HARM_K;
     magcal_cal_harm_t *out = h->out;
-    float inv4[4][4];
-    float s2;
-    float s2p; /* noise variance seen by the parameters */
     const size_t k = h->k;
+    float tr = 0.0f;
+    float tr2 = 0.0f;
+    float b2 = 0.0f;
     size_t r;
     size_t q;
-    {
-        /* measured residual noise vs the rounding noise of the samples' LSB: rounding not seen in
-         * the residuals (a lattice lying almost on a conic) is systematic along the ring, one
-         * independent error per MAGCAL_CAL_LATTICE_K distinct values */
-        const size_t k_dof = k - HARM_K;
-        const float sm2 = h->ss / (float)k_dof;
-        const float hid = fmaxf(h->floor * h->floor - sm2, 0.0f);
-        out->sigma_rel = sqrtf(sm2 + hid);
-        s2 = out->sigma_rel * out->sigma_rel;
-        s2p = sm2 + MAGCAL_CAL_LATTICE_K * hid;
-    }
-    /* (G^T G)^-1 restricted to the four harmonics: columns 1..4 */
-    for (q = 1u; q < HARM_K; ++q) {
-        (void)memset(col, 0, HARM_K * sizeof(float));
-        col[q] = 1.0f;
-        if (harm_solve(nm, wk, col) != 0) {
-            return;
-        }
-        for (r = 1u; r < HARM_K; ++r) {
-            inv4[r - 1u][q - 1u] = col[r];
+    for (r = 0u; r < 4u; ++r) {
+        tr += inv4[r * 4u + r];
+        b2 += beta[r + 1u] * beta[r + 1u];
+        for (q = 0u; q < 4u; ++q) {
+            tr2 += inv4[r * 4u + q] * inv4[q * 4u + r];
         }
     }
-    {
-        float tr = 0.0f;
-        float tr2 = 0.0f;
-        float b2 = 0.0f;
-        for (r = 0u; r < 4u; ++r) {
-            tr += inv4[r][r];
-            b2 += beta[r + 1u] * beta[r + 1u];
-            for (q = 0u; q < 4u; ++q) {
-                tr2 += inv4[r][q] * inv4[q][r];
-            }
-        }
-        /* variance of the harmonics (independent samples: dup_factor), and the O(sigma^2)
-         * bias of a least-squares fit whose regressors are noisy too: sigma^2 (G^T G / k)^-1,
-         * large exactly where the design is weak (clumps: short arcs) */
-        out->err2 = 0.5f * b2;
-        out->noise2 = 0.5f * s2p * h->dup * tr;
-        out->noise2_sd = sqrtf(0.5f * tr2) * s2p * h->dup;
-        out->design = 0.25f * (float)k * sqrtf(tr2);
-        out->bias2 =
-            MAGCAL_CAL_BIAS_K * MAGCAL_CAL_BIAS_K * 0.5f * s2 * s2 * (float)k * (float)k * tr2;
-    }
+    /* variance of the harmonics (independent samples: dup_factor), and the O(sigma^2) bias of a
+     * least-squares fit whose regressors are noisy too: sigma^2 (G^T G / k)^-1, large exactly
+     * where the design is weak (clumps: short arcs) */
+    out->err2 = 0.5f * b2;
+    out->noise2 = 0.5f * h->s2p * h->dup * tr;
+    out->noise2_sd = sqrtf(0.5f * tr2) * h->s2p * h->dup;
+    out->design = 0.25f * (float)k * sqrtf(tr2);
+    out->bias2 =
+        MAGCAL_CAL_BIAS_K * MAGCAL_CAL_BIAS_K * 0.5f * h->s2 * h->s2 * (float)k * (float)k * tr2;
     out->ok = 1u;
 }
 
@@ -200,7 +204,7 @@ int magcal_cal_harm_step(magcal_cal_harm_slice_t *h, magcal_cal_budget_t *b)
             return 0;
         }
         if (h->k <= HARM_K || !(h->sum > 0.0f) || !magcal_isfinite_f(h->sum)) {
-            h->pass = 4u;
+            h->pass = 9u;
             return 1; /* out->ok 0 */
         }
         h->mean = h->sum / (float)h->k;
@@ -218,7 +222,7 @@ int magcal_cal_harm_step(magcal_cal_harm_slice_t *h, magcal_cal_budget_t *b)
             return 0;
         }
         if (harm_solve(nm, wk, beta) != 0) {
-            h->pass = 4u;
+            h->pass = 9u;
             return 1; /* headings too clumped for a first and second harmonic: singular design */
         }
         /* residual variance after the harmonic fit, second pass (no cancellation of sums) */
@@ -238,8 +242,25 @@ int magcal_cal_harm_step(magcal_cal_harm_slice_t *h, magcal_cal_budget_t *b)
         }
     }
     if (h->pass == 3u) {
-        harm_finish(h);
-        h->pass = 4u;
+        harm_noise(h);
+        h->pass = 4u; /* passes 4..7: columns 1..4 of the inverse */
+        if (magcal_cal_spend(b, HARM_W_SKIP) != 0) {
+            return 0;
+        }
+    }
+    while (h->pass >= 4u && h->pass < 8u) {
+        if (harm_column(h, (size_t)h->pass - 3u) == 0) {
+            h->pass = 9u;
+            return 1; /* singular: out->ok 0 */
+        }
+        h->pass++;
+        if (magcal_cal_spend(b, HARM_W_SOLVE1) != 0) {
+            return 0;
+        }
+    }
+    if (h->pass == 8u) {
+        harm_estimates(h);
+        h->pass = 9u;
         (void)magcal_cal_spend(b, HARM_W_FINISH);
     }
     return 1;

@@ -40,8 +40,9 @@ typedef struct {
  * (calibrated on the quantised rings of tests/test_trust2d.c, 2..50 LSB radius). */
 #define MAGCAL_CAL_LATTICE_K 8.0f
 
-/* Scratch floats magcal_cal_harmonics() needs (two 5x5 matrices and two vectors). */
-#define MAGCAL_CAL_HARM_SCRATCH_FLOATS 60u
+/* Scratch floats magcal_cal_harmonics() needs (two 5x5 matrices, two vectors, the 4x4 block of
+ * the inverse). */
+#define MAGCAL_CAL_HARM_SCRATCH_FLOATS 76u
 
 /*
  * Analyse calibration c on pts[i] with mask[i] != 0. dup_factor >= 1 multiplies the covariance
@@ -82,7 +83,8 @@ static inline int magcal_cal_spend(magcal_cal_budget_t *b, uint32_t w)
 }
 
 /* Resumable harmonic analysis (magcal_cal_harmonics() = begin + step until done). All state here
- * (the calibration is copied); nm / beta / solver copies live in `scratch` (60 floats). */
+ * (the calibration is copied); nm / beta / solver copies live in `scratch`
+ * (MAGCAL_CAL_HARM_SCRATCH_FLOATS floats). */
 typedef struct {
     const magcal_vec2_t *pts;
     const uint8_t *mask;
@@ -95,9 +97,12 @@ typedef struct {
     float sum;
     float mean;
     float ss;
+    float s2;  /* residual variance */
+    float s2p; /* noise variance seen by the parameters */
     uint32_t i;
     uint32_t k;
-    uint8_t pass; /* 0 mean radius, 1 normal equations, 2 residual, 3 solves, 4 done */
+    uint8_t pass; /* 0 mean radius, 1 normal equations, 2 residual, 3 noise, 4..7 the inverse's
+                     columns, 8 estimates, 9 done */
 } magcal_cal_harm_slice_t;
 
 void magcal_cal_harm_begin(magcal_cal_harm_slice_t *h, const magcal_vec2_t *pts, size_t n,

@@ -33,21 +33,21 @@
 #define CAL_COLLINEAR_TOL 1.0e-6f
 
 /* Per-visit weights, estimated M4F instructions (measured: docs/calibrator.md "Work per call"). */
-#define CAL_W_PHASE 40u    /* a phase switch / O(1) bookkeeping */
-#define CAL_W_BBOX 20u     /* bounding box of one loaded sample */
-#define CAL_W_IDENT 10u    /* one identical-samples comparison */
-#define CAL_W_FLAG 10u     /* one flag / mask byte pass */
-#define CAL_W_MASKS 16u    /* filter mask copy, count and flags of one sample */
-#define CAL_W_MEAN 16u     /* one sample of the inliers' mean */
-#define CAL_W_SCALE 16u    /* one sample of their scale */
-#define CAL_W_MOMENT 60u   /* moments + circle normal equations of one sample */
-#define CAL_W_CIRCLE 500u  /* collinearity test + 3x3 circle solve */
-#define CAL_W_COVER 110u   /* approximate heading (atan2f) + bin of one sample */
-#define CAL_W_COVFIN 700u  /* coverage of the 36 bins */
-#define CAL_W_GATES 24u    /* flags with residual bits and counts of one sample */
-#define CAL_W_TOCAL 2500u  /* ellipse -> calibration (eigen decomposition, sqrt, trig) */
-#define CAL_W_COVCORR 160u /* correction + heading + bin of one sample */
-#define CAL_W_SHIFT 260u   /* one of the 72 shift headings (inverse map, correction, atan2f) */
+#define CAL_W_PHASE 40u     /* a phase switch / O(1) bookkeeping */
+#define CAL_W_BBOX 100u     /* bounding box of one loaded sample (fminf / fmaxf calls) */
+#define CAL_W_IDENT 15u     /* one identical-samples comparison */
+#define CAL_W_FLAG 24u      /* one flag / mask byte pass */
+#define CAL_W_MASKS 35u     /* filter mask copy, count and flags of one sample */
+#define CAL_W_MEAN 47u      /* one sample of the inliers' mean (two divisions) */
+#define CAL_W_SCALE 52u     /* one sample of their scale */
+#define CAL_W_MOMENT 140u   /* moments + circle normal equations of one sample */
+#define CAL_W_CIRCLE 600u   /* collinearity test + 3x3 circle solve */
+#define CAL_W_COVER 200u    /* approximate heading (atan2f) + bin of one sample */
+#define CAL_W_COVFIN 870u   /* coverage of the 36 bins */
+#define CAL_W_GATES 30u     /* flags with residual bits and counts of one sample */
+#define CAL_W_TOCAL 2500u   /* ellipse -> calibration (eigen decomposition, sqrt, trig) */
+#define CAL_W_COVCORR 390u  /* correction + heading + bin of one sample */
+#define CAL_W_SHIFT 390u    /* one of the 72 shift headings (inverse map, correction, atan2f) */
 #define CAL_W_ONESHOT UINT32_MAX /* a one-shot call (exceptions): ends the step */
 
 typedef enum {
@@ -96,6 +96,9 @@ typedef struct {
     uint8_t active;       /* a solve is under way */
     union {
         magcal_dbscan_cfg_t dc;
+        magcal_optics_filter_slice_t filter;
+        magcal_optics_thin_slice_t thin;
+        magcal_consensus_slice_t cons;
     } u;
 } cal_run_t;
 
@@ -140,6 +143,8 @@ MAGCAL_STATIC_ASSERT(sizeof(cal_run_t) <= MAGCAL_CALIBRATOR_RUN_LEN, run_state_f
 /* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
 MAGCAL_STATIC_ASSERT(sizeof(cal_prep_t) <= MAGCAL_CONSENSUS_WORKSPACE_LEN(16u), prep_fits_scratch);
 /* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
+MAGCAL_STATIC_ASSERT(sizeof(magcal_ellipse_fit_slice_t) + 8u <= MAGCAL_CONSENSUS_WORKSPACE_LEN(16u), plain_fits_scratch);
+/* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
 MAGCAL_STATIC_ASSERT(MAGCAL_CAL_HARM_SCRATCH_FLOATS * sizeof(float) + 2u * 16u + 8u + sizeof(cal_adopt_t) <=
                          MAGCAL_CONSENSUS_WORKSPACE_LEN(16u),
                      adopt_fits_scratch);
@@ -154,6 +159,25 @@ static float *cal_est_scratch(const magcal_calibrator_t *cal) { return (float *)
 static uint16_t *cal_est_idx(const magcal_calibrator_t *cal)
 {
     return (uint16_t *)(void *)(cal_est_scratch(cal) + MAGCAL_CAL_HARM_SCRATCH_FLOATS);
+}
+
+/* The plain fit's slice state: at the start of the stage scratch (8-aligned), unused by it. */
+static magcal_ellipse_fit_slice_t *cal_plain_slice(const magcal_calibrator_t *cal)
+{
+    uintptr_t a = (uintptr_t)cal->scratch;
+    a = (a + 7u) & ~(uintptr_t)7u;
+    return (magcal_ellipse_fit_slice_t *)(void *)a;
+}
+
+/* Budget left for a module's step (UINT32_MAX: to the end). */
+static uint32_t cal_left(const cal_run_t *r) { return r->bud.unlimited != 0u ? UINT32_MAX : r->bud.left; }
+
+/* After a module's step ended with st: IN_PROGRESS spends the budget; a final status charges
+ * `used` (UINT32_MAX when the module does not report it: the step ends there). */
+static magcal_status_t cal_module_done(cal_run_t *r, magcal_status_t st, uint32_t used)
+{
+    (void)magcal_cal_spend(&r->bud, st == MAGCAL_IN_PROGRESS ? CAL_W_ONESHOT : used);
+    return st;
 }
 
 /* Behind the indices, 8-aligned (the cursors hold pointers and sizes). */
@@ -344,16 +368,21 @@ static magcal_status_t ph_filter(magcal_calibrator_t *cal, cal_run_t *r)
     } else {
         if (r->sub == 0u) {
             st = cal_filter_optics_cfg(cal, r);
-            if (st != MAGCAL_OK) {
-                return st;
+            if (st == MAGCAL_OK) {
+                st = magcal_optics_filter_begin(&r->u.filter, &r->oc, cal->buf, cal->n, cal->scratch,
+                                                cal->scratch_len, cal->flags, &r->info);
             }
-            st = magcal_optics_filter(&r->oc, cal->buf, cal->n, cal->scratch, cal->scratch_len,
-                                      cal->flags, &r->info);
-            (void)magcal_cal_spend(&r->bud, CAL_W_ONESHOT);
             if (st != MAGCAL_OK) {
                 return st;
             }
             r->sub = 1u;
+            if (r->bud.unlimited == 0u && r->bud.left == 0u) {
+                return MAGCAL_IN_PROGRESS; /* the one-shot automatic radius spent the budget */
+            }
+        }
+        st = cal_module_done(r, magcal_optics_filter_step(&r->u.filter, cal_left(r)), CAL_W_ONESHOT);
+        if (st != MAGCAL_OK) {
+            return st; /* MAGCAL_IN_PROGRESS, or the filter's failure */
         }
         r->rep.filter_eps = r->info.eps_prime;
         r->rep.filter_min_pts = r->info.min_pts;
@@ -581,14 +610,27 @@ static magcal_status_t ph_cov_f(magcal_calibrator_t *cal, cal_run_t *r)
  * parked at one heading must not fill the draws; flags hold the thinned mask meanwhile. */
 static magcal_status_t ph_thin(magcal_calibrator_t *cal, cal_run_t *r)
 {
-    const uint8_t *cand = r->rep.filter_fragmented != 0u ? NULL : cal->mask_a;
-    r->cand = (uint8_t)(r->rep.filter_fragmented != 0u ? 0u : 1u);
-    if (cal->n >= 16u) {
-        if (magcal_optics_thin(cal->buf, cal->n, cand, cal->scratch, cal->scratch_len,
-                               cal->flags) == MAGCAL_OK) {
+    magcal_status_t st = MAGCAL_ERR_ARG;
+    if (r->sub == 0u) {
+        const uint8_t *cand = r->rep.filter_fragmented != 0u ? NULL : cal->mask_a;
+        r->cand = (uint8_t)(r->rep.filter_fragmented != 0u ? 0u : 1u);
+        if (cal->n >= 16u) {
+            st = magcal_optics_thin_begin(&r->u.thin, cal->buf, cal->n, cand, cal->scratch,
+                                          cal->scratch_len, cal->flags);
+        }
+        r->sub = 1u;
+        if (st == MAGCAL_OK) {
+            r->sub = 2u;
+        }
+    }
+    if (r->sub == 2u) {
+        st = cal_module_done(r, magcal_optics_thin_step(&r->u.thin, cal_left(r)), CAL_W_ONESHOT);
+        if (st == MAGCAL_IN_PROGRESS) {
+            return st;
+        }
+        if (st == MAGCAL_OK) {
             r->cand = 2u;
         }
-        (void)magcal_cal_spend(&r->bud, CAL_W_ONESHOT);
     }
     cal_goto(r, PH_CONS);
     return MAGCAL_OK;
@@ -597,11 +639,25 @@ static magcal_status_t ph_thin(magcal_calibrator_t *cal, cal_run_t *r)
 /* 4. consensus into run->cres, inlier mask into mask_b. */
 static magcal_status_t ph_cons(magcal_calibrator_t *cal, cal_run_t *r)
 {
-    const uint8_t *cand = r->cand == 0u ? NULL : (r->cand == 1u ? cal->mask_a : cal->flags);
-    r->held = magcal_consensus_run(&cal->cfg.consensus, cal->buf, cal->n, cand, cal->scratch,
-                                   MAGCAL_CONSENSUS_WORKSPACE_LEN(cal->capacity), cal->mask_b,
-                                   &r->cres);
-    (void)magcal_cal_spend(&r->bud, CAL_W_ONESHOT);
+    magcal_status_t st;
+    if (r->sub == 0u) {
+        const uint8_t *cand = r->cand == 0u ? NULL : (r->cand == 1u ? cal->mask_a : cal->flags);
+        st = magcal_consensus_begin(&r->u.cons, &cal->cfg.consensus, cal->buf, cal->n, cand,
+                                    cal->scratch, MAGCAL_CONSENSUS_WORKSPACE_LEN(cal->capacity),
+                                    cal->mask_b, &r->cres);
+        r->sub = 1u;
+        if (st != MAGCAL_OK) {
+            r->held = st;
+            cal_goto(r, PH_FLAGS0);
+            return MAGCAL_OK;
+        }
+    }
+    st = magcal_consensus_step(&r->u.cons, cal_left(r));
+    st = cal_module_done(r, st, r->u.cons.used_);
+    if (st == MAGCAL_IN_PROGRESS) {
+        return st;
+    }
+    r->held = st;
     cal_goto(r, PH_FLAGS0);
     return MAGCAL_OK;
 }
@@ -630,10 +686,19 @@ static magcal_status_t ph_flags0(magcal_calibrator_t *cal, cal_run_t *r)
 /* Plain least-squares fit of the filter inliers (use_consensus = 0). */
 static magcal_status_t ph_plain(magcal_calibrator_t *cal, cal_run_t *r)
 {
-    magcal_status_t st = magcal_ellipse_fit(cal->buf, cal->n, cal->mask_a, &r->cres.fit);
-    (void)magcal_cal_spend(&r->bud, CAL_W_ONESHOT);
+    magcal_ellipse_fit_slice_t *es = cal_plain_slice(cal);
+    magcal_status_t st;
+    if (r->sub == 0u) {
+        st = magcal_ellipse_fit_begin(es, cal->buf, cal->n, cal->mask_a, &r->cres.fit);
+        if (st != MAGCAL_OK) {
+            return st;
+        }
+        r->sub = 1u;
+    }
+    st = magcal_ellipse_fit_step(es, cal_left(r));
+    st = cal_module_done(r, st, es->used_);
     if (st != MAGCAL_OK) {
-        return st;
+        return st; /* MAGCAL_IN_PROGRESS, or the fit's failure */
     }
     cal_goto(r, PH_PLAIN_MASK);
     r->m = 0u;

@@ -142,7 +142,10 @@ extern "C" {
  * their accumulators in the stage scratch.
  */
 #define MAGCAL_CALIBRATOR_SLICE_LEN                                                                \
-    (24u + sizeof(magcal_dbscan_cfg_t))
+    (32u + MAGCAL_CALIBRATOR_MAX_(                                                                 \
+               MAGCAL_CALIBRATOR_MAX_(sizeof(magcal_dbscan_cfg_t), sizeof(magcal_consensus_slice_t)), \
+               MAGCAL_CALIBRATOR_MAX_(sizeof(magcal_optics_filter_slice_t),                        \
+                                      sizeof(magcal_optics_thin_slice_t))))
 
 /**
  * Bytes of the state of one magcal_calibrator_run() kept in the workspace instead of on the stack

@@ -13,8 +13,8 @@
 #include "cont_internal.h"
 
 /* Weights, estimated M4F instructions (host callgrind x 1.2; docs/calibrator.md "Work per call"). */
-#define CONT_W_DRAIN 900u  /* judge + store push of one sample (its sweep steps included) */
-#define CONT_W_SWEEP 7500u /* a push that ended a survey sweep (the ring fits): ends the drain */
+#define CONT_W_DRAIN 1750u /* judge + store push of one sample (its 8 sweep steps included) */
+#define CONT_W_SWEEP 7200u /* a push that ended a survey sweep (the ring fits): ends the drain */
 #define CONT_W_SNAP 14u    /* one sample of the snapshot */
 #define CONT_W_BIN 20u     /* one bin of the snapshot */
 
