@@ -21,18 +21,25 @@
 /* 1 / sqrt(12): standard deviation of a uniform rounding error, in LSB */
 #define CONS_INV_SQRT12 0.28867513f
 
-/* Estimated Cortex-M4F instructions per visit (host callgrind x 1.2 of
- * tools/bench_fit/slice_cost.c; totals in docs/performance.md). */
-#define CONS_W_CHECK 12u /* finiteness of one sample */
-#define CONS_W_COPY 10u  /* one element of a candidate / fill / gather / mask loop */
-#define CONS_W_SORT 12u  /* one shell-sort move or placement */
-#define CONS_W_SEL 10u   /* one quickselect scan step, swap or partition decision */
-#define CONS_W_ATAN 96u  /* atan2f of one candidate's direction */
-#define CONS_W_RES 60u   /* |radial residual| of one sample */
-#define CONS_W_DRAW 3000u /* one minimal set: 6 PRNG draws and the 5-point exact fit */
-#define CONS_W_FIX 200u  /* an O(1) phase change (scale, threshold, model copy, result) */
-/* a refit slice is stepped only when its largest visit (the normal equations) fits the budget */
-#define CONS_W_FIT 1600u
+/* Estimated Cortex-M4F instructions per visit, measured on QEMU mps2-an386 -icount shift=0
+ * (arm-none-eabi-gcc -Os; real/charged per step of each phase at n = 288 and 1024, with ~10 %
+ * margin; docs/performance.md). Over-charging only makes steps smaller. */
+#define CONS_W_CHECK 34u  /* finiteness of one sample */
+#define CONS_W_COPY 30u   /* one element of a candidate / fill / gather / mask / output loop */
+#define CONS_W_SORT 40u   /* one shell-sort move or placement */
+#define CONS_W_SEL 20u    /* one quickselect scan step, swap or partition decision */
+#define CONS_W_ATAN 160u  /* atan2f of one candidate's direction */
+#define CONS_W_RES 140u   /* |radial residual| of one sample */
+#define CONS_W_DRAW 3800u /* one minimal set: 6 PRNG draws and the 5-point exact fit */
+#define CONS_W_FIX 400u   /* an O(1) phase change (scale, threshold, model copy, result) */
+/* a fit slice is stepped only when its largest visit (the normal equations) fits the budget */
+#define CONS_W_FIT 3000u
+
+/* Minimal sets are ranked by the LMedS score on a fixed subsample of at most about this many
+ * samples (every stride-th sample; all of them up to this count, where the ranking is the full
+ * one); only the winner is scored on every sample (issue 14: the 48 full scorings were 87 % of a
+ * run at n = 288). */
+#define CONS_SUB_TARGET 64u
 
 /* A phase's return: go on with the next phase (MAGCAL_IN_PROGRESS), stop this step (CONS_SPENT)
  * or the run's final status. */
@@ -130,7 +137,9 @@ typedef struct {
     size_t k_in;     /* ones in the working inlier mask; gathered residuals */
     size_t changed;  /* mask entries changed by a rethreshold */
     size_t n_in;
-    float best_score;
+    size_t stride; /* subsample of the scores: samples 0, stride, 2 stride, ... (sub of them) */
+    size_t sub;
+    float best_score; /* LMedS score of best: on the subsample while drawing, then on every sample */
     float sigma;
     float sig_floor; /* quantisation noise of the samples: LSB / sqrt(12) */
     float thr;
@@ -145,6 +154,7 @@ typedef struct {
     uint16_t rescued;
     uint16_t rejected;
     uint16_t idx[5]; /* minimal set; in step 3 the inliers when there are exactly 5 */
+    uint16_t best_idx[5]; /* minimal set of best */
     uint8_t phase;
     uint8_t axis;
     uint8_t stop;
@@ -172,7 +182,6 @@ enum {
     P_START_FIT,
     P_START_RES,
     P_START_SEL,
-    P_BEST_RES,
     P_RINIT,      /* step 3: start scale and threshold, working mask */
     P_RINIT_MASK,
     P_ROUND,      /* one threshold/refit round: refit, residuals, gather, scale, new mask */
@@ -230,91 +239,107 @@ static void sel_init(cons_sel_t *q, float *a, size_t n, size_t k)
 }
 
 /* Run the selection within the budget; 1 when done (q->val). The phases are the one-shot loop
- * nest: 0 outer test, 1 inner test, 2 scan i up, 3 scan j down, 4 swap, 5 partition decision. */
+ * nest: 0 outer test, 1 inner test, 2 scan i up, 3 scan j down, 4 swap, 5 partition decision.
+ * Each scan step and each swap or partition round is one visit; the indices live in locals
+ * during the call (the scans are as tight as the one-shot loop's). */
 static int sel_run(cons_sel_t *q, uint32_t budget, uint32_t *used)
 {
     float *a = q->a;
-    for (;;) {
-        size_t v = cons_visits(budget, *used, CONS_W_SEL, (size_t)-1);
-        size_t c = 1u;
-        if (v == 0u) {
-            return 0;
-        }
-        switch (q->ph) {
-        case 0u:
-            if (!(q->guard < q->n + 1u && q->lo < q->hi)) {
-                q->val = a[q->k];
-                *used += CONS_W_SEL;
-                return 1;
+    const size_t n = q->n;
+    const size_t k = q->k;
+    float pivot = q->pivot;
+    size_t lo = q->lo;
+    size_t hi = q->hi;
+    size_t i = q->i;
+    size_t j = q->j;
+    size_t s = q->s;
+    size_t guard = q->guard;
+    size_t inner = q->inner;
+    const size_t start = cons_visits(budget, *used, CONS_W_SEL, (size_t)-1);
+    size_t left = start;
+    uint8_t ph = q->ph;
+    int done = 0;
+    while (left > 0u && done == 0) {
+        if (ph == 2u) { /* the scans first: most visits are theirs */
+            while (left > 0u && s < n && a[i] < pivot) {
+                ++i;
+                ++s;
+                --left;
             }
-            q->pivot = a[q->lo + (q->hi - q->lo) / 2u];
-            q->i = q->lo;
-            q->j = q->hi;
-            q->inner = 0u;
-            q->ph = 1u;
-            break;
-        case 1u:
-            if (q->inner <= q->n && q->i <= q->j) {
-                q->s = 0u;
-                q->ph = 2u;
+            if (left > 0u) {
+                s = 0u;
+                ph = 3u;
+            }
+        } else if (ph == 3u) {
+            while (left > 0u && s < n && a[j] > pivot) {
+                --j;
+                ++s;
+                --left;
+            }
+            if (left > 0u) {
+                ph = 4u;
+            }
+        } else if (ph == 4u) {
+            --left;
+            ph = 1u;
+            if (i <= j) {
+                float t = a[i];
+                a[i] = a[j];
+                a[j] = t;
+                ++i;
+                if (j == 0u) {
+                    ph = 5u;
+                    continue;
+                }
+                --j;
+            }
+            ++inner;
+        } else if (ph == 1u) {
+            if (inner <= n && i <= j) {
+                s = 0u;
+                ph = 2u;
             } else {
-                q->ph = 5u;
+                ph = 5u;
             }
-            break;
-        case 2u:
-            for (c = 0u; c < v; ++c) {
-                if (!(q->s < q->n && a[q->i] < q->pivot)) {
-                    q->s = 0u;
-                    q->ph = 3u;
-                    ++c;
-                    break;
-                }
-                ++q->i;
-                ++q->s;
-            }
-            break;
-        case 3u:
-            for (c = 0u; c < v; ++c) {
-                if (!(q->s < q->n && a[q->j] > q->pivot)) {
-                    q->ph = 4u;
-                    ++c;
-                    break;
-                }
-                --q->j;
-                ++q->s;
-            }
-            break;
-        case 4u:
-            q->ph = 1u;
-            if (q->i <= q->j) {
-                float t = a[q->i];
-                a[q->i] = a[q->j];
-                a[q->j] = t;
-                ++q->i;
-                if (q->j == 0u) {
-                    q->ph = 5u;
-                    break;
-                }
-                --q->j;
-            }
-            ++q->inner;
-            break;
-        default:
-            if (q->k <= q->j) {
-                q->hi = q->j;
-            } else if (q->k >= q->i) {
-                q->lo = q->i;
+        } else if (ph == 0u) {
+            --left;
+            if (!(guard < n + 1u && lo < hi)) {
+                done = 1;
             } else {
-                q->val = a[q->k];
-                *used += CONS_W_SEL;
-                return 1;
+                pivot = a[lo + (hi - lo) / 2u];
+                i = lo;
+                j = hi;
+                inner = 0u;
+                ph = 1u;
             }
-            ++q->guard;
-            q->ph = 0u;
-            break;
+        } else {
+            --left;
+            if (k <= j) {
+                hi = j;
+            } else if (k >= i) {
+                lo = i;
+            } else {
+                done = 1;
+                continue;
+            }
+            ++guard;
+            ph = 0u;
         }
-        *used += (uint32_t)c * CONS_W_SEL;
     }
+    if (done != 0) {
+        q->val = a[k];
+    }
+    q->pivot = pivot;
+    q->lo = lo;
+    q->hi = hi;
+    q->i = i;
+    q->j = j;
+    q->s = s;
+    q->guard = guard;
+    q->inner = inner;
+    q->ph = ph;
+    *used += (uint32_t)(start - left) * CONS_W_SEL;
+    return done;
 }
 
 static void sort_init(cons_sort_t *q, float *key, uint16_t *idx, size_t m)
@@ -327,50 +352,63 @@ static void sort_init(cons_sort_t *q, float *key, uint16_t *idx, size_t m)
     q->moving = 0u;
 }
 
-/* Run the shell sort within the budget; 1 when done. One visit per move or placement. */
+/* Run the shell sort within the budget; 1 when done. One visit per move or placement; the
+ * positions live in locals during the call. */
 static int sort_run(cons_sort_t *q, uint32_t budget, uint32_t *used)
 {
     static const uint16_t gaps[] = {701u, 301u, 132u, 57u, 23u, 10u, 4u, 1u};
     float *key = q->key;
-    while (q->g < sizeof gaps / sizeof gaps[0]) {
-        const size_t gap = gaps[q->g];
-        size_t v = cons_visits(budget, *used, CONS_W_SORT, (size_t)-1);
-        size_t c = 0u;
-        if (v == 0u) {
-            return 0;
+    uint16_t *idx = q->idx;
+    const size_t start = cons_visits(budget, *used, CONS_W_SORT, (size_t)-1);
+    size_t left = start;
+    size_t i = q->i;
+    size_t j = q->j;
+    float kv = q->kv;
+    uint16_t iv = q->iv;
+    int done = 0;
+    while (left > 0u) {
+        size_t gap;
+        if (q->g >= sizeof gaps / sizeof gaps[0]) {
+            done = 1;
+            break;
         }
+        gap = gaps[q->g];
         if (q->moving == 0u) {
-            q->i = (q->i < gap) ? gap : q->i;
-            if (q->i >= q->m) {
+            i = (i < gap) ? gap : i;
+            if (i >= q->m) {
                 ++q->g;
-                q->i = 0u;
+                i = 0u;
                 continue;
             }
-            q->kv = key[q->i];
-            q->iv = (q->idx != NULL) ? q->idx[q->i] : 0u;
-            q->j = q->i;
+            kv = key[i];
+            iv = (idx != NULL) ? idx[i] : 0u;
+            j = i;
             q->moving = 1u;
         }
-        while (c < v && q->j >= gap && key[q->j - gap] > q->kv) {
-            key[q->j] = key[q->j - gap];
-            if (q->idx != NULL) {
-                q->idx[q->j] = q->idx[q->j - gap];
+        while (left > 0u && j >= gap && key[j - gap] > kv) {
+            key[j] = key[j - gap];
+            if (idx != NULL) {
+                idx[j] = idx[j - gap];
             }
-            q->j -= gap;
-            ++c;
+            j -= gap;
+            --left;
         }
-        if (c < v) {
-            key[q->j] = q->kv;
-            if (q->idx != NULL) {
-                q->idx[q->j] = q->iv;
+        if (left > 0u) {
+            key[j] = kv;
+            if (idx != NULL) {
+                idx[j] = iv;
             }
             q->moving = 0u;
-            ++q->i;
-            ++c;
+            ++i;
+            --left;
         }
-        *used += (uint32_t)c * CONS_W_SORT;
     }
-    return 1;
+    q->i = i;
+    q->j = j;
+    q->kv = kv;
+    q->iv = iv;
+    *used += (uint32_t)(start - left) * CONS_W_SORT;
+    return done;
 }
 
 /* |residual| of samples pos..end-1. The samples are finite (checked first) and the model comes
@@ -545,11 +583,32 @@ static magcal_status_t cons_prep(cons_state_t *S, uint32_t budget, uint32_t *use
     return (*used < budget) ? MAGCAL_IN_PROGRESS : CONS_SPENT;
 }
 
-/* 2. Minimal sets spread over the angular order (one per visit); LMedS score over every sample
- * except the 5 of the set (which the model passes through exactly: with them, the median of
- * n = 20 samples was the 7th smallest of the 15 real residuals, sigma was 30 % low and 7.6 % of
- * clean samples were rejected). Their entries are set to -1 (below every |residual|) and the
- * median is taken over the ranks above them. */
+/*
+ * LMedS score of a minimal set over cnt residuals in scr (sample t * stride at scr[t]) except the
+ * set's own (which the model passes through exactly: with them, the median of n = 20 samples was
+ * the 7th smallest of the 15 real residuals, sigma was 30 % low and 7.6 % of clean samples were
+ * rejected). Their entries are set to -1 (below every |residual|) and the selection takes the
+ * median of the ranks above them. n <= 5: the plain median.
+ */
+static void cons_score_init(cons_state_t *S, const uint16_t set[5], size_t stride, size_t cnt)
+{
+    size_t c = 0u;
+    size_t j;
+    if (S->n <= 5u) {
+        sel_init(&S->sel, S->scr, cnt, (cnt - 1u) / 2u);
+        return;
+    }
+    for (j = 0u; j < 5u; ++j) {
+        if ((size_t)set[j] % stride == 0u && (size_t)set[j] / stride < cnt) {
+            S->scr[(size_t)set[j] / stride] = -1.0f;
+            ++c;
+        }
+    }
+    sel_init(&S->sel, S->scr, cnt, c + (cnt - c - 1u) / 2u);
+}
+
+/* 2. Minimal sets spread over the angular order (one per visit), ranked by their LMedS score on
+ * the subsample (cons_score_init). */
 static magcal_status_t cons_draw(cons_state_t *S, uint32_t budget, uint32_t *used)
 {
     const size_t n = S->n;
@@ -579,19 +638,21 @@ static magcal_status_t cons_draw(cons_state_t *S, uint32_t budget, uint32_t *use
             S->phase = P_SCORE_RES;
         }
         break;
-    case P_SCORE_RES:
-        if (cons_res_loop(S, &S->cand, budget, used) != 0) {
-            if (n <= 5u) {
-                sel_init(&S->sel, S->res, n, (n - 1u) / 2u);
-            } else {
-                for (j = 0u; j < 5u; ++j) {
-                    S->res[S->idx[j]] = -1.0f;
-                }
-                sel_init(&S->sel, S->res, n, 5u + (n - 6u) / 2u);
-            }
+    case P_SCORE_RES: {
+        /* |residual| of the subsample into scr[0..sub-1] (as cons_residuals) */
+        const size_t end = cons_chunk(budget, used, CONS_W_RES, S->pos, S->sub);
+        size_t t;
+        for (t = S->pos; t < end; ++t) {
+            float v = magcal_ellipse_residual(&S->cand, S->pts[t * S->stride]);
+            S->scr[t] = magcal_isfinite_f(v) ? fabsf(v) : INFINITY;
+        }
+        S->pos = end;
+        if (end == S->sub) {
+            cons_score_init(S, S->idx, S->stride, S->sub);
             S->phase = P_SCORE_SEL;
         }
         break;
+    }
     default: /* P_SCORE_SEL */
         if (sel_run(&S->sel, budget, used) == 0) {
             return CONS_SPENT;
@@ -599,6 +660,9 @@ static magcal_status_t cons_draw(cons_state_t *S, uint32_t budget, uint32_t *use
         if (S->sel.val < S->best_score) {
             S->best_score = S->sel.val;
             S->best = S->cand;
+            for (j = 0u; j < 5u; ++j) {
+                S->best_idx[j] = S->idx[j];
+            }
         }
         S->phase = P_DRAW;
         break;
@@ -606,8 +670,8 @@ static magcal_status_t cons_draw(cons_state_t *S, uint32_t budget, uint32_t *use
     return (*used < budget) ? MAGCAL_IN_PROGRESS : CONS_SPENT;
 }
 
-/* Start model: the best minimal set, or (none valid) the least-squares fit of the candidates
- * (its score the plain median); res gets its residuals. */
+/* Start model: the best minimal set, scored again on every sample, or (none valid) the
+ * least-squares fit of the candidates (its score the plain median); res gets its residuals. */
 static magcal_status_t cons_start(cons_state_t *S, uint32_t budget, uint32_t *used)
 {
     magcal_status_t st;
@@ -625,7 +689,7 @@ static magcal_status_t cons_start(cons_state_t *S, uint32_t budget, uint32_t *us
             }
             S->phase = P_START_FIT;
         } else {
-            S->phase = P_BEST_RES;
+            S->phase = P_START_RES;
         }
         break;
     case P_START_FIT:
@@ -637,26 +701,26 @@ static magcal_status_t cons_start(cons_state_t *S, uint32_t budget, uint32_t *us
         break;
     case P_START_RES: {
         size_t p0 = S->pos;
-        if (cons_res_loop(S, &S->best, budget, used) != 0) {
-            sel_init(&S->sel, S->scr, S->n, (S->n - 1u) / 2u);
-            S->phase = P_START_SEL;
-        }
+        int done = cons_res_loop(S, &S->best, budget, used);
         for (i = p0; i < S->pos; ++i) {
             S->scr[i] = S->res[i];
         }
+        if (done != 0) {
+            if (S->valid == 0u) {
+                sel_init(&S->sel, S->scr, S->n, (S->n - 1u) / 2u);
+            } else {
+                cons_score_init(S, S->best_idx, 1u, S->n);
+            }
+            S->phase = P_START_SEL;
+        }
         break;
     }
-    case P_START_SEL:
+    default: /* P_START_SEL */
         if (sel_run(&S->sel, budget, used) == 0) {
             return CONS_SPENT;
         }
         S->best_score = S->sel.val;
         S->phase = P_RINIT;
-        break;
-    default: /* P_BEST_RES */
-        if (cons_res_loop(S, &S->best, budget, used) != 0) {
-            S->phase = P_RINIT;
-        }
         break;
     }
     return (*used < budget) ? MAGCAL_IN_PROGRESS : CONS_SPENT;
@@ -944,6 +1008,8 @@ magcal_status_t magcal_consensus_begin(magcal_consensus_slice_t *s, const magcal
     S->scr = S->res + n;
     S->order = (uint16_t *)(void *)(S->scr + n);
     S->pos = 0u;
+    S->stride = (n + CONS_SUB_TARGET - 1u) / CONS_SUB_TARGET;
+    S->sub = (n + S->stride - 1u) / S->stride;
     S->best_score = INFINITY;
     S->sigma = 0.0f;
     S->sig_floor = 0.0f;

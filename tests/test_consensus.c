@@ -307,7 +307,7 @@ static unsigned sliced_matches_oneshot(const magcal_consensus_cfg_t *cfg, size_t
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_consensus_begin(&sl, cfg, g_pts, n, cand, g_work, sizeof g_work, g_mask, &got));
     do {
         st = magcal_consensus_step(&sl, budget);
-        TEST_ASSERT_TRUE(budget == UINT32_MAX || sl.used_ <= budget || sl.used_ <= 3000u);
+        TEST_ASSERT_TRUE(budget == UINT32_MAX || sl.used_ <= budget || sl.used_ <= 3800u);
         total += sl.used_;
         ++steps;
         TEST_ASSERT_TRUE(steps < 20000000u);
@@ -333,13 +333,15 @@ static unsigned sliced_matches_oneshot(const magcal_consensus_cfg_t *cfg, size_t
 }
 
 /* Every budget on one data set. At 6000 every step but the last spends its budget but less than
- * one visit (the largest, a minimal set, charges 3000): steps <= total / 3000 + 1; from n = 100 on
+ * one visit (the largest, a minimal set, charges 3800): steps <= total / 2200 + 1; from n = 100 on
  * (where the minimal sets are a small part of the run) steps <= 1.25 x total / 6000 + 2. */
 static void sliced_all_budgets(const char *name, size_t n, const uint8_t *cand)
 {
     magcal_consensus_cfg_t cfg = MAGCAL_CONSENSUS_CFG_DEFAULT;
+    magcal_consensus_result_t res;
     uint32_t total = 0u;
     uint32_t charged;
+    res.draws = 0u;
     size_t b;
     unsigned steps6000 = 0u;
     for (b = 0u; b < sizeof k_budgets / sizeof k_budgets[0]; ++b) {
@@ -354,9 +356,12 @@ static void sliced_all_budgets(const char *name, size_t n, const uint8_t *cand)
     }
     printf("%-34s n %4u: one-shot charges %7lu estimated M4F instructions, %4u steps at budget 6000\n", name,
            (unsigned)n, (unsigned long)total, steps6000);
-    TEST_ASSERT_TRUE_MESSAGE((uint64_t)steps6000 * 6000u >= total, name);
-    TEST_ASSERT_TRUE_MESSAGE((uint64_t)steps6000 * 3000u <= (uint64_t)total + 3000u, name);
-    if (n >= 100u) {
+    /* (a run that fails part-way charged its last loop chunk whole in the one-shot call) */
+    if (magcal_consensus_run(&cfg, g_pts, n, cand, g_work, sizeof g_work, g_mask, &res) == MAGCAL_OK) {
+        TEST_ASSERT_TRUE_MESSAGE((uint64_t)steps6000 * 6000u >= total, name);
+    }
+    TEST_ASSERT_TRUE_MESSAGE((uint64_t)steps6000 * 2200u <= (uint64_t)total + 2200u, name);
+    if (n >= 100u && res.draws > 0u) { /* (res: the successful run above) */
         TEST_ASSERT_TRUE_MESSAGE((uint64_t)steps6000 * 6000u <= (uint64_t)total * 5u / 4u + 12000u, name);
     }
 }

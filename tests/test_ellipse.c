@@ -697,9 +697,13 @@ static void fit_sliced_matches(size_t n, const uint8_t *mask, const uint16_t *id
             steps6000 = steps;
         }
     }
-    /* every step but the last spends its budget but less than one visit (the largest: 2600) */
-    TEST_ASSERT_TRUE_MESSAGE(steps6000 <= total / 3400u + 1u, what);
-    TEST_ASSERT_TRUE_MESSAGE((uint64_t)steps6000 * 6000u >= total, what);
+    /* every step but the last spends its budget but less than one visit (the largest: 3200) */
+    printf("%-28s: one-shot charges %6lu estimated M4F instructions, %3u steps at budget 6000\n", what,
+           (unsigned long)total, steps6000);
+    TEST_ASSERT_TRUE_MESSAGE(steps6000 <= total / 2800u + 1u, what);
+    if (st_ref == MAGCAL_OK) { /* a failing one-shot call charged its last pass chunk whole */
+        TEST_ASSERT_TRUE_MESSAGE((uint64_t)steps6000 * 6000u >= total, what);
+    }
 }
 
 static void test_ellipse_fit_step_any_budget_matches_one_shot_bit_for_bit(void)

@@ -69,7 +69,7 @@ extern "C" {
  * resumable selection and sort, the loop state; off the stack) with its alignment slack;
  * consensus.c checks the size with a static assert. */
 #define MAGCAL_CONSENSUS_STATE_LEN_                                                                \
-    (3u * sizeof(magcal_ellipse_t) + sizeof(magcal_ellipse_fit_slice_t) + 36u * sizeof(void *) +  \
+    (3u * sizeof(magcal_ellipse_t) + sizeof(magcal_ellipse_fit_slice_t) + 40u * sizeof(void *) +  \
      64u)
 /** @endcond */
 
