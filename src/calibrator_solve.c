@@ -198,7 +198,7 @@ static void cal_goto(cal_run_t *r, cal_phase_t ph)
 
 /* ------------------------------------------------------------------ prepare */
 
-static magcal_status_t ph_bbox(magcal_calibrator_t *cal, cal_run_t *r)
+static MAGCAL_NOINLINE magcal_status_t ph_bbox(magcal_calibrator_t *cal, cal_run_t *r)
 {
     while (r->i < cal->n) {
         const magcal_vec2_t p = cal->buf[r->i];
@@ -221,7 +221,7 @@ static magcal_status_t ph_bbox(magcal_calibrator_t *cal, cal_run_t *r)
 }
 
 /* 1. pre-checks: enough samples */
-static magcal_status_t ph_check(magcal_calibrator_t *cal, cal_run_t *r)
+static MAGCAL_NOINLINE magcal_status_t ph_check(magcal_calibrator_t *cal, cal_run_t *r)
 {
     if (cal->n < cal->cfg.min_samples || cal->n < MAGCAL_ELLIPSE_MIN_POINTS) {
         return MAGCAL_ERR_TOO_FEW_POINTS;
@@ -232,7 +232,7 @@ static magcal_status_t ph_check(magcal_calibrator_t *cal, cal_run_t *r)
 }
 
 /* All identical samples (checked before the density filter: far outliers cannot fake it). */
-static magcal_status_t ph_ident(magcal_calibrator_t *cal, cal_run_t *r)
+static MAGCAL_NOINLINE magcal_status_t ph_ident(magcal_calibrator_t *cal, cal_run_t *r)
 {
     const magcal_vec2_t *p = cal->buf;
     while (r->i < cal->n) {
@@ -249,7 +249,7 @@ static magcal_status_t ph_ident(magcal_calibrator_t *cal, cal_run_t *r)
     return MAGCAL_ERR_DEGENERATE;
 }
 
-static magcal_status_t ph_extent(magcal_calibrator_t *cal, cal_run_t *r)
+static MAGCAL_NOINLINE magcal_status_t ph_extent(magcal_calibrator_t *cal, cal_run_t *r)
 {
     /* Extent of the samples: when its square is not a normal float32, squared distances and
      * moments lose their precision (the density filter's eps^2 test first): 0 = the points are
@@ -344,7 +344,7 @@ static MAGCAL_NOINLINE magcal_status_t cal_filter_optics_cfg(magcal_calibrator_t
 }
 
 /* 2. density filter: its 0/1 inlier mask into cal->flags (the scratch is in use until it ends). */
-static magcal_status_t ph_filter(magcal_calibrator_t *cal, cal_run_t *r)
+static MAGCAL_NOINLINE magcal_status_t ph_filter(magcal_calibrator_t *cal, cal_run_t *r)
 {
     const magcal_calibrator_cfg_t *c = &cal->cfg;
     magcal_status_t st;
@@ -392,7 +392,7 @@ static magcal_status_t ph_filter(magcal_calibrator_t *cal, cal_run_t *r)
 }
 
 /* The filter mask into mask_a (the scratch is free now), counted; flags become flag bits. */
-static magcal_status_t ph_masks(magcal_calibrator_t *cal, cal_run_t *r)
+static MAGCAL_NOINLINE magcal_status_t ph_masks(magcal_calibrator_t *cal, cal_run_t *r)
 {
     cal_prep_t *q = cal_prep(cal);
     if (r->sub == 0u) {
@@ -426,7 +426,7 @@ static magcal_status_t ph_masks(magcal_calibrator_t *cal, cal_run_t *r)
 }
 
 /* Mean of p / m of the filter inliers (summing p overflowed to Inf for samples near FLT_MAX). */
-static magcal_status_t ph_mean(magcal_calibrator_t *cal, cal_run_t *r)
+static MAGCAL_NOINLINE magcal_status_t ph_mean(magcal_calibrator_t *cal, cal_run_t *r)
 {
     cal_prep_t *q = cal_prep(cal);
     const float fm = (float)r->m;
@@ -448,7 +448,7 @@ static magcal_status_t ph_mean(magcal_calibrator_t *cal, cal_run_t *r)
 
 /* Largest deviation from the mean (the moments are scaled by it: they cannot overflow; a ring of
  * radius 1e18 overflowed sxx to Inf and was called degenerate). */
-static magcal_status_t ph_scale(magcal_calibrator_t *cal, cal_run_t *r)
+static MAGCAL_NOINLINE magcal_status_t ph_scale(magcal_calibrator_t *cal, cal_run_t *r)
 {
     cal_prep_t *q = cal_prep(cal);
     while (r->i < cal->n) {
@@ -475,7 +475,7 @@ static magcal_status_t ph_scale(magcal_calibrator_t *cal, cal_run_t *r)
 
 /* Second moments (collinearity) and the hard-iron circle's normal equations
  * x^2 + y^2 + C x + D y + E = 0, both of the centred, scaled inliers. */
-static magcal_status_t ph_moments(magcal_calibrator_t *cal, cal_run_t *r)
+static MAGCAL_NOINLINE magcal_status_t ph_moments(magcal_calibrator_t *cal, cal_run_t *r)
 {
     cal_prep_t *q = cal_prep(cal);
     while (r->i < cal->n) {
@@ -511,7 +511,7 @@ static magcal_status_t ph_moments(magcal_calibrator_t *cal, cal_run_t *r)
 
 /* Inliers collinear (smaller covariance eigenvalue vs larger; on the filter inliers: before the
  * filter, two glitch samples 1e5 R away made a clean ring look collinear), then the circle. */
-static magcal_status_t ph_circle(magcal_calibrator_t *cal, cal_run_t *r)
+static MAGCAL_NOINLINE magcal_status_t ph_circle(magcal_calibrator_t *cal, cal_run_t *r)
 {
     cal_prep_t *q = cal_prep(cal);
     const float tr = q->sxx + q->syy;
@@ -569,7 +569,7 @@ static int cal_cover_pass(magcal_calibrator_t *cal, cal_run_t *r, int with_mask)
 
 /* 3. coverage pre-gate: every sample, around the hard-iron circle centre of the filter inliers
  * (a short arc is reported as COVERAGE, not as whatever conic it happens to fit). */
-static magcal_status_t ph_cov_all(magcal_calibrator_t *cal, cal_run_t *r)
+static MAGCAL_NOINLINE magcal_status_t ph_cov_all(magcal_calibrator_t *cal, cal_run_t *r)
 {
     cal_prep_t *q = cal_prep(cal);
     float cov;
@@ -589,7 +589,7 @@ static magcal_status_t ph_cov_all(magcal_calibrator_t *cal, cal_run_t *r)
 /* When the filter's inliers alone cover less than the gate while all samples do, the filter split
  * the ring into arcs (bursts leave gaps, algorithms.md 4.3): the consensus then draws its minimal
  * sets from every sample instead (LMedS tolerates up to 50 % outliers). */
-static magcal_status_t ph_cov_f(magcal_calibrator_t *cal, cal_run_t *r)
+static MAGCAL_NOINLINE magcal_status_t ph_cov_f(magcal_calibrator_t *cal, cal_run_t *r)
 {
     cal_prep_t *q = cal_prep(cal);
     if (cal_cover_pass(cal, r, 1) == 0) {
@@ -608,7 +608,7 @@ static magcal_status_t ph_cov_f(magcal_calibrator_t *cal, cal_run_t *r)
 
 /* Minimal sets from one candidate per clump (optics.h magcal_optics_thin): samples of a vehicle
  * parked at one heading must not fill the draws; flags hold the thinned mask meanwhile. */
-static magcal_status_t ph_thin(magcal_calibrator_t *cal, cal_run_t *r)
+static MAGCAL_NOINLINE magcal_status_t ph_thin(magcal_calibrator_t *cal, cal_run_t *r)
 {
     magcal_status_t st = MAGCAL_ERR_ARG;
     if (r->sub == 0u) {
@@ -637,7 +637,7 @@ static magcal_status_t ph_thin(magcal_calibrator_t *cal, cal_run_t *r)
 }
 
 /* 4. consensus into run->cres, inlier mask into mask_b. */
-static magcal_status_t ph_cons(magcal_calibrator_t *cal, cal_run_t *r)
+static MAGCAL_NOINLINE magcal_status_t ph_cons(magcal_calibrator_t *cal, cal_run_t *r)
 {
     magcal_status_t st;
     if (r->sub == 0u) {
@@ -663,7 +663,7 @@ static magcal_status_t ph_cons(magcal_calibrator_t *cal, cal_run_t *r)
 }
 
 /* The filter flags again (the thinning used the flags; the gates set the residual bits). */
-static magcal_status_t ph_flags0(magcal_calibrator_t *cal, cal_run_t *r)
+static MAGCAL_NOINLINE magcal_status_t ph_flags0(magcal_calibrator_t *cal, cal_run_t *r)
 {
     while (r->i < cal->n) {
         const size_t i = r->i;
@@ -684,7 +684,7 @@ static magcal_status_t ph_flags0(magcal_calibrator_t *cal, cal_run_t *r)
 }
 
 /* Plain least-squares fit of the filter inliers (use_consensus = 0). */
-static magcal_status_t ph_plain(magcal_calibrator_t *cal, cal_run_t *r)
+static MAGCAL_NOINLINE magcal_status_t ph_plain(magcal_calibrator_t *cal, cal_run_t *r)
 {
     magcal_ellipse_fit_slice_t *es = cal_plain_slice(cal);
     magcal_status_t st;
@@ -706,7 +706,7 @@ static magcal_status_t ph_plain(magcal_calibrator_t *cal, cal_run_t *r)
 }
 
 /* Its mask and the classify() threshold: k_sigma * residual RMS, clamped like the consensus's. */
-static magcal_status_t ph_plain_mask(magcal_calibrator_t *cal, cal_run_t *r)
+static MAGCAL_NOINLINE magcal_status_t ph_plain_mask(magcal_calibrator_t *cal, cal_run_t *r)
 {
     magcal_consensus_result_t *res = &r->cres;
     float rm;
@@ -739,7 +739,7 @@ static magcal_status_t ph_plain_mask(magcal_calibrator_t *cal, cal_run_t *r)
 /* ------------------------------------------------------------------ gates */
 
 /* 4 (cont.) and 5: keep the fit, flags with residual bits, counts, the report, gates. */
-static magcal_status_t ph_gates(magcal_calibrator_t *cal, cal_run_t *r)
+static MAGCAL_NOINLINE magcal_status_t ph_gates(magcal_calibrator_t *cal, cal_run_t *r)
 {
     const magcal_consensus_result_t *cres = &r->cres;
     magcal_cal_report_t *rep = &r->rep;
@@ -816,7 +816,7 @@ static magcal_status_t ph_gates(magcal_calibrator_t *cal, cal_run_t *r)
 /* ------------------------------------------------------------------ adopt */
 
 /* 6. the correction of the new fit. */
-static magcal_status_t ph_tocal(magcal_calibrator_t *cal, cal_run_t *r)
+static MAGCAL_NOINLINE magcal_status_t ph_tocal(magcal_calibrator_t *cal, cal_run_t *r)
 {
     cal_adopt_t *d = cal_adopt(cal);
     magcal_status_t st = magcal_ellipse_to_cal(&r->cres.fit, cal->cfg.form, cal->cfg.output_radius,
@@ -831,7 +831,7 @@ static magcal_status_t ph_tocal(magcal_calibrator_t *cal, cal_run_t *r)
 }
 
 /* Final coverage: bins of the corrected headings of the consensus inliers. */
-static magcal_status_t ph_covc(magcal_calibrator_t *cal, cal_run_t *r)
+static MAGCAL_NOINLINE magcal_status_t ph_covc(magcal_calibrator_t *cal, cal_run_t *r)
 {
     cal_adopt_t *d = cal_adopt(cal);
     magcal_cal_report_t *rep = &r->rep;
@@ -868,7 +868,7 @@ static magcal_status_t ph_covc(magcal_calibrator_t *cal, cal_run_t *r)
 }
 
 /* Distinct values of the inliers: duplicates factor and the quantisation floor. */
-static magcal_status_t ph_dist(magcal_calibrator_t *cal, cal_run_t *r)
+static MAGCAL_NOINLINE magcal_status_t ph_dist(magcal_calibrator_t *cal, cal_run_t *r)
 {
     cal_adopt_t *d = cal_adopt(cal);
     magcal_cal_report_t *rep = &r->rep;
@@ -894,7 +894,7 @@ static magcal_status_t ph_dist(magcal_calibrator_t *cal, cal_run_t *r)
 }
 
 /* Estimates of the new calibration (report fields est_*) and the observability gate. */
-static magcal_status_t ph_harm_n(magcal_calibrator_t *cal, cal_run_t *r)
+static MAGCAL_NOINLINE magcal_status_t ph_harm_n(magcal_calibrator_t *cal, cal_run_t *r)
 {
     cal_adopt_t *d = cal_adopt(cal);
     magcal_cal_report_t *rep = &r->rep;
@@ -952,7 +952,7 @@ static int cal_inv2(const float m[2][2], float inv[2][2])
 
 /* 7. adoption rule (file comment of calibrator.h): an unusable installed calibration is replaced
  * (after the shift from the identity). */
-static magcal_status_t ph_valid(const magcal_calibrator_t *cal, const magcal_cal2d_t *current, cal_run_t *r)
+static MAGCAL_NOINLINE magcal_status_t ph_valid(const magcal_calibrator_t *cal, const magcal_cal2d_t *current, cal_run_t *r)
 {
     cal_adopt_t *d = cal_adopt(cal);
     d->unusable = (uint8_t)((magcal_cal2d_validate(current) != MAGCAL_OK || !(current->radius > 0.0f))
@@ -1006,7 +1006,7 @@ MAGCAL_STATIC_ASSERT(CAL_SHIFT_STEPS == 72u, shift_steps_match_sine_table);
 
 /* Heading change if `next` replaced `current` (unusable: from the identity), one test heading
  * per visit. */
-static magcal_status_t ph_shift(const magcal_calibrator_t *cal, const magcal_cal2d_t *current, cal_run_t *r)
+static MAGCAL_NOINLINE magcal_status_t ph_shift(const magcal_calibrator_t *cal, const magcal_cal2d_t *current, cal_run_t *r)
 {
     cal_adopt_t *d = cal_adopt(cal);
     const magcal_cal2d_t *next = &d->next;
@@ -1063,7 +1063,7 @@ static magcal_status_t ph_shift(const magcal_calibrator_t *cal, const magcal_cal
 }
 
 /* Harmonics of the installed calibration on the new inliers, then the rule. */
-static magcal_status_t ph_harm_c(magcal_cal2d_t *current, magcal_calibrator_t *cal, cal_run_t *r)
+static MAGCAL_NOINLINE magcal_status_t ph_harm_c(magcal_cal2d_t *current, magcal_calibrator_t *cal, cal_run_t *r)
 {
     cal_adopt_t *d = cal_adopt(cal);
     magcal_cal_report_t *rep = &r->rep;

@@ -68,6 +68,20 @@
  * ellipse that the new calibration maps to psi is corrected with `current` (identity when
  * `current` is unusable); max and RMS of wrap(psi_current - psi).
  *
+ * Time-sliced solve (src/calibrator_solve.c; the continuous calibrator, continuous.h, drives it):
+ * run() is one call of the same resumable phases with an unlimited budget (one code path). Each
+ * phase keeps its cursor and sums in the workspace (the run state, or the stage scratch when the
+ * stage that owns it is done), charges an estimated Cortex-M4F weight per visit and stops when
+ * the step's budget is spent: pre-checks, the density filter (optics.h slice), masks, mean /
+ * scale / moments and the hard-iron circle, both coverages, thinning and consensus (optics.h,
+ * consensus.h slices) or the plain fit (ellipse.h slice), gates, ellipse -> calibration,
+ * corrected coverage, distinct values (a resumable shell sort), the harmonics (one 5x5 solve per
+ * visit), the shift (one heading per visit), the adoption rule. Exceptions, one-shot inside one
+ * step (documented cost, docs/calibrator.md): the DBSCAN filter (auto parameters + DBSCAN +
+ * largest cluster) and the automatic radius with a caller's MinPts (magcal_optics_auto_params);
+ * the OPTICS filter with the classic order or a caller's eps goes through the same optics.h
+ * slice API (sliced as far as optics.h slices it); ellipse -> calibration is one visit (~2,500).
+ *
  * Memory: caller-allocated instance, sample buffer (capacity <= MAGCAL_MAX_SAMPLES) and one
  * workspace of MAGCAL_CALIBRATOR_WORKSPACE_LEN(capacity) bytes (4-byte aligned) that also keeps
  * the per-sample outlier flags between run() and the next reset. No heap.

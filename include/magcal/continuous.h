@@ -11,11 +11,12 @@
  * Per loop iteration the firmware calls, in any order and as often as it likes:
  *  - magcal_cont_push(): one raw sample and its time stamp (ms). O(1): it only writes into a
  *    MAGCAL_CONT_RING-sample single-producer / single-consumer ring inside the instance.
- *  - magcal_cont_step(): bounded work: drains up to cfg.drain_per_step ring samples into the store
- *    (each judged against the installed calibration: trust, change detection), then does at most
- *    ONE unit of solve work: the snapshot of the store into the solver buffer, or one stage of
- *    the batch pipeline (prepare, fit, gates, adopt). Returns MAGCAL_CONT_IN_PROGRESS while a solve
- *    is under way, MAGCAL_CONT_IDLE while collecting, or the outcome of a solve that just ended.
+ *  - magcal_cont_step(): bounded work ("Work per step" below): drains ring samples into the
+ *    store (each judged against the installed calibration: trust, change detection), then
+ *    continues the solve (the snapshot of the store into the solver buffer, then the solver's
+ *    resumable phases, calibrator.h "Time-sliced solve"). Returns MAGCAL_CONT_IN_PROGRESS while a
+ *    solve is under way, MAGCAL_CONT_IDLE while collecting, or the outcome of a solve that just
+ *    ended.
  *  - magcal_cont_heading(): heading of a raw sample with the installed calibration, its trust and
  *    the generation (adoptions so far).
  *
@@ -29,6 +30,23 @@
  *  any -> RELEARNING       when a change is declared (old samples dropped);
  *  RELEARNING -> SOLVING   as COLLECTING; a solve that adopts, or that confirms the installed
  *                          calibration on fresh data (NOT_BETTER), ends the relearning.
+ *
+ * Work per step. cfg.step_budget (default MAGCAL_SLICE_BUDGET_DEFAULT = 6000) estimated
+ * Cortex-M4F instructions per call, shared by the drain and the solve, every piece of work charged
+ * by a measured weight (docs/calibrator.md "Work per call"):
+ *  - drain: at least one ring sample when the ring is not empty, at most cfg.drain_per_step, and
+ *    a further one only while less than half of the budget is spent; a sample costs ~1750, one
+ *    whose store push ends a survey sweep (once per sweep, ~slots / sweep_steps pushes) ~7200 and
+ *    ends the drain. With the defaults (drain_per_step 2) a step takes 2 samples except at a sweep
+ *    end (1): at 100 Hz push and 100 Hz step the ring (MAGCAL_CONT_RING) never fills, and a backlog
+ *    drains at up to 1 sample per step;
+ *  - snapshot: while the store is copied into the solver buffer (whole bins, ~14 per sample; 1 step
+ *    at 288 samples, 3 at 1024) the drain pauses so the solver sees one consistent store (the ring
+ *    holds the few samples that arrive meanwhile);
+ *  - solve: the rest of the budget, at least one visit per step (so both progress), then
+ *    MAGCAL_IN_PROGRESS until the solve ends. A solve of the default store takes several hundred
+ *    steps (docs/calibrator.md); new information for the next solve counts from the snapshot.
+ * step_budget UINT32_MAX does a whole solve in one call (as solve_blocking()).
  *
  * Concurrency contract. magcal_cont_push() may run in an interrupt (or another task) while ANY
  * other call on the same instance runs in one task: the ring is the only state push writes
