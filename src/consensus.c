@@ -41,6 +41,14 @@
  * run at n = 288). */
 #define CONS_SUB_TARGET 64u
 
+/* Early end of the draws (issue 14; only above CONS_SUB_TARGET samples, so small sets draw as
+ * before): after at least CONS_MIN_DRAWS draws, stop once (1 - w^5)^draws <= CONS_MISS_PROB,
+ * w = the best model's inlier fraction on the subsample (|r| <= CONS_INLIER_SIGMAS x its
+ * LMedS-scaled sigma, the minimal set's own five left out): the standard RANSAC bound. */
+#define CONS_MIN_DRAWS 16u
+#define CONS_MISS_PROB 0.001f
+#define CONS_INLIER_SIGMAS 2.5f
+
 /* A phase's return: go on with the next phase (MAGCAL_IN_PROGRESS), stop this step (CONS_SPENT)
  * or the run's final status. */
 #define CONS_SPENT ((magcal_status_t)2)
@@ -139,6 +147,8 @@ typedef struct {
     size_t n_in;
     size_t stride; /* subsample of the scores: samples 0, stride, 2 stride, ... (sub of them) */
     size_t sub;
+    size_t sub_c;  /* subsample entries of the minimal set (set to -1) */
+    size_t cnt;    /* inliers of a new best on the subsample */
     float best_score; /* LMedS score of best: on the subsample while drawing, then on every sample */
     float sigma;
     float sig_floor; /* quantisation noise of the samples: LSB / sqrt(12) */
@@ -155,6 +165,7 @@ typedef struct {
     uint16_t rejected;
     uint16_t idx[5]; /* minimal set; in step 3 the inliers when there are exactly 5 */
     uint16_t best_idx[5]; /* minimal set of best */
+    uint16_t need;        /* draws needed for the best's inlier fraction (early end) */
     uint8_t phase;
     uint8_t axis;
     uint8_t stop;
@@ -178,6 +189,7 @@ enum {
     P_DRAW,       /* one minimal set per visit */
     P_SCORE_RES,  /* its residuals, LMedS score */
     P_SCORE_SEL,
+    P_SCORE_CNT,  /* a new best: its inlier fraction -> draws needed */
     P_START,      /* start model: best minimal set, or the LS fit of the candidates */
     P_START_FIT,
     P_START_RES,
@@ -604,7 +616,26 @@ static void cons_score_init(cons_state_t *S, const uint16_t set[5], size_t strid
             ++c;
         }
     }
+    S->sub_c = c;
     sel_init(&S->sel, S->scr, cnt, c + (cnt - c - 1u) / 2u);
+}
+
+/* Draws needed (at most max_iter) so that an all-inlier minimal set is missed with probability
+ * <= CONS_MISS_PROB when a fraction w of the samples are inliers: (1 - w^5)^N <= CONS_MISS_PROB.
+ * O(max_iter) products, no logf. */
+static void cons_need(cons_state_t *S)
+{
+    const float w = (float)S->cnt / (float)(S->sub - S->sub_c);
+    const float miss = 1.0f - w * w * w * w * w;
+    float prod = 1.0f;
+    uint16_t k;
+    for (k = 1u; k < S->cfg->max_iter; ++k) {
+        prod *= miss;
+        if (prod <= CONS_MISS_PROB) {
+            break;
+        }
+    }
+    S->need = k;
 }
 
 /* 2. Minimal sets spread over the angular order (one per visit), ranked by their LMedS score on
@@ -615,7 +646,8 @@ static magcal_status_t cons_draw(cons_state_t *S, uint32_t budget, uint32_t *use
     size_t j;
     switch (S->phase) {
     case P_DRAW:
-        if (S->draws >= S->cfg->max_iter) {
+        if (S->draws >= S->cfg->max_iter ||
+            (S->n > CONS_SUB_TARGET && S->draws >= CONS_MIN_DRAWS && S->draws >= S->need)) {
             S->phase = P_START;
             break;
         }
@@ -653,19 +685,44 @@ static magcal_status_t cons_draw(cons_state_t *S, uint32_t budget, uint32_t *use
         }
         break;
     }
-    default: /* P_SCORE_SEL */
+    case P_SCORE_SEL:
         if (sel_run(&S->sel, budget, used) == 0) {
             return CONS_SPENT;
         }
+        S->phase = P_DRAW;
         if (S->sel.val < S->best_score) {
             S->best_score = S->sel.val;
             S->best = S->cand;
             for (j = 0u; j < 5u; ++j) {
                 S->best_idx[j] = S->idx[j];
             }
+            if (n > CONS_SUB_TARGET) {
+                S->pos = 0u;
+                S->cnt = 0u;
+                S->phase = P_SCORE_CNT;
+            }
         }
-        S->phase = P_DRAW;
         break;
+    default: { /* P_SCORE_CNT: scr holds the subsample's residuals (reordered by the selection) */
+        const float thr = CONS_INLIER_SIGMAS * CONS_MAD_TO_SIGMA * S->best_score *
+                          (1.0f + 5.0f / (float)(S->sub - MAGCAL_ELLIPSE_MIN_POINTS));
+        const size_t end = cons_chunk(budget, used, CONS_W_COPY, S->pos, S->sub);
+        size_t t;
+        for (t = S->pos; t < end; ++t) {
+            if (S->scr[t] >= 0.0f && S->scr[t] <= thr) {
+                ++S->cnt;
+            }
+        }
+        S->pos = end;
+        if (end == S->sub) {
+            if (cons_pay(budget, used, CONS_W_FIX) == 0) {
+                return CONS_SPENT;
+            }
+            cons_need(S);
+            S->phase = P_DRAW;
+        }
+        break;
+    }
     }
     return (*used < budget) ? MAGCAL_IN_PROGRESS : CONS_SPENT;
 }
@@ -1011,6 +1068,7 @@ magcal_status_t magcal_consensus_begin(magcal_consensus_slice_t *s, const magcal
     S->stride = (n + CONS_SUB_TARGET - 1u) / CONS_SUB_TARGET;
     S->sub = (n + S->stride - 1u) / S->stride;
     S->best_score = INFINITY;
+    S->need = UINT16_MAX;
     S->sigma = 0.0f;
     S->sig_floor = 0.0f;
     S->thr = 0.0f;
