@@ -63,16 +63,26 @@ static size_t nbr_cell(const magcal_nbr_t *nb, size_t i)
 }
 
 /* Per-visit weights of the build's loops, estimated Cortex-M4F instructions (host callgrind x 1.2,
- * tools/bench_optics/slice_bench.c): bounding box, bucket clear, count, prefix sum, placement,
+ * tools/bench_optics/slice_fit.py): bounding box, bucket clear, count, prefix sum, placement,
  * shift; SETUP = the fixed part between the box and the buckets, HGROW one cell-growth round. */
-#define NBR_W_BBOX 14
-#define NBR_W_ZERO 4
-#define NBR_W_CELL 40
-#define NBR_W_PREFIX 7
-#define NBR_W_PLACE 46
-#define NBR_W_SHIFT 5
-#define NBR_W_SETUP 80
-#define NBR_W_HGROW 12
+#define NBR_W_BBOX 20
+#define NBR_W_ZERO 9
+#define NBR_W_CELL 59
+#define NBR_W_PREFIX 9
+#define NBR_W_PLACE 62
+#define NBR_W_SHIFT 8
+#define NBR_W_SETUP 154
+#define NBR_W_HGROW 15
+
+/* Charging a visit (MAGCAL_OPTICS_SLICE_PROFILE: also counted, after optics.c's weights). */
+#ifdef MAGCAL_OPTICS_SLICE_PROFILE
+extern unsigned long magcal_optics_slice_prof[];
+#define NBR_PROF_BASE 22
+#define NBR_CHARGE(r, w, id, k)                                                                    \
+    ((r) -= (int32_t)(w) * (int32_t)(k), magcal_optics_slice_prof[NBR_PROF_BASE + (id)] += (unsigned long)(k))
+#else
+#define NBR_CHARGE(r, w, id, k) ((r) -= (int32_t)(w) * (int32_t)(k))
+#endif
 
 enum { NBR_B_BBOX = 0, NBR_B_SETUP, NBR_B_ZERO, NBR_B_COUNT, NBR_B_PREFIX, NBR_B_PLACE, NBR_B_SHIFT,
        NBR_B_DONE };
@@ -126,7 +136,7 @@ static int nbr_setup(magcal_nbr_t *nb, magcal_nbr_build_t *b, int32_t *rem)
     size_t cells;
     size_t cap = MAGCAL_OPTICS_GRID_CELLS(nb->n);
     unsigned it;
-    *rem -= NBR_W_SETUP;
+    NBR_CHARGE(*rem, NBR_W_SETUP, 0, 1);
     if (b->use_win != 0u) {
         xmin = b->win[0] > xmin ? b->win[0] : xmin;
         ymin = b->win[1] > ymin ? b->win[1] : ymin;
@@ -157,7 +167,7 @@ static int nbr_setup(magcal_nbr_t *nb, magcal_nbr_build_t *b, int32_t *rem)
         }
         h *= 2.0f;
     }
-    *rem -= NBR_W_HGROW * (int32_t)it;
+    NBR_CHARGE(*rem, NBR_W_HGROW, 1, (int32_t)it);
     if (it == 256u || !magcal_isfinite_f(h)) {
         return 0;
     }
@@ -187,7 +197,7 @@ int magcal_nbr_build_step(magcal_nbr_t *nb, magcal_nbr_build_t *b, int32_t *rem)
                 b->xmax = pts[i].x > b->xmax ? pts[i].x : b->xmax;
                 b->ymin = pts[i].y < b->ymin ? pts[i].y : b->ymin;
                 b->ymax = pts[i].y > b->ymax ? pts[i].y : b->ymax;
-                r -= NBR_W_BBOX;
+                NBR_CHARGE(r, NBR_W_BBOX, 2, 1);
             }
             if (i < n) {
                 more = 0;
@@ -210,7 +220,7 @@ int magcal_nbr_build_step(magcal_nbr_t *nb, magcal_nbr_build_t *b, int32_t *rem)
         case NBR_B_ZERO:
             for (; i <= g && r > 0; ++i) {
                 nb->start[i] = 0u;
-                r -= NBR_W_ZERO;
+                NBR_CHARGE(r, NBR_W_ZERO, 3, 1);
             }
             if (i <= g) {
                 more = 0;
@@ -222,7 +232,7 @@ int magcal_nbr_build_step(magcal_nbr_t *nb, magcal_nbr_build_t *b, int32_t *rem)
         case NBR_B_COUNT:
             for (; i < n && r > 0; ++i) {
                 nb->start[nbr_cell(nb, i) + 1u]++;
-                r -= NBR_W_CELL;
+                NBR_CHARGE(r, NBR_W_CELL, 4, 1);
             }
             if (i < n) {
                 more = 0;
@@ -234,7 +244,7 @@ int magcal_nbr_build_step(magcal_nbr_t *nb, magcal_nbr_build_t *b, int32_t *rem)
         case NBR_B_PREFIX:
             for (; i < g && r > 0; ++i) {
                 nb->start[i + 1u] = (uint16_t)(nb->start[i + 1u] + nb->start[i]);
-                r -= NBR_W_PREFIX;
+                NBR_CHARGE(r, NBR_W_PREFIX, 5, 1);
             }
             if (i < g) {
                 more = 0;
@@ -248,7 +258,7 @@ int magcal_nbr_build_step(magcal_nbr_t *nb, magcal_nbr_build_t *b, int32_t *rem)
                 const size_t c = nbr_cell(nb, i);
                 nb->idx[nb->start[c]] = (uint16_t)i;
                 nb->start[c]++;
-                r -= NBR_W_PLACE;
+                NBR_CHARGE(r, NBR_W_PLACE, 6, 1);
             }
             if (i < n) {
                 more = 0;
@@ -261,7 +271,7 @@ int magcal_nbr_build_step(magcal_nbr_t *nb, magcal_nbr_build_t *b, int32_t *rem)
         case NBR_B_SHIFT:
             for (; i > 0u && r > 0; --i) {
                 nb->start[i] = nb->start[i - 1u];
-                r -= NBR_W_SHIFT;
+                NBR_CHARGE(r, NBR_W_SHIFT, 7, 1);
             }
             if (i > 0u) {
                 more = 0;

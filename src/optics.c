@@ -12,6 +12,7 @@
 #include "magcal/optics.h"
 
 #include <math.h>
+#include <stddef.h>
 #include <string.h>
 
 #include "magcal_internal.h"
@@ -19,28 +20,46 @@
 #include "optics_core.h"
 
 /* ---- 1. weights (estimated Cortex-M4F instructions per visit: host callgrind x 1.2) -------- */
+/* Fitted by tools/bench_optics/slice_fit.py (least squares of the host instructions of 24,000
+ * step calls on rings, parked rings and bursts at n = 288 and 1024 against the visits charged in
+ * each), times 1.2; W_HEAP (CLASSIC only, not fitted) is 10 levels of a sift. */
 
-#define W_FIN 10     /* finiteness test of one point */
-#define W_SEL 7      /* one element step of the selection's partition scan */
-#define W_HS 16      /* heapsort: one sift call (fixed part) */
-#define W_HSL 22     /* heapsort: one level of a sift */
-#define W_PAIR 40    /* one pair distance of the pair scale */
-#define W_GATHER 22  /* robust centre: one point of a median's gather pass (sqrt in the radius pass) */
-#define W_KEY 60     /* thinning: one point's cell key */
-#define W_CAP 12     /* thinning: one point of the occupancy / marking / max-run passes */
-#define W_ANGLE 190  /* eps' rule: one point's radius and atan2f */
-#define W_LINK 520   /* eps' rule: the link and core requirement of one band point (18 sqrt) */
-#define W_SECTOR 40  /* eps' rule: one point's sector */
-#define W_INIT 12    /* ordering start: one point */
-#define W_SKIP 10    /* ordering: one processed point skipped by the outer scan */
-#define W_PSTART 90  /* ordering: mark, neighbour query, core and extraction of one point */
-#define W_CAND 16    /* ordering: one candidate of the core-distance pass */
-#define W_REACH 16   /* ordering: one candidate of the reach pass */
-#define W_UPD 24     /* ordering: one reach decrease (seed insert / decrease-key adds W_HEAP) */
+#define W_FIN 27     /* finiteness test of one point */
+#define W_SEL 24 /* one element step of the selection's partition scan */
+#define W_HS 71      /* heapsort: one sift call (fixed part) */
+#define W_HSL 34     /* heapsort: one level of a sift */
+#define W_PAIR 50    /* one pair distance of the pair scale */
+#define W_GATHER 42  /* robust centre: one point of a median's gather pass (sqrt in the radius pass) */
+#define W_KEY 76     /* thinning: one point's cell key */
+#define W_CAP 25     /* thinning: one point of the occupancy / marking / max-run passes */
+#define W_ANGLE 181  /* eps' rule: one point's radius and atan2f */
+#define W_LINK 650 /* eps' rule: the link and core requirement of one band point (18 sqrt) */
+#define W_SECTOR 35  /* eps' rule: one point's sector */
+#define W_INIT 19    /* ordering start: one point */
+#define W_SKIP 34    /* ordering: one processed point skipped by the outer scan */
+#define W_PSTART 900 /* ordering: mark, neighbour query, core and extraction of one point */
+#define W_CAND 45 /* ordering: one candidate of the core-distance pass */
+#define W_REACH 48 /* ordering: one candidate of the reach pass */
+#define W_UPD 47     /* ordering: one reach decrease (seed insert / decrease-key adds W_HEAP) */
 #define W_HEAP 120   /* ordering, CLASSIC: one heap pop or sift-up (log2 n levels) */
-#define W_POP 8      /* ordering, IMPROVED: one seed of the minimum scan */
-#define W_OUT 8      /* filter output: one point of the mask */
-#define W_PHASE 40   /* fixed cost of a phase switch */
+#define W_POP 21      /* ordering, IMPROVED: one seed of the minimum scan */
+#define W_OUT 13      /* filter output: one point of the mask */
+#define W_QUERY 600   /* ordering: the neighbour query again when a step resumes inside a scan */
+#define W_PHASE 358   /* fixed cost of a phase switch */
+
+/* Charging a visit: r -= weight. With MAGCAL_OPTICS_SLICE_PROFILE (tools/bench_optics only, never
+ * in a shipped build) every charge is also counted per weight, so the bench can fit the weights
+ * to measured instruction counts. */
+#ifdef MAGCAL_OPTICS_SLICE_PROFILE
+enum { P_W_FIN, P_W_SEL, P_W_HS, P_W_HSL, P_W_PAIR, P_W_GATHER, P_W_KEY, P_W_CAP, P_W_ANGLE, P_W_LINK, P_W_SECTOR, P_W_INIT, P_W_SKIP, P_W_PSTART, P_W_CAND, P_W_REACH, P_W_UPD, P_W_HEAP, P_W_POP, P_W_OUT, P_W_QUERY, P_W_PHASE, P_N_WEIGHTS };
+unsigned long magcal_optics_slice_prof[P_N_WEIGHTS + 16];
+#define CHARGE_K(r, w, k)                                                                          \
+    ((r) -= (int32_t)(w) * (int32_t)(k), magcal_optics_slice_prof[P_##w] += (unsigned long)(k))
+#define CHARGE(r, w) ((r) -= (int32_t)(w), magcal_optics_slice_prof[P_##w]++)
+#else
+#define CHARGE_K(r, w, k) ((r) -= (int32_t)(w) * (int32_t)(k))
+#define CHARGE(r, w) ((r) -= (int32_t)(w))
+#endif
 
 #define SLICE_MAGIC 0x4F505453u /* "OPTS": a begun slice */
 #define SLICE_REM_MAX 0x7FFFFFFF /* budget of a one-shot call (int32 remaining count) */
@@ -121,12 +140,12 @@ static int sel_run(sel_t *q, float *a, int32_t *rem)
             i = lo;
             j = hi;
             q->st = 1u;
-            r -= W_SEL;
+            CHARGE(r, W_SEL);
         }
         if (q->st == 1u) {
             while (a[i] < pivot && r > 0) {
                 ++i;
-                r -= W_SEL;
+                CHARGE(r, W_SEL);
             }
             if (a[i] < pivot) {
                 paused = 1;
@@ -136,7 +155,7 @@ static int sel_run(sel_t *q, float *a, int32_t *rem)
         }
         while (a[j] > pivot && r > 0) {
             --j;
-            r -= W_SEL;
+            CHARGE(r, W_SEL);
         }
         if (a[j] > pivot) {
             paused = 1;
@@ -158,7 +177,7 @@ static int sel_run(sel_t *q, float *a, int32_t *rem)
             --j;
             q->st = 1u;
         }
-        r -= W_SEL;
+        CHARGE(r, W_SEL);
         if (r <= 0 && q->st != 3u) {
             paused = 1;
         }
@@ -236,7 +255,9 @@ static int hsort_run(hsort_t *h, uint16_t *idx, const float *key, int32_t *rem)
     const size_t m = h->m;
     if (h->st == 0u) {
         while (k > 0u && r > 0) {
-            r -= W_HS + W_HSL * sort_sift(idx, key, k - 1u, m);
+            const int32_t lv = sort_sift(idx, key, k - 1u, m);
+            CHARGE(r, W_HS);
+            CHARGE_K(r, W_HSL, lv);
             --k;
         }
         if (k == 0u) {
@@ -249,7 +270,9 @@ static int hsort_run(hsort_t *h, uint16_t *idx, const float *key, int32_t *rem)
             const uint16_t t = idx[0];
             idx[0] = idx[k];
             idx[k] = t;
-            r -= W_HS + W_HSL * sort_sift(idx, key, 0u, k);
+            const int32_t lv = sort_sift(idx, key, 0u, k);
+            CHARGE(r, W_HS);
+            CHARGE_K(r, W_HSL, lv);
             --k;
         }
         if (k == 0u) {
@@ -361,7 +384,7 @@ static int rc_run(rc_t *c, const magcal_vec2_t *pts, size_t n, const uint8_t *us
                     a[k] = q == 0u ? pts[i].x : (q == 1u ? pts[i].y : sqrtf(ex * ex + ey * ey));
                     ++k;
                 }
-                r -= W_GATHER;
+                CHARGE(r, W_GATHER);
             }
             c->i = (uint16_t)i;
             c->k = (uint16_t)k;
@@ -465,7 +488,7 @@ static int th_run(th_t *t, const magcal_vec2_t *pts, size_t n, const float cr[3]
         if (t->st == (uint8_t)TH_KEYS) {
             const float h = t->h;
             for (; i < n && r > 0; ++i) {
-                r -= W_KEY;
+                CHARGE(r, W_KEY);
                 idx[i] = (uint16_t)i;
                 rep[i] = 0u;
                 if (use != NULL && use[i] == 0u) {
@@ -502,7 +525,7 @@ static int th_run(th_t *t, const magcal_vec2_t *pts, size_t n, const float cr[3]
                         ++cells;
                     }
                 }
-                r -= W_CAP;
+                CHARGE(r, W_CAP);
             }
             t->m = (uint16_t)m;
             t->cells = (uint16_t)cells;
@@ -528,7 +551,7 @@ static int th_run(th_t *t, const magcal_vec2_t *pts, size_t n, const float cr[3]
                         rep[idx[i]] = (uint8_t)(rep[idx[i]] | AUTO_CAPPED);
                     }
                 }
-                r -= W_CAP;
+                CHARGE(r, W_CAP);
             }
             t->run = (uint16_t)run;
             t->m = (uint16_t)m;
@@ -548,7 +571,7 @@ static int th_run(th_t *t, const magcal_vec2_t *pts, size_t n, const float cr[3]
                 if (key[idx[i]] < THIN_INVALID && run > best) {
                     best = run;
                 }
-                r -= W_CAP;
+                CHARGE(r, W_CAP);
             }
             t->run = (uint16_t)run;
             t->best = (uint16_t)best;
@@ -615,7 +638,7 @@ static int ce_run(ce_t *c, const magcal_vec2_t *pts, size_t n, uint8_t *w, float
                 const size_t i = (size_t)(magcal_ocore_rand(&rng) % (uint32_t)n);
                 const size_t j = (size_t)(magcal_ocore_rand(&rng) % (uint32_t)n);
                 a[k] = dist(&pts[i], &pts[j]);
-                r -= W_PAIR;
+                CHARGE(r, W_PAIR);
             }
             c->k = (uint16_t)k;
             c->rng = rng;
@@ -690,7 +713,7 @@ static int ce_run(ce_t *c, const magcal_vec2_t *pts, size_t n, uint8_t *w, float
             *st = c->have != 0u ? MAGCAL_OK : MAGCAL_ERR_DEGENERATE;
             return 1;
         }
-        *rem -= W_PHASE;
+        CHARGE(*rem, W_PHASE);
     }
 }
 
@@ -793,7 +816,7 @@ static int ae_run(ae_t *e, const magcal_vec2_t *pts, size_t n, uint8_t *w, const
                     idx[m] = (uint16_t)i;
                     ++m;
                 }
-                r -= W_ANGLE;
+                CHARGE(r, W_ANGLE);
             }
             e->m = (uint16_t)m;
             if (i < n) {
@@ -818,7 +841,7 @@ static int ae_run(ae_t *e, const magcal_vec2_t *pts, size_t n, uint8_t *w, const
             const size_t m = e->m;
             for (; i < m && r > 0; ++i) {
                 ae_link(e, pts, idx, m, i, rep, b);
-                r -= W_LINK;
+                CHARGE(r, W_LINK);
             }
             if (i < m) {
                 paused = 1;
@@ -874,7 +897,7 @@ static int ae_run(ae_t *e, const magcal_vec2_t *pts, size_t n, uint8_t *w, const
                     sec = (int16_t)k;
                 }
                 sectors[i] = sec;
-                r -= W_SECTOR;
+                CHARGE(r, W_SECTOR);
             }
             if (i < n) {
                 paused = 1;
@@ -975,46 +998,46 @@ static void ord_core_done(ord_t *o, const magcal_nbr_ranges_t *rg)
     }
 }
 
-/* Next candidate position of the range scan (ri, k) over rg; 0 when the scan is complete. */
-static int ord_next(const magcal_nbr_ranges_t *rg, size_t *ri, size_t *k)
-{
-    while (*ri < rg->n_ranges && *k >= rg->end[*ri]) {
-        ++*ri;
-        if (*ri < rg->n_ranges) {
-            *k = rg->begin[*ri];
-        }
-    }
-    return *ri < rg->n_ranges ? 1 : 0;
-}
+/*
+ * The range scans below visit p's candidates from position (ri, k): one tight loop per range,
+ * the budget tested per candidate; they leave (ri, k) where they stopped, ri = n_ranges when the
+ * scan is complete. idx NULL: brute force, one range over every point.
+ */
 
-/* Pass 1 (core distance) or the start-core count over p's candidates from (ri, k). */
-static void ord_scan_core(ord_t *o, const magcal_nbr_ranges_t *rg, int count_only, int32_t *rem)
+/* Pass 1: core distance (MinPts smallest d^2 in the insertion buffer). */
+static void ord_scan_core(ord_t *o, const magcal_nbr_ranges_t *rg, int32_t *rem)
 {
     const magcal_vec2_t *pts = o->nb.pts;
-    const size_t p = count_only != 0 ? o->u.sc.s : o->u.sc.p;
+    const size_t p = o->u.sc.p;
     const float px = pts[p].x;
     const float py = pts[p].y;
     const float eps2 = o->eps2;
     const size_t m = o->oc.min_pts;
     float *best = o->oc.best;
+    const uint16_t *idx = rg->idx;
     size_t ri = o->u.sc.ri;
     size_t k = o->u.sc.k;
     size_t cnt = o->u.sc.cnt;
     int32_t r = *rem;
-    while (r > 0 && ord_next(rg, &ri, &k) != 0 && (count_only == 0 || cnt < m)) {
-        const size_t j = rg->idx != NULL ? rg->idx[k] : k;
-        const float dx = pts[j].x - px;
-        const float dy = pts[j].y - py;
-        const float d2 = dx * dx + dy * dy;
-        if (count_only != 0) {
-            cnt += (d2 <= eps2) ? 1u : 0u;
-        } else if (d2 <= eps2 && (cnt < m || d2 < best[m - 1u])) {
-            cnt = magcal_ocore_best_insert(best, cnt, m, d2);
-        } else {
-            /* not among the MinPts nearest */
+    while (ri < rg->n_ranges) {
+        const size_t end = rg->end[ri];
+        for (; k < end && r > 0; ++k) {
+            const size_t j = idx != NULL ? idx[k] : k;
+            const float dx = pts[j].x - px;
+            const float dy = pts[j].y - py;
+            const float d2 = dx * dx + dy * dy;
+            if (d2 <= eps2 && (cnt < m || d2 < best[m - 1u])) {
+                cnt = magcal_ocore_best_insert(best, cnt, m, d2);
+            }
+            CHARGE(r, W_CAND);
         }
-        ++k;
-        r -= W_CAND;
+        if (k < end) {
+            break;
+        }
+        ++ri;
+        if (ri < rg->n_ranges) {
+            k = rg->begin[ri];
+        }
     }
     o->u.sc.ri = (uint8_t)ri;
     o->u.sc.k = (uint16_t)k;
@@ -1022,7 +1045,44 @@ static void ord_scan_core(ord_t *o, const magcal_nbr_ranges_t *rg, int count_onl
     *rem = r;
 }
 
-/* Pass 2 (grid): reach updates of p's unprocessed neighbours from (ri, k). */
+/* START_CORE: does s have MinPts points within eps? (counts until MinPts) */
+static void ord_scan_count(ord_t *o, const magcal_nbr_ranges_t *rg, int32_t *rem)
+{
+    const magcal_vec2_t *pts = o->nb.pts;
+    const size_t p = o->u.sc.s;
+    const float px = pts[p].x;
+    const float py = pts[p].y;
+    const float eps2 = o->eps2;
+    const size_t m = o->oc.min_pts;
+    const uint16_t *idx = rg->idx;
+    size_t ri = o->u.sc.ri;
+    size_t k = o->u.sc.k;
+    size_t cnt = o->u.sc.cnt;
+    int32_t r = *rem;
+    while (ri < rg->n_ranges && cnt < m) {
+        const size_t end = rg->end[ri];
+        for (; k < end && r > 0 && cnt < m; ++k) {
+            const size_t j = idx != NULL ? idx[k] : k;
+            const float dx = pts[j].x - px;
+            const float dy = pts[j].y - py;
+            cnt += (dx * dx + dy * dy <= eps2) ? 1u : 0u;
+            CHARGE(r, W_CAND);
+        }
+        if (k < end) {
+            break;
+        }
+        ++ri;
+        if (ri < rg->n_ranges) {
+            k = rg->begin[ri];
+        }
+    }
+    o->u.sc.ri = (uint8_t)ri;
+    o->u.sc.k = (uint16_t)k;
+    o->u.sc.cnt = (uint16_t)cnt;
+    *rem = r;
+}
+
+/* Pass 2 (grid): reach updates of p's unprocessed neighbours. */
 static void ord_scan_reach(ord_t *o, const magcal_nbr_ranges_t *rg, int32_t *rem)
 {
     magcal_ocore_t *oc = &o->oc;
@@ -1033,24 +1093,35 @@ static void ord_scan_reach(ord_t *o, const magcal_nbr_ranges_t *rg, int32_t *rem
     const float eps2 = o->eps2;
     const float core_p = o->u.sc.core_p;
     const float core2 = oc->best[oc->min_pts - 1u];
-    const int32_t wu = W_UPD + (oc->mode == MAGCAL_OPTICS_IMPROVED ? 0 : W_HEAP);
+    const int heap = oc->mode == MAGCAL_OPTICS_IMPROVED ? 0 : 1;
+    const uint16_t *idx = rg->idx;
     size_t ri = o->u.sc.ri;
     size_t k = o->u.sc.k;
     int32_t r = *rem;
-    while (r > 0 && ord_next(rg, &ri, &k) != 0) {
-        const size_t j = rg->idx[k];
-        const float dx = pts[j].x - px;
-        const float dy = pts[j].y - py;
-        const float d2 = dx * dx + dy * dy;
-        if (d2 <= eps2 && magcal_ocore_is_done(oc, j) == 0) {
-            const float rr = magcal_ocore_reach_of(d2, core_p, core2);
-            if (rr < oc->reach[j]) {
-                magcal_ocore_update(oc, p, j, rr);
-                r -= wu;
+    while (ri < rg->n_ranges) {
+        const size_t end = rg->end[ri];
+        for (; k < end && r > 0; ++k) {
+            const size_t j = idx[k];
+            const float dx = pts[j].x - px;
+            const float dy = pts[j].y - py;
+            const float d2 = dx * dx + dy * dy;
+            if (d2 <= eps2 && magcal_ocore_is_done(oc, j) == 0) {
+                const float rr = magcal_ocore_reach_of(d2, core_p, core2);
+                if (rr < oc->reach[j]) {
+                    magcal_ocore_update(oc, p, j, rr);
+                    CHARGE(r, W_UPD);
+                    CHARGE_K(r, W_HEAP, heap);
+                }
             }
+            CHARGE(r, W_REACH);
         }
-        ++k;
-        r -= W_REACH;
+        if (k < end) {
+            break;
+        }
+        ++ri;
+        if (ri < rg->n_ranges) {
+            k = rg->begin[ri];
+        }
     }
     o->u.sc.ri = (uint8_t)ri;
     o->u.sc.k = (uint16_t)k;
@@ -1070,14 +1141,14 @@ static void ord_scan_live(ord_t *o, int32_t *rem)
     const size_t m = oc->min_pts;
     const float core_p = o->u.sc.cnt >= m ? o->u.sc.core_p : INFINITY;
     const float core2 = o->u.sc.cnt >= m ? oc->best[m - 1u] : INFINITY;
-    const int32_t wu = W_UPD + (oc->mode == MAGCAL_OPTICS_IMPROVED ? 0 : W_HEAP);
+    const int heap = oc->mode == MAGCAL_OPTICS_IMPROVED ? 0 : 1;
     const size_t nl = o->u.sc.n_live;
     size_t k = o->u.sc.k;
     size_t w = o->u.sc.lw;
     int32_t r = *rem;
     for (; k < nl && r > 0; ++k) {
         const size_t j = live[k];
-        r -= W_REACH;
+        CHARGE(r, W_REACH);
         if (j == p) {
             continue; /* the only point processed since the last pass */
         }
@@ -1091,7 +1162,8 @@ static void ord_scan_live(ord_t *o, int32_t *rem)
                 const float rr = magcal_ocore_reach_of(d2, core_p, core2);
                 if (rr < oc->reach[j]) {
                     magcal_ocore_update(oc, p, j, rr);
-                    r -= wu;
+                    CHARGE(r, W_UPD);
+                    CHARGE_K(r, W_HEAP, heap);
                 }
             }
         }
@@ -1125,7 +1197,7 @@ static int ord_scan_min(ord_t *o, int32_t *rem)
             bq = s;
             best = k;
         }
-        r -= W_POP;
+        CHARGE(r, W_POP);
     }
     o->u.sc.pk = (uint16_t)k;
     o->u.sc.pbest = (uint16_t)best;
@@ -1139,7 +1211,7 @@ static int ord_scan_min(ord_t *o, int32_t *rem)
 static void ord_outer(ord_t *o, magcal_nbr_ranges_t *rg, size_t *rg_p, int32_t *rem)
 {
     const size_t n = o->nb.n;
-    *rem -= W_SKIP;
+    CHARGE(*rem, W_SKIP);
     if (o->u.sc.pass >= 2u) {
         magcal_ocore_finish(&o->oc);
         o->st = (uint8_t)OR_DONE;
@@ -1158,7 +1230,7 @@ static void ord_outer(ord_t *o, magcal_nbr_ranges_t *rg, size_t *rg_p, int32_t *
     } else {
         ord_process(o, o->u.sc.s, rg);
         *rg_p = o->u.sc.s;
-        *rem -= W_PSTART;
+        CHARGE(*rem, W_PSTART);
     }
 }
 
@@ -1169,6 +1241,7 @@ static int ord_run(ord_t *o, int32_t *rem)
     const size_t n = o->nb.n;
     magcal_nbr_ranges_t rg;
     size_t rg_p = 2u * (size_t)MAGCAL_MAX_SAMPLES; /* rg valid for: p (process) or s + n */
+    int requeried = 0;
     int32_t r = *rem;
     while (r > 0 && o->st != (uint8_t)OR_DONE) {
         switch (o->st) {
@@ -1188,7 +1261,7 @@ static int ord_run(ord_t *o, int32_t *rem)
                 if (oc->mode == MAGCAL_OPTICS_CLASSIC) {
                     oc->pos[i] = MAGCAL_OCORE_POS_NONE;
                 }
-                r -= W_INIT;
+                CHARGE(r, W_INIT);
             }
             o->u.sc.s = (uint16_t)i;
             if (i < n) {
@@ -1204,14 +1277,14 @@ static int ord_run(ord_t *o, int32_t *rem)
             o->u.sc.s = 0u;
             o->st = (uint8_t)(o->nb.use_grid != 0 ? OR_START : OR_LIVE);
             o->u.sc.use_live = (uint8_t)(o->nb.use_grid != 0 ? 0u : 1u);
-            r -= W_PHASE;
+            CHARGE(r, W_PHASE);
             break;
         }
         case OR_LIVE: {
             size_t i = o->u.sc.s;
             for (; i < n && r > 0; ++i) {
                 o->nb.idx[i] = (uint16_t)i;
-                r -= W_INIT;
+                CHARGE(r, W_INIT);
             }
             o->u.sc.s = (uint16_t)i;
             if (i < n) {
@@ -1233,15 +1306,20 @@ static int ord_run(ord_t *o, int32_t *rem)
             if (rg_p != (size_t)o->u.sc.s + n) {
                 magcal_nbr_query(&o->nb, o->u.sc.s, &rg);
                 rg_p = (size_t)o->u.sc.s + n;
+                requeried = 1;
             }
-            ord_scan_core(o, &rg, 1, &r);
+            ord_scan_count(o, &rg, &r);
+            if (requeried != 0) {
+                CHARGE(r, W_QUERY); /* after the scan: a resumed step still visits */
+                requeried = 0;
+            }
             if (o->u.sc.cnt < oc->min_pts && o->u.sc.ri < rg.n_ranges) {
                 break; /* budget ran out inside the count */
             }
             if (o->u.sc.cnt >= oc->min_pts) {
                 ord_process(o, o->u.sc.s, &rg);
                 rg_p = o->u.sc.p;
-                r -= W_PSTART;
+                CHARGE(r, W_PSTART);
             } else {
                 o->u.sc.s++;
                 o->st = (uint8_t)OR_SCAN;
@@ -1251,8 +1329,13 @@ static int ord_run(ord_t *o, int32_t *rem)
             if (rg_p != o->u.sc.p) {
                 magcal_nbr_query(&o->nb, o->u.sc.p, &rg);
                 rg_p = o->u.sc.p;
+                requeried = 1;
             }
-            ord_scan_core(o, &rg, 0, &r);
+            ord_scan_core(o, &rg, &r);
+            if (requeried != 0) {
+                CHARGE(r, W_QUERY); /* after the scan: a resumed step still visits */
+                requeried = 0;
+            }
             if (o->u.sc.ri >= rg.n_ranges) {
                 ord_core_done(o, &rg);
             }
@@ -1261,8 +1344,13 @@ static int ord_run(ord_t *o, int32_t *rem)
             if (rg_p != o->u.sc.p) {
                 magcal_nbr_query(&o->nb, o->u.sc.p, &rg);
                 rg_p = o->u.sc.p;
+                requeried = 1;
             }
             ord_scan_reach(o, &rg, &r);
+            if (requeried != 0) {
+                CHARGE(r, W_QUERY); /* after the scan: a resumed step still visits */
+                requeried = 0;
+            }
             if (o->u.sc.ri >= rg.n_ranges) {
                 o->st = (uint8_t)OR_SEEDS;
             }
@@ -1283,7 +1371,8 @@ static int ord_run(ord_t *o, int32_t *rem)
             } else {
                 ord_process(o, magcal_ocore_pop_min(oc), &rg);
                 rg_p = o->u.sc.p;
-                r -= W_HEAP + W_PSTART;
+                CHARGE(r, W_HEAP);
+                CHARGE(r, W_PSTART);
             }
             break;
         default: /* OR_POP */
@@ -1292,7 +1381,7 @@ static int ord_run(ord_t *o, int32_t *rem)
                 oc->seeds[o->u.sc.pbest] = oc->seeds[oc->n_seeds];
                 ord_process(o, o->u.sc.pbq, &rg);
                 rg_p = o->u.sc.p;
-                r -= W_PSTART;
+                CHARGE(r, W_PSTART);
             }
             break;
         }
@@ -1354,10 +1443,28 @@ static sl_t *sl_at(uint8_t *runw, size_t n)
     return (sl_t *)(void *)cw;
 }
 
-static sl_t *sl_new(uint8_t *runw, const magcal_vec2_t *pts, size_t n, unsigned kind)
+/* Bytes of the thinning's state: the common part and the centre's sub-state (no ordering). */
+#define SL_THIN_LEN (offsetof(sl_t, u) + sizeof(ce_t))
+
+/*
+ * The thinning's state: in the unused b[] region of the rule's layout when it fits (n >= 44 on a
+ * 64-bit host), else right after rep[]. Either way inside the first 11 n + 3 + SL_THIN_LEN bytes,
+ * the footprint the thinning has always had: the calibrator keeps its candidate mask in the
+ * scratch behind the consensus workspace (10 n + 392 bytes on) while it thins.
+ */
+static sl_t *sl_thin_at(uint8_t *w, size_t n)
 {
-    sl_t *t = sl_at(runw, n);
-    (void)memset(t, 0, sizeof *t);
+    uint8_t *cw = w + AUTO_REP_OFF(n) + n;
+    if (4u * n >= SL_THIN_LEN + sizeof(void *)) {
+        cw = w + AUTO_B_OFF(n);
+    }
+    cw += (sizeof(void *) - magcal_misalign(cw, sizeof(void *))) % sizeof(void *);
+    return (sl_t *)(void *)cw;
+}
+
+static sl_t *sl_new(sl_t *t, const magcal_vec2_t *pts, size_t n, unsigned kind)
+{
+    (void)memset(t, 0, kind == (unsigned)K_THIN ? SL_THIN_LEN : sizeof *t);
     t->pts = pts;
     t->n = (uint16_t)n;
     t->kind = (uint8_t)kind;
@@ -1448,7 +1555,7 @@ static magcal_status_t sl_step(sl_t *t, uint32_t budget)
                 if (!magcal_isfinite_f(t->pts[i].x) || !magcal_isfinite_f(t->pts[i].y)) {
                     return MAGCAL_ERR_NONFINITE;
                 }
-                rem -= W_FIN;
+                CHARGE(rem, W_FIN);
             }
             t->i = (uint16_t)i;
             if (i >= n) {
@@ -1486,7 +1593,7 @@ static magcal_status_t sl_step(sl_t *t, uint32_t budget)
         case PH_SETUP:
             sl_filter_setup(t);
             t->phase = (uint8_t)PH_ORDER;
-            rem -= W_PHASE;
+            CHARGE(rem, W_PHASE);
             break;
         case PH_ORDER: {
             ord_t *o = &t->u.ord;
@@ -1512,7 +1619,7 @@ static magcal_status_t sl_step(sl_t *t, uint32_t budget)
             size_t i = t->i;
             for (; i < n && rem > 0; ++i) {
                 t->out[i] = (labels[i] == id) ? 1u : 0u;
-                rem -= W_OUT;
+                CHARGE(rem, W_OUT);
             }
             t->i = (uint16_t)i;
             if (i < n) {
@@ -1547,7 +1654,7 @@ static magcal_status_t sl_step(sl_t *t, uint32_t budget)
                 } else {
                     t->out[i] = (uint8_t)(rep[i] & AUTO_REP);
                 }
-                rem -= W_OUT;
+                CHARGE(rem, W_OUT);
             }
             t->i = (uint16_t)i;
             if (i >= n) {
@@ -1616,7 +1723,7 @@ magcal_status_t magcal_optics_run(const magcal_optics_cfg_t *cfg, const magcal_v
     if (work_len < MAGCAL_OPTICS_WORKSPACE_LEN(n)) {
         return MAGCAL_ERR_WORKSPACE;
     }
-    t = sl_new((uint8_t *)work, pts, n, (unsigned)K_RUN);
+    t = sl_new(sl_at((uint8_t *)work, n), pts, n, (unsigned)K_RUN);
     sl_take_cfg(t, cfg);
     t->eps = cfg->eps;
     t->min_pts = cfg->min_pts;
@@ -1648,7 +1755,8 @@ magcal_status_t magcal_optics_auto_params(const magcal_vec2_t *pts, size_t n, vo
     if (work_len < MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n)) {
         return MAGCAL_ERR_WORKSPACE;
     }
-    t = sl_new((uint8_t *)work + MAGCAL_OPTICS_FILTER_RUN_OFFSET_(n), pts, n, (unsigned)K_AUTO);
+    t = sl_new(sl_at((uint8_t *)work + MAGCAL_OPTICS_FILTER_RUN_OFFSET_(n), n), pts, n,
+                 (unsigned)K_AUTO);
     t->w = (uint8_t *)work;
     st = sl_finish(t);
     if (st != MAGCAL_OK) {
@@ -1707,7 +1815,8 @@ magcal_status_t magcal_optics_filter_begin(magcal_optics_filter_slice_t *s,
         s->status_ = st;
         return st;
     }
-    t = sl_new((uint8_t *)work + MAGCAL_OPTICS_FILTER_RUN_OFFSET_(n), pts, n, (unsigned)K_FILTER);
+    t = sl_new(sl_at((uint8_t *)work + MAGCAL_OPTICS_FILTER_RUN_OFFSET_(n), n), pts, n,
+                 (unsigned)K_FILTER);
     sl_take_cfg(t, cfg);
     t->w = (uint8_t *)work;
     t->out = inlier_mask;
@@ -1769,7 +1878,7 @@ magcal_status_t magcal_optics_thin_begin(magcal_optics_thin_slice_t *s, const ma
         s->status_ = st;
         return st;
     }
-    t = sl_new((uint8_t *)work + MAGCAL_OPTICS_FILTER_RUN_OFFSET_(n), pts, n, (unsigned)K_THIN);
+    t = sl_new(sl_thin_at((uint8_t *)work, n), pts, n, (unsigned)K_THIN);
     t->w = (uint8_t *)work;
     t->out = rep_mask;
     t->io.cand = cand;
