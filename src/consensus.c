@@ -477,7 +477,7 @@ static void cons_fill_axis(cons_state_t *S, size_t end)
  * conic, so the median residual is far below the quantisation noise and a MAD threshold rejected a
  * third of a 5-LSB ring's clean samples; sigma is floored at LSB / sqrt(12), the noise of rounding.
  */
-static magcal_status_t cons_prep(cons_state_t *S, uint32_t budget, uint32_t *used)
+static MAGCAL_NOINLINE magcal_status_t cons_prep(cons_state_t *S, uint32_t budget, uint32_t *used)
 {
     const size_t n = S->n;
     const size_t m = S->m;
@@ -638,9 +638,31 @@ static void cons_need(cons_state_t *S)
     S->need = k;
 }
 
+/* One minimal set (one visit): 5 candidates, one per fifth of the angular order from a random
+ * rank, and the conic through them; an ellipse is scored next. */
+static void cons_draw_one(cons_state_t *S)
+{
+    const size_t m = S->m;
+    const size_t fifth = m / 5u;
+    uint32_t off = magcal_prng_next(&S->rng, (uint32_t)m);
+    size_t j;
+    for (j = 0u; j < 5u; ++j) {
+        uint32_t jit = magcal_prng_next(&S->rng, (uint32_t)fifth);
+        S->idx[j] = S->order[((size_t)off + j * fifth + (size_t)jit) % m];
+    }
+    ++S->draws;
+    /* the 5-point exact fit as one visit, its slice in the run state (off the stack) */
+    if (magcal_ellipse_fit_idx_begin(&S->fit, S->pts, S->n, S->idx, 5u, &S->cand) == MAGCAL_OK &&
+        magcal_ellipse_fit_step(&S->fit, UINT32_MAX) == MAGCAL_OK) {
+        ++S->valid;
+        S->pos = 0u;
+        S->phase = P_SCORE_RES;
+    }
+}
+
 /* 2. Minimal sets spread over the angular order (one per visit), ranked by their LMedS score on
  * the subsample (cons_score_init). */
-static magcal_status_t cons_draw(cons_state_t *S, uint32_t budget, uint32_t *used)
+static MAGCAL_NOINLINE magcal_status_t cons_draw(cons_state_t *S, uint32_t budget, uint32_t *used)
 {
     const size_t n = S->n;
     size_t j;
@@ -654,21 +676,7 @@ static magcal_status_t cons_draw(cons_state_t *S, uint32_t budget, uint32_t *use
         if (cons_pay(budget, used, CONS_W_DRAW) == 0) {
             return CONS_SPENT;
         }
-        {
-            const size_t m = S->m;
-            const size_t fifth = m / 5u;
-            uint32_t off = magcal_prng_next(&S->rng, (uint32_t)m);
-            for (j = 0u; j < 5u; ++j) {
-                uint32_t jit = magcal_prng_next(&S->rng, (uint32_t)fifth);
-                S->idx[j] = S->order[((size_t)off + j * fifth + (size_t)jit) % m];
-            }
-        }
-        ++S->draws;
-        if (magcal_ellipse_fit_idx(S->pts, n, S->idx, 5u, &S->cand) == MAGCAL_OK) {
-            ++S->valid;
-            S->pos = 0u;
-            S->phase = P_SCORE_RES;
-        }
+        cons_draw_one(S);
         break;
     case P_SCORE_RES: {
         /* |residual| of the subsample into scr[0..sub-1] (as cons_residuals) */
@@ -729,7 +737,7 @@ static magcal_status_t cons_draw(cons_state_t *S, uint32_t budget, uint32_t *use
 
 /* Start model: the best minimal set, scored again on every sample, or (none valid) the
  * least-squares fit of the candidates (its score the plain median); res gets its residuals. */
-static magcal_status_t cons_start(cons_state_t *S, uint32_t budget, uint32_t *used)
+static MAGCAL_NOINLINE magcal_status_t cons_start(cons_state_t *S, uint32_t budget, uint32_t *used)
 {
     magcal_status_t st;
     size_t i;
@@ -798,7 +806,7 @@ static void cons_mask_set(cons_state_t *S, size_t i, uint8_t v)
 
 /* New scale and threshold from the gathered residuals of the current inliers (their median in
  * S->sel.val, their sum of squares in S->acc). */
-static void cons_rescale(cons_state_t *S)
+static MAGCAL_NOINLINE void cons_rescale(cons_state_t *S)
 {
     const size_t k = S->k_in;
     float nsig = CONS_MAD_TO_SIGMA * S->sel.val;
@@ -849,7 +857,7 @@ static void cons_refine_init(cons_state_t *S)
 /* 3. Threshold, inliers over every sample, refit; until the set is stable or refine_iter rounds
  * were done. The working mask (bytes in order[], the candidate list is no longer needed) is
  * fitted directly: the same points in the same order as the one-shot index list. */
-static magcal_status_t cons_refine(cons_state_t *S, uint32_t budget, uint32_t *used)
+static MAGCAL_NOINLINE magcal_status_t cons_refine(cons_state_t *S, uint32_t budget, uint32_t *used)
 {
     uint8_t *wm = (uint8_t *)S->order;
     const size_t n = S->n;
@@ -969,7 +977,7 @@ static magcal_status_t cons_refine(cons_state_t *S, uint32_t budget, uint32_t *u
 
 /* Final verdict for every sample against cur (res is recomputed: it holds cur's residuals unless
  * the last refit failed), then the outputs. */
-static magcal_status_t cons_finish(cons_state_t *S, uint32_t budget, uint32_t *used)
+static MAGCAL_NOINLINE magcal_status_t cons_finish(cons_state_t *S, uint32_t budget, uint32_t *used)
 {
     const size_t n = S->n;
     size_t end;

@@ -220,7 +220,8 @@ static void moments_zero(float mom[S_COUNT], float comp[S_COUNT])
 }
 
 /* Pass 2 over every point of src. */
-static void src_moments(const fit_src_t *src, const fit_norm_t *nm, int plain, float mom[S_COUNT])
+static MAGCAL_NOINLINE void src_moments(const fit_src_t *src, const fit_norm_t *nm, int plain,
+                                         float mom[S_COUNT])
 {
     float comp[S_COUNT];
     moments_zero(mom, comp);
@@ -244,12 +245,12 @@ static int moments_collinear(const float *mom, float cnt)
     return !(tr > 0.0f) || !(det > MAGCAL_ELLIPSE_COLLINEAR_TOL * tr * tr);
 }
 
-/* Normal equations of the rows w = [xy, y^2, x, y, 1], Y = -x^2, solved by equilibrated LDL^T.
+/* Normal equations of the rows w = [xy, y^2, x, y, 1], Y = -x^2, solved by equilibrated LDL^T
+ * (a: the 5x5 matrix's storage, destroyed; the fit slice lends its scratch, off the stack).
  * On success the coefficients A..E overwrite mom[0..4] (the moments are dead by then; sharing the
  * array keeps the deepest stack path, through magcal_ldlt_solve, short). */
-static magcal_status_t moments_solve(float mom[S_COUNT], float cnt, float *min_pivot)
+static magcal_status_t moments_solve(float mom[S_COUNT], float cnt, float a[25], float *min_pivot)
 {
-    float a[25];
 
     a[0] = mom[S22];
     a[5] = mom[S13];
@@ -285,6 +286,13 @@ static magcal_status_t moments_solve(float mom[S_COUNT], float cnt, float *min_p
     mom[2] = -mom[S30];
     mom[3] = -mom[S21];
     return magcal_ldlt_solve(a, mom, 5u, MAGCAL_ELLIPSE_PIVOT_TOL, min_pivot);
+}
+
+/* moments_solve with the matrix on this frame (the one-shot fits; the slice lends its scratch). */
+static MAGCAL_NOINLINE magcal_status_t moments_solve_own(float mom[S_COUNT], float cnt, float *min_pivot)
+{
+    float a[25];
+    return moments_solve(mom, cnt, a, min_pivot);
 }
 
 /* Signed radial distance of p to the ellipse given by its centre, quadratic form and semi-minor
@@ -339,9 +347,11 @@ static void src_rms_range(const fit_src_t *src, const float geo[6], size_t k0, s
 
 /*
  * Geometry of x^2 + A xy + B y^2 + C x + D y + E = 0 given in coordinates x~ = (x - mx)/s
- * (isotropic s, so angles are unchanged and lengths scale by s; algorithms.md 2.3) into e (every
- * field but residual_rms, min_pivot and n_used) and geo (centre, qform, semi-minor axis: what the
- * residual needs).
+ * (isotropic s, so angles are unchanged and lengths scale by s; algorithms.md 2.3) into geo
+ * (centre, qform, semi-minor axis: what the residual needs) and, when e is not NULL, into e (every
+ * field but residual_rms, min_pivot and n_used). Deterministic: the fits call it once for the
+ * residuals and again, once every check has passed, straight into the caller's result (no
+ * ellipse-sized temporary on the deepest stack path).
  */
 static magcal_status_t conic_geometry(const float coef[5], float mx, float my, float s,
                                       magcal_ellipse_t *e, float geo[6])
@@ -384,55 +394,51 @@ static magcal_status_t conic_geometry(const float coef[5], float mx, float my, f
         !magcal_isfinite_f(q11) || !(q11 > 0.0f) || !(r1 > 0.0f)) {
         return MAGCAL_ERR_ILL_CONDITIONED; /* under/overflow of a nearly singular conic */
     }
+    geo[0] = cx;
+    geo[1] = cy;
+    geo[2] = q11;
+    geo[3] = 0.5f * ca * q11;
+    geo[4] = cb * q11;
+    geo[5] = r1;
+    if (e == NULL) {
+        return MAGCAL_OK;
+    }
     e->center.x = cx;
     e->center.y = cy;
     e->semi_minor = r1;
     e->semi_major = r2;
-    e->angle_rad = 0.5f * atan2f(ca, 1.0f - cb);
+    e->angle_rad = 0.0f; /* conic_store (atan2f beside this frame) */
     for (i = 0u; i < 5u; ++i) {
         e->coef[i] = coef[i];
     }
     e->norm_center.x = mx;
     e->norm_center.y = my;
     e->norm_scale = s;
-    e->qform[0] = q11;
-    e->qform[1] = 0.5f * ca * q11;
-    e->qform[2] = cb * q11;
-    geo[0] = cx;
-    geo[1] = cy;
-    geo[2] = e->qform[0];
-    geo[3] = e->qform[1];
-    geo[4] = e->qform[2];
-    geo[5] = r1;
+    e->qform[0] = geo[2];
+    e->qform[1] = geo[3];
+    e->qform[2] = geo[4];
     return MAGCAL_OK;
 }
 
-/* The complete result: geometry e, residual RMS (non-finite: residuals of points ~1e19 from the
- * centre overflow), pivot, count, written field by field to out only once every check passed. */
-static magcal_status_t conic_store(const magcal_ellipse_t *e, float rms, float min_pivot,
-                                   size_t cnt, magcal_ellipse_t *out)
+/* The complete result into out, once the residual RMS is known to be finite (non-finite:
+ * residuals of points ~1e19 from the centre overflow): the geometry again, straight into out. */
+static magcal_status_t conic_store(const float coef[5], float mx, float my, float s, float rms,
+                                   float min_pivot, size_t cnt, magcal_ellipse_t *out)
 {
-    size_t i;
+    float geo[6];
+    magcal_status_t st;
 
     if (!magcal_isfinite_f(rms)) {
         return MAGCAL_ERR_ILL_CONDITIONED;
     }
-    out->center = e->center;
-    out->semi_minor = e->semi_minor;
-    out->semi_major = e->semi_major;
-    out->angle_rad = e->angle_rad;
-    for (i = 0u; i < 5u; ++i) {
-        out->coef[i] = e->coef[i];
+    st = conic_geometry(coef, mx, my, s, out, geo);
+    if (st == MAGCAL_OK) {
+        out->angle_rad = 0.5f * atan2f(coef[0], 1.0f - coef[1]);
+        out->min_pivot = min_pivot;
+        out->n_used = (uint16_t)cnt;
+        out->residual_rms = rms;
     }
-    out->norm_center = e->norm_center;
-    out->norm_scale = e->norm_scale;
-    out->min_pivot = min_pivot;
-    out->qform[0] = e->qform[0];
-    out->qform[1] = e->qform[1];
-    out->qform[2] = e->qform[2];
-    out->n_used = (uint16_t)cnt;
-    out->residual_rms = rms;
-    return MAGCAL_OK;
+    return st;
 }
 
 /* Geometry, residual RMS over the cnt used points of src (NULL: RMS 0) and the result in one go
@@ -441,11 +447,10 @@ static magcal_status_t conic_finish(const float coef[5], float mx, float my, flo
                                     float min_pivot, size_t cnt, const fit_src_t *src,
                                     magcal_ellipse_t *out)
 {
-    magcal_ellipse_t e;
     float geo[6];
     float acc[2] = {0.0f, 0.0f};
     float rms = 0.0f;
-    magcal_status_t st = conic_geometry(coef, mx, my, s, &e, geo);
+    magcal_status_t st = conic_geometry(coef, mx, my, s, NULL, geo);
 
     if (st != MAGCAL_OK) {
         return st;
@@ -454,7 +459,7 @@ static magcal_status_t conic_finish(const float coef[5], float mx, float my, flo
         src_rms_range(src, geo, 0u, src->n, acc);
         rms = sqrtf(acc[0] / (float)cnt);
     }
-    return conic_store(&e, rms, min_pivot, cnt, out);
+    return conic_store(coef, mx, my, s, rms, min_pivot, cnt, out);
 }
 
 /* Pass 1 and the centred normalisation, in a frame of their own. */
@@ -595,6 +600,41 @@ static MAGCAL_NOINLINE magcal_status_t fit_five(const fit_src_t *src, magcal_ell
 #define FIT_W_STORE 800u  /* conic geometry again, result written */
 #define FIT_W_FIVE 3200u  /* the 5-point exact path as a whole (5 points: O(1)) */
 
+/* 1 when idx[k0..k1-1] < n_pts (the index check of magcal_ellipse_fit_idx). */
+static int idx_in_range(const uint16_t *idx, size_t k0, size_t k1, size_t n_pts)
+{
+    size_t k;
+    for (k = k0; k < k1; ++k) {
+        if ((size_t)idx[k] >= n_pts) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* The 5-point exact fit as one unit (the slice's single visit of FIT_PH_IDX + FIT_PH_FIVE; the
+ * RANSAC draws call it without a slice on their stack): index check, then fit_five(). */
+static MAGCAL_NOINLINE magcal_status_t fit_idx_five(const magcal_vec2_t *pts, size_t n_pts,
+                                                    const uint16_t *idx, magcal_ellipse_t *out)
+{
+    fit_src_t src;
+    if (idx_in_range(idx, 0u, MAGCAL_ELLIPSE_MIN_POINTS, n_pts) == 0) {
+        return MAGCAL_ERR_ARG;
+    }
+    src.pts = pts;
+    src.n = MAGCAL_ELLIPSE_MIN_POINTS;
+    src.mask = NULL;
+    src.idx = idx;
+    return fit_five(&src, out);
+}
+
+/* The slice's tmp_[25] by phase (each pass's data is dead before the next one's is written). */
+#define SL_BB(s) (&(s)->tmp_[0])   /* scan: xmin, xmax, ymin, ymax, max|x|, max|y| */
+#define SL_COMP(s) (&(s)->tmp_[0]) /* moments: Kahan compensation [13] */
+#define SL_A(s) (&(s)->tmp_[0])    /* solve: the 5x5 normal matrix */
+#define SL_GEO(s) (&(s)->tmp_[0])  /* residuals: centre, qform, semi-minor axis [6] */
+#define SL_ACC(s) (&(s)->tmp_[6])  /* residuals: sum of squares, compensation */
+
 #define FIT_PH_IDX 1u
 #define FIT_PH_FIVE 2u
 #define FIT_PH_SCAN 3u
@@ -609,11 +649,9 @@ static void slice_start(magcal_ellipse_fit_slice_t *s)
     size_t j;
     s->k_ = 0u;
     s->cnt_ = 0u;
-    for (j = 0u; j < 4u; ++j) {
-        s->bb_[j] = 0.0f;
+    for (j = 0u; j < 6u; ++j) {
+        SL_BB(s)[j] = 0.0f; /* bounding box, then the largest magnitudes */
     }
-    s->amax_[0] = 0.0f;
-    s->amax_[1] = 0.0f;
     s->used_ = 0u;
     s->status_ = (int8_t)MAGCAL_IN_PROGRESS;
 }
@@ -676,14 +714,14 @@ static magcal_status_t slice_scan_done(magcal_ellipse_fit_slice_t *s)
     fit_norm_t nm;
     magcal_status_t st = scan_count_ok(s->cnt_);
     if (st == MAGCAL_OK) {
-        st = norm_centred(s->bb_, &nm, &s->norm_[4]);
+        st = norm_centred(SL_BB(s), &nm, &s->norm_[4]);
     }
     if (st == MAGCAL_OK) {
         s->norm_[0] = nm.mx;
         s->norm_[1] = nm.my;
         s->norm_[2] = nm.isx;
         s->norm_[3] = nm.isy;
-        moments_zero(s->mom_, s->comp_);
+        moments_zero(s->mom_, SL_COMP(s));
         s->k_ = 0u;
         s->phase_ = FIT_PH_MOM;
     }
@@ -693,17 +731,16 @@ static magcal_status_t slice_scan_done(magcal_ellipse_fit_slice_t *s)
 /* Collinearity test, normal equations, geometry (for the residuals of pass 3). */
 static magcal_status_t slice_solve(magcal_ellipse_fit_slice_t *s)
 {
-    magcal_ellipse_t e;
     magcal_status_t st;
     if (moments_collinear(s->mom_, (float)s->cnt_) != 0) {
         return MAGCAL_ERR_DEGENERATE;
     }
-    st = moments_solve(s->mom_, (float)s->cnt_, &s->minp_);
+    st = moments_solve(s->mom_, (float)s->cnt_, SL_A(s), &s->minp_);
     if (st == MAGCAL_OK) {
-        st = conic_geometry(s->mom_, s->norm_[0], s->norm_[1], s->norm_[4], &e, s->geo_);
+        st = conic_geometry(s->mom_, s->norm_[0], s->norm_[1], s->norm_[4], NULL, SL_GEO(s));
     }
-    s->acc_[0] = 0.0f;
-    s->acc_[1] = 0.0f;
+    SL_ACC(s)[0] = 0.0f;
+    SL_ACC(s)[1] = 0.0f;
     s->k_ = 0u;
     s->phase_ = FIT_PH_RMS;
     return st;
@@ -712,20 +749,16 @@ static magcal_status_t slice_solve(magcal_ellipse_fit_slice_t *s)
 /* The result: the geometry again (cheaper than keeping it in the slice), the RMS, *out. */
 static magcal_status_t slice_store(magcal_ellipse_fit_slice_t *s)
 {
-    magcal_ellipse_t e;
-    float geo[6];
-    magcal_status_t st = conic_geometry(s->mom_, s->norm_[0], s->norm_[1], s->norm_[4], &e, geo);
-    if (st != MAGCAL_OK) {
-        return st;
-    }
-    return conic_store(&e, sqrtf(s->acc_[0] / (float)s->cnt_), s->minp_, s->cnt_, s->out_);
+    return conic_store(s->mom_, s->norm_[0], s->norm_[1], s->norm_[4],
+                       sqrtf(SL_ACC(s)[0] / (float)s->cnt_), s->minp_, s->cnt_, s->out_);
 }
 
 /* One pass chunk or one fixed visit of the current phase; *used is charged. Returns
  * MAGCAL_IN_PROGRESS to go on, 2 when the budget is spent, or the final status. */
 #define SLICE_SPENT ((magcal_status_t)2)
-static magcal_status_t slice_phase(magcal_ellipse_fit_slice_t *s, const fit_src_t *src,
-                                   uint32_t budget, uint32_t *used)
+static MAGCAL_NOINLINE magcal_status_t slice_phase(magcal_ellipse_fit_slice_t *s,
+                                                   const fit_src_t *src, uint32_t budget,
+                                                   uint32_t *used)
 {
     static const uint16_t w_of[FIT_PH_DONE] = {0u, FIT_W_IDX, FIT_W_FIVE, FIT_W_SCAN,
                                                 FIT_W_MOM, FIT_W_SOLVE, FIT_W_RMS, FIT_W_STORE};
@@ -744,20 +777,17 @@ static magcal_status_t slice_phase(magcal_ellipse_fit_slice_t *s, const fit_src_
     *used += (uint32_t)v * w;
     switch (s->phase_) {
     case FIT_PH_IDX:
-        for (; s->k_ < k1; ++s->k_) {
-            if ((size_t)s->idx_[s->k_] >= s->n_pts_) {
-                return MAGCAL_ERR_ARG;
-            }
+        if (idx_in_range(s->idx_, s->k_, k1, s->n_pts_) == 0) {
+            return MAGCAL_ERR_ARG;
         }
-        if (s->k_ == s->n_) {
+        s->k_ = k1;
+        if (k1 == s->n_) {
             s->k_ = 0u;
             s->phase_ = (s->n_ == MAGCAL_ELLIPSE_MIN_POINTS) ? FIT_PH_FIVE : FIT_PH_SCAN;
         }
         break;
-    case FIT_PH_FIVE:
-        return fit_five(src, s->out_);
     case FIT_PH_SCAN:
-        st = src_scan_range(src, s->k_, k1, &s->cnt_, s->bb_, s->amax_);
+        st = src_scan_range(src, s->k_, k1, &s->cnt_, SL_BB(s), &SL_BB(s)[4]);
         s->k_ = k1;
         if (st == MAGCAL_OK) {
             st = (k1 == s->n_) ? slice_scan_done(s) : MAGCAL_OK;
@@ -768,7 +798,7 @@ static magcal_status_t slice_phase(magcal_ellipse_fit_slice_t *s, const fit_src_
         nm.my = s->norm_[1];
         nm.isx = s->norm_[2];
         nm.isy = s->norm_[3];
-        src_moments_range(src, &nm, 0, s->k_, k1, s->mom_, s->comp_);
+        src_moments_range(src, &nm, 0, s->k_, k1, s->mom_, SL_COMP(s));
         s->k_ = k1;
         if (k1 == s->n_) {
             s->phase_ = FIT_PH_SOLVE;
@@ -778,7 +808,7 @@ static magcal_status_t slice_phase(magcal_ellipse_fit_slice_t *s, const fit_src_
         st = slice_solve(s);
         break;
     case FIT_PH_RMS:
-        src_rms_range(src, s->geo_, s->k_, k1, s->acc_);
+        src_rms_range(src, SL_GEO(s), s->k_, k1, SL_ACC(s));
         s->k_ = k1;
         if (k1 == s->n_) {
             s->phase_ = FIT_PH_STORE;
@@ -790,11 +820,39 @@ static magcal_status_t slice_phase(magcal_ellipse_fit_slice_t *s, const fit_src_
     return (st == MAGCAL_OK) ? MAGCAL_IN_PROGRESS : st;
 }
 
-magcal_status_t magcal_ellipse_fit_step(magcal_ellipse_fit_slice_t *s, uint32_t budget)
+/* The passes and fixed visits of a step (every phase but the 5-point path, which the caller
+ * runs beside this frame); then the slice's bookkeeping. Also the one-shot fits' whole run. */
+static MAGCAL_NOINLINE magcal_status_t slice_steps(magcal_ellipse_fit_slice_t *s, uint32_t budget,
+                                                   uint32_t *used)
 {
     fit_src_t src;
-    uint32_t used = 0u;
     magcal_status_t st = MAGCAL_IN_PROGRESS;
+    src.pts = s->pts_;
+    src.n = s->n_;
+    src.mask = s->mask_;
+    src.idx = s->idx_;
+    while (st == MAGCAL_IN_PROGRESS && s->phase_ != FIT_PH_FIVE) {
+        st = slice_phase(s, &src, budget, used);
+    }
+    return st;
+}
+
+/* End of a step: what it charged; the final status once done. */
+static magcal_status_t slice_end(magcal_ellipse_fit_slice_t *s, magcal_status_t st, uint32_t used)
+{
+    s->used_ = used;
+    if (st == SLICE_SPENT || st == MAGCAL_IN_PROGRESS) {
+        return MAGCAL_IN_PROGRESS;
+    }
+    s->phase_ = FIT_PH_DONE;
+    s->status_ = (int8_t)st;
+    return st;
+}
+
+magcal_status_t magcal_ellipse_fit_step(magcal_ellipse_fit_slice_t *s, uint32_t budget)
+{
+    uint32_t used = 0u;
+    magcal_status_t st;
 
     if (s == NULL) {
         return MAGCAL_ERR_NULL;
@@ -806,42 +864,91 @@ magcal_status_t magcal_ellipse_fit_step(magcal_ellipse_fit_slice_t *s, uint32_t 
     if (s->phase_ < FIT_PH_IDX || s->phase_ > FIT_PH_STORE) {
         return MAGCAL_ERR_ARG;
     }
-    src.pts = s->pts_;
-    src.n = s->n_;
-    src.mask = s->mask_;
-    src.idx = s->idx_;
-    while (st == MAGCAL_IN_PROGRESS) {
-        st = slice_phase(s, &src, budget, &used);
+    st = slice_steps(s, budget, &used);
+    if (st == MAGCAL_IN_PROGRESS && s->phase_ == FIT_PH_FIVE) {
+        if (slice_visits(budget, used, FIT_W_FIVE, 1u) == 0u) {
+            st = SLICE_SPENT;
+        } else { /* beside slice_steps' frame: the deepest path of the minimal sets */
+            fit_src_t src;
+            src.pts = s->pts_;
+            src.n = s->n_;
+            src.mask = NULL;
+            src.idx = s->idx_;
+            used += FIT_W_FIVE;
+            st = fit_five(&src, s->out_);
+        }
     }
-    s->used_ = used;
-    if (st == SLICE_SPENT) {
-        return MAGCAL_IN_PROGRESS;
+    return slice_end(s, st, used);
+}
+
+/*
+ * The one-shot least-squares fit: the slice's passes (src_scan_range, src_moments_range,
+ * moments_solve, conic_geometry + src_rms_range + conic_store) over every point in one go. Not
+ * begin + step(UINT32_MAX): the slice state (216 B on Cortex-M4F) on this frame put the
+ * calibrator's run() at 560 B of stack, over its 512-B budget. The sliced fit gives the same
+ * result bit for bit (tests/test_ellipse.c, every budget).
+ */
+static MAGCAL_NOINLINE magcal_status_t fit_normal(const fit_src_t *src, magcal_ellipse_t *out)
+{
+    float mom[S_COUNT];
+    float s = 1.0f;
+    float minp = 0.0f;
+    size_t cnt = 0u;
+    fit_norm_t nm;
+    magcal_status_t st;
+
+    st = prepare_centred(src, &cnt, &nm, &s);
+    if (st != MAGCAL_OK) {
+        return st;
     }
-    s->phase_ = FIT_PH_DONE;
-    s->status_ = (int8_t)st;
-    return st;
+    src_moments(src, &nm, 0, mom);
+    if (moments_collinear(mom, (float)cnt) != 0) {
+        return MAGCAL_ERR_DEGENERATE;
+    }
+    st = moments_solve_own(mom, (float)cnt, &minp);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    return conic_finish(mom, nm.mx, nm.my, s, minp, cnt, src, out);
 }
 
 magcal_status_t magcal_ellipse_fit(const magcal_vec2_t *pts, size_t n, const uint8_t *mask,
                                    magcal_ellipse_t *out)
 {
-    magcal_ellipse_fit_slice_t s;
-    magcal_status_t st = magcal_ellipse_fit_begin(&s, pts, n, mask, out);
-    if (st != MAGCAL_OK) {
-        return st;
+    fit_src_t src;
+
+    if (pts == NULL || out == NULL) {
+        return MAGCAL_ERR_NULL;
     }
-    return magcal_ellipse_fit_step(&s, UINT32_MAX);
+    src_masked(&src, pts, n, mask);
+    return fit_normal(&src, out);
 }
 
 magcal_status_t magcal_ellipse_fit_idx(const magcal_vec2_t *pts, size_t n_pts, const uint16_t *idx,
                                        size_t m, magcal_ellipse_t *out)
 {
-    magcal_ellipse_fit_slice_t s;
-    magcal_status_t st = magcal_ellipse_fit_idx_begin(&s, pts, n_pts, idx, m, out);
-    if (st != MAGCAL_OK) {
-        return st;
+    fit_src_t src;
+
+    if (pts == NULL || idx == NULL || out == NULL) {
+        return MAGCAL_ERR_NULL;
     }
-    return magcal_ellipse_fit_step(&s, UINT32_MAX);
+    if (m > MAGCAL_ELLIPSE_MAX_POINTS) {
+        return MAGCAL_ERR_ARG;
+    }
+    if (m < MAGCAL_ELLIPSE_MIN_POINTS) {
+        return MAGCAL_ERR_TOO_FEW_POINTS;
+    }
+    if (m == MAGCAL_ELLIPSE_MIN_POINTS) {
+        return fit_idx_five(pts, n_pts, idx, out);
+    }
+    if (idx_in_range(idx, 0u, m, n_pts) == 0) {
+        return MAGCAL_ERR_ARG;
+    }
+    src.pts = pts;
+    src.n = m;
+    src.mask = NULL;
+    src.idx = idx;
+    return fit_normal(&src, out);
 }
 
 /* Pass 1 and the seed's max-abs normalisation (no centring), in a frame of their own. */
@@ -890,7 +997,7 @@ magcal_status_t magcal_ellipse_fit_seed(const magcal_vec2_t *pts, size_t n, cons
     if (moments_collinear(mom, (float)cnt) != 0) {
         return MAGCAL_ERR_DEGENERATE;
     }
-    st = moments_solve(mom, (float)cnt, &minp);
+    st = moments_solve_own(mom, (float)cnt, &minp);
     if (st != MAGCAL_OK) {
         return st;
     }

@@ -196,12 +196,9 @@ typedef struct {
     size_t k_;       /* position of the current pass */
     size_t cnt_;     /* used points (pass 1) */
     float mom_[13];  /* power sums, then A..E in mom_[0..4] */
-    float comp_[13]; /* Kahan compensation of mom_ */
-    float bb_[4];    /* bounding box (pass 1) */
-    float amax_[2];
+    float tmp_[25];  /* by pass: bounding box + max |x|, |y| (1); Kahan compensation of mom_ (2);
+                      * the 5x5 normal matrix (solve); residual geometry + sum of squares (3) */
     float norm_[5];  /* mx, my, 1/s, 1/s, s */
-    float geo_[6];   /* what the residual needs of the fitted geometry */
-    float acc_[2];   /* residual sum of squares and its compensation (pass 3) */
     float minp_;
     uint32_t used_;  /* estimated M4F instructions charged by the last step (read by consensus.c) */
     uint8_t phase_;
