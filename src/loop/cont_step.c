@@ -108,14 +108,35 @@ static int cont_snapshot(magcal_cont_t *cc, magcal_cal_budget_t *b)
     return 1;
 }
 
-/* Solve work within the budget (at least one visit); the outcome when the solve ended. */
-static MAGCAL_NOINLINE magcal_cont_outcome_t cont_solve(magcal_cont_t *cc, magcal_cal_budget_t *b)
+/* The snapshot part of a step: 1 while the snapshot is unfinished or it spent the budget. */
+static MAGCAL_NOINLINE int cont_snapshot_part(magcal_cont_t *cc, magcal_cal_budget_t *b)
 {
-    magcal_status_t st;
     if (cc->stage == (uint8_t)CONT_STAGE_SNAPSHOT) {
         if (cont_snapshot(cc, b) == 0 || (b->unlimited == 0u && b->left == 0u)) {
-            return MAGCAL_CONT_IN_PROGRESS;
+            return 1;
         }
+    }
+    return 0;
+}
+
+/* A solve ended with st: adoption over time (cont_adopt.c), the outcome. */
+static MAGCAL_NOINLINE magcal_cont_outcome_t cont_end(magcal_cont_t *cc, magcal_status_t st)
+{
+    cc->stage = (uint8_t)CONT_STAGE_NONE;
+    cc->last_outcome = magcal_cont_finish_solve(cc, st);
+    /* new information counts from the store the solve saw (its snapshot), not from its end */
+    cc->stored_at_solve = cc->snap_stored;
+    return cc->last_outcome;
+}
+
+/* Solve work within the budget (at least one visit); the outcome when the solve ended. The
+ * snapshot and the end are siblings of the solver's step (not frames above it): only this
+ * function's frame sits between step() and the solver's phases (stack budget). */
+static magcal_cont_outcome_t cont_solve(magcal_cont_t *cc, magcal_cal_budget_t *b)
+{
+    magcal_status_t st;
+    if (cont_snapshot_part(cc, b) != 0) {
+        return MAGCAL_CONT_IN_PROGRESS;
     }
     st = magcal_calibrator_solve_step(&cc->solver, &cc->cand,
                                       b->unlimited != 0u ? UINT32_MAX : (b->left > 0u ? b->left : 1u),
@@ -123,11 +144,7 @@ static MAGCAL_NOINLINE magcal_cont_outcome_t cont_solve(magcal_cont_t *cc, magca
     if (st == MAGCAL_IN_PROGRESS) {
         return MAGCAL_CONT_IN_PROGRESS;
     }
-    cc->stage = (uint8_t)CONT_STAGE_NONE;
-    cc->last_outcome = magcal_cont_finish_solve(cc, st);
-    /* new information counts from the store the solve saw (its snapshot), not from its end */
-    cc->stored_at_solve = cc->snap_stored;
-    return cc->last_outcome;
+    return cont_end(cc, st);
 }
 
 magcal_cont_outcome_t magcal_cont_step(magcal_cont_t *cc)
