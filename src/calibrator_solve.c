@@ -56,6 +56,7 @@ typedef enum {
     PH_IDENT,
     PH_EXTENT,
     PH_FILTER,
+    PH_FILTER_RUN,
     PH_MASKS,
     PH_MEAN,
     PH_SCALE,
@@ -366,27 +367,31 @@ static MAGCAL_NOINLINE magcal_status_t ph_filter(magcal_calibrator_t *cal, cal_r
             return st;
         }
     } else {
-        if (r->sub == 0u) {
-            st = cal_filter_optics_cfg(cal, r);
-            if (st == MAGCAL_OK) {
-                st = magcal_optics_filter_begin(&r->u.filter, &r->oc, cal->buf, cal->n, cal->scratch,
-                                                cal->scratch_len, cal->flags, &r->info);
-            }
-            if (st != MAGCAL_OK) {
-                return st;
-            }
-            r->sub = 1u;
-            if (r->bud.unlimited == 0u && r->bud.left == 0u) {
-                return MAGCAL_IN_PROGRESS; /* the one-shot automatic radius spent the budget */
-            }
+        st = cal_filter_optics_cfg(cal, r);
+        if (st == MAGCAL_OK) {
+            st = magcal_optics_filter_begin(&r->u.filter, &r->oc, cal->buf, cal->n, cal->scratch,
+                                            cal->scratch_len, cal->flags, &r->info);
         }
-        st = cal_module_done(r, magcal_optics_filter_step(&r->u.filter, cal_left(r)), CAL_W_ONESHOT);
         if (st != MAGCAL_OK) {
-            return st; /* MAGCAL_IN_PROGRESS, or the filter's failure */
+            return st;
         }
-        r->rep.filter_eps = r->info.eps_prime;
-        r->rep.filter_min_pts = r->info.min_pts;
+        cal_goto(r, PH_FILTER_RUN);
+        return MAGCAL_OK;
     }
+    cal_goto(r, PH_MASKS);
+    return MAGCAL_OK;
+}
+
+/* The OPTICS filter's steps (a phase of its own: only this small frame sits above them). */
+static MAGCAL_NOINLINE magcal_status_t ph_filter_run(cal_run_t *r)
+{
+    magcal_status_t st =
+        cal_module_done(r, magcal_optics_filter_step(&r->u.filter, cal_left(r)), CAL_W_ONESHOT);
+    if (st != MAGCAL_OK) {
+        return st; /* MAGCAL_IN_PROGRESS, or the filter's failure */
+    }
+    r->rep.filter_eps = r->info.eps_prime;
+    r->rep.filter_min_pts = r->info.min_pts;
     cal_goto(r, PH_MASKS);
     return MAGCAL_OK;
 }
@@ -1120,6 +1125,7 @@ static MAGCAL_NOINLINE magcal_status_t cal_phase(magcal_calibrator_t *cal, cal_r
     case PH_IDENT: return ph_ident(cal, r);
     case PH_EXTENT: return ph_extent(cal, r);
     case PH_FILTER: return ph_filter(cal, r);
+    case PH_FILTER_RUN: return ph_filter_run(r);
     case PH_MASKS: return ph_masks(cal, r);
     case PH_MEAN: return ph_mean(cal, r);
     case PH_SCALE: return ph_scale(cal, r);
