@@ -121,7 +121,7 @@ static void sel_begin(sel_t *q, size_t n, size_t k)
 }
 
 /* Returns 1 when a[k] is the k-th smallest, 0 when *rem ran out (call again). */
-static int sel_run(sel_t *q, float *a, int32_t *rem)
+static MAGCAL_NOINLINE int sel_run(sel_t *q, float *a, int32_t *rem)
 {
     int32_t r = *rem;
     size_t i = q->i;
@@ -248,36 +248,47 @@ static void hsort_begin(hsort_t *h, size_t m)
     h->st = m < 2u ? 2u : 0u;
 }
 
-static int hsort_run(hsort_t *h, uint16_t *idx, const float *key, int32_t *rem)
+static MAGCAL_NOINLINE int hsort_run(hsort_t *h, uint16_t *idx, const float *key, int32_t *rem)
 {
     int32_t r = *rem;
     size_t k = h->k;
     const size_t m = h->m;
-    if (h->st == 0u) {
-        while (k > 0u && r > 0) {
-            const int32_t lv = sort_sift(idx, key, k - 1u, m);
-            CHARGE(r, W_HS);
-            CHARGE_K(r, W_HSL, lv);
-            --k;
-        }
-        if (k == 0u) {
-            k = m - 1u;
-            h->st = 1u;
-        }
-    }
-    if (h->st == 1u) {
-        while (k > 0u && r > 0) {
-            const uint16_t t = idx[0];
+    while (h->st < 2u && r > 0) {
+        size_t from = 0u;
+        size_t lim = k;
+        if (h->st == 0u) {
+            /* heap build: sift k-1 within m, k = m/2 .. 1 */
+            if (k == 0u) {
+                k = m - 1u;
+                h->st = 1u;
+                continue;
+            }
+            from = k - 1u;
+            lim = m;
+        } else {
+            /* extraction: the root to k, sift the root within k, k = m-1 .. 1 */
+            uint16_t t;
+            if (k == 0u) {
+                h->st = 2u;
+                break;
+            }
+            t = idx[0];
             idx[0] = idx[k];
             idx[k] = t;
-            const int32_t lv = sort_sift(idx, key, 0u, k);
+        }
+        {
+            const int32_t lv = sort_sift(idx, key, from, lim); /* one call site: inlined */
             CHARGE(r, W_HS);
             CHARGE_K(r, W_HSL, lv);
-            --k;
         }
-        if (k == 0u) {
-            h->st = 2u;
-        }
+        --k;
+    }
+    if (h->st == 0u && k == 0u) {
+        k = m - 1u;
+        h->st = 1u;
+    }
+    if (h->st == 1u && k == 0u) {
+        h->st = 2u;
     }
     h->k = (uint16_t)k;
     *rem = r;
@@ -345,7 +356,7 @@ static void rc_begin(rc_t *c)
 
 /* Returns 1 when done (*st: MAGCAL_OK with cr = {cx, cy, R}, or MAGCAL_ERR_DEGENERATE with cr
  * untouched), 0 when the budget ran out. use: NULL (every point) or the thinning flags. */
-static int rc_run(rc_t *c, const magcal_vec2_t *pts, size_t n, const uint8_t *use, float *a,
+static MAGCAL_NOINLINE int rc_run(rc_t *c, const magcal_vec2_t *pts, size_t n, const uint8_t *use, float *a,
                   float cr[3], magcal_status_t *st, int32_t *rem)
 {
     for (;;) {
@@ -473,34 +484,49 @@ static void th_begin(th_t *t, float h)
     t->st = (uint8_t)TH_KEYS;
 }
 
-/* Returns 1 when done up to stage `last` (TH_MARK or TH_MAXRUN), 0 when the budget ran out. */
-static int th_run(th_t *t, const magcal_vec2_t *pts, size_t n, const float cr[3], uint8_t *w,
-                  const uint8_t *use, unsigned last, int32_t *rem)
+/* TH_KEYS from point i: each point's cell key (own frame: its floats stay off the sort's path).
+ * Returns the next point. */
+static MAGCAL_NOINLINE size_t th_keys(const magcal_vec2_t *pts, size_t n, const float cr[3],
+                                      float h, uint8_t *w, const uint8_t *use, size_t i0,
+                                      int32_t *rem)
 {
     float *key = (float *)(void *)w;
     uint16_t *idx = (uint16_t *)(void *)(w + 4u * n);
     uint8_t *rep = w + AUTO_REP_OFF(n);
     const float lim = (float)AUTO_CELL_HALF;
+    int32_t r = *rem;
+    size_t i = i0;
+    for (; i < n && r > 0; ++i) {
+        CHARGE(r, W_KEY);
+        idx[i] = (uint16_t)i;
+        rep[i] = 0u;
+        if (use != NULL && use[i] == 0u) {
+            key[i] = 4.0f * lim * lim; /* after every cell: never a representative */
+            continue;
+        }
+        float u = floorf((pts[i].x - cr[0]) / h);
+        float v = floorf((pts[i].y - cr[1]) / h);
+        u = u < -lim ? -lim : (u > lim - 1.0f ? lim - 1.0f : u);
+        v = v < -lim ? -lim : (v > lim - 1.0f ? lim - 1.0f : v);
+        key[i] = (u + lim) * (2.0f * lim) + (v + lim);
+    }
+    *rem = r;
+    return i;
+}
+
+/* Returns 1 when done up to stage `last` (TH_MARK or TH_MAXRUN), 0 when the budget ran out. */
+static MAGCAL_NOINLINE int th_run(th_t *t, const magcal_vec2_t *pts, size_t n, const float cr[3], uint8_t *w,
+                  const uint8_t *use, unsigned last, int32_t *rem)
+{
+    float *key = (float *)(void *)w;
+    uint16_t *idx = (uint16_t *)(void *)(w + 4u * n);
+    uint8_t *rep = w + AUTO_REP_OFF(n);
     size_t i = t->i;
     int32_t r = *rem;
     int paused = 0;
     while (paused == 0 && t->st <= last) {
         if (t->st == (uint8_t)TH_KEYS) {
-            const float h = t->h;
-            for (; i < n && r > 0; ++i) {
-                CHARGE(r, W_KEY);
-                idx[i] = (uint16_t)i;
-                rep[i] = 0u;
-                if (use != NULL && use[i] == 0u) {
-                    key[i] = 4.0f * lim * lim; /* after every cell: never a representative */
-                    continue;
-                }
-                float u = floorf((pts[i].x - cr[0]) / h);
-                float v = floorf((pts[i].y - cr[1]) / h);
-                u = u < -lim ? -lim : (u > lim - 1.0f ? lim - 1.0f : u);
-                v = v < -lim ? -lim : (v > lim - 1.0f ? lim - 1.0f : v);
-                key[i] = (u + lim) * (2.0f * lim) + (v + lim);
-            }
+            i = th_keys(pts, n, cr, t->h, w, use, i, &r);
             if (i < n) {
                 paused = 1;
                 break;
@@ -619,7 +645,26 @@ static void ce_begin(ce_t *c)
     c->st = (uint8_t)CE_PAIRS;
 }
 
-static int ce_run(ce_t *c, const magcal_vec2_t *pts, size_t n, uint8_t *w, float cr[3],
+/* CE_PAIRS: the pair distances of the pair scale (own frame); 1 when all m are done. */
+static MAGCAL_NOINLINE int ce_pairs(ce_t *c, const magcal_vec2_t *pts, size_t n, float *a,
+                                    size_t m, int32_t *rem)
+{
+    size_t k = c->k;
+    int32_t r = *rem;
+    uint32_t rng = c->rng;
+    for (; k < m && r > 0; ++k) {
+        const size_t i = (size_t)(magcal_ocore_rand(&rng) % (uint32_t)n);
+        const size_t j = (size_t)(magcal_ocore_rand(&rng) % (uint32_t)n);
+        a[k] = dist(&pts[i], &pts[j]);
+        CHARGE(r, W_PAIR);
+    }
+    c->k = (uint16_t)k;
+    c->rng = rng;
+    *rem = r;
+    return k < m ? 0 : 1;
+}
+
+static MAGCAL_NOINLINE int ce_run(ce_t *c, const magcal_vec2_t *pts, size_t n, uint8_t *w, float cr[3],
                   magcal_status_t *st, int32_t *rem)
 {
     float *a = (float *)(void *)w;
@@ -630,26 +675,13 @@ static int ce_run(ce_t *c, const magcal_vec2_t *pts, size_t n, uint8_t *w, float
             return 0;
         }
         switch (c->st) {
-        case CE_PAIRS: {
-            size_t k = c->k;
-            int32_t r = *rem;
-            uint32_t rng = c->rng;
-            for (; k < m && r > 0; ++k) {
-                const size_t i = (size_t)(magcal_ocore_rand(&rng) % (uint32_t)n);
-                const size_t j = (size_t)(magcal_ocore_rand(&rng) % (uint32_t)n);
-                a[k] = dist(&pts[i], &pts[j]);
-                CHARGE(r, W_PAIR);
-            }
-            c->k = (uint16_t)k;
-            c->rng = rng;
-            *rem = r;
-            if (k < m) {
+        case CE_PAIRS:
+            if (ce_pairs(c, pts, n, a, m, rem) == 0) {
                 return 0;
             }
             sel_begin(&c->u.sel, m, m / 2u);
             c->st = (uint8_t)CE_PAIR_SEL;
             break;
-        }
         case CE_PAIR_SEL:
             if (sel_run(&c->u.sel, a, rem) == 0) {
                 return 0;
@@ -738,7 +770,7 @@ typedef struct {
 enum { AE_ANGLES = 0, AE_SORT, AE_LINKS, AE_SEL, AE_SECTORS, AE_DONE };
 
 /* The link and the core requirement of band point i (of m, sorted by angle): one visit. */
-static void ae_link(ae_t *e, const magcal_vec2_t *pts, const uint16_t *idx, size_t m, size_t i,
+static MAGCAL_NOINLINE void ae_link(ae_t *e, const magcal_vec2_t *pts, const uint16_t *idx, size_t m, size_t i,
                     const uint8_t *rep, float *b)
 {
     const magcal_vec2_t *p0 = &pts[idx[i]];
@@ -784,19 +816,82 @@ static void ae_link(ae_t *e, const magcal_vec2_t *pts, const uint16_t *idx, size
     e->nq++;
 }
 
+/* eps' = 1.5 * max(second largest link, core quantile), clamped to [R/256, R]. */
+static float ae_eps(float link2, float coreq, float rad)
+{
+    float e = AUTO_SAFETY * (link2 > coreq ? link2 : coreq);
+    if (e < AUTO_MIN_REL * rad) {
+        e = AUTO_MIN_REL * rad;
+    }
+    if (e > AUTO_MAX_REL * rad) {
+        e = AUTO_MAX_REL * rad;
+    }
+    return e;
+}
+
+/* AE_ANGLES from point i: angles around c into a[], ring band members into idx[] (own frame).
+ * Returns the next point. */
+static MAGCAL_NOINLINE size_t ae_angles(ae_t *e, const magcal_vec2_t *pts, size_t n, uint8_t *w,
+                                        const float cr[3], size_t i0, int32_t *rem)
+{
+    float *a = (float *)(void *)w;
+    uint16_t *idx = (uint16_t *)(void *)(w + 4u * n);
+    const float lo = cr[2] - AUTO_BAND * cr[2];
+    const float hi = cr[2] + AUTO_BAND * cr[2];
+    size_t m = e->m;
+    size_t i = i0;
+    int32_t r = *rem;
+    for (; i < n && r > 0; ++i) {
+        float dx = pts[i].x - cr[0];
+        float dy = pts[i].y - cr[1];
+        float rr = sqrtf(dx * dx + dy * dy);
+        a[i] = atan2f(dy, dx);
+        if (rr >= lo && rr <= hi) {
+            idx[m] = (uint16_t)i;
+            ++m;
+        }
+        CHARGE(r, W_ANGLE);
+    }
+    e->m = (uint16_t)m;
+    *rem = r;
+    return i;
+}
+
+/* AE_SECTORS from point i: each point's sector (-1 outside the band) from the angles a[]. */
+static MAGCAL_NOINLINE size_t ae_sectors(const magcal_vec2_t *pts, size_t n, const float *a,
+                                         const float cr[3], int16_t *sectors, size_t i0,
+                                         int32_t *rem)
+{
+    const float lo = cr[2] - AUTO_BAND * cr[2];
+    const float hi = cr[2] + AUTO_BAND * cr[2];
+    size_t i = i0;
+    int32_t r = *rem;
+    for (; i < n && r > 0; ++i) {
+        float dx = pts[i].x - cr[0];
+        float dy = pts[i].y - cr[1];
+        float rr = sqrtf(dx * dx + dy * dy);
+        int16_t sec = -1;
+        if (rr >= lo && rr <= hi) {
+            float f = (a[i] + AUTO_PI) * ((float)AUTO_SECTORS / (2.0f * AUTO_PI));
+            int32_t k = (int32_t)f;
+            k = k < 0 ? 0 : (k > (int32_t)AUTO_SECTORS - 1 ? (int32_t)AUTO_SECTORS - 1 : k);
+            sec = (int16_t)k;
+        }
+        sectors[i] = sec;
+        CHARGE(r, W_SECTOR);
+    }
+    *rem = r;
+    return i;
+}
+
 /* Returns 1 when done (*st: MAGCAL_OK with *eps_prime, or MAGCAL_ERR_DEGENERATE), else 0. */
-static int ae_run(ae_t *e, const magcal_vec2_t *pts, size_t n, uint8_t *w, const float cr[3],
+static MAGCAL_NOINLINE int ae_run(ae_t *e, const magcal_vec2_t *pts, size_t n, uint8_t *w, const float cr[3],
                   float *eps_prime, int16_t *sectors, magcal_status_t *st, int32_t *rem)
 {
     float *a = (float *)(void *)w;
     uint16_t *idx = (uint16_t *)(void *)(w + 4u * n);
     float *b = (float *)(void *)(w + AUTO_B_OFF(n));
     const uint8_t *rep = w + AUTO_REP_OFF(n);
-    const float cx = cr[0];
-    const float cy = cr[1];
-    const float rad = cr[2];
-    const float lo = rad - AUTO_BAND * rad;
-    const float hi = rad + AUTO_BAND * rad;
     size_t i = e->i;
     int32_t r = *rem;
     int paused = 0;
@@ -806,29 +901,17 @@ static int ae_run(ae_t *e, const magcal_vec2_t *pts, size_t n, uint8_t *w, const
             break;
         }
         if (e->st == (uint8_t)AE_ANGLES) {
-            size_t m = e->m;
-            for (; i < n && r > 0; ++i) {
-                float dx = pts[i].x - cx;
-                float dy = pts[i].y - cy;
-                float rr = sqrtf(dx * dx + dy * dy);
-                a[i] = atan2f(dy, dx);
-                if (rr >= lo && rr <= hi) {
-                    idx[m] = (uint16_t)i;
-                    ++m;
-                }
-                CHARGE(r, W_ANGLE);
-            }
-            e->m = (uint16_t)m;
+            i = ae_angles(e, pts, n, w, cr, i, &r);
             if (i < n) {
                 paused = 1;
                 break;
             }
-            if (m < 2u * AUTO_WIN + 2u) { /* the cyclic windows need distinct neighbours */
+            if (e->m < 2u * AUTO_WIN + 2u) { /* the cyclic windows need distinct neighbours */
                 *st = MAGCAL_ERR_DEGENERATE;
                 *rem = r;
                 return 1;
             }
-            hsort_begin(&e->u.hs, m);
+            hsort_begin(&e->u.hs, e->m);
             e->st = (uint8_t)AE_SORT;
         } else if (e->st == (uint8_t)AE_SORT) {
             if (hsort_run(&e->u.hs, idx, a, &r) == 0) {
@@ -854,29 +937,17 @@ static int ae_run(ae_t *e, const magcal_vec2_t *pts, size_t n, uint8_t *w, const
                 sel_begin(&e->u.sel, e->nq, (size_t)qpos);
                 e->st = (uint8_t)AE_SEL;
             } else {
-                /* coreq = 0 */
-                float ee = AUTO_SAFETY * (e->link2 > 0.0f ? e->link2 : 0.0f);
-                ee = ee < AUTO_MIN_REL * rad ? AUTO_MIN_REL * rad : ee;
-                ee = ee > AUTO_MAX_REL * rad ? AUTO_MAX_REL * rad : ee;
-                *eps_prime = ee;
+                *eps_prime = ae_eps(e->link2, 0.0f, cr[2]); /* no core requirement counted */
             }
             i = 0u;
         } else if (e->st == (uint8_t)AE_SEL) {
             float coreq;
-            float ee;
             if (sel_run(&e->u.sel, b, &r) == 0) {
                 paused = 1;
                 break;
             }
             coreq = b[e->u.sel.k];
-            ee = AUTO_SAFETY * (e->link2 > coreq ? e->link2 : coreq);
-            if (ee < AUTO_MIN_REL * rad) {
-                ee = AUTO_MIN_REL * rad;
-            }
-            if (ee > AUTO_MAX_REL * rad) {
-                ee = AUTO_MAX_REL * rad;
-            }
-            *eps_prime = ee;
+            *eps_prime = ae_eps(e->link2, coreq, cr[2]);
             i = 0u;
             e->st = (uint8_t)AE_SECTORS;
         } else {
@@ -885,20 +956,7 @@ static int ae_run(ae_t *e, const magcal_vec2_t *pts, size_t n, uint8_t *w, const
                 e->st = (uint8_t)AE_DONE;
                 break;
             }
-            for (; i < n && r > 0; ++i) {
-                float dx = pts[i].x - cx;
-                float dy = pts[i].y - cy;
-                float rr = sqrtf(dx * dx + dy * dy);
-                int16_t sec = -1;
-                if (rr >= lo && rr <= hi) {
-                    float f = (a[i] + AUTO_PI) * ((float)AUTO_SECTORS / (2.0f * AUTO_PI));
-                    int32_t k = (int32_t)f;
-                    k = k < 0 ? 0 : (k > (int32_t)AUTO_SECTORS - 1 ? (int32_t)AUTO_SECTORS - 1 : k);
-                    sec = (int16_t)k;
-                }
-                sectors[i] = sec;
-                CHARGE(r, W_SECTOR);
-            }
+            i = ae_sectors(pts, n, a, cr, sectors, i, &r);
             if (i < n) {
                 paused = 1;
                 break;
@@ -969,7 +1027,7 @@ static void ord_process(ord_t *o, size_t p, magcal_nbr_ranges_t *rg)
 }
 
 /* End of pass 1: core distance, extraction step, then the reach pass (or none). */
-static void ord_core_done(ord_t *o, const magcal_nbr_ranges_t *rg)
+static MAGCAL_NOINLINE void ord_core_done(ord_t *o, const magcal_nbr_ranges_t *rg)
 {
     magcal_ocore_t *oc = &o->oc;
     const size_t m = oc->min_pts;
@@ -1005,7 +1063,7 @@ static void ord_core_done(ord_t *o, const magcal_nbr_ranges_t *rg)
  */
 
 /* Pass 1: core distance (MinPts smallest d^2 in the insertion buffer). */
-static void ord_scan_core(ord_t *o, const magcal_nbr_ranges_t *rg, int32_t *rem)
+static MAGCAL_NOINLINE void ord_scan_core(ord_t *o, const magcal_nbr_ranges_t *rg, int32_t *rem)
 {
     const magcal_vec2_t *pts = o->nb.pts;
     const size_t p = o->u.sc.p;
@@ -1046,7 +1104,7 @@ static void ord_scan_core(ord_t *o, const magcal_nbr_ranges_t *rg, int32_t *rem)
 }
 
 /* START_CORE: does s have MinPts points within eps? (counts until MinPts) */
-static void ord_scan_count(ord_t *o, const magcal_nbr_ranges_t *rg, int32_t *rem)
+static MAGCAL_NOINLINE void ord_scan_count(ord_t *o, const magcal_nbr_ranges_t *rg, int32_t *rem)
 {
     const magcal_vec2_t *pts = o->nb.pts;
     const size_t p = o->u.sc.s;
@@ -1083,7 +1141,7 @@ static void ord_scan_count(ord_t *o, const magcal_nbr_ranges_t *rg, int32_t *rem
 }
 
 /* Pass 2 (grid): reach updates of p's unprocessed neighbours. */
-static void ord_scan_reach(ord_t *o, const magcal_nbr_ranges_t *rg, int32_t *rem)
+static MAGCAL_NOINLINE void ord_scan_reach(ord_t *o, const magcal_nbr_ranges_t *rg, int32_t *rem)
 {
     magcal_ocore_t *oc = &o->oc;
     const magcal_vec2_t *pts = o->nb.pts;
@@ -1129,7 +1187,7 @@ static void ord_scan_reach(ord_t *o, const magcal_nbr_ranges_t *rg, int32_t *rem
 }
 
 /* Brute force pass 2 over the live list from k (drops p, updates the reach when p is core). */
-static void ord_scan_live(ord_t *o, int32_t *rem)
+static MAGCAL_NOINLINE void ord_scan_live(ord_t *o, int32_t *rem)
 {
     magcal_ocore_t *oc = &o->oc;
     const magcal_vec2_t *pts = o->nb.pts;
@@ -1178,7 +1236,7 @@ static void ord_scan_live(ord_t *o, int32_t *rem)
 }
 
 /* IMPROVED: the scan of the unordered seed list for the least (reach, index), from pk. */
-static int ord_scan_min(ord_t *o, int32_t *rem)
+static MAGCAL_NOINLINE int ord_scan_min(ord_t *o, int32_t *rem)
 {
     magcal_ocore_t *oc = &o->oc;
     const float *reach = oc->reach;
@@ -1235,7 +1293,7 @@ static void ord_outer(ord_t *o, magcal_nbr_ranges_t *rg, size_t *rg_p, int32_t *
 }
 
 /* Returns 1 when the ordering (and the extraction) is complete, 0 when the budget ran out. */
-static int ord_run(ord_t *o, int32_t *rem)
+static MAGCAL_NOINLINE int ord_run(ord_t *o, int32_t *rem)
 {
     magcal_ocore_t *oc = &o->oc;
     const size_t n = o->nb.n;
@@ -1503,7 +1561,7 @@ static ord_t *sl_ord_begin(sl_t *t, uint8_t *runw, const float *window)
 }
 
 /* Filter: after the parameters, the ordering with on-the-fly extraction (and ring selection). */
-static void sl_filter_setup(sl_t *t)
+static MAGCAL_NOINLINE void sl_filter_setup(sl_t *t)
 {
     const size_t n = t->n;
     float window[4];
@@ -1538,6 +1596,48 @@ static void sl_after_finite(sl_t *t)
     }
 }
 
+/* PH_FINITE from t->i: 0 at a NaN/Inf coordinate, else 1 (own frame: float compares). */
+static MAGCAL_NOINLINE int sl_finite(sl_t *t, int32_t *rem)
+{
+    const size_t n = t->n;
+    size_t i = t->i;
+    int32_t r = *rem;
+    for (; i < n && r > 0; ++i) {
+        if (!magcal_isfinite_f(t->pts[i].x) || !magcal_isfinite_f(t->pts[i].y)) {
+            return 0;
+        }
+        CHARGE(r, W_FIN);
+    }
+    t->i = (uint16_t)i;
+    *rem = r;
+    return 1;
+}
+
+/* Thinning after the centre: cells of R/16 over the candidates (own frame: float math). */
+static MAGCAL_NOINLINE void sl_thin_begin(sl_t *t)
+{
+    th_begin(&t->u.th, t->cr[2] * AUTO_THIN_REL);
+    t->phase = (uint8_t)PH_THIN;
+}
+
+/* After the ordering: the summary; MAGCAL_OK (run), MAGCAL_ERR_ALL_NOISE, or MAGCAL_IN_PROGRESS
+ * with the output phase next (filter). */
+static MAGCAL_NOINLINE magcal_status_t sl_order_done(sl_t *t)
+{
+    ord_t *o = &t->u.ord;
+    magcal_ocore_fill_info(t->io.info, &o->oc, o->nb.use_grid, t->eps,
+                           t->kind == (uint8_t)K_RUN ? t->eps : t->eps_prime);
+    if (t->kind == (uint8_t)K_RUN) {
+        return MAGCAL_OK;
+    }
+    if (o->oc.best_id < 0) {
+        return magcal_ocore_filter_out(&o->oc, t->n, t->out, t->io.info); /* ALL_NOISE */
+    }
+    t->i = 0u;
+    t->phase = (uint8_t)PH_OUT;
+    return MAGCAL_IN_PROGRESS;
+}
+
 /* One step of at most about `budget` estimated M4F instructions; MAGCAL_IN_PROGRESS or final. */
 static magcal_status_t sl_step(sl_t *t, uint32_t budget)
 {
@@ -1549,20 +1649,14 @@ static magcal_status_t sl_step(sl_t *t, uint32_t budget)
     }
     while (rem > 0) {
         switch (t->phase) {
-        case PH_FINITE: {
-            size_t i = t->i;
-            for (; i < n && rem > 0; ++i) {
-                if (!magcal_isfinite_f(t->pts[i].x) || !magcal_isfinite_f(t->pts[i].y)) {
-                    return MAGCAL_ERR_NONFINITE;
-                }
-                CHARGE(rem, W_FIN);
+        case PH_FINITE:
+            if (sl_finite(t, &rem) == 0) {
+                return MAGCAL_ERR_NONFINITE;
             }
-            t->i = (uint16_t)i;
-            if (i >= n) {
+            if (t->i >= n) {
                 sl_after_finite(t);
             }
             break;
-        }
         case PH_CENTRE:
             if (ce_run(&t->u.ce, t->pts, n, t->w, t->cr, &st, &rem) == 0) {
                 break;
@@ -1571,8 +1665,7 @@ static magcal_status_t sl_step(sl_t *t, uint32_t budget)
                 return st;
             }
             if (t->kind == (uint8_t)K_THIN) {
-                th_begin(&t->u.th, t->cr[2] * AUTO_THIN_REL);
-                t->phase = (uint8_t)PH_THIN;
+                sl_thin_begin(t);
             } else {
                 (void)memset(&t->u.ae, 0, sizeof t->u.ae);
                 t->phase = (uint8_t)PH_AUTOEPS;
@@ -1600,16 +1693,10 @@ static magcal_status_t sl_step(sl_t *t, uint32_t budget)
             if (ord_run(o, &rem) == 0) {
                 break;
             }
-            magcal_ocore_fill_info(t->io.info, &o->oc, o->nb.use_grid, t->eps,
-                                   t->kind == (uint8_t)K_RUN ? t->eps : t->eps_prime);
-            if (t->kind == (uint8_t)K_RUN) {
-                return MAGCAL_OK;
+            st = sl_order_done(t);
+            if (st != MAGCAL_IN_PROGRESS) {
+                return st;
             }
-            if (o->oc.best_id < 0) {
-                return magcal_ocore_filter_out(&o->oc, n, t->out, t->io.info); /* ALL_NOISE */
-            }
-            t->i = 0u;
-            t->phase = (uint8_t)PH_OUT;
             break;
         }
         case PH_OUT: {
