@@ -40,8 +40,9 @@ typedef struct {
  * (calibrated on the quantised rings of tests/test_trust2d.c, 2..50 LSB radius). */
 #define MAGCAL_CAL_LATTICE_K 8.0f
 
-/* Scratch floats magcal_cal_harmonics() needs (two 5x5 matrices and two vectors). */
-#define MAGCAL_CAL_HARM_SCRATCH_FLOATS 60u
+/* Scratch floats magcal_cal_harmonics() needs (two 5x5 matrices, two vectors, the 4x4 block of
+ * the inverse). */
+#define MAGCAL_CAL_HARM_SCRATCH_FLOATS 76u
 
 /*
  * Analyse calibration c on pts[i] with mask[i] != 0. dup_factor >= 1 multiplies the covariance
@@ -57,19 +58,101 @@ void magcal_cal_harmonics(const magcal_vec2_t *pts, size_t n, const uint8_t *mas
 size_t magcal_cal_distinct(const magcal_vec2_t *pts, size_t n, const uint8_t *mask, uint16_t *idx,
                            float *step);
 
-/* Sliced run (calibrator.c), for the continuous calibrator (src/loop/): the stages of run(),
- * each called directly by its step() (no frame between a step and the deepest stage paths).
- * load: take the first n samples of the caller-filled buffer; then prepare, fit, gates, adopt in
- * order, each MAGCAL_OK to continue, else the final status; end: finish with the final status
- * (state, report) as run() does. rep: magcal_calibrator_stage_report(). */
-magcal_status_t magcal_calibrator_stage_load(magcal_calibrator_t *cal, size_t n);
-magcal_cal_report_t *magcal_calibrator_stage_report(magcal_calibrator_t *cal);
-magcal_status_t magcal_calibrator_stage_prepare(magcal_calibrator_t *cal, magcal_cal_report_t *rep);
-magcal_status_t magcal_calibrator_stage_fit(magcal_calibrator_t *cal);
-magcal_status_t magcal_calibrator_stage_gates(magcal_calibrator_t *cal, magcal_cal_report_t *rep);
-magcal_status_t magcal_calibrator_stage_adopt(magcal_calibrator_t *cal, magcal_cal2d_t *current,
-                                              magcal_cal_report_t *rep);
-magcal_status_t magcal_calibrator_stage_end(magcal_calibrator_t *cal, magcal_status_t st,
-                                            magcal_cal_report_t *report);
+/* ------------------------------------------------------------------ time-sliced solve
+ * Work budget of one step, in estimated Cortex-M4F instructions (docs/calibrator.md "Work per
+ * call"): every visit of an inner loop charges its weight (a CAL_W_* / HARM_W_* #define, host
+ * callgrind x 1.2) and the loop stops once the budget is spent; a step always does at least one
+ * visit. unlimited: never stops (run(), solve_blocking()). */
+typedef struct {
+    uint32_t left;
+    uint8_t unlimited;
+} magcal_cal_budget_t;
+
+/* Charge w; 1 when the budget is spent (stop after this visit). */
+static inline int magcal_cal_spend(magcal_cal_budget_t *b, uint32_t w)
+{
+    if (b->unlimited != 0u) {
+        return 0;
+    }
+    if (w >= b->left) {
+        b->left = 0u;
+        return 1;
+    }
+    b->left -= w;
+    return 0;
+}
+
+/* Resumable harmonic analysis (magcal_cal_harmonics() = begin + step until done). All state here
+ * (the calibration is copied); nm / beta / solver copies live in `scratch`
+ * (MAGCAL_CAL_HARM_SCRATCH_FLOATS floats). */
+typedef struct {
+    const magcal_vec2_t *pts;
+    const uint8_t *mask;
+    float *scratch;
+    magcal_cal_harm_t *out;
+    magcal_cal2d_t c;
+    size_t n;
+    float dup;
+    float floor;
+    float sum;
+    float mean;
+    float ss;
+    float s2;  /* residual variance */
+    float s2p; /* noise variance seen by the parameters */
+    uint32_t i;
+    uint32_t k;
+    uint8_t pass; /* 0 mean radius, 1 normal equations, 2 residual, 3 noise, 4..7 the inverse's
+                     columns, 8 estimates, 9 done */
+} magcal_cal_harm_slice_t;
+
+void magcal_cal_harm_begin(magcal_cal_harm_slice_t *h, const magcal_vec2_t *pts, size_t n,
+                           const uint8_t *mask, const magcal_cal2d_t *c, float dup_factor,
+                           float sigma_floor, float *scratch, magcal_cal_harm_t *out);
+/* Work within budget b; 1 when the analysis is complete (*out final), 0 to be called again. */
+int magcal_cal_harm_step(magcal_cal_harm_slice_t *h, magcal_cal_budget_t *b);
+
+/* Resumable distinct-value count (magcal_cal_distinct() = begin + step until done). */
+typedef struct {
+    const magcal_vec2_t *pts;
+    const uint8_t *mask;
+    uint16_t *idx;
+    size_t n;
+    size_t m;        /* masked samples */
+    size_t i;        /* cursor */
+    size_t j;        /* sort: the hole */
+    size_t g;        /* sort: gap index */
+    size_t distinct; /* result */
+    float step;      /* result: smallest positive step */
+    uint16_t v;      /* sort: the moving index */
+    uint8_t inner;   /* sort: 1 inside an insertion */
+    uint8_t pass;    /* 0 collect, 1 sort, 2 count, 3 done */
+} magcal_cal_distinct_slice_t;
+
+void magcal_cal_distinct_begin(magcal_cal_distinct_slice_t *d, const magcal_vec2_t *pts, size_t n,
+                               const uint8_t *mask, uint16_t *idx);
+/* Work within budget b; 1 when complete (d->distinct, d->step final), 0 to be called again. */
+int magcal_cal_distinct_step(magcal_cal_distinct_slice_t *d, magcal_cal_budget_t *b);
+
+/* Shared helpers of calibrator.c (live coverage) and calibrator_solve.c (the stages). */
+float magcal_cal_angle_deg(float ux, float uy);
+size_t magcal_cal_bin_of(float deg);
+/* Coverage of a bin occupancy table (MAGCAL_COVERAGE_BINS entries, != 0 = filled). */
+float magcal_cal_coverage_of(const uint16_t *bins, float *miss_start, float *miss_width);
+
+/*
+ * The solve (calibrator_solve.c): run()'s stages as resumable phases whose state lives in the
+ * workspace (the run state). begin: an empty report; load_bbox != 0 recomputes the bounding box of
+ * the caller-filled buffer (n samples, as a sliced pass) instead of using push()'s. step: works
+ * within `budget` estimated M4F instructions (UINT32_MAX: to the end) and returns MAGCAL_IN_PROGRESS
+ * while work remains, else the final status of run() (state, last_status and the report set as
+ * run() sets them; *report, if not NULL, receives a copy). `current` is the caller's installed
+ * calibration, passed again on every step (the adopt phase replaces it on success); it must not
+ * change between the steps of one solve.
+ */
+magcal_status_t magcal_calibrator_solve_begin(magcal_calibrator_t *cal, size_t n, int load_bbox);
+magcal_status_t magcal_calibrator_solve_step(magcal_calibrator_t *cal, magcal_cal2d_t *current,
+                                             uint32_t budget, magcal_cal_report_t *report);
+/* 1 while a solve begun with solve_begin has not ended. */
+int magcal_calibrator_solving(const magcal_calibrator_t *cal);
 
 #endif /* MAGCAL_CALIBRATOR_INTERNAL_H */

@@ -2,6 +2,7 @@
 #include "neighbors.h"
 
 #include <float.h>
+#include <string.h>
 
 #include "magcal_internal.h"
 
@@ -61,24 +62,35 @@ static size_t nbr_cell(const magcal_nbr_t *nb, size_t i)
     return nbr_bucket(nb, cx, cy);
 }
 
-void magcal_nbr_build(magcal_nbr_t *nb, const magcal_vec2_t *pts, size_t n, float eps,
-                      magcal_neighbors_t mode, void *mem, const float *window)
+/* Per-visit weights of the build's loops, estimated Cortex-M4F instructions (host callgrind x 1.2,
+ * tools/bench_optics/slice_fit.py): bounding box, bucket clear, count, prefix sum, placement,
+ * shift; SETUP = the fixed part between the box and the buckets, HGROW one cell-growth round. */
+#define NBR_W_BBOX 20
+#define NBR_W_ZERO 9
+#define NBR_W_CELL 59
+#define NBR_W_PREFIX 9
+#define NBR_W_PLACE 62
+#define NBR_W_SHIFT 8
+#define NBR_W_SETUP 154
+#define NBR_W_HGROW 15
+
+/* Charging a visit (MAGCAL_OPTICS_SLICE_PROFILE: also counted, after optics.c's weights). */
+#ifdef MAGCAL_OPTICS_SLICE_PROFILE
+extern unsigned long magcal_optics_slice_prof[];
+#define NBR_PROF_BASE 22
+#define NBR_CHARGE(r, w, id, k)                                                                    \
+    ((r) -= (int32_t)(w) * (int32_t)(k), magcal_optics_slice_prof[NBR_PROF_BASE + (id)] += (unsigned long)(k))
+#else
+#define NBR_CHARGE(r, w, id, k) ((r) -= (int32_t)(w) * (int32_t)(k))
+#endif
+
+enum { NBR_B_BBOX = 0, NBR_B_SETUP, NBR_B_ZERO, NBR_B_COUNT, NBR_B_PREFIX, NBR_B_PLACE, NBR_B_SHIFT,
+       NBR_B_DONE };
+
+void magcal_nbr_build_begin(magcal_nbr_t *nb, magcal_nbr_build_t *b, const magcal_vec2_t *pts,
+                            size_t n, float eps, magcal_neighbors_t mode, void *mem,
+                            const float *window)
 {
-    float xmin;
-    float xmax;
-    float ymin;
-    float ymax;
-    float w;
-    float hgt;
-    float h;
-    float fw;
-    float fh;
-    size_t i;
-    size_t c;
-    size_t g;
-    size_t cells;
-    size_t cap = MAGCAL_OPTICS_GRID_CELLS(n);
-    unsigned it;
     nb->pts = pts;
     nb->n = n;
     nb->use_grid = 0;
@@ -90,24 +102,46 @@ void magcal_nbr_build(magcal_nbr_t *nb, const magcal_vec2_t *pts, size_t n, floa
     nb->x0 = 0.0f;
     nb->y0 = 0.0f;
     nb->inv_h = 0.0f;
+    (void)memset(b, 0, sizeof *b);
+    b->eps = eps;
+    b->stage = (uint8_t)NBR_B_DONE;
     if (mode != MAGCAL_NEIGHBORS_GRID || !magcal_isfinite_f(eps) || n == 0u) {
         return;
     }
-    xmin = pts[0].x;
-    xmax = xmin;
-    ymin = pts[0].y;
-    ymax = ymin;
-    for (i = 1; i < n; ++i) {
-        xmin = pts[i].x < xmin ? pts[i].x : xmin;
-        xmax = pts[i].x > xmax ? pts[i].x : xmax;
-        ymin = pts[i].y < ymin ? pts[i].y : ymin;
-        ymax = pts[i].y > ymax ? pts[i].y : ymax;
-    }
     if (window != NULL) {
-        xmin = window[0] > xmin ? window[0] : xmin;
-        ymin = window[1] > ymin ? window[1] : ymin;
-        xmax = window[2] < xmax ? window[2] : xmax;
-        ymax = window[3] < ymax ? window[3] : ymax;
+        b->use_win = 1u;
+        (void)memcpy(b->win, window, sizeof b->win);
+    }
+    b->xmin = pts[0].x;
+    b->xmax = b->xmin;
+    b->ymin = pts[0].y;
+    b->ymax = b->ymin;
+    b->i = 1u;
+    b->stage = (uint8_t)NBR_B_BBOX;
+}
+
+/* Window clip, cell side and grid shape (one visit); leaves nb on brute force when no grid helps.
+ * Returns 1 when a grid is to be built. */
+static int nbr_setup(magcal_nbr_t *nb, magcal_nbr_build_t *b, int32_t *rem)
+{
+    float xmin = b->xmin;
+    float xmax = b->xmax;
+    float ymin = b->ymin;
+    float ymax = b->ymax;
+    float w;
+    float hgt;
+    float h;
+    float fw = 0.0f;
+    float fh = 0.0f;
+    size_t cells;
+    size_t cap = MAGCAL_OPTICS_GRID_CELLS(nb->n);
+    unsigned it;
+    NBR_CHARGE(*rem, NBR_W_SETUP, 0, 1);
+    if (b->use_win != 0u) {
+        xmin = b->win[0] > xmin ? b->win[0] : xmin;
+        ymin = b->win[1] > ymin ? b->win[1] : ymin;
+        xmax = b->win[2] < xmax ? b->win[2] : xmax;
+        ymax = b->win[3] < ymax ? b->win[3] : ymax;
         if (xmax < xmin) {
             xmax = xmin;
         }
@@ -118,11 +152,11 @@ void magcal_nbr_build(magcal_nbr_t *nb, const magcal_vec2_t *pts, size_t n, floa
     w = xmax - xmin;
     hgt = ymax - ymin;
     if (!magcal_isfinite_f(w) || !magcal_isfinite_f(hgt) || (w <= 0.0f && hgt <= 0.0f)) {
-        return; /* overflowing extent or all points equal: brute force is as good */
+        return 0; /* overflowing extent or all points equal: brute force is as good */
     }
-    h = eps + eps * NBR_MARGIN;
+    h = b->eps + b->eps * NBR_MARGIN;
     if (!(h > 0.0f)) {
-        return;
+        return 0;
     }
     /* Only when eps is tiny against the box: grow h until a row has at most 2^15 cells. */
     for (it = 0; it < 256u; ++it) {
@@ -133,8 +167,9 @@ void magcal_nbr_build(magcal_nbr_t *nb, const magcal_vec2_t *pts, size_t n, floa
         }
         h *= 2.0f;
     }
+    NBR_CHARGE(*rem, NBR_W_HGROW, 1, (int32_t)it);
     if (it == 256u || !magcal_isfinite_f(h)) {
-        return;
+        return 0;
     }
     nb->gw = (uint16_t)((size_t)fw + 1u);
     nb->gh = (uint16_t)((size_t)fh + 1u);
@@ -143,27 +178,131 @@ void magcal_nbr_build(magcal_nbr_t *nb, const magcal_vec2_t *pts, size_t n, floa
     nb->x0 = xmin;
     nb->y0 = ymin;
     nb->inv_h = 1.0f / h;
-    nb->use_grid = 1;
-    g = nb->nbkt;
-    for (c = 0; c <= g; ++c) {
-        nb->start[c] = 0u;
+    return 1;
+}
+
+int magcal_nbr_build_step(magcal_nbr_t *nb, magcal_nbr_build_t *b, int32_t *rem)
+{
+    const magcal_vec2_t *pts = nb->pts;
+    const size_t n = nb->n;
+    size_t i = b->i;
+    int32_t r = *rem;
+    int more = 1;
+    while (more != 0) {
+        const size_t g = nb->nbkt;
+        switch (b->stage) {
+        case NBR_B_BBOX:
+            for (; i < n && r > 0; ++i) {
+                b->xmin = pts[i].x < b->xmin ? pts[i].x : b->xmin;
+                b->xmax = pts[i].x > b->xmax ? pts[i].x : b->xmax;
+                b->ymin = pts[i].y < b->ymin ? pts[i].y : b->ymin;
+                b->ymax = pts[i].y > b->ymax ? pts[i].y : b->ymax;
+                NBR_CHARGE(r, NBR_W_BBOX, 2, 1);
+            }
+            if (i < n) {
+                more = 0;
+                break;
+            }
+            b->stage = (uint8_t)NBR_B_SETUP;
+            break;
+        case NBR_B_SETUP:
+            if (r <= 0) {
+                more = 0;
+                break;
+            }
+            if (nbr_setup(nb, b, &r) == 0) {
+                b->stage = (uint8_t)NBR_B_DONE;
+                break;
+            }
+            i = 0u;
+            b->stage = (uint8_t)NBR_B_ZERO;
+            break;
+        case NBR_B_ZERO:
+            for (; i <= g && r > 0; ++i) {
+                nb->start[i] = 0u;
+                NBR_CHARGE(r, NBR_W_ZERO, 3, 1);
+            }
+            if (i <= g) {
+                more = 0;
+                break;
+            }
+            i = 0u;
+            b->stage = (uint8_t)NBR_B_COUNT;
+            break;
+        case NBR_B_COUNT:
+            for (; i < n && r > 0; ++i) {
+                nb->start[nbr_cell(nb, i) + 1u]++;
+                NBR_CHARGE(r, NBR_W_CELL, 4, 1);
+            }
+            if (i < n) {
+                more = 0;
+                break;
+            }
+            i = 0u;
+            b->stage = (uint8_t)NBR_B_PREFIX;
+            break;
+        case NBR_B_PREFIX:
+            for (; i < g && r > 0; ++i) {
+                nb->start[i + 1u] = (uint16_t)(nb->start[i + 1u] + nb->start[i]);
+                NBR_CHARGE(r, NBR_W_PREFIX, 5, 1);
+            }
+            if (i < g) {
+                more = 0;
+                break;
+            }
+            i = 0u;
+            b->stage = (uint8_t)NBR_B_PLACE;
+            break;
+        case NBR_B_PLACE:
+            for (; i < n && r > 0; ++i) {
+                const size_t c = nbr_cell(nb, i);
+                nb->idx[nb->start[c]] = (uint16_t)i;
+                nb->start[c]++;
+                NBR_CHARGE(r, NBR_W_PLACE, 6, 1);
+            }
+            if (i < n) {
+                more = 0;
+                break;
+            }
+            /* start[c] now holds the end of bucket c = the old start[c+1]: shift back by one */
+            i = g;
+            b->stage = (uint8_t)NBR_B_SHIFT;
+            break;
+        case NBR_B_SHIFT:
+            for (; i > 0u && r > 0; --i) {
+                nb->start[i] = nb->start[i - 1u];
+                NBR_CHARGE(r, NBR_W_SHIFT, 7, 1);
+            }
+            if (i > 0u) {
+                more = 0;
+                break;
+            }
+            nb->start[0] = 0u;
+            nb->use_grid = 1;
+            b->stage = (uint8_t)NBR_B_DONE;
+            break;
+        default:
+            more = 0;
+            break;
+        }
     }
-    for (i = 0; i < n; ++i) {
-        nb->start[nbr_cell(nb, i) + 1u]++;
+    b->i = (uint16_t)i;
+    *rem = r;
+    return b->stage == (uint8_t)NBR_B_DONE ? 1 : 0;
+}
+
+void magcal_nbr_build(magcal_nbr_t *nb, const magcal_vec2_t *pts, size_t n, float eps,
+                      magcal_neighbors_t mode, void *mem, const float *window)
+{
+    magcal_nbr_build_t b;
+    unsigned guard;
+    magcal_nbr_build_begin(nb, &b, pts, n, eps, mode, mem, window);
+    for (guard = 0u; guard < 64u; ++guard) { /* one round suffices: the budget is the largest */
+        int32_t rem = INT32_MAX;
+        if (magcal_nbr_build_step(nb, &b, &rem) != 0) {
+            break;
+        }
     }
-    for (c = 0; c < g; ++c) {
-        nb->start[c + 1u] = (uint16_t)(nb->start[c + 1u] + nb->start[c]);
-    }
-    for (i = 0; i < n; ++i) {
-        c = nbr_cell(nb, i);
-        nb->idx[nb->start[c]] = (uint16_t)i;
-        nb->start[c]++;
-    }
-    /* start[c] now holds the end of bucket c = the old start[c+1]: shift back by one. */
-    for (c = g; c > 0u; --c) {
-        nb->start[c] = nb->start[c - 1u];
-    }
-    nb->start[0] = 0u;
 }
 
 void magcal_nbr_query(const magcal_nbr_t *nb, size_t p, magcal_nbr_ranges_t *r)

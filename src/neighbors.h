@@ -50,6 +50,29 @@ typedef struct {
 void magcal_nbr_build(magcal_nbr_t *nb, const magcal_vec2_t *pts, size_t n, float eps,
                       magcal_neighbors_t mode, void *mem, const float *window);
 
+/* State of a resumable magcal_nbr_build (the slice contract, optics.h): its loops over the points
+ * and the buckets are charged visit by visit against the caller's remaining budget. */
+typedef struct {
+    float eps;
+    float win[4];
+    float xmin;
+    float xmax;
+    float ymin;
+    float ymax;
+    uint16_t i;    /* loop position of the current stage (point or bucket) */
+    uint8_t stage; /* NBR_B_* in neighbors.c */
+    uint8_t use_win;
+} magcal_nbr_build_t;
+
+/* Start building the index (arguments as magcal_nbr_build); O(1). */
+void magcal_nbr_build_begin(magcal_nbr_t *nb, magcal_nbr_build_t *b, const magcal_vec2_t *pts,
+                            size_t n, float eps, magcal_neighbors_t mode, void *mem,
+                            const float *window);
+
+/* Continue the build while *rem > 0 (estimated M4F instructions left, decreased per visit; at
+ * least one visit per call). Returns 1 when the index is complete, 0 when the budget ran out. */
+int magcal_nbr_build_step(magcal_nbr_t *nb, magcal_nbr_build_t *b, int32_t *rem);
+
 /* Candidate ranges for a query at point index p (every point within eps of p is in them). */
 void magcal_nbr_query(const magcal_nbr_t *nb, size_t p, magcal_nbr_ranges_t *r);
 

@@ -12,6 +12,7 @@
 #include <string.h>
 
 #include "magcal/calibrator.h"
+#include "calibrator_internal.h"
 #include "magcal_port_fake.h"
 #include "test_dumps.h"
 #include "test_util.h"
@@ -821,6 +822,96 @@ static void test_run_lsm9ds1_driver_glitches_all_rejected(void)
     real_dump(&dump_real_lsm9ds1_pmodnav_driver_glitches, 0.05879, 2.3);
 }
 
+
+/* ---------------------------------------------------------------- time-sliced solve */
+
+/* run() is the sliced solve with an unlimited budget; at budgets 1, 97 and 6000 the same buffer
+ * gives, bit for bit, run()'s status, calibration, report and per-sample flags: every scenario,
+ * the default pipeline, no filter, DBSCAN and the plain fit, against the identity and against an
+ * installed calibration (the adoption rule's harmonics of `current`). */
+static void sliced_case(const magcal_test_dump_t *d, const magcal_calibrator_cfg_t *cfg,
+                        const magcal_cal2d_t *installed)
+{
+    static const uint32_t budgets[] = {1u, 97u, 6000u};
+    static uint8_t flags_ref[CAP];
+    magcal_cal_report_t rep_ref;
+    magcal_cal2d_t cal_ref = *installed;
+    magcal_status_t st_ref;
+    size_t n_cal = d->truth->n_cal;
+    size_t i;
+    size_t b;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_cal, cfg, g_buf, CAP, g_work, sizeof g_work));
+    for (i = 0; i < n_cal; ++i) {
+        (void)magcal_calibrator_push(&g_cal, row(d, i));
+    }
+    st_ref = magcal_calibrator_run(&g_cal, &cal_ref, &rep_ref);
+    for (i = 0; i < magcal_calibrator_count(&g_cal); ++i) {
+        flags_ref[i] = 0u;
+        (void)magcal_calibrator_flags(&g_cal, i, &flags_ref[i]);
+    }
+    for (b = 0u; b < sizeof budgets / sizeof budgets[0]; ++b) {
+        magcal_cal_report_t rep;
+        magcal_cal2d_t cal = *installed;
+        magcal_status_t st;
+        unsigned long steps = 0u;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_cal, cfg, g_buf, CAP, g_work, sizeof g_work));
+        for (i = 0; i < n_cal; ++i) {
+            (void)magcal_calibrator_push(&g_cal, row(d, i));
+        }
+        /* load_bbox 1: the continuous calibrator's path (bounding box recomputed as a pass) */
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_solve_begin(&g_cal, magcal_calibrator_count(&g_cal), (int)(b & 1u)));
+        do {
+            memset(&rep, 0xA5, sizeof rep);
+            st = magcal_calibrator_solve_step(&g_cal, &cal, budgets[b], &rep);
+            TEST_ASSERT_TRUE(++steps < 50000000ul);
+        } while (st == MAGCAL_IN_PROGRESS);
+        TEST_ASSERT_EQUAL_INT(st_ref, st);
+        TEST_ASSERT_EQUAL_MEMORY(&cal_ref, &cal, sizeof cal);
+        TEST_ASSERT_EQUAL_MEMORY(&rep_ref, &rep, sizeof rep);
+        TEST_ASSERT_EQUAL_INT(magcal_calibrator_last_status(&g_cal), st);
+        for (i = 0; i < magcal_calibrator_count(&g_cal); ++i) {
+            uint8_t f = 0u;
+            (void)magcal_calibrator_flags(&g_cal, i, &f);
+            TEST_ASSERT_EQUAL_UINT8(flags_ref[i], f);
+        }
+        TEST_ASSERT_FALSE(magcal_calibrator_solving(&g_cal));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_STATE, magcal_calibrator_solve_step(&g_cal, &cal, 6000u, NULL));
+    }
+}
+
+static void test_sliced_solve_matches_run_bit_for_bit(void)
+{
+    magcal_calibrator_cfg_t cfgs[4];
+    magcal_cal2d_t ident = MAGCAL_CAL2D_IDENTITY;
+    magcal_cal2d_t none = MAGCAL_CAL2D_IDENTITY;
+    magcal_cal2d_t near_truth;
+    size_t s;
+    size_t c;
+    none.radius = 0.0f; /* unusable: the new calibration replaces it */
+    for (c = 0u; c < 4u; ++c) {
+        magcal_calibrator_cfg_t dflt = MAGCAL_CALIBRATOR_CFG_DEFAULT;
+        cfgs[c] = dflt;
+    }
+    cfgs[1].filter = MAGCAL_FILTER_NONE;
+    cfgs[2].filter = MAGCAL_FILTER_DBSCAN;
+    cfgs[3].use_consensus = 0u;
+    for (s = 0u; s < N_SCEN; ++s) {
+        for (c = 0u; c < 4u; ++c) {
+            sliced_case(g_scen[s], &cfgs[c], c == 0u ? &none : &ident);
+        }
+    }
+    /* against a good installed calibration: the full rule (NOT_BETTER or BETTER / STALE) */
+    {
+        run_t r;
+        run_dump(&dump_synthetic_clean, &cfgs[0], &r);
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, r.st);
+        near_truth = r.cal;
+        near_truth.offset.x += 0.05f;
+        sliced_case(&dump_synthetic_outliers_10, &cfgs[0], &near_truth);
+        sliced_case(&dump_synthetic_clean, &cfgs[0], &near_truth);
+    }
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -850,5 +941,6 @@ int main(void)
     RUN_TEST(test_poll_reads_port_passes_errors_through);
     RUN_TEST(test_run_lsm9ds1_flat_turns_spread_near_optimum);
     RUN_TEST(test_run_lsm9ds1_driver_glitches_all_rejected);
+    RUN_TEST(test_sliced_solve_matches_run_bit_for_bit);
     return UNITY_END();
 }

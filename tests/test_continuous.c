@@ -410,6 +410,89 @@ void test_cont_isr_push_interleaved_with_task(void)
 }
 #endif
 
+
+/* The sliced solve gives, bit for bit, the outcome, calibration and report of the blocking solve
+ * on the same store: the state at the first step of a solve is saved, finished once with
+ * solve_blocking(), restored, then finished with step() calls (no pushes) at budgets 1, 97 and
+ * 6000 (at budget 1 every step still makes progress: one visit each). */
+static magcal_cont_t g_cc_save;
+static magcal_intake_slot_t g_slots_save[SLOTS];
+static magcal_vec2_t g_buf_save[SLOTS];
+static MAGCAL_CALIBRATOR_WORKSPACE_DECLARE(g_work_save, SLOTS);
+
+static void cont_save(void)
+{
+    memcpy(&g_cc_save, &g_cc, sizeof g_cc);
+    memcpy(g_slots_save, g_slots, sizeof g_slots);
+    memcpy(g_buf_save, g_buf, sizeof g_buf);
+    memcpy(g_work_save, g_work, sizeof g_work);
+}
+
+static void cont_restore(void)
+{
+    memcpy(&g_cc, &g_cc_save, sizeof g_cc);
+    memcpy(g_slots, g_slots_save, sizeof g_slots);
+    memcpy(g_buf, g_buf_save, sizeof g_buf);
+    memcpy(g_work, g_work_save, sizeof g_work);
+}
+
+static void sliced_matches_blocking(uint32_t seed, const test_distortion_t *d, double spike, size_t min_rows)
+{
+    static const uint32_t budgets[] = {1u, 97u, 6000u};
+    drive_t dr;
+    magcal_cont_outcome_t ref_oc = MAGCAL_CONT_IDLE;
+    magcal_cal2d_t ref_cal;
+    magcal_cal_report_t ref_rep;
+    size_t rows = 0u;
+    size_t b;
+    cont_init_default(NULL);
+    drive_init(&dr, d, seed);
+    if (spike != 0.0) {
+        magcal_vec3_t m = {(float)spike, (float)-spike, 40.0f};
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_push(&g_cc, &m, 0u));
+    }
+    /* drive (1 deg per row) until a solve after min_rows rows is under way (its snapshot taken),
+     * the ring empty */
+    while (!(g_cc.stage != 0u && g_cc.tail == g_cc.head && rows >= min_rows)) {
+        dr.psi = fmod(dr.psi + 1.0, 360.0);
+        (void)drive_row(&dr, 0.0f, 0.0f);
+        TEST_ASSERT_TRUE(++rows < 20000u);
+    }
+    cont_save();
+    ref_oc = magcal_cont_solve_blocking(&g_cc, 0);
+    TEST_ASSERT_NOT_EQUAL(MAGCAL_CONT_IDLE, ref_oc);
+    TEST_ASSERT_NOT_EQUAL(MAGCAL_CONT_IN_PROGRESS, ref_oc);
+    ref_cal = g_cc.cal;
+    ref_rep = g_cc.last;
+    for (b = 0u; b < sizeof budgets / sizeof budgets[0]; ++b) {
+        magcal_cont_outcome_t oc;
+        uint32_t steps = 1u;
+        cont_restore();
+        g_cc.cfg.step_budget = budgets[b];
+        while ((oc = magcal_cont_step(&g_cc)) == MAGCAL_CONT_IN_PROGRESS) {
+            steps++;
+            TEST_ASSERT_TRUE(steps < 10000000u);
+        }
+        printf("seed %u budget %5u: %s after %u steps (status %s, used %u of %u)\n", (unsigned)seed,
+               (unsigned)budgets[b], oc == MAGCAL_CONT_ADOPTED ? "adopted" : "not adopted", (unsigned)steps,
+               magcal_status_str(g_cc.last.status), (unsigned)g_cc.last.used, (unsigned)g_cc.last.samples);
+        TEST_ASSERT_EQUAL_INT(ref_oc, oc);
+        TEST_ASSERT_EQUAL_INT(ref_rep.status, g_cc.last.status);
+        TEST_ASSERT_EQUAL_MEMORY(&ref_cal, &g_cc.cal, sizeof ref_cal);
+        TEST_ASSERT_EQUAL_MEMORY(&ref_rep, &g_cc.last, sizeof ref_rep);
+        if (budgets[b] == 1u) {
+            /* every step does at least one visit; the steps at budget 1 count the visits */
+            TEST_ASSERT_TRUE(steps > 1000u);
+        }
+    }
+}
+
+void test_cont_sliced_solve_matches_blocking(void)
+{
+    sliced_matches_blocking(11u, &k_d, 900.0, 300u); /* a start-up spike; the first adoption */
+    sliced_matches_blocking(3u, &k_d_step, 0.0, 400u); /* against an installed calibration */
+}
+
 int main(void)
 {
 #if defined(__arm__)
@@ -424,6 +507,7 @@ int main(void)
     RUN_TEST(test_cont_ageing_replaces_mildly_worse);
     RUN_TEST(test_cont_hard_iron_step_relearned);
     RUN_TEST(test_cont_transient_flagged_not_discarded);
+    RUN_TEST(test_cont_sliced_solve_matches_blocking);
 #ifdef CONT_TEST_THREADS
     RUN_TEST(test_cont_isr_push_interleaved_with_task);
 #endif

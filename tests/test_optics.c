@@ -1067,6 +1067,219 @@ static void test_optics_filter_parked_rings_keep_drive_calibrate_within_floor(vo
     TEST_ASSERT_EQUAL_UINT(runs, ok); /* every parked ring calibrates with the defaults */
 }
 
+
+/* ---- time-sliced filter and thinning (the slice contract, issues 13 + 14) ------------------- */
+
+static const uint32_t g_budgets[] = {1u, 97u, 1000u, 6000u, UINT32_MAX};
+
+/* Largest charge beyond the budget in one step on these data (a process start 900 plus the
+ * resumed query 600 and the phase switch around them), used in the step-count bounds below. */
+#define SLICE_WMAX 1600u
+
+/*
+ * Sliced filter on the points in g_pts: at every budget of g_budgets the status, mask and info
+ * equal the one-shot call's bit for bit (info by memcmp, after identical zero-filled starts), the
+ * workspace left behind is the same, and the step counts agree with a budget-proportional
+ * slicing: a step stops only once it charged >= budget, and charges at most budget + SLICE_WMAX,
+ * so with s_B steps at budget B the total T satisfies (s_B - 1) B <= T <= s_B (B + W); the
+ * count at 6000 must then lie within the bounds that the count at 1000 gives.
+ */
+static void check_filter_sliced(const magcal_optics_cfg_t *cfg, size_t n, const char *what)
+{
+    static uint32_t ref_work[(MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(NMAX) + 3u) / 4u];
+    static uint8_t ref_mask[NMAX];
+    magcal_optics_result_t ref_info, info;
+    magcal_status_t ref_st, st;
+    size_t ib;
+    unsigned long steps[5] = {0u, 0u, 0u, 0u, 0u};
+    const size_t wlen = MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n);
+    char msg[128];
+    memset(&ref_info, 0, sizeof ref_info);
+    memset(ref_mask, 0x5A, sizeof ref_mask);
+    memset(ref_work, 0, sizeof ref_work);
+    ref_st = magcal_optics_filter(cfg, g_pts, n, ref_work, wlen, ref_mask, &ref_info);
+    for (ib = 0; ib < 5u; ++ib) {
+        magcal_optics_filter_slice_t s;
+        memset(&info, 0, sizeof info);
+        memset(g_mask, 0x5A, sizeof g_mask);
+        memset(g_work, 0, sizeof g_work);
+        st = magcal_optics_filter_begin(&s, cfg, g_pts, n, g_work, wlen, g_mask, &info);
+        if (st == MAGCAL_OK) {
+            do {
+                st = magcal_optics_filter_step(&s, g_budgets[ib]);
+                ++steps[ib];
+            } while (st == MAGCAL_IN_PROGRESS && steps[ib] < 100000000ul);
+            /* a finished slice keeps answering its status */
+            TEST_ASSERT_EQUAL_INT(st, magcal_optics_filter_step(&s, 6000u));
+        }
+        snprintf(msg, sizeof msg, "%s n %u budget %lu: status %d vs %d, %lu steps", what,
+                 (unsigned)n, (unsigned long)g_budgets[ib], (int)st, (int)ref_st, steps[ib]);
+        TEST_ASSERT_EQUAL_INT_MESSAGE(ref_st, st, msg);
+        TEST_ASSERT_EQUAL_MEMORY_MESSAGE(ref_mask, g_mask, n, msg);
+        TEST_ASSERT_EQUAL_MEMORY_MESSAGE(&ref_info, &info, sizeof info, msg);
+        TEST_ASSERT_EQUAL_MEMORY_MESSAGE(ref_work, g_work, 10u * n, msg); /* reach + labels */
+    }
+    if (ref_st == MAGCAL_OK && steps[2] > 2u) {
+        const unsigned long lo = ((steps[2] - 1u) * 1000u) / (6000u + SLICE_WMAX);
+        const unsigned long hi = (steps[2] * (1000u + SLICE_WMAX)) / 6000u + 1u;
+        snprintf(msg, sizeof msg, "%s n %u: %lu steps at 6000, %lu at 1000 (bounds %lu..%lu)",
+                 what, (unsigned)n, steps[3], steps[2], lo, hi);
+        TEST_ASSERT_TRUE_MESSAGE(steps[3] >= lo && steps[3] <= hi, msg);
+        TEST_ASSERT_EQUAL_UINT_MESSAGE(1u, steps[4], msg); /* UINT32_MAX: one step */
+    }
+}
+
+/* The same for magcal_optics_thin (mask and status; cand may be NULL). */
+static void check_thin_sliced(size_t n, const uint8_t *cand, const char *what)
+{
+    static uint8_t ref_mask[NMAX];
+    magcal_status_t ref_st, st;
+    size_t ib;
+    unsigned long steps;
+    const size_t wlen = MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n);
+    char msg[128];
+    memset(ref_mask, 0x5A, sizeof ref_mask);
+    ref_st = magcal_optics_thin(g_pts, n, cand, g_work, wlen, ref_mask);
+    for (ib = 0; ib < 5u; ++ib) {
+        magcal_optics_thin_slice_t s;
+        memset(g_mask, 0x5A, sizeof g_mask);
+        steps = 0u;
+        st = magcal_optics_thin_begin(&s, g_pts, n, cand, g_work, wlen, g_mask);
+        if (st == MAGCAL_OK) {
+            do {
+                st = magcal_optics_thin_step(&s, g_budgets[ib]);
+                ++steps;
+            } while (st == MAGCAL_IN_PROGRESS && steps < 100000000ul);
+        }
+        snprintf(msg, sizeof msg, "thin %s n %u budget %lu: status %d vs %d", what, (unsigned)n,
+                 (unsigned long)g_budgets[ib], (int)st, (int)ref_st);
+        TEST_ASSERT_EQUAL_INT_MESSAGE(ref_st, st, msg);
+        TEST_ASSERT_EQUAL_MEMORY_MESSAGE(ref_mask, g_mask, n, msg);
+        if (g_budgets[ib] == UINT32_MAX) {
+            TEST_ASSERT_EQUAL_UINT_MESSAGE(1u, steps, msg);
+        }
+    }
+}
+
+/*
+ * Default configuration on the module's datasets: rings with far spikes (n = 288 and 1024, the
+ * default store and the largest solver), a ring with a larger burst off the ring, the recorded
+ * glitch ring, parked rings (one or two clumps of 40..60 %), a ring with a clump of 300
+ * identical samples, and the bad-data statuses (all equal: DEGENERATE; a NaN late in the array:
+ * NONFINITE after some steps). Every budget gives the one-shot's outputs bit for bit.
+ */
+static void test_optics_filter_sliced_equals_one_shot_at_every_budget(void)
+{
+    static const ring_case_t cases[] = {
+        {288u, 0.01, 360.0, 0.55, 5.0, 0.05, 1}, {1024u, 0.03, 360.0, 0.8, 2.0, 0.05, 0},
+        {288u, 0.02, 300.0, 1.0, 0.0, 0.10, 1},  {1024u, 0.005, 360.0, 1.0, 0.0, 0.0, 1},
+    };
+    const test_distortion_t d = {1.0f, {{1.0f, 0.0f}, {0.0f, 1.0f}}, 0.3f, -0.2f};
+    const golden_optics_set_t *g = &golden_optics_sets[2];
+    magcal_optics_cfg_t a = MAGCAL_OPTICS_CFG_DEFAULT;
+    uint32_t rng = 77u;
+    size_t ic, i;
+    for (ic = 0; ic < sizeof cases / sizeof cases[0]; ++ic) {
+        make_case(&cases[ic], 1.0, (uint32_t)(31u + ic));
+        check_filter_sliced(&a, cases[ic].n, "ring+spikes");
+    }
+    /* burst: 150 samples 0.7 R outside a 100-sample ring */
+    test_make_ring(&d, 100u, 0.0, 360.0, 0.005, 5u, g_pts, NULL);
+    for (i = 100u; i < 250u; ++i) {
+        g_pts[i].x = (float)(0.3 + 1.7 * cos(0.7) + 0.005 * test_rand_normal(&rng));
+        g_pts[i].y = (float)(-0.2 + 1.7 * sin(0.7) + 0.005 * test_rand_normal(&rng));
+    }
+    check_filter_sliced(&a, 250u, "burst");
+    memcpy(g_pts, g->pts, g->n * sizeof g_pts[0]);
+    check_filter_sliced(&a, g->n, "real glitches");
+    make_parked_ring(288u, 0.6, 0, 1.0, 5u);
+    check_filter_sliced(&a, 288u, "parked 60 %");
+    make_parked_ring(1024u, 0.5, 1, 0.25, 6u);
+    check_filter_sliced(&a, 1024u, "parked two 50 %");
+    test_make_ring(&d, 200u, 0.0, 360.0, 0.0, 1u, g_pts, NULL);
+    for (i = 200u; i < 500u; ++i) {
+        g_pts[i] = g_pts[17];
+    }
+    check_filter_sliced(&a, 500u, "clump 300");
+    g_pts[480].y = NAN;
+    check_filter_sliced(&a, 500u, "NaN at 480");
+    for (i = 0; i < 100u; ++i) {
+        g_pts[i].x = 1.0f;
+        g_pts[i].y = 2.0f;
+    }
+    check_filter_sliced(&a, 100u, "all equal");
+}
+
+/* Non-default paths stay exact too: given eps/eps' (both orders, both searches, START_CORE),
+ * tiny eps' (ALL_NOISE), eps = +INF (brute force fallback). */
+static void test_optics_filter_sliced_given_parameters_equal_one_shot(void)
+{
+    uint32_t seed;
+    for (seed = 1u; seed <= 8u; ++seed) {
+        const size_t n = 60u + 120u * seed;
+        magcal_optics_cfg_t c =
+            cfg_of(0.1f + 0.05f * (float)(seed % 4u), (uint16_t)(3u + seed % 4u),
+                   (seed & 1u) ? MAGCAL_OPTICS_IMPROVED : MAGCAL_OPTICS_CLASSIC,
+                   (seed & 2u) ? MAGCAL_NEIGHBORS_GRID : MAGCAL_NEIGHBORS_BRUTE);
+        make_points(g_pts, n, seed * 17u, (int)(seed & 1u));
+        c.eps_prime = c.eps * 0.7f;
+        c.start = (seed & 4u) ? MAGCAL_OPTICS_START_CORE : MAGCAL_OPTICS_START_INDEX;
+        check_filter_sliced(&c, n, "given");
+        c.eps_prime = 1e-6f;
+        check_filter_sliced(&c, n, "all noise");
+        c.eps = INFINITY;
+        c.eps_prime = 0.3f;
+        check_filter_sliced(&c, n, "eps inf");
+    }
+}
+
+/* magcal_optics_thin sliced: ring + clump (thinned), candidates only the clump (not thinned),
+ * plain ring, parked rings at n = 288 and 1024, bad points; slice API errors. */
+static void test_optics_thin_sliced_equals_one_shot_at_every_budget(void)
+{
+    const test_distortion_t d = {1.0f, {{1.0f, 0.0f}, {0.0f, 1.0f}}, 0.0f, 0.0f};
+    static uint8_t cand[NMAX];
+    magcal_optics_thin_slice_t s;
+    magcal_optics_filter_slice_t f;
+    magcal_optics_cfg_t a = MAGCAL_OPTICS_CFG_DEFAULT;
+    size_t i;
+    test_make_ring(&d, 200u, 0.0, 360.0, 0.0, 1u, g_pts, NULL);
+    for (i = 200u; i < 500u; ++i) {
+        g_pts[i] = g_pts[17];
+        cand[i] = 1u;
+    }
+    for (i = 0; i < 200u; ++i) {
+        cand[i] = (uint8_t)(i % 3u != 0u);
+    }
+    check_thin_sliced(500u, NULL, "clump");
+    check_thin_sliced(500u, cand, "clump, cand");
+    check_thin_sliced(200u, NULL, "ring");
+    make_parked_ring(288u, 0.6, 1, 1.0, 9u);
+    check_thin_sliced(288u, NULL, "parked 288");
+    make_parked_ring(1024u, 0.4, 0, 0.25, 10u);
+    check_thin_sliced(1024u, NULL, "parked 1024");
+    g_pts[1000].x = INFINITY;
+    check_thin_sliced(1024u, NULL, "Inf at 1000");
+    /* API: NULL slice, never-begun slice, begin errors become the step's status */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_thin_step(NULL, 6000u));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_filter_step(NULL, 6000u));
+    memset(&s, 0, sizeof s);
+    memset(&f, 0, sizeof f);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_thin_step(&s, 6000u));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_filter_step(&f, 6000u));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS,
+                          magcal_optics_thin_begin(&s, g_pts, 15u, NULL, g_work, sizeof g_work, g_mask));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_optics_thin_step(&s, 6000u));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE,
+                          magcal_optics_filter_begin(&f, &a, g_pts, 100u, g_work,
+                                                     MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(100u) - 1u,
+                                                     g_mask, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE, magcal_optics_filter_step(&f, 1u));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
+                          magcal_optics_filter_begin(NULL, &a, g_pts, 100u, g_work, sizeof g_work,
+                                                     g_mask, NULL));
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -1088,5 +1301,8 @@ int main(void)
     RUN_TEST(test_optics_filter_auto_keeps_ring_over_larger_burst);
     RUN_TEST(test_optics_thin_one_representative_per_clump);
     RUN_TEST(test_optics_filter_parked_rings_keep_drive_calibrate_within_floor);
+    RUN_TEST(test_optics_filter_sliced_equals_one_shot_at_every_budget);
+    RUN_TEST(test_optics_filter_sliced_given_parameters_equal_one_shot);
+    RUN_TEST(test_optics_thin_sliced_equals_one_shot_at_every_budget);
     return UNITY_END();
 }

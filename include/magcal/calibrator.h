@@ -68,6 +68,20 @@
  * ellipse that the new calibration maps to psi is corrected with `current` (identity when
  * `current` is unusable); max and RMS of wrap(psi_current - psi).
  *
+ * Time-sliced solve (src/calibrator_solve.c; the continuous calibrator, continuous.h, drives it):
+ * run() is one call of the same resumable phases with an unlimited budget (one code path). Each
+ * phase keeps its cursor and sums in the workspace (the run state, or the stage scratch when the
+ * stage that owns it is done), charges an estimated Cortex-M4F weight per visit and stops when
+ * the step's budget is spent: pre-checks, the density filter (optics.h slice), masks, mean /
+ * scale / moments and the hard-iron circle, both coverages, thinning and consensus (optics.h,
+ * consensus.h slices) or the plain fit (ellipse.h slice), gates, ellipse -> calibration,
+ * corrected coverage, distinct values (a resumable shell sort), the harmonics (one 5x5 solve per
+ * visit), the shift (one heading per visit), the adoption rule. Exceptions, one-shot inside one
+ * step (documented cost, docs/calibrator.md): the DBSCAN filter (auto parameters + DBSCAN +
+ * largest cluster) and the automatic radius with a caller's MinPts (magcal_optics_auto_params);
+ * the OPTICS filter with the classic order or a caller's eps goes through the same optics.h
+ * slice API (sliced as far as optics.h slices it); ellipse -> calibration is one visit (~2,500).
+ *
  * Memory: caller-allocated instance, sample buffer (capacity <= MAGCAL_MAX_SAMPLES) and one
  * workspace of MAGCAL_CALIBRATOR_WORKSPACE_LEN(capacity) bytes (4-byte aligned) that also keeps
  * the per-sample outlier flags between run() and the next reset. No heap.
@@ -136,13 +150,25 @@ extern "C" {
     (MAGCAL_CONSENSUS_WORKSPACE_LEN(cap) + ((2u * (size_t)(cap) + 3u) & ~(size_t)3u))
 
 /**
+ * Bytes of the resumable part of the run state (calibrator_solve.c: budget, cursor, phase, and the
+ * one slice state of the module running: DBSCAN configuration, density filter, thinning,
+ * consensus, plain fit), checked by a static assert there. The prepare and adopt phases keep
+ * their accumulators in the stage scratch.
+ */
+#define MAGCAL_CALIBRATOR_SLICE_LEN                                                                \
+    (32u + MAGCAL_CALIBRATOR_MAX_(                                                                 \
+               MAGCAL_CALIBRATOR_MAX_(sizeof(magcal_dbscan_cfg_t), sizeof(magcal_consensus_slice_t)), \
+               MAGCAL_CALIBRATOR_MAX_(sizeof(magcal_optics_filter_slice_t),                        \
+                                      sizeof(magcal_optics_thin_slice_t))))
+
+/**
  * Bytes of the state of one magcal_calibrator_run() kept in the workspace instead of on the stack
- * (the report, the consensus result, the candidate calibration, the filter's configuration and
- * result), 4-aligned.
+ * (the report, the consensus result, the filter's configuration and result, the slice state),
+ * 4-aligned.
  */
 #define MAGCAL_CALIBRATOR_RUN_LEN                                                                  \
-    ((sizeof(magcal_cal_report_t) + sizeof(magcal_consensus_result_t) + sizeof(magcal_cal2d_t) +  \
-      sizeof(magcal_optics_cfg_t) + sizeof(magcal_optics_result_t) + sizeof(magcal_dbscan_cfg_t) + \
+    ((sizeof(magcal_cal_report_t) + sizeof(magcal_consensus_result_t) +                            \
+      sizeof(magcal_optics_cfg_t) + sizeof(magcal_optics_result_t) + MAGCAL_CALIBRATOR_SLICE_LEN + \
       3u) & ~(size_t)3u)
 
 /**

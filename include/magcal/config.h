@@ -57,6 +57,14 @@
 #define MAGCAL_COVERAGE_BINS 36u
 #endif
 
+/* ---- Time-sliced work (issues 13/14, docs/calibrator.md "Work per call") */
+/** Default work per step() of time-sliced calls, in estimated Cortex-M4F instructions
+ *  (magcal_cont_cfg_t::step_budget): with the fixed overhead and the largest single visit, a step
+ *  stays below the 10,000-instruction per-call bound. */
+#ifndef MAGCAL_SLICE_BUDGET_DEFAULT
+#define MAGCAL_SLICE_BUDGET_DEFAULT 6000u
+#endif
+
 /* ---- Module limits and numerical tolerances (moved here from the module headers; same values) */
 
 /** Relative pivot threshold of the equilibrated LDL^T solve (algorithms.md 3.2). */

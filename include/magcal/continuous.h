@@ -11,11 +11,12 @@
  * Per loop iteration the firmware calls, in any order and as often as it likes:
  *  - magcal_cont_push(): one raw sample and its time stamp (ms). O(1): it only writes into a
  *    MAGCAL_CONT_RING-sample single-producer / single-consumer ring inside the instance.
- *  - magcal_cont_step(): bounded work: drains up to cfg.drain_per_step ring samples into the store
- *    (each judged against the installed calibration: trust, change detection), then does at most
- *    ONE unit of solve work: the snapshot of the store into the solver buffer, or one stage of
- *    the batch pipeline (prepare, fit, gates, adopt). Returns MAGCAL_CONT_IN_PROGRESS while a solve
- *    is under way, MAGCAL_CONT_IDLE while collecting, or the outcome of a solve that just ended.
+ *  - magcal_cont_step(): bounded work ("Work per step" below): drains ring samples into the
+ *    store (each judged against the installed calibration: trust, change detection), then
+ *    continues the solve (the snapshot of the store into the solver buffer, then the solver's
+ *    resumable phases, calibrator.h "Time-sliced solve"). Returns MAGCAL_CONT_IN_PROGRESS while a
+ *    solve is under way, MAGCAL_CONT_IDLE while collecting, or the outcome of a solve that just
+ *    ended.
  *  - magcal_cont_heading(): heading of a raw sample with the installed calibration, its trust and
  *    the generation (adoptions so far).
  *
@@ -29,6 +30,23 @@
  *  any -> RELEARNING       when a change is declared (old samples dropped);
  *  RELEARNING -> SOLVING   as COLLECTING; a solve that adopts, or that confirms the installed
  *                          calibration on fresh data (NOT_BETTER), ends the relearning.
+ *
+ * Work per step. cfg.step_budget (default MAGCAL_SLICE_BUDGET_DEFAULT = 6000) estimated
+ * Cortex-M4F instructions per call, shared by the drain and the solve, every piece of work charged
+ * by a measured weight (docs/calibrator.md "Work per call"):
+ *  - drain: at least one ring sample when the ring is not empty, at most cfg.drain_per_step, and
+ *    a further one only while less than half of the budget is spent; a sample costs ~1750, one
+ *    whose store push ends a survey sweep (once per sweep, ~slots / sweep_steps pushes) ~7200 and
+ *    ends the drain. With the defaults (drain_per_step 2) a step takes 2 samples except at a sweep
+ *    end (1): at 100 Hz push and 100 Hz step the ring (MAGCAL_CONT_RING) never fills, and a backlog
+ *    drains at up to 1 sample per step;
+ *  - snapshot: while the store is copied into the solver buffer (whole bins, ~14 per sample; 1 step
+ *    at 288 samples, 3 at 1024) the drain pauses so the solver sees one consistent store (the ring
+ *    holds the few samples that arrive meanwhile);
+ *  - solve: the rest of the budget, at least one visit per step (so both progress), then
+ *    MAGCAL_IN_PROGRESS until the solve ends. A solve of the default store takes several hundred
+ *    steps (docs/calibrator.md); new information for the next solve counts from the snapshot.
+ * step_budget UINT32_MAX does a whole solve in one call (as solve_blocking()).
  *
  * Concurrency contract. magcal_cont_push() may run in an interrupt (or another task) while ANY
  * other call on the same instance runs in one task: the ring is the only state push writes
@@ -69,6 +87,7 @@
 #include <stdint.h>
 
 #include "magcal/calibrator.h"
+#include "magcal/config.h"
 #include "magcal/heading.h"
 #include "magcal/intake.h"
 #include "magcal/status.h"
@@ -134,13 +153,16 @@ typedef struct {
     uint32_t disturb_tau_ms;        /**< transient judge: time constant of the smoothed residual (150) */
     uint32_t disturb_hold_ms;       /**< transient judge: flag held after the residual returns (200) */
     float disturb_k;                /**< transient judge: flag at |smoothed - baseline| > k sigma (4) */
+    uint32_t step_budget;           /**< work per step(), estimated Cortex-M4F instructions, >= 1
+                                         (default MAGCAL_SLICE_BUDGET_DEFAULT = 6000; UINT32_MAX:
+                                         a whole solve per step): "Work per step" above */
 } magcal_cont_cfg_t;
 
 /** Defaults: work untuned from 10 to 100 Hz (time constants are in ms of the push stamps). */
 #define MAGCAL_CONT_CFG_DEFAULT                                                                    \
     {                                                                                              \
         MAGCAL_INTAKE_CFG_DEFAULT_2D, MAGCAL_CALIBRATOR_CFG_DEFAULT, 270.0f, 24u, 2u, 600000.0f, 4.0f,  \
-            0.06f, 8000u, 3u, 4000u, 150u, 200u, 4.0f                                              \
+            0.06f, 8000u, 3u, 4000u, 150u, 200u, 4.0f, MAGCAL_SLICE_BUDGET_DEFAULT                 \
     }
 
 /** A heading with its trust. */
@@ -230,6 +252,9 @@ typedef struct {
     uint8_t fz_have_u;             /* 1: fz_u_prior holds them (the vertical field is kept by a change) */
     uint8_t fz_skip;               /* model form: u terms dropped (0: none, 1: u^2, 2: u and u^2) */
     uint8_t dist_flag;             /* 1: transient flagged (trust DISTURBED, not stored) */
+    uint32_t snap_bin;             /* snapshot: next store bin to copy */
+    uint32_t snap_n;               /* snapshot: samples copied */
+    uint32_t snap_stored;          /* store added + replaced at the snapshot */
 } magcal_cont_t;
 
 /**

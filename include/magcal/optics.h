@@ -145,12 +145,13 @@ typedef enum {
 #define MAGCAL_OPTICS_BEST_OFFSET_(n)                                                              \
     ((4u * (size_t)(n) + MAGCAL_NEIGHBORS_WORKSPACE_LEN(n) + ((size_t)(n) + 7u) / 8u + 3u) &       \
      ~(size_t)3u)
-/* Bytes of the ordering loop's context, kept in the workspace (off the stack) after the MinPts
- * buffer, with slack to align it for pointers; optics.c checks the size with a static assert. */
+/* Bytes of the loop state (the ordering loop's context and the resumable state of the slice
+ * API), kept in the workspace (off the stack) after the MinPts buffer, with slack to align it for
+ * pointers; optics.c checks the size with a static assert (24 pointer-sized fields + 148 bytes). */
 #ifdef MAGCAL_OPTICS_BENCH_SORTED_LIST /* bench-only seed-list mode (src/optics_core.h): 2 more words */
-#define MAGCAL_OPTICS_CTX_LEN_ (42u * sizeof(void *))
+#define MAGCAL_OPTICS_CTX_LEN_ (26u * sizeof(void *) + 148u)
 #else
-#define MAGCAL_OPTICS_CTX_LEN_ (40u * sizeof(void *))
+#define MAGCAL_OPTICS_CTX_LEN_ (24u * sizeof(void *) + 148u)
 #endif
 /* Offset of the run workspace inside the filter workspace (4-byte aligned). */
 #define MAGCAL_OPTICS_FILTER_RUN_OFFSET_(n) ((6u * (size_t)(n) + 3u) & ~(size_t)3u)
@@ -159,8 +160,8 @@ typedef enum {
 /**
  * Workspace bytes for magcal_optics_run() on n points: seed heap/list uint16[n], heap position
  * map uint16[n], spatial index, one "processed" bit per point and the MinPts insertion buffer
- * (4 * MAGCAL_MAX_MIN_PTS bytes) and the loop's context (40 pointers' worth, 160 bytes on a 32-bit
- * target), both kept off the stack. About 8.1 bytes per sample + 288 bytes (32-bit);
+ * (4 * MAGCAL_MAX_MIN_PTS bytes) and the loop state (24 pointers + 148 bytes, 244 bytes on a 32-bit
+ * target), both kept off the stack. About 8.1 bytes per sample + 372 bytes (32-bit);
  * the outputs (order 2 + reach 4 + core 4 bytes per sample) are separate caller arrays.
  */
 #define MAGCAL_OPTICS_WORKSPACE_LEN(n)                                                             \
@@ -169,7 +170,7 @@ typedef enum {
 /**
  * Workspace bytes for magcal_optics_filter() and magcal_optics_auto_params() on n points:
  * reach float[n] + labels int16[n] + MAGCAL_OPTICS_WORKSPACE_LEN(n). About 14.1 bytes per
- * sample + 288 bytes (32-bit); with the caller's uint8 inlier mask the whole filter needs about 15.1 bytes
+ * sample + 372 bytes (32-bit); with the caller's uint8 inlier mask the whole filter needs about 15.1 bytes
  * per sample besides the points (ordering and core distances are consumed on the fly).
  */
 #define MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n)                                                      \
@@ -358,6 +359,86 @@ magcal_status_t magcal_optics_filter(const magcal_optics_cfg_t *cfg, const magca
  */
 magcal_status_t magcal_optics_thin(const magcal_vec2_t *pts, size_t n, const uint8_t *cand,
                                    void *work, size_t work_len, uint8_t *rep_mask);
+
+/* ---- time-sliced filter and thinning (issues 13 + 14, the slice contract) ----------------- */
+
+/*
+ * The same computations as magcal_optics_filter() and magcal_optics_thin(), split into bounded
+ * steps so a firmware super-loop or a 100 Hz task can run them: begin() validates and stores the
+ * inputs (O(1)), each step() does at most about `budget` estimated Cortex-M4F instructions of
+ * work (at least one inner-loop visit, so any budget >= 1 makes progress) and returns
+ * MAGCAL_IN_PROGRESS while work remains, then exactly the status and outputs, bit for bit, of
+ * the one-shot call (which is itself begin + step(UINT32_MAX): one code path).
+ *
+ * The slice object holds the loop state (indices, partial sums); the arrays live in `work`.
+ * Between begin() and the last step() the caller must keep pts, cand, work and the output arrays
+ * alive and unchanged (no copy is taken); nothing else is kept between calls (no statics).
+ * A finished slice returns its final status again on further step() calls. Different slice
+ * objects with different workspaces are independent (reentrant per instance).
+ *
+ * Slicing granularity: see the notes at magcal_optics_filter_step().
+ */
+
+/** State of a time-sliced magcal_optics_filter() (fields private; caller's memory). The loop
+ *  state itself lives in the workspace (inside MAGCAL_OPTICS_FILTER_WORKSPACE_LEN). */
+typedef struct {
+    void *state_;            /* loop state in the workspace; NULL once finished */
+    magcal_status_t status_; /* final status once finished */
+    uint32_t magic_;         /* set by begin */
+} magcal_optics_filter_slice_t;
+
+/** State of a time-sliced magcal_optics_thin() (fields private; caller's memory). */
+typedef struct {
+    void *state_;
+    magcal_status_t status_;
+    uint32_t magic_;
+} magcal_optics_thin_slice_t;
+
+/**
+ * @brief Start a time-sliced magcal_optics_filter() (same inputs, same workspace size).
+ * O(1): checks the arguments that need no pass over the points (NULL, alignment, cfg, counts,
+ * workspace length) and stores them; the finiteness of the points is checked by the first steps.
+ * @param[out] s           slice state (caller's memory), overwritten.
+ * @param[in]  cfg         as magcal_optics_filter (read here only: it may go out of scope).
+ * @param[in]  pts         n points, kept unchanged until the last step.
+ * @param[in]  n           as magcal_optics_filter.
+ * @param[out] work        as magcal_optics_filter, kept for the whole run.
+ * @param[in]  work_len    bytes at work.
+ * @param[out] inlier_mask n bytes, written by the last step only (untouched on failure).
+ * @param[out] info        optional (NULL), written by the last step only.
+ * @return MAGCAL_OK (call magcal_optics_filter_step); else the status magcal_optics_filter would
+ *         return for these arguments (then s is marked finished with that status).
+ */
+magcal_status_t magcal_optics_filter_begin(magcal_optics_filter_slice_t *s,
+                                           const magcal_optics_cfg_t *cfg,
+                                           const magcal_vec2_t *pts, size_t n, void *work,
+                                           size_t work_len, uint8_t *inlier_mask,
+                                           magcal_optics_result_t *info);
+
+/**
+ * @brief Do at most about `budget` estimated M4F instructions of the filter.
+ * @param[in,out] s       state from magcal_optics_filter_begin.
+ * @param[in]     budget  estimated Cortex-M4F instructions for this call (>= 1; UINT32_MAX: to the end).
+ * @return MAGCAL_IN_PROGRESS (call again); else exactly magcal_optics_filter's status, with its
+ *         outputs; MAGCAL_ERR_NULL (s NULL); MAGCAL_ERR_ARG (s never begun).
+ */
+magcal_status_t magcal_optics_filter_step(magcal_optics_filter_slice_t *s, uint32_t budget);
+
+/**
+ * @brief Start a time-sliced magcal_optics_thin() (same inputs, same workspace size); O(1).
+ * @return MAGCAL_OK (call magcal_optics_thin_step); else the status magcal_optics_thin would
+ *         return (checks that need no pass over the points).
+ */
+magcal_status_t magcal_optics_thin_begin(magcal_optics_thin_slice_t *s, const magcal_vec2_t *pts,
+                                         size_t n, const uint8_t *cand, void *work,
+                                         size_t work_len, uint8_t *rep_mask);
+
+/**
+ * @brief Do at most about `budget` estimated M4F instructions of the thinning.
+ * @return MAGCAL_IN_PROGRESS (call again); else exactly magcal_optics_thin's status and mask;
+ *         MAGCAL_ERR_NULL (s NULL); MAGCAL_ERR_ARG (s never begun).
+ */
+magcal_status_t magcal_optics_thin_step(magcal_optics_thin_slice_t *s, uint32_t budget);
 
 /* ---- 3-D samples (src/optics3.c) --------------------------------------------------------- */
 

@@ -15,7 +15,7 @@ int magcal_cont_ok(const magcal_cont_t *cc) { return cc != NULL && cc->magic == 
 
 static magcal_status_t cont_check_cfg(const magcal_cont_cfg_t *c)
 {
-    if (c->intake.dims != 2u || c->drain_per_step < 1u || c->change_bins < 1u ||
+    if (c->intake.dims != 2u || c->drain_per_step < 1u || c->step_budget < 1u || c->change_bins < 1u ||
         c->change_bins > MAGCAL_CONT_SECTORS) {
         return MAGCAL_ERR_ARG;
     }

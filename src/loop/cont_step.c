@@ -1,14 +1,24 @@
 /*
  * Continuous calibrator, step: drain the push ring into the intake store (each sample judged
- * first, cont_change.c), decide whether a solve is worth running, and run it in slices: the
- * snapshot of the store into the solver buffer (plus the solver's load, stage 0), then one stage of
- * the batch pipeline per call (magcal_calibrator_run_stage: prepare, fit, gates, adopt).
+ * first, cont_change.c), decide whether a solve is worth running, and run it in slices within
+ * cfg.step_budget estimated Cortex-M4F instructions per call: the snapshot of the store into the
+ * solver buffer (bins copied per visit), then the solver's resumable phases
+ * (magcal_calibrator_solve_step, calibrator_solve.c). The drain and the solve charge the same
+ * budget (continuous.h "Work per step").
  */
 #include <math.h>
 
 #include "../calibrator_internal.h"
 #include "magcal/config.h"
 #include "cont_internal.h"
+
+/* Weights, estimated M4F instructions (host callgrind x 1.2; docs/calibrator.md "Work per call"). */
+#define CONT_W_DRAIN 1750u /* judge + store push of one sample (its 8 sweep steps included) */
+#define CONT_W_SWEEP 7200u /* a push that ended a survey sweep (the ring fits): ends the drain */
+#define CONT_W_SNAP 14u    /* one sample of the snapshot */
+#define CONT_W_BIN 20u     /* one bin of the snapshot */
+
+enum { CONT_STAGE_NONE = 0, CONT_STAGE_SNAPSHOT = 1, CONT_STAGE_SOLVE = 2 };
 
 /* Judge one sample against the installed calibration (change detection): 1 = do not store it. */
 static MAGCAL_NOINLINE int cont_screen(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms)
@@ -27,13 +37,18 @@ static MAGCAL_NOINLINE int cont_screen(magcal_cont_t *cc, const magcal_vec3_t *m
 }
 
 /* Ring samples into the store, read in place (push does not reuse a slot before tail moves past
- * it). The store's push is called from here directly: it is the deep path (its survey fits). */
-static void cont_drain(magcal_cont_t *cc, uint32_t max)
+ * it). The store's push is called from here directly: it is the deep path (its survey fits).
+ * At most `max` samples; at least one when the ring is not empty; then only while less than half
+ * of the budget is spent (the solve keeps the rest). A push that ended a survey sweep charges
+ * CONT_W_SWEEP, which ends the drain. */
+static MAGCAL_NOINLINE void cont_drain(magcal_cont_t *cc, uint32_t max, magcal_cal_budget_t *b)
 {
+    const uint32_t half = b->left / 2u;
     uint32_t k;
     for (k = 0u; k < max; ++k) {
         uint32_t t = cc->tail;
-        if (t == cc->head) {
+        uint32_t sweeps = cc->store.sweeps;
+        if (t == cc->head || (k > 0u && b->unlimited == 0u && b->left <= half)) {
             break;
         }
         MAGCAL_CONT_BARRIER(); /* the slot was written before head */
@@ -43,6 +58,7 @@ static void cont_drain(magcal_cont_t *cc, uint32_t max)
         }
         MAGCAL_CONT_BARRIER(); /* read before the slot is handed back */
         cc->tail = t + 1u;
+        (void)magcal_cal_spend(b, cc->store.sweeps != sweeps ? CONT_W_SWEEP : CONT_W_DRAIN);
     }
 }
 
@@ -56,95 +72,133 @@ static int cont_worth(const magcal_cont_t *cc)
              (float)cc->solve_ms_acc >= 0.25f * cc->cfg.age_ms));
 }
 
-/* Snapshot the store into the solver buffer and load it. */
-static magcal_cont_outcome_t cont_start(magcal_cont_t *cc)
+/* Start a solve: the snapshot of the store (the drain pauses until it is complete, so the
+ * solver sees one consistent store; it takes ceil(stored x CONT_W_SNAP / budget) steps). */
+static void cont_start(magcal_cont_t *cc)
 {
-    size_t n = 0u;
-    if (magcal_intake_snapshot2(&cc->store, cc->buf, cc->slots, &n) != MAGCAL_OK ||
-        magcal_calibrator_stage_load(&cc->solver, n) != MAGCAL_OK) {
-        return MAGCAL_CONT_IDLE; /* cannot happen with a consistent instance */
-    }
-    cc->cand = cc->cal;
-    cc->stage = 1u;
-    return MAGCAL_CONT_IN_PROGRESS;
+    cc->snap_bin = 0u;
+    cc->snap_n = 0u;
+    cc->snap_stored = cc->store.ctr.added + cc->store.ctr.replaced;
+    cc->stage = (uint8_t)CONT_STAGE_SNAPSHOT;
 }
 
-/* After a stage returned st: next stage, or the end of the solve. */
-static magcal_cont_outcome_t cont_after(magcal_cont_t *cc, magcal_status_t st)
+/* Copy bins of the store, in bin order (as magcal_intake_snapshot2), into the solver buffer;
+ * then load the solver. 1 when the solve is loaded. */
+static int cont_snapshot(magcal_cont_t *cc, magcal_cal_budget_t *b)
 {
-    if (st == MAGCAL_OK && cc->stage < 4u) {
-        cc->stage++;
-        return MAGCAL_CONT_IN_PROGRESS;
+    const magcal_intake_t *st = &cc->store;
+    const uint32_t per = st->cfg.per_bin;
+    while (cc->snap_bin < st->n_bins) {
+        const uint32_t base = cc->snap_bin * per;
+        const uint32_t cnt = st->count[cc->snap_bin];
+        uint32_t k;
+        for (k = 0u; k < cnt && cc->snap_n < cc->slots; ++k) {
+            cc->buf[cc->snap_n].x = st->slots[base + k].m.x;
+            cc->buf[cc->snap_n].y = st->slots[base + k].m.y;
+            cc->snap_n++;
+        }
+        cc->snap_bin++;
+        if (magcal_cal_spend(b, CONT_W_BIN + cnt * CONT_W_SNAP) != 0) {
+            return 0;
+        }
     }
-    cc->stage = 0u;
-    cc->last_outcome = magcal_cont_finish_solve(cc, magcal_calibrator_stage_end(&cc->solver, st, &cc->last));
+    (void)magcal_calibrator_solve_begin(&cc->solver, cc->snap_n, 1);
+    cc->cand = cc->cal;
+    cc->stage = (uint8_t)CONT_STAGE_SOLVE;
+    return 1;
+}
+
+/* The snapshot part of a step: 1 while the snapshot is unfinished or it spent the budget. */
+static MAGCAL_NOINLINE int cont_snapshot_part(magcal_cont_t *cc, magcal_cal_budget_t *b)
+{
+    if (cc->stage == (uint8_t)CONT_STAGE_SNAPSHOT) {
+        if (cont_snapshot(cc, b) == 0 || (b->unlimited == 0u && b->left == 0u)) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
+/* A solve ended with st: adoption over time (cont_adopt.c), the outcome. */
+static MAGCAL_NOINLINE magcal_cont_outcome_t cont_end(magcal_cont_t *cc, magcal_status_t st)
+{
+    cc->stage = (uint8_t)CONT_STAGE_NONE;
+    cc->last_outcome = magcal_cont_finish_solve(cc, st);
+    /* new information counts from the store the solve saw (its snapshot), not from its end */
+    cc->stored_at_solve = cc->snap_stored;
     return cc->last_outcome;
 }
 
-/* One stage, called from here directly: the stages' deep paths (density filter, consensus) then
- * have only the caller's frame above them (stack budget, tools/stack/budgets.txt). */
-static MAGCAL_NOINLINE magcal_status_t cont_run_stage(magcal_cont_t *cc)
+/* Solve work within the budget (at least one visit); the outcome when the solve ended. The
+ * snapshot and the end are siblings of the solver's step (not frames above it): only this
+ * function's frame sits between step() and the solver's phases (stack budget). */
+static magcal_cont_outcome_t cont_solve(magcal_cont_t *cc, magcal_cal_budget_t *b)
 {
-    magcal_cal_report_t *rep = magcal_calibrator_stage_report(&cc->solver);
-    switch (cc->stage) {
-    case 1u:
-        return magcal_calibrator_stage_prepare(&cc->solver, rep);
-    case 2u:
-        return magcal_calibrator_stage_fit(&cc->solver);
-    case 3u:
-        return magcal_calibrator_stage_gates(&cc->solver, rep);
-    default:
-        return magcal_calibrator_stage_adopt(&cc->solver, &cc->cand, rep);
+    magcal_status_t st;
+    if (cont_snapshot_part(cc, b) != 0) {
+        return MAGCAL_CONT_IN_PROGRESS;
     }
+    st = magcal_calibrator_solve_step(&cc->solver, &cc->cand,
+                                      b->unlimited != 0u ? UINT32_MAX : (b->left > 0u ? b->left : 1u),
+                                      &cc->last);
+    if (st == MAGCAL_IN_PROGRESS) {
+        return MAGCAL_CONT_IN_PROGRESS;
+    }
+    return cont_end(cc, st);
 }
 
 magcal_cont_outcome_t magcal_cont_step(magcal_cont_t *cc)
 {
+    magcal_cal_budget_t b;
     if (!magcal_cont_ok(cc)) {
         return MAGCAL_CONT_IDLE;
     }
+    b.left = cc->cfg.step_budget;
+    b.unlimited = (uint8_t)(cc->cfg.step_budget == UINT32_MAX ? 1u : 0u);
     cc->change_flag = 0u;
-    cont_drain(cc, cc->cfg.drain_per_step);
+    if (cc->stage != (uint8_t)CONT_STAGE_SNAPSHOT) {
+        cont_drain(cc, cc->cfg.drain_per_step, &b);
+    }
     if (cc->change_flag != 0u) {
         return MAGCAL_CONT_CHANGE;
     }
-    if (cc->stage != 0u) {
-        return cont_after(cc, cont_run_stage(cc));
+    if (cc->stage == (uint8_t)CONT_STAGE_NONE) {
+        if (cont_worth(cc) == 0) {
+            return MAGCAL_CONT_IDLE;
+        }
+        cont_start(cc);
     }
-    if (cont_worth(cc) != 0) {
-        return cont_start(cc);
+    if (b.unlimited == 0u && b.left == 0u) {
+        return MAGCAL_CONT_IN_PROGRESS; /* the drain spent the budget (a sweep end): next step */
     }
-    return MAGCAL_CONT_IDLE;
+    return cont_solve(cc, &b);
 }
 
-/* Blocking call, first part: drain the ring, start a solve if worth it (or forced). 1 = a solve
- * is under way. */
+/* Blocking call, first part: start a solve if worth it (or forced). 1 = a solve is under way. */
 static MAGCAL_NOINLINE int cont_begin(magcal_cont_t *cc)
 {
-    if (cc->stage == 0u) {
+    if (cc->stage == (uint8_t)CONT_STAGE_NONE) {
         if (cc->force == 0u && cont_worth(cc) == 0) {
             return 0;
         }
-        (void)cont_start(cc);
+        cont_start(cc);
     }
-    return cc->stage != 0u;
+    return cc->stage != (uint8_t)CONT_STAGE_NONE;
 }
 
 magcal_cont_outcome_t magcal_cont_solve_blocking(magcal_cont_t *cc, int force)
 {
+    magcal_cal_budget_t b = {UINT32_MAX, 1u};
     if (cc == NULL || cc->magic != MAGCAL_CONT_MAGIC) {
         return MAGCAL_CONT_IDLE;
     }
     cc->force = (uint8_t)(force != 0 ? 1u : 0u); /* kept in cc: nothing but cc live across calls */
-    cont_drain(cc, MAGCAL_CONT_RING);
+    if (cc->stage != (uint8_t)CONT_STAGE_SNAPSHOT) {
+        cont_drain(cc, MAGCAL_CONT_RING, &b);
+    }
     if (cont_begin(cc) == 0) {
         return MAGCAL_CONT_IDLE;
     }
-    /* bounded: every pass moves stage 1 -> 2 -> 3 -> 4, or ends it (0); at most 4 passes. Only
-     * cc is live across the calls (the outcome is read back from it): one 8-byte frame above
-     * the stages' deep paths. */
-    while (cc->stage != 0u) {
-        (void)cont_after(cc, cont_run_stage(cc));
-    }
-    return (magcal_cont_outcome_t)cc->last_outcome;
+    /* unlimited budget: the snapshot and every remaining phase in this one call */
+    return cont_solve(cc, &b);
 }
