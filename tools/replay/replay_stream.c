@@ -36,9 +36,11 @@ static magcal_cont3_t g_c3;
 
 static const char k_stream_usage[] =
     "usage: magcal-replay --stream [--mode 2d|3d] [--headings OUT.csv] [--json] [--declination DEG]\n"
-    "                        [--range R] DUMP.csv   (R: the sensor's declared range, dump unit)\n"
-    "  every row in file order through magcal_cont_push + magcal_cont_step (default budget) and\n"
-    "  magcal_cont_heading; --headings: index,raw_heading_deg,heading_deg,trust,generation\n"
+    "                        [--range R] [--steps-per-row K] DUMP.csv   (R: the sensor's declared range)\n"
+    "  every row in file order through magcal_cont_push + K x magcal_cont_step (default budget; K = 1:\n"
+    "  a control loop at the sample rate) and magcal_cont_heading; after the last row, steps without\n"
+    "  pushes until the solve under way ends (events at row = rows);\n"
+    "  --headings: index,raw_heading_deg,heading_deg,trust,generation\n"
     "  [,heading_ref_deg,error_deg]; --json: calibration in force at the end, events, rows, trusted_rows\n"
     "  --mode 3d: magcal_cont3_* (3-D store, ellipsoid solve), tilt-compensated headings when the\n"
     "  dump has ax, ay, az in g, mg or m/s^2 (else the level formula)\n";
@@ -371,6 +373,20 @@ static int replay_stream3(const char *path, const char *hpath, int json, double 
     return g_c3.has_cal != 0u ? 0 : 3;
 }
 
+/* One step's outcome as an event of the JSON report. */
+static void stream_event(cJSON *ev, size_t row, magcal_cont_outcome_t oc)
+{
+    if (oc == MAGCAL_CONT_ADOPTED) {
+        add_event(ev, row, "adopted", "ok", (double)g_cc.last.est_heading_err_deg);
+    } else if (oc == MAGCAL_CONT_REFUSED || oc == MAGCAL_CONT_FAILED) {
+        add_event(ev, row, "refused", magcal_status_str(g_cc.last.status), (double)g_cc.last.est_heading_err_deg);
+    } else if (oc == MAGCAL_CONT_CHANGE) {
+        add_event(ev, row, "change", "changed", NAN);
+    } else {
+        /* idle or in progress */
+    }
+}
+
 int replay_stream_main(int argc, char **argv)
 {
     static const struct option k_opts[] = {{"stream", no_argument, NULL, 's'},
@@ -379,6 +395,7 @@ int replay_stream_main(int argc, char **argv)
                                            {"json", no_argument, NULL, 'j'},
                                            {"declination", required_argument, NULL, 'd'},
                                            {"range", required_argument, NULL, 'r'},
+                                           {"steps-per-row", required_argument, NULL, 'k'},
                                            {"help", no_argument, NULL, 'h'},
                                            {NULL, 0, NULL, 0}};
     const char *hpath = NULL;
@@ -397,6 +414,9 @@ int replay_stream_main(int argc, char **argv)
     const double *ref;
     const double *tc;
     int mode3 = 0;
+    unsigned steps_per_row = 1u;
+    unsigned k;
+    size_t tail;
 
     optind = 1;
     while ((opt = getopt_long(argc, argv, "h", k_opts, NULL)) != -1) {
@@ -436,6 +456,16 @@ int replay_stream_main(int argc, char **argv)
                 return 1;
             }
             cfg.intake.range_limit = (float)v;
+            break;
+        }
+        case 'k': {
+            char *end = NULL;
+            unsigned long v = strtoul(optarg, &end, 10);
+            if (end == optarg || *end != '\0' || v < 1ul || v > 64ul) {
+                fprintf(stderr, "magcal-replay: --steps-per-row needs an integer 1..64, got \"%s\"\n", optarg);
+                return 1;
+            }
+            steps_per_row = (unsigned)v;
             break;
         }
         case 'h':
@@ -483,7 +513,6 @@ int replay_stream_main(int argc, char **argv)
     for (i = 0u; i < d.n_rows; ++i) {
         magcal_vec3_t m;
         magcal_cont_heading_t hd;
-        magcal_cont_outcome_t oc;
         uint32_t t_ms;
         double mz = d.col[MAGCAL_REPLAY_COL_MZ] != NULL ? d.col[MAGCAL_REPLAY_COL_MZ][i] : 0.0;
         m.x = (float)d.col[MAGCAL_REPLAY_COL_MX][i];
@@ -495,16 +524,8 @@ int replay_stream_main(int argc, char **argv)
             t_ms = (uint32_t)(i * 20u); /* no time column: 50 Hz */
         }
         (void)magcal_cont_push(&g_cc, &m, t_ms);
-        oc = magcal_cont_step(&g_cc);
-        if (oc == MAGCAL_CONT_ADOPTED) {
-            add_event(ev, i, "adopted", "ok", (double)g_cc.last.est_heading_err_deg);
-        } else if (oc == MAGCAL_CONT_REFUSED || oc == MAGCAL_CONT_FAILED) {
-            add_event(ev, i, "refused", magcal_status_str(g_cc.last.status),
-                      (double)g_cc.last.est_heading_err_deg);
-        } else if (oc == MAGCAL_CONT_CHANGE) {
-            add_event(ev, i, "change", "changed", NAN);
-        } else {
-            /* idle or in progress */
+        for (k = 0u; k < steps_per_row; ++k) {
+            stream_event(ev, i, magcal_cont_step(&g_cc));
         }
         if (magcal_cont_heading(&g_cc, &m, (float)decl, &hd) != MAGCAL_OK) {
             hd.trust = MAGCAL_TRUST_DISTURBED;
@@ -534,8 +555,15 @@ int replay_stream_main(int argc, char **argv)
             ref_n++;
         }
     }
+    /* After the last row the firmware's loop goes on: step (no pushes) until the solve under way
+     * ends, its events at row = rows ("after the dump"); bounded (a solve is a few thousand steps). */
+    for (tail = 0u; tail < 1000000u && g_cc.stage != 0u; ++tail) {
+        stream_event(ev, d.n_rows, magcal_cont_step(&g_cc));
+    }
     add_cal(root, &g_cc);
     cJSON_AddStringToObject(root, "file", argv[optind]);
+    cJSON_AddNumberToObject(root, "steps_per_row", (double)steps_per_row);
+    cJSON_AddNumberToObject(root, "tail_steps", (double)tail);
     cJSON_AddNumberToObject(root, "rows", (double)d.n_rows);
     cJSON_AddNumberToObject(root, "trusted_rows", (double)trusted);
     cJSON_AddNumberToObject(root, "solves", (double)g_cc.solves);
