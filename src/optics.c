@@ -2002,7 +2002,10 @@ magcal_status_t magcal_ocore_check_cfg(const magcal_optics_cfg_t *cfg)
     if (cfg->min_pts < 2u || cfg->min_pts > MAGCAL_MAX_MIN_PTS) {
         return MAGCAL_ERR_ARG;
     }
-    if (cfg->order != MAGCAL_OPTICS_CLASSIC && cfg->order != MAGCAL_OPTICS_IMPROVED
+    if (cfg->order != MAGCAL_OPTICS_IMPROVED
+#if MAGCAL_CFG_ENABLE_OPTICS_CLASSIC
+        && cfg->order != MAGCAL_OPTICS_CLASSIC
+#endif
 #ifdef MAGCAL_OPTICS_BENCH_SORTED_LIST
         && cfg->order != MAGCAL_OPTICS_SORTED_LIST_
 #endif

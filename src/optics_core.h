@@ -26,6 +26,13 @@
 
 #define MAGCAL_OCORE_POS_NONE 0xFFFFu
 
+/* The classic ordering (binary heap with decrease-key, algorithms.md 4.2): compiled in unless the
+ * firmware's config sets 0 (include/magcal/config.h); without it, asking for
+ * MAGCAL_OPTICS_CLASSIC returns MAGCAL_ERR_ARG (magcal_ocore_check_cfg) in 2-D and 3-D. */
+#ifndef MAGCAL_CFG_ENABLE_OPTICS_CLASSIC
+#define MAGCAL_CFG_ENABLE_OPTICS_CLASSIC 1
+#endif
+
 #ifdef MAGCAL_OPTICS_BENCH_SORTED_LIST
 /*
  * Bench-only third seed-list organisation (tools/bench: magcal_bench_sorted, never in a shipped
@@ -137,6 +144,7 @@ static inline int magcal_ocore_key_less(const float *reach, uint16_t a, uint16_t
     return ra < rb || (ra == rb && a < b);
 }
 
+#if MAGCAL_CFG_ENABLE_OPTICS_CLASSIC
 static void magcal_ocore_sift_up(magcal_ocore_t *o, size_t k0)
 {
     size_t k = k0;
@@ -177,12 +185,14 @@ static inline void magcal_ocore_sift_down(magcal_ocore_t *o, size_t k0)
     o->seeds[k] = v;
     o->pos[v] = (uint16_t)k;
 }
+#endif /* MAGCAL_CFG_ENABLE_OPTICS_CLASSIC */
 
 /* Remove and return the seed of least (reach, index): heap root (CLASSIC) or a linear scan of the
  * unordered list (IMPROVED). n_seeds > 0. */
 static inline uint16_t magcal_ocore_pop_min(magcal_ocore_t *o)
 {
     uint16_t q;
+#if MAGCAL_CFG_ENABLE_OPTICS_CLASSIC
     if (o->mode == MAGCAL_OPTICS_CLASSIC) {
         q = o->seeds[0];
         o->n_seeds--;
@@ -191,8 +201,10 @@ static inline uint16_t magcal_ocore_pop_min(magcal_ocore_t *o)
             o->seeds[0] = o->seeds[o->n_seeds];
             magcal_ocore_sift_down(o, 0u);
         }
+    } else
+#endif
 #ifdef MAGCAL_OPTICS_BENCH_SORTED_LIST
-    } else if (o->mode == MAGCAL_OPTICS_SORTED_LIST_) {
+    if (o->mode == MAGCAL_OPTICS_SORTED_LIST_) {
         if (o->dirty != 0) {
             magcal_ocore_sort_idx(o->seeds + o->head, o->reach, o->n_seeds);
             o->dirty = 0;
@@ -200,8 +212,9 @@ static inline uint16_t magcal_ocore_pop_min(magcal_ocore_t *o)
         q = o->seeds[o->head];
         o->head++;
         o->n_seeds--;
+    } else
 #endif
-    } else {
+    {
         size_t k;
         size_t best = 0u;
         const float *reach = o->reach;
@@ -269,6 +282,7 @@ static void magcal_ocore_update(magcal_ocore_t *o, size_t p, size_t j, float r)
     if (o->pred != NULL) {
         o->pred[j] = (uint16_t)p;
     }
+#if MAGCAL_CFG_ENABLE_OPTICS_CLASSIC
     if (o->mode == MAGCAL_OPTICS_CLASSIC) {
         if (o->pos[j] == MAGCAL_OCORE_POS_NONE) {
             o->seeds[o->n_seeds] = (uint16_t)j;
@@ -277,15 +291,18 @@ static void magcal_ocore_update(magcal_ocore_t *o, size_t p, size_t j, float r)
         } else {
             magcal_ocore_sift_up(o, o->pos[j]);
         }
+    } else
+#endif
 #ifdef MAGCAL_OPTICS_BENCH_SORTED_LIST
-    } else if (o->mode == MAGCAL_OPTICS_SORTED_LIST_) {
+    if (o->mode == MAGCAL_OPTICS_SORTED_LIST_) {
         if (old == INFINITY) {
             o->seeds[o->head + o->n_seeds] = (uint16_t)j;
             o->n_seeds++;
         }
         o->dirty = 1;
+    } else
 #endif
-    } else if (old == INFINITY) {
+    if (old == INFINITY) {
         o->seeds[o->n_seeds] = (uint16_t)j;
         o->n_seeds++;
     } else {

@@ -94,7 +94,9 @@ extern "C" {
 
 /** Seed-list organisation of the ordering loop (algorithms.md 4.2); outputs are identical. */
 typedef enum {
-    MAGCAL_OPTICS_CLASSIC = 0, /**< binary min-heap keyed on (reach, index) with decrease-key */
+    MAGCAL_OPTICS_CLASSIC = 0, /**< binary min-heap keyed on (reach, index) with decrease-key;
+                                    compiled out with MAGCAL_CFG_ENABLE_OPTICS_CLASSIC = 0 (then
+                                    every call given it returns MAGCAL_ERR_ARG) */
     MAGCAL_OPTICS_IMPROVED = 1 /**< unordered seed list, one linear scan for the minimum */
 } magcal_optics_order_t;
 
@@ -376,7 +378,25 @@ magcal_status_t magcal_optics_thin(const magcal_vec2_t *pts, size_t n, const uin
  * A finished slice returns its final status again on further step() calls. Different slice
  * objects with different workspaces are independent (reentrant per instance).
  *
- * Slicing granularity: see the notes at magcal_optics_filter_step().
+ * Where the state lives: the slice object holds two words; the loop state (about 240 bytes on a
+ * 32-bit target) lives in `work`, inside the same MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n) bytes
+ * (the thinning keeps its state within its first 11 n + 3 + ~100 bytes, as its arrays always
+ * did). Only one slice per workspace at a time.
+ *
+ * Granularity (src/optics.c "weights"): every loop over the points, the selection and heapsort
+ * steps of the automatic rule, the grid build, each candidate of a neighbour scan and each seed
+ * of the IMPROVED minimum scan is one charged visit; the weights were fitted to measured host
+ * instruction counts x 1.2 (tools/bench_optics/slice_fit.py). Measured at budget 6000 (host
+ * callgrind, tools/bench_optics/slice_steps.sh): largest step 6,992 host instructions at
+ * n = 288 and 1024 on rings, parked rings and bursts; fixed cost of a step about 380 host
+ * instructions (a resumed neighbour scan recomputes its candidate ranges, charged).
+ * Every configuration is sliced the same way; on the non-default paths a few visits are coarse:
+ * MAGCAL_OPTICS_CLASSIC charges each heap pop / sift-up as one visit (O(log n)), and with
+ * caller-given eps the grid's cell growth (only when eps is below 2^-15 of the box) is one visit
+ * of up to 256 rounds; neither is on the default path.
+ * Differences from the one-shot calls of before (outputs identical): the finiteness of the points
+ * is checked by the first steps, so with both a NaN point and a too small workspace the status is
+ * MAGCAL_ERR_WORKSPACE (was MAGCAL_ERR_NONFINITE).
  */
 
 /** State of a time-sliced magcal_optics_filter() (fields private; caller's memory). The loop
