@@ -42,6 +42,7 @@ void tearDown(void) {}
 
 #define SLOTS MAGCAL_CONT_SLOTS(36u, 8u)
 #define RATE_MS 20u /* 50 Hz */
+#define STEPS_PER_ROW 4u /* step() calls per sample: a 200 Hz control loop */
 
 static magcal_intake_slot_t g_slots[SLOTS];
 static magcal_vec2_t g_buf[SLOTS];
@@ -108,9 +109,20 @@ static magcal_cont_outcome_t drive_row(drive_t *dr, float ex, float ey)
         TEST_ASSERT_EQUAL_INT(MAGCAL_OK, st);
     }
     {
-        TICK_START();
-        oc = magcal_cont_step(&g_cc);
-        TICK_END(1);
+        /* the firmware's control loop runs at STEPS_PER_ROW x the sample rate (a sliced solve is
+         * ~1000 steps at the default budget): the row's outcome is the one that is not IDLE /
+         * IN_PROGRESS, if any */
+        unsigned k;
+        oc = MAGCAL_CONT_IDLE;
+        for (k = 0u; k < STEPS_PER_ROW; ++k) {
+            magcal_cont_outcome_t o;
+            TICK_START();
+            o = magcal_cont_step(&g_cc);
+            TICK_END(1);
+            if (oc == MAGCAL_CONT_IDLE || oc == MAGCAL_CONT_IN_PROGRESS) {
+                oc = o;
+            }
+        }
     }
     dr->t_ms += RATE_MS;
     if (oc == MAGCAL_CONT_IN_PROGRESS) {
@@ -233,7 +245,7 @@ void test_cont_failed_solve_not_sticky(void)
     }
 }
 
-/* Ageing: a flash calibration slightly worse than what the data support (about 1.5 x the new
+/* Ageing: a flash calibration slightly worse than what the data support (about 2.6 x the new
  * one's error, inside the batch margin of 3) is kept at first, replaced once it has aged; the
  * replacement is better on the truth. */
 void test_cont_ageing_replaces_mildly_worse(void)
@@ -248,12 +260,15 @@ void test_cont_ageing_replaces_mildly_worse(void)
     drive_turn(&dr, 720.0, 15.0);
     TEST_ASSERT_TRUE(dr.adopted >= 1u);
     flash = g_cc.cal;
-    flash.offset.x += 0.08f;
+    flash.offset.x += 0.05f;
     r_flash = truth_rms(&flash, &k_d);
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, &flash, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
     drive_init(&dr, &k_d, 8u);
     drive_turn(&dr, 360.0 * 3.0, 15.0); /* 72 s: margin still ~2.8 */
     TEST_ASSERT_TRUE(g_cc.solves >= 1u);
+    printf("ageing, first 72 s: solves %u generation %u last %s cur_err %.3f new_param %.3f\n", (unsigned)g_cc.solves,
+           (unsigned)g_cc.generation, magcal_status_str(g_cc.last.status), (double)g_cc.last.current_err_deg,
+           (double)g_cc.last.est_param_err_deg);
     TEST_ASSERT_EQUAL_UINT32(0u, g_cc.generation); /* within the batch margin: kept */
     drive_turn(&dr, 360.0 * 60.0, 15.0); /* 24 min: margin about 1.6 */
     printf("ageing: solves %u last %s cur_err %.3f new_param %.3f\n", (unsigned)g_cc.solves,

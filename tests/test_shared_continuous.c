@@ -1,7 +1,8 @@
 /*
  * The continuous 2-D calibrator (continuous.h) on every shared real planar recording in the x, y
- * plane (MAGCAL_SHARED_DIR/data/real, READMEs), WHOLE and in stream order: one push + one step per
- * row at the default configuration (vn100_car_circles_b starts parked). Each must end with an
+ * plane (MAGCAL_SHARED_DIR/data/real, READMEs), WHOLE and in stream order: one push + STEPS_PER_ROW
+ * steps per row at the default configuration (a sliced solve is ~1000 steps) and, after the last
+ * row, steps until the solve under way ends (vn100_car_circles_b starts parked). Each must end with an
  * adopted calibration whose radius spread std/mean over every non-glitch row drops by at least
  * min(5, 0.9 x ref_drop), ref_drop = the drop of the plain float64 least-squares ellipse of all
  * rows (tools/ref_real_spread.py, as tests/test_shared_calibrator.c).
@@ -19,6 +20,7 @@
 
 #define SLOTS MAGCAL_CONT_SLOTS(36u, 8u)
 #define MAX_ROWS 8192u
+#define STEPS_PER_ROW 4u /* step() calls per row: a control loop at 4 x the sample rate */
 
 static magcal_intake_slot_t g_slots[SLOTS];
 static magcal_vec2_t g_buf[SLOTS];
@@ -56,6 +58,7 @@ static void check_stream(const char *name, double ref_drop)
 {
     char path[512];
     size_t n, i;
+    unsigned k;
     magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
     magcal_cal2d_t ident = MAGCAL_CAL2D_IDENTITY;
     unsigned trusted = 0u;
@@ -70,11 +73,19 @@ static void check_stream(const char *name, double ref_drop)
         magcal_cont_heading_t hd;
         uint32_t t_ms = isfinite(g_t[i]) && isfinite(g_t[0]) ? (uint32_t)((g_t[i] - g_t[0]) * 1000.0) : (uint32_t)(i * 20u);
         TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_push(&g_cc, &m, t_ms));
-        if (magcal_cont_step(&g_cc) == MAGCAL_CONT_ADOPTED && first < 0) {
-            first = (long)i;
+        for (k = 0u; k < STEPS_PER_ROW; ++k) {
+            if (magcal_cont_step(&g_cc) == MAGCAL_CONT_ADOPTED && first < 0) {
+                first = (long)i;
+            }
         }
         TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_heading(&g_cc, &m, 0.0f, &hd));
         trusted += hd.trust == MAGCAL_TRUST_OK ? 1u : 0u;
+    }
+    /* after the recording the firmware's loop goes on: the solve under way ends (no pushes) */
+    for (k = 0u; k < 100000u && g_cc.stage != 0u; ++k) {
+        if (magcal_cont_step(&g_cc) == MAGCAL_CONT_ADOPTED && first < 0) {
+            first = (long)n;
+        }
     }
     raw = test_radius_spread(&ident, g_rows, g_glitch, n);
     cor = g_cc.generation > 0u ? test_radius_spread(&g_cc.cal, g_rows, g_glitch, n) : INFINITY;

@@ -137,7 +137,9 @@ typedef enum {
 typedef struct {
     magcal_intake_cfg_t intake;     /**< store (2-D; default MAGCAL_INTAKE_CFG_DEFAULT_2D) */
     magcal_calibrator_cfg_t solver; /**< batch solver (default MAGCAL_CALIBRATOR_CFG_DEFAULT) */
-    float solve_coverage_deg;       /**< live coverage that starts a solve (default 270: the solver's gate) */
+    float solve_coverage_deg;       /**< live coverage that starts a solve (default 280: one 10-degree sector above the
+                                         solver's 270 gate, the live estimate's error; a sliced solve that
+                                         fails COVERAGE costs ~1000 steps) */
     uint16_t min_new;               /**< samples stored since the last solve to start one (default 24) */
     uint16_t drain_per_step;        /**< ring samples moved into the store per step, >= 1 (default 4) */
     float age_ms;                   /**< ageing: the adoption margin falls from
@@ -161,7 +163,7 @@ typedef struct {
 /** Defaults: work untuned from 10 to 100 Hz (time constants are in ms of the push stamps). */
 #define MAGCAL_CONT_CFG_DEFAULT                                                                    \
     {                                                                                              \
-        MAGCAL_INTAKE_CFG_DEFAULT_2D, MAGCAL_CALIBRATOR_CFG_DEFAULT, 270.0f, 24u, 2u, 600000.0f, 4.0f,  \
+        MAGCAL_INTAKE_CFG_DEFAULT_2D, MAGCAL_CALIBRATOR_CFG_DEFAULT, 280.0f, 24u, 2u, 600000.0f, 4.0f,  \
             0.06f, 8000u, 3u, 4000u, 150u, 200u, 4.0f, MAGCAL_SLICE_BUDGET_DEFAULT                 \
     }
 
