@@ -10,7 +10,7 @@
  * as 90 degrees the solve never found (gen_drive seed 3: live 270, solver 190). A provisional
  * centre far from the ring's (a short arc's small circle) puts the samples outside the band too,
  * so its bins do not read as coverage either. Until there is a radius (centre NONE) every sample
- * counts. O(slots): one squared distance per stored sample.
+ * counts. O(slots): a squared distance per stored sample, up to the completion depth per bin.
  */
 #include <string.h>
 
@@ -19,8 +19,9 @@
 #define RING_LO2 0.49f /* (0.7 R)^2: axis ratio 0.55 puts the ring within [0.74, 1.35] R */
 #define RING_HI2 1.96f /* (1.4 R)^2 */
 
-/* Samples of bin b on the ring (all of them before the store has a radius). */
-static uint32_t ring_count(const magcal_intake_t *st, uint32_t b)
+/* Samples of bin b on the ring (all of them before the store has a radius), counted up to
+ * `limit` (the completion depth: more are not needed). */
+static uint32_t ring_count(const magcal_intake_t *st, uint32_t b, uint32_t limit)
 {
     const uint32_t base = b * (uint32_t)st->cfg.per_bin;
     const float r2 = st->radius * st->radius;
@@ -29,7 +30,7 @@ static uint32_t ring_count(const magcal_intake_t *st, uint32_t b)
     if (!(st->radius > 0.0f) || st->centre_source == (uint8_t)MAGCAL_INTAKE_CENTRE_NONE) {
         return st->count[b];
     }
-    for (k = base; k < base + st->count[b]; ++k) {
+    for (k = base; k < base + st->count[b] && n < limit; ++k) {
         const float dx = st->slots[k].m.x - st->centre.x;
         const float dy = st->slots[k].m.y - st->centre.y;
         const float dz = (st->cfg.dims == 3u) ? st->slots[k].m.z - st->centre.z : 0.0f;
@@ -42,14 +43,14 @@ static uint32_t ring_count(const magcal_intake_t *st, uint32_t b)
 }
 
 /* Filled-bin mask from the ring counts; returns the number of filled bins, adds the completion
- * depth (each bin counted up to `depth`) to *deep. */
+ * depth (each bin counted up to `depth`, >= 1) to *deep. */
 static uint32_t ring_mask(const magcal_intake_t *st, uint32_t *words, uint32_t depth, uint32_t *deep)
 {
     uint32_t filled = 0u;
     uint32_t b;
     (void)memset(words, 0, MAGCAL_INTAKE_MASK_WORDS(st->n_bins) * sizeof(words[0]));
     for (b = 0u; b < st->n_bins; ++b) {
-        const uint32_t c = ring_count(st, b);
+        const uint32_t c = ring_count(st, b, depth);
         if (c != 0u) {
             words[b / 32u] |= (uint32_t)1u << (b % 32u);
             filled++;
@@ -151,6 +152,6 @@ magcal_status_t magcal_intake_mask(const magcal_intake_t *st, uint32_t *words, s
     if (nwords < MAGCAL_INTAKE_MASK_WORDS(st->n_bins)) {
         return MAGCAL_ERR_WORKSPACE;
     }
-    (void)ring_mask(st, words, 0u, &deep);
+    (void)ring_mask(st, words, 1u, &deep);
     return MAGCAL_OK;
 }
