@@ -34,7 +34,10 @@
  * (sectors - longest empty circular run) x sector width, the missing sector = that run; a solve
  * around its fitted centre finds the same within one sector when the centre is right. 3-D: filled
  * cells, a mask (magcal_intake_mask). Completion = share of bins holding at least ceil(per_bin / 2)
- * samples, each bin counted up to that depth.
+ * samples, each bin counted up to that depth. Once the store has a centre and a radius R, a bin
+ * counts (coverage, completion, mask) only its samples ON THE RING, at [0.7, 1.4] x R from the
+ * centre: a spike stays stored until its bin fills but is not coverage (the solver's filter
+ * rejects it), and a provisional centre far from the ring's reads as little coverage.
  *
  * Memory: caller-owned slots, MAGCAL_INTAKE_SLOTS_2D(sectors, per_bin) or
  * MAGCAL_INTAKE_SLOTS_3D(bands, per_bin) of them; the instance holds the per-bin counts
@@ -136,7 +139,7 @@ typedef struct {
 typedef struct {
     uint32_t stored;           /**< samples held */
     uint16_t bins;             /**< bins of the mask (2-D sectors, 3-D cells) */
-    uint16_t bins_filled;      /**< bins with at least one sample */
+    uint16_t bins_filled;      /**< bins with at least one sample on the ring */
     float fill_fraction;       /**< bins_filled / bins */
     float completion_pct;      /**< 0..100: bins at depth ceil(per_bin / 2), each counted up to it */
     float coverage_deg;        /**< 2-D: (sectors - longest empty run) x width; 3-D: 360 x fill_fraction */
@@ -242,13 +245,14 @@ magcal_status_t magcal_intake_settle(magcal_intake_t *st);
 magcal_status_t magcal_intake_reset(magcal_intake_t *st);
 
 /**
- * @brief Live progress (O(bins)).
+ * @brief Live progress (O(slots): one squared distance per stored sample, the ring test above).
  * @return MAGCAL_OK, MAGCAL_ERR_NULL, MAGCAL_ERR_NOT_INITIALISED.
  */
 magcal_status_t magcal_intake_progress(const magcal_intake_t *st, magcal_intake_progress_t *out);
 
 /**
- * @brief Filled-bin mask: bit (b % 32) of words[b / 32] is set when bin b holds a sample.
+ * @brief Filled-bin mask: bit (b % 32) of words[b / 32] is set when bin b holds a sample on the
+ *        ring (file comment; O(slots)).
  * @param[in]  st     initialised store.
  * @param[out] words  mask.
  * @param[in]  nwords its length, >= MAGCAL_INTAKE_MASK_WORDS(bins).

@@ -1,14 +1,72 @@
 /*
  * Intake progress: coverage with the calibrator's definition (2-D: covered degrees = (sectors -
  * longest empty circular run) x width, the missing sector = that run), filled fraction, completion
- * and the filled-bin mask. O(bins).
+ * and the filled-bin mask.
+ *
+ * A bin counts only the samples ON THE RING: at a distance from the centre within
+ * [RING_LO, RING_HI] x R (R: the installed or fitted radius). A spike (the start-up glitch, a
+ * driver's garbage burst) is stored like any sample until its bin fills, but the solver's density
+ * filter rejects it; counted, one lone spike in an empty stretch split the longest gap and read
+ * as 90 degrees the solve never found (gen_drive seed 3: live 270, solver 190). A provisional
+ * centre far from the ring's (a short arc's small circle) puts the samples outside the band too,
+ * so its bins do not read as coverage either. Until there is a radius (centre NONE) every sample
+ * counts. O(slots): a squared distance per stored sample, up to the completion depth per bin.
  */
 #include <string.h>
 
 #include "intake_internal.h"
 
+#define RING_LO2 0.49f /* (0.7 R)^2: axis ratio 0.55 puts the ring within [0.74, 1.35] R */
+#define RING_HI2 1.96f /* (1.4 R)^2 */
+
+/* Samples of bin b on the ring (all of them before the store has a radius), counted up to
+ * `limit` (the completion depth: more are not needed). */
+static uint32_t ring_count(const magcal_intake_t *st, uint32_t b, uint32_t limit)
+{
+    const uint32_t base = b * (uint32_t)st->cfg.per_bin;
+    const float r2 = st->radius * st->radius;
+    uint32_t n = 0u;
+    uint32_t k;
+    if (!(st->radius > 0.0f) || st->centre_source == (uint8_t)MAGCAL_INTAKE_CENTRE_NONE) {
+        return st->count[b];
+    }
+    for (k = base; k < base + st->count[b] && n < limit; ++k) {
+        const float dx = st->slots[k].m.x - st->centre.x;
+        const float dy = st->slots[k].m.y - st->centre.y;
+        const float dz = (st->cfg.dims == 3u) ? st->slots[k].m.z - st->centre.z : 0.0f;
+        const float d2 = dx * dx + dy * dy + dz * dz;
+        if (d2 >= RING_LO2 * r2 && d2 <= RING_HI2 * r2) {
+            n++;
+        }
+    }
+    return n;
+}
+
+/* Filled-bin mask from the ring counts; returns the number of filled bins, adds the completion
+ * depth (each bin counted up to `depth`, >= 1) to *deep. */
+static uint32_t ring_mask(const magcal_intake_t *st, uint32_t *words, uint32_t depth, uint32_t *deep)
+{
+    uint32_t filled = 0u;
+    uint32_t b;
+    (void)memset(words, 0, MAGCAL_INTAKE_MASK_WORDS(st->n_bins) * sizeof(words[0]));
+    for (b = 0u; b < st->n_bins; ++b) {
+        const uint32_t c = ring_count(st, b, depth);
+        if (c != 0u) {
+            words[b / 32u] |= (uint32_t)1u << (b % 32u);
+            filled++;
+        }
+        *deep += (c < depth) ? c : depth;
+    }
+    return filled;
+}
+
+static uint32_t is_set(const uint32_t *words, uint32_t b)
+{
+    return (words[b / 32u] >> (b % 32u)) & 1u;
+}
+
 /* Longest circular run of empty bins (nb when every bin is empty): length, and its first bin. */
-static uint32_t longest_empty_run(const magcal_intake_t *st, uint32_t *start)
+static uint32_t longest_empty_run(const magcal_intake_t *st, const uint32_t *words, uint32_t *start)
 {
     const uint32_t nb = st->n_bins;
     uint32_t best = 0u;
@@ -18,17 +76,17 @@ static uint32_t longest_empty_run(const magcal_intake_t *st, uint32_t *start)
     uint32_t i;
     *start = 0u;
     for (i = 0u; i < nb; ++i) {
-        if (st->count[i] != 0u) {
+        if (is_set(words, i) != 0u) {
             s0 = i + 1u; /* scan from just after a filled bin: circular runs are contiguous */
             break;
         }
     }
-    if (s0 == nb && (nb == 0u || st->count[nb - 1u] == 0u)) {
+    if (s0 == nb && (nb == 0u || is_set(words, nb - 1u) == 0u)) {
         return nb; /* no filled bin */
     }
     for (i = 0u; i < nb; ++i) {
         const uint32_t b = (s0 + i) % nb;
-        if (st->count[b] == 0u) {
+        if (is_set(words, b) == 0u) {
             if (run == 0u) {
                 run_start = b;
             }
@@ -46,10 +104,10 @@ static uint32_t longest_empty_run(const magcal_intake_t *st, uint32_t *start)
 
 magcal_status_t magcal_intake_progress(const magcal_intake_t *st, magcal_intake_progress_t *out)
 {
+    uint32_t words[MAGCAL_INTAKE_MASK_WORDS(MAGCAL_INTAKE_MAX_BINS)];
     uint32_t depth;
-    uint32_t filled = 0u;
+    uint32_t filled;
     uint32_t deep = 0u;
-    uint32_t b;
     if (st == NULL || out == NULL) {
         return MAGCAL_ERR_NULL;
     }
@@ -57,11 +115,7 @@ magcal_status_t magcal_intake_progress(const magcal_intake_t *st, magcal_intake_
         return MAGCAL_ERR_NOT_INITIALISED;
     }
     depth = ((uint32_t)st->cfg.per_bin + 1u) / 2u;
-    for (b = 0u; b < st->n_bins; ++b) {
-        const uint32_t c = st->count[b];
-        filled += (c != 0u) ? 1u : 0u;
-        deep += (c < depth) ? c : depth;
-    }
+    filled = ring_mask(st, words, depth, &deep);
     (void)memset(out, 0, sizeof(*out));
     out->stored = st->ctr.stored;
     out->bins = st->n_bins;
@@ -71,7 +125,7 @@ magcal_status_t magcal_intake_progress(const magcal_intake_t *st, magcal_intake_
     if (st->cfg.dims == 2u) {
         const float w = 360.0f / (float)st->n_bins;
         uint32_t start = 0u;
-        const uint32_t run = longest_empty_run(st, &start);
+        const uint32_t run = longest_empty_run(st, words, &start);
         const uint32_t covered = (uint32_t)st->n_bins - run;
         out->coverage_deg = (float)covered * w;
         out->missing_start_deg = (run > 0u) ? (float)start * w : 0.0f;
@@ -88,7 +142,7 @@ magcal_status_t magcal_intake_progress(const magcal_intake_t *st, magcal_intake_
 
 magcal_status_t magcal_intake_mask(const magcal_intake_t *st, uint32_t *words, size_t nwords)
 {
-    uint32_t b;
+    uint32_t deep = 0u;
     if (st == NULL || words == NULL) {
         return MAGCAL_ERR_NULL;
     }
@@ -98,11 +152,6 @@ magcal_status_t magcal_intake_mask(const magcal_intake_t *st, uint32_t *words, s
     if (nwords < MAGCAL_INTAKE_MASK_WORDS(st->n_bins)) {
         return MAGCAL_ERR_WORKSPACE;
     }
-    (void)memset(words, 0, MAGCAL_INTAKE_MASK_WORDS(st->n_bins) * sizeof(words[0]));
-    for (b = 0u; b < st->n_bins; ++b) {
-        if (st->count[b] != 0u) {
-            words[b / 32u] |= (uint32_t)1u << (b % 32u);
-        }
-    }
+    (void)ring_mask(st, words, 1u, &deep);
     return MAGCAL_OK;
 }

@@ -62,14 +62,18 @@ static MAGCAL_NOINLINE void cont_drain(magcal_cont_t *cc, uint32_t max, magcal_c
     }
 }
 
+/* Worth a solve: enough new information (cheap counters first), then the live coverage, which
+ * counts only ring samples (intake progress.c, O(slots)) and so agrees with the solver's. */
 static int cont_worth(const magcal_cont_t *cc)
 {
     magcal_intake_progress_t p;
+    const int fresh = (cc->store.ctr.added + cc->store.ctr.replaced) - cc->stored_at_solve >= cc->cfg.min_new ||
+                      (cc->last_status == MAGCAL_ERR_NOT_BETTER && (float)cc->solve_ms_acc >= 0.25f * cc->cfg.age_ms);
+    if (fresh == 0 || cc->store.ctr.stored < cc->cfg.solver.min_samples) {
+        return 0;
+    }
     (void)magcal_intake_progress(&cc->store, &p);
-    return p.centre_source != MAGCAL_INTAKE_CENTRE_NONE && p.coverage_deg >= cc->cfg.solve_coverage_deg && p.stored >= cc->cfg.solver.min_samples &&
-           ((cc->store.ctr.added + cc->store.ctr.replaced) - cc->stored_at_solve >= cc->cfg.min_new ||
-            (cc->last_status == MAGCAL_ERR_NOT_BETTER &&
-             (float)cc->solve_ms_acc >= 0.25f * cc->cfg.age_ms));
+    return p.centre_source != MAGCAL_INTAKE_CENTRE_NONE && p.rebinning == 0u && p.coverage_deg >= cc->cfg.solve_coverage_deg;
 }
 
 /* Start a solve: the snapshot of the store (the drain pauses until it is complete, so the
