@@ -20,6 +20,13 @@ if grep -E "^(W|E): |configured multiple times|CMake Warning" "$log/main.txt"; t
 demo=build/host/tools/replay/demo
 stem=lsm9ds1_pmodnav_driver_glitches
 grep -q "status            ok" "$log/main.txt" || fail "no report with status ok on stdout"
+grep -qE "^ +[0-9]+  adopted  ok" "$log/main.txt" || fail "the stream replay adopted no calibration"
+/usr/bin/python3 - "$demo/$stem.stream.json" <<'PY' || fail "stream replay JSON"
+import json, sys
+d = json.load(open(sys.argv[1]))
+assert d["rows"] == 303 and d["generation"] >= 1, d
+assert any(e["event"] == "adopted" for e in d["events"]), d["events"]
+PY
 /usr/bin/python3 - "$demo/$stem.json" "$demo/$stem.headings.csv" "$demo/$stem.rec" <<'PY' || fail "main job outputs"
 import csv, json, os, sys
 rep = json.load(open(sys.argv[1]))

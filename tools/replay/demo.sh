@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# The README's main job: replay a bundled recorded dump through the library (replay port ->
-# calibrator -> heading), print the report, and write the plot where matplotlib is present.
+# The README's main job: replay a bundled recorded dump through the library in stream order (push
+# + step per row: the continuous calibrator as the MCU runs it), then as one batch (replay port ->
+# calibrator -> heading), print both reports, and write the plot where matplotlib is present.
 #   tools/replay/demo.sh MAGCAL_REPLAY_BIN OUT_DIR [DUMP.csv]
 set -euo pipefail
 bin=$1
@@ -12,6 +13,17 @@ unit=()
 if [ -z "${3:-}" ]; then unit=(--field-unit gauss); fi
 mkdir -p "$out"
 stem=$(basename "$dump" .csv)
+# 1. the firmware's loop: every row in file order through push + step (the continuous calibrator,
+#    time-sliced solve), 14 steps per row = a 100 Hz control loop with this ~7 Hz sensor
+spr=${MAGCAL_DEMO_STEPS_PER_ROW:-14}
+echo "== stream replay (continuous calibrator, as the MCU runs it)"
+"$bin" --stream --steps-per-row "$spr" "$dump"
+"$bin" --stream --steps-per-row "$spr" --json --headings "$out/$stem.stream_headings.csv" "$dump" \
+    > "$out/$stem.stream.json"
+echo "stream report (JSON): $out/$stem.stream.json"
+echo "stream per-row headings (trust, generation): $out/$stem.stream_headings.csv"
+# 2. the same dump as one batch (every row offered to one run(), the offline view)
+echo "== batch replay (one run() over the whole dump)"
 "$bin" "${unit[@]}" "$dump"
 "$bin" --json "${unit[@]}" --headings "$out/$stem.headings.csv" "$dump" > "$out/$stem.json"
 echo "report (JSON): $out/$stem.json"

@@ -373,6 +373,46 @@ static int replay_stream3(const char *path, const char *hpath, int json, double 
     return g_c3.has_cal != 0u ? 0 : 3;
 }
 
+/* The text report of a 2-D stream replay: events, the calibration in force, rows by trust. */
+static void print_stream_text(const char *file, const magcal_replay_csv_t *d, const cJSON *ev,
+                              const size_t by_trust[4], unsigned steps_per_row, size_t tail)
+{
+    const cJSON *e;
+    printf("magcal-replay --stream: %s\n", file);
+    printf("  %zu rows in file order: push + %u step() per row at the default configuration "
+           "(budget %u M4F instructions per step), then %zu steps after the last row\n",
+           d->n_rows, steps_per_row, (unsigned)g_cc.cfg.step_budget, tail);
+    printf("  events (row, event, status, estimated heading error):\n");
+    cJSON_ArrayForEach(e, ev)
+    {
+        const cJSON *err = cJSON_GetObjectItemCaseSensitive(e, "heading_err_deg");
+        const char *what = cJSON_GetObjectItemCaseSensitive(e, "event")->valuestring;
+        if (strcmp(what, "disturbance") == 0) {
+            continue; /* counted below */
+        }
+        printf("    %6d  %-8s %-40s", cJSON_GetObjectItemCaseSensitive(e, "row")->valueint, what,
+               cJSON_GetObjectItemCaseSensitive(e, "status")->valuestring);
+        if (cJSON_IsNumber(err)) {
+            printf(" %.2f deg", err->valuedouble);
+        }
+        putchar('\n');
+    }
+    if (g_cc.generation > 0u) {
+        printf("  calibration in force (generation %u): offset (%.5g, %.5g), matrix [[%.5f, %.5f], [%.5f, %.5f]], "
+               "radius %.5g, estimated heading error %.2f deg\n",
+               (unsigned)g_cc.generation, (double)g_cc.cal.offset.x, (double)g_cc.cal.offset.y,
+               (double)g_cc.cal.m[0][0], (double)g_cc.cal.m[0][1], (double)g_cc.cal.m[1][0],
+               (double)g_cc.cal.m[1][1], (double)g_cc.cal.radius, (double)g_cc.adopted_err);
+    } else {
+        printf("  no calibration adopted (last solve: %s)\n", magcal_status_str(g_cc.last_status));
+    }
+    printf("  headings: %zu ok, %zu uncalibrated, %zu disturbed, %zu changed; %u solves, %u changes, "
+           "%u ring overflows\n",
+           by_trust[MAGCAL_TRUST_OK], by_trust[MAGCAL_TRUST_UNCALIBRATED], by_trust[MAGCAL_TRUST_DISTURBED],
+           by_trust[MAGCAL_TRUST_CHANGED], (unsigned)g_cc.solves, (unsigned)g_cc.changes,
+           (unsigned)g_cc.dropped);
+}
+
 /* One step's outcome as an event of the JSON report. */
 static void stream_event(cJSON *ev, size_t row, magcal_cont_outcome_t oc)
 {
@@ -415,6 +455,7 @@ int replay_stream_main(int argc, char **argv)
     const double *tc;
     int mode3 = 0;
     unsigned steps_per_row = 1u;
+    size_t by_trust[4] = {0u, 0u, 0u, 0u};
     unsigned k;
     size_t tail;
 
@@ -540,6 +581,9 @@ int replay_stream_main(int argc, char **argv)
         if (hd.trust == MAGCAL_TRUST_OK) {
             ++trusted;
         }
+        if ((unsigned)hd.trust < 4u) {
+            by_trust[(unsigned)hd.trust]++;
+        }
         if (hf != NULL) {
             fprintf(hf, "%zu,%.4f,%.4f,%s,%u", i, (double)hd.raw_heading_deg, (double)hd.heading_deg,
                     magcal_trust_str(hd.trust), (unsigned)hd.generation);
@@ -580,8 +624,7 @@ int replay_stream_main(int argc, char **argv)
             free(s);
         }
     } else {
-        printf("stream: %zu rows, %zu trusted, %u adoptions, %u solves, %u changes\n", d.n_rows, trusted,
-               (unsigned)g_cc.generation, (unsigned)g_cc.solves, (unsigned)g_cc.changes);
+        print_stream_text(argv[optind], &d, ev, by_trust, steps_per_row, tail);
     }
     cJSON_Delete(root);
     if (hf != NULL && fclose(hf) != 0) {
