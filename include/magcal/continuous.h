@@ -31,7 +31,7 @@
  *  RELEARNING -> SOLVING   as COLLECTING; a solve that adopts, or that confirms the installed
  *                          calibration on fresh data (NOT_BETTER), ends the relearning.
  *
- * Work per step. cfg.step_budget (default MAGCAL_SLICE_BUDGET_DEFAULT = 6000) estimated
+ * Work per step. cfg.step_budget (default MAGCAL_SLICE_BUDGET_DEFAULT = 4500) estimated
  * Cortex-M4F instructions per call, shared by the drain and the solve, every piece of work charged
  * by a measured weight (docs/calibrator.md "Work per call"):
  *  - drain: at least one ring sample when the ring is not empty, at most cfg.drain_per_step, and
@@ -156,7 +156,7 @@ typedef struct {
     uint32_t disturb_hold_ms;       /**< transient judge: flag held after the residual returns (200) */
     float disturb_k;                /**< transient judge: flag at |smoothed - baseline| > k sigma (4) */
     uint32_t step_budget;           /**< work per step(), estimated Cortex-M4F instructions, >= 1
-                                         (default MAGCAL_SLICE_BUDGET_DEFAULT = 6000; UINT32_MAX:
+                                         (default MAGCAL_SLICE_BUDGET_DEFAULT = 4500; UINT32_MAX:
                                          a whole solve per step): "Work per step" above */
 } magcal_cont_cfg_t;
 
@@ -257,6 +257,8 @@ typedef struct {
     uint32_t snap_bin;             /* snapshot: next store bin to copy */
     uint32_t snap_n;               /* snapshot: samples copied */
     uint32_t snap_stored;          /* store added + replaced at the snapshot */
+    uint32_t worth_seen;           /* store added + replaced at the last coverage count (cont_step.c) */
+    uint8_t worth_checked;         /* 1: worth_seen is valid */
 } magcal_cont_t;
 
 /**

@@ -64,14 +64,25 @@ static MAGCAL_NOINLINE void cont_drain(magcal_cont_t *cc, uint32_t max, magcal_c
 
 /* Worth a solve: enough new information (cheap counters first), then the live coverage, which
  * counts only ring samples (intake progress.c, O(slots)) and so agrees with the solver's. */
-static int cont_worth(const magcal_cont_t *cc)
+/* The cheap half of cont_worth: new information since the last solve, enough samples, and the
+ * store changed since the last coverage count (1 = the O(slots) coverage count is due). */
+static int cont_worth_due(const magcal_cont_t *cc)
+{
+    const uint32_t st = cc->store.ctr.added + cc->store.ctr.replaced;
+    const int fresh = st - cc->stored_at_solve >= cc->cfg.min_new ||
+                      (cc->last_status == MAGCAL_ERR_NOT_BETTER && (float)cc->solve_ms_acc >= 0.25f * cc->cfg.age_ms);
+    return fresh != 0 && cc->store.ctr.stored >= cc->cfg.solver.min_samples &&
+           (cc->worth_checked == 0u || cc->worth_seen != st);
+}
+
+static int cont_worth(magcal_cont_t *cc)
 {
     magcal_intake_progress_t p;
-    const int fresh = (cc->store.ctr.added + cc->store.ctr.replaced) - cc->stored_at_solve >= cc->cfg.min_new ||
-                      (cc->last_status == MAGCAL_ERR_NOT_BETTER && (float)cc->solve_ms_acc >= 0.25f * cc->cfg.age_ms);
-    if (fresh == 0 || cc->store.ctr.stored < cc->cfg.solver.min_samples) {
+    if (cont_worth_due(cc) == 0) {
         return 0;
     }
+    cc->worth_seen = cc->store.ctr.added + cc->store.ctr.replaced;
+    cc->worth_checked = 1u;
     (void)magcal_intake_progress(&cc->store, &p);
     return p.centre_source != MAGCAL_INTAKE_CENTRE_NONE && p.rebinning == 0u && p.coverage_deg >= cc->cfg.solve_coverage_deg;
 }
@@ -160,6 +171,15 @@ magcal_cont_outcome_t magcal_cont_step(magcal_cont_t *cc)
     b.left = cc->cfg.step_budget;
     b.unlimited = (uint8_t)(cc->cfg.step_budget == UINT32_MAX ? 1u : 0u);
     cc->change_flag = 0u;
+    if (cc->stage == (uint8_t)CONT_STAGE_NONE && b.unlimited == 0u && cont_worth_due(cc) != 0) {
+        /* the coverage count (O(slots)) gets a step of its own, without the drain: a step never
+         * pays both; it is due again only after the store changed, so the drain keeps up */
+        if (cont_worth(cc) == 0) {
+            return MAGCAL_CONT_IDLE;
+        }
+        cont_start(cc);
+        return MAGCAL_CONT_IN_PROGRESS;
+    }
     if (cc->stage != (uint8_t)CONT_STAGE_SNAPSHOT) {
         cont_drain(cc, cc->cfg.drain_per_step, &b);
     }
@@ -167,8 +187,8 @@ magcal_cont_outcome_t magcal_cont_step(magcal_cont_t *cc)
         return MAGCAL_CONT_CHANGE;
     }
     if (cc->stage == (uint8_t)CONT_STAGE_NONE) {
-        if (cont_worth(cc) == 0) {
-            return MAGCAL_CONT_IDLE;
+        if (b.unlimited == 0u || cont_worth(cc) == 0) {
+            return MAGCAL_CONT_IDLE; /* sliced: the count runs in the next step */
         }
         cont_start(cc);
     }
