@@ -257,6 +257,14 @@ typedef struct {
     uint32_t snap_bin;             /* snapshot: next store bin to copy */
     uint32_t snap_n;               /* snapshot: samples copied */
     uint32_t snap_stored;          /* store added + replaced at the snapshot */
+    /* field-model fit at an adoption, time-sliced (cont_change.c; the drain pauses meanwhile) */
+    uint8_t fit_phase;             /* pass under way, 0 = none */
+    uint8_t fit_skip;              /* model form being fitted (as fz_skip) */
+    uint32_t fit_bin;              /* pass position: store bin */
+    uint32_t fit_k;                /* pass position: sample in the bin */
+    float fit_acc[3];              /* pass sums (z: sum, sum of squares, n; sums: n; sigma: ss, n) */
+    float fit_b[7];                /* right-hand side of the normal equations, then the coefficients */
+    uint32_t fit_cover[2];         /* sectors the store covers (to fz_cover with the model) */
 } magcal_cont_t;
 
 /**

@@ -18,7 +18,14 @@
 #define CONT_W_SNAP 14u    /* one sample of the snapshot */
 #define CONT_W_BIN 20u     /* one bin of the snapshot */
 
-enum { CONT_STAGE_NONE = 0, CONT_STAGE_SNAPSHOT = 1, CONT_STAGE_SOLVE = 2 };
+enum { CONT_STAGE_NONE = 0, CONT_STAGE_SNAPSHOT = 1, CONT_STAGE_SOLVE = 2, CONT_STAGE_FIT = 3 };
+
+/* 1 while the store must not change (the snapshot, or the field-model fit after an adoption):
+ * the drain pauses (the ring holds the samples that arrive meanwhile). */
+static int cont_store_frozen(const magcal_cont_t *cc)
+{
+    return cc->stage == (uint8_t)CONT_STAGE_SNAPSHOT || cc->stage == (uint8_t)CONT_STAGE_FIT;
+}
 
 /* Judge one sample against the installed calibration (change detection): 1 = do not store it. */
 static MAGCAL_NOINLINE int cont_screen(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms)
@@ -123,14 +130,30 @@ static MAGCAL_NOINLINE int cont_snapshot_part(magcal_cont_t *cc, magcal_cal_budg
     return 0;
 }
 
-/* A solve ended with st: adoption over time (cont_adopt.c), the outcome. */
+/* A solve ended with st: adoption over time (cont_adopt.c), the outcome. An adoption starts the
+ * field-model fit (stage FIT, the following steps; the judge is radius-only until it ends). */
 static MAGCAL_NOINLINE magcal_cont_outcome_t cont_end(magcal_cont_t *cc, magcal_status_t st)
 {
     cc->stage = (uint8_t)CONT_STAGE_NONE;
+    cc->fit_phase = 0u;
     cc->last_outcome = magcal_cont_finish_solve(cc, st);
     /* new information counts from the store the solve saw (its snapshot), not from its end */
     cc->stored_at_solve = cc->snap_stored;
+    if (cc->fit_phase != 0u) {
+        cc->stage = (uint8_t)CONT_STAGE_FIT;
+    }
     return cc->last_outcome;
+}
+
+/* Field-model fit work within the budget (at least one visit): IN_PROGRESS while it lasts, IDLE
+ * when it ended. */
+static MAGCAL_NOINLINE magcal_cont_outcome_t cont_fit_part(magcal_cont_t *cc, magcal_cal_budget_t *b)
+{
+    if (magcal_cont_fit_step(cc, b) == 0) {
+        return MAGCAL_CONT_IN_PROGRESS;
+    }
+    cc->stage = (uint8_t)CONT_STAGE_NONE;
+    return MAGCAL_CONT_IDLE;
 }
 
 /* Solve work within the budget (at least one visit); the outcome when the solve ended. The
@@ -139,6 +162,10 @@ static MAGCAL_NOINLINE magcal_cont_outcome_t cont_end(magcal_cont_t *cc, magcal_
 static magcal_cont_outcome_t cont_solve(magcal_cont_t *cc, magcal_cal_budget_t *b)
 {
     magcal_status_t st;
+    magcal_cont_outcome_t oc;
+    if (cc->stage == (uint8_t)CONT_STAGE_FIT) {
+        return cont_fit_part(cc, b);
+    }
     if (cont_snapshot_part(cc, b) != 0) {
         return MAGCAL_CONT_IN_PROGRESS;
     }
@@ -148,7 +175,11 @@ static magcal_cont_outcome_t cont_solve(magcal_cont_t *cc, magcal_cal_budget_t *
     if (st == MAGCAL_IN_PROGRESS) {
         return MAGCAL_CONT_IN_PROGRESS;
     }
-    return cont_end(cc, st);
+    oc = cont_end(cc, st);
+    if (cc->stage == (uint8_t)CONT_STAGE_FIT && b->unlimited != 0u) {
+        (void)cont_fit_part(cc, b); /* unlimited: the whole fit now (else from the next step on) */
+    }
+    return oc;
 }
 
 magcal_cont_outcome_t magcal_cont_step(magcal_cont_t *cc)
@@ -160,7 +191,7 @@ magcal_cont_outcome_t magcal_cont_step(magcal_cont_t *cc)
     b.left = cc->cfg.step_budget;
     b.unlimited = (uint8_t)(cc->cfg.step_budget == UINT32_MAX ? 1u : 0u);
     cc->change_flag = 0u;
-    if (cc->stage != (uint8_t)CONT_STAGE_SNAPSHOT) {
+    if (cont_store_frozen(cc) == 0) {
         cont_drain(cc, cc->cfg.drain_per_step, &b);
     }
     if (cc->change_flag != 0u) {
@@ -197,7 +228,7 @@ magcal_cont_outcome_t magcal_cont_solve_blocking(magcal_cont_t *cc, int force)
         return MAGCAL_CONT_IDLE;
     }
     cc->force = (uint8_t)(force != 0 ? 1u : 0u); /* kept in cc: nothing but cc live across calls */
-    if (cc->stage != (uint8_t)CONT_STAGE_SNAPSHOT) {
+    if (cont_store_frozen(cc) == 0) {
         cont_drain(cc, MAGCAL_CONT_RING, &b);
     }
     if (cont_begin(cc) == 0) {
