@@ -264,7 +264,11 @@ typedef struct {
     uint32_t fit_k;                /* pass position: sample in the bin */
     float fit_acc[3];              /* pass sums (z: sum, sum of squares, n; sums: n; sigma: ss, n) */
     float fit_b[7];                /* right-hand side of the normal equations, then the coefficients */
-    uint32_t fit_cover[2];         /* sectors the store covers (to fz_cover with the model) */
+    float fit_a[28];               /* the full form's normal matrix (packed lower), its right-hand side */
+    float fit_b0[7];
+    uint32_t park_n;               /* ring samples parked in buf during the fit (cont_step.c) */
+    uint32_t park_i;               /* parked samples drained since */
+    uint8_t fit_cal_ok;            /* cal valid (validated once at the fit's begin) */
 } magcal_cont_t;
 
 /**

@@ -359,9 +359,9 @@ void magcal_cont_declare_change(magcal_cont_t *cc)
 /* Time-sliced field-model fit (magcal_cont_fit_begin / _step): passes over the store in bin
  * order, position (fit_bin, fit_k) and sums in cc. Weights, estimated M4F instructions (host
  * callgrind x 1.2): one sample of each pass, one bin advanced, the Cholesky solve of one form. */
-#define CONT_W_FIT_Z 200u     /* z mean / variance and the sector covered: one sample */
-#define CONT_W_FIT_SUM 150u   /* normal-equation sums: one sample */
-#define CONT_W_FIT_SIGMA 120u /* the model's residual: one sample */
+#define CONT_W_FIT_Z 40u      /* z mean / variance: one sample */
+#define CONT_W_FIT_SUM 560u   /* normal-equation sums: one sample (the full form; less without u) */
+#define CONT_W_FIT_SIGMA 420u /* the model's residual and the sector covered: one sample */
 #define CONT_W_FIT_BIN 8u    /* one bin advanced */
 #define CONT_W_FIT_CHOL 2400u /* Cholesky + solve of one model form (7 x 7 at most) */
 
@@ -388,6 +388,23 @@ static void cont_fit_pass(magcal_cont_t *cc, uint8_t phase)
     }
 }
 
+/* Corrected x, y of a store sample during the fit: magcal_correct_apply (heading.c) without its
+ * per-call validation of cc->cal (validated once at the fit's begin, fit_cal_ok; cc->cal does not
+ * change during the fit). 1 when defined. */
+static int cont_fit_corrected(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_vec2_t *h)
+{
+    float ux;
+    float uy;
+    if (cc->fit_cal_ok == 0u || !magcal_isfinite_f(m->x) || !magcal_isfinite_f(m->y)) {
+        return 0;
+    }
+    ux = m->x - cc->cal.offset.x;
+    uy = m->y - cc->cal.offset.y;
+    h->x = cc->cal.m[0][0] * ux + cc->cal.m[0][1] * uy;
+    h->y = cc->cal.m[1][0] * ux + cc->cal.m[1][1] * uy;
+    return magcal_isfinite_f(h->x) && magcal_isfinite_f(h->y);
+}
+
 /* One sample of the sums pass: normal equations of |h|^2 = f . c over the samples with
  * | |h| / R - 1 | <= 0.35 (hills move the horizontal radius by up to ~20 %). Unit-radius
  * variables (file comment); fit_acc[2] counts the samples used. */
@@ -396,15 +413,12 @@ static void cont_fz_add(magcal_cont_t *cc, const magcal_vec3_t *m)
     const uint32_t skip = cc->fit_skip;
     const uint32_t nf = 7u - skip;
     float *a = cc->fz_l;
-    magcal_vec2_t raw;
     magcal_vec2_t h;
     float f[7];
     float y;
     uint32_t p;
     uint32_t q;
-    raw.x = m->x;
-    raw.y = m->y;
-    if (magcal_correct_apply(&cc->cal, raw, &h) != MAGCAL_OK) {
+    if (cont_fit_corrected(cc, m, &h) == 0) {
         return;
     }
     h.x /= cc->cal.radius;
@@ -422,16 +436,17 @@ static void cont_fz_add(magcal_cont_t *cc, const magcal_vec3_t *m)
         }
     }
     for (p = 0u; p < nf; ++p) {
+        const float fp = f[p];
         for (q = 0u; q <= p; ++q) {
-            a[p * (p + 1u) / 2u + q] += f[p] * f[q];
+            *a++ += fp * f[q]; /* packed: row p, column q at p (p + 1) / 2 + q */
         }
-        cc->fit_b[p] += f[p] * y;
+        cc->fit_b[p] += fp * y;
     }
     cc->fit_acc[2] += 1.0f;
 }
 
-/* One sample of the current pass: z sums and the sectors covered (the judge's sector does not
- * depend on the model), the normal-equation sums, or the model's residual (the judge's rel). */
+/* One sample of the current pass: z sums, the normal-equation sums, or the model's residual
+ * (the judge's rel) with the sector covered (the judge's sector). */
 static void cont_fit_sample(magcal_cont_t *cc, const magcal_vec3_t *m)
 {
     magcal_vec2_t h;
@@ -444,15 +459,13 @@ static void cont_fit_sample(magcal_cont_t *cc, const magcal_vec3_t *m)
         cc->fit_acc[0] += m->z;
         cc->fit_acc[1] += m->z * m->z;
         cc->fit_acc[2] += 1.0f;
-        if (cont_corrected(cc, m, &h) != 0) {
-            const uint8_t sec = cont_sector(&h, &v[0]);
-            cc->fit_cover[sec / 32u] |= 1u << (sec % 32u);
-        }
         return;
     }
-    if (cont_corrected(cc, m, &h) != 0) {
+    if (cont_fit_corrected(cc, m, &h) != 0) {
         /* sigma: RMS of the relative residual over the samples within 0.1 of the model */
         const float rel = cont_fz_rel(cc, &h, m->z, v);
+        const uint8_t sec = cont_sector(&h, &v[0]);
+        cc->fz_cover[sec / 32u] |= 1u << (sec % 32u);
         if (fabsf(rel) <= 0.1f) {
             cc->fit_acc[0] += rel * rel;
             cc->fit_acc[2] += 1.0f;
@@ -460,13 +473,29 @@ static void cont_fit_sample(magcal_cont_t *cc, const magcal_vec3_t *m)
     }
 }
 
-/* The next model form after a failed one (u^2, then u dropped); 1 when none is left. */
+/* The next model form after a failed one (u^2, then u dropped); 1 when none is left. The form
+ * without u^2 takes its sums from the full form's (the same products in the same order: its
+ * normal matrix is the full one without row and column 2), so only the form without u (whose
+ * right-hand side holds the earlier model's u terms) needs a pass of its own. */
 static int cont_fit_next_form(magcal_cont_t *cc)
 {
+    static const uint8_t keep[6] = {0u, 1u, 3u, 4u, 5u, 6u};
+    uint32_t r;
+    uint32_t c;
     cc->fit_skip++;
     if (cc->fit_skip >= 3u) {
         cc->fit_phase = (uint8_t)CONT_FIT_NONE;
         return 1;
+    }
+    if (cc->fit_skip == 1u && cc->fit_phase == (uint8_t)CONT_FIT_CHOL) {
+        /* the full form's sums had enough samples (so does this form: the same samples) */
+        for (r = 0u; r < 6u; ++r) {
+            for (c = 0u; c <= r; ++c) {
+                cc->fz_l[r * (r + 1u) / 2u + c] = cc->fit_a[keep[r] * (keep[r] + 1u) / 2u + keep[c]];
+            }
+            cc->fit_b[r] = cc->fit_b0[keep[r]];
+        }
+        return 0; /* phase CHOL */
     }
     cont_fit_pass(cc, (uint8_t)CONT_FIT_SUMS);
     return 0;
@@ -499,8 +528,8 @@ static int cont_fit_chol(magcal_cont_t *cc)
         cc->fz_hxy[k] = b[nf - 4u + k];
     }
     cc->dist_flag = 0u;
-    cc->fz_cover[0] = cc->fit_cover[0];
-    cc->fz_cover[1] = cc->fit_cover[1];
+    cc->fz_cover[0] = 0u; /* set by the sigma pass */
+    cc->fz_cover[1] = 0u;
     cont_fit_pass(cc, (uint8_t)CONT_FIT_SIGMA);
     return 0;
 }
@@ -522,7 +551,14 @@ static int cont_fit_pass_end(magcal_cont_t *cc)
         return 0;
     }
     if (cc->fit_phase == (uint8_t)CONT_FIT_SUMS) {
+        uint32_t p;
         if (n >= CONT_FZ_MIN_N) {
+            for (p = 0u; p < 28u; ++p) {
+                cc->fit_a[p] = cc->fz_l[p]; /* kept for the form without u^2 (cont_fit_next_form) */
+            }
+            for (p = 0u; p < 7u; ++p) {
+                cc->fit_b0[p] = cc->fit_b[p];
+            }
             cc->fit_phase = (uint8_t)CONT_FIT_CHOL;
             return 0;
         }
@@ -552,8 +588,10 @@ static int cont_fit_pass_end(magcal_cont_t *cc)
 void magcal_cont_fit_begin(magcal_cont_t *cc)
 {
     cc->fz_on = 0u;
-    cc->fit_cover[0] = 0u;
-    cc->fit_cover[1] = 0u;
+    /* the judge's condition on the calibration (cont_corrected), once for the whole fit */
+    cc->fit_cal_ok = (uint8_t)(cc->has_cal != 0u && magcal_cal2d_validate(&cc->cal) == MAGCAL_OK && cc->cal.radius > 0.0f
+                                   ? 1u
+                                   : 0u);
     cont_fit_pass(cc, (uint8_t)CONT_FIT_Z);
 }
 

@@ -7,6 +7,7 @@
  * budget (continuous.h "Work per step").
  */
 #include <math.h>
+#include <string.h>
 
 #include "../calibrator_internal.h"
 #include "magcal/config.h"
@@ -17,6 +18,7 @@
 #define CONT_W_SWEEP 7200u /* a push that ended a survey sweep (the ring fits): ends the drain */
 #define CONT_W_SNAP 14u    /* one sample of the snapshot */
 #define CONT_W_BIN 20u     /* one bin of the snapshot */
+#define CONT_W_PARK 30u    /* one ring sample parked during the field-model fit */
 
 enum { CONT_STAGE_NONE = 0, CONT_STAGE_SNAPSHOT = 1, CONT_STAGE_SOLVE = 2, CONT_STAGE_FIT = 3 };
 
@@ -55,17 +57,63 @@ static MAGCAL_NOINLINE void cont_drain(magcal_cont_t *cc, uint32_t max, magcal_c
     for (k = 0u; k < max; ++k) {
         uint32_t t = cc->tail;
         uint32_t sweeps = cc->store.sweeps;
-        if (t == cc->head || (k > 0u && b->unlimited == 0u && b->left <= half)) {
+        magcal_vec3_t m;
+        uint32_t t_ms;
+        if (k > 0u && b->unlimited == 0u && b->left <= half) {
+            break;
+        }
+        if (cc->park_i < cc->park_n) {
+            /* the samples parked during the field-model fit first (they are older) */
+            const magcal_vec2_t *pk = &cc->buf[2u * cc->park_i];
+            m.x = pk[0].x;
+            m.y = pk[0].y;
+            m.z = pk[1].x;
+            (void)memcpy(&t_ms, &pk[1].y, sizeof t_ms);
+            if (++cc->park_i == cc->park_n) {
+                cc->park_i = 0u;
+                cc->park_n = 0u;
+            }
+        } else {
+            if (t == cc->head) {
+                break;
+            }
+            MAGCAL_CONT_BARRIER(); /* the slot was written before head */
+            m = cc->ring[t % MAGCAL_CONT_RING];
+            t_ms = cc->ring_t[t % MAGCAL_CONT_RING];
+            MAGCAL_CONT_BARRIER(); /* read before the slot is handed back */
+            cc->tail = t + 1u;
+        }
+        if (cont_screen(cc, &m, t_ms) == 0) {
+            /* stored samples are counted by the store (added + replaced) */
+            (void)magcal_intake_push(&cc->store, &m, NULL);
+        }
+        (void)magcal_cal_spend(b, cc->store.sweeps != sweeps ? CONT_W_SWEEP : CONT_W_DRAIN);
+    }
+}
+
+/* During the field-model fit the store must not change: ring samples are parked, in order, in
+ * the solver buffer (free between solves: 2 entries per sample, raw x, y, z and the stamp's bits;
+ * cc->slots / 2 samples), so a fit of many steps does not overflow the ring; the drain takes
+ * them first after the fit, and no solve starts (no snapshot into the buffer) until it has. */
+static MAGCAL_NOINLINE void cont_park(magcal_cont_t *cc, magcal_cal_budget_t *b)
+{
+    while (cc->park_n < (uint32_t)(cc->slots / 2u)) {
+        const uint32_t t = cc->tail;
+        magcal_vec2_t *pk = &cc->buf[2u * cc->park_n];
+        if (t == cc->head) {
             break;
         }
         MAGCAL_CONT_BARRIER(); /* the slot was written before head */
-        if (cont_screen(cc, &cc->ring[t % MAGCAL_CONT_RING], cc->ring_t[t % MAGCAL_CONT_RING]) == 0) {
-            /* stored samples are counted by the store (added + replaced) */
-            (void)magcal_intake_push(&cc->store, &cc->ring[t % MAGCAL_CONT_RING], NULL);
-        }
+        pk[0].x = cc->ring[t % MAGCAL_CONT_RING].x;
+        pk[0].y = cc->ring[t % MAGCAL_CONT_RING].y;
+        pk[1].x = cc->ring[t % MAGCAL_CONT_RING].z;
+        (void)memcpy(&pk[1].y, &cc->ring_t[t % MAGCAL_CONT_RING], sizeof pk[1].y);
         MAGCAL_CONT_BARRIER(); /* read before the slot is handed back */
         cc->tail = t + 1u;
-        (void)magcal_cal_spend(b, cc->store.sweeps != sweeps ? CONT_W_SWEEP : CONT_W_DRAIN);
+        cc->park_n++;
+        if (magcal_cal_spend(b, CONT_W_PARK) != 0) {
+            break;
+        }
     }
 }
 
@@ -76,7 +124,7 @@ static int cont_worth(const magcal_cont_t *cc)
     magcal_intake_progress_t p;
     const int fresh = (cc->store.ctr.added + cc->store.ctr.replaced) - cc->stored_at_solve >= cc->cfg.min_new ||
                       (cc->last_status == MAGCAL_ERR_NOT_BETTER && (float)cc->solve_ms_acc >= 0.25f * cc->cfg.age_ms);
-    if (fresh == 0 || cc->store.ctr.stored < cc->cfg.solver.min_samples) {
+    if (fresh == 0 || cc->park_n != 0u || cc->store.ctr.stored < cc->cfg.solver.min_samples) {
         return 0;
     }
     (void)magcal_intake_progress(&cc->store, &p);
@@ -191,7 +239,9 @@ magcal_cont_outcome_t magcal_cont_step(magcal_cont_t *cc)
     b.left = cc->cfg.step_budget;
     b.unlimited = (uint8_t)(cc->cfg.step_budget == UINT32_MAX ? 1u : 0u);
     cc->change_flag = 0u;
-    if (cont_store_frozen(cc) == 0) {
+    if (cc->stage == (uint8_t)CONT_STAGE_FIT) {
+        cont_park(cc, &b);
+    } else if (cont_store_frozen(cc) == 0) {
         cont_drain(cc, cc->cfg.drain_per_step, &b);
     }
     if (cc->change_flag != 0u) {
@@ -229,7 +279,7 @@ magcal_cont_outcome_t magcal_cont_solve_blocking(magcal_cont_t *cc, int force)
     }
     cc->force = (uint8_t)(force != 0 ? 1u : 0u); /* kept in cc: nothing but cc live across calls */
     if (cont_store_frozen(cc) == 0) {
-        cont_drain(cc, MAGCAL_CONT_RING, &b);
+        cont_drain(cc, MAGCAL_CONT_RING + cc->park_n, &b);
     }
     if (cont_begin(cc) == 0) {
         return MAGCAL_CONT_IDLE;
