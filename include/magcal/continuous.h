@@ -268,6 +268,8 @@ typedef struct {
     float fit_b0[7];
     uint32_t park_n;               /* ring samples parked in buf during the fit (cont_step.c) */
     uint32_t park_i;               /* parked samples drained since */
+    magcal_vec3_t park_m;          /* the parked sample being drained, its stamp */
+    uint32_t park_t;
     uint8_t fit_cal_ok;            /* cal valid (validated once at the fit's begin) */
 } magcal_cont_t;
 

@@ -50,42 +50,52 @@ static MAGCAL_NOINLINE int cont_screen(magcal_cont_t *cc, const magcal_vec3_t *m
  * At most `max` samples; at least one when the ring is not empty; then only while less than half
  * of the budget is spent (the solve keeps the rest). A push that ended a survey sweep charges
  * CONT_W_SWEEP, which ends the drain. */
+/* The next sample parked during the field-model fit (they are older than the ring's), copied
+ * into the instance (no stack on the drain's deep path); NULL when none is left. */
+static MAGCAL_NOINLINE const magcal_vec3_t *cont_unpark(magcal_cont_t *cc)
+{
+    const magcal_vec2_t *pk;
+    if (cc->park_i >= cc->park_n) {
+        return NULL;
+    }
+    pk = &cc->buf[2u * cc->park_i];
+    cc->park_m.x = pk[0].x;
+    cc->park_m.y = pk[0].y;
+    cc->park_m.z = pk[1].x;
+    (void)memcpy(&cc->park_t, &pk[1].y, sizeof cc->park_t);
+    if (++cc->park_i == cc->park_n) {
+        cc->park_i = 0u;
+        cc->park_n = 0u;
+    }
+    return &cc->park_m;
+}
+
 static MAGCAL_NOINLINE void cont_drain(magcal_cont_t *cc, uint32_t max, magcal_cal_budget_t *b)
 {
-    const uint32_t half = b->left / 2u;
+    const uint32_t half = b->left / 2u; /* b->left >= 1 (cfg.step_budget): the first sample passes */
     uint32_t k;
-    for (k = 0u; k < max; ++k) {
-        uint32_t t = cc->tail;
-        uint32_t sweeps = cc->store.sweeps;
-        magcal_vec3_t m;
-        uint32_t t_ms;
-        if (k > 0u && b->unlimited == 0u && b->left <= half) {
+    for (k = max; k > 0u; --k) {
+        const uint32_t t = cc->tail;
+        const uint32_t sweeps = cc->store.sweeps;
+        const magcal_vec3_t *m;
+        if (b->unlimited == 0u && b->left <= half) {
             break;
         }
-        if (cc->park_i < cc->park_n) {
-            /* the samples parked during the field-model fit first (they are older) */
-            const magcal_vec2_t *pk = &cc->buf[2u * cc->park_i];
-            m.x = pk[0].x;
-            m.y = pk[0].y;
-            m.z = pk[1].x;
-            (void)memcpy(&t_ms, &pk[1].y, sizeof t_ms);
-            if (++cc->park_i == cc->park_n) {
-                cc->park_i = 0u;
-                cc->park_n = 0u;
-            }
-        } else {
+        m = cont_unpark(cc);
+        if (m == NULL) {
             if (t == cc->head) {
                 break;
             }
             MAGCAL_CONT_BARRIER(); /* the slot was written before head */
-            m = cc->ring[t % MAGCAL_CONT_RING];
-            t_ms = cc->ring_t[t % MAGCAL_CONT_RING];
+            m = &cc->ring[t % MAGCAL_CONT_RING];
+        }
+        if (cont_screen(cc, m, m == &cc->park_m ? cc->park_t : cc->ring_t[t % MAGCAL_CONT_RING]) == 0) {
+            /* stored samples are counted by the store (added + replaced) */
+            (void)magcal_intake_push(&cc->store, m, NULL);
+        }
+        if (m != &cc->park_m) {
             MAGCAL_CONT_BARRIER(); /* read before the slot is handed back */
             cc->tail = t + 1u;
-        }
-        if (cont_screen(cc, &m, t_ms) == 0) {
-            /* stored samples are counted by the store (added + replaced) */
-            (void)magcal_intake_push(&cc->store, &m, NULL);
         }
         (void)magcal_cal_spend(b, cc->store.sweeps != sweeps ? CONT_W_SWEEP : CONT_W_DRAIN);
     }
