@@ -45,7 +45,12 @@
  *    holds the few samples that arrive meanwhile);
  *  - solve: the rest of the budget, at least one visit per step (so both progress), then
  *    MAGCAL_IN_PROGRESS until the solve ends. A solve of the default store takes several hundred
- *    steps (docs/calibrator.md); new information for the next solve counts from the snapshot.
+ *    steps (docs/calibrator.md); new information for the next solve counts from the snapshot;
+ *  - field-model fit: the step that adopts returns MAGCAL_CONT_ADOPTED (cal installed); the judge's
+ *    total-field model is then fitted over the store in the following steps (passes charged per
+ *    sample, MAGCAL_CONT_IN_PROGRESS, the judge radius-only meanwhile; ~40-50 steps at 288
+ *    samples). The store is frozen: ring samples are parked in the solver buffer (up to slots / 2)
+ *    and drained first after the fit, before any new solve.
  * step_budget UINT32_MAX does a whole solve in one call (as solve_blocking()).
  *
  * Concurrency contract. magcal_cont_push() may run in an interrupt (or another task) while ANY
