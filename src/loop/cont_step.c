@@ -50,23 +50,27 @@ static MAGCAL_NOINLINE int cont_screen(magcal_cont_t *cc, const magcal_vec3_t *m
  * At most `max` samples; at least one when the ring is not empty; then only while less than half
  * of the budget is spent (the solve keeps the rest). A push that ended a survey sweep charges
  * CONT_W_SWEEP, which ends the drain. */
-/* The next sample parked during the field-model fit (they are older than the ring's), copied
- * into the instance (no stack on the drain's deep path); NULL when none is left. */
+/* Parking (cont_park): a FIFO of cc->slots / 2 samples in the solver buffer, park_i / park_n
+ * its free-running read / write counts. */
+static uint32_t cont_park_cap(const magcal_cont_t *cc)
+{
+    return (uint32_t)(cc->slots / 2u);
+}
+
+/* The next parked sample (older than the ring's), copied into the instance (no stack on the
+ * drain's deep path); NULL when none is left. */
 static MAGCAL_NOINLINE const magcal_vec3_t *cont_unpark(magcal_cont_t *cc)
 {
     const magcal_vec2_t *pk;
-    if (cc->park_i >= cc->park_n) {
+    if (cc->park_i == cc->park_n) {
         return NULL;
     }
-    pk = &cc->buf[2u * cc->park_i];
+    pk = &cc->buf[2u * (cc->park_i % cont_park_cap(cc))];
     cc->park_m.x = pk[0].x;
     cc->park_m.y = pk[0].y;
     cc->park_m.z = pk[1].x;
     (void)memcpy(&cc->park_t, &pk[1].y, sizeof cc->park_t);
-    if (++cc->park_i == cc->park_n) {
-        cc->park_i = 0u;
-        cc->park_n = 0u;
-    }
+    cc->park_i++;
     return &cc->park_m;
 }
 
@@ -103,13 +107,15 @@ static MAGCAL_NOINLINE void cont_drain(magcal_cont_t *cc, uint32_t max, magcal_c
 
 /* During the field-model fit the store must not change: ring samples are parked, in order, in
  * the solver buffer (free between solves: 2 entries per sample, raw x, y, z and the stamp's bits;
- * cc->slots / 2 samples), so a fit of many steps does not overflow the ring; the drain takes
- * them first after the fit, and no solve starts (no snapshot into the buffer) until it has. */
+ * a FIFO of cc->slots / 2 samples), so a fit of many steps does not overflow the ring. After the
+ * fit the drain takes them first, the ring's samples still join the FIFO behind them (so the
+ * ring does not fill while the backlog drains), and no solve starts (no snapshot into the
+ * buffer) until it is empty. */
 static MAGCAL_NOINLINE void cont_park(magcal_cont_t *cc, magcal_cal_budget_t *b)
 {
-    while (cc->park_n < (uint32_t)(cc->slots / 2u)) {
+    while (cc->park_n - cc->park_i < cont_park_cap(cc)) {
         const uint32_t t = cc->tail;
-        magcal_vec2_t *pk = &cc->buf[2u * cc->park_n];
+        magcal_vec2_t *pk = &cc->buf[2u * (cc->park_n % cont_park_cap(cc))];
         if (t == cc->head) {
             break;
         }
@@ -134,7 +140,7 @@ static int cont_worth(const magcal_cont_t *cc)
     magcal_intake_progress_t p;
     const int fresh = (cc->store.ctr.added + cc->store.ctr.replaced) - cc->stored_at_solve >= cc->cfg.min_new ||
                       (cc->last_status == MAGCAL_ERR_NOT_BETTER && (float)cc->solve_ms_acc >= 0.25f * cc->cfg.age_ms);
-    if (fresh == 0 || cc->park_n != 0u || cc->store.ctr.stored < cc->cfg.solver.min_samples) {
+    if (fresh == 0 || cc->park_n != cc->park_i || cc->store.ctr.stored < cc->cfg.solver.min_samples) {
         return 0;
     }
     (void)magcal_intake_progress(&cc->store, &p);
@@ -249,10 +255,11 @@ magcal_cont_outcome_t magcal_cont_step(magcal_cont_t *cc)
     b.left = cc->cfg.step_budget;
     b.unlimited = (uint8_t)(cc->cfg.step_budget == UINT32_MAX ? 1u : 0u);
     cc->change_flag = 0u;
-    if (cc->stage == (uint8_t)CONT_STAGE_FIT) {
-        cont_park(cc, &b);
-    } else if (cont_store_frozen(cc) == 0) {
-        cont_drain(cc, cc->cfg.drain_per_step, &b);
+    if (cont_store_frozen(cc) == 0) {
+        cont_drain(cc, cc->cfg.drain_per_step, &b); /* the parked samples first */
+    }
+    if (cc->stage == (uint8_t)CONT_STAGE_FIT || cc->park_n != cc->park_i) {
+        cont_park(cc, &b); /* the ring's samples behind them (at least one moved) */
     }
     if (cc->change_flag != 0u) {
         return MAGCAL_CONT_CHANGE;
@@ -289,7 +296,7 @@ magcal_cont_outcome_t magcal_cont_solve_blocking(magcal_cont_t *cc, int force)
     }
     cc->force = (uint8_t)(force != 0 ? 1u : 0u); /* kept in cc: nothing but cc live across calls */
     if (cont_store_frozen(cc) == 0) {
-        cont_drain(cc, MAGCAL_CONT_RING + cc->park_n, &b);
+        cont_drain(cc, MAGCAL_CONT_RING + (cc->park_n - cc->park_i), &b);
     }
     if (cont_begin(cc) == 0) {
         return MAGCAL_CONT_IDLE;
