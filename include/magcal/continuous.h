@@ -48,9 +48,9 @@
  *    steps (docs/calibrator.md); new information for the next solve counts from the snapshot;
  *  - field-model fit: the step that adopts returns MAGCAL_CONT_ADOPTED (cal installed); the judge's
  *    total-field model is then fitted over the store in the following steps (passes charged per
- *    sample, MAGCAL_CONT_IN_PROGRESS, the judge radius-only meanwhile; ~40-50 steps at 288
- *    samples). The store is frozen: ring samples are parked in the solver buffer (up to slots / 2)
- *    and drained first after the fit, before any new solve.
+ *    sample, MAGCAL_CONT_IN_PROGRESS, the judge radius-only meanwhile; ~50-70 steps at 288
+ *    samples, <= 6.5k M4F each). The store is frozen: ring samples are parked in the solver buffer
+ *    (a FIFO of slots / 2) and drained first after the fit, before any new solve.
  * step_budget UINT32_MAX does a whole solve in one call (as solve_blocking()).
  *
  * Concurrency contract. magcal_cont_push() may run in an interrupt (or another task) while ANY
