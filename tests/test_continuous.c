@@ -451,6 +451,37 @@ static void cont_restore(void)
     memcpy(g_work, g_work_save, sizeof g_work);
 }
 
+/* The judge's model fields (the field-model fit at an adoption, cont_change.c). */
+typedef struct {
+    float abc[3];
+    float hxy[4];
+    float sigma;
+    uint32_t cover[2];
+    float u0;
+    float l[28];
+    float s[7];
+    float u_prior[2];
+    uint8_t on;
+    uint8_t skip;
+    uint8_t have_u;
+} judge_fields_t;
+
+static void judge_fields(const magcal_cont_t *cc, judge_fields_t *j)
+{
+    memset(j, 0, sizeof *j);
+    memcpy(j->abc, cc->fz_abc, sizeof j->abc);
+    memcpy(j->hxy, cc->fz_hxy, sizeof j->hxy);
+    j->sigma = cc->cal_sigma_rel;
+    memcpy(j->cover, cc->fz_cover, sizeof j->cover);
+    j->u0 = cc->fz_u0;
+    memcpy(j->l, cc->fz_l, sizeof j->l);
+    memcpy(j->s, cc->fz_s, sizeof j->s);
+    memcpy(j->u_prior, cc->fz_u_prior, sizeof j->u_prior);
+    j->on = cc->fz_on;
+    j->skip = cc->fz_skip;
+    j->have_u = cc->fz_have_u;
+}
+
 static void sliced_matches_blocking(uint32_t seed, const test_distortion_t *d, double spike, size_t min_rows)
 {
     static const uint32_t budgets[] = {1u, 97u, 6000u};
@@ -458,6 +489,8 @@ static void sliced_matches_blocking(uint32_t seed, const test_distortion_t *d, d
     magcal_cont_outcome_t ref_oc = MAGCAL_CONT_IDLE;
     magcal_cal2d_t ref_cal;
     magcal_cal_report_t ref_rep;
+    judge_fields_t ref_judge;
+    judge_fields_t got_judge;
     size_t rows = 0u;
     size_t b;
     cont_init_default(NULL);
@@ -479,6 +512,8 @@ static void sliced_matches_blocking(uint32_t seed, const test_distortion_t *d, d
     TEST_ASSERT_NOT_EQUAL(MAGCAL_CONT_IN_PROGRESS, ref_oc);
     ref_cal = g_cc.cal;
     ref_rep = g_cc.last;
+    judge_fields(&g_cc, &ref_judge);
+    TEST_ASSERT_EQUAL_UINT(0u, g_cc.stage); /* unlimited: the field-model fit ended in the call */
     for (b = 0u; b < sizeof budgets / sizeof budgets[0]; ++b) {
         magcal_cont_outcome_t oc;
         uint32_t steps = 1u;
@@ -499,7 +534,95 @@ static void sliced_matches_blocking(uint32_t seed, const test_distortion_t *d, d
             /* every step does at least one visit; the steps at budget 1 count the visits */
             TEST_ASSERT_TRUE(steps > 1000u);
         }
+        if (oc == MAGCAL_CONT_ADOPTED) {
+            /* the field-model fit runs in the following steps (the judge radius-only meanwhile);
+             * its model equals the unlimited-budget fit's, bit for bit */
+            uint32_t fit_steps = 0u;
+            TEST_ASSERT_EQUAL_UINT(0u, g_cc.fz_on);
+            while (g_cc.stage != 0u) {
+                TEST_ASSERT_EQUAL_INT(MAGCAL_CONT_IN_PROGRESS, magcal_cont_step(&g_cc));
+                TEST_ASSERT_TRUE(g_cc.stage == 0u || g_cc.fz_on == 0u);
+                TEST_ASSERT_TRUE(++fit_steps < 2000000u);
+            }
+            printf("  field-model fit: %u steps (fz_on %u)\n", (unsigned)fit_steps, (unsigned)g_cc.fz_on);
+            judge_fields(&g_cc, &got_judge);
+            TEST_ASSERT_EQUAL_MEMORY(&ref_judge, &got_judge, sizeof ref_judge);
+        }
     }
+}
+
+/* The field-model fit at an adoption, time-sliced (the steps after the adopting one): at budgets
+ * 1, 97, 1000 and 6000 its model fields (fz_abc, fz_hxy, cal_sigma_rel, fz_cover, fz_on, the
+ * factor, the form) equal those of the unlimited-budget fit (solve_blocking) on the same state,
+ * bit for bit; raw z spreads with the row (the u terms' forms are tried). */
+void test_cont_sliced_field_fit_matches_unlimited(void)
+{
+    static const uint32_t budgets[] = {1u, 97u, 1000u, 6000u};
+    drive_t dr;
+    judge_fields_t ref_judge;
+    judge_fields_t got_judge;
+    uint32_t tried_at = UINT32_MAX;
+    unsigned checked = 0u;
+    size_t rows = 0u;
+    cont_init_default(NULL);
+    drive_init(&dr, &k_d, 5u);
+    while (checked < 2u && rows < 6000u) {
+        const magcal_vec2_t p = test_distorted_sample(dr.d, dr.psi, 0.15, &dr.rng);
+        magcal_vec3_t m;
+        m.x = p.x;
+        m.y = p.y;
+        m.z = (float)(40.0 + 6.0 * sin(0.05 * (double)rows));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_push(&g_cc, &m, dr.t_ms));
+        dr.t_ms += 20u;
+        dr.psi = fmod(dr.psi + 1.0, 360.0);
+        rows++;
+        (void)magcal_cont_step(&g_cc);
+        (void)magcal_cont_step(&g_cc);
+        if (g_cc.stage == 2u && g_cc.tail == g_cc.head && g_cc.solves != tried_at) {
+            magcal_cal2d_t ref_cal;
+            size_t b;
+            tried_at = g_cc.solves; /* once per solve */
+            cont_save();
+            if (magcal_cont_solve_blocking(&g_cc, 0) != MAGCAL_CONT_ADOPTED) {
+                cont_restore();
+                continue;
+            }
+            TEST_ASSERT_EQUAL_UINT(0u, g_cc.stage);
+            ref_cal = g_cc.cal;
+            judge_fields(&g_cc, &ref_judge);
+            for (b = 0u; b < sizeof budgets / sizeof budgets[0]; ++b) {
+                uint32_t steps = 0u;
+                uint32_t fit_steps = 0u;
+                unsigned adopted = 0u;
+                cont_restore();
+                g_cc.cfg.step_budget = budgets[b];
+                while (g_cc.stage != 0u) {
+                    const magcal_cont_outcome_t oc = magcal_cont_step(&g_cc);
+                    if (oc == MAGCAL_CONT_ADOPTED) {
+                        adopted++;
+                        TEST_ASSERT_EQUAL_UINT(0u, g_cc.fz_on); /* radius-only until the fit ends */
+                    } else if (adopted != 0u) {
+                        fit_steps++;
+                    } else {
+                        TEST_ASSERT_EQUAL_INT(MAGCAL_CONT_IN_PROGRESS, oc);
+                    }
+                    TEST_ASSERT_TRUE(g_cc.stage == 0u || g_cc.fz_on == 0u);
+                    TEST_ASSERT_TRUE(++steps < 10000000u);
+                }
+                TEST_ASSERT_EQUAL_UINT(1u, adopted);
+                TEST_ASSERT_EQUAL_MEMORY(&ref_cal, &g_cc.cal, sizeof ref_cal);
+                judge_fields(&g_cc, &got_judge);
+                TEST_ASSERT_EQUAL_MEMORY(&ref_judge, &got_judge, sizeof ref_judge);
+                printf("field fit, solve %u budget %5u: %u steps after the adopting one (fz_on %u, form %u, "
+                       "sigma %.4f)\n",
+                       (unsigned)g_cc.solves, (unsigned)budgets[b], (unsigned)fit_steps, (unsigned)g_cc.fz_on,
+                       (unsigned)g_cc.fz_skip, (double)g_cc.cal_sigma_rel);
+            }
+            g_cc.cfg.step_budget = MAGCAL_SLICE_BUDGET_DEFAULT;
+            checked++;
+        }
+    }
+    TEST_ASSERT_TRUE(checked >= 1u);
 }
 
 void test_cont_sliced_solve_matches_blocking(void)
@@ -523,6 +646,7 @@ int main(void)
     RUN_TEST(test_cont_hard_iron_step_relearned);
     RUN_TEST(test_cont_transient_flagged_not_discarded);
     RUN_TEST(test_cont_sliced_solve_matches_blocking);
+    RUN_TEST(test_cont_sliced_field_fit_matches_unlimited);
 #ifdef CONT_TEST_THREADS
     RUN_TEST(test_cont_isr_push_interleaved_with_task);
 #endif

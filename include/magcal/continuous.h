@@ -45,7 +45,12 @@
  *    holds the few samples that arrive meanwhile);
  *  - solve: the rest of the budget, at least one visit per step (so both progress), then
  *    MAGCAL_IN_PROGRESS until the solve ends. A solve of the default store takes several hundred
- *    steps (docs/calibrator.md); new information for the next solve counts from the snapshot.
+ *    steps (docs/calibrator.md); new information for the next solve counts from the snapshot;
+ *  - field-model fit: the step that adopts returns MAGCAL_CONT_ADOPTED (cal installed); the judge's
+ *    total-field model is then fitted over the store in the following steps (passes charged per
+ *    sample, MAGCAL_CONT_IN_PROGRESS, the judge radius-only meanwhile; ~50-70 steps at 288
+ *    samples, <= 6.5k M4F each). The store is frozen: ring samples are parked in the solver buffer
+ *    (a FIFO of slots / 2) and drained first after the fit, before any new solve.
  * step_budget UINT32_MAX does a whole solve in one call (as solve_blocking()).
  *
  * Concurrency contract. magcal_cont_push() may run in an interrupt (or another task) while ANY
@@ -259,6 +264,20 @@ typedef struct {
     uint32_t snap_stored;          /* store added + replaced at the snapshot */
     uint32_t worth_seen;           /* store added + replaced at the last coverage count (cont_step.c) */
     uint8_t worth_checked;         /* 1: worth_seen is valid */
+    /* field-model fit at an adoption, time-sliced (cont_change.c; the drain pauses meanwhile) */
+    uint8_t fit_phase;             /* pass under way, 0 = none */
+    uint8_t fit_skip;              /* model form being fitted (as fz_skip) */
+    uint32_t fit_bin;              /* pass position: store bin */
+    uint32_t fit_k;                /* pass position: sample in the bin */
+    float fit_acc[3];              /* pass sums (z: sum, sum of squares, n; sums: n; sigma: ss, n) */
+    float fit_b[7];                /* right-hand side of the normal equations, then the coefficients */
+    float fit_a[28];               /* the full form's normal matrix (packed lower), its right-hand side */
+    float fit_b0[7];
+    uint32_t park_n;               /* ring samples parked in buf during the fit (cont_step.c) */
+    uint32_t park_i;               /* parked samples drained since */
+    magcal_vec3_t park_m;          /* the parked sample being drained, its stamp */
+    uint32_t park_t;
+    uint8_t fit_cal_ok;            /* cal valid (validated once at the fit's begin) */
 } magcal_cont_t;
 
 /**

@@ -64,7 +64,7 @@ magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_
         magcal_cont_install(cc, &cc->cand, r->radius, r->est_noise_deg / MAGCAL_DEG_PER_RAD_F);
         cc->generation++;
         cc->adopted_err = r->est_heading_err_deg;
-        magcal_cont_fit_field(cc);
+        magcal_cont_fit_begin(cc); /* the fit runs in step()'s slices (cont_step.c), the drain paused */
         cc->stored_at_adopt = (cc->store.ctr.added + cc->store.ctr.replaced);
         cc->age_ms_acc = 0u;
         cc->state = (uint8_t)MAGCAL_CONT_COLLECTING;

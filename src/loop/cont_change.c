@@ -152,45 +152,15 @@ static float cont_threshold(const magcal_cont_t *cc)
     return fmaxf(cc->cfg.mismatch_k * cc->cal_sigma_rel, cc->cfg.mismatch_min_rel);
 }
 
-int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_cont_judge_t *j)
+/* Sector (0..35) of a corrected heading, deg [0, 360) into *deg (the judge's and the fit's cover). */
+static uint8_t cont_sector(const magcal_vec2_t *h, float *deg_out)
 {
-    magcal_vec2_t h;
-    magcal_vec2_t raw;
-    float r;
-    float thr;
-    float deg;
+    float deg = MAGCAL_DEG_PER_RAD_F * atan2f(-h->x, h->y);
     int sec;
-    j->rel = NAN;
-    j->heading = 0.0f;
-    j->sector = 0u;
-    j->unc = 0.0f;
-    j->mismatch = 0u;
-    raw.x = m->x;
-    raw.y = m->y;
-    if (cc->has_cal == 0u || magcal_correct_apply(&cc->cal, raw, &h) != MAGCAL_OK ||
-        !(cc->cal.radius > 0.0f)) {
-        return 0;
-    }
-    r = sqrtf(h.x * h.x + h.y * h.y);
-    j->unc = 0.0f;
-    if (cc->fz_on != 0u) {
-        /* total field: |h|^2 - c1 u - c2 u^2 - c3 hx - c4 hy stays c0 while the vehicle pitches */
-        const float hx = h.x / cc->cal.radius;
-        const float hy = h.y / cc->cal.radius;
-        const float u = (m->z - cc->fz_u0) / cc->cal_raw_radius;
-        const float tt = hx * hx + hy * hy - cc->fz_abc[1] * u - cc->fz_abc[2] * u * u -
-                         cc->fz_hxy[0] * hx - cc->fz_hxy[1] * hy - cc->fz_hxy[2] * (hx * hx - hy * hy) -
-                         cc->fz_hxy[3] * (hx * hy);
-        j->rel = sqrtf(fmaxf(tt, 0.0f) / cc->fz_abc[0]) - 1.0f;
-        j->unc = cont_fz_unc(cc, u, hx, hy);
-    } else {
-        j->rel = r / cc->cal.radius - 1.0f;
-    }
-    deg = MAGCAL_DEG_PER_RAD_F * atan2f(-h.x, h.y);
     if (deg < 0.0f) {
         deg += 360.0f;
     }
-    j->heading = deg;
+    *deg_out = deg;
     sec = (int)(deg / (360.0f / (float)MAGCAL_CONT_SECTORS));
     if (sec < 0) {
         sec = 0;
@@ -198,7 +168,53 @@ int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_co
     if (sec >= (int)MAGCAL_CONT_SECTORS) {
         sec = (int)MAGCAL_CONT_SECTORS - 1;
     }
-    j->sector = (uint8_t)sec;
+    return (uint8_t)sec;
+}
+
+/* Total-field residual of corrected h and raw z under the model: rel, and v = (hx, hy, u) unit
+ * radius. |h|^2 - c1 u - c2 u^2 - c3 hx - c4 hy stays c0 while the vehicle pitches. */
+static float cont_fz_rel(const magcal_cont_t *cc, const magcal_vec2_t *h, float z, float *v)
+{
+    const float hx = h->x / cc->cal.radius;
+    const float hy = h->y / cc->cal.radius;
+    const float u = (z - cc->fz_u0) / cc->cal_raw_radius;
+    const float tt = hx * hx + hy * hy - cc->fz_abc[1] * u - cc->fz_abc[2] * u * u - cc->fz_hxy[0] * hx -
+                     cc->fz_hxy[1] * hy - cc->fz_hxy[2] * (hx * hx - hy * hy) - cc->fz_hxy[3] * (hx * hy);
+    v[0] = hx;
+    v[1] = hy;
+    v[2] = u;
+    return sqrtf(fmaxf(tt, 0.0f) / cc->fz_abc[0]) - 1.0f;
+}
+
+/* Corrected x, y of a raw sample under the installed calibration: 1 when defined. */
+static int cont_corrected(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_vec2_t *h)
+{
+    magcal_vec2_t raw;
+    raw.x = m->x;
+    raw.y = m->y;
+    return cc->has_cal != 0u && magcal_correct_apply(&cc->cal, raw, h) == MAGCAL_OK && cc->cal.radius > 0.0f;
+}
+
+int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_cont_judge_t *j)
+{
+    magcal_vec2_t h;
+    float thr;
+    j->rel = NAN;
+    j->heading = 0.0f;
+    j->sector = 0u;
+    j->unc = 0.0f;
+    j->mismatch = 0u;
+    if (cont_corrected(cc, m, &h) == 0) {
+        return 0;
+    }
+    if (cc->fz_on != 0u) {
+        float v[3];
+        j->rel = cont_fz_rel(cc, &h, m->z, v);
+        j->unc = cont_fz_unc(cc, v[2], v[0], v[1]);
+    } else {
+        j->rel = sqrtf(h.x * h.x + h.y * h.y) / cc->cal.radius - 1.0f;
+    }
+    j->sector = cont_sector(&h, &j->heading);
     thr = cont_threshold(cc) * sqrtf(1.0f + j->unc);
     if (cc->fz_on != 0u && ((cc->fz_cover[j->sector / 32u] >> (j->sector % 32u)) & 1u) == 0u) {
         /* a sector the store did not cover: the calibration and the model are extrapolated
@@ -340,133 +356,161 @@ void magcal_cont_declare_change(magcal_cont_t *cc)
 }
 
 
-/* One pass over the store: normal equations of |h|^2 = f . c over the samples with
- * | |h| / R - 1 | <= 0.35 (hills move the horizontal radius by up to ~20 %). Unit-radius
- * variables (file comment). Returns the samples used; *nf the order. */
-static float cont_fz_sums(magcal_cont_t *cc, uint32_t skip, float *b, uint32_t *nf_out)
+/* Time-sliced field-model fit (magcal_cont_fit_begin / _step): passes over the store in bin
+ * order, position (fit_bin, fit_k) and sums in cc. Weights, estimated M4F instructions (host
+ * callgrind x 1.2): one sample of each pass, one bin advanced, the Cholesky solve of one form. */
+#define CONT_W_FIT_Z 55u      /* z mean / variance: one sample */
+#define CONT_W_FIT_SUM 750u   /* normal-equation sums: one sample (the full form; less without u) */
+#define CONT_W_FIT_SIGMA 570u /* the model's residual and the sector covered: one sample */
+#define CONT_W_FIT_BIN 11u    /* one bin advanced */
+#define CONT_W_FIT_CHOL 3200u /* Cholesky + solve of one model form (7 x 7 at most) */
+
+enum { CONT_FIT_NONE = 0, CONT_FIT_Z = 1, CONT_FIT_SUMS = 2, CONT_FIT_CHOL = 3, CONT_FIT_SIGMA = 4 };
+
+/* Start a pass (phase) over the store with its accumulators cleared. */
+static void cont_fit_pass(magcal_cont_t *cc, uint8_t phase)
 {
-    const magcal_intake_t *st = &cc->store;
-    const uint32_t per = st->cfg.per_bin;
-    float n = 0.0f;
-    uint32_t bin;
-    uint32_t k;
+    uint32_t p;
+    cc->fit_phase = phase;
+    cc->fit_bin = 0u;
+    cc->fit_k = 0u;
+    cc->fit_acc[0] = 0.0f;
+    cc->fit_acc[1] = 0.0f;
+    cc->fit_acc[2] = 0.0f;
+    if (phase == (uint8_t)CONT_FIT_SUMS) {
+        /* packed lower triangle: row p, column q at p (p + 1) / 2 + q */
+        for (p = 0u; p < 28u; ++p) {
+            cc->fz_l[p] = 0.0f;
+        }
+        for (p = 0u; p < 7u; ++p) {
+            cc->fit_b[p] = 0.0f;
+        }
+    }
+}
+
+/* Corrected x, y of a store sample during the fit: magcal_correct_apply (heading.c) without its
+ * per-call validation of cc->cal (validated once at the fit's begin, fit_cal_ok; cc->cal does not
+ * change during the fit). 1 when defined. */
+static int cont_fit_corrected(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_vec2_t *h)
+{
+    float ux;
+    float uy;
+    if (cc->fit_cal_ok == 0u || !magcal_isfinite_f(m->x) || !magcal_isfinite_f(m->y)) {
+        return 0;
+    }
+    ux = m->x - cc->cal.offset.x;
+    uy = m->y - cc->cal.offset.y;
+    h->x = cc->cal.m[0][0] * ux + cc->cal.m[0][1] * uy;
+    h->y = cc->cal.m[1][0] * ux + cc->cal.m[1][1] * uy;
+    return magcal_isfinite_f(h->x) && magcal_isfinite_f(h->y);
+}
+
+/* One sample of the sums pass: normal equations of |h|^2 = f . c over the samples with
+ * | |h| / R - 1 | <= 0.35 (hills move the horizontal radius by up to ~20 %). Unit-radius
+ * variables (file comment); fit_acc[2] counts the samples used. */
+static void cont_fz_add(magcal_cont_t *cc, const magcal_vec3_t *m)
+{
+    const uint32_t skip = cc->fit_skip;
+    const uint32_t nf = 7u - skip;
+    float *a = cc->fz_l;
+    magcal_vec2_t h;
+    float f[7];
+    float y;
     uint32_t p;
     uint32_t q;
-    const uint32_t nf = 7u - skip;
-    *nf_out = nf;
-    float *a = cc->fz_l; /* packed lower triangle: row p, column q at p (p + 1) / 2 + q */
-    for (p = 0u; p < nf * (nf + 1u) / 2u; ++p) {
-        a[p] = 0.0f;
+    if (cont_fit_corrected(cc, m, &h) == 0) {
+        return;
+    }
+    h.x /= cc->cal.radius;
+    h.y /= cc->cal.radius;
+    y = h.x * h.x + h.y * h.y;
+    if (!(fabsf(sqrtf(y) - 1.0f) <= 0.35f)) {
+        return;
+    }
+    {
+        const float u = (m->z - cc->fz_u0) / cc->cal_raw_radius;
+        (void)cont_fz_feat(u, h.x, h.y, skip, f);
+        if (skip == 2u && cc->fz_have_u != 0u) {
+            /* the u terms of an earlier model: the store alone cannot determine them */
+            y -= cc->fz_u_prior[0] * u + cc->fz_u_prior[1] * u * u;
+        }
     }
     for (p = 0u; p < nf; ++p) {
-        b[p] = 0.0f;
-    }
-    for (bin = 0u; bin < st->n_bins; ++bin) {
-        for (k = 0u; k < st->count[bin]; ++k) {
-            const magcal_vec3_t *m = &st->slots[bin * per + k].m;
-            magcal_vec2_t raw;
-            magcal_vec2_t h;
-            float f[7];
-            float y;
-            raw.x = m->x;
-            raw.y = m->y;
-            if (magcal_correct_apply(&cc->cal, raw, &h) != MAGCAL_OK) {
-                continue;
-            }
-            h.x /= cc->cal.radius;
-            h.y /= cc->cal.radius;
-            y = h.x * h.x + h.y * h.y;
-            if (!(fabsf(sqrtf(y) - 1.0f) <= 0.35f)) {
-                continue;
-            }
-            {
-                const float u = (m->z - cc->fz_u0) / cc->cal_raw_radius;
-                (void)cont_fz_feat(u, h.x, h.y, skip, f);
-                if (skip == 2u && cc->fz_have_u != 0u) {
-                    /* the u terms of an earlier model: the store alone cannot determine them */
-                    y -= cc->fz_u_prior[0] * u + cc->fz_u_prior[1] * u * u;
-                }
-            }
-            for (p = 0u; p < nf; ++p) {
-                for (q = 0u; q <= p; ++q) {
-                    a[p * (p + 1u) / 2u + q] += f[p] * f[q];
-                }
-                b[p] += f[p] * y;
-            }
-            n += 1.0f;
+        const float fp = f[p];
+        for (q = 0u; q <= p; ++q) {
+            *a++ += fp * f[q]; /* packed: row p, column q at p (p + 1) / 2 + q */
         }
+        cc->fit_b[p] += fp * y;
     }
-    return n;
+    cc->fit_acc[2] += 1.0f;
 }
 
-/* RMS of the model's relative residual over the store samples within 0.1 of it (0: too few). */
-static float cont_fz_sigma(const magcal_cont_t *cc)
+/* One sample of the current pass: z sums, the normal-equation sums, or the model's residual
+ * (the judge's rel) with the sector covered (the judge's sector). */
+static void cont_fit_sample(magcal_cont_t *cc, const magcal_vec3_t *m)
 {
-    const magcal_intake_t *st = &cc->store;
-    const uint32_t per = st->cfg.per_bin;
-    float ss = 0.0f;
-    float n = 0.0f;
-    uint32_t bin;
-    uint32_t k;
-    for (bin = 0u; bin < st->n_bins; ++bin) {
-        for (k = 0u; k < st->count[bin]; ++k) {
-            magcal_cont_judge_t j;
-            if (magcal_cont_judge(cc, &st->slots[bin * per + k].m, &j) != 0 && fabsf(j.rel) <= 0.1f) {
-                ss += j.rel * j.rel;
-                n += 1.0f;
-            }
+    magcal_vec2_t h;
+    float v[3];
+    if (cc->fit_phase == (uint8_t)CONT_FIT_SUMS) {
+        cont_fz_add(cc, m);
+        return;
+    }
+    if (cc->fit_phase == (uint8_t)CONT_FIT_Z) {
+        cc->fit_acc[0] += m->z;
+        cc->fit_acc[1] += m->z * m->z;
+        cc->fit_acc[2] += 1.0f;
+        return;
+    }
+    if (cont_fit_corrected(cc, m, &h) != 0) {
+        /* sigma: RMS of the relative residual over the samples within 0.1 of the model */
+        const float rel = cont_fz_rel(cc, &h, m->z, v);
+        const uint8_t sec = cont_sector(&h, &v[0]);
+        cc->fz_cover[sec / 32u] |= 1u << (sec % 32u);
+        if (fabsf(rel) <= 0.1f) {
+            cc->fit_acc[0] += rel * rel;
+            cc->fit_acc[2] += 1.0f;
         }
     }
-    return n >= CONT_FZ_MIN_N ? sqrtf(ss / n) : 0.0f;
 }
 
-/* The judge's model at an adoption (file comment): the total-field form with its u terms when
- * the store's raw z spreads by at least 2 % of the raw radius (u^2 kept only when physical,
- * c2 < 0), else the shape form with the u terms of the last model that determined them (the
- * vertical field survives a re-magnetised chassis; a store filled on the flat after a relearn
- * cannot tell them) or without u; c0 > 0. Then the judge's noise on the store.
- * Bounded: at most five passes over the store slots. */
-void magcal_cont_fit_field(magcal_cont_t *cc)
+/* The next model form after a failed one (u^2, then u dropped); 1 when none is left. The form
+ * without u^2 takes its sums from the full form's (the same products in the same order: its
+ * normal matrix is the full one without row and column 2), so only the form without u (whose
+ * right-hand side holds the earlier model's u terms) needs a pass of its own. */
+static int cont_fit_next_form(magcal_cont_t *cc)
 {
-    const magcal_intake_t *st = &cc->store;
-    const uint32_t per = st->cfg.per_bin;
-    float b[7];
-    float zs = 0.0f;
-    float zz = 0.0f;
-    float n = 0.0f;
-    float var;
-    uint32_t bin;
+    static const uint8_t keep[6] = {0u, 1u, 3u, 4u, 5u, 6u};
+    uint32_t r;
+    uint32_t c;
+    cc->fit_skip++;
+    if (cc->fit_skip >= 3u) {
+        cc->fit_phase = (uint8_t)CONT_FIT_NONE;
+        return 1;
+    }
+    if (cc->fit_skip == 1u && cc->fit_phase == (uint8_t)CONT_FIT_CHOL) {
+        /* the full form's sums had enough samples (so does this form: the same samples) */
+        for (r = 0u; r < 6u; ++r) {
+            for (c = 0u; c <= r; ++c) {
+                cc->fz_l[r * (r + 1u) / 2u + c] = cc->fit_a[keep[r] * (keep[r] + 1u) / 2u + keep[c]];
+            }
+            cc->fit_b[r] = cc->fit_b0[keep[r]];
+        }
+        return 0; /* phase CHOL */
+    }
+    cont_fit_pass(cc, (uint8_t)CONT_FIT_SUMS);
+    return 0;
+}
+
+/* The Cholesky solve of the current form; on success the model's coefficients, then the cover
+ * pass. 1 when the fit ended (no form left). */
+static int cont_fit_chol(magcal_cont_t *cc)
+{
+    const uint32_t skip = cc->fit_skip;
+    const uint32_t nf = 7u - skip;
+    const float *b = cc->fit_b;
     uint32_t k;
-    uint32_t skip = 0u;
-    uint32_t nf = 0u;
-    int ok = 0;
-    cc->fz_on = 0u;
-    for (bin = 0u; bin < st->n_bins; ++bin) {
-        for (k = 0u; k < st->count[bin]; ++k) {
-            const float z = st->slots[bin * per + k].m.z;
-            zs += z;
-            zz += z * z;
-            n += 1.0f;
-        }
-    }
-    if (n < CONT_FZ_MIN_N || !(cc->cal_raw_radius > 0.0f) || !(cc->cal.radius > 0.0f)) {
-        return;
-    }
-    cc->fz_u0 = zs / n;
-    var = zz / n - cc->fz_u0 * cc->fz_u0;
-    if (!(var > (0.02f * cc->cal_raw_radius) * (0.02f * cc->cal_raw_radius))) {
-        skip = 2u;
-    }
-    for (; skip < 3u && ok == 0; ++skip) {
-        ok = cont_fz_sums(cc, skip, b, &nf) >= CONT_FZ_MIN_N && cont_fz_chol_solve(cc, nf, b) != 0 &&
-             b[0] > 0.0f &&
-             (skip != 0u || b[2] < 0.0f);
-        if (ok != 0) {
-            break;
-        }
-    }
-    if (ok == 0) {
-        return;
+    if (!(cont_fz_chol_solve(cc, nf, cc->fit_b) != 0 && b[0] > 0.0f && (skip != 0u || b[2] < 0.0f))) {
+        return cont_fit_next_form(cc);
     }
     cc->fz_skip = (uint8_t)skip;
     cc->fz_abc[0] = b[0];
@@ -483,25 +527,103 @@ void magcal_cont_fit_field(magcal_cont_t *cc)
     for (k = 0u; k < 4u; ++k) {
         cc->fz_hxy[k] = b[nf - 4u + k];
     }
-    cc->fz_on = 1u;
     cc->dist_flag = 0u;
-    cc->fz_cover[0] = 0u;
+    cc->fz_cover[0] = 0u; /* set by the sigma pass */
     cc->fz_cover[1] = 0u;
-    for (bin = 0u; bin < st->n_bins; ++bin) {
-        for (k = 0u; k < st->count[bin]; ++k) {
-            magcal_cont_judge_t j;
-            if (magcal_cont_judge(cc, &st->slots[bin * per + k].m, &j) != 0) {
-                cc->fz_cover[j.sector / 32u] |= 1u << (j.sector % 32u);
-            }
+    cont_fit_pass(cc, (uint8_t)CONT_FIT_SIGMA);
+    return 0;
+}
+
+/* A pass reached the store's end: the next phase. 1 when the fit ended. */
+static int cont_fit_pass_end(magcal_cont_t *cc)
+{
+    const float n = cc->fit_acc[2];
+    if (cc->fit_phase == (uint8_t)CONT_FIT_Z) {
+        float var;
+        if (n < CONT_FZ_MIN_N || !(cc->cal_raw_radius > 0.0f) || !(cc->cal.radius > 0.0f)) {
+            cc->fit_phase = (uint8_t)CONT_FIT_NONE;
+            return 1;
         }
+        cc->fz_u0 = cc->fit_acc[0] / n;
+        var = cc->fit_acc[1] / n - cc->fz_u0 * cc->fz_u0;
+        cc->fit_skip = (uint8_t)(!(var > (0.02f * cc->cal_raw_radius) * (0.02f * cc->cal_raw_radius)) ? 2u : 0u);
+        cont_fit_pass(cc, (uint8_t)CONT_FIT_SUMS);
+        return 0;
     }
+    if (cc->fit_phase == (uint8_t)CONT_FIT_SUMS) {
+        uint32_t p;
+        if (n >= CONT_FZ_MIN_N) {
+            for (p = 0u; p < 28u; ++p) {
+                cc->fit_a[p] = cc->fz_l[p]; /* kept for the form without u^2 (cont_fit_next_form) */
+            }
+            for (p = 0u; p < 7u; ++p) {
+                cc->fit_b0[p] = cc->fit_b[p];
+            }
+            cc->fit_phase = (uint8_t)CONT_FIT_CHOL;
+            return 0;
+        }
+        return cont_fit_next_form(cc);
+    }
+    /* sigma pass: the judge's noise on the store; the model is on only with it */
+    cc->fit_phase = (uint8_t)CONT_FIT_NONE;
     {
-        const float sg = cont_fz_sigma(cc);
+        const float sg = n >= CONT_FZ_MIN_N ? sqrtf(cc->fit_acc[0] / n) : 0.0f;
         if (!(sg > 0.0f)) {
-            cc->fz_on = 0u;
-            return;
+            return 1;
         }
         cc->cal_sigma_rel = sg;
     }
+    cc->fz_on = 1u;
     magcal_cont_transient_reset(cc);
+    return 1;
+}
+
+/* The judge's model at an adoption (file comment): the total-field form with its u terms when
+ * the store's raw z spreads by at least 2 % of the raw radius (u^2 kept only when physical,
+ * c2 < 0), else the shape form with the u terms of the last model that determined them (the
+ * vertical field survives a re-magnetised chassis; a store filled on the flat after a relearn
+ * cannot tell them) or without u; c0 > 0. Then the sectors the store covers and the judge's
+ * noise on the store. At most five passes over the store slots (z and cover, up to three sums,
+ * sigma), in slices (cont_internal.h). */
+void magcal_cont_fit_begin(magcal_cont_t *cc)
+{
+    cc->fz_on = 0u;
+    /* the judge's condition on the calibration (cont_corrected), once for the whole fit */
+    cc->fit_cal_ok = (uint8_t)(cc->has_cal != 0u && magcal_cal2d_validate(&cc->cal) == MAGCAL_OK && cc->cal.radius > 0.0f
+                                   ? 1u
+                                   : 0u);
+    cont_fit_pass(cc, (uint8_t)CONT_FIT_Z);
+}
+
+int magcal_cont_fit_step(magcal_cont_t *cc, magcal_cal_budget_t *b)
+{
+    const magcal_intake_t *st = &cc->store;
+    int spent = 0;
+    while (cc->fit_phase != (uint8_t)CONT_FIT_NONE) {
+        if (spent != 0) {
+            return 0;
+        }
+        if (cc->fit_phase == (uint8_t)CONT_FIT_CHOL) {
+            spent = magcal_cal_spend(b, CONT_W_FIT_CHOL);
+            if (cont_fit_chol(cc) != 0) {
+                return 1;
+            }
+        } else if (cc->fit_bin >= st->n_bins) {
+            if (cont_fit_pass_end(cc) != 0) {
+                return 1;
+            }
+        } else if (cc->fit_k >= st->count[cc->fit_bin]) {
+            cc->fit_bin++;
+            cc->fit_k = 0u;
+            spent = magcal_cal_spend(b, CONT_W_FIT_BIN);
+        } else {
+            const uint8_t ph = cc->fit_phase;
+            cont_fit_sample(cc, &st->slots[cc->fit_bin * st->cfg.per_bin + cc->fit_k].m);
+            cc->fit_k++;
+            spent = magcal_cal_spend(b, ph == (uint8_t)CONT_FIT_Z      ? CONT_W_FIT_Z
+                                        : ph == (uint8_t)CONT_FIT_SUMS ? CONT_W_FIT_SUM
+                                                                       : CONT_W_FIT_SIGMA);
+        }
+    }
+    return 1;
 }

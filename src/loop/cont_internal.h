@@ -6,6 +6,7 @@
 #ifndef MAGCAL_CONT_INTERNAL_H
 #define MAGCAL_CONT_INTERNAL_H
 
+#include "../calibrator_internal.h"
 #include "magcal/continuous.h"
 
 #define MAGCAL_CONT_MAGIC 0x434F4E54u /* "CONT" */
@@ -24,8 +25,13 @@ typedef struct {
 int magcal_cont_ok(const magcal_cont_t *cc);
 /* Judge raw (x, y) under cc->cal: 0 when no calibration is installed (j->mismatch 0). */
 int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_cont_judge_t *j);
-/* Fit the judge's total-field model and noise on the store under cc->cal (at an adoption). */
-void magcal_cont_fit_field(magcal_cont_t *cc);
+/* Fit the judge's total-field model and noise on the store under cc->cal (at an adoption),
+ * time-sliced: begin (O(1): the judge is radius-only, fz_on 0, until the fit ends), then steps
+ * within budget b (at least one visit each; the store must not change meanwhile: the drain
+ * pauses, cont_step.c) until a step returns 1 (the model and cal_sigma_rel set, fz_on 1, or the
+ * fit failed and fz_on stays 0). Budget unlimited: the whole fit in one step. */
+void magcal_cont_fit_begin(magcal_cont_t *cc);
+int magcal_cont_fit_step(magcal_cont_t *cc, magcal_cal_budget_t *b);
 /* Episode update with one judged sample at t_ms; returns 1 when a change is declared now. */
 int magcal_cont_episode(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint32_t t_ms);
 /* Reset the transient-disturbance judge (cont_change.c) after a new calibration or model. */

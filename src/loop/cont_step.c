@@ -7,6 +7,7 @@
  * budget (continuous.h "Work per step").
  */
 #include <math.h>
+#include <string.h>
 
 #include "../calibrator_internal.h"
 #include "magcal/config.h"
@@ -17,8 +18,16 @@
 #define CONT_W_SWEEP 7200u /* a push that ended a survey sweep (the ring fits): ends the drain */
 #define CONT_W_SNAP 14u    /* one sample of the snapshot */
 #define CONT_W_BIN 20u     /* one bin of the snapshot */
+#define CONT_W_PARK 30u    /* one ring sample parked during the field-model fit */
 
-enum { CONT_STAGE_NONE = 0, CONT_STAGE_SNAPSHOT = 1, CONT_STAGE_SOLVE = 2 };
+enum { CONT_STAGE_NONE = 0, CONT_STAGE_SNAPSHOT = 1, CONT_STAGE_SOLVE = 2, CONT_STAGE_FIT = 3 };
+
+/* 1 while the store must not change (the snapshot, or the field-model fit after an adoption):
+ * the drain pauses (the ring holds the samples that arrive meanwhile). */
+static int cont_store_frozen(const magcal_cont_t *cc)
+{
+    return cc->stage == (uint8_t)CONT_STAGE_SNAPSHOT || cc->stage == (uint8_t)CONT_STAGE_FIT;
+}
 
 /* Judge one sample against the installed calibration (change detection): 1 = do not store it. */
 static MAGCAL_NOINLINE int cont_screen(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms)
@@ -41,24 +50,86 @@ static MAGCAL_NOINLINE int cont_screen(magcal_cont_t *cc, const magcal_vec3_t *m
  * At most `max` samples; at least one when the ring is not empty; then only while less than half
  * of the budget is spent (the solve keeps the rest). A push that ended a survey sweep charges
  * CONT_W_SWEEP, which ends the drain. */
+/* Parking (cont_park): a FIFO of cc->slots / 2 samples in the solver buffer, park_i / park_n
+ * its free-running read / write counts. */
+static uint32_t cont_park_cap(const magcal_cont_t *cc)
+{
+    return (uint32_t)(cc->slots / 2u);
+}
+
+/* The next parked sample (older than the ring's), copied into the instance (no stack on the
+ * drain's deep path); NULL when none is left. */
+static MAGCAL_NOINLINE const magcal_vec3_t *cont_unpark(magcal_cont_t *cc)
+{
+    const magcal_vec2_t *pk;
+    if (cc->park_i == cc->park_n) {
+        return NULL;
+    }
+    pk = &cc->buf[2u * (cc->park_i % cont_park_cap(cc))];
+    cc->park_m.x = pk[0].x;
+    cc->park_m.y = pk[0].y;
+    cc->park_m.z = pk[1].x;
+    (void)memcpy(&cc->park_t, &pk[1].y, sizeof cc->park_t);
+    cc->park_i++;
+    return &cc->park_m;
+}
+
 static MAGCAL_NOINLINE void cont_drain(magcal_cont_t *cc, uint32_t max, magcal_cal_budget_t *b)
 {
-    const uint32_t half = b->left / 2u;
+    const uint32_t half = b->left / 2u; /* b->left >= 1 (cfg.step_budget): the first sample passes */
     uint32_t k;
-    for (k = 0u; k < max; ++k) {
-        uint32_t t = cc->tail;
-        uint32_t sweeps = cc->store.sweeps;
-        if (t == cc->head || (k > 0u && b->unlimited == 0u && b->left <= half)) {
+    for (k = max; k > 0u; --k) {
+        const uint32_t t = cc->tail;
+        const uint32_t sweeps = cc->store.sweeps;
+        const magcal_vec3_t *m;
+        if (b->unlimited == 0u && b->left <= half) {
+            break;
+        }
+        m = cont_unpark(cc);
+        if (m == NULL) {
+            if (t == cc->head) {
+                break;
+            }
+            MAGCAL_CONT_BARRIER(); /* the slot was written before head */
+            m = &cc->ring[t % MAGCAL_CONT_RING];
+        }
+        if (cont_screen(cc, m, m == &cc->park_m ? cc->park_t : cc->ring_t[t % MAGCAL_CONT_RING]) == 0) {
+            /* stored samples are counted by the store (added + replaced) */
+            (void)magcal_intake_push(&cc->store, m, NULL);
+        }
+        if (m != &cc->park_m) {
+            MAGCAL_CONT_BARRIER(); /* read before the slot is handed back */
+            cc->tail = t + 1u;
+        }
+        (void)magcal_cal_spend(b, cc->store.sweeps != sweeps ? CONT_W_SWEEP : CONT_W_DRAIN);
+    }
+}
+
+/* During the field-model fit the store must not change: ring samples are parked, in order, in
+ * the solver buffer (free between solves: 2 entries per sample, raw x, y, z and the stamp's bits;
+ * a FIFO of cc->slots / 2 samples), so a fit of many steps does not overflow the ring. After the
+ * fit the drain takes them first, the ring's samples still join the FIFO behind them (so the
+ * ring does not fill while the backlog drains), and no solve starts (no snapshot into the
+ * buffer) until it is empty. */
+static MAGCAL_NOINLINE void cont_park(magcal_cont_t *cc, magcal_cal_budget_t *b)
+{
+    while (cc->park_n - cc->park_i < cont_park_cap(cc)) {
+        const uint32_t t = cc->tail;
+        magcal_vec2_t *pk = &cc->buf[2u * (cc->park_n % cont_park_cap(cc))];
+        if (t == cc->head) {
             break;
         }
         MAGCAL_CONT_BARRIER(); /* the slot was written before head */
-        if (cont_screen(cc, &cc->ring[t % MAGCAL_CONT_RING], cc->ring_t[t % MAGCAL_CONT_RING]) == 0) {
-            /* stored samples are counted by the store (added + replaced) */
-            (void)magcal_intake_push(&cc->store, &cc->ring[t % MAGCAL_CONT_RING], NULL);
-        }
+        pk[0].x = cc->ring[t % MAGCAL_CONT_RING].x;
+        pk[0].y = cc->ring[t % MAGCAL_CONT_RING].y;
+        pk[1].x = cc->ring[t % MAGCAL_CONT_RING].z;
+        (void)memcpy(&pk[1].y, &cc->ring_t[t % MAGCAL_CONT_RING], sizeof pk[1].y);
         MAGCAL_CONT_BARRIER(); /* read before the slot is handed back */
         cc->tail = t + 1u;
-        (void)magcal_cal_spend(b, cc->store.sweeps != sweeps ? CONT_W_SWEEP : CONT_W_DRAIN);
+        cc->park_n++;
+        if (magcal_cal_spend(b, CONT_W_PARK) != 0) {
+            break;
+        }
     }
 }
 
@@ -71,7 +142,7 @@ static int cont_worth_due(const magcal_cont_t *cc)
     const uint32_t st = cc->store.ctr.added + cc->store.ctr.replaced;
     const int fresh = st - cc->stored_at_solve >= cc->cfg.min_new ||
                       (cc->last_status == MAGCAL_ERR_NOT_BETTER && (float)cc->solve_ms_acc >= 0.25f * cc->cfg.age_ms);
-    return fresh != 0 && cc->store.ctr.stored >= cc->cfg.solver.min_samples &&
+    return fresh != 0 && cc->park_n == cc->park_i && cc->store.ctr.stored >= cc->cfg.solver.min_samples &&
            (cc->worth_checked == 0u || cc->worth_seen != st);
 }
 
@@ -134,14 +205,30 @@ static MAGCAL_NOINLINE int cont_snapshot_part(magcal_cont_t *cc, magcal_cal_budg
     return 0;
 }
 
-/* A solve ended with st: adoption over time (cont_adopt.c), the outcome. */
+/* A solve ended with st: adoption over time (cont_adopt.c), the outcome. An adoption starts the
+ * field-model fit (stage FIT, the following steps; the judge is radius-only until it ends). */
 static MAGCAL_NOINLINE magcal_cont_outcome_t cont_end(magcal_cont_t *cc, magcal_status_t st)
 {
     cc->stage = (uint8_t)CONT_STAGE_NONE;
+    cc->fit_phase = 0u;
     cc->last_outcome = magcal_cont_finish_solve(cc, st);
     /* new information counts from the store the solve saw (its snapshot), not from its end */
     cc->stored_at_solve = cc->snap_stored;
+    if (cc->fit_phase != 0u) {
+        cc->stage = (uint8_t)CONT_STAGE_FIT;
+    }
     return cc->last_outcome;
+}
+
+/* Field-model fit work within the budget (at least one visit): IN_PROGRESS while it lasts, IDLE
+ * when it ended. */
+static MAGCAL_NOINLINE magcal_cont_outcome_t cont_fit_part(magcal_cont_t *cc, magcal_cal_budget_t *b)
+{
+    if (magcal_cont_fit_step(cc, b) == 0) {
+        return MAGCAL_CONT_IN_PROGRESS;
+    }
+    cc->stage = (uint8_t)CONT_STAGE_NONE;
+    return MAGCAL_CONT_IDLE;
 }
 
 /* Solve work within the budget (at least one visit); the outcome when the solve ended. The
@@ -150,6 +237,10 @@ static MAGCAL_NOINLINE magcal_cont_outcome_t cont_end(magcal_cont_t *cc, magcal_
 static magcal_cont_outcome_t cont_solve(magcal_cont_t *cc, magcal_cal_budget_t *b)
 {
     magcal_status_t st;
+    magcal_cont_outcome_t oc;
+    if (cc->stage == (uint8_t)CONT_STAGE_FIT) {
+        return cont_fit_part(cc, b);
+    }
     if (cont_snapshot_part(cc, b) != 0) {
         return MAGCAL_CONT_IN_PROGRESS;
     }
@@ -159,7 +250,11 @@ static magcal_cont_outcome_t cont_solve(magcal_cont_t *cc, magcal_cal_budget_t *
     if (st == MAGCAL_IN_PROGRESS) {
         return MAGCAL_CONT_IN_PROGRESS;
     }
-    return cont_end(cc, st);
+    oc = cont_end(cc, st);
+    if (cc->stage == (uint8_t)CONT_STAGE_FIT && b->unlimited != 0u) {
+        (void)cont_fit_part(cc, b); /* unlimited: the whole fit now (else from the next step on) */
+    }
+    return oc;
 }
 
 magcal_cont_outcome_t magcal_cont_step(magcal_cont_t *cc)
@@ -180,8 +275,11 @@ magcal_cont_outcome_t magcal_cont_step(magcal_cont_t *cc)
         cont_start(cc);
         return MAGCAL_CONT_IN_PROGRESS;
     }
-    if (cc->stage != (uint8_t)CONT_STAGE_SNAPSHOT) {
-        cont_drain(cc, cc->cfg.drain_per_step, &b);
+    if (cont_store_frozen(cc) == 0) {
+        cont_drain(cc, cc->cfg.drain_per_step, &b); /* the parked samples first */
+    }
+    if (cc->stage == (uint8_t)CONT_STAGE_FIT || cc->park_n != cc->park_i) {
+        cont_park(cc, &b); /* the ring's samples behind them (at least one moved) */
     }
     if (cc->change_flag != 0u) {
         return MAGCAL_CONT_CHANGE;
@@ -217,8 +315,8 @@ magcal_cont_outcome_t magcal_cont_solve_blocking(magcal_cont_t *cc, int force)
         return MAGCAL_CONT_IDLE;
     }
     cc->force = (uint8_t)(force != 0 ? 1u : 0u); /* kept in cc: nothing but cc live across calls */
-    if (cc->stage != (uint8_t)CONT_STAGE_SNAPSHOT) {
-        cont_drain(cc, MAGCAL_CONT_RING, &b);
+    if (cont_store_frozen(cc) == 0) {
+        cont_drain(cc, MAGCAL_CONT_RING + (cc->park_n - cc->park_i), &b);
     }
     if (cont_begin(cc) == 0) {
         return MAGCAL_CONT_IDLE;
