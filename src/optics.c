@@ -1337,6 +1337,9 @@ static MAGCAL_NOINLINE int ord_run(ord_t *o, int32_t *rem)
     const size_t n = o->nb.n;
     magcal_nbr_ranges_t rg;
     size_t rg_p = 2u * (size_t)MAGCAL_MAX_SAMPLES; /* rg valid for: p (process) or s + n */
+    /* no ranges until the first query (rg_p matches no point before it); initialised so the
+     * analysers see it */
+    (void)memset(&rg, 0, sizeof rg);
     int requeried = 0;
     int32_t r = *rem;
     while (r > 0 && o->st != (uint8_t)OR_DONE) {
@@ -1699,8 +1702,10 @@ static MAGCAL_NOINLINE magcal_status_t sl_order_done(sl_t *t)
     return MAGCAL_IN_PROGRESS;
 }
 
-/* One step of at most about `budget` estimated M4F instructions; MAGCAL_IN_PROGRESS or final. */
-static magcal_status_t sl_step(sl_t *t, uint32_t budget)
+/* One step of at most about `budget` estimated M4F instructions; MAGCAL_IN_PROGRESS or final.
+ * w is t->w (set by begin only), passed by the caller so the analysers see that the phases'
+ * writes into the workspace (the centre's a[], the masks) cannot change it. */
+static magcal_status_t sl_step(sl_t *t, uint8_t *w, uint32_t budget)
 {
     const size_t n = t->n;
     int32_t rem = budget > (uint32_t)SLICE_REM_MAX ? SLICE_REM_MAX : (int32_t)budget;
@@ -1719,7 +1724,7 @@ static magcal_status_t sl_step(sl_t *t, uint32_t budget)
             }
             break;
         case PH_CENTRE:
-            if (ce_run(&t->u.ce, t->pts, n, t->w, t->cr, &st, &rem) == 0) {
+            if (ce_run(&t->u.ce, t->pts, n, w, t->cr, &st, &rem) == 0) {
                 break;
             }
             if (st != MAGCAL_OK) {
@@ -1733,8 +1738,8 @@ static magcal_status_t sl_step(sl_t *t, uint32_t budget)
             }
             break;
         case PH_AUTOEPS:
-            if (ae_run(&t->u.ae, t->pts, n, t->w, t->cr, &t->eps_prime,
-                       t->kind == (uint8_t)K_FILTER ? (int16_t *)(void *)(t->w + 4u * n) : NULL,
+            if (ae_run(&t->u.ae, t->pts, n, w, t->cr, &t->eps_prime,
+                       t->kind == (uint8_t)K_FILTER ? (int16_t *)(void *)(w + 4u * n) : NULL,
                        &st, &rem) == 0) {
                 break;
             }
@@ -1783,7 +1788,7 @@ static magcal_status_t sl_step(sl_t *t, uint32_t budget)
             return MAGCAL_OK;
         }
         case PH_THIN:
-            if (th_run(&t->u.th, t->pts, n, t->cr, t->w, t->io.cand, (unsigned)TH_MAXRUN, &rem) ==
+            if (th_run(&t->u.th, t->pts, n, t->cr, w, t->io.cand, (unsigned)TH_MAXRUN, &rem) ==
                 0) {
                 break;
             }
@@ -1794,7 +1799,7 @@ static magcal_status_t sl_step(sl_t *t, uint32_t budget)
             t->phase = (uint8_t)PH_THINMASK;
             break;
         default: { /* PH_THINMASK */
-            const uint8_t *rep = t->w + AUTO_REP_OFF(n);
+            const uint8_t *rep = w + AUTO_REP_OFF(n);
             size_t i = t->i;
             for (; i < n && rem > 0; ++i) {
                 if (t->thin_all != 0u) {
@@ -1818,10 +1823,11 @@ static magcal_status_t sl_step(sl_t *t, uint32_t budget)
 /* Run a begun state to its end (the one-shot calls: steps of unlimited budget). */
 static magcal_status_t sl_finish(sl_t *t)
 {
+    uint8_t *const w = t->w;
     magcal_status_t st = MAGCAL_IN_PROGRESS;
     unsigned guard;
     for (guard = 0u; guard < SLICE_ONESHOT_ROUNDS && st == MAGCAL_IN_PROGRESS; ++guard) {
-        st = sl_step(t, UINT32_MAX);
+        st = sl_step(t, w, UINT32_MAX);
     }
     return st;
 }
@@ -1831,13 +1837,15 @@ static magcal_status_t slice_step(void **state, magcal_status_t *status, uint32_
                                   uint32_t budget)
 {
     magcal_status_t st;
+    sl_t *t;
     if (magic != SLICE_MAGIC) {
         return MAGCAL_ERR_ARG;
     }
     if (*state == NULL) {
         return *status;
     }
-    st = sl_step((sl_t *)*state, budget);
+    t = (sl_t *)*state;
+    st = sl_step(t, t->w, budget);
     if (st != MAGCAL_IN_PROGRESS) {
         *status = st;
         *state = NULL;
