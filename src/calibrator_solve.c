@@ -95,13 +95,13 @@ typedef struct {
     uint8_t sub;          /* 0 at a phase's first visit */
     uint8_t cand;         /* consensus candidates: 0 all, 1 filter mask, 2 thinned (flags) */
     uint8_t active;       /* a solve is under way */
-    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the run state overlays the stages' slice states, never live together, so it fits MAGCAL_CALIBRATOR_RUN_LEN */
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation D12: the run state overlays the stages' slice states, never live together, so it fits MAGCAL_CALIBRATOR_RUN_LEN */
     union {
         magcal_dbscan_cfg_t dc;
         magcal_optics_filter_slice_t filter;
         magcal_optics_thin_slice_t thin;
         magcal_consensus_slice_t cons;
-    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the run state overlays the stages' slice states, never live together, so it fits MAGCAL_CALIBRATOR_RUN_LEN */
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation D12: the run state overlays the stages' slice states, never live together, so it fits MAGCAL_CALIBRATOR_RUN_LEN */
     } u;
 } cal_run_t;
 
@@ -126,11 +126,11 @@ typedef struct {
     magcal_cal2d_t next;  /* the new calibration */
     magcal_cal_harm_t hn; /* harmonics of the new calibration */
     magcal_cal_harm_t hc; /* of the installed one */
-    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the adopt state overlays the two estimate passes' slice states, never live together, so it fits the stage scratch */
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation D12: the adopt state overlays the two estimate passes' slice states, never live together, so it fits the stage scratch */
     union {
         magcal_cal_harm_slice_t harm;
         magcal_cal_distinct_slice_t dist;
-    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the adopt state overlays the two estimate passes' slice states, never live together, so it fits the stage scratch */
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation D12: the adopt state overlays the two estimate passes' slice states, never live together, so it fits the stage scratch */
     } u;
     size_t distinct;
     float dup;            /* n / distinct values */

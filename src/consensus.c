@@ -176,7 +176,8 @@ MAGCAL_STATIC_ASSERT(sizeof(cons_state_t) + sizeof(void *) - 1u <= MAGCAL_CONSEN
                      consensus_state_fits_workspace);
 
 /* Phases of a run, in order. */
-/* cppcheck-suppress misra-c2012-5.7 ; false positive (deviation to be numbered, docs/reliability.md): the enum has no tag; misra.py gives every untagged enum the same name, so two units' untagged enums read as one tag declared twice */
+/* cppcheck-suppress misra-c2012-5.7 ; deviation D14 (false positive): the enum has no tag; misra.py gives every untagged enum the same name, so two units' untagged enums read as one tag declared twice */
+/* cppcheck-suppress misra-c2012-2.4 ; deviation D14 (false positive): no tag, so no unused tag; the constants are the phases of cons_state_t.phase */
 enum {
     P_CHECK = 0,  /* every sample finite */
     P_CAND,       /* candidate list */

@@ -130,7 +130,7 @@ static MAGCAL_NOINLINE int sel_run(sel_t *q, float *a, int32_t *rem)
     size_t j = q->j;
     float pivot = q->pivot;
     int paused = 0;
-    /* cppcheck-suppress misra-c2012-15.4 ; deviation (to be numbered): a resumable loop leaves at its pause point and at its phase end */
+    /* cppcheck-suppress misra-c2012-15.4 ; deviation D13: a resumable loop leaves at its pause point and at its phase end */
     while (q->st != 3u && paused == 0) {
         if (q->st == 0u) {
             const size_t lo = q->lo;
@@ -533,7 +533,7 @@ static MAGCAL_NOINLINE int th_run(th_t *t, const magcal_vec2_t *pts, size_t n, c
     uint8_t *rep = w + AUTO_REP_OFF(n);
     size_t i = t->i;
     int32_t r = *rem;
-    /* cppcheck-suppress misra-c2012-15.4 ; deviation (to be numbered): a resumable loop leaves at its pause point and at its phase end */
+    /* cppcheck-suppress misra-c2012-15.4 ; deviation D13: a resumable loop leaves at its pause point and at its phase end */
     while (t->st <= last) {
         if (t->st == (uint8_t)TH_KEYS) {
             i = th_keys(pts, n, cr, t->h, w, use, i, &r);
@@ -628,12 +628,12 @@ static MAGCAL_NOINLINE int th_run(th_t *t, const magcal_vec2_t *pts, size_t n, c
  * radius found. w as the rule's layout (a, idx, rep). Resumable.
  */
 typedef struct {
-    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation D12: the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
     union {
         sel_t sel;
         rc_t rc;
         th_t th;
-    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation D12: the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
     } u;
     float h;
     uint32_t rng;
@@ -767,11 +767,11 @@ static MAGCAL_NOINLINE int ce_run(ce_t *c, const magcal_vec2_t *pts, size_t n, u
  * (0..AUTO_SECTORS-1 in the ring band, -1 outside; overlaying idx) for the ring selection.
  */
 typedef struct {
-    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation D12: the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
     union {
         hsort_t hs;
         sel_t sel;
-    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation D12: the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
     } u;
     float link1;
     float link2;
@@ -914,7 +914,7 @@ static MAGCAL_NOINLINE int ae_run(ae_t *e, const magcal_vec2_t *pts, size_t n, u
     size_t i = e->i;
     int32_t r = *rem;
     int paused = 0;
-    /* cppcheck-suppress misra-c2012-15.4 ; deviation (to be numbered): a resumable loop leaves at its pause point and at its phase end */
+    /* cppcheck-suppress misra-c2012-15.4 ; deviation D13: a resumable loop leaves at its pause point and at its phase end */
     while (paused == 0 && e->st != (uint8_t)AE_DONE) {
         if (r <= 0) {
             paused = 1;
@@ -1024,11 +1024,11 @@ typedef struct {
     magcal_ocore_t oc;
     magcal_nbr_t nb;
     float eps2;
-    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation D12: the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
     union { /* the build's state is dead once the scans begin */
         magcal_nbr_build_t nbb;
         ord_scan_t sc;
-    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation D12: the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
     } u;
     uint8_t st; /* OR_* */
 } ord_t;
@@ -1514,11 +1514,11 @@ typedef struct {
     const magcal_vec2_t *pts;
     uint8_t *w;          /* the caller's workspace */
     uint8_t *out;        /* inlier or representative mask */
-    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation D12: the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
     union {
         const uint8_t *cand;          /* thinning: candidates (NULL: every point) */
         magcal_optics_result_t *info; /* filter and run: optional summary */
-    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation D12: the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
     } io;
     float eps; /* of the ordering */
     float eps_prime;
@@ -1533,13 +1533,13 @@ typedef struct {
     uint8_t start;
     uint8_t is_auto;
     uint8_t thin_all;
-    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation D12: the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
     union {
         ce_t ce;
         ae_t ae;
         th_t th;
         ord_t ord;
-    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation D12: the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
     } u;
 } sl_t;
 
