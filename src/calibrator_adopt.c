@@ -98,13 +98,12 @@ static int harm_pass_fit(magcal_cal_harm_slice_t *h, magcal_cal_budget_t *b, int
         if (h->mask[i] != 0u && magcal_correct_apply(&h->c, h->pts[i], &v) == MAGCAL_OK) {
             float rho = sqrtf(v.x * v.x + v.y * v.y);
             float g[HARM_K];
-            float d;
-            size_t r;
-            size_t q;
             if (rho > 0.0f) {
-                d = rho / h->mean - 1.0f;
+                float d = rho / h->mean - 1.0f;
+                size_t r;
                 harm_row(v, rho, g);
                 if (with_res == 0) {
+                    size_t q;
                     for (r = 0u; r < HARM_K; ++r) {
                         for (q = 0u; q <= r; ++q) {
                             nm[r * HARM_K + q] += g[r] * g[q];
@@ -167,7 +166,7 @@ static int harm_column(magcal_cal_harm_slice_t *h, size_t q)
 static void harm_estimates(magcal_cal_harm_slice_t *h)
 {
     const float *beta = h->scratch + 2u * (size_t)HARM_K * HARM_K;
-    const float *inv4 = beta + 2u * HARM_K;
+    const float *inv4 = beta + 2u * (size_t)HARM_K;
     magcal_cal_harm_t *out = h->out;
     const size_t k = h->k;
     float tr = 0.0f;

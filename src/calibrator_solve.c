@@ -95,11 +95,13 @@ typedef struct {
     uint8_t sub;          /* 0 at a phase's first visit */
     uint8_t cand;         /* consensus candidates: 0 all, 1 filter mask, 2 thinned (flags) */
     uint8_t active;       /* a solve is under way */
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation D12: the run state overlays the stages' slice states, never live together, so it fits MAGCAL_CALIBRATOR_RUN_LEN */
     union {
         magcal_dbscan_cfg_t dc;
         magcal_optics_filter_slice_t filter;
         magcal_optics_thin_slice_t thin;
         magcal_consensus_slice_t cons;
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation D12: the run state overlays the stages' slice states, never live together, so it fits MAGCAL_CALIBRATOR_RUN_LEN */
     } u;
 } cal_run_t;
 
@@ -124,9 +126,11 @@ typedef struct {
     magcal_cal2d_t next;  /* the new calibration */
     magcal_cal_harm_t hn; /* harmonics of the new calibration */
     magcal_cal_harm_t hc; /* of the installed one */
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation D12: the adopt state overlays the two estimate passes' slice states, never live together, so it fits the stage scratch */
     union {
         magcal_cal_harm_slice_t harm;
         magcal_cal_distinct_slice_t dist;
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation D12: the adopt state overlays the two estimate passes' slice states, never live together, so it fits the stage scratch */
     } u;
     size_t distinct;
     float dup;            /* n / distinct values */
@@ -146,16 +150,37 @@ MAGCAL_STATIC_ASSERT(sizeof(cal_prep_t) <= MAGCAL_CONSENSUS_WORKSPACE_LEN(16u), 
 /* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
 MAGCAL_STATIC_ASSERT(sizeof(magcal_ellipse_fit_slice_t) + 8u <= MAGCAL_CONSENSUS_WORKSPACE_LEN(16u), plain_fits_scratch);
 /* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
-MAGCAL_STATIC_ASSERT(MAGCAL_CAL_HARM_SCRATCH_FLOATS * sizeof(float) + 2u * 16u + 8u + sizeof(cal_adopt_t) <=
+MAGCAL_STATIC_ASSERT(MAGCAL_CAL_HARM_SCRATCH_FLOATS * sizeof(float) + (size_t)2u * 16u + 8u + sizeof(cal_adopt_t) <=
                          MAGCAL_CONSENSUS_WORKSPACE_LEN(16u),
                      adopt_fits_scratch);
 
-static cal_run_t *cal_run(const magcal_calibrator_t *cal) { return (cal_run_t *)cal->run; }
+/* The workspace pointers of a const calibrator are `void *const`: their memory is writable. */
+static cal_run_t *cal_run(const magcal_calibrator_t *cal)
+{
+    void *run = cal->run;
+    return (cal_run_t *)run;
+}
 
-static cal_prep_t *cal_prep(const magcal_calibrator_t *cal) { return (cal_prep_t *)cal->scratch; }
+static cal_prep_t *cal_prep(const magcal_calibrator_t *cal)
+{
+    void *scratch = cal->scratch;
+    return (cal_prep_t *)scratch;
+}
+
+/* p rounded up to the next multiple of 8 (pointer arithmetic from the workspace address; the
+ * alignment is read by magcal_misalign, deviation D9). */
+static uint8_t *cal_align8(void *p)
+{
+    const size_t mis = magcal_misalign(p, 8u);
+    return (uint8_t *)p + ((mis == 0u) ? 0u : (8u - mis));
+}
 
 /* Scratch of the estimates: the harmonics' floats, then the distinct count's n indices. */
-static float *cal_est_scratch(const magcal_calibrator_t *cal) { return (float *)cal->scratch; }
+static float *cal_est_scratch(const magcal_calibrator_t *cal)
+{
+    void *scratch = cal->scratch;
+    return (float *)scratch;
+}
 
 static uint16_t *cal_est_idx(const magcal_calibrator_t *cal)
 {
@@ -165,9 +190,8 @@ static uint16_t *cal_est_idx(const magcal_calibrator_t *cal)
 /* The plain fit's slice state: at the start of the stage scratch (8-aligned), unused by it. */
 static magcal_ellipse_fit_slice_t *cal_plain_slice(const magcal_calibrator_t *cal)
 {
-    uintptr_t a = (uintptr_t)cal->scratch;
-    a = (a + 7u) & ~(uintptr_t)7u;
-    return (magcal_ellipse_fit_slice_t *)(void *)a;
+    void *scratch = cal->scratch;
+    return (magcal_ellipse_fit_slice_t *)(void *)cal_align8(scratch);
 }
 
 /* Budget left for a module's step (UINT32_MAX: to the end). */
@@ -184,9 +208,7 @@ static magcal_status_t cal_module_done(cal_run_t *r, magcal_status_t st, uint32_
 /* Behind the indices, 8-aligned (the cursors hold pointers and sizes). */
 static cal_adopt_t *cal_adopt(const magcal_calibrator_t *cal)
 {
-    uintptr_t a = (uintptr_t)(void *)(cal_est_idx(cal) + cal->capacity);
-    a = (a + 7u) & ~(uintptr_t)7u;
-    return (cal_adopt_t *)(void *)a;
+    return (cal_adopt_t *)(void *)cal_align8(cal_est_idx(cal) + cal->capacity);
 }
 
 /* Go to phase ph (cursor and sub-state cleared). */

@@ -176,6 +176,8 @@ MAGCAL_STATIC_ASSERT(sizeof(cons_state_t) + sizeof(void *) - 1u <= MAGCAL_CONSEN
                      consensus_state_fits_workspace);
 
 /* Phases of a run, in order. */
+/* cppcheck-suppress misra-c2012-5.7 ; deviation D14 (false positive): the enum has no tag; misra.py gives every untagged enum the same name, so two units' untagged enums read as one tag declared twice */
+/* cppcheck-suppress misra-c2012-2.4 ; deviation D14 (false positive): no tag, so no unused tag; the constants are the phases of cons_state_t.phase */
 enum {
     P_CHECK = 0,  /* every sample finite */
     P_CAND,       /* candidate list */
@@ -239,7 +241,7 @@ static int cons_pay(uint32_t budget, uint32_t *used, uint32_t w)
     return 1;
 }
 
-static void sel_init(cons_sel_t *q, float *a, size_t n, size_t k)
+static void cons_sel_init(cons_sel_t *q, float *a, size_t n, size_t k)
 {
     q->a = a;
     q->n = n;
@@ -254,7 +256,7 @@ static void sel_init(cons_sel_t *q, float *a, size_t n, size_t k)
  * nest: 0 outer test, 1 inner test, 2 scan i up, 3 scan j down, 4 swap, 5 partition decision.
  * Each scan step and each swap or partition round is one visit; the indices live in locals
  * during the call (the scans are as tight as the one-shot loop's). */
-static int sel_run(cons_sel_t *q, uint32_t budget, uint32_t *used)
+static int cons_sel_run(cons_sel_t *q, uint32_t budget, uint32_t *used)
 {
     float *a = q->a;
     const size_t n = q->n;
@@ -523,7 +525,7 @@ static MAGCAL_NOINLINE magcal_status_t cons_prep(cons_state_t *S, uint32_t budge
                 sort_init(&S->sort, S->scr, NULL, m);
                 S->phase = P_MS_SORT;
             } else {
-                sel_init(&S->sel, S->scr, m, (m - 1u) / 2u);
+                cons_sel_init(&S->sel, S->scr, m, (m - 1u) / 2u);
                 S->phase = P_MED_SEL;
             }
         }
@@ -560,7 +562,7 @@ static MAGCAL_NOINLINE magcal_status_t cons_prep(cons_state_t *S, uint32_t budge
         }
         break;
     case P_MED_SEL:
-        if (sel_run(&S->sel, budget, used) == 0) {
+        if (cons_sel_run(&S->sel, budget, used) == 0) {
             return CONS_SPENT;
         }
         S->pos = 0u;
@@ -607,7 +609,7 @@ static void cons_score_init(cons_state_t *S, const uint16_t set[5], size_t strid
     size_t c = 0u;
     size_t j;
     if (S->n <= 5u) {
-        sel_init(&S->sel, S->scr, cnt, (cnt - 1u) / 2u);
+        cons_sel_init(&S->sel, S->scr, cnt, (cnt - 1u) / 2u);
         return;
     }
     for (j = 0u; j < 5u; ++j) {
@@ -617,7 +619,7 @@ static void cons_score_init(cons_state_t *S, const uint16_t set[5], size_t strid
         }
     }
     S->sub_c = c;
-    sel_init(&S->sel, S->scr, cnt, c + (cnt - c - 1u) / 2u);
+    cons_sel_init(&S->sel, S->scr, cnt, c + (cnt - c - 1u) / 2u);
 }
 
 /* Draws needed (at most max_iter) so that an all-inlier minimal set is missed with probability
@@ -625,7 +627,8 @@ static void cons_score_init(cons_state_t *S, const uint16_t set[5], size_t strid
  * O(max_iter) products, no logf. */
 static void cons_need(cons_state_t *S)
 {
-    const float w = (float)S->cnt / (float)(S->sub - S->sub_c);
+    const size_t sub_in = S->sub - S->sub_c; /* subsample minus the minimal set's own points */
+    const float w = (float)S->cnt / (float)sub_in;
     const float miss = 1.0f - w * w * w * w * w;
     float prod = 1.0f;
     uint16_t k;
@@ -665,7 +668,6 @@ static void cons_draw_one(cons_state_t *S)
 static MAGCAL_NOINLINE magcal_status_t cons_draw(cons_state_t *S, uint32_t budget, uint32_t *used)
 {
     const size_t n = S->n;
-    size_t j;
     switch (S->phase) {
     case P_DRAW:
         if (S->draws >= S->cfg->max_iter ||
@@ -694,11 +696,12 @@ static MAGCAL_NOINLINE magcal_status_t cons_draw(cons_state_t *S, uint32_t budge
         break;
     }
     case P_SCORE_SEL:
-        if (sel_run(&S->sel, budget, used) == 0) {
+        if (cons_sel_run(&S->sel, budget, used) == 0) {
             return CONS_SPENT;
         }
         S->phase = P_DRAW;
         if (S->sel.val < S->best_score) {
+            size_t j;
             S->best_score = S->sel.val;
             S->best = S->cand;
             for (j = 0u; j < 5u; ++j) {
@@ -712,8 +715,9 @@ static MAGCAL_NOINLINE magcal_status_t cons_draw(cons_state_t *S, uint32_t budge
         }
         break;
     default: { /* P_SCORE_CNT: scr holds the subsample's residuals (reordered by the selection) */
+        const size_t dof = S->sub - MAGCAL_ELLIPSE_MIN_POINTS;
         const float thr = CONS_INLIER_SIGMAS * CONS_MAD_TO_SIGMA * S->best_score *
-                          (1.0f + 5.0f / (float)(S->sub - MAGCAL_ELLIPSE_MIN_POINTS));
+                          (1.0f + 5.0f / (float)dof);
         const size_t end = cons_chunk(budget, used, CONS_W_COPY, S->pos, S->sub);
         size_t t;
         for (t = S->pos; t < end; ++t) {
@@ -740,7 +744,6 @@ static MAGCAL_NOINLINE magcal_status_t cons_draw(cons_state_t *S, uint32_t budge
 static MAGCAL_NOINLINE magcal_status_t cons_start(cons_state_t *S, uint32_t budget, uint32_t *used)
 {
     magcal_status_t st;
-    size_t i;
     switch (S->phase) {
     case P_START:
         if (cons_pay(budget, used, CONS_W_FIX) == 0) {
@@ -767,12 +770,13 @@ static MAGCAL_NOINLINE magcal_status_t cons_start(cons_state_t *S, uint32_t budg
     case P_START_RES: {
         size_t p0 = S->pos;
         int done = cons_res_loop(S, &S->best, budget, used);
+        size_t i;
         for (i = p0; i < S->pos; ++i) {
             S->scr[i] = S->res[i];
         }
         if (done != 0) {
             if (S->valid == 0u) {
-                sel_init(&S->sel, S->scr, S->n, (S->n - 1u) / 2u);
+                cons_sel_init(&S->sel, S->scr, S->n, (S->n - 1u) / 2u);
             } else {
                 cons_score_init(S, S->best_idx, 1u, S->n);
             }
@@ -781,7 +785,7 @@ static MAGCAL_NOINLINE magcal_status_t cons_start(cons_state_t *S, uint32_t budg
         break;
     }
     default: /* P_START_SEL */
-        if (sel_run(&S->sel, budget, used) == 0) {
+        if (cons_sel_run(&S->sel, budget, used) == 0) {
             return CONS_SPENT;
         }
         S->best_score = S->sel.val;
@@ -939,12 +943,12 @@ static MAGCAL_NOINLINE magcal_status_t cons_refine(cons_state_t *S, uint32_t bud
         }
         S->pos = end;
         if (end == n) {
-            sel_init(&S->sel, S->scr, S->k_in, (S->k_in - 1u) / 2u);
+            cons_sel_init(&S->sel, S->scr, S->k_in, (S->k_in - 1u) / 2u);
             S->phase = P_RT_SEL;
         }
         break;
     case P_RT_SEL:
-        if (sel_run(&S->sel, budget, used) == 0) {
+        if (cons_sel_run(&S->sel, budget, used) == 0) {
             return CONS_SPENT;
         }
         cons_rescale(S);

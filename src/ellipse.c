@@ -448,7 +448,6 @@ static magcal_status_t conic_finish(const float coef[5], float mx, float my, flo
                                     magcal_ellipse_t *out)
 {
     float geo[6];
-    float acc[2] = {0.0f, 0.0f};
     float rms = 0.0f;
     magcal_status_t st = conic_geometry(coef, mx, my, s, NULL, geo);
 
@@ -456,6 +455,7 @@ static magcal_status_t conic_finish(const float coef[5], float mx, float my, flo
         return st;
     }
     if (src != NULL) {
+        float acc[2] = {0.0f, 0.0f};
         src_rms_range(src, geo, 0u, src->n, acc);
         rms = sqrtf(acc[0] / (float)cnt);
     }
@@ -763,9 +763,11 @@ static MAGCAL_NOINLINE magcal_status_t slice_phase(magcal_ellipse_fit_slice_t *s
     static const uint16_t w_of[FIT_PH_DONE] = {0u, FIT_W_IDX, FIT_W_FIVE, FIT_W_SCAN,
                                                 FIT_W_MOM, FIT_W_SOLVE, FIT_W_RMS, FIT_W_STORE};
     const uint32_t w = w_of[s->phase_];
-    const int pass = (s->phase_ == FIT_PH_IDX || s->phase_ == FIT_PH_SCAN ||
-                      s->phase_ == FIT_PH_MOM || s->phase_ == FIT_PH_RMS);
-    const size_t left = (pass != 0) ? s->n_ - s->k_ : 1u;
+    /* a pass phase visits the points left, a fixed phase is one visit */
+    const size_t left = (s->phase_ == FIT_PH_IDX || s->phase_ == FIT_PH_SCAN ||
+                         s->phase_ == FIT_PH_MOM || s->phase_ == FIT_PH_RMS)
+                            ? s->n_ - s->k_
+                            : 1u;
     const size_t v = slice_visits(budget, *used, w, left);
     const size_t k1 = s->k_ + v;
     magcal_status_t st = MAGCAL_IN_PROGRESS;

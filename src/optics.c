@@ -130,7 +130,7 @@ static MAGCAL_NOINLINE int sel_run(sel_t *q, float *a, int32_t *rem)
     size_t j = q->j;
     float pivot = q->pivot;
     int paused = 0;
-    /* cppcheck-suppress misra-c2012-15.4 ; deviation (to be numbered): a resumable loop leaves at its pause point and at its phase end */
+    /* cppcheck-suppress misra-c2012-15.4 ; deviation D13: a resumable loop leaves at its pause point and at its phase end */
     while (q->st != 3u && paused == 0) {
         if (q->st == 0u) {
             const size_t lo = q->lo;
@@ -533,7 +533,7 @@ static MAGCAL_NOINLINE int th_run(th_t *t, const magcal_vec2_t *pts, size_t n, c
     uint8_t *rep = w + AUTO_REP_OFF(n);
     size_t i = t->i;
     int32_t r = *rem;
-    /* cppcheck-suppress misra-c2012-15.4 ; deviation (to be numbered): a resumable loop leaves at its pause point and at its phase end */
+    /* cppcheck-suppress misra-c2012-15.4 ; deviation D13: a resumable loop leaves at its pause point and at its phase end */
     while (t->st <= last) {
         if (t->st == (uint8_t)TH_KEYS) {
             i = th_keys(pts, n, cr, t->h, w, use, i, &r);
@@ -628,12 +628,12 @@ static MAGCAL_NOINLINE int th_run(th_t *t, const magcal_vec2_t *pts, size_t n, c
  * radius found. w as the rule's layout (a, idx, rep). Resumable.
  */
 typedef struct {
-    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation D12: the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
     union {
         sel_t sel;
         rc_t rc;
         th_t th;
-    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation D12: the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
     } u;
     float h;
     uint32_t rng;
@@ -767,11 +767,11 @@ static MAGCAL_NOINLINE int ce_run(ce_t *c, const magcal_vec2_t *pts, size_t n, u
  * (0..AUTO_SECTORS-1 in the ring band, -1 outside; overlaying idx) for the ring selection.
  */
 typedef struct {
-    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation D12: the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
     union {
         hsort_t hs;
         sel_t sel;
-    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation D12: the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
     } u;
     float link1;
     float link2;
@@ -914,7 +914,7 @@ static MAGCAL_NOINLINE int ae_run(ae_t *e, const magcal_vec2_t *pts, size_t n, u
     size_t i = e->i;
     int32_t r = *rem;
     int paused = 0;
-    /* cppcheck-suppress misra-c2012-15.4 ; deviation (to be numbered): a resumable loop leaves at its pause point and at its phase end */
+    /* cppcheck-suppress misra-c2012-15.4 ; deviation D13: a resumable loop leaves at its pause point and at its phase end */
     while (paused == 0 && e->st != (uint8_t)AE_DONE) {
         if (r <= 0) {
             paused = 1;
@@ -1024,11 +1024,11 @@ typedef struct {
     magcal_ocore_t oc;
     magcal_nbr_t nb;
     float eps2;
-    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation D12: the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
     union { /* the build's state is dead once the scans begin */
         magcal_nbr_build_t nbb;
         ord_scan_t sc;
-    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation D12: the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
     } u;
     uint8_t st; /* OR_* */
 } ord_t;
@@ -1337,6 +1337,9 @@ static MAGCAL_NOINLINE int ord_run(ord_t *o, int32_t *rem)
     const size_t n = o->nb.n;
     magcal_nbr_ranges_t rg;
     size_t rg_p = 2u * (size_t)MAGCAL_MAX_SAMPLES; /* rg valid for: p (process) or s + n */
+    /* no ranges until the first query (rg_p matches no point before it); initialised so the
+     * analysers see it */
+    (void)memset(&rg, 0, sizeof rg);
     int requeried = 0;
     int32_t r = *rem;
     while (r > 0 && o->st != (uint8_t)OR_DONE) {
@@ -1511,11 +1514,11 @@ typedef struct {
     const magcal_vec2_t *pts;
     uint8_t *w;          /* the caller's workspace */
     uint8_t *out;        /* inlier or representative mask */
-    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation D12: the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
     union {
         const uint8_t *cand;          /* thinning: candidates (NULL: every point) */
         magcal_optics_result_t *info; /* filter and run: optional summary */
-    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation D12: the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
     } io;
     float eps; /* of the ordering */
     float eps_prime;
@@ -1530,13 +1533,13 @@ typedef struct {
     uint8_t start;
     uint8_t is_auto;
     uint8_t thin_all;
-    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation D12: the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
     union {
         ce_t ce;
         ae_t ae;
         th_t th;
         ord_t ord;
-    /* cppcheck-suppress misra-c2012-19.2 ; deviation (to be numbered, docs/reliability.md): the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
+    /* cppcheck-suppress misra-c2012-19.2 ; deviation D12: the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
     } u;
 } sl_t;
 
@@ -1699,8 +1702,10 @@ static MAGCAL_NOINLINE magcal_status_t sl_order_done(sl_t *t)
     return MAGCAL_IN_PROGRESS;
 }
 
-/* One step of at most about `budget` estimated M4F instructions; MAGCAL_IN_PROGRESS or final. */
-static magcal_status_t sl_step(sl_t *t, uint32_t budget)
+/* One step of at most about `budget` estimated M4F instructions; MAGCAL_IN_PROGRESS or final.
+ * w is t->w (set by begin only), passed by the caller so the analysers see that the phases'
+ * writes into the workspace (the centre's a[], the masks) cannot change it. */
+static magcal_status_t sl_step(sl_t *t, uint8_t *w, uint32_t budget)
 {
     const size_t n = t->n;
     int32_t rem = budget > (uint32_t)SLICE_REM_MAX ? SLICE_REM_MAX : (int32_t)budget;
@@ -1719,7 +1724,7 @@ static magcal_status_t sl_step(sl_t *t, uint32_t budget)
             }
             break;
         case PH_CENTRE:
-            if (ce_run(&t->u.ce, t->pts, n, t->w, t->cr, &st, &rem) == 0) {
+            if (ce_run(&t->u.ce, t->pts, n, w, t->cr, &st, &rem) == 0) {
                 break;
             }
             if (st != MAGCAL_OK) {
@@ -1733,8 +1738,8 @@ static magcal_status_t sl_step(sl_t *t, uint32_t budget)
             }
             break;
         case PH_AUTOEPS:
-            if (ae_run(&t->u.ae, t->pts, n, t->w, t->cr, &t->eps_prime,
-                       t->kind == (uint8_t)K_FILTER ? (int16_t *)(void *)(t->w + 4u * n) : NULL,
+            if (ae_run(&t->u.ae, t->pts, n, w, t->cr, &t->eps_prime,
+                       t->kind == (uint8_t)K_FILTER ? (int16_t *)(void *)(w + 4u * n) : NULL,
                        &st, &rem) == 0) {
                 break;
             }
@@ -1783,7 +1788,7 @@ static magcal_status_t sl_step(sl_t *t, uint32_t budget)
             return MAGCAL_OK;
         }
         case PH_THIN:
-            if (th_run(&t->u.th, t->pts, n, t->cr, t->w, t->io.cand, (unsigned)TH_MAXRUN, &rem) ==
+            if (th_run(&t->u.th, t->pts, n, t->cr, w, t->io.cand, (unsigned)TH_MAXRUN, &rem) ==
                 0) {
                 break;
             }
@@ -1794,7 +1799,7 @@ static magcal_status_t sl_step(sl_t *t, uint32_t budget)
             t->phase = (uint8_t)PH_THINMASK;
             break;
         default: { /* PH_THINMASK */
-            const uint8_t *rep = t->w + AUTO_REP_OFF(n);
+            const uint8_t *rep = w + AUTO_REP_OFF(n);
             size_t i = t->i;
             for (; i < n && rem > 0; ++i) {
                 if (t->thin_all != 0u) {
@@ -1818,10 +1823,11 @@ static magcal_status_t sl_step(sl_t *t, uint32_t budget)
 /* Run a begun state to its end (the one-shot calls: steps of unlimited budget). */
 static magcal_status_t sl_finish(sl_t *t)
 {
+    uint8_t *const w = t->w;
     magcal_status_t st = MAGCAL_IN_PROGRESS;
     unsigned guard;
     for (guard = 0u; guard < SLICE_ONESHOT_ROUNDS && st == MAGCAL_IN_PROGRESS; ++guard) {
-        st = sl_step(t, UINT32_MAX);
+        st = sl_step(t, w, UINT32_MAX);
     }
     return st;
 }
@@ -1831,13 +1837,15 @@ static magcal_status_t slice_step(void **state, magcal_status_t *status, uint32_
                                   uint32_t budget)
 {
     magcal_status_t st;
+    sl_t *t;
     if (magic != SLICE_MAGIC) {
         return MAGCAL_ERR_ARG;
     }
     if (*state == NULL) {
         return *status;
     }
-    st = sl_step((sl_t *)*state, budget);
+    t = (sl_t *)*state;
+    st = sl_step(t, t->w, budget);
     if (st != MAGCAL_IN_PROGRESS) {
         *status = st;
         *state = NULL;
