@@ -55,19 +55,21 @@ static unsigned cont_popcount(uint32_t v)
  * 0 keeps both, 1 drops u^2, 2 drops u and u^2. Returns the count written to f. */
 static uint32_t cont_fz_feat(float u, float hx, float hy, uint32_t skip, float *f)
 {
-    uint32_t n = 0u;
-    f[n++] = 1.0f;
+    uint32_t n = 1u;
+    f[0] = 1.0f;
     if (skip < 2u) {
-        f[n++] = u;
+        f[n] = u;
+        n++;
     }
     if (skip < 1u) {
-        f[n++] = u * u;
+        f[n] = u * u;
+        n++;
     }
-    f[n++] = hx;
-    f[n++] = hy;
-    f[n++] = hx * hx - hy * hy;
-    f[n++] = hx * hy;
-    return n;
+    f[n] = hx;
+    f[n + 1u] = hy;
+    f[n + 2u] = hx * hx - hy * hy;
+    f[n + 3u] = hx * hy;
+    return n + 4u;
 }
 
 
@@ -133,8 +135,10 @@ static int cont_fz_chol_solve(magcal_cont_t *cc, uint32_t nf, float *b)
         }
         b[p] = v / l[p * (p + 1u) / 2u + p];
     }
-    for (p = nf; p-- > 0u;) {
-        float v = b[p];
+    for (q = 0u; q < nf; ++q) {
+        float v;
+        p = nf - 1u - q;
+        v = b[p];
         for (k = p + 1u; k < nf; ++k) {
             v -= l[k * (k + 1u) / 2u + p] * b[k];
         }
@@ -365,12 +369,13 @@ void magcal_cont_declare_change(magcal_cont_t *cc)
 #define CONT_W_FIT_BIN 11u    /* one bin advanced */
 #define CONT_W_FIT_CHOL 3200u /* Cholesky + solve of one model form (7 x 7 at most) */
 
+/* cppcheck-suppress misra-c2012-5.7 ; deviation D14 (false positive): the enum has no tag */
+/* cppcheck-suppress misra-c2012-2.4 ; deviation D14 (false positive): no tag, so no unused tag */
 enum { CONT_FIT_NONE = 0, CONT_FIT_Z = 1, CONT_FIT_SUMS = 2, CONT_FIT_CHOL = 3, CONT_FIT_SIGMA = 4 };
 
 /* Start a pass (phase) over the store with its accumulators cleared. */
 static void cont_fit_pass(magcal_cont_t *cc, uint8_t phase)
 {
-    uint32_t p;
     cc->fit_phase = phase;
     cc->fit_bin = 0u;
     cc->fit_k = 0u;
@@ -378,6 +383,7 @@ static void cont_fit_pass(magcal_cont_t *cc, uint8_t phase)
     cc->fit_acc[1] = 0.0f;
     cc->fit_acc[2] = 0.0f;
     if (phase == (uint8_t)CONT_FIT_SUMS) {
+        uint32_t p;
         /* packed lower triangle: row p, column q at p (p + 1) / 2 + q */
         for (p = 0u; p < 28u; ++p) {
             cc->fz_l[p] = 0.0f;
@@ -450,7 +456,6 @@ static void cont_fz_add(magcal_cont_t *cc, const magcal_vec3_t *m)
 static void cont_fit_sample(magcal_cont_t *cc, const magcal_vec3_t *m)
 {
     magcal_vec2_t h;
-    float v[3];
     if (cc->fit_phase == (uint8_t)CONT_FIT_SUMS) {
         cont_fz_add(cc, m);
         return;
@@ -463,6 +468,7 @@ static void cont_fit_sample(magcal_cont_t *cc, const magcal_vec3_t *m)
     }
     if (cont_fit_corrected(cc, m, &h) != 0) {
         /* sigma: RMS of the relative residual over the samples within 0.1 of the model */
+        float v[3];
         const float rel = cont_fz_rel(cc, &h, m->z, v);
         const uint8_t sec = cont_sector(&h, &v[0]);
         cc->fz_cover[sec / 32u] |= 1u << (sec % 32u);
@@ -480,16 +486,16 @@ static void cont_fit_sample(magcal_cont_t *cc, const magcal_vec3_t *m)
 static int cont_fit_next_form(magcal_cont_t *cc)
 {
     static const uint8_t keep[6] = {0u, 1u, 3u, 4u, 5u, 6u};
-    uint32_t r;
-    uint32_t c;
     cc->fit_skip++;
     if (cc->fit_skip >= 3u) {
         cc->fit_phase = (uint8_t)CONT_FIT_NONE;
         return 1;
     }
     if (cc->fit_skip == 1u && cc->fit_phase == (uint8_t)CONT_FIT_CHOL) {
+        uint32_t r;
         /* the full form's sums had enough samples (so does this form: the same samples) */
         for (r = 0u; r < 6u; ++r) {
+            uint32_t c;
             for (c = 0u; c <= r; ++c) {
                 cc->fz_l[r * (r + 1u) / 2u + c] = cc->fit_a[keep[r] * (keep[r] + 1u) / 2u + keep[c]];
             }
@@ -551,8 +557,8 @@ static int cont_fit_pass_end(magcal_cont_t *cc)
         return 0;
     }
     if (cc->fit_phase == (uint8_t)CONT_FIT_SUMS) {
-        uint32_t p;
         if (n >= CONT_FZ_MIN_N) {
+            uint32_t p;
             for (p = 0u; p < 28u; ++p) {
                 cc->fit_a[p] = cc->fz_l[p]; /* kept for the form without u^2 (cont_fit_next_form) */
             }
