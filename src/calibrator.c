@@ -204,6 +204,12 @@ magcal_status_t magcal_calibrator_init_checked(magcal_calibrator_t *cal, const m
     w = (uint8_t *)work;
     masks = MAGCAL_CALIBRATOR_MASKS_LEN(capacity);
     cal->flags = w;
+    {
+        /* the run state and the scratch hold pointers (slice states): pointer-aligned (a 4-aligned
+         * workspace on a 64-bit host needs up to 4 bytes of lead, counted in the size macro) */
+        const size_t mis = magcal_misalign(w + masks, sizeof(void *));
+        masks += mis != 0u ? sizeof(void *) - mis : 0u;
+    }
     cal->run = (void *)(w + masks);
     cal->scratch = (void *)(w + masks + MAGCAL_CALIBRATOR_RUN_LEN);
     cal->scratch_len = work_len - masks - MAGCAL_CALIBRATOR_RUN_LEN;

@@ -375,8 +375,10 @@ static void test_workspace_len_capacity_1024_within_24_bytes_per_sample(void)
     TEST_ASSERT_EQUAL_UINT32(20u, (uint32_t)MAGCAL_CALIBRATOR_MASKS_LEN(17u));
     TEST_ASSERT_EQUAL_UINT32((uint32_t)(MAGCAL_CONSENSUS_WORKSPACE_LEN(1024u) + 2048u),
                              (uint32_t)MAGCAL_CALIBRATOR_CONSENSUS_LEN(1024u));
+    /* the goal is a 32-bit target's (the bench measures it on the M4F: 24 B/sample); a 64-bit
+     * host adds the lead that pointer-aligns the run state in a 4-aligned workspace */
     TEST_ASSERT_TRUE(MAGCAL_CALIBRATOR_WORKSPACE_LEN(1024u) + 1024u * sizeof(magcal_vec2_t) <=
-                     24u * 1024u);
+                     24u * 1024u + (sizeof(void *) - 4u));
     /* the consensus stage and its masks fit in the stage scratch at every capacity */
     TEST_ASSERT_TRUE(MAGCAL_CALIBRATOR_WORKSPACE_LEN(16u) >=
                      MAGCAL_CALIBRATOR_MASKS_LEN(16u) + MAGCAL_CALIBRATOR_RUN_LEN +

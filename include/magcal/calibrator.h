@@ -169,7 +169,7 @@ extern "C" {
 #define MAGCAL_CALIBRATOR_RUN_LEN                                                                  \
     ((sizeof(magcal_cal_report_t) + sizeof(magcal_consensus_result_t) +                            \
       sizeof(magcal_optics_cfg_t) + sizeof(magcal_optics_result_t) + MAGCAL_CALIBRATOR_SLICE_LEN + \
-      3u) & ~(size_t)3u)
+      (sizeof(void *) - 1u)) & ~(sizeof(void *) - 1u)) /* pointer-aligned: the scratch follows */
 
 /**
  * Workspace bytes for a calibrator of the given capacity: the per-sample flags, the run() state
@@ -178,7 +178,7 @@ extern "C" {
  * sample buffer itself is 8 bytes per sample, separate).
  */
 #define MAGCAL_CALIBRATOR_WORKSPACE_LEN(cap)                                                       \
-    (MAGCAL_CALIBRATOR_MASKS_LEN(cap) + MAGCAL_CALIBRATOR_RUN_LEN +                                \
+    (MAGCAL_CALIBRATOR_MASKS_LEN(cap) + (sizeof(void *) - 4u) + MAGCAL_CALIBRATOR_RUN_LEN +        \
      MAGCAL_CALIBRATOR_MAX_(                                                                       \
          MAGCAL_CALIBRATOR_MAX_(MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(cap),                           \
                                 MAGCAL_CALIBRATOR_CONSENSUS_LEN(cap)),                             \
