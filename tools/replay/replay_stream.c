@@ -45,6 +45,33 @@ static const char k_stream_usage[] =
     "  --mode 3d: magcal_cont3_* (3-D store, ellipsoid solve), tilt-compensated headings when the\n"
     "  dump has ax, ay, az in g, mg or m/s^2 (else the level formula)\n";
 
+/* Open the headings CSV (hpath NULL: none) and write its header; 0 when it cannot be written
+ * (said on stderr). */
+static int stream_headings_open(const char *hpath, int with_ref, FILE **hf)
+{
+    *hf = NULL;
+    if (hpath == NULL) {
+        return 1;
+    }
+    *hf = fopen(hpath, "w");
+    if (*hf == NULL) {
+        fprintf(stderr, "magcal-replay: cannot write %s\n", hpath);
+        return 0;
+    }
+    fprintf(*hf, "index,raw_heading_deg,heading_deg,trust,generation%s\n",
+            with_ref ? ",heading_ref_deg,error_deg" : "");
+    return 1;
+}
+
+/* The push stamp of row i: ms since the first row's t, or 50 Hz rows without a time column. */
+static uint32_t stream_row_ms(const double *tc, size_t i)
+{
+    if (tc != NULL && isfinite(tc[i]) && isfinite(tc[0])) {
+        return (uint32_t)(int64_t)llround((tc[i] - tc[0]) * 1000.0);
+    }
+    return (uint32_t)(i * 20u); /* no time column: 50 Hz */
+}
+
 int replay_stream_requested(int argc, char **argv)
 {
     int i;
@@ -266,19 +293,11 @@ static int replay_stream3(const char *path, const char *hpath, int json, double 
         fprintf(stderr, "magcal-replay: %s: accelerometer unit not g, mg or m/s^2 (raw counts?): "
                         "headings use the level formula\n", path);
     }
-    if (hpath != NULL) {
-        hf = fopen(hpath, "w");
-        if (hf == NULL) {
-            fprintf(stderr, "magcal-replay: cannot write %s\n", hpath);
-            magcal_replay_csv_free(&d);
-            return 4;
-        }
-    }
     ref = d.col[MAGCAL_REPLAY_COL_HEADING_REF];
     tc = d.col[MAGCAL_REPLAY_COL_T];
-    if (hf != NULL) {
-        fprintf(hf, "index,raw_heading_deg,heading_deg,trust,generation%s\n",
-                ref != NULL ? ",heading_ref_deg,error_deg" : "");
+    if (stream_headings_open(hpath, ref != NULL, &hf) == 0) {
+        magcal_replay_csv_free(&d);
+        return 4;
     }
     root = cJSON_CreateObject();
     ev = cJSON_CreateArray();
@@ -292,11 +311,7 @@ static int replay_stream3(const char *path, const char *hpath, int json, double 
         m.x = (float)d.col[MAGCAL_REPLAY_COL_MX][i];
         m.y = (float)d.col[MAGCAL_REPLAY_COL_MY][i];
         m.z = (float)d.col[MAGCAL_REPLAY_COL_MZ][i];
-        if (tc != NULL && isfinite(tc[i]) && isfinite(tc[0])) {
-            t_ms = (uint32_t)(int64_t)llround((tc[i] - tc[0]) * 1000.0);
-        } else {
-            t_ms = (uint32_t)(i * 20u); /* no time column: 50 Hz */
-        }
+        t_ms = stream_row_ms(tc, i);
         (void)magcal_cont3_push(&g_c3, &m, t_ms);
         oc = magcal_cont3_step(&g_c3);
         if (oc == MAGCAL_CONT3_ADOPTED) {
@@ -535,19 +550,11 @@ int replay_stream_main(int argc, char **argv)
         magcal_replay_csv_free(&d);
         return 5;
     }
-    if (hpath != NULL) {
-        hf = fopen(hpath, "w");
-        if (hf == NULL) {
-            fprintf(stderr, "magcal-replay: cannot write %s\n", hpath);
-            magcal_replay_csv_free(&d);
-            return 4;
-        }
-    }
     ref = d.col[MAGCAL_REPLAY_COL_HEADING_REF];
     tc = d.col[MAGCAL_REPLAY_COL_T];
-    if (hf != NULL) {
-        fprintf(hf, "index,raw_heading_deg,heading_deg,trust,generation%s\n",
-                ref != NULL ? ",heading_ref_deg,error_deg" : "");
+    if (stream_headings_open(hpath, ref != NULL, &hf) == 0) {
+        magcal_replay_csv_free(&d);
+        return 4;
     }
     root = cJSON_CreateObject();
     ev = cJSON_CreateArray();
@@ -559,11 +566,7 @@ int replay_stream_main(int argc, char **argv)
         m.x = (float)d.col[MAGCAL_REPLAY_COL_MX][i];
         m.y = (float)d.col[MAGCAL_REPLAY_COL_MY][i];
         m.z = isfinite(mz) ? (float)mz : 0.0f;
-        if (tc != NULL && isfinite(tc[i]) && isfinite(tc[0])) {
-            t_ms = (uint32_t)(int64_t)llround((tc[i] - tc[0]) * 1000.0);
-        } else {
-            t_ms = (uint32_t)(i * 20u); /* no time column: 50 Hz */
-        }
+        t_ms = stream_row_ms(tc, i);
         (void)magcal_cont_push(&g_cc, &m, t_ms);
         for (k = 0u; k < steps_per_row; ++k) {
             stream_event(ev, i, magcal_cont_step(&g_cc));
