@@ -49,12 +49,15 @@ static magcal_status_t swing_check_cfg(const magcal_swing_cfg_t *cfg)
 }
 
 /*
- * Smallest pivot of the plain (not equilibrated) LDL^T factorisation of the Gram matrix g
- * (lower triangle used, destroyed). The basis functions are bounded by 1 and have mean square
- * 1/2 on a full circle, so unlike the equilibrated solver pivot this is an absolute measure of
- * spread: a column like sin 2psi at the four cardinal headings (rounding noise only) cannot pass.
+ * Smallest pivot of the plain (not equilibrated) LDL^T factorisation of the Gram matrix
+ * ata / wsum. The basis functions are bounded by 1 and have mean square 1/2 on a full circle, so
+ * unlike the equilibrated solver pivot this is an absolute measure of spread: a column like
+ * sin 2psi at the four cardinal headings (rounding noise only) cannot pass.
+ * ata: the normal matrix, lower triangle (diagonal included) read only; L is kept transposed in
+ * its unused strict upper triangle (L_ij at [j][i]), so the Gram matrix needs no copy of its own
+ * (magcal_ldlt_solve reads only the lower triangle and reuses the upper one for its scales).
  */
-static float swing_spread_pivot(float g[SWING_N * SWING_N])
+static float swing_spread_pivot(float ata[SWING_N * SWING_N], float wsum)
 {
     float d[SWING_N];
     float minp = 1.0f;
@@ -65,9 +68,9 @@ static float swing_spread_pivot(float g[SWING_N * SWING_N])
         d[k] = 0.0f; /* d[k] is read only for k < j, after it is set: defined for the analysers */
     }
     for (j = 0u; j < SWING_N; ++j) {
-        float dj = g[j * SWING_N + j];
+        float dj = ata[j * SWING_N + j] / wsum;
         for (k = 0u; k < j; ++k) {
-            dj -= g[j * SWING_N + k] * g[j * SWING_N + k] * d[k];
+            dj -= ata[k * SWING_N + j] * ata[k * SWING_N + j] * d[k];
         }
         if (!(dj > 1e-12f)) {
             return 0.0f;
@@ -75,14 +78,140 @@ static float swing_spread_pivot(float g[SWING_N * SWING_N])
         d[j] = dj;
         minp = dj < minp ? dj : minp;
         for (i = j + 1u; i < SWING_N; ++i) {
-            float s = g[i * SWING_N + j];
+            float s = ata[i * SWING_N + j] / wsum;
             for (k = 0u; k < j; ++k) {
-                s -= g[i * SWING_N + k] * g[j * SWING_N + k] * d[k];
+                s -= ata[k * SWING_N + i] * ata[k * SWING_N + j] * d[k];
             }
-            g[i * SWING_N + j] = s / dj;
+            ata[j * SWING_N + i] = s / dj;
         }
     }
     return minp;
+}
+
+/*
+ * Where the fit's points come from: the caller's arrays (magcal_swing_fit) or, without a copy,
+ * the occupied bins of a course-over-ground accumulator (magcal_swing_cog_fit).
+ */
+typedef struct {
+    const float *psi_c_deg;
+    const float *psi_ref_deg;
+    const float *weights;
+    const magcal_swing_cog_t *cog; /* non-NULL: the bins; the arrays are unused */
+    size_t n;                      /* points (arrays) or MAGCAL_SWING_COG_BINS (bins) */
+    magcal_swing_regressor_t regressor;
+} swing_src_t;
+
+/* Point k: weight (0 = unused), regressor heading and wrap(psi_ref - psi_c). */
+static float swing_point(const swing_src_t *src, size_t k, float *x, float *delta)
+{
+    float w;
+    float pc;
+    float pr;
+    if (src->cog != NULL) {
+        const float bin_w = 360.0f / (float)MAGCAL_SWING_COG_BINS;
+        const magcal_swing_bin_t *b = &src->cog->bins[k];
+        if (!(b->weight > 0.0f)) {
+            return 0.0f;
+        }
+        w = 1.0f; /* one point per occupied bin, unweighted */
+        pc = magcal_wrap360_deg(((float)k + 0.5f) * bin_w + b->psi_c_off_deg);
+        pr = magcal_wrap360_deg(pc + b->delta_deg);
+    } else {
+        w = (src->weights != NULL) ? src->weights[k] : 1.0f;
+        pc = src->psi_c_deg[k];
+        pr = src->psi_ref_deg[k];
+    }
+    *x = (src->regressor == MAGCAL_SWING_REG_MEASURED) ? pc : pr;
+    *delta = magcal_wrap180_deg(pr - pc);
+    return w;
+}
+
+/* The fit of magcal_swing_fit on checked points (`used` of them with a positive weight). */
+static magcal_status_t swing_fit_src(const magcal_swing_cfg_t *cfg, const swing_src_t *src,
+                                     size_t used, magcal_swing_model_t *model,
+                                     magcal_swing_stats_t *stats)
+{
+    float ata[SWING_N * SWING_N];
+    float atb[SWING_N];
+    float g[SWING_N];
+    float wsum = 0.0f;
+    float pivot;
+    float sse = 0.0f;
+    float maxr = 0.0f;
+    size_t k;
+    size_t i;
+    size_t j;
+    magcal_status_t st;
+
+    (void)memset(ata, 0, sizeof ata);
+    (void)memset(atb, 0, sizeof atb);
+    for (k = 0u; k < src->n; ++k) {
+        float x;
+        float delta;
+        const float w = swing_point(src, k, &x, &delta);
+        if (!(w > 0.0f)) {
+            continue;
+        }
+        wsum += w;
+        swing_basis(x, g);
+        for (i = 0u; i < SWING_N; ++i) {
+            atb[i] += w * g[i] * delta;
+            for (j = 0u; j <= i; ++j) {
+                ata[i * SWING_N + j] += w * g[i] * g[j];
+            }
+        }
+    }
+    pivot = swing_spread_pivot(ata, wsum);
+    if (pivot < cfg->min_spread_pivot) {
+        if (stats != NULL) {
+            stats->min_spread_pivot = pivot;
+        }
+        return MAGCAL_ERR_SPREAD;
+    }
+    st = magcal_ldlt_solve(ata, atb, SWING_N, cfg->pivot_tau, NULL);
+    if (st == MAGCAL_ERR_ILL_CONDITIONED || st == MAGCAL_ERR_DEGENERATE) {
+        if (stats != NULL) {
+            stats->min_spread_pivot = pivot;
+        }
+        return MAGCAL_ERR_SPREAD;
+    }
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    if (src->regressor == MAGCAL_SWING_REG_REFERENCE) {
+        /* |d delta/d psi| <= (|B| + |C| + 2|D| + 2|E|) pi/180: the contraction bound of the
+         * fixed-point inversion psi_{j+1} = psi_c + delta(psi_j). */
+        float slope =
+            (fabsf(atb[1]) + fabsf(atb[2]) + 2.0f * fabsf(atb[3]) + 2.0f * fabsf(atb[4])) *
+            MAGCAL_RAD_PER_DEG_F;
+        if (!(slope < SWING_MAX_SLOPE)) {
+            return MAGCAL_ERR_NOT_CONVERGED;
+        }
+    }
+    for (k = 0u; k < src->n; ++k) {
+        float x;
+        float delta;
+        const float w = swing_point(src, k, &x, &delta);
+        float r;
+        if (!(w > 0.0f)) {
+            continue;
+        }
+        r = delta - swing_eval(atb, x);
+        sse += w * r * r;
+        maxr = fabsf(r) > maxr ? fabsf(r) : maxr;
+    }
+    for (i = 0u; i < SWING_N; ++i) {
+        model->coef_deg[i] = atb[i];
+    }
+    model->regressor = src->regressor;
+    model->iterations = cfg->iterations;
+    if (stats != NULL) {
+        stats->rms_deg = sqrtf(sse / wsum);
+        stats->max_abs_deg = maxr;
+        stats->min_spread_pivot = pivot;
+        stats->n_used = used;
+    }
+    return MAGCAL_OK;
 }
 
 magcal_status_t magcal_swing_fit(const magcal_swing_cfg_t *cfg, const float *psi_c_deg,
@@ -90,18 +219,9 @@ magcal_status_t magcal_swing_fit(const magcal_swing_cfg_t *cfg, const float *psi
                                  magcal_swing_regressor_t regressor, magcal_swing_model_t *model,
                                  magcal_swing_stats_t *stats)
 {
-    float ata[SWING_N * SWING_N];
-    float gram[SWING_N * SWING_N];
-    float atb[SWING_N];
-    float g[SWING_N];
-    float wsum = 0.0f;
-    float pivot;
-    float sse = 0.0f;
-    float maxr = 0.0f;
+    swing_src_t src;
     size_t used = 0u;
     size_t k;
-    size_t i;
-    size_t j;
     magcal_status_t st;
 
     if (cfg == NULL || psi_c_deg == NULL || psi_ref_deg == NULL || model == NULL) {
@@ -130,78 +250,13 @@ magcal_status_t magcal_swing_fit(const magcal_swing_cfg_t *cfg, const float *psi
     if (used < MAGCAL_SWING_MIN_POINTS) {
         return MAGCAL_ERR_TOO_FEW_POINTS;
     }
-
-    (void)memset(ata, 0, sizeof ata);
-    (void)memset(atb, 0, sizeof atb);
-    for (k = 0u; k < n; ++k) {
-        float w = (weights != NULL) ? weights[k] : 1.0f;
-        float x = (regressor == MAGCAL_SWING_REG_MEASURED) ? psi_c_deg[k] : psi_ref_deg[k];
-        float delta = magcal_wrap180_deg(psi_ref_deg[k] - psi_c_deg[k]);
-        if (!(w > 0.0f)) {
-            continue;
-        }
-        wsum += w;
-        swing_basis(x, g);
-        for (i = 0u; i < SWING_N; ++i) {
-            atb[i] += w * g[i] * delta;
-            for (j = 0u; j <= i; ++j) {
-                ata[i * SWING_N + j] += w * g[i] * g[j];
-            }
-        }
-    }
-    for (i = 0u; i < (size_t)SWING_N * SWING_N; ++i) {
-        gram[i] = ata[i] / wsum;
-    }
-    pivot = swing_spread_pivot(gram);
-    if (pivot < cfg->min_spread_pivot) {
-        if (stats != NULL) {
-            stats->min_spread_pivot = pivot;
-        }
-        return MAGCAL_ERR_SPREAD;
-    }
-    st = magcal_ldlt_solve(ata, atb, SWING_N, cfg->pivot_tau, NULL);
-    if (st == MAGCAL_ERR_ILL_CONDITIONED || st == MAGCAL_ERR_DEGENERATE) {
-        if (stats != NULL) {
-            stats->min_spread_pivot = pivot;
-        }
-        return MAGCAL_ERR_SPREAD;
-    }
-    if (st != MAGCAL_OK) {
-        return st;
-    }
-    if (regressor == MAGCAL_SWING_REG_REFERENCE) {
-        /* |d delta/d psi| <= (|B| + |C| + 2|D| + 2|E|) pi/180: the contraction bound of the
-         * fixed-point inversion psi_{j+1} = psi_c + delta(psi_j). */
-        float slope =
-            (fabsf(atb[1]) + fabsf(atb[2]) + 2.0f * fabsf(atb[3]) + 2.0f * fabsf(atb[4])) *
-            MAGCAL_RAD_PER_DEG_F;
-        if (!(slope < SWING_MAX_SLOPE)) {
-            return MAGCAL_ERR_NOT_CONVERGED;
-        }
-    }
-    for (k = 0u; k < n; ++k) {
-        float w = (weights != NULL) ? weights[k] : 1.0f;
-        float x = (regressor == MAGCAL_SWING_REG_MEASURED) ? psi_c_deg[k] : psi_ref_deg[k];
-        float r;
-        if (!(w > 0.0f)) {
-            continue;
-        }
-        r = magcal_wrap180_deg(psi_ref_deg[k] - psi_c_deg[k]) - swing_eval(atb, x);
-        sse += w * r * r;
-        maxr = fabsf(r) > maxr ? fabsf(r) : maxr;
-    }
-    for (i = 0u; i < SWING_N; ++i) {
-        model->coef_deg[i] = atb[i];
-    }
-    model->regressor = regressor;
-    model->iterations = cfg->iterations;
-    if (stats != NULL) {
-        stats->rms_deg = sqrtf(sse / wsum);
-        stats->max_abs_deg = maxr;
-        stats->min_spread_pivot = pivot;
-        stats->n_used = used;
-    }
-    return MAGCAL_OK;
+    src.psi_c_deg = psi_c_deg;
+    src.psi_ref_deg = psi_ref_deg;
+    src.weights = weights;
+    src.cog = NULL;
+    src.n = n;
+    src.regressor = regressor;
+    return swing_fit_src(cfg, &src, used, model, stats);
 }
 
 static int swing_model_finite(const magcal_swing_model_t *model)
@@ -519,9 +574,7 @@ magcal_status_t magcal_swing_cog_count(const magcal_swing_cog_t *acc, size_t *bi
 magcal_status_t magcal_swing_cog_fit(const magcal_swing_cog_t *acc, magcal_swing_model_t *model,
                                      magcal_swing_stats_t *stats)
 {
-    const float bin_w = 360.0f / (float)MAGCAL_SWING_COG_BINS;
-    float psi_c[MAGCAL_SWING_COG_BINS];
-    float psi_ref[MAGCAL_SWING_COG_BINS];
+    swing_src_t src;
     size_t n = 0u;
     size_t i;
     magcal_status_t st = swing_cog_check(acc);
@@ -532,18 +585,23 @@ magcal_status_t magcal_swing_cog_fit(const magcal_swing_cog_t *acc, magcal_swing
         return MAGCAL_ERR_NULL;
     }
     for (i = 0u; i < MAGCAL_SWING_COG_BINS; ++i) {
-        const magcal_swing_bin_t *b = &acc->bins[i];
-        if (b->weight > 0.0f) {
-            psi_c[n] = magcal_wrap360_deg(((float)i + 0.5f) * bin_w + b->psi_c_off_deg);
-            psi_ref[n] = magcal_wrap360_deg(psi_c[n] + b->delta_deg);
+        if (acc->bins[i].weight > 0.0f) {
             ++n;
         }
     }
     if (n < (size_t)acc->cfg.min_bins) {
         return MAGCAL_ERR_TOO_FEW_POINTS;
     }
-    return magcal_swing_fit(&acc->cfg.fit, psi_c, psi_ref, NULL, n, MAGCAL_SWING_REG_MEASURED,
-                            model, stats);
+    /* the occupied bins, read in place (one point each, unweighted): the same sums in the same
+     * order as magcal_swing_fit on the bins copied out, without two 36-float copies on the stack;
+     * the bins are finite (only finite pairs are merged) and min_bins >= MAGCAL_SWING_MIN_POINTS */
+    src.psi_c_deg = NULL;
+    src.psi_ref_deg = NULL;
+    src.weights = NULL;
+    src.cog = acc;
+    src.n = MAGCAL_SWING_COG_BINS;
+    src.regressor = MAGCAL_SWING_REG_MEASURED;
+    return swing_fit_src(&acc->cfg.fit, &src, n, model, stats);
 }
 
 #endif /* MAGCAL_CFG_ENABLE_SWING */
