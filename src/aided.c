@@ -40,6 +40,15 @@
 #define MIN_EPOCHS_LIMIT 8u
 #define REF_RATIO 16.0f   /* allowed |B_ref| / s range: [1/16, 16] */
 #define RAW_RANGE 1.0e4f  /* allowed |m - V0|_inf / |B_ref| (range of the normalised sums) */
+/* The solve's scratch in the instance (aided.h): the reduced system (whose first 16 floats also
+ * hold the Jacobi working copy of Lambda/N: dead before the system is built), its right-hand
+ * side, the eigenvectors. */
+#define SCR_SYS 0u
+#define SCR_RHS (NPAR * NPAR)
+#define SCR_EV (SCR_RHS + NPAR)
+
+/* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
+MAGCAL_STATIC_ASSERT(SCR_EV + NPHI * NPHI <= MAGCAL_AIDED_SCRATCH_LEN, aided_scratch_len);
 
 /* Index of (i, j) in a packed lower triangle (row-major), any order. */
 static size_t aided_pidx(size_t i, size_t j)
@@ -237,12 +246,13 @@ static void aided_rotate(float ev[NPHI][NPHI], float *x, size_t stride)
  * (module comment). resid = Z - Lambda theta0 (not divided by N); theta = theta0 on entry.
  * Returns 1 and writes theta on success, 0 when the reduced system is not positive definite
  * (the caller then takes the vector step). About 2.5 k multiply-adds plus a <= 12 x 12 LDL^T.
+ * msys (12 x 12) and rhs (12): the instance's scratch (not on the stack: issue 14).
  */
-static int aided_combined(const magcal_aided_t *inst, float ev[NPHI][NPHI], const float mu[NPHI],
-                          const size_t keep[NPHI], size_t nk, float resid[NPHI][3], float theta[NPHI][3])
+static MAGCAL_NOINLINE int aided_combined(const magcal_aided_t *inst, float ev[NPHI][NPHI],
+                                          const float mu[NPHI], const size_t keep[NPHI], size_t nk,
+                                          float resid[NPHI][3], float theta[NPHI][3], float *msys,
+                                          float *rhs)
 {
-    float msys[NPAR * NPAR];
-    float rhs[NPAR];
     const float neff = inst->info[aided_pidx(3u, 3u)];
     const float inv_n = 1.0f / neff;
     const float wf = aided_wf(&inst->cfg); /* w_F / w_v */
@@ -297,13 +307,24 @@ static int aided_combined(const magcal_aided_t *inst, float ev[NPHI][NPHI], cons
     return 1;
 }
 
-/* Solve for theta from the sums; updates cal, weak-direction diagnostics and the residual. */
-static void aided_solve(magcal_aided_t *inst)
+/* Lambda/N at (i, j) with the noise variance removed from the first three diagonal entries
+ * (errors in variables, aided_solve): recomputed where it is needed instead of kept as a copy. */
+static float aided_lam(const magcal_aided_t *inst, size_t i, size_t j, float neff)
+{
+    float v = inst->info[aided_pidx(i, j)] / neff;
+    if (i == j && i < 3u) {
+        v -= inst->cfg.noise_rel * inst->cfg.noise_rel;
+    }
+    return v;
+}
+
+/* Solve for theta from the sums; updates cal, weak-direction diagnostics and the residual.
+ * Its matrices live in inst->scratch (aided.h); its own frame is kept out of the update's. */
+static MAGCAL_NOINLINE void aided_solve(magcal_aided_t *inst)
 {
     const magcal_aided_cfg_t *cfg = &inst->cfg;
-    float lam[NPHI][NPHI];
-    float lamc[NPHI][NPHI];
-    float ev[NPHI][NPHI];
+    float *lam = &inst->scratch[SCR_SYS]; /* 4 x 4 working copy, destroyed by the Jacobi sweeps */
+    float(*ev)[NPHI] = (float(*)[NPHI])&inst->scratch[SCR_EV];
     float mu[NPHI];
     float resid[NPHI][3];
     float theta[NPHI][3];
@@ -325,18 +346,14 @@ static void aided_solve(magcal_aided_t *inst)
     if (!(neff > 0.0f)) {
         return;
     }
+    /* Bias compensation: E[x~ x~^T] holds the noise variance on its diagonal; remove it so that a
+     * weakly excited direction is not shrunk towards zero (errors in variables, aided_lam). */
     for (i = 0u; i < NPHI; ++i) {
         for (j = 0u; j < NPHI; ++j) {
-            lam[i][j] = inst->info[aided_pidx(i, j)] / neff;
+            lam[i * NPHI + j] = aided_lam(inst, i, j, neff);
         }
     }
-    /* Bias compensation: E[x~ x~^T] holds the noise variance on its diagonal; remove it so that a
-     * weakly excited direction is not shrunk towards zero (errors in variables). */
-    for (i = 0u; i < 3u; ++i) {
-        lam[i][i] -= cfg->noise_rel * cfg->noise_rel;
-    }
-    (void)memcpy(lamc, lam, sizeof(lam));
-    if (magcal_jacobi_sym(&lam[0][0], NPHI, mu, &ev[0][0]) != MAGCAL_OK) {
+    if (magcal_jacobi_sym(lam, NPHI, mu, &ev[0][0]) != MAGCAL_OK) {
         return; /* keep the previous estimate */
     }
     /* prior in normalised coordinates: G0 rows, c~0 = G0 (V0 - V0)/s = 0 */
@@ -351,7 +368,7 @@ static void aided_solve(magcal_aided_t *inst)
         for (j = 0u; j < 3u; ++j) {
             float sacc = inst->cross[i * 3u + j];
             for (k = 0u; k < NPHI; ++k) {
-                sacc -= neff * lamc[i][k] * theta[k][j];
+                sacc -= neff * aided_lam(inst, i, k, neff) * theta[k][j];
             }
             resid[i][j] = sacc;
         }
@@ -383,7 +400,9 @@ static void aided_solve(magcal_aided_t *inst)
         }
     }
     if (cfg->objective != MAGCAL_AIDED_OBJ_COMBINED || inst->n_tf == 0u || nk == 0u ||
-        !(aided_wf(cfg) > 0.0f) || aided_combined(inst, ev, mu, keep, nk, resid, theta) == 0) {
+        !(aided_wf(cfg) > 0.0f) ||
+        aided_combined(inst, ev, mu, keep, nk, resid, theta, &inst->scratch[SCR_SYS],
+                       &inst->scratch[SCR_RHS]) == 0) {
         /* vector residual only: diagonal in the eigenbasis */
         for (k = 0u; k < nk; ++k) {
             const size_t kk = keep[k];
@@ -644,8 +663,12 @@ static int aided_still(magcal_aided_t *inst, const float phi[NPHI])
     return 0;
 }
 
-magcal_status_t magcal_aided_update(magcal_aided_t *inst, const magcal_aided_epoch_t *ep,
-                                    magcal_aided_gate_t *reason)
+/* magcal_aided_update up to the solve: checks, gates, sums. *added = 1 when the epoch entered the
+ * sums (accepted and not held back as stationary). Its frame (attitude, regressor, the total-field
+ * Jacobian) is gone before aided_solve runs. */
+static MAGCAL_NOINLINE magcal_status_t aided_accept(magcal_aided_t *inst,
+                                                    const magcal_aided_epoch_t *ep,
+                                                    magcal_aided_gate_t *reason, int *added)
 {
     float c[3][3];
     float b[3];
@@ -709,6 +732,7 @@ magcal_status_t magcal_aided_update(magcal_aided_t *inst, const magcal_aided_epo
         inst->n_still++;
         return MAGCAL_OK; /* stationary: no new information, nothing forgotten */
     }
+    *added = 1;
     for (i = 0u; i < 3u; ++i) { /* y = C^T B / s: reference field in body axes */
         y[i] = (c[0][i] * b[0] + c[1][i] * b[1] + c[2][i] * b[2]) * inv_s;
     }
@@ -752,11 +776,19 @@ magcal_status_t magcal_aided_update(magcal_aided_t *inst, const magcal_aided_epo
         aided_total_field(inst, h, phi, bmag);
     }
     inst->n_accepted++;
-    if (inst->n_accepted >= inst->cfg.min_epochs) {
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_aided_update(magcal_aided_t *inst, const magcal_aided_epoch_t *ep,
+                                    magcal_aided_gate_t *reason)
+{
+    int added = 0;
+    const magcal_status_t st = aided_accept(inst, ep, reason, &added);
+    if (st == MAGCAL_OK && added != 0 && inst->n_accepted >= inst->cfg.min_epochs) {
         aided_solve(inst);
         aided_convergence(inst);
     }
-    return MAGCAL_OK;
+    return st;
 }
 
 magcal_status_t magcal_aided_get(const magcal_aided_t *inst, magcal_aided_result_t *out)

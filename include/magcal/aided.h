@@ -142,6 +142,12 @@ typedef struct {
             50u, 0.01f                                                                               \
     }
 
+/** Floats of the solve's scratch inside magcal_aided_t (private; no state between epochs): the
+ *  reduced <= 12x12 combined-objective system and its right-hand side, and the eigenvectors of the
+ *  4x4 information matrix (whose working copy shares the system's storage). Kept in the instance
+ *  so that magcal_aided_update needs <= 512 B of stack (issue 14), not on the caller's stack. */
+#define MAGCAL_AIDED_SCRATCH_LEN (12u * 12u + 12u + 4u * 4u)
+
 /** Instance. Allocate statically; all fields are private (read them through magcal_aided_get). */
 typedef struct {
     magcal_aided_cfg_t cfg;  /**< private: copy of the configuration */
@@ -180,6 +186,7 @@ typedef struct {
     float still_phi[3];      /**< private: regressor of the first epoch of the current stationary run */
     uint32_t still_run;      /**< private: accepted epochs in the current stationary run */
     uint32_t n_still;        /**< private: epochs passed the gates but held back as stationary */
+    float scratch[MAGCAL_AIDED_SCRATCH_LEN]; /**< private: solve scratch (MAGCAL_AIDED_SCRATCH_LEN) */
 } magcal_aided_t;
 
 /** Snapshot of the estimate. */
@@ -248,7 +255,7 @@ magcal_status_t magcal_aided_update(magcal_aided_t *inst, const magcal_aided_epo
  *         MAGCAL_ERR_NULL, MAGCAL_ERR_NOT_INITIALISED.
  *
  * @code
- * static magcal_aided_t cal3d;                   // about 1.3 KiB, sizeof(magcal_aided_t)
+ * static magcal_aided_t cal3d;                   // about 2 KiB, sizeof(magcal_aided_t)
  * const magcal_aided_cfg_t cfg = MAGCAL_AIDED_CFG_DEFAULT;
  * magcal_aided_epoch_t ep;                       // filled from the INS, GNSS and WMM every epoch
  * magcal_aided_result_t res;
