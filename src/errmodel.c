@@ -79,11 +79,14 @@ static float em_eval(magcal_errmodel_kind_t kind, size_t order, const float *coe
 }
 
 magcal_status_t magcal_errmodel_fit(const magcal_errmodel_cfg_t *cfg, const float *psi_c_deg,
-                                    const float *psi_ref_deg, size_t m, magcal_errmodel_t *model,
+                                    const float *psi_ref_deg, size_t m, void *work,
+                                    size_t work_len, magcal_errmodel_t *model,
                                     magcal_errmodel_stats_t *stats)
 {
-    float ata[EM_MAXC * EM_MAXC];
-    float atb[EM_MAXC];
+    /* the normal matrix (n x n at stride n, lower triangle) and its right-hand side, which the
+     * solver turns into the coefficients, in the caller's workspace (issue 14: not on the stack) */
+    float *ata;
+    float *atb;
     float g[EM_MAXC];
     size_t cap;
     size_t order;
@@ -92,9 +95,17 @@ magcal_status_t magcal_errmodel_fit(const magcal_errmodel_cfg_t *cfg, const floa
     size_t j;
     magcal_errmodel_stats_t last;
 
-    if (cfg == NULL || psi_c_deg == NULL || psi_ref_deg == NULL || model == NULL) {
+    if (cfg == NULL || psi_c_deg == NULL || psi_ref_deg == NULL || work == NULL || model == NULL) {
         return MAGCAL_ERR_NULL;
     }
+    if (magcal_misalign(work, sizeof(float)) != 0u) {
+        return MAGCAL_ERR_ALIGNMENT;
+    }
+    if (work_len < MAGCAL_ERRMODEL_WORKSPACE_LEN) {
+        return MAGCAL_ERR_WORKSPACE;
+    }
+    ata = (float *)work;
+    atb = &ata[EM_MAXC * EM_MAXC];
     if ((cfg->kind != MAGCAL_ERRMODEL_POLY && cfg->kind != MAGCAL_ERRMODEL_FOURIER) ||
         !(cfg->threshold_deg > 0.0f) || !magcal_isfinite_f(cfg->threshold_deg) ||
         cfg->max_order < 1u || (size_t)cfg->max_order > em_max_order(cfg->kind) ||
@@ -122,8 +133,8 @@ magcal_status_t magcal_errmodel_fit(const magcal_errmodel_cfg_t *cfg, const floa
         float maxr = 0.0f;
         float sse = 0.0f;
         magcal_status_t st;
-        (void)memset(ata, 0, sizeof ata);
-        (void)memset(atb, 0, sizeof atb);
+        (void)memset(ata, 0, EM_MAXC * EM_MAXC * sizeof(float));
+        (void)memset(atb, 0, EM_MAXC * sizeof(float));
         for (k = 0u; k < m; ++k) {
             float delta = magcal_wrap180_deg(psi_ref_deg[k] - psi_c_deg[k]);
             em_basis(cfg->kind, order, psi_c_deg[k], g);

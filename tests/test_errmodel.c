@@ -11,6 +11,9 @@
 #define D2R (3.14159265358979323846 / 180.0)
 #define NPTS 24
 
+/* the fit's normal equations (caller-owned: magcal_errmodel_fit keeps them off its stack) */
+static MAGCAL_ERRMODEL_WORKSPACE_DECLARE(g_em_work);
+
 void setUp(void) {}
 void tearDown(void) {}
 
@@ -72,13 +75,13 @@ static void test_errmodel_fit_poly_raises_order_until_threshold(void)
     magcal_errmodel_t m, m2;
     magcal_errmodel_stats_t st, st2;
     make_set(7u, pc, pr);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_errmodel_fit(&cfg, pc, pr, NPTS, &m, &st));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_errmodel_fit(&cfg, pc, pr, NPTS, g_em_work, sizeof g_em_work, &m, &st));
     TEST_ASSERT_EQUAL_UINT8(m.order, st.order);
     TEST_ASSERT_TRUE(st.max_abs_deg < 0.05f);
     TEST_ASSERT_TRUE(m.order >= 5u); /* a 5 deg, two-cycle deviation needs a high degree */
     cfg.max_order = (uint8_t)(m.order - 1u);
     memset(&m2, 0x33, sizeof m2);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_THRESHOLD, magcal_errmodel_fit(&cfg, pc, pr, NPTS, &m2, &st2));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_THRESHOLD, magcal_errmodel_fit(&cfg, pc, pr, NPTS, g_em_work, sizeof g_em_work, &m2, &st2));
     TEST_ASSERT_EQUAL_UINT8(m.order - 1u, st2.order);
     TEST_ASSERT_TRUE(st2.max_abs_deg >= 0.05f);
     TEST_ASSERT_EQUAL_HEX8(0x33, ((const unsigned char *)&m2)[0]); /* untouched */
@@ -126,8 +129,8 @@ static void test_errmodel_poly_fails_at_seam_fourier_does_not(void)
         magcal_errmodel_t pm, fm;
         double fe;
         make_set(1000u + (uint32_t)s, pc, pr);
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_errmodel_fit(&pcfg, pc, pr, NPTS, &pm, NULL));
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_errmodel_fit(&fcfg, pc, pr, NPTS, &fm, NULL));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_errmodel_fit(&pcfg, pc, pr, NPTS, g_em_work, sizeof g_em_work, &pm, NULL));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_errmodel_fit(&fcfg, pc, pr, NPTS, g_em_work, sizeof g_em_work, &fm, NULL));
         p_err[s] = dense_max_error(&pm);
         p_seam[s] = seam_jump(&pm);
         fe = dense_max_error(&fm);
@@ -174,7 +177,7 @@ static void test_errmodel_fit_fourier_k2_equals_smith_coefficients(void)
         pc[k] = (float)p;
         pr[k] = (float)(p + c[0] + c[1] * sin(r) + c[2] * cos(r) + c[3] * sin(2 * r) + c[4] * cos(2 * r));
     }
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_errmodel_fit(&cfg, pc, pr, NPTS, &m, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_errmodel_fit(&cfg, pc, pr, NPTS, g_em_work, sizeof g_em_work, &m, NULL));
     TEST_ASSERT_EQUAL_UINT8(2u, m.order);
     TEST_ASSERT_FLOAT_WITHIN(1e-4f, 1.0f, m.coef[0]);
     TEST_ASSERT_FLOAT_WITHIN(1e-4f, -2.0f, m.coef[1]);
@@ -196,7 +199,7 @@ static void test_errmodel_fit_poly_cubic_recovers_chebyshev_coefficients(void)
         pc[k] = (float)p;
         pr[k] = (float)(p + 0.5 + t - 0.3 * t * t + 0.2 * t * t * t);
     }
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_errmodel_fit(&cfg, pc, pr, 12u, &m, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_errmodel_fit(&cfg, pc, pr, 12u, g_em_work, sizeof g_em_work, &m, NULL));
     TEST_ASSERT_EQUAL_UINT8(3u, m.order);
     TEST_ASSERT_FLOAT_WITHIN(1e-4f, 0.35f, m.coef[0]);
     TEST_ASSERT_FLOAT_WITHIN(1e-4f, 1.15f, m.coef[1]);
@@ -218,17 +221,22 @@ static void test_errmodel_fit_bad_input_returns_status(void)
     float d;
     int k;
     make_set(3u, pc, pr);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_SPREAD, magcal_errmodel_fit(&cfg, same, same, 5u, &m, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_errmodel_fit(&cfg, pc, pr, 2u, &m, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_errmodel_fit(&cfg, NULL, pr, NPTS, &m, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_SPREAD, magcal_errmodel_fit(&cfg, same, same, 5u, g_em_work, sizeof g_em_work, &m, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_errmodel_fit(&cfg, pc, pr, 2u, g_em_work, sizeof g_em_work, &m, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_errmodel_fit(&cfg, NULL, pr, NPTS, g_em_work, sizeof g_em_work, &m, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_errmodel_fit(&cfg, pc, pr, NPTS, NULL, sizeof g_em_work, &m, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE,
+                          magcal_errmodel_fit(&cfg, pc, pr, NPTS, g_em_work, MAGCAL_ERRMODEL_WORKSPACE_LEN - 1u, &m, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ALIGNMENT,
+                          magcal_errmodel_fit(&cfg, pc, pr, NPTS, (uint8_t *)g_em_work + 1, MAGCAL_ERRMODEL_WORKSPACE_LEN, &m, NULL));
     cfg.max_order = MAGCAL_ERRMODEL_MAX_FOURIER_ORDER + 1u;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_errmodel_fit(&cfg, pc, pr, NPTS, &m, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_errmodel_fit(&cfg, pc, pr, NPTS, g_em_work, sizeof g_em_work, &m, NULL));
     cfg.max_order = 5u;
     cfg.threshold_deg = 0.0f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_errmodel_fit(&cfg, pc, pr, NPTS, &m, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_errmodel_fit(&cfg, pc, pr, NPTS, g_em_work, sizeof g_em_work, &m, NULL));
     cfg.threshold_deg = 0.1f;
     pr[4] = INFINITY;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_errmodel_fit(&cfg, pc, pr, NPTS, &m, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_errmodel_fit(&cfg, pc, pr, NPTS, g_em_work, sizeof g_em_work, &m, NULL));
     /* 0.2 deg noise, tau 0.05, max order 2 on 12 points: no order meets it */
     for (k = 0; k < 12; ++k) {
         pc[k] = (float)(30.0 * k);
@@ -236,15 +244,51 @@ static void test_errmodel_fit_bad_input_returns_status(void)
     }
     cfg.threshold_deg = 0.05f;
     cfg.max_order = 2u;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_THRESHOLD, magcal_errmodel_fit(&cfg, pc, pr, 12u, &m, &st));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_THRESHOLD, magcal_errmodel_fit(&cfg, pc, pr, 12u, g_em_work, sizeof g_em_work, &m, &st));
     TEST_ASSERT_EQUAL_UINT8(2u, st.order);
     TEST_ASSERT_TRUE(st.max_abs_deg >= 0.05f);
     /* with 7 points K is capped at (7 - 1)/2 = 3, where 7 coefficients interpolate 7 points */
     cfg.max_order = 5u;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_errmodel_fit(&cfg, pc, pr, 7u, &m, &st));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_errmodel_fit(&cfg, pc, pr, 7u, g_em_work, sizeof g_em_work, &m, &st));
     TEST_ASSERT_EQUAL_UINT8(3u, m.order);
     m.kind = (magcal_errmodel_kind_t)9;
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_errmodel_eval(&m, 0.0f, &d));
+}
+
+/* MAGCAL_ERRMODEL_WORKSPACE_LEN covers the largest system (polynomial N = 11: 12 x 12 + rhs) and
+ * the fit stays inside it: a workspace of exactly that length, followed by guard bytes, gives the
+ * same model as the static one and the guard is untouched. */
+static void test_errmodel_fit_workspace_len_covers_the_largest_order_exactly(void)
+{
+    static union {
+        magcal_workspace_t align;
+        uint8_t b[MAGCAL_ERRMODEL_WORKSPACE_LEN + 32u];
+    } w;
+    magcal_errmodel_cfg_t cfg = MAGCAL_ERRMODEL_CFG_DEFAULT;
+    float pc[NPTS];
+    float pr[NPTS];
+    magcal_errmodel_t m1;
+    magcal_errmodel_t m2;
+    magcal_errmodel_stats_t s1;
+    magcal_errmodel_stats_t s2;
+    size_t i;
+    TEST_ASSERT_EQUAL_UINT((12u * 12u + 12u) * sizeof(float), MAGCAL_ERRMODEL_WORKSPACE_LEN);
+    make_set(3u, pc, pr);
+    cfg.kind = MAGCAL_ERRMODEL_POLY;
+    cfg.max_order = MAGCAL_ERRMODEL_MAX_POLY_ORDER;
+    cfg.threshold_deg = 1e-6f; /* unreachable: every order up to N = 11 is solved */
+    (void)memset(w.b, 0xA5, sizeof w.b);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_THRESHOLD,
+                          magcal_errmodel_fit(&cfg, pc, pr, NPTS, g_em_work, sizeof g_em_work, &m1, &s1));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_THRESHOLD,
+                          magcal_errmodel_fit(&cfg, pc, pr, NPTS, w.b, MAGCAL_ERRMODEL_WORKSPACE_LEN, &m2, &s2));
+    TEST_ASSERT_EQUAL_UINT8(MAGCAL_ERRMODEL_MAX_POLY_ORDER, s2.order);
+    TEST_ASSERT_EQUAL_UINT8(s1.order, s2.order);
+    TEST_ASSERT_EQUAL_FLOAT(s1.max_abs_deg, s2.max_abs_deg);
+    TEST_ASSERT_EQUAL_FLOAT(s1.rms_deg, s2.rms_deg);
+    for (i = MAGCAL_ERRMODEL_WORKSPACE_LEN; i < sizeof w.b; ++i) {
+        TEST_ASSERT_EQUAL_HEX8(0xA5u, w.b[i]);
+    }
 }
 
 /* ---------------------------------------------------- the indoor patent's embodiment */
@@ -289,12 +333,12 @@ static void test_errmodel_patent_embodiment_selects_n4_and_exports_its_coefficie
     double jump;
     float d0 = 0.0f, d360 = 0.0f;
     patent_set(pc, pr);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_errmodel_fit(&cfg, pc, pr, 12u, &m, &st));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_errmodel_fit(&cfg, pc, pr, 12u, g_em_work, sizeof g_em_work, &m, &st));
     TEST_ASSERT_EQUAL_INT(4, m.order); /* the adaptive rule selects the patent's N = 4 */
     TEST_ASSERT_TRUE(st.max_abs_deg < 0.01f);
     /* N = 3 misses by 4.4 deg, so every threshold in (0.01, 4.4) deg selects N = 4 */
     cfg.max_order = 3u;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_THRESHOLD, magcal_errmodel_fit(&cfg, pc, pr, 12u, &m3, &st3));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_THRESHOLD, magcal_errmodel_fit(&cfg, pc, pr, 12u, g_em_work, sizeof g_em_work, &m3, &st3));
     TEST_ASSERT_FLOAT_WITHIN(0.05f, 4.42f, st3.max_abs_deg);
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_errmodel_poly_to_power(&m, MAGCAL_ERRMODEL_POWER_DESCENDING,
                                                                    exported, MAGCAL_ERRMODEL_MAX_COEF, &n));
@@ -376,6 +420,7 @@ int main(void)
     RUN_TEST(test_errmodel_fit_fourier_k2_equals_smith_coefficients);
     RUN_TEST(test_errmodel_fit_poly_cubic_recovers_chebyshev_coefficients);
     RUN_TEST(test_errmodel_fit_bad_input_returns_status);
+    RUN_TEST(test_errmodel_fit_workspace_len_covers_the_largest_order_exactly);
     RUN_TEST(test_errmodel_patent_embodiment_selects_n4_and_exports_its_coefficients);
     RUN_TEST(test_errmodel_poly_from_power_loads_the_patent_curve);
     RUN_TEST(test_errmodel_power_bad_input_returns_status);

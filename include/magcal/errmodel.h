@@ -81,6 +81,14 @@ typedef struct {
     float rms_deg;       /**< RMS residual at the points for that order */
 } magcal_errmodel_stats_t;
 
+/** Workspace bytes of magcal_errmodel_fit (any order up to the maximum): the normal matrix
+ *  (MAGCAL_ERRMODEL_MAX_COEF squared floats) and its right-hand side, kept off the stack (issue 14). */
+#define MAGCAL_ERRMODEL_WORKSPACE_LEN                                                              \
+    (((size_t)MAGCAL_ERRMODEL_MAX_COEF * MAGCAL_ERRMODEL_MAX_COEF + MAGCAL_ERRMODEL_MAX_COEF) *     \
+     sizeof(float))
+/** Declare `name` as a correctly aligned workspace of MAGCAL_ERRMODEL_WORKSPACE_LEN bytes. */
+#define MAGCAL_ERRMODEL_WORKSPACE_DECLARE(name) MAGCAL_WORKSPACE_DECLARE(name, MAGCAL_ERRMODEL_WORKSPACE_LEN)
+
 #if MAGCAL_CFG_ENABLE_PAPER
 /**
  * @brief Adaptive fit: orders 1, 2, ... until max |residual| < threshold_deg.
@@ -90,26 +98,33 @@ typedef struct {
  * @param[in]  psi_c_deg    m compass headings, degrees (wrapped to [0, 360) internally).
  * @param[in]  psi_ref_deg  m reference magnetic headings, degrees.
  * @param[in]  m            number of pairs, >= 2 (poly) or >= 3 (Fourier).
+ * @param[out] work         scratch, 4-byte aligned, >= MAGCAL_ERRMODEL_WORKSPACE_LEN bytes (the
+ *                          normal equations; nothing kept between calls).
+ * @param[in]  work_len     bytes at work.
  * @param[out] model        the accepted model; untouched on failure.
  * @param[out] stats        optional (may be NULL): filled on success and on
  *                          MAGCAL_ERR_THRESHOLD (the last order tried and its residuals).
- * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_ARG (cfg out of range); MAGCAL_ERR_NONFINITE;
+ * @return MAGCAL_OK; MAGCAL_ERR_NULL (also work NULL); MAGCAL_ERR_ALIGNMENT (work not 4-byte
+ *         aligned); MAGCAL_ERR_WORKSPACE (work_len < MAGCAL_ERRMODEL_WORKSPACE_LEN);
+ *         MAGCAL_ERR_ARG (cfg out of range); MAGCAL_ERR_NONFINITE;
  *         MAGCAL_ERR_TOO_FEW_POINTS; MAGCAL_ERR_SPREAD (order-1 system singular: headings not
  *         spread); MAGCAL_ERR_THRESHOLD (max order, or the order the data allow, reached, or a
  *         higher order became ill-conditioned, without meeting the threshold).
  *
  * @code
  * float comp[24], ref[24];                         // filled during calibration
+ * static MAGCAL_ERRMODEL_WORKSPACE_DECLARE(work);  // 624 B, shared with other background work
  * magcal_errmodel_cfg_t cfg = MAGCAL_ERRMODEL_CFG_DEFAULT;
  * magcal_errmodel_t model;
  * float psi;
- * if (magcal_errmodel_fit(&cfg, comp, ref, 24u, &model, NULL) == MAGCAL_OK) {
+ * if (magcal_errmodel_fit(&cfg, comp, ref, 24u, work, sizeof work, &model, NULL) == MAGCAL_OK) {
  *     (void)magcal_errmodel_apply(&model, 123.0f, &psi);
  * }
  * @endcode
  */
 magcal_status_t magcal_errmodel_fit(const magcal_errmodel_cfg_t *cfg, const float *psi_c_deg,
-                                    const float *psi_ref_deg, size_t m, magcal_errmodel_t *model,
+                                    const float *psi_ref_deg, size_t m, void *work,
+                                    size_t work_len, magcal_errmodel_t *model,
                                     magcal_errmodel_stats_t *stats);
 
 /**

@@ -409,9 +409,10 @@ int replay_swing_fit(const double *psi_c_deg, const double *psi_ref_deg, size_t 
             }
         } else {
             const magcal_errmodel_cfg_t cfg = MAGCAL_ERRMODEL_CFG_DEFAULT;
+            static MAGCAL_ERRMODEL_WORKSPACE_DECLARE(em_work);
             magcal_errmodel_stats_t stats;
             memset(&stats, 0, sizeof stats);
-            st = (np < 3u) ? MAGCAL_ERR_TOO_FEW_POINTS : magcal_errmodel_fit(&cfg, pc, pr, np, &sw->fmodel, &stats);
+            st = (np < 3u) ? MAGCAL_ERR_TOO_FEW_POINTS : magcal_errmodel_fit(&cfg, pc, pr, np, em_work, sizeof em_work, &sw->fmodel, &stats);
             if (st == MAGCAL_OK || st == MAGCAL_ERR_THRESHOLD) {
                 r->swing_fit_rms_deg = stats.rms_deg;
                 r->swing_fit_max_deg = stats.max_abs_deg;
