@@ -677,6 +677,37 @@ static void test_aided_get_before_window_returns_not_converged(void)
     TEST_ASSERT_TRUE(g_err(&res.cal, w) < 0.005); /* the estimate itself is fine, just not judged */
 }
 
+/* The solve's scratch in the instance (MAGCAL_AIDED_SCRATCH_LEN: 12x12 system + rhs + 4x4
+ * eigenvectors) carries nothing from one epoch to the next: an instance whose scratch is
+ * overwritten with NaN before every epoch gives bit for bit the estimate of an untouched one. */
+static void test_aided_scratch_holds_no_state_between_epochs(void)
+{
+    double w[3][3];
+    magcal_aided_cfg_t cfg = MAGCAL_AIDED_CFG_DEFAULT;
+    magcal_aided_result_t r1;
+    magcal_aided_result_t r2;
+    size_t k;
+    size_t i;
+    TEST_ASSERT_EQUAL_UINT(12u * 12u + 12u + 4u * 4u, MAGCAL_AIDED_SCRATCH_LEN);
+    test_make_w_full(w);
+    make_drive(w, 600u, 3.0, 0.05, 77u);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_aided_init(&g_inst, &cfg));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_aided_init(&g_inst2, &cfg));
+    for (k = 0; k < 600u; ++k) {
+        for (i = 0; i < MAGCAL_AIDED_SCRATCH_LEN; ++i) {
+            g_inst2.scratch[i] = NAN;
+        }
+        TEST_ASSERT_EQUAL_INT(magcal_aided_update(&g_inst, &g_ep[k].ep, NULL),
+                              magcal_aided_update(&g_inst2, &g_ep[k].ep, NULL));
+    }
+    TEST_ASSERT_EQUAL_INT(magcal_aided_get(&g_inst, &r1), magcal_aided_get(&g_inst2, &r2));
+    TEST_ASSERT_TRUE((r1.flags & MAGCAL_AIDED_FLAG_ESTIMATE) != 0u);
+    TEST_ASSERT_TRUE(g_inst.n_tf > 0u); /* the combined (12x12) step ran */
+    TEST_ASSERT_EQUAL_MEMORY(&r1.cal, &r2.cal, sizeof r1.cal);
+    TEST_ASSERT_EQUAL_MEMORY(g_inst.theta, g_inst2.theta, sizeof g_inst.theta);
+    TEST_ASSERT_TRUE(g_err(&r1.cal, w) < 0.02); /* and the estimate is the right one */
+}
+
 static void test_aided_dcm_matches_euler_definition_and_frd_ins(void)
 {
     static const double cases[4][3] = {{0, 0, 0}, {10, -20, 35}, {-30, 45, 200}, {5, 80, -120}};
@@ -769,6 +800,7 @@ int main(void)
     RUN_TEST(test_aided_forgetting_factor_tracks_hard_iron_change);
     RUN_TEST(test_aided_parked_100k_epochs_keeps_converged_estimate);
     RUN_TEST(test_aided_get_before_window_returns_not_converged);
+    RUN_TEST(test_aided_scratch_holds_no_state_between_epochs);
     RUN_TEST(test_aided_dcm_matches_euler_definition_and_frd_ins);
     RUN_TEST(test_aided_bad_input_returns_status);
     return UNITY_END();
