@@ -219,9 +219,9 @@ static float hf_at(const magcal_aided_t *inst, size_t p, size_t q, float inv_n)
     return v * inv_n;
 }
 
-/* In place: x[(k, j)] = sum_i ev[i][k] x[(i, j)] for the 4 x 3 blocks x[3 i + j] at stride `stride`
+/* In place: x[(k, j)] = sum_i E_ik x[(i, j)] for the 4 x 3 blocks x[3 i + j] at stride `stride`
  * (the (E^T (x) I3) rotation of one row or column of the 12 x 12 system into Lambda's eigenbasis). */
-static void aided_rotate(float ev[NPHI][NPHI], float *x, size_t stride)
+static void aided_rotate(const float *ev, float *x, size_t stride)
 {
     float t[NPHI];
     size_t i;
@@ -234,7 +234,7 @@ static void aided_rotate(float ev[NPHI][NPHI], float *x, size_t stride)
         for (k = 0u; k < NPHI; ++k) {
             float acc = 0.0f;
             for (i = 0u; i < NPHI; ++i) {
-                acc += ev[i][k] * t[i];
+                acc += ev[i * NPHI + k] * t[i];
             }
             x[(3u * k + j) * stride] = acc;
         }
@@ -248,7 +248,7 @@ static void aided_rotate(float ev[NPHI][NPHI], float *x, size_t stride)
  * (the caller then takes the vector step). About 2.5 k multiply-adds plus a <= 12 x 12 LDL^T.
  * msys (12 x 12) and rhs (12): the instance's scratch (not on the stack: issue 14).
  */
-static MAGCAL_NOINLINE int aided_combined(const magcal_aided_t *inst, float ev[NPHI][NPHI],
+static MAGCAL_NOINLINE int aided_combined(const magcal_aided_t *inst, const float *ev,
                                           const float mu[NPHI], const size_t keep[NPHI], size_t nk,
                                           float resid[NPHI][3], float theta[NPHI][3], float *msys,
                                           float *rhs)
@@ -301,7 +301,7 @@ static MAGCAL_NOINLINE int aided_combined(const magcal_aided_t *inst, float ev[N
     for (p = 0u; p < n; ++p) {
         const size_t kp = keep[p / 3u];
         for (i = 0u; i < NPHI; ++i) {
-            theta[i][p % 3u] += ev[i][kp] * rhs[p];
+            theta[i][p % 3u] += ev[i * NPHI + kp] * rhs[p];
         }
     }
     return 1;
@@ -324,7 +324,7 @@ static MAGCAL_NOINLINE void aided_solve(magcal_aided_t *inst)
 {
     const magcal_aided_cfg_t *cfg = &inst->cfg;
     float *lam = &inst->scratch[SCR_SYS]; /* 4 x 4 working copy, destroyed by the Jacobi sweeps */
-    float(*ev)[NPHI] = (float(*)[NPHI])&inst->scratch[SCR_EV];
+    float *ev = &inst->scratch[SCR_EV]; /* eigenvectors, row-major 4 x 4: e_k = column k */
     float mu[NPHI];
     float resid[NPHI][3];
     float theta[NPHI][3];
@@ -353,7 +353,7 @@ static MAGCAL_NOINLINE void aided_solve(magcal_aided_t *inst)
             lam[i * NPHI + j] = aided_lam(inst, i, j, neff);
         }
     }
-    if (magcal_jacobi_sym(lam, NPHI, mu, &ev[0][0]) != MAGCAL_OK) {
+    if (magcal_jacobi_sym(lam, NPHI, mu, ev) != MAGCAL_OK) {
         return; /* keep the previous estimate */
     }
     /* prior in normalised coordinates: G0 rows, c~0 = G0 (V0 - V0)/s = 0 */
@@ -409,11 +409,11 @@ static MAGCAL_NOINLINE void aided_solve(magcal_aided_t *inst)
             for (j = 0u; j < 3u; ++j) {
                 float proj = 0.0f;
                 for (i = 0u; i < NPHI; ++i) {
-                    proj += ev[i][kk] * resid[i][j];
+                    proj += ev[i * NPHI + kk] * resid[i][j];
                 }
                 proj /= neff * mu[kk];
                 for (i = 0u; i < NPHI; ++i) {
-                    theta[i][j] += ev[i][kk] * proj;
+                    theta[i][j] += ev[i * NPHI + kk] * proj;
                 }
             }
         }
@@ -421,7 +421,7 @@ static MAGCAL_NOINLINE void aided_solve(magcal_aided_t *inst)
     inst->min_eig = mu[kmin];
     inst->weak_std = (mu[kmin] > 0.0f) ? sigma / sqrtf(neff * mu[kmin]) : 1e30f;
     for (i = 0u; i < NPHI; ++i) {
-        inst->weak_dir[i] = ev[i][kmin];
+        inst->weak_dir[i] = ev[i * NPHI + kmin];
     }
     inst->n_prior_dirs = nprior;
     /* vector residual sum of squares: yy - 2 tr(theta^T Z) + tr(theta^T Lambda theta) */
