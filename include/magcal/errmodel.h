@@ -82,12 +82,13 @@ typedef struct {
 } magcal_errmodel_stats_t;
 
 /** Workspace bytes of magcal_errmodel_fit (any order up to the maximum): the normal matrix
- *  (MAGCAL_ERRMODEL_MAX_COEF squared floats) and its right-hand side, kept off the stack (issue 14). */
+ *  (MAGCAL_ERRMODEL_MAX_COEF squared floats) and its right-hand side, off the stack (issue 14). */
 #define MAGCAL_ERRMODEL_WORKSPACE_LEN                                                              \
-    (((size_t)MAGCAL_ERRMODEL_MAX_COEF * MAGCAL_ERRMODEL_MAX_COEF + MAGCAL_ERRMODEL_MAX_COEF) *     \
+    (((size_t)MAGCAL_ERRMODEL_MAX_COEF * MAGCAL_ERRMODEL_MAX_COEF + MAGCAL_ERRMODEL_MAX_COEF) *    \
      sizeof(float))
 /** Declare `name` as a correctly aligned workspace of MAGCAL_ERRMODEL_WORKSPACE_LEN bytes. */
-#define MAGCAL_ERRMODEL_WORKSPACE_DECLARE(name) MAGCAL_WORKSPACE_DECLARE(name, MAGCAL_ERRMODEL_WORKSPACE_LEN)
+#define MAGCAL_ERRMODEL_WORKSPACE_DECLARE(name)                                                    \
+    MAGCAL_WORKSPACE_DECLARE(name, MAGCAL_ERRMODEL_WORKSPACE_LEN)
 
 #if MAGCAL_CFG_ENABLE_PAPER
 /**
