@@ -44,11 +44,11 @@
  * hold the Jacobi working copy of Lambda/N: dead before the system is built), its right-hand
  * side, the eigenvectors. */
 #define SCR_SYS 0u
-#define SCR_RHS (NPAR * NPAR)
+#define SCR_RHS ((size_t)NPAR * NPAR)
 #define SCR_EV (SCR_RHS + NPAR)
 
 /* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
-MAGCAL_STATIC_ASSERT(SCR_EV + NPHI * NPHI <= MAGCAL_AIDED_SCRATCH_LEN, aided_scratch_len);
+MAGCAL_STATIC_ASSERT(SCR_EV + (size_t)NPHI * NPHI <= (size_t)MAGCAL_AIDED_SCRATCH_LEN, aided_scratch_len);
 
 /* Index of (i, j) in a packed lower triangle (row-major), any order. */
 static size_t aided_pidx(size_t i, size_t j)

@@ -105,7 +105,7 @@ magcal_status_t magcal_errmodel_fit(const magcal_errmodel_cfg_t *cfg, const floa
         return MAGCAL_ERR_WORKSPACE;
     }
     ata = (float *)work;
-    atb = &ata[EM_MAXC * EM_MAXC];
+    atb = &ata[(size_t)EM_MAXC * EM_MAXC];
     if ((cfg->kind != MAGCAL_ERRMODEL_POLY && cfg->kind != MAGCAL_ERRMODEL_FOURIER) ||
         !(cfg->threshold_deg > 0.0f) || !magcal_isfinite_f(cfg->threshold_deg) ||
         cfg->max_order < 1u || (size_t)cfg->max_order > em_max_order(cfg->kind) ||
@@ -133,7 +133,7 @@ magcal_status_t magcal_errmodel_fit(const magcal_errmodel_cfg_t *cfg, const floa
         float maxr = 0.0f;
         float sse = 0.0f;
         magcal_status_t st;
-        (void)memset(ata, 0, EM_MAXC * EM_MAXC * sizeof(float));
+        (void)memset(ata, 0, (size_t)EM_MAXC * EM_MAXC * sizeof(float));
         (void)memset(atb, 0, EM_MAXC * sizeof(float));
         for (k = 0u; k < m; ++k) {
             float delta = magcal_wrap180_deg(psi_ref_deg[k] - psi_c_deg[k]);

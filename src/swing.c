@@ -111,6 +111,8 @@ static float swing_point(const swing_src_t *src, size_t k, float *x, float *delt
         const float bin_w = 360.0f / (float)MAGCAL_SWING_COG_BINS;
         const magcal_swing_bin_t *b = &src->cog->bins[k];
         if (!(b->weight > 0.0f)) {
+            *x = 0.0f; /* unused point: defined outputs all the same */
+            *delta = 0.0f;
             return 0.0f;
         }
         w = 1.0f; /* one point per occupied bin, unweighted */
