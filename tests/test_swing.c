@@ -7,6 +7,7 @@
 #include "magcal/ellipse.h"
 #include "magcal/heading.h"
 #include "magcal/swing.h"
+#include "magcal_internal.h" /* magcal_wrap360_deg: the bins copied out as the former cog fit did */
 #include "test_util.h"
 #include "unity.h"
 
@@ -587,6 +588,54 @@ static void test_swing_cog_table_has_36_bins_and_merges_within_a_bin(void)
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NOT_INITIALISED, magcal_swing_cog_flush(&acc));
 }
 
+/* magcal_swing_cog_fit reads the occupied bins in place (issue 14: no copy on its stack); it must
+ * give bit for bit what magcal_swing_fit gives on those bins copied out (bin centre + mean offset,
+ * psi_ref = psi_c + mean deviation, unweighted), with empty bins in between and across north. */
+static void test_swing_cog_fit_equals_fit_on_the_bins_copied_out(void)
+{
+    static const double truth[5] = {1.3, -2.1, 0.7, 0.45, -0.35};
+    const float bin_w = 360.0f / (float)MAGCAL_SWING_COG_BINS;
+    magcal_swing_cog_cfg_t cfg = MAGCAL_SWING_COG_CFG_DEFAULT;
+    magcal_swing_cog_t acc;
+    magcal_swing_model_t m1;
+    magcal_swing_model_t m2;
+    magcal_swing_stats_t s1;
+    magcal_swing_stats_t s2;
+    float pc[MAGCAL_SWING_COG_BINS];
+    float pr[MAGCAL_SWING_COG_BINS];
+    size_t n = 0u;
+    size_t i;
+    int k;
+    uint32_t rng = 11u;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_swing_cog_init(&acc, &cfg));
+    for (k = 0; k < 40; ++k) { /* 23 deg steps: some bins twice, some empty; 0.05 deg noise */
+        double psi = fmod(23.0 * k + 355.0, 360.0);
+        double c = smith_inverse(truth, psi) + 0.05 * test_rand_normal(&rng);
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_swing_cog_add_pair(&acc, (float)c, (float)psi, 1.0f + 0.25f * (float)(k % 3)));
+    }
+    for (i = 0u; i < MAGCAL_SWING_COG_BINS; ++i) { /* the former implementation's copy */
+        const magcal_swing_bin_t *b = &acc.bins[i];
+        if (b->weight > 0.0f) {
+            pc[n] = magcal_wrap360_deg(((float)i + 0.5f) * bin_w + b->psi_c_off_deg);
+            pr[n] = magcal_wrap360_deg(pc[n] + b->delta_deg);
+            ++n;
+        }
+    }
+    TEST_ASSERT_TRUE(n >= 20u && n < MAGCAL_SWING_COG_BINS);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_swing_cog_fit(&acc, &m1, &s1));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_swing_fit(&cfg.fit, pc, pr, NULL, n, MAGCAL_SWING_REG_MEASURED, &m2, &s2));
+    TEST_ASSERT_EQUAL_MEMORY(m2.coef_deg, m1.coef_deg, sizeof m1.coef_deg);
+    TEST_ASSERT_EQUAL_INT(m2.regressor, m1.regressor);
+    TEST_ASSERT_EQUAL_UINT8(m2.iterations, m1.iterations);
+    TEST_ASSERT_EQUAL_MEMORY(&s2.rms_deg, &s1.rms_deg, sizeof s1.rms_deg);
+    TEST_ASSERT_EQUAL_MEMORY(&s2.max_abs_deg, &s1.max_abs_deg, sizeof s1.max_abs_deg);
+    TEST_ASSERT_EQUAL_MEMORY(&s2.min_spread_pivot, &s1.min_spread_pivot, sizeof s1.min_spread_pivot);
+    TEST_ASSERT_EQUAL_UINT32((uint32_t)n, (uint32_t)s1.n_used);
+    for (k = 0; k < 5; ++k) { /* and it is the truth, to the noise */
+        TEST_ASSERT_FLOAT_WITHIN(0.05f, (float)truth[k], m1.coef_deg[k]);
+    }
+}
+
 /* The compass-swing article's sign: error e = measured - true = A + B sin psi_c + ... (its
  * formula (3), regressor the measured heading, 8 positions). A set in that sign loads with
  * magcal_swing_model_from_error and gives back the truth; fitted models export to it. */
@@ -672,6 +721,7 @@ int main(void)
     RUN_TEST(test_swing_cog_drive_recovers_coefficients_and_rejects_turns);
     RUN_TEST(test_swing_cog_marked_directions_fit_and_gates);
     RUN_TEST(test_swing_cog_table_has_36_bins_and_merges_within_a_bin);
+    RUN_TEST(test_swing_cog_fit_equals_fit_on_the_bins_copied_out);
     RUN_TEST(test_swing_model_from_error_loads_documents_sign);
     RUN_TEST(test_swing_model_from_error_bad_input_returns_status);
     return UNITY_END();
