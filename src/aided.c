@@ -308,7 +308,7 @@ static MAGCAL_NOINLINE int aided_combined(const magcal_aided_t *inst, const floa
 }
 
 /* Lambda/N at (i, j) with the noise variance removed from the first three diagonal entries
- * (errors in variables, aided_solve): recomputed where it is needed instead of kept as a copy. */
+ * (errors in variables, aided_solve). */
 static float aided_lam(const magcal_aided_t *inst, size_t i, size_t j, float neff)
 {
     float v = inst->info[aided_pidx(i, j)] / neff;
@@ -353,9 +353,6 @@ static MAGCAL_NOINLINE void aided_solve(magcal_aided_t *inst)
             lam[i * NPHI + j] = aided_lam(inst, i, j, neff);
         }
     }
-    if (magcal_jacobi_sym(lam, NPHI, mu, ev) != MAGCAL_OK) {
-        return; /* keep the previous estimate */
-    }
     /* prior in normalised coordinates: G0 rows, c~0 = G0 (V0 - V0)/s = 0 */
     for (j = 0u; j < 3u; ++j) {
         for (i = 0u; i < 3u; ++i) {
@@ -363,15 +360,19 @@ static MAGCAL_NOINLINE void aided_solve(magcal_aided_t *inst)
         }
         theta[3][j] = 0.0f;
     }
-    /* residual of the (compensated) vector normal equations at the prior: Z - Lambda theta0 */
+    /* residual of the (compensated) vector normal equations at the prior: Z - Lambda theta0, taken
+     * before the Jacobi sweeps destroy lam (so no copy of it is kept) */
     for (i = 0u; i < NPHI; ++i) {
         for (j = 0u; j < 3u; ++j) {
             float sacc = inst->cross[i * 3u + j];
             for (k = 0u; k < NPHI; ++k) {
-                sacc -= neff * aided_lam(inst, i, k, neff) * theta[k][j];
+                sacc -= neff * lam[i * NPHI + k] * theta[k][j];
             }
             resid[i][j] = sacc;
         }
+    }
+    if (magcal_jacobi_sym(lam, NPHI, mu, ev) != MAGCAL_OK) {
+        return; /* keep the previous estimate */
     }
     sigma = cfg->sigma_rel;
     if (inst->cal.field > 0.0f && inst->resid_rms / inst->cal.field > sigma) {
