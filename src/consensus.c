@@ -1066,6 +1066,8 @@ magcal_status_t magcal_consensus_begin(magcal_consensus_slice_t *s, const magcal
     S = (cons_state_t *)(void *)((uint8_t *)work +
                                  ((sizeof(void *) - magcal_misalign(work, sizeof(void *))) %
                                   sizeof(void *)));
+    /* the models' padding is copied into the result: zero, not whatever the workspace held */
+    (void)memset(S, 0, sizeof *S);
     S->cfg = cfg;
     S->pts = pts;
     S->cand_mask = cand;
