@@ -335,6 +335,12 @@ static MAGCAL_NOINLINE magcal_status_t ph_pre_cons(magcal_calibrator_t *cal, cal
                                     cal->scratch, MAGCAL_CONSENSUS_WORKSPACE_LEN(cal->capacity),
                                     cal->mask_b, &r->cres);
         (void)magcal_cal_spend(&r->bud, CAL_W_PHASE);
+        if (st == MAGCAL_OK) {
+            /* a round that leaves twice the bound out: a dirty store, the full pipeline (an early
+             * end only ever costs the short path, never a result: the full one is today's) */
+            st = magcal_consensus_limit_rejects(
+                &r->u.cons, 2u * ((size_t)cal->n / MAGCAL_CALIBRATOR_PRETEST_DIV) + 1u);
+        }
         if (st != MAGCAL_OK) {
             cal_goto(r, PH_FILTER); /* the full pipeline reports whatever is wrong */
             return MAGCAL_OK;
