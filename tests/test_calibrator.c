@@ -473,6 +473,10 @@ static void test_init_bad_cfg_returns_arg(void)
     cfg = (magcal_calibrator_cfg_t)MAGCAL_CALIBRATOR_CFG_DEFAULT;
     cfg.max_design_factor = 0.5f;
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
+    cfg = (magcal_calibrator_cfg_t)MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
+    cfg.pretest = 2u; /* 0 or 1 */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
 }
 
 /* A failed run reads NaN in every estimate, never 0 (which looked perfect). */
@@ -862,11 +866,11 @@ static void test_pretest_clean_short_path_dirty_full_path_bit_identical(void)
     };
     static uint8_t f_pre[CAP];
     static uint8_t f_full[CAP];
-    magcal_calibrator_cfg_t on = MAGCAL_CALIBRATOR_CFG_DEFAULT;
+    magcal_calibrator_cfg_t on = MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT;
     magcal_calibrator_cfg_t off = MAGCAL_CALIBRATOR_CFG_DEFAULT;
     size_t s;
-    TEST_ASSERT_EQUAL_UINT8(1u, on.pretest); /* the default */
-    off.pretest = 0u;
+    TEST_ASSERT_EQUAL_UINT8(1u, on.pretest);  /* the store default */
+    TEST_ASSERT_EQUAL_UINT8(0u, off.pretest); /* the default: the full pipeline */
     printf("\n%-34s %9s %9s %8s %6s %6s\n", "pre-test vs full pipeline", "rms pre", "rms full", "floor",
            "used", "full");
     for (s = 0; s < sizeof clean / sizeof clean[0]; ++s) {
@@ -953,13 +957,12 @@ static void test_pretest_parked_rings_full_path_or_within_floor(void)
     static const double fracs[] = {0.4, 0.6};
     static uint8_t f_pre[CAP];
     static uint8_t f_full[CAP];
-    magcal_calibrator_cfg_t on = MAGCAL_CALIBRATOR_CFG_DEFAULT;
+    magcal_calibrator_cfg_t on = MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT;
     magcal_calibrator_cfg_t off = MAGCAL_CALIBRATOR_CFG_DEFAULT;
     unsigned runs = 0u, full = 0u, shortp = 0u;
     double worst = 0.0;
     double worst_vs_full = 0.0;
     size_t in, ifr, two, seed;
-    off.pretest = 0u;
     for (in = 0; in < 3u; ++in) {
         for (ifr = 0; ifr < 2u; ++ifr) {
             for (two = 0; two < 2u; ++two) {
@@ -1104,7 +1107,7 @@ static void test_sliced_solve_matches_run_bit_for_bit(void)
     cfgs[1].filter = MAGCAL_FILTER_NONE;
     cfgs[2].filter = MAGCAL_FILTER_DBSCAN;
     cfgs[3].use_consensus = 0u;
-    cfgs[4].pretest = 0u; /* the default pipeline without the pre-test (cfgs[0] has it) */
+    cfgs[4].pretest = 1u; /* the default pipeline with the pre-test (the store default) */
     for (s = 0u; s < N_SCEN; ++s) {
         for (c = 0u; c < 5u; ++c) {
             sliced_case(g_scen[s], &cfgs[c], c == 0u ? &none : &ident);

@@ -5,7 +5,8 @@
  *
  * Pipeline of magcal_calibrator_run():
  *  1. pre-checks: enough samples (cfg.min_samples), not all identical;
- *  2. pre-test (cfg.pretest, default on, with the default filter and the consensus): the
+ *  2. pre-test (cfg.pretest: on in MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT; with the default filter
+ *     and the consensus): the
  *     consensus of step 4 on every sample first; when it succeeds, rejects at most
  *     n / MAGCAL_CALIBRATOR_PRETEST_DIV samples and none farther than 6 thresholds from its fit,
  *     the data show nothing the density stage would catch: its inliers stand in for the filter's,
@@ -245,23 +246,32 @@ typedef struct {
                                     est_noise_deg gives UNOBSERVABLE, > 0 (default 0.6) */
     float max_design_factor; /**< observability gate: report design_factor above this gives
                                   UNOBSERVABLE (headings in 4 clumps: 13..19), >= 1 (default 8) */
-    uint8_t pretest;         /**< 1 = residual pre-test before the density filter (default): with
-                                  the default filter (OPTICS grid, automatic eps and MinPts) and the
-                                  consensus on, the consensus runs first on every sample; when it
-                                  succeeds and rejects at most n / MAGCAL_CALIBRATOR_PRETEST_DIV
-                                  samples, none of them far (pipeline step 2), the filter and the
-                                  thinning are skipped (report pretest_clean = 1);
-                                  otherwise the full pipeline runs exactly as with 0. 0 = always
-                                  the full pipeline */
+    uint8_t pretest;         /**< 1 = residual pre-test before the density filter (pipeline step
+                                  2; with the default filter, automatic eps and MinPts, and the
+                                  consensus): on data without singular points the filter and the
+                                  thinning are skipped (report pretest_clean = 1), otherwise the
+                                  full pipeline runs exactly as with 0. 0 = always the full
+                                  pipeline (MAGCAL_CALIBRATOR_CFG_DEFAULT, for raw buffers where
+                                  bursts and glitches are common: the pre-test would be paid on
+                                  top); 1 in MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT (the continuous
+                                  calibrator's informative store) */
 } magcal_calibrator_cfg_t;
 
-/** Defaults that work without tuning (automatic filter parameters, accept every sample). */
-#define MAGCAL_CALIBRATOR_CFG_DEFAULT                                                              \
+/** The defaults with cfg.pretest = pre (private: use the two defaults below). */
+#define MAGCAL_CALIBRATOR_CFG_DEFAULT_PRE_(pre)                                                    \
     {                                                                                              \
         MAGCAL_FILTER_OPTICS_GRID, 0.0f, 0u, 1u, MAGCAL_CONSENSUS_CFG_DEFAULT, 0.0f, 0u, 20u,      \
             270.0f, 0.5f, 0.5f, 0.0f, 0.0f, 0.1f, 0.2f, MAGCAL_CORR_SYMMETRIC, 0.0f, 0.6f, 8.0f,   \
-            1u                                                                                     \
+            (pre)                                                                                  \
     }
+
+/** Defaults that work without tuning (automatic filter parameters, accept every sample; the full
+ *  pipeline on every run: no pre-test). */
+#define MAGCAL_CALIBRATOR_CFG_DEFAULT MAGCAL_CALIBRATOR_CFG_DEFAULT_PRE_(0u)
+
+/** The defaults for a store that holds informative ring samples only (the continuous
+ *  calibrator's, continuous.h): the pre-test on, so a clean store skips the density stage. */
+#define MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT MAGCAL_CALIBRATOR_CFG_DEFAULT_PRE_(1u)
 
 /** Pre-test (cfg.pretest): the short path needs the consensus on every sample to reject at most
  *  n / this many samples (6.25 %; a clean drive's store: 0..5 %, a glitch or burst scenario more). */
