@@ -1037,14 +1037,15 @@ static void test_pretest_parked_rings_full_path_or_within_floor(void)
 
 /* ---------------------------------------------------------------- time-sliced solve */
 
-/* run() is the sliced solve with an unlimited budget; at budgets 1, 97 and 6000 the same buffer
- * gives, bit for bit, run()'s status, calibration, report and per-sample flags: every scenario,
- * the default pipeline, no filter, DBSCAN and the plain fit, against the identity and against an
- * installed calibration (the adoption rule's harmonics of `current`). */
+/* run() is the sliced solve with an unlimited budget; at budgets 1, 97, 1000 and 6000 the same
+ * buffer gives, bit for bit, run()'s status, calibration, report and per-sample flags: every
+ * scenario, the default pipeline, no filter, DBSCAN, the plain fit and the default pipeline with
+ * the pre-test (both its paths), against the identity and against an installed calibration (the
+ * adoption rule's harmonics of `current`). */
 static void sliced_case(const magcal_test_dump_t *d, const magcal_calibrator_cfg_t *cfg,
                         const magcal_cal2d_t *installed)
 {
-    static const uint32_t budgets[] = {1u, 97u, 6000u};
+    static const uint32_t budgets[] = {1u, 97u, 1000u, 6000u};
     static uint8_t flags_ref[CAP];
     magcal_cal_report_t rep_ref;
     magcal_cal2d_t cal_ref = *installed;
@@ -1122,6 +1123,8 @@ static void test_sliced_solve_matches_run_bit_for_bit(void)
         near_truth.offset.x += 0.05f;
         sliced_case(&dump_synthetic_outliers_10, &cfgs[0], &near_truth);
         sliced_case(&dump_synthetic_clean, &cfgs[0], &near_truth);
+        sliced_case(&dump_synthetic_outliers_10, &cfgs[4], &near_truth); /* pre-test refused */
+        sliced_case(&dump_synthetic_clean, &cfgs[4], &near_truth);       /* short path */
     }
 }
 
