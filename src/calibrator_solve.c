@@ -55,8 +55,9 @@
 #define CAL_W_TOCAL 2500u   /* ellipse -> calibration (eigen decomposition, sqrt, trig) */
 #define CAL_W_COVCORR 390u  /* correction + heading + bin of one sample */
 #define CAL_W_SHIFT 390u    /* one of the 72 shift headings (inverse map, correction, atan2f) */
-/* pre-test: |residual| of one consensus reject (consensus.c CONS_W_RES 140, measured there on QEMU,
- * + the mask byte) */
+/* pre-test: one consensus reject, its |residual| and mask byte (host callgrind, vn100 store: 75 for
+ * the residual + ~30 the visit, x 1.2 = 126; charged as consensus.c's QEMU-measured CONS_W_RES 140
+ * + 20). Its inliers' visits are ph_masks' (CAL_W_MASKS; measured 26 host, x 1.2 = 31). */
 #define CAL_W_PRE_RES 160u
 #define CAL_W_ONESHOT UINT32_MAX /* a one-shot call (exceptions): ends the step */
 
