@@ -111,7 +111,7 @@ static magcal_status_t cal_check_cfg(const magcal_calibrator_cfg_t *c)
     if (c->eps < 0.0f || c->min_pts == 1u || c->min_pts > MAGCAL_MAX_MIN_PTS) {
         return MAGCAL_ERR_ARG;
     }
-    if (c->use_consensus > 1u) {
+    if (c->use_consensus > 1u || c->pretest > 1u) {
         return MAGCAL_ERR_ARG;
     }
     if (c->consensus.max_iter < 1u || c->consensus.max_iter > MAGCAL_CONSENSUS_MAX_ITER ||

@@ -12,10 +12,12 @@
  * (classic order, caller eps).
  *
  * Phases (in order; each returns MAGCAL_OK to go on or the run's final status):
- *  prepare: [bbox of a loaded buffer] -> pre-checks (count, identical, extent) -> density filter ->
- *           filter masks + flags -> mean, scale, moments of the inliers (collinearity and the
- *           hard-iron circle share them) -> coverage of every sample and of the inliers;
- *  fit:     thinning + consensus (+ filter flags again), or the plain fit + its mask;
+ *  prepare: [bbox of a loaded buffer] -> pre-checks (count, identical, extent) -> [pre-test:
+ *           consensus on every sample; clean -> its mask stands in for the filter's] -> density
+ *           filter -> filter masks + flags -> mean, scale, moments of the inliers (collinearity
+ *           and the hard-iron circle share them) -> coverage of every sample and of the inliers;
+ *  fit:     thinning + consensus (+ filter flags again), or the plain fit + its mask (after a
+ *           clean pre-test: its consensus is the fit, straight to the flags);
  *  gates:   flags with residual bits + counts -> report, gates;
  *  adopt:   ellipse -> calibration, corrected coverage, distinct values, harmonics of the new
  *           calibration (observability gate), the heading shift, harmonics of the installed one,
@@ -31,6 +33,11 @@
 
 #define CAL_SHIFT_STEPS 72u /* heading shift evaluated every 5 degrees (cal_sincos5) */
 #define CAL_COLLINEAR_TOL 1.0e-6f
+/* Pre-test: a consensus reject farther than this many residual thresholds (k_sigma 3.5: ~21 sigma)
+ * from the fit is a singular point (a glitch, a spike), what the density stage is for: the full
+ * pipeline runs. A clean store's rejects are the noise tail, 1..4 thresholds (vn100_car_circles_b:
+ * at most 3.7; the synthetic spikes: 380). */
+#define CAL_PRE_FAR 6.0f
 
 /* Per-visit weights, estimated M4F instructions (measured: docs/calibrator.md "Work per call"). */
 #define CAL_W_PHASE 40u     /* a phase switch / O(1) bookkeeping */
@@ -48,6 +55,10 @@
 #define CAL_W_TOCAL 2500u   /* ellipse -> calibration (eigen decomposition, sqrt, trig) */
 #define CAL_W_COVCORR 390u  /* correction + heading + bin of one sample */
 #define CAL_W_SHIFT 390u    /* one of the 72 shift headings (inverse map, correction, atan2f) */
+/* pre-test: one consensus reject, its |residual| and mask byte (host callgrind, vn100 store: 75 for
+ * the residual + ~30 the visit, x 1.2 = 126; charged as consensus.c's QEMU-measured CONS_W_RES 140
+ * + 20). Its inliers' visits are ph_masks' (CAL_W_MASKS; measured 26 host, x 1.2 = 31). */
+#define CAL_W_PRE_RES 160u
 #define CAL_W_ONESHOT UINT32_MAX /* a one-shot call (exceptions): ends the step */
 
 typedef enum {
@@ -55,6 +66,8 @@ typedef enum {
     PH_CHECK,
     PH_IDENT,
     PH_EXTENT,
+    PH_PRE_CONS,
+    PH_PRE_MASK,
     PH_FILTER,
     PH_FILTER_RUN,
     PH_MASKS,
@@ -95,6 +108,7 @@ typedef struct {
     uint8_t sub;          /* 0 at a phase's first visit */
     uint8_t cand;         /* consensus candidates: 0 all, 1 filter mask, 2 thinned (flags) */
     uint8_t active;       /* a solve is under way */
+    uint8_t pre;          /* 1: the pre-test found the data clean (short path) */
     /* cppcheck-suppress misra-c2012-19.2 ; deviation D12: the run state overlays the stages' slice states, never live together, so it fits MAGCAL_CALIBRATOR_RUN_LEN */
     union {
         magcal_dbscan_cfg_t dc;
@@ -272,6 +286,17 @@ static MAGCAL_NOINLINE magcal_status_t ph_ident(magcal_calibrator_t *cal, cal_ru
     return MAGCAL_ERR_DEGENERATE;
 }
 
+/* The pre-test applies with the default filter only (OPTICS grid, automatic eps and MinPts), with
+ * the consensus on and at least 16 samples (the automatic filter's own minimum). */
+static int cal_pretest_on(const magcal_calibrator_t *cal)
+{
+    const magcal_calibrator_cfg_t *c = &cal->cfg;
+    return (c->pretest != 0u && c->filter == MAGCAL_FILTER_OPTICS_GRID && c->eps <= 0.0f &&
+            c->min_pts == 0u && c->use_consensus != 0u && cal->n >= 16u)
+               ? 1
+               : 0;
+}
+
 static MAGCAL_NOINLINE magcal_status_t ph_extent(magcal_calibrator_t *cal, cal_run_t *r)
 {
     /* Extent of the samples: when its square is not a normal float32, squared distances and
@@ -287,7 +312,97 @@ static MAGCAL_NOINLINE magcal_status_t ph_extent(magcal_calibrator_t *cal, cal_r
     if (ext2 < FLT_MIN) {
         return MAGCAL_ERR_ILL_CONDITIONED;
     }
-    cal_goto(r, PH_FILTER);
+    cal_goto(r, cal_pretest_on(cal) != 0 ? PH_PRE_CONS : PH_FILTER);
+    return MAGCAL_OK;
+}
+
+/* ------------------------------------------------------------------ pre-test (cfg.pretest)
+ * Issue 14: the density filter and the thinning cost more than the fit; on a clean store they
+ * reject nothing the consensus does not. The consensus runs first on every sample; when it
+ * succeeds and rejects at most n / MAGCAL_CALIBRATOR_PRETEST_DIV samples, its inlier mask takes
+ * the filter mask's place in the prepare phases (so a few glitches cannot move the circle centre
+ * of the coverage pre-gate or fake collinearity) and its result is the fit. Otherwise the solve
+ * goes on at PH_FILTER exactly as without the pre-test (every later phase rewrites what the
+ * pre-test left: the consensus result, mask_b, the union), so its results are today's bit for bit;
+ * the pre-test's consensus is then the price of a dirty store. */
+
+/* The consensus on every sample into run->cres and mask_b; then the verdict. */
+static MAGCAL_NOINLINE magcal_status_t ph_pre_cons(magcal_calibrator_t *cal, cal_run_t *r)
+{
+    magcal_status_t st;
+    if (r->sub == 0u) {
+        (void)memset(&r->cres, 0, sizeof r->cres); /* as ph_cov_f: its padding is copied out */
+        st = magcal_consensus_begin(&r->u.cons, &cal->cfg.consensus, cal->buf, cal->n, NULL,
+                                    cal->scratch, MAGCAL_CONSENSUS_WORKSPACE_LEN(cal->capacity),
+                                    cal->mask_b, &r->cres);
+        (void)magcal_cal_spend(&r->bud, CAL_W_PHASE);
+        if (st == MAGCAL_OK) {
+            /* a round that leaves twice the bound out: a dirty store, the full pipeline (an early
+             * end only ever costs the short path, never a result: the full one is today's) */
+            st = magcal_consensus_limit_rejects(
+                &r->u.cons, 2u * ((size_t)cal->n / MAGCAL_CALIBRATOR_PRETEST_DIV) + 1u);
+        }
+        if (st != MAGCAL_OK) {
+            cal_goto(r, PH_FILTER); /* the full pipeline reports whatever is wrong */
+            return MAGCAL_OK;
+        }
+        r->sub = 1u;
+    }
+    st = magcal_consensus_step(&r->u.cons, cal_left(r));
+    st = cal_module_done(r, st, r->u.cons.used_);
+    if (st == MAGCAL_IN_PROGRESS) {
+        return st;
+    }
+    if (st == MAGCAL_OK &&
+        (size_t)cal->n - (size_t)r->cres.n_inliers <= (size_t)cal->n / MAGCAL_CALIBRATOR_PRETEST_DIV) {
+        cal_goto(r, PH_PRE_MASK);
+        r->m = 0u;
+    } else {
+        cal_goto(r, PH_FILTER);
+    }
+    return MAGCAL_OK;
+}
+
+/* Few rejects: each must lie within CAL_PRE_FAR thresholds of the fit (else the full pipeline).
+ * Clean: the consensus inliers are the prepare phases' mask (mask_a), counted, as ph_masks does
+ * with the filter's; no sample is a filter reject. */
+static MAGCAL_NOINLINE magcal_status_t ph_pre_mask(magcal_calibrator_t *cal, cal_run_t *r)
+{
+    cal_prep_t *q = cal_prep(cal);
+    const float far = CAL_PRE_FAR * r->cres.threshold;
+    while (r->i < cal->n) {
+        const size_t i = r->i;
+        const uint8_t in = cal->mask_b[i];
+        uint32_t w = CAL_W_MASKS;
+        if (in == 0u) {
+            const float res = magcal_ellipse_residual(&r->cres.fit, cal->buf[i]);
+            if (!(fabsf(res) <= far)) {
+                cal_goto(r, PH_FILTER); /* a singular point: the full pipeline */
+                (void)magcal_cal_spend(&r->bud, CAL_W_PRE_RES);
+                return MAGCAL_OK;
+            }
+            w = CAL_W_PRE_RES;
+        }
+        cal->mask_a[i] = in;
+        r->m += in != 0u ? 1u : 0u;
+        cal->flags[i] = MAGCAL_CALIBRATOR_FLAG_JUDGED;
+        r->i++;
+        if (magcal_cal_spend(&r->bud, w) != 0) {
+            return MAGCAL_IN_PROGRESS;
+        }
+    }
+    cal->n_judged = cal->n;
+    r->rep.rejected_filter = 0u;
+    r->rep.filter_eps = 0.0f;
+    r->rep.filter_min_pts = 0u;
+    r->rep.pretest_clean = 1u;
+    r->pre = 1u;
+    if (r->m < cal->cfg.min_samples) {
+        return MAGCAL_ERR_TOO_FEW_POINTS;
+    }
+    cal_goto(r, PH_MEAN);
+    q->mx = 0.0f;
+    q->my = 0.0f;
     return MAGCAL_OK;
 }
 
@@ -615,6 +730,12 @@ static MAGCAL_NOINLINE magcal_status_t ph_cov_all(magcal_calibrator_t *cal, cal_
     if (cov < cal->cfg.min_coverage_deg) {
         return MAGCAL_ERR_COVERAGE;
     }
+    if (r->pre != 0u) {
+        /* clean pre-test: its consensus (on every sample) is the fit */
+        r->held = MAGCAL_OK;
+        cal_goto(r, PH_FLAGS0);
+        return MAGCAL_OK;
+    }
     cal_goto(r, PH_COV_F);
     return MAGCAL_OK;
 }
@@ -695,11 +816,16 @@ static MAGCAL_NOINLINE magcal_status_t ph_cons(magcal_calibrator_t *cal, cal_run
     return MAGCAL_OK;
 }
 
-/* The filter flags again (the thinning used the flags; the gates set the residual bits). */
+/* The filter flags again (the thinning used the flags; the gates set the residual bits). After a
+ * clean pre-test no sample is a filter reject: mask_a becomes all ones (the consensus rejects are
+ * residual rejects, counted as such by the gates). */
 static MAGCAL_NOINLINE magcal_status_t ph_flags0(magcal_calibrator_t *cal, cal_run_t *r)
 {
     while (r->i < cal->n) {
         const size_t i = r->i;
+        if (r->pre != 0u) {
+            cal->mask_a[i] = 1u;
+        }
         cal->flags[i] = cal->mask_a[i] == 0u
                             ? (uint8_t)(MAGCAL_CALIBRATOR_FLAG_JUDGED | MAGCAL_CALIBRATOR_FLAG_FILTER)
                             : (uint8_t)MAGCAL_CALIBRATOR_FLAG_JUDGED;
@@ -1152,6 +1278,8 @@ static MAGCAL_NOINLINE magcal_status_t cal_phase(magcal_calibrator_t *cal, cal_r
     case PH_CHECK: return ph_check(cal, r);
     case PH_IDENT: return ph_ident(cal, r);
     case PH_EXTENT: return ph_extent(cal, r);
+    case PH_PRE_CONS: return ph_pre_cons(cal, r);
+    case PH_PRE_MASK: return ph_pre_mask(cal, r);
     case PH_FILTER: return ph_filter(cal, r);
     case PH_FILTER_RUN: return ph_filter_run(r);
     case PH_MASKS: return ph_masks(cal, r);
@@ -1229,6 +1357,7 @@ magcal_status_t magcal_calibrator_solve_begin(magcal_calibrator_t *cal, size_t n
     cal->has_fit = 0u;
     cal->n_judged = 0u;
     cal_goto(r, load_bbox != 0 ? PH_BBOX : PH_CHECK);
+    r->pre = 0u;
     r->active = 1u;
     return MAGCAL_OK;
 }

@@ -166,6 +166,7 @@ typedef struct {
     uint16_t idx[5]; /* minimal set; in step 3 the inliers when there are exactly 5 */
     uint16_t best_idx[5]; /* minimal set of best */
     uint16_t need;        /* draws needed for the best's inlier fraction (early end) */
+    uint16_t max_out;     /* magcal_consensus_limit_rejects(): 0 = no limit */
     uint8_t phase;
     uint8_t axis;
     uint8_t stop;
@@ -886,6 +887,9 @@ static MAGCAL_NOINLINE magcal_status_t cons_refine(cons_state_t *S, uint32_t bud
             S->round = 0u;
             S->stop = 0u;
             S->phase = P_ROUND;
+            if (S->max_out != 0u && n - S->k_in > (size_t)S->max_out) {
+                return MAGCAL_ERR_TOO_MANY_OUTLIERS; /* the caller's early end */
+            }
         }
         break;
     case P_ROUND:
@@ -973,6 +977,9 @@ static MAGCAL_NOINLINE magcal_status_t cons_refine(cons_state_t *S, uint32_t bud
             }
             ++S->round;
             S->phase = P_ROUND;
+            if (S->max_out != 0u && n - S->k_in > (size_t)S->max_out) {
+                return MAGCAL_ERR_TOO_MANY_OUTLIERS; /* the caller's early end */
+            }
         }
         break;
     }
@@ -1066,6 +1073,8 @@ magcal_status_t magcal_consensus_begin(magcal_consensus_slice_t *s, const magcal
     S = (cons_state_t *)(void *)((uint8_t *)work +
                                  ((sizeof(void *) - magcal_misalign(work, sizeof(void *))) %
                                   sizeof(void *)));
+    /* the models' padding is copied into the result: zero, not whatever the workspace held */
+    (void)memset(S, 0, sizeof *S);
     S->cfg = cfg;
     S->pts = pts;
     S->cand_mask = cand;
@@ -1094,6 +1103,21 @@ magcal_status_t magcal_consensus_begin(magcal_consensus_slice_t *s, const magcal
     s->used_ = 0u;
     s->phase_ = CONS_PH_RUN;
     s->status_ = (int8_t)MAGCAL_IN_PROGRESS;
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_consensus_limit_rejects(magcal_consensus_slice_t *s, size_t max_out)
+{
+    cons_state_t *S;
+    if (s == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (s->phase_ != CONS_PH_RUN || s->state_ == NULL || max_out < 1u ||
+        max_out > (size_t)UINT16_MAX) {
+        return MAGCAL_ERR_ARG;
+    }
+    S = (cons_state_t *)s->state_;
+    S->max_out = (uint16_t)max_out;
     return MAGCAL_OK;
 }
 

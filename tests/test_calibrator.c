@@ -473,6 +473,10 @@ static void test_init_bad_cfg_returns_arg(void)
     cfg = (magcal_calibrator_cfg_t)MAGCAL_CALIBRATOR_CFG_DEFAULT;
     cfg.max_design_factor = 0.5f;
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
+    cfg = (magcal_calibrator_cfg_t)MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
+    cfg.pretest = 2u; /* 0 or 1 */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
 }
 
 /* A failed run reads NaN in every estimate, never 0 (which looked perfect). */
@@ -825,16 +829,223 @@ static void test_run_lsm9ds1_driver_glitches_all_rejected(void)
 }
 
 
+/* ---------------------------------------------------------------- pre-test (cfg.pretest, issue 14) */
+
+/* One run of d's calibration rows with cfg into *r, its flags into flags (CAP entries). */
+static void run_dump_flags(const magcal_test_dump_t *d, const magcal_calibrator_cfg_t *cfg, run_t *r,
+                           uint8_t *flags)
+{
+    size_t i;
+    run_dump(d, cfg, r);
+    for (i = 0; i < d->truth->n_cal; ++i) {
+        flags[i] = 0u;
+        (void)magcal_calibrator_flags(&g_cal, i, &flags[i]);
+    }
+}
+
+/*
+ * The pre-test against the full pipeline (cfg.pretest = 0) on every synthetic scenario, against
+ * known truth. Clean data (no singular points: clean, heavy noise, raw counts, hard iron 5x,
+ * strong soft iron, 300-degree arc, n = 60) takes the short path (report pretest_clean = 1, no
+ * filter rejects, filter_eps 0) and meets the same accuracy: heading RMS within 1.2 x the floor
+ * and within 2 % of the full pipeline's (measured: identical to 5 digits), the same inliers but at
+ * most 1 sample. Every scenario with singular points (10 / 25 / 35 % outliers, spikes,
+ * the near-ring cloud) fails the pre-test and gives the full pipeline's status, calibration,
+ * report and per-sample flags bit for bit.
+ */
+static void test_pretest_clean_short_path_dirty_full_path_bit_identical(void)
+{
+    static const magcal_test_dump_t *const clean[] = {
+        &dump_synthetic_clean,        &dump_synthetic_heavy_noise,      &dump_synthetic_raw_counts,
+        &dump_synthetic_hard_iron_5x, &dump_synthetic_soft_iron_strong, &dump_synthetic_arc_300,
+        &dump_synthetic_n60,
+    };
+    static const magcal_test_dump_t *const dirty[] = {
+        &dump_synthetic_outliers_10, &dump_synthetic_outliers_25, &dump_synthetic_outliers_35,
+        &dump_synthetic_spikes,      &dump_synthetic_near_ring,
+    };
+    static uint8_t f_pre[CAP];
+    static uint8_t f_full[CAP];
+    magcal_calibrator_cfg_t on = MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT;
+    magcal_calibrator_cfg_t off = MAGCAL_CALIBRATOR_CFG_DEFAULT;
+    size_t s;
+    TEST_ASSERT_EQUAL_UINT8(1u, on.pretest);  /* the store default */
+    TEST_ASSERT_EQUAL_UINT8(0u, off.pretest); /* the default: the full pipeline */
+    printf("\n%-34s %9s %9s %8s %6s %6s\n", "pre-test vs full pipeline", "rms pre", "rms full", "floor",
+           "used", "full");
+    for (s = 0; s < sizeof clean / sizeof clean[0]; ++s) {
+        const magcal_test_dump_t *d = clean[s];
+        run_t a;
+        run_t b;
+        int du;
+        run_dump_flags(d, &on, &a, f_pre);
+        run_dump_flags(d, &off, &b, f_full);
+        printf("%-34s %9.5f %9.5f %8.4f %6u %6u\n", d->name, a.rms_deg, b.rms_deg,
+               (double)d->truth->floor_deg, (unsigned)a.rep.used, (unsigned)b.rep.used);
+        TEST_ASSERT_EQUAL_INT_MESSAGE(MAGCAL_OK, a.st, d->name);
+        TEST_ASSERT_EQUAL_INT_MESSAGE(MAGCAL_OK, b.st, d->name);
+        TEST_ASSERT_EQUAL_UINT8_MESSAGE(1u, a.rep.pretest_clean, d->name);
+        TEST_ASSERT_EQUAL_UINT8_MESSAGE(0u, b.rep.pretest_clean, d->name);
+        TEST_ASSERT_EQUAL_UINT16(0u, a.rep.rejected_filter);
+        TEST_ASSERT_EQUAL_FLOAT(0.0f, a.rep.filter_eps);
+        TEST_ASSERT_TRUE_MESSAGE(a.ratio <= 1.2, d->name);
+        TEST_ASSERT_TRUE_MESSAGE(a.rms_deg <= 1.02 * b.rms_deg, d->name);
+        TEST_ASSERT_TRUE_MESSAGE(false_rate(&a) <= 0.05, d->name);
+        du = (int)a.rep.used - (int)b.rep.used;
+        TEST_ASSERT_TRUE_MESSAGE(du >= -1 && du <= 1, d->name);
+        TEST_ASSERT_EQUAL_UINT8(1u, a.rep.adopted);
+    }
+    for (s = 0; s < sizeof dirty / sizeof dirty[0]; ++s) {
+        const magcal_test_dump_t *d = dirty[s];
+        run_t a;
+        run_t b;
+        run_dump_flags(d, &on, &a, f_pre);
+        run_dump_flags(d, &off, &b, f_full);
+        printf("%-34s %9.5f %9.5f %8.4f %6u %6u (full path)\n", d->name, a.rms_deg, b.rms_deg,
+               (double)d->truth->floor_deg, (unsigned)a.rep.used, (unsigned)b.rep.used);
+        TEST_ASSERT_EQUAL_UINT8_MESSAGE(0u, a.rep.pretest_clean, d->name);
+        TEST_ASSERT_EQUAL_INT_MESSAGE(b.st, a.st, d->name);
+        TEST_ASSERT_EQUAL_MEMORY_MESSAGE(&b.cal, &a.cal, sizeof a.cal, d->name);
+        TEST_ASSERT_EQUAL_MEMORY_MESSAGE(&b.rep, &a.rep, sizeof a.rep, d->name);
+        TEST_ASSERT_EQUAL_MEMORY_MESSAGE(f_full, f_pre, d->truth->n_cal, d->name);
+    }
+}
+
+/* Parked rings (40 / 60 % of the samples at one or two headings, tests/test_optics.c's clump
+ * case, n = 200..1000): with the pre-test either the full pipeline's result bit for bit (the
+ * consensus on every sample fails the pre-test) or, on the short path, OK within 1.2 x the floor on
+ * 360 fresh headings and within 2 % of the full pipeline's heading RMS (never a worse OK).
+ * Measured: 23 of 24 take the short path, each with the full pipeline's accuracy (1.0000 x): the
+ * consensus' refit on every inlier is what both paths end with; a conic through the clump alone
+ * (tests/test_optics.c) leaves far more than n / 16 of the drive rejected and fails the pre-test. */
+static const test_distortion_t g_park = {50.0f, {{1.12f, 0.06f}, {0.06f, 0.91f}}, 24.0f, -17.0f};
+static magcal_vec2_t g_park_pts[1000];
+
+static double park_heading_true(magcal_vec2_t p)
+{
+    const test_distortion_t *d = &g_park;
+    const double det = (double)d->t[0][0] * d->t[1][1] - (double)d->t[0][1] * d->t[1][0];
+    const double x = (double)p.x - d->bx;
+    const double y = (double)p.y - d->by;
+    const double hx = ((double)d->t[1][1] * x - (double)d->t[0][1] * y) / det;
+    const double hy = (-(double)d->t[1][0] * x + (double)d->t[0][0] * y) / det;
+    return atan2(-hx, hy) * 57.29577951308232;
+}
+
+/* Heading RMS of c on 360 fresh headings of g_park (noise 0.5) over the true calibration's. */
+static double park_ratio(const magcal_cal2d_t *c, uint32_t vrng)
+{
+    double ss = 0.0, sf = 0.0;
+    size_t i;
+    for (i = 0; i < 360u; ++i) {
+        const double psi = (double)i + 0.5;
+        const magcal_vec2_t p = test_distorted_sample(&g_park, psi, 0.5, &vrng);
+        float h;
+        double e;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_heading_compute(c, p, 0.0f, &h, NULL));
+        e = test_angle_diff_deg((double)h, psi);
+        ss += e * e;
+        e = test_angle_diff_deg(park_heading_true(p), psi);
+        sf += e * e;
+    }
+    return sqrt(ss / sf);
+}
+
+static void test_pretest_parked_rings_full_path_or_within_floor(void)
+{
+    static const size_t ns[] = {200u, 500u, 1000u};
+    static const double fracs[] = {0.4, 0.6};
+    static uint8_t f_pre[CAP];
+    static uint8_t f_full[CAP];
+    magcal_calibrator_cfg_t on = MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT;
+    magcal_calibrator_cfg_t off = MAGCAL_CALIBRATOR_CFG_DEFAULT;
+    unsigned runs = 0u, full = 0u, shortp = 0u;
+    double worst = 0.0;
+    double worst_vs_full = 0.0;
+    size_t in, ifr, two, seed;
+    for (in = 0; in < 3u; ++in) {
+        for (ifr = 0; ifr < 2u; ++ifr) {
+            for (two = 0; two < 2u; ++two) {
+                for (seed = 1u; seed <= 2u; ++seed) {
+                    const size_t n = ns[in];
+                    const size_t n_park = (size_t)(fracs[ifr] * (double)n + 0.5);
+                    const size_t n_first = two ? (2u * n_park) / 3u : n_park;
+                    uint32_t rng = (uint32_t)(101u * seed + 7u * in + 3u * ifr + two);
+                    const double psi1 = 360.0 * test_rand_uniform(&rng);
+                    const double psi2 = 360.0 * test_rand_uniform(&rng);
+                    magcal_cal2d_t ca = MAGCAL_CAL2D_IDENTITY;
+                    magcal_cal2d_t cb = MAGCAL_CAL2D_IDENTITY;
+                    magcal_cal_report_t ra;
+                    magcal_cal_report_t rb;
+                    magcal_status_t sa;
+                    magcal_status_t sb;
+                    size_t i;
+                    for (i = 0; i < n; ++i) {
+                        double psi = psi2;
+                        if (i < n_first) {
+                            psi = psi1;
+                        } else if (i < n - n_park + n_first) {
+                            psi = psi1 + 450.0 * (double)(i - n_first) / (double)(n - n_park);
+                        }
+                        g_park_pts[i] = test_distorted_sample(&g_park, psi, 0.5, &rng);
+                    }
+                    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_cal, &off, g_buf, CAP, g_work, sizeof g_work));
+                    for (i = 0; i < n; ++i) {
+                        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_push(&g_cal, g_park_pts[i]));
+                    }
+                    sb = magcal_calibrator_run(&g_cal, &cb, &rb);
+                    for (i = 0; i < n; ++i) {
+                        (void)magcal_calibrator_flags(&g_cal, i, &f_full[i]);
+                    }
+                    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_cal, &on, g_buf, CAP, g_work, sizeof g_work));
+                    for (i = 0; i < n; ++i) {
+                        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_push(&g_cal, g_park_pts[i]));
+                    }
+                    sa = magcal_calibrator_run(&g_cal, &ca, &ra);
+                    for (i = 0; i < n; ++i) {
+                        (void)magcal_calibrator_flags(&g_cal, i, &f_pre[i]);
+                    }
+                    ++runs;
+                    if (ra.pretest_clean == 0u) {
+                        ++full;
+                        TEST_ASSERT_EQUAL_INT(sb, sa);
+                        TEST_ASSERT_EQUAL_MEMORY(&cb, &ca, sizeof ca);
+                        TEST_ASSERT_EQUAL_MEMORY(&rb, &ra, sizeof ra);
+                        TEST_ASSERT_EQUAL_MEMORY(f_full, f_pre, n);
+                    } else {
+                        ++shortp;
+                    }
+                    if (sa == MAGCAL_OK) {
+                        const uint32_t vseed = (uint32_t)(977u * seed + 31u * in);
+                        const double ratio = park_ratio(&ca, vseed);
+                        worst = ratio > worst ? ratio : worst;
+                        TEST_ASSERT_TRUE(ratio <= 1.2);
+                        if (ra.pretest_clean != 0u) {
+                            /* never worse than the full pipeline by more than 2 % */
+                            const double rf = sb == MAGCAL_OK ? park_ratio(&cb, vseed) : INFINITY;
+                            worst_vs_full = ratio / rf > worst_vs_full ? ratio / rf : worst_vs_full;
+                            TEST_ASSERT_TRUE(sb != MAGCAL_OK || ratio <= 1.02 * rf);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    printf("parked rings: %u runs, %u full path (bit for bit), %u short path, worst OK %.3f x floor, short path "
+           "vs full pipeline at most %.4f x\n", runs, full, shortp, worst, worst_vs_full);
+}
+
 /* ---------------------------------------------------------------- time-sliced solve */
 
-/* run() is the sliced solve with an unlimited budget; at budgets 1, 97 and 6000 the same buffer
- * gives, bit for bit, run()'s status, calibration, report and per-sample flags: every scenario,
- * the default pipeline, no filter, DBSCAN and the plain fit, against the identity and against an
- * installed calibration (the adoption rule's harmonics of `current`). */
+/* run() is the sliced solve with an unlimited budget; at budgets 1, 97, 1000 and 6000 the same
+ * buffer gives, bit for bit, run()'s status, calibration, report and per-sample flags: every
+ * scenario, the default pipeline, no filter, DBSCAN, the plain fit and the default pipeline with
+ * the pre-test (both its paths), against the identity and against an installed calibration (the
+ * adoption rule's harmonics of `current`). */
 static void sliced_case(const magcal_test_dump_t *d, const magcal_calibrator_cfg_t *cfg,
                         const magcal_cal2d_t *installed)
 {
-    static const uint32_t budgets[] = {1u, 97u, 6000u};
+    static const uint32_t budgets[] = {1u, 97u, 1000u, 6000u};
     static uint8_t flags_ref[CAP];
     magcal_cal_report_t rep_ref;
     magcal_cal2d_t cal_ref = *installed;
@@ -883,22 +1094,23 @@ static void sliced_case(const magcal_test_dump_t *d, const magcal_calibrator_cfg
 
 static void test_sliced_solve_matches_run_bit_for_bit(void)
 {
-    magcal_calibrator_cfg_t cfgs[4];
+    magcal_calibrator_cfg_t cfgs[5];
     magcal_cal2d_t ident = MAGCAL_CAL2D_IDENTITY;
     magcal_cal2d_t none = MAGCAL_CAL2D_IDENTITY;
     magcal_cal2d_t near_truth;
     size_t s;
     size_t c;
     none.radius = 0.0f; /* unusable: the new calibration replaces it */
-    for (c = 0u; c < 4u; ++c) {
+    for (c = 0u; c < 5u; ++c) {
         magcal_calibrator_cfg_t dflt = MAGCAL_CALIBRATOR_CFG_DEFAULT;
         cfgs[c] = dflt;
     }
     cfgs[1].filter = MAGCAL_FILTER_NONE;
     cfgs[2].filter = MAGCAL_FILTER_DBSCAN;
     cfgs[3].use_consensus = 0u;
+    cfgs[4].pretest = 1u; /* the default pipeline with the pre-test (the store default) */
     for (s = 0u; s < N_SCEN; ++s) {
-        for (c = 0u; c < 4u; ++c) {
+        for (c = 0u; c < 5u; ++c) {
             sliced_case(g_scen[s], &cfgs[c], c == 0u ? &none : &ident);
         }
     }
@@ -911,6 +1123,8 @@ static void test_sliced_solve_matches_run_bit_for_bit(void)
         near_truth.offset.x += 0.05f;
         sliced_case(&dump_synthetic_outliers_10, &cfgs[0], &near_truth);
         sliced_case(&dump_synthetic_clean, &cfgs[0], &near_truth);
+        sliced_case(&dump_synthetic_outliers_10, &cfgs[4], &near_truth); /* pre-test refused */
+        sliced_case(&dump_synthetic_clean, &cfgs[4], &near_truth);       /* short path */
     }
 }
 
@@ -944,5 +1158,7 @@ int main(void)
     RUN_TEST(test_run_lsm9ds1_flat_turns_spread_near_optimum);
     RUN_TEST(test_run_lsm9ds1_driver_glitches_all_rejected);
     RUN_TEST(test_sliced_solve_matches_run_bit_for_bit);
+    RUN_TEST(test_pretest_clean_short_path_dirty_full_path_bit_identical);
+    RUN_TEST(test_pretest_parked_rings_full_path_or_within_floor);
     return UNITY_END();
 }

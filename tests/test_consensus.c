@@ -434,6 +434,52 @@ static void test_consensus_begin_checks_arguments_step_refuses_unstarted(void)
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_consensus_begin(&sl, &cfg, g_pts, n, NULL, g_work, sizeof g_work, g_mask, &res));
 }
 
+/* magcal_consensus_limit_rejects: on 10 % singular points (dump_synthetic_outliers_10) a limit of
+ * 1 % ends the run early with TOO_MANY_OUTLIERS; a limit above the run's own rejects gives the
+ * unlimited run's mask and result bit for bit (the limit only ever ends a run, never changes
+ * one); it must be set after begin and before the end, within 1..65535. */
+static void test_consensus_limit_rejects_ends_dirty_run_keeps_clean_result(void)
+{
+    static uint8_t ref_mask[NMAX];
+    magcal_consensus_cfg_t cfg = MAGCAL_CONSENSUS_CFG_DEFAULT;
+    magcal_consensus_slice_t sl;
+    magcal_consensus_result_t ref;
+    magcal_consensus_result_t got;
+    size_t n = load(&dump_synthetic_outliers_10);
+    size_t out;
+    magcal_status_t st;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_consensus_run(&cfg, g_pts, n, NULL, g_work, sizeof g_work,
+                                                          ref_mask, &ref));
+    out = n - (size_t)ref.n_inliers;
+    TEST_ASSERT_TRUE(out > n / 20u); /* the scenario's singular points */
+    /* a limit of n / 100: ended early */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_consensus_begin(&sl, &cfg, g_pts, n, NULL, g_work,
+                                                            sizeof g_work, g_mask, &got));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_consensus_limit_rejects(&sl, n / 100u));
+    do {
+        st = magcal_consensus_step(&sl, 6000u);
+    } while (st == MAGCAL_IN_PROGRESS);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_MANY_OUTLIERS, st);
+    /* a limit the run never passes: the unlimited result */
+    memset(&got, 0, sizeof got);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_consensus_begin(&sl, &cfg, g_pts, n, NULL, g_work,
+                                                            sizeof g_work, g_mask, &got));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_consensus_limit_rejects(&sl, n));
+    do {
+        st = magcal_consensus_step(&sl, 6000u);
+    } while (st == MAGCAL_IN_PROGRESS);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, st);
+    assert_same_result(&ref, &got);
+    TEST_ASSERT_EQUAL_MEMORY(ref_mask, g_mask, n);
+    /* arguments: NULL, 0, > 65535, after the end */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_consensus_limit_rejects(NULL, 5u));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_consensus_limit_rejects(&sl, 5u)); /* ended */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_consensus_begin(&sl, &cfg, g_pts, n, NULL, g_work,
+                                                            sizeof g_work, g_mask, &got));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_consensus_limit_rejects(&sl, 0u));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_consensus_limit_rejects(&sl, 65536u));
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -447,5 +493,6 @@ int main(void)
     RUN_TEST(test_consensus_step_any_budget_matches_run_bit_for_bit);
     RUN_TEST(test_consensus_step_edge_sets_match_run);
     RUN_TEST(test_consensus_begin_checks_arguments_step_refuses_unstarted);
+    RUN_TEST(test_consensus_limit_rejects_ends_dirty_run_keeps_clean_result);
     return UNITY_END();
 }

@@ -265,7 +265,9 @@ void test_cont_drive_transient_flagged_not_discarded(void)
     printf("transients: %u of %u rows flagged, %u of 100 rows after them untrusted\n", hit, rows, late);
     TEST_ASSERT_EQUAL_UINT(0u, dr.changes);
     TEST_ASSERT_EQUAL_UINT32(p0.changes, p1.changes);
-    TEST_ASSERT_TRUE(p1.stored >= p0.stored);
+    /* nothing discarded: the store shrinks only when an adoption re-bins it around the new
+     * centre (intake set_centre; since the pre-test's shorter solves adoptions can fall here) */
+    TEST_ASSERT_TRUE(p1.stored >= p0.stored || p1.generation > p0.generation);
     /* issue 13 asks >= 90 % of transient rows flagged: measured 0.89 at 2 steps per row (0.96 at 1,
      * 0.94 at 4, where other assertions fail): NOT met, reported; the assertion is a regression
      * guard at 0.85, not the issue's bound (docs/calibrator.md "Long drives") */

@@ -5,7 +5,14 @@
  *
  * Pipeline of magcal_calibrator_run():
  *  1. pre-checks: enough samples (cfg.min_samples), not all identical;
- *  2. density filter (optics.h / dbscan.h): OPTICS improved + grid with automatic eps, eps' and
+ *  2. pre-test (cfg.pretest: on in MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT; with the default filter
+ *     and the consensus): the
+ *     consensus of step 4 on every sample first; when it succeeds, rejects at most
+ *     n / MAGCAL_CALIBRATOR_PRETEST_DIV samples and none farther than 6 thresholds from its fit,
+ *     the data show nothing the density stage would catch: its inliers stand in for the filter's,
+ *     the filter and the thinning are skipped and it is the fit (report pretest_clean = 1);
+ *     otherwise the pipeline goes on exactly as without the pre-test (same results bit for bit);
+ *     density filter (optics.h / dbscan.h): OPTICS improved + grid with automatic eps, eps' and
  *     MinPts by default; OPTICS classic; DBSCAN; or none. cfg.eps / cfg.min_pts override the
  *     automatic values (DBSCAN with eps = 0 uses the automatic eps'); then the filter inliers
  *     must not be collinear (tested after the filter, so far outliers cannot fake collinearity);
@@ -239,14 +246,36 @@ typedef struct {
                                     est_noise_deg gives UNOBSERVABLE, > 0 (default 0.6) */
     float max_design_factor; /**< observability gate: report design_factor above this gives
                                   UNOBSERVABLE (headings in 4 clumps: 13..19), >= 1 (default 8) */
+    uint8_t pretest;         /**< 1 = residual pre-test before the density filter (pipeline step
+                                  2; with the default filter, automatic eps and MinPts, and the
+                                  consensus): on data without singular points the filter and the
+                                  thinning are skipped (report pretest_clean = 1), otherwise the
+                                  full pipeline runs exactly as with 0. 0 = always the full
+                                  pipeline (MAGCAL_CALIBRATOR_CFG_DEFAULT, for raw buffers where
+                                  bursts and glitches are common: the pre-test would be paid on
+                                  top); 1 in MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT (the continuous
+                                  calibrator's informative store) */
 } magcal_calibrator_cfg_t;
 
-/** Defaults that work without tuning (automatic filter parameters, accept every sample). */
-#define MAGCAL_CALIBRATOR_CFG_DEFAULT                                                              \
+/** The defaults with cfg.pretest = pre (private: use the two defaults below). */
+#define MAGCAL_CALIBRATOR_CFG_DEFAULT_PRE_(pre)                                                    \
     {                                                                                              \
         MAGCAL_FILTER_OPTICS_GRID, 0.0f, 0u, 1u, MAGCAL_CONSENSUS_CFG_DEFAULT, 0.0f, 0u, 20u,      \
-            270.0f, 0.5f, 0.5f, 0.0f, 0.0f, 0.1f, 0.2f, MAGCAL_CORR_SYMMETRIC, 0.0f, 0.6f, 8.0f    \
+            270.0f, 0.5f, 0.5f, 0.0f, 0.0f, 0.1f, 0.2f, MAGCAL_CORR_SYMMETRIC, 0.0f, 0.6f, 8.0f,   \
+            (pre)                                                                                  \
     }
+
+/** Defaults that work without tuning (automatic filter parameters, accept every sample; the full
+ *  pipeline on every run: no pre-test). */
+#define MAGCAL_CALIBRATOR_CFG_DEFAULT MAGCAL_CALIBRATOR_CFG_DEFAULT_PRE_(0u)
+
+/** The defaults for a store that holds informative ring samples only (the continuous
+ *  calibrator's, continuous.h): the pre-test on, so a clean store skips the density stage. */
+#define MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT MAGCAL_CALIBRATOR_CFG_DEFAULT_PRE_(1u)
+
+/** Pre-test (cfg.pretest): the short path needs the consensus on every sample to reject at most
+ *  n / this many samples (6.25 %; a clean drive's store: 0..5 %, a glitch or burst scenario more). */
+#define MAGCAL_CALIBRATOR_PRETEST_DIV 16u
 
 /** Adoption rule (b): `current` must be worse than the new calibration by this factor. */
 #define MAGCAL_CALIBRATOR_ADOPT_MARGIN 3.0f
@@ -308,6 +337,10 @@ typedef struct {
     float design_factor;        /**< weakness of the headings' design for the calibration: 1 for
                                      uniformly spread headings, large for clumps (file comment) */
     magcal_adopt_rule_t adopt_rule; /**< the rule that installed the new calibration */
+    uint8_t pretest_clean;      /**< 1: the pre-test (cfg.pretest) found no outliers beyond its
+                                     bound, the density filter and the thinning were skipped and
+                                     the consensus on every sample is the fit (rejected_filter 0,
+                                     filter_eps 0); 0: the full pipeline ran */
 } magcal_cal_report_t;
 
 /** @brief Short constant name of an adoption rule ("unusable", "better", ...; "unknown"). */
@@ -357,7 +390,7 @@ typedef struct {
  *         the library: its magcal_calibrator_t has another layout); MAGCAL_ERR_NULL;
  *         MAGCAL_ERR_ALIGNMENT (work not 4-byte aligned); MAGCAL_ERR_ARG (capacity out of range, a cfg
  *         value out of range: filter enum, eps < 0 or NaN, min_pts 1 or > MAGCAL_MAX_MIN_PTS,
- *         consensus settings, min_samples < 5, coverage outside 0..360, fractions outside 0..1,
+ *         consensus settings, pretest > 1, min_samples < 5, coverage outside 0..360, fractions outside 0..1,
  *         radius limits < 0 or min > max, form enum, max_param_err_ratio <= 0, max_design_factor
  *         < 1, min_samples > capacity); MAGCAL_ERR_NONFINITE (a non-finite
  *         cfg value); MAGCAL_ERR_WORKSPACE (work_len too small). cal untouched on failure.

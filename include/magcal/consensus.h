@@ -179,6 +179,17 @@ magcal_status_t magcal_consensus_begin(magcal_consensus_slice_t *s, const magcal
                                        magcal_consensus_result_t *res);
 
 /**
+ * @brief Early end for a caller that only wants a nearly clean result (the calibrator's pre-test):
+ *        after begin, before the run ends. When a threshold/refit round leaves more than max_out
+ *        samples outside the threshold, the run ends there with MAGCAL_ERR_TOO_MANY_OUTLIERS
+ *        (outputs as on any failure: inlier_mask incomplete, result unset). Without this call
+ *        (the default) a run never ends early.
+ * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_ARG (not begun or already ended, or max_out
+ *         outside 1..65535).
+ */
+magcal_status_t magcal_consensus_limit_rejects(magcal_consensus_slice_t *s, size_t max_out);
+
+/**
  * @brief Do at most about budget Cortex-M4F instructions of the run started by
  *        magcal_consensus_begin() (at least one unit of work per call, so any budget >= 1 makes
  *        progress).

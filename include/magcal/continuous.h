@@ -141,7 +141,7 @@ typedef enum {
 /** Configuration: start from MAGCAL_CONT_CFG_DEFAULT. */
 typedef struct {
     magcal_intake_cfg_t intake;     /**< store (2-D; default MAGCAL_INTAKE_CFG_DEFAULT_2D) */
-    magcal_calibrator_cfg_t solver; /**< batch solver (default MAGCAL_CALIBRATOR_CFG_DEFAULT) */
+    magcal_calibrator_cfg_t solver; /**< batch solver (MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT) */
     float solve_coverage_deg;       /**< live coverage that starts a solve (default 280: one 10-degree sector above the
                                          solver's 270 gate, the live estimate's error; a sliced solve that
                                          fails COVERAGE costs ~1000 steps) */
@@ -168,8 +168,9 @@ typedef struct {
 /** Defaults: work untuned from 10 to 100 Hz (time constants are in ms of the push stamps). */
 #define MAGCAL_CONT_CFG_DEFAULT                                                                    \
     {                                                                                              \
-        MAGCAL_INTAKE_CFG_DEFAULT_2D, MAGCAL_CALIBRATOR_CFG_DEFAULT, 280.0f, 24u, 2u, 600000.0f, 4.0f,  \
-            0.06f, 8000u, 3u, 4000u, 150u, 200u, 4.0f, MAGCAL_SLICE_BUDGET_DEFAULT                 \
+        MAGCAL_INTAKE_CFG_DEFAULT_2D, MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT, 280.0f, 24u, 2u,        \
+            600000.0f, 4.0f, 0.06f, 8000u, 3u, 4000u, 150u, 200u, 4.0f,                            \
+            MAGCAL_SLICE_BUDGET_DEFAULT                                                            \
     }
 
 /** A heading with its trust. */
