@@ -39,6 +39,12 @@
 #define CONT_DIST_VAR0 0.4f       /* initial RMS of the smoothed residual, x the store's sigma */
 #define CONT_FZ_MIN_N 30.0f       /* store samples the total-field model needs */
 #define CONT_CHANGE_X 2.0f        /* a change counts samples beyond this x the per-sample threshold */
+#define CONT_CHANGE_UNC 3.0f      /* the change threshold widens by at most sqrt(1 + this) */
+#define CONT_U_SD_K 3.0f          /* z within this x the store's spread of u ... */
+#define CONT_MISS_MS 30000.0f     /* time constant of the share of samples over the threshold */
+#define CONT_MISS_ON 0.2f         /* above this share the model does not explain the stream ... */
+#define CONT_MISS_OFF 0.1f        /* ... until it falls below this one */
+#define CONT_U_PITCH 0.25f        /* ... plus this x R (a 6 deg hill moves z by ~0.11 R, 8.5 deg by 0.15 R) */
 
 static unsigned cont_popcount(uint32_t v)
 {
@@ -208,6 +214,8 @@ int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_co
     j->sector = 0u;
     j->unc = 0.0f;
     j->mismatch = 0u;
+    j->gross = 0u;
+    j->over = 0u;
     if (cont_corrected(cc, m, &h) == 0) {
         return 0;
     }
@@ -215,6 +223,11 @@ int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_co
         float v[3];
         j->rel = cont_fz_rel(cc, &h, m->z, v);
         j->unc = cont_fz_unc(cc, v[2], v[0], v[1]);
+        /* a raw z no pitch of a road can reach from the store's (a hard-iron change in z): the
+         * model would only be extrapolated there, so it is evidence of a change, not uncertainty */
+        if (!(fabsf(v[2]) <= CONT_U_SD_K * cc->fz_u_sd + CONT_U_PITCH)) {
+            j->gross = 1u;
+        }
     } else {
         j->rel = sqrtf(h.x * h.x + h.y * h.y) / cc->cal.radius - 1.0f;
     }
@@ -225,8 +238,15 @@ int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_co
          * there; such samples are what the next solve needs, so they are stored, never judged */
         return 1;
     }
+    /* a change counts samples beyond twice the per-sample threshold, widened for the model's
+     * extrapolation at most by sqrt(1 + CONT_CHANGE_UNC): a hard-iron step moves raw z (u) far
+     * outside the store, where the unbounded widening made the step look merely uncertain */
+    if (!(fabsf(j->rel) <= CONT_CHANGE_X * cont_threshold(cc) * sqrtf(1.0f + fminf(j->unc, CONT_CHANGE_UNC)))) {
+        j->gross = 1u;
+    }
     /* the transient judge's flag (state of the stream up to the last drained sample) counts too */
-    j->mismatch = (uint8_t)((!(fabsf(j->rel) <= thr) || cc->dist_flag != 0u) ? 1u : 0u);
+    j->over = (uint8_t)(!(fabsf(j->rel) <= thr) ? 1u : 0u);
+    j->mismatch = (uint8_t)((j->gross != 0u || (j->over != 0u && cc->fz_unfit == 0u) || cc->dist_flag != 0u) ? 1u : 0u);
     return 1;
 }
 
@@ -301,6 +321,8 @@ void magcal_cont_transient_reset(magcal_cont_t *cc)
     cc->dist_var = s0 * s0;
     cc->dist_e = 0.0f;
     cc->dist_base = 0.0f;
+    cc->fz_miss = 0.0f;
+    cc->fz_unfit = 0u;
 }
 
 int magcal_cont_episode(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint32_t t_ms)
@@ -321,9 +343,24 @@ int magcal_cont_episode(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint32_
         cc->solve_ms_acc += dt;
     }
     cont_transient(cc, j->rel / sqrtf(1.0f + j->unc), dt);
+    if (cc->fz_on != 0u && j->gross == 0u && cc->dist_flag == 0u) {
+        /* the model's health: the share of clean-looking samples over its per-sample threshold.
+         * A model fitted on a poor calibration (or with the u terms of an earlier one) reads the
+         * hills as mismatches on a large share of the rows: then its per-sample test stops flagging
+         * (and refusing storage, so the store gets the hills the next fit needs) until the share
+         * falls again; the change evidence (gross) and the transient judge stay on */
+        cc->fz_miss += (float)dt / (CONT_MISS_MS + (float)dt) * ((j->over != 0u ? 1.0f : 0.0f) - cc->fz_miss);
+        if (cc->fz_miss > CONT_MISS_ON) {
+            cc->fz_unfit = 1u;
+        } else if (cc->fz_miss < CONT_MISS_OFF) {
+            cc->fz_unfit = 0u;
+        } else {
+            /* hysteresis */
+        }
+    }
     /* the episode counts the per-sample judge only (a transient flag must never add up to a change),
      * in covered sectors (the judge's mismatch is 0 elsewhere) */
-    if (j->mismatch != 0u && !(fabsf(j->rel) <= CONT_CHANGE_X * cont_threshold(cc) * sqrtf(1.0f + j->unc))) {
+    if (j->gross != 0u) {
         cc->episode_open = 1u;
         cc->mis_ms += dt;
         cc->clean_ms = 0u;
@@ -461,6 +498,11 @@ static void cont_fit_sample(magcal_cont_t *cc, const magcal_vec3_t *m)
         return;
     }
     if (cc->fit_phase == (uint8_t)CONT_FIT_Z) {
+        /* the samples the sums use (on the ring): a stored spike's z must not move u0 or its spread */
+        if (cont_fit_corrected(cc, m, &h) == 0 ||
+            !(fabsf(sqrtf(h.x * h.x + h.y * h.y) / cc->cal.radius - 1.0f) <= 0.35f)) {
+            return;
+        }
         cc->fit_acc[0] += m->z;
         cc->fit_acc[1] += m->z * m->z;
         cc->fit_acc[2] += 1.0f;
@@ -552,6 +594,7 @@ static int cont_fit_pass_end(magcal_cont_t *cc)
         }
         cc->fz_u0 = cc->fit_acc[0] / n;
         var = cc->fit_acc[1] / n - cc->fz_u0 * cc->fz_u0;
+        cc->fz_u_sd = sqrtf(fmaxf(var, 0.0f)) / cc->cal_raw_radius;
         cc->fit_skip = (uint8_t)(!(var > (0.02f * cc->cal_raw_radius) * (0.02f * cc->cal_raw_radius)) ? 2u : 0u);
         cont_fit_pass(cc, (uint8_t)CONT_FIT_SUMS);
         return 0;
