@@ -42,8 +42,8 @@
 #define CONT_CHANGE_UNC 3.0f      /* the change threshold widens by at most sqrt(1 + this) */
 #define CONT_U_SD_K 3.0f          /* z within this x the store's spread of u ... */
 #define CONT_MISS_MS 30000.0f     /* time constant of the share of samples over the threshold */
-#define CONT_MISS_ON 0.2f         /* above this share the model does not explain the stream ... */
-#define CONT_MISS_OFF 0.1f        /* ... until it falls below this one */
+#define CONT_MISS_ON 0.08f        /* above this share the model does not explain the stream ... */
+#define CONT_MISS_OFF 0.04f       /* ... until it falls below this one */
 #define CONT_U_PITCH 0.25f        /* ... plus this x R (a 6 deg hill moves z by ~0.11 R, 8.5 deg by 0.15 R) */
 
 static unsigned cont_popcount(uint32_t v)
@@ -246,7 +246,11 @@ int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_co
     }
     /* the transient judge's flag (state of the stream up to the last drained sample) counts too */
     j->over = (uint8_t)(!(fabsf(j->rel) <= thr) ? 1u : 0u);
-    j->mismatch = (uint8_t)((j->gross != 0u || (j->over != 0u && cc->fz_unfit == 0u) || cc->dist_flag != 0u) ? 1u : 0u);
+    /* an open episode (evidence of a change) keeps the per-sample test on whatever its health */
+    j->mismatch = (uint8_t)((j->gross != 0u || (j->over != 0u && (cc->fz_unfit == 0u || cc->episode_open != 0u)) ||
+                             cc->dist_flag != 0u)
+                                ? 1u
+                                : 0u);
     return 1;
 }
 
@@ -292,7 +296,13 @@ static void cont_transient(magcal_cont_t *cc, float rel, uint32_t dt)
             cc->dist_flag_ms += dt;
         }
         if (cc->dist_flag_ms > cc->cfg.change_ms) {
-            cc->dist_base += (float)dt / (8.0f * CONT_DIST_BASE_MS + (float)dt) * d;
+            /* longer than any transient: what the judge sees is the model's own error (a
+             * model that does not explain the hills): the baseline follows it at its clean
+             * rate and the noise estimate learns it, so the threshold grows to the model's
+             * real error instead of flagging the clean rows for minutes */
+            const float w = (float)dt / (CONT_DIST_VAR_MS + (float)dt);
+            cc->dist_base += (float)dt / (CONT_DIST_BASE_MS + (float)dt) * d;
+            cc->dist_var += w * (d * d - cc->dist_var);
         }
         cc->dist_quiet_ms = 0u;
     } else {
@@ -343,12 +353,13 @@ int magcal_cont_episode(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint32_
         cc->solve_ms_acc += dt;
     }
     cont_transient(cc, j->rel / sqrtf(1.0f + j->unc), dt);
-    if (cc->fz_on != 0u && j->gross == 0u && cc->dist_flag == 0u) {
+    if (cc->fz_on != 0u && j->gross == 0u && cc->dist_flag == 0u && cc->episode_open == 0u) {
         /* the model's health: the share of clean-looking samples over its per-sample threshold.
          * A model fitted on a poor calibration (or with the u terms of an earlier one) reads the
          * hills as mismatches on a large share of the rows: then its per-sample test stops flagging
          * (and refusing storage, so the store gets the hills the next fit needs) until the share
-         * falls again; the change evidence (gross) and the transient judge stay on */
+         * falls again; the change evidence (gross) and the transient judge stay on. Not while
+         * an episode is open: the samples of a change in progress are not the model's health */
         cc->fz_miss += (float)dt / (CONT_MISS_MS + (float)dt) * ((j->over != 0u ? 1.0f : 0.0f) - cc->fz_miss);
         if (cc->fz_miss > CONT_MISS_ON) {
             cc->fz_unfit = 1u;
