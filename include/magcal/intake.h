@@ -22,8 +22,8 @@
  *   level_band_rel x R from it is refused once its bin holds half its cap (REFUSED_LEVEL,
  *   counted). The first half of every bin is always taken, so a drive that is hilly throughout
  *   still fills its bins (with pitched samples: the band then only prefers the level ones that
- *   come later); pitch at headings across the slope (east / west of a north-south hill) moves z
- *   only at second order and is not seen.
+ *   come later); pitch while heading magnetic east or west moves z only at second order and is
+ *   not seen (docs/calibrator.md "2-D level band").
  *
  * The centre is the installed calibration's (magcal_intake_set_centre) when there is one, otherwise
  * a provisional one that one spike cannot move (never a bounding-box midpoint). A bounded sweep

@@ -166,7 +166,7 @@ static void intake_level_solve(magcal_intake_t *st)
 
 /* One bin of the level survey: its samples on the ring, their lower-median z (rank count,
  * per_bin^2 compares) and mean direction enter the sums; at the last bin the model is solved. */
-static void intake_level_step(magcal_intake_t *st)
+static MAGCAL_NOINLINE void intake_level_step(magcal_intake_t *st)
 {
     const uint32_t per = st->cfg.per_bin;
     const float r = st->radius;
@@ -253,7 +253,7 @@ static void intake_level_step(magcal_intake_t *st)
 }
 
 /* 1 when m (bin b) lies outside the level band and its bin already holds half its cap. */
-static int intake_level_refuses(const magcal_intake_t *st, uint16_t b, const magcal_vec3_t *m)
+static MAGCAL_NOINLINE int intake_level_refuses(const magcal_intake_t *st, uint16_t b, const magcal_vec3_t *m)
 {
     float ux;
     float uy;
