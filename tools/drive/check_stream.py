@@ -96,9 +96,13 @@ def main():
         print(out.stderr)
         return 1
     rep = json.loads(out.stdout)
-    D = np.genfromtxt(dump, delimiter=",", names=True, skip_header=1)
+    with open(dump) as f:
+        f.readline()  # the scenario comment
+        names = f.readline().strip().split(",")
+    A = np.loadtxt(dump, delimiter=",", skiprows=2, ndmin=2)  # ~10 x faster than genfromtxt
+    D = {k: A[:, i] for i, k in enumerate(names)}
     H = list(csv.DictReader(open(hd_p)))
-    n = len(D)
+    n = A.shape[0]
     assert len(H) == n, "headings rows"
     trust = np.array([h["trust"] for h in H])
     gen = np.array([int(h["generation"]) for h in H])
