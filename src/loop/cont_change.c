@@ -11,7 +11,8 @@
  *  - otherwise rel = |h| / R - 1.
  * Every threshold is widened by sqrt(1 + unc), unc = the model's prediction variance at the
  * sample over its noise variance (f^T (F^T F)^-1 f): one circle cannot separate the pitch from
- * the calibration's shape. Sectors the store did not cover at the fit are stored, never judged.
+ * the calibration's shape. Sectors the store did not cover at the fit are stored, not judged per
+ * sample (the transient flag and a z out of reach of pitch still flag them).
  * Two judges use it:
  *  - per sample: |rel| > max(cfg.mismatch_k sigma, cfg.mismatch_min_rel), sigma = the relative
  *    residual of the model on the store. Mismatching samples are not stored; those beyond twice
@@ -235,7 +236,10 @@ int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_co
     thr = cont_threshold(cc) * sqrtf(1.0f + j->unc);
     if (cc->fz_on != 0u && ((cc->fz_cover[j->sector / 32u] >> (j->sector % 32u)) & 1u) == 0u) {
         /* a sector the store did not cover: the calibration and the model are extrapolated
-         * there; such samples are what the next solve needs, so they are stored, never judged */
+         * there; such samples are what the next solve needs, so the per-sample test does not
+         * judge them (they are stored), but the transient judge's flag and a z out of reach of
+         * pitch still do (a 45 % disturbance of a parked car in such a sector was trusted) */
+        j->mismatch = (uint8_t)((j->gross != 0u || cc->dist_flag != 0u) ? 1u : 0u);
         return 1;
     }
     /* a change counts samples beyond twice the per-sample threshold, widened for the model's
