@@ -24,7 +24,13 @@
  *    the model's bias drifts with the hills) against cfg.disturb_k times the RMS of that
  *    difference on clean samples (learnt on the stream, at least the store's sigma); the flag
  *    is held cfg.disturb_hold_ms after it falls back. A flagged sample is DISTURBED and not
- *    stored, but drops nothing and never adds up to a change.
+ *    stored, but drops nothing and never adds up to a change. A flag longer than cfg.change_ms
+ *    is the model's own error: the baseline and the noise estimate then follow it.
+ * Change evidence (`gross`, what an episode counts): |rel| beyond twice the threshold widened by
+ * at most sqrt(1 + CONT_CHANGE_UNC), or a raw z beyond the reach of a road's pitch from the store's.
+ * Model health: when a 30 s share of samples over the per-sample threshold exceeds CONT_MISS_ON
+ * (no episode open), the model does not explain the stream and its per-sample test stops
+ * flagging (and refusing storage) until the share falls below CONT_MISS_OFF.
  */
 #include <math.h>
 
@@ -294,8 +300,8 @@ static void cont_transient(magcal_cont_t *cc, float rel, uint32_t dt)
                 CONT_DIST_MIN_REL);
     if (!(fabsf(d) <= thr)) {
         /* flagged: the baseline holds for cfg.change_ms (a transient is shorter), then follows
-         * 8 x slower, so a lasting small offset (below the per-sample threshold) is absorbed in
-         * a minute instead of blocking the store for ever */
+         * (below), so a lasting offset below the per-sample threshold is absorbed instead of
+         * blocking the store for ever */
         if (cc->dist_flag_ms <= UINT32_MAX - dt) {
             cc->dist_flag_ms += dt;
         }
