@@ -268,20 +268,19 @@ void test_cont_drive_transient_flagged_not_discarded(void)
     /* nothing discarded: the store shrinks only when an adoption re-bins it around the new
      * centre (intake set_centre; since the pre-test's shorter solves adoptions can fall here) */
     TEST_ASSERT_TRUE(p1.stored >= p0.stored || p1.generation > p0.generation);
-    /* issue 13 asks >= 90 % of transient rows flagged: measured 0.89 at 2 steps per row (0.96 at 1,
-     * 0.94 at 4, where other assertions fail): NOT met, reported; the assertion is a regression
-     * guard at 0.85, not the issue's bound (docs/calibrator.md "Long drives") */
+    /* issue 13 asks >= 90 % of transient rows flagged: the issue's bound (measured in the print) */
     if ((double)hit < 0.9 * (double)rows) {
         printf("transients: recall %.3f < 0.90: the issue-13 requirement is NOT met\n", (double)hit / (double)rows);
     }
-    TEST_ASSERT_TRUE((double)hit >= 0.85 * (double)rows);
+    TEST_ASSERT_TRUE((double)hit >= 0.90 * (double)rows);
     TEST_ASSERT_TRUE(late <= 4u * 12u); /* <= 12 of the 25 rows (0.5 s) after each */
 }
 
 /* A hard-iron step on hills (41 % of |B|, as tools/gen_drive.py): detected within 180 deg of
  * turning (measured 120), >= 99 % of the rows between the step and the relearned calibration
- * untrusted, relearned within 720 deg (measured 410); the heading RMS over the trusted rows after
- * it bounded at 2 x the floor (measured 1.54 x; issue 13's 1.2 x NOT met, as above). */
+ * untrusted (1925 of 1926), relearned (the first adoption after the change) within 720 deg
+ * (measured 578); the heading RMS over the trusted rows after it bounded at 2 x the floor
+ * (measured 5.35 vs 4.94 deg, 1.08 x; it was 1.54 x, and is not asserted at 1.2 x: one run). */
 void test_cont_drive_hard_iron_step_relearned(void)
 {
     hdrive_t dr;
@@ -302,8 +301,10 @@ void test_cont_drive_hard_iron_step_relearned(void)
     dr.v[2] += 10.0;
     t0 = dr.turn_deg;
     {
-        const unsigned before = dr.adopted;
-        while ((dr.changes == 0u || dr.adopted == before) && dr.turn_deg - t0 < 1080.0 && guard < 200000u) {
+        /* until an adoption AFTER the change (a solve whose snapshot predates the step may adopt
+         * between the step and the change: that is not the relearn) */
+        while ((dr.changes == 0u || !(dr.turn_at_adopt > dr.turn_at_change)) && dr.turn_deg - t0 < 1080.0 &&
+               guard < 200000u) {
             dr.psi = fmod(dr.psi + 0.3 + 360.0, 360.0);
             dr.turn_deg += 0.3;
             (void)hdrive_row(&dr);

@@ -724,6 +724,81 @@ static void test_intake_progress_coverage_agrees_with_solver_despite_spikes(void
     TEST_ASSERT_TRUE(started >= 10u);
 }
 
+
+/* Level band (intake.h, 2-D): raw z follows z = a + b cos + c sin of the direction (here a leak
+ * of 1.2 uT amplitude of x, y into z); after two level circles around the installed centre a
+ * sample pitched by 4 deg at north / south headings (z moved by H sin 4 = 1.4 uT, twice the band
+ * of 0.03 x 20 uT) is refused REFUSED_LEVEL and counted, a level one in the same bin is stored;
+ * at east / west headings the same pitch moves z by 0.1 uT only and is stored (documented);
+ * band 0 stores the pitched ones. */
+static magcal_vec3_t sample2_leak(double psi_deg, double pitch_deg, uint32_t *rng)
+{
+    magcal_vec3_t m = sample2(psi_deg, pitch_deg, 0.1, rng);
+    m.z += (float)(0.05 * ((double)m.x - CX) - 0.03 * ((double)m.y - CY));
+    return m;
+}
+
+static magcal_intake_outcome_t push_oc(magcal_intake_t *st, const magcal_vec3_t *m)
+{
+    magcal_intake_outcome_t oc = MAGCAL_INTAKE_STORED;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_push(st, m, &oc));
+    return oc;
+}
+
+static void test_intake_level_band_refuses_pitched_samples(void)
+{
+    magcal_intake_cfg_t cfg = MAGCAL_INTAKE_CFG_DEFAULT_2D;
+    const magcal_vec3_t c = {(float)CX, (float)CY, 0.0f};
+    magcal_intake_counters_t c0;
+    magcal_intake_counters_t c1;
+    uint32_t rng = 4242u;
+    unsigned pass;
+    size_t k;
+    unsigned refused_ns = 0u;
+    unsigned level_ok = 0u;
+    unsigned ew_stored = 0u;
+    TEST_ASSERT_FLOAT_WITHIN(1e-6f, 0.03f, cfg.level_band_rel);
+    cfg.level_band_rel = 0.6f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_intake_init(&g_st, &cfg, g_slots, 288u));
+    cfg.level_band_rel = NAN;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_intake_init(&g_st, &cfg, g_slots, 288u));
+    for (pass = 0u; pass < 2u; ++pass) {
+        cfg.level_band_rel = pass == 0u ? 0.03f : 0.0f;
+        init2(&g_st, g_slots, &cfg);
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_set_centre(&g_st, &c, (float)H));
+        for (k = 0u; k < 2u * 24u * 50u; ++k) { /* two level circles, 15 deg/s at 50 Hz */
+            magcal_vec3_t m = sample2_leak(15.0 * (double)k / 50.0, 0.0, &rng);
+            push_ok(&g_st, &m);
+        }
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_counters(&g_st, &c0));
+        TEST_ASSERT_EQUAL_UINT32(0u, c0.refused_level);
+        refused_ns = 0u;
+        level_ok = 0u;
+        ew_stored = 0u;
+        for (k = 0u; k < 40u; ++k) {
+            /* headings 3 .. 7 deg (north) and 183 .. 187 (south), spaced beyond the bins' spacing */
+            const double psi = (k % 2u == 0u ? 3.0 : 183.0) + 0.1 * (double)(k / 2u);
+            magcal_vec3_t up = sample2_leak(psi, 4.0, &rng);
+            magcal_vec3_t lv = sample2_leak(psi + 0.05, 0.0, &rng);
+            magcal_vec3_t ew = sample2_leak(psi + 87.0, 4.0, &rng);
+            refused_ns += push_oc(&g_st, &up) == MAGCAL_INTAKE_REFUSED_LEVEL ? 1u : 0u;
+            level_ok += push_oc(&g_st, &lv) != MAGCAL_INTAKE_REFUSED_LEVEL ? 1u : 0u;
+            ew_stored += push_oc(&g_st, &ew) != MAGCAL_INTAKE_REFUSED_LEVEL ? 1u : 0u;
+        }
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_counters(&g_st, &c1));
+        printf("level band %.2f: pitched N/S refused %u of 40, level stored-or-spaced %u of 40, pitched E/W %u of 40 "
+               "not refused\n", (double)cfg.level_band_rel, refused_ns, level_ok, ew_stored);
+        TEST_ASSERT_EQUAL_UINT32(c1.refused_level - c0.refused_level, refused_ns);
+        TEST_ASSERT_EQUAL_UINT(40u, level_ok);
+        TEST_ASSERT_TRUE(ew_stored >= 36u);
+        if (pass == 0u) {
+            TEST_ASSERT_EQUAL_UINT(40u, refused_ns);
+        } else {
+            TEST_ASSERT_EQUAL_UINT(0u, refused_ns);
+        }
+    }
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -740,5 +815,6 @@ int main(void)
     RUN_TEST(test_intake_installed_centre_rebins_store);
     RUN_TEST(test_intake_same_stream_same_store);
     RUN_TEST(test_intake_progress_coverage_agrees_with_solver_despite_spikes);
+    RUN_TEST(test_intake_level_band_refuses_pitched_samples);
     return UNITY_END();
 }

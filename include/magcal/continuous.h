@@ -279,6 +279,9 @@ typedef struct {
     magcal_vec3_t park_m;          /* the parked sample being drained, its stamp */
     uint32_t park_t;
     uint8_t fit_cal_ok;            /* cal valid (validated once at the fit's begin) */
+    float fz_u_sd;                 /* RMS spread of the store's u at the fit (change judge, cont_change.c) */
+    float fz_miss;                 /* share of samples over the per-sample threshold, smoothed (cont_change.c) */
+    uint8_t fz_unfit;              /* 1: the model does not explain the stream: its per-sample test does not flag */
 } magcal_cont_t;
 
 /**

@@ -13,7 +13,17 @@
  *   (a parked or straight-driving vehicle repeats one direction: it fills at most its own bins,
  *   and its noise does not churn a full bin);
  * - samples at the declared range limit are refused (cfg.range_limit: a saturated axis is a fault,
- *   not data) with MAGCAL_ERR_SATURATED, and counted.
+ *   not data) with MAGCAL_ERR_SATURATED, and counted;
+ * - 2-D level band (cfg.level_band_rel): a car on a hill shifts its forward axis by B_z sin(pitch),
+ *   which an ellipse fit takes for centre and shape; the pitch also moves raw z (by about
+ *   |h_forward| sin(pitch)). A bounded survey (one bin per push) fits the store's level model,
+ *   z = a + b cos(phi) + c sin(phi) over the bins' median z (phi: the bin's direction from the
+ *   centre; the b, c terms carry the soft-iron leak of x, y into z), and a sample more than
+ *   level_band_rel x R from it is refused once its bin holds half its cap (REFUSED_LEVEL,
+ *   counted). The first half of every bin is always taken, so a drive that is hilly throughout
+ *   still fills its bins (with pitched samples: the band then only prefers the level ones that
+ *   come later); pitch while heading magnetic east or west moves z only at second order and is
+ *   not seen (docs/calibrator.md "2-D level band").
  *
  * The centre is the installed calibration's (magcal_intake_set_centre) when there is one, otherwise
  * a provisional one that one spike cannot move (never a bounding-box midpoint). A bounded sweep
@@ -98,12 +108,15 @@ typedef struct {
                                 (0 < x <= 1, default 0.05) */
     float range_limit;     /**< sensor range in the sample unit: |axis| >= range_limit is saturated
                                 and refused; 0 = not declared (no check) (default 0) */
+    float level_band_rel;  /**< 2-D level band: a sample whose raw z is more than this x R from the
+                                store's level model (file comment) is refused once its bin holds
+                                half its cap; 0..0.5, 0 = off (2-D default 0.03; 3-D: unused, 0) */
 } magcal_intake_cfg_t;
 
 /** 2-D defaults: 36 sectors x 8, spacing 2 % of R. */
-#define MAGCAL_INTAKE_CFG_DEFAULT_2D {2u, 8u, 36u, 8u, 0.02f, 0.05f, 0.0f}
+#define MAGCAL_INTAKE_CFG_DEFAULT_2D {2u, 8u, 36u, 8u, 0.02f, 0.05f, 0.0f, 0.03f}
 /** 3-D defaults: 10 bands (128 cells) x 4, spacing 4 % of R. */
-#define MAGCAL_INTAKE_CFG_DEFAULT_3D {3u, 4u, 10u, 8u, 0.04f, 0.05f, 0.0f}
+#define MAGCAL_INTAKE_CFG_DEFAULT_3D {3u, 4u, 10u, 8u, 0.04f, 0.05f, 0.0f, 0.0f}
 
 /** What push did with a sample. */
 typedef enum {
@@ -111,7 +124,8 @@ typedef enum {
     MAGCAL_INTAKE_REPLACED = 1,          /**< stored; its bin was full, the oldest sample there dropped */
     MAGCAL_INTAKE_REFUSED_SPACING = 2,   /**< too close to a sample already in its bin */
     MAGCAL_INTAKE_REFUSED_SATURATED = 3, /**< an axis at the range limit (status MAGCAL_ERR_SATURATED) */
-    MAGCAL_INTAKE_REFUSED_NONFINITE = 4  /**< NaN or Inf (status MAGCAL_ERR_NONFINITE) */
+    MAGCAL_INTAKE_REFUSED_NONFINITE = 4, /**< NaN or Inf (status MAGCAL_ERR_NONFINITE) */
+    MAGCAL_INTAKE_REFUSED_LEVEL = 5      /**< 2-D: raw z outside the level band (a pitched sample) */
 } magcal_intake_outcome_t;
 
 /** Where the binning centre comes from. */
@@ -133,6 +147,7 @@ typedef struct {
     uint32_t rebinned;          /**< samples moved to another bin after a centre change */
     uint32_t rebin_dropped;     /**< of those, oldest samples dropped from a full target bin */
     uint32_t recentres;         /**< centre changes (surveys that moved it, set_centre calls) */
+    uint32_t refused_level;     /**< refused: 2-D level band (pitched) */
 } magcal_intake_counters_t;
 
 /** Live progress. */
@@ -185,6 +200,12 @@ typedef struct {
     float ref_r;                   /**< private: reference radius (0 = none yet) */
     uint8_t ref_fit;               /**< private: 1 when the reference is a ring fit */
     magcal_intake_counters_t ctr;  /**< private */
+    float lv_s[9];                 /**< private: level survey sums (store.c) */
+    float lv_abc[3];               /**< private: level model z = a + b cos + c sin of the direction */
+    uint16_t lv_bin;               /**< private: next bin of the level survey */
+    uint8_t lv_gen;                /**< private: centre generation of the survey under way */
+    uint8_t lv_ok;                 /**< private: 1 when lv_abc holds a model of centre generation lv_ok_gen */
+    uint8_t lv_ok_gen;             /**< private */
 } magcal_intake_t;
 
 /**

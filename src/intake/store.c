@@ -1,7 +1,8 @@
 /*
  * Intake store: init, push (range check, spacing, cap per bin with newest-replaces-oldest),
- * centre control, snapshot and counters. The binning geometry is in bins.c, the bounded survey /
- * re-bin sweep in sweep.c, progress in progress.c.
+ * centre control, the 2-D level band (its one-bin-per-push survey), snapshot and counters. The
+ * binning geometry is in bins.c, the bounded survey / re-bin sweep in sweep.c, progress in
+ * progress.c.
  */
 #include <math.h>
 #include <string.h>
@@ -48,7 +49,8 @@ magcal_status_t magcal_intake_init(magcal_intake_t *st, const magcal_intake_cfg_
     if (cfg->per_bin < 1u || cfg->per_bin > MAGCAL_INTAKE_MAX_PER_BIN || cfg->sweep_steps < 1u ||
         !magcal_isfinite_f(cfg->min_spacing_rel) || !(cfg->min_spacing_rel >= 0.0f && cfg->min_spacing_rel <= 0.5f) ||
         !magcal_isfinite_f(cfg->recentre_rel) || !(cfg->recentre_rel > 0.0f && cfg->recentre_rel <= 1.0f) ||
-        !magcal_isfinite_f(cfg->range_limit) || !(cfg->range_limit >= 0.0f)) {
+        !magcal_isfinite_f(cfg->range_limit) || !(cfg->range_limit >= 0.0f) ||
+        !magcal_isfinite_f(cfg->level_band_rel) || !(cfg->level_band_rel >= 0.0f && cfg->level_band_rel <= 0.5f)) {
         return MAGCAL_ERR_ARG;
     }
     if (n_slots < (size_t)nb * (size_t)cfg->per_bin) {
@@ -109,6 +111,168 @@ int magcal_intake_insert(magcal_intake_t *st, uint16_t b, const magcal_vec3_t *m
     return 1;
 }
 
+
+/* ---- 2-D level band (intake.h): the level model z = a + b cos + c sin of the direction from the
+ * centre, fitted over the bins' median z by a survey of one bin per push. */
+#define INTAKE_LV_MIN_BINS 8.0f  /* bins the level model needs */
+#define INTAKE_LV_RING_LO 0.7f   /* a bin's samples count on the ring only (as progress.c) */
+#define INTAKE_LV_RING_HI 1.4f
+
+static int intake_level_on(const magcal_intake_t *st)
+{
+    return st->cfg.dims == 2u && st->cfg.level_band_rel > 0.0f &&
+           st->centre_source != (uint8_t)MAGCAL_INTAKE_CENTRE_NONE && st->radius > 0.0f;
+}
+
+static void intake_level_clear(magcal_intake_t *st)
+{
+    uint32_t k;
+    for (k = 0u; k < 9u; ++k) {
+        st->lv_s[k] = 0.0f;
+    }
+    st->lv_bin = 0u;
+    st->lv_gen = st->gen;
+}
+
+/* The survey's solve: the 3 x 3 normal equations of z = a + b c + c s over the bins' medians
+ * (sums 1, c, s, cc, cs, ss, z, zc, zs), Cramer's rule; a model only when the bins spread round
+ * the ring (a well-conditioned matrix). */
+static void intake_level_solve(magcal_intake_t *st)
+{
+    const float *q = st->lv_s;
+    const float n = q[0];
+    const float m00 = q[0], m01 = q[1], m02 = q[2], m11 = q[3], m12 = q[4], m22 = q[5];
+    const float c00 = m11 * m22 - m12 * m12;
+    const float c01 = m02 * m12 - m01 * m22;
+    const float c02 = m01 * m12 - m02 * m11;
+    const float det = m00 * c00 + m01 * c01 + m02 * c02;
+    if (!(n >= INTAKE_LV_MIN_BINS) || !(det > 0.02f * n * n * n)) {
+        return; /* keep the previous model of this centre, if any */
+    }
+    {
+        const float c11 = m00 * m22 - m02 * m02;
+        const float c12 = m01 * m02 - m00 * m12;
+        const float c22 = m00 * m11 - m01 * m01;
+        st->lv_abc[0] = (c00 * q[6] + c01 * q[7] + c02 * q[8]) / det;
+        st->lv_abc[1] = (c01 * q[6] + c11 * q[7] + c12 * q[8]) / det;
+        st->lv_abc[2] = (c02 * q[6] + c12 * q[7] + c22 * q[8]) / det;
+    }
+    st->lv_ok = magcal_isfinite_f(st->lv_abc[0]) && magcal_isfinite_f(st->lv_abc[1]) &&
+                        magcal_isfinite_f(st->lv_abc[2])
+                    ? 1u
+                    : 0u;
+    st->lv_ok_gen = st->lv_gen;
+}
+
+/* One bin of the level survey: its samples on the ring, their lower-median z (rank count,
+ * per_bin^2 compares) and mean direction enter the sums; at the last bin the model is solved. */
+static MAGCAL_NOINLINE void intake_level_step(magcal_intake_t *st)
+{
+    const uint32_t per = st->cfg.per_bin;
+    const float r = st->radius;
+    uint32_t b;
+    uint32_t base;
+    uint32_t k;
+    uint32_t n = 0u;
+    float dc = 0.0f;
+    float ds = 0.0f;
+    float zmed = 0.0f;
+    uint32_t on = 0u; /* 1: the median was found */
+    if (intake_level_on(st) == 0) {
+        return;
+    }
+    if (st->lv_gen != st->gen || st->lv_bin >= st->n_bins) {
+        intake_level_clear(st); /* a new centre: the directions changed */
+    }
+    b = st->lv_bin;
+    base = b * per;
+    for (k = base; k < base + st->count[b]; ++k) {
+        const float ux = st->slots[k].m.x - st->centre.x;
+        const float uy = st->slots[k].m.y - st->centre.y;
+        const float d = sqrtf(ux * ux + uy * uy);
+        if (d >= INTAKE_LV_RING_LO * r && d <= INTAKE_LV_RING_HI * r) {
+            dc += uy / d; /* heading convention atan2(-x, y): cos along y, sin along -x */
+            ds -= ux / d;
+            n++;
+        }
+    }
+    if (n > 0u) {
+        const uint32_t want = (n - 1u) / 2u; /* rank of the lower median among the ring samples */
+        for (k = base; k < base + st->count[b] && on == 0u; ++k) {
+            const float ux = st->slots[k].m.x - st->centre.x;
+            const float uy = st->slots[k].m.y - st->centre.y;
+            const float d = sqrtf(ux * ux + uy * uy);
+            uint32_t below = 0u;
+            uint32_t equal = 0u;
+            uint32_t i;
+            if (!(d >= INTAKE_LV_RING_LO * r && d <= INTAKE_LV_RING_HI * r)) {
+                continue;
+            }
+            for (i = base; i < base + st->count[b]; ++i) {
+                const float vx = st->slots[i].m.x - st->centre.x;
+                const float vy = st->slots[i].m.y - st->centre.y;
+                const float e = sqrtf(vx * vx + vy * vy);
+                if (i != k && e >= INTAKE_LV_RING_LO * r && e <= INTAKE_LV_RING_HI * r) {
+                    if (st->slots[i].m.z < st->slots[k].m.z) {
+                        below++;
+                    } else if (st->slots[i].m.z == st->slots[k].m.z) {
+                        equal++;
+                    } else {
+                        /* above */
+                    }
+                }
+            }
+            if (below <= want && below + equal >= want) {
+                zmed = st->slots[k].m.z;
+                on = 1u;
+            }
+        }
+    }
+    if (on != 0u) {
+        const float nd = sqrtf(dc * dc + ds * ds);
+        if (nd > 0.0f) {
+            const float c = dc / nd;
+            const float s = ds / nd;
+            float *q = st->lv_s;
+            q[0] += 1.0f;
+            q[1] += c;
+            q[2] += s;
+            q[3] += c * c;
+            q[4] += c * s;
+            q[5] += s * s;
+            q[6] += zmed;
+            q[7] += zmed * c;
+            q[8] += zmed * s;
+        }
+    }
+    st->lv_bin++;
+    if (st->lv_bin >= st->n_bins) {
+        intake_level_solve(st);
+        intake_level_clear(st);
+    }
+}
+
+/* 1 when m (bin b) lies outside the level band and its bin already holds half its cap. */
+static MAGCAL_NOINLINE int intake_level_refuses(const magcal_intake_t *st, uint16_t b, const magcal_vec3_t *m)
+{
+    float ux;
+    float uy;
+    float d;
+    float zhat;
+    if (intake_level_on(st) == 0 || st->lv_ok == 0u || st->lv_ok_gen != st->gen ||
+        2u * (uint32_t)st->count[b] < (uint32_t)st->cfg.per_bin) {
+        return 0;
+    }
+    ux = m->x - st->centre.x;
+    uy = m->y - st->centre.y;
+    d = sqrtf(ux * ux + uy * uy);
+    if (!(d > 0.0f)) {
+        return 0;
+    }
+    zhat = st->lv_abc[0] + st->lv_abc[1] * (uy / d) - st->lv_abc[2] * (ux / d);
+    return !(fabsf(m->z - zhat) <= st->cfg.level_band_rel * st->radius);
+}
+
 magcal_status_t magcal_intake_push(magcal_intake_t *st, const magcal_vec3_t *m,
                                    magcal_intake_outcome_t *outcome)
 {
@@ -163,8 +327,13 @@ magcal_status_t magcal_intake_push(magcal_intake_t *st, const magcal_vec3_t *m,
                 break;
             }
         }
+        if (oc == MAGCAL_INTAKE_STORED && intake_level_refuses(st, b, m) != 0) {
+            oc = MAGCAL_INTAKE_REFUSED_LEVEL;
+        }
         if (oc == MAGCAL_INTAKE_REFUSED_SPACING) {
             st->ctr.refused_spacing++;
+        } else if (oc == MAGCAL_INTAKE_REFUSED_LEVEL) {
+            st->ctr.refused_level++;
         } else if (magcal_intake_insert(st, b, m, st->seq) != 0) {
             st->ctr.replaced++;
             oc = MAGCAL_INTAKE_REPLACED;
@@ -173,6 +342,7 @@ magcal_status_t magcal_intake_push(magcal_intake_t *st, const magcal_vec3_t *m,
         }
     }
     magcal_intake_sweep(st, st->cfg.sweep_steps);
+    intake_level_step(st);
     if (outcome != NULL) {
         *outcome = oc;
     }
@@ -272,6 +442,8 @@ magcal_status_t magcal_intake_reset(magcal_intake_t *st)
     (void)memset(&st->ref_c, 0, sizeof(st->ref_c));
     st->ref_r = 0.0f;
     st->ref_fit = 0u;
+    st->lv_ok = 0u;
+    intake_level_clear(st);
     magcal_intake_survey_clear(st);
     return MAGCAL_OK;
 }

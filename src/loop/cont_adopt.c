@@ -61,7 +61,22 @@ magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_
     }
     cc->last_status = st;
     if (st == MAGCAL_OK) {
+        /* an episode open at the solve's end is evidence gathered after its snapshot (a change
+         * under way while the solve ran on the store before it): it survives the install, and
+         * samples consistent with the new calibration close it after cfg.clear_ms as usual */
+        const uint8_t ep_open = cc->episode_open;
+        const uint32_t ep_mis = cc->mis_ms;
+        const uint32_t ep_clean = cc->clean_ms;
+        const uint32_t ep_b0 = cc->mis_bins[0];
+        const uint32_t ep_b1 = cc->mis_bins[1];
         magcal_cont_install(cc, &cc->cand, r->radius, r->est_noise_deg / MAGCAL_DEG_PER_RAD_F);
+        if (ep_open != 0u) {
+            cc->episode_open = ep_open;
+            cc->mis_ms = ep_mis;
+            cc->clean_ms = ep_clean;
+            cc->mis_bins[0] = ep_b0;
+            cc->mis_bins[1] = ep_b1;
+        }
         cc->generation++;
         cc->adopted_err = r->est_heading_err_deg;
         magcal_cont_fit_begin(cc); /* the fit runs in step()'s slices (cont_step.c), the drain paused */

@@ -11,7 +11,8 @@
  *  - otherwise rel = |h| / R - 1.
  * Every threshold is widened by sqrt(1 + unc), unc = the model's prediction variance at the
  * sample over its noise variance (f^T (F^T F)^-1 f): one circle cannot separate the pitch from
- * the calibration's shape. Sectors the store did not cover at the fit are stored, never judged.
+ * the calibration's shape. Sectors the store did not cover at the fit are stored, not judged per
+ * sample (the transient flag and a z out of reach of pitch still flag them).
  * Two judges use it:
  *  - per sample: |rel| > max(cfg.mismatch_k sigma, cfg.mismatch_min_rel), sigma = the relative
  *    residual of the model on the store. Mismatching samples are not stored; those beyond twice
@@ -23,7 +24,13 @@
  *    the model's bias drifts with the hills) against cfg.disturb_k times the RMS of that
  *    difference on clean samples (learnt on the stream, at least the store's sigma); the flag
  *    is held cfg.disturb_hold_ms after it falls back. A flagged sample is DISTURBED and not
- *    stored, but drops nothing and never adds up to a change.
+ *    stored, but drops nothing and never adds up to a change. A flag longer than cfg.change_ms
+ *    is the model's own error: the baseline and the noise estimate then follow it.
+ * Change evidence (`gross`, what an episode counts): |rel| beyond twice the threshold widened by
+ * at most sqrt(1 + CONT_CHANGE_UNC), or a raw z beyond the reach of a road's pitch from the store's.
+ * Model health: when a 30 s share of samples over the per-sample threshold exceeds CONT_MISS_ON
+ * (no episode open), the model does not explain the stream and its per-sample test stops
+ * flagging (and refusing storage) until the share falls below CONT_MISS_OFF.
  */
 #include <math.h>
 
@@ -39,6 +46,12 @@
 #define CONT_DIST_VAR0 0.4f       /* initial RMS of the smoothed residual, x the store's sigma */
 #define CONT_FZ_MIN_N 30.0f       /* store samples the total-field model needs */
 #define CONT_CHANGE_X 2.0f        /* a change counts samples beyond this x the per-sample threshold */
+#define CONT_CHANGE_UNC 3.0f      /* the change threshold widens by at most sqrt(1 + this) */
+#define CONT_U_SD_K 3.0f          /* z within this x the store's spread of u ... */
+#define CONT_MISS_MS 30000.0f     /* time constant of the share of samples over the threshold */
+#define CONT_MISS_ON 0.08f        /* above this share the model does not explain the stream ... */
+#define CONT_MISS_OFF 0.04f       /* ... until it falls below this one */
+#define CONT_U_PITCH 0.25f        /* ... plus this x R (a 6 deg hill moves z by ~0.11 R, 8.5 deg by 0.15 R) */
 
 static unsigned cont_popcount(uint32_t v)
 {
@@ -208,6 +221,8 @@ int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_co
     j->sector = 0u;
     j->unc = 0.0f;
     j->mismatch = 0u;
+    j->gross = 0u;
+    j->over = 0u;
     if (cont_corrected(cc, m, &h) == 0) {
         return 0;
     }
@@ -215,6 +230,11 @@ int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_co
         float v[3];
         j->rel = cont_fz_rel(cc, &h, m->z, v);
         j->unc = cont_fz_unc(cc, v[2], v[0], v[1]);
+        /* a raw z no pitch of a road can reach from the store's (a hard-iron change in z): the
+         * model would only be extrapolated there, so it is evidence of a change, not uncertainty */
+        if (!(fabsf(v[2]) <= CONT_U_SD_K * cc->fz_u_sd + CONT_U_PITCH)) {
+            j->gross = 1u;
+        }
     } else {
         j->rel = sqrtf(h.x * h.x + h.y * h.y) / cc->cal.radius - 1.0f;
     }
@@ -222,11 +242,25 @@ int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_co
     thr = cont_threshold(cc) * sqrtf(1.0f + j->unc);
     if (cc->fz_on != 0u && ((cc->fz_cover[j->sector / 32u] >> (j->sector % 32u)) & 1u) == 0u) {
         /* a sector the store did not cover: the calibration and the model are extrapolated
-         * there; such samples are what the next solve needs, so they are stored, never judged */
+         * there; such samples are what the next solve needs, so the per-sample test does not
+         * judge them (they are stored), but the transient judge's flag and a z out of reach of
+         * pitch still do (a 45 % disturbance of a parked car in such a sector was trusted) */
+        j->mismatch = (uint8_t)((j->gross != 0u || cc->dist_flag != 0u) ? 1u : 0u);
         return 1;
     }
+    /* a change counts samples beyond twice the per-sample threshold, widened for the model's
+     * extrapolation at most by sqrt(1 + CONT_CHANGE_UNC): a hard-iron step moves raw z (u) far
+     * outside the store, where the unbounded widening made the step look merely uncertain */
+    if (!(fabsf(j->rel) <= CONT_CHANGE_X * cont_threshold(cc) * sqrtf(1.0f + fminf(j->unc, CONT_CHANGE_UNC)))) {
+        j->gross = 1u;
+    }
     /* the transient judge's flag (state of the stream up to the last drained sample) counts too */
-    j->mismatch = (uint8_t)((!(fabsf(j->rel) <= thr) || cc->dist_flag != 0u) ? 1u : 0u);
+    j->over = (uint8_t)(!(fabsf(j->rel) <= thr) ? 1u : 0u);
+    /* an open episode (evidence of a change) keeps the per-sample test on whatever its health */
+    j->mismatch = (uint8_t)((j->gross != 0u || (j->over != 0u && (cc->fz_unfit == 0u || cc->episode_open != 0u)) ||
+                             cc->dist_flag != 0u)
+                                ? 1u
+                                : 0u);
     return 1;
 }
 
@@ -266,13 +300,19 @@ static void cont_transient(magcal_cont_t *cc, float rel, uint32_t dt)
                 CONT_DIST_MIN_REL);
     if (!(fabsf(d) <= thr)) {
         /* flagged: the baseline holds for cfg.change_ms (a transient is shorter), then follows
-         * 8 x slower, so a lasting small offset (below the per-sample threshold) is absorbed in
-         * a minute instead of blocking the store for ever */
+         * (below), so a lasting offset below the per-sample threshold is absorbed instead of
+         * blocking the store for ever */
         if (cc->dist_flag_ms <= UINT32_MAX - dt) {
             cc->dist_flag_ms += dt;
         }
         if (cc->dist_flag_ms > cc->cfg.change_ms) {
-            cc->dist_base += (float)dt / (8.0f * CONT_DIST_BASE_MS + (float)dt) * d;
+            /* longer than any transient: what the judge sees is the model's own error (a
+             * model that does not explain the hills): the baseline follows it at its clean
+             * rate and the noise estimate learns it, so the threshold grows to the model's
+             * real error instead of flagging the clean rows for minutes */
+            const float w = (float)dt / (CONT_DIST_VAR_MS + (float)dt);
+            cc->dist_base += (float)dt / (CONT_DIST_BASE_MS + (float)dt) * d;
+            cc->dist_var += w * (d * d - cc->dist_var);
         }
         cc->dist_quiet_ms = 0u;
     } else {
@@ -301,6 +341,8 @@ void magcal_cont_transient_reset(magcal_cont_t *cc)
     cc->dist_var = s0 * s0;
     cc->dist_e = 0.0f;
     cc->dist_base = 0.0f;
+    cc->fz_miss = 0.0f;
+    cc->fz_unfit = 0u;
 }
 
 int magcal_cont_episode(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint32_t t_ms)
@@ -321,9 +363,25 @@ int magcal_cont_episode(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint32_
         cc->solve_ms_acc += dt;
     }
     cont_transient(cc, j->rel / sqrtf(1.0f + j->unc), dt);
+    if (cc->fz_on != 0u && j->gross == 0u && cc->dist_flag == 0u && cc->episode_open == 0u) {
+        /* the model's health: the share of clean-looking samples over its per-sample threshold.
+         * A model fitted on a poor calibration (or with the u terms of an earlier one) reads the
+         * hills as mismatches on a large share of the rows: then its per-sample test stops flagging
+         * (and refusing storage, so the store gets the hills the next fit needs) until the share
+         * falls again; the change evidence (gross) and the transient judge stay on. Not while
+         * an episode is open: the samples of a change in progress are not the model's health */
+        cc->fz_miss += (float)dt / (CONT_MISS_MS + (float)dt) * ((j->over != 0u ? 1.0f : 0.0f) - cc->fz_miss);
+        if (cc->fz_miss > CONT_MISS_ON) {
+            cc->fz_unfit = 1u;
+        } else if (cc->fz_miss < CONT_MISS_OFF) {
+            cc->fz_unfit = 0u;
+        } else {
+            /* hysteresis */
+        }
+    }
     /* the episode counts the per-sample judge only (a transient flag must never add up to a change),
      * in covered sectors (the judge's mismatch is 0 elsewhere) */
-    if (j->mismatch != 0u && !(fabsf(j->rel) <= CONT_CHANGE_X * cont_threshold(cc) * sqrtf(1.0f + j->unc))) {
+    if (j->gross != 0u) {
         cc->episode_open = 1u;
         cc->mis_ms += dt;
         cc->clean_ms = 0u;
@@ -461,6 +519,11 @@ static void cont_fit_sample(magcal_cont_t *cc, const magcal_vec3_t *m)
         return;
     }
     if (cc->fit_phase == (uint8_t)CONT_FIT_Z) {
+        /* the samples the sums use (on the ring): a stored spike's z must not move u0 or its spread */
+        if (cont_fit_corrected(cc, m, &h) == 0 ||
+            !(fabsf(sqrtf(h.x * h.x + h.y * h.y) / cc->cal.radius - 1.0f) <= 0.35f)) {
+            return;
+        }
         cc->fit_acc[0] += m->z;
         cc->fit_acc[1] += m->z * m->z;
         cc->fit_acc[2] += 1.0f;
@@ -552,6 +615,7 @@ static int cont_fit_pass_end(magcal_cont_t *cc)
         }
         cc->fz_u0 = cc->fit_acc[0] / n;
         var = cc->fit_acc[1] / n - cc->fz_u0 * cc->fz_u0;
+        cc->fz_u_sd = sqrtf(fmaxf(var, 0.0f)) / cc->cal_raw_radius;
         cc->fit_skip = (uint8_t)(!(var > (0.02f * cc->cal_raw_radius) * (0.02f * cc->cal_raw_radius)) ? 2u : 0u);
         cont_fit_pass(cc, (uint8_t)CONT_FIT_SUMS);
         return 0;

@@ -20,6 +20,8 @@ typedef struct {
     uint8_t sector; /* 0..35 */
     uint8_t mismatch; /* 1: |rel| above the threshold */
     float unc;      /* model's prediction variance at this sample / its noise variance (0: none) */
+    uint8_t gross;  /* 1: evidence of a change (beyond the change threshold, or z out of reach of pitch) */
+    uint8_t over;   /* 1: |rel| above the per-sample threshold (whether or not it flags, cc->fz_unfit) */
 } magcal_cont_judge_t;
 
 int magcal_cont_ok(const magcal_cont_t *cc);

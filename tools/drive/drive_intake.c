@@ -81,11 +81,11 @@ static void print_store(const char *name, const magcal_intake_t *st, const park_
     printf("\"%s\": {\"stored\": %u, \"bins\": %u, \"bins_filled\": %u, \"coverage_deg\": %.1f, "
            "\"completion_pct\": %.1f, \"centre\": [%.3f, %.3f, %.3f], \"radius\": %.3f, \"centre_source\": %d, "
            "\"pushed\": %u, \"added\": %u, \"replaced\": %u, \"refused_spacing\": %u, \"refused_saturated\": %u, "
-           "\"refused_nonfinite\": %u, \"rebinned\": %u, \"rebin_dropped\": %u, \"recentres\": %u",
+           "\"refused_nonfinite\": %u, \"refused_level\": %u, \"rebinned\": %u, \"rebin_dropped\": %u, \"recentres\": %u",
            name, (unsigned)p.stored, (unsigned)p.bins, (unsigned)p.bins_filled, (double)p.coverage_deg,
            (double)p.completion_pct, (double)p.centre.x, (double)p.centre.y, (double)p.centre.z, (double)p.radius,
            (int)p.centre_source, (unsigned)c.pushed, (unsigned)c.added, (unsigned)c.replaced,
-           (unsigned)c.refused_spacing, (unsigned)c.refused_saturated, (unsigned)c.refused_nonfinite,
+           (unsigned)c.refused_spacing, (unsigned)c.refused_saturated, (unsigned)c.refused_nonfinite, (unsigned)c.refused_level,
            (unsigned)c.rebinned, (unsigned)c.rebin_dropped, (unsigned)c.recentres);
     if (ps != NULL) {
         printf(", \"parks\": %u, \"park_max_new_bins\": %u, \"park_max_stored\": %u, \"park_max_sectors\": %u",

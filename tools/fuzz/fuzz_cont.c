@@ -257,7 +257,8 @@ static void fz_store_op(uint8_t which, const magcal_vec3_t *m, size_t n_slots)
     FUZZ_CHECK(p.coverage_deg >= 0.0f && p.coverage_deg <= 360.0f, "store coverage range");
     FUZZ_CHECK(p.completion_pct >= 0.0f && p.completion_pct <= 100.0f, "store completion range");
     FUZZ_CHECK(p.missing_width_deg >= 0.0f && p.missing_width_deg <= 360.0f, "store missing width");
-    FUZZ_CHECK(c.pushed == c.added + c.replaced + c.refused_spacing + c.refused_saturated + c.refused_nonfinite,
+    FUZZ_CHECK(c.pushed == c.added + c.replaced + c.refused_spacing + c.refused_saturated + c.refused_nonfinite +
+                   c.refused_level,
                "store counters do not add up");
 }
 
