@@ -141,7 +141,12 @@ static void intake_level_solve(magcal_intake_t *st)
 {
     const float *q = st->lv_s;
     const float n = q[0];
-    const float m00 = q[0], m01 = q[1], m02 = q[2], m11 = q[3], m12 = q[4], m22 = q[5];
+    const float m00 = q[0];
+    const float m01 = q[1];
+    const float m02 = q[2];
+    const float m11 = q[3];
+    const float m12 = q[4];
+    const float m22 = q[5];
     const float c00 = m11 * m22 - m12 * m12;
     const float c01 = m02 * m12 - m01 * m22;
     const float c02 = m01 * m12 - m02 * m11;
