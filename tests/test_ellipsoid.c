@@ -3,6 +3,7 @@
  * Truth: m = W h + V + n, h = C_n^b B_ref, |B_ref| = F (algorithms.md 7.1/7.2).
  */
 #include <math.h>
+#include <stdio.h>
 #include <stddef.h>
 #include <string.h>
 
@@ -937,6 +938,140 @@ static void test_ellipsoid_fit_ws_bad_input_returns_status(void)
                              (uint32_t)MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(320u));
 }
 
+
+/* The time-sliced fit at budget `budget`: the status, result and stored residuals of the one-shot
+ * fit_ws, bit for bit; returns the step calls and (budget UINT32_MAX) the total charged. */
+static magcal_ellipsoid_result_t g_sl_out;
+static MAGCAL_ELLIPSOID_FIT_WORKSPACE_DECLARE(g_swork, NFIT + NOUT);
+static size_t run_sliced(size_t n, const magcal_ellipsoid_cfg_t *cfg, uint32_t budget, magcal_status_t *st,
+                         uint32_t *total, uint32_t *max_used)
+{
+    magcal_ellipsoid_fit_slice_t sl;
+    size_t steps = 0u;
+    memset(&g_sl_out, 0x5A, sizeof g_sl_out);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit_begin(&sl, g_m, n, cfg, g_swork, sizeof g_swork, &g_sl_out));
+    *total = 0u;
+    *max_used = 0u;
+    do {
+        *st = magcal_ellipsoid_fit_step(&sl, budget);
+        *total += sl.used_;
+        if (sl.used_ > *max_used) {
+            *max_used = sl.used_;
+        }
+        ++steps;
+        TEST_ASSERT_TRUE(steps < 2000000u);
+    } while (*st == MAGCAL_IN_PROGRESS);
+    TEST_ASSERT_EQUAL_INT(*st, magcal_ellipsoid_fit_step(&sl, budget)); /* the final status again */
+    return steps;
+}
+
+static void assert_slices_same(size_t n, const magcal_ellipsoid_cfg_t *cfg_in, int *n_ok)
+{
+    static const uint32_t budgets[5] = {1u, 97u, 1000u, 6000u, UINT32_MAX};
+    static const magcal_ellipsoid_model_t models[4] = {MAGCAL_ELLIPSOID_MODEL_AUTO, MAGCAL_ELLIPSOID_MODEL_QUADRIC9,
+                                                       MAGCAL_ELLIPSOID_MODEL_QUADRIC10, MAGCAL_ELLIPSOID_MODEL_SPHERE};
+    static float res_one[NFIT + NOUT];
+    magcal_ellipsoid_cfg_t cfg = *cfg_in;
+    magcal_ellipsoid_result_t a;
+    int i, j;
+    for (i = 0; i < 4; ++i) {
+        magcal_status_t sa;
+        uint32_t total = 0u;
+        cfg.model = models[i];
+        sa = magcal_ellipsoid_fit_ws(g_m, n, &cfg, g_cwork, sizeof g_cwork, &a);
+        memcpy(res_one, (const uint8_t *)(const void *)g_cwork + MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES, n * sizeof(float));
+        for (j = 4; j >= 0; --j) { /* UINT32_MAX first: the total */
+            magcal_status_t sb;
+            uint32_t tot, mx;
+            const size_t steps = run_sliced(n, &cfg, budgets[j], &sb, &tot, &mx);
+            TEST_ASSERT_EQUAL_INT(sa, sb);
+            if (sa == MAGCAL_OK) {
+                assert_same_result(&a, &g_sl_out);
+                TEST_ASSERT_EQUAL_MEMORY(res_one, (const uint8_t *)(const void *)g_swork + MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES,
+                                         n * sizeof(float));
+            } else {
+                TEST_ASSERT_EQUAL_HEX8(0x5A, ((unsigned char *)&g_sl_out)[0]); /* untouched */
+            }
+            if (budgets[j] == UINT32_MAX) {
+                TEST_ASSERT_EQUAL_UINT32(1u, (uint32_t)steps);
+                total = tot;
+            } else {
+                /* every step charged within its budget, or one unit alone (the largest unit: the
+                 * 10-parameter inverse iteration, forced model only; else one solve <= 4,000) */
+                TEST_ASSERT_TRUE(mx <= budgets[j] || mx <= ((models[i] == MAGCAL_ELLIPSOID_MODEL_QUADRIC10) ? 25000u : 4000u) + 600u);
+                TEST_ASSERT_EQUAL_UINT32(total, tot); /* the same work, however cut */
+            }
+            if (budgets[j] == 6000u && models[i] != MAGCAL_ELLIPSOID_MODEL_QUADRIC10) {
+                /* steps within 1.6 x total / 6000 + 3: a step ends early only before a unit that
+                 * does not fit the rest of its budget (units <= 4,000) */
+                TEST_ASSERT_TRUE(steps <= (size_t)((total / 6000u) * 16u / 10u + 3u));
+            }
+            if (budgets[j] == 6000u) {
+                printf("  slices n=%u model=%d: total %u, steps at 6000: %u (total/6000 = %.1f)\n", (unsigned)n, (int)models[i],
+                       (unsigned)total, (unsigned)steps, (double)total / 6000.0);
+            }
+        }
+        if (sa == MAGCAL_OK) {
+            ++*n_ok;
+        }
+    }
+}
+
+static void test_ellipsoid_fit_step_any_budget_matches_fit_ws_bit_for_bit(void)
+{
+    double w[3][3];
+    static double w_hard[3][3] = {{0.9, 0, 0}, {0, 0.9, 0}, {0, 0, 0.9}};
+    const magcal_ellipsoid_cfg_t cfg = cfg_with_field();
+    magcal_ellipsoid_cfg_t cfg0 = MAGCAL_ELLIPSOID_CFG_DEFAULT;
+    int n_ok = 0;
+    size_t k;
+    test_make_w_full(w);
+    make_set(w, NFIT, 180.0, 180.0, 0.05, 2024u); /* full rotations */
+    assert_slices_same(NFIT, &cfg, &n_ok);
+    assert_slices_same(NFIT, &cfg0, &n_ok);
+    make_radial_outliers(w, 4242u); /* outliers: several refits of the gate */
+    assert_slices_same(NFIT, &cfg, &n_ok);
+    for (k = 0; k < NFIT; k += 10) { /* 10 % shifted: TOO_MANY_OUTLIERS at 5 % */
+        g_m[k].x += 10.0f;
+    }
+    cfg0 = cfg;
+    cfg0.max_reject_frac = 0.05f;
+    assert_slices_same(NFIT, &cfg0, &n_ok);
+    cfg0.max_refits = 8u;
+    cfg0.max_reject_frac = 0.25f;
+    assert_slices_same(NFIT, &cfg0, &n_ok);
+    make_set(w_hard, NFIT, 20.0, 20.0, 0.05, 55u); /* a band: the sphere, ill-conditioned quadrics */
+    assert_slices_same(NFIT, &cfg, &n_ok);
+    make_set(w, NFIT, 0.0, 0.0, 0.05, 77u); /* level ring: single axis */
+    assert_slices_same(NFIT, &cfg, &n_ok);
+    make_set(w, 120u, 180.0, 180.0, 1.0, 99u); /* few noisy samples */
+    assert_slices_same(120u, &cfg, &n_ok);
+    for (k = 0; k < 120u; ++k) { /* at rest: NO_MOTION through the sphere's robust scale */
+        g_m[k].x = 10.0f + 0.01f * (float)(k % 7u);
+        g_m[k].y = -5.0f + 0.01f * (float)(k % 5u);
+        g_m[k].z = 3.0f + 0.01f * (float)(k % 3u);
+    }
+    assert_slices_same(120u, &cfg, &n_ok);
+    TEST_ASSERT_TRUE(n_ok >= 8); /* the comparison covered OK results of several models */
+}
+
+static void test_ellipsoid_fit_step_bad_input_returns_status(void)
+{
+    const magcal_ellipsoid_cfg_t cfg = MAGCAL_ELLIPSOID_CFG_DEFAULT;
+    magcal_ellipsoid_fit_slice_t sl;
+    magcal_ellipsoid_result_t r;
+    memset(&sl, 0, sizeof sl);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_fit_step(NULL, 100u));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit_step(&sl, 100u)); /* never begun */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_fit_begin(NULL, g_m, 320u, &cfg, g_swork, sizeof g_swork, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_fit_begin(&sl, g_m, 320u, &cfg, g_swork, sizeof g_swork, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit_step(&sl, 100u)); /* failed begin */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE,
+                          magcal_ellipsoid_fit_begin(&sl, g_m, 320u, &cfg, g_swork, MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(320u) - 1u, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ALIGNMENT,
+                          magcal_ellipsoid_fit_begin(&sl, g_m, 320u, &cfg, (uint8_t *)(void *)g_swork + 2, sizeof g_swork - 2u, &r));
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -967,5 +1102,7 @@ int main(void)
     RUN_TEST(test_ellipsoid_calibrate_bad_input_returns_status);
     RUN_TEST(test_ellipsoid_fit_ws_matches_fit_bit_for_bit);
     RUN_TEST(test_ellipsoid_fit_ws_bad_input_returns_status);
+    RUN_TEST(test_ellipsoid_fit_step_any_budget_matches_fit_ws_bit_for_bit);
+    RUN_TEST(test_ellipsoid_fit_step_bad_input_returns_status);
     return UNITY_END();
 }

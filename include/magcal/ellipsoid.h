@@ -213,9 +213,10 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n, const mag
                                      magcal_ellipsoid_result_t *out);
 
 /** Fixed part of MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN: the packed 10x10 normal matrix, the solver
- *  matrix, the observability pass's 9x9 inverse and sums, the median histogram, 8-byte aligned
+ *  matrix, the observability pass's 9x9 inverse and sums, the median histogram, the time-sliced
+ *  fit's state (magcal_ellipsoid_fit_step), 8-byte aligned
  *  inside the 4-byte aligned workspace (static assert in src/ellipsoid.c). */
-#define MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES 2720u
+#define MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES 3264u
 /** Workspace bytes of magcal_ellipsoid_fit_ws for n samples: the scratch + per sample its residual
  *  (4 B) and its outlier-gate verdict (1 B). */
 #define MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(n)                                                       \
@@ -252,6 +253,47 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n, const mag
 magcal_status_t magcal_ellipsoid_fit_ws(const magcal_vec3_t *m, size_t n,
                                         const magcal_ellipsoid_cfg_t *cfg, void *work,
                                         size_t work_len, magcal_ellipsoid_result_t *out);
+
+/**
+ * Time-sliced magcal_ellipsoid_fit_ws (the contract of docs/calibration_3d.md "Time-sliced fit"):
+ * the fit's state lives in its workspace (the scratch of MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN);
+ * this handle in the caller's memory only points at it. Fields are private.
+ */
+typedef struct {
+    void *s_;         /* the fit's scratch (inside the workspace) */
+    uint32_t used_;   /* estimated M4F instructions charged by the last step */
+    int32_t status_;  /* MAGCAL_IN_PROGRESS until the fit ends, then its status */
+} magcal_ellipsoid_fit_slice_t;
+
+/**
+ * @brief Start a time-sliced magcal_ellipsoid_fit_ws (O(1): checks the pointers and the
+ *        workspace, stores the inputs; the configuration is checked by the first step).
+ * @param[out] s        slice handle, caller memory.
+ * @param[in]  m        n raw samples; must stay unchanged until the fit has finished.
+ * @param[in]  n        number of samples.
+ * @param[in]  cfg      configuration; must stay unchanged until the fit has finished.
+ * @param[out] work     as magcal_ellipsoid_fit_ws; holds the fit's state until it has finished.
+ * @param[in]  work_len bytes at work.
+ * @param[out] out      result, written by the last step only on MAGCAL_OK.
+ * @return MAGCAL_OK (call magcal_ellipsoid_fit_step); MAGCAL_ERR_NULL; MAGCAL_ERR_ALIGNMENT;
+ *         MAGCAL_ERR_WORKSPACE.
+ */
+magcal_status_t magcal_ellipsoid_fit_begin(magcal_ellipsoid_fit_slice_t *s, const magcal_vec3_t *m,
+                                           size_t n, const magcal_ellipsoid_cfg_t *cfg, void *work,
+                                           size_t work_len, magcal_ellipsoid_result_t *out);
+
+/**
+ * @brief Do at most about `budget` estimated Cortex-M4F instructions of the fit started by
+ *        magcal_ellipsoid_fit_begin (at least one unit of work per call, so any budget >= 1 makes
+ *        progress; the largest unit is one small solve of about 3,000 instructions, except the
+ *        forced MAGCAL_ELLIPSOID_MODEL_QUADRIC10's inverse iteration, which is one unit).
+ * @param[in,out] s      slice handle.
+ * @param[in]     budget estimated M4F instructions for this call (0 counts as 1).
+ * @return MAGCAL_IN_PROGRESS while work remains; then exactly the status (and *out, bit for bit)
+ *         of magcal_ellipsoid_fit_ws, returned again by any further call; MAGCAL_ERR_NULL (s NULL);
+ *         MAGCAL_ERR_ARG (s not started by a successful begin).
+ */
+magcal_status_t magcal_ellipsoid_fit_step(magcal_ellipsoid_fit_slice_t *s, uint32_t budget);
 
 /**
  * @brief Per-sample outlier mask of a fit: classify each sample with the fit's final gate.
