@@ -1124,7 +1124,7 @@ static int fit_phase(ell_scratch_t *sw, ell_bud_t *b)
  * visits each sample once.
  */
 static MAGCAL_NOINLINE magcal_status_t fit_steps(ell_scratch_t *sw, uint32_t budget,
-                                                 uint32_t *used)
+                                                 uint32_t *used, int first)
 {
     int rc = ELL_CONT;
     *used = 0u;
@@ -1132,7 +1132,7 @@ static MAGCAL_NOINLINE magcal_status_t fit_steps(ell_scratch_t *sw, uint32_t bud
         ell_bud_t b;
         b.left = budget - *used;
         b.cost = 0u;
-        b.first = (*used == 0u) ? 1 : 0;
+        b.first = (*used == 0u && first != 0) ? 1 : 0;
         rc = fit_phase(sw, &b);
         *used += b.cost;
         if (rc == ELL_CONT && *used >= budget) {
@@ -1193,7 +1193,7 @@ magcal_status_t magcal_ellipsoid_fit_begin(magcal_ellipsoid_fit_slice_t *s, cons
     return MAGCAL_OK;
 }
 
-magcal_status_t magcal_ellipsoid_fit_step(magcal_ellipsoid_fit_slice_t *s, uint32_t budget)
+magcal_status_t magcal_ell_fit_step_in(magcal_ellipsoid_fit_slice_t *s, uint32_t budget, int first)
 {
     uint32_t used = 0u;
     magcal_status_t st;
@@ -1207,10 +1207,15 @@ magcal_status_t magcal_ellipsoid_fit_step(magcal_ellipsoid_fit_slice_t *s, uint3
         s->used_ = 0u;
         return (magcal_status_t)s->status_;
     }
-    st = fit_steps((ell_scratch_t *)s->s_, (budget > 0u) ? budget : 1u, &used);
+    st = fit_steps((ell_scratch_t *)s->s_, (budget > 0u) ? budget : 1u, &used, first);
     s->used_ = used;
     s->status_ = (int32_t)st;
     return st;
+}
+
+magcal_status_t magcal_ellipsoid_fit_step(magcal_ellipsoid_fit_slice_t *s, uint32_t budget)
+{
+    return magcal_ell_fit_step_in(s, budget, 1);
 }
 
 magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,

@@ -329,6 +329,10 @@ float magcal_ell_planarity(const float sc[6], struct ell_scratch_s *ws);
  * explanation, the median and the motion SNR. Returns ELL_CONT, ELL_YIELD or a final status. */
 int magcal_ell_trust_phase(struct ell_scratch_s *sw, ell_bud_t *b);
 
+/* magcal_ellipsoid_fit_step inside a larger step: first == 0 when that step has already done
+ * work (then no visit is forced: the fit may do nothing and return MAGCAL_IN_PROGRESS). */
+magcal_status_t magcal_ell_fit_step_in(magcal_ellipsoid_fit_slice_t *s, uint32_t budget, int first);
+
 /* Sample k kept by the current gate: from ws->keep when stored, else recomputed. */
 static inline int magcal_ell_kept(const ell_ws_t *ws, const quad_gate_t *gate,
                                   const magcal_vec3_t *m, size_t k)

@@ -1072,6 +1072,82 @@ static void test_ellipsoid_fit_step_bad_input_returns_status(void)
                           magcal_ellipsoid_fit_begin(&sl, g_m, 320u, &cfg, (uint8_t *)(void *)g_swork + 2, sizeof g_swork - 2u, &r));
 }
 
+
+/* The time-sliced complete calibration: status, result, info and inlier flags of the one-shot
+ * call at every budget (the density stage, when it runs, is one unit of its own). */
+static MAGCAL_ELLIPSOID_CALIBRATE_WORKSPACE_DECLARE(g_cwork2, NFIT + NOUT);
+static uint8_t g_cin2[NFIT + NOUT];
+static void assert_calibrate_slices_same(size_t n, const magcal_ellipsoid_calibrate_cfg_t *cc, int *n_ok)
+{
+    static const uint32_t budgets[5] = {1u, 97u, 1000u, 6000u, UINT32_MAX};
+    static uint8_t cin1[NFIT + NOUT];
+    magcal_ellipsoid_result_t a, b;
+    magcal_ellipsoid_calibrate_info_t ia, ib;
+    magcal_status_t sa;
+    int j;
+    memset(cin1, 0x77, sizeof cin1);
+    sa = magcal_ellipsoid_calibrate(cc, g_m, n, g_cwork, sizeof g_cwork, cin1, &a, &ia);
+    for (j = 0; j < 5; ++j) {
+        magcal_ellipsoid_calibrate_slice_t sl;
+        magcal_status_t sb;
+        size_t steps = 0u;
+        uint32_t mx = 0u;
+        memset(g_cin2, 0x77, sizeof g_cin2);
+        memset(&b, 0x5A, sizeof b);
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_calibrate_begin(&sl, cc, g_m, n, g_cwork2, sizeof g_cwork2,
+                                                                          g_cin2, &b, &ib));
+        do {
+            sb = magcal_ellipsoid_calibrate_step(&sl, budgets[j]);
+            if (sl.used_ > mx && sl.used_ < 1000000u) { /* the density stage: one unit alone */
+                mx = sl.used_;
+            }
+            TEST_ASSERT_TRUE(++steps < 4000000u);
+        } while (sb == MAGCAL_IN_PROGRESS);
+        TEST_ASSERT_EQUAL_INT(sa, sb);
+        TEST_ASSERT_EQUAL_INT(sb, magcal_ellipsoid_calibrate_step(&sl, budgets[j]));
+        TEST_ASSERT_TRUE(mx <= budgets[j] || mx <= 4600u);
+        TEST_ASSERT_EQUAL_UINT32(ia.density_ran, ib.density_ran);
+        TEST_ASSERT_EQUAL_UINT32((uint32_t)ia.n_density_rejected, (uint32_t)ib.n_density_rejected);
+        TEST_ASSERT_EQUAL_MEMORY(&ia.pretest_max_rel, &ib.pretest_max_rel, sizeof(float)); /* NaN too */
+        if (sa == MAGCAL_OK) {
+            assert_same_result(&a, &b);
+            TEST_ASSERT_EQUAL_MEMORY(cin1, g_cin2, n);
+        } else {
+            TEST_ASSERT_EQUAL_HEX8(0x5A, ((unsigned char *)&b)[0]);
+        }
+    }
+    if (sa == MAGCAL_OK) {
+        ++*n_ok;
+    }
+}
+
+static void test_ellipsoid_calibrate_step_any_budget_matches_calibrate(void)
+{
+    double w[3][3];
+    magcal_ellipsoid_calibrate_cfg_t cc = MAGCAL_ELLIPSOID_CALIBRATE_CFG_DEFAULT;
+    int n_ok = 0;
+    size_t k;
+    test_make_w_full(w);
+    make_set(w, 320u, 180.0, 180.0, 0.05, 2024u); /* clean: the pre-test only */
+    assert_calibrate_slices_same(320u, &cc, &n_ok);
+    cc.mode = MAGCAL_ELLIPSOID_DENSITY_ALWAYS;
+    assert_calibrate_slices_same(320u, &cc, &n_ok);
+    cc.mode = MAGCAL_ELLIPSOID_DENSITY_AUTO;
+    make_set(w, NFIT, 180.0, 180.0, 0.3, 777u);
+    for (k = 0; k < NOUT; ++k) { /* a burst: the density stage runs */
+        g_m[NFIT + k].x = (float)(V_TRUE[0] + 1.8 * f_ref() * 0.48);
+        g_m[NFIT + k].y = (float)(V_TRUE[1] - 1.8 * f_ref() * 0.6);
+        g_m[NFIT + k].z = (float)(V_TRUE[2] + 1.8 * f_ref() * 0.64);
+    }
+    assert_calibrate_slices_same(NFIT + NOUT, &cc, &n_ok);
+    cc.mode = MAGCAL_ELLIPSOID_DENSITY_NEVER;
+    assert_calibrate_slices_same(NFIT + NOUT, &cc, &n_ok);
+    cc.mode = MAGCAL_ELLIPSOID_DENSITY_AUTO;
+    make_set(w, NFIT, 0.0, 0.0, 0.05, 77u); /* level ring: fails */
+    assert_calibrate_slices_same(NFIT, &cc, &n_ok);
+    TEST_ASSERT_TRUE(n_ok >= 3);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -1104,5 +1180,6 @@ int main(void)
     RUN_TEST(test_ellipsoid_fit_ws_bad_input_returns_status);
     RUN_TEST(test_ellipsoid_fit_step_any_budget_matches_fit_ws_bit_for_bit);
     RUN_TEST(test_ellipsoid_fit_step_bad_input_returns_status);
+    RUN_TEST(test_ellipsoid_calibrate_step_any_budget_matches_calibrate);
     return UNITY_END();
 }

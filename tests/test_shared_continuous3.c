@@ -1,8 +1,9 @@
 /*
  * The continuous 3-D calibrator (continuous3.h) on the shared real 3-D recordings
- * (MAGCAL_SHARED_DIR/data/real, READMEs), WHOLE and in stream order: one push + one step per row
- * at the default configuration (time from the `t` column, else 20 ms per row), as
- * `magcal-replay --stream --mode 3d` does.
+ * (MAGCAL_SHARED_DIR/data/real, READMEs), WHOLE and in stream order: one push + STEPS_PER_ROW
+ * steps per row at the default configuration (time from the `t` column, else 20 ms per row) and,
+ * after the last row, steps until the solve under way ends, as
+ * `magcal-replay --stream --mode 3d --steps-per-row 4` does (the solve is time-sliced: ~100 steps).
  *  - the 3-D tumbles fxos8700_tumble and lsm9ds1_adafruit_tumble: the |B| spread (std / mean of
  *    |G (m - V)| over every row) of the calibration in force at the end against today's batch fit
  *    (magcal_ellipsoid_calibrate() on all rows, default configuration) on the same rows. Issue 13
@@ -25,6 +26,10 @@
 #include "magcal/continuous3.h"
 #include "test_csv.h"
 #include "unity.h"
+
+/* step() calls per row: a control loop at 4 x the sample rate (a sliced solve of ~300 samples is
+ * ~100 steps at the default budget), as tests/test_shared_continuous.c */
+#define STEPS_PER_ROW 4u
 
 #define SLOTS3 MAGCAL_CONT3_SLOTS(10u, 4u)
 #define MAX_ROWS 65536u
@@ -113,12 +118,15 @@ static void stream(size_t n, stream_t *s)
         const uint32_t t_ms = isfinite(g_t[i]) && isfinite(g_t[0]) ? (uint32_t)llround((g_t[i] - g_t[0]) * 1000.0)
                                                                     : (uint32_t)(i * 20u);
         magcal_cont3_heading_t hd;
+        unsigned k;
         (void)magcal_cont3_push(&g_c3, &g_rows[i], t_ms);
-        if (magcal_cont3_step(&g_c3) == MAGCAL_CONT3_ADOPTED) {
-            if (s->adoptions < 8u) {
-                s->adopt_rows[s->adoptions] = (long)i;
+        for (k = 0u; k < STEPS_PER_ROW; ++k) {
+            if (magcal_cont3_step(&g_c3) == MAGCAL_CONT3_ADOPTED) {
+                if (s->adoptions < 8u) {
+                    s->adopt_rows[s->adoptions] = (long)i;
+                }
+                s->adoptions++;
             }
-            s->adoptions++;
         }
         if (magcal_cont3_heading(&g_c3, &g_rows[i], NULL, 0.0f, &hd) == MAGCAL_OK) {
             const int dist = hd.trust == MAGCAL_TRUST_DISTURBED;
@@ -126,6 +134,15 @@ static void stream(size_t n, stream_t *s)
             s->disturbed_rows += dist ? 1u : 0u;
             s->disturbance_events += dist && !prev_dist ? 1u : 0u;
             prev_dist = dist;
+        }
+    }
+    /* after the recording the firmware's loop goes on: the solve under way ends (no pushes) */
+    for (i = 0u; i < 100000u && g_c3.stage != 0u; ++i) {
+        if (magcal_cont3_step(&g_c3) == MAGCAL_CONT3_ADOPTED) {
+            if (s->adoptions < 8u) {
+                s->adopt_rows[s->adoptions] = (long)n;
+            }
+            s->adoptions++;
         }
     }
 }

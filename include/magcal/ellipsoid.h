@@ -164,6 +164,17 @@ typedef struct {
     float field_raw;      /**< fitted raw radius F / det(G)^(1/3), unit of the samples */
 } magcal_ellipsoid_result_t;
 
+/**
+ * Time-sliced magcal_ellipsoid_fit_ws (the contract of docs/calibration_3d.md "Time-sliced fit"):
+ * the fit's state lives in its workspace (the scratch of MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN);
+ * this handle in the caller's memory only points at it. Fields are private.
+ */
+typedef struct {
+    void *s_;         /* the fit's scratch (inside the workspace) */
+    uint32_t used_;   /* estimated M4F instructions charged by the last step */
+    int32_t status_;  /* MAGCAL_IN_PROGRESS until the fit ends, then its status */
+} magcal_ellipsoid_fit_slice_t;
+
 #if MAGCAL_CFG_ENABLE_3D
 /**
  * @brief Fit V and G to raw 3-D field samples.
@@ -254,16 +265,6 @@ magcal_status_t magcal_ellipsoid_fit_ws(const magcal_vec3_t *m, size_t n,
                                         const magcal_ellipsoid_cfg_t *cfg, void *work,
                                         size_t work_len, magcal_ellipsoid_result_t *out);
 
-/**
- * Time-sliced magcal_ellipsoid_fit_ws (the contract of docs/calibration_3d.md "Time-sliced fit"):
- * the fit's state lives in its workspace (the scratch of MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN);
- * this handle in the caller's memory only points at it. Fields are private.
- */
-typedef struct {
-    void *s_;         /* the fit's scratch (inside the workspace) */
-    uint32_t used_;   /* estimated M4F instructions charged by the last step */
-    int32_t status_;  /* MAGCAL_IN_PROGRESS until the fit ends, then its status */
-} magcal_ellipsoid_fit_slice_t;
 
 /**
  * @brief Start a time-sliced magcal_ellipsoid_fit_ws (O(1): checks the pointers and the
@@ -389,6 +390,27 @@ typedef struct {
     magcal_optics_result_t density; /**< the density stage's parameters (valid when density_ran) */
 } magcal_ellipsoid_calibrate_info_t;
 
+/** Time-sliced magcal_ellipsoid_calibrate: its state in the caller's memory (fields private). */
+typedef struct {
+    const magcal_ellipsoid_calibrate_cfg_t *cfg_;
+    const magcal_vec3_t *m_;
+    size_t n_;
+    uint8_t *work_;
+    size_t work_len_;
+    uint8_t *inlier_;
+    magcal_ellipsoid_result_t *out_;
+    magcal_ellipsoid_calibrate_info_t *info_;
+    magcal_ellipsoid_fit_slice_t fit_;
+    size_t k_;
+    size_t nk_;
+    size_t fit_off_;
+    float mx_;
+    uint32_t used_;  /* estimated M4F instructions charged by the last step */
+    int32_t status_;
+    uint8_t phase_;
+    int8_t pre_st_;
+} magcal_ellipsoid_calibrate_slice_t;
+
 /** Bytes of magcal_ellipsoid_calibrate's workspace that hold the pre-test's result. */
 #define MAGCAL_ELLIPSOID_CALIBRATE_RESULT_SLOT ((sizeof(magcal_ellipsoid_result_t) + 7u) / 8u * 8u)
 /** The result slot + the slot of the info when the caller passes info = NULL (off the stack), both
@@ -452,6 +474,33 @@ magcal_status_t magcal_ellipsoid_calibrate(const magcal_ellipsoid_calibrate_cfg_
                                            size_t work_len, uint8_t *inlier,
                                            magcal_ellipsoid_result_t *out,
                                            magcal_ellipsoid_calibrate_info_t *info);
+
+/**
+ * @brief Start a time-sliced magcal_ellipsoid_calibrate (O(1): the checks of the one-shot call,
+ *        the info cleared; the fit configurations are checked by the steps).
+ * @param[out] s slice state, caller memory (kept until the calibration has finished); the other
+ *               parameters as magcal_ellipsoid_calibrate, and m, cfg, work, inlier, out, info
+ *               must stay valid (m and cfg unchanged) until it has finished.
+ * @return MAGCAL_OK (call magcal_ellipsoid_calibrate_step); MAGCAL_ERR_NULL; MAGCAL_ERR_ARG;
+ *         MAGCAL_ERR_ALIGNMENT; MAGCAL_ERR_WORKSPACE (as magcal_ellipsoid_calibrate).
+ */
+magcal_status_t magcal_ellipsoid_calibrate_begin(magcal_ellipsoid_calibrate_slice_t *s,
+                                                 const magcal_ellipsoid_calibrate_cfg_t *cfg,
+                                                 const magcal_vec3_t *m, size_t n, void *work,
+                                                 size_t work_len, uint8_t *inlier,
+                                                 magcal_ellipsoid_result_t *out,
+                                                 magcal_ellipsoid_calibrate_info_t *info);
+
+/**
+ * @brief Do at most about `budget` estimated Cortex-M4F instructions of the calibration (at least
+ *        one unit per call). The fits are sliced (magcal_ellipsoid_fit_step); the density stage
+ *        (magcal_optics_filter3, only when the pre-test finds a gross outlier, or mode ALWAYS) is
+ *        NOT sliced: it runs as one unit in a step of its own (millions of instructions).
+ * @return MAGCAL_IN_PROGRESS while work remains; then exactly the status and outputs of
+ *         magcal_ellipsoid_calibrate, returned again by any further call; MAGCAL_ERR_NULL (s NULL);
+ *         MAGCAL_ERR_ARG (s not started by a successful begin).
+ */
+magcal_status_t magcal_ellipsoid_calibrate_step(magcal_ellipsoid_calibrate_slice_t *s, uint32_t budget);
 #endif /* MAGCAL_CFG_ENABLE_3D */
 
 #ifdef __cplusplus
