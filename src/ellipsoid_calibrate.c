@@ -83,6 +83,32 @@ static int cal_fit_phase(magcal_ellipsoid_calibrate_slice_t *s, const magcal_vec
     return (int)st;
 }
 
+/* The density stage (one unit, not sliced): in its own frame beside cal_phase's, called straight
+ * from the step (the stack of its deep path is the calibration's worst). */
+static MAGCAL_NOINLINE int cal_density(magcal_ellipsoid_calibrate_slice_t *s, uint32_t budget,
+                                       uint32_t *used)
+{
+    /* the density mask is written behind the copies' final place: byte k of the mask is read
+     * before copy j <= k is written, both run front to back */
+    const size_t n = s->n_;
+    uint8_t *rest = cal_rest(s);
+    magcal_status_t st;
+    if (cal_can(used, budget, CW_DENSITY) == 0) {
+        return CAL_YIELD;
+    }
+    st = magcal_optics_filter3(&s->cfg_->density, s->m_, n, rest + n * sizeof(magcal_vec3_t),
+                               s->work_len_ - MAGCAL_ELLIPSOID_CALIBRATE_SLOTS - n * sizeof(magcal_vec3_t),
+                               rest + n * (sizeof(magcal_vec3_t) - 1u), &s->info_->density);
+    if (st != MAGCAL_OK) {
+        return (int)st;
+    }
+    s->info_->density_ran = 1u;
+    s->k_ = 0u;
+    s->nk_ = 0u;
+    s->phase_ = CAL_PH_COPY;
+    return CAL_CONT;
+}
+
 static MAGCAL_NOINLINE int cal_phase(magcal_ellipsoid_calibrate_slice_t *s, uint32_t budget,
                                      uint32_t *used)
 {
@@ -90,19 +116,7 @@ static MAGCAL_NOINLINE int cal_phase(magcal_ellipsoid_calibrate_slice_t *s, uint
     magcal_ellipsoid_result_t *first = cal_first(s);
     magcal_ellipsoid_calibrate_info_t *inf = s->info_;
     const size_t n = s->n_;
-    int rc;
     switch (s->phase_) {
-    case CAL_PH_PRE:
-    case CAL_PH_PRE_STEP:
-        rc = cal_fit_phase(s, s->m_, n, first, budget, used);
-        if (rc == CAL_YIELD || rc == CAL_CONT) {
-            return rc;
-        }
-        s->pre_st_ = (int8_t)rc;
-        s->k_ = 0u;
-        s->mx_ = 0.0f;
-        s->phase_ = (rc == (int)MAGCAL_OK) ? CAL_PH_MAXRES : CAL_PH_DECIDE;
-        return CAL_CONT;
     case CAL_PH_MAXRES: {
         /* largest | |G(m - V)| - F | over all samples: read from the residuals the fit left in
          * its workspace (every sample's, under the returned calibration) */
@@ -137,38 +151,6 @@ static MAGCAL_NOINLINE int cal_phase(magcal_ellipsoid_calibrate_slice_t *s, uint
         }
         s->phase_ = CAL_PH_DENSITY;
         return CAL_CONT;
-    case CAL_PH_INLIER:
-        if (s->inlier_ != NULL) {
-            while (s->k_ < n && cal_can(used, budget, CW_INLIER) != 0) {
-                s->inlier_[s->k_] = 1u;
-                s->k_++;
-            }
-            if (s->k_ < n) {
-                return CAL_YIELD;
-            }
-        }
-        return (int)MAGCAL_OK;
-    case CAL_PH_DENSITY: {
-        /* the density mask is written behind the copies' final place: byte k of the mask is read
-         * before copy j <= k is written, both run front to back */
-        uint8_t *mask = cal_rest(s) + n * (sizeof(magcal_vec3_t) - 1u);
-        uint8_t *fwork = cal_rest(s) + n * sizeof(magcal_vec3_t);
-        magcal_status_t st;
-        if (cal_can(used, budget, CW_DENSITY) == 0) {
-            return CAL_YIELD;
-        }
-        st = magcal_optics_filter3(&cfg->density, s->m_, n, fwork,
-                                   s->work_len_ - MAGCAL_ELLIPSOID_CALIBRATE_SLOTS - n * sizeof(magcal_vec3_t),
-                                   mask, &inf->density);
-        if (st != MAGCAL_OK) {
-            return (int)st;
-        }
-        inf->density_ran = 1u;
-        s->k_ = 0u;
-        s->nk_ = 0u;
-        s->phase_ = CAL_PH_COPY;
-        return CAL_CONT;
-    }
     case CAL_PH_COPY: {
         magcal_vec3_t *kept = (magcal_vec3_t *)(void *)cal_rest(s);
         const uint8_t *mask = cal_rest(s) + n * (sizeof(magcal_vec3_t) - 1u);
@@ -191,26 +173,46 @@ static MAGCAL_NOINLINE int cal_phase(magcal_ellipsoid_calibrate_slice_t *s, uint
         s->phase_ = CAL_PH_FIT;
         return CAL_CONT;
     }
-    default: /* CAL_PH_FIT, CAL_PH_FIT_STEP: the fit of the density stage's inliers */
-        return cal_fit_phase(s, (const magcal_vec3_t *)(const void *)cal_rest(s), s->nk_, s->out_,
-                             budget, used);
+    default: /* CAL_PH_INLIER */
+        if (s->inlier_ != NULL) {
+            while (s->k_ < n && cal_can(used, budget, CW_INLIER) != 0) {
+                s->inlier_[s->k_] = 1u;
+                s->k_++;
+            }
+            if (s->k_ < n) {
+                return CAL_YIELD;
+            }
+        }
+        return (int)MAGCAL_OK;
     }
 }
 
-magcal_status_t magcal_ellipsoid_calibrate_begin(magcal_ellipsoid_calibrate_slice_t *s,
-                                                 const magcal_ellipsoid_calibrate_cfg_t *cfg,
-                                                 const magcal_vec3_t *m, size_t n, void *work,
-                                                 size_t work_len, uint8_t *inlier,
-                                                 magcal_ellipsoid_result_t *out,
-                                                 magcal_ellipsoid_calibrate_info_t *info)
+/* The two fits (called straight from the step: their deep path under few frames): the pre-test
+ * fit of all samples, or the fit of the density stage's inliers. */
+static MAGCAL_NOINLINE int cal_fits(magcal_ellipsoid_calibrate_slice_t *s, uint32_t budget,
+                                    uint32_t *used)
 {
-    magcal_ellipsoid_calibrate_info_t *inf;
-    if (s == NULL) {
-        return MAGCAL_ERR_NULL;
+    int rc;
+    if (s->phase_ == CAL_PH_PRE || s->phase_ == CAL_PH_PRE_STEP) {
+        rc = cal_fit_phase(s, s->m_, s->n_, cal_first(s), budget, used);
+        if (rc == CAL_YIELD || rc == CAL_CONT) {
+            return rc;
+        }
+        s->pre_st_ = (int8_t)rc;
+        s->k_ = 0u;
+        s->mx_ = 0.0f;
+        s->phase_ = (rc == (int)MAGCAL_OK) ? CAL_PH_MAXRES : CAL_PH_DECIDE;
+        return CAL_CONT;
     }
-    s->status_ = (int32_t)MAGCAL_ERR_ARG;
-    s->used_ = 0u;
-    s->work_ = NULL;
+    return cal_fit_phase(s, (const magcal_vec3_t *)(const void *)cal_rest(s), s->nk_, s->out_, budget,
+                         used);
+}
+
+/* The checks of begin (and of the one-shot call, before it puts the slice into the workspace). */
+static magcal_status_t cal_check(const magcal_ellipsoid_calibrate_cfg_t *cfg, const magcal_vec3_t *m,
+                                 size_t n, const void *work, size_t work_len,
+                                 const magcal_ellipsoid_result_t *out)
+{
     if (cfg == NULL || m == NULL || work == NULL || out == NULL) {
         return MAGCAL_ERR_NULL;
     }
@@ -224,6 +226,28 @@ magcal_status_t magcal_ellipsoid_calibrate_begin(magcal_ellipsoid_calibrate_slic
     }
     if (work_len < MAGCAL_ELLIPSOID_CALIBRATE_WORKSPACE_LEN(n)) {
         return MAGCAL_ERR_WORKSPACE;
+    }
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_ellipsoid_calibrate_begin(magcal_ellipsoid_calibrate_slice_t *s,
+                                                 const magcal_ellipsoid_calibrate_cfg_t *cfg,
+                                                 const magcal_vec3_t *m, size_t n, void *work,
+                                                 size_t work_len, uint8_t *inlier,
+                                                 magcal_ellipsoid_result_t *out,
+                                                 magcal_ellipsoid_calibrate_info_t *info)
+{
+    magcal_ellipsoid_calibrate_info_t *inf;
+    magcal_status_t st;
+    if (s == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    s->status_ = (int32_t)MAGCAL_ERR_ARG;
+    s->used_ = 0u;
+    s->work_ = NULL;
+    st = cal_check(cfg, m, n, work, work_len, out);
+    if (st != MAGCAL_OK) {
+        return st;
     }
     /* layout: the pre-test's result | info when the caller gives none | the rest */
     s->cfg_ = cfg;
@@ -270,7 +294,14 @@ magcal_status_t magcal_ellipsoid_calibrate_step(magcal_ellipsoid_calibrate_slice
     }
     /* bounded: each CAL_CONT ends a phase (at most 10) or moves a pass */
     while (rc == CAL_CONT) {
-        rc = cal_phase(s, budget, &used);
+        if (s->phase_ == CAL_PH_DENSITY) {
+            rc = cal_density(s, budget, &used);
+        } else if (s->phase_ == CAL_PH_PRE || s->phase_ == CAL_PH_PRE_STEP ||
+                   s->phase_ == CAL_PH_FIT || s->phase_ == CAL_PH_FIT_STEP) {
+            rc = cal_fits(s, budget, &used);
+        } else {
+            rc = cal_phase(s, budget, &used);
+        }
         if (rc == CAL_CONT && used >= budget) {
             rc = CAL_YIELD;
         }
@@ -284,19 +315,35 @@ magcal_status_t magcal_ellipsoid_calibrate_step(magcal_ellipsoid_calibrate_slice
     return (magcal_status_t)rc;
 }
 
+/* The one-shot call's begin, its slice in the workspace slot (off the stack: issue 13's 512 B),
+ * in a frame of its own beside the steps'. */
+static MAGCAL_NOINLINE magcal_status_t cal_oneshot_begin(
+    const magcal_ellipsoid_calibrate_cfg_t *cfg, const magcal_vec3_t *m, size_t n, void *work,
+    size_t work_len, uint8_t *inlier, magcal_ellipsoid_result_t *out,
+    magcal_ellipsoid_calibrate_info_t *info, magcal_ellipsoid_calibrate_slice_t **sp)
+{
+    const magcal_status_t st = cal_check(cfg, m, n, work, work_len, out);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    *sp = (magcal_ellipsoid_calibrate_slice_t *)(void *)(magcal_ell_align_up(work) +
+                                                         MAGCAL_ELLIPSOID_CALIBRATE_RESULT_SLOT +
+                                                         MAGCAL_ELLIPSOID_CALIBRATE_INFO_SLOT_);
+    return magcal_ellipsoid_calibrate_begin(*sp, cfg, m, n, work, work_len, inlier, out, info);
+}
+
 magcal_status_t magcal_ellipsoid_calibrate(const magcal_ellipsoid_calibrate_cfg_t *cfg,
                                            const magcal_vec3_t *m, size_t n, void *work,
                                            size_t work_len, uint8_t *inlier,
                                            magcal_ellipsoid_result_t *out,
                                            magcal_ellipsoid_calibrate_info_t *info)
 {
-    magcal_ellipsoid_calibrate_slice_t s;
-    const magcal_status_t st =
-        magcal_ellipsoid_calibrate_begin(&s, cfg, m, n, work, work_len, inlier, out, info);
+    magcal_ellipsoid_calibrate_slice_t *s = NULL;
+    const magcal_status_t st = cal_oneshot_begin(cfg, m, n, work, work_len, inlier, out, info, &s);
     if (st != MAGCAL_OK) {
         return st;
     }
-    return magcal_ellipsoid_calibrate_step(&s, UINT32_MAX);
+    return magcal_ellipsoid_calibrate_step(s, UINT32_MAX);
 }
 
 #endif /* MAGCAL_CFG_ENABLE_3D */

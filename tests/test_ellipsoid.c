@@ -840,10 +840,11 @@ static void test_ellipsoid_calibrate_bad_input_returns_status(void)
     cc.mode = (magcal_ellipsoid_density_t)3;
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_calibrate(&cc, g_m, 320u, g_cwork, sizeof g_cwork,
                                                                      NULL, &r, NULL));
-    /* the size macro: the pre-test's result and the info (8-byte slots, aligned: + 4), the inlier copy, then
-     * the larger of the density stage's and the fit's workspace */
+    /* the size macro: the pre-test's result, the info and the one-shot call's slice state (8-byte slots,
+     * aligned: + 4), the inlier copy, then the larger of the density stage's and the fit's workspace */
     TEST_ASSERT_EQUAL_UINT32((uint32_t)(4u + (sizeof(magcal_ellipsoid_result_t) + 7u) / 8u * 8u +
-                                        (sizeof(magcal_ellipsoid_calibrate_info_t) + 7u) / 8u * 8u + 320u * sizeof(magcal_vec3_t) +
+                                        (sizeof(magcal_ellipsoid_calibrate_info_t) + 7u) / 8u * 8u +
+                                        (sizeof(magcal_ellipsoid_calibrate_slice_t) + 7u) / 8u * 8u + 320u * sizeof(magcal_vec3_t) +
                                         ((MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(320u) > MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(320u))
                                              ? MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(320u)
                                              : MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(320u))),

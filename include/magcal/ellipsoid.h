@@ -413,11 +413,14 @@ typedef struct {
 
 /** Bytes of magcal_ellipsoid_calibrate's workspace that hold the pre-test's result. */
 #define MAGCAL_ELLIPSOID_CALIBRATE_RESULT_SLOT ((sizeof(magcal_ellipsoid_result_t) + 7u) / 8u * 8u)
-/** The result slot + the slot of the info when the caller passes info = NULL (off the stack), both
- *  8-byte aligned inside a 4-byte aligned workspace (+4 B). */
+/** @cond INTERNAL */
+#define MAGCAL_ELLIPSOID_CALIBRATE_INFO_SLOT_ ((sizeof(magcal_ellipsoid_calibrate_info_t) + 7u) / 8u * 8u)
+/** @endcond */
+/** The result slot + the slot of the info when the caller passes info = NULL + the one-shot call's
+ *  slice state (all off the stack), 8-byte aligned inside a 4-byte aligned workspace (+4 B). */
 #define MAGCAL_ELLIPSOID_CALIBRATE_SLOTS                                                            \
-    (4u + MAGCAL_ELLIPSOID_CALIBRATE_RESULT_SLOT +                                                  \
-     (sizeof(magcal_ellipsoid_calibrate_info_t) + 7u) / 8u * 8u)
+    (4u + MAGCAL_ELLIPSOID_CALIBRATE_RESULT_SLOT + MAGCAL_ELLIPSOID_CALIBRATE_INFO_SLOT_ +          \
+     (sizeof(magcal_ellipsoid_calibrate_slice_t) + 7u) / 8u * 8u)
 /** Workspace bytes of magcal_ellipsoid_calibrate for n samples: the pre-test's result and info, the inlier
  *  copy (n x 12 B), then the larger of the density stage's MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n)
  *  and the fit's MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(n) (issue 14: the fit's matrices are here, not

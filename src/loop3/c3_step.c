@@ -66,7 +66,7 @@ static int c3_worth(const magcal_cont3_t *cc)
 }
 
 /* Unit 1: snapshot the store into the solver buffer; the sliced solve begins on it (O(1)). */
-static magcal_cont3_outcome_t c3_snapshot(magcal_cont3_t *cc)
+static MAGCAL_NOINLINE magcal_cont3_outcome_t c3_snapshot(magcal_cont3_t *cc)
 {
     size_t n = 0u;
     if (magcal_intake_snapshot3(&cc->store, cc->buf, cc->slots, &n) != MAGCAL_OK) {
@@ -118,6 +118,9 @@ magcal_cont3_outcome_t magcal_cont3_step(magcal_cont3_t *cc)
     }
     if (cc->stage == 0u && c3_worth(cc) != 0) {
         cc->stage = 1u;
+    }
+    if (cc->stage == 2u) { /* the solve's deep path under as few frames as possible (stack) */
+        return c3_solve(cc, cc->cfg.step_budget);
     }
     if (cc->stage != 0u) {
         return c3_unit(cc, cc->cfg.step_budget);
