@@ -27,6 +27,7 @@ MAGCAL_STATIC_ASSERT(COV_CELLS <= 96u, coverage_cells_fit_three_words);
 MAGCAL_STATIC_ASSERT(MAGCAL_ELLIPSOID_COV_AZ == 12u, azimuth_boundaries_are_30_degrees);
 /* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
 MAGCAL_STATIC_ASSERT(sizeof(ell_scratch_t) + (MAGCAL_ELL_ALIGN - 4u) <= MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES &&
+                         sizeof(magcal_ellipsoid_fit_scratch_t) >= sizeof(ell_scratch_t) &&
                          MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES % 4u == 0u,
                      fit_scratch_fits_its_macro);
 
@@ -1220,15 +1221,15 @@ magcal_status_t magcal_ellipsoid_fit_step(magcal_ellipsoid_fit_slice_t *s, uint3
 
 magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
                                      const magcal_ellipsoid_cfg_t *cfg,
+                                     magcal_ellipsoid_fit_scratch_t *scratch,
                                      magcal_ellipsoid_result_t *out)
 {
-    ell_scratch_t scratch; /* no caller workspace: the scratch on the stack (see the header) */
     magcal_ellipsoid_fit_slice_t sl;
     ell_ws_t ws;
-    if (m == NULL || cfg == NULL || out == NULL) {
+    if (m == NULL || cfg == NULL || scratch == NULL || out == NULL) {
         return MAGCAL_ERR_NULL;
     }
-    ws.s = &scratch;
+    ws.s = (ell_scratch_t *)(void *)scratch; /* fixed scratch, no per-sample storage */
     ws.res = NULL;
     ws.keep = NULL;
     fit_begin_on(&sl, &ws, m, n, cfg, out);

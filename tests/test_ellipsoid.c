@@ -12,6 +12,9 @@
 #include "test_util3d.h"
 #include "unity.h"
 
+/* magcal_ellipsoid_fit's fixed scratch (the workspace-free fit: no per-sample storage) */
+static magcal_ellipsoid_fit_scratch_t g_fit_scratch;
+
 void setUp(void) {}
 void tearDown(void) {}
 
@@ -119,7 +122,7 @@ static void test_ellipsoid_fit_random_attitudes_recovers_v_and_q(void)
     magcal_ellipsoid_result_t r;
     test_make_w_full(w);
     make_set(w, NFIT, 180.0, 180.0, 0.05, 1234u);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ELLIPSOID_MODEL_QUADRIC9, r.model);
     /* algorithms.md 7.2 (double): 0.001 uT and 1.5e-4; float32 + 3-sigma clipping: 0.02 uT, 1e-3. */
     TEST_ASSERT_TRUE(v_err(&r.cal) < 0.02);
@@ -139,9 +142,9 @@ static void test_ellipsoid_fit_quadric10_matches_quadric9(void)
     int i, j;
     test_make_w_full(w);
     make_set(w, NFIT, 180.0, 180.0, 0.05, 777u);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r9));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r9));
     cfg.model = MAGCAL_ELLIPSOID_MODEL_QUADRIC10;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r10));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r10));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ELLIPSOID_MODEL_QUADRIC10, r10.model);
     TEST_ASSERT_TRUE(v_err(&r10.cal) < 0.02);
     TEST_ASSERT_TRUE(test_q_err(&r10.cal, w) < 1e-3);
@@ -164,9 +167,9 @@ static void test_ellipsoid_fit_sqrt_variants_satisfy_gtg_equals_q(void)
     int i, j, k;
     test_make_w_full(w);
     make_set(w, NFIT, 180.0, 180.0, 0.05, 99u);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &rs));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &rs));
     cfg.sqrt_method = MAGCAL_ELLIPSOID_SQRT_CHOLESKY;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &rc));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &rc));
     /* symmetric root is symmetric, Cholesky root is upper triangular */
     TEST_ASSERT_FLOAT_WITHIN(1e-5f, rs.cal.g[0][1], rs.cal.g[1][0]);
     TEST_ASSERT_FLOAT_WITHIN(1e-5f, rs.cal.g[0][2], rs.cal.g[2][0]);
@@ -212,7 +215,7 @@ static void test_ellipsoid_fit_tilted_headings_within_1p2_of_floor(void)
     int i, j;
     make_w_sym(w);
     make_set(w, NFIT, 180.0, 180.0, 0.1, 4242u);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     /* evaluation set: |pitch|, |roll| <= 40 deg, same noise; floor = true calibration on it */
     make_set(w, NFIT, 40.0, 40.0, 0.1, 5151u);
     test_mat3_inv(w, wi);
@@ -249,9 +252,9 @@ static void test_ellipsoid_fit_outliers_rejected_by_residual_gate(void)
         g_m[NFIT + k].y += (float)(mag * dy / nn);
         g_m[NFIT + k].z += (float)(mag * dz / nn);
     }
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT + NOUT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT + NOUT, &cfg, &g_fit_scratch, &r));
     cfg.outlier_k = 0.0f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT + NOUT, &cfg, &rn));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT + NOUT, &cfg, &g_fit_scratch, &rn));
     TEST_ASSERT_TRUE(v_err(&r.cal) < 0.03);
     TEST_ASSERT_TRUE(test_q_err(&r.cal, w) < 1.5e-3);
     TEST_ASSERT_TRUE(r.n_rejected >= NOUT && r.n_rejected <= NOUT + 10);
@@ -273,9 +276,9 @@ static void test_ellipsoid_fit_rejections_above_limit_return_too_many_outliers(v
         g_m[k].x += 10.0f;
     }
     cfg.max_reject_frac = 0.05f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_MANY_OUTLIERS, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_MANY_OUTLIERS, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     cfg.max_reject_frac = 0.25f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     /* a shift nearly tangent to the sphere barely changes |h|: 58 of the 60 are caught */
     TEST_ASSERT_TRUE(r.n_rejected >= NFIT / 10 - 4 && r.n_rejected <= NFIT / 10 + 6);
     TEST_ASSERT_TRUE(v_err(&r.cal) < 0.03);
@@ -288,7 +291,7 @@ static void test_ellipsoid_fit_poor_coverage_falls_back_to_sphere(void)
     magcal_ellipsoid_cfg_t cfg = cfg_with_field();
     magcal_ellipsoid_result_t r;
     make_set(w, NFIT, 20.0, 20.0, 0.05, 55u);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_TRUE(r.coverage >= cfg.min_coverage_sphere && r.coverage < cfg.min_coverage_full);
     TEST_ASSERT_EQUAL_INT(MAGCAL_ELLIPSOID_MODEL_SPHERE, r.model);
     TEST_ASSERT_TRUE(v_err(&r.cal) < 0.1);
@@ -308,21 +311,21 @@ static void test_ellipsoid_fit_level_ring_every_model_returns_single_axis(void)
     test_make_w_full(w);
     make_set(w, NFIT, 0.0, 0.0, 0.05, 66u);
     memset(&r, 0xA5, sizeof(r));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_SINGLE_AXIS, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_SINGLE_AXIS, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_EQUAL_HEX8(0xA5, ((unsigned char *)&r)[0]); /* untouched on failure */
     cfg.model = MAGCAL_ELLIPSOID_MODEL_QUADRIC9;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_SINGLE_AXIS, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_SINGLE_AXIS, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     cfg.model = MAGCAL_ELLIPSOID_MODEL_QUADRIC10;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_SINGLE_AXIS, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_SINGLE_AXIS, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     cfg.model = MAGCAL_ELLIPSOID_MODEL_SPHERE;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_SINGLE_AXIS, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_SINGLE_AXIS, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_EQUAL_HEX8(0xA5, ((unsigned char *)&r)[0]);
     /* with the observability gates off the old failure is still there: the gates are what refuse */
     cfg.model = MAGCAL_ELLIPSOID_MODEL_QUADRIC9;
     cfg.max_centre_std_rel = 0.0f;
     cfg.max_shape_std = 0.0f;
     cfg.max_residual_rel = 0.0f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_TRUE(v_err(&r.cal) > 5.0);
 }
 
@@ -341,9 +344,9 @@ static void test_ellipsoid_fit_hyperboloid_returns_not_ellipsoid(void)
         g_m[k].z = (float)z;
     }
     cfg.model = MAGCAL_ELLIPSOID_MODEL_QUADRIC9;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NOT_ELLIPSOID, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NOT_ELLIPSOID, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     cfg.model = MAGCAL_ELLIPSOID_MODEL_QUADRIC10;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NOT_ELLIPSOID, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NOT_ELLIPSOID, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
 }
 
 static void test_ellipsoid_fit_unknown_field_gives_unit_determinant(void)
@@ -354,7 +357,7 @@ static void test_ellipsoid_fit_unknown_field_gives_unit_determinant(void)
     double det, detw;
     test_make_w_full(w);
     make_set(w, NFIT, 180.0, 180.0, 0.05, 8u);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     det = (double)r.cal.g[0][0] * (r.cal.g[1][1] * r.cal.g[2][2] - r.cal.g[1][2] * r.cal.g[2][1]) -
           (double)r.cal.g[0][1] * (r.cal.g[1][0] * r.cal.g[2][2] - r.cal.g[1][2] * r.cal.g[2][0]) +
           (double)r.cal.g[0][2] * (r.cal.g[1][0] * r.cal.g[2][1] - r.cal.g[1][1] * r.cal.g[2][0]);
@@ -374,32 +377,32 @@ static void test_ellipsoid_fit_bad_input_returns_status(void)
     size_t k;
     test_make_w_full(w);
     make_set(w, 100, 180.0, 180.0, 0.05, 3u);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_fit(NULL, 100, &cfg, &r));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_fit(g_m, 100, NULL, &r));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_fit(g_m, 100, &cfg, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_ellipsoid_fit(g_m, 3, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_fit(NULL, 100, &cfg, &g_fit_scratch, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_fit(g_m, 100, NULL, &g_fit_scratch, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_fit(g_m, 100, &cfg, &g_fit_scratch, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_ellipsoid_fit(g_m, 3, &cfg, &g_fit_scratch, &r));
     cfg.model = MAGCAL_ELLIPSOID_MODEL_QUADRIC9;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_ellipsoid_fit(g_m, 9, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_ellipsoid_fit(g_m, 9, &cfg, &g_fit_scratch, &r));
     cfg.max_refits = 99u;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &g_fit_scratch, &r));
     cfg.max_refits = 3u;
     cfg.min_coverage_full = 1.5f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &g_fit_scratch, &r));
     cfg.min_coverage_full = 0.45f;
     cfg.field = -1.0f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &g_fit_scratch, &r));
     cfg.field = 0.0f;
     cfg.model = (magcal_ellipsoid_model_t)7;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &g_fit_scratch, &r));
     cfg.model = MAGCAL_ELLIPSOID_MODEL_AUTO;
     g_m[50].y = NAN;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_ellipsoid_fit(g_m, 100, &cfg, &g_fit_scratch, &r));
     for (k = 0; k < 100; ++k) {
         g_m[k].x = 3.0f;
         g_m[k].y = -2.0f;
         g_m[k].z = 1.0f;
     }
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_DEGENERATE, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_DEGENERATE, magcal_ellipsoid_fit(g_m, 100, &cfg, &g_fit_scratch, &r));
 }
 
 /* Field magnitude errors of +-(15..40) % (7..19 uT on F = 48 uT) injected at every 20th index (30 of
@@ -429,7 +432,7 @@ static void test_ellipsoid_outliers_injected_indices_all_flagged(void)
     double s2 = 0.0;
     test_make_w_full(w);
     make_radial_outliers(w, 2718u);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_TRUE(r.gate_thr > 0.0f);
     memset(flag, 0xA5, sizeof(flag));
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_outliers(&r, g_m, NFIT, flag, &n_out));
@@ -472,7 +475,7 @@ static void test_ellipsoid_outliers_tangent_shifts_count_equals_n_rejected(void)
     for (k = 0; k < NFIT; k += 10) {
         g_m[k].x += 10.0f;
     }
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_outliers(&r, g_m, NFIT, flag, &n_out));
     TEST_ASSERT_EQUAL_UINT32((uint32_t)r.n_rejected, (uint32_t)n_out);
     for (k = 0; k < NFIT; k += 10) {
@@ -504,7 +507,7 @@ static void test_ellipsoid_outliers_borderline_errors_count_equals_n_rejected(vo
             g_m[k].y = (float)(V_TRUE[1] + f * (g_m[k].y - V_TRUE[1]));
             g_m[k].z = (float)(V_TRUE[2] + f * (g_m[k].z - V_TRUE[2]));
         }
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
         TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_outliers(&r, g_m, NFIT, flag, &n_out));
         TEST_ASSERT_EQUAL_UINT32((uint32_t)r.n_rejected, (uint32_t)n_out);
     }
@@ -519,7 +522,7 @@ static void test_ellipsoid_outliers_clean_data_all_zero(void)
     size_t k, n_out = 99u;
     test_make_w_full(w);
     make_set(w, NFIT, 180.0, 180.0, 0.05, 1234u);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_EQUAL_UINT32(0u, (uint32_t)r.n_rejected);
     memset(flag, 0xA5, sizeof(flag));
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_outliers(&r, g_m, NFIT, flag, &n_out));
@@ -534,7 +537,7 @@ static void test_ellipsoid_outliers_clean_data_all_zero(void)
     cfg.max_residual_rel = 0.0f;
     cfg.max_centre_std_rel = 0.0f;
     cfg.max_shape_std = 0.0f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_EQUAL_FLOAT(0.0f, r.gate_thr);
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_outliers(&r, g_m, NFIT, flag, &n_out));
     TEST_ASSERT_EQUAL_UINT32(0u, (uint32_t)n_out);
@@ -550,7 +553,7 @@ static void test_ellipsoid_outliers_bad_input_returns_status(void)
     size_t n_out = 77u;
     test_make_w_full(w);
     make_radial_outliers(w, 2718u);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
                           magcal_ellipsoid_outliers(NULL, g_m, NFIT, flag, &n_out));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_outliers(&r, NULL, NFIT, flag, &n_out));
@@ -620,31 +623,31 @@ static void test_ellipsoid_fit_field_band_returns_field_magnitude(void)
     const float f = (float)f_ref();
     make_w_sym(w);
     make_set(w, NFIT, 180.0, 180.0, 0.1, 4343u);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_FLOAT_WITHIN(0.02f * f, f, r.field_raw); /* det W = 1.052: raw radius 49.2 uT */
     cfg.field_expected = f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     cfg.field = 1000.0f; /* output in nT: G absorbs the scale, the raw radius is unchanged */
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_FLOAT_WITHIN(0.02f * f, f, r.field_raw);
     cfg.field_expected = 0.70f * f; /* raw 1.45 x expected: above the 1.4 band */
     memset(&r, 0xA5, sizeof(r));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_FIELD_MAGNITUDE, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_FIELD_MAGNITUDE, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_EQUAL_HEX8(0xA5, ((unsigned char *)&r)[0]);
     cfg.field_expected = 1.25f * f; /* raw 0.81 x expected: below 0.85 */
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_FIELD_MAGNITUDE, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_FIELD_MAGNITUDE, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     cfg.field_band_lo = 0.75f; /* a wider band admits it */
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     cfg.field_band_lo = 0.0f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     cfg.field_band_lo = 0.85f;
     cfg.field_band_hi = 0.9f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     cfg.field_band_hi = 1.4f;
     cfg.field_expected = -1.0f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     cfg.field_expected = NAN;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
 }
 
 static void test_ellipsoid_fit_at_rest_returns_no_motion(void)
@@ -665,7 +668,7 @@ static void test_ellipsoid_fit_at_rest_returns_no_motion(void)
     for (i = 0; i < 4; ++i) {
         cfg.model = models[i];
         memset(&r, 0xA5, sizeof(r));
-        TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NO_MOTION, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NO_MOTION, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
         TEST_ASSERT_EQUAL_HEX8(0xA5, ((unsigned char *)&r)[0]);
     }
     /* the diagnostic: every noise scale says ~2.5 sigma of spread */
@@ -674,7 +677,7 @@ static void test_ellipsoid_fit_at_rest_returns_no_motion(void)
     cfg.max_centre_std_rel = 0.0f;
     cfg.max_shape_std = 0.0f;
     cfg.max_residual_rel = 0.0f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_TRUE(r.motion_snr > 1.5f && r.motion_snr < 4.0f);
     TEST_ASSERT_TRUE(v_err(&r.cal) > 10.0); /* the answer it used to return as OK */
 }
@@ -688,13 +691,13 @@ static void test_ellipsoid_fit_sphere_on_soft_iron_returns_residual(void)
     magcal_ellipsoid_result_t r;
     make_set(w, NFIT, 180.0, 180.0, 0.05, 5353u);
     cfg.model = MAGCAL_ELLIPSOID_MODEL_SPHERE;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_RESIDUAL, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_RESIDUAL, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     cfg.max_residual_rel_sphere = 0.05f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_TRUE(r.residual_rms > 0.01f * r.cal.field && r.residual_rms < 0.02f * r.cal.field);
     cfg.model = MAGCAL_ELLIPSOID_MODEL_AUTO;
     cfg.max_residual_rel_sphere = 0.01f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ELLIPSOID_MODEL_QUADRIC9, r.model);
     TEST_ASSERT_TRUE(v_err(&r.cal) < 0.02);
     /* diagnostics of a good fit: observable, not planar, moving */
@@ -712,21 +715,21 @@ static void test_ellipsoid_fit_trust_cfg_out_of_range_returns_arg(void)
     make_w_sym(w);
     make_set(w, 100, 180.0, 180.0, 0.05, 3u);
     cfg.min_motion_snr = -1.0f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &g_fit_scratch, &r));
     cfg.min_motion_snr = 4.0f;
     cfg.max_centre_std_rel = NAN;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &g_fit_scratch, &r));
     cfg.max_centre_std_rel = 0.005f;
     cfg.max_shape_std = 2.0f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &g_fit_scratch, &r));
     cfg.max_shape_std = 0.008f;
     cfg.max_residual_rel = -0.1f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &g_fit_scratch, &r));
     cfg.max_residual_rel = 0.05f;
     cfg.max_residual_rel_sphere = 1.5f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &g_fit_scratch, &r));
     cfg.max_residual_rel_sphere = 0.01f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, 100, &cfg, &g_fit_scratch, &r));
 }
 
 /* ---- magcal_ellipsoid_calibrate (issue 14): pre-test -> density stage when needed -> fit ---- */
@@ -754,7 +757,7 @@ static void test_ellipsoid_calibrate_clean_data_skips_density_stage(void)
     size_t k;
     test_make_w_full(w);
     make_set(w, 320u, 180.0, 180.0, 0.3, 4242u);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, 320u, &cc.fit, &rf));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, 320u, &cc.fit, &g_fit_scratch, &rf));
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
                           magcal_ellipsoid_calibrate(&cc, g_m, 320u, g_cwork, sizeof g_cwork, g_cin, &r, &info));
     TEST_ASSERT_EQUAL_UINT32(0u, info.density_ran);
@@ -798,7 +801,7 @@ static void test_ellipsoid_calibrate_burst_runs_density_stage_as_composition(voi
             kept[nk++] = g_m[k];
         }
     }
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(kept, nk, &cc.fit, &rf));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(kept, nk, &cc.fit, &g_fit_scratch, &rf));
     assert_same_result(&rf, &r);
     TEST_ASSERT_TRUE(v_err(&r.cal) < 0.1);
     for (k = NFIT; k < NFIT + NOUT; ++k) {
@@ -864,7 +867,7 @@ static void assert_fit_ws_same(size_t n, const magcal_ellipsoid_cfg_t *base, int
         magcal_status_t sa, sb;
         cfg.model = models[i];
         memset(&b, 0x5A, sizeof b);
-        sa = magcal_ellipsoid_fit(g_m, n, &cfg, &a);
+        sa = magcal_ellipsoid_fit(g_m, n, &cfg, &g_fit_scratch, &a);
         sb = magcal_ellipsoid_fit_ws(g_m, n, &cfg, g_cwork, sizeof g_cwork, &b);
         TEST_ASSERT_EQUAL_INT(sa, sb);
         if (sa == MAGCAL_OK) {

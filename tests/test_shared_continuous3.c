@@ -27,6 +27,9 @@
 #include "test_csv.h"
 #include "unity.h"
 
+/* magcal_ellipsoid_fit's fixed scratch (the workspace-free fit: no per-sample storage) */
+static magcal_ellipsoid_fit_scratch_t g_fit_scratch;
+
 /* step() calls per row: a control loop at 4 x the sample rate (a sliced solve of ~300 samples is
  * ~100 steps at the default budget), as tests/test_shared_continuous.c */
 #define STEPS_PER_ROW 4u
@@ -94,7 +97,7 @@ static void batch_fit(size_t n, magcal_ellipsoid_cal_t *out)
     if (n <= BATCH_N) {
         TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_calibrate(&cfg, g_rows, n, g_bwork, sizeof g_bwork, NULL, &r, NULL));
     } else {
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_rows, n, &cfg.fit, &r));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_rows, n, &cfg.fit, &g_fit_scratch, &r));
     }
     *out = r.cal;
 }

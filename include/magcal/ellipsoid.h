@@ -164,6 +164,18 @@ typedef struct {
     float field_raw;      /**< fitted raw radius F / det(G)^(1/3), unit of the samples */
 } magcal_ellipsoid_result_t;
 
+/** Fixed part of MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN: the packed 10x10 normal matrix, the solver
+ *  matrix, the observability pass's 9x9 inverse and sums, the median histogram, the time-sliced
+ *  fit's state (magcal_ellipsoid_fit_step), 8-byte aligned
+ *  inside the 4-byte aligned workspace (static assert in src/ellipsoid.c). */
+#define MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES 3264u
+/** The fixed scratch of magcal_ellipsoid_fit (caller memory; contents private). */
+typedef union {
+    uint8_t bytes_[MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES];
+    uint64_t align_; /* the scratch holds pointers and size_t: 8-byte aligned */
+    void *ptr_;
+} magcal_ellipsoid_fit_scratch_t;
+
 /**
  * Time-sliced magcal_ellipsoid_fit_ws (the contract of docs/calibration_3d.md "Time-sliced fit"):
  * the fit's state lives in its workspace (the scratch of MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN);
@@ -179,18 +191,19 @@ typedef struct {
 /**
  * @brief Fit V and G to raw 3-D field samples.
  *
- * No workspace: the fit's scratch (MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES) lives on this function's
- * stack (3.1 KB worst case on the Cortex-M4F) and every pass recomputes the residuals. Firmware
- * calls magcal_ellipsoid_fit_ws (the same result bit for bit, <= 512 B of stack, half the
- * instructions); this one stays for hosts, tests and existing callers.
+ * A fixed scratch, no per-sample storage: `scratch` (MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES, caller
+ * memory: issue 13's 512 B of stack) holds the matrices and every pass recomputes the residuals.
+ * magcal_ellipsoid_fit_ws gives the same result bit for bit with half the instructions when the
+ * caller can also give 5 B per sample; both are begin + step(UINT32_MAX) of the sliced fit.
  *
  * @param[in]  m    n raw samples (body axes x right, y forward, z up; any unit).
  * @param[in]  n    number of samples (>= 4 for the sphere, >= 10 for the quadrics; the sphere needs
  *                  coverage anyway, so in practice use >= 50).
  * @param[in]  cfg  configuration (MAGCAL_ELLIPSOID_CFG_DEFAULT).
+ * @param[out] scratch the fit's scratch (caller memory, e.g. static; contents undefined after).
  * @param[out] out  result; written only on MAGCAL_OK.
  * @return MAGCAL_OK;
- *         MAGCAL_ERR_NULL (m, cfg or out NULL);
+ *         MAGCAL_ERR_NULL (m, cfg, scratch or out NULL);
  *         MAGCAL_ERR_ARG (config out of range);
  *         MAGCAL_ERR_NONFINITE (a sample is NaN/Inf);
  *         MAGCAL_ERR_TOO_FEW_POINTS (n below the model's minimum, also after outlier rejection);
@@ -212,22 +225,19 @@ typedef struct {
  *
  * @code
  * static magcal_vec3_t samples[600];            // filled by the application
+ * static magcal_ellipsoid_fit_scratch_t scratch;
  * const magcal_ellipsoid_cfg_t cfg = MAGCAL_ELLIPSOID_CFG_DEFAULT;
  * magcal_ellipsoid_result_t fit;
  * magcal_vec3_t h;
- * if (magcal_ellipsoid_fit(samples, 600u, &cfg, &fit) == MAGCAL_OK) {
+ * if (magcal_ellipsoid_fit(samples, 600u, &cfg, &scratch, &fit) == MAGCAL_OK) {
  *     (void)magcal_ellipsoid_apply(&fit.cal, &samples[0], &h);   // h = G (m - V)
  * }
  * @endcode
  */
 magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n, const magcal_ellipsoid_cfg_t *cfg,
+                                     magcal_ellipsoid_fit_scratch_t *scratch,
                                      magcal_ellipsoid_result_t *out);
 
-/** Fixed part of MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN: the packed 10x10 normal matrix, the solver
- *  matrix, the observability pass's 9x9 inverse and sums, the median histogram, the time-sliced
- *  fit's state (magcal_ellipsoid_fit_step), 8-byte aligned
- *  inside the 4-byte aligned workspace (static assert in src/ellipsoid.c). */
-#define MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES 3264u
 /** Workspace bytes of magcal_ellipsoid_fit_ws for n samples: the scratch + per sample its residual
  *  (4 B) and its outlier-gate verdict (1 B). */
 #define MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(n)                                                       \
