@@ -82,28 +82,30 @@ static void outer10_add(float *p, const float r[NQ])
 }
 
 /* Weights of the time-sliced fit: estimated Cortex-M4F instructions of one visit of each phase
- * (docs/calibration_3d.md "Time-sliced fit"; measured with the QEMU image, see tools/bench). */
-#define W_CHECK 300u        /* configuration check */
-#define W_N1 40u            /* mean: finiteness + 3 Kahan sums of one sample */
-#define W_N2 70u            /* scatter: 6 Kahan sums of one sample */
-#define W_NORM_DONE 2500u   /* scale, planarity (3x3 Jacobi) */
-#define W_ACC 230u          /* design row + 55 products of one sample, block flush amortised */
-#define W_SPHERE 1500u      /* 4x4 sphere solve, coverage centre */
-#define W_COV 90u           /* coverage cell of one sample */
-#define W_COV_DONE 300u     /* coverage count, model choice */
-#define W_SOLVE4 1500u      /* sphere model */
-#define W_SOLVE9 2500u      /* 9x9 normal equations, LDL^T */
-#define W_SOLVE10 25000u    /* 10-parameter inverse iteration (forced model only; not cut further) */
-#define W_EXTRACT 3000u     /* centre, k, Sylvester, 3x3 square root (Jacobi) */
-#define W_KEEP 4u           /* one verdict set */
-#define W_UNIT 100u         /* loop bookkeeping */
-#define W_REGATE 20u        /* stored residual against the new gate */
-#define W_REGATE_RECOMP 110u /* both gates' residuals recomputed (no workspace) */
+ * (docs/calibration_3d.md "Time-sliced fit"): measured per phase on QEMU mps2-an386 (-icount
+ * shift=0, tools/bench/m4f_image/main_cont3.c) on a 441-sample tumble at the default budget
+ * (a visit inside a chunked pass, loop and budget check included), rounded up. */
+#define W_CHECK 400u        /* configuration check */
+#define W_N1 110u            /* mean: finiteness + 3 Kahan sums of one sample */
+#define W_N2 120u            /* scatter: 6 Kahan sums of one sample */
+#define W_NORM_DONE 3300u   /* scale, planarity (3x3 Jacobi) */
+#define W_ACC 290u          /* design row + 55 products of one sample, block flush amortised */
+#define W_SPHERE 2400u      /* 4x4 sphere solve, coverage centre */
+#define W_COV 150u           /* coverage cell of one sample */
+#define W_COV_DONE 900u     /* coverage count, model choice */
+#define W_SOLVE4 2400u      /* sphere model */
+#define W_SOLVE9 7500u      /* 9x9 normal equations, LDL^T */
+#define W_SOLVE10 60000u    /* 10-parameter inverse iteration (forced model only; not cut further) */
+#define W_EXTRACT 4000u     /* centre, k, Sylvester, 3x3 square root (Jacobi) */
+#define W_KEEP 10u           /* one verdict set */
+#define W_UNIT 300u         /* loop bookkeeping */
+#define W_REGATE 75u        /* stored residual against the new gate */
+#define W_REGATE_RECOMP 280u /* both gates' residuals recomputed (no workspace) */
 #define W_REGATE_ROW 600u   /* a sample whose verdict changes: design row + 55 Kahan sums */
-#define W_SETTLE 8u         /* one verdict settled */
-#define W_RP 40u            /* residual pass: one sample (residual stored) */
-#define W_RP_RECOMP 90u     /* residual pass: gate and residual recomputed */
-#define W_OUT 300u          /* the result written */
+#define W_SETTLE 15u         /* one verdict settled */
+#define W_RP 120u            /* residual pass: one sample (residual stored) */
+#define W_RP_RECOMP 220u     /* residual pass: gate and residual recomputed */
+#define W_OUT 400u          /* the result written */
 
 static void acc_start(ell_scratch_t *sw)
 {
@@ -119,17 +121,22 @@ static MAGCAL_NOINLINE int acc_range(ell_scratch_t *sw, ell_bud_t *b)
     ell_run_t *r = &sw->run;
     quad_acc_t *acc = &sw->acc;
     float *part = sw->part;
-    while (r->k < r->n && magcal_ell_can(b, W_ACC) != 0) {
+    const size_t k1 = r->k + magcal_ell_visits(b, W_ACC, r->n - r->k);
+    const magcal_vec3_t *m = r->m;
+    size_t in_block = r->in_block;
+    size_t k;
+    for (k = r->k; k < k1; ++k) {
         float row[NQ];
-        design_row(&r->m[r->k], sw->mu, r->inv_s, row);
+        design_row(&m[k], sw->mu, r->inv_s, row);
         outer10_add(part, row);
         acc->count++;
-        if (++r->in_block == MAGCAL_ELL_BLOCK) {
+        if (++in_block == MAGCAL_ELL_BLOCK) {
             magcal_ell_flush(acc->sum, acc->comp, part, MAGCAL_ELL_NPACK);
-            r->in_block = 0u;
+            in_block = 0u;
         }
-        r->k++;
     }
+    r->k = k1;
+    r->in_block = in_block;
     if (r->k < r->n) {
         return ELL_YIELD;
     }
@@ -152,6 +159,10 @@ static MAGCAL_NOINLINE int regate_range(ell_scratch_t *sw, ell_bud_t *b)
     const quad_gate_t *old_gate = &sw->gate;
     const quad_gate_t *new_gate = &sw->next;
     const uint32_t w = (ws->res != NULL) ? W_REGATE : W_REGATE_RECOMP;
+    const int bulk = (b->cost <= b->left &&
+                      (uint64_t)(r->n - r->k) * (w + W_REGATE_ROW) <= (uint64_t)(b->left - b->cost))
+                         ? 1
+                         : 0;
     size_t i;
     size_t j;
     while (r->k < r->n) {
@@ -168,8 +179,11 @@ static MAGCAL_NOINLINE int regate_range(ell_scratch_t *sw, ell_bud_t *b)
             was = magcal_ell_gate_keeps(old_gate, &r->m[k]);
             is = magcal_ell_gate_keeps(new_gate, &r->m[k]);
         }
-        /* charged with its row when the verdict changes (a refused visit is redone next step) */
-        if (magcal_ell_can(b, (was == is) ? w : (w + W_REGATE_ROW)) == 0) {
+        /* charged with its row when the verdict changes (a refused visit is redone next step);
+         * no check while the rest of the budget pays for every visit at its worst */
+        if (bulk != 0) {
+            b->cost += (was == is) ? w : (w + W_REGATE_ROW);
+        } else if (magcal_ell_can(b, (was == is) ? w : (w + W_REGATE_ROW)) == 0) {
             break;
         }
         r->k++;
@@ -207,10 +221,12 @@ static int settle_range(ell_scratch_t *sw, ell_bud_t *b)
     uint8_t *keep = r->ws.keep;
     if (keep != NULL) {
         const uint8_t bit = (r->adopt != 0u) ? (uint8_t)2u : (uint8_t)1u;
-        while (r->k < r->n && magcal_ell_can(b, W_SETTLE) != 0) {
-            keep[r->k] = ((keep[r->k] & bit) != 0u) ? (uint8_t)1u : (uint8_t)0u;
-            r->k++;
+        const size_t k1 = r->k + magcal_ell_visits(b, W_SETTLE, r->n - r->k);
+        size_t k;
+        for (k = r->k; k < k1; ++k) {
+            keep[k] = ((keep[k] & bit) != 0u) ? (uint8_t)1u : (uint8_t)0u;
         }
+        r->k = k1;
         if (r->k < r->n) {
             return ELL_YIELD;
         }
@@ -673,28 +689,41 @@ static MAGCAL_NOINLINE int rp_range(ell_run_t *r, ell_bud_t *b)
 {
     ell_rp_t *rp = &r->rp;
     const uint32_t w = (rp->ws.res != NULL) ? W_RP : W_RP_RECOMP;
-    while (r->k < r->n && magcal_ell_can(b, w) != 0) {
-        const size_t k = r->k;
+    const size_t k1 = r->k + magcal_ell_visits(b, w, r->n - r->k);
+    const magcal_vec3_t *m = r->m;
+    const magcal_ellipsoid_cal_t *cal = rp->cal;
+    float *res = rp->ws.res;
+    const uint8_t *keep = rp->ws.keep;
+    float sum = rp->sum;
+    float comp = rp->comp;
+    float mx = rp->mx;
+    size_t cnt = rp->cnt;
+    size_t k;
+    for (k = r->k; k < k1; ++k) {
         float rr;
-        r->k++;
-        if (rp->ws.res != NULL) {
-            rr = magcal_ell_residual(rp->cal, &r->m[k]);
-            rp->ws.res[k] = rr;
-            if ((rp->ws.keep[k] & 1u) == 0u) {
+        if (res != NULL) {
+            rr = magcal_ell_residual(cal, &m[k]);
+            res[k] = rr;
+            if ((keep[k] & 1u) == 0u) {
                 continue;
             }
         } else {
-            if (!magcal_ell_gate_keeps(rp->gate, &r->m[k])) {
+            if (!magcal_ell_gate_keeps(rp->gate, &m[k])) {
                 continue;
             }
-            rr = magcal_ell_residual(rp->cal, &r->m[k]);
+            rr = magcal_ell_residual(cal, &m[k]);
         }
-        magcal_kahan_add(&rp->sum, &rp->comp, rr * rr);
-        if (fabsf(rr) > rp->mx) {
-            rp->mx = fabsf(rr);
+        magcal_kahan_add(&sum, &comp, rr * rr);
+        if (fabsf(rr) > mx) {
+            mx = fabsf(rr);
         }
-        rp->cnt++;
+        cnt++;
     }
+    r->k = k1;
+    rp->sum = sum;
+    rp->comp = comp;
+    rp->mx = mx;
+    rp->cnt = cnt;
     if (r->k < r->n) {
         return ELL_YIELD;
     }
@@ -713,16 +742,29 @@ static MAGCAL_NOINLINE int n1_range(ell_scratch_t *sw, ell_bud_t *b)
     ell_run_t *r = &sw->run;
     float *mu = sw->mu;
     size_t k;
-    while (r->k < r->n && magcal_ell_can(b, W_N1) != 0) {
-        const magcal_vec3_t *p = &r->m[r->k];
+    const size_t k1 = r->k + magcal_ell_visits(b, W_N1, r->n - r->k);
+    float c0 = r->comp3[0];
+    float c1 = r->comp3[1];
+    float c2 = r->comp3[2];
+    float m0 = mu[0];
+    float m1 = mu[1];
+    float m2 = mu[2];
+    for (k = r->k; k < k1; ++k) {
+        const magcal_vec3_t *p = &r->m[k];
         if (!magcal_isfinite_f(p->x) || !magcal_isfinite_f(p->y) || !magcal_isfinite_f(p->z)) {
             return MAGCAL_ERR_NONFINITE;
         }
-        magcal_kahan_add(&mu[0], &r->comp3[0], p->x);
-        magcal_kahan_add(&mu[1], &r->comp3[1], p->y);
-        magcal_kahan_add(&mu[2], &r->comp3[2], p->z);
-        r->k++;
+        magcal_kahan_add(&m0, &c0, p->x);
+        magcal_kahan_add(&m1, &c1, p->y);
+        magcal_kahan_add(&m2, &c2, p->z);
     }
+    r->k = k1;
+    mu[0] = m0;
+    mu[1] = m1;
+    mu[2] = m2;
+    r->comp3[0] = c0;
+    r->comp3[1] = c1;
+    r->comp3[2] = c2;
     if (r->k < r->n) {
         return ELL_YIELD;
     }
@@ -741,8 +783,10 @@ static MAGCAL_NOINLINE int n2_range(ell_scratch_t *sw, ell_bud_t *b)
     const float *mu = sw->mu;
     float *sc = sw->acc.sum;
     float *scc = sw->acc.comp;
-    while (r->k < r->n && magcal_ell_can(b, W_N2) != 0) {
-        const magcal_vec3_t *p = &r->m[r->k];
+    const size_t k1 = r->k + magcal_ell_visits(b, W_N2, r->n - r->k);
+    size_t k;
+    for (k = r->k; k < k1; ++k) {
+        const magcal_vec3_t *p = &r->m[k];
         float dx = p->x - mu[0];
         float dy = p->y - mu[1];
         float dz = p->z - mu[2];
@@ -752,8 +796,8 @@ static MAGCAL_NOINLINE int n2_range(ell_scratch_t *sw, ell_bud_t *b)
         magcal_kahan_add(&sc[3], &scc[3], dz * dx);
         magcal_kahan_add(&sc[4], &scc[4], dz * dy);
         magcal_kahan_add(&sc[5], &scc[5], dz * dz);
-        r->k++;
     }
+    r->k = k1;
     if (r->k < r->n) {
         return ELL_YIELD;
     }
@@ -821,9 +865,7 @@ static MAGCAL_NOINLINE int cov_range(ell_scratch_t *sw, ell_bud_t *b)
 {
     ell_run_t *r = &sw->run;
     const size_t k0 = r->k;
-    while (r->k < r->n && magcal_ell_can(b, W_COV) != 0) {
-        r->k++;
-    }
+    r->k += magcal_ell_visits(b, W_COV, r->n - r->k);
     coverage_cells(r->m, k0, r->k, sw->cov_centre, 1e-6f * r->s, r->bits);
     if (r->k < r->n) {
         return ELL_YIELD;
@@ -914,10 +956,9 @@ static int keep1_range(ell_scratch_t *sw, ell_bud_t *b)
 {
     ell_run_t *r = &sw->run;
     if (r->ws.keep != NULL) {
-        while (r->k < r->n && magcal_ell_can(b, W_KEEP) != 0) {
-            r->ws.keep[r->k] = 1u;
-            r->k++;
-        }
+        const size_t v = magcal_ell_visits(b, W_KEEP, r->n - r->k);
+        (void)memset(&r->ws.keep[r->k], 1, v);
+        r->k += v;
         if (r->k < r->n) {
             return ELL_YIELD;
         }

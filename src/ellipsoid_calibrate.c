@@ -18,9 +18,9 @@
 
 /* Weights (estimated Cortex-M4F instructions per visit, as src/ellipsoid.c). */
 #define CW_UNIT 300u     /* a decision, a result copy */
-#define CW_MAXRES 10u    /* one stored residual of the pre-test */
-#define CW_INLIER 3u     /* one inlier flag */
-#define CW_COPY 25u      /* one density verdict, one copy */
+#define CW_MAXRES 22u    /* one stored residual of the pre-test */
+#define CW_INLIER 6u     /* one inlier flag */
+#define CW_COPY 40u      /* one density verdict, one copy */
 #define CW_DENSITY 1000000u /* the density stage: one call, not sliced (runs alone in its step) */
 
 enum { CAL_PH_PRE = 0, CAL_PH_PRE_STEP, CAL_PH_MAXRES, CAL_PH_DECIDE, CAL_PH_INLIER, CAL_PH_DENSITY,
@@ -37,6 +37,21 @@ static int cal_can(uint32_t *used, uint32_t budget, uint32_t w)
         return 1;
     }
     return 0;
+}
+
+/* Visits of weight w the rest of the budget pays for (at least one on a step's first, at most
+ * left_n), charged at once. */
+static size_t cal_visits(uint32_t *used, uint32_t budget, uint32_t w, size_t left_n)
+{
+    size_t v = (*used < budget) ? (size_t)((budget - *used) / w) : 0u;
+    if (v == 0u && *used == 0u) {
+        v = 1u;
+    }
+    if (v > left_n) {
+        v = left_n;
+    }
+    *used += (uint32_t)v * w;
+    return v;
 }
 
 /* The rest of the workspace behind the slots: the pre-test fit's workspace; later the inlier
@@ -121,13 +136,17 @@ static MAGCAL_NOINLINE int cal_phase(magcal_ellipsoid_calibrate_slice_t *s, uint
         /* largest | |G(m - V)| - F | over all samples: read from the residuals the fit left in
          * its workspace (every sample's, under the returned calibration) */
         const float *res = (const float *)(const void *)(cal_rest(s) + MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES);
-        while (s->k_ < n && cal_can(used, budget, CW_MAXRES) != 0) {
-            const float r = fabsf(res[s->k_]);
-            if (!(r <= s->mx_)) {
-                s->mx_ = r;
+        const size_t k1 = s->k_ + cal_visits(used, budget, CW_MAXRES, n - s->k_);
+        float mx = s->mx_;
+        size_t k;
+        for (k = s->k_; k < k1; ++k) {
+            const float r = fabsf(res[k]);
+            if (!(r <= mx)) {
+                mx = r;
             }
-            s->k_++;
         }
+        s->k_ = k1;
+        s->mx_ = mx;
         if (s->k_ < n) {
             return CAL_YIELD;
         }
@@ -175,10 +194,9 @@ static MAGCAL_NOINLINE int cal_phase(magcal_ellipsoid_calibrate_slice_t *s, uint
     }
     default: /* CAL_PH_INLIER */
         if (s->inlier_ != NULL) {
-            while (s->k_ < n && cal_can(used, budget, CW_INLIER) != 0) {
-                s->inlier_[s->k_] = 1u;
-                s->k_++;
-            }
+            const size_t v = cal_visits(used, budget, CW_INLIER, n - s->k_);
+            (void)memset(&s->inlier_[s->k_], 1, v);
+            s->k_ += v;
             if (s->k_ < n) {
                 return CAL_YIELD;
             }

@@ -169,7 +169,7 @@ enum {
     ELL_PH_FINAL, ELL_PH_FINAL2, ELL_PH_OUT, ELL_PH_RP,
     /* src/ellipsoid_trust.c */
     ELL_PH_ASNR0, ELL_PH_ASNR, ELL_PH_ASNR_DONE, ELL_PH_TG0, ELL_PH_TG1, ELL_PH_INFO,
-    ELL_PH_INFO_DONE, ELL_PH_INV, ELL_PH_SWM, ELL_PH_SWP, ELL_PH_DIAG, ELL_PH_EXPL0,
+    ELL_PH_INFO_DONE, ELL_PH_INV, ELL_PH_INV_SUB, ELL_PH_SWM, ELL_PH_SWP, ELL_PH_DIAG, ELL_PH_EXPL0,
     ELL_PH_EXPL1, ELL_PH_MED, ELL_PH_MOT0, ELL_PH_MOT1, ELL_PH_MOT2, ELL_PH_DONE
 };
 #define ELL_PH_TRUST_FIRST ELL_PH_ASNR0
@@ -194,6 +194,21 @@ static inline int magcal_ell_can(ell_bud_t *b, uint32_t w)
         return 1;
     }
     return 0;
+}
+
+/* Visits of weight w the rest of the budget pays for (at least one on a step's first; at most
+ * `left_n`), charged at once: the pass then runs them without a per-visit check. */
+static inline size_t magcal_ell_visits(ell_bud_t *b, uint32_t w, size_t left_n)
+{
+    size_t v = (b->cost <= b->left) ? (size_t)((b->left - b->cost) / w) : 0u;
+    if (v == 0u && b->first != 0 && b->cost == 0u) {
+        v = 1u;
+    }
+    if (v > left_n) {
+        v = left_n;
+    }
+    b->cost += (uint32_t)v * w;
+    return v;
 }
 
 typedef struct { /* residual pass: RMS / count / max |r| under cal of the samples gate keeps */

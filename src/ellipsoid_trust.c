@@ -18,20 +18,22 @@
 #define PLANAR_MAX 0.15f /* planarity below this: one rotation axis dominates (SINGLE_AXIS) */
 #define INFO_MAX_N MAGCAL_ELL_INFO_N /* centre information: 3 offset + 6 symmetric shape parameters */
 
-/* Weights of the trust phases (estimated Cortex-M4F instructions per visit, as src/ellipsoid.c). */
-#define W_T_UNIT 200u       /* bookkeeping, a gate decision */
-#define W_T_SOLVE9 2500u    /* 9x9 LDL^T of the algebraic quadric */
-#define W_T_ASNR 45u        /* one algebraic residual */
+/* Weights of the trust phases (estimated Cortex-M4F instructions per visit, measured as those of
+ * src/ellipsoid.c). */
+#define W_T_UNIT 300u       /* bookkeeping, a gate decision */
+#define W_T_SOLVE9 7500u    /* 9x9 LDL^T of the algebraic quadric */
+#define W_T_ASNR 85u        /* one algebraic residual */
 #define W_T_MED_PASS 900u   /* histogram clear + bin search of one median pass */
-#define W_T_MED 25u         /* one sample into the histogram (|r| stored) */
-#define W_T_MED_RECOMP 80u  /* the same, gate and residual recomputed */
-#define W_T_INFO 260u       /* one sample's information row, 31 moment sums x 2 */
-#define W_T_INFO_RECOMP 330u
-#define W_T_INFO_DONE 900u  /* flush, moments expanded, direction scatter */
-#define W_T_INV 4000u       /* (J^T J)^-1: one 9x9 factorisation, 9 substitutions */
-#define W_T_SWM 1100u       /* one row k of the sandwich from the summed meat */
-#define W_T_SWP 400u        /* one sample of the exact second sandwich pass */
-#define W_T_DIAG 3500u      /* two 3x3 Jacobi eigen-decompositions, the gates */
+#define W_T_MED 60u         /* one sample into the histogram (|r| stored) */
+#define W_T_MED_RECOMP 190u  /* the same, gate and residual recomputed */
+#define W_T_INFO 440u       /* one sample's information row, 31 moment sums x 2 */
+#define W_T_INFO_RECOMP 530u
+#define W_T_INFO_DONE 1800u  /* flush, moments expanded, direction scatter */
+#define W_T_FACTOR 5000u    /* (J^T J)^-1: the 9x9 LDL^T factorisation */
+#define W_T_SUBST 1500u     /* one of its 9 substitutions (a column of the inverse) */
+#define W_T_SWM 2000u       /* one row k of the sandwich from the summed meat */
+#define W_T_SWP 600u        /* one sample of the exact second sandwich pass */
+#define W_T_DIAG 5500u      /* two 3x3 Jacobi eigen-decompositions, the gates */
 
 static float alg_residual(const resid_src_t *src, const magcal_vec3_t *m)
 {
@@ -124,18 +126,24 @@ static MAGCAL_NOINLINE int med_phase(ell_scratch_t *sw, ell_bud_t *b)
         md->in_pass = 1u;
         r->k = 0u;
     }
-    while (r->k < r->n && magcal_ell_can(b, w) != 0) {
-        const size_t k = r->k;
-        r->k++;
-        if (magcal_ell_kept(&md->ws, md->gate, r->m, k) != 0) {
-            const float a =
-                (md->ws.res != NULL) ? fabsf(md->ws.res[k]) : abs_residual(md->src, &r->m[k]);
-            if (a >= md->lo && a < md->hi) {
-                const float q = (a - md->lo) / md->width;
-                const size_t bin = (size_t)q;
-                cnt[(bin < MED_BINS) ? bin : (MED_BINS - 1u)]++;
+    {
+        const size_t k1 = r->k + magcal_ell_visits(b, w, r->n - r->k);
+        const ell_ws_t mws = md->ws;
+        const float lo = md->lo;
+        const float hi = md->hi;
+        const float width = md->width;
+        size_t k;
+        for (k = r->k; k < k1; ++k) {
+            if (magcal_ell_kept(&mws, md->gate, r->m, k) != 0) {
+                const float a = (mws.res != NULL) ? fabsf(mws.res[k]) : abs_residual(md->src, &r->m[k]);
+                if (a >= lo && a < hi) {
+                    const float q = (a - lo) / width;
+                    const size_t bin = (size_t)q;
+                    cnt[(bin < MED_BINS) ? bin : (MED_BINS - 1u)]++;
+                }
             }
         }
+        r->k = k1;
     }
     if (r->k < r->n) {
         return ELL_YIELD;
@@ -485,12 +493,12 @@ static MAGCAL_NOINLINE int info_range(ell_scratch_t *sw, ell_bud_t *b)
     const uint32_t w = (ws->res != NULL) ? W_T_INFO : W_T_INFO_RECOMP;
     size_t i;
     size_t j;
-    while (r->k < r->n && magcal_ell_can(b, w) != 0) {
-        const size_t k = r->k;
+    const size_t k1 = r->k + magcal_ell_visits(b, w, r->n - r->k);
+    size_t k;
+    for (k = r->k; k < k1; ++k) {
         float *h = sw->h3; /* per-sample vectors in the scratch: off the stack */
         float *row = sw->vec[0];
         float r2;
-        r->k++;
         if (magcal_ell_kept(ws, &sw->gate, r->m, k) == 0) {
             continue;
         }
@@ -524,6 +532,7 @@ static MAGCAL_NOINLINE int info_range(ell_scratch_t *sw, ell_bud_t *b)
             r->in_block = 0u;
         }
     }
+    r->k = k1;
     if (r->k < r->n) {
         return ELL_YIELD;
     }
@@ -565,31 +574,18 @@ static MAGCAL_NOINLINE int ph_info_done(ell_scratch_t *sw, ell_bud_t *b)
     return ELL_CONT;
 }
 
-/* (J^T J)^-1 into ws->s->inv: one factorisation, np substitutions; 0 when singular. */
-static MAGCAL_NOINLINE int info_inverse(const ell_ws_t *ws, size_t np)
+/* The factorisation of J^T J (into sw->mat) for its inverse; 0 when singular. */
+static MAGCAL_NOINLINE int info_factor(ell_scratch_t *sw, size_t np)
 {
-    float *a = ws->s->mat;
+    float *a = sw->mat;
     size_t i;
     size_t j;
-    size_t k;
     for (i = 0u; i < np; ++i) {
         for (j = 0u; j < np; ++j) {
-            a[i * np + j] = magcal_ell_acc_at(&ws->s->acc, i, j);
+            a[i * np + j] = magcal_ell_acc_at(&sw->acc, i, j);
         }
     }
-    if (magcal_ldlt_factor(a, np, 0.0f, NULL) != MAGCAL_OK) {
-        return 0;
-    }
-    for (k = 0u; k < np; ++k) {
-        float *b = ws->s->inv[k];
-        for (i = 0u; i < np; ++i) {
-            b[i] = (i == k) ? 1.0f : 0.0f;
-        }
-        if (magcal_ldlt_subst(a, b, np) != MAGCAL_OK) {
-            return 0;
-        }
-    }
-    return 1;
+    return (magcal_ldlt_factor(a, np, 0.0f, NULL) == MAGCAL_OK) ? 1 : 0;
 }
 
 /* The observability diagnostics from centre_info's matrices (relative to F). */
@@ -685,15 +681,22 @@ static MAGCAL_NOINLINE int ph_asnr0(ell_scratch_t *sw, ell_bud_t *b)
 static MAGCAL_NOINLINE int asnr_range(ell_scratch_t *sw, ell_bud_t *b)
 {
     ell_run_t *r = &sw->run;
-    while (r->k < r->n && magcal_ell_can(b, W_T_ASNR) != 0) {
-        const float rr = alg_residual(&r->src_alg, &r->m[r->k]);
-        if (r->ws.res != NULL) {
-            r->ws.res[r->k] = rr;
+    {
+        const size_t k1 = r->k + magcal_ell_visits(b, W_T_ASNR, r->n - r->k);
+        float *res = r->ws.res;
+        float mx = r->rmax;
+        size_t k;
+        for (k = r->k; k < k1; ++k) {
+            const float rr = alg_residual(&r->src_alg, &r->m[k]);
+            if (res != NULL) {
+                res[k] = rr;
+            }
+            if (fabsf(rr) > mx) { /* fmaxf(mx, |r|) without the libm call (NaN ignored alike) */
+                mx = fabsf(rr);
+            }
         }
-        if (fabsf(rr) > r->rmax) { /* fmaxf(mx, |r|) without the libm call (NaN ignored alike) */
-            r->rmax = fabsf(rr);
-        }
-        r->k++;
+        r->k = k1;
+        r->rmax = mx;
     }
     if (r->k < r->n) {
         return ELL_YIELD;
@@ -869,14 +872,35 @@ static magcal_status_t gates_verdict(const ell_run_t *r, const trust_diag_t *dg,
 static MAGCAL_NOINLINE int ph_centre(ell_scratch_t *sw, ell_bud_t *b)
 {
     ell_run_t *r = &sw->run;
-    if (r->ph == ELL_PH_INV) {
-        if (magcal_ell_can(b, W_T_INV) == 0) {
+    if (r->ph == ELL_PH_INV) { /* (J^T J)^-1: one factorisation, then np substitutions */
+        if (magcal_ell_can(b, W_T_FACTOR) == 0) {
             return ELL_YIELD;
         }
-        if (info_inverse(&r->ws, r->np) == 0) {
+        if (info_factor(sw, r->np) == 0) {
             r->stage = 1; /* J^T J singular: the scatter only */
             r->ph = ELL_PH_DIAG;
             return ELL_CONT;
+        }
+        r->k = 0u;
+        r->ph = ELL_PH_INV_SUB;
+        return ELL_CONT;
+    }
+    if (r->ph == ELL_PH_INV_SUB) {
+        while (r->k < r->np) {
+            float *col = sw->inv[r->k];
+            size_t i;
+            if (magcal_ell_can(b, W_T_SUBST) == 0) {
+                return ELL_YIELD;
+            }
+            for (i = 0u; i < r->np; ++i) {
+                col[i] = (i == r->k) ? 1.0f : 0.0f;
+            }
+            if (magcal_ldlt_subst(sw->mat, col, r->np) != MAGCAL_OK) {
+                r->stage = 1;
+                r->ph = ELL_PH_DIAG;
+                return ELL_CONT;
+            }
+            r->k++;
         }
         (void)memset(sw->cc, 0, 9u * sizeof(float));
         (void)memset(sw->sd, 0, INFO_MAX_N * sizeof(float));
@@ -940,6 +964,7 @@ int magcal_ell_trust_phase(ell_scratch_t *sw, ell_bud_t *b)
     case ELL_PH_INFO_DONE:
         return ph_info_done(sw, b);
     case ELL_PH_INV:
+    case ELL_PH_INV_SUB:
     case ELL_PH_SWM:
     case ELL_PH_DIAG:
         return ph_centre(sw, b);
