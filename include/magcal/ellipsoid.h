@@ -48,8 +48,10 @@
  * FIELD_MAGNITUDE -> wrong unit, wrong expected field, or iron next to the sensor.
  *
  * Units: any consistent raw unit for m; G maps raw units to the unit of `cfg.field` (e.g. LSB to uT).
- * All arithmetic is float32 with (blocked) Kahan-compensated sums; no workspace is needed (worst-case
- * stack 2480 B on Cortex-M4F -Os, 10-parameter path; tools/stack/budgets.txt).
+ * All arithmetic is float32 with (blocked) Kahan-compensated sums; the matrices live in a caller's
+ * fixed scratch (magcal_ellipsoid_fit) or workspace (magcal_ellipsoid_fit_ws), <= 512 B of stack
+ * (tools/stack/budgets.txt). Time-sliced: magcal_ellipsoid_fit_begin / magcal_ellipsoid_fit_step
+ * (docs/calibration_3d.md "Time-sliced fit"), of which both one-shot calls are begin + one step.
  *
  * The complete 3-D calibration, magcal_ellipsoid_calibrate(), adds the density stage (optics.h,
  * magcal_optics_filter3) only when a pre-test fit of all samples shows a gross outlier.
