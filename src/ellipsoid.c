@@ -27,6 +27,7 @@ MAGCAL_STATIC_ASSERT(COV_CELLS <= 96u, coverage_cells_fit_three_words);
 MAGCAL_STATIC_ASSERT(MAGCAL_ELLIPSOID_COV_AZ == 12u, azimuth_boundaries_are_30_degrees);
 /* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
 MAGCAL_STATIC_ASSERT(sizeof(ell_scratch_t) + (MAGCAL_ELL_ALIGN - 4u) <= MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES &&
+                         sizeof(magcal_ellipsoid_fit_scratch_t) >= sizeof(ell_scratch_t) &&
                          MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES % 4u == 0u,
                      fit_scratch_fits_its_macro);
 
@@ -80,18 +81,53 @@ static void outer10_add(float *p, const float r[NQ])
     p[50] += r9 * r5; p[51] += r9 * r6; p[52] += r9 * r7; p[53] += r9 * r8; p[54] += r9 * r9;
 }
 
-static MAGCAL_NOINLINE void accumulate(const magcal_vec3_t *m, size_t n, const float mu[3],
-                                       float inv_s, ell_scratch_t *ws)
+/* Weights of the time-sliced fit: estimated Cortex-M4F instructions of one visit of each phase
+ * (docs/calibration_3d.md "Time-sliced fit"): measured per phase on QEMU mps2-an386 (-icount
+ * shift=0, tools/bench/m4f_image/main_cont3.c) on a 441-sample tumble at the default budget
+ * (a visit inside a chunked pass, loop and budget check included), rounded up. */
+#define W_CHECK 400u        /* configuration check */
+#define W_N1 110u            /* mean: finiteness + 3 Kahan sums of one sample */
+#define W_N2 120u            /* scatter: 6 Kahan sums of one sample */
+#define W_NORM_DONE 3300u   /* scale, planarity (3x3 Jacobi) */
+#define W_ACC 290u          /* design row + 55 products of one sample, block flush amortised */
+#define W_SPHERE 2400u      /* 4x4 sphere solve, coverage centre */
+#define W_COV 150u           /* coverage cell of one sample */
+#define W_COV_DONE 900u     /* coverage count, model choice */
+#define W_SOLVE4 2400u      /* sphere model */
+#define W_SOLVE9 7500u      /* 9x9 normal equations, LDL^T */
+#define W_SOLVE10 60000u    /* 10-parameter inverse iteration (forced model only; not cut further) */
+#define W_EXTRACT 4000u     /* centre, k, Sylvester, 3x3 square root (Jacobi) */
+#define W_KEEP 10u           /* one verdict set */
+#define W_UNIT 300u         /* loop bookkeeping */
+#define W_REGATE 75u        /* stored residual against the new gate */
+#define W_REGATE_RECOMP 280u /* both gates' residuals recomputed (no workspace) */
+#define W_REGATE_ROW 600u   /* a sample whose verdict changes: design row + 55 Kahan sums */
+#define W_SETTLE 15u         /* one verdict settled */
+#define W_RP 120u            /* residual pass: one sample (residual stored) */
+#define W_RP_RECOMP 220u     /* residual pass: gate and residual recomputed */
+#define W_OUT 400u          /* the result written */
+
+static void acc_start(ell_scratch_t *sw)
 {
-    quad_acc_t *acc = &ws->acc;
-    float *part = ws->part;
+    (void)memset(&sw->acc, 0, sizeof(sw->acc));
+    (void)memset(sw->part, 0, sizeof(sw->part));
+    sw->run.in_block = 0u;
+    sw->run.k = 0u;
+}
+
+/* Pass 3: the normal matrix of every sample (blocked Kahan sums, the block state in the run). */
+static MAGCAL_NOINLINE int acc_range(ell_scratch_t *sw, ell_bud_t *b)
+{
+    ell_run_t *r = &sw->run;
+    quad_acc_t *acc = &sw->acc;
+    float *part = sw->part;
+    const size_t k1 = r->k + magcal_ell_visits(b, W_ACC, r->n - r->k);
+    const magcal_vec3_t *m = r->m;
+    size_t in_block = r->in_block;
     size_t k;
-    size_t in_block = 0u;
-    (void)memset(acc, 0, sizeof(*acc));
-    (void)memset(part, 0, sizeof(ws->part));
-    for (k = 0u; k < n; ++k) {
+    for (k = r->k; k < k1; ++k) {
         float row[NQ];
-        design_row(&m[k], mu, inv_s, row);
+        design_row(&m[k], sw->mu, r->inv_s, row);
         outer10_add(part, row);
         acc->count++;
         if (++in_block == MAGCAL_ELL_BLOCK) {
@@ -99,49 +135,67 @@ static MAGCAL_NOINLINE void accumulate(const magcal_vec3_t *m, size_t n, const f
             in_block = 0u;
         }
     }
+    r->k = k1;
+    r->in_block = in_block;
+    if (r->k < r->n) {
+        return ELL_YIELD;
+    }
     magcal_ell_flush(acc->sum, acc->comp, part, MAGCAL_ELL_NPACK);
+    r->k = 0u;
+    r->ph = ELL_PH_SPHERE;
+    return ELL_CONT;
 }
 
 /*
- * Move the normal matrix `acc` (of the samples `old_gate` keeps) to the samples `new_gate` keeps:
- * only the samples whose verdict changes are added or removed (a refit after rejecting a few
- * outliers costs one residual pass, not a new accumulation). Returns the count `new_gate` keeps.
+ * Move the normal matrix `acc` (of the samples the gate keeps) to the samples the next gate
+ * keeps: only the samples whose verdict changes are added or removed (a refit after rejecting a
+ * few outliers costs one residual pass, not a new accumulation); r->kept_new counts the kept.
  */
-static MAGCAL_NOINLINE size_t regate(const magcal_vec3_t *m, size_t n, const float mu[3],
-                                     float inv_s, const quad_gate_t *old_gate,
-                                     const quad_gate_t *new_gate, const ell_ws_t *ws)
+static MAGCAL_NOINLINE int regate_range(ell_scratch_t *sw, ell_bud_t *b)
 {
-    quad_acc_t *acc = &ws->s->acc;
-    size_t k;
+    ell_run_t *r = &sw->run;
+    const ell_ws_t *ws = &r->ws;
+    quad_acc_t *acc = &sw->acc;
+    const quad_gate_t *old_gate = &sw->gate;
+    const quad_gate_t *new_gate = &sw->next;
+    const uint32_t w = (ws->res != NULL) ? W_REGATE : W_REGATE_RECOMP;
+    const int bulk = (b->cost <= b->left &&
+                      (uint64_t)(r->n - r->k) * (w + W_REGATE_ROW) <= (uint64_t)(b->left - b->cost))
+                         ? 1
+                         : 0;
     size_t i;
     size_t j;
-    size_t kept = 0u;
-    for (k = 0u; k < n; ++k) {
+    while (r->k < r->n) {
+        const size_t k = r->k;
         int was;
         int is;
         float row[NQ];
         float sign;
         size_t p = 0u;
         if (ws->res != NULL) { /* stored: the very predicate gate_keeps evaluates */
-            was = 0;
-            is = 0;
-            if ((ws->keep[k] & 1u) != 0u) {
-                was = 1;
-            }
-            if (fabsf(ws->res[k]) < new_gate->thr) {
-                is = 1;
-                ws->keep[k] |= (uint8_t)2u; /* bit 1: the next gate's verdict */
-            }
+            was = ((ws->keep[k] & 1u) != 0u) ? 1 : 0;
+            is = (fabsf(ws->res[k]) < new_gate->thr) ? 1 : 0;
         } else {
-            was = magcal_ell_gate_keeps(old_gate, &m[k]);
-            is = magcal_ell_gate_keeps(new_gate, &m[k]);
+            was = magcal_ell_gate_keeps(old_gate, &r->m[k]);
+            is = magcal_ell_gate_keeps(new_gate, &r->m[k]);
         }
-        kept += (is != 0) ? 1u : 0u;
+        /* charged with its row when the verdict changes (a refused visit is redone next step);
+         * no check while the rest of the budget pays for every visit at its worst */
+        if (bulk != 0) {
+            b->cost += (was == is) ? w : (w + W_REGATE_ROW);
+        } else if (magcal_ell_can(b, (was == is) ? w : (w + W_REGATE_ROW)) == 0) {
+            break;
+        }
+        r->k++;
+        if (is != 0 && ws->res != NULL) {
+            ws->keep[k] |= (uint8_t)2u; /* bit 1: the next gate's verdict */
+        }
+        r->kept_new += (is != 0) ? 1u : 0u;
         if (was == is) {
             continue;
         }
         sign = (is != 0) ? 1.0f : -1.0f;
-        design_row(&m[k], mu, inv_s, row);
+        design_row(&r->m[k], sw->mu, r->inv_s, row);
         for (i = 0u; i < NQ; ++i) {
             for (j = 0u; j <= i; ++j) {
                 magcal_kahan_add(&acc->sum[p], &acc->comp[p], sign * row[i] * row[j]);
@@ -149,21 +203,37 @@ static MAGCAL_NOINLINE size_t regate(const magcal_vec3_t *m, size_t n, const flo
             }
         }
     }
-    acc->count = kept;
-    return kept;
+    if (r->k < r->n) {
+        return ELL_YIELD;
+    }
+    acc->count = r->kept_new;
+    r->adopt = ((r->n - r->kept_new) == r->prev_rejected) ? (uint8_t)0u : (uint8_t)1u;
+    r->k = 0u;
+    r->ph = ELL_PH_SETTLE;
+    return ELL_CONT;
 }
 
-/* After regate: the stored verdicts become the next gate's (adopt != 0) or stay the old one's. */
-static void regate_settle(const ell_ws_t *ws, size_t n, int adopt)
+/* After regate: the stored verdicts become the next gate's (adopt) or stay the old one's; then
+ * the loop ends (the gate did not change) or the model is fitted again. */
+static int settle_range(ell_scratch_t *sw, ell_bud_t *b)
 {
-    size_t k;
-    if (ws->keep == NULL) {
-        return;
+    ell_run_t *r = &sw->run;
+    uint8_t *keep = r->ws.keep;
+    if (keep != NULL) {
+        const uint8_t bit = (r->adopt != 0u) ? (uint8_t)2u : (uint8_t)1u;
+        const size_t k1 = r->k + magcal_ell_visits(b, W_SETTLE, r->n - r->k);
+        size_t k;
+        for (k = r->k; k < k1; ++k) {
+            keep[k] = ((keep[k] & bit) != 0u) ? (uint8_t)1u : (uint8_t)0u;
+        }
+        r->k = k1;
+        if (r->k < r->n) {
+            return ELL_YIELD;
+        }
     }
-    for (k = 0u; k < n; ++k) {
-        const uint8_t bit = (adopt != 0) ? (uint8_t)2u : (uint8_t)1u;
-        ws->keep[k] = ((ws->keep[k] & bit) != 0u) ? (uint8_t)1u : (uint8_t)0u;
-    }
+    r->k = 0u;
+    r->ph = (r->adopt != 0u) ? ELL_PH_REFIT : ELL_PH_FINAL; /* unchanged: rms and kept final */
+    return ELL_CONT;
 }
 
 /* G with G^T G = q (q is destroyed; g must not alias q; e, w: scratch of the Jacobi). */
@@ -475,33 +545,6 @@ static MAGCAL_NOINLINE magcal_status_t solve_sphere(const quad_acc_t *acc, float
     return MAGCAL_OK;
 }
 
-static MAGCAL_NOINLINE magcal_status_t fit_model(ell_scratch_t *ws, magcal_ellipsoid_model_t model,
-                                 const float mu[3], float s, const magcal_ellipsoid_cfg_t *cfg,
-                                 magcal_ellipsoid_cal_t *cal, float *min_pivot)
-{
-    const quad_acc_t *acc = &ws->acc;
-    float *coef = ws->coef;
-    magcal_status_t st;
-    if (model == MAGCAL_ELLIPSOID_MODEL_SPHERE) {
-        if (acc->count < MIN_SPHERE_POINTS) {
-            return MAGCAL_ERR_TOO_FEW_POINTS;
-        }
-        return solve_sphere(acc, ws->mat, mu, s, cfg->field, cfg->pivot_tau, cal, min_pivot);
-    }
-    if (acc->count < MIN_QUADRIC_POINTS) {
-        return MAGCAL_ERR_TOO_FEW_POINTS;
-    }
-    if (model == MAGCAL_ELLIPSOID_MODEL_QUADRIC10) {
-        st = solve_quadric10(acc, ws->mat, cfg->pivot_tau, coef, min_pivot);
-    } else {
-        st = solve_quadric9(acc, ws->mat, cfg->pivot_tau, coef, min_pivot);
-    }
-    if (st != MAGCAL_OK) {
-        return st;
-    }
-    return extract_quadric(ws, mu, s, cfg->field, cfg->sqrt_method, cal);
-}
-
 static int cell_of(float x, float y, float z, size_t *cell)
 {
     /* tan-free sector boundaries of the azimuth cells: cos / sin of 30, 60, 90, 120, 150 degrees */
@@ -543,13 +586,12 @@ static int cell_of(float x, float y, float z, size_t *cell)
     return 1;
 }
 
-static float coverage_of(const magcal_vec3_t *m, size_t n, const float c[3], float tiny)
+/* The coverage cells of samples k0..k1-1 around c into bits (samples within tiny of c skipped). */
+static void coverage_cells(const magcal_vec3_t *m, size_t k0, size_t k1, const float c[3], float tiny,
+                           uint32_t bits[3])
 {
-    uint32_t bits[3] = {0u, 0u, 0u};
-    const size_t cells = COV_CELLS;
     size_t k;
-    size_t filled = 0u;
-    for (k = 0u; k < n; ++k) {
+    for (k = k0; k < k1; ++k) {
         size_t cell;
         float x = m[k].x - c[0];
         float y = m[k].y - c[1];
@@ -561,12 +603,26 @@ static float coverage_of(const magcal_vec3_t *m, size_t n, const float c[3], flo
             bits[cell / 32u] |= (uint32_t)1u << (cell % 32u);
         }
     }
+}
+
+static float coverage_count(const uint32_t bits[3])
+{
+    const size_t cells = COV_CELLS;
+    size_t k;
+    size_t filled = 0u;
     for (k = 0u; k < cells; ++k) {
         if (((bits[k / 32u] >> (k % 32u)) & 1u) != 0u) {
             filled++;
         }
     }
     return (float)filled / (float)cells;
+}
+
+static float coverage_of(const magcal_vec3_t *m, size_t n, const float c[3], float tiny)
+{
+    uint32_t bits[3] = {0u, 0u, 0u};
+    coverage_cells(m, 0u, n, c, tiny, bits);
+    return coverage_count(bits);
 }
 
 static magcal_status_t ellipsoid_check_cfg(const magcal_ellipsoid_cfg_t *cfg)
@@ -610,76 +666,130 @@ static magcal_status_t ellipsoid_check_cfg(const magcal_ellipsoid_cfg_t *cfg)
     return MAGCAL_OK;
 }
 
-/* RMS of the residuals under `cal` of the samples kept by `gate`; their count and max |r|.
- * With ws->res: every sample's residual is stored there (regate reads the rejected ones too). */
-float magcal_ell_residual_pass(const magcal_vec3_t *m, size_t n, const magcal_ellipsoid_cal_t *cal,
-                               const quad_gate_t *gate, const ell_ws_t *ws, size_t *kept,
-                               float *max_abs)
+/* ---- the residual pass (sub-machine ELL_PH_RP) ---- */
+
+void magcal_ell_rp_start(ell_run_t *r, const magcal_ellipsoid_cal_t *cal, const quad_gate_t *gate,
+                         const ell_ws_t *ws, uint8_t ret)
 {
-    float sum = 0.0f;
-    float comp = 0.0f;
-    float mx = 0.0f;
+    r->rp.cal = cal;
+    r->rp.gate = gate;
+    r->rp.ws = *ws;
+    r->rp.sum = 0.0f;
+    r->rp.comp = 0.0f;
+    r->rp.mx = 0.0f;
+    r->rp.cnt = 0u;
+    r->rp.ret = ret;
+    r->k = 0u;
+    r->ph = ELL_PH_RP;
+}
+
+/* RMS of the residuals under rp.cal of the samples kept by rp.gate; their count and max |r|.
+ * With ws->res: every sample's residual is stored there (regate reads the rejected ones too). */
+static MAGCAL_NOINLINE int rp_range(ell_run_t *r, ell_bud_t *b)
+{
+    ell_rp_t *rp = &r->rp;
+    const uint32_t w = (rp->ws.res != NULL) ? W_RP : W_RP_RECOMP;
+    const size_t k1 = r->k + magcal_ell_visits(b, w, r->n - r->k);
+    const magcal_vec3_t *m = r->m;
+    const magcal_ellipsoid_cal_t *cal = rp->cal;
+    float *res = rp->ws.res;
+    const uint8_t *keep = rp->ws.keep;
+    float sum = rp->sum;
+    float comp = rp->comp;
+    float mx = rp->mx;
+    size_t cnt = rp->cnt;
     size_t k;
-    size_t cnt = 0u;
-    for (k = 0u; k < n; ++k) {
-        float r;
-        if (ws->res != NULL) {
-            r = magcal_ell_residual(cal, &m[k]);
-            ws->res[k] = r;
-            if ((ws->keep[k] & 1u) == 0u) {
+    for (k = r->k; k < k1; ++k) {
+        float rr;
+        if (res != NULL) {
+            rr = magcal_ell_residual(cal, &m[k]);
+            res[k] = rr;
+            if ((keep[k] & 1u) == 0u) {
                 continue;
             }
         } else {
-            if (!magcal_ell_gate_keeps(gate, &m[k])) {
+            if (!magcal_ell_gate_keeps(rp->gate, &m[k])) {
                 continue;
             }
-            r = magcal_ell_residual(cal, &m[k]);
+            rr = magcal_ell_residual(cal, &m[k]);
         }
-        magcal_kahan_add(&sum, &comp, r * r);
-        if (fabsf(r) > mx) {
-            mx = fabsf(r);
+        magcal_kahan_add(&sum, &comp, rr * rr);
+        if (fabsf(rr) > mx) {
+            mx = fabsf(rr);
         }
         cnt++;
     }
-    *kept = cnt;
-    if (max_abs != NULL) {
-        *max_abs = mx;
+    r->k = k1;
+    rp->sum = sum;
+    rp->comp = comp;
+    rp->mx = mx;
+    rp->cnt = cnt;
+    if (r->k < r->n) {
+        return ELL_YIELD;
     }
-    return (cnt > 0u) ? sqrtf(sum / (float)cnt) : 0.0f;
+    rp->kept = rp->cnt;
+    rp->rms = (rp->cnt > 0u) ? sqrtf(rp->sum / (float)rp->cnt) : 0.0f;
+    r->k = 0u;
+    r->ph = rp->ret;
+    return ELL_CONT;
 }
 
-/* Mean and scale s (RMS distance from the mean) of the samples; the scatter about the mean
- * (packed xx, yx, yy, zx, zy, zz) into sc (the accumulator's storage, which pass 3 clears). */
-static magcal_status_t normalise(const magcal_vec3_t *m, size_t n, quad_acc_t *acc, float mu[3],
-                                 float *s_out)
+/* ---- normalisation: mean and scale s (RMS distance from the mean); the scatter about the mean
+ *      (packed xx, yx, yy, zx, zy, zz) into acc->sum, which pass 3 clears ---- */
+
+static MAGCAL_NOINLINE int n1_range(ell_scratch_t *sw, ell_bud_t *b)
 {
-    float comp[3] = {0.0f, 0.0f, 0.0f};
-    float *sc = acc->sum;
-    float *scc = acc->comp;
-    float s;
+    ell_run_t *r = &sw->run;
+    float *mu = sw->mu;
     size_t k;
-    mu[0] = 0.0f;
-    mu[1] = 0.0f;
-    mu[2] = 0.0f;
-    /* Pass 1: mean (Kahan). */
-    for (k = 0u; k < n; ++k) {
-        if (!magcal_isfinite_f(m[k].x) || !magcal_isfinite_f(m[k].y) ||
-            !magcal_isfinite_f(m[k].z)) {
+    const size_t k1 = r->k + magcal_ell_visits(b, W_N1, r->n - r->k);
+    float c0 = r->comp3[0];
+    float c1 = r->comp3[1];
+    float c2 = r->comp3[2];
+    float m0 = mu[0];
+    float m1 = mu[1];
+    float m2 = mu[2];
+    for (k = r->k; k < k1; ++k) {
+        const magcal_vec3_t *p = &r->m[k];
+        if (!magcal_isfinite_f(p->x) || !magcal_isfinite_f(p->y) || !magcal_isfinite_f(p->z)) {
             return MAGCAL_ERR_NONFINITE;
         }
-        magcal_kahan_add(&mu[0], &comp[0], m[k].x);
-        magcal_kahan_add(&mu[1], &comp[1], m[k].y);
-        magcal_kahan_add(&mu[2], &comp[2], m[k].z);
+        magcal_kahan_add(&m0, &c0, p->x);
+        magcal_kahan_add(&m1, &c1, p->y);
+        magcal_kahan_add(&m2, &c2, p->z);
+    }
+    r->k = k1;
+    mu[0] = m0;
+    mu[1] = m1;
+    mu[2] = m2;
+    r->comp3[0] = c0;
+    r->comp3[1] = c1;
+    r->comp3[2] = c2;
+    if (r->k < r->n) {
+        return ELL_YIELD;
     }
     for (k = 0u; k < 3u; ++k) {
-        mu[k] /= (float)n;
+        mu[k] /= (float)r->n;
     }
-    /* Pass 2: scatter about the mean; its trace gives the scale. */
-    (void)memset(acc, 0, sizeof(*acc));
-    for (k = 0u; k < n; ++k) {
-        float dx = m[k].x - mu[0];
-        float dy = m[k].y - mu[1];
-        float dz = m[k].z - mu[2];
+    (void)memset(&sw->acc, 0, sizeof(sw->acc));
+    r->k = 0u;
+    r->ph = ELL_PH_N2;
+    return ELL_CONT;
+}
+
+static MAGCAL_NOINLINE int n2_range(ell_scratch_t *sw, ell_bud_t *b)
+{
+    ell_run_t *r = &sw->run;
+    const float *mu = sw->mu;
+    float *sc = sw->acc.sum;
+    float *scc = sw->acc.comp;
+    const size_t k1 = r->k + magcal_ell_visits(b, W_N2, r->n - r->k);
+    size_t k;
+    for (k = r->k; k < k1; ++k) {
+        const magcal_vec3_t *p = &r->m[k];
+        float dx = p->x - mu[0];
+        float dy = p->y - mu[1];
+        float dz = p->z - mu[2];
         magcal_kahan_add(&sc[0], &scc[0], dx * dx);
         magcal_kahan_add(&sc[1], &scc[1], dy * dx);
         magcal_kahan_add(&sc[2], &scc[2], dy * dy);
@@ -687,162 +797,278 @@ static magcal_status_t normalise(const magcal_vec3_t *m, size_t n, quad_acc_t *a
         magcal_kahan_add(&sc[4], &scc[4], dz * dy);
         magcal_kahan_add(&sc[5], &scc[5], dz * dz);
     }
-    s = sqrtf((sc[0] + sc[2] + sc[5]) / (float)n);
+    r->k = k1;
+    if (r->k < r->n) {
+        return ELL_YIELD;
+    }
+    r->k = 0u;
+    r->ph = ELL_PH_NORM_DONE;
+    return ELL_CONT;
+}
+
+/* The scale, the planarity of the raw scatter; pass 3 starts. */
+static MAGCAL_NOINLINE int ph_norm_done(ell_scratch_t *sw, ell_bud_t *b)
+{
+    ell_run_t *r = &sw->run;
+    const float *mu = sw->mu;
+    const float *sc = sw->acc.sum;
+    float s;
+    if (magcal_ell_can(b, W_NORM_DONE) == 0) {
+        return ELL_YIELD;
+    }
+    s = sqrtf((sc[0] + sc[2] + sc[5]) / (float)r->n);
     if (!(s > 1e-6f * (fabsf(mu[0]) + fabsf(mu[1]) + fabsf(mu[2]))) || !(s > 0.0f) ||
         !magcal_isfinite_f(s)) {
         return MAGCAL_ERR_DEGENERATE;
     }
-    *s_out = s;
-    return MAGCAL_OK;
+    r->s = s;
+    r->inv_s = 1.0f / s;
+    r->planarity = magcal_ell_planarity(sw->acc.sum, sw);
+    acc_start(sw);
+    r->ph = ELL_PH_ACC;
+    return ELL_CONT;
 }
 
-/* The fit itself (magcal_ellipsoid_fit, magcal_ellipsoid_fit_ws): scratch in ws->s, per-sample
- * residuals and verdicts in ws->res / ws->keep when stored (see ell_ws_t). */
-static magcal_status_t fit_core(const magcal_vec3_t *m, size_t n,
-                                const magcal_ellipsoid_cfg_t *cfg, const ell_ws_t *ws,
-                                magcal_ellipsoid_result_t *out)
+/* The sphere fit gives the provisional centre; then the algebraic quadric's noise scale. */
+static MAGCAL_NOINLINE int ph_sphere(ell_scratch_t *sw, ell_bud_t *b)
 {
-    ell_scratch_t *sw = ws->s;
-    magcal_ellipsoid_cal_t *cal = &sw->cal[0];
-    magcal_ellipsoid_cal_t *gate_cal = &sw->cal[1];
+    ell_run_t *r = &sw->run;
     magcal_ellipsoid_cal_t *sphere_cal = &sw->cal[2];
-    float *mu = sw->mu;
-    float s;
-    float inv_s;
     float *cov_centre = sw->cov_centre;
-    float coverage;
-    float min_pivot = 0.0f;
-    motion_ctx_t *mcp = &sw->mc;
-    float planarity;
-    size_t iter;
-    size_t kept = 0u;
-    size_t prev_rejected = 0u;
-    magcal_ellipsoid_model_t model;
-    trust_diag_t *dg = &sw->dg;
-    quad_gate_t *gate = &sw->gate;
     magcal_status_t st;
-    float rms = 0.0f;
-    float rmax;
-    int rms_valid = 0;
-
-    gate->cal = NULL; /* no gate yet */
-    gate->thr = 0.0f;
-    sw->src.cal = NULL;
-    sw->src.theta = NULL;
-    sw->src.mu = NULL;
-    sw->src.inv_s = 0.0f;
-    st = ellipsoid_check_cfg(cfg);
-    if (st != MAGCAL_OK) {
-        return st;
+    if (magcal_ell_can(b, W_SPHERE) == 0) {
+        return ELL_YIELD;
     }
-    if (n < ((cfg->model == MAGCAL_ELLIPSOID_MODEL_QUADRIC9 ||
-              cfg->model == MAGCAL_ELLIPSOID_MODEL_QUADRIC10)
-                 ? MIN_QUADRIC_POINTS
-                 : MIN_SPHERE_POINTS)) {
-        return MAGCAL_ERR_TOO_FEW_POINTS;
-    }
-    st = normalise(m, n, &sw->acc, mu, &s);
-    if (st != MAGCAL_OK) {
-        return st;
-    }
-    inv_s = 1.0f / s;
-    planarity = magcal_ell_planarity(sw->acc.sum, sw);
-
-    /* Pass 3: the normal matrix of every sample; sphere fit gives the provisional centre, the
-     * quadric's algebraic residual a noise scale that needs neither centre nor model. */
-    accumulate(m, n, mu, inv_s, sw);
-    model = cfg->model;
-    cov_centre[0] = mu[0];
-    cov_centre[1] = mu[1];
-    cov_centre[2] = mu[2];
-    st = solve_sphere(&sw->acc, sw->mat, mu, s, cfg->field, cfg->pivot_tau, sphere_cal, &min_pivot);
+    r->model = r->cfg->model;
+    cov_centre[0] = sw->mu[0];
+    cov_centre[1] = sw->mu[1];
+    cov_centre[2] = sw->mu[2];
+    st = solve_sphere(&sw->acc, sw->mat, sw->mu, r->s, r->cfg->field, r->cfg->pivot_tau, sphere_cal,
+                      &r->min_pivot);
     if (st == MAGCAL_OK) {
         cov_centre[0] = sphere_cal->v.x;
         cov_centre[1] = sphere_cal->v.y;
         cov_centre[2] = sphere_cal->v.z;
     }
-    mcp->m = m;
-    mcp->n = n;
-    mcp->s = s;
-    mcp->sphere = (st == MAGCAL_OK) ? sphere_cal : NULL;
-    mcp->snr_alg = magcal_ell_algebraic_snr(m, n, mu, inv_s, ws);
-    coverage = coverage_of(m, n, cov_centre, 1e-6f * s);
-    if (model == MAGCAL_ELLIPSOID_MODEL_AUTO) {
-        if (coverage < cfg->min_coverage_sphere) {
-            return magcal_ell_explain_failure(MAGCAL_ERR_COVERAGE, mcp, planarity, cfg, ws);
-        }
-        model = (coverage >= cfg->min_coverage_full && n >= MIN_QUADRIC_POINTS)
-                    ? MAGCAL_ELLIPSOID_MODEL_QUADRIC9
-                    : MAGCAL_ELLIPSOID_MODEL_SPHERE;
-    }
-    st = fit_model(sw, model, mu, s, cfg, cal, &min_pivot);
-    if (st != MAGCAL_OK) {
-        return magcal_ell_explain_failure(st, mcp, planarity, cfg, ws);
-    }
-    if (ws->keep != NULL) {
-        (void)memset(ws->keep, 1, n); /* no gate yet: every sample kept */
-    }
+    sw->mc.m = r->m;
+    sw->mc.n = r->n;
+    sw->mc.s = r->s;
+    sw->mc.sphere = (st == MAGCAL_OK) ? sphere_cal : NULL;
+    r->bits[0] = 0u;
+    r->bits[1] = 0u;
+    r->bits[2] = 0u;
+    r->ph = ELL_PH_ASNR0; /* -> mc.snr_alg, then ELL_PH_COV */
+    return ELL_CONT;
+}
 
-    /* Outlier rejection: robust residual gate + refit (the samples are read again; with a
-     * workspace their residuals are stored, not recomputed). The scale is 1.4826 x median |r| of
-     * the kept samples, not their RMS: a dense burst pulls the first fit towards itself and
-     * inflates the RMS enough to hide (issue 12). */
-    for (iter = 0u; iter < cfg->max_refits && cfg->outlier_k > 0.0f; ++iter) {
-        size_t rejected;
-        size_t kept_new;
-        quad_gate_t *next = &sw->next;
-        resid_src_t *src = &sw->src;
-        rms = magcal_ell_residual_pass(m, n, cal, gate, ws, &kept, &rmax);
-        rms_valid = 1;
-        next->cal = cal;
-        src->cal = cal;
-        next->thr = cfg->outlier_k * MAGCAL_ELL_MAD_TO_SIGMA *
-                   magcal_ell_median_abs(m, n, src, gate, ws, kept, rmax);
-        if (next->thr < cfg->outlier_floor_rel * cal->field) {
-            next->thr = cfg->outlier_floor_rel * cal->field;
+static MAGCAL_NOINLINE int cov_range(ell_scratch_t *sw, ell_bud_t *b)
+{
+    ell_run_t *r = &sw->run;
+    const size_t k0 = r->k;
+    r->k += magcal_ell_visits(b, W_COV, r->n - r->k);
+    coverage_cells(r->m, k0, r->k, sw->cov_centre, 1e-6f * r->s, r->bits);
+    if (r->k < r->n) {
+        return ELL_YIELD;
+    }
+    r->k = 0u;
+    r->ph = ELL_PH_COV_DONE;
+    return ELL_CONT;
+}
+
+static int ph_cov_done(ell_scratch_t *sw, ell_bud_t *b)
+{
+    ell_run_t *r = &sw->run;
+    const magcal_ellipsoid_cfg_t *cfg = r->cfg;
+    if (magcal_ell_can(b, W_COV_DONE) == 0) {
+        return ELL_YIELD;
+    }
+    r->coverage = coverage_count(r->bits);
+    if (r->model == MAGCAL_ELLIPSOID_MODEL_AUTO) {
+        if (r->coverage < cfg->min_coverage_sphere) {
+            magcal_ell_explain_start(r, MAGCAL_ERR_COVERAGE);
+            return ELL_CONT;
+        }
+        r->model = (r->coverage >= cfg->min_coverage_full && r->n >= MIN_QUADRIC_POINTS)
+                       ? MAGCAL_ELLIPSOID_MODEL_QUADRIC9
+                       : MAGCAL_ELLIPSOID_MODEL_SPHERE;
+    }
+    r->fit_ret = ELL_PH_KEEP1;
+    r->ph = ELL_PH_FIT_SOLVE;
+    return ELL_CONT;
+}
+
+/* The model's solve from the normal matrix (the sphere is complete here), then r->fit_ret. */
+static MAGCAL_NOINLINE int ph_fit_solve(ell_scratch_t *sw, ell_bud_t *b)
+{
+    ell_run_t *r = &sw->run;
+    const magcal_ellipsoid_cfg_t *cfg = r->cfg;
+    const quad_acc_t *acc = &sw->acc;
+    magcal_status_t st;
+    uint32_t w = W_SOLVE9;
+    if (r->model == MAGCAL_ELLIPSOID_MODEL_SPHERE) {
+        w = W_SOLVE4;
+    } else if (r->model == MAGCAL_ELLIPSOID_MODEL_QUADRIC10) {
+        w = W_SOLVE10;
+    } else {
+        /* the 9-parameter quadric */
+    }
+    if (magcal_ell_can(b, w) == 0) {
+        return ELL_YIELD;
+    }
+    if (r->model == MAGCAL_ELLIPSOID_MODEL_SPHERE) {
+        st = (acc->count < MIN_SPHERE_POINTS)
+                 ? MAGCAL_ERR_TOO_FEW_POINTS
+                 : solve_sphere(acc, sw->mat, sw->mu, r->s, cfg->field, cfg->pivot_tau, &sw->cal[0],
+                                &r->min_pivot);
+        r->ph = r->fit_ret;
+    } else if (acc->count < MIN_QUADRIC_POINTS) {
+        st = MAGCAL_ERR_TOO_FEW_POINTS;
+    } else if (r->model == MAGCAL_ELLIPSOID_MODEL_QUADRIC10) {
+        st = solve_quadric10(acc, sw->mat, cfg->pivot_tau, sw->coef, &r->min_pivot);
+        r->ph = ELL_PH_FIT_EXTRACT;
+    } else {
+        st = solve_quadric9(acc, sw->mat, cfg->pivot_tau, sw->coef, &r->min_pivot);
+        r->ph = ELL_PH_FIT_EXTRACT;
+    }
+    if (st != MAGCAL_OK) {
+        magcal_ell_explain_start(r, st);
+    }
+    return ELL_CONT;
+}
+
+static MAGCAL_NOINLINE int ph_fit_extract(ell_scratch_t *sw, ell_bud_t *b)
+{
+    ell_run_t *r = &sw->run;
+    magcal_status_t st;
+    if (magcal_ell_can(b, W_EXTRACT) == 0) {
+        return ELL_YIELD;
+    }
+    st = extract_quadric(sw, sw->mu, r->s, r->cfg->field, r->cfg->sqrt_method, &sw->cal[0]);
+    r->ph = r->fit_ret;
+    if (st != MAGCAL_OK) {
+        magcal_ell_explain_start(r, st);
+    }
+    return ELL_CONT;
+}
+
+/* No gate yet: every sample kept (the stored verdicts). */
+static int keep1_range(ell_scratch_t *sw, ell_bud_t *b)
+{
+    ell_run_t *r = &sw->run;
+    if (r->ws.keep != NULL) {
+        const size_t v = magcal_ell_visits(b, W_KEEP, r->n - r->k);
+        (void)memset(&r->ws.keep[r->k], 1, v);
+        r->k += v;
+        if (r->k < r->n) {
+            return ELL_YIELD;
+        }
+    }
+    r->k = 0u;
+    r->iter = 0u;
+    r->prev_rejected = 0u;
+    r->rms_valid = 0u;
+    r->ph = ELL_PH_LOOP;
+    return ELL_CONT;
+}
+
+/*
+ * Outlier rejection: robust residual gate + refit (the samples are read again; with a workspace
+ * their residuals are stored, not recomputed). The scale is 1.4826 x median |r| of the kept
+ * samples, not their RMS: a dense burst pulls the first fit towards itself and inflates the RMS
+ * enough to hide (issue 12). One round: residual pass, median, threshold, regate, settle, refit.
+ */
+static MAGCAL_NOINLINE int ph_loop_unit(ell_scratch_t *sw, ell_bud_t *b)
+{
+    ell_run_t *r = &sw->run;
+    const magcal_ellipsoid_cfg_t *cfg = r->cfg;
+    magcal_ellipsoid_cal_t *cal = &sw->cal[0];
+    if (magcal_ell_can(b, W_UNIT) == 0) {
+        return ELL_YIELD;
+    }
+    switch (r->ph) {
+    case ELL_PH_LOOP:
+        if (r->iter < cfg->max_refits && cfg->outlier_k > 0.0f) {
+            magcal_ell_rp_start(r, cal, &sw->gate, &r->ws, ELL_PH_LOOP_MED);
+        } else {
+            r->ph = ELL_PH_FINAL;
+        }
+        break;
+    case ELL_PH_LOOP_MED:
+        r->rms = r->rp.rms;
+        r->kept = r->rp.kept;
+        r->rmax = r->rp.mx;
+        r->rms_valid = 1u;
+        sw->next.cal = cal;
+        sw->src.cal = cal;
+        magcal_ell_med_start(r, &sw->src, &sw->gate, &r->ws, r->kept, r->rmax, ELL_PH_THR);
+        break;
+    case ELL_PH_THR:
+        sw->next.thr = cfg->outlier_k * MAGCAL_ELL_MAD_TO_SIGMA * r->med.result;
+        if (sw->next.thr < cfg->outlier_floor_rel * cal->field) {
+            sw->next.thr = cfg->outlier_floor_rel * cal->field;
         }
         /* the count under the new gate; acc follows it (unused when the loop ends here) */
-        kept_new = regate(m, n, mu, inv_s, gate, next, ws);
-        rejected = n - kept_new;
-        if (rejected == prev_rejected) {
-            regate_settle(ws, n, 0);
-            break; /* cal and gate unchanged: rms and kept of this pass are final */
+        r->kept_new = 0u;
+        r->k = 0u;
+        r->ph = ELL_PH_REGATE;
+        break;
+    case ELL_PH_REFIT:
+        if ((float)(r->n - r->kept_new) > cfg->max_reject_frac * (float)r->n) {
+            magcal_ell_explain_start(r, MAGCAL_ERR_TOO_MANY_OUTLIERS);
+            break;
         }
-        regate_settle(ws, n, 1);
-        if ((float)rejected > cfg->max_reject_frac * (float)n) {
-            return magcal_ell_explain_failure(MAGCAL_ERR_TOO_MANY_OUTLIERS, mcp, planarity, cfg,
-                                              ws);
+        r->rms_valid = 0u;
+        sw->cal[1] = *cal;
+        sw->gate.cal = &sw->cal[1];
+        sw->gate.thr = sw->next.thr;
+        r->fit_ret = ELL_PH_LOOP_NEXT;
+        r->ph = ELL_PH_FIT_SOLVE;
+        break;
+    case ELL_PH_LOOP_NEXT:
+        r->prev_rejected = r->n - r->kept_new;
+        r->iter++;
+        r->ph = ELL_PH_LOOP;
+        break;
+    case ELL_PH_FINAL:
+        if (r->rms_valid == 0u) {
+            magcal_ell_rp_start(r, cal, &sw->gate, &r->ws, ELL_PH_FINAL2);
+        } else {
+            r->ph = ELL_PH_FINAL2;
         }
-        rms_valid = 0;
-        *gate_cal = *cal;
-        gate->cal = gate_cal;
-        gate->thr = next->thr;
-        st = fit_model(sw, model, mu, s, cfg, cal, &min_pivot);
-        if (st != MAGCAL_OK) {
-            return magcal_ell_explain_failure(st, mcp, planarity, cfg, ws);
+        break;
+    default: /* ELL_PH_FINAL2 */
+        if (r->rms_valid == 0u) {
+            r->rms = r->rp.rms;
+            r->kept = r->rp.kept;
         }
-        prev_rejected = rejected;
+        if (r->kept < ((r->model == MAGCAL_ELLIPSOID_MODEL_SPHERE) ? MIN_SPHERE_POINTS
+                                                                   : MIN_QUADRIC_POINTS)) {
+            return MAGCAL_ERR_TOO_FEW_POINTS;
+        }
+        r->ph = ELL_PH_TG0; /* the trust gates, then ELL_PH_OUT */
+        break;
     }
-    if (rms_valid == 0) {
-        rms = magcal_ell_residual_pass(m, n, cal, gate, ws, &kept, NULL);
+    return ELL_CONT;
+}
+
+static int ph_out(ell_scratch_t *sw, ell_bud_t *b)
+{
+    ell_run_t *r = &sw->run;
+    magcal_ellipsoid_result_t *out = r->out;
+    const trust_diag_t *dg = &sw->dg;
+    const quad_gate_t *gate = &sw->gate;
+    if (magcal_ell_can(b, W_OUT) == 0) {
+        return ELL_YIELD;
     }
-    if (kept <
-        ((model == MAGCAL_ELLIPSOID_MODEL_SPHERE) ? MIN_SPHERE_POINTS : MIN_QUADRIC_POINTS)) {
-        return MAGCAL_ERR_TOO_FEW_POINTS;
-    }
-    st = magcal_ell_trust_gates(m, n, cfg, cal, rms, model, gate, mcp, planarity, ws, dg);
-    if (st != MAGCAL_OK) {
-        return st;
-    }
-    out->cal = *cal;
-    out->residual_rms = rms;
-    out->coverage = coverage;
-    out->min_pivot = min_pivot;
-    out->n_used = kept;
-    out->n_rejected = n - kept;
-    out->model = model;
+    out->cal = sw->cal[0];
+    out->residual_rms = r->rms;
+    out->coverage = r->coverage;
+    out->min_pivot = r->min_pivot;
+    out->n_used = r->kept;
+    out->n_rejected = r->n - r->kept;
+    out->model = r->model;
     /* the final pass's gate, for magcal_ellipsoid_outliers (thr 0: no gate) */
-    out->gate_cal = (gate->cal != NULL) ? *gate_cal : *cal;
+    out->gate_cal = (gate->cal != NULL) ? sw->cal[1] : sw->cal[0];
     out->gate_thr = (gate->cal != NULL) ? gate->thr : 0.0f;
     out->motion_snr = dg->motion_snr;
     out->centre_std_rel = dg->centre_std_rel;
@@ -852,26 +1078,145 @@ static magcal_status_t fit_core(const magcal_vec3_t *m, size_t n,
     return MAGCAL_OK;
 }
 
-magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
-                                     const magcal_ellipsoid_cfg_t *cfg,
-                                     magcal_ellipsoid_result_t *out)
+static MAGCAL_NOINLINE int ph_check(ell_scratch_t *sw, ell_bud_t *b)
 {
-    ell_scratch_t scratch; /* no caller workspace: the scratch on the stack (see the header) */
-    ell_ws_t ws;
-    if (m == NULL || cfg == NULL || out == NULL) {
-        return MAGCAL_ERR_NULL;
+    ell_run_t *r = &sw->run;
+    magcal_status_t st;
+    if (magcal_ell_can(b, W_CHECK) == 0) {
+        return ELL_YIELD;
     }
-    ws.s = &scratch;
-    ws.res = NULL;
-    ws.keep = NULL;
-    return fit_core(m, n, cfg, &ws, out);
+    sw->gate.cal = NULL; /* no gate yet */
+    sw->gate.thr = 0.0f;
+    sw->src.cal = NULL;
+    sw->src.theta = NULL;
+    sw->src.mu = NULL;
+    sw->src.inv_s = 0.0f;
+    r->all.cal = NULL;
+    r->all.thr = 0.0f;
+    r->min_pivot = 0.0f;
+    r->rms = 0.0f;
+    r->kept = 0u;
+    st = ellipsoid_check_cfg(r->cfg);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    if (r->n < ((r->cfg->model == MAGCAL_ELLIPSOID_MODEL_QUADRIC9 ||
+                 r->cfg->model == MAGCAL_ELLIPSOID_MODEL_QUADRIC10)
+                    ? MIN_QUADRIC_POINTS
+                    : MIN_SPHERE_POINTS)) {
+        return MAGCAL_ERR_TOO_FEW_POINTS;
+    }
+    sw->mu[0] = 0.0f;
+    sw->mu[1] = 0.0f;
+    sw->mu[2] = 0.0f;
+    r->comp3[0] = 0.0f;
+    r->comp3[1] = 0.0f;
+    r->comp3[2] = 0.0f;
+    r->k = 0u;
+    r->ph = ELL_PH_N1;
+    return ELL_CONT;
 }
 
-magcal_status_t magcal_ellipsoid_fit_ws(const magcal_vec3_t *m, size_t n,
-                                        const magcal_ellipsoid_cfg_t *cfg, void *work,
-                                        size_t work_len, magcal_ellipsoid_result_t *out)
+/* One phase of the fit: ELL_CONT (go on), ELL_YIELD (budget spent) or the final status. */
+static int fit_phase(ell_scratch_t *sw, ell_bud_t *b)
+{
+    ell_run_t *r = &sw->run;
+    if (r->ph >= ELL_PH_TRUST_FIRST) {
+        return magcal_ell_trust_phase(sw, b);
+    }
+    switch (r->ph) {
+    case ELL_PH_CHECK:
+        return ph_check(sw, b);
+    case ELL_PH_N1:
+        return n1_range(sw, b);
+    case ELL_PH_N2:
+        return n2_range(sw, b);
+    case ELL_PH_NORM_DONE:
+        return ph_norm_done(sw, b);
+    case ELL_PH_ACC:
+        return acc_range(sw, b);
+    case ELL_PH_SPHERE:
+        return ph_sphere(sw, b);
+    case ELL_PH_COV:
+        return cov_range(sw, b);
+    case ELL_PH_COV_DONE:
+        return ph_cov_done(sw, b);
+    case ELL_PH_FIT_SOLVE:
+        return ph_fit_solve(sw, b);
+    case ELL_PH_FIT_EXTRACT:
+        return ph_fit_extract(sw, b);
+    case ELL_PH_KEEP1:
+        return keep1_range(sw, b);
+    case ELL_PH_REGATE:
+        return regate_range(sw, b);
+    case ELL_PH_SETTLE:
+        return settle_range(sw, b);
+    case ELL_PH_OUT:
+        return ph_out(sw, b);
+    case ELL_PH_RP:
+        return rp_range(r, b);
+    default: /* ELL_PH_LOOP .. ELL_PH_FINAL2 */
+        return ph_loop_unit(sw, b);
+    }
+}
+
+/*
+ * Phases until the budget is spent or the fit ends. Bounded: every ELL_CONT either ends a phase
+ * (finitely many: at most 2 + max_refits rounds of a fixed sequence) or a pass, and every pass
+ * visits each sample once.
+ */
+static MAGCAL_NOINLINE magcal_status_t fit_steps(ell_scratch_t *sw, uint32_t budget,
+                                                 uint32_t *used, int first)
+{
+    int rc = ELL_CONT;
+    *used = 0u;
+    while (rc == ELL_CONT) {
+        ell_bud_t b;
+        b.left = budget - *used;
+        b.cost = 0u;
+        b.first = (*used == 0u && first != 0) ? 1 : 0;
+        rc = fit_phase(sw, &b);
+        *used += b.cost;
+        if (rc == ELL_CONT && *used >= budget) {
+            rc = ELL_YIELD;
+        }
+    }
+    if (rc == ELL_YIELD) {
+        return MAGCAL_IN_PROGRESS;
+    }
+    sw->run.ph = ELL_PH_DONE;
+    return (magcal_status_t)rc;
+}
+
+/* Begin on a scratch (the stack's for magcal_ellipsoid_fit, the workspace's otherwise). */
+static void fit_begin_on(magcal_ellipsoid_fit_slice_t *s, const ell_ws_t *ws,
+                         const magcal_vec3_t *m, size_t n, const magcal_ellipsoid_cfg_t *cfg,
+                         magcal_ellipsoid_result_t *out)
+{
+    ell_run_t *r = &ws->s->run;
+    r->m = m;
+    r->n = n;
+    r->cfg = cfg;
+    r->ws = *ws;
+    r->out = out;
+    r->k = 0u;
+    r->ph = ELL_PH_CHECK;
+    s->s_ = ws->s;
+    s->used_ = 0u;
+    s->status_ = (int32_t)MAGCAL_IN_PROGRESS;
+}
+
+magcal_status_t magcal_ellipsoid_fit_begin(magcal_ellipsoid_fit_slice_t *s, const magcal_vec3_t *m,
+                                           size_t n, const magcal_ellipsoid_cfg_t *cfg, void *work,
+                                           size_t work_len, magcal_ellipsoid_result_t *out)
 {
     ell_ws_t ws;
+    if (s == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    s->s_ = NULL;
+    s->used_ = 0u;
+    s->status_ = (int32_t)MAGCAL_ERR_ARG;
     if (m == NULL || cfg == NULL || work == NULL || out == NULL) {
         return MAGCAL_ERR_NULL;
     }
@@ -886,7 +1231,62 @@ magcal_status_t magcal_ellipsoid_fit_ws(const magcal_vec3_t *m, size_t n,
     ws.s = (ell_scratch_t *)(void *)magcal_ell_align_up(work);
     ws.res = (float *)(void *)((uint8_t *)work + MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES);
     ws.keep = (uint8_t *)work + MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES + n * sizeof(float);
-    return fit_core(m, n, cfg, &ws, out);
+    fit_begin_on(s, &ws, m, n, cfg, out);
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_ell_fit_step_in(magcal_ellipsoid_fit_slice_t *s, uint32_t budget, int first)
+{
+    uint32_t used = 0u;
+    magcal_status_t st;
+    if (s == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (s->s_ == NULL) {
+        return MAGCAL_ERR_ARG;
+    }
+    if (s->status_ != (int32_t)MAGCAL_IN_PROGRESS) {
+        s->used_ = 0u;
+        return (magcal_status_t)s->status_;
+    }
+    st = fit_steps((ell_scratch_t *)s->s_, (budget > 0u) ? budget : 1u, &used, first);
+    s->used_ = used;
+    s->status_ = (int32_t)st;
+    return st;
+}
+
+magcal_status_t magcal_ellipsoid_fit_step(magcal_ellipsoid_fit_slice_t *s, uint32_t budget)
+{
+    return magcal_ell_fit_step_in(s, budget, 1);
+}
+
+magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n,
+                                     const magcal_ellipsoid_cfg_t *cfg,
+                                     magcal_ellipsoid_fit_scratch_t *scratch,
+                                     magcal_ellipsoid_result_t *out)
+{
+    magcal_ellipsoid_fit_slice_t sl;
+    ell_ws_t ws;
+    if (m == NULL || cfg == NULL || scratch == NULL || out == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    ws.s = (ell_scratch_t *)(void *)scratch; /* fixed scratch, no per-sample storage */
+    ws.res = NULL;
+    ws.keep = NULL;
+    fit_begin_on(&sl, &ws, m, n, cfg, out);
+    return magcal_ellipsoid_fit_step(&sl, UINT32_MAX);
+}
+
+magcal_status_t magcal_ellipsoid_fit_ws(const magcal_vec3_t *m, size_t n,
+                                        const magcal_ellipsoid_cfg_t *cfg, void *work,
+                                        size_t work_len, magcal_ellipsoid_result_t *out)
+{
+    magcal_ellipsoid_fit_slice_t sl;
+    const magcal_status_t st = magcal_ellipsoid_fit_begin(&sl, m, n, cfg, work, work_len, out);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    return magcal_ellipsoid_fit_step(&sl, UINT32_MAX);
 }
 
 static int cal_isfinite(const magcal_ellipsoid_cal_t *cal)

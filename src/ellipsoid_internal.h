@@ -140,6 +140,156 @@ typedef struct {
 } motion_ctx_t;
 
 /*
+ * Per-sample state of the fit in the caller's workspace (magcal_ellipsoid_fit_ws): `res[k]` the
+ * residual of sample k under the current fit, `keep[k]` its verdict under the current gate (bit 0;
+ * bit 1 holds the next gate's while regate decides). Both NULL (magcal_ellipsoid_fit, no
+ * workspace): every pass recomputes them from the samples, with the same float operations, so
+ * both give bit-identical results. On MAGCAL_OK `res` holds every sample's residual under the
+ * returned calibration (magcal_ellipsoid_calibrate's pre-test reads its largest from there).
+ */
+struct ell_scratch_s;
+typedef struct {
+    struct ell_scratch_s *s;
+    float *res;
+    uint8_t *keep;
+} ell_ws_t;
+
+/*
+ * The time-sliced fit (docs/calibration_3d.md "Time-sliced fit"): the one-shot algorithm cut into
+ * phases. A pass phase visits samples r->k.. while the budget allows (each visit charges its
+ * estimated M4F instructions first); a unit phase (a small solve) runs whole when the budget
+ * allows. Three sub-machines are entered with a return phase: the residual pass (rp), the median
+ * of |r| (med) and the motion SNR (mot); none calls itself, so one return slot each is enough.
+ */
+enum {
+    /* src/ellipsoid.c */
+    ELL_PH_CHECK = 0, ELL_PH_N1, ELL_PH_N2, ELL_PH_NORM_DONE, ELL_PH_ACC, ELL_PH_SPHERE,
+    ELL_PH_COV, ELL_PH_COV_DONE, ELL_PH_FIT_SOLVE, ELL_PH_FIT_EXTRACT, ELL_PH_KEEP1, ELL_PH_LOOP,
+    ELL_PH_LOOP_MED, ELL_PH_THR, ELL_PH_REGATE, ELL_PH_SETTLE, ELL_PH_REFIT, ELL_PH_LOOP_NEXT,
+    ELL_PH_FINAL, ELL_PH_FINAL2, ELL_PH_OUT, ELL_PH_RP,
+    /* src/ellipsoid_trust.c */
+    ELL_PH_ASNR0, ELL_PH_ASNR, ELL_PH_ASNR_DONE, ELL_PH_TG0, ELL_PH_TG1, ELL_PH_INFO,
+    ELL_PH_INFO_DONE, ELL_PH_INV, ELL_PH_INV_SUB, ELL_PH_SWM, ELL_PH_SWP, ELL_PH_DIAG, ELL_PH_EXPL0,
+    ELL_PH_EXPL1, ELL_PH_MED, ELL_PH_MOT0, ELL_PH_MOT1, ELL_PH_MOT2, ELL_PH_DONE
+};
+#define ELL_PH_TRUST_FIRST ELL_PH_ASNR0
+
+/* Internal returns of a phase besides a final status (<= 0): go on, or the budget is spent. */
+#define ELL_CONT 100
+#define ELL_YIELD 101
+
+/* The budget of one step: `left` estimated M4F instructions, `cost` charged so far; the first
+ * visit of a step is always allowed (progress for any budget >= 1). */
+typedef struct {
+    uint32_t left;
+    uint32_t cost;
+    int first;
+} ell_bud_t;
+
+/* Charge one visit of weight w if the budget allows it (always the first of a step). */
+static inline int magcal_ell_can(ell_bud_t *b, uint32_t w)
+{
+    if ((b->cost == 0u && b->first != 0) || (b->cost <= b->left && w <= b->left - b->cost)) {
+        b->cost += w;
+        return 1;
+    }
+    return 0;
+}
+
+/* Visits of weight w the rest of the budget pays for (at least one on a step's first; at most
+ * `left_n`), charged at once: the pass then runs them without a per-visit check. */
+static inline size_t magcal_ell_visits(ell_bud_t *b, uint32_t w, size_t left_n)
+{
+    size_t v = (b->cost <= b->left) ? (size_t)((b->left - b->cost) / w) : 0u;
+    if (v == 0u && b->first != 0 && b->cost == 0u) {
+        v = 1u;
+    }
+    if (v > left_n) {
+        v = left_n;
+    }
+    b->cost += (uint32_t)v * w;
+    return v;
+}
+
+typedef struct { /* residual pass: RMS / count / max |r| under cal of the samples gate keeps */
+    const magcal_ellipsoid_cal_t *cal;
+    const quad_gate_t *gate;
+    ell_ws_t ws;
+    float sum;
+    float comp;
+    float mx;
+    size_t cnt;
+    float rms; /* results */
+    size_t kept;
+    uint8_t ret;
+} ell_rp_t;
+
+typedef struct { /* median of |r| by histogram refinement (magcal_ell_med_start) */
+    const resid_src_t *src;
+    const quad_gate_t *gate;
+    ell_ws_t ws;
+    float lo;
+    float hi;
+    float width;
+    size_t below;
+    size_t target;
+    float result;
+    uint8_t pass;
+    uint8_t done;
+    uint8_t in_pass;
+    uint8_t ret;
+} ell_med_t;
+
+typedef struct { /* motion SNR (see motion_snr in ellipsoid_trust.c) */
+    float snr_model;
+    float limit;
+    float snr;
+    uint8_t ret;
+} ell_mot_t;
+
+typedef struct {
+    const magcal_vec3_t *m;
+    size_t n;
+    const magcal_ellipsoid_cfg_t *cfg;
+    ell_ws_t ws;
+    magcal_ellipsoid_result_t *out;
+    size_t k;          /* position in the current pass */
+    uint8_t ph;        /* phase */
+    uint8_t rms_valid;
+    uint8_t fit_ret;   /* phase after a model fit */
+    uint8_t adopt;     /* settle: the next gate's verdicts become the gate's */
+    uint8_t sphere;    /* trust gates: the sphere model */
+    int8_t stage;      /* trust gates: centre_info's result */
+    magcal_status_t pend; /* the failure being explained, the gates' verdict */
+    magcal_ellipsoid_model_t model;
+    float s;
+    float inv_s;
+    float coverage;
+    float min_pivot;
+    float planarity;
+    float rms;
+    float rmax;
+    float gmean;
+    size_t iter;
+    size_t kept;
+    size_t kept_new;
+    size_t prev_rejected;
+    size_t in_block;   /* accumulations: samples in the open block */
+    size_t cnt;        /* trust: samples in the information sums */
+    size_t np;
+    float comp3[3];    /* normalise: Kahan compensation of the mean */
+    float sn[3];       /* trust: sum of the directions */
+    uint32_t bits[3];  /* coverage cells */
+    float theta[9];    /* the algebraic quadric of the motion test */
+    quad_gate_t all;   /* the gate that keeps every sample */
+    resid_src_t src_alg;
+    resid_src_t src_sph;
+    ell_rp_t rp;
+    ell_med_t med;
+    ell_mot_t mot;
+} ell_run_t;
+
+/*
  * The fit's fixed scratch (issue 14: every matrix lives in the caller's workspace, not on the
  * stack): the packed normal matrix, the block sums of the accumulations, one solver matrix (10x10
  * at most), the observability pass's inverse and meat, and the median's histogram.
@@ -147,7 +297,7 @@ typedef struct {
 #define MAGCAL_ELL_INFO_N 9u                                                  /* 3 offset + 6 shape */
 #define MAGCAL_ELL_INFO_NPACK ((MAGCAL_ELL_INFO_N * (MAGCAL_ELL_INFO_N + 1u)) / 2u)
 #define MAGCAL_ELL_MED_BINS 128u /* histogram bins per pass of the median |residual| */
-typedef struct {
+typedef struct ell_scratch_s {
     quad_acc_t acc;
     float part[MAGCAL_ELL_NPACK];
     float mat[MAGCAL_ELL_NQ * MAGCAL_ELL_NQ];
@@ -171,54 +321,32 @@ typedef struct {
     quad_gate_t gate;                /* the outlier gate in force */
     quad_gate_t next;                /* the gate being decided */
     resid_src_t src;                 /* the residual its median is taken of */
+    ell_run_t run;                   /* the time-sliced fit's state (magcal_ellipsoid_fit_step) */
 } ell_scratch_t;
 
-/*
- * Per-sample state of the fit in the caller's workspace (magcal_ellipsoid_fit_ws): `res[k]` the
- * residual of sample k under the current fit, `keep[k]` its verdict under the current gate (bit 0;
- * bit 1 holds the next gate's while regate decides). Both NULL (magcal_ellipsoid_fit, no
- * workspace): every pass recomputes them from the samples, with the same float operations, so
- * both give bit-identical results. On MAGCAL_OK `res` holds every sample's residual under the
- * returned calibration (magcal_ellipsoid_calibrate's pre-test reads its largest from there).
- */
-typedef struct {
-    ell_scratch_t *s;
-    float *res;
-    uint8_t *keep;
-} ell_ws_t;
 
-/* RMS of the residuals under `cal` of the samples kept by `gate`; their count and max |r|
- * (max_abs may be NULL). */
-float magcal_ell_residual_pass(const magcal_vec3_t *m, size_t n, const magcal_ellipsoid_cal_t *cal,
-                               const quad_gate_t *gate, const ell_ws_t *ws, size_t *kept,
-                               float *max_abs);
-
-/* Median of |r| (residual `src`) over the `kept` samples that `gate` keeps, max |r| = max_abs.
- * With ws->res (and ws->keep) set, |r| and the verdicts are read from there instead. */
-float magcal_ell_median_abs(const magcal_vec3_t *m, size_t n, const resid_src_t *src,
-                            const quad_gate_t *gate, const ell_ws_t *ws, size_t kept, float max_abs);
-
-/* Motion SNR of the 9-parameter algebraic quadric of all samples (acc = their normal matrix in
- * coordinates (m - mu) * inv_s); +Inf when it cannot be solved or fits exactly. */
-float magcal_ell_algebraic_snr(const magcal_vec3_t *m, size_t n, const float mu[3], float inv_s,
-                               const ell_ws_t *ws);
-
+/* Start the residual pass (phase ELL_PH_RP, in src/ellipsoid.c) of the samples `gate` keeps
+ * under `cal`; its results in r->rp (rms, kept, mx), then phase `ret`. */
+void magcal_ell_rp_start(ell_run_t *r, const magcal_ellipsoid_cal_t *cal, const quad_gate_t *gate,
+                         const ell_ws_t *ws, uint8_t ret);
+/* Start the median of |r| (residual `src`) over the `kept` samples `gate` keeps, max |r| =
+ * max_abs (with ws->res set, |r| and the verdicts are read from there); result r->med.result,
+ * then phase `ret`. */
+void magcal_ell_med_start(ell_run_t *r, const resid_src_t *src, const quad_gate_t *gate,
+                          const ell_ws_t *ws, size_t kept, float max_abs, uint8_t ret);
+/* Explain the failure st of a fit (NO_MOTION / SINGLE_AXIS when the data say so): the next
+ * phases return the status. */
+void magcal_ell_explain_start(ell_run_t *r, magcal_status_t st);
 /* sqrt(smallest / middle eigenvalue) of a packed scatter (xx, yx, yy, zx, zy, zz). */
-float magcal_ell_planarity(const float sc[6], ell_scratch_t *ws);
+float magcal_ell_planarity(const float sc[6], struct ell_scratch_s *ws);
+/* One phase >= ELL_PH_TRUST_FIRST: the algebraic SNR, the trust gates (order: motion, one axis,
+ * residual, observability, field; the diagnostics into sw->dg, then ELL_PH_OUT), the failure
+ * explanation, the median and the motion SNR. Returns ELL_CONT, ELL_YIELD or a final status. */
+int magcal_ell_trust_phase(struct ell_scratch_s *sw, ell_bud_t *b);
 
-/* Status for a fit that failed on its own: NO_MOTION / SINGLE_AXIS when the data say so. */
-magcal_status_t magcal_ell_explain_failure(magcal_status_t st, const motion_ctx_t *mc,
-                                           float planarity, const magcal_ellipsoid_cfg_t *cfg,
-                                           const ell_ws_t *ws);
-
-/* The trust gates on a finished fit (order: motion, one axis, residual, observability, field);
- * writes the diagnostics into dg; ws->s->acc and the solver scratch are overwritten. */
-magcal_status_t magcal_ell_trust_gates(const magcal_vec3_t *m, size_t n,
-                                       const magcal_ellipsoid_cfg_t *cfg,
-                                       const magcal_ellipsoid_cal_t *cal, float rms,
-                                       magcal_ellipsoid_model_t model, const quad_gate_t *gate,
-                                       const motion_ctx_t *mc, float raw_planarity,
-                                       const ell_ws_t *ws, trust_diag_t *dg);
+/* magcal_ellipsoid_fit_step inside a larger step: first == 0 when that step has already done
+ * work (then no visit is forced: the fit may do nothing and return MAGCAL_IN_PROGRESS). */
+magcal_status_t magcal_ell_fit_step_in(magcal_ellipsoid_fit_slice_t *s, uint32_t budget, int first);
 
 /* Sample k kept by the current gate: from ws->keep when stored, else recomputed. */
 static inline int magcal_ell_kept(const ell_ws_t *ws, const quad_gate_t *gate,

@@ -3,7 +3,8 @@
  * moving (motion SNR from three noise scales), is the answer observable (sandwich covariance of the
  * offset and soft-iron terms; planarity of the field directions), does the model fit (residual),
  * is the field plausible (optional band). Also the storage-free median used by the outlier gate.
- * Called by magcal_ellipsoid_fit (src/ellipsoid.c) after its own fit; no state, no workspace.
+ * Phases of the time-sliced fit (src/ellipsoid.c drives them; their state is the run in the
+ * fit's scratch, ellipsoid_internal.h).
  */
 #include <math.h>
 #include <string.h>
@@ -16,6 +17,23 @@
 #define MED_PASSES 4u    /* refinement passes: resolution (max |r|) / 128^4 at worst */
 #define PLANAR_MAX 0.15f /* planarity below this: one rotation axis dominates (SINGLE_AXIS) */
 #define INFO_MAX_N MAGCAL_ELL_INFO_N /* centre information: 3 offset + 6 symmetric shape parameters */
+
+/* Weights of the trust phases (estimated Cortex-M4F instructions per visit, measured as those of
+ * src/ellipsoid.c). */
+#define W_T_UNIT 300u       /* bookkeeping, a gate decision */
+#define W_T_SOLVE9 7500u    /* 9x9 LDL^T of the algebraic quadric */
+#define W_T_ASNR 85u        /* one algebraic residual */
+#define W_T_MED_PASS 900u   /* histogram clear + bin search of one median pass */
+#define W_T_MED 60u         /* one sample into the histogram (|r| stored) */
+#define W_T_MED_RECOMP 190u  /* the same, gate and residual recomputed */
+#define W_T_INFO 440u       /* one sample's information row, 31 moment sums x 2 */
+#define W_T_INFO_RECOMP 530u
+#define W_T_INFO_DONE 1800u  /* flush, moments expanded, direction scatter */
+#define W_T_FACTOR 5000u    /* (J^T J)^-1: the 9x9 LDL^T factorisation */
+#define W_T_SUBST 1500u     /* one of its 9 substitutions (a column of the inverse) */
+#define W_T_SWM 2000u       /* one row k of the sandwich from the summed meat */
+#define W_T_SWP 600u        /* one sample of the exact second sandwich pass */
+#define W_T_DIAG 5500u      /* two 3x3 Jacobi eigen-decompositions, the gates */
 
 static float alg_residual(const resid_src_t *src, const magcal_vec3_t *m)
 {
@@ -38,31 +56,86 @@ static float abs_residual(const resid_src_t *src, const magcal_vec3_t *m)
  * a 128-bin histogram of [lo, hi) that holds the median becomes the next [lo, hi), at most
  * MED_PASSES passes (stops once the bin is narrower than 0.1 % of its lower edge).
  */
-MAGCAL_NOINLINE float magcal_ell_median_abs(const magcal_vec3_t *m, size_t n,
-                                            const resid_src_t *src, const quad_gate_t *gate,
-                                            const ell_ws_t *ws, size_t kept, float max_abs)
+void magcal_ell_med_start(ell_run_t *r, const resid_src_t *src, const quad_gate_t *gate,
+                          const ell_ws_t *ws, size_t kept, float max_abs, uint8_t ret)
 {
-    uint32_t *cnt = ws->s->cnt;
-    float lo = 0.0f;
-    float hi = max_abs * 1.0001f + 1e-30f;
-    size_t below = 0u;
-    const size_t target = (kept + 1u) / 2u; /* rank (1-based) of the median */
-    size_t pass;
-    size_t k;
-    int done = 0;
-    for (pass = 0u; (pass < MED_PASSES) && (done == 0); ++pass) {
-        const float width = (hi - lo) / (float)MED_BINS;
-        size_t acc = below;
-        size_t b = 0u;
-        int found = 0;
-        if (!(width > 0.0f)) {
-            done = 1;
-            continue;
+    ell_med_t *md = &r->med;
+    md->src = src;
+    md->gate = gate;
+    md->ws = *ws;
+    md->lo = 0.0f;
+    md->hi = max_abs * 1.0001f + 1e-30f;
+    md->below = 0u;
+    md->target = (kept + 1u) / 2u; /* rank (1-based) of the median */
+    md->pass = 0u;
+    md->done = 0u;
+    md->in_pass = 0u;
+    md->ret = ret;
+    r->k = 0u;
+    r->ph = ELL_PH_MED;
+}
+
+/* The end of a median pass: the bin holding the median becomes the next interval. */
+static void med_pass_end(ell_med_t *md, const uint32_t *cnt)
+{
+    size_t acc = md->below;
+    size_t b = 0u;
+    int found = 0;
+    while (b < MED_BINS && found == 0) {
+        if (acc + cnt[b] >= md->target) {
+            found = 1;
+        } else {
+            acc += cnt[b];
+            ++b;
         }
-        (void)memset(cnt, 0, sizeof(ws->s->cnt));
-        for (k = 0u; k < n; ++k) {
-            if (magcal_ell_kept(ws, gate, m, k) != 0) {
-                const float a = (ws->res != NULL) ? fabsf(ws->res[k]) : abs_residual(src, &m[k]);
+    }
+    if (found == 0) { /* float rounding at the edge: keep the current interval */
+        md->done = 1u;
+    } else {
+        md->lo = md->lo + (float)b * md->width;
+        md->hi = md->lo + md->width;
+        md->below = acc;
+        if (md->width <= 1e-3f * md->lo) {
+            md->done = 1u;
+        }
+    }
+}
+
+static MAGCAL_NOINLINE int med_phase(ell_scratch_t *sw, ell_bud_t *b)
+{
+    ell_run_t *r = &sw->run;
+    ell_med_t *md = &r->med;
+    uint32_t *cnt = sw->cnt;
+    const uint32_t w = (md->ws.res != NULL) ? W_T_MED : W_T_MED_RECOMP;
+    if (md->in_pass == 0u) {
+        if (!(md->pass < MED_PASSES && md->done == 0u)) {
+            md->result = 0.5f * (md->lo + md->hi);
+            r->ph = md->ret;
+            return ELL_CONT;
+        }
+        if (magcal_ell_can(b, W_T_MED_PASS) == 0) {
+            return ELL_YIELD;
+        }
+        md->width = (md->hi - md->lo) / (float)MED_BINS;
+        if (!(md->width > 0.0f)) {
+            md->done = 1u;
+            md->pass++;
+            return ELL_CONT;
+        }
+        (void)memset(cnt, 0, sizeof(sw->cnt));
+        md->in_pass = 1u;
+        r->k = 0u;
+    }
+    {
+        const size_t k1 = r->k + magcal_ell_visits(b, w, r->n - r->k);
+        const ell_ws_t mws = md->ws;
+        const float lo = md->lo;
+        const float hi = md->hi;
+        const float width = md->width;
+        size_t k;
+        for (k = r->k; k < k1; ++k) {
+            if (magcal_ell_kept(&mws, md->gate, r->m, k) != 0) {
+                const float a = (mws.res != NULL) ? fabsf(mws.res[k]) : abs_residual(md->src, &r->m[k]);
                 if (a >= lo && a < hi) {
                     const float q = (a - lo) / width;
                     const size_t bin = (size_t)q;
@@ -70,26 +143,16 @@ MAGCAL_NOINLINE float magcal_ell_median_abs(const magcal_vec3_t *m, size_t n,
                 }
             }
         }
-        while (b < MED_BINS && found == 0) {
-            if (acc + cnt[b] >= target) {
-                found = 1;
-            } else {
-                acc += cnt[b];
-                ++b;
-            }
-        }
-        if (found == 0) { /* float rounding at the edge: keep the current interval */
-            done = 1;
-        } else {
-            lo = lo + (float)b * width;
-            hi = lo + width;
-            below = acc;
-            if (width <= 1e-3f * lo) {
-                done = 1;
-            }
-        }
+        r->k = k1;
     }
-    return 0.5f * (lo + hi);
+    if (r->k < r->n) {
+        return ELL_YIELD;
+    }
+    med_pass_end(md, cnt);
+    md->in_pass = 0u;
+    md->pass++;
+    r->k = 0u;
+    return ELL_CONT;
 }
 
 /* Jacobian row of the linearised total-field model at one corrected sample (see centre_info). */
@@ -158,86 +221,77 @@ static MAGCAL_NOINLINE float planarity3(float c[3][3], float w[3], float e[3][3]
     return sqrtf(fmaxf(lo, 0.0f) / mid);
 }
 
-/* C = inv meat inv (see centre_info): offset block into cc (lower triangle), shape diagonal into
- * sd[3..np); 0 when a rounding bound is above 1 % of its diagonal term (then nothing is trusted). */
-static MAGCAL_NOINLINE int sandwich_from_meat(ell_scratch_t *sw, size_t np, int sphere, size_t cnt)
+/* One row k of C = inv meat inv from the summed meat (see centre_info below): offset block into
+ * cc (lower triangle), shape diagonal into sd[3..np); 0 when the rounding bound is above 1 % of
+ * the diagonal term (then the exact second pass decides). */
+static MAGCAL_NOINLINE int sandwich_row(ell_scratch_t *sw, size_t np, size_t cnt, size_t k)
 {
     const float *meat = sw->meat;
     float(*inv)[INFO_MAX_N] = sw->inv;
-    float(*cc)[3] = sw->cc;
-    float *sd = sw->sd;
-    float(*vec)[INFO_MAX_N] = sw->vec;
+    float *w = sw->vec[0];
+    float *wa = sw->vec[1];
     const float eps = ((float)cnt + (float)np) * 6e-8f;
+    float d = 0.0f;
+    float da = 0.0f;
     size_t i;
     size_t j;
-    size_t k;
-    (void)memset(cc, 0, 9u * sizeof(float));
-    (void)memset(sd, 0, INFO_MAX_N * sizeof(float));
-    for (k = 0u; k < np; ++k) {
-        float *w = vec[0];
-        float *wa = vec[1];
-        float d = 0.0f;
-        float da = 0.0f;
-        if (k >= 3u && sphere != 0) {
-            break;
+    for (i = 0u; i < np; ++i) {
+        float e = 0.0f;
+        float ea = 0.0f;
+        for (j = 0u; j < np; ++j) {
+            const float mij = meat[(i >= j) ? magcal_ell_pidx(i, j) : magcal_ell_pidx(j, i)];
+            e += mij * inv[k][j];
+            ea += fabsf(mij) * fabsf(inv[k][j]);
         }
-        for (i = 0u; i < np; ++i) {
-            float e = 0.0f;
-            float ea = 0.0f;
-            for (j = 0u; j < np; ++j) {
-                const float mij = meat[(i >= j) ? magcal_ell_pidx(i, j) : magcal_ell_pidx(j, i)];
-                e += mij * inv[k][j];
-                ea += fabsf(mij) * fabsf(inv[k][j]);
+        w[i] = e;
+        wa[i] = ea;
+    }
+    for (i = 0u; i < np; ++i) {
+        d += inv[k][i] * w[i];
+        da += fabsf(inv[k][i]) * wa[i];
+    }
+    if (!(eps * da <= 0.01f * d)) { /* also NaN */
+        return 0;
+    }
+    if (k < 3u) {
+        for (j = 0u; j < k; ++j) {
+            float c = 0.0f;
+            for (i = 0u; i < np; ++i) {
+                c += inv[j][i] * w[i];
             }
-            w[i] = e;
-            wa[i] = ea;
+            sw->cc[k][j] = c;
         }
-        for (i = 0u; i < np; ++i) {
-            d += inv[k][i] * w[i];
-            da += fabsf(inv[k][i]) * wa[i];
-        }
-        if (!(eps * da <= 0.01f * d)) { /* also NaN */
-            return 0;
-        }
-        if (k < 3u) {
-            for (j = 0u; j < k; ++j) {
-                float c = 0.0f;
-                for (i = 0u; i < np; ++i) {
-                    c += inv[j][i] * w[i];
-                }
-                cc[k][j] = c;
-            }
-            cc[k][k] = d;
-        } else {
-            sd[k] = d;
-        }
+        sw->cc[k][k] = d;
+    } else {
+        sw->sd[k] = d;
     }
     return 1;
 }
 
 /* The same sandwich from a second pass over the samples: sum r_i^2 (J_i . inv_k)(J_i . inv_l). */
-static MAGCAL_NOINLINE void sandwich_pass(const magcal_vec3_t *m, size_t n,
-                                          const magcal_ellipsoid_cal_t *cal, const quad_gate_t *gate,
-                                          const ell_ws_t *ws, int sphere)
+static MAGCAL_NOINLINE int swp_range(ell_scratch_t *sw, ell_bud_t *b)
 {
-    float(*inv)[INFO_MAX_N] = ws->s->inv;
-    float(*cc)[3] = ws->s->cc;
-    float *sd = ws->s->sd;
-    const size_t np = (sphere != 0) ? (size_t)4u : (size_t)INFO_MAX_N;
+    ell_run_t *r = &sw->run;
+    const ell_ws_t *ws = &r->ws;
+    const magcal_ellipsoid_cal_t *cal = &sw->cal[0];
+    float(*inv)[INFO_MAX_N] = sw->inv;
+    float(*cc)[3] = sw->cc;
+    float *sd = sw->sd;
+    const int sphere = (int)r->sphere;
+    const size_t np = r->np;
     size_t i;
     size_t j;
-    size_t k;
-    (void)memset(cc, 0, 9u * sizeof(float));
-    (void)memset(sd, 0, INFO_MAX_N * sizeof(float));
-    for (k = 0u; k < n; ++k) {
-        float *h = ws->s->h3; /* per-sample vectors in the scratch: off the stack */
-        float *row = ws->s->vec[0];
-        float *pr = ws->s->vec[1];
+    while (r->k < r->n && magcal_ell_can(b, W_T_SWP) != 0) {
+        const size_t k = r->k;
+        float *h = sw->h3; /* per-sample vectors in the scratch: off the stack */
+        float *row = sw->vec[0];
+        float *pr = sw->vec[1];
         float r2;
-        if (magcal_ell_kept(ws, gate, m, k) == 0) {
+        r->k++;
+        if (magcal_ell_kept(ws, &sw->gate, r->m, k) == 0) {
             continue;
         }
-        magcal_ell_correct(cal, &m[k], h);
+        magcal_ell_correct(cal, &r->m[k], h);
         if (info_row(h, sphere, row) == 0u) {
             continue;
         }
@@ -261,6 +315,13 @@ static MAGCAL_NOINLINE void sandwich_pass(const magcal_vec3_t *m, size_t n,
             sd[i] += r2 * pr[i] * pr[i];
         }
     }
+    if (r->k < r->n) {
+        return ELL_YIELD;
+    }
+    r->k = 0u;
+    r->stage = 2;
+    r->ph = ELL_PH_DIAG;
+    return ELL_CONT;
 }
 
 /*
@@ -416,37 +477,32 @@ static void info_flush(quad_acc_t *acc, float *part, size_t npk, int sphere)
     }
 }
 
-static MAGCAL_NOINLINE size_t info_accumulate(const magcal_vec3_t *m, size_t n,
-                                              const magcal_ellipsoid_cal_t *cal,
-                                              const quad_gate_t *gate, const ell_ws_t *ws,
-                                              int sphere, float sn[3])
+/* One pass: J^T J (blocked Kahan, in acc) and the sandwich's meat (plain sums: a 1-significant-digit
+ * gate), so the covariance needs no second pass over the samples. */
+static MAGCAL_NOINLINE int info_range(ell_scratch_t *sw, ell_bud_t *b)
 {
-    const size_t np = (sphere != 0) ? (size_t)4u : (size_t)INFO_MAX_N;
+    ell_run_t *r = &sw->run;
+    const ell_ws_t *ws = &r->ws;
+    const magcal_ellipsoid_cal_t *cal = &sw->cal[0];
+    const int sphere = (int)r->sphere;
+    const size_t np = r->np;
     const size_t npk = (np * (np + 1u)) / 2u;
-    quad_acc_t *acc = &ws->s->acc;
-    float *part = ws->s->part;
-    float *meat = ws->s->meat; /* sum r_i^2 J_i J_i^T, packed */
-    size_t cnt = 0u;
-    size_t in_block = 0u;
+    quad_acc_t *acc = &sw->acc;
+    float *part = sw->part;
+    float *meat = sw->meat; /* sum r_i^2 J_i J_i^T, packed */
+    const uint32_t w = (ws->res != NULL) ? W_T_INFO : W_T_INFO_RECOMP;
     size_t i;
     size_t j;
+    const size_t k1 = r->k + magcal_ell_visits(b, w, r->n - r->k);
     size_t k;
-    (void)memset(acc, 0, sizeof(*acc));
-    (void)memset(part, 0, sizeof(ws->s->part));
-    (void)memset(meat, 0, sizeof(ws->s->meat));
-    sn[0] = 0.0f;
-    sn[1] = 0.0f;
-    sn[2] = 0.0f;
-    /* one pass: J^T J (blocked Kahan) and the sandwich's meat (plain sums: a 1-significant-digit
-     * gate), so the covariance needs no second pass over the samples */
-    for (k = 0u; k < n; ++k) {
-        float *h = ws->s->h3; /* per-sample vectors in the scratch: off the stack */
-        float *row = ws->s->vec[0];
+    for (k = r->k; k < k1; ++k) {
+        float *h = sw->h3; /* per-sample vectors in the scratch: off the stack */
+        float *row = sw->vec[0];
         float r2;
-        if (magcal_ell_kept(ws, gate, m, k) == 0) {
+        if (magcal_ell_kept(ws, &sw->gate, r->m, k) == 0) {
             continue;
         }
-        magcal_ell_correct(cal, &m[k], h);
+        magcal_ell_correct(cal, &r->m[k], h);
         if (info_row(h, sphere, row) == 0u) {
             continue;
         }
@@ -468,86 +524,68 @@ static MAGCAL_NOINLINE size_t info_accumulate(const magcal_vec3_t *m, size_t n,
             }
         }
         for (i = 0u; i < 3u; ++i) {
-            sn[i] += row[i];
+            r->sn[i] += row[i];
         }
-        cnt++;
-        if (++in_block == MAGCAL_ELL_BLOCK) {
+        r->cnt++;
+        if (++r->in_block == MAGCAL_ELL_BLOCK) {
             info_flush(acc, part, npk, sphere);
-            in_block = 0u;
+            r->in_block = 0u;
         }
     }
-    info_flush(acc, part, npk, sphere);
-    if (sphere == 0) { /* the meat's moments into its packed terms */
-        (void)memcpy(ws->s->mat, meat, INFO_NMOM * sizeof(float));
-        moments_expand(ws->s->mat, meat);
+    r->k = k1;
+    if (r->k < r->n) {
+        return ELL_YIELD;
     }
-    if (cnt >= np) { /* scatter of the directions about their mean, from the n n^T block */
-        for (i = 0u; i < 3u; ++i) {
-            for (j = 0u; j <= i; ++j) {
-                ws->s->dir[i][j] = magcal_ell_acc_at(acc, i, j) / (float)cnt -
-                                   (sn[i] / (float)cnt) * (sn[j] / (float)cnt);
-            }
-        }
-    }
-    return cnt;
+    r->k = 0u;
+    r->ph = ELL_PH_INFO_DONE;
+    return ELL_CONT;
 }
 
-/* (J^T J)^-1 into ws->s->inv: one factorisation, np substitutions; 0 when singular. */
-static MAGCAL_NOINLINE int info_inverse(const ell_ws_t *ws, size_t np)
+/* The pass's last block, the meat's moments into its packed terms, the scatter of the directions
+ * about their mean (from the n n^T block); then the inverse (or the diagnostics: too few). */
+static MAGCAL_NOINLINE int ph_info_done(ell_scratch_t *sw, ell_bud_t *b)
 {
-    float *a = ws->s->mat;
+    ell_run_t *r = &sw->run;
+    quad_acc_t *acc = &sw->acc;
+    const float *sn = r->sn;
+    const float cnt = (float)r->cnt;
     size_t i;
     size_t j;
-    size_t k;
-    for (i = 0u; i < np; ++i) {
-        for (j = 0u; j < np; ++j) {
-            a[i * np + j] = magcal_ell_acc_at(&ws->s->acc, i, j);
-        }
+    if (magcal_ell_can(b, W_T_INFO_DONE) == 0) {
+        return ELL_YIELD;
     }
-    if (magcal_ldlt_factor(a, np, 0.0f, NULL) != MAGCAL_OK) {
-        return 0;
+    info_flush(acc, sw->part, (r->np * (r->np + 1u)) / 2u, (int)r->sphere);
+    if (r->sphere == 0u) {
+        (void)memcpy(sw->mat, sw->meat, INFO_NMOM * sizeof(float));
+        moments_expand(sw->mat, sw->meat);
     }
-    for (k = 0u; k < np; ++k) {
-        float *b = ws->s->inv[k];
-        for (i = 0u; i < np; ++i) {
-            b[i] = (i == k) ? 1.0f : 0.0f;
+    if (r->cnt >= r->np) {
+        for (i = 0u; i < 3u; ++i) {
+            for (j = 0u; j <= i; ++j) {
+                sw->dir[i][j] =
+                    magcal_ell_acc_at(acc, i, j) / cnt - (sn[i] / cnt) * (sn[j] / cnt);
+            }
         }
-        if (magcal_ldlt_subst(a, b, np) != MAGCAL_OK) {
-            return 0;
-        }
+        r->ph = ELL_PH_INV;
+    } else {
+        r->stage = 0; /* too few samples: nothing */
+        r->ph = ELL_PH_DIAG;
     }
-    return 1;
+    return ELL_CONT;
 }
 
-/* The passes of the observability gate (see the comment above): ws->s->dir gets the scatter of
- * the directions, ws->s->cc / sd the offset covariance and shape variances. Returns 0 (too few
- * samples: nothing), 1 (J^T J singular: the scatter only) or 2 (all). The eigenvalues are taken
- * by the caller, so the Jacobi's stack does not sit on top of this frame. */
-static MAGCAL_NOINLINE int centre_info(const magcal_vec3_t *m, size_t n,
-                                       const magcal_ellipsoid_cal_t *cal, const quad_gate_t *gate,
-                                       const ell_ws_t *ws, int sphere)
+/* The factorisation of J^T J (into sw->mat) for its inverse; 0 when singular. */
+static MAGCAL_NOINLINE int info_factor(ell_scratch_t *sw, size_t np)
 {
-    const size_t np = (sphere != 0) ? (size_t)4u : (size_t)INFO_MAX_N;
-    ell_scratch_t *sw = ws->s;
-    float sn[3];
-    size_t cnt;
-    cnt = info_accumulate(m, n, cal, gate, ws, sphere, sn);
-    if (cnt < np) {
-        return 0;
+    float *a = sw->mat;
+    size_t i;
+    size_t j;
+    for (i = 0u; i < np; ++i) {
+        for (j = 0u; j < np; ++j) {
+            a[i * np + j] = magcal_ell_acc_at(&sw->acc, i, j);
+        }
     }
-    if (info_inverse(ws, np) == 0) {
-        return 1;
-    }
-    /* sandwich (J^T J)^-1 meat (J^T J)^-1 from the summed meat: the offset block (rows 0..2) and
-     * the shape diagonal, C_kl = inv_l . (meat inv_k). Near a singular J^T J the rounding of the
-     * summed meat can swamp its tiny component along the weak direction (and make an unobservable
-     * offset look fine), so each diagonal term carries a bound of that rounding,
-     * (cnt + np) eps |inv_k|^T |meat| |inv_k|; if any bound is above 1 % of its term, the exact
-     * per-sample second pass decides instead. */
-    if (sandwich_from_meat(sw, np, sphere, cnt) == 0) {
-        sandwich_pass(m, n, cal, gate, ws, sphere);
-    }
-    return 2;
+    return (magcal_ldlt_factor(a, np, 0.0f, NULL) == MAGCAL_OK) ? 1 : 0;
 }
 
 /* The observability diagnostics from centre_info's matrices (relative to F). */
@@ -577,58 +615,6 @@ static MAGCAL_NOINLINE void centre_diag(const ell_ws_t *ws, int stage, int spher
     }
 }
 
-/*
- * Centre-free, model-free noise scale: the RMS algebraic residual of the 9-parameter quadric
- * (d = -1) of ALL samples in normalised coordinates, from the moments alone:
- * sum (r.theta - 1)^2 = theta^T A theta - 2 theta^T b + N. On a shell of radius ~1 a geometric
- * error delta gives ~2 delta, so motion SNR = 2 / rms: ~2.5 for noise around one point (any model
- * of it), the radius / noise for a rotation (any soft iron, any quadric). 0 when not solvable.
- */
-MAGCAL_NOINLINE float magcal_ell_algebraic_snr(const magcal_vec3_t *m, size_t n, const float mu[3],
-                                               float inv_s, const ell_ws_t *ws)
-{
-    const quad_acc_t *acc = &ws->s->acc;
-    float *a = ws->s->mat;
-    ell_ws_t all_ws = *ws;
-    float b[9];
-    float mx = 0.0f;
-    float med;
-    const quad_gate_t all = {NULL, 0.0f};
-    resid_src_t src;
-    size_t i;
-    size_t j;
-    size_t k;
-    for (i = 0u; i < 9u; ++i) {
-        for (j = 0u; j < 9u; ++j) {
-            a[i * 9u + j] = magcal_ell_acc_at(acc, i, j);
-        }
-        b[i] = magcal_ell_acc_at(acc, i, 9u);
-    }
-    if (magcal_ldlt_solve(a, b, 9u, 0.0f, NULL) != MAGCAL_OK) {
-        return INFINITY; /* singular: a degenerate quadric fits exactly, this is not noise */
-    }
-    src.cal = NULL;
-    src.theta = b;
-    src.mu = mu;
-    src.inv_s = inv_s;
-    all_ws.keep = NULL; /* every sample; residuals stored (when there is room) for the median */
-    for (k = 0u; k < n; ++k) {
-        const float r = alg_residual(&src, &m[k]);
-        if (all_ws.res != NULL) {
-            all_ws.res[k] = r;
-        }
-        if (fabsf(r) > mx) { /* fmaxf(mx, |r|) without the libm call (NaN ignored alike) */
-            mx = fabsf(r);
-        }
-    }
-    /* robust (median) scale: outliers far off the shell must not make a rotation look like noise */
-    med = MAGCAL_ELL_MAD_TO_SIGMA * magcal_ell_median_abs(m, n, &src, &all, &all_ws, n, mx);
-    if (!(med > 0.0f)) {
-        return INFINITY; /* exact quadric */
-    }
-    return 2.0f / med;
-}
-
 /* sqrt(smallest / middle eigenvalue) of the samples' scatter (packed xx, yx, yy, zx, zy, zz). */
 MAGCAL_NOINLINE float magcal_ell_planarity(const float sc[6], ell_scratch_t *ws)
 {
@@ -653,103 +639,211 @@ static float mean_gain(const magcal_ellipsoid_cal_t *cal)
 }
 
 /*
- * Motion SNR: the largest of `snr_model` (the final fit's), the algebraic quadric's and, only when
+ * Centre-free, model-free noise scale: the RMS algebraic residual of the 9-parameter quadric
+ * (d = -1) of ALL samples in normalised coordinates, from the moments alone:
+ * sum (r.theta - 1)^2 = theta^T A theta - 2 theta^T b + N. On a shell of radius ~1 a geometric
+ * error delta gives ~2 delta, so motion SNR = 2 / rms: ~2.5 for noise around one point (any model
+ * of it), the radius / noise for a rotation (any soft iron, any quadric). Three phases: the solve,
+ * the residuals (stored, when there is room, for the median), the median.
+ */
+static MAGCAL_NOINLINE int ph_asnr0(ell_scratch_t *sw, ell_bud_t *b)
+{
+    ell_run_t *r = &sw->run;
+    const quad_acc_t *acc = &sw->acc;
+    float *a = sw->mat;
+    size_t i;
+    size_t j;
+    if (magcal_ell_can(b, W_T_SOLVE9) == 0) {
+        return ELL_YIELD;
+    }
+    for (i = 0u; i < 9u; ++i) {
+        for (j = 0u; j < 9u; ++j) {
+            a[i * 9u + j] = magcal_ell_acc_at(acc, i, j);
+        }
+        r->theta[i] = magcal_ell_acc_at(acc, i, 9u);
+    }
+    if (magcal_ldlt_solve(a, r->theta, 9u, 0.0f, NULL) != MAGCAL_OK) {
+        sw->mc.snr_alg = INFINITY; /* singular: a degenerate quadric fits exactly, this is not noise */
+        r->k = 0u;
+        r->ph = ELL_PH_COV;
+        return ELL_CONT;
+    }
+    r->src_alg.cal = NULL;
+    r->src_alg.theta = r->theta;
+    r->src_alg.mu = sw->mu;
+    r->src_alg.inv_s = r->inv_s;
+    r->rmax = 0.0f;
+    r->k = 0u;
+    r->ph = ELL_PH_ASNR;
+    return ELL_CONT;
+}
+
+static MAGCAL_NOINLINE int asnr_range(ell_scratch_t *sw, ell_bud_t *b)
+{
+    ell_run_t *r = &sw->run;
+    {
+        const size_t k1 = r->k + magcal_ell_visits(b, W_T_ASNR, r->n - r->k);
+        float *res = r->ws.res;
+        float mx = r->rmax;
+        size_t k;
+        for (k = r->k; k < k1; ++k) {
+            const float rr = alg_residual(&r->src_alg, &r->m[k]);
+            if (res != NULL) {
+                res[k] = rr;
+            }
+            if (fabsf(rr) > mx) { /* fmaxf(mx, |r|) without the libm call (NaN ignored alike) */
+                mx = fabsf(rr);
+            }
+        }
+        r->k = k1;
+        r->rmax = mx;
+    }
+    if (r->k < r->n) {
+        return ELL_YIELD;
+    }
+    {
+        ell_ws_t all_ws = r->ws;
+        all_ws.keep = NULL; /* every sample */
+        /* robust (median) scale: outliers far off the shell must not make a rotation look like noise */
+        magcal_ell_med_start(r, &r->src_alg, &r->all, &all_ws, r->n, r->rmax, ELL_PH_ASNR_DONE);
+    }
+    return ELL_CONT;
+}
+
+/* Motion SNR: the largest of `snr_model` (the final fit's), the algebraic quadric's and, only when
  * both are below `limit` (about to say NO_MOTION), the sphere's with a robust (median) scale. Each
  * can be fooled alone: a far burst drags the least-squares quadric (and any model) but not a
  * median-scaled sphere; strong soft iron spoils the sphere but not the quadric. Noise around one
- * point fools none of them (all ~2.5).
- */
-static MAGCAL_NOINLINE float motion_snr(const motion_ctx_t *mc, float snr_model, float limit,
-                                        const ell_ws_t *ws)
+ * point fools none of them (all ~2.5). Result in r->mot.snr, then phase `ret`. */
+static void mot_start(ell_run_t *r, float snr_model, float limit, uint8_t ret)
 {
-    float snr = fmaxf(snr_model, mc->snr_alg);
-    if (snr < limit && mc->sphere != NULL) {
-        const quad_gate_t all = {NULL, 0.0f};
-        resid_src_t src = {NULL, NULL, NULL, 0.0f};
-        float mx;
-        size_t kept;
-        float med;
-        ell_ws_t rw = *ws; /* recomputed: the stored residuals belong to the fit */
-        rw.res = NULL;
-        rw.keep = NULL;
-        src.cal = mc->sphere;
-        (void)magcal_ell_residual_pass(mc->m, mc->n, mc->sphere, &all, &rw, &kept, &mx);
-        med = MAGCAL_ELL_MAD_TO_SIGMA *
-              magcal_ell_median_abs(mc->m, mc->n, &src, &all, &rw, kept, mx) /
-              mc->sphere->g[0][0];
-        snr = fmaxf(snr, (med > 0.0f) ? (mc->s / med) : INFINITY);
+    r->mot.snr_model = snr_model;
+    r->mot.limit = limit;
+    r->mot.ret = ret;
+    r->ph = ELL_PH_MOT0;
+}
+
+static MAGCAL_NOINLINE int ph_mot(ell_scratch_t *sw)
+{
+    ell_run_t *r = &sw->run;
+    const motion_ctx_t *mc = &sw->mc;
+    ell_mot_t *mo = &r->mot;
+    if (r->ph == ELL_PH_MOT0) {
+        mo->snr = fmaxf(mo->snr_model, mc->snr_alg);
+        if (mo->snr < mo->limit && mc->sphere != NULL) {
+            ell_ws_t rw = r->ws; /* recomputed: the stored residuals belong to the fit */
+            rw.res = NULL;
+            rw.keep = NULL;
+            r->src_sph.cal = mc->sphere;
+            r->src_sph.theta = NULL;
+            r->src_sph.mu = NULL;
+            r->src_sph.inv_s = 0.0f;
+            magcal_ell_rp_start(r, mc->sphere, &r->all, &rw, ELL_PH_MOT1);
+        } else {
+            r->ph = mo->ret;
+        }
+    } else if (r->ph == ELL_PH_MOT1) {
+        magcal_ell_med_start(r, &r->src_sph, &r->all, &r->rp.ws, r->rp.kept, r->rp.mx, ELL_PH_MOT2);
+    } else { /* ELL_PH_MOT2 */
+        const float med = MAGCAL_ELL_MAD_TO_SIGMA * r->med.result / mc->sphere->g[0][0];
+        mo->snr = fmaxf(mo->snr, (med > 0.0f) ? (mc->s / med) : INFINITY);
+        r->ph = mo->ret;
     }
-    return snr;
+    return ELL_CONT;
 }
 
 /*
  * A failed fit of data that never moved, or that rotate about one axis only, gets the status that
  * says so (the user must move the sensor differently, not retry with the same motion).
  */
-MAGCAL_NOINLINE magcal_status_t magcal_ell_explain_failure(magcal_status_t st,
-                                                           const motion_ctx_t *mc, float planarity,
-                                                           const magcal_ellipsoid_cfg_t *cfg,
-                                                           const ell_ws_t *ws)
+void magcal_ell_explain_start(ell_run_t *r, magcal_status_t st)
 {
-    if (st == MAGCAL_ERR_NULL || st == MAGCAL_ERR_ARG || st == MAGCAL_ERR_NONFINITE ||
-        st == MAGCAL_ERR_DEGENERATE) {
-        return st;
+    r->pend = st;
+    r->ph = ELL_PH_EXPL0;
+}
+
+static MAGCAL_NOINLINE int ph_explain(ell_scratch_t *sw)
+{
+    ell_run_t *r = &sw->run;
+    const magcal_ellipsoid_cfg_t *cfg = r->cfg;
+    const magcal_status_t st = r->pend;
+    if (r->ph == ELL_PH_EXPL0) {
+        if (st == MAGCAL_ERR_NULL || st == MAGCAL_ERR_ARG || st == MAGCAL_ERR_NONFINITE ||
+            st == MAGCAL_ERR_DEGENERATE) {
+            return st;
+        }
+        if (cfg->min_motion_snr > 0.0f) {
+            mot_start(r, 0.0f, cfg->min_motion_snr, ELL_PH_EXPL1);
+        } else {
+            r->ph = ELL_PH_EXPL1;
+        }
+        return ELL_CONT;
     }
-    if (cfg->min_motion_snr > 0.0f &&
-        motion_snr(mc, 0.0f, cfg->min_motion_snr, ws) < cfg->min_motion_snr) {
+    if (cfg->min_motion_snr > 0.0f && r->mot.snr < cfg->min_motion_snr) {
         return MAGCAL_ERR_NO_MOTION;
     }
-    if ((cfg->max_centre_std_rel > 0.0f || cfg->max_shape_std > 0.0f) && planarity < PLANAR_MAX) {
+    if ((cfg->max_centre_std_rel > 0.0f || cfg->max_shape_std > 0.0f) && r->planarity < PLANAR_MAX) {
         return MAGCAL_ERR_SINGLE_AXIS;
     }
     return st;
 }
 
-/*
- * Trust gates on a finished fit (issue 12, docs/calibration_3d.md "Trust gates"), in this order:
- * no motion; one rotation axis; residual; observability (ill-conditioned); field magnitude.
- * Writes the diagnostics into dg.
- */
-MAGCAL_NOINLINE magcal_status_t magcal_ell_trust_gates(const magcal_vec3_t *m, size_t n,
-                                                       const magcal_ellipsoid_cfg_t *cfg,
-                                                       const magcal_ellipsoid_cal_t *cal, float rms,
-                                                       magcal_ellipsoid_model_t model,
-                                                       const quad_gate_t *gate,
-                                                       const motion_ctx_t *mc, float raw_planarity,
-                                                       const ell_ws_t *ws, trust_diag_t *dg)
+/* Trust gates, first phases: the mean gain and raw radius, the motion SNR, then the information
+ * pass of the observability gate. */
+static MAGCAL_NOINLINE int ph_tg(ell_scratch_t *sw)
 {
-    int sphere = 0;
-    const float gmean = mean_gain(cal);
-    const float f = cal->field;
+    ell_run_t *r = &sw->run;
+    const magcal_ellipsoid_cal_t *cal = &sw->cal[0];
+    if (r->ph == ELL_PH_TG0) {
+        const float gmean = mean_gain(cal);
+        r->sphere = (r->model == MAGCAL_ELLIPSOID_MODEL_SPHERE) ? 1u : 0u;
+        r->np = (r->sphere != 0u) ? (size_t)4u : (size_t)INFO_MAX_N;
+        if (!(gmean > 0.0f) || !magcal_isfinite_f(gmean)) {
+            return MAGCAL_ERR_NOT_ELLIPSOID;
+        }
+        r->gmean = gmean;
+        sw->dg.field_raw = cal->field / gmean;
+        /* motion: spread against the best noise scale (the fitted model's residual, raw units,
+         * after outlier rejection; the algebraic quadric of all samples; the robust sphere) */
+        mot_start(r, (r->rms > 0.0f) ? (sw->mc.s * gmean / r->rms) : INFINITY,
+                  r->cfg->min_motion_snr, ELL_PH_TG1);
+        return ELL_CONT;
+    }
+    sw->dg.motion_snr = r->mot.snr;
+    (void)memset(&sw->acc, 0, sizeof(sw->acc));
+    (void)memset(sw->part, 0, sizeof(sw->part));
+    (void)memset(sw->meat, 0, sizeof(sw->meat));
+    r->sn[0] = 0.0f;
+    r->sn[1] = 0.0f;
+    r->sn[2] = 0.0f;
+    r->cnt = 0u;
+    r->in_block = 0u;
+    r->k = 0u;
+    r->ph = ELL_PH_INFO;
+    return ELL_CONT;
+}
+
+/* The verdict (order: motion, one axis, residual, observability, field). */
+static magcal_status_t gates_verdict(const ell_run_t *r, const trust_diag_t *dg, float f)
+{
+    const magcal_ellipsoid_cfg_t *cfg = r->cfg;
+    const float rms = r->rms;
     float lim;
-    int observable;
-    if (model == MAGCAL_ELLIPSOID_MODEL_SPHERE) {
-        sphere = 1;
-    }
-    if (!(gmean > 0.0f) || !magcal_isfinite_f(gmean)) {
-        return MAGCAL_ERR_NOT_ELLIPSOID;
-    }
-    dg->field_raw = f / gmean;
-    /* motion: spread against the best noise scale (the fitted model's residual, raw units, after
-     * outlier rejection; the algebraic quadric of all samples; the robust sphere) */
-    dg->motion_snr =
-        motion_snr(mc, (rms > 0.0f) ? (mc->s * gmean / rms) : INFINITY, cfg->min_motion_snr, ws);
-    centre_diag(ws, centre_info(m, n, cal, gate, ws, sphere), sphere, f, dg);
+    int observable = 1;
     if (cfg->min_motion_snr > 0.0f && dg->motion_snr < cfg->min_motion_snr) {
         return MAGCAL_ERR_NO_MOTION;
     }
-    observable = 1;
     if ((cfg->max_centre_std_rel > 0.0f && !(dg->centre_std_rel <= cfg->max_centre_std_rel)) ||
         (cfg->max_shape_std > 0.0f && !(dg->shape_std <= cfg->max_shape_std))) {
         observable = 0;
     }
-    lim = (sphere != 0) ? cfg->max_residual_rel_sphere : cfg->max_residual_rel;
+    lim = (r->sphere != 0u) ? cfg->max_residual_rel_sphere : cfg->max_residual_rel;
     /* one axis: the corrected directions lie on a cone; or the raw samples are planar and the
      * quadric does not even fit them (a G made up along the unseen axis spoils the corrected test;
      * not for the sphere: a sphere that misfits strong soft iron is a residual failure) */
     if (observable == 0 &&
         (dg->planarity < PLANAR_MAX ||
-         (sphere == 0 && raw_planarity < PLANAR_MAX && lim > 0.0f && !(rms <= lim * f)))) {
+         (r->sphere == 0u && r->planarity < PLANAR_MAX && lim > 0.0f && !(rms <= lim * f)))) {
         return MAGCAL_ERR_SINGLE_AXIS;
     }
     if (lim > 0.0f && !(rms <= lim * f)) {
@@ -764,6 +858,131 @@ MAGCAL_NOINLINE magcal_status_t magcal_ell_trust_gates(const magcal_vec3_t *m, s
         return MAGCAL_ERR_FIELD_MAGNITUDE;
     }
     return MAGCAL_OK;
+}
+
+/*
+ * Observability phases after the information pass: (J^T J)^-1, then the sandwich
+ * (J^T J)^-1 meat (J^T J)^-1 from the summed meat row by row: the offset block (rows 0..2) and the
+ * shape diagonal, C_kl = inv_l . (meat inv_k). Near a singular J^T J the rounding of the summed
+ * meat can swamp its tiny component along the weak direction (and make an unobservable offset
+ * look fine), so each diagonal term carries a bound of that rounding, (cnt + np) eps |inv_k|^T
+ * |meat| |inv_k|; if any bound is above 1 % of its term, the exact per-sample second pass decides
+ * instead. Then the diagnostics and the verdict.
+ */
+static MAGCAL_NOINLINE int ph_centre(ell_scratch_t *sw, ell_bud_t *b)
+{
+    ell_run_t *r = &sw->run;
+    if (r->ph == ELL_PH_INV) { /* (J^T J)^-1: one factorisation, then np substitutions */
+        if (magcal_ell_can(b, W_T_FACTOR) == 0) {
+            return ELL_YIELD;
+        }
+        if (info_factor(sw, r->np) == 0) {
+            r->stage = 1; /* J^T J singular: the scatter only */
+            r->ph = ELL_PH_DIAG;
+            return ELL_CONT;
+        }
+        r->k = 0u;
+        r->ph = ELL_PH_INV_SUB;
+        return ELL_CONT;
+    }
+    if (r->ph == ELL_PH_INV_SUB) {
+        while (r->k < r->np) {
+            float *col = sw->inv[r->k];
+            size_t i;
+            if (magcal_ell_can(b, W_T_SUBST) == 0) {
+                return ELL_YIELD;
+            }
+            for (i = 0u; i < r->np; ++i) {
+                col[i] = (i == r->k) ? 1.0f : 0.0f;
+            }
+            if (magcal_ldlt_subst(sw->mat, col, r->np) != MAGCAL_OK) {
+                r->stage = 1;
+                r->ph = ELL_PH_DIAG;
+                return ELL_CONT;
+            }
+            r->k++;
+        }
+        (void)memset(sw->cc, 0, 9u * sizeof(float));
+        (void)memset(sw->sd, 0, INFO_MAX_N * sizeof(float));
+        r->k = 0u;
+        r->ph = ELL_PH_SWM;
+        return ELL_CONT;
+    }
+    if (r->ph == ELL_PH_SWM) {
+        while (r->k < r->np && !(r->k >= 3u && r->sphere != 0u)) {
+            if (magcal_ell_can(b, W_T_SWM) == 0) {
+                return ELL_YIELD;
+            }
+            if (sandwich_row(sw, r->np, r->cnt, r->k) == 0) {
+                (void)memset(sw->cc, 0, 9u * sizeof(float));
+                (void)memset(sw->sd, 0, INFO_MAX_N * sizeof(float));
+                r->k = 0u;
+                r->ph = ELL_PH_SWP;
+                return ELL_CONT;
+            }
+            r->k++;
+        }
+        r->k = 0u;
+        r->stage = 2;
+        r->ph = ELL_PH_DIAG;
+        return ELL_CONT;
+    }
+    /* ELL_PH_DIAG */
+    if (magcal_ell_can(b, W_T_DIAG) == 0) {
+        return ELL_YIELD;
+    }
+    centre_diag(&r->ws, (int)r->stage, (int)r->sphere, sw->cal[0].field, &sw->dg);
+    {
+        const magcal_status_t st = gates_verdict(r, &sw->dg, sw->cal[0].field);
+        if (st != MAGCAL_OK) {
+            return st;
+        }
+    }
+    r->ph = ELL_PH_OUT;
+    return ELL_CONT;
+}
+
+int magcal_ell_trust_phase(ell_scratch_t *sw, ell_bud_t *b)
+{
+    ell_run_t *r = &sw->run;
+    switch (r->ph) {
+    case ELL_PH_ASNR0:
+        return ph_asnr0(sw, b);
+    case ELL_PH_ASNR:
+        return asnr_range(sw, b);
+    case ELL_PH_ASNR_DONE: {
+        const float med = MAGCAL_ELL_MAD_TO_SIGMA * r->med.result;
+        sw->mc.snr_alg = (med > 0.0f) ? (2.0f / med) : INFINITY; /* 0: exact quadric */
+        r->k = 0u;
+        r->ph = ELL_PH_COV;
+        return ELL_CONT;
+    }
+    case ELL_PH_MED:
+        return med_phase(sw, b);
+    case ELL_PH_INFO:
+        return info_range(sw, b);
+    case ELL_PH_INFO_DONE:
+        return ph_info_done(sw, b);
+    case ELL_PH_INV:
+    case ELL_PH_INV_SUB:
+    case ELL_PH_SWM:
+    case ELL_PH_DIAG:
+        return ph_centre(sw, b);
+    case ELL_PH_SWP:
+        return swp_range(sw, b);
+    default:
+        break;
+    }
+    if (magcal_ell_can(b, W_T_UNIT) == 0) {
+        return ELL_YIELD;
+    }
+    if (r->ph == ELL_PH_TG0 || r->ph == ELL_PH_TG1) {
+        return ph_tg(sw);
+    }
+    if (r->ph == ELL_PH_EXPL0 || r->ph == ELL_PH_EXPL1) {
+        return ph_explain(sw);
+    }
+    return ph_mot(sw); /* ELL_PH_MOT0 .. ELL_PH_MOT2 */
 }
 
 #endif /* MAGCAL_CFG_ENABLE_3D */

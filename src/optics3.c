@@ -503,6 +503,18 @@ typedef struct {
     magcal_neighbors_t neighbors;
 } auto3_t;
 
+/* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
+MAGCAL_STATIC_ASSERT(sizeof(auto3_t) + 4u <= MAGCAL_OPTICS3_AUTO_LEN_, auto_record_fits_its_slot);
+
+/* The record behind the run's workspace (pointer-aligned inside the 4-aligned workspace; the
+ * caller has checked work_len >= MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n) before it is written). */
+static auto3_t *auto_record3(uint8_t *w, size_t n)
+{
+    uint8_t *p = w + MAGCAL_OPTICS3_FILTER_RUN_OFFSET_(n) + MAGCAL_OPTICS3_WORKSPACE_LEN(n);
+    const size_t mis = magcal_misalign(p, sizeof(void *));
+    return (auto3_t *)(void *)(p + ((mis == 0u) ? 0u : (sizeof(void *) - mis)));
+}
+
 /* Copy coordinate `axis` (0 x, 1 y, 2 z) of the counted points (use == NULL: all; else bit i of
  * use set) within sqrt(lim2) of c (all when lim2 is infinite) into a; returns how many. */
 static size_t gather3(const magcal_vec3_t *pts, size_t n, const uint8_t *use,
@@ -667,12 +679,12 @@ static size_t band_in_largest(const auto3_t *au, float eps_prime)
  * 5e-6 relative) whose largest cluster holds 75 % of the shell band, times AUTO3_SAFETY.
  * Layout of w: reach float[n] | core float[n] | order uint16[n] | run workspace.
  */
-static magcal_status_t auto_run3(const magcal_optics_cfg_t *cfg, const magcal_vec3_t *pts, size_t n,
+/* (use: the caller's copy of the configuration, changed here) */
+static magcal_status_t auto_run3(magcal_optics_cfg_t *use, const magcal_vec3_t *pts, size_t n,
                                  uint8_t *w, auto3_t *au)
 {
     float *a = (float *)(void *)w;
     magcal_vec3_t cen = {0.0f, 0.0f, 0.0f};
-    magcal_optics_cfg_t use = *cfg;
     optics3_ctx_t *c;
     float rad = INFINITY;
     float lo;
@@ -729,12 +741,12 @@ static magcal_status_t auto_run3(const magcal_optics_cfg_t *cfg, const magcal_ve
         return MAGCAL_ERR_DEGENERATE;
     }
     /* the ordering at eps = R holds every extraction at eps' <= R */
-    use.eps = AUTO3_MAX_REL * rad;
-    use.min_pts = (uint16_t)AUTO3_MIN_PTS;
+    use->eps = AUTO3_MAX_REL * rad;
+    use->min_pts = (uint16_t)AUTO3_MIN_PTS;
     /* at eps = R the 3x3x3 block covers the whole shell: the brute search, whose reach pass
      * shrinks with the unprocessed list, is cheaper (filter at n = 1000: 43.7 M -> 36.7 M) */
-    use.neighbors = MAGCAL_NEIGHBORS_BRUTE;
-    c = ctx3_setup(&use, pts, n, w + MAGCAL_OPTICS3_FILTER_RUN_OFFSET_(n));
+    use->neighbors = MAGCAL_NEIGHBORS_BRUTE;
+    c = ctx3_setup(use, pts, n, w + MAGCAL_OPTICS3_FILTER_RUN_OFFSET_(n));
     c->oc.reach = (float *)(void *)w;
     c->oc.core = (float *)(void *)(w + 4u * n);
     c->oc.order = (uint16_t *)(void *)(w + 8u * n);
@@ -743,7 +755,7 @@ static magcal_status_t auto_run3(const magcal_optics_cfg_t *cfg, const magcal_ve
     au->order = c->oc.order;
     optics3_loop(c);
     au->neighbors = c->use_grid != 0 ? MAGCAL_NEIGHBORS_GRID : MAGCAL_NEIGHBORS_BRUTE;
-    au->eps = use.eps;
+    au->eps = use->eps;
     /* the representatives again (the run used this memory), counted in the band */
     (void)thin3(pts, n, &cen, rad * AUTO3_THIN_REL * thin_scale3(n), (float *)(void *)rw,
                 (uint16_t *)(void *)(rw + 4u * n), rep);
@@ -785,9 +797,9 @@ magcal_status_t magcal_optics_auto_params3(const magcal_vec3_t *pts, size_t n, v
                                            size_t work_len, float *eps, uint16_t *min_pts,
                                            float *eps_prime)
 {
-    const magcal_optics_cfg_t cfg = MAGCAL_OPTICS_CFG_DEFAULT;
+    magcal_optics_cfg_t cfg = MAGCAL_OPTICS_CFG_DEFAULT;
     magcal_status_t st;
-    auto3_t au;
+    auto3_t *au;
     if (pts == NULL || work == NULL || eps == NULL || min_pts == NULL || eps_prime == NULL) {
         return MAGCAL_ERR_NULL;
     }
@@ -801,12 +813,13 @@ magcal_status_t magcal_optics_auto_params3(const magcal_vec3_t *pts, size_t n, v
     if (work_len < MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n)) {
         return MAGCAL_ERR_WORKSPACE;
     }
-    st = auto_run3(&cfg, pts, n, (uint8_t *)work, &au);
+    au = auto_record3((uint8_t *)work, n);
+    st = auto_run3(&cfg, pts, n, (uint8_t *)work, au);
     if (st != MAGCAL_OK) {
         return st;
     }
-    *eps = au.eps;
-    *eps_prime = au.eps_prime;
+    *eps = au->eps;
+    *eps_prime = au->eps_prime;
     *min_pts = (uint16_t)AUTO3_MIN_PTS;
     return MAGCAL_OK;
 }
@@ -936,7 +949,7 @@ magcal_status_t magcal_optics_filter3(const magcal_optics_cfg_t *cfg, const magc
     }
     use = *cfg;
     if (!(cfg->eps > 0.0f)) {
-        auto3_t au;
+        auto3_t *au = auto_record3(w, n);
         int16_t *labels = (int16_t *)(void *)(w + MAGCAL_OPTICS3_FILTER_RUN_OFFSET_(n));
         uint16_t n_clusters = 0u;
         uint16_t count = 0u;
@@ -956,24 +969,24 @@ magcal_status_t magcal_optics_filter3(const magcal_optics_cfg_t *cfg, const magc
             st = MAGCAL_ERR_WORKSPACE;
         }
         if (st == MAGCAL_OK) {
-            st = auto_run3(&use, pts, n, w, &au);
+            st = auto_run3(&use, pts, n, w, au);
         }
         if (st != MAGCAL_OK) {
             return st;
         }
         /* the run's workspace is free again: labels, then the cluster counts */
-        (void)magcal_optics_extract_dbscan(au.order, au.reach, au.core, n, au.eps, au.eps_prime,
+        (void)magcal_optics_extract_dbscan(au->order, au->reach, au->core, n, au->eps, au->eps_prime,
                                            labels, &n_clusters);
         for (i = 0; i < n; ++i) {
             n_noise += labels[i] == MAGCAL_OPTICS_NOISE ? 1u : 0u;
         }
-        st = keep_widest3(&au, labels, inlier_mask, &id, &count);
+        st = keep_widest3(au, labels, inlier_mask, &id, &count);
         if (info != NULL) {
             (void)memset(info, 0, sizeof *info);
-            info->eps = au.eps;
-            info->eps_prime = au.eps_prime;
+            info->eps = au->eps;
+            info->eps_prime = au->eps_prime;
             info->min_pts = (uint16_t)AUTO3_MIN_PTS;
-            info->neighbors = au.neighbors;
+            info->neighbors = au->neighbors;
             info->n_clusters = n_clusters;
             info->largest_id = id;
             info->n_inliers = count;

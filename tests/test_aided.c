@@ -14,6 +14,9 @@
 #include "test_util3d.h"
 #include "unity.h"
 
+/* magcal_ellipsoid_fit's fixed scratch (the workspace-free fit: no per-sample storage) */
+static magcal_ellipsoid_fit_scratch_t g_fit_scratch;
+
 void setUp(void) {}
 void tearDown(void) {}
 
@@ -232,10 +235,10 @@ static void test_aided_road_one_degree_converges_where_quadric_fails(void)
     TEST_ASSERT_TRUE(fit_rms <= 1.2 * floor_rms);
     /* the plain quadric fit on the same samples: AUTO refuses (one rotation axis, issue 12), the
      * forced 9-parameter fit is ill-posed (algorithms.md 7.7: 142 uT V error at 1 deg) */
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_SINGLE_AXIS, magcal_ellipsoid_fit(g_m, NEP, &ecfg, &er));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_SINGLE_AXIS, magcal_ellipsoid_fit(g_m, NEP, &ecfg, &g_fit_scratch, &er));
     ecfg.model = MAGCAL_ELLIPSOID_MODEL_QUADRIC9;
     ecfg.field = res.cal.field;
-    est = magcal_ellipsoid_fit(g_m, NEP, &ecfg, &er);
+    est = magcal_ellipsoid_fit(g_m, NEP, &ecfg, &g_fit_scratch, &er);
     TEST_ASSERT_TRUE(est != MAGCAL_OK || v_err(&er.cal) > 10.0);
 }
 

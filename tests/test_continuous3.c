@@ -563,11 +563,67 @@ static void test_cont3_isr_push_interleaved_with_task(void)
 }
 #endif
 
+
+/* The solve is time-sliced: at the default budget it takes many step() calls, each charged within
+ * cfg.step_budget (estimated M4F instructions) or by one unit alone (a 9x9 solve; the density stage
+ * would be one unit of its own),
+ * samples pushed meanwhile are stored, and its candidate is bit for bit the one-shot
+ * magcal_ellipsoid_calibrate of the same snapshot. */
+static void test_cont3_sliced_solve_bounded_and_identical_to_one_shot(void)
+{
+    uint32_t rng = 5u;
+    size_t i = 0u;
+    uint32_t steps = 0u, max_used = 0u, stored0;
+    magcal_ellipsoid_result_t one;
+    magcal_cont3_t *cc = &g_c3[0];
+    init_default(NULL);
+    TEST_ASSERT_EQUAL_UINT32(MAGCAL_SLICE_BUDGET_DEFAULT, cc->cfg.step_budget);
+    for (; i < 20000u && cc->stage != 2u; ++i) { /* until a solve is under way */
+        double ro, pi, ya;
+        magcal_vec3_t m, a;
+        tumble_att(0.02 * (double)i, &ro, &pi, &ya);
+        sample(&k_truth, ro, pi, ya, 1.0, &rng, &m, &a);
+        (void)magcal_cont3_push(cc, &m, (uint32_t)(20u * i));
+        (void)magcal_cont3_step(cc);
+    }
+    TEST_ASSERT_EQUAL_UINT8(2u, cc->stage);
+    stored0 = cc->store.ctr.added + cc->store.ctr.replaced;
+    while (cc->stage == 2u) {
+        double ro, pi, ya;
+        magcal_vec3_t m, a;
+        tumble_att(0.02 * (double)i, &ro, &pi, &ya);
+        sample(&k_truth, ro, pi, ya, 1.0, &rng, &m, &a);
+        (void)magcal_cont3_push(cc, &m, (uint32_t)(20u * i));
+        ++i;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_CONT3_IN_PROGRESS, magcal_cont3_step(cc));
+        if (cc->slice.used_ > max_used) {
+            max_used = cc->slice.used_;
+        }
+        TEST_ASSERT_TRUE(++steps < 100000u);
+    }
+    TEST_ASSERT_EQUAL_UINT8(3u, cc->stage); /* the adoption unit is next */
+    printf("sliced 3-D solve: %u samples, %u steps, largest step %u estimated M4F instructions (budget %u)\n",
+           (unsigned)cc->snap_n, (unsigned)steps, (unsigned)max_used, (unsigned)cc->cfg.step_budget);
+    TEST_ASSERT_TRUE(steps > 20u);
+    /* within the budget, or one solve unit alone (the largest: a 9x9 LDL^T solve, 7,500) */
+    TEST_ASSERT_TRUE(max_used <= cc->cfg.step_budget || max_used <= 7500u);
+    TEST_ASSERT_TRUE(cc->store.ctr.added + cc->store.ctr.replaced > stored0); /* pushes stored meanwhile */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_calibrate(&cc->cfg.solver, cc->buf, cc->snap_n, g_work1,
+                                                                sizeof g_work1, NULL, &one, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, cc->solve_status);
+    TEST_ASSERT_EQUAL_MEMORY(&one.cal, &cc->cand.cal, sizeof one.cal);
+    TEST_ASSERT_EQUAL_MEMORY(&one.residual_rms, &cc->cand.residual_rms, sizeof(float));
+    TEST_ASSERT_EQUAL_UINT32((uint32_t)one.n_used, (uint32_t)cc->cand.n_used);
+    (void)magcal_cont3_step(cc); /* the adoption */
+    TEST_ASSERT_EQUAL_UINT8(0u, cc->stage);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_cont3_init_bad_args_refused);
     RUN_TEST(test_cont3_tumble_first_adoption_accurate);
+    RUN_TEST(test_cont3_sliced_solve_bounded_and_identical_to_one_shot);
     RUN_TEST(test_cont3_parked_and_single_axis_never_adopt);
     RUN_TEST(test_cont3_hard_iron_step_detected_relearned);
     RUN_TEST(test_cont3_transient_flagged_nothing_dropped);

@@ -3,6 +3,7 @@
  * Truth: m = W h + V + n, h = C_n^b B_ref, |B_ref| = F (algorithms.md 7.1/7.2).
  */
 #include <math.h>
+#include <stdio.h>
 #include <stddef.h>
 #include <string.h>
 
@@ -10,6 +11,9 @@
 #include "test_util.h"
 #include "test_util3d.h"
 #include "unity.h"
+
+/* magcal_ellipsoid_fit's fixed scratch (the workspace-free fit: no per-sample storage) */
+static magcal_ellipsoid_fit_scratch_t g_fit_scratch;
 
 void setUp(void) {}
 void tearDown(void) {}
@@ -118,7 +122,7 @@ static void test_ellipsoid_fit_random_attitudes_recovers_v_and_q(void)
     magcal_ellipsoid_result_t r;
     test_make_w_full(w);
     make_set(w, NFIT, 180.0, 180.0, 0.05, 1234u);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ELLIPSOID_MODEL_QUADRIC9, r.model);
     /* algorithms.md 7.2 (double): 0.001 uT and 1.5e-4; float32 + 3-sigma clipping: 0.02 uT, 1e-3. */
     TEST_ASSERT_TRUE(v_err(&r.cal) < 0.02);
@@ -138,9 +142,9 @@ static void test_ellipsoid_fit_quadric10_matches_quadric9(void)
     int i, j;
     test_make_w_full(w);
     make_set(w, NFIT, 180.0, 180.0, 0.05, 777u);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r9));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r9));
     cfg.model = MAGCAL_ELLIPSOID_MODEL_QUADRIC10;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r10));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r10));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ELLIPSOID_MODEL_QUADRIC10, r10.model);
     TEST_ASSERT_TRUE(v_err(&r10.cal) < 0.02);
     TEST_ASSERT_TRUE(test_q_err(&r10.cal, w) < 1e-3);
@@ -163,9 +167,9 @@ static void test_ellipsoid_fit_sqrt_variants_satisfy_gtg_equals_q(void)
     int i, j, k;
     test_make_w_full(w);
     make_set(w, NFIT, 180.0, 180.0, 0.05, 99u);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &rs));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &rs));
     cfg.sqrt_method = MAGCAL_ELLIPSOID_SQRT_CHOLESKY;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &rc));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &rc));
     /* symmetric root is symmetric, Cholesky root is upper triangular */
     TEST_ASSERT_FLOAT_WITHIN(1e-5f, rs.cal.g[0][1], rs.cal.g[1][0]);
     TEST_ASSERT_FLOAT_WITHIN(1e-5f, rs.cal.g[0][2], rs.cal.g[2][0]);
@@ -211,7 +215,7 @@ static void test_ellipsoid_fit_tilted_headings_within_1p2_of_floor(void)
     int i, j;
     make_w_sym(w);
     make_set(w, NFIT, 180.0, 180.0, 0.1, 4242u);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     /* evaluation set: |pitch|, |roll| <= 40 deg, same noise; floor = true calibration on it */
     make_set(w, NFIT, 40.0, 40.0, 0.1, 5151u);
     test_mat3_inv(w, wi);
@@ -248,9 +252,9 @@ static void test_ellipsoid_fit_outliers_rejected_by_residual_gate(void)
         g_m[NFIT + k].y += (float)(mag * dy / nn);
         g_m[NFIT + k].z += (float)(mag * dz / nn);
     }
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT + NOUT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT + NOUT, &cfg, &g_fit_scratch, &r));
     cfg.outlier_k = 0.0f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT + NOUT, &cfg, &rn));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT + NOUT, &cfg, &g_fit_scratch, &rn));
     TEST_ASSERT_TRUE(v_err(&r.cal) < 0.03);
     TEST_ASSERT_TRUE(test_q_err(&r.cal, w) < 1.5e-3);
     TEST_ASSERT_TRUE(r.n_rejected >= NOUT && r.n_rejected <= NOUT + 10);
@@ -272,9 +276,9 @@ static void test_ellipsoid_fit_rejections_above_limit_return_too_many_outliers(v
         g_m[k].x += 10.0f;
     }
     cfg.max_reject_frac = 0.05f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_MANY_OUTLIERS, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_MANY_OUTLIERS, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     cfg.max_reject_frac = 0.25f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     /* a shift nearly tangent to the sphere barely changes |h|: 58 of the 60 are caught */
     TEST_ASSERT_TRUE(r.n_rejected >= NFIT / 10 - 4 && r.n_rejected <= NFIT / 10 + 6);
     TEST_ASSERT_TRUE(v_err(&r.cal) < 0.03);
@@ -287,7 +291,7 @@ static void test_ellipsoid_fit_poor_coverage_falls_back_to_sphere(void)
     magcal_ellipsoid_cfg_t cfg = cfg_with_field();
     magcal_ellipsoid_result_t r;
     make_set(w, NFIT, 20.0, 20.0, 0.05, 55u);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_TRUE(r.coverage >= cfg.min_coverage_sphere && r.coverage < cfg.min_coverage_full);
     TEST_ASSERT_EQUAL_INT(MAGCAL_ELLIPSOID_MODEL_SPHERE, r.model);
     TEST_ASSERT_TRUE(v_err(&r.cal) < 0.1);
@@ -307,21 +311,21 @@ static void test_ellipsoid_fit_level_ring_every_model_returns_single_axis(void)
     test_make_w_full(w);
     make_set(w, NFIT, 0.0, 0.0, 0.05, 66u);
     memset(&r, 0xA5, sizeof(r));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_SINGLE_AXIS, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_SINGLE_AXIS, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_EQUAL_HEX8(0xA5, ((unsigned char *)&r)[0]); /* untouched on failure */
     cfg.model = MAGCAL_ELLIPSOID_MODEL_QUADRIC9;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_SINGLE_AXIS, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_SINGLE_AXIS, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     cfg.model = MAGCAL_ELLIPSOID_MODEL_QUADRIC10;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_SINGLE_AXIS, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_SINGLE_AXIS, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     cfg.model = MAGCAL_ELLIPSOID_MODEL_SPHERE;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_SINGLE_AXIS, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_SINGLE_AXIS, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_EQUAL_HEX8(0xA5, ((unsigned char *)&r)[0]);
     /* with the observability gates off the old failure is still there: the gates are what refuse */
     cfg.model = MAGCAL_ELLIPSOID_MODEL_QUADRIC9;
     cfg.max_centre_std_rel = 0.0f;
     cfg.max_shape_std = 0.0f;
     cfg.max_residual_rel = 0.0f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_TRUE(v_err(&r.cal) > 5.0);
 }
 
@@ -340,9 +344,9 @@ static void test_ellipsoid_fit_hyperboloid_returns_not_ellipsoid(void)
         g_m[k].z = (float)z;
     }
     cfg.model = MAGCAL_ELLIPSOID_MODEL_QUADRIC9;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NOT_ELLIPSOID, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NOT_ELLIPSOID, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     cfg.model = MAGCAL_ELLIPSOID_MODEL_QUADRIC10;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NOT_ELLIPSOID, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NOT_ELLIPSOID, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
 }
 
 static void test_ellipsoid_fit_unknown_field_gives_unit_determinant(void)
@@ -353,7 +357,7 @@ static void test_ellipsoid_fit_unknown_field_gives_unit_determinant(void)
     double det, detw;
     test_make_w_full(w);
     make_set(w, NFIT, 180.0, 180.0, 0.05, 8u);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     det = (double)r.cal.g[0][0] * (r.cal.g[1][1] * r.cal.g[2][2] - r.cal.g[1][2] * r.cal.g[2][1]) -
           (double)r.cal.g[0][1] * (r.cal.g[1][0] * r.cal.g[2][2] - r.cal.g[1][2] * r.cal.g[2][0]) +
           (double)r.cal.g[0][2] * (r.cal.g[1][0] * r.cal.g[2][1] - r.cal.g[1][1] * r.cal.g[2][0]);
@@ -373,32 +377,32 @@ static void test_ellipsoid_fit_bad_input_returns_status(void)
     size_t k;
     test_make_w_full(w);
     make_set(w, 100, 180.0, 180.0, 0.05, 3u);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_fit(NULL, 100, &cfg, &r));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_fit(g_m, 100, NULL, &r));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_fit(g_m, 100, &cfg, NULL));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_ellipsoid_fit(g_m, 3, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_fit(NULL, 100, &cfg, &g_fit_scratch, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_fit(g_m, 100, NULL, &g_fit_scratch, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_fit(g_m, 100, &cfg, &g_fit_scratch, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_ellipsoid_fit(g_m, 3, &cfg, &g_fit_scratch, &r));
     cfg.model = MAGCAL_ELLIPSOID_MODEL_QUADRIC9;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_ellipsoid_fit(g_m, 9, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS, magcal_ellipsoid_fit(g_m, 9, &cfg, &g_fit_scratch, &r));
     cfg.max_refits = 99u;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &g_fit_scratch, &r));
     cfg.max_refits = 3u;
     cfg.min_coverage_full = 1.5f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &g_fit_scratch, &r));
     cfg.min_coverage_full = 0.45f;
     cfg.field = -1.0f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &g_fit_scratch, &r));
     cfg.field = 0.0f;
     cfg.model = (magcal_ellipsoid_model_t)7;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &g_fit_scratch, &r));
     cfg.model = MAGCAL_ELLIPSOID_MODEL_AUTO;
     g_m[50].y = NAN;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_ellipsoid_fit(g_m, 100, &cfg, &g_fit_scratch, &r));
     for (k = 0; k < 100; ++k) {
         g_m[k].x = 3.0f;
         g_m[k].y = -2.0f;
         g_m[k].z = 1.0f;
     }
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_DEGENERATE, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_DEGENERATE, magcal_ellipsoid_fit(g_m, 100, &cfg, &g_fit_scratch, &r));
 }
 
 /* Field magnitude errors of +-(15..40) % (7..19 uT on F = 48 uT) injected at every 20th index (30 of
@@ -428,7 +432,7 @@ static void test_ellipsoid_outliers_injected_indices_all_flagged(void)
     double s2 = 0.0;
     test_make_w_full(w);
     make_radial_outliers(w, 2718u);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_TRUE(r.gate_thr > 0.0f);
     memset(flag, 0xA5, sizeof(flag));
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_outliers(&r, g_m, NFIT, flag, &n_out));
@@ -471,7 +475,7 @@ static void test_ellipsoid_outliers_tangent_shifts_count_equals_n_rejected(void)
     for (k = 0; k < NFIT; k += 10) {
         g_m[k].x += 10.0f;
     }
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_outliers(&r, g_m, NFIT, flag, &n_out));
     TEST_ASSERT_EQUAL_UINT32((uint32_t)r.n_rejected, (uint32_t)n_out);
     for (k = 0; k < NFIT; k += 10) {
@@ -503,7 +507,7 @@ static void test_ellipsoid_outliers_borderline_errors_count_equals_n_rejected(vo
             g_m[k].y = (float)(V_TRUE[1] + f * (g_m[k].y - V_TRUE[1]));
             g_m[k].z = (float)(V_TRUE[2] + f * (g_m[k].z - V_TRUE[2]));
         }
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
         TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_outliers(&r, g_m, NFIT, flag, &n_out));
         TEST_ASSERT_EQUAL_UINT32((uint32_t)r.n_rejected, (uint32_t)n_out);
     }
@@ -518,7 +522,7 @@ static void test_ellipsoid_outliers_clean_data_all_zero(void)
     size_t k, n_out = 99u;
     test_make_w_full(w);
     make_set(w, NFIT, 180.0, 180.0, 0.05, 1234u);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_EQUAL_UINT32(0u, (uint32_t)r.n_rejected);
     memset(flag, 0xA5, sizeof(flag));
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_outliers(&r, g_m, NFIT, flag, &n_out));
@@ -533,7 +537,7 @@ static void test_ellipsoid_outliers_clean_data_all_zero(void)
     cfg.max_residual_rel = 0.0f;
     cfg.max_centre_std_rel = 0.0f;
     cfg.max_shape_std = 0.0f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_EQUAL_FLOAT(0.0f, r.gate_thr);
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_outliers(&r, g_m, NFIT, flag, &n_out));
     TEST_ASSERT_EQUAL_UINT32(0u, (uint32_t)n_out);
@@ -549,7 +553,7 @@ static void test_ellipsoid_outliers_bad_input_returns_status(void)
     size_t n_out = 77u;
     test_make_w_full(w);
     make_radial_outliers(w, 2718u);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL,
                           magcal_ellipsoid_outliers(NULL, g_m, NFIT, flag, &n_out));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_outliers(&r, NULL, NFIT, flag, &n_out));
@@ -619,31 +623,31 @@ static void test_ellipsoid_fit_field_band_returns_field_magnitude(void)
     const float f = (float)f_ref();
     make_w_sym(w);
     make_set(w, NFIT, 180.0, 180.0, 0.1, 4343u);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_FLOAT_WITHIN(0.02f * f, f, r.field_raw); /* det W = 1.052: raw radius 49.2 uT */
     cfg.field_expected = f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     cfg.field = 1000.0f; /* output in nT: G absorbs the scale, the raw radius is unchanged */
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_FLOAT_WITHIN(0.02f * f, f, r.field_raw);
     cfg.field_expected = 0.70f * f; /* raw 1.45 x expected: above the 1.4 band */
     memset(&r, 0xA5, sizeof(r));
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_FIELD_MAGNITUDE, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_FIELD_MAGNITUDE, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_EQUAL_HEX8(0xA5, ((unsigned char *)&r)[0]);
     cfg.field_expected = 1.25f * f; /* raw 0.81 x expected: below 0.85 */
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_FIELD_MAGNITUDE, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_FIELD_MAGNITUDE, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     cfg.field_band_lo = 0.75f; /* a wider band admits it */
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     cfg.field_band_lo = 0.0f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     cfg.field_band_lo = 0.85f;
     cfg.field_band_hi = 0.9f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     cfg.field_band_hi = 1.4f;
     cfg.field_expected = -1.0f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     cfg.field_expected = NAN;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
 }
 
 static void test_ellipsoid_fit_at_rest_returns_no_motion(void)
@@ -664,7 +668,7 @@ static void test_ellipsoid_fit_at_rest_returns_no_motion(void)
     for (i = 0; i < 4; ++i) {
         cfg.model = models[i];
         memset(&r, 0xA5, sizeof(r));
-        TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NO_MOTION, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NO_MOTION, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
         TEST_ASSERT_EQUAL_HEX8(0xA5, ((unsigned char *)&r)[0]);
     }
     /* the diagnostic: every noise scale says ~2.5 sigma of spread */
@@ -673,7 +677,7 @@ static void test_ellipsoid_fit_at_rest_returns_no_motion(void)
     cfg.max_centre_std_rel = 0.0f;
     cfg.max_shape_std = 0.0f;
     cfg.max_residual_rel = 0.0f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_TRUE(r.motion_snr > 1.5f && r.motion_snr < 4.0f);
     TEST_ASSERT_TRUE(v_err(&r.cal) > 10.0); /* the answer it used to return as OK */
 }
@@ -687,13 +691,13 @@ static void test_ellipsoid_fit_sphere_on_soft_iron_returns_residual(void)
     magcal_ellipsoid_result_t r;
     make_set(w, NFIT, 180.0, 180.0, 0.05, 5353u);
     cfg.model = MAGCAL_ELLIPSOID_MODEL_SPHERE;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_RESIDUAL, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_RESIDUAL, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     cfg.max_residual_rel_sphere = 0.05f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_TRUE(r.residual_rms > 0.01f * r.cal.field && r.residual_rms < 0.02f * r.cal.field);
     cfg.model = MAGCAL_ELLIPSOID_MODEL_AUTO;
     cfg.max_residual_rel_sphere = 0.01f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, NFIT, &cfg, &g_fit_scratch, &r));
     TEST_ASSERT_EQUAL_INT(MAGCAL_ELLIPSOID_MODEL_QUADRIC9, r.model);
     TEST_ASSERT_TRUE(v_err(&r.cal) < 0.02);
     /* diagnostics of a good fit: observable, not planar, moving */
@@ -711,21 +715,21 @@ static void test_ellipsoid_fit_trust_cfg_out_of_range_returns_arg(void)
     make_w_sym(w);
     make_set(w, 100, 180.0, 180.0, 0.05, 3u);
     cfg.min_motion_snr = -1.0f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &g_fit_scratch, &r));
     cfg.min_motion_snr = 4.0f;
     cfg.max_centre_std_rel = NAN;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &g_fit_scratch, &r));
     cfg.max_centre_std_rel = 0.005f;
     cfg.max_shape_std = 2.0f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &g_fit_scratch, &r));
     cfg.max_shape_std = 0.008f;
     cfg.max_residual_rel = -0.1f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &g_fit_scratch, &r));
     cfg.max_residual_rel = 0.05f;
     cfg.max_residual_rel_sphere = 1.5f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit(g_m, 100, &cfg, &g_fit_scratch, &r));
     cfg.max_residual_rel_sphere = 0.01f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, 100, &cfg, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, 100, &cfg, &g_fit_scratch, &r));
 }
 
 /* ---- magcal_ellipsoid_calibrate (issue 14): pre-test -> density stage when needed -> fit ---- */
@@ -753,7 +757,7 @@ static void test_ellipsoid_calibrate_clean_data_skips_density_stage(void)
     size_t k;
     test_make_w_full(w);
     make_set(w, 320u, 180.0, 180.0, 0.3, 4242u);
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, 320u, &cc.fit, &rf));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_m, 320u, &cc.fit, &g_fit_scratch, &rf));
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK,
                           magcal_ellipsoid_calibrate(&cc, g_m, 320u, g_cwork, sizeof g_cwork, g_cin, &r, &info));
     TEST_ASSERT_EQUAL_UINT32(0u, info.density_ran);
@@ -797,7 +801,7 @@ static void test_ellipsoid_calibrate_burst_runs_density_stage_as_composition(voi
             kept[nk++] = g_m[k];
         }
     }
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(kept, nk, &cc.fit, &rf));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(kept, nk, &cc.fit, &g_fit_scratch, &rf));
     assert_same_result(&rf, &r);
     TEST_ASSERT_TRUE(v_err(&r.cal) < 0.1);
     for (k = NFIT; k < NFIT + NOUT; ++k) {
@@ -839,10 +843,11 @@ static void test_ellipsoid_calibrate_bad_input_returns_status(void)
     cc.mode = (magcal_ellipsoid_density_t)3;
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_calibrate(&cc, g_m, 320u, g_cwork, sizeof g_cwork,
                                                                      NULL, &r, NULL));
-    /* the size macro: the pre-test's result and the info (8-byte slots, aligned: + 4), the inlier copy, then
-     * the larger of the density stage's and the fit's workspace */
+    /* the size macro: the pre-test's result, the info and the one-shot call's slice state (8-byte slots,
+     * aligned: + 4), the inlier copy, then the larger of the density stage's and the fit's workspace */
     TEST_ASSERT_EQUAL_UINT32((uint32_t)(4u + (sizeof(magcal_ellipsoid_result_t) + 7u) / 8u * 8u +
-                                        (sizeof(magcal_ellipsoid_calibrate_info_t) + 7u) / 8u * 8u + 320u * sizeof(magcal_vec3_t) +
+                                        (sizeof(magcal_ellipsoid_calibrate_info_t) + 7u) / 8u * 8u +
+                                        (sizeof(magcal_ellipsoid_calibrate_slice_t) + 7u) / 8u * 8u + 320u * sizeof(magcal_vec3_t) +
                                         ((MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(320u) > MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(320u))
                                              ? MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(320u)
                                              : MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(320u))),
@@ -862,7 +867,7 @@ static void assert_fit_ws_same(size_t n, const magcal_ellipsoid_cfg_t *base, int
         magcal_status_t sa, sb;
         cfg.model = models[i];
         memset(&b, 0x5A, sizeof b);
-        sa = magcal_ellipsoid_fit(g_m, n, &cfg, &a);
+        sa = magcal_ellipsoid_fit(g_m, n, &cfg, &g_fit_scratch, &a);
         sb = magcal_ellipsoid_fit_ws(g_m, n, &cfg, g_cwork, sizeof g_cwork, &b);
         TEST_ASSERT_EQUAL_INT(sa, sb);
         if (sa == MAGCAL_OK) {
@@ -937,6 +942,216 @@ static void test_ellipsoid_fit_ws_bad_input_returns_status(void)
                              (uint32_t)MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(320u));
 }
 
+
+/* The time-sliced fit at budget `budget`: the status, result and stored residuals of the one-shot
+ * fit_ws, bit for bit; returns the step calls and (budget UINT32_MAX) the total charged. */
+static magcal_ellipsoid_result_t g_sl_out;
+static MAGCAL_ELLIPSOID_FIT_WORKSPACE_DECLARE(g_swork, NFIT + NOUT);
+static size_t run_sliced(size_t n, const magcal_ellipsoid_cfg_t *cfg, uint32_t budget, magcal_status_t *st,
+                         uint32_t *total, uint32_t *max_used)
+{
+    magcal_ellipsoid_fit_slice_t sl;
+    size_t steps = 0u;
+    memset(&g_sl_out, 0x5A, sizeof g_sl_out);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit_begin(&sl, g_m, n, cfg, g_swork, sizeof g_swork, &g_sl_out));
+    *total = 0u;
+    *max_used = 0u;
+    do {
+        *st = magcal_ellipsoid_fit_step(&sl, budget);
+        *total += sl.used_;
+        if (sl.used_ > *max_used) {
+            *max_used = sl.used_;
+        }
+        ++steps;
+        TEST_ASSERT_TRUE(steps < 2000000u);
+    } while (*st == MAGCAL_IN_PROGRESS);
+    TEST_ASSERT_EQUAL_INT(*st, magcal_ellipsoid_fit_step(&sl, budget)); /* the final status again */
+    return steps;
+}
+
+static void assert_slices_same(size_t n, const magcal_ellipsoid_cfg_t *cfg_in, int *n_ok)
+{
+    static const uint32_t budgets[5] = {1u, 97u, 1000u, 6000u, UINT32_MAX};
+    static const magcal_ellipsoid_model_t models[4] = {MAGCAL_ELLIPSOID_MODEL_AUTO, MAGCAL_ELLIPSOID_MODEL_QUADRIC9,
+                                                       MAGCAL_ELLIPSOID_MODEL_QUADRIC10, MAGCAL_ELLIPSOID_MODEL_SPHERE};
+    static float res_one[NFIT + NOUT];
+    magcal_ellipsoid_cfg_t cfg = *cfg_in;
+    magcal_ellipsoid_result_t a;
+    int i, j;
+    for (i = 0; i < 4; ++i) {
+        magcal_status_t sa;
+        uint32_t total = 0u;
+        cfg.model = models[i];
+        sa = magcal_ellipsoid_fit_ws(g_m, n, &cfg, g_cwork, sizeof g_cwork, &a);
+        memcpy(res_one, (const uint8_t *)(const void *)g_cwork + MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES, n * sizeof(float));
+        for (j = 4; j >= 0; --j) { /* UINT32_MAX first: the total */
+            magcal_status_t sb;
+            uint32_t tot, mx;
+            const size_t steps = run_sliced(n, &cfg, budgets[j], &sb, &tot, &mx);
+            TEST_ASSERT_EQUAL_INT(sa, sb);
+            if (sa == MAGCAL_OK) {
+                assert_same_result(&a, &g_sl_out);
+                TEST_ASSERT_EQUAL_MEMORY(res_one, (const uint8_t *)(const void *)g_swork + MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES,
+                                         n * sizeof(float));
+            } else {
+                TEST_ASSERT_EQUAL_HEX8(0x5A, ((unsigned char *)&g_sl_out)[0]); /* untouched */
+            }
+            if (budgets[j] == UINT32_MAX) {
+                TEST_ASSERT_EQUAL_UINT32(1u, (uint32_t)steps);
+                total = tot;
+            } else {
+                /* every step charged within its budget, or one unit alone (the largest unit: the
+                 * 10-parameter inverse iteration, forced model only; else one 9x9 solve <= 7,500) */
+                TEST_ASSERT_TRUE(mx <= budgets[j] || mx <= ((models[i] == MAGCAL_ELLIPSOID_MODEL_QUADRIC10) ? 60000u : 7500u) + 600u);
+                TEST_ASSERT_EQUAL_UINT32(total, tot); /* the same work, however cut */
+            }
+            if (budgets[j] == 6000u && models[i] != MAGCAL_ELLIPSOID_MODEL_QUADRIC10) {
+                /* steps within 1.6 x total / 6000 + 3: a step ends early only before a unit that
+                 * does not fit the rest of its budget (units <= 7,500) */
+                TEST_ASSERT_TRUE(steps <= (size_t)((total / 6000u) * 16u / 10u + 3u));
+            }
+            if (budgets[j] == 6000u) {
+                printf("  slices n=%u model=%d: total %u, steps at 6000: %u (total/6000 = %.1f)\n", (unsigned)n, (int)models[i],
+                       (unsigned)total, (unsigned)steps, (double)total / 6000.0);
+            }
+        }
+        if (sa == MAGCAL_OK) {
+            ++*n_ok;
+        }
+    }
+}
+
+static void test_ellipsoid_fit_step_any_budget_matches_fit_ws_bit_for_bit(void)
+{
+    double w[3][3];
+    static double w_hard[3][3] = {{0.9, 0, 0}, {0, 0.9, 0}, {0, 0, 0.9}};
+    const magcal_ellipsoid_cfg_t cfg = cfg_with_field();
+    magcal_ellipsoid_cfg_t cfg0 = MAGCAL_ELLIPSOID_CFG_DEFAULT;
+    int n_ok = 0;
+    size_t k;
+    test_make_w_full(w);
+    make_set(w, NFIT, 180.0, 180.0, 0.05, 2024u); /* full rotations */
+    assert_slices_same(NFIT, &cfg, &n_ok);
+    assert_slices_same(NFIT, &cfg0, &n_ok);
+    make_radial_outliers(w, 4242u); /* outliers: several refits of the gate */
+    assert_slices_same(NFIT, &cfg, &n_ok);
+    for (k = 0; k < NFIT; k += 10) { /* 10 % shifted: TOO_MANY_OUTLIERS at 5 % */
+        g_m[k].x += 10.0f;
+    }
+    cfg0 = cfg;
+    cfg0.max_reject_frac = 0.05f;
+    assert_slices_same(NFIT, &cfg0, &n_ok);
+    cfg0.max_refits = 8u;
+    cfg0.max_reject_frac = 0.25f;
+    assert_slices_same(NFIT, &cfg0, &n_ok);
+    make_set(w_hard, NFIT, 20.0, 20.0, 0.05, 55u); /* a band: the sphere, ill-conditioned quadrics */
+    assert_slices_same(NFIT, &cfg, &n_ok);
+    make_set(w, NFIT, 0.0, 0.0, 0.05, 77u); /* level ring: single axis */
+    assert_slices_same(NFIT, &cfg, &n_ok);
+    make_set(w, 120u, 180.0, 180.0, 1.0, 99u); /* few noisy samples */
+    assert_slices_same(120u, &cfg, &n_ok);
+    for (k = 0; k < 120u; ++k) { /* at rest: NO_MOTION through the sphere's robust scale */
+        g_m[k].x = 10.0f + 0.01f * (float)(k % 7u);
+        g_m[k].y = -5.0f + 0.01f * (float)(k % 5u);
+        g_m[k].z = 3.0f + 0.01f * (float)(k % 3u);
+    }
+    assert_slices_same(120u, &cfg, &n_ok);
+    TEST_ASSERT_TRUE(n_ok >= 8); /* the comparison covered OK results of several models */
+}
+
+static void test_ellipsoid_fit_step_bad_input_returns_status(void)
+{
+    const magcal_ellipsoid_cfg_t cfg = MAGCAL_ELLIPSOID_CFG_DEFAULT;
+    magcal_ellipsoid_fit_slice_t sl;
+    magcal_ellipsoid_result_t r;
+    memset(&sl, 0, sizeof sl);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_fit_step(NULL, 100u));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit_step(&sl, 100u)); /* never begun */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_fit_begin(NULL, g_m, 320u, &cfg, g_swork, sizeof g_swork, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_ellipsoid_fit_begin(&sl, g_m, 320u, &cfg, g_swork, sizeof g_swork, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_ellipsoid_fit_step(&sl, 100u)); /* failed begin */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE,
+                          magcal_ellipsoid_fit_begin(&sl, g_m, 320u, &cfg, g_swork, MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(320u) - 1u, &r));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ALIGNMENT,
+                          magcal_ellipsoid_fit_begin(&sl, g_m, 320u, &cfg, (uint8_t *)(void *)g_swork + 2, sizeof g_swork - 2u, &r));
+}
+
+
+/* The time-sliced complete calibration: status, result, info and inlier flags of the one-shot
+ * call at every budget (the density stage, when it runs, is one unit of its own). */
+static MAGCAL_ELLIPSOID_CALIBRATE_WORKSPACE_DECLARE(g_cwork2, NFIT + NOUT);
+static uint8_t g_cin2[NFIT + NOUT];
+static void assert_calibrate_slices_same(size_t n, const magcal_ellipsoid_calibrate_cfg_t *cc, int *n_ok)
+{
+    static const uint32_t budgets[5] = {1u, 97u, 1000u, 6000u, UINT32_MAX};
+    static uint8_t cin1[NFIT + NOUT];
+    magcal_ellipsoid_result_t a, b;
+    magcal_ellipsoid_calibrate_info_t ia, ib;
+    magcal_status_t sa;
+    int j;
+    memset(cin1, 0x77, sizeof cin1);
+    sa = magcal_ellipsoid_calibrate(cc, g_m, n, g_cwork, sizeof g_cwork, cin1, &a, &ia);
+    for (j = 0; j < 5; ++j) {
+        magcal_ellipsoid_calibrate_slice_t sl;
+        magcal_status_t sb;
+        size_t steps = 0u;
+        uint32_t mx = 0u;
+        memset(g_cin2, 0x77, sizeof g_cin2);
+        memset(&b, 0x5A, sizeof b);
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_calibrate_begin(&sl, cc, g_m, n, g_cwork2, sizeof g_cwork2,
+                                                                          g_cin2, &b, &ib));
+        do {
+            sb = magcal_ellipsoid_calibrate_step(&sl, budgets[j]);
+            if (sl.used_ > mx && sl.used_ < 1000000u) { /* the density stage: one unit alone */
+                mx = sl.used_;
+            }
+            TEST_ASSERT_TRUE(++steps < 4000000u);
+        } while (sb == MAGCAL_IN_PROGRESS);
+        TEST_ASSERT_EQUAL_INT(sa, sb);
+        TEST_ASSERT_EQUAL_INT(sb, magcal_ellipsoid_calibrate_step(&sl, budgets[j]));
+        TEST_ASSERT_TRUE(mx <= budgets[j] || mx <= 8100u); /* one solve unit alone: <= 7,500 */
+        TEST_ASSERT_EQUAL_UINT32(ia.density_ran, ib.density_ran);
+        TEST_ASSERT_EQUAL_UINT32((uint32_t)ia.n_density_rejected, (uint32_t)ib.n_density_rejected);
+        TEST_ASSERT_EQUAL_MEMORY(&ia.pretest_max_rel, &ib.pretest_max_rel, sizeof(float)); /* NaN too */
+        if (sa == MAGCAL_OK) {
+            assert_same_result(&a, &b);
+            TEST_ASSERT_EQUAL_MEMORY(cin1, g_cin2, n);
+        } else {
+            TEST_ASSERT_EQUAL_HEX8(0x5A, ((unsigned char *)&b)[0]);
+        }
+    }
+    if (sa == MAGCAL_OK) {
+        ++*n_ok;
+    }
+}
+
+static void test_ellipsoid_calibrate_step_any_budget_matches_calibrate(void)
+{
+    double w[3][3];
+    magcal_ellipsoid_calibrate_cfg_t cc = MAGCAL_ELLIPSOID_CALIBRATE_CFG_DEFAULT;
+    int n_ok = 0;
+    size_t k;
+    test_make_w_full(w);
+    make_set(w, 320u, 180.0, 180.0, 0.05, 2024u); /* clean: the pre-test only */
+    assert_calibrate_slices_same(320u, &cc, &n_ok);
+    cc.mode = MAGCAL_ELLIPSOID_DENSITY_ALWAYS;
+    assert_calibrate_slices_same(320u, &cc, &n_ok);
+    cc.mode = MAGCAL_ELLIPSOID_DENSITY_AUTO;
+    make_set(w, NFIT, 180.0, 180.0, 0.3, 777u);
+    for (k = 0; k < NOUT; ++k) { /* a burst: the density stage runs */
+        g_m[NFIT + k].x = (float)(V_TRUE[0] + 1.8 * f_ref() * 0.48);
+        g_m[NFIT + k].y = (float)(V_TRUE[1] - 1.8 * f_ref() * 0.6);
+        g_m[NFIT + k].z = (float)(V_TRUE[2] + 1.8 * f_ref() * 0.64);
+    }
+    assert_calibrate_slices_same(NFIT + NOUT, &cc, &n_ok);
+    cc.mode = MAGCAL_ELLIPSOID_DENSITY_NEVER;
+    assert_calibrate_slices_same(NFIT + NOUT, &cc, &n_ok);
+    cc.mode = MAGCAL_ELLIPSOID_DENSITY_AUTO;
+    make_set(w, NFIT, 0.0, 0.0, 0.05, 77u); /* level ring: fails */
+    assert_calibrate_slices_same(NFIT, &cc, &n_ok);
+    TEST_ASSERT_TRUE(n_ok >= 3);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -967,5 +1182,8 @@ int main(void)
     RUN_TEST(test_ellipsoid_calibrate_bad_input_returns_status);
     RUN_TEST(test_ellipsoid_fit_ws_matches_fit_bit_for_bit);
     RUN_TEST(test_ellipsoid_fit_ws_bad_input_returns_status);
+    RUN_TEST(test_ellipsoid_fit_step_any_budget_matches_fit_ws_bit_for_bit);
+    RUN_TEST(test_ellipsoid_fit_step_bad_input_returns_status);
+    RUN_TEST(test_ellipsoid_calibrate_step_any_budget_matches_calibrate);
     return UNITY_END();
 }

@@ -11,6 +11,9 @@
 #include "test_util3d.h"
 #include "unity.h"
 
+/* magcal_ellipsoid_fit's fixed scratch (the workspace-free fit: no per-sample storage) */
+static magcal_ellipsoid_fit_scratch_t g_fit_scratch;
+
 void setUp(void) {}
 void tearDown(void) {}
 
@@ -507,7 +510,7 @@ static e2e_t run_filter_then_fit(void)
             g_in[m++] = g_pts[k];
         }
     }
-    r.st_fit = magcal_ellipsoid_fit(g_in, m, &fcfg, &fit);
+    r.st_fit = magcal_ellipsoid_fit(g_in, m, &fcfg, &g_fit_scratch, &fit);
     if (r.st_fit == MAGCAL_OK) {
         r.v_err = v_err(&fit.cal);
         r.q_err = q_err(&fit.cal);
@@ -524,7 +527,7 @@ static e2e_t run_fit_only(void)
     magcal_ellipsoid_result_t fit;
     e2e_t r;
     (void)memset(&r, 0, sizeof r);
-    r.st_fit = magcal_ellipsoid_fit(g_pts, E2E_N, &fcfg, &fit);
+    r.st_fit = magcal_ellipsoid_fit(g_pts, E2E_N, &fcfg, &g_fit_scratch, &fit);
     if (r.st_fit == MAGCAL_OK) {
         size_t k, n_out = 0u;
         r.v_err = v_err(&fit.cal);
@@ -674,7 +677,7 @@ static void test_optics_filter3_real_tumbles_keep_samples_and_reject_injected(vo
             g_pts[i].z = dp->mz[i];
             g_is_out[i] = 0u;
         }
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_pts, dp->n, &fc, &ref));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_pts, dp->n, &fc, &g_fit_scratch, &ref));
         TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_filter3(&cfg, g_pts, dp->n, g_work,
                                                                sizeof g_work, g_mask, &info));
         TEST_ASSERT_EQUAL_UINT16(dp->n, info.n_inliers); /* (a) */
@@ -697,10 +700,10 @@ static void test_optics_filter3_real_tumbles_keep_samples_and_reject_injected(vo
                 g_in[m++] = g_pts[i];
             }
         }
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_in, m, &fc, &fit));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_fit(g_in, m, &fc, &g_fit_scratch, &fit));
         /* the fit's own gate alone cannot undo this contamination (|dV| 4.6 / 8.8 % F before
          * issue 12); its trust gates must then refuse, never return that as OK */
-        gst = magcal_ellipsoid_fit(g_pts, nb, &fc, &gate);
+        gst = magcal_ellipsoid_fit(g_pts, nb, &fc, &g_fit_scratch, &gate);
         printf("%s: %u samples all kept; %u injected: %u kept, %u recorded lost; |dV|/F "
                "density+fit %.2e, gate only: %s %.2e (%u used)\n",
                dp->name, (unsigned)dp->n, (unsigned)(nb - dp->n), (unsigned)kept_out,
@@ -818,7 +821,7 @@ static void test_optics_filter3_rest_phase_up_to_half_keeps_rotation(void)
                             }
                         }
                         kept_low += kept * 100u < rot * 95u;
-                        st = magcal_ellipsoid_fit(g_in, m, &fcfg, &fit);
+                        st = magcal_ellipsoid_fit(g_in, m, &fcfg, &g_fit_scratch, &fit);
                         ++runs;
                         snprintf(msg, sizeof msg, "n %u rest %.0f %% %s sigma %.2f seed %u",
                                  (unsigned)n, 100.0 * fracs[ifr], two ? "two" : "one", sigmas[is],

@@ -17,6 +17,9 @@
 #include "test_csv.h"
 #include "unity.h"
 
+/* magcal_ellipsoid_fit's fixed scratch (the workspace-free fit: no per-sample storage) */
+static magcal_ellipsoid_fit_scratch_t g_fit_scratch;
+
 #define MAX_ROWS 65536u
 
 static magcal_vec3_t g_rows[MAX_ROWS];
@@ -67,7 +70,7 @@ static void test_trust3d_shared_broad_rest_phases_return_no_motion(void)
                 magcal_ellipsoid_result_t r;
                 magcal_status_t st;
                 cfg.model = MODELS[k];
-                st = magcal_ellipsoid_fit(&g_rows[i], j - i, &cfg, &r);
+                st = magcal_ellipsoid_fit(&g_rows[i], j - i, &cfg, &g_fit_scratch, &r);
                 printf("broad rest phase rows %5u..%5u (%4u) %-9s: %s\n", (unsigned)i, (unsigned)(j - 1u),
                        (unsigned)(j - i), MODEL_NAME[k], magcal_status_str(st));
                 TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NO_MOTION, st);
@@ -91,7 +94,7 @@ static void test_trust3d_shared_full_tumbles_still_calibrate(void)
         const magcal_ellipsoid_cfg_t cfg = MAGCAL_ELLIPSOID_CFG_DEFAULT;
         magcal_ellipsoid_result_t r;
         size_t n = read_rec(names[d]);
-        magcal_status_t st = magcal_ellipsoid_fit(g_rows, n, &cfg, &r);
+        magcal_status_t st = magcal_ellipsoid_fit(g_rows, n, &cfg, &g_fit_scratch, &r);
         if (st == MAGCAL_OK) {
             printf("%-32s n %5u: ok %s, residual %.2f %% F, centre std %.4f F, shape std %.4f, motion SNR %.0f, "
                    "coverage %.2f, rejected %u\n",
@@ -121,7 +124,7 @@ static void test_trust3d_shared_single_axis_turns_return_single_axis(void)
             magcal_ellipsoid_result_t r;
             magcal_status_t st;
             cfg.model = MODELS[k];
-            st = magcal_ellipsoid_fit(g_rows, n, &cfg, &r);
+            st = magcal_ellipsoid_fit(g_rows, n, &cfg, &g_fit_scratch, &r);
             printf("%-42s n %5u %-9s: %s\n", names[d], (unsigned)n, MODEL_NAME[k], magcal_status_str(st));
             TEST_ASSERT_EQUAL_INT_MESSAGE(MAGCAL_ERR_SINGLE_AXIS, st, names[d]);
         }

@@ -18,6 +18,9 @@
 #include "test_util3d.h"
 #include "unity.h"
 
+/* magcal_ellipsoid_fit's fixed scratch (the workspace-free fit: no per-sample storage) */
+static magcal_ellipsoid_fit_scratch_t g_fit_scratch;
+
 void setUp(void) {}
 void tearDown(void) {}
 
@@ -210,7 +213,7 @@ static magcal_status_t judge(tally_t *t, size_t n, double w[3][3], magcal_ellips
     magcal_ellipsoid_result_t r;
     magcal_status_t st;
     cfg.model = model;
-    st = magcal_ellipsoid_fit(g_m, n, &cfg, &r);
+    st = magcal_ellipsoid_fit(g_m, n, &cfg, &g_fit_scratch, &r);
     t->cases++;
     if (st == MAGCAL_OK) {
         double hmax, vrel;
@@ -245,7 +248,7 @@ static magcal_status_t judge(tally_t *t, size_t n, double w[3][3], magcal_ellips
         c0.max_shape_std = 0.0f;
         c0.max_residual_rel = 0.0f;
         c0.max_residual_rel_sphere = 0.0f;
-        s0 = magcal_ellipsoid_fit(g_m, n, &c0, &r0);
+        s0 = magcal_ellipsoid_fit(g_m, n, &c0, &g_fit_scratch, &r0);
         if (s0 == MAGCAL_OK) {
             accuracy(&r0.cal, w, &hmax, &vrel);
         }
@@ -609,7 +612,7 @@ static void test_trust3d_bursts_without_filter_never_silently_wrong(void)
             (void)snprintf(what, sizeof what, "dense %.0f uT seed %d", shifts[si], seed);
             judge_all(&td, n, w, what);
             /* the fit's own gate (robust MAD scale) takes the burst out (36 samples) */
-            if (magcal_ellipsoid_fit(g_m, n, &cfg, &r) == MAGCAL_OK) {
+            if (magcal_ellipsoid_fit(g_m, n, &cfg, &g_fit_scratch, &r) == MAGCAL_OK) {
                 ok_auto++;
                 caught += (r.n_rejected >= 34u) ? 1u : 0u;
             }

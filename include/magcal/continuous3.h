@@ -149,6 +149,10 @@ typedef struct {
     uint32_t change_ms;       /**< mismatch time of an open episode to declare a change (default 8000) */
     uint16_t change_cells;    /**< distinct direction cells (of MAGCAL_CONT3_CELLS) it must span (default 3) */
     uint32_t clear_ms;        /**< consistent time that closes an episode (default 4000) */
+    uint32_t step_budget;     /**< work of the solve per step(), estimated Cortex-M4F instructions, >= 1
+                                   (default MAGCAL_SLICE_BUDGET_DEFAULT; the solve is time-sliced:
+                                   magcal_ellipsoid_calibrate_step; its density stage, when the pre-test
+                                   runs it, is one step of its own) */
 } magcal_cont3_cfg_t;
 
 /** The store of MAGCAL_CONT3_CFG_DEFAULT: MAGCAL_INTAKE_CFG_DEFAULT_3D (10 bands = 128 cells x 4)
@@ -161,7 +165,7 @@ typedef struct {
 #define MAGCAL_CONT3_CFG_DEFAULT                                                                   \
     {                                                                                              \
         MAGCAL_CONT3_INTAKE_CFG_DEFAULT, MAGCAL_ELLIPSOID_CALIBRATE_CFG_DEFAULT, 0.5f, 60u, 16u, 2u, \
-            1.02f, 600000.0f, 4.0f, 0.05f, 8000u, 3u, 4000u                                        \
+            1.02f, 600000.0f, 4.0f, 0.05f, 8000u, 3u, 4000u, MAGCAL_SLICE_BUDGET_DEFAULT           \
     }
 
 /** A heading with its trust. */
@@ -228,6 +232,7 @@ typedef struct {
     uint32_t age_ms_acc;
     uint32_t solve_ms_acc;
     magcal_ellipsoid_result_t cand; /* candidate between stages 2 and 3 */
+    magcal_ellipsoid_calibrate_slice_t slice; /* the solve under way (stage 2) */
     /* ring (push writes ring[head % N] then head; step reads then writes tail) */
     magcal_vec3_t ring[MAGCAL_CONT3_RING];
     uint32_t ring_t[MAGCAL_CONT3_RING];

@@ -48,8 +48,10 @@
  * FIELD_MAGNITUDE -> wrong unit, wrong expected field, or iron next to the sensor.
  *
  * Units: any consistent raw unit for m; G maps raw units to the unit of `cfg.field` (e.g. LSB to uT).
- * All arithmetic is float32 with (blocked) Kahan-compensated sums; no workspace is needed (worst-case
- * stack 2480 B on Cortex-M4F -Os, 10-parameter path; tools/stack/budgets.txt).
+ * All arithmetic is float32 with (blocked) Kahan-compensated sums; the matrices live in a caller's
+ * fixed scratch (magcal_ellipsoid_fit) or workspace (magcal_ellipsoid_fit_ws), <= 512 B of stack
+ * (tools/stack/budgets.txt). Time-sliced: magcal_ellipsoid_fit_begin / magcal_ellipsoid_fit_step
+ * (docs/calibration_3d.md "Time-sliced fit"), of which both one-shot calls are begin + one step.
  *
  * The complete 3-D calibration, magcal_ellipsoid_calibrate(), adds the density stage (optics.h,
  * magcal_optics_filter3) only when a pre-test fit of all samples shows a gross outlier.
@@ -164,22 +166,46 @@ typedef struct {
     float field_raw;      /**< fitted raw radius F / det(G)^(1/3), unit of the samples */
 } magcal_ellipsoid_result_t;
 
+/** Fixed part of MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN: the packed 10x10 normal matrix, the solver
+ *  matrix, the observability pass's 9x9 inverse and sums, the median histogram, the time-sliced
+ *  fit's state (magcal_ellipsoid_fit_step), 8-byte aligned
+ *  inside the 4-byte aligned workspace (static assert in src/ellipsoid.c). */
+#define MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES 3264u
+/** The fixed scratch of magcal_ellipsoid_fit (caller memory; contents private). */
+typedef union {
+    uint8_t bytes_[MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES];
+    uint64_t align_; /* the scratch holds pointers and size_t: 8-byte aligned */
+    void *ptr_;
+} magcal_ellipsoid_fit_scratch_t;
+
+/**
+ * Time-sliced magcal_ellipsoid_fit_ws (the contract of docs/calibration_3d.md "Time-sliced fit"):
+ * the fit's state lives in its workspace (the scratch of MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN);
+ * this handle in the caller's memory only points at it. Fields are private.
+ */
+typedef struct {
+    void *s_;         /* the fit's scratch (inside the workspace) */
+    uint32_t used_;   /* estimated M4F instructions charged by the last step */
+    int32_t status_;  /* MAGCAL_IN_PROGRESS until the fit ends, then its status */
+} magcal_ellipsoid_fit_slice_t;
+
 #if MAGCAL_CFG_ENABLE_3D
 /**
  * @brief Fit V and G to raw 3-D field samples.
  *
- * No workspace: the fit's scratch (MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES) lives on this function's
- * stack (3.1 KB worst case on the Cortex-M4F) and every pass recomputes the residuals. Firmware
- * calls magcal_ellipsoid_fit_ws (the same result bit for bit, <= 512 B of stack, half the
- * instructions); this one stays for hosts, tests and existing callers.
+ * A fixed scratch, no per-sample storage: `scratch` (MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES, caller
+ * memory: issue 13's 512 B of stack) holds the matrices and every pass recomputes the residuals.
+ * magcal_ellipsoid_fit_ws gives the same result bit for bit with half the instructions when the
+ * caller can also give 5 B per sample; both are begin + step(UINT32_MAX) of the sliced fit.
  *
  * @param[in]  m    n raw samples (body axes x right, y forward, z up; any unit).
  * @param[in]  n    number of samples (>= 4 for the sphere, >= 10 for the quadrics; the sphere needs
  *                  coverage anyway, so in practice use >= 50).
  * @param[in]  cfg  configuration (MAGCAL_ELLIPSOID_CFG_DEFAULT).
+ * @param[out] scratch the fit's scratch (caller memory, e.g. static; contents undefined after).
  * @param[out] out  result; written only on MAGCAL_OK.
  * @return MAGCAL_OK;
- *         MAGCAL_ERR_NULL (m, cfg or out NULL);
+ *         MAGCAL_ERR_NULL (m, cfg, scratch or out NULL);
  *         MAGCAL_ERR_ARG (config out of range);
  *         MAGCAL_ERR_NONFINITE (a sample is NaN/Inf);
  *         MAGCAL_ERR_TOO_FEW_POINTS (n below the model's minimum, also after outlier rejection);
@@ -201,21 +227,19 @@ typedef struct {
  *
  * @code
  * static magcal_vec3_t samples[600];            // filled by the application
+ * static magcal_ellipsoid_fit_scratch_t scratch;
  * const magcal_ellipsoid_cfg_t cfg = MAGCAL_ELLIPSOID_CFG_DEFAULT;
  * magcal_ellipsoid_result_t fit;
  * magcal_vec3_t h;
- * if (magcal_ellipsoid_fit(samples, 600u, &cfg, &fit) == MAGCAL_OK) {
+ * if (magcal_ellipsoid_fit(samples, 600u, &cfg, &scratch, &fit) == MAGCAL_OK) {
  *     (void)magcal_ellipsoid_apply(&fit.cal, &samples[0], &h);   // h = G (m - V)
  * }
  * @endcode
  */
 magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n, const magcal_ellipsoid_cfg_t *cfg,
+                                     magcal_ellipsoid_fit_scratch_t *scratch,
                                      magcal_ellipsoid_result_t *out);
 
-/** Fixed part of MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN: the packed 10x10 normal matrix, the solver
- *  matrix, the observability pass's 9x9 inverse and sums, the median histogram, 8-byte aligned
- *  inside the 4-byte aligned workspace (static assert in src/ellipsoid.c). */
-#define MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES 2720u
 /** Workspace bytes of magcal_ellipsoid_fit_ws for n samples: the scratch + per sample its residual
  *  (4 B) and its outlier-gate verdict (1 B). */
 #define MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(n)                                                       \
@@ -252,6 +276,37 @@ magcal_status_t magcal_ellipsoid_fit(const magcal_vec3_t *m, size_t n, const mag
 magcal_status_t magcal_ellipsoid_fit_ws(const magcal_vec3_t *m, size_t n,
                                         const magcal_ellipsoid_cfg_t *cfg, void *work,
                                         size_t work_len, magcal_ellipsoid_result_t *out);
+
+
+/**
+ * @brief Start a time-sliced magcal_ellipsoid_fit_ws (O(1): checks the pointers and the
+ *        workspace, stores the inputs; the configuration is checked by the first step).
+ * @param[out] s        slice handle, caller memory.
+ * @param[in]  m        n raw samples; must stay unchanged until the fit has finished.
+ * @param[in]  n        number of samples.
+ * @param[in]  cfg      configuration; must stay unchanged until the fit has finished.
+ * @param[out] work     as magcal_ellipsoid_fit_ws; holds the fit's state until it has finished.
+ * @param[in]  work_len bytes at work.
+ * @param[out] out      result, written by the last step only on MAGCAL_OK.
+ * @return MAGCAL_OK (call magcal_ellipsoid_fit_step); MAGCAL_ERR_NULL; MAGCAL_ERR_ALIGNMENT;
+ *         MAGCAL_ERR_WORKSPACE.
+ */
+magcal_status_t magcal_ellipsoid_fit_begin(magcal_ellipsoid_fit_slice_t *s, const magcal_vec3_t *m,
+                                           size_t n, const magcal_ellipsoid_cfg_t *cfg, void *work,
+                                           size_t work_len, magcal_ellipsoid_result_t *out);
+
+/**
+ * @brief Do at most about `budget` estimated Cortex-M4F instructions of the fit started by
+ *        magcal_ellipsoid_fit_begin (at least one unit of work per call, so any budget >= 1 makes
+ *        progress; the largest unit is one small solve of about 3,000 instructions, except the
+ *        forced MAGCAL_ELLIPSOID_MODEL_QUADRIC10's inverse iteration, which is one unit).
+ * @param[in,out] s      slice handle.
+ * @param[in]     budget estimated M4F instructions for this call (0 counts as 1).
+ * @return MAGCAL_IN_PROGRESS while work remains; then exactly the status (and *out, bit for bit)
+ *         of magcal_ellipsoid_fit_ws, returned again by any further call; MAGCAL_ERR_NULL (s NULL);
+ *         MAGCAL_ERR_ARG (s not started by a successful begin).
+ */
+magcal_status_t magcal_ellipsoid_fit_step(magcal_ellipsoid_fit_slice_t *s, uint32_t budget);
 
 /**
  * @brief Per-sample outlier mask of a fit: classify each sample with the fit's final gate.
@@ -347,13 +402,37 @@ typedef struct {
     magcal_optics_result_t density; /**< the density stage's parameters (valid when density_ran) */
 } magcal_ellipsoid_calibrate_info_t;
 
+/** Time-sliced magcal_ellipsoid_calibrate: its state in the caller's memory (fields private). */
+typedef struct {
+    const magcal_ellipsoid_calibrate_cfg_t *cfg_;
+    const magcal_vec3_t *m_;
+    size_t n_;
+    uint8_t *work_;
+    size_t work_len_;
+    uint8_t *inlier_;
+    magcal_ellipsoid_result_t *out_;
+    magcal_ellipsoid_calibrate_info_t *info_;
+    magcal_ellipsoid_fit_slice_t fit_;
+    size_t k_;
+    size_t nk_;
+    size_t fit_off_;
+    float mx_;
+    uint32_t used_;  /* estimated M4F instructions charged by the last step */
+    int32_t status_;
+    uint8_t phase_;
+    int8_t pre_st_;
+} magcal_ellipsoid_calibrate_slice_t;
+
 /** Bytes of magcal_ellipsoid_calibrate's workspace that hold the pre-test's result. */
 #define MAGCAL_ELLIPSOID_CALIBRATE_RESULT_SLOT ((sizeof(magcal_ellipsoid_result_t) + 7u) / 8u * 8u)
-/** The result slot + the slot of the info when the caller passes info = NULL (off the stack), both
- *  8-byte aligned inside a 4-byte aligned workspace (+4 B). */
+/** @cond INTERNAL */
+#define MAGCAL_ELLIPSOID_CALIBRATE_INFO_SLOT_ ((sizeof(magcal_ellipsoid_calibrate_info_t) + 7u) / 8u * 8u)
+/** @endcond */
+/** The result slot + the slot of the info when the caller passes info = NULL + the one-shot call's
+ *  slice state (all off the stack), 8-byte aligned inside a 4-byte aligned workspace (+4 B). */
 #define MAGCAL_ELLIPSOID_CALIBRATE_SLOTS                                                            \
-    (4u + MAGCAL_ELLIPSOID_CALIBRATE_RESULT_SLOT +                                                  \
-     (sizeof(magcal_ellipsoid_calibrate_info_t) + 7u) / 8u * 8u)
+    (4u + MAGCAL_ELLIPSOID_CALIBRATE_RESULT_SLOT + MAGCAL_ELLIPSOID_CALIBRATE_INFO_SLOT_ +          \
+     (sizeof(magcal_ellipsoid_calibrate_slice_t) + 7u) / 8u * 8u)
 /** Workspace bytes of magcal_ellipsoid_calibrate for n samples: the pre-test's result and info, the inlier
  *  copy (n x 12 B), then the larger of the density stage's MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n)
  *  and the fit's MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN(n) (issue 14: the fit's matrices are here, not
@@ -410,6 +489,33 @@ magcal_status_t magcal_ellipsoid_calibrate(const magcal_ellipsoid_calibrate_cfg_
                                            size_t work_len, uint8_t *inlier,
                                            magcal_ellipsoid_result_t *out,
                                            magcal_ellipsoid_calibrate_info_t *info);
+
+/**
+ * @brief Start a time-sliced magcal_ellipsoid_calibrate (O(1): the checks of the one-shot call,
+ *        the info cleared; the fit configurations are checked by the steps).
+ * @param[out] s slice state, caller memory (kept until the calibration has finished); the other
+ *               parameters as magcal_ellipsoid_calibrate, and m, cfg, work, inlier, out, info
+ *               must stay valid (m and cfg unchanged) until it has finished.
+ * @return MAGCAL_OK (call magcal_ellipsoid_calibrate_step); MAGCAL_ERR_NULL; MAGCAL_ERR_ARG;
+ *         MAGCAL_ERR_ALIGNMENT; MAGCAL_ERR_WORKSPACE (as magcal_ellipsoid_calibrate).
+ */
+magcal_status_t magcal_ellipsoid_calibrate_begin(magcal_ellipsoid_calibrate_slice_t *s,
+                                                 const magcal_ellipsoid_calibrate_cfg_t *cfg,
+                                                 const magcal_vec3_t *m, size_t n, void *work,
+                                                 size_t work_len, uint8_t *inlier,
+                                                 magcal_ellipsoid_result_t *out,
+                                                 magcal_ellipsoid_calibrate_info_t *info);
+
+/**
+ * @brief Do at most about `budget` estimated Cortex-M4F instructions of the calibration (at least
+ *        one unit per call). The fits are sliced (magcal_ellipsoid_fit_step); the density stage
+ *        (magcal_optics_filter3, only when the pre-test finds a gross outlier, or mode ALWAYS) is
+ *        NOT sliced: it runs as one unit in a step of its own (millions of instructions).
+ * @return MAGCAL_IN_PROGRESS while work remains; then exactly the status and outputs of
+ *         magcal_ellipsoid_calibrate, returned again by any further call; MAGCAL_ERR_NULL (s NULL);
+ *         MAGCAL_ERR_ARG (s not started by a successful begin).
+ */
+magcal_status_t magcal_ellipsoid_calibrate_step(magcal_ellipsoid_calibrate_slice_t *s, uint32_t budget);
 #endif /* MAGCAL_CFG_ENABLE_3D */
 
 #ifdef __cplusplus

@@ -543,13 +543,20 @@ magcal_status_t magcal_optics_thin_step(magcal_optics_thin_slice_t *s, uint32_t 
 #define MAGCAL_OPTICS3_WORKSPACE_LEN(n)                                                            \
     (MAGCAL_OPTICS3_BEST_OFFSET_(n) + 4u * (size_t)MAGCAL_MAX_MIN_PTS + MAGCAL_OPTICS3_CTX_LEN_)
 
+/** @cond INTERNAL */
+/* The automatic rule's record (pointers, centre, radius, band, the eps found), behind the run's
+ * workspace: off the stack of the density stage (issue 13: <= 512 B per entry point). */
+#define MAGCAL_OPTICS3_AUTO_LEN_ 96u
+/** @endcond */
+
 /**
  * Workspace bytes for magcal_optics_filter3() and magcal_optics_auto_params3() on n points:
  * reach float[n] + core float[n] + order uint16[n] (the automatic rule keeps the whole ordering)
- * + MAGCAL_OPTICS3_WORKSPACE_LEN(n). About 18.1 bytes per sample + 366 bytes (32-bit, n >= 16).
+ * + MAGCAL_OPTICS3_WORKSPACE_LEN(n) + the automatic rule's record (96 B). About 18.1 bytes per
+ * sample + 462 bytes (32-bit, n >= 16).
  */
 #define MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n)                                                     \
-    (MAGCAL_OPTICS3_FILTER_RUN_OFFSET_(n) + MAGCAL_OPTICS3_WORKSPACE_LEN(n))
+    (MAGCAL_OPTICS3_FILTER_RUN_OFFSET_(n) + MAGCAL_OPTICS3_WORKSPACE_LEN(n) + MAGCAL_OPTICS3_AUTO_LEN_)
 
 /** Declare `name` as a correctly aligned workspace of MAGCAL_OPTICS3_WORKSPACE_LEN(n) bytes (config.h). */
 #define MAGCAL_OPTICS3_WORKSPACE_DECLARE(name, n) MAGCAL_WORKSPACE_DECLARE(name, MAGCAL_OPTICS3_WORKSPACE_LEN(n))

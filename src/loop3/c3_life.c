@@ -19,7 +19,8 @@ int magcal_c3_ok(const magcal_cont3_t *cc) { return cc != NULL && cc->magic == M
 
 static magcal_status_t c3_check_cfg(const magcal_cont3_cfg_t *c)
 {
-    if (c->intake.dims != 3u || c->drain_per_step < 1u || c->min_new < 1u || c->min_samples < 10u ||
+    if (c->intake.dims != 3u || c->drain_per_step < 1u || c->step_budget < 1u || c->min_new < 1u ||
+        c->min_samples < 10u ||
         c->change_cells < 1u || c->change_cells > MAGCAL_CONT3_CELLS) {
         return MAGCAL_ERR_ARG;
     }

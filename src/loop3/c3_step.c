@@ -1,9 +1,10 @@
 /*
  * Continuous 3-D calibrator, step: drain the push ring into the intake store (each sample judged
  * first, c3_change.c), decide whether a solve is worth running, and run it in three units, one per
- * step() call: (1) the snapshot of the store into the solver buffer, (2) the solve, ONE call of
- * magcal_ellipsoid_calibrate() (not sliced: its cost is that of the fit on the snapshot, measured
- * in docs/calibration_3d.md), (3) the never-worse adoption judgement (c3_adopt.c).
+ * step() call: (1) the snapshot of the store into the solver buffer (the sliced solve begins on
+ * it), (2) the solve, time-sliced: magcal_ellipsoid_calibrate_step with cfg.step_budget per call,
+ * as many calls as it needs (its density stage, when the pre-test runs it, is one call of its
+ * own: not sliced), (3) the never-worse adoption judgement (c3_adopt.c).
  */
 #include "c3_internal.h"
 #include "magcal/config.h"
@@ -64,8 +65,8 @@ static int c3_worth(const magcal_cont3_t *cc)
             (cc->last_status == MAGCAL_ERR_NOT_BETTER && (float)cc->solve_ms_acc >= 0.25f * cc->cfg.age_ms));
 }
 
-/* Unit 1: snapshot the store into the solver buffer. */
-static magcal_cont3_outcome_t c3_snapshot(magcal_cont3_t *cc)
+/* Unit 1: snapshot the store into the solver buffer; the sliced solve begins on it (O(1)). */
+static MAGCAL_NOINLINE magcal_cont3_outcome_t c3_snapshot(magcal_cont3_t *cc)
 {
     size_t n = 0u;
     if (magcal_intake_snapshot3(&cc->store, cc->buf, cc->slots, &n) != MAGCAL_OK) {
@@ -73,27 +74,32 @@ static magcal_cont3_outcome_t c3_snapshot(magcal_cont3_t *cc)
     }
     cc->snap_n = n;
     cc->stored_at_solve = cc->store.ctr.added + cc->store.ctr.replaced;
-    cc->stage = 2u;
+    cc->solve_status = magcal_ellipsoid_calibrate_begin(&cc->slice, &cc->cfg.solver, cc->buf, n, cc->work,
+                                                        cc->work_len, NULL, &cc->cand, NULL);
+    cc->stage = (cc->solve_status == MAGCAL_OK) ? 2u : 3u; /* begin failed: stage 3 reports it */
     return MAGCAL_CONT3_IN_PROGRESS;
 }
 
-/* Unit 2: the solve (one call). */
-static MAGCAL_NOINLINE magcal_cont3_outcome_t c3_solve(magcal_cont3_t *cc)
+/* Unit 2: the solve, `budget` estimated M4F instructions per call (magcal_ellipsoid_calibrate_step
+ * on the snapshot; pushes go on into the ring and the store meanwhile). */
+static MAGCAL_NOINLINE magcal_cont3_outcome_t c3_solve(magcal_cont3_t *cc, uint32_t budget)
 {
-    cc->solve_status = magcal_ellipsoid_calibrate(&cc->cfg.solver, cc->buf, cc->snap_n, cc->work, cc->work_len,
-                                                  NULL, &cc->cand, NULL);
-    cc->stage = 3u;
+    const magcal_status_t st = magcal_ellipsoid_calibrate_step(&cc->slice, budget);
+    if (st != MAGCAL_IN_PROGRESS) {
+        cc->solve_status = st;
+        cc->stage = 3u;
+    }
     return MAGCAL_CONT3_IN_PROGRESS;
 }
 
 /* The next unit of a solve under way. */
-static magcal_cont3_outcome_t c3_unit(magcal_cont3_t *cc)
+static magcal_cont3_outcome_t c3_unit(magcal_cont3_t *cc, uint32_t budget)
 {
     if (cc->stage == 1u) {
         return c3_snapshot(cc);
     }
     if (cc->stage == 2u) {
-        return c3_solve(cc);
+        return c3_solve(cc, budget);
     }
     cc->stage = 0u;
     cc->last_outcome = magcal_c3_adopt(cc);
@@ -113,8 +119,11 @@ magcal_cont3_outcome_t magcal_cont3_step(magcal_cont3_t *cc)
     if (cc->stage == 0u && c3_worth(cc) != 0) {
         cc->stage = 1u;
     }
+    if (cc->stage == 2u) { /* the solve's deep path under as few frames as possible (stack) */
+        return c3_solve(cc, cc->cfg.step_budget);
+    }
     if (cc->stage != 0u) {
-        return c3_unit(cc);
+        return c3_unit(cc, cc->cfg.step_budget);
     }
     return MAGCAL_CONT3_IDLE;
 }
@@ -133,9 +142,9 @@ magcal_cont3_outcome_t magcal_cont3_solve_blocking(magcal_cont3_t *cc, int force
         }
         cc->stage = 1u;
     }
-    /* bounded: the units go 1 -> 2 -> 3 -> 0 */
+    /* bounded: the units go 1 -> 2 -> 3 -> 0 (unit 2 in one call: no budget) */
     for (k = 0u; k < 3u && cc->stage != 0u; ++k) {
-        (void)c3_unit(cc);
+        (void)c3_unit(cc, UINT32_MAX);
     }
     return cc->last_outcome;
 }

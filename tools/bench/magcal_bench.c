@@ -81,6 +81,9 @@
 
 #include "bench_data.h"
 
+/* magcal_ellipsoid_fit's fixed scratch (the workspace-free fit: no per-sample storage) */
+static magcal_ellipsoid_fit_scratch_t g_fit_scratch;
+
 #define NMAX ((size_t)MAGCAL_MAX_SAMPLES)
 
 static magcal_vec2_t g_pts[NMAX];
@@ -302,7 +305,7 @@ static int run_kernel(const char *k, size_t n, int quiet)
             }
         }
         if (st == MAGCAL_OK) {
-            st = magcal_ellipsoid_fit(g_kept3, nk, &ec, &er);
+            st = magcal_ellipsoid_fit(g_kept3, nk, &ec, &g_fit_scratch, &er);
         }
         if (st != MAGCAL_OK) {
             return fail(k, st);

@@ -565,6 +565,55 @@ def m4f_cont(build_dir, tmp_root, python, real=True):
     return res
 
 
+def m4f_cont3(tmp_root):
+    """Per-call M4F instruction counts of the continuous 3-D calibrator (cont3.elf,
+    m4f_image/main_cont3.c: a generated tumble, fixed seed, on the target; QEMU -icount shift=0),
+    built in the footprint image's build dir (configured by m4f_footprint). Returns the parsed
+    lines; m4f_max_call3_instr = the largest push / step / heading."""
+    if shutil.which("qemu-system-arm") is None:
+        return {"error": "qemu-system-arm not found"}
+    bdir = os.path.join(tmp_root, "m4f")
+    p = run(["cmake", "--build", bdir, "-j2", "--target", "cont3"])
+    elf = os.path.join(bdir, "cont3.elf")
+    if p.returncode != 0 or not os.path.exists(elf):
+        return {"error": "cont3.elf build failed (needs cmake/target/):\n" + p.stdout[-2000:] + p.stderr[-2000:]}
+    t0 = time.time()
+    p = run(["timeout", "300", "qemu-system-arm", "-M", "mps2-an386", "-display", "none", "-monitor", "none",
+             "-serial", "null", "-semihosting-config", "enable=on,target=native", "-icount", "shift=0",
+             "-kernel", elf])
+    res = {"qemu_s": round(time.time() - t0, 1), "exit": p.returncode, "calls": {}, "units": {}, "solves": []}
+    names = {"0": "intake", "1": "snapshot", "2": "solve", "3": "adoption"}
+    for ln in p.stdout.splitlines():
+        f = ln.split()
+        if len(f) < 3 or f[0] != "CONT3" or f[1] == "done":
+            continue
+        res["drive"] = f[1]
+        if f[2] == "rows":
+            res["rows"], res["steps_per_row"] = int(f[3]), int(f[4])
+        elif f[2] == "call":
+            res["calls"][f[3]] = {"max": int(f[4]), "p99": int(f[5]), "median": int(f[6]), "max_index": int(f[7])}
+        elif f[2] == "unit":
+            res["units"][names.get(f[3], f[3])] = {"steps": int(f[4]), "max": int(f[5])}
+        elif f[2] == "solve":
+            res["solves"].append({"start_row": int(f[4]), "end_row": int(f[5]), "steps": int(f[6]),
+                                  "total": int(f[7]), "largest_step": int(f[8]), "outcome": f[9]})
+        elif f[2] == "slices":
+            res["solve_alone"] = dict(zip(["n", "steps", "max_actual", "max_estimated", "total_actual",
+                                           "total_estimated", "worst_ratio_pct", "status"],
+                                          [int(v) for v in f[3:11]]))
+        elif f[2] == "summary":
+            res.update(dict(zip(["adoptions", "solves_finished", "changes", "ok_headings", "trusted_rows"],
+                                [int(v) for v in f[3:8]])))
+        else:
+            res.setdefault("problems", []).append(" ".join(f[2:]))
+    if p.returncode != 0:
+        res["error"] = "cont3.elf exited with %d: %s" % (p.returncode, p.stdout[-500:])
+    mx = [c["max"] for c in res["calls"].values()]
+    if mx and "error" not in res:
+        res["m4f_max_call3_instr"] = max(mx)
+    return res
+
+
 def host_cont(build_dir, tmp_root, no_build, real):
     """Host x86-64 instructions (callgrind) of the first adopted solve's step calls, on the same
     drive as m4f_cal2d_total_instr (magcal_bench_cont.c). Full mode only: on the generated drive
@@ -806,6 +855,12 @@ def main(argv):
                                           cont.get("qemu_s", 0)))
         if not args.quick and "error" not in cont:
             cont["host"] = host_cont(build_dir, out_dir, args.no_build, real=True)
+    cont3 = None
+    if m4f and "error" not in m4f:
+        log("== continuous 3-D calibrator per call on the M4F (m4f_image/main_cont3.c, QEMU)")
+        cont3 = m4f_cont3(out_dir)
+        if "error" in cont3:
+            log("   " + cont3["error"])
 
     # ------------------------------------------------------------------ assemble
     def series(k):
@@ -831,6 +886,7 @@ def main(argv):
         "m4f_flash_min_bytes": None,
         "m4f_max_call_instr": None,
         "m4f_cal2d_total_instr": None,
+        "m4f_max_call3_instr": None,
     }
     extra = {k + "_instr": series(k) for k in EXTRA_KERNELS}
     extra["ellipse_instr"] = series("ellipse")
@@ -909,6 +965,9 @@ def main(argv):
 
     if cont is not None:
         cont_results(res, extra, cont)
+    if cont3 is not None:  # issue 13, 3-D loop: the largest push / step / heading of cont3.elf
+        extra["cont3"] = cont3
+        res["m4f_max_call3_instr"] = cont3.get("m4f_max_call3_instr")
 
     i_ref = ns.index(N_REF) if N_REF in ns else None
     c_cl, c_im, c_ix = res["optics_classic_instr"], res["optics_improved_instr"], res["optics_indexed_instr"]

@@ -14,6 +14,9 @@
 
 #include "magcal/ellipsoid.h"
 
+/* magcal_ellipsoid_fit's fixed scratch (the workspace-free fit: no per-sample storage) */
+static magcal_ellipsoid_fit_scratch_t g_fit_scratch;
+
 #define MAX_ROWS 4096u
 
 static magcal_vec3_t g_m[MAX_ROWS];
@@ -65,7 +68,7 @@ int main(int argc, char **argv)
     (void)memset(&r, 0, sizeof r);
     ccfg.fit = cfg;
     if (strcmp(argv[1], "fit") == 0) {
-        st = magcal_ellipsoid_fit(g_m, n, &cfg, &r);
+        st = magcal_ellipsoid_fit(g_m, n, &cfg, &g_fit_scratch, &r);
     } else if (strcmp(argv[1], "fit_ws") == 0) {
         st = magcal_ellipsoid_fit_ws(g_m, n, &cfg, g_work, sizeof g_work, &r);
     } else {

@@ -28,6 +28,9 @@
 #include "magcal/ellipsoid.h"
 #include "magcal/optics.h"
 
+/* magcal_ellipsoid_fit's fixed scratch (the workspace-free fit: no per-sample storage) */
+static magcal_ellipsoid_fit_scratch_t g_fit_scratch;
+
 #define FZ_MAX_EPOCHS 4096u
 
 static magcal_aided_t fz_inst;
@@ -142,7 +145,7 @@ static void fz_ellipsoid(size_t n, uint8_t flags)
     magcal_status_t st;
     size_t nout = 0u;
     cfg.model = (magcal_ellipsoid_model_t)((flags >> 4) & 3u);
-    st = magcal_ellipsoid_fit(fz_m, n, &cfg, &res);
+    st = magcal_ellipsoid_fit(fz_m, n, &cfg, &g_fit_scratch, &res);
     FUZZ_CHECK(st == MAGCAL_OK || st == MAGCAL_ERR_TOO_FEW_POINTS || st == MAGCAL_ERR_NONFINITE ||
                    st == MAGCAL_ERR_COVERAGE || st == MAGCAL_ERR_DEGENERATE ||
                    st == MAGCAL_ERR_ILL_CONDITIONED || st == MAGCAL_ERR_NOT_ELLIPSOID ||

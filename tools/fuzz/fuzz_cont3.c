@@ -7,7 +7,8 @@
  *   u8 cfg flags: bit 0 drain_per_step from the input (u8, 0 allowed: must be refused), bit 1
  *                 min_new (u8), bit 2 solve_fill (raw f32), bit 3 mismatch_min_rel (raw f32),
  *                 bit 4 change_ms / clear_ms small (u8 x 10 ms each), bit 5 installed calibration
- *                 (9 + 3 + 1 raw f32), bit 6 raw samples (else synthetic tumble), bit 7 unused
+ *                 (9 + 3 + 1 raw f32), bit 6 raw samples (else synthetic tumble), bit 7 step_budget
+ *                 (u16, 0 allowed: must be refused; small budgets cut the sliced solve finely)
  *   then ops until the input ends, one u8 each: low 3 bits = op (0-3 push, 4 step, 5 heading,
  *   6 solve_blocking(force = bit 3), 7 progress); a push reads its sample (raw: 3 x f32, synthetic:
  *   3 x i8 angle steps (x 0.05 rad) + 3 x i8 noise (x 0.01 uT)) and a u8 time step (ms); a heading
@@ -72,6 +73,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     if ((fl & 16u) != 0u) {
         cfg.change_ms = 10u * fuzz_u8(&in);
         cfg.clear_ms = 10u * fuzz_u8(&in);
+    }
+    if ((fl & 128u) != 0u) {
+        cfg.step_budget = fuzz_u16(&in);
     }
     if ((fl & 32u) != 0u) {
         int i, k;

@@ -14,6 +14,9 @@
 #include "magcal/optics.h"
 #include "replay_cal.h"
 
+/* magcal_ellipsoid_fit's fixed scratch (the workspace-free fit: no per-sample storage) */
+static magcal_ellipsoid_fit_scratch_t g_fit_scratch;
+
 static const double k_pi = 3.14159265358979323846;
 
 static double wrap180d(double a)
@@ -207,7 +210,7 @@ int replay_fit_3d(const magcal_vec3_t *m, size_t n, const char *filter, double e
 
     if (prefit == 0) {
         memset(&res, 0, sizeof res);
-        st = magcal_ellipsoid_fit(kept, nk, &cfg, &res);
+        st = magcal_ellipsoid_fit(kept, nk, &cfg, &g_fit_scratch, &res);
     } else {
         st = MAGCAL_OK; /* the pre-test's fit of all samples: what magcal_ellipsoid_calibrate returns */
     }

@@ -262,7 +262,22 @@ static int stream3_heading(const magcal_replay_csv_t *d, size_t i, double ascale
     return magcal_cont3_heading(&g_c3, m, ap, (float)decl, hd) == MAGCAL_OK;
 }
 
-static int replay_stream3(const char *path, const char *hpath, int json, double decl, float range)
+/* The event of one step's outcome (idle and in progress: none). */
+static void stream3_event(cJSON *ev, size_t row, magcal_cont3_outcome_t oc)
+{
+    if (oc == MAGCAL_CONT3_ADOPTED) {
+        add_event(ev, row, "adopted", "ok", NAN);
+    } else if (oc == MAGCAL_CONT3_REFUSED || oc == MAGCAL_CONT3_FAILED) {
+        add_event(ev, row, "refused", magcal_status_str(magcal_cont3_status(&g_c3)), NAN);
+    } else if (oc == MAGCAL_CONT3_CHANGE) {
+        add_event(ev, row, "change", "changed", NAN);
+    } else {
+        /* idle or in progress */
+    }
+}
+
+static int replay_stream3(const char *path, const char *hpath, int json, double decl, float range,
+                          unsigned steps_per_row)
 {
     magcal_replay_csv_t d;
     char err[MAGCAL_REPLAY_CSV_ERR_LEN];
@@ -304,8 +319,8 @@ static int replay_stream3(const char *path, const char *hpath, int json, double 
     for (i = 0u; i < d.n_rows; ++i) {
         magcal_vec3_t m;
         magcal_cont3_heading_t hd;
-        magcal_cont3_outcome_t oc;
         uint32_t t_ms;
+        unsigned k;
         const char *trust;
         int have;
         m.x = (float)d.col[MAGCAL_REPLAY_COL_MX][i];
@@ -313,15 +328,8 @@ static int replay_stream3(const char *path, const char *hpath, int json, double 
         m.z = (float)d.col[MAGCAL_REPLAY_COL_MZ][i];
         t_ms = stream_row_ms(tc, i);
         (void)magcal_cont3_push(&g_c3, &m, t_ms);
-        oc = magcal_cont3_step(&g_c3);
-        if (oc == MAGCAL_CONT3_ADOPTED) {
-            add_event(ev, i, "adopted", "ok", NAN);
-        } else if (oc == MAGCAL_CONT3_REFUSED || oc == MAGCAL_CONT3_FAILED) {
-            add_event(ev, i, "refused", magcal_status_str(magcal_cont3_status(&g_c3)), NAN);
-        } else if (oc == MAGCAL_CONT3_CHANGE) {
-            add_event(ev, i, "change", "changed", NAN);
-        } else {
-            /* idle or in progress */
+        for (k = 0u; k < steps_per_row; ++k) {
+            stream3_event(ev, i, magcal_cont3_step(&g_c3));
         }
         have = stream3_heading(&d, i, ascale, &m, decl, &hd);
         if (!have) {
@@ -355,6 +363,11 @@ static int replay_stream3(const char *path, const char *hpath, int json, double 
             ref_ss += e * e;
             ref_n++;
         }
+    }
+    /* after the last row the firmware's loop goes on: the solve under way ends (events at row =
+     * rows); bounded (a sliced solve is a few hundred steps) */
+    for (i = 0u; i < 1000000u && g_c3.stage != 0u; ++i) {
+        stream3_event(ev, d.n_rows, magcal_cont3_step(&g_c3));
     }
     add_cal3(root, &g_c3, &d);
     cJSON_AddStringToObject(root, "file", path);
@@ -537,7 +550,7 @@ int replay_stream_main(int argc, char **argv)
         return 1;
     }
     if (mode3) {
-        return replay_stream3(argv[optind], hpath, json, decl, cfg.intake.range_limit);
+        return replay_stream3(argv[optind], hpath, json, decl, cfg.intake.range_limit, steps_per_row);
     }
     memset(&d, 0, sizeof d);
     if (magcal_replay_csv_read(argv[optind],
