@@ -185,6 +185,8 @@ typedef struct {
     float ref_r;                   /**< private: reference radius (0 = none yet) */
     uint8_t ref_fit;               /**< private: 1 when the reference is a ring fit */
     magcal_intake_counters_t ctr;  /**< private */
+    float ell_scratch[25];         /**< private: the conic fit's 5 x 5 system at a sweep's end, here
+                                        and not on the stack (the drain's deep path: <= 512 B) */
 } magcal_intake_t;
 
 /**
