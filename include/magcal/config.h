@@ -62,7 +62,7 @@
  *  (magcal_cont_cfg_t::step_budget): with the fixed overhead and the largest single visit, a step
  *  stays below the 10,000-instruction per-call bound. */
 #ifndef MAGCAL_SLICE_BUDGET_DEFAULT
-#define MAGCAL_SLICE_BUDGET_DEFAULT 4500u
+#define MAGCAL_SLICE_BUDGET_DEFAULT 7500u
 #endif
 
 /* ---- Module limits and numerical tolerances (moved here from the module headers; same values) */
