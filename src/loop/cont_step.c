@@ -128,6 +128,16 @@ static int cont_may_end_sweep(const magcal_cont_t *cc)
     return st->cursor + (uint32_t)st->cfg.sweep_steps * (uint32_t)st->cfg.per_bin >= magcal_intake_nslots(st);
 }
 
+/* 1 when no solve is under way and the ring holds a quarter of its size or more: the steps
+ * that do not drain (the coverage count's, the snapshot's) leave one sample each behind, and a
+ * drain of one sample per step (its measured weight is more than half the budget) would never
+ * catch up at one push per step; such a step takes a second sample (the only steps that do),
+ * unless the first ended a sweep (the budget is then spent). */
+static int cont_behind(const magcal_cont_t *cc)
+{
+    return cc->stage == (uint8_t)CONT_STAGE_NONE && cc->head - cc->tail >= MAGCAL_CONT_RING / 4u;
+}
+
 static MAGCAL_NOINLINE void cont_drain(magcal_cont_t *cc, uint32_t max, magcal_cal_budget_t *b)
 {
     const uint32_t half = b->left / 2u; /* b->left >= 1 (cfg.step_budget): the first sample passes */
@@ -137,7 +147,7 @@ static MAGCAL_NOINLINE void cont_drain(magcal_cont_t *cc, uint32_t max, magcal_c
         const uint32_t t = cc->tail;
         const uint32_t sweeps = cc->store.sweeps;
         const magcal_vec3_t *m;
-        if (b->unlimited == 0u && b->left <= half) {
+        if (b->unlimited == 0u && b->left <= half && (b->left == 0u || cont_behind(cc) == 0)) {
             break;
         }
         if (k != max && cont_may_end_sweep(cc) != 0) {
