@@ -13,7 +13,8 @@
 #define HARM_K 5u /* 1, cos, sin, cos 2, sin 2 */
 #define HARM_PIVOT 1.0e-6f
 
-/* Per-visit weights, estimated M4F instructions (host callgrind x 1.2, docs/calibrator.md). */
+/* Per-visit weights, estimated M4F instructions: host callgrind x 1.2, then x 1.8 (distinct x 1.6)
+ * as measured in the continuous calibrator on QEMU (cont_trace.elf, tools/bench/cont_weights.py). */
 #define HARM_W_SKIP 60u     /* a sample outside the mask, or a pass switch */
 #define HARM_W_SUM 400u     /* correction + radius */
 #define HARM_W_NORMAL 740u  /* correction, radius, regressors, 15 + 5 products */
