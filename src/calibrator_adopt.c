@@ -13,16 +13,17 @@
 #define HARM_K 5u /* 1, cos, sin, cos 2, sin 2 */
 #define HARM_PIVOT 1.0e-6f
 
-/* Per-visit weights, estimated M4F instructions (host callgrind x 1.2, docs/calibrator.md). */
-#define HARM_W_SKIP 33u     /* a sample outside the mask, or a pass switch */
-#define HARM_W_SUM 220u     /* correction + radius */
-#define HARM_W_NORMAL 410u  /* correction, radius, regressors, 15 + 5 products */
-#define HARM_W_RESID 300u   /* correction, radius, regressors, residual */
-#define HARM_W_SOLVE1 1500u /* one 5x5 LDL^T solve (copy + factorisation + substitutions) */
-#define HARM_W_FINISH 400u  /* the traces and estimates */
-#define DIST_W_COLLECT 20u /* one mask test and index write */
-#define DIST_W_SORT 50u    /* one comparison (and move) of the shell sort */
-#define DIST_W_COUNT 40u   /* one neighbour comparison */
+/* Per-visit weights, estimated M4F instructions: host callgrind x 1.2, then x 1.8 (distinct x 1.6)
+ * as measured in the continuous calibrator on QEMU (cont_trace.elf, tools/bench/cont_weights.py). */
+#define HARM_W_SKIP 60u     /* a sample outside the mask, or a pass switch */
+#define HARM_W_SUM 400u     /* correction + radius */
+#define HARM_W_NORMAL 740u  /* correction, radius, regressors, 15 + 5 products */
+#define HARM_W_RESID 540u   /* correction, radius, regressors, residual */
+#define HARM_W_SOLVE1 2700u /* one 5x5 LDL^T solve (copy + factorisation + substitutions) */
+#define HARM_W_FINISH 720u  /* the traces and estimates */
+#define DIST_W_COLLECT 32u /* one mask test and index write */
+#define DIST_W_SORT 80u    /* one comparison (and move) of the shell sort */
+#define DIST_W_COUNT 64u   /* one neighbour comparison */
 
 /* Regressors of one corrected sample h (|h| = rho > 0): 1, cos phi, sin phi, cos 2phi, sin 2phi. */
 static void harm_row(magcal_vec2_t h, float rho, float g[HARM_K])

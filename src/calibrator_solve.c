@@ -40,25 +40,26 @@
 #define CAL_PRE_FAR 6.0f
 
 /* Per-visit weights, estimated M4F instructions (measured: docs/calibrator.md "Work per call"). */
-#define CAL_W_PHASE 40u     /* a phase switch / O(1) bookkeeping */
-#define CAL_W_BBOX 100u     /* bounding box of one loaded sample (fminf / fmaxf calls) */
-#define CAL_W_IDENT 15u     /* one identical-samples comparison */
-#define CAL_W_FLAG 24u      /* one flag / mask byte pass */
-#define CAL_W_MASKS 35u     /* filter mask copy, count and flags of one sample */
-#define CAL_W_MEAN 47u      /* one sample of the inliers' mean (two divisions) */
-#define CAL_W_SCALE 52u     /* one sample of their scale */
-#define CAL_W_MOMENT 140u   /* moments + circle normal equations of one sample */
-#define CAL_W_CIRCLE 600u   /* collinearity test + 3x3 circle solve */
-#define CAL_W_COVER 200u    /* approximate heading (atan2f) + bin of one sample */
-#define CAL_W_COVFIN 870u   /* coverage of the 36 bins */
-#define CAL_W_GATES 30u     /* flags with residual bits and counts of one sample */
-#define CAL_W_TOCAL 2500u   /* ellipse -> calibration (eigen decomposition, sqrt, trig) */
-#define CAL_W_COVCORR 390u  /* correction + heading + bin of one sample */
-#define CAL_W_SHIFT 390u    /* one of the 72 shift headings (inverse map, correction, atan2f) */
+#define CAL_W_PHASE 60u     /* a phase switch / O(1) bookkeeping */
+#define CAL_W_BBOX 240u     /* bounding box of one loaded sample (fminf / fmaxf calls) */
+#define CAL_W_IDENT 25u     /* one identical-samples comparison */
+#define CAL_W_FLAG 40u      /* one flag / mask byte pass */
+#define CAL_W_MASKS 55u     /* filter mask copy, count and flags of one sample */
+#define CAL_W_MEAN 65u      /* one sample of the inliers' mean (two divisions) */
+#define CAL_W_SCALE 135u     /* one sample of their scale */
+#define CAL_W_MOMENT 215u   /* moments + circle normal equations of one sample */
+#define CAL_W_CIRCLE 900u   /* collinearity test + 3x3 circle solve */
+#define CAL_W_COVER 300u    /* approximate heading (atan2f) + bin of one sample */
+#define CAL_W_COVFIN 1300u   /* coverage of the 36 bins */
+#define CAL_W_GATES 62u     /* flags with residual bits and counts of one sample */
+#define CAL_W_TOCAL 3750u   /* ellipse -> calibration (eigen decomposition, sqrt, trig) */
+#define CAL_W_COVCORR 600u  /* correction + heading + bin of one sample */
+#define CAL_W_SHIFT 870u    /* one of the 72 shift headings (inverse map, correction, atan2f) */
 /* pre-test: one consensus reject, its |residual| and mask byte (host callgrind, vn100 store: 75 for
- * the residual + ~30 the visit, x 1.2 = 126; charged as consensus.c's QEMU-measured CONS_W_RES 140
- * + 20). Its inliers' visits are ph_masks' (CAL_W_MASKS; measured 26 host, x 1.2 = 31). */
-#define CAL_W_PRE_RES 160u
+ * the residual + ~30 the visit, x 1.2 = 126; charged as consensus.c's CONS_W_RES + ~20, both
+ * scaled x 1.6 by the QEMU per-step trace, tools/bench/cont_weights.py). Its inliers' visits are
+ * ph_masks' (CAL_W_MASKS). */
+#define CAL_W_PRE_RES 250u
 #define CAL_W_ONESHOT UINT32_MAX /* a one-shot call (exceptions): ends the step */
 
 typedef enum {
@@ -1414,3 +1415,24 @@ magcal_status_t magcal_calibrator_run(magcal_calibrator_t *cal, magcal_cal2d_t *
     }
     return magcal_calibrator_solve_step(cal, current, UINT32_MAX, report);
 }
+
+#ifdef MAGCAL_BENCH_TRACE
+/* Bench-only (tools/bench/m4f_image cont_trace.elf, never in a shipped build): the solve's phase
+ * (cal_phase_t; the consensus run's own phase << 8 inside PH_CONS) and the budget its last step
+ * left, for the per-step trace of the continuous calibrator. */
+unsigned magcal_bench_cons_phase(const magcal_consensus_slice_t *s);
+unsigned magcal_bench_solve_phase(const magcal_calibrator_t *cal, uint32_t *left);
+unsigned magcal_bench_solve_phase(const magcal_calibrator_t *cal, uint32_t *left)
+{
+    const cal_run_t *r = cal_run(cal);
+    unsigned sub = 0xFFu;
+    *left = r->bud.left;
+    if (r->active == 0u) {
+        return 0xFFFFu;
+    }
+    if (r->phase == (uint8_t)PH_CONS && r->sub != 0u) {
+        sub = magcal_bench_cons_phase(&r->u.cons);
+    }
+    return (unsigned)r->phase | (sub << 8);
+}
+#endif

@@ -24,14 +24,14 @@
 /* Estimated Cortex-M4F instructions per visit, measured on QEMU mps2-an386 -icount shift=0
  * (arm-none-eabi-gcc -Os; real/charged per step of each phase at n = 288 and 1024, with ~10 %
  * margin; docs/performance.md). Over-charging only makes steps smaller. */
-#define CONS_W_CHECK 34u  /* finiteness of one sample */
-#define CONS_W_COPY 30u   /* one element of a candidate / fill / gather / mask / output loop */
-#define CONS_W_SORT 40u   /* one shell-sort move or placement */
-#define CONS_W_SEL 20u    /* one quickselect scan step, swap or partition decision */
-#define CONS_W_ATAN 160u  /* atan2f of one candidate's direction */
-#define CONS_W_RES 140u   /* |radial residual| of one sample */
+#define CONS_W_CHECK 55u  /* finiteness of one sample */
+#define CONS_W_COPY 48u   /* one element of a candidate / fill / gather / mask / output loop */
+#define CONS_W_SORT 64u   /* one shell-sort move or placement */
+#define CONS_W_SEL 32u    /* one quickselect scan step, swap or partition decision */
+#define CONS_W_ATAN 256u  /* atan2f of one candidate's direction */
+#define CONS_W_RES 224u   /* |radial residual| of one sample */
 #define CONS_W_DRAW 3800u /* one minimal set: 6 PRNG draws and the 5-point exact fit */
-#define CONS_W_FIX 400u   /* an O(1) phase change (scale, threshold, model copy, result) */
+#define CONS_W_FIX 640u   /* an O(1) phase change (scale, threshold, model copy, result) */
 /* a fit slice is stepped only when its largest visit (the normal equations) fits the budget */
 #define CONS_W_FIT 3000u
 
@@ -1173,3 +1173,14 @@ magcal_status_t magcal_consensus_run(const magcal_consensus_cfg_t *cfg, const ma
     }
     return magcal_consensus_step(&s, UINT32_MAX);
 }
+
+#ifdef MAGCAL_BENCH_TRACE
+/* Bench-only (tools/bench/m4f_image cont_trace.elf, never in a shipped build): the run's
+ * internal phase for the per-step trace of the continuous calibrator; 0xFF when none. */
+unsigned magcal_bench_cons_phase(const magcal_consensus_slice_t *s);
+unsigned magcal_bench_cons_phase(const magcal_consensus_slice_t *s)
+{
+    return (s->state_ != NULL && s->phase_ != (uint8_t)CONS_PH_DONE) ? (unsigned)((const cons_state_t *)s->state_)->phase
+                                                                     : 0xFFu;
+}
+#endif

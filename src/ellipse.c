@@ -592,12 +592,12 @@ static MAGCAL_NOINLINE magcal_status_t fit_five(const fit_src_t *src, magcal_ell
  * real/charged per step of each pass, ~5 % margin); a step stops before the visit that would pass
  * its budget (at least one visit per step).
  */
-#define FIT_W_IDX 18u     /* one index range check (magcal_ellipse_fit_idx) */
-#define FIT_W_SCAN 98u    /* pass 1: one point */
-#define FIT_W_MOM 256u    /* pass 2: 13 Kahan sums of one point */
+#define FIT_W_IDX 27u     /* one index range check (magcal_ellipse_fit_idx) */
+#define FIT_W_SCAN 147u    /* pass 1: one point */
+#define FIT_W_MOM 384u    /* pass 2: 13 Kahan sums of one point */
 #define FIT_W_SOLVE 3000u /* collinearity test, normal equations, LDL^T, conic geometry */
-#define FIT_W_RMS 96u     /* pass 3: radial residual of one point */
-#define FIT_W_STORE 800u  /* conic geometry again, result written */
+#define FIT_W_RMS 144u     /* pass 3: radial residual of one point */
+#define FIT_W_STORE 1200u  /* conic geometry again, result written */
 #define FIT_W_FIVE 3200u  /* the 5-point exact path as a whole (5 points: O(1)) */
 
 /* 1 when idx[k0..k1-1] < n_pts (the index check of magcal_ellipse_fit_idx). */

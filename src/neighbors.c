@@ -65,14 +65,14 @@ static size_t nbr_cell(const magcal_nbr_t *nb, size_t i)
 /* Per-visit weights of the build's loops, estimated Cortex-M4F instructions (host callgrind x 1.2,
  * tools/bench_optics/slice_fit.py): bounding box, bucket clear, count, prefix sum, placement,
  * shift; SETUP = the fixed part between the box and the buckets, HGROW one cell-growth round. */
-#define NBR_W_BBOX 20
-#define NBR_W_ZERO 9
-#define NBR_W_CELL 59
-#define NBR_W_PREFIX 9
-#define NBR_W_PLACE 62
-#define NBR_W_SHIFT 8
-#define NBR_W_SETUP 154
-#define NBR_W_HGROW 15
+#define NBR_W_BBOX 24
+#define NBR_W_ZERO 11
+#define NBR_W_CELL 71
+#define NBR_W_PREFIX 11
+#define NBR_W_PLACE 74
+#define NBR_W_SHIFT 10
+#define NBR_W_SETUP 185
+#define NBR_W_HGROW 18
 
 /* Charging a visit (MAGCAL_OPTICS_SLICE_PROFILE: also counted, after optics.c's weights). */
 #ifdef MAGCAL_OPTICS_SLICE_PROFILE

@@ -24,28 +24,28 @@
  * step calls on rings, parked rings and bursts at n = 288 and 1024 against the visits charged in
  * each), times 1.2; W_HEAP (CLASSIC only, not fitted) is 10 levels of a sift. */
 
-#define W_FIN 27     /* finiteness test of one point */
-#define W_SEL 24 /* one element step of the selection's partition scan */
-#define W_HS 71      /* heapsort: one sift call (fixed part) */
-#define W_HSL 34     /* heapsort: one level of a sift */
-#define W_PAIR 50    /* one pair distance of the pair scale */
-#define W_GATHER 42  /* robust centre: one point of a median's gather pass (sqrt in the radius pass) */
-#define W_KEY 76     /* thinning: one point's cell key */
-#define W_CAP 25     /* thinning: one point of the occupancy / marking / max-run passes */
-#define W_ANGLE 181  /* eps' rule: one point's radius and atan2f */
-#define W_LINK 650 /* eps' rule: the link and core requirement of one band point (18 sqrt) */
-#define W_SECTOR 35  /* eps' rule: one point's sector */
-#define W_INIT 19    /* ordering start: one point */
-#define W_SKIP 34    /* ordering: one processed point skipped by the outer scan */
-#define W_PSTART 900 /* ordering: mark, neighbour query, core and extraction of one point */
-#define W_CAND 45 /* ordering: one candidate of the core-distance pass */
-#define W_REACH 48 /* ordering: one candidate of the reach pass */
-#define W_UPD 47     /* ordering: one reach decrease (seed insert / decrease-key adds W_HEAP) */
-#define W_HEAP 120   /* ordering, CLASSIC: one heap pop or sift-up (log2 n levels) */
-#define W_POP 21      /* ordering, IMPROVED: one seed of the minimum scan */
-#define W_OUT 13      /* filter output: one point of the mask */
-#define W_QUERY 600   /* ordering: the neighbour query again when a step resumes inside a scan */
-#define W_PHASE 358   /* fixed cost of a phase switch */
+#define W_FIN 32     /* finiteness test of one point */
+#define W_SEL 29 /* one element step of the selection's partition scan */
+#define W_HS 85      /* heapsort: one sift call (fixed part) */
+#define W_HSL 41     /* heapsort: one level of a sift */
+#define W_PAIR 60    /* one pair distance of the pair scale */
+#define W_GATHER 50  /* robust centre: one point of a median's gather pass (sqrt in the radius pass) */
+#define W_KEY 91     /* thinning: one point's cell key */
+#define W_CAP 30     /* thinning: one point of the occupancy / marking / max-run passes */
+#define W_ANGLE 217  /* eps' rule: one point's radius and atan2f */
+#define W_LINK 780 /* eps' rule: the link and core requirement of one band point (18 sqrt) */
+#define W_SECTOR 42  /* eps' rule: one point's sector */
+#define W_INIT 23    /* ordering start: one point */
+#define W_SKIP 41    /* ordering: one processed point skipped by the outer scan */
+#define W_PSTART 1080 /* ordering: mark, neighbour query, core and extraction of one point */
+#define W_CAND 54 /* ordering: one candidate of the core-distance pass */
+#define W_REACH 58 /* ordering: one candidate of the reach pass */
+#define W_UPD 56     /* ordering: one reach decrease (seed insert / decrease-key adds W_HEAP) */
+#define W_HEAP 144   /* ordering, CLASSIC: one heap pop or sift-up (log2 n levels) */
+#define W_POP 25      /* ordering, IMPROVED: one seed of the minimum scan */
+#define W_OUT 16      /* filter output: one point of the mask */
+#define W_QUERY 720   /* ordering: the neighbour query again when a step resumes inside a scan */
+#define W_PHASE 430   /* fixed cost of a phase switch */
 
 /* Charging a visit: r -= weight. With MAGCAL_OPTICS_SLICE_PROFILE (tools/bench_optics only, never
  * in a shipped build) every charge is also counted per weight, so the bench can fit the weights

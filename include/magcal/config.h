@@ -60,9 +60,10 @@
 /* ---- Time-sliced work (issues 13/14, docs/calibrator.md "Work per call") */
 /** Default work per step() of time-sliced calls, in estimated Cortex-M4F instructions
  *  (magcal_cont_cfg_t::step_budget): with the fixed overhead and the largest single visit, a step
- *  stays below the 10,000-instruction per-call bound. */
+ *  stays below the 10,000-instruction per-call bound. 7500, not 4500: one drained sample is
+ *  measured at up to ~6k (weight 4900), so 4500 held a sample and no solver work at all. */
 #ifndef MAGCAL_SLICE_BUDGET_DEFAULT
-#define MAGCAL_SLICE_BUDGET_DEFAULT 4500u
+#define MAGCAL_SLICE_BUDGET_DEFAULT 7500u
 #endif
 
 /* ---- Module limits and numerical tolerances (moved here from the module headers; same values) */

@@ -31,15 +31,16 @@
  *  RELEARNING -> SOLVING   as COLLECTING; a solve that adopts, or that confirms the installed
  *                          calibration on fresh data (NOT_BETTER), ends the relearning.
  *
- * Work per step. cfg.step_budget (default MAGCAL_SLICE_BUDGET_DEFAULT = 4500) estimated
+ * Work per step. cfg.step_budget (default MAGCAL_SLICE_BUDGET_DEFAULT = 7500) estimated
  * Cortex-M4F instructions per call, shared by the drain and the solve, every piece of work charged
- * by a measured weight (docs/calibrator.md "Work per call"):
+ * by a weight measured on the target (QEMU, tools/bench/cont_weights.py; docs/performance.md):
  *  - drain: at least one ring sample when the ring is not empty, at most cfg.drain_per_step, and
- *    a further one only while less than half of the budget is spent; a sample costs ~1750, one
- *    whose store push ends a survey sweep (once per sweep, ~slots / sweep_steps pushes) ~7200 and
- *    ends the drain. With the defaults (drain_per_step 2) a step takes 2 samples except at a sweep
- *    end (1): at 100 Hz push and 100 Hz step the ring (MAGCAL_CONT_RING) never fills, and a backlog
- *    drains at up to 1 sample per step;
+ *    a further one only while less than half of the budget is spent; a sample is charged 4900
+ *    (measured up to ~6.1k, median ~3.4k), one whose store push ends a survey sweep (once per
+ *    sweep, ~slots / sweep_steps pushes) 9100, which ends the step; a push that may end a sweep is
+ *    only ever a step's first sample. So a step takes one sample, and a second only when no solve
+ *    is under way and the ring holds a quarter of MAGCAL_CONT_RING (the coverage-count and
+ *    snapshot steps drain nothing): at one push per step the ring never fills;
  *  - snapshot: while the store is copied into the solver buffer (whole bins, ~14 per sample; 1 step
  *    at 288 samples, 3 at 1024) the drain pauses so the solver sees one consistent store (the ring
  *    holds the few samples that arrive meanwhile);
@@ -161,7 +162,7 @@ typedef struct {
     uint32_t disturb_hold_ms;       /**< transient judge: flag held after the residual returns (200) */
     float disturb_k;                /**< transient judge: flag at |smoothed - baseline| > k sigma (4) */
     uint32_t step_budget;           /**< work per step(), estimated Cortex-M4F instructions, >= 1
-                                         (default MAGCAL_SLICE_BUDGET_DEFAULT = 4500; UINT32_MAX:
+                                         (default MAGCAL_SLICE_BUDGET_DEFAULT = 7500; UINT32_MAX:
                                          a whole solve per step): "Work per step" above */
 } magcal_cont_cfg_t;
 

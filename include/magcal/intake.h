@@ -206,6 +206,8 @@ typedef struct {
     uint8_t lv_gen;                /**< private: centre generation of the survey under way */
     uint8_t lv_ok;                 /**< private: 1 when lv_abc holds a model of centre generation lv_ok_gen */
     uint8_t lv_ok_gen;             /**< private */
+    float ell_scratch[25];         /**< private: the conic fit's 5 x 5 system at a sweep's end, here
+                                        and not on the stack (the drain's deep path: <= 512 B) */
 } magcal_intake_t;
 
 /**

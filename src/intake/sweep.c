@@ -228,9 +228,9 @@ static MAGCAL_NOINLINE int fit_circle(const magcal_intake_t *st, float inv_n, fl
 /* 2-D conic centre (normalised) when the samples really are an ellipse: its radial RMS at most
  * half the circle's (res_circle), an ellipse near the circle (a ring thickened by hills in a 2-D
  * install fits a conic no better, and its centre is then worse than the circle's). */
-static MAGCAL_NOINLINE int fit_conic(const magcal_intake_t *st, float inv_n, float res_circle, float ec[2])
+static MAGCAL_NOINLINE int fit_conic(magcal_intake_t *st, float inv_n, float res_circle, float ec[2])
 {
-    float ea[25];
+    float *ea = st->ell_scratch; /* in the state: the push path's stack stays <= 512 B */
     float eb[5];
     float eb0[5];
     float eres = st->ell_tt * inv_n;
@@ -268,7 +268,7 @@ static MAGCAL_NOINLINE int fit_conic(const magcal_intake_t *st, float inv_n, flo
 }
 
 /* The survey's circle / sphere fit: 1 and (c, R) when usable. */
-static int survey_fit(const magcal_intake_t *st, magcal_vec3_t *c, float *r)
+static int survey_fit(magcal_intake_t *st, magcal_vec3_t *c, float *r)
 {
     const uint32_t dims = st->cfg.dims;
     float inv_n;

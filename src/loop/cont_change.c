@@ -420,12 +420,13 @@ void magcal_cont_declare_change(magcal_cont_t *cc)
 
 /* Time-sliced field-model fit (magcal_cont_fit_begin / _step): passes over the store in bin
  * order, position (fit_bin, fit_k) and sums in cc. Weights, estimated M4F instructions (host
- * callgrind x 1.2): one sample of each pass, one bin advanced, the Cholesky solve of one form. */
-#define CONT_W_FIT_Z 55u      /* z mean / variance: one sample */
-#define CONT_W_FIT_SUM 750u   /* normal-equation sums: one sample (the full form; less without u) */
-#define CONT_W_FIT_SIGMA 570u /* the model's residual and the sector covered: one sample */
-#define CONT_W_FIT_BIN 11u    /* one bin advanced */
-#define CONT_W_FIT_CHOL 3200u /* Cholesky + solve of one model form (7 x 7 at most) */
+ * callgrind x 1.2, then x 1.2 as measured on QEMU: cont_trace.elf, tools/bench/cont_weights.py):
+ * one sample of each pass, one bin advanced, the Cholesky solve of one form. */
+#define CONT_W_FIT_Z 66u      /* z mean / variance: one sample */
+#define CONT_W_FIT_SUM 900u   /* normal-equation sums: one sample (the full form; less without u) */
+#define CONT_W_FIT_SIGMA 684u /* the model's residual and the sector covered: one sample */
+#define CONT_W_FIT_BIN 13u    /* one bin advanced */
+#define CONT_W_FIT_CHOL 3840u /* Cholesky + solve of one model form (7 x 7 at most) */
 
 /* cppcheck-suppress misra-c2012-5.7 ; deviation D14 (false positive): the enum has no tag */
 /* cppcheck-suppress misra-c2012-2.4 ; deviation D14 (false positive): no tag, so no unused tag */

@@ -10,18 +10,57 @@
 #include <string.h>
 
 #include "../calibrator_internal.h"
+#include "../intake/intake_internal.h"
 #include "magcal/config.h"
 #include "cont_internal.h"
 
 /* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
 MAGCAL_STATIC_ASSERT(sizeof(float) == sizeof(uint32_t), cont_park_stamp_bits); /* deviation D15 */
 
-/* Weights, estimated M4F instructions (host callgrind x 1.2; docs/calibrator.md "Work per call"). */
-#define CONT_W_DRAIN 1750u /* judge + store push of one sample (its 8 sweep steps included) */
-#define CONT_W_SWEEP 7200u /* a push that ended a survey sweep (the ring fits): ends the drain */
+/* Weights, estimated M4F instructions, MEASURED on the target (QEMU mps2-an386 -icount shift=0,
+ * cont_trace.elf, tools/bench/cont_weights.py: the largest measured step of that kind on the
+ * generated drive and vn100_car_circles_b x 4, rounded up; docs/performance.md "Per call"). */
+#define CONT_W_DRAIN 4900u /* judge + store push of one sample, its 8 sweep steps included (was 1750: 2.8x short) */
+#define CONT_W_SWEEP 9100u /* a push that ended a survey sweep (the ring fits): ends the step (was 7200) */
 #define CONT_W_SNAP 14u    /* one sample of the snapshot */
 #define CONT_W_BIN 20u     /* one bin of the snapshot */
 #define CONT_W_PARK 30u    /* one ring sample parked during the field-model fit */
+
+/* Per-step trace, bench-only (MAGCAL_BENCH_TRACE: tools/bench/m4f_image cont_trace.elf, never in a
+ * shipped build): what each step did and what it charged, next to the image's SysTick count
+ * (tools/bench/cont_weights.py fits the weights from it). Indices: MAGCAL_BENCH_TR_*. */
+#ifdef MAGCAL_BENCH_TRACE
+enum {
+    TR_STAGE_IN = 0, /* stage at entry | fit_phase << 8 */
+    TR_STAGE_OUT,    /* stage at exit | fit_phase << 8 */
+    TR_DRAINED,      /* samples the drain took */
+    TR_SWEEPS,       /* of them, pushes that ended a survey sweep */
+    TR_CHARGED,      /* estimate charged outside the solver (drain, park, snapshot, fit) */
+    TR_SOLVE_BUDGET, /* budget handed to the solver (0: not called) */
+    TR_SOLVE_LEFT,   /* what the solver left of it */
+    TR_PHASE_IN,     /* solver phase at entry (calibrator_solve.c magcal_bench_solve_phase) */
+    TR_PHASE_OUT,    /* at exit */
+    TR_WORTH,        /* 1: the coverage-count step */
+    TR_SOLVE_INSN,   /* the solver's own instructions (SysTick around its step, 40 per tick) */
+    TR_DRAIN_INSN,   /* the drain's */
+    TR_N
+};
+/* the target's SysTick current value (counts down at the core clock; QEMU -icount shift=0) */
+#define CONT_TRACE_TICKS() (*(volatile uint32_t *)0xE000E018u)
+uint32_t magcal_bench_cont_trace[TR_N];
+unsigned magcal_bench_solve_phase(const magcal_calibrator_t *cal, uint32_t *left);
+#define CONT_TRACE(stmt) stmt
+#else
+#define CONT_TRACE(stmt)
+#endif
+
+/* cont_solve inlined into both callers (step, solve_blocking): no frame of its own between them
+ * and the solver's phases (the solve path's stack, tools/stack/budgets.txt) */
+#if defined(__GNUC__) || defined(__clang__)
+#define CONT_INLINE static inline __attribute__((always_inline))
+#else
+#define CONT_INLINE static inline
+#endif
 
 /* cppcheck-suppress misra-c2012-5.7 ; deviation D14 (false positive): the enum has no tag */
 /* cppcheck-suppress misra-c2012-2.4 ; deviation D14 (false positive): no tag, so no unused tag */
@@ -80,6 +119,25 @@ static MAGCAL_NOINLINE const magcal_vec3_t *cont_unpark(magcal_cont_t *cc)
     return &cc->park_m;
 }
 
+/* 1 when the next store push may end a survey sweep (its sweep steps may reach the last slot:
+ * each step visits a slot or jumps the rest of a bin), so the drain takes it only as a step's
+ * first sample: the sweep end (CONT_W_SWEEP) then never shares a step with another sample. */
+static int cont_may_end_sweep(const magcal_cont_t *cc)
+{
+    const magcal_intake_t *st = &cc->store;
+    return st->cursor + (uint32_t)st->cfg.sweep_steps * (uint32_t)st->cfg.per_bin >= magcal_intake_nslots(st);
+}
+
+/* 1 when no solve is under way and the ring holds a quarter of its size or more: the steps
+ * that do not drain (the coverage count's, the snapshot's) leave one sample each behind, and a
+ * drain of one sample per step (its measured weight is more than half the budget) would never
+ * catch up at one push per step; such a step takes a second sample (the only steps that do),
+ * unless the first ended a sweep (the budget is then spent). */
+static int cont_behind(const magcal_cont_t *cc)
+{
+    return cc->stage == (uint8_t)CONT_STAGE_NONE && cc->head - cc->tail >= MAGCAL_CONT_RING / 4u;
+}
+
 static MAGCAL_NOINLINE void cont_drain(magcal_cont_t *cc, uint32_t max, magcal_cal_budget_t *b)
 {
     const uint32_t half = b->left / 2u; /* b->left >= 1 (cfg.step_budget): the first sample passes */
@@ -89,8 +147,11 @@ static MAGCAL_NOINLINE void cont_drain(magcal_cont_t *cc, uint32_t max, magcal_c
         const uint32_t t = cc->tail;
         const uint32_t sweeps = cc->store.sweeps;
         const magcal_vec3_t *m;
-        if (b->unlimited == 0u && b->left <= half) {
+        if (b->unlimited == 0u && b->left <= half && (b->left == 0u || cont_behind(cc) == 0)) {
             break;
+        }
+        if (k != max && cont_may_end_sweep(cc) != 0) {
+            break; /* a push that may end a sweep is only ever a step's first sample */
         }
         m = cont_unpark(cc);
         if (m == NULL) {
@@ -108,6 +169,8 @@ static MAGCAL_NOINLINE void cont_drain(magcal_cont_t *cc, uint32_t max, magcal_c
             MAGCAL_CONT_BARRIER(); /* read before the slot is handed back */
             cc->tail = t + 1u;
         }
+        CONT_TRACE(magcal_bench_cont_trace[TR_DRAINED]++;)
+        CONT_TRACE(magcal_bench_cont_trace[TR_SWEEPS] += cc->store.sweeps != sweeps ? 1u : 0u;)
         (void)magcal_cal_spend(b, cc->store.sweeps != sweeps ? CONT_W_SWEEP : CONT_W_DRAIN);
     }
 }
@@ -247,7 +310,7 @@ static MAGCAL_NOINLINE magcal_cont_outcome_t cont_fit_part(magcal_cont_t *cc, ma
 /* Solve work within the budget (at least one visit); the outcome when the solve ended. The
  * snapshot and the end are siblings of the solver's step (not frames above it): only this
  * function's frame sits between step() and the solver's phases (stack budget). */
-static magcal_cont_outcome_t cont_solve(magcal_cont_t *cc, magcal_cal_budget_t *b)
+CONT_INLINE magcal_cont_outcome_t cont_solve(magcal_cont_t *cc, magcal_cal_budget_t *b)
 {
     magcal_status_t st;
     magcal_cont_outcome_t oc;
@@ -257,9 +320,14 @@ static magcal_cont_outcome_t cont_solve(magcal_cont_t *cc, magcal_cal_budget_t *
     if (cont_snapshot_part(cc, b) != 0) {
         return MAGCAL_CONT_IN_PROGRESS;
     }
+    CONT_TRACE(magcal_bench_cont_trace[TR_SOLVE_BUDGET] = b->left > 0u ? b->left : 1u;)
+    CONT_TRACE(magcal_bench_cont_trace[TR_PHASE_IN] = magcal_bench_solve_phase(&cc->solver, &magcal_bench_cont_trace[TR_SOLVE_LEFT]);)
+    CONT_TRACE(magcal_bench_cont_trace[TR_SOLVE_INSN] = CONT_TRACE_TICKS();)
     st = magcal_calibrator_solve_step(&cc->solver, &cc->cand,
                                       b->unlimited != 0u ? UINT32_MAX : (b->left > 0u ? b->left : 1u),
                                       &cc->last);
+    CONT_TRACE(magcal_bench_cont_trace[TR_SOLVE_INSN] = ((magcal_bench_cont_trace[TR_SOLVE_INSN] - CONT_TRACE_TICKS()) & 0xFFFFFFu) * 40u;)
+    CONT_TRACE(magcal_bench_cont_trace[TR_PHASE_OUT] = magcal_bench_solve_phase(&cc->solver, &magcal_bench_cont_trace[TR_SOLVE_LEFT]);)
     if (st == MAGCAL_IN_PROGRESS) {
         return MAGCAL_CONT_IN_PROGRESS;
     }
@@ -270,18 +338,14 @@ static magcal_cont_outcome_t cont_solve(magcal_cont_t *cc, magcal_cal_budget_t *
     return oc;
 }
 
-magcal_cont_outcome_t magcal_cont_step(magcal_cont_t *cc)
+/* The body of magcal_cont_step within the budget b (inlined: called once). */
+static inline magcal_cont_outcome_t cont_step_in(magcal_cont_t *cc, magcal_cal_budget_t *bp)
 {
-    magcal_cal_budget_t b;
-    if (!magcal_cont_ok(cc)) {
-        return MAGCAL_CONT_IDLE;
-    }
-    b.left = cc->cfg.step_budget;
-    b.unlimited = (uint8_t)(cc->cfg.step_budget == UINT32_MAX ? 1u : 0u);
     cc->change_flag = 0u;
-    if (cc->stage == (uint8_t)CONT_STAGE_NONE && b.unlimited == 0u && cont_worth_due(cc) != 0) {
+    if (cc->stage == (uint8_t)CONT_STAGE_NONE && bp->unlimited == 0u && cont_worth_due(cc) != 0) {
         /* the coverage count (O(slots)) gets a step of its own, without the drain: a step never
          * pays both; it is due again only after the store changed, so the drain keeps up */
+        CONT_TRACE(magcal_bench_cont_trace[TR_WORTH] = 1u;)
         if (cont_worth(cc) == 0) {
             return MAGCAL_CONT_IDLE;
         }
@@ -289,24 +353,43 @@ magcal_cont_outcome_t magcal_cont_step(magcal_cont_t *cc)
         return MAGCAL_CONT_IN_PROGRESS;
     }
     if (cont_store_frozen(cc) == 0) {
-        cont_drain(cc, cc->cfg.drain_per_step, &b); /* the parked samples first */
+        CONT_TRACE(magcal_bench_cont_trace[TR_DRAIN_INSN] = CONT_TRACE_TICKS();)
+        cont_drain(cc, cc->cfg.drain_per_step, bp); /* the parked samples first */
+        CONT_TRACE(magcal_bench_cont_trace[TR_DRAIN_INSN] = ((magcal_bench_cont_trace[TR_DRAIN_INSN] - CONT_TRACE_TICKS()) & 0xFFFFFFu) * 40u;)
     }
     if (cc->stage == (uint8_t)CONT_STAGE_FIT || cc->park_n != cc->park_i) {
-        cont_park(cc, &b); /* the ring's samples behind them (at least one moved) */
+        cont_park(cc, bp); /* the ring's samples behind them (at least one moved) */
     }
     if (cc->change_flag != 0u) {
         return MAGCAL_CONT_CHANGE;
     }
     if (cc->stage == (uint8_t)CONT_STAGE_NONE) {
-        if (b.unlimited == 0u || cont_worth(cc) == 0) {
+        if (bp->unlimited == 0u || cont_worth(cc) == 0) {
             return MAGCAL_CONT_IDLE; /* sliced: the count runs in the next step */
         }
         cont_start(cc);
     }
-    if (b.unlimited == 0u && b.left == 0u) {
+    if (bp->unlimited == 0u && bp->left == 0u) {
         return MAGCAL_CONT_IN_PROGRESS; /* the drain spent the budget (a sweep end): next step */
     }
-    return cont_solve(cc, &b);
+    return cont_solve(cc, bp);
+}
+
+magcal_cont_outcome_t magcal_cont_step(magcal_cont_t *cc)
+{
+    magcal_cal_budget_t b;
+    magcal_cont_outcome_t oc;
+    if (!magcal_cont_ok(cc)) {
+        return MAGCAL_CONT_IDLE;
+    }
+    b.left = cc->cfg.step_budget;
+    b.unlimited = (uint8_t)(cc->cfg.step_budget == UINT32_MAX ? 1u : 0u);
+    CONT_TRACE((void)memset(magcal_bench_cont_trace, 0, sizeof magcal_bench_cont_trace);)
+    CONT_TRACE(magcal_bench_cont_trace[TR_STAGE_IN] = (uint32_t)cc->stage | ((uint32_t)cc->fit_phase << 8);)
+    oc = cont_step_in(cc, &b);
+    CONT_TRACE(magcal_bench_cont_trace[TR_STAGE_OUT] = (uint32_t)cc->stage | ((uint32_t)cc->fit_phase << 8);)
+    CONT_TRACE(magcal_bench_cont_trace[TR_CHARGED] = cc->cfg.step_budget - b.left;)
+    return oc;
 }
 
 /* Blocking call, first part: start a solve if worth it (or forced). 1 = a solve is under way. */

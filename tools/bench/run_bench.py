@@ -554,6 +554,11 @@ def m4f_cont(build_dir, tmp_root, python, real=True):
                                 "status": int(f[10])})
         elif f[2] == "first_adopted_steps":
             d["first_adopted_steps"] = [int(v) for v in f[3:]]
+        elif f[2] == "isolated":
+            d["isolated"] = {"start_row": int(f[3]), "steps": int(f[4]), "total": int(f[5]), "largest_step": int(f[6]),
+                             "outcome": f[7], "attempts": int(f[8])}
+        elif f[2] == "isolated_none":
+            d["isolated"] = None
         elif f[2] == "summary":
             d.update(dict(zip(["adoptions", "solves_finished", "solves_aborted", "changes", "ok_headings",
                                "trusted_rows"], [int(v) for v in f[3:9]])))
@@ -641,9 +646,12 @@ def host_cont(build_dir, tmp_root, no_build, real):
 
 def cont_results(res, extra, cont):
     """results.json keys of the per-call run: m4f_max_call_instr = the largest push / step / heading
-    over every drive; m4f_cal2d_total_instr = the first solve that ends ADOPTED (a complete 2-D
-    calibration from the default store) of the real drive when ../shared has it, else of the
-    generated drive (as the cal3d keys: real samples when present)."""
+    over every drive; m4f_cal2d_total_instr = one complete 2-D calibration from the default store
+    with no samples pushed during it (main_cont.c run_isolated: the drive fed until a solve starts,
+    then only steps until it ends; the first that adopts), m4f_cal2d_interleaved_instr = the first
+    solve that ends ADOPTED in the stream run (push + step per row: its steps also drain the
+    samples that arrive meanwhile); of the real drive when ../shared has it, else of the generated
+    drive (as the cal3d keys: real samples when present)."""
     extra["cont"] = cont
     dr = cont.get("drives", {})
     if "error" in cont or not dr:
@@ -654,7 +662,10 @@ def cont_results(res, extra, cont):
     src = CONT_REAL["name"] if CONT_REAL["name"] in dr else CONT_GEN["name"]
     first = next((s for s in dr.get(src, {}).get("solves", []) if s["outcome"] == "adopted"), None)
     if first:
-        res["m4f_cal2d_total_instr"] = first["total"]
+        res["m4f_cal2d_interleaved_instr"] = first["total"]
+    iso = dr.get(src, {}).get("isolated")
+    if iso:
+        res["m4f_cal2d_total_instr"] = iso["total"]
     cont["cal2d_source"] = src
     for d in dr.values():
         fin = [s for s in d["solves"] if s["outcome"] != "aborted_change"]
@@ -717,9 +728,22 @@ def cont_markdown(cont):
                 "%d steps, largest %s, median %s, sum %s" % (len(st), fmt_int(srt[-1]), fmt_int(srt[(len(st) - 1) // 2]),
                                                              fmt_int(sum(st)))))
             L.append("")
+    iso = [(n, cont["drives"][n].get("isolated")) for n in (cont.get("order") or sorted(cont["drives"]))
+           if cont["drives"].get(n, {}).get("isolated")]
+    if iso:
+        L.append("One complete 2-D calibration with no samples pushed during it (`run_isolated`: the drive fed "
+                 "until a solve starts, then only steps until it ends; the first solve that adopts):")
+        L.append("")
+        L.append("| drive | start row | solves tried | steps | total | largest step |")
+        L.append("|---|---:|---:|---:|---:|---:|")
+        for n, v in iso:
+            L.append("| %s | %d | %d | %d | **%s** | %s |" % (n, v["start_row"], v["attempts"], v["steps"],
+                                                           fmt_int(v["total"]), fmt_int(v["largest_step"])))
+        L.append("")
     if cont.get("cal2d_source"):
-        L.append("`m4f_cal2d_total_instr` is the first adopted solve of `%s`; `m4f_max_call_instr` the largest "
-                 "call over every drive." % cont["cal2d_source"])
+        L.append("`m4f_cal2d_total_instr` is the isolated solve of `%s`, `m4f_cal2d_interleaved_instr` its first "
+                 "adopted solve in the stream run; `m4f_max_call_instr` the largest call over every drive (stream "
+                 "runs)." % cont["cal2d_source"])
         L.append("")
     h = cont.get("host")
     if h and "error" not in h:
@@ -887,6 +911,7 @@ def main(argv):
         "m4f_max_call_instr": None,
         "m4f_cal2d_total_instr": None,
         "m4f_max_call3_instr": None,
+        "m4f_cal2d_interleaved_instr": None,
     }
     extra = {k + "_instr": series(k) for k in EXTRA_KERNELS}
     extra["ellipse_instr"] = series("ellipse")
@@ -1026,9 +1051,12 @@ def main(argv):
         ("issue 13: largest single call (push / step / heading) of the continuous calibrator at the default "
          "budget on a drive (`m4f_max_call_instr`) <= %d" % GOALS_CONT["max_call"], res["m4f_max_call_instr"],
          GOALS_CONT["max_call"], "<="),
-        ("issue 14: one complete 2-D calibration from the default store of a drive, sum of its step calls "
-         "(`m4f_cal2d_total_instr`) <= %d" % GOALS_CONT["cal2d_total"], res["m4f_cal2d_total_instr"],
-         GOALS_CONT["cal2d_total"], "<="),
+        ("issue 14: one complete 2-D calibration from the default store of a drive, sum of its step calls, no "
+         "samples pushed meanwhile (`m4f_cal2d_total_instr`) <= %d" % GOALS_CONT["cal2d_total"],
+         res["m4f_cal2d_total_instr"], GOALS_CONT["cal2d_total"], "<="),
+        ("issue 14: the same, interleaved with the stream (push + step per row: its steps also drain the "
+         "samples that arrive; `m4f_cal2d_interleaved_instr`) <= %d" % GOALS_CONT["cal2d_total"],
+         res["m4f_cal2d_interleaved_instr"], GOALS_CONT["cal2d_total"], "<="),
         ("worst-case stack of the pipeline entry points <= %d B" % GOALS["stack"],
          res["m4f_stack_bytes"], GOALS["stack"], "<="),
         ("workspace + sample buffer <= %g B/sample (capacity 1024)" % GOALS["ws_per_sample"],

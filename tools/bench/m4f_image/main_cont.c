@@ -23,6 +23,8 @@
  *   CONT <drive> solve <k> <start_row> <end_row> <steps> <total_instr> <largest_step> <outcome> <status>
  *   CONT <drive> first_adopted_steps <instr of each step of the first adopted solve, in order>
  *   CONT <drive> summary <adoptions> <solves> <aborted> <changes> <ok_headings> <trusted_rows>
+ *   CONT <drive> isolated <start_row> <steps> <total_instr> <largest_step> <outcome> <attempts>
+ *     (run_isolated: the first adopted solve with no pushes during it)
  * Exit status: 0, or 1 when a call broke its contract (a status push/heading may not return, an
  * OK heading outside [0, 360) or not finite, a generation that went down, no solve at all). */
 #include <math.h>
@@ -31,6 +33,11 @@
 #include <stdlib.h>
 
 #include "magcal/continuous.h"
+
+#ifdef MAGCAL_BENCH_TRACE
+/* cont_trace.elf: the library's per-step trace (src/loop/cont_step.c, TR_* indices) */
+extern uint32_t magcal_bench_cont_trace[12];
+#endif
 
 /* One drive of the generated header: rows of raw samples and ms stamps, fed `reps` times in a
  * row (stamps of repetition r shifted by r x period_ms). */
@@ -169,6 +176,18 @@ static int run_drive(const bench_drive_t *d)
                 s_total += c;
                 s_max = c > s_max ? c : s_max;
             }
+#ifdef MAGCAL_BENCH_TRACE
+            /* every step that did more than the idle minimum, with what the library charged:
+             * TR <drive> <row> <measured> <the 12 trace words> <outcome> */
+            if (c >= 1000u || magcal_bench_cont_trace[0] != 0u || magcal_bench_cont_trace[1] != 0u) {
+                const uint32_t *tr = magcal_bench_cont_trace;
+                printf("TR %s %lu %lu %lu %lu %lu %lu %lu %lu %lu %lu %lu %lu %lu %lu %d\n", d->name, (unsigned long)row,
+                       (unsigned long)c, (unsigned long)tr[0], (unsigned long)tr[1], (unsigned long)tr[2],
+                       (unsigned long)tr[3], (unsigned long)tr[4], (unsigned long)tr[5], (unsigned long)tr[6],
+                       (unsigned long)tr[7], (unsigned long)tr[8], (unsigned long)tr[9], (unsigned long)tr[10],
+                       (unsigned long)tr[11], (int)o);
+            }
+#endif
             if (o == MAGCAL_CONT_CHANGE) {
                 changes++;
             }
@@ -228,6 +247,57 @@ static int run_drive(const bench_drive_t *d)
     return fails;
 }
 
+/* One complete 2-D calibration from the default store, no samples pushed meanwhile (issue 14's
+ * m4f_cal2d_total_instr): the drive fed as above (push, step, heading per row) until a step starts
+ * a solve; then no more pushes, only steps until the solve ends. A solve that does not adopt
+ * (failed, refused) is counted as an attempt and the drive goes on from the next row; the first
+ * adopted solve is reported:
+ *   CONT <drive> isolated <start_row> <steps> <total_instr> <largest_step> <outcome> <attempts> */
+static int run_isolated(const bench_drive_t *d)
+{
+    magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
+    uint32_t rows = d->n * d->reps;
+    uint32_t row, attempts = 0u;
+    cfg.intake.range_limit = d->range_limit;
+    if (magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_solve_buf, g_work, sizeof g_work) != MAGCAL_OK) {
+        return 1;
+    }
+    for (row = 0u; row < rows; ++row) {
+        const magcal_vec3_t *m = &d->m[row % d->n];
+        uint32_t t_ms = d->t_ms[row % d->n] + (row / d->n) * d->period_ms;
+        magcal_cont_heading_t hd;
+        magcal_cont_outcome_t o;
+        uint32_t t0, c;
+        (void)magcal_cont_push(&g_cc, m, t_ms);
+        t0 = ticks();
+        o = magcal_cont_step(&g_cc);
+        c = insn_since(t0);
+        if (o == MAGCAL_CONT_IN_PROGRESS && g_cc.stage != 0u && g_cc.stage != 3u) { /* a solve (not the field fit) */
+            uint32_t steps = 1u, total = c, largest = c, k;
+            for (k = 0u; k < 10000000u && o == MAGCAL_CONT_IN_PROGRESS; ++k) {
+                t0 = ticks();
+                o = magcal_cont_step(&g_cc);
+                c = insn_since(t0);
+                steps++;
+                total += c;
+                largest = c > largest ? c : largest;
+            }
+            attempts++;
+            if (o == MAGCAL_CONT_ADOPTED) {
+                printf("CONT %s isolated %lu %lu %lu %lu %s %lu\n", d->name, (unsigned long)row, (unsigned long)steps,
+                       (unsigned long)total, (unsigned long)largest, outcome_name(o), (unsigned long)attempts);
+                /* the field-model fit after the adoption: to its end, not part of the figure */
+                while (magcal_cont_step(&g_cc) == MAGCAL_CONT_IN_PROGRESS && k++ < 20000000u) {
+                }
+                return 0;
+            }
+        }
+        (void)magcal_cont_heading(&g_cc, m, 0.0f, &hd);
+    }
+    printf("CONT %s isolated_none %lu\n", d->name, (unsigned long)attempts);
+    return 0;
+}
+
 int main(void)
 {
     size_t k;
@@ -237,6 +307,7 @@ int main(void)
     SYST_CSR = 5u; /* enable, processor clock, no interrupt */
     for (k = 0u; k < sizeof g_drives / sizeof g_drives[0]; ++k) {
         fails += run_drive(&g_drives[k]);
+        fails += run_isolated(&g_drives[k]);
     }
     printf("CONT done %d\n", fails);
     return fails == 0 ? 0 : 1;
