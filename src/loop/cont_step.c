@@ -128,14 +128,18 @@ static int cont_may_end_sweep(const magcal_cont_t *cc)
     return st->cursor + (uint32_t)st->cfg.sweep_steps * (uint32_t)st->cfg.per_bin >= magcal_intake_nslots(st);
 }
 
-/* 1 when no solve is under way and the ring holds a quarter of its size or more: the steps
+/* 1 when no solve is under way and the drain is behind: the ring holds a quarter of its size
+ * or more, or samples parked during the field-model fit are still queued (while they are, every
+ * ring sample joins the queue behind them, and no solve starts until it is empty). The steps
  * that do not drain (the coverage count's, the snapshot's) leave one sample each behind, and a
  * drain of one sample per step (its measured weight is more than half the budget) would never
- * catch up at one push per step; such a step takes a second sample (the only steps that do),
- * unless the first ended a sweep (the budget is then spent). */
+ * catch up at one push per step (the parked queue would never empty: no solve after the first
+ * adoption); such a step takes a second sample (the only steps that do), unless the first ended
+ * a sweep (the budget is then spent). */
 static int cont_behind(const magcal_cont_t *cc)
 {
-    return cc->stage == (uint8_t)CONT_STAGE_NONE && cc->head - cc->tail >= MAGCAL_CONT_RING / 4u;
+    return cc->stage == (uint8_t)CONT_STAGE_NONE &&
+           (cc->head - cc->tail >= MAGCAL_CONT_RING / 4u || cc->park_n != cc->park_i);
 }
 
 static MAGCAL_NOINLINE void cont_drain(magcal_cont_t *cc, uint32_t max, magcal_cal_budget_t *b)
