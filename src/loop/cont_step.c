@@ -46,7 +46,7 @@ enum {
     TR_N
 };
 /* the target's SysTick current value (counts down at the core clock; QEMU -icount shift=0) */
-#define CONT_TRACE_TICKS() (*(volatile uint32_t *)0xE000E018u)
+static inline uint32_t cont_trace_ticks(void) { return *(volatile uint32_t *)0xE000E018u; }
 uint32_t magcal_bench_cont_trace[TR_N];
 unsigned magcal_bench_solve_phase(const magcal_calibrator_t *cal, uint32_t *left);
 #define CONT_TRACE(stmt) stmt
@@ -326,11 +326,11 @@ CONT_INLINE magcal_cont_outcome_t cont_solve(magcal_cont_t *cc, magcal_cal_budge
     }
     CONT_TRACE(magcal_bench_cont_trace[TR_SOLVE_BUDGET] = b->left > 0u ? b->left : 1u;)
     CONT_TRACE(magcal_bench_cont_trace[TR_PHASE_IN] = magcal_bench_solve_phase(&cc->solver, &magcal_bench_cont_trace[TR_SOLVE_LEFT]);)
-    CONT_TRACE(magcal_bench_cont_trace[TR_SOLVE_INSN] = CONT_TRACE_TICKS();)
+    CONT_TRACE(magcal_bench_cont_trace[TR_SOLVE_INSN] = cont_trace_ticks();)
     st = magcal_calibrator_solve_step(&cc->solver, &cc->cand,
                                       b->unlimited != 0u ? UINT32_MAX : (b->left > 0u ? b->left : 1u),
                                       &cc->last);
-    CONT_TRACE(magcal_bench_cont_trace[TR_SOLVE_INSN] = ((magcal_bench_cont_trace[TR_SOLVE_INSN] - CONT_TRACE_TICKS()) & 0xFFFFFFu) * 40u;)
+    CONT_TRACE(magcal_bench_cont_trace[TR_SOLVE_INSN] = ((magcal_bench_cont_trace[TR_SOLVE_INSN] - cont_trace_ticks()) & 0xFFFFFFu) * 40u;)
     CONT_TRACE(magcal_bench_cont_trace[TR_PHASE_OUT] = magcal_bench_solve_phase(&cc->solver, &magcal_bench_cont_trace[TR_SOLVE_LEFT]);)
     if (st == MAGCAL_IN_PROGRESS) {
         return MAGCAL_CONT_IN_PROGRESS;
@@ -357,9 +357,9 @@ static inline magcal_cont_outcome_t cont_step_in(magcal_cont_t *cc, magcal_cal_b
         return MAGCAL_CONT_IN_PROGRESS;
     }
     if (cont_store_frozen(cc) == 0) {
-        CONT_TRACE(magcal_bench_cont_trace[TR_DRAIN_INSN] = CONT_TRACE_TICKS();)
+        CONT_TRACE(magcal_bench_cont_trace[TR_DRAIN_INSN] = cont_trace_ticks();)
         cont_drain(cc, cc->cfg.drain_per_step, bp); /* the parked samples first */
-        CONT_TRACE(magcal_bench_cont_trace[TR_DRAIN_INSN] = ((magcal_bench_cont_trace[TR_DRAIN_INSN] - CONT_TRACE_TICKS()) & 0xFFFFFFu) * 40u;)
+        CONT_TRACE(magcal_bench_cont_trace[TR_DRAIN_INSN] = ((magcal_bench_cont_trace[TR_DRAIN_INSN] - cont_trace_ticks()) & 0xFFFFFFu) * 40u;)
     }
     if (cc->stage == (uint8_t)CONT_STAGE_FIT || cc->park_n != cc->park_i) {
         cont_park(cc, bp); /* the ring's samples behind them (at least one moved) */
