@@ -757,7 +757,7 @@ static void test_intake_level_band_refuses_pitched_samples(void)
     unsigned refused_ns = 0u;
     unsigned level_ok = 0u;
     unsigned ew_stored = 0u;
-    TEST_ASSERT_FLOAT_WITHIN(1e-6f, 0.03f, cfg.level_band_rel);
+    TEST_ASSERT_FLOAT_WITHIN(1e-6f, 0.0f, cfg.level_band_rel); /* off by default (opt-in) */
     cfg.level_band_rel = 0.6f;
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_intake_init(&g_st, &cfg, g_slots, 288u));
     cfg.level_band_rel = NAN;

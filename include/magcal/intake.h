@@ -110,11 +110,12 @@ typedef struct {
                                 and refused; 0 = not declared (no check) (default 0) */
     float level_band_rel;  /**< 2-D level band: a sample whose raw z is more than this x R from the
                                 store's level model (file comment) is refused once its bin holds
-                                half its cap; 0..0.5, 0 = off (2-D default 0.03; 3-D: unused, 0) */
+                                half its cap; 0..0.5, 0 = off (default: off, opt-in, see
+                                docs/calibrator.md "Level band"; 3-D: unused, 0) */
 } magcal_intake_cfg_t;
 
 /** 2-D defaults: 36 sectors x 8, spacing 2 % of R. */
-#define MAGCAL_INTAKE_CFG_DEFAULT_2D {2u, 8u, 36u, 8u, 0.02f, 0.05f, 0.0f, 0.03f}
+#define MAGCAL_INTAKE_CFG_DEFAULT_2D {2u, 8u, 36u, 8u, 0.02f, 0.05f, 0.0f, 0.0f}
 /** 3-D defaults: 10 bands (128 cells) x 4, spacing 4 % of R. */
 #define MAGCAL_INTAKE_CFG_DEFAULT_3D {3u, 4u, 10u, 8u, 0.04f, 0.05f, 0.0f, 0.0f}
 

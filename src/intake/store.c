@@ -115,6 +115,8 @@ int magcal_intake_insert(magcal_intake_t *st, uint16_t b, const magcal_vec3_t *m
 /* ---- 2-D level band (intake.h): the level model z = a + b cos + c sin of the direction from the
  * centre, fitted over the bins' median z by a survey of one bin per push. */
 #define INTAKE_LV_MIN_BINS 8.0f  /* bins the level model needs */
+/* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
+MAGCAL_STATIC_ASSERT(MAGCAL_INTAKE_MAX_PER_BIN <= 64u, intake_level_ring_mask_bits);
 #define INTAKE_LV_RING_LO 0.7f   /* a bin's samples count on the ring only (as progress.c) */
 #define INTAKE_LV_RING_HI 1.4f
 
@@ -170,7 +172,8 @@ static void intake_level_solve(magcal_intake_t *st)
 }
 
 /* One bin of the level survey: its samples on the ring, their lower-median z (rank count,
- * per_bin^2 compares) and mean direction enter the sums; at the last bin the model is solved. */
+ * per_bin^2 compares on a ring mask: per_bin square roots, not per_bin^2) and mean direction enter
+ * the sums; at the last bin the model is solved. */
 static MAGCAL_NOINLINE void intake_level_step(magcal_intake_t *st)
 {
     const uint32_t per = st->cfg.per_bin;
@@ -183,6 +186,7 @@ static MAGCAL_NOINLINE void intake_level_step(magcal_intake_t *st)
     float ds = 0.0f;
     float zmed = 0.0f;
     uint32_t on = 0u; /* 1: the median was found */
+    uint64_t ring = 0u; /* bit k - base: slot k is on the ring (per_bin <= MAGCAL_INTAKE_MAX_PER_BIN = 64) */
     if (intake_level_on(st) == 0) {
         return;
     }
@@ -198,26 +202,21 @@ static MAGCAL_NOINLINE void intake_level_step(magcal_intake_t *st)
         if (d >= INTAKE_LV_RING_LO * r && d <= INTAKE_LV_RING_HI * r) {
             dc += uy / d; /* heading convention atan2(-x, y): cos along y, sin along -x */
             ds -= ux / d;
+            ring |= (uint64_t)1u << (k - base);
             n++;
         }
     }
     if (n > 0u) {
         const uint32_t want = (n - 1u) / 2u; /* rank of the lower median among the ring samples */
         for (k = base; k < base + st->count[b] && on == 0u; ++k) {
-            const float ux = st->slots[k].m.x - st->centre.x;
-            const float uy = st->slots[k].m.y - st->centre.y;
-            const float d = sqrtf(ux * ux + uy * uy);
             uint32_t below = 0u;
             uint32_t equal = 0u;
             uint32_t i;
-            if (!(d >= INTAKE_LV_RING_LO * r && d <= INTAKE_LV_RING_HI * r)) {
+            if ((ring & ((uint64_t)1u << (k - base))) == 0u) {
                 continue;
             }
             for (i = base; i < base + st->count[b]; ++i) {
-                const float vx = st->slots[i].m.x - st->centre.x;
-                const float vy = st->slots[i].m.y - st->centre.y;
-                const float e = sqrtf(vx * vx + vy * vy);
-                if (i != k && e >= INTAKE_LV_RING_LO * r && e <= INTAKE_LV_RING_HI * r) {
+                if (i != k && (ring & ((uint64_t)1u << (i - base))) != 0u) {
                     if (st->slots[i].m.z < st->slots[k].m.z) {
                         below++;
                     } else if (st->slots[i].m.z == st->slots[k].m.z) {
