@@ -158,11 +158,15 @@ static MAGCAL_NOINLINE int regate_range(ell_scratch_t *sw, ell_bud_t *b)
     quad_acc_t *acc = &sw->acc;
     const quad_gate_t *old_gate = &sw->gate;
     const quad_gate_t *new_gate = &sw->next;
-    const uint32_t w = (ws->res != NULL) ? W_REGATE : W_REGATE_RECOMP;
+    const uint32_t w = (ws->res != NULL) ? (uint32_t)W_REGATE : (uint32_t)W_REGATE_RECOMP;
+    const size_t todo = r->n - r->k;         /* r->k <= r->n */
+    const uint32_t rest = b->left - b->cost; /* read only when cost <= left */
+    /* bulk: the rest of the budget pays for the rest of the range at its worst (every verdict
+     * changes) */
     const int bulk = (b->cost <= b->left &&
-                      (uint64_t)(r->n - r->k) * (w + W_REGATE_ROW) <= (uint64_t)(b->left - b->cost))
-                         ? 1
-                         : 0;
+                      (uint64_t)todo * ((uint64_t)w + (uint64_t)W_REGATE_ROW) <= (uint64_t)rest)
+                         ? (int)1
+                         : (int)0;
     size_t i;
     size_t j;
     while (r->k < r->n) {
@@ -173,8 +177,8 @@ static MAGCAL_NOINLINE int regate_range(ell_scratch_t *sw, ell_bud_t *b)
         float sign;
         size_t p = 0u;
         if (ws->res != NULL) { /* stored: the very predicate gate_keeps evaluates */
-            was = ((ws->keep[k] & 1u) != 0u) ? 1 : 0;
-            is = (fabsf(ws->res[k]) < new_gate->thr) ? 1 : 0;
+            was = ((ws->keep[k] & 1u) != 0u) ? (int)1 : (int)0;
+            is = (fabsf(ws->res[k]) < new_gate->thr) ? (int)1 : (int)0;
         } else {
             was = magcal_ell_gate_keeps(old_gate, &r->m[k]);
             is = magcal_ell_gate_keeps(new_gate, &r->m[k]);
@@ -185,6 +189,8 @@ static MAGCAL_NOINLINE int regate_range(ell_scratch_t *sw, ell_bud_t *b)
             b->cost += (was == is) ? w : (w + W_REGATE_ROW);
         } else if (magcal_ell_can(b, (was == is) ? w : (w + W_REGATE_ROW)) == 0) {
             break;
+        } else {
+            /* charged by magcal_ell_can */
         }
         r->k++;
         if (is != 0 && ws->res != NULL) {
@@ -688,7 +694,7 @@ void magcal_ell_rp_start(ell_run_t *r, const magcal_ellipsoid_cal_t *cal, const 
 static MAGCAL_NOINLINE int rp_range(ell_run_t *r, ell_bud_t *b)
 {
     ell_rp_t *rp = &r->rp;
-    const uint32_t w = (rp->ws.res != NULL) ? W_RP : W_RP_RECOMP;
+    const uint32_t w = (rp->ws.res != NULL) ? (uint32_t)W_RP : (uint32_t)W_RP_RECOMP;
     const size_t k1 = r->k + magcal_ell_visits(b, w, r->n - r->k);
     const magcal_vec3_t *m = r->m;
     const magcal_ellipsoid_cal_t *cal = rp->cal;
@@ -1012,8 +1018,9 @@ static MAGCAL_NOINLINE int ph_loop_unit(ell_scratch_t *sw, ell_bud_t *b)
         r->k = 0u;
         r->ph = ELL_PH_REGATE;
         break;
-    case ELL_PH_REFIT:
-        if ((float)(r->n - r->kept_new) > cfg->max_reject_frac * (float)r->n) {
+    case ELL_PH_REFIT: {
+        const size_t rejected = r->n - r->kept_new;
+        if ((float)rejected > cfg->max_reject_frac * (float)r->n) {
             magcal_ell_explain_start(r, MAGCAL_ERR_TOO_MANY_OUTLIERS);
             break;
         }
@@ -1024,6 +1031,7 @@ static MAGCAL_NOINLINE int ph_loop_unit(ell_scratch_t *sw, ell_bud_t *b)
         r->fit_ret = ELL_PH_LOOP_NEXT;
         r->ph = ELL_PH_FIT_SOLVE;
         break;
+    }
     case ELL_PH_LOOP_NEXT:
         r->prev_rejected = r->n - r->kept_new;
         r->iter++;
@@ -1078,7 +1086,7 @@ static int ph_out(ell_scratch_t *sw, ell_bud_t *b)
     return MAGCAL_OK;
 }
 
-static MAGCAL_NOINLINE int ph_check(ell_scratch_t *sw, ell_bud_t *b)
+static MAGCAL_NOINLINE int ell_ph_check(ell_scratch_t *sw, ell_bud_t *b)
 {
     ell_run_t *r = &sw->run;
     magcal_status_t st;
@@ -1126,7 +1134,7 @@ static int fit_phase(ell_scratch_t *sw, ell_bud_t *b)
     }
     switch (r->ph) {
     case ELL_PH_CHECK:
-        return ph_check(sw, b);
+        return ell_ph_check(sw, b);
     case ELL_PH_N1:
         return n1_range(sw, b);
     case ELL_PH_N2:
@@ -1174,7 +1182,7 @@ static MAGCAL_NOINLINE magcal_status_t fit_steps(ell_scratch_t *sw, uint32_t bud
         ell_bud_t b;
         b.left = budget - *used;
         b.cost = 0u;
-        b.first = (*used == 0u && first != 0) ? 1 : 0;
+        b.first = (*used == 0u && first != 0) ? (int)1 : (int)0;
         rc = fit_phase(sw, &b);
         *used += b.cost;
         if (rc == ELL_CONT && *used >= budget) {

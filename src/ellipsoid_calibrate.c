@@ -23,6 +23,7 @@
 #define CW_COPY 40u      /* one density verdict, one copy */
 #define CW_DENSITY 1000000u /* the density stage: one call, not sliced (runs alone in its step) */
 
+/* cppcheck-suppress misra-c2012-2.4 ; deviation D14 (false positive): no tag, so no unused tag; the constants are the phases of phase_ */
 enum { CAL_PH_PRE = 0, CAL_PH_PRE_STEP, CAL_PH_MAXRES, CAL_PH_DECIDE, CAL_PH_INLIER, CAL_PH_DENSITY,
        CAL_PH_COPY, CAL_PH_FIT, CAL_PH_FIT_STEP, CAL_PH_DONE };
 
@@ -63,7 +64,8 @@ static uint8_t *cal_rest(const magcal_ellipsoid_calibrate_slice_t *s)
 
 static magcal_ellipsoid_result_t *cal_first(const magcal_ellipsoid_calibrate_slice_t *s)
 {
-    return (magcal_ellipsoid_result_t *)(void *)magcal_ell_align_up(s->work_); /* size_t inside */
+    uint8_t *w = s->work_;
+    return (magcal_ellipsoid_result_t *)(void *)magcal_ell_align_up(w); /* size_t inside */
 }
 
 /* A sliced fit inside the calibration: begin (phase `ph`), then steps with the rest of the budget. */
@@ -98,7 +100,7 @@ static int cal_fit_phase(magcal_ellipsoid_calibrate_slice_t *s, const magcal_vec
     return (int)st;
 }
 
-/* The density stage (one unit, not sliced): in its own frame beside cal_phase's, called straight
+/* The density stage (one unit, not sliced): in its own frame beside ecal_phase's, called straight
  * from the step (the stack of its deep path is the calibration's worst). */
 static MAGCAL_NOINLINE int cal_density(magcal_ellipsoid_calibrate_slice_t *s, uint32_t budget,
                                        uint32_t *used)
@@ -124,8 +126,8 @@ static MAGCAL_NOINLINE int cal_density(magcal_ellipsoid_calibrate_slice_t *s, ui
     return CAL_CONT;
 }
 
-static MAGCAL_NOINLINE int cal_phase(magcal_ellipsoid_calibrate_slice_t *s, uint32_t budget,
-                                     uint32_t *used)
+static MAGCAL_NOINLINE int ecal_phase(magcal_ellipsoid_calibrate_slice_t *s, uint32_t budget,
+                                      uint32_t *used)
 {
     const magcal_ellipsoid_calibrate_cfg_t *cfg = s->cfg_;
     magcal_ellipsoid_result_t *first = cal_first(s);
@@ -210,9 +212,8 @@ static MAGCAL_NOINLINE int cal_phase(magcal_ellipsoid_calibrate_slice_t *s, uint
 static MAGCAL_NOINLINE int cal_fits(magcal_ellipsoid_calibrate_slice_t *s, uint32_t budget,
                                     uint32_t *used)
 {
-    int rc;
     if (s->phase_ == CAL_PH_PRE || s->phase_ == CAL_PH_PRE_STEP) {
-        rc = cal_fit_phase(s, s->m_, s->n_, cal_first(s), budget, used);
+        const int rc = cal_fit_phase(s, s->m_, s->n_, cal_first(s), budget, used);
         if (rc == CAL_YIELD || rc == CAL_CONT) {
             return rc;
         }
@@ -296,6 +297,7 @@ magcal_status_t magcal_ellipsoid_calibrate_begin(magcal_ellipsoid_calibrate_slic
 magcal_status_t magcal_ellipsoid_calibrate_step(magcal_ellipsoid_calibrate_slice_t *s, uint32_t budget)
 {
     uint32_t used = 0u;
+    uint32_t bud = budget;
     int rc = CAL_CONT;
     if (s == NULL) {
         return MAGCAL_ERR_NULL;
@@ -307,20 +309,20 @@ magcal_status_t magcal_ellipsoid_calibrate_step(magcal_ellipsoid_calibrate_slice
         s->used_ = 0u;
         return (magcal_status_t)s->status_;
     }
-    if (budget == 0u) {
-        budget = 1u;
+    if (bud == 0u) {
+        bud = 1u; /* a zero budget still makes progress: one visit */
     }
     /* bounded: each CAL_CONT ends a phase (at most 10) or moves a pass */
     while (rc == CAL_CONT) {
         if (s->phase_ == CAL_PH_DENSITY) {
-            rc = cal_density(s, budget, &used);
+            rc = cal_density(s, bud, &used);
         } else if (s->phase_ == CAL_PH_PRE || s->phase_ == CAL_PH_PRE_STEP ||
                    s->phase_ == CAL_PH_FIT || s->phase_ == CAL_PH_FIT_STEP) {
-            rc = cal_fits(s, budget, &used);
+            rc = cal_fits(s, bud, &used);
         } else {
-            rc = cal_phase(s, budget, &used);
+            rc = ecal_phase(s, bud, &used);
         }
-        if (rc == CAL_CONT && used >= budget) {
+        if (rc == CAL_CONT && used >= bud) {
             rc = CAL_YIELD;
         }
     }

@@ -106,7 +106,7 @@ static MAGCAL_NOINLINE int med_phase(ell_scratch_t *sw, ell_bud_t *b)
     ell_run_t *r = &sw->run;
     ell_med_t *md = &r->med;
     uint32_t *cnt = sw->cnt;
-    const uint32_t w = (md->ws.res != NULL) ? W_T_MED : W_T_MED_RECOMP;
+    const uint32_t w = (md->ws.res != NULL) ? (uint32_t)W_T_MED : (uint32_t)W_T_MED_RECOMP;
     if (md->in_pass == 0u) {
         if (!(md->pass < MED_PASSES && md->done == 0u)) {
             md->result = 0.5f * (md->lo + md->hi);
@@ -262,8 +262,10 @@ static MAGCAL_NOINLINE int sandwich_row(ell_scratch_t *sw, size_t np, size_t cnt
             sw->cc[k][j] = c;
         }
         sw->cc[k][k] = d;
-    } else {
+    } else if (k < INFO_MAX_N) { /* k < np <= INFO_MAX_N (ph_tg): the bound restated at the write */
         sw->sd[k] = d;
+    } else {
+        return 0;
     }
     return 1;
 }
@@ -490,7 +492,7 @@ static MAGCAL_NOINLINE int info_range(ell_scratch_t *sw, ell_bud_t *b)
     quad_acc_t *acc = &sw->acc;
     float *part = sw->part;
     float *meat = sw->meat; /* sum r_i^2 J_i J_i^T, packed */
-    const uint32_t w = (ws->res != NULL) ? W_T_INFO : W_T_INFO_RECOMP;
+    const uint32_t w = (ws->res != NULL) ? (uint32_t)W_T_INFO : (uint32_t)W_T_INFO_RECOMP;
     size_t i;
     size_t j;
     const size_t k1 = r->k + magcal_ell_visits(b, w, r->n - r->k);
@@ -549,8 +551,6 @@ static MAGCAL_NOINLINE int ph_info_done(ell_scratch_t *sw, ell_bud_t *b)
     quad_acc_t *acc = &sw->acc;
     const float *sn = r->sn;
     const float cnt = (float)r->cnt;
-    size_t i;
-    size_t j;
     if (magcal_ell_can(b, W_T_INFO_DONE) == 0) {
         return ELL_YIELD;
     }
@@ -560,10 +560,11 @@ static MAGCAL_NOINLINE int ph_info_done(ell_scratch_t *sw, ell_bud_t *b)
         moments_expand(sw->mat, sw->meat);
     }
     if (r->cnt >= r->np) {
+        size_t i;
         for (i = 0u; i < 3u; ++i) {
+            size_t j;
             for (j = 0u; j <= i; ++j) {
-                sw->dir[i][j] =
-                    magcal_ell_acc_at(acc, i, j) / cnt - (sn[i] / cnt) * (sn[j] / cnt);
+                sw->dir[i][j] = magcal_ell_acc_at(acc, i, j) / cnt - (sn[i] / cnt) * (sn[j] / cnt);
             }
         }
         r->ph = ELL_PH_INV;

@@ -171,11 +171,10 @@ typedef struct {
  *  fit's state (magcal_ellipsoid_fit_step), 8-byte aligned
  *  inside the 4-byte aligned workspace (static assert in src/ellipsoid.c). */
 #define MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES 3264u
-/** The fixed scratch of magcal_ellipsoid_fit (caller memory; contents private). */
-typedef union {
-    uint8_t bytes_[MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES];
-    uint64_t align_; /* the scratch holds pointers and size_t: 8-byte aligned */
-    void *ptr_;
+/** The fixed scratch of magcal_ellipsoid_fit (caller memory; contents private). 64-bit words:
+ *  the scratch holds pointers and size_t, so it is 8-byte aligned (no union: MISRA 19.2). */
+typedef struct {
+    uint64_t words_[(MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES + 7u) / 8u];
 } magcal_ellipsoid_fit_scratch_t;
 
 /**
