@@ -171,6 +171,13 @@ static void intake_level_solve(magcal_intake_t *st)
     st->lv_ok_gen = st->lv_gen;
 }
 
+/* Bit j of a bin's ring mask (j < per_bin <= 64). */
+static uint64_t intake_bit(uint32_t j)
+{
+    const uint64_t one = 1u;
+    return one << j;
+}
+
 /* One bin of the level survey: its samples on the ring, their lower-median z (rank count,
  * per_bin^2 compares on a ring mask: per_bin square roots, not per_bin^2) and mean direction enter
  * the sums; at the last bin the model is solved. */
@@ -202,7 +209,7 @@ static MAGCAL_NOINLINE void intake_level_step(magcal_intake_t *st)
         if (d >= INTAKE_LV_RING_LO * r && d <= INTAKE_LV_RING_HI * r) {
             dc += uy / d; /* heading convention atan2(-x, y): cos along y, sin along -x */
             ds -= ux / d;
-            ring |= (uint64_t)1u << (k - base);
+            ring |= intake_bit(k - base);
             n++;
         }
     }
@@ -212,11 +219,11 @@ static MAGCAL_NOINLINE void intake_level_step(magcal_intake_t *st)
             uint32_t below = 0u;
             uint32_t equal = 0u;
             uint32_t i;
-            if ((ring & ((uint64_t)1u << (k - base))) == 0u) {
+            if ((ring & intake_bit(k - base)) == 0u) {
                 continue;
             }
             for (i = base; i < base + st->count[b]; ++i) {
-                if (i != k && (ring & ((uint64_t)1u << (i - base))) != 0u) {
+                if (i != k && (ring & intake_bit(i - base)) != 0u) {
                     if (st->slots[i].m.z < st->slots[k].m.z) {
                         below++;
                     } else if (st->slots[i].m.z == st->slots[k].m.z) {
