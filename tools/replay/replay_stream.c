@@ -109,6 +109,29 @@ static void add_event(cJSON *ev, size_t row, const char *what, const char *statu
     cJSON_AddItemToArray(ev, e);
 }
 
+/* The report's fields both modes share, after their own: loop counters, the trusted rows' RMS
+ * against the dump's reference (when it has one), and the events (the report takes ev over). */
+static void stream_report_tail(cJSON *root, uint32_t solves, uint32_t changes, uint32_t dropped, double ref_ss,
+                               size_t ref_n, cJSON *ev)
+{
+    cJSON_AddNumberToObject(root, "solves", (double)solves);
+    cJSON_AddNumberToObject(root, "changes", (double)changes);
+    cJSON_AddNumberToObject(root, "dropped", (double)dropped);
+    if (ref_n > 0u) {
+        cJSON_AddNumberToObject(root, "heading_rms_trusted_deg", sqrt(ref_ss / (double)ref_n));
+    }
+    cJSON_AddItemToObject(root, "events", ev);
+}
+
+static void stream_print_json(const cJSON *root)
+{
+    char *s = cJSON_Print(root);
+    if (s != NULL) {
+        puts(s);
+        free(s);
+    }
+}
+
 static void add_cal(cJSON *o, const magcal_cont_t *cc)
 {
     const magcal_cal_report_t *r = &cc->last;
@@ -375,19 +398,9 @@ static int replay_stream3(const char *path, const char *hpath, int json, double 
     cJSON_AddNumberToObject(root, "trusted_rows", (double)trusted);
     cJSON_AddNumberToObject(root, "no_heading_rows", (double)no_att);
     cJSON_AddBoolToObject(root, "tilt_compensated", ascale > 0.0);
-    cJSON_AddNumberToObject(root, "solves", (double)g_c3.solves);
-    cJSON_AddNumberToObject(root, "changes", (double)g_c3.changes);
-    cJSON_AddNumberToObject(root, "dropped", (double)g_c3.dropped);
-    if (ref_n > 0u) {
-        cJSON_AddNumberToObject(root, "heading_rms_trusted_deg", sqrt(ref_ss / (double)ref_n));
-    }
-    cJSON_AddItemToObject(root, "events", ev);
+    stream_report_tail(root, g_c3.solves, g_c3.changes, g_c3.dropped, ref_ss, ref_n, ev);
     if (json) {
-        char *s = cJSON_Print(root);
-        if (s != NULL) {
-            puts(s);
-            free(s);
-        }
+        stream_print_json(root);
     } else {
         printf("stream 3d: %zu rows, %zu trusted, %u adoptions, %u solves, %u changes\n", d.n_rows, trusted,
                (unsigned)g_c3.generation, (unsigned)g_c3.solves, (unsigned)g_c3.changes);
@@ -626,19 +639,9 @@ int replay_stream_main(int argc, char **argv)
     cJSON_AddNumberToObject(root, "tail_steps", (double)tail);
     cJSON_AddNumberToObject(root, "rows", (double)d.n_rows);
     cJSON_AddNumberToObject(root, "trusted_rows", (double)trusted);
-    cJSON_AddNumberToObject(root, "solves", (double)g_cc.solves);
-    cJSON_AddNumberToObject(root, "changes", (double)g_cc.changes);
-    cJSON_AddNumberToObject(root, "dropped", (double)g_cc.dropped);
-    if (ref_n > 0u) {
-        cJSON_AddNumberToObject(root, "heading_rms_trusted_deg", sqrt(ref_ss / (double)ref_n));
-    }
-    cJSON_AddItemToObject(root, "events", ev);
+    stream_report_tail(root, g_cc.solves, g_cc.changes, g_cc.dropped, ref_ss, ref_n, ev);
     if (json) {
-        char *s = cJSON_Print(root);
-        if (s != NULL) {
-            puts(s);
-            free(s);
-        }
+        stream_print_json(root);
     } else {
         print_stream_text(argv[optind], &d, ev, by_trust, steps_per_row, tail);
     }
