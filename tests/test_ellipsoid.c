@@ -879,35 +879,47 @@ static void assert_fit_ws_same(size_t n, const magcal_ellipsoid_cfg_t *base, int
     }
 }
 
-static void test_ellipsoid_fit_ws_matches_fit_bit_for_bit(void)
+/* The data sets both bit-for-bit comparisons walk (fit vs fit_ws, sliced vs one-shot), each
+ * checked by `check` with the default and the field-gated configuration where it matters: full
+ * rotations, radial outliers (several refits of the gate), 10 % shifted (TOO_MANY_OUTLIERS at
+ * 5 %, then enough refits), a band (the sphere, ill-conditioned quadrics), a level ring (single
+ * axis), few noisy samples. */
+typedef void (*fit_check_fn)(size_t n, const magcal_ellipsoid_cfg_t *cfg, int *n_ok);
+
+static void walk_fit_sets(fit_check_fn check, int *n_ok)
 {
     double w[3][3];
     static double w_hard[3][3] = {{0.9, 0, 0}, {0, 0.9, 0}, {0, 0, 0.9}};
     const magcal_ellipsoid_cfg_t cfg = cfg_with_field();
     magcal_ellipsoid_cfg_t cfg0 = MAGCAL_ELLIPSOID_CFG_DEFAULT;
-    int n_ok = 0;
     size_t k;
     test_make_w_full(w);
     make_set(w, NFIT, 180.0, 180.0, 0.05, 2024u); /* full rotations */
-    assert_fit_ws_same(NFIT, &cfg, &n_ok);
-    assert_fit_ws_same(NFIT, &cfg0, &n_ok);
+    check(NFIT, &cfg, n_ok);
+    check(NFIT, &cfg0, n_ok);
     make_radial_outliers(w, 4242u); /* outliers: several refits of the gate */
-    assert_fit_ws_same(NFIT, &cfg, &n_ok);
+    check(NFIT, &cfg, n_ok);
     for (k = 0; k < NFIT; k += 10) { /* 10 % shifted: TOO_MANY_OUTLIERS at 5 % */
         g_m[k].x += 10.0f;
     }
     cfg0 = cfg;
     cfg0.max_reject_frac = 0.05f;
-    assert_fit_ws_same(NFIT, &cfg0, &n_ok);
+    check(NFIT, &cfg0, n_ok);
     cfg0.max_refits = 8u;
     cfg0.max_reject_frac = 0.25f;
-    assert_fit_ws_same(NFIT, &cfg0, &n_ok);
+    check(NFIT, &cfg0, n_ok);
     make_set(w_hard, NFIT, 20.0, 20.0, 0.05, 55u); /* a band: the sphere, ill-conditioned quadrics */
-    assert_fit_ws_same(NFIT, &cfg, &n_ok);
+    check(NFIT, &cfg, n_ok);
     make_set(w, NFIT, 0.0, 0.0, 0.05, 77u); /* level ring: single axis */
-    assert_fit_ws_same(NFIT, &cfg, &n_ok);
+    check(NFIT, &cfg, n_ok);
     make_set(w, 120u, 180.0, 180.0, 1.0, 99u); /* few noisy samples */
-    assert_fit_ws_same(120u, &cfg, &n_ok);
+    check(120u, &cfg, n_ok);
+}
+
+static void test_ellipsoid_fit_ws_matches_fit_bit_for_bit(void)
+{
+    int n_ok = 0;
+    walk_fit_sets(assert_fit_ws_same, &n_ok);
     TEST_ASSERT_TRUE(n_ok >= 8); /* the comparison covered OK results of several models */
 }
 
@@ -1023,33 +1035,10 @@ static void assert_slices_same(size_t n, const magcal_ellipsoid_cfg_t *cfg_in, i
 
 static void test_ellipsoid_fit_step_any_budget_matches_fit_ws_bit_for_bit(void)
 {
-    double w[3][3];
-    static double w_hard[3][3] = {{0.9, 0, 0}, {0, 0.9, 0}, {0, 0, 0.9}};
     const magcal_ellipsoid_cfg_t cfg = cfg_with_field();
-    magcal_ellipsoid_cfg_t cfg0 = MAGCAL_ELLIPSOID_CFG_DEFAULT;
     int n_ok = 0;
     size_t k;
-    test_make_w_full(w);
-    make_set(w, NFIT, 180.0, 180.0, 0.05, 2024u); /* full rotations */
-    assert_slices_same(NFIT, &cfg, &n_ok);
-    assert_slices_same(NFIT, &cfg0, &n_ok);
-    make_radial_outliers(w, 4242u); /* outliers: several refits of the gate */
-    assert_slices_same(NFIT, &cfg, &n_ok);
-    for (k = 0; k < NFIT; k += 10) { /* 10 % shifted: TOO_MANY_OUTLIERS at 5 % */
-        g_m[k].x += 10.0f;
-    }
-    cfg0 = cfg;
-    cfg0.max_reject_frac = 0.05f;
-    assert_slices_same(NFIT, &cfg0, &n_ok);
-    cfg0.max_refits = 8u;
-    cfg0.max_reject_frac = 0.25f;
-    assert_slices_same(NFIT, &cfg0, &n_ok);
-    make_set(w_hard, NFIT, 20.0, 20.0, 0.05, 55u); /* a band: the sphere, ill-conditioned quadrics */
-    assert_slices_same(NFIT, &cfg, &n_ok);
-    make_set(w, NFIT, 0.0, 0.0, 0.05, 77u); /* level ring: single axis */
-    assert_slices_same(NFIT, &cfg, &n_ok);
-    make_set(w, 120u, 180.0, 180.0, 1.0, 99u); /* few noisy samples */
-    assert_slices_same(120u, &cfg, &n_ok);
+    walk_fit_sets(assert_slices_same, &n_ok);
     for (k = 0; k < 120u; ++k) { /* at rest: NO_MOTION through the sphere's robust scale */
         g_m[k].x = 10.0f + 0.01f * (float)(k % 7u);
         g_m[k].y = -5.0f + 0.01f * (float)(k % 5u);
