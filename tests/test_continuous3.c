@@ -614,8 +614,18 @@ static void test_cont3_sliced_solve_bounded_and_identical_to_one_shot(void)
     TEST_ASSERT_EQUAL_MEMORY(&one.cal, &cc->cand.cal, sizeof one.cal);
     TEST_ASSERT_EQUAL_MEMORY(&one.residual_rms, &cc->cand.residual_rms, sizeof(float));
     TEST_ASSERT_EQUAL_UINT32((uint32_t)one.n_used, (uint32_t)cc->cand.n_used);
-    (void)magcal_cont3_step(cc); /* the adoption */
+    /* the adoption: sliced too, within the budget (its steps still drain the ring) */
+    for (steps = 0u; cc->stage == 3u && steps < 1000u; ++steps) {
+        double ro, pi, ya;
+        magcal_vec3_t m, a;
+        tumble_att(0.02 * (double)i, &ro, &pi, &ya);
+        sample(&k_truth, ro, pi, ya, 1.0, &rng, &m, &a);
+        (void)magcal_cont3_push(cc, &m, (uint32_t)(20u * i));
+        ++i;
+        (void)magcal_cont3_step(cc);
+    }
     TEST_ASSERT_EQUAL_UINT8(0u, cc->stage);
+    TEST_ASSERT_TRUE(steps >= 1u && steps < 1000u);
 }
 
 int main(void)

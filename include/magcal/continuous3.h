@@ -246,6 +246,19 @@ typedef struct {
     uint32_t mis_ms;
     uint32_t clean_ms;
     uint32_t mis_cells;             /* MAGCAL_CONT3_CELLS bits of the open episode */
+    /* time-sliced units (c3_step.c, c3_adopt.c): the state a unit resumes from */
+    uint32_t left_;                 /* estimated M4F instructions left of this step's budget */
+    uint32_t worth_key;             /* store counters at the last coverage count (none while unchanged) */
+    uint8_t worth_checked;          /* 1: worth_key is valid */
+    uint16_t sweep_left;            /* sweep steps the last stored sample still owes the store (c3_step.c) */
+    uint8_t adopt_pass;             /* adoption: 0 entry, 1 candidate's spread, 2 installed's spread */
+    uint16_t scan_bin;              /* coverage count / snapshot: next bin */
+    uint16_t scan_filled;           /* coverage count: cells found filled so far */
+    uint32_t adopt_k;               /* adoption: next snapshot sample of the pass */
+    float ad_s1;                    /* adoption: the pass's sums (c3_adopt.c magcal_c3_spread) */
+    float ad_s2;
+    float ad_n;
+    uint32_t sel[MAGCAL_MAX_SAMPLES / 32u]; /* adoption: snapshot samples on the candidate's shell */
 } magcal_cont3_t;
 
 #if MAGCAL_CFG_ENABLE_3D /* config.h feature switch: with 3-D off these functions are not built */

@@ -138,7 +138,9 @@ void magcal_c3_declare_change(magcal_cont3_t *cc)
 {
     (void)magcal_intake_reset(&cc->store);
     cc->state = (uint8_t)MAGCAL_CONT3_RELEARNING;
-    cc->stage = 0u;
+    cc->stage = MAGCAL_C3_STAGE_NONE; /* a unit under way is abandoned */
+    cc->adopt_pass = 0u;
+    cc->worth_checked = 0u;
     cc->changes++;
     c3_episode_close(cc);
     cc->stored_at_solve = 0u;

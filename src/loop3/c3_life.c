@@ -147,7 +147,9 @@ magcal_status_t magcal_cont3_progress(const magcal_cont3_t *cc, magcal_cont3_pro
     }
     (void)magcal_intake_progress(&cc->store, &p);
     (void)memset(out, 0, sizeof *out);
-    out->state = cc->stage != 0u ? MAGCAL_CONT3_SOLVING : (magcal_cont3_state_t)cc->state;
+    /* the coverage count that decides whether to solve is not a solve */
+    out->state = (cc->stage != MAGCAL_C3_STAGE_NONE && cc->stage != MAGCAL_C3_STAGE_COUNT) ? MAGCAL_CONT3_SOLVING
+                                                                                        : (magcal_cont3_state_t)cc->state;
     out->cells = p.bins;
     if (p.centre_source != MAGCAL_INTAKE_CENTRE_NONE) {
         /* cells around the raw origin say nothing about coverage: none until there is a centre */

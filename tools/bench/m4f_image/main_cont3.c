@@ -55,6 +55,12 @@ static uint32_t g_head[ROWS];
 static uint32_t g_unit_max[4];
 static uint32_t g_unit_n[4];
 
+#ifdef MAGCAL_BENCH_TRACE
+/* src/loop3/c3_step.c's per-step record (cont3_trace.elf only: tools/bench/cont3_weights.py) */
+extern uint32_t magcal_bench_cont3_trace[9];
+extern uint32_t magcal_bench_cont3_piece[11][4];
+#endif
+
 static const float k_w[3][3] = {{1.08f, 0.05f, -0.03f}, {0.05f, 0.95f, 0.04f}, {-0.03f, 0.04f, 1.02f}};
 static const float k_v[3] = {25.0f, -12.0f, 30.0f};
 
@@ -198,6 +204,15 @@ int main(void)
             o = magcal_cont3_step(&g_c3);
             c = insn_since(t0);
             g_step[s] = c;
+#ifdef MAGCAL_BENCH_TRACE
+            {
+                const uint32_t *tr = magcal_bench_cont3_trace;
+                printf("C3TR %lu %lu %lu %lu %lu %lu %lu %lu %lu %lu %lu\n", (unsigned long)i, (unsigned long)c,
+                       (unsigned long)tr[0], (unsigned long)tr[1], (unsigned long)tr[2], (unsigned long)tr[3],
+                       (unsigned long)tr[4], (unsigned long)tr[5], (unsigned long)tr[6], (unsigned long)tr[7],
+                       (unsigned long)tr[8]);
+            }
+#endif
             g_unit_n[unit]++;
             g_unit_max[unit] = c > g_unit_max[unit] ? c : g_unit_max[unit];
             if (o == MAGCAL_CONT3_IN_PROGRESS && !in_solve) {
@@ -241,6 +256,13 @@ int main(void)
         printf("CONT3 %s unit %lu %lu %lu\n", drive, (unsigned long)i, (unsigned long)g_unit_n[i],
                (unsigned long)g_unit_max[i]);
     }
+#ifdef MAGCAL_BENCH_TRACE
+    for (i = 0u; i < 11u; ++i) {
+        const uint32_t *p = magcal_bench_cont3_piece[i];
+        printf("C3PIECE %lu %lu %lu %lu %lu\n", (unsigned long)i, (unsigned long)p[0], (unsigned long)p[1],
+               (unsigned long)(p[0] ? p[2] / p[0] : 0u), (unsigned long)p[3]);
+    }
+#endif
     printf("CONT3 %s summary %lu %lu %lu %lu %lu\n", drive, (unsigned long)adoptions, (unsigned long)solves,
            (unsigned long)changes, (unsigned long)ok_head, (unsigned long)trusted);
     if (solves == 0u || adoptions == 0u) {
