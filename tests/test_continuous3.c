@@ -628,12 +628,114 @@ static void test_cont3_sliced_solve_bounded_and_identical_to_one_shot(void)
     TEST_ASSERT_TRUE(steps >= 1u && steps < 1000u);
 }
 
+/* One tumble row i into instance cc (time i x 20 ms), then one step; its outcome. */
+static magcal_cont3_outcome_t row_step(magcal_cont3_t *cc, size_t i, uint32_t *rng)
+{
+    double ro, pi, ya;
+    magcal_vec3_t m, a;
+    tumble_att(0.02 * (double)i, &ro, &pi, &ya);
+    sample(&k_truth, ro, pi, ya, 1.0, rng, &m, &a);
+    (void)magcal_cont3_push(cc, &m, (uint32_t)(20u * i));
+    return magcal_cont3_step(cc);
+}
+
+/* |B| spread of c over the solver buffer's samples within 0.15 F of sel's shell, in double. */
+static double buf_spread(const magcal_cont3_t *cc, const magcal_ellipsoid_cal_t *c, const magcal_ellipsoid_cal_t *sel)
+{
+    double s = 0.0, s2 = 0.0, n = 0.0;
+    size_t k;
+    for (k = 0u; k < cc->snap_n; ++k) {
+        magcal_vec3_t h;
+        double r;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_apply(sel, &cc->buf[k], &h));
+        r = sqrt((double)h.x * h.x + (double)h.y * h.y + (double)h.z * h.z);
+        if (fabs(r / sel->field - 1.0) <= 0.15) {
+            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_ellipsoid_apply(c, &cc->buf[k], &h));
+            r = sqrt((double)h.x * h.x + (double)h.y * h.y + (double)h.z * h.z);
+            s += r;
+            s2 += r * r;
+            n += 1.0;
+        }
+    }
+    s /= n;
+    return sqrt(fmax(s2 / n - s * s, 0.0)) / s;
+}
+
+/* Every unit of a solve is sliced within the budget and gives what one call gives: the blocking
+ * call's coverage count equals the live progress's filled cells; the snapshot, taken cell by cell
+ * over steps, equals magcal_intake_snapshot3 of the store it was taken from; the adoption
+ * judgement, sliced over many steps while pushes go on, gives bit for bit the spreads and the
+ * verdict of the same judgement in one call (a copy of the instance at the same point, unlimited
+ * budget), and those spreads are the std / mean of |G (m - V)| over the candidate's shell
+ * computed here in double (1e-3 relative). An installed calibration 3 % of F off (from flash) makes
+ * the judgement run both passes. */
+static void test_cont3_sliced_units_identical_to_one_call(void)
+{
+    static magcal_vec3_t snap[SLOTS3];
+    static magcal_cont3_t ref;
+    uint32_t rng = 21u;
+    size_t i = 0u, n = 0u;
+    uint32_t adopt_steps = 0u;
+    int counted = 0;
+    magcal_ellipsoid_cal_t tc, off;
+    magcal_cont3_t *cc = &g_c3[0];
+    magcal_cont3_outcome_t oc = MAGCAL_CONT3_IN_PROGRESS;
+    magcal_cont3_outcome_t ref_oc;
+    truth_cal(&k_truth, &tc);
+    off = tc;
+    off.v.x += 0.03f * off.field;
+    init_default(&off);
+    for (; i < 20000u && cc->stage != 2u; ++i) { /* until a solve is under way */
+        if (!counted && cc->stage == 0u && cc->store.ctr.stored >= 100u) {
+            magcal_cont3_progress_t p;
+            ref = *cc; /* the count in one call, on a copy that drains nothing (the store is shared) */
+            ref.tail = ref.head;
+            ref.sweep_left = 0u;
+            ref.cfg.solve_fill = 1.0f; /* count only: no solve on the shared buffers */
+            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont3_progress(&ref, &p));
+            if (magcal_cont3_solve_blocking(&ref, 0) == MAGCAL_CONT3_IDLE && ref.worth_checked != 0u) {
+                TEST_ASSERT_EQUAL_UINT16(p.cells_filled, ref.scan_filled);
+                counted = 1;
+            }
+        }
+        (void)row_step(cc, i, &rng);
+    }
+    TEST_ASSERT_TRUE(counted);
+    TEST_ASSERT_EQUAL_UINT8(2u, cc->stage);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_snapshot3(&cc->store, snap, SLOTS3, &n));
+    TEST_ASSERT_EQUAL_UINT32((uint32_t)n, (uint32_t)cc->snap_n);
+    TEST_ASSERT_EQUAL_MEMORY(snap, cc->buf, n * sizeof snap[0]);
+    for (; i < 40000u && cc->stage == 2u; ++i) {
+        (void)row_step(cc, i, &rng);
+    }
+    TEST_ASSERT_EQUAL_UINT8(3u, cc->stage);
+    ref = *cc; /* the judgement in one call on a copy (the copy drains nothing: the store is shared) */
+    ref.tail = ref.head;
+    ref.sweep_left = 0u;
+    ref_oc = magcal_cont3_solve_blocking(&ref, 0);
+    for (; adopt_steps < 1000u && cc->stage == 3u; ++i, ++adopt_steps) {
+        oc = row_step(cc, i, &rng);
+    }
+    printf("sliced adoption: %u samples, %u steps; spreads candidate %.4f %%, installed %.4f %%\n", (unsigned)cc->snap_n,
+           (unsigned)adopt_steps, 100.0 * (double)cc->cand_spread, 100.0 * (double)cc->inst_spread);
+    TEST_ASSERT_EQUAL_UINT8(0u, cc->stage);
+    TEST_ASSERT_TRUE(adopt_steps >= 4u); /* two passes of a few hundred samples: sliced */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_CONT3_ADOPTED, ref_oc);
+    TEST_ASSERT_EQUAL_INT(ref_oc, oc);
+    TEST_ASSERT_EQUAL_MEMORY(&ref.cand_spread, &cc->cand_spread, sizeof(float));
+    TEST_ASSERT_EQUAL_MEMORY(&ref.inst_spread, &cc->inst_spread, sizeof(float));
+    TEST_ASSERT_FLOAT_WITHIN(1e-3f * cc->cand_spread, (float)buf_spread(cc, &cc->cand.cal, &cc->cand.cal), cc->cand_spread);
+    TEST_ASSERT_FLOAT_WITHIN(1e-3f * cc->inst_spread, (float)buf_spread(cc, &off, &cc->cand.cal), cc->inst_spread);
+    TEST_ASSERT_TRUE(cc->inst_spread > 2.0f * cc->cand_spread);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_cont3_init_bad_args_refused);
     RUN_TEST(test_cont3_tumble_first_adoption_accurate);
     RUN_TEST(test_cont3_sliced_solve_bounded_and_identical_to_one_shot);
+    RUN_TEST(test_cont3_sliced_units_identical_to_one_call);
     RUN_TEST(test_cont3_parked_and_single_axis_never_adopt);
     RUN_TEST(test_cont3_hard_iron_step_detected_relearned);
     RUN_TEST(test_cont3_transient_flagged_nothing_dropped);

@@ -13,15 +13,20 @@
  * The design mirrors the 2-D loop (continuous.h). Per loop iteration the firmware calls:
  *  - magcal_cont3_push(): one raw sample and its time stamp (ms). O(1): it only writes into a
  *    MAGCAL_CONT3_RING-sample single-producer / single-consumer ring inside the instance.
- *  - magcal_cont3_step(): drains up to cfg.drain_per_step ring samples into the store (each judged
- *    against the installed calibration first: trust, change detection), then does at most ONE
- *    unit of solve work: (1) the snapshot of the store into the solver buffer, (2) the solve,
- *    (3) the adoption judgement (|B| spread of candidate and installed calibration on the
- *    snapshot). Returns MAGCAL_CONT3_IN_PROGRESS while a solve is under way.
- *    The solve (2) is ONE call of magcal_ellipsoid_calibrate(): it is NOT time-sliced. Its cost
- *    grows with the snapshot (up to cells x per_bin samples); docs/calibration_3d.md "Continuous
- *    3-D" gives the measured instruction count of the largest step. A firmware with a hard
- *    per-call bound must run step() in a low-priority task (push keeps running in its interrupt).
+ *  - magcal_cont3_step(): at most cfg.step_budget estimated Cortex-M4F instructions of work
+ *    (default MAGCAL_SLICE_BUDGET_DEFAULT): the drain of the ring into the store, piece by piece
+ *    (a sample's judge and store push, then its store sweep steps one at a time; one sample per
+ *    step, a second only while the ring is a quarter full, at most cfg.drain_per_step; each
+ *    sample judged against the installed calibration first: trust, change detection), and the
+ *    next unit of solve work, every one resumable: (1) the coverage count that decides whether a
+ *    solve is worth it, cell by cell, (2) the snapshot of the store into the solver buffer, cell by
+ *    cell (the drain pauses for its one or two steps), (3) the solve,
+ *    magcal_ellipsoid_calibrate_step with the budget but a reserve for the drain, (4) the adoption
+ *    judgement (|B| spread of candidate and installed calibration on the snapshot), sample by
+ *    sample. Returns MAGCAL_CONT3_IN_PROGRESS while a solve is under way. At the default budget no
+ *    call exceeds 10,000 M4F instructions on the bench tumble (docs/calibration_3d.md "Work per
+ *    call": the largest measured step, `m4f_max_call3_instr`); the solver's indivisible visits
+ *    (a 9x9 LDL^T solve: 7,500 estimated) are the largest pieces.
  *  - magcal_cont3_heading(): heading of a raw sample with the installed calibration, tilt
  *    compensated when the caller passes gravity, its trust and the generation.
  *
@@ -137,7 +142,9 @@ typedef struct {
                                    (default 0.5: a ring of level turns fills ~0.2) */
     uint16_t min_samples;     /**< stored samples needed for a solve, >= 10 (default 60) */
     uint16_t min_new;         /**< samples stored since the last solve to start one, >= 1 (default 16) */
-    uint16_t drain_per_step;  /**< ring samples moved into the store per step, >= 1 (default 2) */
+    uint16_t drain_per_step;  /**< ring samples moved into the store per step at most, >= 1 (default 2):
+                                   the first always, more only while the ring is a quarter full and
+                                   the budget holds them (catch-up after the steps that do not drain) */
     float adopt_margin;       /**< never-worse: the candidate's |B| spread x margin(t) must be below the
                                    installed calibration's on the same samples; >= 1 (default 1.02) */
     float age_ms;             /**< ageing: margin(t) = 1 + (adopt_margin - 1) / (1 + t / age_ms),

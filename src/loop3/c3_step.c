@@ -313,7 +313,15 @@ static int c3_snapshot(magcal_cont3_t *cc)
 /* The solve, magcal_ellipsoid_calibrate_step on the snapshot, with what is left of the budget
  * after `reserve` (at least 1); the solver's estimate is charged (pushes go on into the ring and
  * the store meanwhile). */
-static MAGCAL_NOINLINE magcal_cont3_outcome_t c3_solve(magcal_cont3_t *cc, uint32_t reserve)
+/* inlined into both callers (the solve step, solve_blocking): no frame of its own between them
+ * and the solver's phases (the solve path's stack, tools/stack/budgets.txt) */
+#if defined(__GNUC__) || defined(__clang__)
+#define C3_INLINE static inline __attribute__((always_inline))
+#else
+#define C3_INLINE static inline
+#endif
+
+C3_INLINE magcal_cont3_outcome_t c3_solve(magcal_cont3_t *cc, uint32_t reserve)
 {
     const uint32_t bud = cc->left_ == UINT32_MAX ? UINT32_MAX : (cc->left_ > reserve ? cc->left_ - reserve : 1u);
     const magcal_status_t st = magcal_ellipsoid_calibrate_step(&cc->slice, bud);

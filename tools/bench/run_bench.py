@@ -587,7 +587,7 @@ def m4f_cont3(tmp_root):
              "-serial", "null", "-semihosting-config", "enable=on,target=native", "-icount", "shift=0",
              "-kernel", elf])
     res = {"qemu_s": round(time.time() - t0, 1), "exit": p.returncode, "calls": {}, "units": {}, "solves": []}
-    names = {"0": "intake", "1": "snapshot", "2": "solve", "3": "adoption"}
+    names = {"0": "intake", "1": "snapshot", "2": "solve", "3": "adoption", "4": "count"}
     for ln in p.stdout.splitlines():
         f = ln.split()
         if len(f) < 3 or f[0] != "CONT3" or f[1] == "done":

@@ -18,7 +18,7 @@
  *   CONT3 <drive> rows <n> <steps_per_row>
  *   CONT3 <drive> call <push|step|heading> <max> <p99> <median> <max_index>
  *   CONT3 <drive> solve <k> <start_row> <end_row> <steps> <total_instr> <largest_step> <outcome>
- *   CONT3 <drive> unit <stage before the step: 0 intake, 1 snapshot, 2 solve, 3 adoption> <steps> <max>
+ *   CONT3 <drive> unit <stage before the step: 0 intake, 1 snapshot, 2 solve, 3 adoption, 4 count> <steps> <max>
  *   CONT3 <drive> slices <n> <steps> <actual max> <estimated max> <actual total> <estimated total>
  *         <largest actual/estimated x 100> <status>   (the sliced solve alone on the last snapshot)
  *   CONT3 <drive> summary <adoptions> <solves> <changes> <ok_headings> <trusted>
@@ -50,10 +50,10 @@ static magcal_cont3_t g_c3;
 static uint32_t g_push[ROWS];
 static uint32_t g_step[ROWS * STEPS_PER_ROW];
 static uint32_t g_head[ROWS];
-/* largest step by the unit it ran (stage before the call: 0 intake only / solve start, 1 snapshot,
- * 2 sliced solve, 3 adoption judgement) and its count */
-static uint32_t g_unit_max[4];
-static uint32_t g_unit_n[4];
+/* largest step by the unit it ran (stage before the call: 0 intake only / count start, 1 snapshot,
+ * 2 sliced solve, 3 adoption judgement, 4 coverage count) and its count */
+static uint32_t g_unit_max[5];
+static uint32_t g_unit_n[5];
 
 #ifdef MAGCAL_BENCH_TRACE
 /* src/loop3/c3_step.c's per-step record (cont3_trace.elf only: tools/bench/cont3_weights.py) */
@@ -199,7 +199,7 @@ int main(void)
         for (k = 0u; k < STEPS_PER_ROW; ++k, ++s) {
             magcal_cont3_outcome_t o;
             uint32_t c;
-            const unsigned unit = g_c3.stage < 4u ? g_c3.stage : 0u;
+            const unsigned unit = g_c3.stage < 5u ? g_c3.stage : 0u;
             t0 = ticks();
             o = magcal_cont3_step(&g_c3);
             c = insn_since(t0);
@@ -252,7 +252,7 @@ int main(void)
     report_call(drive, "push", g_push, ROWS);
     report_call(drive, "step", g_step, ROWS * STEPS_PER_ROW);
     report_call(drive, "heading", g_head, ROWS);
-    for (i = 0u; i < 4u; ++i) {
+    for (i = 0u; i < 5u; ++i) {
         printf("CONT3 %s unit %lu %lu %lu\n", drive, (unsigned long)i, (unsigned long)g_unit_n[i],
                (unsigned long)g_unit_max[i]);
     }
