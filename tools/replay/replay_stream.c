@@ -231,6 +231,20 @@ static double stream3_spread(const magcal_replay_csv_t *d, const magcal_ellipsoi
     return sqrt(fmax(s2 / (double)k - (s / (double)k) * (s / (double)k), 0.0)) / (s / (double)k);
 }
 
+/* Estimated heading error (deg, 1 sigma) of a 3-D fit, as the 2-D estimate (calibrator.h
+ * "Heading-error estimates": sqrt(noise^2 + parameters^2)) from the fit's own diagnostics: the
+ * per-sample noise residual_rms / F and the predicted errors of V (centre_std_rel, its worst
+ * direction) and of G (shape_std), taken at a horizontal field of F (a real one of F cos(incl)
+ * scales it by 1 / cos(incl)); NaN when not finite. */
+static double stream3_est_err(const magcal_ellipsoid_result_t *r)
+{
+    const double nz = (double)r->residual_rms / (double)r->cal.field;
+    const double c = (double)r->centre_std_rel;
+    const double g = (double)r->shape_std;
+    const double e = (180.0 / 3.14159265358979) * sqrt(nz * nz + c * c + g * g);
+    return isfinite(e) ? e : NAN;
+}
+
 static void add_cal3(cJSON *o, const magcal_cont3_t *c3, const magcal_replay_csv_t *d)
 {
     const magcal_ellipsoid_result_t *r = &c3->last;
@@ -263,6 +277,11 @@ static void add_cal3(cJSON *o, const magcal_cont3_t *c3, const magcal_replay_csv
         cJSON_AddNumberToObject(o, "residual_rel", (double)(r->residual_rms / r->cal.field));
         cJSON_AddNumberToObject(o, "bfield_spread_all_rows", stream3_spread(d, &c3->cal));
     }
+    if (c3->generation > 0u && isfinite(stream3_est_err(r))) {
+        cJSON_AddNumberToObject(o, "est_heading_err_deg", stream3_est_err(r));
+    } else {
+        cJSON_AddNullToObject(o, "est_heading_err_deg"); /* none, or the calibration from flash */
+    }
 }
 
 /* One row's heading; 1 when the heading was computed (tilt failures give 0: no heading). */
@@ -289,8 +308,10 @@ static int stream3_heading(const magcal_replay_csv_t *d, size_t i, double ascale
 static void stream3_event(cJSON *ev, size_t row, magcal_cont3_outcome_t oc)
 {
     if (oc == MAGCAL_CONT3_ADOPTED) {
-        add_event(ev, row, "adopted", "ok", NAN);
-    } else if (oc == MAGCAL_CONT3_REFUSED || oc == MAGCAL_CONT3_FAILED) {
+        add_event(ev, row, "adopted", "ok", stream3_est_err(&g_c3.last));
+    } else if (oc == MAGCAL_CONT3_REFUSED) {
+        add_event(ev, row, "refused", magcal_status_str(magcal_cont3_status(&g_c3)), stream3_est_err(&g_c3.cand));
+    } else if (oc == MAGCAL_CONT3_FAILED) {
         add_event(ev, row, "refused", magcal_status_str(magcal_cont3_status(&g_c3)), NAN);
     } else if (oc == MAGCAL_CONT3_CHANGE) {
         add_event(ev, row, "change", "changed", NAN);

@@ -76,6 +76,12 @@ def main():
     check([e["row"] for e in ev] == sorted(e["row"] for e in ev), "events out of row order")
     adopted = [e["row"] for e in ev if e["event"] == "adopted"]
     check(len(adopted) == gen, "adopted events %d != generation %d" % (len(adopted), gen))
+    # the estimated heading error of the calibration in force (the fit's own noise and predicted
+    # parameter errors, as 2-D's est_heading_err_deg): the last adoption's
+    est = rep.get("est_heading_err_deg")
+    check(isinstance(est, (int, float)) and 0.0 < est < 15.0, "est_heading_err_deg %r" % est)
+    last = [e for e in ev if e["event"] == "adopted"][-1:]
+    check(bool(last) and last[0]["heading_err_deg"] == est, "last adopted event's heading_err_deg != est_heading_err_deg")
     with open(hcsv, newline="") as f:
         rd = csv.reader(f)
         head = next(rd)
