@@ -126,7 +126,9 @@ static magcal_cont3_outcome_t c3_verdict(magcal_cont3_t *cc)
     if (cc->has_cal != 0u) {
         const float m = c3_margin(cc);
         /* an installed calibration that is not finite on these samples is worse than any */
-        adopt = (!magcal_isfinite_f(cc->inst_spread) || cc->cand_spread * m < cc->inst_spread) ? 1 : 0;
+        if (magcal_isfinite_f(cc->inst_spread) && !(cc->cand_spread * m < cc->inst_spread)) {
+            adopt = 0;
+        }
         if (adopt != 0 && magcal_isfinite_f(cc->inst_spread) &&
             !(cc->cand_spread * cc->cfg.adopt_margin < cc->inst_spread)) {
             cc->aged_adopts++;

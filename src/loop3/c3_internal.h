@@ -41,9 +41,8 @@ static inline int magcal_c3_spend(magcal_cont3_t *cc, uint32_t w)
  * shipped build): per kind of resumable work (0 push, 1 survey step, 2 re-bin step, 3 jump, 4 sweep
  * end, 5 count cell of <= 1 sample examined, 6 of more, 7 snapshot cell, 8 adoption candidate
  * sample, 9 installed sample, 10 installed skip) count, largest and summed instructions, weight. */
-#define C3_PIECES 11u
 #ifdef MAGCAL_BENCH_TRACE
-extern uint32_t magcal_bench_cont3_piece[C3_PIECES][4];
+extern uint32_t magcal_bench_cont3_piece[11][4]; /* the 11 kinds above */
 uint32_t magcal_c3_ticks(void);
 void magcal_c3_piece(uint32_t kind, uint32_t t0, uint32_t w);
 #define C3_TRACE(stmt) stmt

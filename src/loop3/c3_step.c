@@ -60,7 +60,7 @@ enum {
     C3TR_N
 };
 uint32_t magcal_bench_cont3_trace[C3TR_N];
-uint32_t magcal_bench_cont3_piece[C3_PIECES][4];
+uint32_t magcal_bench_cont3_piece[11][4];
 
 uint32_t magcal_c3_ticks(void) { return *(volatile uint32_t *)0xE000E018u; }
 
@@ -151,6 +151,28 @@ static void c3_push_one(magcal_cont3_t *cc)
     cc->tail = t + 1u;
 }
 
+/* What the drain does next: 0 stop (the budget does not hold the piece of weight w, unless it is
+ * a forced first piece; or nothing to push: the ring is empty, `max` pushed, or a second push while
+ * the ring is not behind), 1 a sweep step the last push owes, 2 the next ring sample's push. */
+static unsigned c3_drain_next(const magcal_cont3_t *cc, uint32_t w, uint32_t pushed, uint32_t max, int forced)
+{
+    int unlimited = 0;
+    unsigned what = 0u;
+    if (cc->left_ == UINT32_MAX) {
+        unlimited = 1;
+    }
+    if (unlimited != 0 || w <= cc->left_ || forced != 0) { /* the budget holds the piece */
+        if (cc->sweep_left != 0u) {
+            what = 1u;
+        } else if (cc->tail != cc->head && pushed < max && (pushed == 0u || unlimited != 0 || c3_behind(cc) != 0)) {
+            what = 2u;
+        } else {
+            /* nothing to push: stop */
+        }
+    }
+    return what;
+}
+
 /* The drain, piece by piece within the budget: the sweep steps the last push owes the store (one
  * magcal_intake_sweep step each), then the next ring sample's push (read in place: push does not
  * reuse a slot before tail moves past it), its sweep steps, and so on. A sample's sweep steps all
@@ -167,18 +189,16 @@ static MAGCAL_NOINLINE void c3_drain(magcal_cont3_t *cc, uint32_t max, int force
     C3_TRACE(const uint32_t tr0 = magcal_c3_ticks();)
     for (g = 0u; g < bound; ++g) {
         const uint32_t w = c3_w_next(cc);
+        const unsigned what = c3_drain_next(cc, w, pushed, max, force != 0 && g == 0u);
         C3_TRACE(const uint32_t tp = magcal_c3_ticks();)
-        if (cc->left_ != UINT32_MAX && w > cc->left_ && (force == 0 || g != 0u)) {
+        if (what == 0u) {
             break;
         }
-        if (cc->sweep_left != 0u) {
+        if (what == 1u) {
             magcal_intake_sweep(&cc->store, 1u);
             cc->sweep_left--;
             C3_TRACE(magcal_bench_cont3_trace[C3TR_SWEEPS] += w == C3_W_SW_END ? 1u : 0u;)
         } else {
-            if (cc->tail == cc->head || pushed >= max || (pushed != 0u && cc->left_ != UINT32_MAX && c3_behind(cc) == 0)) {
-                break;
-            }
             c3_push_one(cc);
             pushed++;
             C3_TRACE(magcal_bench_cont3_trace[C3TR_DRAINED]++;)
@@ -240,7 +260,9 @@ static int c3_count(magcal_cont3_t *cc)
         uint32_t on = 0u;
         C3_TRACE(const uint32_t tp = magcal_c3_ticks();)
         if (!(st->radius > 0.0f)) {
-            on = end > base ? 1u : 0u; /* no radius yet: every sample counts */
+            if (end > base) {
+                on = 1u; /* no radius yet: every sample counts */
+            }
             k = base;
         } else {
             for (k = base; k < end && on == 0u; ++k) {
@@ -340,9 +362,13 @@ C3_INLINE magcal_cont3_outcome_t c3_solve(magcal_cont3_t *cc, uint32_t reserve)
  * solve, leaves the ring as it was: c3_drain_only() steps catch up). */
 static MAGCAL_NOINLINE magcal_cont3_outcome_t c3_solve_step(magcal_cont3_t *cc)
 {
-    const int more = cc->tail != cc->head || cc->sweep_left != 0u;
-    const magcal_cont3_outcome_t oc = c3_solve(cc, more ? C3_W_RESERVE : 0u);
-    if (more) {
+    int more = 0;
+    magcal_cont3_outcome_t oc;
+    if (cc->tail != cc->head || cc->sweep_left != 0u) {
+        more = 1;
+    }
+    oc = c3_solve(cc, more != 0 ? C3_W_RESERVE : 0u);
+    if (more != 0) {
         c3_drain(cc, 1u, 0);
     }
     return cc->change_flag != 0u ? MAGCAL_CONT3_CHANGE : oc;
