@@ -3,8 +3,9 @@
  * first, c3_change.c), decide whether a solve is worth running, and run it, every unit resumable
  * within cfg.step_budget estimated M4F instructions per step() call (issue 13: no call above
  * 10,000 M4F instructions at the default budget):
- *   drain     one ring sample per step (its weight is charged first); a second only while the ring
- *             is behind (a quarter full) and the budget still holds it after the first;
+ *   drain     piece by piece: a sample's judge and store push, then the store's sweep steps that
+ *             push owes, one at a time, each weighed by what it will do (c3_drain); one sample per
+ *             step, a second only while the ring is behind (a quarter full) and the budget holds it;
  *   count     the coverage count that decides whether a solve is worth it (cells holding a sample
  *             on the ring, as magcal_intake_progress counts them), cell by cell, after the drain of
  *             the same step; due only when the cheap tests pass (centre, samples, new information)
@@ -12,7 +13,8 @@
  *   snapshot  the store into the solver buffer, cell by cell (the drain pauses meanwhile: the
  *             solver sees one consistent store, in the order of magcal_intake_snapshot3), then the
  *             sliced solve begins on it;
- *   solve     magcal_ellipsoid_calibrate_step with what the drain left of the budget;
+ *   solve     magcal_ellipsoid_calibrate_step with the budget but a reserve for the drain, then
+ *             the drain within what the solver left (c3_solve_step);
  *   adopt     the never-worse judgement, resumable (c3_adopt.c).
  * The weights are measured on the target (QEMU, cont3_trace.elf: tools/bench/cont3_weights.py).
  */
@@ -23,8 +25,9 @@
 #if MAGCAL_CFG_ENABLE_3D /* whole file: config.h feature switch (the 3-D loop needs the ellipsoid fit) */
 
 /* Weights, estimated M4F instructions, MEASURED on the target (QEMU mps2-an386 -icount shift=0,
- * cont3_trace.elf, tools/bench/cont3_weights.py: the largest measured step of that kind on the
- * bench tumble, rounded up; docs/calibration_3d.md "Work per call"). */
+ * cont3_trace.elf, tools/bench/cont3_weights.py: the largest measured piece of that kind on the
+ * bench tumble, rounded up, plus the loop's bookkeeping between pieces; docs/calibration_3d.md
+ * "Work per call"). */
 #define C3_W_PUSH 1000u      /* judge + store push of one sample (its sweep steps apart) */
 #define C3_W_SW_SURVEY 600u  /* a sweep step that surveys a slot */
 #define C3_W_SW_REBIN 800u   /* a sweep step that re-bins a slot (its new cell, a move) */
