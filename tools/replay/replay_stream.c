@@ -153,6 +153,7 @@ static void add_cal(cJSON *o, const magcal_cont_t *cc)
     cJSON_AddItemToObject(o, "matrix", m);
     cJSON_AddNumberToObject(o, "radius", (double)cc->cal.radius);
     cJSON_AddNumberToObject(o, "generation", (double)cc->generation);
+    cJSON_AddBoolToObject(o, "coarse", cc->cal_coarse != 0u);
     /* the report of the last finished solve (the one in force when generation > 0 and it adopted) */
     cJSON_AddStringToObject(o, "last_solve_status", magcal_status_str(r->status));
     cJSON_AddNumberToObject(o, "n_used", (double)r->used);
@@ -416,7 +417,7 @@ static int replay_stream3(const char *path, const char *hpath, int json, double 
 
 /* The text report of a 2-D stream replay: events, the calibration in force, rows by trust. */
 static void print_stream_text(const char *file, const magcal_replay_csv_t *d, const cJSON *ev,
-                              const size_t by_trust[4], unsigned steps_per_row, size_t tail)
+                              const size_t by_trust[5], unsigned steps_per_row, size_t tail)
 {
     const cJSON *e;
     printf("magcal-replay --stream: %s\n", file);
@@ -447,10 +448,10 @@ static void print_stream_text(const char *file, const magcal_replay_csv_t *d, co
     } else {
         printf("  no calibration adopted (last solve: %s)\n", magcal_status_str(g_cc.last_status));
     }
-    printf("  headings: %zu ok, %zu uncalibrated, %zu disturbed, %zu changed; %u solves, %u changes, "
+    printf("  headings: %zu ok, %zu uncalibrated, %zu disturbed, %zu changed, %zu coarse; %u solves, %u changes, "
            "%u ring overflows\n",
            by_trust[MAGCAL_TRUST_OK], by_trust[MAGCAL_TRUST_UNCALIBRATED], by_trust[MAGCAL_TRUST_DISTURBED],
-           by_trust[MAGCAL_TRUST_CHANGED], (unsigned)g_cc.solves, (unsigned)g_cc.changes,
+           by_trust[MAGCAL_TRUST_CHANGED], by_trust[MAGCAL_TRUST_COARSE], (unsigned)g_cc.solves, (unsigned)g_cc.changes,
            (unsigned)g_cc.dropped);
 }
 
@@ -496,7 +497,7 @@ int replay_stream_main(int argc, char **argv)
     const double *tc;
     int mode3 = 0;
     unsigned steps_per_row = 1u;
-    size_t by_trust[4] = {0u, 0u, 0u, 0u};
+    size_t by_trust[5] = {0u, 0u, 0u, 0u, 0u};
     unsigned k;
     size_t tail;
 
@@ -610,7 +611,7 @@ int replay_stream_main(int argc, char **argv)
         if (hd.trust == MAGCAL_TRUST_OK) {
             ++trusted;
         }
-        if ((unsigned)hd.trust < 4u) {
+        if ((unsigned)hd.trust < 5u) {
             by_trust[(unsigned)hd.trust]++;
         }
         if (hf != NULL) {
