@@ -36,7 +36,10 @@ static magcal_cont3_t g_c3;
 
 static const char k_stream_usage[] =
     "usage: magcal-replay --stream [--mode 2d|3d] [--headings OUT.csv] [--json] [--declination DEG]\n"
-    "                        [--range R] [--steps-per-row K] DUMP.csv   (R: the sensor's declared range)\n"
+    "                        [--range R] [--steps-per-row K] [--coarse DEG[,TOL]] DUMP.csv\n"
+    "                        (R: the sensor's declared range)\n"
+    "  --coarse: 2-D coarse stage on (cfg.coarse_coverage_deg DEG, cfg.coarse_max_err_deg TOL; off by\n"
+    "  default): adoptions of a hard-iron circle carry status \"coarse\", its headings trust \"coarse\";\n"
     "  every row in file order through magcal_cont_push + K x magcal_cont_step (default budget; K = 1:\n"
     "  a control loop at the sample rate) and magcal_cont_heading; after the last row, steps without\n"
     "  pushes until the solve under way ends (events at row = rows);\n"
@@ -459,7 +462,7 @@ static void print_stream_text(const char *file, const magcal_replay_csv_t *d, co
 static void stream_event(cJSON *ev, size_t row, magcal_cont_outcome_t oc)
 {
     if (oc == MAGCAL_CONT_ADOPTED) {
-        add_event(ev, row, "adopted", "ok", (double)g_cc.last.est_heading_err_deg);
+        add_event(ev, row, "adopted", g_cc.cal_coarse != 0u ? "coarse" : "ok", (double)g_cc.last.est_heading_err_deg);
     } else if (oc == MAGCAL_CONT_REFUSED || oc == MAGCAL_CONT_FAILED) {
         add_event(ev, row, "refused", magcal_status_str(g_cc.last.status), (double)g_cc.last.est_heading_err_deg);
     } else if (oc == MAGCAL_CONT_CHANGE) {
@@ -478,6 +481,7 @@ int replay_stream_main(int argc, char **argv)
                                            {"declination", required_argument, NULL, 'd'},
                                            {"range", required_argument, NULL, 'r'},
                                            {"steps-per-row", required_argument, NULL, 'k'},
+                                           {"coarse", required_argument, NULL, 'c'},
                                            {"help", no_argument, NULL, 'h'},
                                            {NULL, 0, NULL, 0}};
     const char *hpath = NULL;
@@ -549,6 +553,26 @@ int replay_stream_main(int argc, char **argv)
                 return 1;
             }
             steps_per_row = (unsigned)v;
+            break;
+        }
+        case 'c': {
+            char *end = NULL;
+            double v = strtod(optarg, &end);
+            double tol = (double)cfg.coarse_max_err_deg;
+            if (end != optarg && *end == ',') {
+                const char *t = end + 1;
+                tol = strtod(t, &end);
+                if (end == t) {
+                    end = NULL;
+                }
+            }
+            if (end == NULL || end == optarg || *end != '\0' || !(v > 0.0 && v <= 360.0) || !(tol > 0.0) ||
+                !isfinite(tol)) {
+                fprintf(stderr, "magcal-replay: --coarse needs DEG (0..360] [,TOL > 0], got \"%s\"\n", optarg);
+                return 1;
+            }
+            cfg.coarse_coverage_deg = (float)v;
+            cfg.coarse_max_err_deg = (float)tol;
             break;
         }
         case 'h':
