@@ -69,7 +69,9 @@ magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_
     cc->solves++;
     cc->stored_at_solve = (cc->store.ctr.added + cc->store.ctr.replaced);
     cc->solve_ms_acc = 0u;
-    if (st == MAGCAL_ERR_NOT_BETTER && cc->has_cal != 0u && magcal_isfinite_f(r->current_err_deg) &&
+    /* (a circle never overturns the verdict against a full calibration: not even by ageing) */
+    if (st == MAGCAL_ERR_NOT_BETTER && cc->has_cal != 0u && (r->coarse == 0u || cc->cal_coarse != 0u) &&
+        magcal_isfinite_f(r->current_err_deg) &&
         magcal_isfinite_f(r->est_param_err_deg) &&
         r->current_err_deg > fmaxf(cont_margin(cc) * r->est_param_err_deg, MAGCAL_CALIBRATOR_ADOPT_MIN_DEG)) {
         cc->cand = r->cal;
