@@ -155,4 +155,11 @@ magcal_status_t magcal_calibrator_solve_step(magcal_calibrator_t *cal, magcal_ca
 /* 1 while a solve begun with solve_begin has not ended. */
 int magcal_calibrator_solving(const magcal_calibrator_t *cal);
 
+/* Coarse stage of the next solves (calibrator.h "Coarse stage"): min_cov > 0 admits a circle fit
+ * on an arc of min_cov..cfg.min_coverage_deg whose error bound is <= max_err_deg; current_coarse
+ * says the `current` passed to the solves is itself coarse (a full calibration then replaces it
+ * with margin 1). min_cov 0: off (the default after init). Not during a solve. */
+void magcal_calibrator_set_coarse(magcal_calibrator_t *cal, float min_cov, float max_err_deg,
+                                  uint8_t current_coarse);
+
 #endif /* MAGCAL_CALIBRATOR_INTERNAL_H */

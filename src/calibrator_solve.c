@@ -60,6 +60,12 @@
  * scaled x 1.6 by the QEMU per-step trace, tools/bench/cont_weights.py). Its inliers' visits are
  * ph_masks' (CAL_W_MASKS). */
 #define CAL_W_PRE_RES 250u
+/* coarse stage (host estimate x 1.2, as the passes they resemble): one inlier's circle residual
+ * (difference, sqrtf), one inlier's re-gate + circle normal equations (as CAL_W_MOMENT + the
+ * residual), the refitted circle's 3x3 solve + gates + calibration */
+#define CAL_W_CO_RES 150u
+#define CAL_W_CO_GATE 330u
+#define CAL_W_CO_FIT 1200u
 #define CAL_W_ONESHOT UINT32_MAX /* a one-shot call (exceptions): ends the step */
 
 typedef enum {
@@ -84,6 +90,9 @@ typedef enum {
     PH_PLAIN,
     PH_PLAIN_MASK,
     PH_GATES,
+    PH_CO_RES,
+    PH_CO_GATE,
+    PH_CO_FIT,
     PH_TOCAL,
     PH_COVC,
     PH_DIST,
@@ -132,6 +141,9 @@ typedef struct {
     float sxy;
     float a[9];       /* circle normal equations */
     float b[3];
+    float cr;         /* coarse stage: circle radius, residual threshold, sum of squares */
+    float thr;
+    float ss;
     uint16_t bins[MAGCAL_COVERAGE_BINS];
 } cal_prep_t;
 
@@ -716,6 +728,23 @@ static int cal_cover_pass(magcal_calibrator_t *cal, cal_run_t *r, int with_mask)
     return 1;
 }
 
+/* The circle's radius from its solved normal equations (b = C, D, E of the centred, scaled
+ * inliers: r^2 = (C^2 + D^2) / 4 - E); 0 when it is not a circle. */
+static int cal_coarse_radius(cal_prep_t *q)
+{
+    const float r2 = 0.25f * (q->b[0] * q->b[0] + q->b[1] * q->b[1]) - q->b[2];
+    q->cr = r2 > 0.0f ? q->s * sqrtf(r2) : 0.0f;
+    return q->cr > 0.0f && magcal_isfinite_f(q->cr) ? 1 : 0;
+}
+
+/* Distance of sample p from the coarse circle minus its radius. */
+static float cal_coarse_res(const cal_prep_t *q, magcal_vec2_t p)
+{
+    const float dx = p.x - q->cc.x;
+    const float dy = p.y - q->cc.y;
+    return sqrtf(dx * dx + dy * dy) - q->cr;
+}
+
 /* 3. coverage pre-gate: every sample, around the hard-iron circle centre of the filter inliers
  * (a short arc is reported as COVERAGE, not as whatever conic it happens to fit). */
 static MAGCAL_NOINLINE magcal_status_t ph_cov_all(magcal_calibrator_t *cal, cal_run_t *r)
@@ -729,6 +758,12 @@ static MAGCAL_NOINLINE magcal_status_t ph_cov_all(magcal_calibrator_t *cal, cal_
     r->rep.coverage_deg = cov;
     (void)magcal_cal_spend(&r->bud, CAL_W_COVFIN);
     if (cov < cal->cfg.min_coverage_deg) {
+        if (cal->coarse_min_cov > 0.0f && cov >= cal->coarse_min_cov && cal_coarse_radius(q) != 0) {
+            r->rep.coarse = 1u; /* hard iron only: the circle of the inliers ("Coarse stage") */
+            cal_goto(r, PH_CO_RES);
+            q->ss = 0.0f;
+            return MAGCAL_OK;
+        }
         return MAGCAL_ERR_COVERAGE;
     }
     if (r->pre != 0u) {
@@ -973,6 +1008,164 @@ static MAGCAL_NOINLINE magcal_status_t ph_gates(magcal_calibrator_t *cal, cal_ru
     return MAGCAL_OK;
 }
 
+
+/* ------------------------------------------------------------------ coarse stage */
+
+/* Coarse 1: residual RMS of the inliers (mask_a) around the circle, then the residual threshold
+ * as the consensus sets it (k_sigma x RMS, clamped to [min_thr_rel, max_thr_rel] x radius). */
+static MAGCAL_NOINLINE magcal_status_t ph_co_res(magcal_calibrator_t *cal, cal_run_t *r)
+{
+    cal_prep_t *q = cal_prep(cal);
+    const magcal_consensus_cfg_t *cc = &cal->cfg.consensus;
+    float thr;
+    if (r->sub == 0u) {
+        r->m = 0u;
+        r->sub = 1u;
+    }
+    while (r->i < cal->n) {
+        const size_t i = r->i;
+        r->i++;
+        if (cal->mask_a[i] != 0u) {
+            const float e = cal_coarse_res(q, cal->buf[i]);
+            q->ss += e * e;
+            r->m++;
+            if (magcal_cal_spend(&r->bud, CAL_W_CO_RES) != 0) {
+                return MAGCAL_IN_PROGRESS;
+            }
+        } else if (magcal_cal_spend(&r->bud, CAL_W_FLAG) != 0) {
+            return MAGCAL_IN_PROGRESS;
+        } else {
+            /* not an inlier */
+        }
+    }
+    if (r->m < cal->cfg.min_samples) {
+        return MAGCAL_ERR_TOO_FEW_POINTS;
+    }
+    thr = cc->k_sigma * sqrtf(q->ss / (float)r->m);
+    thr = fmaxf(thr, cc->min_thr_rel * q->cr);
+    q->thr = fminf(thr, cc->max_thr_rel * q->cr);
+    (void)memset(q->a, 0, sizeof q->a);
+    (void)memset(q->b, 0, sizeof q->b);
+    cal_goto(r, PH_CO_GATE);
+    r->m = 0u;
+    return MAGCAL_OK;
+}
+
+/* Coarse 2: inliers within the threshold into mask_b (flags with the residual bit), and the
+ * circle's normal equations of them (the centred, scaled frame of ph_moments). */
+static MAGCAL_NOINLINE magcal_status_t ph_co_gate(magcal_calibrator_t *cal, cal_run_t *r)
+{
+    cal_prep_t *q = cal_prep(cal);
+    while (r->i < cal->n) {
+        const size_t i = r->i;
+        uint8_t in = 0u;
+        r->i++;
+        if (cal->mask_a[i] != 0u && fabsf(cal_coarse_res(q, cal->buf[i])) <= q->thr) {
+            const float u = (cal->buf[i].x - q->mx) / q->s;
+            const float v = (cal->buf[i].y - q->my) / q->s;
+            const float y = -(u * u + v * v);
+            const float w[3] = {u, v, 1.0f};
+            size_t e;
+            size_t c;
+            for (e = 0u; e < 3u; ++e) {
+                for (c = 0u; c <= e; ++c) {
+                    q->a[e * 3u + c] += w[e] * w[c];
+                }
+                q->b[e] += w[e] * y;
+            }
+            in = 1u;
+            r->m++;
+        }
+        cal->mask_b[i] = in;
+        cal->flags[i] = (uint8_t)(MAGCAL_CALIBRATOR_FLAG_JUDGED |
+                                  (cal->mask_a[i] == 0u ? MAGCAL_CALIBRATOR_FLAG_FILTER : 0u) |
+                                  (in == 0u ? MAGCAL_CALIBRATOR_FLAG_RESIDUAL : 0u));
+        if (magcal_cal_spend(&r->bud, CAL_W_CO_GATE) != 0) {
+            return MAGCAL_IN_PROGRESS;
+        }
+    }
+    cal->n_judged = cal->n;
+    if (r->m < cal->cfg.min_samples || r->m < 3u) {
+        return MAGCAL_ERR_TOO_FEW_POINTS;
+    }
+    cal_goto(r, PH_CO_FIT);
+    return MAGCAL_OK;
+}
+
+/* Coarse 3: the refitted circle, its residual RMS (a pass), the report, the gates of the full
+ * solve that apply to a circle, and the calibration (offset = centre, matrix = output scale). */
+static MAGCAL_NOINLINE magcal_status_t ph_co_fit(magcal_calibrator_t *cal, cal_run_t *r)
+{
+    cal_prep_t *q = cal_prep(cal);
+    cal_adopt_t *d = cal_adopt(cal);
+    magcal_cal_report_t *rep = &r->rep;
+    float scale;
+    if (r->sub == 0u) {
+        magcal_status_t st = magcal_ldlt_solve(q->a, q->b, 3u, 1.0e-6f, NULL);
+        (void)magcal_cal_spend(&r->bud, CAL_W_CO_FIT);
+        if (st != MAGCAL_OK) {
+            return st == MAGCAL_ERR_ILL_CONDITIONED ? MAGCAL_ERR_DEGENERATE : st;
+        }
+        q->cc.x = q->mx - 0.5f * q->b[0] * q->s;
+        q->cc.y = q->my - 0.5f * q->b[1] * q->s;
+        if (cal_coarse_radius(q) == 0) {
+            return MAGCAL_ERR_DEGENERATE;
+        }
+        q->ss = 0.0f;
+        r->m = 0u;
+        r->sub = 1u;
+    }
+    while (r->i < cal->n) {
+        const size_t i = r->i;
+        r->i++;
+        if (cal->mask_b[i] != 0u) {
+            const float e = cal_coarse_res(q, cal->buf[i]);
+            q->ss += e * e;
+            r->m++;
+            if (magcal_cal_spend(&r->bud, CAL_W_CO_RES) != 0) {
+                return MAGCAL_IN_PROGRESS;
+            }
+        } else if (magcal_cal_spend(&r->bud, CAL_W_FLAG) != 0) {
+            return MAGCAL_IN_PROGRESS;
+        } else {
+            /* not an inlier */
+        }
+    }
+    rep->used = (uint16_t)r->m;
+    rep->outliers = (uint16_t)(cal->n - r->m);
+    rep->threshold = q->thr;
+    rep->radius = q->cr;
+    rep->residual_rms = sqrtf(q->ss / (float)r->m);
+    rep->residual_rel = rep->residual_rms / q->cr;
+    rep->axis_ratio = 1.0f;
+    (void)memset(&rep->ellipse, 0, sizeof rep->ellipse);
+    rep->ellipse.center = q->cc;
+    rep->ellipse.semi_minor = q->cr;
+    rep->ellipse.semi_major = q->cr;
+    rep->ellipse.residual_rms = rep->residual_rms;
+    if ((float)rep->outliers > cal->cfg.max_outlier_frac * (float)cal->n) {
+        return MAGCAL_ERR_TOO_MANY_OUTLIERS;
+    }
+    if ((cal->cfg.min_radius > 0.0f && q->cr < cal->cfg.min_radius) ||
+        (cal->cfg.max_radius > 0.0f && q->cr > cal->cfg.max_radius)) {
+        return MAGCAL_ERR_RADIUS_RANGE;
+    }
+    if (!(rep->residual_rel <= cal->cfg.max_residual_rel)) {
+        return MAGCAL_ERR_RESIDUAL;
+    }
+    scale = cal->cfg.output_radius > 0.0f ? cal->cfg.output_radius / q->cr : 1.0f;
+    d->next.offset = q->cc;
+    d->next.m[0][0] = scale;
+    d->next.m[0][1] = 0.0f;
+    d->next.m[1][0] = 0.0f;
+    d->next.m[1][1] = scale;
+    d->next.radius = q->cr * scale;
+    d->next.magic = MAGCAL_CAL2D_MAGIC;
+    rep->cal = d->next;
+    cal_goto(r, PH_COVC);
+    return MAGCAL_OK;
+}
+
 /* ------------------------------------------------------------------ adopt */
 
 /* 6. the correction of the new fit. */
@@ -1020,7 +1213,7 @@ static MAGCAL_NOINLINE magcal_status_t ph_covc(magcal_calibrator_t *cal, cal_run
     cov = magcal_cal_coverage_of(d->bins, &rep->missing_start_deg, &rep->missing_width_deg);
     rep->coverage_deg = cov;
     (void)magcal_cal_spend(&r->bud, CAL_W_COVFIN);
-    if (cov < cal->cfg.min_coverage_deg || !(cov > 0.0f)) {
+    if (cov < (rep->coarse != 0u ? cal->coarse_min_cov : cal->cfg.min_coverage_deg) || !(cov > 0.0f)) {
         return MAGCAL_ERR_COVERAGE;
     }
     cal_goto(r, PH_DIST);
@@ -1053,6 +1246,35 @@ static MAGCAL_NOINLINE magcal_status_t ph_dist(magcal_calibrator_t *cal, cal_run
     return MAGCAL_OK;
 }
 
+/* Coarse stage: the circle calibration's heading-error bound from its own harmonics (calibrator.h
+ * "Coarse stage"): sqrt(1/2 |beta|^2) + 1/2 |beta|^2 + 3 x the noise part's RMS + bias (with repeated values the
+ * noise part's upper confidence factor, as the full gate), gated by the tolerance. */
+static magcal_status_t cal_coarse_bound(const magcal_calibrator_t *cal, cal_run_t *r, const cal_adopt_t *d)
+{
+    magcal_cal_report_t *rep = &r->rep;
+    const magcal_cal_harm_t *hn = &d->hn;
+    const float noise = hn->sigma_rel;
+    float npart = sqrtf(hn->noise2);
+    float bound;
+    if (d->distinct < (size_t)rep->used) {
+        const float dof = d->distinct > 6u ? (float)d->distinct - 5.0f : 1.0f;
+        npart *= 1.0f + 1.0f / sqrtf(2.0f * dof);
+    }
+    /* + err2: the second-order allowance (the harmonics are the first-order terms of |h| in the
+     * centre and soft-iron errors; the next term is O(|beta|^2), measured up to ~0.6 x err2 on
+     * tests/test_continuous.c's strong soft iron) */
+    bound = sqrtf(hn->err2) + hn->err2 + 3.0f * npart + sqrtf(hn->bias2);
+    rep->est_noise_deg = MAGCAL_DEG_PER_RAD_F * noise;
+    rep->design_factor = hn->design;
+    rep->est_param_err_deg = MAGCAL_DEG_PER_RAD_F * bound;
+    rep->est_heading_err_deg = MAGCAL_DEG_PER_RAD_F * sqrtf(noise * noise + bound * bound);
+    if (!(rep->est_param_err_deg <= cal->coarse_max_err)) {
+        return MAGCAL_ERR_UNOBSERVABLE; /* the arc does not bound the unseen soft iron well enough */
+    }
+    cal_goto(r, PH_VALID);
+    return MAGCAL_OK;
+}
+
 /* Estimates of the new calibration (report fields est_*) and the observability gate. */
 static MAGCAL_NOINLINE magcal_status_t ph_harm_n(magcal_calibrator_t *cal, cal_run_t *r)
 {
@@ -1072,6 +1294,9 @@ static MAGCAL_NOINLINE magcal_status_t ph_harm_n(magcal_calibrator_t *cal, cal_r
     }
     if (hn->ok == 0u) {
         return MAGCAL_ERR_UNOBSERVABLE; /* headings too clumped to separate centre and soft iron */
+    }
+    if (rep->coarse != 0u) {
+        return cal_coarse_bound(cal, r, d);
     }
     /* per-sample heading noise of new data: the relative radial residual after the harmonics
      * (the fit's own residual, dof corrected); tangential and radial noise have the same RMS
@@ -1252,8 +1477,14 @@ static MAGCAL_NOINLINE magcal_status_t ph_harm_c(magcal_cal2d_t *current, magcal
         rep->current_err_z =
             hc->noise2_sd > 0.0f ? ex / hc->noise2_sd : (ex > 0.0f ? INFINITY : 0.0f);
     }
-    if (rep->current_err_deg > fmaxf(MAGCAL_CALIBRATOR_ADOPT_MARGIN * rep->est_param_err_deg,
+    if (rep->coarse != 0u && cal->current_coarse == 0u) {
+        return MAGCAL_ERR_NOT_BETTER; /* a coarse calibration never replaces a full one */
+    }
+    if (rep->current_err_deg > fmaxf((cal->current_coarse != 0u && rep->coarse == 0u ? 1.0f
+                                                                                    : MAGCAL_CALIBRATOR_ADOPT_MARGIN) *
+                                         rep->est_param_err_deg,
                                      MAGCAL_CALIBRATOR_ADOPT_MIN_DEG)) {
+        /* a full calibration replaces a coarse one when not estimated worse (margin 1) */
         rep->adopt_rule = MAGCAL_ADOPT_BETTER;
     } else if (rep->current_err_z > MAGCAL_CALIBRATOR_STALE_Z &&
                rep->current_err_deg >= rep->est_param_err_deg &&
@@ -1296,6 +1527,9 @@ static MAGCAL_NOINLINE magcal_status_t cal_phase(magcal_calibrator_t *cal, cal_r
     case PH_PLAIN: return ph_plain(cal, r);
     case PH_PLAIN_MASK: return ph_plain_mask(cal, r);
     case PH_GATES: return ph_gates(cal, r);
+    case PH_CO_RES: return ph_co_res(cal, r);
+    case PH_CO_GATE: return ph_co_gate(cal, r);
+    case PH_CO_FIT: return ph_co_fit(cal, r);
     case PH_TOCAL: return ph_tocal(cal, r);
     case PH_COVC: return ph_covc(cal, r);
     case PH_DIST: return ph_dist(cal, r);
@@ -1361,6 +1595,16 @@ magcal_status_t magcal_calibrator_solve_begin(magcal_calibrator_t *cal, size_t n
     r->pre = 0u;
     r->active = 1u;
     return MAGCAL_OK;
+}
+
+void magcal_calibrator_set_coarse(magcal_calibrator_t *cal, float min_cov, float max_err_deg,
+                                  uint8_t current_coarse)
+{
+    if (cal != NULL && cal->magic == MAGCAL_CALIBRATOR_MAGIC) {
+        cal->coarse_min_cov = magcal_isfinite_f(min_cov) && min_cov > 0.0f ? min_cov : 0.0f;
+        cal->coarse_max_err = magcal_isfinite_f(max_err_deg) ? max_err_deg : 0.0f;
+        cal->current_coarse = current_coarse;
+    }
 }
 
 int magcal_calibrator_solving(const magcal_calibrator_t *cal)

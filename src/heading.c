@@ -261,6 +261,8 @@ const char *magcal_trust_str(magcal_trust_state_t s)
         return "disturbed";
     case MAGCAL_TRUST_CHANGED:
         return "changed";
+    case MAGCAL_TRUST_COARSE:
+        return "coarse";
     default:
         return "unknown";
     }

@@ -637,6 +637,188 @@ void test_cont_sliced_solve_matches_blocking(void)
     sliced_matches_blocking(3u, &k_d_step, 0.0, 400u); /* against an installed calibration */
 }
 
+
+/* ------------------------------------------------------------------ coarse stage (hard iron only) */
+
+typedef struct {
+    unsigned coarse_adopted;  /* coarse adoptions */
+    unsigned coarse_refused;  /* solves refused UNOBSERVABLE on an arc (the bound above tolerance) */
+    double worst_margin;      /* min over coarse adoptions of bound - truth RMS, deg */
+    double bound;             /* bound of the first coarse adoption (est_param_err_deg) */
+    double truth;             /* its truth heading RMS over the whole circle */
+    double turn_at_coarse;    /* turning at the first coarse adoption, deg */
+} coarse_stats_t;
+
+static void coarse_init(float cov_deg, float tol_deg)
+{
+    magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
+    cfg.coarse_coverage_deg = cov_deg;
+    cfg.coarse_max_err_deg = tol_deg;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+}
+
+/* Turn `deg` at 15 deg/s from the current heading, then stay 40 s at the end heading (the solve
+ * under way ends); every coarse adoption's bound is checked against the truth. */
+static void coarse_drive(drive_t *dr, double deg, coarse_stats_t *cs)
+{
+    const size_t rows = (size_t)(fabs(deg) / 15.0 * 50.0);
+    size_t i;
+    for (i = 0u; i < rows + 2000u; ++i) {
+        magcal_cont_outcome_t oc;
+        if (i < rows) {
+            dr->psi = fmod(dr->psi + deg / (double)rows + 360.0, 360.0);
+            dr->turn_deg += fabs(deg / (double)rows);
+        }
+        oc = drive_row(dr, 0.0f, 0.0f);
+        if (oc == MAGCAL_CONT_ADOPTED && g_cc.last.coarse != 0u) {
+            const double tr = truth_rms(&g_cc.cal, dr->d);
+            const double bd = (double)g_cc.last.est_param_err_deg;
+            magcal_vec3_t m = {0.0f, 0.0f, 40.0f};
+            magcal_cont_heading_t hd;
+            const magcal_vec2_t p = test_distorted_sample(dr->d, dr->psi, 0.0, &dr->rng);
+            TEST_ASSERT_EQUAL_UINT8(1u, g_cc.cal_coarse);
+            m.x = p.x;
+            m.y = p.y;
+            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_heading(&g_cc, &m, 0.0f, &hd));
+            TEST_ASSERT_TRUE(hd.trust == MAGCAL_TRUST_COARSE || hd.trust == MAGCAL_TRUST_DISTURBED);
+            if (cs->coarse_adopted == 0u) {
+                cs->bound = bd;
+                cs->truth = tr;
+                cs->turn_at_coarse = dr->turn_deg;
+                cs->worst_margin = bd - tr;
+            }
+            cs->worst_margin = fmin(cs->worst_margin, bd - tr);
+            cs->coarse_adopted++;
+            /* the promise: the stated bound covers the truth over the WHOLE circle */
+            if (!(tr <= bd)) {
+                printf("coarse: bound %.2f deg < truth %.2f deg (coverage %.0f, used %u, noise %.2f deg, design %.1f)\n",
+                       bd, tr, (double)g_cc.last.coverage_deg, (unsigned)g_cc.last.used,
+                       (double)g_cc.last.est_noise_deg, (double)g_cc.last.design_factor);
+            }
+            TEST_ASSERT_TRUE(tr <= bd);
+            TEST_ASSERT_TRUE(bd <= (double)g_cc.cfg.coarse_max_err_deg);
+        } else if ((oc == MAGCAL_CONT_FAILED || oc == MAGCAL_CONT_REFUSED) && g_cc.last.coarse != 0u &&
+                   g_cc.last.status == MAGCAL_ERR_UNOBSERVABLE) {
+            cs->coarse_refused++;
+        } else {
+            /* nothing about the coarse stage */
+        }
+    }
+}
+
+void test_cont_coarse_bound_covers_truth_on_arcs(void)
+{
+    /* known hard iron (12, -7) and soft iron from none to strong; arcs 160..250 deg (the drives'
+     * headings span 270 deg only after 630..720 deg of turning) */
+    static const test_distortion_t ds[3] = {{30.0f, {{1.00f, 0.00f}, {0.00f, 1.00f}}, 12.0f, -7.0f},
+                                            {30.0f, {{1.03f, 0.02f}, {0.02f, 0.97f}}, 12.0f, -7.0f},
+                                            {30.0f, {{1.10f, 0.05f}, {0.05f, 0.90f}}, 12.0f, -7.0f}};
+    static const double arcs[3] = {160.0, 200.0, 250.0};
+    unsigned adopted[3] = {0u, 0u, 0u};
+    size_t k;
+    size_t a;
+    uint32_t seed;
+    for (k = 0u; k < 3u; ++k) {
+        for (a = 0u; a < 3u; ++a) {
+            for (seed = 1u; seed <= 8u; ++seed) {
+                drive_t dr;
+                coarse_stats_t cs;
+                memset(&cs, 0, sizeof cs);
+                coarse_init(150.0f, 12.0f);
+                drive_init(&dr, &ds[k], seed);
+                dr.psi = 47.0 * (double)seed;
+                coarse_drive(&dr, arcs[a], &cs);
+                printf("coarse: soft iron %zu arc %3.0f seed %u: %u coarse adoptions, %u refused; first after %.0f deg: "
+                       "bound %.2f deg, truth %.2f deg (worst margin %.2f)\n",
+                       k, arcs[a], (unsigned)seed, cs.coarse_adopted, cs.coarse_refused, cs.turn_at_coarse, cs.bound,
+                       cs.truth, cs.worst_margin);
+                adopted[k] += cs.coarse_adopted != 0u ? 1u : 0u;
+                /* a coarse calibration is never replaced by another circle */
+                TEST_ASSERT_TRUE(cs.coarse_adopted <= 1u);
+            }
+        }
+    }
+    /* without and with mild soft iron the stage must actually deliver (not refuse everything) */
+    TEST_ASSERT_TRUE(adopted[0] >= 16u);
+    TEST_ASSERT_TRUE(adopted[1] >= 16u);
+}
+
+void test_cont_coarse_refused_when_soft_iron_exceeds_tolerance(void)
+{
+    /* soft iron 1.25 / 0.80 (~9 deg RMS that no circle can remove) against a 4-deg tolerance: the
+     * bound exceeds it on every arc, nothing is installed, headings stay uncalibrated */
+    static const test_distortion_t strong = {30.0f, {{1.25f, 0.00f}, {0.00f, 0.80f}}, 12.0f, -7.0f};
+    uint32_t seed;
+    unsigned refused = 0u;
+    for (seed = 1u; seed <= 3u; ++seed) {
+        drive_t dr;
+        coarse_stats_t cs;
+        magcal_cont_heading_t hd;
+        const magcal_cal2d_t id = MAGCAL_CAL2D_IDENTITY;
+        magcal_vec3_t m = {10.0f, 20.0f, 40.0f};
+        memset(&cs, 0, sizeof cs);
+        coarse_init(150.0f, 4.0f);
+        drive_init(&dr, &strong, seed);
+        dr.psi = 47.0 * (double)seed;
+        coarse_drive(&dr, 220.0, &cs);
+        printf("coarse, strong soft iron, seed %u: %u coarse adoptions, %u refused (last estimate %.2f deg)\n",
+               (unsigned)seed, cs.coarse_adopted, cs.coarse_refused, (double)g_cc.last.est_param_err_deg);
+        TEST_ASSERT_EQUAL_UINT(0u, cs.coarse_adopted);
+        TEST_ASSERT_EQUAL_UINT32(0u, g_cc.generation);
+        TEST_ASSERT_EQUAL_MEMORY(&id, &g_cc.cal, sizeof id); /* untouched */
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_heading(&g_cc, &m, 0.0f, &hd));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_TRUST_UNCALIBRATED, hd.trust);
+        refused += cs.coarse_refused;
+    }
+    TEST_ASSERT_TRUE(refused >= 3u); /* the stage ran and said why */
+}
+
+void test_cont_coarse_upgraded_by_full_ellipse(void)
+{
+    /* a coarse calibration on a 200-deg arc, then the rest of the circle: the full ellipse
+     * replaces it (never worse on the truth: drive_row checks every adoption), headings OK */
+    drive_t dr;
+    coarse_stats_t cs;
+    magcal_cont_heading_t hd;
+    magcal_vec3_t m = {0.0f, 0.0f, 40.0f};
+    magcal_vec2_t p;
+    memset(&cs, 0, sizeof cs);
+    coarse_init(150.0f, 12.0f);
+    drive_init(&dr, &k_d, 5u);
+    coarse_drive(&dr, 200.0, &cs);
+    TEST_ASSERT_EQUAL_UINT(1u, cs.coarse_adopted);
+    TEST_ASSERT_TRUE(cs.turn_at_coarse <= 200.0);
+    coarse_drive(&dr, 360.0, &cs);
+    printf("coarse then full: coarse bound %.2f truth %.2f deg; full after %.0f deg of turning, truth %.2f deg, "
+           "estimate %.2f deg, %u adoptions\n", cs.bound, cs.truth, dr.turn_deg, truth_rms(&g_cc.cal, &k_d),
+           (double)g_cc.adopted_err, dr.adopted);
+    TEST_ASSERT_EQUAL_UINT8(0u, g_cc.cal_coarse);
+    TEST_ASSERT_TRUE(dr.adopted >= 2u);
+    TEST_ASSERT_TRUE(truth_rms(&g_cc.cal, &k_d) < cs.truth);
+    TEST_ASSERT_TRUE(truth_rms(&g_cc.cal, &k_d) <= 1.0);
+    p = test_distorted_sample(&k_d, dr.psi, 0.0, &dr.rng);
+    m.x = p.x;
+    m.y = p.y;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_heading(&g_cc, &m, 0.0f, &hd));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_TRUST_OK, hd.trust);
+    /* a full calibration is installed: no circle is fitted again (the stage is off for good) */
+    TEST_ASSERT_EQUAL_FLOAT(0.0f, g_cc.solver.coarse_min_cov);
+}
+
+void test_cont_coarse_cfg_checked(void)
+{
+    magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
+    TEST_ASSERT_EQUAL_FLOAT(0.0f, cfg.coarse_coverage_deg); /* opt-in */
+    cfg.coarse_coverage_deg = 150.0f;
+    cfg.coarse_max_err_deg = 0.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    cfg.coarse_max_err_deg = 12.0f;
+    cfg.coarse_coverage_deg = 400.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    cfg.coarse_coverage_deg = NAN;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+}
+
 int main(void)
 {
 #if defined(__arm__)
@@ -653,6 +835,10 @@ int main(void)
     RUN_TEST(test_cont_transient_flagged_not_discarded);
     RUN_TEST(test_cont_sliced_solve_matches_blocking);
     RUN_TEST(test_cont_sliced_field_fit_matches_unlimited);
+    RUN_TEST(test_cont_coarse_cfg_checked);
+    RUN_TEST(test_cont_coarse_bound_covers_truth_on_arcs);
+    RUN_TEST(test_cont_coarse_refused_when_soft_iron_exceeds_tolerance);
+    RUN_TEST(test_cont_coarse_upgraded_by_full_ellipse);
 #ifdef CONT_TEST_THREADS
     RUN_TEST(test_cont_isr_push_interleaved_with_task);
 #endif

@@ -75,6 +75,26 @@
  * ellipse that the new calibration maps to psi is corrected with `current` (identity when
  * `current` is unusable); max and RMS of wrap(psi_current - psi).
  *
+ * Coarse stage (hard iron only; off unless the continuous calibrator enables it for a solve,
+ * continuous.h cfg.coarse_coverage_deg, and only while no full calibration is installed): when
+ * the pre-gate coverage is below cfg.min_coverage_deg but at least the coarse coverage, the
+ * circle (centre = hard iron, radius; no soft iron) of the filter / pre-test inliers is kept,
+ * its inliers re-gated by the consensus's residual threshold (k_sigma x residual RMS, clamped to
+ * [min_thr_rel, max_thr_rel] x radius), refitted, gated (min_samples, max_outlier_frac, radius
+ * range, max_residual_rel, corrected coverage >= the coarse coverage) and turned into a
+ * calibration (offset = centre, matrix = output scale). Its error bound: the harmonic analysis
+ * above of the CIRCLE calibration on its own inliers recovers, to first order, its first (centre)
+ * and second (unmodelled soft iron) harmonics over the whole circle even though the inliers
+ * cover an arc only (the residual of a 3-parameter fit stays in the span of the 5 regressors);
+ * noise on the arc inflates tr(S). So
+ *     est_param_err_deg = sqrt(1/2 |beta|^2) + 3 sqrt(1/2 s_p^2 dup tr(S)) + bias     (a bound:
+ *                         |beta_true| <= |beta| + |noise|, the noise part's 99.5 % quantile)
+ * and the coarse calibration passes only when that bound is <= the continuous calibrator's
+ * cfg.coarse_max_err_deg (else MAGCAL_ERR_UNOBSERVABLE: the arc does not bound the soft iron
+ * well enough); report coarse = 1. Adoption: as (a)..(c) against a coarse `current`; a full
+ * calibration replaces a coarse `current` by rule (b) with margin 1 (current_err_deg >=
+ * est_param_err_deg: never worse), and a coarse one never replaces a full one.
+ *
  * Time-sliced solve (src/calibrator_solve.c; the continuous calibrator, continuous.h, drives it):
  * run() is one call of the same resumable phases with an unlimited budget (one code path). Each
  * phase keeps its cursor and sums in the workspace (the run state, or the stage scratch when the
@@ -341,6 +361,11 @@ typedef struct {
                                      bound, the density filter and the thinning were skipped and
                                      the consensus on every sample is the fit (rejected_filter 0,
                                      filter_eps 0); 0: the full pipeline ran */
+    uint8_t coarse;             /**< 1: a hard-iron-only calibration (circle: centre + radius, no
+                                     soft iron) fitted on an arc below cfg.min_coverage_deg
+                                     ("Coarse stage" above); est_param_err_deg is then an upper
+                                     bound of its heading error over the whole circle, not an
+                                     estimate. Only the continuous calibrator enables it. */
 } magcal_cal_report_t;
 
 /** @brief Short constant name of an adoption rule ("unusable", "better", ...; "unknown"). */
@@ -371,6 +396,11 @@ typedef struct {
     magcal_calibrator_state_t state;
     magcal_status_t last_status;
     uint32_t magic;
+    /* coarse stage (set by the continuous calibrator, calibrator_internal.h
+     * magcal_calibrator_set_coarse; 0 after init: off) */
+    float coarse_min_cov;         /* coverage that admits the circle fit, deg; 0 = off */
+    float coarse_max_err;         /* tolerance of its bound (est_param_err_deg), deg */
+    uint8_t current_coarse;       /* 1: `current` passed to the solve is a coarse calibration */
 } magcal_calibrator_t;
 
 /**

@@ -28,6 +28,7 @@
  *  SOLVING -> COLLECTING   when the solve ends (adopted, refused or failed: collection never
  *                          stops; pushes continue during the solve);
  *  any -> RELEARNING       when a change is declared (old samples dropped);
+ *  (a solve starts at cfg.coarse_coverage_deg instead while no full calibration is installed)
  *  RELEARNING -> SOLVING   as COLLECTING; a solve that adopts, or that confirms the installed
  *                          calibration on fresh data (NOT_BETTER), ends the relearning.
  *
@@ -54,6 +55,18 @@
  *    (a FIFO of slots / 2) and drained first after the fit, before any new solve.
  * step_budget UINT32_MAX does a whole solve in one call (as solve_blocking()).
  *
+ * Coarse calibration (cfg.coarse_coverage_deg, NXP's 4-element stage in 2-D): until a full
+ * ellipse is installed, a solve already starts at the coarse coverage; below the solver's 270-deg
+ * gate it fits the hard-iron circle only and installs it when its own heading-error bound
+ * (calibrator.h "Coarse stage") is within cfg.coarse_max_err_deg. Such a calibration is a
+ * generation like any other (step() returns MAGCAL_CONT_ADOPTED, `last.coarse` = 1, cc.cal_coarse
+ * = 1), but its headings carry MAGCAL_TRUST_COARSE (not OK: the soft iron is unseen; the bound
+ * is in `adopted_err` / last.est_param_err_deg); the next solves (again from the coarse
+ * coverage) may replace it by a better coarse one (margin 3) or by a full ellipse over >= 270
+ * deg (margin 1: whenever the full one is not estimated worse), which ends the coarse stage for
+ * good (a coarse one never replaces a full one). Save to flash only when cc.cal_coarse == 0: a
+ * restored calibration is taken as full.
+ *
  * Concurrency contract. magcal_cont_push() may run in an interrupt (or another task) while ANY
  * other call on the same instance runs in one task: the ring is the only state push writes
  * (its head index, after the sample; step only writes the tail index). Everything else (step,
@@ -79,7 +92,7 @@
  * void mag_isr(magcal_vec3_t m, uint32_t now_ms) { (void)magcal_cont_push(&cc, &m, now_ms); }
  * void control_task_100hz(magcal_vec3_t raw) {
  *     magcal_cont_heading_t hd;
- *     if (magcal_cont_step(&cc) == MAGCAL_CONT_ADOPTED) { save_to_flash(&cc.cal); }
+ *     if (magcal_cont_step(&cc) == MAGCAL_CONT_ADOPTED && cc.cal_coarse == 0u) { save_to_flash(&cc.cal); }
  *     if (magcal_cont_heading(&cc, &raw, 0.0f, &hd) == MAGCAL_OK && hd.trust == MAGCAL_TRUST_OK) {
  *         use(hd.heading_deg);
  *     }
@@ -164,6 +177,14 @@ typedef struct {
     uint32_t step_budget;           /**< work per step(), estimated Cortex-M4F instructions, >= 1
                                          (default MAGCAL_SLICE_BUDGET_DEFAULT = 7500; UINT32_MAX:
                                          a whole solve per step): "Work per step" above */
+    float coarse_coverage_deg;      /**< coarse stage ("Coarse calibration" above): while no full
+                                         calibration is installed, a solve starts at this live
+                                         coverage and may install a hard-iron-only circle
+                                         (calibrator.h "Coarse stage"); 0 = off, else <=
+                                         solve_coverage_deg (default 150) */
+    float coarse_max_err_deg;       /**< its tolerance: the circle's bound on its heading error
+                                         over the whole circle (report est_param_err_deg), > 0
+                                         (default 4) */
 } magcal_cont_cfg_t;
 
 /** Defaults: work untuned from 10 to 100 Hz (time constants are in ms of the push stamps). */
@@ -171,7 +192,7 @@ typedef struct {
     {                                                                                              \
         MAGCAL_INTAKE_CFG_DEFAULT_2D, MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT, 280.0f, 24u, 2u,        \
             600000.0f, 4.0f, 0.06f, 8000u, 3u, 4000u, 150u, 200u, 4.0f,                            \
-            MAGCAL_SLICE_BUDGET_DEFAULT                                                            \
+            MAGCAL_SLICE_BUDGET_DEFAULT, 0.0f, 15.0f                                               \
     }
 
 /** A heading with its trust. */
@@ -283,6 +304,9 @@ typedef struct {
     float fz_u_sd;                 /* RMS spread of the store's u at the fit (change judge, cont_change.c) */
     float fz_miss;                 /* share of samples over the per-sample threshold, smoothed (cont_change.c) */
     uint8_t fz_unfit;              /* 1: the model does not explain the stream: its per-sample test does not flag */
+    uint8_t cal_coarse;            /**< read-only: 1 = the installed calibration is coarse (hard
+                                        iron only; headings MAGCAL_TRUST_COARSE): do not store it
+                                        as a full calibration */
 } magcal_cont_t;
 
 /**

@@ -9,11 +9,30 @@
  * and a NOT_BETTER verdict is overturned when current_err_deg > margin(t) x est_param_err_deg:
  * the installed calibration's error measured on the new data exceeds the new one's own estimate,
  * so a genuinely better calibration wins eventually, and never one estimated worse (margin >= 1).
+ * Coarse stage (continuous.h "Coarse calibration"): while no calibration is installed, the solver
+ * may fit the hard-iron circle on an arc (calibrator.h "Coarse stage") and a solve starts at
+ * cfg.coarse_coverage_deg; once any calibration is installed, never again (a coarse one is
+ * replaced by a full ellipse with margin 1, calibrator_solve.c ph_harm_c).
  */
 #include <math.h>
 
 #include "cont_internal.h"
 #include "magcal_internal.h"
+
+void magcal_cont_coarse_mode(magcal_cont_t *cc)
+{
+    /* before the first calibration only: a coarse one is replaced by a full ellipse (>= 270 deg),
+     * not by another circle (fewer, later solves: the loop after it runs as without the stage) */
+    const int open = cc->has_cal == 0u;
+    magcal_calibrator_set_coarse(&cc->solver, open ? cc->cfg.coarse_coverage_deg : 0.0f, cc->cfg.coarse_max_err_deg,
+                                 cc->cal_coarse);
+}
+
+float magcal_cont_solve_cov(const magcal_cont_t *cc)
+{
+    const float co = cc->solver.coarse_min_cov;
+    return co > 0.0f && co < cc->cfg.solve_coverage_deg ? co : cc->cfg.solve_coverage_deg;
+}
 
 void magcal_cont_install(magcal_cont_t *cc, const magcal_cal2d_t *c, float r_raw, float sigma)
 {
@@ -35,6 +54,7 @@ void magcal_cont_install(magcal_cont_t *cc, const magcal_cal2d_t *c, float r_raw
     cc->mis_bins[0] = 0u;
     cc->mis_bins[1] = 0u;
     magcal_cont_transient_reset(cc);
+    magcal_cont_coarse_mode(cc);
 }
 
 static float cont_margin(const magcal_cont_t *cc)
@@ -49,7 +69,9 @@ magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_
     cc->solves++;
     cc->stored_at_solve = (cc->store.ctr.added + cc->store.ctr.replaced);
     cc->solve_ms_acc = 0u;
-    if (st == MAGCAL_ERR_NOT_BETTER && cc->has_cal != 0u && magcal_isfinite_f(r->current_err_deg) &&
+    /* (a circle never overturns the verdict against a full calibration: not even by ageing) */
+    if (st == MAGCAL_ERR_NOT_BETTER && cc->has_cal != 0u && (r->coarse == 0u || cc->cal_coarse != 0u) &&
+        magcal_isfinite_f(r->current_err_deg) &&
         magcal_isfinite_f(r->est_param_err_deg) &&
         r->current_err_deg > fmaxf(cont_margin(cc) * r->est_param_err_deg, MAGCAL_CALIBRATOR_ADOPT_MIN_DEG)) {
         cc->cand = r->cal;
@@ -69,6 +91,7 @@ magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_
         const uint32_t ep_clean = cc->clean_ms;
         const uint32_t ep_b0 = cc->mis_bins[0];
         const uint32_t ep_b1 = cc->mis_bins[1];
+        cc->cal_coarse = r->coarse;
         magcal_cont_install(cc, &cc->cand, r->radius, r->est_noise_deg / MAGCAL_DEG_PER_RAD_F);
         if (ep_open != 0u) {
             cc->episode_open = ep_open;

@@ -46,5 +46,9 @@ int magcal_cont_episode_wide(const magcal_cont_t *cc);
 magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_t verdict);
 /* Install calibration c (raw radius r_raw, relative noise sigma) and index the store around it. */
 void magcal_cont_install(magcal_cont_t *cc, const magcal_cal2d_t *c, float r_raw, float sigma);
+/* Coarse stage (cont_adopt.c): hand the solver its coarse mode for the installed calibration
+ * (cc->has_cal, cc->cal_coarse); the live coverage that starts a solve. */
+void magcal_cont_coarse_mode(magcal_cont_t *cc);
+float magcal_cont_solve_cov(const magcal_cont_t *cc);
 
 #endif /* MAGCAL_CONT_INTERNAL_H */

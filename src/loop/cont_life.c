@@ -21,8 +21,13 @@ static magcal_status_t cont_check_cfg(const magcal_cont_cfg_t *c)
     }
     if (!magcal_isfinite_f(c->solve_coverage_deg) || !magcal_isfinite_f(c->age_ms) ||
         !magcal_isfinite_f(c->mismatch_k) || !magcal_isfinite_f(c->mismatch_min_rel) ||
-        !magcal_isfinite_f(c->disturb_k)) {
+        !magcal_isfinite_f(c->disturb_k) || !magcal_isfinite_f(c->coarse_coverage_deg) ||
+        !magcal_isfinite_f(c->coarse_max_err_deg)) {
         return MAGCAL_ERR_NONFINITE;
+    }
+    if (c->coarse_coverage_deg < 0.0f || c->coarse_coverage_deg > 360.0f ||
+        !(c->coarse_max_err_deg > 0.0f)) {
+        return MAGCAL_ERR_ARG;
     }
     if (c->solve_coverage_deg < 0.0f || c->solve_coverage_deg > 360.0f || !(c->age_ms > 0.0f) ||
         !(c->mismatch_k > 0.0f) || !(c->mismatch_min_rel > 0.0f) || !(c->disturb_k > 0.0f) ||
@@ -74,6 +79,7 @@ magcal_status_t magcal_cont_init(magcal_cont_t *cc, const magcal_cont_cfg_t *cfg
     cc->last_status = MAGCAL_OK;
     cc->state = (uint8_t)MAGCAL_CONT_COLLECTING;
     cc->magic = MAGCAL_CONT_MAGIC;
+    magcal_cont_coarse_mode(cc);
     if (installed != NULL && installed->radius > 0.0f) {
         /* raw radius of the installed ellipse: |M| scales it by sqrt(det M) */
         float det = installed->m[0][0] * installed->m[1][1] - installed->m[0][1] * installed->m[1][0];
@@ -181,7 +187,7 @@ magcal_status_t magcal_cont_heading(const magcal_cont_t *cc, const magcal_vec3_t
     } else if (j.mismatch != 0u || magcal_cont_episode_wide(cc) != 0) {
         out->trust = MAGCAL_TRUST_DISTURBED;
     } else {
-        out->trust = MAGCAL_TRUST_OK;
+        out->trust = cc->cal_coarse != 0u ? MAGCAL_TRUST_COARSE : MAGCAL_TRUST_OK;
     }
     return MAGCAL_OK;
 }

@@ -235,7 +235,7 @@ static int cont_worth(magcal_cont_t *cc)
     cc->worth_seen = cc->store.ctr.added + cc->store.ctr.replaced;
     cc->worth_checked = 1u;
     (void)magcal_intake_progress(&cc->store, &p);
-    return p.centre_source != MAGCAL_INTAKE_CENTRE_NONE && p.rebinning == 0u && p.coverage_deg >= cc->cfg.solve_coverage_deg;
+    return p.centre_source != MAGCAL_INTAKE_CENTRE_NONE && p.rebinning == 0u && p.coverage_deg >= magcal_cont_solve_cov(cc);
 }
 
 /* Start a solve: the snapshot of the store (the drain pauses until it is complete, so the

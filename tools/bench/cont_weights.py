@@ -22,7 +22,7 @@ import subprocess
 import sys
 
 PHASES = ["BBOX", "CHECK", "IDENT", "EXTENT", "FILTER", "FILTER_RUN", "MASKS", "MEAN", "SCALE", "MOMENTS",
-          "CIRCLE", "COV_ALL", "COV_F", "THIN", "CONS", "FLAGS0", "PLAIN", "PLAIN_MASK", "GATES", "TOCAL", "COVC",
+          "CIRCLE", "COV_ALL", "COV_F", "THIN", "CONS", "FLAGS0", "PLAIN", "PLAIN_MASK", "GATES", "CO_RES", "CO_GATE", "CO_FIT", "TOCAL", "COVC",
           "DIST", "HARM_N", "VALID", "SHIFT", "HARM_C", "DONE"]
 CONS = ["CHECK", "CAND", "MS_FILL", "MS_SORT", "MS_DIFF", "MED_FILL", "MED_SEL", "ANGLE", "SORT", "DRAW",
         "SCORE_RES", "SCORE_SEL", "SCORE_CNT", "START", "START_FIT", "START_RES", "START_SEL", "RINIT",

@@ -36,7 +36,10 @@ static magcal_cont3_t g_c3;
 
 static const char k_stream_usage[] =
     "usage: magcal-replay --stream [--mode 2d|3d] [--headings OUT.csv] [--json] [--declination DEG]\n"
-    "                        [--range R] [--steps-per-row K] DUMP.csv   (R: the sensor's declared range)\n"
+    "                        [--range R] [--steps-per-row K] [--coarse DEG[,TOL]] DUMP.csv\n"
+    "                        (R: the sensor's declared range)\n"
+    "  --coarse: 2-D coarse stage on (cfg.coarse_coverage_deg DEG, cfg.coarse_max_err_deg TOL; off by\n"
+    "  default): adoptions of a hard-iron circle carry status \"coarse\", its headings trust \"coarse\";\n"
     "  every row in file order through magcal_cont_push + K x magcal_cont_step (default budget; K = 1:\n"
     "  a control loop at the sample rate) and magcal_cont_heading; after the last row, steps without\n"
     "  pushes until the solve under way ends (events at row = rows);\n"
@@ -153,6 +156,7 @@ static void add_cal(cJSON *o, const magcal_cont_t *cc)
     cJSON_AddItemToObject(o, "matrix", m);
     cJSON_AddNumberToObject(o, "radius", (double)cc->cal.radius);
     cJSON_AddNumberToObject(o, "generation", (double)cc->generation);
+    cJSON_AddBoolToObject(o, "coarse", cc->cal_coarse != 0u);
     /* the report of the last finished solve (the one in force when generation > 0 and it adopted) */
     cJSON_AddStringToObject(o, "last_solve_status", magcal_status_str(r->status));
     cJSON_AddNumberToObject(o, "n_used", (double)r->used);
@@ -437,7 +441,7 @@ static int replay_stream3(const char *path, const char *hpath, int json, double 
 
 /* The text report of a 2-D stream replay: events, the calibration in force, rows by trust. */
 static void print_stream_text(const char *file, const magcal_replay_csv_t *d, const cJSON *ev,
-                              const size_t by_trust[4], unsigned steps_per_row, size_t tail)
+                              const size_t by_trust[5], unsigned steps_per_row, size_t tail)
 {
     const cJSON *e;
     printf("magcal-replay --stream: %s\n", file);
@@ -468,10 +472,10 @@ static void print_stream_text(const char *file, const magcal_replay_csv_t *d, co
     } else {
         printf("  no calibration adopted (last solve: %s)\n", magcal_status_str(g_cc.last_status));
     }
-    printf("  headings: %zu ok, %zu uncalibrated, %zu disturbed, %zu changed; %u solves, %u changes, "
+    printf("  headings: %zu ok, %zu uncalibrated, %zu disturbed, %zu changed, %zu coarse; %u solves, %u changes, "
            "%u ring overflows\n",
            by_trust[MAGCAL_TRUST_OK], by_trust[MAGCAL_TRUST_UNCALIBRATED], by_trust[MAGCAL_TRUST_DISTURBED],
-           by_trust[MAGCAL_TRUST_CHANGED], (unsigned)g_cc.solves, (unsigned)g_cc.changes,
+           by_trust[MAGCAL_TRUST_CHANGED], by_trust[MAGCAL_TRUST_COARSE], (unsigned)g_cc.solves, (unsigned)g_cc.changes,
            (unsigned)g_cc.dropped);
 }
 
@@ -479,7 +483,7 @@ static void print_stream_text(const char *file, const magcal_replay_csv_t *d, co
 static void stream_event(cJSON *ev, size_t row, magcal_cont_outcome_t oc)
 {
     if (oc == MAGCAL_CONT_ADOPTED) {
-        add_event(ev, row, "adopted", "ok", (double)g_cc.last.est_heading_err_deg);
+        add_event(ev, row, "adopted", g_cc.cal_coarse != 0u ? "coarse" : "ok", (double)g_cc.last.est_heading_err_deg);
     } else if (oc == MAGCAL_CONT_REFUSED || oc == MAGCAL_CONT_FAILED) {
         add_event(ev, row, "refused", magcal_status_str(g_cc.last.status), (double)g_cc.last.est_heading_err_deg);
     } else if (oc == MAGCAL_CONT_CHANGE) {
@@ -498,6 +502,7 @@ int replay_stream_main(int argc, char **argv)
                                            {"declination", required_argument, NULL, 'd'},
                                            {"range", required_argument, NULL, 'r'},
                                            {"steps-per-row", required_argument, NULL, 'k'},
+                                           {"coarse", required_argument, NULL, 'c'},
                                            {"help", no_argument, NULL, 'h'},
                                            {NULL, 0, NULL, 0}};
     const char *hpath = NULL;
@@ -517,7 +522,7 @@ int replay_stream_main(int argc, char **argv)
     const double *tc;
     int mode3 = 0;
     unsigned steps_per_row = 1u;
-    size_t by_trust[4] = {0u, 0u, 0u, 0u};
+    size_t by_trust[5] = {0u, 0u, 0u, 0u, 0u};
     unsigned k;
     size_t tail;
 
@@ -569,6 +574,26 @@ int replay_stream_main(int argc, char **argv)
                 return 1;
             }
             steps_per_row = (unsigned)v;
+            break;
+        }
+        case 'c': {
+            char *end = NULL;
+            double v = strtod(optarg, &end);
+            double tol = (double)cfg.coarse_max_err_deg;
+            if (end != optarg && *end == ',') {
+                const char *t = end + 1;
+                tol = strtod(t, &end);
+                if (end == t) {
+                    end = NULL;
+                }
+            }
+            if (end == NULL || end == optarg || *end != '\0' || !(v > 0.0 && v <= 360.0) || !(tol > 0.0) ||
+                !isfinite(tol)) {
+                fprintf(stderr, "magcal-replay: --coarse needs DEG (0..360] [,TOL > 0], got \"%s\"\n", optarg);
+                return 1;
+            }
+            cfg.coarse_coverage_deg = (float)v;
+            cfg.coarse_max_err_deg = (float)tol;
             break;
         }
         case 'h':
@@ -631,7 +656,7 @@ int replay_stream_main(int argc, char **argv)
         if (hd.trust == MAGCAL_TRUST_OK) {
             ++trusted;
         }
-        if ((unsigned)hd.trust < 4u) {
+        if ((unsigned)hd.trust < 5u) {
             by_trust[(unsigned)hd.trust]++;
         }
         if (hf != NULL) {
