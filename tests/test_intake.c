@@ -799,6 +799,165 @@ static void test_intake_level_band_refuses_pitched_samples(void)
     }
 }
 
+/* History of the pushed samples (push order) for the re-bin test. */
+#define HIST_MAX 6000u
+static magcal_vec3_t g_hist[HIST_MAX];
+
+/* Bin of m around c exactly as the store computes it (float, intake.h heading convention). */
+static unsigned bin_f(const magcal_vec3_t *m, const magcal_vec3_t *c)
+{
+    const float ux = m->x - c->x;
+    const float uy = m->y - c->y;
+    float a = atan2f(-ux, uy) * (1.0f / (2.0f * 3.14159265358979323846f));
+    unsigned k;
+    if (a < 0.0f) {
+        a += 1.0f;
+    }
+    k = (unsigned)(a * (float)SECTORS);
+    return (k >= SECTORS) ? SECTORS - 1u : k;
+}
+
+static size_t hist_index(const magcal_vec3_t *m, size_t n_hist)
+{
+    size_t i;
+    for (i = n_hist; i-- > 0u;) {
+        if (g_hist[i].x == m->x && g_hist[i].y == m->y && g_hist[i].z == m->z) {
+            return i;
+        }
+    }
+    TEST_FAIL_MESSAGE("stored sample not in the push history");
+    return 0u;
+}
+
+static void test_intake_rebin_keeps_every_sample_but_over_cap(void)
+{
+    /* a full store (36 x 8) around one installed centre, then a centre 0.35 R away: every sample
+     * must land in its bin around the new centre, and only samples over a bin's cap may go
+     * (before: a sample moved into a full bin not yet swept evicted that bin's oldest, often a
+     * sample that was itself leaving: 30-min drive seed 1 lost 61 of 95 moved samples) */
+    magcal_intake_cfg_t cfg = MAGCAL_INTAKE_CFG_DEFAULT_2D;
+    const magcal_vec3_t c1 = {(float)CX, (float)CY, 0.0f};
+    const magcal_vec3_t c2 = {(float)(CX + 0.35 * H), (float)(CY - 0.1 * H), 0.0f};
+    static unsigned char kept[HIST_MAX];
+    unsigned nb[SECTORS];
+    unsigned nb2[SECTORS];
+    unsigned want_kept = 0u;
+    unsigned want_drop = 0u;
+    magcal_intake_counters_t c0;
+    magcal_intake_counters_t ctr;
+    size_t n_hist = 0u;
+    size_t n = 0u;
+    size_t n2 = 0u;
+    size_t i;
+    unsigned b;
+    uint32_t rng = 99u;
+    init2(&g_st, g_slots, &cfg);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_set_centre(&g_st, &c1, (float)H));
+    for (i = 0u; i < 2u * 3600u && n_hist < HIST_MAX; ++i) { /* two turns at 5 deg/s, 50 Hz */
+        const magcal_vec3_t m = sample2(0.1 * (double)i, 0.0, 0.1, &rng);
+        magcal_intake_outcome_t oc = MAGCAL_INTAKE_STORED;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_push(&g_st, &m, &oc));
+        if (oc == MAGCAL_INTAKE_STORED || oc == MAGCAL_INTAKE_REPLACED) {
+            g_hist[n_hist++] = m;
+        }
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_settle(&g_st));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_snapshot3(&g_st, g_out, sizeof(g_out) / sizeof(g_out[0]), &n));
+    TEST_ASSERT_EQUAL_UINT(SECTORS * PER_BIN, n); /* full */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_counters(&g_st, &c0));
+    /* expected: bin around c2, each bin keeps min(its samples, PER_BIN) */
+    memset(nb, 0, sizeof(nb));
+    memset(kept, 0, sizeof(kept));
+    for (i = 0u; i < n; ++i) {
+        kept[hist_index(&g_out[i], n_hist)] = 1u;
+        nb[bin_f(&g_out[i], &c2)]++;
+    }
+    for (b = 0u; b < SECTORS; ++b) {
+        want_kept += nb[b] < PER_BIN ? nb[b] : PER_BIN;
+        want_drop += nb[b] < PER_BIN ? 0u : nb[b] - PER_BIN;
+    }
+    TEST_ASSERT_TRUE(want_drop > 0u); /* the shift piles samples over some bins' cap */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_set_centre(&g_st, &c2, (float)H));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_settle(&g_st));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_counters(&g_st, &ctr));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_snapshot3(&g_st, g_out, sizeof(g_out) / sizeof(g_out[0]), &n2));
+    printf("re-bin 0.35 R: %u of %u kept, %u over cap (counters: moved %u, dropped %u)\n", (unsigned)n2,
+           (unsigned)n, want_drop, (unsigned)(ctr.rebinned - c0.rebinned), (unsigned)(ctr.rebin_dropped - c0.rebin_dropped));
+    TEST_ASSERT_EQUAL_UINT(want_kept, n2);
+    TEST_ASSERT_EQUAL_UINT32(want_drop, ctr.rebin_dropped - c0.rebin_dropped);
+    TEST_ASSERT_EQUAL_UINT32(n2, ctr.stored);
+    memset(nb2, 0, sizeof(nb2));
+    for (i = 0u; i < n2; ++i) { /* only samples of the store, each once, in its new bin (bin order) */
+        const size_t h = hist_index(&g_out[i], n_hist);
+        TEST_ASSERT_EQUAL_UINT8(1u, kept[h]); /* was in the store, and appears once */
+        kept[h] = 2u;
+        nb2[bin_f(&g_out[i], &c2)]++;
+        if (i > 0u) {
+            TEST_ASSERT_TRUE(bin_f(&g_out[i - 1u], &c2) <= bin_f(&g_out[i], &c2));
+        }
+    }
+    for (b = 0u; b < SECTORS; ++b) { /* every bin holds all it can: min(its samples, cap) */
+        TEST_ASSERT_EQUAL_UINT(nb[b] < PER_BIN ? nb[b] : PER_BIN, nb2[b]);
+    }
+}
+
+static void test_intake_level_band_hilly_drive_still_ages(void)
+{
+    /* a drive that is never level (|pitch| 2.5..6 deg, both signs) with the band on: every bin
+     * fills, and after an installation change (hard iron, z included) with no installed centre
+     * the store must still follow it: the band's model of the old z refuses the new samples, the
+     * fallback takes a bin's next sample after MAGCAL_INTAKE_LEVEL_FALLBACK refusals in a row
+     * (without it the full bins froze on the old installation) */
+    magcal_intake_cfg_t cfg = MAGCAL_INTAKE_CFG_DEFAULT_2D;
+    magcal_intake_progress_t p;
+    magcal_intake_counters_t c1;
+    magcal_intake_counters_t c2;
+    uint32_t rng = 777u;
+    size_t k;
+    size_t n = 0u;
+    size_t i;
+    unsigned fresh = 0u;
+    const double rate = 10.0; /* deg/s at 50 Hz */
+    const size_t turn = (size_t)(360.0 / rate * 50.0);
+    cfg.level_band_rel = 0.03f;
+    init2(&g_st, g_slots, &cfg);
+    for (k = 0u; k < 6u * turn; ++k) {
+        const double t = (double)k / 50.0;
+        const double s = sin(2.0 * PI_D * t / 23.0);
+        const double pitch = (s >= 0.0 ? 1.0 : -1.0) * (2.5 + 3.5 * fabs(sin(2.0 * PI_D * t / 7.0)));
+        magcal_vec3_t m = sample2(rate * t, pitch, 0.1, &rng);
+        push_ok(&g_st, &m);
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_progress(&g_st, &p));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_counters(&g_st, &c1));
+    printf("hilly drive, band 0.03: stored %u, coverage %.0f, completion %.0f %%, refused level %u, fallback %u\n",
+           (unsigned)p.stored, (double)p.coverage_deg, (double)p.completion_pct, (unsigned)c1.refused_level,
+           (unsigned)c1.level_fallback);
+    TEST_ASSERT_EQUAL_FLOAT(360.0f, p.coverage_deg);
+    TEST_ASSERT_EQUAL_FLOAT(100.0f, p.completion_pct);
+    TEST_ASSERT_TRUE(c1.refused_level > 1000u); /* the band does act on the pitched samples */
+    /* installation change: hard iron +(6, -4, 8) uT, still hilly */
+    for (k = 0u; k < 8u * turn; ++k) {
+        const double t = (double)k / 50.0;
+        const double s = sin(2.0 * PI_D * t / 23.0);
+        const double pitch = (s >= 0.0 ? 1.0 : -1.0) * (2.5 + 3.5 * fabs(sin(2.0 * PI_D * t / 7.0)));
+        magcal_vec3_t m = sample2(rate * t, pitch, 0.1, &rng);
+        m.x += 6.0f;
+        m.y -= 4.0f;
+        m.z += 8.0f;
+        push_ok(&g_st, &m);
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_counters(&g_st, &c2));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_snapshot3(&g_st, g_out, sizeof(g_out) / sizeof(g_out[0]), &n));
+    for (i = 0u; i < n; ++i) { /* new installation: z shifted by 8 uT (the hills move z by <= 2.1) */
+        fresh += ((double)g_out[i].z > CZ + Z + 4.0) ? 1u : 0u;
+    }
+    printf("after the change, 8 turns: %u of %u stored samples new, refused level %u, fallback %u\n", fresh,
+           (unsigned)n, (unsigned)(c2.refused_level - c1.refused_level), (unsigned)(c2.level_fallback - c1.level_fallback));
+    TEST_ASSERT_TRUE(c2.level_fallback > c1.level_fallback);
+    TEST_ASSERT_TRUE(2u * fresh >= (unsigned)n); /* measured 174 of 280 at the default 64 */
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -816,5 +975,7 @@ int main(void)
     RUN_TEST(test_intake_same_stream_same_store);
     RUN_TEST(test_intake_progress_coverage_agrees_with_solver_despite_spikes);
     RUN_TEST(test_intake_level_band_refuses_pitched_samples);
+    RUN_TEST(test_intake_rebin_keeps_every_sample_but_over_cap);
+    RUN_TEST(test_intake_level_band_hilly_drive_still_ages);
     return UNITY_END();
 }
