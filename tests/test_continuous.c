@@ -501,8 +501,8 @@ static void sliced_matches_blocking(uint32_t seed, const test_distortion_t *d, d
         TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_push(&g_cc, &m, 0u));
     }
     /* drive (1 deg per row) until a solve after min_rows rows is under way (its snapshot taken),
-     * the ring empty */
-    while (!(g_cc.stage != 0u && g_cc.tail == g_cc.head && rows >= min_rows)) {
+     * the ring empty (a solve: not the field-model fit after an earlier adoption, fit_phase != 0) */
+    while (!(g_cc.stage != 0u && g_cc.fit_phase == 0u && g_cc.tail == g_cc.head && rows >= min_rows)) {
         dr.psi = fmod(dr.psi + 1.0, 360.0);
         (void)drive_row(&dr, 0.0f, 0.0f);
         TEST_ASSERT_TRUE(++rows < 20000u);

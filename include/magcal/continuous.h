@@ -35,17 +35,21 @@
  * Work per step. cfg.step_budget (default MAGCAL_SLICE_BUDGET_DEFAULT = 7500) estimated
  * Cortex-M4F instructions per call, shared by the drain and the solve, every piece of work charged
  * by a weight measured on the target (QEMU, tools/bench/cont_weights.py; docs/performance.md):
- *  - drain: at least one ring sample when the ring is not empty, at most cfg.drain_per_step, and
- *    a further one only while less than half of the budget is spent; a sample is charged 4900
- *    (measured up to ~6.1k, median ~3.4k), one whose store push ends a survey sweep (once per
- *    sweep, ~slots / sweep_steps pushes) 9100, which ends the step; a push that may end a sweep is
- *    only ever a step's first sample. So a step takes one sample, and a second only when no solve
- *    is under way and the ring holds a quarter of MAGCAL_CONT_RING (the coverage-count and
- *    snapshot steps drain nothing): at one push per step the ring never fills;
- *  - snapshot: while the store is copied into the solver buffer (whole bins, ~14 per sample; 1 step
- *    at 288 samples, 3 at 1024) the drain pauses so the solver sees one consistent store (the ring
- *    holds the few samples that arrive meanwhile);
- *  - solve: the rest of the budget, at least one visit per step (so both progress), then
+ *  - drain: at least one ring sample when the ring is not empty, at most cfg.drain_per_step; a
+ *    further one only when no solve is under way and the drain is behind (the ring holds a quarter
+ *    of MAGCAL_CONT_RING, or samples parked during the field-model fit are queued) and its charge
+ *    fits what is left. Each sample is charged its store push (1200) and its judge (1100, with a
+ *    calibration installed). The store's sweep steps (cfg.intake.sweep_steps) run once per step
+ *    after the drain, whatever it took (the sweep keeps its pace in time; a catch-up step that
+ *    takes two samples does not pay two sweeps): 480 per surveyed slot, 500 per re-bin, the end
+ *    of a sweep (its fits, 5500) only as the sweep part's first and only step;
+ *  - coverage count (whether a solve is worth it, O(slots)): resumable over bins within what
+ *    the drain left, over a few steps (the drain keeps running meanwhile);
+ *  - snapshot: the store copied into the solver buffer (whole bins, ~21 per sample); its first
+ *    step drains before it copies, then the drain pauses until it is complete so the solver sees
+ *    one consistent store;
+ *  - solve: the rest of the budget, at most 4/5 of it (its phase weights are estimates), at least
+ *    one visit per step (so both progress), then
  *    MAGCAL_IN_PROGRESS until the solve ends. A solve of the default store takes several hundred
  *    steps (docs/calibrator.md); new information for the next solve counts from the snapshot;
  *  - field-model fit: the step that adopts returns MAGCAL_CONT_ADOPTED (cal installed); the judge's
@@ -307,6 +311,14 @@ typedef struct {
     uint8_t cal_coarse;            /**< read-only: 1 = the installed calibration is coarse (hard
                                         iron only; headings MAGCAL_TRUST_COARSE): do not store it
                                         as a full calibration */
+    /* the coverage count of the sliced step, resumable over bins (cont_step.c, intake progress.c) */
+    uint32_t cnt_words[MAGCAL_INTAKE_MASK_WORDS(MAGCAL_INTAKE_MAX_BINS)]; /* filled-bin mask so far */
+    uint32_t cnt_bin;              /* next bin to count */
+    uint32_t cnt_filled;           /* filled bins so far */
+    uint32_t cnt_deep;             /* completion depth so far */
+    uint8_t cnt_on;                /* 1: a count is under way */
+    uint8_t cnt_gen;               /* store centre generation it started at */
+    uint8_t cnt_src;               /* store centre source it started at */
 } magcal_cont_t;
 
 /**

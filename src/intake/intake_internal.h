@@ -35,6 +35,17 @@ int magcal_intake_rebin_slot(magcal_intake_t *st, uint32_t b, uint32_t slot);
 /* Survey / re-bin up to `steps` slots (sweep.c). */
 void magcal_intake_sweep(magcal_intake_t *st, uint32_t steps);
 
+/* Live coverage, resumable (progress.c): the ring count of bins *bin.. within `budget` estimated
+ * M4F instructions (at least one bin; returns what it charged; complete when *bin == n_bins, its
+ * words / *filled / *deep cleared when *bin == 0), at the completion depth
+ * magcal_intake_count_depth(); then magcal_intake_progress_of() fills the progress as
+ * magcal_intake_progress() does (that call is the whole count plus this). */
+uint32_t magcal_intake_count_step(const magcal_intake_t *st, uint32_t *words, uint32_t depth, uint32_t *bin,
+                                  uint32_t *filled, uint32_t *deep, uint32_t budget);
+uint32_t magcal_intake_count_depth(const magcal_intake_t *st);
+void magcal_intake_progress_of(const magcal_intake_t *st, const uint32_t *words, uint32_t filled, uint32_t deep,
+                               magcal_intake_progress_t *out);
+
 /* Move the centre (z = 0 in 2-D), set the radius and start a re-bin sweep. */
 void magcal_intake_recentre(magcal_intake_t *st, const magcal_vec3_t *c, float radius);
 

@@ -10,7 +10,8 @@
  * as 90 degrees the solve never found (gen_drive seed 3: live 270, solver 190). A provisional
  * centre far from the ring's (a short arc's small circle) puts the samples outside the band too,
  * so its bins do not read as coverage either. Until there is a radius (centre NONE) every sample
- * counts. O(slots): a squared distance per stored sample, up to the completion depth per bin.
+ * counts. O(slots): a squared distance per stored sample, up to the completion depth per bin; resumable
+ * (magcal_intake_count_step) for the continuous calibrator's sliced step.
  */
 #include <string.h>
 
@@ -18,6 +19,10 @@
 
 #define RING_LO2 0.49f /* (0.7 R)^2: axis ratio 0.55 puts the ring within [0.74, 1.35] R */
 #define RING_HI2 1.96f /* (1.4 R)^2 */
+/* Weights of the resumable count (magcal_intake_count_step), estimated M4F instructions, measured
+ * on the target (QEMU -icount shift=0, cont_trace.elf, tools/bench/cont_weights.py "count"). */
+#define PROGRESS_W_BIN 80u    /* one bin: its loop, mask bit, depth */
+#define PROGRESS_W_SAMPLE 30u /* one stored sample of it (the ring test; an upper bound: it stops at the depth) */
 
 /* Samples of bin b on the ring (all of them before the store has a radius), counted up to
  * `limit` (the completion depth: more are not needed). */
@@ -42,21 +47,39 @@ static uint32_t ring_count(const magcal_intake_t *st, uint32_t b, uint32_t limit
     return n;
 }
 
-/* Filled-bin mask from the ring counts; returns the number of filled bins, adds the completion
- * depth (each bin counted up to `depth`, >= 1) to *deep. */
-static uint32_t ring_mask(const magcal_intake_t *st, uint32_t *words, uint32_t depth, uint32_t *deep)
+/* Filled-bin mask from the ring counts, resumable: bins *bin.. within `budget` estimated M4F
+ * instructions (PROGRESS_W_BIN per bin + PROGRESS_W_SAMPLE per sample tested; at least one bin);
+ * the filled bins into *filled, the completion depth (each bin counted up to `depth`, >= 1) into
+ * *deep. Returns the instructions charged; the count is complete when *bin == st->n_bins. */
+uint32_t magcal_intake_count_step(const magcal_intake_t *st, uint32_t *words, uint32_t depth, uint32_t *bin,
+                                  uint32_t *filled, uint32_t *deep, uint32_t budget)
 {
-    uint32_t filled = 0u;
-    uint32_t b;
-    (void)memset(words, 0, MAGCAL_INTAKE_MASK_WORDS(st->n_bins) * sizeof(words[0]));
-    for (b = 0u; b < st->n_bins; ++b) {
+    uint32_t used = 0u;
+    if (*bin == 0u) {
+        (void)memset(words, 0, MAGCAL_INTAKE_MASK_WORDS(st->n_bins) * sizeof(words[0]));
+        *filled = 0u;
+        *deep = 0u;
+    }
+    while (*bin < st->n_bins && (used == 0u || used < budget)) {
+        const uint32_t b = *bin;
         const uint32_t c = ring_count(st, b, depth);
         if (c != 0u) {
             words[b / 32u] |= (uint32_t)1u << (b % 32u);
-            filled++;
+            (*filled)++;
         }
         *deep += (c < depth) ? c : depth;
+        used += PROGRESS_W_BIN + PROGRESS_W_SAMPLE * (uint32_t)st->count[b];
+        (*bin)++;
     }
+    return used;
+}
+
+/* The whole count (one code path with the resumable one). */
+static uint32_t ring_mask(const magcal_intake_t *st, uint32_t *words, uint32_t depth, uint32_t *deep)
+{
+    uint32_t bin = 0u;
+    uint32_t filled = 0u;
+    (void)magcal_intake_count_step(st, words, depth, &bin, &filled, deep, UINT32_MAX);
     return filled;
 }
 
@@ -102,20 +125,16 @@ static uint32_t longest_empty_run(const magcal_intake_t *st, const uint32_t *wor
     return best;
 }
 
-magcal_status_t magcal_intake_progress(const magcal_intake_t *st, magcal_intake_progress_t *out)
+/* The completion depth of a bin: half its cap, rounded up. */
+uint32_t magcal_intake_count_depth(const magcal_intake_t *st)
 {
-    uint32_t words[MAGCAL_INTAKE_MASK_WORDS(MAGCAL_INTAKE_MAX_BINS)];
-    uint32_t depth;
-    uint32_t filled;
-    uint32_t deep = 0u;
-    if (st == NULL || out == NULL) {
-        return MAGCAL_ERR_NULL;
-    }
-    if (st->magic != INTAKE_MAGIC) {
-        return MAGCAL_ERR_NOT_INITIALISED;
-    }
-    depth = ((uint32_t)st->cfg.per_bin + 1u) / 2u;
-    filled = ring_mask(st, words, depth, &deep);
+    return ((uint32_t)st->cfg.per_bin + 1u) / 2u;
+}
+
+void magcal_intake_progress_of(const magcal_intake_t *st, const uint32_t *words, uint32_t filled, uint32_t deep,
+                               magcal_intake_progress_t *out)
+{
+    const uint32_t depth = magcal_intake_count_depth(st);
     (void)memset(out, 0, sizeof(*out));
     out->stored = st->ctr.stored;
     out->bins = st->n_bins;
@@ -137,6 +156,21 @@ magcal_status_t magcal_intake_progress(const magcal_intake_t *st, magcal_intake_
     out->radius = st->radius;
     out->centre_source = (magcal_intake_centre_t)st->centre_source;
     out->rebinning = st->rebin_pending;
+}
+
+magcal_status_t magcal_intake_progress(const magcal_intake_t *st, magcal_intake_progress_t *out)
+{
+    uint32_t words[MAGCAL_INTAKE_MASK_WORDS(MAGCAL_INTAKE_MAX_BINS)];
+    uint32_t filled;
+    uint32_t deep = 0u;
+    if (st == NULL || out == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (st->magic != INTAKE_MAGIC) {
+        return MAGCAL_ERR_NOT_INITIALISED;
+    }
+    filled = ring_mask(st, words, magcal_intake_count_depth(st), &deep);
+    magcal_intake_progress_of(st, words, filled, deep, out);
     return MAGCAL_OK;
 }
 

@@ -422,9 +422,9 @@ void magcal_cont_declare_change(magcal_cont_t *cc)
  * order, position (fit_bin, fit_k) and sums in cc. Weights, estimated M4F instructions (host
  * callgrind x 1.2, then x 1.2 as measured on QEMU: cont_trace.elf, tools/bench/cont_weights.py):
  * one sample of each pass, one bin advanced, the Cholesky solve of one form. */
-#define CONT_W_FIT_Z 400u     /* z mean / variance of one ring sample (its correction + ring test: cont_trace.elf, steps in the z pass up to 19 360 at 66) */
-#define CONT_W_FIT_SUM 900u   /* normal-equation sums: one sample (the full form; less without u) */
-#define CONT_W_FIT_SIGMA 684u /* the model's residual and the sector covered: one sample */
+#define CONT_W_FIT_Z 240u     /* z mean / variance of one ring sample (its correction + ring test; was 400: measured on target, cont_trace.elf, <= 231 per sample) */
+#define CONT_W_FIT_SUM 720u   /* normal-equation sums: one sample (the full form; less without u; was 900: measured p99 705) */
+#define CONT_W_FIT_SIGMA 430u /* the model's residual and the sector covered: one sample (was 684: measured <= 415) */
 #define CONT_W_FIT_BIN 13u    /* one bin advanced */
 #define CONT_W_FIT_CHOL 3840u /* Cholesky + solve of one model form (7 x 7 at most) */
 

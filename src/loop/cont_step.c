@@ -20,10 +20,22 @@ MAGCAL_STATIC_ASSERT(sizeof(float) == sizeof(uint32_t), cont_park_stamp_bits); /
 /* Weights, estimated M4F instructions, MEASURED on the target (QEMU mps2-an386 -icount shift=0,
  * cont_trace.elf, tools/bench/cont_weights.py: the largest measured step of that kind on the
  * generated drive and vn100_car_circles_b x 4, rounded up; docs/performance.md "Per call"). */
-#define CONT_W_DRAIN 4900u /* judge + store push of one sample, its 8 sweep steps included (was 1750: 2.8x short) */
-#define CONT_W_SWEEP 9100u /* a push that ended a survey sweep (the ring fits): ends the step (was 7200) */
-#define CONT_W_SNAP 14u    /* one sample of the snapshot */
-#define CONT_W_BIN 20u     /* one bin of the snapshot */
+/* A drained sample is charged by what it did, the step's sweep steps by what each did (issue 14:
+ * a flat 4900 per sample, a catch-up step of two samples measured 12,080). Measured on the target
+ * (cont_trace.elf, drain-only steps of both drives, 108k steps): the largest step per number of
+ * surveyed slots and judge on/off, so measured / charged <= ~1.0 (least squares: push ~600-990,
+ * judge ~1140-1330, slot ~340-360, re-bin ~360; the values below cover the largest steps). */
+#define CONT_W_PUSH 1200u  /* the store push of one sample (no sweep step), ring read, bookkeeping */
+#define CONT_W_JUDGE 1100u /* its judge against the installed calibration (correction, heading, episode) */
+#define CONT_W_VISIT 480u  /* one sweep step that surveyed a slot */
+#define CONT_W_REBIN 500u  /* one sweep step that re-binned a sample (swap-remove + insert) */
+#define CONT_W_JUMP 100u   /* one sweep step that jumped the empty rest of a bin */
+#define CONT_W_SWEEP 5500u /* the end of a survey sweep (trimmed extremes, its fits; measured <= 5.1k alone) */
+#define CONT_SOLVE_CAP 4u  /* the solver's share of a step: at most CAP / DIV of the budget */
+#define CONT_SOLVE_DIV 5u
+#define CONT_W_SNAP 21u    /* one sample of the snapshot (was 14: measured 1.42x) */
+#define CONT_W_BIN 30u     /* one bin of the snapshot (was 20) */
+#define CONT_W_SNAP_END 400u /* the snapshot's end: the solver's begin (small parts measured up to 2.7x before) */
 #define CONT_W_PARK 30u    /* one ring sample parked during the field-model fit */
 
 /* Per-step trace, bench-only (MAGCAL_BENCH_TRACE: tools/bench/m4f_image cont_trace.elf, never in a
@@ -43,6 +55,13 @@ enum {
     TR_WORTH,        /* 1: the coverage-count step */
     TR_SOLVE_INSN,   /* the solver's own instructions (SysTick around its step, 40 per tick) */
     TR_DRAIN_INSN,   /* the drain's */
+    TR_VISITS,       /* sweep steps of the drained samples that surveyed a slot */
+    TR_JUDGED,       /* drained samples judged against the installed calibration */
+    TR_COUNT_INSN,   /* the coverage count's own instructions (SysTick around it) */
+    TR_COUNT_CHARGED, /* its estimate */
+    TR_SNAP_INSN,    /* the snapshot's own instructions */
+    TR_SNAP_CHARGED, /* its estimate */
+    TR_REBINS,       /* sweep steps of the drained samples that re-binned */
     TR_N
 };
 /* the target's SysTick current value (counts down at the core clock; QEMU -icount shift=0) */
@@ -70,7 +89,15 @@ enum { CONT_STAGE_NONE = 0, CONT_STAGE_SNAPSHOT = 1, CONT_STAGE_SOLVE = 2, CONT_
  * the drain pauses (the ring holds the samples that arrive meanwhile). */
 static int cont_store_frozen(const magcal_cont_t *cc)
 {
-    return cc->stage == (uint8_t)CONT_STAGE_SNAPSHOT || cc->stage == (uint8_t)CONT_STAGE_FIT;
+    /* the snapshot's first step drains before it copies a bin (a step that only copied would
+     * leave a sample behind) */
+    return (cc->stage == (uint8_t)CONT_STAGE_SNAPSHOT && cc->snap_bin != 0u) || cc->stage == (uint8_t)CONT_STAGE_FIT;
+}
+
+/* 1 when a drained sample is judged against the installed calibration (cont_screen). */
+static int cont_judge_on(const magcal_cont_t *cc)
+{
+    return cc->state != (uint8_t)MAGCAL_CONT_RELEARNING && cc->has_cal != 0u;
 }
 
 /* Judge one sample against the installed calibration (change detection): 1 = do not store it. */
@@ -120,8 +147,8 @@ static MAGCAL_NOINLINE const magcal_vec3_t *cont_unpark(magcal_cont_t *cc)
 }
 
 /* 1 when the next store push may end a survey sweep (its sweep steps may reach the last slot:
- * each step visits a slot or jumps the rest of a bin), so the drain takes it only as a step's
- * first sample: the sweep end (CONT_W_SWEEP) then never shares a step with another sample. */
+ * each step visits a slot or jumps the rest of a bin); unlimited budget (solve_blocking), the
+ * drain takes such a sample only as its first. */
 static int cont_may_end_sweep(const magcal_cont_t *cc)
 {
     const magcal_intake_t *st = &cc->store;
@@ -142,20 +169,38 @@ static int cont_behind(const magcal_cont_t *cc)
            (cc->head - cc->tail >= MAGCAL_CONT_RING / 4u || cc->park_n != cc->park_i);
 }
 
-static MAGCAL_NOINLINE void cont_drain(magcal_cont_t *cc, uint32_t max, magcal_cal_budget_t *b)
+/* The store push of a drained sample without its sweep steps (the step runs them once for all
+ * the samples it drained, cont_sweep_part): the store's configured count is lent to the step. */
+static void cont_push_nosweep(magcal_cont_t *cc, const magcal_vec3_t *m)
 {
-    const uint32_t half = b->left / 2u; /* b->left >= 1 (cfg.step_budget): the first sample passes */
+    const uint16_t steps = cc->store.cfg.sweep_steps;
+    cc->store.cfg.sweep_steps = 0u;
+    (void)magcal_intake_push(&cc->store, m, NULL);
+    cc->store.cfg.sweep_steps = steps;
+}
+
+/* Ring samples into the store: the first one always (when the ring or the parked queue is not
+ * empty); a further one (at most `max`) only when the drain is behind (cont_behind) and its
+ * charge (CONT_W_PUSH, its judge) fits what is left of the budget. Sliced, a sample's push does
+ * no sweep step: the step runs cfg.sweep_steps of them after the drain (cont_sweep_part), once
+ * per step whatever it drained, so the sweep keeps its pace in time (one push per step: as
+ * before) and a catch-up step that takes two samples does not pay two sweeps. Unlimited budget
+ * (solve_blocking): every sample's push with its own sweep steps, as magcal_intake_push. */
+static MAGCAL_NOINLINE uint32_t cont_drain(magcal_cont_t *cc, uint32_t max, magcal_cal_budget_t *b)
+{
     uint32_t k;
+    uint32_t pushed = 0u;
     /* cppcheck-suppress misra-c2012-15.4 ; deviation D13: a resumable loop leaves at its pause point (budget, ring empty) */
     for (k = max; k > 0u; --k) {
         const uint32_t t = cc->tail;
-        const uint32_t sweeps = cc->store.sweeps;
+        const uint32_t judged = cont_judge_on(cc) != 0 ? 1u : 0u;
+        const uint32_t w = CONT_W_PUSH + judged * CONT_W_JUDGE;
         const magcal_vec3_t *m;
-        if (b->unlimited == 0u && b->left <= half && (b->left == 0u || cont_behind(cc) == 0)) {
+        if (k != max && b->unlimited == 0u && (cont_behind(cc) == 0 || w > b->left)) {
             break;
         }
-        if (k != max && cont_may_end_sweep(cc) != 0) {
-            break; /* a push that may end a sweep is only ever a step's first sample */
+        if (k != max && b->unlimited != 0u && cont_may_end_sweep(cc) != 0) {
+            break; /* unlimited: a push that may end a sweep is only ever the drain's first sample */
         }
         m = cont_unpark(cc);
         if (m == NULL) {
@@ -167,15 +212,58 @@ static MAGCAL_NOINLINE void cont_drain(magcal_cont_t *cc, uint32_t max, magcal_c
         }
         if (cont_screen(cc, m, m == &cc->park_m ? cc->park_t : cc->ring_t[t % MAGCAL_CONT_RING]) == 0) {
             /* stored samples are counted by the store (added + replaced) */
-            (void)magcal_intake_push(&cc->store, m, NULL);
+            if (b->unlimited != 0u) {
+                (void)magcal_intake_push(&cc->store, m, NULL);
+            } else {
+                cont_push_nosweep(cc, m);
+            }
+            pushed++;
         }
         if (m != &cc->park_m) {
             MAGCAL_CONT_BARRIER(); /* read before the slot is handed back */
             cc->tail = t + 1u;
         }
         CONT_TRACE(magcal_bench_cont_trace[TR_DRAINED]++;)
-        CONT_TRACE(magcal_bench_cont_trace[TR_SWEEPS] += cc->store.sweeps != sweeps ? 1u : 0u;)
-        (void)magcal_cal_spend(b, cc->store.sweeps != sweeps ? CONT_W_SWEEP : CONT_W_DRAIN);
+        CONT_TRACE(magcal_bench_cont_trace[TR_JUDGED] += judged;)
+        (void)magcal_cal_spend(b, w);
+    }
+    return pushed; /* samples pushed into the store (judged consistent) */
+}
+
+/* The step's sweep steps (sliced; after a drain that pushed a sample into the store): up to cfg.sweep_steps, each
+ * charged by what it did (a surveyed slot CONT_W_VISIT, a re-bin CONT_W_REBIN, a bin jump
+ * CONT_W_JUMP), stopping when the budget is spent; the end of a sweep (its fits, CONT_W_SWEEP) is
+ * only ever the part's first step and its only one (as a push's, sweep.c). */
+static MAGCAL_NOINLINE void cont_sweep_part(magcal_cont_t *cc, magcal_cal_budget_t *b)
+{
+    magcal_intake_t *st = &cc->store;
+    uint32_t s;
+    for (s = 0u; s < (uint32_t)st->cfg.sweep_steps; ++s) {
+        const uint32_t sweeps = st->sweeps;
+        const uint32_t sv = st->sv_n;
+        const uint32_t reb = st->ctr.rebinned;
+        uint32_t w;
+        if (st->cursor >= magcal_intake_nslots(st) && s != 0u) {
+            break; /* the sweep's end: the next step's first */
+        }
+        magcal_intake_sweep(st, 1u);
+        if (st->sweeps != sweeps) {
+            CONT_TRACE(magcal_bench_cont_trace[TR_SWEEPS]++;)
+            (void)magcal_cal_spend(b, CONT_W_SWEEP);
+            break;
+        }
+        if (st->ctr.rebinned != reb) {
+            w = CONT_W_REBIN;
+            CONT_TRACE(magcal_bench_cont_trace[TR_REBINS]++;)
+        } else if (st->sv_n != sv) {
+            w = CONT_W_VISIT;
+            CONT_TRACE(magcal_bench_cont_trace[TR_VISITS]++;)
+        } else {
+            w = CONT_W_JUMP;
+        }
+        if (magcal_cal_spend(b, w) != 0) {
+            break;
+        }
     }
 }
 
@@ -248,6 +336,43 @@ static void cont_start(magcal_cont_t *cc)
     cc->stage = (uint8_t)CONT_STAGE_SNAPSHOT;
 }
 
+/* The coverage count of the sliced step (cont_worth's, resumable over bins, intake progress.c):
+ * started when cont_worth_due, continued within what the drain left of the budget (at least one
+ * bin), restarted when the store's centre moved meanwhile (its bins mean other directions). The
+ * drain keeps running during it: a bin counted before a sample reached it reads as at the count's
+ * start. 1 when the count ended and a solve is worth starting. */
+static MAGCAL_NOINLINE int cont_count_part(magcal_cont_t *cc, magcal_cal_budget_t *b)
+{
+    const magcal_intake_t *st = &cc->store;
+    magcal_intake_progress_t p;
+    uint32_t used;
+    if (cc->cnt_on == 0u || cc->cnt_gen != st->gen || cc->cnt_src != st->centre_source) {
+        if (cont_worth_due(cc) == 0) {
+            cc->cnt_on = 0u;
+            return 0;
+        }
+        cc->worth_seen = st->ctr.added + st->ctr.replaced;
+        cc->worth_checked = 1u;
+        cc->cnt_on = 1u;
+        cc->cnt_bin = 0u;
+        cc->cnt_gen = st->gen;
+        cc->cnt_src = st->centre_source;
+    }
+    CONT_TRACE(magcal_bench_cont_trace[TR_WORTH] = 1u;)
+    CONT_TRACE(magcal_bench_cont_trace[TR_COUNT_INSN] = cont_trace_ticks();)
+    used = magcal_intake_count_step(st, cc->cnt_words, magcal_intake_count_depth(st), &cc->cnt_bin, &cc->cnt_filled,
+                                    &cc->cnt_deep, b->left);
+    CONT_TRACE(magcal_bench_cont_trace[TR_COUNT_INSN] = ((magcal_bench_cont_trace[TR_COUNT_INSN] - cont_trace_ticks()) & 0xFFFFFFu) * 40u;)
+    CONT_TRACE(magcal_bench_cont_trace[TR_COUNT_CHARGED] = used;)
+    (void)magcal_cal_spend(b, used);
+    if (cc->cnt_bin < st->n_bins) {
+        return 0;
+    }
+    cc->cnt_on = 0u;
+    magcal_intake_progress_of(st, cc->cnt_words, cc->cnt_filled, cc->cnt_deep, &p);
+    return p.centre_source != MAGCAL_INTAKE_CENTRE_NONE && p.rebinning == 0u && p.coverage_deg >= cc->cfg.solve_coverage_deg;
+}
+
 /* Copy bins of the store, in bin order (as magcal_intake_snapshot2), into the solver buffer;
  * then load the solver. 1 when the solve is loaded. */
 static int cont_snapshot(magcal_cont_t *cc, magcal_cal_budget_t *b)
@@ -269,6 +394,7 @@ static int cont_snapshot(magcal_cont_t *cc, magcal_cal_budget_t *b)
         }
     }
     (void)magcal_calibrator_solve_begin(&cc->solver, cc->snap_n, 1);
+    (void)magcal_cal_spend(b, CONT_W_SNAP_END);
     cc->cand = cc->cal;
     cc->stage = (uint8_t)CONT_STAGE_SOLVE;
     return 1;
@@ -278,7 +404,13 @@ static int cont_snapshot(magcal_cont_t *cc, magcal_cal_budget_t *b)
 static MAGCAL_NOINLINE int cont_snapshot_part(magcal_cont_t *cc, magcal_cal_budget_t *b)
 {
     if (cc->stage == (uint8_t)CONT_STAGE_SNAPSHOT) {
-        if (cont_snapshot(cc, b) == 0 || (b->unlimited == 0u && b->left == 0u)) {
+        int done;
+        CONT_TRACE(const uint32_t left0 = b->left;)
+        CONT_TRACE(magcal_bench_cont_trace[TR_SNAP_INSN] = cont_trace_ticks();)
+        done = cont_snapshot(cc, b);
+        CONT_TRACE(magcal_bench_cont_trace[TR_SNAP_INSN] = ((magcal_bench_cont_trace[TR_SNAP_INSN] - cont_trace_ticks()) & 0xFFFFFFu) * 40u;)
+        CONT_TRACE(magcal_bench_cont_trace[TR_SNAP_CHARGED] = left0 - b->left;)
+        if (done == 0 || (b->unlimited == 0u && b->left == 0u)) {
             return 1;
         }
     }
@@ -311,6 +443,21 @@ static MAGCAL_NOINLINE magcal_cont_outcome_t cont_fit_part(magcal_cont_t *cc, ma
     return MAGCAL_CONT_IDLE;
 }
 
+/* The solver's share of a step: what the drain and the snapshot left, at most CONT_SOLVE_CAP /
+ * CONT_SOLVE_DIV of the budget (its phases' weights are estimates: measured up to ~1.4x over on
+ * the target, tools/bench/cont_weights.py, so a step with nothing drained stays well under
+ * 10,000 at the default budget), at least 1 (a solver step does at least one visit: progress at
+ * any budget; the result never depends on the budget, only the number of steps). */
+static uint32_t cont_solver_budget(const magcal_cont_t *cc, const magcal_cal_budget_t *b)
+{
+    const uint32_t cap = cc->cfg.step_budget - (cc->cfg.step_budget / CONT_SOLVE_DIV) * (CONT_SOLVE_DIV - CONT_SOLVE_CAP);
+    uint32_t w = b->left < cap ? b->left : cap;
+    if (b->unlimited != 0u) {
+        w = UINT32_MAX;
+    }
+    return w > 0u ? w : 1u;
+}
+
 /* Solve work within the budget (at least one visit); the outcome when the solve ended. The
  * snapshot and the end are siblings of the solver's step (not frames above it): only this
  * function's frame sits between step() and the solver's phases (stack budget). */
@@ -324,12 +471,10 @@ CONT_INLINE magcal_cont_outcome_t cont_solve(magcal_cont_t *cc, magcal_cal_budge
     if (cont_snapshot_part(cc, b) != 0) {
         return MAGCAL_CONT_IN_PROGRESS;
     }
-    CONT_TRACE(magcal_bench_cont_trace[TR_SOLVE_BUDGET] = b->left > 0u ? b->left : 1u;)
+    CONT_TRACE(magcal_bench_cont_trace[TR_SOLVE_BUDGET] = cont_solver_budget(cc, b);)
     CONT_TRACE(magcal_bench_cont_trace[TR_PHASE_IN] = magcal_bench_solve_phase(&cc->solver, &magcal_bench_cont_trace[TR_SOLVE_LEFT]);)
     CONT_TRACE(magcal_bench_cont_trace[TR_SOLVE_INSN] = cont_trace_ticks();)
-    st = magcal_calibrator_solve_step(&cc->solver, &cc->cand,
-                                      b->unlimited != 0u ? UINT32_MAX : (b->left > 0u ? b->left : 1u),
-                                      &cc->last);
+    st = magcal_calibrator_solve_step(&cc->solver, &cc->cand, cont_solver_budget(cc, b), &cc->last);
     CONT_TRACE(magcal_bench_cont_trace[TR_SOLVE_INSN] = ((magcal_bench_cont_trace[TR_SOLVE_INSN] - cont_trace_ticks()) & 0xFFFFFFu) * 40u;)
     CONT_TRACE(magcal_bench_cont_trace[TR_PHASE_OUT] = magcal_bench_solve_phase(&cc->solver, &magcal_bench_cont_trace[TR_SOLVE_LEFT]);)
     if (st == MAGCAL_IN_PROGRESS) {
@@ -346,30 +491,32 @@ CONT_INLINE magcal_cont_outcome_t cont_solve(magcal_cont_t *cc, magcal_cal_budge
 static inline magcal_cont_outcome_t cont_step_in(magcal_cont_t *cc, magcal_cal_budget_t *bp)
 {
     cc->change_flag = 0u;
-    if (cc->stage == (uint8_t)CONT_STAGE_NONE && bp->unlimited == 0u && cont_worth_due(cc) != 0) {
-        /* the coverage count (O(slots)) gets a step of its own, without the drain: a step never
-         * pays both; it is due again only after the store changed, so the drain keeps up */
-        CONT_TRACE(magcal_bench_cont_trace[TR_WORTH] = 1u;)
-        if (cont_worth(cc) == 0) {
-            return MAGCAL_CONT_IDLE;
-        }
-        cont_start(cc);
-        return MAGCAL_CONT_IN_PROGRESS;
-    }
     if (cont_store_frozen(cc) == 0) {
         CONT_TRACE(magcal_bench_cont_trace[TR_DRAIN_INSN] = cont_trace_ticks();)
-        cont_drain(cc, cc->cfg.drain_per_step, bp); /* the parked samples first */
+        /* the parked samples first; then, sliced, the step's sweep steps when a sample was stored */
+        if (cont_drain(cc, cc->cfg.drain_per_step, bp) != 0u && bp->unlimited == 0u && cc->change_flag == 0u) {
+            cont_sweep_part(cc, bp);
+        }
         CONT_TRACE(magcal_bench_cont_trace[TR_DRAIN_INSN] = ((magcal_bench_cont_trace[TR_DRAIN_INSN] - cont_trace_ticks()) & 0xFFFFFFu) * 40u;)
     }
     if (cc->stage == (uint8_t)CONT_STAGE_FIT || cc->park_n != cc->park_i) {
         cont_park(cc, bp); /* the ring's samples behind them (at least one moved) */
     }
     if (cc->change_flag != 0u) {
+        cc->cnt_on = 0u;
         return MAGCAL_CONT_CHANGE;
     }
     if (cc->stage == (uint8_t)CONT_STAGE_NONE) {
-        if (bp->unlimited == 0u || cont_worth(cc) == 0) {
-            return MAGCAL_CONT_IDLE; /* sliced: the count runs in the next step */
+        if (bp->unlimited == 0u) {
+            /* sliced: the coverage count within what the drain left (over several steps) */
+            if (bp->left == 0u || cont_count_part(cc, bp) == 0) {
+                return MAGCAL_CONT_IDLE;
+            }
+            cont_start(cc);
+            return MAGCAL_CONT_IN_PROGRESS; /* the snapshot from the next step on */
+        }
+        if (cont_worth(cc) == 0) {
+            return MAGCAL_CONT_IDLE;
         }
         cont_start(cc);
     }

@@ -21,7 +21,7 @@ import json
 import subprocess
 import sys
 
-PHASES = ["BBOX", "CHECK", "IDENT", "EXTENT", "FILTER", "FILTER_RUN", "MASKS", "MEAN", "SCALE", "MOMENTS",
+PHASES = ["BBOX", "CHECK", "IDENT", "EXTENT", "PRE_CONS", "PRE_MASK", "FILTER", "FILTER_RUN", "MASKS", "MEAN", "SCALE", "MOMENTS",
           "CIRCLE", "COV_ALL", "COV_F", "THIN", "CONS", "FLAGS0", "PLAIN", "PLAIN_MASK", "GATES", "CO_RES", "CO_GATE", "CO_FIT", "TOCAL", "COVC",
           "DIST", "HARM_N", "VALID", "SHIFT", "HARM_C", "DONE"]
 CONS = ["CHECK", "CAND", "MS_FILL", "MS_SORT", "MS_DIFF", "MED_FILL", "MED_SEL", "ANGLE", "SORT", "DRAW",
@@ -29,7 +29,8 @@ CONS = ["CHECK", "CAND", "MS_FILL", "MS_SORT", "MS_DIFF", "MED_FILL", "MED_SEL",
         "RINIT_MASK", "ROUND", "REFIT", "REFIT_RES", "RT_GATHER", "RT_SEL", "RT_MASK", "FINAL_RES", "OUT"]
 STAGES = ["none", "snapshot", "solve", "fit"]
 F = ["row", "meas", "st_in", "st_out", "drained", "sweeps", "charged", "sbud", "sleft", "ph_in", "ph_out",
-     "worth", "solve_insn", "drain_insn", "outcome"]
+     "worth", "solve_insn", "drain_insn", "visits", "judged", "count_insn", "count_charged", "snap_insn",
+     "snap_charged", "rebins", "outcome"]
 
 
 def phase_name(p):
@@ -62,7 +63,7 @@ def main(argv):
     rows = []
     for ln in out.splitlines():
         f = ln.split()
-        if len(f) == 17 and f[0] == "TR":
+        if len(f) == len(F) + 2 and f[0] == "TR":
             d = dict(zip(F, [int(x) for x in f[2:]]))
             d["drive"] = f[1]
             rows.append(d)
@@ -87,6 +88,32 @@ def main(argv):
         if k[1] == 0:
             per_sample += [x / k[0] for x in m]
     med_sample = pct(per_sample, .5)
+    # the drain's own instructions (SysTick around it) against what it charged per component:
+    # least squares of drain_insn = push x samples + judge x judged + visit x visits + rebin x rebins
+    # over the steps without a sweep end (cont_step.c CONT_W_PUSH / JUDGE / VISIT / REBIN), and the
+    # largest measured / charged ratio (the weights should keep it <= ~1)
+    dd = [r for r in rows if r["drained"] > 0 and r["sweeps"] == 0 and r["drain_insn"] > 0]
+    if dd:
+        try:
+            import numpy as np
+            A = np.array([[r["drained"], r["judged"], r["visits"], r["rebins"]] for r in dd], float)
+            y = np.array([r["drain_insn"] for r in dd], float)
+            coef = np.linalg.lstsq(A, y, rcond=None)[0]
+            resid = y - A @ coef
+            print("  drain fit (no sweep end, %d steps): push %.0f  judge %.0f  visit %.0f  rebin %.0f  "
+                  "residual max %+.0f  min %+.0f" % (len(dd), *coef, resid.max(), resid.min()))
+            res["drain_fit"] = {"push": round(coef[0]), "judge": round(coef[1]), "visit": round(coef[2]),
+                                "rebin": round(coef[3]), "resid_max": round(resid.max()), "steps": len(dd)}
+        except ImportError:
+            pass
+    for key, meas, est in (("count", "count_insn", "count_charged"), ("snapshot", "snap_insn", "snap_charged")):
+        q = [(r[meas], r[est]) for r in rows if r[est] > 0]
+        if q:
+            ratio = [m / e for m, e in q]
+            print("  %s parts: %d  measured max %d  ratio measured / charged p50 %.2f  max %.2f" % (
+                key, len(q), max(m for m, _ in q), pct(ratio, .5), max(ratio)))
+            res[key] = {"parts": len(q), "max": max(m for m, _ in q), "p50": round(pct(ratio, .5), 3),
+                        "max_ratio": round(max(ratio), 3)}
     w = [r["meas"] for r in rows if r["worth"] == 1]
     if w:
         print("  coverage-count steps: %d  max %d  median %d" % (len(w), max(w), pct(w, .5)))

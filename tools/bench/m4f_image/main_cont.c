@@ -36,7 +36,8 @@
 
 #ifdef MAGCAL_BENCH_TRACE
 /* cont_trace.elf: the library's per-step trace (src/loop/cont_step.c, TR_* indices) */
-extern uint32_t magcal_bench_cont_trace[12];
+#define BENCH_TR_N 19u
+extern uint32_t magcal_bench_cont_trace[BENCH_TR_N];
 #endif
 
 /* One drive of the generated header: rows of raw samples and ms stamps, fed `reps` times in a
@@ -178,14 +179,15 @@ static int run_drive(const bench_drive_t *d)
             }
 #ifdef MAGCAL_BENCH_TRACE
             /* every step that did more than the idle minimum, with what the library charged:
-             * TR <drive> <row> <measured> <the 12 trace words> <outcome> */
+             * TR <drive> <row> <measured> <the BENCH_TR_N trace words> <outcome> */
             if (c >= 1000u || magcal_bench_cont_trace[0] != 0u || magcal_bench_cont_trace[1] != 0u) {
                 const uint32_t *tr = magcal_bench_cont_trace;
-                printf("TR %s %lu %lu %lu %lu %lu %lu %lu %lu %lu %lu %lu %lu %lu %lu %d\n", d->name, (unsigned long)row,
-                       (unsigned long)c, (unsigned long)tr[0], (unsigned long)tr[1], (unsigned long)tr[2],
-                       (unsigned long)tr[3], (unsigned long)tr[4], (unsigned long)tr[5], (unsigned long)tr[6],
-                       (unsigned long)tr[7], (unsigned long)tr[8], (unsigned long)tr[9], (unsigned long)tr[10],
-                       (unsigned long)tr[11], (int)o);
+                unsigned w;
+                printf("TR %s %lu %lu", d->name, (unsigned long)row, (unsigned long)c);
+                for (w = 0u; w < BENCH_TR_N; ++w) {
+                    printf(" %lu", (unsigned long)tr[w]);
+                }
+                printf(" %d\n", (int)o);
             }
 #endif
             if (o == MAGCAL_CONT_CHANGE) {
