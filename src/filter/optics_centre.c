@@ -282,7 +282,8 @@ static MAGCAL_NOINLINE int ce_pairs(magcal_o2_ce_t *c, const magcal_vec2_t *pts,
     return k < m ? 0 : 1;
 }
 
-MAGCAL_NOINLINE int magcal_o2_ce_run(magcal_o2_ce_t *c, const magcal_vec2_t *pts, size_t n, uint8_t *w,
+MAGCAL_NOINLINE int magcal_o2_ce_run(magcal_o2_ce_t *c, const magcal_vec2_t *pts, size_t n,
+                                     uint8_t *w,
                                      float cr[3], magcal_status_t *st, int32_t *rem)
 {
     float *a = (float *)(void *)w;

@@ -63,7 +63,8 @@ static MAGCAL_NOINLINE void ord_core_done(magcal_o2_ord_t *o, const magcal_nbr_r
  */
 
 /* Pass 1: core distance (MinPts smallest d^2 in the insertion buffer). */
-static MAGCAL_NOINLINE void ord_scan_core(magcal_o2_ord_t *o, const magcal_nbr_ranges_t *rg, int32_t *rem)
+static MAGCAL_NOINLINE void ord_scan_core(magcal_o2_ord_t *o, const magcal_nbr_ranges_t *rg,
+                                          int32_t *rem)
 {
     const magcal_vec2_t *pts = o->nb.pts;
     const size_t p = o->u.sc.p;
@@ -104,7 +105,8 @@ static MAGCAL_NOINLINE void ord_scan_core(magcal_o2_ord_t *o, const magcal_nbr_r
 }
 
 /* START_CORE: does s have MinPts points within eps? (counts until MinPts) */
-static MAGCAL_NOINLINE void ord_scan_count(magcal_o2_ord_t *o, const magcal_nbr_ranges_t *rg, int32_t *rem)
+static MAGCAL_NOINLINE void ord_scan_count(magcal_o2_ord_t *o, const magcal_nbr_ranges_t *rg,
+                                           int32_t *rem)
 {
     const magcal_vec2_t *pts = o->nb.pts;
     const size_t p = o->u.sc.s;
@@ -141,7 +143,8 @@ static MAGCAL_NOINLINE void ord_scan_count(magcal_o2_ord_t *o, const magcal_nbr_
 }
 
 /* Pass 2 (grid): reach updates of p's unprocessed neighbours. */
-static MAGCAL_NOINLINE void ord_scan_reach(magcal_o2_ord_t *o, const magcal_nbr_ranges_t *rg, int32_t *rem)
+static MAGCAL_NOINLINE void ord_scan_reach(magcal_o2_ord_t *o, const magcal_nbr_ranges_t *rg,
+                                           int32_t *rem)
 {
     magcal_ocore_t *oc = &o->oc;
     const magcal_vec2_t *pts = o->nb.pts;

@@ -289,7 +289,8 @@ typedef struct {
 
 /* Returns 1 when done (*st: MAGCAL_OK with *eps_prime, or MAGCAL_ERR_DEGENERATE), else 0
  * (optics_params.c). */
-int magcal_o2_ae_run(magcal_o2_ae_t *e, const magcal_vec2_t *pts, size_t n, uint8_t *w, const float cr[3],
+int magcal_o2_ae_run(magcal_o2_ae_t *e, const magcal_vec2_t *pts, size_t n, uint8_t *w,
+                     const float cr[3],
                      float *eps_prime, int16_t *sectors, magcal_status_t *st, int32_t *rem);
 
 /*
