@@ -160,8 +160,8 @@ static MAGCAL_NOINLINE size_t th_keys(const magcal_vec2_t *pts, size_t n, const 
 
 /* Returns 1 when done up to stage `last` (TH_MARK or TH_MAXRUN), 0 when the budget ran out. */
 MAGCAL_NOINLINE int magcal_o2_th_run(magcal_o2_th_t *t, const magcal_vec2_t *pts, size_t n,
-                                     const float cr[3], uint8_t *w, const uint8_t *use, unsigned last,
-                                     int32_t *rem)
+                                     const float cr[3], uint8_t *w, const uint8_t *use,
+                                     unsigned last, int32_t *rem)
 {
     float *key = (float *)(void *)w;
     uint16_t *idx = (uint16_t *)(void *)(w + 4u * n);
@@ -264,8 +264,8 @@ void magcal_o2_ce_begin(magcal_o2_ce_t *c)
 }
 
 /* CE_PAIRS: the pair distances of the pair scale (own frame); 1 when all m are done. */
-static MAGCAL_NOINLINE int ce_pairs(magcal_o2_ce_t *c, const magcal_vec2_t *pts, size_t n, float *a,
-                                    size_t m, int32_t *rem)
+static MAGCAL_NOINLINE int ce_pairs(magcal_o2_ce_t *c, const magcal_vec2_t *pts, size_t n,
+                                    float *a, size_t m, int32_t *rem)
 {
     size_t k = c->k;
     int32_t r = *rem;
@@ -283,8 +283,7 @@ static MAGCAL_NOINLINE int ce_pairs(magcal_o2_ce_t *c, const magcal_vec2_t *pts,
 }
 
 MAGCAL_NOINLINE int magcal_o2_ce_run(magcal_o2_ce_t *c, const magcal_vec2_t *pts, size_t n,
-                                     uint8_t *w,
-                                     float cr[3], magcal_status_t *st, int32_t *rem)
+                                     uint8_t *w, float cr[3], magcal_status_t *st, int32_t *rem)
 {
     float *a = (float *)(void *)w;
     const size_t m = n < AUTO_PAIRS ? n : AUTO_PAIRS;

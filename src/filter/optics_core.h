@@ -79,7 +79,8 @@ typedef struct {
 } magcal_ocore_t;
 
 /* Heapsort of idx[0..m-1] by key[idx] ascending, ties by index (iterative). Defined in
- * optics_prims.c (the thinning of both dimensions' automatic parameters, the bench's sorted-list mode). */
+ * optics_prims.c (the thinning of both dimensions' automatic parameters, the bench's sorted-list
+ * mode). */
 void magcal_ocore_sort_idx(uint16_t *idx, const float *key, size_t m);
 
 /* Number of set bits of v (at most 32 rounds: one bit cleared per round). */

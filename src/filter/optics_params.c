@@ -12,8 +12,8 @@
 
 /* The link and the core requirement of band point i (of m, sorted by angle): one visit. */
 static MAGCAL_NOINLINE void ae_link(magcal_o2_ae_t *e, const magcal_vec2_t *pts,
-                                    const uint16_t *idx,
-                                    size_t m, size_t i, const uint8_t *rep, float *b)
+                                    const uint16_t *idx, size_t m, size_t i, const uint8_t *rep,
+                                    float *b)
 {
     const magcal_vec2_t *p0 = &pts[idx[i]];
     float near[2u * AUTO_WIN];
@@ -74,8 +74,7 @@ static float ae_eps(float link2, float coreq, float rad)
 /* AE_ANGLES from point i: angles around c into a[], ring band members into idx[] (own frame).
  * Returns the next point. */
 static MAGCAL_NOINLINE size_t ae_angles(magcal_o2_ae_t *e, const magcal_vec2_t *pts, size_t n,
-                                        uint8_t *w,
-                                        const float cr[3], size_t i0, int32_t *rem)
+                                        uint8_t *w, const float cr[3], size_t i0, int32_t *rem)
 {
     float *a = (float *)(void *)w;
     uint16_t *idx = (uint16_t *)(void *)(w + 4u * n);
@@ -129,9 +128,8 @@ static MAGCAL_NOINLINE size_t ae_sectors(const magcal_vec2_t *pts, size_t n, con
 
 /* Returns 1 when done (*st: MAGCAL_OK with *eps_prime, or MAGCAL_ERR_DEGENERATE), else 0. */
 MAGCAL_NOINLINE int magcal_o2_ae_run(magcal_o2_ae_t *e, const magcal_vec2_t *pts, size_t n,
-                                     uint8_t *w,
-                                     const float cr[3], float *eps_prime, int16_t *sectors,
-                                     magcal_status_t *st, int32_t *rem)
+                                     uint8_t *w, const float cr[3], float *eps_prime,
+                                     int16_t *sectors, magcal_status_t *st, int32_t *rem)
 {
     float *a = (float *)(void *)w;
     uint16_t *idx = (uint16_t *)(void *)(w + 4u * n);

@@ -257,13 +257,13 @@ typedef struct {
 /* Start the thinned centre (optics_centre.c). */
 void magcal_o2_ce_begin(magcal_o2_ce_t *c);
 /* Returns 1 when done (*st: MAGCAL_OK with cr = {cx, cy, R}, or MAGCAL_ERR_DEGENERATE), else 0. */
-int magcal_o2_ce_run(magcal_o2_ce_t *c, const magcal_vec2_t *pts, size_t n, uint8_t *w, float cr[3],
-                     magcal_status_t *st, int32_t *rem);
+int magcal_o2_ce_run(magcal_o2_ce_t *c, const magcal_vec2_t *pts, size_t n, uint8_t *w,
+                     float cr[3], magcal_status_t *st, int32_t *rem);
 
 /*
- * Steps 2-4 of the rule of optics.h around the centre and radius cr (magcal_o2_ce_run; rep[] of w still
- * marks its representatives) and, for the filter, each point's angular sector around the centre
- * (0..AUTO_SECTORS-1 in the ring band, -1 outside; overlaying idx) for the ring selection.
+ * Steps 2-4 of the rule of optics.h around the centre and radius cr (magcal_o2_ce_run; rep[] of
+ * w still marks its representatives) and, for the filter, each point's angular sector around the
+ * centre (0..AUTO_SECTORS-1 in the ring band, -1 outside; overlaying idx) for the ring selection.
  */
 typedef struct {
     /* cppcheck-suppress misra-c2012-19.2 ; deviation D12: the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
@@ -290,8 +290,8 @@ typedef struct {
 /* Returns 1 when done (*st: MAGCAL_OK with *eps_prime, or MAGCAL_ERR_DEGENERATE), else 0
  * (optics_params.c). */
 int magcal_o2_ae_run(magcal_o2_ae_t *e, const magcal_vec2_t *pts, size_t n, uint8_t *w,
-                     const float cr[3],
-                     float *eps_prime, int16_t *sectors, magcal_status_t *st, int32_t *rem);
+                     const float cr[3], float *eps_prime, int16_t *sectors, magcal_status_t *st,
+                     int32_t *rem);
 
 /*
  * The ordering loop (algorithms.md 4.1-4.2) with on-the-fly ExtractDBSCAN, resumable per
