@@ -266,13 +266,12 @@ static magcal_status_t sl_step(sl_t *t, uint8_t *w, uint32_t budget)
                 sl_thin_begin(t);
             } else {
                 (void)memset(&t->u.ae, 0, sizeof t->u.ae);
+                t->u.ae.sectors = t->kind == (uint8_t)K_FILTER ? 1u : 0u;
                 t->phase = (uint8_t)PH_AUTOEPS;
             }
             break;
         case PH_AUTOEPS:
-            if (magcal_o2_ae_run(&t->u.ae, t->pts, n, w, t->cr, &t->eps_prime,
-                       t->kind == (uint8_t)K_FILTER ? (int16_t *)(void *)(w + 4u * n) : NULL,
-                       &st, &rem) == 0) {
+            if (magcal_o2_ae_run(&t->u.ae, t->pts, n, w, t->cr, &t->eps_prime, &st, &rem) == 0) {
                 break;
             }
             if (st != MAGCAL_OK || t->kind == (uint8_t)K_AUTO) {

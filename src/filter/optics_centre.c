@@ -120,14 +120,6 @@ static MAGCAL_NOINLINE int rc_run(magcal_o2_rc_t *c, const magcal_vec2_t *pts, s
     }
 }
 
-
-void magcal_o2_th_begin(magcal_o2_th_t *t, float h)
-{
-    (void)memset(t, 0, sizeof *t);
-    t->h = h;
-    t->st = (uint8_t)TH_KEYS;
-}
-
 /* TH_KEYS from point i: each point's cell key (own frame: its floats stay off the sort's path).
  * Returns the next point. */
 static MAGCAL_NOINLINE size_t th_keys(const magcal_vec2_t *pts, size_t n, const float cr[3],
@@ -253,14 +245,6 @@ MAGCAL_NOINLINE int magcal_o2_th_run(magcal_o2_th_t *t, const magcal_vec2_t *pts
     t->i = (uint16_t)i;
     *rem = r;
     return t->st > last ? 1 : 0;
-}
-
-
-void magcal_o2_ce_begin(magcal_o2_ce_t *c)
-{
-    (void)memset(c, 0, sizeof *c);
-    c->rng = AUTO_SEED;
-    c->st = (uint8_t)CE_PAIRS;
 }
 
 /* CE_PAIRS: the pair distances of the pair scale (own frame); 1 when all m are done. */

@@ -253,7 +253,6 @@ static inline void magcal_ocore_extract_step(magcal_ocore_t *o, size_t p, float 
     o->labels[p] = lab;
 }
 
-
 /*
  * r = max(core, sqrt(d2)) without the square root when d2 <= core^2 (then r = core exactly:
  * sqrtf is monotone and core = sqrtf(core2)), so most reach candidates cost no sqrt and no bit of

@@ -10,8 +10,6 @@
 
 #include "magcal_internal.h"
 
-
-
 magcal_status_t magcal_optics_extract_dbscan(const uint16_t *order, const float *reach,
                                              const float *core, size_t n, float eps,
                                              float eps_prime, int16_t *labels, uint16_t *n_clusters)
@@ -104,5 +102,4 @@ magcal_status_t magcal_optics_largest_cluster(const int16_t *labels, size_t n, v
     }
     return MAGCAL_OK;
 }
-
 

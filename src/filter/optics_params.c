@@ -129,8 +129,9 @@ static MAGCAL_NOINLINE size_t ae_sectors(const magcal_vec2_t *pts, size_t n, con
 /* Returns 1 when done (*st: MAGCAL_OK with *eps_prime, or MAGCAL_ERR_DEGENERATE), else 0. */
 MAGCAL_NOINLINE int magcal_o2_ae_run(magcal_o2_ae_t *e, const magcal_vec2_t *pts, size_t n,
                                      uint8_t *w, const float cr[3], float *eps_prime,
-                                     int16_t *sectors, magcal_status_t *st, int32_t *rem)
+                                     magcal_status_t *st, int32_t *rem)
 {
+    int16_t *const sectors = e->sectors != 0u ? (int16_t *)(void *)(w + 4u * n) : NULL;
     float *a = (float *)(void *)w;
     uint16_t *idx = (uint16_t *)(void *)(w + 4u * n);
     float *b = (float *)(void *)(w + AUTO_B_OFF(n));

@@ -17,6 +17,7 @@
 #include <math.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <string.h>
 
 #include "magcal/optics.h"
 #include "magcal_internal.h"
@@ -218,8 +219,13 @@ typedef struct {
 #define TH_MAXRUN 4u
 #define TH_DONE 5u
 
-/* Start a thinning with cell side h (optics_centre.c). */
-void magcal_o2_th_begin(magcal_o2_th_t *t, float h);
+/* Start a thinning with cell side h (inline: the driver's frame stays as it was in one file). */
+static inline void magcal_o2_th_begin(magcal_o2_th_t *t, float h)
+{
+    (void)memset(t, 0, sizeof *t);
+    t->h = h;
+    t->st = (uint8_t)TH_KEYS;
+}
 /* Returns 1 when done up to stage `last` (TH_MARK or TH_MAXRUN), 0 when the budget ran out. */
 int magcal_o2_th_run(magcal_o2_th_t *t, const magcal_vec2_t *pts, size_t n, const float cr[3],
                      uint8_t *w, const uint8_t *use, unsigned last, int32_t *rem);
@@ -254,8 +260,13 @@ typedef struct {
 #define CE_RC 4u
 #define CE_DONE 5u
 
-/* Start the thinned centre (optics_centre.c). */
-void magcal_o2_ce_begin(magcal_o2_ce_t *c);
+/* Start the thinned centre (inline, as magcal_o2_th_begin). */
+static inline void magcal_o2_ce_begin(magcal_o2_ce_t *c)
+{
+    (void)memset(c, 0, sizeof *c);
+    c->rng = AUTO_SEED;
+    c->st = (uint8_t)CE_PAIRS;
+}
 /* Returns 1 when done (*st: MAGCAL_OK with cr = {cx, cy, R}, or MAGCAL_ERR_DEGENERATE), else 0. */
 int magcal_o2_ce_run(magcal_o2_ce_t *c, const magcal_vec2_t *pts, size_t n, uint8_t *w,
                      float cr[3], magcal_status_t *st, int32_t *rem);
@@ -278,6 +289,9 @@ typedef struct {
     uint16_t m;
     uint16_t nq;
     uint8_t st; /* AE_* */
+    /* 1 (the filter): also each point's sector, int16 at w + 4 n, overlaying idx. A flag, not a
+     * pointer argument: with eight arguments the driver's frame stays 64 B (deepest stack path) */
+    uint8_t sectors;
 } magcal_o2_ae_t;
 
 #define AE_ANGLES 0u
@@ -290,8 +304,7 @@ typedef struct {
 /* Returns 1 when done (*st: MAGCAL_OK with *eps_prime, or MAGCAL_ERR_DEGENERATE), else 0
  * (optics_params.c). */
 int magcal_o2_ae_run(magcal_o2_ae_t *e, const magcal_vec2_t *pts, size_t n, uint8_t *w,
-                     const float cr[3], float *eps_prime, int16_t *sectors, magcal_status_t *st,
-                     int32_t *rem);
+                     const float cr[3], float *eps_prime, magcal_status_t *st, int32_t *rem);
 
 /*
  * The ordering loop (algorithms.md 4.1-4.2) with on-the-fly ExtractDBSCAN, resumable per

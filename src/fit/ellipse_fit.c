@@ -12,9 +12,10 @@
  * The 5-point exact path (RANSAC minimal sets) replaces step 2's normal equations by Gaussian
  * elimination with partial pivoting on the 5x5 system itself.
  *
- * This file: the passes of the normalised least-squares fit and the one-shot LS fits
- * (fit_normal: every point in one go; magcal_ellipse_fit_seed). The 5-point path and the other
- * entry points are ellipse.c, the time-sliced fit ellipse_slice.c (ellipse_internal.h).
+ * This file: the passes of the normalised least-squares fit, the 5-point exact path and the
+ * one-shot fits (fit_normal: every point in one go; magcal_ellipse_fit_seed). The other entry
+ * points are ellipse.c, the time-sliced fit ellipse_slice.c (ellipse_internal.h); the 5-point
+ * path shares this file with conic_finish() so its frames stay as they were in one file.
  */
 #include "magcal/ellipse.h"
 
@@ -221,50 +222,6 @@ int magcal_efit_moments_collinear(const float *mom, float cnt)
     return !(tr > 0.0f) || !(det > MAGCAL_ELLIPSE_COLLINEAR_TOL * tr * tr);
 }
 
-/* Normal equations of the rows w = [xy, y^2, x, y, 1], Y = -x^2, solved by equilibrated LDL^T
- * (a: the 5x5 matrix's storage, destroyed; the fit slice lends its scratch, off the stack).
- * On success the coefficients A..E overwrite mom[0..4] (the moments are dead by then; sharing the
- * array keeps the deepest stack path, through magcal_ldlt_solve, short). */
-magcal_status_t magcal_efit_moments_solve(float mom[S_COUNT], float cnt, float a[25],
-                                          float *min_pivot)
-{
-
-    a[0] = mom[S22];
-    a[5] = mom[S13];
-    a[6] = mom[S04];
-    a[10] = mom[S21];
-    a[11] = mom[S12];
-    a[12] = mom[S20];
-    a[15] = mom[S12];
-    a[16] = mom[S03];
-    a[17] = mom[S11];
-    a[18] = mom[S02];
-    a[20] = mom[S11];
-    a[21] = mom[S02];
-    a[22] = mom[S10];
-    a[23] = mom[S01];
-    a[24] = cnt;
-    /* upper triangle is not read by magcal_ldlt_solve; fill it anyway for a defined matrix */
-    a[1] = a[5];
-    a[2] = a[10];
-    a[3] = a[15];
-    a[4] = a[20];
-    a[7] = a[11];
-    a[8] = a[16];
-    a[9] = a[21];
-    a[13] = a[17];
-    a[14] = a[22];
-    a[19] = a[23];
-    /* right-hand side in mom[0..4], solved in place (no separate b[] on the stack); the order
-     * writes each entry after its last read: S20 = mom[2] before mom[2] is replaced */
-    mom[4] = -mom[S20];
-    mom[0] = -mom[S31];
-    mom[1] = -mom[S22];
-    mom[2] = -mom[S30];
-    mom[3] = -mom[S21];
-    return magcal_ldlt_solve(a, mom, 5u, MAGCAL_ELLIPSE_PIVOT_TOL, min_pivot);
-}
-
 /* moments_solve with the matrix on this frame (the one-shot fits; the slice lends its scratch). */
 static MAGCAL_NOINLINE magcal_status_t moments_solve_own(float mom[S_COUNT], float cnt,
                                                          float *min_pivot)
@@ -398,28 +355,6 @@ magcal_status_t magcal_efit_conic_geometry(const float coef[5], float mx, float 
     return MAGCAL_OK;
 }
 
-/* The complete result into out, once the residual RMS is known to be finite (non-finite:
- * residuals of points ~1e19 from the centre overflow): the geometry again, straight into out. */
-magcal_status_t magcal_efit_conic_store(const float coef[5], float mx, float my, float s,
-                                        float rms, float min_pivot, size_t cnt,
-                                        magcal_ellipse_t *out)
-{
-    float geo[6];
-    magcal_status_t st;
-
-    if (!magcal_isfinite_f(rms)) {
-        return MAGCAL_ERR_ILL_CONDITIONED;
-    }
-    st = magcal_efit_conic_geometry(coef, mx, my, s, out, geo);
-    if (st == MAGCAL_OK) {
-        out->angle_rad = 0.5f * atan2f(coef[0], 1.0f - coef[1]);
-        out->min_pivot = min_pivot;
-        out->n_used = (uint16_t)cnt;
-        out->residual_rms = rms;
-    }
-    return st;
-}
-
 /* Geometry, residual RMS over the cnt used points of src (NULL: RMS 0) and the result in one go
  * (the seed's fit, the 5-point path, magcal_ellipse_from_conic()). */
 magcal_status_t magcal_efit_conic_finish(const float coef[5], float mx, float my, float s,
@@ -453,6 +388,119 @@ magcal_status_t magcal_efit_prepare_centred(const magcal_efit_src_t *src, size_t
         return st;
     }
     return magcal_efit_norm_centred(bb, nm, scale);
+}
+
+/* Exact conic through 5 points: Gaussian elimination with partial pivoting on W X = Y. */
+/* Exact conic through the 5 normalised points of src: Gaussian elimination with partial pivoting
+ * on W X = Y, into coef[5]; *minp gets the smallest pivot. Its own frame (the 5x6 tableau) is not
+ * nested under magcal_efit_conic_finish(): MAGCAL_NOINLINE keeps the deepest stack path of the
+ * fits short. */
+static MAGCAL_NOINLINE magcal_status_t five_solve(const magcal_efit_src_t *src,
+                                                  const magcal_efit_norm_t *nm, float coef[5],
+                                                  float *minp)
+{
+    float w[5][6];
+    float mom[5];
+    float ptol = sqrtf(MAGCAL_ELLIPSE_PIVOT_TOL);
+    size_t i;
+    size_t j;
+    size_t k;
+
+    for (i = 0u; i < 5u; ++i) {
+        mom[i] = 0.0f;
+    }
+    /* Rows [xy, y^2, x, y, 1 | -x^2]: |entries| <= 1 and the constant column makes each row's
+     * max-abs exactly 1, so the rows are already equilibrated. mom[] gets S10, S01, S20, S11, S02
+     * (the first five moment indices) for the collinearity test. */
+    for (i = 0u; i < 5u; ++i) {
+        magcal_vec2_t p = src->pts[src->idx[i]];
+        float x = (p.x - nm->mx) * nm->isx;
+        float y = (p.y - nm->my) * nm->isy;
+        w[i][0] = x * y;
+        w[i][1] = y * y;
+        w[i][2] = x;
+        w[i][3] = y;
+        w[i][4] = 1.0f;
+        w[i][5] = -x * x;
+        mom[S10] += x;
+        mom[S01] += y;
+        mom[S20] += x * x;
+        mom[S11] += x * y;
+        mom[S02] += y * y;
+    }
+    if (magcal_efit_moments_collinear(mom, 5.0f) != 0) {
+        return MAGCAL_ERR_DEGENERATE;
+    }
+    *minp = 1.0f;
+    for (k = 0u; k < 5u; ++k) {
+        size_t piv = k;
+        float best = fabsf(w[k][k]);
+        for (i = k + 1u; i < 5u; ++i) {
+            if (fabsf(w[i][k]) > best) {
+                best = fabsf(w[i][k]);
+                piv = i;
+            }
+        }
+        if (!(best > ptol)) {
+            return MAGCAL_ERR_ILL_CONDITIONED;
+        }
+        *minp = (best < *minp) ? best : *minp;
+        if (piv != k) {
+            for (j = k; j < 6u; ++j) {
+                float t = w[k][j];
+                w[k][j] = w[piv][j];
+                w[piv][j] = t;
+            }
+        }
+        for (i = k + 1u; i < 5u; ++i) {
+            float f = w[i][k] / w[k][k];
+            for (j = k + 1u; j < 6u; ++j) {
+                w[i][j] -= f * w[k][j];
+            }
+        }
+    }
+    for (i = 0u; i < 5u; ++i) { /* back substitution, k = 4 .. 0 */
+        float acc;
+        k = 4u - i;
+        acc = w[k][5];
+        for (j = k + 1u; j < 5u; ++j) {
+            acc -= w[k][j] * coef[j];
+        }
+        coef[k] = acc / w[k][k];
+    }
+    return MAGCAL_OK;
+}
+
+/* MAGCAL_NOINLINE: keep the 5-point path out of magcal_ellipse_fit_idx's frame, which also sits
+ * on the deepest path fit_normal -> moments_solve -> magcal_ldlt_solve. */
+MAGCAL_NOINLINE magcal_status_t magcal_efit_fit_five(const magcal_efit_src_t *src,
+                                                     magcal_ellipse_t *out)
+{
+    float coef[5];
+    float s = 1.0f;
+    float minp = 1.0f;
+    size_t cnt = 0u;
+    size_t i;
+    size_t j;
+    magcal_efit_norm_t nm;
+    magcal_status_t st;
+
+    for (i = 0u; i < 5u; ++i) {
+        for (j = i + 1u; j < 5u; ++j) {
+            if (src->idx[i] == src->idx[j]) {
+                return MAGCAL_ERR_DEGENERATE;
+            }
+        }
+    }
+    st = magcal_efit_prepare_centred(src, &cnt, &nm, &s);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    st = five_solve(src, &nm, coef, &minp);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    return magcal_efit_conic_finish(coef, nm.mx, nm.my, s, minp, 5u, src, out);
 }
 
 /*

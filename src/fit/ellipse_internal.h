@@ -3,8 +3,9 @@
  * point source and normalisation of a fit, and the passes each file gives the others. Not
  * installed. Files:
  *   ellipse_fit.c   the normalised least-squares fit: scan, normalisation, Kahan power sums,
- *                   normal equations + LDL^T, conic geometry, RMS residual; the one-shot LS fits;
- *   ellipse.c       the 5-point exact path and the public one-shot entry points;
+ *                   normal equations + LDL^T, conic geometry, RMS residual; the 5-point exact
+ *                   path; the one-shot LS fits;
+ *   ellipse.c       the public one-shot entry points magcal_ellipse_fit() / _fit_idx();
  *   ellipse_slice.c the time-sliced fit (begin / step) over the same passes;
  *   ellipse_cal.c   ellipse -> calibration (magcal_ellipse_to_cal, kphi, from_conic).
  */
@@ -15,7 +16,7 @@
 #include <stdint.h>
 
 #include "magcal/ellipse.h"
-
+#include "magcal_internal.h"
 
 /* Power sums S_pq = sum x~^p y~^q kept by the accumulator (indices into mom[]). */
 #define S10 0u
@@ -81,13 +82,6 @@ void magcal_efit_moments_zero(float mom[S_COUNT], float comp[S_COUNT]);
  * mom[S10..S02] (the first five entries). */
 int magcal_efit_moments_collinear(const float *mom, float cnt);
 
-/* Normal equations of the rows w = [xy, y^2, x, y, 1], Y = -x^2, solved by equilibrated LDL^T
- * (a: the 5x5 matrix's storage, destroyed; the fit slice lends its scratch, off the stack).
- * On success the coefficients A..E overwrite mom[0..4] (the moments are dead by then; sharing the
- * array keeps the deepest stack path, through magcal_ldlt_solve, short). */
-magcal_status_t magcal_efit_moments_solve(float mom[S_COUNT], float cnt, float a[25],
-                                          float *min_pivot);
-
 /* Pass 3 over the points k0..k1-1: sum of squared radial residuals, acc = (sum, compensation). */
 void magcal_efit_src_rms_range(const magcal_efit_src_t *src, const float geo[6], size_t k0,
                                size_t k1, float acc[2]);
@@ -102,12 +96,6 @@ void magcal_efit_src_rms_range(const magcal_efit_src_t *src, const float geo[6],
  */
 magcal_status_t magcal_efit_conic_geometry(const float coef[5], float mx, float my, float s,
                                            magcal_ellipse_t *e, float geo[6]);
-
-/* The complete result into out, once the residual RMS is known to be finite (non-finite:
- * residuals of points ~1e19 from the centre overflow): the geometry again, straight into out. */
-magcal_status_t magcal_efit_conic_store(const float coef[5], float mx, float my, float s,
-                                        float rms, float min_pivot, size_t cnt,
-                                        magcal_ellipse_t *out);
 
 /* Geometry, residual RMS over the cnt used points of src (NULL: RMS 0) and the result in one go
  * (the seed's fit, the 5-point path, magcal_ellipse_from_conic()). */
@@ -128,13 +116,83 @@ magcal_status_t magcal_efit_prepare_centred(const magcal_efit_src_t *src, size_t
  */
 magcal_status_t magcal_efit_fit_normal(const magcal_efit_src_t *src, magcal_ellipse_t *out);
 
-/* ---- ellipse.c ------------------------------------------------------------------------------- */
-
-/* MAGCAL_NOINLINE: keep the 5-point path out of magcal_ellipse_fit_idx's frame, which also sits
- * on the deepest path fit_normal -> moments_solve -> magcal_ldlt_solve. */
+/* The 5-point exact fit of the 5 points of src (MAGCAL_NOINLINE: out of magcal_ellipse_fit_idx's
+ * frame, which also sits on the deepest path fit_normal -> moments_solve -> magcal_ldlt_solve). */
 magcal_status_t magcal_efit_fit_five(const magcal_efit_src_t *src, magcal_ellipse_t *out);
+
+/* ---- ellipse.c ------------------------------------------------------------------------------- */
 
 /* 1 when idx[k0..k1-1] < n_pts (the index check of magcal_ellipse_fit_idx). */
 int magcal_efit_idx_in_range(const uint16_t *idx, size_t k0, size_t k1, size_t n_pts);
+
+/* ---- inline at each call site (ellipse_fit.c and ellipse_slice.c), as the static helpers of the
+ * one-file original were: GCC inlines them there, so the fits' frames and the deepest stack path
+ * (consensus -> fit slice -> 5-point path) stay as measured. ---------------------------------- */
+
+/* Normal equations of the rows w = [xy, y^2, x, y, 1], Y = -x^2, solved by equilibrated LDL^T
+ * (a: the 5x5 matrix's storage, destroyed; the fit slice lends its scratch, off the stack).
+ * On success the coefficients A..E overwrite mom[0..4] (the moments are dead by then; sharing the
+ * array keeps the deepest stack path, through magcal_ldlt_solve, short). */
+static inline magcal_status_t magcal_efit_moments_solve(float mom[S_COUNT], float cnt, float a[25],
+                                          float *min_pivot)
+{
+
+    a[0] = mom[S22];
+    a[5] = mom[S13];
+    a[6] = mom[S04];
+    a[10] = mom[S21];
+    a[11] = mom[S12];
+    a[12] = mom[S20];
+    a[15] = mom[S12];
+    a[16] = mom[S03];
+    a[17] = mom[S11];
+    a[18] = mom[S02];
+    a[20] = mom[S11];
+    a[21] = mom[S02];
+    a[22] = mom[S10];
+    a[23] = mom[S01];
+    a[24] = cnt;
+    /* upper triangle is not read by magcal_ldlt_solve; fill it anyway for a defined matrix */
+    a[1] = a[5];
+    a[2] = a[10];
+    a[3] = a[15];
+    a[4] = a[20];
+    a[7] = a[11];
+    a[8] = a[16];
+    a[9] = a[21];
+    a[13] = a[17];
+    a[14] = a[22];
+    a[19] = a[23];
+    /* right-hand side in mom[0..4], solved in place (no separate b[] on the stack); the order
+     * writes each entry after its last read: S20 = mom[2] before mom[2] is replaced */
+    mom[4] = -mom[S20];
+    mom[0] = -mom[S31];
+    mom[1] = -mom[S22];
+    mom[2] = -mom[S30];
+    mom[3] = -mom[S21];
+    return magcal_ldlt_solve(a, mom, 5u, MAGCAL_ELLIPSE_PIVOT_TOL, min_pivot);
+}
+
+/* The complete result into out, once the residual RMS is known to be finite (non-finite:
+ * residuals of points ~1e19 from the centre overflow): the geometry again, straight into out. */
+static inline magcal_status_t magcal_efit_conic_store(const float coef[5], float mx, float my, float s,
+                                        float rms, float min_pivot, size_t cnt,
+                                        magcal_ellipse_t *out)
+{
+    float geo[6];
+    magcal_status_t st;
+
+    if (!magcal_isfinite_f(rms)) {
+        return MAGCAL_ERR_ILL_CONDITIONED;
+    }
+    st = magcal_efit_conic_geometry(coef, mx, my, s, out, geo);
+    if (st == MAGCAL_OK) {
+        out->angle_rad = 0.5f * atan2f(coef[0], 1.0f - coef[1]);
+        out->min_pivot = min_pivot;
+        out->n_used = (uint16_t)cnt;
+        out->residual_rms = rms;
+    }
+    return st;
+}
 
 #endif /* MAGCAL_ELLIPSE_INTERNAL_H */

@@ -151,7 +151,6 @@ static magcal_status_t slice_store(magcal_ellipse_fit_slice_t *s)
                        sqrtf(SL_ACC(s)[0] / (float)s->cnt_), s->minp_, s->cnt_, s->out_);
 }
 
-
 /* One pass chunk or one fixed visit of the current phase; *used is charged. Returns
  * MAGCAL_IN_PROGRESS to go on, 2 when the budget is spent, or the final status. */
 #define SLICE_SPENT ((magcal_status_t)2)
