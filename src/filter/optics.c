@@ -319,8 +319,8 @@ static magcal_status_t sl_step(sl_t *t, uint8_t *w, uint32_t budget)
             return MAGCAL_OK;
         }
         case PH_THIN:
-            if (magcal_o2_th_run(&t->u.th, t->pts, n, t->cr, w, t->io.cand, (unsigned)TH_MAXRUN, &rem) ==
-                0) {
+            if (magcal_o2_th_run(&t->u.th, t->pts, n, t->cr, w, t->io.cand, (unsigned)TH_MAXRUN,
+                                 &rem) == 0) {
                 break;
             }
             /* no clump: every candidate stays (thinning a plain ring only changes which minimal
