@@ -438,4 +438,51 @@ void magcal_ell_coverage_cells(const magcal_vec3_t *m, size_t k0, size_t k1, con
 
 float magcal_ell_coverage_count(const uint32_t bits[3]);
 
+/* ---- shared by src/fit/ellipsoid_trust.c and ellipsoid_obs.c (the trust gates) ---- */
+
+#define MED_BINS MAGCAL_ELL_MED_BINS /* histogram bins per pass of the median |residual|: 2 passes reach 0.1 % on a shell */
+#define MED_PASSES 4u    /* refinement passes: resolution (max |r|) / 128^4 at worst */
+#define PLANAR_MAX 0.15f /* planarity below this: one rotation axis dominates (SINGLE_AXIS) */
+#define INFO_MAX_N MAGCAL_ELL_INFO_N /* centre information: 3 offset + 6 symmetric shape parameters */
+
+/* Weights of the trust phases (estimated Cortex-M4F instructions per visit, measured as those of
+ * src/ellipsoid.c). */
+#define W_T_UNIT 300u       /* bookkeeping, a gate decision */
+#define W_T_SOLVE9 7500u    /* 9x9 LDL^T of the algebraic quadric */
+#define W_T_ASNR 85u        /* one algebraic residual */
+#define W_T_MED_PASS 900u   /* histogram clear + bin search of one median pass */
+#define W_T_MED 60u         /* one sample into the histogram (|r| stored) */
+#define W_T_MED_RECOMP 190u  /* the same, gate and residual recomputed */
+#define W_T_INFO 440u       /* one sample's information row, 31 moment sums x 2 */
+#define W_T_INFO_RECOMP 530u
+#define W_T_INFO_DONE 1800u  /* flush, moments expanded, direction scatter */
+#define W_T_FACTOR 5000u    /* (J^T J)^-1: the 9x9 LDL^T factorisation */
+#define W_T_SUBST 1500u     /* one of its 9 substitutions (a column of the inverse) */
+#define W_T_SWM 2000u       /* one row k of the sandwich from the summed meat */
+#define W_T_SWP 600u        /* one sample of the exact second sandwich pass */
+#define W_T_DIAG 5500u      /* two 3x3 Jacobi eigen-decompositions, the gates */
+
+/* ellipsoid_obs.c: observability (information rows, sandwich covariance), the trust phases it runs */
+/* One row k of C = inv meat inv from the summed meat (see centre_info below): offset block into
+ * cc (lower triangle), shape diagonal into sd[3..np); 0 when the rounding bound is above 1 % of
+ * the diagonal term (then the exact second pass decides). */
+int magcal_ell_sandwich_row(ell_scratch_t *sw, size_t np, size_t cnt, size_t k);
+
+/* The same sandwich from a second pass over the samples: sum r_i^2 (J_i . inv_k)(J_i . inv_l). */
+int magcal_ell_swp_range(ell_scratch_t *sw, ell_bud_t *b);
+
+/* One pass: J^T J (blocked Kahan, in acc) and the sandwich's meat (plain sums: a 1-significant-digit
+ * gate), so the covariance needs no second pass over the samples. */
+int magcal_ell_info_range(ell_scratch_t *sw, ell_bud_t *b);
+
+/* The pass's last block, the meat's moments into its packed terms, the scatter of the directions
+ * about their mean (from the n n^T block); then the inverse (or the diagnostics: too few). */
+int magcal_ell_ph_info_done(ell_scratch_t *sw, ell_bud_t *b);
+
+/* The factorisation of J^T J (into sw->mat) for its inverse; 0 when singular. */
+int magcal_ell_info_factor(ell_scratch_t *sw, size_t np);
+
+/* The observability diagnostics from centre_info's matrices (relative to F). */
+void magcal_ell_centre_diag(const ell_ws_t *ws, int stage, int sphere, float f, trust_diag_t *res);
+
 #endif /* MAGCAL_ELLIPSOID_INTERNAL_H */
