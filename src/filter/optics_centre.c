@@ -272,6 +272,11 @@ MAGCAL_NOINLINE int magcal_o2_ce_run(magcal_o2_ce_t *c, const magcal_vec2_t *pts
     float *a = (float *)(void *)w;
     const size_t m = n < AUTO_PAIRS ? n : AUTO_PAIRS;
     magcal_status_t s2 = MAGCAL_OK;
+    if (w == NULL) { /* never (every entry point checks its workspace); stated for the analysers,
+                        which see this file-external function as an entry of its own */
+        *st = MAGCAL_ERR_NULL;
+        return 1;
+    }
     for (;;) {
         if (*rem <= 0) {
             return 0;
