@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""Fit the per-visit weights of the sliced 2-D density stage (src/optics.c W_*, src/neighbors.c
-NBR_W_*) to measured host instruction counts.
+"""Fit the per-visit weights of the sliced 2-D density stage (src/filter/optics_slice.h W_*,
+src/filter/neighbors.c NBR_W_*) to measured host instruction counts.
 
 For each dataset it runs slice_bench under callgrind with one dump per step call (the host
 instructions of every step) and the profile build (MAGCAL_OPTICS_SLICE_PROFILE: the visits
@@ -8,8 +8,8 @@ charged per weight in every step), then solves host_instr(step) ~ c0 + sum_w vis
 least squares. The weights to use are about 1.2 x c_w (the contract: M4F ~ host x 1.2).
 
   slice_fit.py BUILD_DIR PROFILE_BINARY
-  (PROFILE_BINARY: gcc -O2 -DMAGCAL_OPTICS_SLICE_PROFILE -Iinclude -Isrc src/optics.c
-   src/neighbors.c src/linalg.c src/status.c tools/bench_optics/slice_bench.c -lm)
+  (PROFILE_BINARY: gcc -O2 -DMAGCAL_OPTICS_SLICE_PROFILE -Iinclude -Isrc src/filter/optics*.c
+   src/filter/neighbors.c src/fit/linalg.c src/status.c tools/bench_optics/slice_bench.c -lm)
 """
 import glob
 import os

@@ -14,6 +14,7 @@
 
 #if MAGCAL_CFG_ENABLE_3D /* whole file: config.h feature switch (optics_core.h's static helpers inside) */
 #include "optics_core.h"
+#include "optics_core_update.h"
 
 /* Everything the ordering loop needs: the dimension-free state (optics_core.h, shared with the
  * 2-D loop) and the 3-D points and neighbour search. */

@@ -1,18 +1,17 @@
 /*
  * Internal, dimension-free part of the OPTICS ordering loop (algorithms.md 4.2, 4.3) shared by
- * optics.c (2-D) and optics3.c (3-D). Not installed. Only the coordinates and the neighbour
- * search differ between the dimensions; everything that looks at reach values, seeds and the
- * processed bits lives here, once.
+ * the 2-D stage (optics_order.c and the files of optics_slice.h) and optics3.c (3-D). Not
+ * installed. Only the coordinates and the neighbour search differ between the dimensions;
+ * everything that looks at reach values, seeds and the processed bits lives here, once.
  *
  * The loop's functions are defined here, not once with external linkage in a .c file, so each
  * ordering loop compiles them as it did when they were its own static helpers: same inlining,
  * same stack frames (tools/stack/stack_usage.py) and host instruction counts (callgrind,
- * magcal_bench). Only the two cold helpers at the end (cfg check, median selection) are one
- * extern copy in optics.c.
- * Most are `static inline` (MISRA 5.9 exempts an inline function defined once in a shared
- * header). magcal_ocore_update() and magcal_ocore_sift_up() are plain `static`: with `inline`,
- * GCC -O2 inlines them into the reach passes and magcal_optics_run costs 1.9 % more instructions;
- * their two internal copies are deviation D10 (docs/reliability.md).
+ * magcal_bench). Only the cold helpers (cfg check: optics.c; median selection and heapsort:
+ * optics_prims.c) are one extern copy.
+ * All are `static inline` (MISRA 5.9 exempts an inline function defined once in a shared
+ * header), so any file of the stage may include this header; the two plain `static` ones of the
+ * reach decrease are optics_core_update.h, included by the two ordering loops only.
  */
 #ifndef MAGCAL_OPTICS_CORE_H
 #define MAGCAL_OPTICS_CORE_H
@@ -79,8 +78,9 @@ typedef struct {
     uint16_t min_pts;
 } magcal_ocore_t;
 
-/* Heapsort of idx[0..m-1] by key[idx] ascending, ties by index (iterative). Defined in optics.c
- * (the thinning of both dimensions' automatic parameters, the bench's sorted-list mode). */
+/* Heapsort of idx[0..m-1] by key[idx] ascending, ties by index (iterative). Defined in
+ * optics_prims.c (the thinning of both dimensions' automatic parameters, the bench's sorted-list
+ * mode). */
 void magcal_ocore_sort_idx(uint16_t *idx, const float *key, size_t m);
 
 /* Number of set bits of v (at most 32 rounds: one bit cleared per round). */
@@ -145,24 +145,6 @@ static inline int magcal_ocore_key_less(const float *reach, uint16_t a, uint16_t
 }
 
 #if MAGCAL_CFG_ENABLE_OPTICS_CLASSIC
-static void magcal_ocore_sift_up(magcal_ocore_t *o, size_t k0)
-{
-    size_t k = k0;
-    uint16_t v = o->seeds[k];
-    while (k > 0u) {
-        size_t parent = (k - 1u) >> 1;
-        uint16_t pv = o->seeds[parent];
-        if (!magcal_ocore_key_less(o->reach, v, pv)) {
-            break;
-        }
-        o->seeds[k] = pv;
-        o->pos[pv] = (uint16_t)k;
-        k = parent;
-    }
-    o->seeds[k] = v;
-    o->pos[v] = (uint16_t)k;
-}
-
 static inline void magcal_ocore_sift_down(magcal_ocore_t *o, size_t k0)
 {
     size_t k = k0;
@@ -269,45 +251,6 @@ static inline void magcal_ocore_extract_step(magcal_ocore_t *o, size_t p, float 
         o->sec_cur[sb >> 5] |= 1u << (sb & 31u);
     }
     o->labels[p] = lab;
-}
-
-/*
- * Reach decrease of unprocessed neighbour j of core point p to r (algorithms.md 4.2): callers
- * computed r = max(core(p), d) and checked r < reach[j] (strict: the first value set keeps ties).
- */
-static void magcal_ocore_update(magcal_ocore_t *o, size_t p, size_t j, float r)
-{
-    float old = o->reach[j];
-    o->reach[j] = r;
-    if (o->pred != NULL) {
-        o->pred[j] = (uint16_t)p;
-    }
-#if MAGCAL_CFG_ENABLE_OPTICS_CLASSIC
-    if (o->mode == MAGCAL_OPTICS_CLASSIC) {
-        if (o->pos[j] == MAGCAL_OCORE_POS_NONE) {
-            o->seeds[o->n_seeds] = (uint16_t)j;
-            o->n_seeds++;
-            magcal_ocore_sift_up(o, o->n_seeds - 1u);
-        } else {
-            magcal_ocore_sift_up(o, o->pos[j]);
-        }
-    } else
-#endif
-#ifdef MAGCAL_OPTICS_BENCH_SORTED_LIST
-    if (o->mode == MAGCAL_OPTICS_SORTED_LIST_) {
-        if (old == INFINITY) {
-            o->seeds[o->head + o->n_seeds] = (uint16_t)j;
-            o->n_seeds++;
-        }
-        o->dirty = 1;
-    } else
-#endif
-    if (old == INFINITY) {
-        o->seeds[o->n_seeds] = (uint16_t)j;
-        o->n_seeds++;
-    } else {
-        /* already a seed: its key decreased in place (the list is scanned, not a heap) */
-    }
 }
 
 /*
@@ -437,11 +380,13 @@ static inline magcal_status_t magcal_ocore_check_n(size_t n, size_t min_n)
 }
 
 /* Checks of a magcal_optics_cfg_t shared by both dimensions (eps, MinPts, order, neighbour
- * search); MAGCAL_ERR_ARG or MAGCAL_OK. Defined in optics.c (cold: once per call). */
+ * search); MAGCAL_ERR_ARG or MAGCAL_OK. Defined in optics.c (cold: once per
+ * call). */
 magcal_status_t magcal_ocore_check_cfg(const magcal_optics_cfg_t *cfg);
 
 /* k-th smallest of a[0..n-1], 0 <= k < n (a is permuted). Iterative Hoare selection, no
- * recursion. Defined in optics.c (the automatic parameters of both dimensions). */
+ * recursion. Defined in optics_prims.c (the automatic parameters of both
+ * dimensions). */
 float magcal_ocore_select_kth(float *a, size_t n, size_t k);
 
 #endif

@@ -87,7 +87,6 @@ static inline float magcal_ell_residual(const magcal_ellipsoid_cal_t *cal, const
     return magcal_ell_sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) - cal->field;
 }
 
-
 /* The fit's scratch and magcal_ellipsoid_calibrate's result slots hold pointers and size_t: they
  * start at the next multiple of this (a workspace is only promised 4-byte aligned; the 0 or 4
  * bytes of padding are counted in the size macros). */
@@ -325,7 +324,6 @@ typedef struct ell_scratch_s {
     ell_run_t run;                   /* the time-sliced fit's state (magcal_ellipsoid_fit_step) */
 } ell_scratch_t;
 
-
 /* Start the residual pass (phase ELL_PH_RP, in src/ellipsoid.c) of the samples `gate` keeps
  * under `cal`; its results in r->rp (rms, kept, mx), then phase `ret`. */
 void magcal_ell_rp_start(ell_run_t *r, const magcal_ellipsoid_cal_t *cal, const quad_gate_t *gate,
@@ -358,5 +356,133 @@ static inline int magcal_ell_kept(const ell_ws_t *ws, const quad_gate_t *gate,
     }
     return magcal_ell_gate_keeps(gate, &m[k]);
 }
+
+/* ---- shared by src/fit/ellipsoid.c, ellipsoid_solve.c and ellipsoid_cov.c (the split of the fit) */
+
+#define NQ MAGCAL_ELL_NQ
+#define COV_CELLS ((size_t)MAGCAL_ELLIPSOID_COV_AZ * MAGCAL_ELLIPSOID_COV_EL)
+#define MIN_QUADRIC_POINTS 10u
+#define MIN_SPHERE_POINTS 4u
+#define MAX_REFITS_LIMIT 8u
+#define INVITER_STEPS 8u
+#define INVITER_SHIFT_TRIES 3u
+
+/* Weights of the time-sliced fit: estimated Cortex-M4F instructions of one visit of each phase
+ * (docs/calibration_3d.md "Time-sliced fit"): measured per phase on QEMU mps2-an386 (-icount
+ * shift=0, tools/bench/m4f_image/main_cont3.c) on a 441-sample tumble at the default budget
+ * (a visit inside a chunked pass, loop and budget check included), rounded up. */
+#define W_CHECK 400u        /* configuration check */
+#define W_N1 110u            /* mean: finiteness + 3 Kahan sums of one sample */
+#define W_N2 120u            /* scatter: 6 Kahan sums of one sample */
+#define W_NORM_DONE 3300u   /* scale, planarity (3x3 Jacobi) */
+#define W_ACC 290u          /* design row + 55 products of one sample, block flush amortised */
+#define W_SPHERE 2400u      /* 4x4 sphere solve, coverage centre */
+#define W_COV 150u           /* coverage cell of one sample */
+#define W_COV_DONE 900u     /* coverage count, model choice */
+#define W_SOLVE4 2400u      /* sphere model */
+#define W_SOLVE9 7500u      /* 9x9 normal equations, LDL^T */
+#define W_SOLVE10 60000u    /* 10-parameter inverse iteration (forced model only; not cut further) */
+#define W_EXTRACT 4000u     /* centre, k, Sylvester, 3x3 square root (Jacobi) */
+#define W_KEEP 10u           /* one verdict set */
+#define W_UNIT 300u         /* loop bookkeeping */
+#define W_REGATE 75u        /* stored residual against the new gate */
+#define W_REGATE_RECOMP 280u /* both gates' residuals recomputed (no workspace) */
+#define W_REGATE_ROW 600u   /* a sample whose verdict changes: design row + 55 Kahan sums */
+#define W_SETTLE 15u         /* one verdict settled */
+#define W_RP 120u            /* residual pass: one sample (residual stored) */
+#define W_RP_RECOMP 220u     /* residual pass: gate and residual recomputed */
+#define W_OUT 400u          /* the result written */
+
+/* ellipsoid_solve.c: design rows, the normal equations' accumulation passes, the solvers */
+void magcal_ell_acc_start(ell_scratch_t *sw);
+
+/* Pass 3: the normal matrix of every sample (blocked Kahan sums, the block state in the run). */
+int magcal_ell_acc_range(ell_scratch_t *sw, ell_bud_t *b);
+
+/*
+ * Move the normal matrix `acc` (of the samples the gate keeps) to the samples the next gate
+ * keeps: only the samples whose verdict changes are added or removed (a refit after rejecting a
+ * few outliers costs one residual pass, not a new accumulation); r->kept_new counts the kept.
+ */
+int magcal_ell_regate_range(ell_scratch_t *sw, ell_bud_t *b);
+
+/* After regate: the stored verdicts become the next gate's (adopt) or stay the old one's; then
+ * the loop ends (the gate did not change) or the model is fitted again. */
+int magcal_ell_settle_range(ell_scratch_t *sw, ell_bud_t *b);
+
+/*
+ * Quadric coefficients (a, b, c, f, g, h, p, q, r, d) of
+ *   a x^2 + b y^2 + c z^2 + 2f yz + 2g xz + 2h xy + 2p x + 2q y + 2r z + d = 0
+ * in normalised coordinates -> calibration in raw coordinates (cal is scratch until MAGCAL_OK).
+ */
+magcal_status_t magcal_ell_extract_quadric(ell_scratch_t *ws, const float mu[3], float s,
+                                           float field_cfg, magcal_ellipsoid_sqrt_t method,
+                                           magcal_ellipsoid_cal_t *cal);
+
+magcal_status_t magcal_ell_solve_quadric9(const quad_acc_t *acc, float *a, float tau,
+                                          float coef[NQ], float *min_pivot);
+
+/* Smallest eigenvector of D^T D by inverse iteration with a shifted LDL^T (algorithms.md 3.2). */
+magcal_status_t magcal_ell_solve_quadric10(const quad_acc_t *acc, float *a, float tau,
+                                           float coef[NQ], float *min_pivot);
+
+/* Sphere x^2+y^2+z^2 + C x + D y + E z + G0 = 0 from the same moments. */
+magcal_status_t magcal_ell_solve_sphere(const quad_acc_t *acc, float *a, const float mu[3],
+                                        float s, float field_cfg, float tau,
+                                        magcal_ellipsoid_cal_t *cal, float *min_pivot);
+
+/* ellipsoid_cov.c: coverage cells */
+/* The coverage cells of samples k0..k1-1 around c into bits (samples within tiny of c skipped). */
+void magcal_ell_coverage_cells(const magcal_vec3_t *m, size_t k0, size_t k1, const float c[3],
+                               float tiny, uint32_t bits[3]);
+
+float magcal_ell_coverage_count(const uint32_t bits[3]);
+
+/* ---- shared by src/fit/ellipsoid_trust.c and ellipsoid_obs.c (the trust gates) ---- */
+
+#define MED_BINS MAGCAL_ELL_MED_BINS /* histogram bins per pass of the median |residual|: 2 passes reach 0.1 % on a shell */
+#define MED_PASSES 4u    /* refinement passes: resolution (max |r|) / 128^4 at worst */
+#define PLANAR_MAX 0.15f /* planarity below this: one rotation axis dominates (SINGLE_AXIS) */
+#define INFO_MAX_N MAGCAL_ELL_INFO_N /* centre information: 3 offset + 6 symmetric shape parameters */
+
+/* Weights of the trust phases (estimated Cortex-M4F instructions per visit, measured as those of
+ * src/ellipsoid.c). */
+#define W_T_UNIT 300u       /* bookkeeping, a gate decision */
+#define W_T_SOLVE9 7500u    /* 9x9 LDL^T of the algebraic quadric */
+#define W_T_ASNR 85u        /* one algebraic residual */
+#define W_T_MED_PASS 900u   /* histogram clear + bin search of one median pass */
+#define W_T_MED 60u         /* one sample into the histogram (|r| stored) */
+#define W_T_MED_RECOMP 190u  /* the same, gate and residual recomputed */
+#define W_T_INFO 440u       /* one sample's information row, 31 moment sums x 2 */
+#define W_T_INFO_RECOMP 530u
+#define W_T_INFO_DONE 1800u  /* flush, moments expanded, direction scatter */
+#define W_T_FACTOR 5000u    /* (J^T J)^-1: the 9x9 LDL^T factorisation */
+#define W_T_SUBST 1500u     /* one of its 9 substitutions (a column of the inverse) */
+#define W_T_SWM 2000u       /* one row k of the sandwich from the summed meat */
+#define W_T_SWP 600u        /* one sample of the exact second sandwich pass */
+#define W_T_DIAG 5500u      /* two 3x3 Jacobi eigen-decompositions, the gates */
+
+/* ellipsoid_obs.c: observability (information rows, sandwich covariance), the trust phases it runs */
+/* One row k of C = inv meat inv from the summed meat (see centre_info below): offset block into
+ * cc (lower triangle), shape diagonal into sd[3..np); 0 when the rounding bound is above 1 % of
+ * the diagonal term (then the exact second pass decides). */
+int magcal_ell_sandwich_row(ell_scratch_t *sw, size_t np, size_t cnt, size_t k);
+
+/* The same sandwich from a second pass over the samples: sum r_i^2 (J_i . inv_k)(J_i . inv_l). */
+int magcal_ell_swp_range(ell_scratch_t *sw, ell_bud_t *b);
+
+/* One pass: J^T J (blocked Kahan, in acc) and the sandwich's meat (plain sums: a 1-significant-digit
+ * gate), so the covariance needs no second pass over the samples. */
+int magcal_ell_info_range(ell_scratch_t *sw, ell_bud_t *b);
+
+/* The pass's last block, the meat's moments into its packed terms, the scatter of the directions
+ * about their mean (from the n n^T block); then the inverse (or the diagnostics: too few). */
+int magcal_ell_ph_info_done(ell_scratch_t *sw, ell_bud_t *b);
+
+/* The factorisation of J^T J (into sw->mat) for its inverse; 0 when singular. */
+int magcal_ell_info_factor(ell_scratch_t *sw, size_t np);
+
+/* The observability diagnostics from centre_info's matrices (relative to F). */
+void magcal_ell_centre_diag(const ell_ws_t *ws, int stage, int sphere, float f, trust_diag_t *res);
 
 #endif /* MAGCAL_ELLIPSOID_INTERNAL_H */
