@@ -370,7 +370,7 @@ static MAGCAL_NOINLINE int cont_count_part(magcal_cont_t *cc, magcal_cal_budget_
     }
     cc->cnt_on = 0u;
     magcal_intake_progress_of(st, cc->cnt_words, cc->cnt_filled, cc->cnt_deep, &p);
-    return p.centre_source != MAGCAL_INTAKE_CENTRE_NONE && p.rebinning == 0u && p.coverage_deg >= cc->cfg.solve_coverage_deg;
+    return p.centre_source != MAGCAL_INTAKE_CENTRE_NONE && p.rebinning == 0u && p.coverage_deg >= magcal_cont_solve_cov(cc);
 }
 
 /* Copy bins of the store, in bin order (as magcal_intake_snapshot2), into the solver buffer;
