@@ -22,11 +22,8 @@
  *   level_band_rel x R from it is refused once its bin holds half its cap (REFUSED_LEVEL,
  *   counted). The first half of every bin is always taken, so a drive that is hilly throughout
  *   still fills its bins (with pitched samples: the band then only prefers the level ones that
- *   come later); after MAGCAL_INTAKE_LEVEL_FALLBACK refusals in a row in one bin its next sample
- *   is taken whatever its z (counted in level_fallback), so the store keeps ageing when the model
- *   is stale (an installation change that moves z) or the road never levels; pitch while heading
- *   magnetic east or west moves z only at second order and is not seen (docs/calibrator.md
- *   "2-D level band").
+ *   come later); pitch while heading magnetic east or west moves z only at second order and is
+ *   not seen (docs/calibrator.md "2-D level band").
  *
  * The centre is the installed calibration's (magcal_intake_set_centre) when there is one, otherwise
  * a provisional one that one spike cannot move (never a bounding-box midpoint). A bounded sweep
@@ -41,11 +38,7 @@
  *   raw origin (centre_source NONE); a bin that fills then keeps its spread (the nearest sample is
  *   replaced) instead of its newest.
  * A new centre more than cfg.recentre_rel x R from the old one re-bins the store over the next
- * sweeps: a moved sample keeps its age; moving into a full bin whose samples all belong to it
- * drops that bin's oldest (over its cap); moving into a full bin that still holds samples not yet
- * checked exchanges with the newest of those (which then moves in its turn), so a sample that is
- * itself leaving is never dropped for it (before, 0.35 R of centre shift on a full store dropped
- * 114 of 288 samples where 35 were over a cap: tests/test_intake.c).
+ * sweeps (a moved sample keeps its age; moving into a full bin drops that bin's oldest).
  *
  * Progress (magcal_intake_progress) uses the calibrator's coverage definition: covered degrees =
  * (sectors - longest empty circular run) x sector width, the missing sector = that run; a solve
@@ -121,16 +114,8 @@ typedef struct {
                                 docs/calibrator.md "Level band"; 3-D: unused, 0) */
 } magcal_intake_cfg_t;
 
-#ifndef MAGCAL_INTAKE_LEVEL_FALLBACK
-/** Level band fallback: after this many band refusals in a row in one bin (no sample stored there
- *  in between) the bin's next sample is taken whatever its z (1..255; file comment). */
-#define MAGCAL_INTAKE_LEVEL_FALLBACK 64u
-#endif
-#ifndef MAGCAL_INTAKE_LEVEL_BAND_DEFAULT
-#define MAGCAL_INTAKE_LEVEL_BAND_DEFAULT 0.0f /**< cfg.level_band_rel of MAGCAL_INTAKE_CFG_DEFAULT_2D */
-#endif
 /** 2-D defaults: 36 sectors x 8, spacing 2 % of R. */
-#define MAGCAL_INTAKE_CFG_DEFAULT_2D {2u, 8u, 36u, 8u, 0.02f, 0.05f, 0.0f, MAGCAL_INTAKE_LEVEL_BAND_DEFAULT}
+#define MAGCAL_INTAKE_CFG_DEFAULT_2D {2u, 8u, 36u, 8u, 0.02f, 0.05f, 0.0f, 0.0f}
 /** 3-D defaults: 10 bands (128 cells) x 4, spacing 4 % of R. */
 #define MAGCAL_INTAKE_CFG_DEFAULT_3D {3u, 4u, 10u, 8u, 0.04f, 0.05f, 0.0f, 0.0f}
 
@@ -161,10 +146,9 @@ typedef struct {
     uint32_t refused_saturated; /**< refused: range limit */
     uint32_t refused_nonfinite; /**< refused: NaN / Inf */
     uint32_t rebinned;          /**< samples moved to another bin after a centre change */
-    uint32_t rebin_dropped;     /**< of those, dropped over the cap of a full target bin */
+    uint32_t rebin_dropped;     /**< of those, oldest samples dropped from a full target bin */
     uint32_t recentres;         /**< centre changes (surveys that moved it, set_centre calls) */
     uint32_t refused_level;     /**< refused: 2-D level band (pitched) */
-    uint32_t level_fallback;    /**< stored outside the level band by the fallback (of added / replaced) */
 } magcal_intake_counters_t;
 
 /** Live progress. */
@@ -225,9 +209,6 @@ typedef struct {
     uint8_t lv_ok_gen;             /**< private */
     float ell_scratch[25];         /**< private: the conic fit's 5 x 5 system at a sweep's end, here
                                         and not on the stack (the drain's deep path: <= 512 B) */
-    uint8_t ok_n[MAGCAL_INTAKE_MAX_BINS];   /**< private: re-bin, samples [0, ok_n) of a bin not yet
-                                                 swept are known to belong to it (store.c) */
-    uint8_t lv_refused[MAGCAL_INTAKE_MAX_BINS]; /**< private: level-band refusals in a row per bin */
 } magcal_intake_t;
 
 /**

@@ -25,13 +25,6 @@ uint16_t magcal_intake_build_mask(magcal_intake_t *st, uint16_t bands);
  * Returns 1 when the oldest sample was replaced. */
 int magcal_intake_insert(magcal_intake_t *st, uint16_t b, const magcal_vec3_t *m, uint32_t seq);
 
-/* Re-bin step of slot `slot` of bin b (not yet swept since the centre changed): a sample that
- * belongs to b joins its verified prefix; one that belongs elsewhere moves there (into a full
- * target with unchecked samples by exchange with one of them, so nothing is dropped for a
- * sample that is itself leaving; over the cap of a verified bin its oldest is dropped).
- * Returns 1 when the slot's content changed (re-examine it), 0 when it stays. */
-int magcal_intake_rebin_slot(magcal_intake_t *st, uint32_t b, uint32_t slot);
-
 /* Survey / re-bin up to `steps` slots (sweep.c). */
 void magcal_intake_sweep(magcal_intake_t *st, uint32_t steps);
 

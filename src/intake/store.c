@@ -69,69 +69,17 @@ magcal_status_t magcal_intake_init(magcal_intake_t *st, const magcal_intake_cfg_
     return MAGCAL_OK;
 }
 
-/* Samples of bin b known to belong to it under the current centre: all of them once it is
- * swept, else its verified prefix [0, ok_n). */
-static uint32_t intake_verified(const magcal_intake_t *st, uint32_t b)
-{
-    return (st->bin_gen[b] == st->gen) ? (uint32_t)st->count[b] : (uint32_t)st->ok_n[b];
-}
-
-static void intake_swap(magcal_intake_t *st, uint32_t i, uint32_t j)
-{
-    const magcal_intake_slot_t t = st->slots[i];
-    st->slots[i] = st->slots[j];
-    st->slots[j] = t;
-}
-
-/* Slot j of bin b (0-based in the bin) now holds a sample that belongs to b: in a bin not yet
- * swept it joins the verified prefix (swapped to index ok_n). Returns 1 when slot j changed. */
-static int intake_mark_verified(magcal_intake_t *st, uint32_t b, uint32_t j)
-{
-    const uint32_t base = b * (uint32_t)st->cfg.per_bin;
-    int moved = 0;
-    if (st->bin_gen[b] != st->gen && j >= (uint32_t)st->ok_n[b]) {
-        if (j != (uint32_t)st->ok_n[b]) {
-            intake_swap(st, base + j, base + (uint32_t)st->ok_n[b]);
-            moved = 1;
-        }
-        st->ok_n[b]++;
-    }
-    return moved;
-}
-
-/* The oldest slot of a full bin (ages modulo 2^32 pushes) and its age. */
-static uint32_t intake_oldest(const magcal_intake_t *st, uint32_t b, uint32_t *age_out)
-{
-    const uint32_t per = st->cfg.per_bin;
-    const uint32_t base = b * per;
-    uint32_t oldest = base;
-    uint32_t oldest_age = 0u;
-    uint32_t k;
-    for (k = base; k < base + per; ++k) {
-        const uint32_t age = st->seq - st->slots[k].seq;
-        if (age >= oldest_age) {
-            oldest_age = age;
-            oldest = k;
-        }
-    }
-    *age_out = oldest_age;
-    return oldest;
-}
-
 int magcal_intake_insert(magcal_intake_t *st, uint16_t b, const magcal_vec3_t *m, uint32_t seq)
 {
     const uint32_t per = st->cfg.per_bin;
     const uint32_t base = (uint32_t)b * per;
     uint32_t k;
     uint32_t oldest = base;
-    st->lv_refused[b] = 0u;
     if (st->count[b] < per) {
-        const uint32_t j = st->count[b];
-        st->slots[base + j].m = *m;
-        st->slots[base + j].seq = seq;
+        st->slots[base + st->count[b]].m = *m;
+        st->slots[base + st->count[b]].seq = seq;
         st->count[b]++;
         st->ctr.stored++;
-        (void)intake_mark_verified(st, b, j);
         return 0;
     }
     if (st->centre_source == (uint8_t)MAGCAL_INTAKE_CENTRE_NONE) {
@@ -149,80 +97,26 @@ int magcal_intake_insert(magcal_intake_t *st, uint16_t b, const magcal_vec3_t *m
             }
         }
     } else {
-        uint32_t age;
-        oldest = intake_oldest(st, b, &age);
+        uint32_t oldest_age = 0u;
+        for (k = base; k < base + per; ++k) { /* ages modulo 2^32 pushes */
+            const uint32_t age = st->seq - st->slots[k].seq;
+            if (age >= oldest_age) {
+                oldest_age = age;
+                oldest = k;
+            }
+        }
     }
     st->slots[oldest].m = *m;
     st->slots[oldest].seq = seq;
-    (void)intake_mark_verified(st, b, oldest - base);
     return 1;
 }
 
-int magcal_intake_rebin_slot(magcal_intake_t *st, uint32_t b, uint32_t slot)
-{
-    const uint32_t per = st->cfg.per_bin;
-    const uint32_t j = slot - b * per;
-    const magcal_intake_slot_t cur = st->slots[slot];
-    uint32_t t;
-    uint32_t bt;
-    if (j < (uint32_t)st->ok_n[b]) {
-        return 0; /* verified: it stays */
-    }
-    t = magcal_intake_bin_of(st, &cur.m);
-    if (t == b) {
-        return intake_mark_verified(st, b, j);
-    }
-    bt = t * per;
-    if (st->count[t] >= per && intake_verified(st, t) < per) {
-        /* a full target holding samples not yet checked: exchange with the newest of them (it
-         * is re-examined here); every exchange verifies one sample, so this ends (<= slots) */
-        const uint32_t u = bt + (uint32_t)st->ok_n[t];
-        uint32_t o = u;
-        uint32_t q;
-        uint32_t newest_age = st->seq - st->slots[u].seq;
-        for (q = u + 1u; q < bt + per; ++q) { /* ages modulo 2^32 pushes; the last of equals */
-            if (st->seq - st->slots[q].seq <= newest_age) {
-                newest_age = st->seq - st->slots[q].seq;
-                o = q;
-            }
-        }
-        intake_swap(st, o, u);
-        st->slots[slot] = st->slots[u];
-        st->slots[u] = cur;
-        st->ok_n[t]++;
-        st->ctr.rebinned++;
-        return 1;
-    }
-    {
-        const uint32_t last = b * per + (uint32_t)st->count[b] - 1u; /* swap-remove from b */
-        st->slots[slot] = st->slots[last];
-        st->count[b]--;
-        st->ctr.stored--;
-        st->ctr.rebinned++;
-    }
-    if (st->count[t] < per) {
-        const uint32_t jt = st->count[t];
-        st->slots[bt + jt] = cur;
-        st->count[t]++;
-        st->ctr.stored++;
-        (void)intake_mark_verified(st, t, jt);
-    } else {
-        /* over the cap of a bin whose every sample belongs to it: its oldest is dropped (the
-         * moved sample keeps its age) */
-        uint32_t age;
-        st->slots[intake_oldest(st, t, &age)] = cur;
-        st->ctr.rebin_dropped++;
-    }
-    return 1;
-}
 
 /* ---- 2-D level band (intake.h): the level model z = a + b cos + c sin of the direction from the
  * centre, fitted over the bins' median z by a survey of one bin per push. */
 #define INTAKE_LV_MIN_BINS 8.0f  /* bins the level model needs */
 /* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
 MAGCAL_STATIC_ASSERT(MAGCAL_INTAKE_MAX_PER_BIN <= 64u, intake_level_ring_mask_bits);
-/* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
-MAGCAL_STATIC_ASSERT(MAGCAL_INTAKE_LEVEL_FALLBACK >= 1u && MAGCAL_INTAKE_LEVEL_FALLBACK <= 255u, intake_level_fallback_range);
 #define INTAKE_LV_RING_LO 0.7f   /* a bin's samples count on the ring only (as progress.c) */
 #define INTAKE_LV_RING_HI 1.4f
 
@@ -369,8 +263,7 @@ static MAGCAL_NOINLINE void intake_level_step(magcal_intake_t *st)
     }
 }
 
-/* 1 when m (bin b) lies outside the level band and its bin already holds half its cap; 2 when it
- * lies outside but the bin has refused MAGCAL_INTAKE_LEVEL_FALLBACK in a row (taken). */
+/* 1 when m (bin b) lies outside the level band and its bin already holds half its cap. */
 static MAGCAL_NOINLINE int intake_level_refuses(const magcal_intake_t *st, uint16_t b, const magcal_vec3_t *m)
 {
     float ux;
@@ -388,10 +281,7 @@ static MAGCAL_NOINLINE int intake_level_refuses(const magcal_intake_t *st, uint1
         return 0;
     }
     zhat = st->lv_abc[0] + st->lv_abc[1] * (uy / d) - st->lv_abc[2] * (ux / d);
-    if (fabsf(m->z - zhat) <= st->cfg.level_band_rel * st->radius) {
-        return 0;
-    }
-    return ((uint32_t)st->lv_refused[b] >= (uint32_t)MAGCAL_INTAKE_LEVEL_FALLBACK) ? 2 : 1;
+    return !(fabsf(m->z - zhat) <= st->cfg.level_band_rel * st->radius);
 }
 
 magcal_status_t magcal_intake_push(magcal_intake_t *st, const magcal_vec3_t *m,
@@ -448,23 +338,13 @@ magcal_status_t magcal_intake_push(magcal_intake_t *st, const magcal_vec3_t *m,
                 break;
             }
         }
-        if (oc == MAGCAL_INTAKE_STORED) {
-            const int lv = intake_level_refuses(st, b, m);
-            if (lv == 1) {
-                oc = MAGCAL_INTAKE_REFUSED_LEVEL;
-            } else if (lv == 2) {
-                st->ctr.level_fallback++;
-            } else {
-                /* inside the band, or the band not applied */
-            }
+        if (oc == MAGCAL_INTAKE_STORED && intake_level_refuses(st, b, m) != 0) {
+            oc = MAGCAL_INTAKE_REFUSED_LEVEL;
         }
         if (oc == MAGCAL_INTAKE_REFUSED_SPACING) {
             st->ctr.refused_spacing++;
         } else if (oc == MAGCAL_INTAKE_REFUSED_LEVEL) {
             st->ctr.refused_level++;
-            if (st->lv_refused[b] < 255u) {
-                st->lv_refused[b]++;
-            }
         } else if (magcal_intake_insert(st, b, m, st->seq) != 0) {
             st->ctr.replaced++;
             oc = MAGCAL_INTAKE_REPLACED;
@@ -486,7 +366,6 @@ static void intake_recentre(magcal_intake_t *st)
     uint32_t b;
     for (b = 0u; b < st->n_bins; ++b) {
         st->bin_gen[b] = st->gen;
-        st->ok_n[b] = 0u;
     }
     st->gen++;
     st->rebin_pending = 1u;
@@ -529,9 +408,8 @@ magcal_status_t magcal_intake_set_centre(magcal_intake_t *st, const magcal_vec3_
 
 magcal_status_t magcal_intake_settle(magcal_intake_t *st)
 {
-    /* one sweep visits every slot once, plus one step per moved or exchanged sample (each
-     * <= slots: every exchange verifies one sample) and per bin jump: 3 slots + bins + 1 steps
-     * always complete a sweep. Two sweeps: the survey of the
+    /* one sweep visits every slot once, plus one step per moved sample (<= slots) and per bin
+     * jump: 2 slots + bins + 1 steps always complete a sweep. Two sweeps: the survey of the
      * current one is applied, a re-bin it starts is finished by the second. */
     uint32_t i;
     if (st == NULL) {
@@ -542,7 +420,7 @@ magcal_status_t magcal_intake_settle(magcal_intake_t *st)
     }
     for (i = 0u; i < 3u; ++i) {
         const uint32_t target = st->sweeps + 1u;
-        const uint32_t bound = 3u * magcal_intake_nslots(st) + (uint32_t)st->n_bins + 1u;
+        const uint32_t bound = 2u * magcal_intake_nslots(st) + (uint32_t)st->n_bins + 1u;
         uint32_t k;
         for (k = 0u; k < bound && st->sweeps != target; ++k) {
             magcal_intake_sweep(st, 1u);
@@ -564,8 +442,6 @@ magcal_status_t magcal_intake_reset(magcal_intake_t *st)
     }
     (void)memset(st->count, 0, sizeof(st->count));
     (void)memset(st->bin_gen, 0, sizeof(st->bin_gen));
-    (void)memset(st->ok_n, 0, sizeof(st->ok_n));
-    (void)memset(st->lv_refused, 0, sizeof(st->lv_refused));
     (void)memset(&st->ctr, 0, sizeof(st->ctr));
     (void)memset(&st->centre, 0, sizeof(st->centre));
     st->gen = 0u;

@@ -1,8 +1,7 @@
 /*
  * Intake sweep: a cursor walks the slots, cfg.sweep_steps per push, and
- *  - re-bins each sample of a bin not yet swept since the last centre change
- *    (magcal_intake_rebin_slot, store.c: a sample whose bin changed moves to its new bin keeping
- *    its age; only samples over the cap of a bin that holds nothing else to move are dropped);
+ *  - re-bins each sample of a bin not yet swept since the last centre change (a sample whose bin
+ *    changed is swap-removed and inserted into its new bin, keeping its age);
  *  - surveys every sample it passes.
  * The survey gives the provisional centre at the end of each sweep, in two robust steps:
  *  1. trimmed extremes: per axis the t-th largest and t-th smallest value, t = min(TRIM, 2 + n/16),
@@ -398,8 +397,20 @@ void magcal_intake_sweep(magcal_intake_t *st, uint32_t steps)
             st->cursor = (b + 1u) * per;
             continue;
         }
-        if (st->bin_gen[b] != st->gen && magcal_intake_rebin_slot(st, b, st->cursor) != 0) {
-            continue; /* moved, exchanged or reordered (store.c): re-examine this slot */
+        if (st->bin_gen[b] != st->gen) {
+            const magcal_intake_slot_t cur = st->slots[st->cursor];
+            const uint16_t nb = magcal_intake_bin_of(st, &cur.m);
+            if (nb != (uint16_t)b) {
+                const uint32_t last = b * per + (uint32_t)st->count[b] - 1u;
+                st->slots[st->cursor] = st->slots[last]; /* swap-remove; re-examine this slot */
+                st->count[b]--;
+                st->ctr.stored--;
+                st->ctr.rebinned++;
+                if (magcal_intake_insert(st, nb, &cur.m, cur.seq) != 0) {
+                    st->ctr.rebin_dropped++;
+                }
+                continue;
+            }
         }
         survey_add(st, &st->slots[st->cursor].m);
         st->cursor++;
