@@ -81,10 +81,18 @@ static void check_stream(const char *name, double ref_drop)
         TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_heading(&g_cc, &m, 0.0f, &hd));
         trusted += hd.trust == MAGCAL_TRUST_OK ? 1u : 0u;
     }
-    /* after the recording the firmware's loop goes on: the solve under way ends (no pushes) */
-    for (k = 0u; k < 100000u && g_cc.stage != 0u; ++k) {
-        if (magcal_cont_step(&g_cc) == MAGCAL_CONT_ADOPTED && first < 0) {
-            first = (long)n;
+    /* after the recording the firmware's loop goes on (no pushes) until the calibrator has nothing
+     * left to do: no solve under way and 256 steps in a row IDLE (a refused or failed solve may be
+     * followed by one on the samples stored while it ran; its sliced coverage count takes a few
+     * steps) */
+    {
+        unsigned idle = 0u;
+        for (k = 0u; k < 100000u && idle < 256u; ++k) {
+            const magcal_cont_outcome_t o = magcal_cont_step(&g_cc);
+            if (o == MAGCAL_CONT_ADOPTED && first < 0) {
+                first = (long)n;
+            }
+            idle = (o == MAGCAL_CONT_IDLE && g_cc.stage == 0u) ? idle + 1u : 0u;
         }
     }
     raw = test_radius_spread(&ident, g_rows, g_glitch, n);

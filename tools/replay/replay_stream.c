@@ -114,6 +114,8 @@ static void add_event(cJSON *ev, size_t row, const char *what, const char *statu
 
 /* The report's fields both modes share, after their own: loop counters, the trusted rows' RMS
  * against the dump's reference (when it has one), and the events (the report takes ev over). */
+#define TAIL_IDLE 256u /* IDLE steps in a row that end the tail */
+
 static void stream_report_tail(cJSON *root, uint32_t solves, uint32_t changes, uint32_t dropped, double ref_ss,
                                size_t ref_n, cJSON *ev)
 {
@@ -674,10 +676,18 @@ int replay_stream_main(int argc, char **argv)
             ref_n++;
         }
     }
-    /* After the last row the firmware's loop goes on: step (no pushes) until the solve under way
-     * ends, its events at row = rows ("after the dump"); bounded (a solve is a few thousand steps). */
-    for (tail = 0u; tail < 1000000u && g_cc.stage != 0u; ++tail) {
-        stream_event(ev, d.n_rows, magcal_cont_step(&g_cc));
+    /* After the last row the firmware's loop goes on: step (no pushes) until the calibrator has
+     * nothing left to do: no solve under way and TAIL_IDLE steps in a row IDLE (a refused or
+     * failed solve may be followed by one on the samples stored while it ran; the sliced coverage
+     * count that decides it takes a few steps). Events at row = rows ("after the dump"); bounded
+     * (a solve is a few thousand steps). */
+    {
+        unsigned idle = 0u;
+        for (tail = 0u; tail < 1000000u && idle < TAIL_IDLE; ++tail) {
+            const magcal_cont_outcome_t o = magcal_cont_step(&g_cc);
+            stream_event(ev, d.n_rows, o);
+            idle = (o == MAGCAL_CONT_IDLE && g_cc.stage == 0u) ? idle + 1u : 0u;
+        }
     }
     add_cal(root, &g_cc);
     cJSON_AddStringToObject(root, "file", argv[optind]);
