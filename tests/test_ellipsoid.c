@@ -1,5 +1,5 @@
 /*
- * Tests of the ellipsoid fit (src/ellipsoid.c) on synthetic data with known truth (double here).
+ * Tests of the ellipsoid fit (src/fit/ellipsoid.c) on synthetic data with known truth (double here).
  * Truth: m = W h + V + n, h = C_n^b B_ref, |B_ref| = F (algorithms.md 7.1/7.2).
  */
 #include <math.h>

@@ -1,4 +1,4 @@
-/* Tests of the shared float32 kernels in src/linalg.c (internal API, magcal_internal.h). */
+/* Tests of the shared float32 kernels in src/fit/linalg.c (internal API, magcal_internal.h). */
 #include <math.h>
 #include <string.h>
 

@@ -4,7 +4,7 @@ case real_3d): radius spread std/mean of |m| (raw, from the origin) and of |G (m
 plain algebraic ellipsoid fit of EVERY row (general 10-parameter quadric, smallest right singular
 vector of the centred and scaled design matrix; G = Q^(1/2) symmetric), no outlier rejection.
 This is a different formulation from the library's (9-parameter d = -1 quadric with iterative
-outlier rejection, src/ellipsoid.c), so agreement is a real cross-check.
+outlier rejection, src/fit/ellipsoid.c), so agreement is a real cross-check.
 
     /usr/bin/python3 tools/ref_real_spread3d.py CSV [--json]
 """

@@ -132,7 +132,7 @@
 #define MAGCAL_CFG_ENABLE_DBSCAN 1
 #endif
 
-/** The classic OPTICS ordering (MAGCAL_OPTICS_CLASSIC, its seed heap; src/optics.c, optics_core.h). */
+/** The classic OPTICS ordering (MAGCAL_OPTICS_CLASSIC, its seed heap; src/filter/optics.c, optics_core.h). */
 #ifndef MAGCAL_CFG_ENABLE_OPTICS_CLASSIC
 #define MAGCAL_CFG_ENABLE_OPTICS_CLASSIC 1
 #endif
@@ -147,7 +147,7 @@
 #endif
 
 /** 3-D calibration: the ellipsoid fit and calibrate (ellipsoid.h) and the 3-D OPTICS stage
- *  (optics.h "3-D samples", src/optics3.c). */
+ *  (optics.h "3-D samples", src/filter/optics3.c). */
 #ifndef MAGCAL_CFG_ENABLE_3D
 #define MAGCAL_CFG_ENABLE_3D 1
 #endif

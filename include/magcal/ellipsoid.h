@@ -169,7 +169,7 @@ typedef struct {
 /** Fixed part of MAGCAL_ELLIPSOID_FIT_WORKSPACE_LEN: the packed 10x10 normal matrix, the solver
  *  matrix, the observability pass's 9x9 inverse and sums, the median histogram, the time-sliced
  *  fit's state (magcal_ellipsoid_fit_step), 8-byte aligned
- *  inside the 4-byte aligned workspace (static assert in src/ellipsoid.c). */
+ *  inside the 4-byte aligned workspace (static assert in src/fit/ellipsoid.c). */
 #define MAGCAL_ELLIPSOID_FIT_SCRATCH_BYTES 3264u
 /** The fixed scratch of magcal_ellipsoid_fit (caller memory; contents private). 64-bit words:
  *  the scratch holds pointers and size_t, so it is 8-byte aligned (no union: MISRA 19.2). */

@@ -383,7 +383,7 @@ magcal_status_t magcal_optics_thin(const magcal_vec2_t *pts, size_t n, const uin
  * (the thinning keeps its state within its first 11 n + 3 + ~100 bytes, as its arrays always
  * did). Only one slice per workspace at a time.
  *
- * Granularity (src/optics.c "weights"): every loop over the points, the selection and heapsort
+ * Granularity (src/filter/optics.c "weights"): every loop over the points, the selection and heapsort
  * steps of the automatic rule, the grid build, each candidate of a neighbour scan and each seed
  * of the IMPROVED minimum scan is one charged visit; the weights were fitted to measured host
  * instruction counts x 1.2 (tools/bench_optics/slice_fit.py). Measured at budget 6000 (host
@@ -460,7 +460,7 @@ magcal_status_t magcal_optics_thin_begin(magcal_optics_thin_slice_t *s, const ma
  */
 magcal_status_t magcal_optics_thin_step(magcal_optics_thin_slice_t *s, uint32_t budget);
 
-/* ---- 3-D samples (src/optics3.c) --------------------------------------------------------- */
+/* ---- 3-D samples (src/filter/optics3.c) --------------------------------------------------------- */
 
 /*
  * The 3-D functions below apply the same OPTICS definitions (algorithms.md 4.1-4.3) to

@@ -16,7 +16,7 @@
 
 #if MAGCAL_CFG_ENABLE_3D /* whole file: config.h feature switch */
 
-/* Weights (estimated Cortex-M4F instructions per visit, as src/ellipsoid.c). */
+/* Weights (estimated Cortex-M4F instructions per visit, as src/fit/ellipsoid.c). */
 #define CW_UNIT 300u     /* a decision, a result copy */
 #define CW_MAXRES 22u    /* one stored residual of the pre-test */
 #define CW_INLIER 6u     /* one inlier flag */

@@ -1,6 +1,6 @@
 /*
- * Private to the 3-D fit (src/ellipsoid.c: normalisation, normal equations, solvers, outlier gate;
- * src/ellipsoid_trust.c: the trust gates of issue 12). Never installed.
+ * Private to the 3-D fit (src/fit/ellipsoid.c: normalisation, normal equations, solvers, outlier gate;
+ * src/fit/ellipsoid_trust.c: the trust gates of issue 12). Never installed.
  */
 #ifndef MAGCAL_ELLIPSOID_INTERNAL_H
 #define MAGCAL_ELLIPSOID_INTERNAL_H
@@ -162,12 +162,12 @@ typedef struct {
  */
 /* cppcheck-suppress misra-c2012-5.7 ; deviation D14 (false positive): the enum has no tag; misra.py names every untagged enum alike, so the units that include this header read as one tag declared twice */
 enum {
-    /* src/ellipsoid.c */
+    /* src/fit/ellipsoid.c */
     ELL_PH_CHECK = 0, ELL_PH_N1, ELL_PH_N2, ELL_PH_NORM_DONE, ELL_PH_ACC, ELL_PH_SPHERE,
     ELL_PH_COV, ELL_PH_COV_DONE, ELL_PH_FIT_SOLVE, ELL_PH_FIT_EXTRACT, ELL_PH_KEEP1, ELL_PH_LOOP,
     ELL_PH_LOOP_MED, ELL_PH_THR, ELL_PH_REGATE, ELL_PH_SETTLE, ELL_PH_REFIT, ELL_PH_LOOP_NEXT,
     ELL_PH_FINAL, ELL_PH_FINAL2, ELL_PH_OUT, ELL_PH_RP,
-    /* src/ellipsoid_trust.c */
+    /* src/fit/ellipsoid_trust.c */
     ELL_PH_ASNR0, ELL_PH_ASNR, ELL_PH_ASNR_DONE, ELL_PH_TG0, ELL_PH_TG1, ELL_PH_INFO,
     ELL_PH_INFO_DONE, ELL_PH_INV, ELL_PH_INV_SUB, ELL_PH_SWM, ELL_PH_SWP, ELL_PH_DIAG, ELL_PH_EXPL0,
     ELL_PH_EXPL1, ELL_PH_MED, ELL_PH_MOT0, ELL_PH_MOT1, ELL_PH_MOT2, ELL_PH_DONE
@@ -324,7 +324,7 @@ typedef struct ell_scratch_s {
     ell_run_t run;                   /* the time-sliced fit's state (magcal_ellipsoid_fit_step) */
 } ell_scratch_t;
 
-/* Start the residual pass (phase ELL_PH_RP, in src/ellipsoid.c) of the samples `gate` keeps
+/* Start the residual pass (phase ELL_PH_RP, in src/fit/ellipsoid.c) of the samples `gate` keeps
  * under `cal`; its results in r->rp (rms, kept, mx), then phase `ret`. */
 void magcal_ell_rp_start(ell_run_t *r, const magcal_ellipsoid_cal_t *cal, const quad_gate_t *gate,
                          const ell_ws_t *ws, uint8_t ret);
@@ -446,7 +446,7 @@ float magcal_ell_coverage_count(const uint32_t bits[3]);
 #define INFO_MAX_N MAGCAL_ELL_INFO_N /* centre information: 3 offset + 6 symmetric shape parameters */
 
 /* Weights of the trust phases (estimated Cortex-M4F instructions per visit, measured as those of
- * src/ellipsoid.c). */
+ * src/fit/ellipsoid.c). */
 #define W_T_UNIT 300u       /* bookkeeping, a gate decision */
 #define W_T_SOLVE9 7500u    /* 9x9 LDL^T of the algebraic quadric */
 #define W_T_ASNR 85u        /* one algebraic residual */

@@ -23,9 +23,11 @@ void magcal_cont_coarse_mode(magcal_cont_t *cc)
 {
     /* before the first calibration only: a coarse one is replaced by a full ellipse (>= 270 deg),
      * not by another circle (fewer, later solves: the loop after it runs as without the stage) */
-    const int open = cc->has_cal == 0u;
-    magcal_calibrator_set_coarse(&cc->solver, open ? cc->cfg.coarse_coverage_deg : 0.0f, cc->cfg.coarse_max_err_deg,
-                                 cc->cal_coarse);
+    float co = 0.0f;
+    if (cc->has_cal == 0u) {
+        co = cc->cfg.coarse_coverage_deg;
+    }
+    magcal_calibrator_set_coarse(&cc->solver, co, cc->cfg.coarse_max_err_deg, cc->cal_coarse);
 }
 
 float magcal_cont_solve_cov(const magcal_cont_t *cc)

@@ -193,9 +193,11 @@ static MAGCAL_NOINLINE uint32_t cont_drain(magcal_cont_t *cc, uint32_t max, magc
     /* cppcheck-suppress misra-c2012-15.4 ; deviation D13: a resumable loop leaves at its pause point (budget, ring empty) */
     for (k = max; k > 0u; --k) {
         const uint32_t t = cc->tail;
-        const uint32_t judged = cont_judge_on(cc) != 0 ? 1u : 0u;
-        const uint32_t w = CONT_W_PUSH + judged * CONT_W_JUDGE;
+        uint32_t w = CONT_W_PUSH;
         const magcal_vec3_t *m;
+        if (cont_judge_on(cc) != 0) {
+            w += CONT_W_JUDGE;
+        }
         if (k != max && b->unlimited == 0u && (cont_behind(cc) == 0 || w > b->left)) {
             break;
         }
@@ -224,7 +226,7 @@ static MAGCAL_NOINLINE uint32_t cont_drain(magcal_cont_t *cc, uint32_t max, magc
             cc->tail = t + 1u;
         }
         CONT_TRACE(magcal_bench_cont_trace[TR_DRAINED]++;)
-        CONT_TRACE(magcal_bench_cont_trace[TR_JUDGED] += judged;)
+        CONT_TRACE(magcal_bench_cont_trace[TR_JUDGED] += (w > CONT_W_PUSH) ? 1u : 0u;)
         (void)magcal_cal_spend(b, w);
     }
     return pushed; /* samples pushed into the store (judged consistent) */
@@ -238,6 +240,7 @@ static MAGCAL_NOINLINE void cont_sweep_part(magcal_cont_t *cc, magcal_cal_budget
 {
     magcal_intake_t *st = &cc->store;
     uint32_t s;
+    /* cppcheck-suppress misra-c2012-15.4 ; deviation D13: a resumable loop leaves at its pause point (sweep end, budget) */
     for (s = 0u; s < (uint32_t)st->cfg.sweep_steps; ++s) {
         const uint32_t sweeps = st->sweeps;
         const uint32_t sv = st->sv_n;
@@ -563,7 +566,7 @@ magcal_cont_outcome_t magcal_cont_solve_blocking(magcal_cont_t *cc, int force)
     }
     cc->force = (uint8_t)(force != 0 ? 1u : 0u); /* kept in cc: nothing but cc live across calls */
     if (cont_store_frozen(cc) == 0) {
-        cont_drain(cc, MAGCAL_CONT_RING + (cc->park_n - cc->park_i), &b);
+        (void)cont_drain(cc, MAGCAL_CONT_RING + (cc->park_n - cc->park_i), &b);
     }
     if (cont_begin(cc) == 0) {
         return MAGCAL_CONT_IDLE;
