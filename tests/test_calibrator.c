@@ -12,7 +12,7 @@
 #include <string.h>
 
 #include "magcal/calibrator.h"
-#include "calibrator_internal.h"
+#include "adopt/calibrator_internal.h"
 #include "magcal_port_fake.h"
 #include "test_dumps.h"
 #include "test_util.h"

@@ -75,7 +75,7 @@ def b_enu():
 
 
 def tilt_heading(f, h):
-    """algorithms.md 6 (same formulas as src/tilt.c), degrees [0, 360)."""
+    """algorithms.md 6 (same formulas as src/heading/tilt.c), degrees [0, 360)."""
     fx, fy, fz = f
     th = math.atan2(fy, math.hypot(fx, fz))
     ph = math.atan2(-fx, fz)

@@ -42,7 +42,7 @@ function(magcal_target_add_xcheck name)
         return()
     endif()
     get_target_property(_support magcal_test_support SOURCES)
-    file(GLOB _lib CONFIGURE_DEPENDS ${PROJECT_SOURCE_DIR}/src/*.c ${PROJECT_SOURCE_DIR}/src/filter/*.c
+    file(GLOB _lib CONFIGURE_DEPENDS ${PROJECT_SOURCE_DIR}/src/*.c ${PROJECT_SOURCE_DIR}/src/adopt/*.c ${PROJECT_SOURCE_DIR}/src/heading/*.c ${PROJECT_SOURCE_DIR}/src/intake/calibrator_poll*.c ${PROJECT_SOURCE_DIR}/src/filter/*.c
         ${PROJECT_SOURCE_DIR}/src/fit/*.c)
     set(_srcs ${CMAKE_CURRENT_SOURCE_DIR}/${name}.c ${_lib} ${_support}
         ${PROJECT_SOURCE_DIR}/port/fake/magcal_port_fake.c ${MAGCAL_UNITY_SOURCE_DIR}/src/unity.c)

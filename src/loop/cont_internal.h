@@ -6,7 +6,7 @@
 #ifndef MAGCAL_CONT_INTERNAL_H
 #define MAGCAL_CONT_INTERNAL_H
 
-#include "../calibrator_internal.h"
+#include "../adopt/calibrator_internal.h"
 #include "magcal/continuous.h"
 
 #define MAGCAL_CONT_MAGIC 0x434F4E54u /* "CONT" */

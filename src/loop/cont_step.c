@@ -9,7 +9,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "../calibrator_internal.h"
+#include "../adopt/calibrator_internal.h"
 #include "../intake/intake_internal.h"
 #include "magcal/config.h"
 #include "cont_internal.h"

@@ -17,7 +17,7 @@ cd "$root" || exit 2
 cmake -S "$root" -B "$bdir" -DCMAKE_EXPORT_COMPILE_COMMANDS=ON -DBUILD_TESTING=OFF \
       -DMAGCAL_BUILD_TOOLS=OFF >/dev/null || { echo "configure failed"; exit 2; }
 
-srcs=("$root"/src/*.c "$root"/src/intake/*.c "$root"/src/filter/*.c "$root"/src/fit/*.c "$root"/src/loop/*.c "$root"/src/loop3/*.c)
+srcs=("$root"/src/*.c "$root"/src/adopt/*.c "$root"/src/heading/*.c "$root"/src/intake/*.c "$root"/src/filter/*.c "$root"/src/fit/*.c "$root"/src/loop/*.c "$root"/src/loop3/*.c)
 incs=(-I"$root/include" -I"$root/src" -I"$root/port")
 # Every public header on its own: self-contained, and analysed even when no .c includes it.
 hdr_tu="$bdir/all_headers.c"

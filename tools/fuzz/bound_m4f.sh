@@ -11,7 +11,7 @@ OUT=${1:-$SRC/build/bound-m4f}
 mkdir -p "$OUT"
 T=$SRC/cmake/target
 FLAGS="-mcpu=cortex-m4 -mthumb -mfloat-abi=hard -mfpu=fpv4-sp-d16 -Os -std=c99 -ffunction-sections -fdata-sections"
-LIBSRC=$(ls "$SRC"/src/*.c "$SRC"/src/filter/*.c "$SRC"/src/fit/*.c | grep -v calibrator_poll)
+LIBSRC=$(ls "$SRC"/src/*.c "$SRC"/src/adopt/*.c "$SRC"/src/heading/*.c "$SRC"/src/filter/*.c "$SRC"/src/fit/*.c | grep -v calibrator_poll)
 # shellcheck disable=SC2086
 arm-none-eabi-gcc $FLAGS -DMAGCAL_BOUND_M4F -I"$SRC/include" -I"$SRC/port" -I"$SRC/src" \
     -o "$OUT/bound_calibrator.elf" "$SRC/tools/fuzz/bound_calibrator.c" $LIBSRC "$T/startup_mps2_an386.c" \

@@ -8,9 +8,9 @@ DATA_DIR holds WMM.COF, igrf14coeffs.txt, IGRF14.SHC and the official test value
 (WMM2025_TEST_VALUE_TABLE_FOR_REPORT.txt, WMM2025_FINAL_TEST_VALUES_HIGHPREC.txt,
 igrf14_test_values_bgs.csv). Written under REPO_ROOT:
 
-  src/geomag_wmm2025.c             const magcal_geomag_model_t magcal_geomag_wmm2025
-  src/geomag_igrf14.c              const magcal_geomag_model_t magcal_geomag_igrf14
-  src/geomag_schmidt.c             recurrence constants of the Schmidt functions (degree 13)
+  src/heading/geomag_wmm2025.c             const magcal_geomag_model_t magcal_geomag_wmm2025
+  src/heading/geomag_igrf14.c              const magcal_geomag_model_t magcal_geomag_igrf14
+  src/heading/geomag_schmidt.c             recurrence constants of the Schmidt functions (degree 13)
   tests/support/geomag_testvalues.c/.h   every official test value, plus this script's
                                    double-precision evaluation of each point (an independent
                                    reference for the float32 library)
@@ -492,16 +492,16 @@ def main(argv):
     igrf = read_igrf_txt(os.path.join(data, "igrf14coeffs.txt"))
     n_shc = cross_check_igrf(igrf, os.path.join(data, "IGRF14.SHC"))
 
-    write(os.path.join(root, "src", "geomag_wmm2025.c"), emit_model(
+    write(os.path.join(root, "src", "heading", "geomag_wmm2025.c"), emit_model(
         wmm, "wmm2025", "WMM.COF (%s %.1f, released %s)" % (wmm["name"], wmm["epochs"][0],
                                                             wmm["release"]),
         "NOAA NCEI / BGS World Magnetic Model, public domain; see docs/geomag.md.",
         (2025.0, 2030.0), (-1.0, 850.0)))
-    write(os.path.join(root, "src", "geomag_igrf14.c"), emit_model(
+    write(os.path.join(root, "src", "heading", "geomag_igrf14.c"), emit_model(
         igrf, "igrf14", "igrf14coeffs.txt (IGRF-14, cross-checked against IGRF14.SHC)",
         "IAGA Division V WG V-MOD, freely distributed; see docs/geomag.md.",
         (1900.0, 2030.0), (-1.0, 850.0)))
-    write(os.path.join(root, "src", "geomag_schmidt.c"), emit_schmidt())
+    write(os.path.join(root, "src", "heading", "geomag_schmidt.c"), emit_schmidt())
 
     report = wmm_report_rows(os.path.join(data, "WMM2025_TEST_VALUE_TABLE_FOR_REPORT.txt"))
     highprec = wmm_highprec_rows(os.path.join(data, "WMM2025_FINAL_TEST_VALUES_HIGHPREC.txt"))
