@@ -1,5 +1,5 @@
 /*
- * Tests of the INS/GNSS-aided online calibration (src/aided.c) on synthetic road-like drives with
+ * Tests of the INS/GNSS-aided online calibration (src/heading/aided.c) on synthetic road-like drives with
  * known truth (double here): m = W C_n^b B_ref + V + n (algorithms.md 7.1), W with soft iron,
  * non-orthogonality, scale and misalignment.
  */

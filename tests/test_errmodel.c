@@ -1,4 +1,4 @@
-/* Tests of the adaptive heading-error models (src/errmodel.c): the indoor patent's polynomial
+/* Tests of the adaptive heading-error models (src/heading/errmodel.c): the indoor patent's polynomial
  * and the periodic Fourier alternative (algorithms.md 5.2, 5.3). */
 #include <math.h>
 #include <stdio.h>

@@ -1,4 +1,4 @@
-/* Tests of the classical compass swing and the course-over-ground motion swing (src/swing.c).
+/* Tests of the classical compass swing and the course-over-ground motion swing (src/heading/swing.c).
  * Truth is synthesised in double from known distortions (algorithms.md 1.3, 5.1). */
 #include <math.h>
 #include <stdio.h>

@@ -1,4 +1,4 @@
-/* Tests of tilt compensation (src/tilt.c) against attitudes synthesised in double with the
+/* Tests of tilt compensation (src/heading/tilt.c) against attitudes synthesised in double with the
  * C_b^ENU = R_z(-psi) R_x(theta) R_y(phi) convention of algorithms.md section 6. */
 #include <math.h>
 #include <stdio.h>

@@ -95,7 +95,7 @@
  * calibration replaces a coarse `current` by rule (b) with margin 1 (current_err_deg >=
  * est_param_err_deg: never worse), and a coarse one never replaces a full one.
  *
- * Time-sliced solve (src/calibrator_solve.c; the continuous calibrator, continuous.h, drives it):
+ * Time-sliced solve (src/adopt/calibrator_solve.c; the continuous calibrator, continuous.h, drives it):
  * run() is one call of the same resumable phases with an unlimited budget (one code path). Each
  * phase keeps its cursor and sums in the workspace (the run state, or the stage scratch when the
  * stage that owns it is done), charges an estimated Cortex-M4F weight per visit and stops when

@@ -1,6 +1,6 @@
 /*
- * Internals of the geomag module shared between src/geomag.c and the generated
- * src/geomag_schmidt.c (tools/geomag/cof2c.py). Not installed, not part of the public API.
+ * Internals of the geomag module shared between src/heading/geomag.c and the generated
+ * src/heading/geomag_schmidt.c (tools/geomag/cof2c.py). Not installed, not part of the public API.
  */
 #ifndef MAGCAL_GEOMAG_INTERNAL_H
 #define MAGCAL_GEOMAG_INTERNAL_H

@@ -1,6 +1,6 @@
 /*
  * magcal_calibrator_poll(): a calibrator function that calls the HAL port (with
- * magcal_calibrator_poll_n(), src/calibrator_poll_n.c). Kept in its own translation unit so a
+ * magcal_calibrator_poll_n(), src/intake/calibrator_poll_n.c). Kept in its own translation unit so a
  * program that only pushes samples does not need a port at link time, and a single-sensor port
  * (no magcal_port_mag_read_n()) links with it.
  */
