@@ -18,11 +18,11 @@ Build first (run_bench.py configures the directory, or see docs/calibration_3d.m
     cmake --build BUILD/m4f --target cont3_trace
     tools/bench/cont3_weights.py BUILD/m4f/cont3_trace.elf [--json OUT]
 """
-import argparse
 import collections
 import json
-import subprocess
 import sys
+
+from cont_weights import trace_run  # same directory: the options and the QEMU run of a trace
 
 PIECES = ["push", "sweep_survey", "sweep_rebin", "sweep_jump", "sweep_end", "count_cell", "count_cell_2+",
           "snapshot_cell", "adopt_candidate", "adopt_installed", "adopt_skip"]
@@ -32,17 +32,7 @@ F = ["row", "meas", "st_in", "st_out", "pushed", "sweep_ends", "charged", "solve
 
 
 def main(argv):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("elf")
-    ap.add_argument("--json")
-    ap.add_argument("--trace", help="read a saved trace instead of running QEMU")
-    a = ap.parse_args(argv)
-    if a.trace:
-        out = open(a.trace).read()
-    else:
-        out = subprocess.run(["timeout", "600", "qemu-system-arm", "-M", "mps2-an386", "-display", "none", "-monitor",
-                              "none", "-serial", "null", "-semihosting-config", "enable=on,target=native", "-icount",
-                              "shift=0", "-kernel", a.elf], capture_output=True, text=True).stdout
+    a, out = trace_run(argv, __doc__)
     steps, pieces = [], []
     for ln in out.splitlines():
         f = ln.split()

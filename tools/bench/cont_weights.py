@@ -48,18 +48,24 @@ def pct(v, q):
     return v[min(len(v) - 1, int(q * len(v)))] if v else 0
 
 
-def main(argv):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def trace_run(argv, doc):
+    """The options of a trace script (ELF, --json, --trace) and the trace text: the saved one, or
+    the ELF's output on QEMU (mps2-an386, -icount shift=0). Shared with cont3_weights.py."""
+    ap = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("elf")
     ap.add_argument("--json")
     ap.add_argument("--trace", help="read a saved trace instead of running QEMU")
     a = ap.parse_args(argv)
     if a.trace:
-        out = open(a.trace).read()
-    else:
-        out = subprocess.run(["timeout", "600", "qemu-system-arm", "-M", "mps2-an386", "-display", "none", "-monitor",
+        with open(a.trace) as fh:
+            return a, fh.read()
+    return a, subprocess.run(["timeout", "600", "qemu-system-arm", "-M", "mps2-an386", "-display", "none", "-monitor",
                               "none", "-serial", "null", "-semihosting-config", "enable=on,target=native", "-icount",
                               "shift=0", "-kernel", a.elf], capture_output=True, text=True).stdout
+
+
+def main(argv):
+    a, out = trace_run(argv, __doc__)
     rows = []
     for ln in out.splitlines():
         f = ln.split()
