@@ -1011,6 +1011,26 @@ static MAGCAL_NOINLINE magcal_status_t ph_gates(magcal_calibrator_t *cal, cal_ru
 
 /* ------------------------------------------------------------------ coarse stage */
 
+/* The coarse stage's residual pass (resumable at r->i): the squared residuals around the circle
+ * of the samples `mask` keeps into q->ss, their count into r->m. 1 while paused (budget). */
+static int cal_coarse_res_pass(const magcal_calibrator_t *cal, cal_run_t *r, cal_prep_t *q, const uint8_t *mask)
+{
+    int paused = 0;
+    while (paused == 0 && r->i < cal->n) {
+        const size_t i = r->i;
+        r->i++;
+        if (mask[i] != 0u) {
+            const float e = cal_coarse_res(q, cal->buf[i]);
+            q->ss += e * e;
+            r->m++;
+            paused = magcal_cal_spend(&r->bud, CAL_W_CO_RES);
+        } else {
+            paused = magcal_cal_spend(&r->bud, CAL_W_FLAG); /* not an inlier */
+        }
+    }
+    return paused;
+}
+
 /* Coarse 1: residual RMS of the inliers (mask_a) around the circle, then the residual threshold
  * as the consensus sets it (k_sigma x RMS, clamped to [min_thr_rel, max_thr_rel] x radius). */
 static MAGCAL_NOINLINE magcal_status_t ph_co_res(magcal_calibrator_t *cal, cal_run_t *r)
@@ -1022,21 +1042,8 @@ static MAGCAL_NOINLINE magcal_status_t ph_co_res(magcal_calibrator_t *cal, cal_r
         r->m = 0u;
         r->sub = 1u;
     }
-    while (r->i < cal->n) {
-        const size_t i = r->i;
-        r->i++;
-        if (cal->mask_a[i] != 0u) {
-            const float e = cal_coarse_res(q, cal->buf[i]);
-            q->ss += e * e;
-            r->m++;
-            if (magcal_cal_spend(&r->bud, CAL_W_CO_RES) != 0) {
-                return MAGCAL_IN_PROGRESS;
-            }
-        } else if (magcal_cal_spend(&r->bud, CAL_W_FLAG) != 0) {
-            return MAGCAL_IN_PROGRESS;
-        } else {
-            /* not an inlier */
-        }
+    if (cal_coarse_res_pass(cal, r, q, cal->mask_a) != 0) {
+        return MAGCAL_IN_PROGRESS;
     }
     if (r->m < cal->cfg.min_samples) {
         return MAGCAL_ERR_TOO_FEW_POINTS;
@@ -1115,21 +1122,8 @@ static MAGCAL_NOINLINE magcal_status_t ph_co_fit(magcal_calibrator_t *cal, cal_r
         r->m = 0u;
         r->sub = 1u;
     }
-    while (r->i < cal->n) {
-        const size_t i = r->i;
-        r->i++;
-        if (cal->mask_b[i] != 0u) {
-            const float e = cal_coarse_res(q, cal->buf[i]);
-            q->ss += e * e;
-            r->m++;
-            if (magcal_cal_spend(&r->bud, CAL_W_CO_RES) != 0) {
-                return MAGCAL_IN_PROGRESS;
-            }
-        } else if (magcal_cal_spend(&r->bud, CAL_W_FLAG) != 0) {
-            return MAGCAL_IN_PROGRESS;
-        } else {
-            /* not an inlier */
-        }
+    if (cal_coarse_res_pass(cal, r, q, cal->mask_b) != 0) {
+        return MAGCAL_IN_PROGRESS;
     }
     rep->used = (uint16_t)r->m;
     rep->outliers = (uint16_t)(cal->n - r->m);
