@@ -1362,7 +1362,7 @@ def render_markdown(res, ns, i_ref, m4f, sk_info):
     L.append("|---|---:|---:|---|")
     for gr in ex["goals"]:
         v = gr["value"]
-        L.append("| %s | %s | %s | %s |" % (gr["goal"], fmt(v, "%.4g") if isinstance(v, float) else fmt_int(v),
+        L.append("| %s | %s | %s | %s |" % (gr["goal"], fmt(v, "%.6g") if isinstance(v, float) else fmt_int(v),
                                           fmt(gr["limit"], "%g"), verdict(gr["met"])))
     L.append("")
     return "\n".join(L)
