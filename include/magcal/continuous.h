@@ -319,6 +319,8 @@ typedef struct {
     uint8_t cnt_on;                /* 1: a count is under way */
     uint8_t cnt_gen;               /* store centre generation it started at */
     uint8_t cnt_src;               /* store centre source it started at */
+    /* transient judge (cont_flags.c), issue 13's flags */
+    uint32_t dist_age_ms;          /* ms of stamps since the transient judge was reset (baseline warm-up) */
 } magcal_cont_t;
 
 /**

@@ -29,8 +29,16 @@ void magcal_cont_transient(magcal_cont_t *cc, float rel, uint32_t dt)
         return; /* a glitch: flagged by the per-sample judge, the smoothed state keeps its value */
     }
     x = fminf(fmaxf(rel, -CONT_DIST_CLAMP), CONT_DIST_CLAMP);
+    if (cc->dist_age_ms <= UINT32_MAX - dt) {
+        cc->dist_age_ms += dt;
+    }
     if (cc->dist_n == 0u) {
-        cc->dist_e = x; /* the baseline starts at 0: the model is centred on the store */
+        /* the baseline starts at the stream's value, not at the store's mean (0): where the
+         * vehicle is when a fit ends (a hill, a heading the model explains worst) the model's
+         * bias is not 0, and a baseline at 0 flagged the clean rows for the 8 s of a held flag
+         * and more (seed 1: 400..800 rows after each adoption) */
+        cc->dist_e = x;
+        cc->dist_base = x;
     } else {
         /* towards the baseline 3 x faster: the flag ends within a fraction of tau of the cause */
         const float tau = fabsf(x - cc->dist_base) < fabsf(cc->dist_e - cc->dist_base)
@@ -68,8 +76,13 @@ void magcal_cont_transient(magcal_cont_t *cc, float rel, uint32_t dt)
         }
         if ((float)cc->dist_quiet_ms >= hold) {
             /* clean: the baseline follows the model's slow bias, the variance its noise */
+            /* warm-up: the baseline's time constant grows with the time since the reset (a
+             * running mean of the first samples, then the 4-s average) */
             const float w = (float)dt / (CONT_DIST_VAR_MS + (float)dt);
-            cc->dist_base += (float)dt / (CONT_DIST_BASE_MS + (float)dt) * d;
+            const float tb = fminf(CONT_DIST_BASE_MS, (float)cc->dist_age_ms);
+            if (tb + (float)dt > 0.0f) {
+                cc->dist_base += (float)dt / (tb + (float)dt) * d;
+            }
             cc->dist_var += w * (d * d - cc->dist_var);
         }
     }
@@ -87,6 +100,7 @@ void magcal_cont_transient_reset(magcal_cont_t *cc)
     cc->dist_var = s0 * s0;
     cc->dist_e = 0.0f;
     cc->dist_base = 0.0f;
+    cc->dist_age_ms = 0u;
     cc->fz_miss = 0.0f;
     cc->fz_unfit = 0u;
 }
