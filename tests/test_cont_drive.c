@@ -1,6 +1,6 @@
 /*
  * Tests of the continuous 2-D calibrator's judge on drives with hills (include/magcal/continuous.h,
- * src/loop/cont_change.c): a level-mounted sensor in a car that pitches, so the horizontal radius
+ * src/loop/cont_judge.c, cont_flags.c, cont_change.c): a level-mounted sensor in a car that pitches, so the horizontal radius
  * follows the total field, |h|^2 = F^2 - z_b^2, while the heading stays the 2-D one. Known truth:
  * the field of tools/gen_drive.py (21.036 N, 1.593 E, 44.001 D uT), its soft iron W and hard iron
  * V, N(0, 0.1 uT) noise per axis from a fixed seed, 50 Hz, fed through push + step per row as

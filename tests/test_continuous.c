@@ -466,7 +466,7 @@ static void cont_restore(void)
     memcpy(g_work, g_work_save, sizeof g_work);
 }
 
-/* The judge's model fields (the field-model fit at an adoption, cont_change.c). */
+/* The judge's model fields (the field-model fit at an adoption, cont_fzfit.c). */
 typedef struct {
     float abc[3];
     float hxy[4];

@@ -271,7 +271,7 @@ typedef struct {
     float fz_abc[3];               /* |h|^2 = a + b u + c u^2, u = z - fz_u0 (h corrected x, y) */
     uint32_t aged_adopts;          /* adoptions won by the ageing rule (cont_adopt.c) */
     float adopted_err;             /**< read-only: est_heading_err_deg of the installed calibration (NaN: none / from flash) */
-    /* judge (cont_change.c): linear terms of the total-field model, transient judge state */
+    /* judge (cont_judge.c, cont_flags.c): linear terms of the total-field model, transient judge state */
     float fz_hxy[4];               /* |h|^2 model terms hx, hy, hx^2 - hy^2, hx hy (unit radius) */
     float dist_e;                  /* smoothed relative residual */
     float dist_base;               /* its slow baseline (model bias) */
@@ -291,7 +291,7 @@ typedef struct {
     uint32_t snap_stored;          /* store added + replaced at the snapshot */
     uint32_t worth_seen;           /* store added + replaced at the last coverage count (cont_step.c) */
     uint8_t worth_checked;         /* 1: worth_seen is valid */
-    /* field-model fit at an adoption, time-sliced (cont_change.c; the drain pauses meanwhile) */
+    /* field-model fit at an adoption, time-sliced (cont_fzfit.c; the drain pauses meanwhile) */
     uint8_t fit_phase;             /* pass under way, 0 = none */
     uint8_t fit_skip;              /* model form being fitted (as fz_skip) */
     uint32_t fit_bin;              /* pass position: store bin */
@@ -305,7 +305,7 @@ typedef struct {
     magcal_vec3_t park_m;          /* the parked sample being drained, its stamp */
     uint32_t park_t;
     uint8_t fit_cal_ok;            /* cal valid (validated once at the fit's begin) */
-    float fz_u_sd;                 /* RMS spread of the store's u at the fit (change judge, cont_change.c) */
+    float fz_u_sd;                 /* RMS spread of the store's u at the fit (change judge, cont_judge.c) */
     float fz_miss;                 /* share of samples over the per-sample threshold, smoothed (cont_change.c) */
     uint8_t fz_unfit;              /* 1: the model does not explain the stream: its per-sample test does not flag */
     uint8_t cal_coarse;            /**< read-only: 1 = the installed calibration is coarse (hard
@@ -319,6 +319,8 @@ typedef struct {
     uint8_t cnt_on;                /* 1: a count is under way */
     uint8_t cnt_gen;               /* store centre generation it started at */
     uint8_t cnt_src;               /* store centre source it started at */
+    /* transient judge (cont_flags.c), issue 13's flags */
+    uint32_t dist_age_ms;          /* ms of stamps since the transient judge was reset (baseline warm-up) */
 } magcal_cont_t;
 
 /**

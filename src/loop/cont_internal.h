@@ -1,7 +1,9 @@
 /*
  * Internal interface of the continuous calibrator (src/loop/): lifecycle and push (cont_life.c),
  * step and sliced solve (cont_step.c), adoption over time (cont_adopt.c), per-sample judge and
- * change detection (cont_change.c). Not installed. docs/calibrator.md "Continuous calibrator".
+ * change detection (cont_judge.c per-sample judge, cont_change.c episodes and change decision,
+ * cont_flags.c transient flags, cont_fzfit.c the judge's field-model fit; their shared internals in
+ * cont_judge_internal.h). Not installed. docs/calibrator.md "Continuous calibrator".
  */
 #ifndef MAGCAL_CONT_INTERNAL_H
 #define MAGCAL_CONT_INTERNAL_H
@@ -36,7 +38,7 @@ void magcal_cont_fit_begin(magcal_cont_t *cc);
 int magcal_cont_fit_step(magcal_cont_t *cc, magcal_cal_budget_t *b);
 /* Episode update with one judged sample at t_ms; returns 1 when a change is declared now. */
 int magcal_cont_episode(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint32_t t_ms);
-/* Reset the transient-disturbance judge (cont_change.c) after a new calibration or model. */
+/* Reset the transient-disturbance judge (cont_flags.c) after a new calibration or model. */
 void magcal_cont_transient_reset(magcal_cont_t *cc);
 /* Declare a change: drop the store, relearn. */
 void magcal_cont_declare_change(magcal_cont_t *cc);
