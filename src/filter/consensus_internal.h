@@ -174,39 +174,13 @@ enum {
     P_OUT
 };
 
-/* Visits of weight w the rest of the budget pays for (at most left); at least one on a step's
- * first visit (used == 0). 0: stop this step. */
-static inline size_t magcal_cons_visits(uint32_t budget, uint32_t used, uint32_t w, size_t left)
-{
-    uint32_t v = (used < budget) ? (budget - used) / w : 0u;
-    if (v == 0u && used == 0u) {
-        v = 1u;
-    }
-    return ((size_t)v < left) ? (size_t)v : left;
-}
-
-/* Charge a loop chunk: the end of the visits this step pays for from pos over [pos, len). When
- * not one more visit is paid for, the budget counts as spent (the phase returns CONS_SPENT). */
-static inline size_t magcal_cons_chunk(uint32_t budget, uint32_t *used, uint32_t w, size_t pos,
-                                       size_t len)
-{
-    size_t v = magcal_cons_visits(budget, *used, w, len - pos);
-    if (v == 0u && pos < len) {
-        *used = (*used > budget) ? *used : budget;
-    }
-    *used += (uint32_t)v * w;
-    return pos + v;
-}
-
-/* Charge one O(1) visit; 0 when the budget is spent. */
-static inline int magcal_cons_pay(uint32_t budget, uint32_t *used, uint32_t w)
-{
-    if (magcal_cons_visits(budget, *used, w, 1u) == 0u) {
-        return 0;
-    }
-    *used += w;
-    return 1;
-}
+/* consensus_prims.c: the budget of a step (one copy, not an inline per phase file: issue 14
+ * flash). magcal_cons_chunk charges a loop chunk: the end of the visits of weight w this step
+ * pays for from pos over [pos, len), at least one on a step's first visit (*used == 0); when not
+ * one more visit is paid for, the budget counts as spent (the phase returns CONS_SPENT).
+ * magcal_cons_pay charges one O(1) visit; 0 when the budget is spent. */
+size_t magcal_cons_chunk(uint32_t budget, uint32_t *used, uint32_t w, size_t pos, size_t len);
+int magcal_cons_pay(uint32_t budget, uint32_t *used, uint32_t w);
 
 /* consensus_prims.c: resumable selection (1 when done), shell sort (1 when done), residuals of
  * model e (1 when done), one fit chunk (CONS_SPENT while it runs, then its status) */

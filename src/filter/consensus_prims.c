@@ -9,6 +9,36 @@
 
 #include "consensus_internal.h"
 
+/* Visits of weight w the rest of the budget pays for (at most left); at least one on a step's
+ * first visit (used == 0). 0: stop this step. */
+static size_t cons_visits(uint32_t budget, uint32_t used, uint32_t w, size_t left)
+{
+    uint32_t v = (used < budget) ? (budget - used) / w : 0u;
+    if (v == 0u && used == 0u) {
+        v = 1u;
+    }
+    return ((size_t)v < left) ? (size_t)v : left;
+}
+
+size_t magcal_cons_chunk(uint32_t budget, uint32_t *used, uint32_t w, size_t pos, size_t len)
+{
+    size_t v = cons_visits(budget, *used, w, len - pos);
+    if (v == 0u && pos < len) {
+        *used = (*used > budget) ? *used : budget;
+    }
+    *used += (uint32_t)v * w;
+    return pos + v;
+}
+
+int magcal_cons_pay(uint32_t budget, uint32_t *used, uint32_t w)
+{
+    if (cons_visits(budget, *used, w, 1u) == 0u) {
+        return 0;
+    }
+    *used += w;
+    return 1;
+}
+
 void magcal_cons_sel_init(magcal_cons_sel_t *q, float *a, size_t n, size_t k)
 {
     q->a = a;
@@ -37,7 +67,7 @@ int magcal_cons_sel_run(magcal_cons_sel_t *q, uint32_t budget, uint32_t *used)
     size_t s = q->s;
     size_t guard = q->guard;
     size_t inner = q->inner;
-    const size_t start = magcal_cons_visits(budget, *used, CONS_W_SEL, (size_t)-1);
+    const size_t start = cons_visits(budget, *used, CONS_W_SEL, (size_t)-1);
     size_t left = start;
     uint8_t ph = q->ph;
     int done = 0;
@@ -141,7 +171,7 @@ int magcal_cons_sort_run(magcal_cons_sort_t *q, uint32_t budget, uint32_t *used)
     static const uint16_t gaps[] = {701u, 301u, 132u, 57u, 23u, 10u, 4u, 1u};
     float *key = q->key;
     uint16_t *idx = q->idx;
-    const size_t start = magcal_cons_visits(budget, *used, CONS_W_SORT, (size_t)-1);
+    const size_t start = cons_visits(budget, *used, CONS_W_SORT, (size_t)-1);
     size_t left = start;
     size_t i = q->i;
     size_t j = q->j;
