@@ -834,6 +834,64 @@ void test_cont_coarse_cfg_checked(void)
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
 }
 
+/* magcal_cont_push_g's level test (continuous.h) with known attitudes, 50 Hz stamps: level
+ * (tilt 0.5 deg) is LEVEL, tilt 3 deg (limit 2) and |g| 1.3 x its level (hard braking along z)
+ * are TILTED, a NaN or NULL g gives no tilt code (as magcal_cont_push); the codes reach the ring;
+ * the ring still overflows as push's (BUFFER_FULL, counted). tilt_limit_deg 0: no code at all. */
+static void test_cont_push_g_classifies_level_tilted_and_braking(void)
+{
+    magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
+    const magcal_vec3_t m = {10.0f, 20.0f, -40.0f};
+    const double d2r = 3.14159265358979 / 180.0;
+    const magcal_vec3_t lv = {0.0f, (float)sin(0.5 * d2r), (float)cos(0.5 * d2r)};
+    const magcal_vec3_t tl = {(float)sin(3.0 * d2r), 0.0f, (float)cos(3.0 * d2r)};
+    const magcal_vec3_t brake = {0.0f, 0.0f, 1.3f};
+    const magcal_vec3_t bad = {NAN, 0.0f, 1.0f};
+    uint32_t t = 0u;
+    unsigned i;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    for (i = 0u; i < 8u; ++i, t += 20u) {
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_push_g(&g_cc, &m, &lv, t));
+        TEST_ASSERT_EQUAL_UINT8(MAGCAL_INTAKE_TILT_LEVEL, g_cc.ring_tilt[(g_cc.head - 1u) % MAGCAL_CONT_RING]);
+        (void)magcal_cont_step(&g_cc);
+    }
+    for (i = 0u; i < 400u; ++i, t += 20u) { /* 8 s tilted: the smoothed g follows (0.5 s constant) */
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_push_g(&g_cc, &m, &tl, t));
+        (void)magcal_cont_step(&g_cc);
+    }
+    TEST_ASSERT_EQUAL_UINT8(MAGCAL_INTAKE_TILT_TILTED, g_cc.ring_tilt[(g_cc.head - 1u) % MAGCAL_CONT_RING]);
+    for (i = 0u; i < 400u; ++i, t += 20u) { /* back to level */
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_push_g(&g_cc, &m, &lv, t));
+        (void)magcal_cont_step(&g_cc);
+    }
+    TEST_ASSERT_EQUAL_UINT8(MAGCAL_INTAKE_TILT_LEVEL, g_cc.ring_tilt[(g_cc.head - 1u) % MAGCAL_CONT_RING]);
+    for (i = 0u; i < 50u; ++i, t += 20u) { /* 1 s of |g| 1.3 g: out of the 10 % band of its level */
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_push_g(&g_cc, &m, &brake, t));
+        (void)magcal_cont_step(&g_cc);
+    }
+    TEST_ASSERT_EQUAL_UINT8(MAGCAL_INTAKE_TILT_TILTED, g_cc.ring_tilt[(g_cc.head - 1u) % MAGCAL_CONT_RING]);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_push_g(&g_cc, &m, &bad, t));
+    TEST_ASSERT_EQUAL_UINT8(MAGCAL_INTAKE_TILT_UNKNOWN, g_cc.ring_tilt[(g_cc.head - 1u) % MAGCAL_CONT_RING]);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_push_g(&g_cc, &m, NULL, t));
+    TEST_ASSERT_EQUAL_UINT8(MAGCAL_INTAKE_TILT_UNKNOWN, g_cc.ring_tilt[(g_cc.head - 1u) % MAGCAL_CONT_RING]);
+    TEST_ASSERT_EQUAL_UINT32(858u, g_cc.g_pushed);
+    printf("push_g: %u of %u samples LEVEL\n", (unsigned)g_cc.g_level, (unsigned)g_cc.g_pushed);
+    /* 8 + the 400 level ones less ~10 while the smoothed g returns, + ~27 tilted ones and ~2
+     * braking ones before the smoothed g leaves the limit / band (0.5 s constant) */
+    TEST_ASSERT_TRUE(g_cc.g_level >= 8u + 380u && g_cc.g_level <= 8u + 440u);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_cont_push_g(NULL, &m, &lv, t));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_cont_push_g(&g_cc, NULL, &lv, t));
+    for (i = 0u; i < MAGCAL_CONT_RING + 2u; ++i) { /* no step: the ring fills */
+        (void)magcal_cont_push_g(&g_cc, &m, &lv, t);
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_BUFFER_FULL, magcal_cont_push_g(&g_cc, &m, &lv, t));
+    cfg.intake.tilt_limit_deg = 0.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_push_g(&g_cc, &m, &lv, 0u));
+    TEST_ASSERT_EQUAL_UINT8(MAGCAL_INTAKE_TILT_UNKNOWN, g_cc.ring_tilt[0]);
+    TEST_ASSERT_EQUAL_UINT32(0u, g_cc.g_pushed);
+}
+
 int main(void)
 {
 #if defined(__arm__)
@@ -861,5 +919,6 @@ int main(void)
     printf("largest call, SysTick ticks (x 40 = instructions under -icount shift=0): push %lu, step %lu\n",
            (unsigned long)g_tmax[0], (unsigned long)g_tmax[1]);
 #endif
+    RUN_TEST(test_cont_push_g_classifies_level_tilted_and_braking);
     return UNITY_END();
 }

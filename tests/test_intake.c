@@ -799,6 +799,145 @@ static void test_intake_level_band_refuses_pitched_samples(void)
     }
 }
 
+/* Level preference (intake.h, 2-D, magcal_intake_push_tilt): one 10-degree sector with cap 4
+ * around the installed centre. A LEVEL sample entering the full bin replaces its oldest
+ * non-level sample; a TILTED one then replaces only the remaining non-level ones (never a level
+ * one); once the bin holds 4 level samples a TILTED one is refused (REFUSED_TILTED, counted) and
+ * a LEVEL one replaces the oldest level one. Exact contents checked after each phase. */
+static magcal_vec3_t sector_sample(unsigned i)
+{
+    const double a = (2.0 + 0.25 * (double)i) * D2R; /* raw angle atan2(-ux, uy), one sector */
+    magcal_vec3_t m;
+    m.x = (float)(CX - H * sin(a));
+    m.y = (float)(CY + H * cos(a));
+    m.z = (float)CZ;
+    return m;
+}
+
+static unsigned store_holds(const magcal_vec3_t *seq, const unsigned *idx, unsigned n_idx)
+{
+    size_t n = 0u, k;
+    unsigned i, found = 0u;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_snapshot3(&g_st, g_out, 16u, &n));
+    TEST_ASSERT_EQUAL_UINT32(n_idx, (uint32_t)n);
+    for (i = 0u; i < n_idx; ++i) {
+        for (k = 0u; k < n; ++k) {
+            found += (memcmp(&g_out[k], &seq[idx[i]], sizeof(seq[0])) == 0) ? 1u : 0u;
+        }
+    }
+    return found;
+}
+
+static magcal_intake_outcome_t push_tilt_oc(magcal_intake_t *st, const magcal_vec3_t *m, magcal_intake_tilt_t t)
+{
+    magcal_intake_outcome_t oc = MAGCAL_INTAKE_STORED;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_push_tilt(st, m, t, &oc));
+    return oc;
+}
+
+static void test_intake_push_tilt_level_samples_preferred_in_full_bin(void)
+{
+    magcal_intake_cfg_t cfg = MAGCAL_INTAKE_CFG_DEFAULT_2D;
+    const magcal_vec3_t c = {(float)CX, (float)CY, (float)CZ};
+    magcal_intake_counters_t ctr;
+    magcal_vec3_t seq[16];
+    unsigned i;
+    static const unsigned after_level[4] = {2u, 3u, 4u, 5u};    /* tilted 2, 3 kept, level 4, 5 */
+    static const unsigned after_tilted[4] = {4u, 5u, 7u, 8u};   /* level 4, 5 kept; tilted 7, 8 newest */
+    static const unsigned all_level[4] = {4u, 5u, 9u, 10u};
+    static const unsigned aged_level[4] = {5u, 9u, 10u, 12u};   /* level 12 replaced level 4 */
+    for (i = 0u; i < 16u; ++i) {
+        seq[i] = sector_sample(i);
+    }
+    cfg.per_bin = 4u;
+    cfg.min_spacing_rel = 0.001f; /* 0.02 uT (0.04 in a full bin); the samples are 0.09 uT apart */
+    cfg.tilt_limit_deg = 31.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_intake_init(&g_st, &cfg, g_slots, 144u));
+    cfg.tilt_limit_deg = 2.0f;
+    cfg.g_band_rel = 0.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_intake_init(&g_st, &cfg, g_slots, 144u));
+    cfg.g_band_rel = 0.1f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_init(&g_st, &cfg, g_slots, 144u));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_set_centre(&g_st, &c, (float)H));
+    for (i = 0u; i < 4u; ++i) { /* 0..3 tilted fill the bin */
+        TEST_ASSERT_EQUAL_INT(MAGCAL_INTAKE_STORED, push_tilt_oc(&g_st, &seq[i], MAGCAL_INTAKE_TILT_TILTED));
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_INTAKE_REPLACED, push_tilt_oc(&g_st, &seq[4], MAGCAL_INTAKE_TILT_LEVEL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_INTAKE_REPLACED, push_tilt_oc(&g_st, &seq[5], MAGCAL_INTAKE_TILT_LEVEL));
+    TEST_ASSERT_EQUAL_UINT(4u, store_holds(seq, after_level, 4u)); /* the two oldest tilted went */
+    for (i = 6u; i < 9u; ++i) { /* tilted 6, 7, 8: each over the oldest NON-level sample */
+        TEST_ASSERT_EQUAL_INT(MAGCAL_INTAKE_REPLACED, push_tilt_oc(&g_st, &seq[i], MAGCAL_INTAKE_TILT_TILTED));
+    }
+    TEST_ASSERT_EQUAL_UINT(4u, store_holds(seq, after_tilted, 4u));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_INTAKE_REPLACED, push_tilt_oc(&g_st, &seq[9], MAGCAL_INTAKE_TILT_LEVEL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_INTAKE_REPLACED, push_tilt_oc(&g_st, &seq[10], (magcal_intake_tilt_t)1));
+    TEST_ASSERT_EQUAL_UINT(4u, store_holds(seq, all_level, 4u));
+    /* full of level samples: a tilted or an unknown (magcal_intake_push) one is refused, counted */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_INTAKE_REFUSED_TILTED, push_tilt_oc(&g_st, &seq[11], MAGCAL_INTAKE_TILT_TILTED));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_INTAKE_REFUSED_TILTED, push_oc(&g_st, &seq[13]));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_INTAKE_REFUSED_TILTED,
+                          push_tilt_oc(&g_st, &seq[14], (magcal_intake_tilt_t)7)); /* out of range: unknown */
+    TEST_ASSERT_EQUAL_UINT(4u, store_holds(seq, all_level, 4u));
+    /* the level samples still age among themselves: the newest level replaces the oldest level */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_INTAKE_REPLACED, push_tilt_oc(&g_st, &seq[12], MAGCAL_INTAKE_TILT_LEVEL));
+    TEST_ASSERT_EQUAL_UINT(4u, store_holds(seq, aged_level, 4u));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_counters(&g_st, &ctr));
+    TEST_ASSERT_EQUAL_UINT32(3u, ctr.refused_tilted);
+    TEST_ASSERT_EQUAL_UINT32(5u, ctr.stored_level);
+    TEST_ASSERT_EQUAL_UINT32(4u, ctr.added);
+    TEST_ASSERT_EQUAL_UINT32(8u, ctr.replaced);
+    TEST_ASSERT_EQUAL_UINT32(0u, ctr.refused_spacing);
+}
+
+/* Never starve (intake.h): a drive that is hilly throughout (every sample TILTED: pitch
+ * +-5 deg, circles at 15 deg/s for 20 minutes at 50 Hz) builds exactly the store that the same
+ * stream without tilt codes builds (magcal_intake_push), sample for sample and counter for
+ * counter, and that store covers the circle; a 3-D store ignores the codes (LEVEL there changes
+ * nothing either). */
+static void test_intake_push_tilt_hilly_drive_never_starves(void)
+{
+    magcal_intake_cfg_t cfg = MAGCAL_INTAKE_CFG_DEFAULT_2D;
+    magcal_intake_counters_t ca;
+    magcal_intake_counters_t cb;
+    magcal_intake_progress_t p;
+    uint32_t rng = 77u;
+    size_t k, na = 0u, nb = 0u;
+    init2(&g_st, g_slots, &cfg);
+    init2(&g_st_b, g_slots_b, &cfg);
+    for (k = 0u; k < 20u * 60u * 50u; ++k) {
+        const double t = (double)k / 50.0;
+        const magcal_vec3_t m = sample2(15.0 * t, 5.0 * sin(2.0 * PI_D * t / 37.0), 0.1, &rng);
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_push_tilt(&g_st, &m, MAGCAL_INTAKE_TILT_TILTED, NULL));
+        push_ok(&g_st_b, &m);
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_counters(&g_st, &ca));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_counters(&g_st_b, &cb));
+    TEST_ASSERT_EQUAL_MEMORY(&cb, &ca, sizeof ca);
+    TEST_ASSERT_EQUAL_UINT32(0u, ca.refused_tilted);
+    TEST_ASSERT_EQUAL_UINT32(0u, ca.stored_level);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_snapshot3(&g_st, g_out, 288u, &na));
+    {
+        static magcal_vec3_t out_b[288];
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_snapshot3(&g_st_b, out_b, 288u, &nb));
+        TEST_ASSERT_EQUAL_UINT32((uint32_t)nb, (uint32_t)na);
+        TEST_ASSERT_EQUAL_MEMORY(out_b, g_out, na * sizeof g_out[0]);
+    }
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_progress(&g_st, &p));
+    TEST_ASSERT_TRUE(na >= 280u); /* every bin (nearly) full: 36 x 8 = 288 slots */
+    TEST_ASSERT_TRUE(p.coverage_deg >= 350.0f);
+    {
+        magcal_intake_cfg_t cfg3 = MAGCAL_INTAKE_CFG_DEFAULT_3D;
+        const magcal_vec3_t m = {10.0f, 20.0f, 30.0f};
+        magcal_intake_outcome_t oc = MAGCAL_INTAKE_REFUSED_SPACING;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_init(&g_st, &cfg3, g_slots3,
+                                                            sizeof g_slots3 / sizeof g_slots3[0]));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_push_tilt(&g_st, &m, MAGCAL_INTAKE_TILT_LEVEL, &oc));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_INTAKE_STORED, oc);
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_counters(&g_st, &ca));
+        TEST_ASSERT_EQUAL_UINT32(0u, ca.stored_level);
+    }
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -816,5 +955,7 @@ int main(void)
     RUN_TEST(test_intake_same_stream_same_store);
     RUN_TEST(test_intake_progress_coverage_agrees_with_solver_despite_spikes);
     RUN_TEST(test_intake_level_band_refuses_pitched_samples);
+    RUN_TEST(test_intake_push_tilt_level_samples_preferred_in_full_bin);
+    RUN_TEST(test_intake_push_tilt_hilly_drive_never_starves);
     return UNITY_END();
 }

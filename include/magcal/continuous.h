@@ -73,7 +73,8 @@
  *
  * Concurrency contract. magcal_cont_push() may run in an interrupt (or another task) while ANY
  * other call on the same instance runs in one task: the ring is the only state push writes
- * (its head index, after the sample; step only writes the tail index). Everything else (step,
+ * (its head index, after the sample; step only writes the tail index; magcal_cont_push_g also
+ * writes its gravity classifier's state, which nothing else writes). Everything else (step,
  * solve_blocking, heading, progress, status, reset) must run in ONE task context (not
  * concurrently with each other). Two push callers on one instance need the caller's own lock.
  * When the ring is full the sample is dropped and counted (MAGCAL_ERR_BUFFER_FULL). The index
@@ -122,6 +123,13 @@ extern "C" {
 
 #ifndef MAGCAL_CONT_RING
 #define MAGCAL_CONT_RING 32u /**< push ring: samples (power of two) */
+#endif
+
+#ifndef MAGCAL_CONT_G_SMOOTH_MS
+#define MAGCAL_CONT_G_SMOOTH_MS 500u /**< magcal_cont_push_g: time constant of the gravity smoothing, ms */
+#endif
+#ifndef MAGCAL_CONT_G_TAU_MS
+#define MAGCAL_CONT_G_TAU_MS 10000u /**< magcal_cont_push_g: time constant of the |g|^2 level, ms */
 #endif
 
 #ifndef MAGCAL_CONT_BARRIER
@@ -253,6 +261,14 @@ typedef struct {
     /* ring (push writes ring[head % N] then head; step reads then writes tail) */
     magcal_vec3_t ring[MAGCAL_CONT_RING];
     uint32_t ring_t[MAGCAL_CONT_RING];
+    uint8_t ring_tilt[MAGCAL_CONT_RING]; /* magcal_intake_tilt_t of each ring sample (push_g) */
+    magcal_vec3_t g_s;             /* push_g (written by push only): smoothed gravity */
+    float g_level2;                /* push_g: running level of |g_s|^2 (0: none yet) */
+    uint32_t g_t;                  /* its last stamp */
+    volatile uint32_t g_pushed;    /* samples pushed with a finite gravity vector */
+    volatile uint32_t g_level;     /* of those, classified LEVEL */
+    uint32_t park_lv[(MAGCAL_MAX_SAMPLES / 2u + 31u) / 32u]; /* level bits of the parked FIFO (cont_step.c) */
+    uint8_t park_tilt;             /* tilt code of park_m (cont_step.c) */
     volatile uint32_t head;
     volatile uint32_t tail;
     volatile uint32_t dropped;
@@ -349,6 +365,34 @@ magcal_status_t magcal_cont_init(magcal_cont_t *cc, const magcal_cont_cfg_t *cfg
  *         MAGCAL_ERR_NULL, MAGCAL_ERR_NOT_INITIALISED.
  */
 magcal_status_t magcal_cont_push(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms);
+
+/**
+ * @brief As magcal_cont_push, with the accelerometer's gravity at the same instant: the sample
+ *        is classified LEVEL or TILTED for the store's level preference (intake.h: a level
+ *        sample replaces a pitched one of its bin first, a pitched one never replaces a level
+ *        one, pitched samples are taken while a bin is short of level ones, so a drive that is
+ *        hilly throughout still calibrates). ISR-safe as magcal_cont_push (the classifier's state
+ *        is written by push only). O(1), no trigonometry: g is smoothed (exponential average,
+ *        time constant MAGCAL_CONT_G_SMOOTH_MS of the push stamps: vibration, sensor noise), and
+ *        the sample is LEVEL when the smoothed g has
+ *        g_x^2 + g_y^2 <= tan^2(cfg.intake.tilt_limit_deg) g_z^2 (tan^2 precomputed at init)
+ *        and | |g|^2 - L | <= cfg.intake.g_band_rel L, L the running level of |g|^2 (an
+ *        exponential average of time constant MAGCAL_CONT_G_TAU_MS, seeded by the first
+ *        sample): hard braking, acceleration and bumps are not level. g in any unit
+ *        (the tests are ratios), body axes as m (x right, y forward, z up; the sign of g_z does
+ *        not matter). A car's accelerometer also sees the centripetal acceleration in a turn:
+ *        those samples read as tilted (they are still stored while their bin is short of level
+ *        ones). g NULL, a non-finite g, |g| = 0 or tilt_limit_deg 0: the sample is pushed
+ *        without a tilt code, exactly as magcal_cont_push.
+ *        docs/calibrator.md "Level samples from the accelerometer".
+ * @param[in,out] cc   initialised instance.
+ * @param[in]     m    raw magnetometer sample.
+ * @param[in]     g    specific force (accelerometer), or NULL.
+ * @param[in]     t_ms time stamp, ms (wrapping).
+ * @return as magcal_cont_push.
+ */
+magcal_status_t magcal_cont_push_g(magcal_cont_t *cc, const magcal_vec3_t *m, const magcal_vec3_t *g,
+                                   uint32_t t_ms);
 
 /** @brief One bounded unit of work (file comment); MAGCAL_CONT_IDLE for NULL / uninitialised. */
 magcal_cont_outcome_t magcal_cont_step(magcal_cont_t *cc);

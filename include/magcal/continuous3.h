@@ -166,7 +166,7 @@ typedef struct {
  *  with a minimum spacing of 1 % of R instead of 4 %: a hand tumble of a few hundred samples is
  *  then stored nearly whole (docs/calibration_3d.md "Continuous 3-D": the spacing only thins
  *  repeats; the cap per cell still bounds a parked sensor to its own cell). */
-#define MAGCAL_CONT3_INTAKE_CFG_DEFAULT {3u, 4u, 10u, 8u, 0.01f, 0.05f, 0.0f, 0.0f}
+#define MAGCAL_CONT3_INTAKE_CFG_DEFAULT {3u, 4u, 10u, 8u, 0.01f, 0.05f, 0.0f, 0.0f, 0.0f, 0.1f}
 
 /** Defaults: work untuned from 10 to 100 Hz (time constants are in ms of the push stamps). */
 #define MAGCAL_CONT3_CFG_DEFAULT                                                                   \

@@ -24,6 +24,15 @@
  *   still fills its bins (with pitched samples: the band then only prefers the level ones that
  *   come later); pitch while heading magnetic east or west moves z only at second order and is
  *   not seen (docs/calibrator.md "2-D level band").
+ * - 2-D level preference (magcal_intake_push_tilt: each sample with a tilt code, from the
+ *   accelerometer, magcal_cont_push_g): a LEVEL sample entering a full bin replaces the bin's
+ *   oldest non-level sample first (the oldest level one only when the bin holds no other); a
+ *   non-level sample (TILTED or UNKNOWN) never replaces a level one: it is refused
+ *   (REFUSED_TILTED, counted) once its bin holds cfg.per_bin level samples, and otherwise is
+ *   stored as today (a free slot, or over the bin's oldest non-level sample). A drive that is
+ *   hilly throughout (no level sample ever) therefore fills and ages every bin exactly as without
+ *   gravity, and a store without tilt codes (magcal_intake_push: UNKNOWN) behaves exactly as
+ *   before (docs/calibrator.md "Level samples from the accelerometer").
  *
  * The centre is the installed calibration's (magcal_intake_set_centre) when there is one, otherwise
  * a provisional one that one spike cannot move (never a bounding-box midpoint). A bounded sweep
@@ -91,7 +100,8 @@ extern "C" {
 /** One stored sample (caller storage). Fields private. */
 typedef struct {
     magcal_vec3_t m; /**< private: raw sample */
-    uint32_t seq;    /**< private: push count when stored (age order) */
+    uint32_t seq;    /**< private: push count when stored, 31 bits (age order, modulo 2^31 pushes);
+                          bit 31: the sample is LEVEL (magcal_intake_push_tilt) */
 } magcal_intake_slot_t;
 
 /** Configuration. Start from MAGCAL_INTAKE_CFG_DEFAULT_2D or _3D. */
@@ -112,12 +122,19 @@ typedef struct {
                                 store's level model (file comment) is refused once its bin holds
                                 half its cap; 0..0.5, 0 = off (default: off, opt-in, see
                                 docs/calibrator.md "Level band"; 3-D: unused, 0) */
+    float tilt_limit_deg;  /**< 2-D gravity level test (magcal_cont_push_g): a sample is LEVEL when
+                                its accelerometer tilt is within this many degrees (g_x^2 + g_y^2
+                                <= tan^2(limit) g_z^2) and |g|^2 is within g_band_rel of its
+                                running level; 0..30, 0 = off (every sample UNKNOWN) (2-D default
+                                2; 3-D: unused, 0) */
+    float g_band_rel;      /**< that |g|^2 band, relative, 0 < x <= 1 (default 0.1: |g| within about
+                                5 %: hard braking, acceleration, bumps are not level) */
 } magcal_intake_cfg_t;
 
-/** 2-D defaults: 36 sectors x 8, spacing 2 % of R. */
-#define MAGCAL_INTAKE_CFG_DEFAULT_2D {2u, 8u, 36u, 8u, 0.02f, 0.05f, 0.0f, 0.0f}
+/** 2-D defaults: 36 sectors x 8, spacing 2 % of R, gravity level test 2 deg. */
+#define MAGCAL_INTAKE_CFG_DEFAULT_2D {2u, 8u, 36u, 8u, 0.02f, 0.05f, 0.0f, 0.0f, 2.0f, 0.1f}
 /** 3-D defaults: 10 bands (128 cells) x 4, spacing 4 % of R. */
-#define MAGCAL_INTAKE_CFG_DEFAULT_3D {3u, 4u, 10u, 8u, 0.04f, 0.05f, 0.0f, 0.0f}
+#define MAGCAL_INTAKE_CFG_DEFAULT_3D {3u, 4u, 10u, 8u, 0.04f, 0.05f, 0.0f, 0.0f, 0.0f, 0.1f}
 
 /** What push did with a sample. */
 typedef enum {
@@ -126,8 +143,16 @@ typedef enum {
     MAGCAL_INTAKE_REFUSED_SPACING = 2,   /**< too close to a sample already in its bin */
     MAGCAL_INTAKE_REFUSED_SATURATED = 3, /**< an axis at the range limit (status MAGCAL_ERR_SATURATED) */
     MAGCAL_INTAKE_REFUSED_NONFINITE = 4, /**< NaN or Inf (status MAGCAL_ERR_NONFINITE) */
-    MAGCAL_INTAKE_REFUSED_LEVEL = 5      /**< 2-D: raw z outside the level band (a pitched sample) */
+    MAGCAL_INTAKE_REFUSED_LEVEL = 5,     /**< 2-D: raw z outside the level band (a pitched sample) */
+    MAGCAL_INTAKE_REFUSED_TILTED = 6     /**< 2-D: not level, and its bin is full of level samples */
 } magcal_intake_outcome_t;
+
+/** Tilt code of a sample (magcal_intake_push_tilt; 2-D, from the accelerometer). */
+typedef enum {
+    MAGCAL_INTAKE_TILT_UNKNOWN = 0, /**< no gravity (magcal_intake_push): stored as not level */
+    MAGCAL_INTAKE_TILT_LEVEL = 1,   /**< the sensor was level: preferred in its bin */
+    MAGCAL_INTAKE_TILT_TILTED = 2   /**< tilted, or |g| off its level (accelerating): not level */
+} magcal_intake_tilt_t;
 
 /** Where the binning centre comes from. */
 typedef enum {
@@ -149,6 +174,8 @@ typedef struct {
     uint32_t rebin_dropped;     /**< of those, oldest samples dropped from a full target bin */
     uint32_t recentres;         /**< centre changes (surveys that moved it, set_centre calls) */
     uint32_t refused_level;     /**< refused: 2-D level band (pitched) */
+    uint32_t refused_tilted;    /**< refused: not level, its bin full of level samples */
+    uint32_t stored_level;      /**< LEVEL samples stored (added or replaced) */
 } magcal_intake_counters_t;
 
 /** Live progress. */
@@ -209,6 +236,7 @@ typedef struct {
     uint8_t lv_ok_gen;             /**< private */
     float ell_scratch[25];         /**< private: the conic fit's 5 x 5 system at a sweep's end, here
                                         and not on the stack (the drain's deep path: <= 512 B) */
+    float tilt_tan2;               /**< private: tan^2(cfg.tilt_limit_deg), set at init (0 = off) */
 } magcal_intake_t;
 
 /**
@@ -243,6 +271,19 @@ magcal_status_t magcal_intake_init(magcal_intake_t *st, const magcal_intake_cfg_
  */
 magcal_status_t magcal_intake_push(magcal_intake_t *st, const magcal_vec3_t *m,
                                    magcal_intake_outcome_t *outcome);
+
+/**
+ * @brief As magcal_intake_push, with the sample's tilt code (2-D level preference, file comment;
+ *        3-D: the code is ignored). magcal_intake_push is this with MAGCAL_INTAKE_TILT_UNKNOWN.
+ * @param[in,out] st      initialised store.
+ * @param[in]     m       raw sample.
+ * @param[in]     tilt    magcal_intake_tilt_t; a value out of range counts as UNKNOWN.
+ * @param[out]    outcome optional (NULL allowed); MAGCAL_INTAKE_REFUSED_TILTED: a non-level
+ *                        sample whose bin holds cfg.per_bin level samples (not stored, counted).
+ * @return as magcal_intake_push.
+ */
+magcal_status_t magcal_intake_push_tilt(magcal_intake_t *st, const magcal_vec3_t *m, magcal_intake_tilt_t tilt,
+                                        magcal_intake_outcome_t *outcome);
 
 /**
  * @brief Bin around an installed calibration's centre (re-bins the store over the next sweeps),

@@ -11,6 +11,8 @@
 #include "magcal/intake.h"
 
 #define INTAKE_MAGIC 0x494e544bu /* "INTK" */
+#define INTAKE_SEQ_LEVEL 0x80000000u /* slot.seq bit 31: a LEVEL sample (magcal_intake_push_tilt) */
+#define INTAKE_SEQ_MASK 0x7fffffffu  /* slot.seq bits 0..30: push count (ages modulo 2^31 pushes) */
 
 /* Bin of a raw sample around the store's centre. */
 uint16_t magcal_intake_bin_of(const magcal_intake_t *st, const magcal_vec3_t *m);
@@ -21,8 +23,9 @@ uint16_t magcal_intake_cells_3d(uint16_t bands);
 /* Build the 3-D band tables (st->n_bands, band_start, band_cos); returns the cell count or 0. */
 uint16_t magcal_intake_build_mask(magcal_intake_t *st, uint16_t bands);
 
-/* Insert m (push count seq) into bin b: a free slot, else over the bin's oldest sample.
- * Returns 1 when the oldest sample was replaced. */
+/* Insert m (slot seq: push count and level bit) into bin b: a free slot, else over the bin's
+ * oldest non-level sample (a level m: the oldest sample when every one is level; a non-level m
+ * into a bin full of level samples is dropped itself). Returns 1 when a sample was dropped. */
 int magcal_intake_insert(magcal_intake_t *st, uint16_t b, const magcal_vec3_t *m, uint32_t seq);
 
 /* Survey / re-bin up to `steps` slots (sweep.c). */

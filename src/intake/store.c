@@ -50,7 +50,9 @@ magcal_status_t magcal_intake_init(magcal_intake_t *st, const magcal_intake_cfg_
         !magcal_isfinite_f(cfg->min_spacing_rel) || !(cfg->min_spacing_rel >= 0.0f && cfg->min_spacing_rel <= 0.5f) ||
         !magcal_isfinite_f(cfg->recentre_rel) || !(cfg->recentre_rel > 0.0f && cfg->recentre_rel <= 1.0f) ||
         !magcal_isfinite_f(cfg->range_limit) || !(cfg->range_limit >= 0.0f) ||
-        !magcal_isfinite_f(cfg->level_band_rel) || !(cfg->level_band_rel >= 0.0f && cfg->level_band_rel <= 0.5f)) {
+        !magcal_isfinite_f(cfg->level_band_rel) || !(cfg->level_band_rel >= 0.0f && cfg->level_band_rel <= 0.5f) ||
+        !magcal_isfinite_f(cfg->tilt_limit_deg) || !(cfg->tilt_limit_deg >= 0.0f && cfg->tilt_limit_deg <= 30.0f) ||
+        !magcal_isfinite_f(cfg->g_band_rel) || !(cfg->g_band_rel > 0.0f && cfg->g_band_rel <= 1.0f)) {
         return MAGCAL_ERR_ARG;
     }
     if (n_slots < (size_t)nb * (size_t)cfg->per_bin) {
@@ -63,6 +65,10 @@ magcal_status_t magcal_intake_init(magcal_intake_t *st, const magcal_intake_cfg_
         (void)magcal_intake_build_mask(st, cfg->bins);
     }
     st->n_bins = nb;
+    if (cfg->dims == 2u && cfg->tilt_limit_deg > 0.0f) {
+        const float t = tanf(cfg->tilt_limit_deg * (MAGCAL_PI_F / 180.0f));
+        st->tilt_tan2 = t * t; /* the push-side level test needs no trigonometry */
+    }
     st->centre_source = (uint8_t)MAGCAL_INTAKE_CENTRE_NONE;
     magcal_intake_survey_clear(st);
     st->magic = INTAKE_MAGIC;
@@ -75,12 +81,22 @@ int magcal_intake_insert(magcal_intake_t *st, uint16_t b, const magcal_vec3_t *m
     const uint32_t base = (uint32_t)b * per;
     uint32_t k;
     uint32_t oldest = base;
+    uint32_t skip = 0u; /* INTAKE_SEQ_LEVEL: level samples are not candidates for replacement */
     if (st->count[b] < per) {
         st->slots[base + st->count[b]].m = *m;
         st->slots[base + st->count[b]].seq = seq;
         st->count[b]++;
         st->ctr.stored++;
         return 0;
+    }
+    for (k = base; k < base + per; ++k) {
+        if ((st->slots[k].seq & INTAKE_SEQ_LEVEL) == 0u) {
+            skip = INTAKE_SEQ_LEVEL; /* the bin holds a non-level sample: replace one of those */
+            break;
+        }
+    }
+    if (skip == 0u && (seq & INTAKE_SEQ_LEVEL) == 0u) {
+        return 1; /* a non-level sample never replaces a level one: it is the one dropped */
     }
     if (st->centre_source == (uint8_t)MAGCAL_INTAKE_CENTRE_NONE) {
         /* no centre yet: a bin around the origin spans more of the ring than it will around the
@@ -91,16 +107,16 @@ int magcal_intake_insert(magcal_intake_t *st, uint16_t b, const magcal_vec3_t *m
             const float dy = m->y - st->slots[k].m.y;
             const float dz = m->z - st->slots[k].m.z;
             const float d2 = dx * dx + dy * dy + dz * dz;
-            if (best < 0.0f || d2 < best) {
+            if ((st->slots[k].seq & skip) == 0u && (best < 0.0f || d2 < best)) {
                 best = d2;
                 oldest = k;
             }
         }
     } else {
         uint32_t oldest_age = 0u;
-        for (k = base; k < base + per; ++k) { /* ages modulo 2^32 pushes */
-            const uint32_t age = st->seq - st->slots[k].seq;
-            if (age >= oldest_age) {
+        for (k = base; k < base + per; ++k) { /* ages modulo 2^31 pushes */
+            const uint32_t age = (st->seq - st->slots[k].seq) & INTAKE_SEQ_MASK;
+            if ((st->slots[k].seq & skip) == 0u && age >= oldest_age) {
                 oldest_age = age;
                 oldest = k;
             }
@@ -287,6 +303,12 @@ static MAGCAL_NOINLINE int intake_level_refuses(const magcal_intake_t *st, uint1
 magcal_status_t magcal_intake_push(magcal_intake_t *st, const magcal_vec3_t *m,
                                    magcal_intake_outcome_t *outcome)
 {
+    return magcal_intake_push_tilt(st, m, MAGCAL_INTAKE_TILT_UNKNOWN, outcome);
+}
+
+magcal_status_t magcal_intake_push_tilt(magcal_intake_t *st, const magcal_vec3_t *m, magcal_intake_tilt_t tilt,
+                                        magcal_intake_outcome_t *outcome)
+{
     magcal_intake_outcome_t oc;
     magcal_status_t ret = MAGCAL_OK;
     if (st == NULL || m == NULL) {
@@ -310,6 +332,9 @@ magcal_status_t magcal_intake_push(magcal_intake_t *st, const magcal_vec3_t *m,
     } else {
         const uint16_t b = magcal_intake_bin_of(st, m);
         const uint32_t base = (uint32_t)b * st->cfg.per_bin;
+        /* 2-D level preference: the slot's level bit (3-D: none) */
+        const uint32_t lv = (st->cfg.dims == 2u && tilt == MAGCAL_INTAKE_TILT_LEVEL) ? INTAKE_SEQ_LEVEL : 0u;
+        uint32_t n_level = 0u;
         int d3 = 0;
         float r = st->radius;
         float dmin2;
@@ -337,19 +362,28 @@ magcal_status_t magcal_intake_push(magcal_intake_t *st, const magcal_vec3_t *m,
                 oc = MAGCAL_INTAKE_REFUSED_SPACING;
                 break;
             }
+            n_level += ((st->slots[k].seq & INTAKE_SEQ_LEVEL) != 0u) ? 1u : 0u;
+        }
+        if (oc == MAGCAL_INTAKE_STORED && lv == 0u && n_level >= (uint32_t)st->cfg.per_bin) {
+            oc = MAGCAL_INTAKE_REFUSED_TILTED; /* never over a level sample */
         }
         if (oc == MAGCAL_INTAKE_STORED && intake_level_refuses(st, b, m) != 0) {
             oc = MAGCAL_INTAKE_REFUSED_LEVEL;
         }
         if (oc == MAGCAL_INTAKE_REFUSED_SPACING) {
             st->ctr.refused_spacing++;
+        } else if (oc == MAGCAL_INTAKE_REFUSED_TILTED) {
+            st->ctr.refused_tilted++;
         } else if (oc == MAGCAL_INTAKE_REFUSED_LEVEL) {
             st->ctr.refused_level++;
-        } else if (magcal_intake_insert(st, b, m, st->seq) != 0) {
-            st->ctr.replaced++;
-            oc = MAGCAL_INTAKE_REPLACED;
         } else {
-            st->ctr.added++;
+            if (magcal_intake_insert(st, b, m, (st->seq & INTAKE_SEQ_MASK) | lv) != 0) {
+                st->ctr.replaced++;
+                oc = MAGCAL_INTAKE_REPLACED;
+            } else {
+                st->ctr.added++;
+            }
+            st->ctr.stored_level += (lv != 0u) ? 1u : 0u;
         }
     }
     magcal_intake_sweep(st, st->cfg.sweep_steps);

@@ -1,5 +1,6 @@
 /*
- * Continuous calibrator, lifecycle: init, the ISR-safe push ring, progress, heading with trust.
+ * Continuous calibrator, lifecycle: init, the ISR-safe push ring (push_g: with the gravity level
+ * test that tags each sample LEVEL / TILTED for the store), progress, heading with trust.
  * The ring is single-producer (push) / single-consumer (step, cont_step.c): push writes the slot,
  * a barrier, then head; the consumer reads the slot, a barrier, then writes tail.
  */
@@ -89,25 +90,92 @@ magcal_status_t magcal_cont_init(magcal_cont_t *cc, const magcal_cont_cfg_t *cfg
     return MAGCAL_OK;
 }
 
-magcal_status_t magcal_cont_push(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms)
+/* Queue one sample with its tilt code (magcal_intake_tilt_t). */
+static magcal_status_t cont_enqueue(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms, uint8_t tilt)
 {
-    uint32_t h;
-    if (cc == NULL || m == NULL) {
-        return MAGCAL_ERR_NULL;
-    }
-    if (cc->magic != MAGCAL_CONT_MAGIC) {
-        return MAGCAL_ERR_NOT_INITIALISED;
-    }
-    h = cc->head;
+    const uint32_t h = cc->head;
     if (h - cc->tail >= MAGCAL_CONT_RING) {
         cc->dropped = cc->dropped + 1u;
         return MAGCAL_ERR_BUFFER_FULL;
     }
     cc->ring[h % MAGCAL_CONT_RING] = *m;
     cc->ring_t[h % MAGCAL_CONT_RING] = t_ms;
+    cc->ring_tilt[h % MAGCAL_CONT_RING] = tilt;
     MAGCAL_CONT_BARRIER();
     cc->head = h + 1u;
     return MAGCAL_OK;
+}
+
+magcal_status_t magcal_cont_push(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms)
+{
+    if (cc == NULL || m == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (cc->magic != MAGCAL_CONT_MAGIC) {
+        return MAGCAL_ERR_NOT_INITIALISED;
+    }
+    return cont_enqueue(cc, m, t_ms, (uint8_t)MAGCAL_INTAKE_TILT_UNKNOWN);
+}
+
+/* The gravity level test of push_g (continuous.h): O(1), no trigonometry. The gravity vector is
+ * smoothed first (exponential, time constant MAGCAL_CONT_G_SMOOTH_MS of the stamps: vibration and
+ * sensor noise), then the smoothed vector is tested; the running level of its |g|^2 is a slower
+ * exponential average (MAGCAL_CONT_G_TAU_MS). A gap in the stamps counts at most one constant. */
+static float cont_ema_w(uint32_t dt_ms, uint32_t tau_ms)
+{
+    const uint32_t dt = (dt_ms > tau_ms) ? tau_ms : dt_ms;
+    return (float)dt / ((float)dt + (float)tau_ms);
+}
+
+static uint8_t cont_tilt_of(magcal_cont_t *cc, const magcal_vec3_t *g, uint32_t t_ms)
+{
+    const float tan2 = cc->store.tilt_tan2;
+    float h2;
+    float v2;
+    float n2;
+    if (g == NULL || !(tan2 > 0.0f) || !magcal_isfinite_f(g->x) || !magcal_isfinite_f(g->y) ||
+        !magcal_isfinite_f(g->z) || !(g->x * g->x + g->y * g->y + g->z * g->z > 0.0f)) {
+        return (uint8_t)MAGCAL_INTAKE_TILT_UNKNOWN;
+    }
+    cc->g_pushed = cc->g_pushed + 1u;
+    if (!(cc->g_level2 > 0.0f)) {
+        cc->g_s = *g; /* seeded by the first sample */
+    } else {
+        const float w = cont_ema_w(t_ms - cc->g_t, MAGCAL_CONT_G_SMOOTH_MS); /* wrapping stamps */
+        cc->g_s.x += (g->x - cc->g_s.x) * w;
+        cc->g_s.y += (g->y - cc->g_s.y) * w;
+        cc->g_s.z += (g->z - cc->g_s.z) * w;
+    }
+    h2 = cc->g_s.x * cc->g_s.x + cc->g_s.y * cc->g_s.y;
+    v2 = cc->g_s.z * cc->g_s.z;
+    n2 = h2 + v2;
+    if (!(cc->g_level2 > 0.0f)) {
+        cc->g_level2 = n2;
+    } else {
+        cc->g_level2 += (n2 - cc->g_level2) * cont_ema_w(t_ms - cc->g_t, MAGCAL_CONT_G_TAU_MS);
+    }
+    cc->g_t = t_ms;
+    if (!(cc->g_level2 > 0.0f) || !magcal_isfinite_f(cc->g_level2)) {
+        cc->g_level2 = 0.0f; /* overflow (|g| ~ 1e19): start again */
+        return (uint8_t)MAGCAL_INTAKE_TILT_UNKNOWN;
+    }
+    if (h2 <= tan2 * v2 && fabsf(n2 - cc->g_level2) <= cc->cfg.intake.g_band_rel * cc->g_level2) {
+        cc->g_level = cc->g_level + 1u;
+        return (uint8_t)MAGCAL_INTAKE_TILT_LEVEL;
+    }
+    return (uint8_t)MAGCAL_INTAKE_TILT_TILTED;
+}
+
+magcal_status_t magcal_cont_push_g(magcal_cont_t *cc, const magcal_vec3_t *m, const magcal_vec3_t *g,
+                                   uint32_t t_ms)
+{
+    if (cc == NULL || m == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (cc->magic != MAGCAL_CONT_MAGIC) {
+        return MAGCAL_ERR_NOT_INITIALISED;
+    }
+    return cont_enqueue(cc, m, t_ms, cont_tilt_of(cc, g, t_ms));
 }
 
 magcal_status_t magcal_cont_progress(const magcal_cont_t *cc, magcal_cont_progress_t *out)

@@ -142,6 +142,11 @@ static MAGCAL_NOINLINE const magcal_vec3_t *cont_unpark(magcal_cont_t *cc)
     cc->park_m.z = pk[1].x;
     /* cppcheck-suppress misra-c2012-21.15 ; deviation D15: the stamp's 32 bits round-trip through a float slot of the parked sample */
     (void)memcpy(&cc->park_t, &pk[1].y, sizeof cc->park_t);
+    {
+        const uint32_t q = cc->park_i % cont_park_cap(cc);
+        cc->park_tilt = ((cc->park_lv[q / 32u] >> (q % 32u)) & 1u) != 0u ? (uint8_t)MAGCAL_INTAKE_TILT_LEVEL
+                                                                          : (uint8_t)MAGCAL_INTAKE_TILT_UNKNOWN;
+    }
     cc->park_i++;
     return &cc->park_m;
 }
@@ -171,11 +176,11 @@ static int cont_behind(const magcal_cont_t *cc)
 
 /* The store push of a drained sample without its sweep steps (the step runs them once for all
  * the samples it drained, cont_sweep_part): the store's configured count is lent to the step. */
-static void cont_push_nosweep(magcal_cont_t *cc, const magcal_vec3_t *m)
+static void cont_push_nosweep(magcal_cont_t *cc, const magcal_vec3_t *m, magcal_intake_tilt_t tilt)
 {
     const uint16_t steps = cc->store.cfg.sweep_steps;
     cc->store.cfg.sweep_steps = 0u;
-    (void)magcal_intake_push(&cc->store, m, NULL);
+    (void)magcal_intake_push_tilt(&cc->store, m, tilt, NULL);
     cc->store.cfg.sweep_steps = steps;
 }
 
@@ -213,11 +218,14 @@ static MAGCAL_NOINLINE uint32_t cont_drain(magcal_cont_t *cc, uint32_t max, magc
             m = &cc->ring[t % MAGCAL_CONT_RING];
         }
         if (cont_screen(cc, m, m == &cc->park_m ? cc->park_t : cc->ring_t[t % MAGCAL_CONT_RING]) == 0) {
-            /* stored samples are counted by the store (added + replaced) */
+            /* stored samples are counted by the store (added + replaced); with the tilt code of
+             * push_g (the store's level preference) */
+            const magcal_intake_tilt_t tilt =
+                (magcal_intake_tilt_t)(m == &cc->park_m ? cc->park_tilt : cc->ring_tilt[t % MAGCAL_CONT_RING]);
             if (b->unlimited != 0u) {
-                (void)magcal_intake_push(&cc->store, m, NULL);
+                (void)magcal_intake_push_tilt(&cc->store, m, tilt, NULL);
             } else {
-                cont_push_nosweep(cc, m);
+                cont_push_nosweep(cc, m, tilt);
             }
             pushed++;
         }
@@ -291,6 +299,13 @@ static MAGCAL_NOINLINE void cont_park(magcal_cont_t *cc, magcal_cal_budget_t *b)
         pk[1].x = cc->ring[t % MAGCAL_CONT_RING].z;
         /* cppcheck-suppress misra-c2012-21.15 ; deviation D15: the stamp's 32 bits round-trip through a float slot of the parked sample */
         (void)memcpy(&pk[1].y, &cc->ring_t[t % MAGCAL_CONT_RING], sizeof pk[1].y);
+        {
+            const uint32_t q = cc->park_n % cont_park_cap(cc);
+            const uint32_t bit = (uint32_t)1u << (q % 32u);
+            cc->park_lv[q / 32u] = (cc->ring_tilt[t % MAGCAL_CONT_RING] == (uint8_t)MAGCAL_INTAKE_TILT_LEVEL)
+                                       ? (cc->park_lv[q / 32u] | bit)
+                                       : (cc->park_lv[q / 32u] & ~bit);
+        }
         MAGCAL_CONT_BARRIER(); /* read before the slot is handed back */
         cc->tail = t + 1u;
         cc->park_n++;

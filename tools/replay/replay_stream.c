@@ -36,7 +36,8 @@ static magcal_cont3_t g_c3;
 
 static const char k_stream_usage[] =
     "usage: magcal-replay --stream [--mode 2d|3d] [--headings OUT.csv] [--json] [--declination DEG]\n"
-    "                        [--range R] [--steps-per-row K] [--coarse DEG[,TOL]] DUMP.csv\n"
+    "                        [--range R] [--steps-per-row K] [--coarse DEG[,TOL]] [--no-tilt]\n"
+    "                        [--level-tilt DEG] DUMP.csv\n"
     "                        (R: the sensor's declared range)\n"
     "  --coarse: 2-D coarse stage on (cfg.coarse_coverage_deg DEG, cfg.coarse_max_err_deg TOL; off by\n"
     "  default): adoptions of a hard-iron circle carry status \"coarse\", its headings trust \"coarse\";\n"
@@ -46,7 +47,11 @@ static const char k_stream_usage[] =
     "  --headings: index,raw_heading_deg,heading_deg,trust,generation\n"
     "  [,heading_ref_deg,error_deg]; --json: calibration in force at the end, events, rows, trusted_rows\n"
     "  --mode 3d: magcal_cont3_* (3-D store, ellipsoid solve), tilt-compensated headings when the\n"
-    "  dump has ax, ay, az in g, mg or m/s^2 (else the level formula)\n";
+    "  dump has ax, ay, az in g, mg or m/s^2 (else the level formula)\n"
+    "  2-D gravity feed: when the dump has ax, ay, az in g, mg or m/s^2 (unit detected from the median\n"
+    "  |a|), each row is pushed with magcal_cont_push_g (the store prefers level samples; JSON\n"
+    "  \"gravity_fed\": true), else with magcal_cont_push; --no-tilt: never (magcal_cont_push, as\n"
+    "  without an accelerometer); --level-tilt DEG: cfg.intake.tilt_limit_deg (default 2; 0 = off)\n";
 
 /* Open the headings CSV (hpath NULL: none) and write its header; 0 when it cannot be written
  * (said on stderr). */
@@ -481,6 +486,18 @@ static void print_stream_text(const char *file, const magcal_replay_csv_t *d, co
            (unsigned)g_cc.dropped);
 }
 
+/* Level samples held by the store at the end (the slots' level bit, intake.h). */
+static uint32_t stream_store_level(const magcal_intake_t *st)
+{
+    uint32_t b, k, n = 0u;
+    for (b = 0u; b < st->n_bins; ++b) {
+        for (k = 0u; k < st->count[b]; ++k) {
+            n += (st->slots[b * st->cfg.per_bin + k].seq >> 31) & 1u;
+        }
+    }
+    return n;
+}
+
 /* One step's outcome as an event of the JSON report. */
 static void stream_event(cJSON *ev, size_t row, magcal_cont_outcome_t oc)
 {
@@ -505,6 +522,8 @@ int replay_stream_main(int argc, char **argv)
                                            {"range", required_argument, NULL, 'r'},
                                            {"steps-per-row", required_argument, NULL, 'k'},
                                            {"coarse", required_argument, NULL, 'c'},
+                                           {"no-tilt", no_argument, NULL, 'T'},
+                                           {"level-tilt", required_argument, NULL, 'L'},
                                            {"help", no_argument, NULL, 'h'},
                                            {NULL, 0, NULL, 0}};
     const char *hpath = NULL;
@@ -527,6 +546,8 @@ int replay_stream_main(int argc, char **argv)
     size_t by_trust[5] = {0u, 0u, 0u, 0u, 0u};
     unsigned k;
     size_t tail;
+    int no_tilt = 0;
+    double gscale = 0.0; /* 2-D gravity feed: accelerometer unit to g, 0 = not fed */
 
     optind = 1;
     while ((opt = getopt_long(argc, argv, "h", k_opts, NULL)) != -1) {
@@ -598,6 +619,19 @@ int replay_stream_main(int argc, char **argv)
             cfg.coarse_max_err_deg = (float)tol;
             break;
         }
+        case 'T':
+            no_tilt = 1;
+            break;
+        case 'L': {
+            char *end = NULL;
+            double v = strtod(optarg, &end);
+            if (end == optarg || *end != '\0' || !(v >= 0.0 && v <= 30.0)) {
+                fprintf(stderr, "magcal-replay: --level-tilt needs degrees 0..30, got \"%s\"\n", optarg);
+                return 1;
+            }
+            cfg.intake.tilt_limit_deg = (float)v;
+            break;
+        }
         case 'h':
             fputs(k_stream_usage, stdout);
             return 0;
@@ -626,6 +660,13 @@ int replay_stream_main(int argc, char **argv)
     }
     ref = d.col[MAGCAL_REPLAY_COL_HEADING_REF];
     tc = d.col[MAGCAL_REPLAY_COL_T];
+    if (!no_tilt) {
+        gscale = stream3_accel_scale(&d); /* the unit detection of --mode 3d (and the batch mode) */
+        if (gscale == 0.0 && d.col[MAGCAL_REPLAY_COL_AX] != NULL) {
+            fprintf(stderr, "magcal-replay: %s: accelerometer unit not g, mg or m/s^2 (raw counts?): "
+                            "no gravity fed (--no-tilt to silence)\n", argv[optind]);
+        }
+    }
     if (stream_headings_open(hpath, ref != NULL, &hf) == 0) {
         magcal_replay_csv_free(&d);
         return 4;
@@ -641,7 +682,16 @@ int replay_stream_main(int argc, char **argv)
         m.y = (float)d.col[MAGCAL_REPLAY_COL_MY][i];
         m.z = isfinite(mz) ? (float)mz : 0.0f;
         t_ms = stream_row_ms(tc, i);
-        (void)magcal_cont_push(&g_cc, &m, t_ms);
+        if (gscale > 0.0) {
+            /* a non-finite row is pushed without a tilt code (push_g checks it) */
+            magcal_vec3_t g;
+            g.x = (float)(d.col[MAGCAL_REPLAY_COL_AX][i] * gscale);
+            g.y = (float)(d.col[MAGCAL_REPLAY_COL_AY][i] * gscale);
+            g.z = (float)(d.col[MAGCAL_REPLAY_COL_AZ][i] * gscale);
+            (void)magcal_cont_push_g(&g_cc, &m, &g, t_ms);
+        } else {
+            (void)magcal_cont_push(&g_cc, &m, t_ms);
+        }
         for (k = 0u; k < steps_per_row; ++k) {
             stream_event(ev, i, magcal_cont_step(&g_cc));
         }
@@ -695,6 +745,13 @@ int replay_stream_main(int argc, char **argv)
     cJSON_AddNumberToObject(root, "tail_steps", (double)tail);
     cJSON_AddNumberToObject(root, "rows", (double)d.n_rows);
     cJSON_AddNumberToObject(root, "trusted_rows", (double)trusted);
+    cJSON_AddBoolToObject(root, "gravity_fed", gscale > 0.0);
+    if (gscale > 0.0) {
+        cJSON_AddNumberToObject(root, "level_tilt_deg", (double)g_cc.cfg.intake.tilt_limit_deg);
+        cJSON_AddNumberToObject(root, "gravity_rows", (double)g_cc.g_pushed);
+        cJSON_AddNumberToObject(root, "level_rows", (double)g_cc.g_level);
+        cJSON_AddNumberToObject(root, "store_level", (double)stream_store_level(&g_cc.store));
+    }
     stream_report_tail(root, g_cc.solves, g_cc.changes, g_cc.dropped, ref_ss, ref_n, ev);
     if (json) {
         stream_print_json(root);
