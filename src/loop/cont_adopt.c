@@ -12,7 +12,7 @@
  * Coarse stage (continuous.h "Coarse calibration"): while no calibration is installed, the solver
  * may fit the hard-iron circle on an arc (calibrator.h "Coarse stage") and a solve starts at
  * cfg.coarse_coverage_deg; once any calibration is installed, never again (a coarse one is
- * replaced by a full ellipse with margin 1, calibrator_solve.c ph_harm_c).
+ * replaced by a full ellipse with margin 1, calibrator_judge.c magcal_ph_harm_c).
  */
 #include <math.h>
 

@@ -8,7 +8,7 @@ sweep ends, the estimate charged outside the solver, the budget handed to the so
 left, and the solver's phase) under QEMU mps2-an386 -icount shift=0, and prints per kind of step
 the measured SysTick count (40-instruction quanta) next to the estimate:
   - drain-only steps, by (samples, sweep ends): measured per sample vs CONT_W_DRAIN / CONT_W_SWEEP;
-  - solve steps that stay in one solver phase (calibrator_solve.c cal_phase_t; inside the
+  - solve steps that stay in one solver phase (calibrator_solve_internal.h cal_phase_t; inside the
     consensus, its own phase): the solver's own instructions (the trace reads SysTick around it)
     / the solver's estimate: a ratio above 1 means that phase's weights are short by that factor.
 Build first (run_bench.py writes drives.h and configures the directory):
