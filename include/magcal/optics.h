@@ -521,12 +521,12 @@ magcal_status_t magcal_optics_thin_step(magcal_optics_thin_slice_t *s, uint32_t 
 #define MAGCAL_OPTICS3_BEST_OFFSET_(n)                                                             \
     ((6u * (size_t)(n) + 2u * (MAGCAL_OPTICS_GRID_CELLS(n) + 1u) + ((size_t)(n) + 7u) / 8u + 3u) & \
      ~(size_t)3u)
-/* Bytes of the 3-D ordering loop's context and resumable position (off the stack), with slack to
- * align it for pointers; optics3_internal.h checks the size with a static assert. */
+/* Bytes of the 3-D ordering loop's context (off the stack), with slack to align it for pointers;
+ * optics3_internal.h checks the size with a static assert. */
 #ifdef MAGCAL_OPTICS_BENCH_SORTED_LIST
-#define MAGCAL_OPTICS3_CTX_LEN_ (33u * sizeof(void *) + 192u)
+#define MAGCAL_OPTICS3_CTX_LEN_ (33u * sizeof(void *) + 112u)
 #else
-#define MAGCAL_OPTICS3_CTX_LEN_ (31u * sizeof(void *) + 192u)
+#define MAGCAL_OPTICS3_CTX_LEN_ (31u * sizeof(void *) + 112u)
 #endif
 /* Offset of the run workspace inside the 3-D filter workspace (4-byte aligned): reach float[n],
  * core float[n], order uint16[n] (the automatic rule keeps the whole ordering). */

@@ -202,7 +202,7 @@ magcal_status_t magcal_optics_filter3(const magcal_optics_cfg_t *cfg, const magc
     c->oc.reach = (float *)work;
     c->oc.labels = (int16_t *)(void *)(w + 4u * n);
     c->oc.eps_prime = eps_prime;
-    magcal_o3_order_all(c, use.eps, use.neighbors);
+    magcal_o3_loop(c);
     magcal_ocore_fill_info(info, &c->oc, c->use_grid, use.eps, eps_prime);
     return magcal_ocore_filter_out(&c->oc, n, inlier_mask, info);
 }

@@ -261,7 +261,7 @@ magcal_status_t magcal_o3_auto_run(magcal_optics_cfg_t *use, const magcal_vec3_t
     au->reach = c->oc.reach;
     au->core = c->oc.core;
     au->order = c->oc.order;
-    magcal_o3_order_all(c, use->eps, use->neighbors);
+    magcal_o3_loop(c);
     au->neighbors = c->use_grid != 0 ? MAGCAL_NEIGHBORS_GRID : MAGCAL_NEIGHBORS_BRUTE;
     au->eps = use->eps;
     /* the representatives again (the run used this memory), counted in the band */

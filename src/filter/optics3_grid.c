@@ -58,133 +58,77 @@ static uint32_t point_bucket(const magcal_o3_ctx_t *c, size_t i)
                      cell3_of(q->z, c->z0, c->inv_h));
 }
 
-/* Build the grid over live[] / start[] when mode is GRID and it can help (finite eps, points
- * not all equal); otherwise leave use_grid = 0 (brute force). Resumable per point of the
- * bounding-box, counting and placement passes and per bucket of the clear, prefix and shift
- * passes (c->gst, c->gi; both 0 from magcal_o3_ctx_setup). Returns 1 when built, 0 when *rem ran
- * out (call again). */
-int magcal_o3_grid_run(magcal_o3_ctx_t *c, float eps, magcal_neighbors_t mode, int32_t *rem)
+/* Build the grid over live[] / start[] when cfg asks for it and it can help (finite eps, points
+ * not all equal); otherwise leave use_grid = 0 (brute force). */
+void magcal_o3_grid_build(magcal_o3_ctx_t *c, float eps, magcal_neighbors_t mode)
 {
     const magcal_vec3_t *pts = c->pts;
     const size_t n = c->n;
-    int32_t r = *rem;
-    size_t i = c->gi;
-    if (c->gst == GB3_BOX && i == 0u) {
-        c->use_grid = 0;
-        r -= (int32_t)W3_PHASE;
-        if (mode != MAGCAL_NEIGHBORS_GRID || !magcal_isfinite_f(eps)) {
-            c->gst = GB3_DONE;
-        } else {
-            c->lo[0] = pts[0].x;
-            c->lo[1] = pts[0].y;
-            c->lo[2] = pts[0].z;
-            c->hi[0] = c->lo[0];
-            c->hi[1] = c->lo[1];
-            c->hi[2] = c->lo[2];
-            i = 1u;
-        }
+    float lo[3];
+    float hi[3];
+    uint32_t g[3];
+    float h;
+    size_t i;
+    unsigned a;
+    uint64_t cells;
+    c->use_grid = 0;
+    if (mode != MAGCAL_NEIGHBORS_GRID || !magcal_isfinite_f(eps)) {
+        return;
     }
-    if (c->gst == GB3_BOX) {
-        float *lo = c->lo;
-        float *hi = c->hi;
-        for (; i < n && r > 0; ++i) {
-            lo[0] = pts[i].x < lo[0] ? pts[i].x : lo[0];
-            lo[1] = pts[i].y < lo[1] ? pts[i].y : lo[1];
-            lo[2] = pts[i].z < lo[2] ? pts[i].z : lo[2];
-            hi[0] = pts[i].x > hi[0] ? pts[i].x : hi[0];
-            hi[1] = pts[i].y > hi[1] ? pts[i].y : hi[1];
-            hi[2] = pts[i].z > hi[2] ? pts[i].z : hi[2];
-            r -= (int32_t)W3_GRID;
-        }
-        if (i == n && r > 0) {
-            r -= (int32_t)W3_PHASE;
-            if (lo[0] == hi[0] && lo[1] == hi[1] && lo[2] == hi[2]) {
-                c->gst = GB3_DONE; /* all points equal */
-            } else {
-                uint32_t g[3];
-                unsigned a;
-                uint64_t cells;
-                const float h = eps * GRID3_MARGIN;
-                c->inv_h = 1.0f / h;
-                c->x0 = lo[0];
-                c->y0 = lo[1];
-                c->z0 = lo[2];
-                for (a = 0u; a < 3u; ++a) {
-                    g[a] = cell3_of(hi[a], lo[a], c->inv_h) + 1u;
-                }
-                c->gw = g[0];
-                c->gh = g[1];
-                c->gd = g[2];
-                c->nbkt = (uint32_t)MAGCAL_OPTICS_GRID_CELLS(n);
-                cells = (uint64_t)g[0] * (uint64_t)g[1];
-                cells *= (uint64_t)g[2];
-                c->dense = 0;
-                if (cells <= (uint64_t)c->nbkt) {
-                    c->dense = 1;
-                    c->nbkt = (uint32_t)cells;
-                }
-                c->use_grid = 1;
-                c->gst = GB3_CLEAR;
-                i = 0u;
-            }
-        }
+    lo[0] = pts[0].x;
+    lo[1] = pts[0].y;
+    lo[2] = pts[0].z;
+    hi[0] = lo[0];
+    hi[1] = lo[1];
+    hi[2] = lo[2];
+    for (i = 1u; i < n; ++i) {
+        lo[0] = pts[i].x < lo[0] ? pts[i].x : lo[0];
+        lo[1] = pts[i].y < lo[1] ? pts[i].y : lo[1];
+        lo[2] = pts[i].z < lo[2] ? pts[i].z : lo[2];
+        hi[0] = pts[i].x > hi[0] ? pts[i].x : hi[0];
+        hi[1] = pts[i].y > hi[1] ? pts[i].y : hi[1];
+        hi[2] = pts[i].z > hi[2] ? pts[i].z : hi[2];
     }
+    if (lo[0] == hi[0] && lo[1] == hi[1] && lo[2] == hi[2]) {
+        return; /* all points equal */
+    }
+    h = eps * GRID3_MARGIN;
+    c->inv_h = 1.0f / h;
+    c->x0 = lo[0];
+    c->y0 = lo[1];
+    c->z0 = lo[2];
+    for (a = 0u; a < 3u; ++a) {
+        g[a] = cell3_of(hi[a], lo[a], c->inv_h) + 1u;
+    }
+    c->gw = g[0];
+    c->gh = g[1];
+    c->gd = g[2];
+    c->nbkt = (uint32_t)MAGCAL_OPTICS_GRID_CELLS(n);
+    cells = (uint64_t)g[0] * (uint64_t)g[1];
+    cells *= (uint64_t)g[2];
+    c->dense = 0;
+    if (cells <= (uint64_t)c->nbkt) {
+        c->dense = 1;
+        c->nbkt = (uint32_t)cells;
+    }
+    c->use_grid = 1;
     /* counting sort by bucket: counts in start[b + 1], prefix sums, placement, shift back */
-    if (c->gst == GB3_CLEAR) {
-        for (; i <= c->nbkt && r > 0; ++i) {
-            c->start[i] = 0u;
-            r -= (int32_t)W3_CELL;
-        }
-        if (i > c->nbkt) {
-            c->gst = GB3_COUNT;
-            i = 0u;
-        }
+    (void)memset(c->start, 0, ((size_t)c->nbkt + 1u) * sizeof c->start[0]);
+    for (i = 0; i < n; ++i) {
+        c->start[point_bucket(c, i) + 1u]++;
     }
-    if (c->gst == GB3_COUNT) {
-        for (; i < n && r > 0; ++i) {
-            c->start[point_bucket(c, i) + 1u]++;
-            r -= (int32_t)W3_GRID;
-        }
-        if (i == n) {
-            c->gst = GB3_PREFIX;
-            i = 1u;
-        }
+    for (i = 1u; i <= c->nbkt; ++i) {
+        c->start[i] = (uint16_t)(c->start[i] + c->start[i - 1u]);
     }
-    if (c->gst == GB3_PREFIX) {
-        for (; i <= c->nbkt && r > 0; ++i) {
-            c->start[i] = (uint16_t)(c->start[i] + c->start[i - 1u]);
-            r -= (int32_t)W3_CELL;
-        }
-        if (i > c->nbkt) {
-            c->gst = GB3_PLACE;
-            i = 0u;
-        }
+    for (i = 0; i < n; ++i) {
+        const uint32_t b = point_bucket(c, i);
+        c->live[c->start[b]] = (uint16_t)i;
+        c->start[b]++;
     }
-    if (c->gst == GB3_PLACE) {
-        for (; i < n && r > 0; ++i) {
-            const uint32_t b = point_bucket(c, i);
-            c->live[c->start[b]] = (uint16_t)i;
-            c->start[b]++;
-            r -= (int32_t)W3_GRID;
-        }
-        if (i == n) {
-            c->gst = GB3_SHIFT;
-            i = c->nbkt;
-        }
+    for (i = c->nbkt; i > 0u; --i) {
+        c->start[i] = c->start[i - 1u];
     }
-    if (c->gst == GB3_SHIFT) {
-        for (; i > 0u && r > 0; --i) {
-            c->start[i] = c->start[i - 1u];
-            r -= (int32_t)W3_CELL;
-        }
-        if (i == 0u) {
-            c->start[0] = 0u;
-            c->gst = GB3_DONE;
-        }
-    }
-    c->gi = (uint32_t)i;
-    *rem = r;
-    return c->gst == GB3_DONE ? 1 : 0;
+    c->start[0] = 0u;
 }
 
 /* Distinct buckets of the 3x3x3 cells around point p; returns how many (<= 27). */
