@@ -7,7 +7,6 @@
 
 #include <stddef.h>
 #include <stdint.h>
-#include <string.h>
 
 #include "magcal/config.h"
 #include "magcal/status.h"
@@ -51,15 +50,8 @@ magcal_status_t magcal_ldlt_factor(float *a, size_t n, float tau, float *min_piv
 /** Solve with a matrix factored by magcal_ldlt_factor; MAGCAL_ERR_ILL_CONDITIONED on a non-finite x. */
 magcal_status_t magcal_ldlt_subst(const float *a, float *b, size_t n);
 
-/** True when v is neither NaN nor +/-Inf: its exponent field is not all ones (no libm, no FPU
- * compare; the same answer as (v == v) && (v - v == 0) for every value, in fewer bytes on
- * Cortex-M4F -Os: issue 14 flash). */
-static inline int magcal_isfinite_f(float v)
-{
-    uint32_t u;
-    (void)memcpy(&u, &v, sizeof u);
-    return ((u & 0x7F800000u) != 0x7F800000u) ? 1 : 0;
-}
+/** True when v is neither NaN nor +/-Inf (works with -ffast-math off, no libm needed). */
+static inline int magcal_isfinite_f(float v) { return (v == v) && (v - v == 0.0f); }
 
 /**
  * Misalignment of a caller-provided buffer: the address of p modulo align (align a power of
