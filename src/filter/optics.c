@@ -392,16 +392,9 @@ magcal_status_t magcal_optics_run(const magcal_optics_cfg_t *cfg, const magcal_v
     sl_t *t;
     magcal_o2_ord_t *o;
     magcal_status_t st;
-    if (cfg == NULL || pts == NULL || work == NULL || order == NULL || reach == NULL ||
-        core == NULL) {
-        return MAGCAL_ERR_NULL;
-    }
-    st = magcal_ocore_check_cfg(cfg);
+    st = magcal_ocore_check_run(cfg, pts, work, order, reach, core);
     if (st != MAGCAL_OK) {
         return st;
-    }
-    if (magcal_misalign(work, 4u) != 0u) {
-        return MAGCAL_ERR_ALIGNMENT;
     }
     st = magcal_ocore_check_n(n, cfg->min_pts);
     if (st != MAGCAL_OK) {
@@ -591,6 +584,24 @@ magcal_status_t magcal_optics_thin(const magcal_vec2_t *pts, size_t n, const uin
         st = sl_finish((sl_t *)s.state_);
     }
     return st;
+}
+
+magcal_status_t magcal_ocore_check_run(const magcal_optics_cfg_t *cfg, const void *pts, const void *work,
+                                       const uint16_t *order, const float *reach, const float *core)
+{
+    magcal_status_t st;
+    if (cfg == NULL || pts == NULL || work == NULL || order == NULL || reach == NULL ||
+        core == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    st = magcal_ocore_check_cfg(cfg);
+    if (st != MAGCAL_OK) {
+        return st;
+    }
+    if (magcal_misalign(work, 4u) != 0u) {
+        return MAGCAL_ERR_ALIGNMENT;
+    }
+    return MAGCAL_OK;
 }
 
 magcal_status_t magcal_ocore_check_cfg(const magcal_optics_cfg_t *cfg)

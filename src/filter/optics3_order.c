@@ -242,16 +242,9 @@ magcal_status_t magcal_optics_run3(const magcal_optics_cfg_t *cfg, const magcal_
 {
     magcal_o3_ctx_t *c;
     magcal_status_t st;
-    if (cfg == NULL || pts == NULL || work == NULL || order == NULL || reach == NULL ||
-        core == NULL) {
-        return MAGCAL_ERR_NULL;
-    }
-    st = magcal_ocore_check_cfg(cfg);
+    st = magcal_ocore_check_run(cfg, pts, work, order, reach, core);
     if (st != MAGCAL_OK) {
         return st;
-    }
-    if (magcal_misalign(work, 4u) != 0u) {
-        return MAGCAL_ERR_ALIGNMENT;
     }
     st = magcal_o3_check_points(pts, n, cfg->min_pts);
     if (st != MAGCAL_OK) {

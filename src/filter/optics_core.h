@@ -291,20 +291,23 @@ static inline void magcal_ocore_mark(magcal_ocore_t *o, size_t p)
     o->n_done++;
 }
 
-/* Start of a run over n points: every reach infinite, no predecessor, nothing in the heap,
- * nothing processed. */
-static inline void magcal_ocore_start(magcal_ocore_t *o, size_t n)
+/* Start of a run over n points, in two pieces so the resumable 2-D ordering (optics_order.c)
+ * can spread the per-point part over steps: every reach infinite, no
+ * predecessor (magcal_ocore_start_point, once per point), then nothing in the heap, nothing
+ * processed (magcal_ocore_start_finish, once). */
+static inline void magcal_ocore_start_point(magcal_ocore_t *o, size_t i)
 {
-    size_t i;
-    for (i = 0; i < n; ++i) {
-        o->reach[i] = INFINITY;
-        if (o->pred != NULL) {
-            o->pred[i] = MAGCAL_OPTICS_NO_PRED;
-        }
-        if (o->mode == MAGCAL_OPTICS_CLASSIC) {
-            o->pos[i] = MAGCAL_OCORE_POS_NONE;
-        }
+    o->reach[i] = INFINITY;
+    if (o->pred != NULL) {
+        o->pred[i] = MAGCAL_OPTICS_NO_PRED;
     }
+    if (o->mode == MAGCAL_OPTICS_CLASSIC) {
+        o->pos[i] = MAGCAL_OCORE_POS_NONE;
+    }
+}
+
+static inline void magcal_ocore_start_finish(magcal_ocore_t *o, size_t n)
+{
     (void)memset(o->done, 0, (n + 7u) / 8u);
     o->n_seeds = 0u;
     o->n_done = 0u;
@@ -312,6 +315,16 @@ static inline void magcal_ocore_start(magcal_ocore_t *o, size_t n)
     o->head = 0u;
     o->dirty = 0;
 #endif
+}
+
+/* The whole start in one call (the 3-D ordering). */
+static inline void magcal_ocore_start(magcal_ocore_t *o, size_t n)
+{
+    size_t i;
+    for (i = 0; i < n; ++i) {
+        magcal_ocore_start_point(o, i);
+    }
+    magcal_ocore_start_finish(o, n);
 }
 
 /* End of a run: the last cluster of the on-the-fly extraction competes for the largest. */
@@ -383,6 +396,12 @@ static inline magcal_status_t magcal_ocore_check_n(size_t n, size_t min_n)
  * search); MAGCAL_ERR_ARG or MAGCAL_OK. Defined in optics.c (cold: once per
  * call). */
 magcal_status_t magcal_ocore_check_cfg(const magcal_optics_cfg_t *cfg);
+
+/* The entry checks of magcal_optics_run and magcal_optics_run3 (pointers, the configuration,
+ * the workspace's 4-byte alignment) before each checks its own points; MAGCAL_ERR_NULL,
+ * MAGCAL_ERR_ARG, MAGCAL_ERR_ALIGNMENT or MAGCAL_OK. Defined in optics.c. */
+magcal_status_t magcal_ocore_check_run(const magcal_optics_cfg_t *cfg, const void *pts, const void *work,
+                                       const uint16_t *order, const float *reach, const float *core);
 
 /* k-th smallest of a[0..n-1], 0 <= k < n (a is permuted). Iterative Hoare selection, no
  * recursion. Defined in optics_prims.c (the automatic parameters of both

@@ -324,26 +324,14 @@ MAGCAL_NOINLINE int magcal_o2_ord_run(magcal_o2_ord_t *o, int32_t *rem)
         case OR_INIT: {
             size_t i = o->u.sc.s;
             for (; i < n && r > 0; ++i) {
-                oc->reach[i] = INFINITY;
-                if (oc->pred != NULL) {
-                    oc->pred[i] = MAGCAL_OPTICS_NO_PRED;
-                }
-                if (oc->mode == MAGCAL_OPTICS_CLASSIC) {
-                    oc->pos[i] = MAGCAL_OCORE_POS_NONE;
-                }
+                magcal_ocore_start_point(oc, i);
                 CHARGE(r, W_INIT);
             }
             o->u.sc.s = (uint16_t)i;
             if (i < n) {
                 break;
             }
-            (void)memset(oc->done, 0, (n + 7u) / 8u);
-            oc->n_seeds = 0u;
-            oc->n_done = 0u;
-#ifdef MAGCAL_OPTICS_BENCH_SORTED_LIST
-            oc->head = 0u;
-            oc->dirty = 0;
-#endif
+            magcal_ocore_start_finish(oc, n);
             o->u.sc.s = 0u;
             o->st = (uint8_t)(o->nb.use_grid != 0 ? OR_START : OR_LIVE);
             o->u.sc.use_live = (uint8_t)(o->nb.use_grid != 0 ? 0u : 1u);
