@@ -237,6 +237,8 @@ typedef struct {
     float ell_scratch[25];         /**< private: the conic fit's 5 x 5 system at a sweep's end, here
                                         and not on the stack (the drain's deep path: <= 512 B) */
     float tilt_tan2;               /**< private: tan^2(cfg.tilt_limit_deg), set at init (0 = off) */
+    float sv_in[4];                /**< private: 2-D survey, samples inside a trimmed reference's band:
+                                        sums of x, y (from its centre), squared distance, count (sweep.c) */
 } magcal_intake_t;
 
 /**

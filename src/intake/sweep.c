@@ -40,6 +40,7 @@
 #define FIT_MAX_RESID 0.2f    /* radial RMS / R of a usable fit (a ring, not a filled blob) */
 #define FIT_BAND_LO2 0.09f    /* (0.3 R_ref)^2 */
 #define FIT_BAND_HI2 9.0f     /* (3 R_ref)^2 */
+#define INNER_R_SCALE 1.5f    /* 2-D: reference radius of an inner cluster / its RMS spread (survey_finish) */
 
 void magcal_intake_survey_clear(magcal_intake_t *st)
 {
@@ -51,6 +52,7 @@ void magcal_intake_survey_clear(magcal_intake_t *st)
     st->ell_tt = 0.0f;
     (void)memset(st->fit_a, 0, sizeof(st->fit_a));
     (void)memset(st->fit_b, 0, sizeof(st->fit_b));
+    (void)memset(st->sv_in, 0, sizeof(st->sv_in));
 }
 
 /* Packed lower-triangle index, i >= j. */
@@ -98,6 +100,12 @@ static void survey_add(magcal_intake_t *st, const magcal_vec3_t *m)
         for (a = 0u; a < dims; ++a) {
             r[a] = (v3[a] - c3[a]) * inv;
             d2 += r[a] * r[a];
+        }
+        if (dims == 2u && st->ref_fit == 0u && d2 < FIT_BAND_LO2) {
+            st->sv_in[0] += v3[0] - c3[0]; /* inside a trimmed reference's band: the inner cluster (survey_finish) */
+            st->sv_in[1] += v3[1] - c3[1];
+            st->sv_in[2] += (v3[0] - c3[0]) * (v3[0] - c3[0]) + (v3[1] - c3[1]) * (v3[1] - c3[1]);
+            st->sv_in[3] += 1.0f;
         }
         if (d2 >= lo2 && d2 <= hi2) {
             /* packed lower triangle of r r^T, written out (the sweep's hot loop) */
@@ -352,6 +360,23 @@ static void survey_finish(magcal_intake_t *st)
                 st->radius = fr;
             }
         }
+    } else if (st->cfg.dims == 2u && st->ref_fit == 0u && st->ref_r > 0.0f && st->sv_in[3] >= (float)SURVEY_MIN &&
+               2.0f * st->sv_in[3] >= (float)st->sv_n) {
+        /* 2-D: no usable fit and most samples INSIDE the trimmed reference's band: its extremes
+         * were outliers (a driver's garbage burst of more samples than the trim depth: the
+         * 30-min seed-4 drive held 38 of 147, the reference radius was ~300 uT and its band never
+         * held the 21-uT ring: no centre for the whole drive). The next reference is that inner
+         * cluster: its mean, radius INNER_R_SCALE x its RMS spread (an arc's is at most its
+         * radius) */
+        const float n = st->sv_in[3];
+        const float mx = st->sv_in[0] / n;
+        const float my = st->sv_in[1] / n;
+        const float var = st->sv_in[2] / n - mx * mx - my * my;
+        st->ref_c.x += mx;
+        st->ref_c.y += my;
+        st->ref_c.z = 0.0f;
+        st->ref_r = INNER_R_SCALE * sqrtf(var > 0.0f ? var : 0.0f);
+        st->ref_fit = 0u;
     } else if (st->sv_n >= SURVEY_MIN) {
         /* no usable fit: the next reference from the trimmed extremes (the first survey, a
          * reference band that missed the data, or data that moved away from the old fit) */
