@@ -938,6 +938,38 @@ static void test_intake_push_tilt_hilly_drive_never_starves(void)
     }
 }
 
+/* A driver's garbage burst of more samples than the trim depth before the first turn (as the
+ * 30-min gen_drive seed-4 drive, rows 7175..7213): 40 samples uniform in +-600 uT per axis, then
+ * 1.5 turns of the ring (hard iron (30, -20), H = 20) at 15 deg/s, 50 Hz. The trimmed extremes
+ * are garbage (reference radius hundreds of uT, its fit band misses the ring); the inner-cluster
+ * reference (sweep.c) must give a provisional centre within 2 uT of the truth (the ring's centre
+ * is (CX, CY) up to its soft-iron leak: within 0.5 uT), with the garbage still stored. */
+static void test_intake_garbage_burst_does_not_own_the_reference(void)
+{
+    magcal_intake_cfg_t cfg = MAGCAL_INTAKE_CFG_DEFAULT_2D;
+    magcal_intake_progress_t p;
+    uint32_t rng = 4u;
+    unsigned k;
+    init2(&g_st, g_slots, &cfg);
+    for (k = 0u; k < 40u; ++k) {
+        magcal_vec3_t m;
+        m.x = (float)(1200.0 * test_rand_uniform(&rng) - 600.0);
+        m.y = (float)(1200.0 * test_rand_uniform(&rng) - 600.0);
+        m.z = (float)(1200.0 * test_rand_uniform(&rng) - 600.0);
+        push_ok(&g_st, &m);
+    }
+    drive_arc(&g_st, 10.0, 540.0, 15.0, 50.0, &rng);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_settle(&g_st));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_progress(&g_st, &p));
+    printf("garbage burst: centre source %d, centre (%.2f, %.2f) R %.2f, coverage %.0f, stored %u\n",
+           (int)p.centre_source, (double)p.centre.x, (double)p.centre.y, (double)p.radius, (double)p.coverage_deg,
+           (unsigned)p.stored);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_INTAKE_CENTRE_PROVISIONAL, p.centre_source);
+    TEST_ASSERT_TRUE(hypot((double)p.centre.x - CX, (double)p.centre.y - CY) <= 2.0);
+    TEST_ASSERT_TRUE(fabs((double)p.radius - H) <= 0.1 * H);
+    TEST_ASSERT_TRUE(p.coverage_deg >= 350.0f);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -957,5 +989,6 @@ int main(void)
     RUN_TEST(test_intake_level_band_refuses_pitched_samples);
     RUN_TEST(test_intake_push_tilt_level_samples_preferred_in_full_bin);
     RUN_TEST(test_intake_push_tilt_hilly_drive_never_starves);
+    RUN_TEST(test_intake_garbage_burst_does_not_own_the_reference);
     return UNITY_END();
 }
