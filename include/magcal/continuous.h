@@ -125,6 +125,9 @@ extern "C" {
 #define MAGCAL_CONT_RING 32u /**< push ring: samples (power of two) */
 #endif
 
+#define MAGCAL_CONT_TC_BINS 36u  /**< magcal_cont_push_g tilt compensation: heading sectors of its pairs */
+#define MAGCAL_CONT_TC_FIRST 16u /**< its first pairs, whose median starts the estimate */
+
 #ifndef MAGCAL_CONT_G_SMOOTH_MS
 #define MAGCAL_CONT_G_SMOOTH_MS 500u /**< magcal_cont_push_g: time constant of the gravity smoothing, ms */
 #endif
@@ -197,6 +200,12 @@ typedef struct {
     float coarse_max_err_deg;       /**< its tolerance: the circle's bound on its heading error
                                          over the whole circle (report est_param_err_deg), > 0
                                          (default 4) */
+    float tilt_comp_deg;            /**< magcal_cont_push_g tilt compensation ("Tilt compensation"
+                                         below): a sample whose smoothed gravity is pitched by at
+                                         most this many degrees (its roll within
+                                         cfg.intake.tilt_limit_deg, |g| steady) is levelled before
+                                         it is stored, once the vertical field is estimated;
+                                         0..30, 0 = off (default 8: the road's 6 deg and margin) */
 } magcal_cont_cfg_t;
 
 /** Defaults: work untuned from 10 to 100 Hz (time constants are in ms of the push stamps). */
@@ -204,7 +213,7 @@ typedef struct {
     {                                                                                              \
         MAGCAL_INTAKE_CFG_DEFAULT_2D, MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT, 280.0f, 24u, 2u,        \
             600000.0f, 4.0f, 0.06f, 8000u, 3u, 4000u, 150u, 200u, 4.0f,                            \
-            MAGCAL_SLICE_BUDGET_DEFAULT, 0.0f, 15.0f                                               \
+            MAGCAL_SLICE_BUDGET_DEFAULT, 0.0f, 15.0f, 8.0f                                         \
     }
 
 /** A heading with its trust. */
@@ -337,6 +346,25 @@ typedef struct {
     uint8_t cnt_src;               /* store centre source it started at */
     /* transient judge (cont_flags.c), issue 13's flags */
     uint32_t dist_age_ms;          /* ms of stamps since the transient judge was reset (baseline warm-up) */
+    /* tilt compensation of push_g (cont_life.c; written by push only) */
+    float tc_tan2;                 /* tan^2(cfg.tilt_comp_deg), set at init (0 = off) */
+    float tc_k;                    /* raw shift per unit of tilt (the vertical field, raw units); valid when tc_ok */
+    float tc_s[3];                 /* its least-squares sums over sample pairs: dq dq, dd dq, dd dd */
+    uint32_t tc_n;                 /* pairs in the sums */
+    uint32_t tc_seen;              /* pairs seen (up to MAGCAL_CONT_TC_FIRST + 1) */
+    float tc_ref_d[MAGCAL_CONT_TC_BINS]; /* per heading sector (from the store's centre): the reference of its next
+                                            pair, distance from the centre */
+    float tc_ref_q[MAGCAL_CONT_TC_BINS]; /* and q (tilt along the radial direction) */
+    uint32_t tc_have[2];           /* bit per sector: it holds a reference */
+    uint32_t tc_changes;           /* cc->changes the references belong to */
+    uint8_t tc_gen;                /* and the store's centre generation */
+    float tc_first[3][MAGCAL_CONT_TC_FIRST]; /* the first pairs (dq, dd, dd / dq): their median ratio gates the sums */
+    volatile uint8_t tc_ok;        /* 1: tc_k is estimated well enough to level samples */
+    volatile uint8_t tc_on;        /* 1: samples are levelled (latched once tc_ok while no calibration is
+                                      installed or a relearn is under way: the judge's field model and
+                                      the stream it judges then agree) */
+    volatile uint32_t tc_levelled; /* samples levelled (pushed as LEVEL after the compensation) */
+    magcal_vec3_t tc_m;            /* the levelled sample being queued (here, not on push's stack) */
 } magcal_cont_t;
 
 /**

@@ -27,7 +27,8 @@ static magcal_status_t cont_check_cfg(const magcal_cont_cfg_t *c)
         return MAGCAL_ERR_NONFINITE;
     }
     if (c->coarse_coverage_deg < 0.0f || c->coarse_coverage_deg > 360.0f ||
-        !(c->coarse_max_err_deg > 0.0f)) {
+        !(c->coarse_max_err_deg > 0.0f) || !magcal_isfinite_f(c->tilt_comp_deg) ||
+        !(c->tilt_comp_deg >= 0.0f && c->tilt_comp_deg <= 30.0f)) {
         return MAGCAL_ERR_ARG;
     }
     if (c->solve_coverage_deg < 0.0f || c->solve_coverage_deg > 360.0f || !(c->age_ms > 0.0f) ||
@@ -79,6 +80,10 @@ magcal_status_t magcal_cont_init(magcal_cont_t *cc, const magcal_cont_cfg_t *cfg
     cc->adopted_err = NAN;
     cc->last_status = MAGCAL_OK;
     cc->state = (uint8_t)MAGCAL_CONT_COLLECTING;
+    if (cfg->tilt_comp_deg > 0.0f) {
+        const float t = tanf(cfg->tilt_comp_deg * (MAGCAL_PI_F / 180.0f));
+        cc->tc_tan2 = t * t; /* push_g's compensation test needs no trigonometry */
+    }
     cc->magic = MAGCAL_CONT_MAGIC;
     magcal_cont_coarse_mode(cc);
     if (installed != NULL && installed->radius > 0.0f) {
@@ -166,16 +171,200 @@ static uint8_t cont_tilt_of(magcal_cont_t *cc, const magcal_vec3_t *g, uint32_t 
     return (uint8_t)MAGCAL_INTAKE_TILT_TILTED;
 }
 
+/* ---- Tilt compensation (continuous.h "Tilt compensation"). A pitch p (roll r) moves the body's
+ * horizontal field by Z (sin r, sin p) to first order (Z: the body's vertical field), i.e. by
+ * Z g_xy / |g| with g the specific force in body axes: in raw units by k t, t = g_xy / g_z and
+ * k = Z times the raw scale. k is learnt from pairs of samples at the same heading (their radial
+ * directions from the store's centre within TC_COS) and different tilt: the pair's change of the
+ * distance from the centre is k times its change of q = t . (radial direction) (a tilt along the
+ * field changes the radius; across it, the heading: the error the store must not take). */
+#define TC_MIN_DQ 0.02f      /* the pair's change of q (about 1.1 deg of tilt along the field) */
+#define TC_MAX_K 3.0f        /* |k| <= 3 R (inclination < 72 deg); a pair beyond it is refused */
+#define TC_MIN_PAIRS 24u     /* pairs in the sums before k is used */
+#define TC_GATE_REL 0.2f     /* a pair's gate around the estimate: relative part */
+#define TC_GATE_ABS 0.05f    /* and absolute part, x R (noise, the ellipse within a sector) */
+#define TC_MAX_SE 0.12f      /* k's standard error must be <= this x R (0.7 deg of heading at 6 deg of pitch) */
+#define TC_RING_LO 0.7f      /* a pair's samples on the ring (intake progress.c) */
+#define TC_RING_HI 1.4f
+
+/* 1 when the smoothed gravity of the last push_g is steady (|g|^2 within cfg.intake.g_band_rel of
+ * its level), its roll within cfg.intake.tilt_limit_deg and its pitch within cfg.tilt_comp_deg:
+ * then *tx, *ty = g_x / g_z, g_y / g_z (the tilt the compensation removes). Turns (centripetal
+ * acceleration reads as roll) and hard braking or acceleration are never levelled. */
+static int cont_tc_tilt(const magcal_cont_t *cc, float *tx, float *ty)
+{
+    const magcal_vec3_t *gs = &cc->g_s;
+    const float v2 = gs->z * gs->z;
+    const float n2 = gs->x * gs->x + gs->y * gs->y + v2;
+    if (!(cc->tc_tan2 > 0.0f) || !(cc->g_level2 > 0.0f) || !(v2 > 0.0f) ||
+        !(fabsf(n2 - cc->g_level2) <= cc->cfg.intake.g_band_rel * cc->g_level2) ||
+        !(gs->x * gs->x <= cc->store.tilt_tan2 * v2) || !(gs->y * gs->y <= cc->tc_tan2 * v2)) {
+        return 0;
+    }
+    *tx = gs->x / gs->z;
+    *ty = gs->y / gs->z;
+    return 1;
+}
+
+/* Median of the first pairs' ratios (insertion sort of MAGCAL_CONT_TC_FIRST values, in place). */
+static float cont_tc_median(magcal_cont_t *cc)
+{
+    float *v = cc->tc_first[2];
+    uint32_t i;
+    for (i = 1u; i < MAGCAL_CONT_TC_FIRST; ++i) {
+        const float x = v[i];
+        uint32_t j = i;
+        while (j > 0u && v[j - 1u] > x) { /* at most i steps */
+            v[j] = v[j - 1u];
+            j--;
+        }
+        v[j] = x;
+    }
+    return 0.5f * (v[MAGCAL_CONT_TC_FIRST / 2u - 1u] + v[MAGCAL_CONT_TC_FIRST / 2u]);
+}
+
+/* A pair into the sums when it agrees with the estimate (k: the first pairs' median until the
+ * sums hold pairs): |dd - k dq| <= TC_GATE_REL |k dq| + TC_GATE_ABS R (a transient or a glitch on
+ * either end of a pair is refused); then k and its validity. */
+static void cont_tc_add(magcal_cont_t *cc, float dq, float dd, float r, float k)
+{
+    float kn;
+    float var;
+    if (!(fabsf(dd - k * dq) <= TC_GATE_REL * fabsf(k * dq) + TC_GATE_ABS * r)) {
+        return;
+    }
+    cc->tc_s[0] += dq * dq;
+    cc->tc_s[1] += dd * dq;
+    cc->tc_s[2] += dd * dd;
+    cc->tc_n++;
+    kn = cc->tc_s[1] / cc->tc_s[0];
+    var = (cc->tc_n > 1u) ? (cc->tc_s[2] - kn * cc->tc_s[1]) / (float)(cc->tc_n - 1u) : -1.0f;
+    cc->tc_k = kn;
+    cc->tc_ok = (cc->tc_n >= TC_MIN_PAIRS && var >= 0.0f && var <= TC_MAX_SE * TC_MAX_SE * r * r * cc->tc_s[0] &&
+                 fabsf(kn) <= TC_MAX_K * r)
+                    ? 1u
+                    : 0u;
+}
+
+/* A pair (its change of q and of the distance): the first MAGCAL_CONT_TC_FIRST are kept until
+ * their median ratio is known, then every pair is gated against the estimate. */
+static MAGCAL_NOINLINE void cont_tc_pair(magcal_cont_t *cc, float dq, float dd, float r)
+{
+    if (cc->tc_seen < MAGCAL_CONT_TC_FIRST) {
+        cc->tc_first[0][cc->tc_seen] = dq;
+        cc->tc_first[1][cc->tc_seen] = dd;
+        cc->tc_first[2][cc->tc_seen] = dd / dq;
+        cc->tc_seen++;
+        if (cc->tc_seen == MAGCAL_CONT_TC_FIRST) {
+            const float k0 = cont_tc_median(cc);
+            uint32_t i;
+            for (i = 0u; i < MAGCAL_CONT_TC_FIRST; ++i) {
+                cont_tc_add(cc, cc->tc_first[0][i], cc->tc_first[1][i], r, k0);
+            }
+        }
+        return;
+    }
+    cc->tc_seen = MAGCAL_CONT_TC_FIRST + 1u;
+    cont_tc_add(cc, dq, dd, r, cc->tc_n > 0u ? cc->tc_k : cont_tc_median(cc));
+}
+
+/* One sample into k's pairs (raw m, tilt tx, ty): paired with the last sample of its heading
+ * sector (36 sectors around the store's centre) whose q differs by TC_MIN_DQ or more; every
+ * sector's reference is dropped at a declared change (the hard iron moved) and when the store's
+ * centre moves (its distances change with it). The store's centre
+ * and radius are read (a torn read while step recentres misplaces one pair). */
+static MAGCAL_NOINLINE void cont_tc_learn(magcal_cont_t *cc, const magcal_vec3_t *m, float tx, float ty)
+{
+    const float r = cc->store.radius;
+    float ux;
+    float uy;
+    float d;
+    float q;
+    float a;
+    uint32_t b;
+    uint32_t bit;
+    if (cc->store.centre_source == (uint8_t)MAGCAL_INTAKE_CENTRE_NONE || !(r > 0.0f)) {
+        return;
+    }
+    if (cc->tc_changes != cc->changes || cc->tc_gen != cc->store.gen) {
+        /* a declared change (the hard iron moved) or a new centre (the distances moved) */
+        cc->tc_have[0] = 0u;
+        cc->tc_have[1] = 0u;
+        cc->tc_changes = cc->changes;
+        cc->tc_gen = cc->store.gen;
+    }
+    ux = m->x - cc->store.centre.x;
+    uy = m->y - cc->store.centre.y;
+    d = sqrtf(ux * ux + uy * uy);
+    if (!(d >= TC_RING_LO * r && d <= TC_RING_HI * r)) {
+        return; /* off the ring (a glitch, a transient) */
+    }
+    q = (tx * ux + ty * uy) / d;
+    a = atan2f(-ux, uy) * (1.0f / (2.0f * MAGCAL_PI_F)); /* turns, (-0.5, 0.5] */
+    if (a < 0.0f) {
+        a += 1.0f;
+    }
+    b = (uint32_t)(a * (float)MAGCAL_CONT_TC_BINS);
+    b = (b >= MAGCAL_CONT_TC_BINS) ? MAGCAL_CONT_TC_BINS - 1u : b;
+    bit = (uint32_t)1u << (b % 32u);
+    if ((cc->tc_have[b / 32u] & bit) != 0u) {
+        const float dq = q - cc->tc_ref_q[b];
+        const float dd = d - cc->tc_ref_d[b];
+        if (fabsf(dq) < TC_MIN_DQ) {
+            return; /* too little tilt change yet: the reference stays */
+        }
+        if (fabsf(dd) <= TC_MAX_K * r * fabsf(dq)) {
+            cont_tc_pair(cc, dq, dd, r);
+        }
+    }
+    cc->tc_have[b / 32u] |= bit;
+    cc->tc_ref_d[b] = d;
+    cc->tc_ref_q[b] = q;
+}
+
+/* The levelled sample of m under the last push_g's gravity (into *out), 1 when compensated. */
+static int cont_tc_level(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_vec3_t *out)
+{
+    float tx = 0.0f;
+    float ty = 0.0f;
+    if (cc->tc_on == 0u || cont_tc_tilt(cc, &tx, &ty) == 0) {
+        return 0;
+    }
+    out->x = m->x - cc->tc_k * tx;
+    out->y = m->y - cc->tc_k * ty;
+    out->z = m->z;
+    return 1;
+}
+
 magcal_status_t magcal_cont_push_g(magcal_cont_t *cc, const magcal_vec3_t *m, const magcal_vec3_t *g,
                                    uint32_t t_ms)
 {
+    uint8_t code;
+    float tx = 0.0f;
+    float ty = 0.0f;
     if (cc == NULL || m == NULL) {
         return MAGCAL_ERR_NULL;
     }
     if (cc->magic != MAGCAL_CONT_MAGIC) {
         return MAGCAL_ERR_NOT_INITIALISED;
     }
-    return cont_enqueue(cc, m, t_ms, cont_tilt_of(cc, g, t_ms));
+    code = cont_tilt_of(cc, g, t_ms);
+    if (code != (uint8_t)MAGCAL_INTAKE_TILT_UNKNOWN && magcal_isfinite_f(m->x) && magcal_isfinite_f(m->y) &&
+        cont_tc_tilt(cc, &tx, &ty) != 0) {
+        cont_tc_learn(cc, m, tx, ty);
+        if (cc->tc_ok != 0u && (cc->has_cal == 0u || cc->state == (uint8_t)MAGCAL_CONT_RELEARNING)) {
+            /* switched on only where no field model judges the stream (none installed, or a
+             * relearn): a model fitted on unlevelled samples would read levelled ones as a
+             * mismatch (the 60-min seed-2 drive: a false change and 8 % of its clean rows
+             * flagged when it switched on under an installed calibration) */
+            cc->tc_on = 1u;
+        }
+        if (cont_tc_level(cc, m, &cc->tc_m) != 0) {
+            cc->tc_levelled = cc->tc_levelled + 1u;
+            return cont_enqueue(cc, &cc->tc_m, t_ms, (uint8_t)MAGCAL_INTAKE_TILT_LEVEL);
+        }
+    }
+    return cont_enqueue(cc, m, t_ms, code);
 }
 
 magcal_status_t magcal_cont_progress(const magcal_cont_t *cc, magcal_cont_progress_t *out)
@@ -248,7 +437,11 @@ magcal_status_t magcal_cont_heading(const magcal_cont_t *cc, const magcal_vec3_t
     if (st != MAGCAL_OK) {
         return st;
     }
-    (void)magcal_cont_judge(cc, m, &j);
+    {
+        /* judged as the drain judged it: levelled under the last push_g's gravity */
+        magcal_vec3_t lm;
+        (void)magcal_cont_judge(cc, cont_tc_level(cc, m, &lm) != 0 ? &lm : m, &j);
+    }
     out->radius_rel = j.rel;
     if (cc->state == (uint8_t)MAGCAL_CONT_RELEARNING) {
         out->trust = MAGCAL_TRUST_CHANGED;

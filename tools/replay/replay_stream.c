@@ -751,6 +751,10 @@ int replay_stream_main(int argc, char **argv)
         cJSON_AddNumberToObject(root, "gravity_rows", (double)g_cc.g_pushed);
         cJSON_AddNumberToObject(root, "level_rows", (double)g_cc.g_level);
         cJSON_AddNumberToObject(root, "store_level", (double)stream_store_level(&g_cc.store));
+        /* tilt compensation (continuous.h): the estimated raw shift per unit tilt, rows levelled */
+        cJSON_AddNumberToObject(root, "tilt_comp_k", g_cc.tc_ok != 0u ? (double)g_cc.tc_k : 0.0);
+        cJSON_AddNumberToObject(root, "tilt_comp_pairs", (double)g_cc.tc_n);
+        cJSON_AddNumberToObject(root, "levelled_rows", (double)g_cc.tc_levelled);
     }
     stream_report_tail(root, g_cc.solves, g_cc.changes, g_cc.dropped, ref_ss, ref_n, ev);
     if (json) {

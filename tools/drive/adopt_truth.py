@@ -1,0 +1,140 @@
+#!/usr/bin/python3
+"""Score the continuous 2-D calibrator's solves on a generated drive against its truth.
+
+    /usr/bin/python3 tools/drive/adopt_truth.py DRIVE.csv DRIVE.json ADOPT.jsonl
+
+DRIVE.csv / .json: tools/gen_drive.py (dump and truth); ADOPT.jsonl: magcal_drive_adopt on that
+dump (tools/drive/drive_adopt.c: every solve's store and calibration, the batch refits of an
+adopting solve's snapshot on all its samples and on its LEVEL samples only).
+
+Per adopting solve it prints:
+  - lvl: the calibration's TRUE heading error at level attitude, RMS (and mean) over 360 headings
+    of the truth's field in the hard-iron regime of the adoption row (exact for the true
+    calibration: 0), i.e. what the calibration itself gets wrong, whatever the road does;
+  - drv: its RMS over the drive's clean moving rows of that regime from its row to the next
+    adoption, and the floor (the true 3-D calibration on the same rows);
+  - the store: samples, the share NOT level-tagged (tilted / unknown), the share with true
+    |pitch| > 1 deg, their mean |pitch|, the same for the solver's inliers;
+  - refit_all / refit_level: the batch solver on the snapshot / on its level samples only, lvl.
+Stored samples are matched to their rows by their exact float32 values.
+"""
+import csv
+import json
+import math
+import sys
+
+import numpy as np
+
+D2R = math.pi / 180.0
+
+
+def wrap(a):
+    return (a + 180.0) % 360.0 - 180.0
+
+
+def dcm(roll, pitch, yaw):
+    """C_b^NED for body x right, y forward, z up (tools/gen_drive.py dcm_ned_batch)."""
+    cf, sf = np.cos(roll), np.sin(roll)
+    ct, st = np.cos(pitch), np.sin(pitch)
+    cp, sp = np.cos(yaw), np.sin(yaw)
+    c = np.empty((len(yaw), 3, 3))
+    c[:, 0, 0] = -sp * cf + cp * st * sf
+    c[:, 0, 1] = cp * ct
+    c[:, 0, 2] = -sp * sf - cp * st * cf
+    c[:, 1, 0] = cp * cf + sp * st * sf
+    c[:, 1, 1] = sp * ct
+    c[:, 1, 2] = cp * sf - sp * st * cf
+    c[:, 2, 0] = ct * sf
+    c[:, 2, 1] = -st
+    c[:, 2, 2] = -ct * cf
+    return c
+
+
+def heading(cal, raw):
+    o = np.array(cal["offset"])
+    m = np.array(cal["m"])
+    h = (raw[:, :2] - o) @ m.T
+    return np.degrees(np.arctan2(-h[:, 0], h[:, 1]))
+
+
+def main(argv):
+    if len(argv) != 4:
+        print(__doc__)
+        return 2
+    rows = []
+    with open(argv[1]) as f:
+        rd = csv.reader(line for line in f if not line.startswith("#"))
+        hdr = next(rd)
+        ix = {k: i for i, k in enumerate(hdr)}
+        for r in rd:
+            rows.append([float(r[ix[k]]) for k in ("mx", "my", "mz", "pitch_deg", "roll_deg", "heading_ref_deg",
+                                                   "glitch", "disturbed", "step", "parked")])
+    a = np.array(rows)
+    raw = a[:, 0:3]
+    pitch, ref = a[:, 3], a[:, 5]
+    glitch, dist, step, park = a[:, 6] > 0, a[:, 7] > 0, a[:, 8] > 0, a[:, 9] > 0
+    T = json.load(open(argv[2]))
+    decl = T["declination_deg"]
+    b_ned = np.array(T["b_ned_ut"])
+    key = {}
+    r32 = raw.astype(np.float32)
+    for i in range(len(r32)):
+        key.setdefault((r32[i, 0], r32[i, 1], r32[i, 2]), i)
+    # level grid: 360 headings at zero pitch and roll
+    yaw = np.arange(360.0) * D2R
+    body = np.einsum("nji,j->ni", dcm(np.zeros(360), np.zeros(360), yaw), b_ned)
+    solves = [json.loads(line) for line in open(argv[3]) if line.startswith("{\"solve\"")]
+    adopt_rows = [s["solve"] for s in solves if s["outcome"] == 2]
+    print("%-7s %-4s %6s %5s | %-13s | %-12s | %4s %5s %5s %4s | %5s %5s | %-15s | %-15s" % (
+        "row", "reg", "est", "cov", "lvl rms/mean", "drv rms/floor", "n", "!lvl", "p>1", "|p|", "in!lv", "inp>1",
+        "refit_all", "refit_level"))
+    for s in solves:
+        if s["outcome"] != 2:
+            continue
+        row = s["solve"]
+        reg = "after" if step[row] else "before"
+        tc = T["cal_after"] if step[row] else T["cal_before"]
+        g = np.array(tc["g"])
+        v = np.array(tc["v"])
+        raw_lvl = body @ np.linalg.inv(g).T + v
+        true_h = np.degrees(yaw)
+
+        def lvl(cal):
+            e = wrap(heading(cal, raw_lvl) + decl - true_h)
+            return np.sqrt(np.mean(e * e)), np.mean(e)
+
+        nxt = [r for r in adopt_rows if r > row]
+        end = nxt[0] if nxt else len(a)
+        sel = np.zeros(len(a), bool)
+        sel[row:end] = True
+        sel &= ~glitch & ~dist & ~park & (step == step[row])
+        e = wrap(heading(s["cal"], raw[sel]) + decl - ref[sel])
+        hf = (raw[sel] - v) @ g.T
+        fe = wrap(np.degrees(np.arctan2(-hf[:, 0], hf[:, 1])) + decl - ref[sel])
+        st = s["store"]
+        idx = np.array([key.get((np.float32(x), np.float32(y), np.float32(z)), -1) for x, y, z, _, _ in st])
+        lv = np.array([q[3] for q in st])
+        inl = np.array([q[4] for q in st])
+        ok = idx >= 0
+        p = np.abs(pitch[idx[ok]])
+        pin = np.abs(pitch[idx[ok & (inl == 1)]])
+        lr, lm = lvl(s["cal"])
+
+        def rf(k):
+            r = s.get(k)
+            if r is None or "cal" not in r:
+                return "%3d %s" % (r["n"] if r else 0, (r or {}).get("status", "-")[:10])
+            x, y = lvl(r["cal"])
+            return "%3d %5.2f/%+5.2f" % (r["n"], x, y)
+
+        print("%-7d %-4s %6.2f %5.0f | %5.2f / %+5.2f | %5.2f / %4.2f | %4d %5.2f %5.2f %4.2f | %5.2f %5.2f | %-15s | %-15s" % (
+            row, reg[:4], s["est_err"], s["coverage"], lr, lm,
+            np.sqrt(np.mean(e * e)) if len(e) else float("nan"), np.sqrt(np.mean(fe * fe)) if len(fe) else float("nan"),
+            len(st), np.mean(lv == 0), np.mean(p > 1.0), np.mean(p),
+            np.mean(lv[inl == 1] == 0) if np.any(inl == 1) else float("nan"),
+            np.mean(pin > 1.0) if len(pin) else float("nan"), rf("refit_all"), rf("refit_level")))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))
