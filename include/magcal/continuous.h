@@ -71,10 +71,33 @@
  * good (a coarse one never replaces a full one). Save to flash only when cc.cal_coarse == 0: a
  * restored calibration is taken as full.
  *
+ * Tilt compensation (magcal_cont_push_g, cfg.tilt_comp_deg; docs/calibrator.md "Tilt
+ * compensation"). A pitch p (roll r) shifts the body's horizontal field by Z (sin r, sin p) to
+ * first order (Z: the body's vertical field), i.e. the raw x, y by k t with t = (g_x, g_y) / g_z of
+ * the smoothed gravity and k = Z in raw units: at 6 deg about 12 deg of heading when heading
+ * east or west, which a store filled on hills bakes into the calibration. push_g learns k from
+ * the stream (pairs of samples in the same 10-degree heading sector around the store's centre at
+ * different tilt along the field: the pair's change of distance from the centre is k times its
+ * change of t . radial; a median start, then a gated least-squares fit; the references are
+ * dropped at a change or a new centre). Once k is known (24 pairs, standard error <= 0.12 R) AND
+ * no field model judges the stream (no calibration installed, or a relearn after a change:
+ * switched on under an installed calibration the model fitted on unlevelled samples would read
+ * the levelled stream as a mismatch), every sample with a steady |g|, its roll within
+ * cfg.intake.tilt_limit_deg (a turn's centripetal acceleration reads as roll: not levelled) and
+ * its pitch within cfg.tilt_comp_deg is queued levelled (m_xy - k t) and LEVEL; magcal_cont_heading
+ * judges its sample levelled with the gravity of the last push_g (its heading is not levelled).
+ * The model takes the specific force for gravity: a vehicle's longitudinal acceleration reads as
+ * pitch (it is not levelled only when |g| leaves its g_band_rel band). Known limitation: a
+ * calibration restored from flash, or one adopted before k is known, keeps the store unlevelled
+ * until the next change.
+ *
  * Concurrency contract. magcal_cont_push() may run in an interrupt (or another task) while ANY
  * other call on the same instance runs in one task: the ring is the only state push writes
  * (its head index, after the sample; step only writes the tail index; magcal_cont_push_g also
- * writes its gravity classifier's state, which nothing else writes). Everything else (step,
+ * writes its gravity classifier's and tilt compensation's state, which nothing else writes, and
+ * reads the store's centre, radius and centre generation and the instance's change count,
+ * calibration flag and state, which step writes: a torn read misplaces one pair of k's fit or
+ * delays the switch-on by one sample). Everything else (step,
  * solve_blocking, heading, progress, status, reset) must run in ONE task context (not
  * concurrently with each other). Two push callers on one instance need the caller's own lock.
  * When the ring is full the sample is dropped and counted (MAGCAL_ERR_BUFFER_FULL). The index
@@ -412,7 +435,9 @@ magcal_status_t magcal_cont_push(magcal_cont_t *cc, const magcal_vec3_t *m, uint
  *        those samples read as tilted (they are still stored while their bin is short of level
  *        ones). g NULL, a non-finite g, |g| = 0 or tilt_limit_deg 0: the sample is pushed
  *        without a tilt code, exactly as magcal_cont_push.
- *        docs/calibrator.md "Level samples from the accelerometer".
+ *        docs/calibrator.md "Level samples from the accelerometer". Tilt compensation (file
+        comment "Tilt compensation"): once the vertical field is learnt, a steady sample pitched
+        within cfg.tilt_comp_deg is levelled before it is queued, and queued LEVEL.
  * @param[in,out] cc   initialised instance.
  * @param[in]     m    raw magnetometer sample.
  * @param[in]     g    specific force (accelerometer), or NULL.
