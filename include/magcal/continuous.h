@@ -374,7 +374,7 @@ typedef struct {
     float tc_k;                    /* raw shift per unit of tilt (the vertical field, raw units); valid when tc_ok */
     float tc_s[3];                 /* its least-squares sums over sample pairs: dq dq, dd dq, dd dd */
     uint32_t tc_n;                 /* pairs in the sums */
-    uint32_t tc_seen;              /* pairs seen (up to MAGCAL_CONT_TC_FIRST + 1) */
+    uint32_t tc_seen;              /* first pairs kept (up to MAGCAL_CONT_TC_FIRST) */
     float tc_ref_d[MAGCAL_CONT_TC_BINS]; /* per heading sector (from the store's centre): the reference of its next
                                             pair, distance from the centre */
     float tc_ref_q[MAGCAL_CONT_TC_BINS]; /* and q (tilt along the radial direction) */

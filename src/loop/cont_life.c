@@ -174,8 +174,8 @@ static uint8_t cont_tilt_of(magcal_cont_t *cc, const magcal_vec3_t *g, uint32_t 
 /* ---- Tilt compensation (continuous.h "Tilt compensation"). A pitch p (roll r) moves the body's
  * horizontal field by Z (sin r, sin p) to first order (Z: the body's vertical field), i.e. by
  * Z g_xy / |g| with g the specific force in body axes: in raw units by k t, t = g_xy / g_z and
- * k = Z times the raw scale. k is learnt from pairs of samples at the same heading (their radial
- * directions from the store's centre within TC_COS) and different tilt: the pair's change of the
+ * k = Z times the raw scale. k is learnt from pairs of samples at the same heading (the same
+ * 10-degree sector around the store's centre) and different tilt: the pair's change of the
  * distance from the centre is k times its change of q = t . (radial direction) (a tilt along the
  * field changes the radius; across it, the heading: the error the store must not take). */
 #define TC_MIN_DQ 0.02f      /* the pair's change of q (about 1.1 deg of tilt along the field) */
@@ -238,7 +238,7 @@ static void cont_tc_add(magcal_cont_t *cc, float dq, float dd, float r, float k)
     cc->tc_s[2] += dd * dd;
     cc->tc_n++;
     kn = cc->tc_s[1] / cc->tc_s[0];
-    var = (cc->tc_n > 1u) ? (cc->tc_s[2] - kn * cc->tc_s[1]) / (float)(cc->tc_n - 1u) : -1.0f;
+    var = (cc->tc_n > 1u) ? (cc->tc_s[2] - kn * cc->tc_s[1]) / ((float)cc->tc_n - 1.0f) : -1.0f;
     cc->tc_k = kn;
     cc->tc_ok = (cc->tc_n >= TC_MIN_PAIRS && var >= 0.0f && var <= TC_MAX_SE * TC_MAX_SE * r * r * cc->tc_s[0] &&
                  fabsf(kn) <= TC_MAX_K * r)
@@ -264,7 +264,6 @@ static MAGCAL_NOINLINE void cont_tc_pair(magcal_cont_t *cc, float dq, float dd, 
         }
         return;
     }
-    cc->tc_seen = MAGCAL_CONT_TC_FIRST + 1u;
     cont_tc_add(cc, dq, dd, r, cc->tc_n > 0u ? cc->tc_k : cont_tc_median(cc));
 }
 
