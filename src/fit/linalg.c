@@ -1,4 +1,5 @@
 /* Small dense float32 kernels shared by the fitting modules (algorithms.md section 3). */
+#include <float.h>
 #include <math.h>
 
 #include "magcal_internal.h"
@@ -234,9 +235,41 @@ magcal_status_t magcal_ldlt_solve(float *a, float *b, size_t n, float tau, float
     return MAGCAL_OK;
 }
 
+/*
+ * fmodf(a, 360.0f), bit for bit, without libm's fmodf (about 500 B of flash with its wrapper on
+ * the M4F): binary long division by 360 * 2^k, k from the largest with 360 * 2^k <= |a| / 2 down
+ * to 0. Each subtraction has m <= r < 2 m, so it is exact (Sterbenz), like fmod itself: the
+ * remainder is the exact one, with the sign of a (also -0). A bounded angle (|a| < 720, every
+ * caller's difference or sum of two angles) takes at most one subtraction; the loops are bounded
+ * by the float range (|a| < 2^128: k <= 118). Non-finite input: NaN, as fmodf.
+ */
+static float rem360(float a)
+{
+    float r = fabsf(a);
+    float m = 360.0f;
+    uint32_t k;
+
+    if (r < 360.0f) {
+        return a; /* also -0 and the subnormals, as fmodf */
+    }
+    if (!(r <= FLT_MAX)) {
+        return NAN;
+    }
+    for (k = 0u; k < 128u && m <= 0.5f * r; ++k) {
+        m *= 2.0f; /* exact: m = 360 * 2^k <= FLT_MAX / 2 */
+    }
+    for (k = 0u; k < 128u && m >= 360.0f; ++k) {
+        if (r >= m) {
+            r -= m; /* m <= r < 2 m: exact */
+        }
+        m *= 0.5f;
+    }
+    return (a < 0.0f) ? -r : r;
+}
+
 float magcal_wrap180_deg(float a)
 {
-    float r = fmodf(a, 360.0f); /* (-360, 360) */
+    float r = rem360(a); /* (-360, 360) */
     if (r > 180.0f) {
         r -= 360.0f;
     } else if (r <= -180.0f) {
@@ -249,7 +282,7 @@ float magcal_wrap180_deg(float a)
 
 float magcal_wrap360_deg(float a)
 {
-    float r = fmodf(a, 360.0f);
+    float r = rem360(a);
     if (r < 0.0f) {
         r += 360.0f;
     }
