@@ -123,7 +123,7 @@ static MAGCAL_NOINLINE int rc_run(magcal_o2_rc_t *c, const magcal_vec2_t *pts, s
 /* floorf(x) clamped to [-lim, lim - 1] (lim a whole number), without libm's floorf (148 B on the
  * M4F): the clamp first, then truncation toward zero, one down for a negative non-whole x. The
  * same value as the floor-then-clamp for every finite x (the points are checked finite first). */
-static float cell_of(float x, float lim)
+static float th_cell(float x, float lim)
 {
     float q;
     if (!(x < lim - 1.0f)) {
@@ -156,8 +156,8 @@ static MAGCAL_NOINLINE size_t th_keys(const magcal_vec2_t *pts, size_t n, const 
             key[i] = 4.0f * lim * lim; /* after every cell: never a representative */
             continue;
         }
-        const float u = cell_of((pts[i].x - cr[0]) / h, lim);
-        const float v = cell_of((pts[i].y - cr[1]) / h, lim);
+        const float u = th_cell((pts[i].x - cr[0]) / h, lim);
+        const float v = th_cell((pts[i].y - cr[1]) / h, lim);
         key[i] = (u + lim) * (2.0f * lim) + (v + lim);
     }
     *rem = r;

@@ -248,6 +248,7 @@ static float rem360(float a)
     float r = fabsf(a);
     float m = 360.0f;
     uint32_t k;
+    uint32_t j;
 
     if (r < 360.0f) {
         return a; /* also -0 and the subnormals, as fmodf */
@@ -255,10 +256,13 @@ static float rem360(float a)
     if (!(r <= FLT_MAX)) {
         return NAN;
     }
-    for (k = 0u; k < 128u && m <= 0.5f * r; ++k) {
-        m *= 2.0f; /* exact: m = 360 * 2^k <= FLT_MAX / 2 */
+    for (k = 0u; k < 127u; ++k) { /* m = 360 * 2^k, the largest with 2 m > r */
+        if (m > 0.5f * r) {
+            break;
+        }
+        m *= 2.0f; /* exact: m <= FLT_MAX / 2 */
     }
-    for (k = 0u; k < 128u && m >= 360.0f; ++k) {
+    for (j = 0u; j <= k; ++j) { /* m = 360 * 2^(k - j) */
         if (r >= m) {
             r -= m; /* m <= r < 2 m: exact */
         }
@@ -306,9 +310,9 @@ float magcal_atan2f(float y, float x)
 {
     const float ax = fabsf(x);
     const float ay = fabsf(y);
-    const int swap = (ay > ax) ? 1 : 0;
-    const float mx = (swap != 0) ? ay : ax;
-    const float mn = (swap != 0) ? ax : ay;
+    const uint8_t swap = (ay > ax) ? 1u : 0u;
+    const float mx = (swap != 0u) ? ay : ax;
+    const float mn = (swap != 0u) ? ax : ay;
     float t;
     float z;
     float r = 0.0f;
@@ -324,7 +328,7 @@ float magcal_atan2f(float y, float x)
     }
     z = t * t;
     r += t + t * z * (-0.33332726f + z * (0.19971037f + z * (-0.13817109f + z * 0.078824282f)));
-    if (swap != 0) {
+    if (swap != 0u) {
         r = 1.5707963268f - r;
     }
     if (signbit(x) != 0) {
