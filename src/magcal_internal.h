@@ -93,6 +93,9 @@ float magcal_wrap180_deg(float a);
 /** Wrap an angle in degrees to [0, 360). Input must be finite. */
 float magcal_wrap360_deg(float a);
 
+/** atan2(y, x) in radians, [-pi, pi], within 2e-5 degree of the exact value (src/fit/linalg.c); finite input. */
+float magcal_atan2f(float y, float x);
+
 /**
  * Deterministic PRNG (xorshift32). State must be non-zero; 0 is replaced by a fixed constant.
  * Returns a value uniformly distributed in [0, bound) for bound >= 1 (bound 0 gives 0).

@@ -469,6 +469,16 @@ static void test_optics_workspace_macros_are_what_functions_check(void)
     /* budget: the whole filter (workspace + uint8 mask) stays under 24 bytes per sample */
     TEST_ASSERT_TRUE(MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(1024u) + 1024u <= 24u * 1024u);
     TEST_ASSERT_TRUE(MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(60u) + 60u <= 24u * 60u);
+    /* the loop state is 24 pointers + 140 bytes (the static assert in optics.c holds it to that):
+     * at capacity 1024 the calibrator's workspace and its 8-byte samples stay within 24 bytes per
+     * sample on a 64-bit host too (16 380 B; 16 252 B on a 32-bit target) */
+    /* reach + labels 6 n, heap + positions 4 n, index 2 n + 2 (n + 1) + 2 of alignment, bits n / 8,
+     * MinPts buffer 128, loop state */
+    TEST_ASSERT_EQUAL_UINT32((uint32_t)(6144u + 4096u + 4100u + 128u + 128u + 24u * sizeof(void *) +
+                                        140u),
+                             (uint32_t)MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(1024u));
+    TEST_ASSERT_TRUE(MAGCAL_CALIBRATOR_WORKSPACE_LEN(1024u) + 1024u * sizeof(magcal_vec2_t) <=
+                     24u * 1024u);
 }
 
 /* magcal_optics_filter == run + extract + largest_cluster (the on-the-fly extraction is exact). */

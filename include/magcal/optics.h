@@ -149,11 +149,11 @@ typedef enum {
      ~(size_t)3u)
 /* Bytes of the loop state (the ordering loop's context and the resumable state of the slice
  * API), kept in the workspace (off the stack) after the MinPts buffer, with slack to align it for
- * pointers; optics.c checks the size with a static assert (24 pointer-sized fields + 148 bytes). */
+ * pointers; optics.c checks the size with a static assert (24 pointer-sized fields + 140 bytes). */
 #ifdef MAGCAL_OPTICS_BENCH_SORTED_LIST /* bench-only seed-list mode (src/optics_core.h): 2 more words */
-#define MAGCAL_OPTICS_CTX_LEN_ (26u * sizeof(void *) + 148u)
+#define MAGCAL_OPTICS_CTX_LEN_ (26u * sizeof(void *) + 140u)
 #else
-#define MAGCAL_OPTICS_CTX_LEN_ (24u * sizeof(void *) + 148u)
+#define MAGCAL_OPTICS_CTX_LEN_ (24u * sizeof(void *) + 140u)
 #endif
 /* Offset of the run workspace inside the filter workspace (4-byte aligned). */
 #define MAGCAL_OPTICS_FILTER_RUN_OFFSET_(n) ((6u * (size_t)(n) + 3u) & ~(size_t)3u)
@@ -162,8 +162,8 @@ typedef enum {
 /**
  * Workspace bytes for magcal_optics_run() on n points: seed heap/list uint16[n], heap position
  * map uint16[n], spatial index, one "processed" bit per point and the MinPts insertion buffer
- * (4 * MAGCAL_MAX_MIN_PTS bytes) and the loop state (24 pointers + 148 bytes, 244 bytes on a 32-bit
- * target), both kept off the stack. About 8.1 bytes per sample + 372 bytes (32-bit);
+ * (4 * MAGCAL_MAX_MIN_PTS bytes) and the loop state (24 pointers + 140 bytes, 236 bytes on a 32-bit
+ * target), both kept off the stack. About 8.1 bytes per sample + 364 bytes (32-bit);
  * the outputs (order 2 + reach 4 + core 4 bytes per sample) are separate caller arrays.
  */
 #define MAGCAL_OPTICS_WORKSPACE_LEN(n)                                                             \
@@ -172,7 +172,7 @@ typedef enum {
 /**
  * Workspace bytes for magcal_optics_filter() and magcal_optics_auto_params() on n points:
  * reach float[n] + labels int16[n] + MAGCAL_OPTICS_WORKSPACE_LEN(n). About 14.1 bytes per
- * sample + 372 bytes (32-bit); with the caller's uint8 inlier mask the whole filter needs about 15.1 bytes
+ * sample + 364 bytes (32-bit); with the caller's uint8 inlier mask the whole filter needs about 15.1 bytes
  * per sample besides the points (ordering and core distances are consumed on the fly).
  */
 #define MAGCAL_OPTICS_FILTER_WORKSPACE_LEN(n)                                                      \

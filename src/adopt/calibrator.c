@@ -20,7 +20,7 @@
 /* Approximate heading of u (raw, around a centre): atan2(-u.x, u.y) in [0, 360). */
 float magcal_cal_angle_deg(float ux, float uy)
 {
-    float a = atan2f(-ux, uy) * MAGCAL_DEG_PER_RAD_F;
+    float a = magcal_atan2f(-ux, uy) * MAGCAL_DEG_PER_RAD_F;
     if (a < 0.0f) {
         a += 360.0f;
     }

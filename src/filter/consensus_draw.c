@@ -130,7 +130,7 @@ MAGCAL_NOINLINE magcal_status_t magcal_cons_prep(magcal_cons_state_t *S, uint32_
         end = magcal_cons_chunk(budget, used, CONS_W_ATAN, S->pos, m);
         for (i = S->pos; i < end; ++i) {
             const magcal_vec2_t *p = &S->pts[S->order[i]];
-            S->scr[i] = atan2f(p->y - S->acc, p->x - S->cx);
+            S->scr[i] = magcal_atan2f(p->y - S->acc, p->x - S->cx);
         }
         S->pos = end;
         if (end == m) {

@@ -120,6 +120,22 @@ static MAGCAL_NOINLINE int rc_run(magcal_o2_rc_t *c, const magcal_vec2_t *pts, s
     }
 }
 
+/* floorf(x) clamped to [-lim, lim - 1] (lim a whole number), without libm's floorf (148 B on the
+ * M4F): the clamp first, then truncation toward zero, one down for a negative non-whole x. The
+ * same value as the floor-then-clamp for every finite x (the points are checked finite first). */
+static float th_cell(float x, float lim)
+{
+    float q;
+    if (!(x < lim - 1.0f)) {
+        return lim - 1.0f;
+    }
+    if (x < -lim) {
+        return -lim;
+    }
+    q = (float)(int32_t)x; /* |x| <= lim < 2^23: exact */
+    return (q > x) ? (q - 1.0f) : q;
+}
+
 /* TH_KEYS from point i: each point's cell key (own frame: its floats stay off the sort's path).
  * Returns the next point. */
 static MAGCAL_NOINLINE size_t th_keys(const magcal_vec2_t *pts, size_t n, const float cr[3],
@@ -140,10 +156,8 @@ static MAGCAL_NOINLINE size_t th_keys(const magcal_vec2_t *pts, size_t n, const 
             key[i] = 4.0f * lim * lim; /* after every cell: never a representative */
             continue;
         }
-        float u = floorf((pts[i].x - cr[0]) / h);
-        float v = floorf((pts[i].y - cr[1]) / h);
-        u = u < -lim ? -lim : (u > lim - 1.0f ? lim - 1.0f : u);
-        v = v < -lim ? -lim : (v > lim - 1.0f ? lim - 1.0f : v);
+        const float u = th_cell((pts[i].x - cr[0]) / h, lim);
+        const float v = th_cell((pts[i].y - cr[1]) / h, lim);
         key[i] = (u + lim) * (2.0f * lim) + (v + lim);
     }
     *rem = r;

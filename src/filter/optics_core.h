@@ -61,7 +61,6 @@ typedef struct {
     float eps_prime;
     int32_t id;
     size_t cur_count;
-    int32_t best_id;
     size_t best_count;
     size_t n_noise;
     /* ring selection (automatic filter): labels[p] holds p's angular sector (0..63, -1 outside
@@ -74,6 +73,7 @@ typedef struct {
     size_t head; /* sorted list: the list is seeds[head .. head + n_seeds) */
     int dirty;   /* sorted list: changed since the last sort */
 #endif
+    int32_t best_id; /* extraction's kept cluster: here, not after cur_count, so no 64-bit padding */
     magcal_optics_order_t mode;
     uint16_t min_pts;
 } magcal_ocore_t;

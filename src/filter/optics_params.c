@@ -87,7 +87,7 @@ static MAGCAL_NOINLINE size_t ae_angles(magcal_o2_ae_t *e, const magcal_vec2_t *
         float dx = pts[i].x - cr[0];
         float dy = pts[i].y - cr[1];
         float rr = sqrtf(dx * dx + dy * dy);
-        a[i] = atan2f(dy, dx);
+        a[i] = magcal_atan2f(dy, dx);
         if (rr >= lo && rr <= hi) {
             idx[m] = (uint16_t)i;
             ++m;

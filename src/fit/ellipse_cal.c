@@ -131,9 +131,9 @@ magcal_status_t magcal_ellipse_kphi(const magcal_ellipse_t *e, magcal_ellipse_kp
     }
     ell_kphi_coef(r1, r2, cc, ss, cs, &c);
     k.ky = c.ky;
-    k.phi_p_rad = atan2f(c.sp, c.cp); /* cp > 0: (-pi/4, pi/4) */
+    k.phi_p_rad = magcal_atan2f(c.sp, c.cp); /* cp > 0: (-pi/4, pi/4) */
     k.h_x = c.hx;
-    k.beta_rad = atan2f((c.ky - 1.0f) * c.sp, (1.0f + c.ky) * c.cp);
+    k.beta_rad = magcal_atan2f((c.ky - 1.0f) * c.sp, (1.0f + c.ky) * c.cp);
     k.b = e->center;
     if (!magcal_isfinite_f(k.ky) || !magcal_isfinite_f(k.h_x) || !(k.ky > 0.0f)) {
         return MAGCAL_ERR_ARG;

@@ -187,7 +187,7 @@ static inline magcal_status_t magcal_efit_conic_store(const float coef[5], float
     }
     st = magcal_efit_conic_geometry(coef, mx, my, s, out, geo);
     if (st == MAGCAL_OK) {
-        out->angle_rad = 0.5f * atan2f(coef[0], 1.0f - coef[1]);
+        out->angle_rad = 0.5f * magcal_atan2f(coef[0], 1.0f - coef[1]);
         out->min_pivot = min_pivot;
         out->n_used = (uint16_t)cnt;
         out->residual_rms = rms;

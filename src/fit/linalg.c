@@ -1,4 +1,5 @@
 /* Small dense float32 kernels shared by the fitting modules (algorithms.md section 3). */
+#include <float.h>
 #include <math.h>
 
 #include "magcal_internal.h"
@@ -234,9 +235,45 @@ magcal_status_t magcal_ldlt_solve(float *a, float *b, size_t n, float tau, float
     return MAGCAL_OK;
 }
 
+/*
+ * fmodf(a, 360.0f), bit for bit, without libm's fmodf (about 500 B of flash with its wrapper on
+ * the M4F): binary long division by 360 * 2^k, k from the largest with 360 * 2^k <= |a| / 2 down
+ * to 0. Each subtraction has m <= r < 2 m, so it is exact (Sterbenz), like fmod itself: the
+ * remainder is the exact one, with the sign of a (also -0). A bounded angle (|a| < 720, every
+ * caller's difference or sum of two angles) takes at most one subtraction; the loops are bounded
+ * by the float range (|a| < 2^128: k <= 118). Non-finite input: NaN, as fmodf.
+ */
+static float rem360(float a)
+{
+    float r = fabsf(a);
+    float m = 360.0f;
+    uint32_t k;
+    uint32_t j;
+
+    if (r < 360.0f) {
+        return a; /* also -0 and the subnormals, as fmodf */
+    }
+    if (!(r <= FLT_MAX)) {
+        return NAN;
+    }
+    for (k = 0u; k < 127u; ++k) { /* m = 360 * 2^k, the largest with 2 m > r */
+        if (m > 0.5f * r) {
+            break;
+        }
+        m *= 2.0f; /* exact: m <= FLT_MAX / 2 */
+    }
+    for (j = 0u; j <= k; ++j) { /* m = 360 * 2^(k - j) */
+        if (r >= m) {
+            r -= m; /* m <= r < 2 m: exact */
+        }
+        m *= 0.5f;
+    }
+    return (a < 0.0f) ? -r : r;
+}
+
 float magcal_wrap180_deg(float a)
 {
-    float r = fmodf(a, 360.0f); /* (-360, 360) */
+    float r = rem360(a); /* (-360, 360) */
     if (r > 180.0f) {
         r -= 360.0f;
     } else if (r <= -180.0f) {
@@ -249,7 +286,7 @@ float magcal_wrap180_deg(float a)
 
 float magcal_wrap360_deg(float a)
 {
-    float r = fmodf(a, 360.0f);
+    float r = rem360(a);
     if (r < 0.0f) {
         r += 360.0f;
     }
@@ -257,6 +294,47 @@ float magcal_wrap360_deg(float a)
         r = 0.0f;
     }
     return r;
+}
+
+/*
+ * atan2 in float without libm's atan2f + atanf (812 B of flash on the M4F with newlib): octant
+ * reduction to t = min(|x|, |y|) / max(|x|, |y|) in [0, 1], then t > tan(pi/8) folded to
+ * (t - 1) / (t + 1) around pi/4, and atan(t) = t + t^3 P(t^2) on |t| <= tan(pi/8) with a degree-3
+ * P fitted on Chebyshev nodes (approximation error 5.4e-9 rad). With the float roundings of the
+ * reduction and of the pi/2 and pi constants the measured maximum error against the double
+ * atan2 is 1.57e-5 degree (2.75e-7 rad; glibc's atan2f: 1.44e-5), pinned at 2e-5 degree by
+ * tests/test_linalg.c (test_atan2_matches_libm_within_bound). Signed zeros as atan2
+ * (atan2(-0, -1) = -pi); non-finite input gives NaN (every caller passes finite values).
+ */
+float magcal_atan2f(float y, float x)
+{
+    const float ax = fabsf(x);
+    const float ay = fabsf(y);
+    const uint8_t swap = (ay > ax) ? 1u : 0u;
+    const float mx = (swap != 0u) ? ay : ax;
+    const float mn = (swap != 0u) ? ax : ay;
+    float t;
+    float z;
+    float r = 0.0f;
+
+    if (mx > 0.0f) {
+        t = mn / mx;
+    } else {
+        t = mn + mx; /* both zero: 0; NaN stays NaN */
+    }
+    if (t > 0.41421356f) { /* tan(pi/8) */
+        t = (t - 1.0f) / (t + 1.0f);
+        r = 0.78539816340f; /* pi/4 */
+    }
+    z = t * t;
+    r += t + t * z * (-0.33332726f + z * (0.19971037f + z * (-0.13817109f + z * 0.078824282f)));
+    if (swap != 0u) {
+        r = 1.5707963268f - r;
+    }
+    if (signbit(x) != 0) {
+        r = 3.1415926536f - r;
+    }
+    return (signbit(y) != 0) ? -r : r;
 }
 
 uint32_t magcal_prng_next(uint32_t *state, uint32_t bound)

@@ -75,7 +75,7 @@ magcal_status_t magcal_heading_from_field(magcal_vec2_t h, float *heading_deg)
     if (fabsf(h.x) < 1.0e-19f && fabsf(h.y) < 1.0e-19f && (h.x * h.x + h.y * h.y) < FLT_MIN) {
         return MAGCAL_ERR_ZERO_FIELD;
     }
-    deg = atan2f(-h.x, h.y) * MAGCAL_DEG_PER_RAD_F; /* (-180, 180] (plus rounding) */
+    deg = magcal_atan2f(-h.x, h.y) * MAGCAL_DEG_PER_RAD_F; /* (-180, 180] (plus rounding) */
     if (deg < 0.0f) {
         deg += 360.0f;
     }
