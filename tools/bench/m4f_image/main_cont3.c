@@ -66,6 +66,9 @@ static uint32_t g_unit_n[5];
 /* src/loop3/c3_step.c's per-step record (cont3_trace.elf only: tools/bench/cont3_weights.py) */
 extern uint32_t magcal_bench_cont3_trace[9];
 extern uint32_t magcal_bench_cont3_piece[11][4];
+/* src/filter/optics3.c's visits per weight of the density stage and its total charge (19 + 1) */
+#define O3_VISITS 20u
+extern uint32_t magcal_bench_o3_visits[O3_VISITS];
 #endif
 
 static const float k_w[3][3] = {{1.08f, 0.05f, -0.03f}, {0.05f, 0.95f, 0.04f}, {-0.03f, 0.04f, 1.02f}};
@@ -235,6 +238,15 @@ int main(void)
                        (unsigned long)tr[0], (unsigned long)tr[1], (unsigned long)tr[2], (unsigned long)tr[3],
                        (unsigned long)tr[4], (unsigned long)tr[5], (unsigned long)tr[6], (unsigned long)tr[7],
                        (unsigned long)tr[8]);
+                if (magcal_bench_o3_visits[O3_VISITS - 1u] != 0u) {
+                    unsigned v;
+                    printf("C3O3 %lu %lu %lu", (unsigned long)i, (unsigned long)c, (unsigned long)tr[6]);
+                    for (v = 0u; v < O3_VISITS; ++v) {
+                        printf(" %lu", (unsigned long)magcal_bench_o3_visits[v]);
+                        magcal_bench_o3_visits[v] = 0u;
+                    }
+                    printf("\n");
+                }
             }
 #endif
             g_unit_n[unit]++;
