@@ -561,7 +561,7 @@ magcal_status_t magcal_optics_thin_step(magcal_optics_thin_slice_t *s, uint32_t 
 /** @cond INTERNAL */
 /* 64-bit words of magcal_optics3_slice_t (src/filter/optics3_internal.h checks the size with a
  * static assert): 8 pointers or sizes, the configuration copy and the sub-machines' state. */
-#define MAGCAL_OPTICS3_SLICE_WORDS_ ((8u * sizeof(void *) + 176u + 7u) / 8u)
+#define MAGCAL_OPTICS3_SLICE_WORDS_ ((8u * sizeof(void *) + 160u + 7u) / 8u)
 /** @endcond */
 
 /** State of a time-sliced magcal_optics_filter3() (magcal_optics_filter3_begin / _step), in the

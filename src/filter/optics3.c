@@ -128,19 +128,19 @@ static int wide_run(magcal_o3s_t *s, int32_t *rem)
         CHARGE3(r, W3_WIDE);
         if (lab == -2 || (lab >= 0 && lab != t->id)) {
             if (t->id >= 0) {
-                const uint32_t ext = magcal_ocore_popcount(t->cur3[0]) + magcal_ocore_popcount(t->cur3[1]) +
-                                     magcal_ocore_popcount(t->cur3[2]);
-                if (ext > t->best_ext || (ext == t->best_ext && t->cur_count > t->best_count)) {
-                    t->best_ext = ext;
+                const uint32_t ext = magcal_ocore_popcount(s->u.wide.cur3[0]) + magcal_ocore_popcount(s->u.wide.cur3[1]) +
+                                     magcal_ocore_popcount(s->u.wide.cur3[2]);
+                if (ext > s->u.wide.best_ext || (ext == s->u.wide.best_ext && t->cur_count > t->best_count)) {
+                    s->u.wide.best_ext = ext;
                     t->best_count = t->cur_count;
                     t->best_id = t->id;
                 }
             }
             t->id = lab;
             t->cur_count = 0u;
-            t->cur3[0] = 0u;
-            t->cur3[1] = 0u;
-            t->cur3[2] = 0u;
+            s->u.wide.cur3[0] = 0u;
+            s->u.wide.cur3[1] = 0u;
+            s->u.wide.cur3[2] = 0u;
         }
         if (lab >= 0) {
             const float dx = au->pts[p].x - au->cen.x;
@@ -150,7 +150,7 @@ static int wide_run(magcal_o3s_t *s, int32_t *rem)
             t->cur_count++;
             if (d2 >= au->lo2 && d2 <= au->hi2) {
                 const unsigned cell = dir_cell3(dx, dy, dz);
-                t->cur3[cell >> 5] |= 1u << (cell & 31u);
+                s->u.wide.cur3[cell >> 5] |= 1u << (cell & 31u);
             }
         }
         ++k;
@@ -177,8 +177,9 @@ static void auto_info(const magcal_o3s_t *s, int16_t id, uint16_t count)
     }
 }
 
-/* The filter's tail (extraction, selection, mask) and the given-parameter path. 1 when done. */
-static int tail_pass(magcal_o3s_t *s, int32_t *rem)
+/* The filter's tail (extraction, selection, mask) and the given-parameter path but its ordering.
+ * 1 when done. */
+static MAGCAL_NOINLINE int tail_pass(magcal_o3s_t *s, int32_t *rem)
 {
     magcal_o3_tail_t *t = &s->t;
     const size_t n = s->n;
@@ -188,8 +189,8 @@ static int tail_pass(magcal_o3s_t *s, int32_t *rem)
         if (label_run(s, rem) != 0) {
             const int32_t nc = t->id + 1;
             t->n_clusters = (uint16_t)nc;
-            (void)memset(t->cur3, 0, sizeof t->cur3);
-            t->best_ext = 0u;
+            (void)memset(&s->u.wide, 0, sizeof s->u.wide);
+            s->u.wide.best_ext = 0u;
             t->best_count = 0u;
             t->cur_count = 0u;
             t->id = -1;
@@ -240,11 +241,6 @@ static int tail_pass(magcal_o3s_t *s, int32_t *rem)
         s->phase = (uint8_t)O3S_GORDER;
         break;
     }
-    case O3S_GORDER:
-        if (magcal_o3_ord_run(&s->u.ord, s->c, rem) != 0) {
-            s->phase = (uint8_t)O3S_GOUT;
-        }
-        break;
     default: /* O3S_GOUT: one unit, the mask over n points */
         CHARGE3_K(*rem, W3_OUT, n);
         magcal_ocore_fill_info(s->info, &s->c->oc, s->c->use_grid, s->use.eps, s->use.eps_prime);
@@ -284,7 +280,19 @@ static int o3s_run(magcal_o3s_t *s, int32_t *rem)
 {
     int fin = 0;
     while (*rem > 0 && fin == 0) {
-        if (s->phase == O3S_FIN) {
+        if (s->phase == O3S_ORDER || s->phase == O3S_GORDER) {
+            /* the ordering straight from here: its deep path (the grid PROCESS) under few frames */
+            if (s->c == NULL) {
+                CHARGE3(*rem, W3_PHASE);
+                magcal_o3_auto_order_begin(s);
+            } else if (magcal_o3_ord_run(&s->u.ord, s->c, rem) != 0) {
+                if (s->phase == O3S_ORDER) {
+                    magcal_o3_auto_ordered(s);
+                } else {
+                    s->phase = (uint8_t)O3S_GOUT;
+                }
+            }
+        } else if (s->phase == O3S_FIN) {
             fin = fin_pass(s, rem);
         } else if (s->phase < O3S_AUTO_DONE) {
             if (magcal_o3_auto_step(s, rem) != 0) {
@@ -417,21 +425,22 @@ magcal_status_t magcal_optics_filter3_step(magcal_optics3_slice_t *sl, uint32_t 
     return (magcal_status_t)s->status;
 }
 
-/* begin + steps at an unlimited budget (one code path with the sliced call). */
+/* begin + the steps' work at an unlimited budget (one code path with the sliced call; the run
+ * straight from here, not through the public step: the stack). */
 static magcal_status_t o3s_finish(magcal_optics3_slice_t *sl, magcal_status_t st0)
 {
-    magcal_status_t st = st0;
+    magcal_o3s_t *s = o3s_of(sl);
     unsigned guard;
-    if (st != MAGCAL_OK) {
-        return st;
+    if (st0 != MAGCAL_OK) {
+        return st0;
     }
     for (guard = 0u; guard < SLICE_ONESHOT_ROUNDS; ++guard) {
-        st = magcal_optics_filter3_step(sl, UINT32_MAX, NULL);
-        if (st != MAGCAL_IN_PROGRESS) {
+        int32_t rem = SLICE_REM_MAX;
+        if (o3s_run(s, &rem) != 0) {
             break;
         }
     }
-    return st;
+    return (magcal_status_t)s->status;
 }
 
 magcal_status_t magcal_optics_filter3(const magcal_optics_cfg_t *cfg, const magcal_vec3_t *pts,
@@ -446,7 +455,7 @@ magcal_status_t magcal_optics_auto_params3(const magcal_vec3_t *pts, size_t n, v
                                            size_t work_len, float *eps, uint16_t *min_pts,
                                            float *eps_prime)
 {
-    const magcal_optics_cfg_t cfg = MAGCAL_OPTICS_CFG_DEFAULT;
+    static const magcal_optics_cfg_t cfg = MAGCAL_OPTICS_CFG_DEFAULT;
     magcal_optics3_slice_t sl;
     magcal_status_t st;
     if (eps == NULL || min_pts == NULL || eps_prime == NULL) {

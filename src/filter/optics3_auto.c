@@ -54,7 +54,7 @@ static void rc_begin(magcal_o3_rc_t *q, uint8_t use_rep)
 }
 
 /* Returns 1 when done (*st MAGCAL_OK with q->cen, q->rad; or MAGCAL_ERR_DEGENERATE), 0 paused. */
-static int rc_run(magcal_o3_rc_t *q, const magcal_o3s_t *s, magcal_status_t *st, int32_t *rem)
+static MAGCAL_NOINLINE int rc_run(magcal_o3_rc_t *q, const magcal_o3s_t *s, magcal_status_t *st, int32_t *rem)
 {
     float *a = (float *)(void *)s->w;
     const uint8_t *rep = rep_bits(s);
@@ -156,7 +156,7 @@ static void th_begin(magcal_o3_th_t *q, float h)
     q->h = h;
 }
 
-static int th_run(magcal_o3_th_t *q, const magcal_o3s_t *s, const magcal_vec3_t *c, int32_t *rem)
+static MAGCAL_NOINLINE int th_run(magcal_o3_th_t *q, const magcal_o3s_t *s, const magcal_vec3_t *c, int32_t *rem)
 {
     const float side = 2.0f * (float)AUTO3_CELL_HALF;
     const magcal_vec3_t *pts = s->pts;
@@ -345,7 +345,7 @@ static int after_rounds(magcal_o3s_t *s)
  * 3x3x3 block covers the whole shell, and the brute reach pass shrinks with the unprocessed list
  * (filter at n = 1000: 43.7 M -> 36.7 M host instructions). Layout of w: reach float[n] |
  * core float[n] | order uint16[n] | run workspace. */
-static void order_begin(magcal_o3s_t *s)
+void magcal_o3_auto_order_begin(magcal_o3s_t *s)
 {
     magcal_o3_ctx_t *c;
     uint8_t *w = s->w;
@@ -361,84 +361,82 @@ static void order_begin(magcal_o3s_t *s)
     s->au->order = c->oc.order;
     s->c = c;
     magcal_o3_ord_begin(&s->u.ord);
-    s->phase = (uint8_t)O3S_ORDER;
 }
 
-/* The rule's phases whose end needs no pass of its own (inline in magcal_o3_auto_step). */
-static int auto_pass(magcal_o3s_t *s, int32_t *rem)
+void magcal_o3_auto_ordered(magcal_o3s_t *s)
+{
+    s->au->neighbors = s->c->use_grid != 0 ? MAGCAL_NEIGHBORS_GRID : MAGCAL_NEIGHBORS_BRUTE;
+    s->au->eps = s->use.eps;
+    /* the representatives again (the run used this memory), counted in the band */
+    th_begin(&s->u.th, s->rad * AUTO3_THIN_REL * thin_scale3(s->n));
+    s->phase = (uint8_t)O3S_THIN2;
+}
+
+/* After a robust centre (O3S_RC0: of all points; O3S_RC: of a round's representatives): keep it
+ * when it is good, then the next thinning round or the band. 1 when the rule has failed. */
+static MAGCAL_NOINLINE int auto_centred(magcal_o3s_t *s, magcal_status_t st)
 {
     magcal_o3_tail_t *t = &s->t;
-    magcal_status_t st = MAGCAL_OK;
-    const size_t n = s->n;
+    int fin = 0;
+    if (st == MAGCAL_OK) {
+        t->have = 1u;
+        s->cen = s->u.rc.cen;
+        s->rad = s->u.rc.rad;
+        if (s->phase == O3S_RC) {
+            t->h = s->rad * AUTO3_THIN_REL * thin_scale3(s->n);
+        }
+    } else if (s->phase == O3S_RC0) {
+        s->cen = s->pts[0]; /* more than half the samples identical: the first grid's origin */
+    } else {
+        /* this round's centre failed: keep the previous */
+    }
+    if (s->phase == O3S_RC) {
+        t->round++;
+    }
+    if (t->round >= AUTO3_THIN_ROUNDS) {
+        fin = after_rounds(s);
+    } else {
+        th_begin(&s->u.th, t->h);
+        s->phase = (uint8_t)O3S_THIN;
+    }
+    return fin;
+}
+
+/* After a thinning round: the centre of its representatives when there are enough, else the
+ * next round. 1 when the rule has failed. */
+static MAGCAL_NOINLINE int auto_thinned(magcal_o3s_t *s)
+{
+    magcal_o3_tail_t *t = &s->t;
+    int fin = 0;
+    if (s->u.th.m >= AUTO3_MIN_N) {
+        rc_begin(&s->u.rc, 1u);
+        s->phase = (uint8_t)O3S_RC;
+    } else {
+        t->round++;
+        if (t->round >= AUTO3_THIN_ROUNDS) {
+            fin = after_rounds(s);
+        } else {
+            th_begin(&s->u.th, t->h);
+        }
+    }
+    return fin;
+}
+
+/* The rule's band counts and eps' probes (magcal_o3_auto_step's other phases). */
+static MAGCAL_NOINLINE int auto_pass(magcal_o3s_t *s, int32_t *rem)
+{
+    magcal_o3_tail_t *t = &s->t;
     int fin = 0;
     switch (s->phase) {
-    case O3S_RC0:
-    case O3S_RC:
-        if (rc_run(&s->u.rc, s, &st, rem) != 0) {
-            if (st == MAGCAL_OK) {
-                t->have = 1u;
-                s->cen = s->u.rc.cen;
-                s->rad = s->u.rc.rad;
-                if (s->phase == O3S_RC) {
-                    t->h = s->rad * AUTO3_THIN_REL * thin_scale3(n);
-                }
-            } else if (s->phase == O3S_RC0) {
-                s->cen = s->pts[0]; /* more than half the samples identical: the first grid's origin */
-            } else {
-                /* this round's centre failed: keep the previous */
-            }
-            if (s->phase == O3S_RC) {
-                t->round++;
-            }
-            if (t->round >= AUTO3_THIN_ROUNDS) {
-                fin = after_rounds(s);
-            } else {
-                th_begin(&s->u.th, t->h);
-                s->phase = (uint8_t)O3S_THIN;
-            }
-        }
-        break;
-    case O3S_THIN:
-        if (th_run(&s->u.th, s, &s->cen, rem) != 0) {
-            if (s->u.th.m >= AUTO3_MIN_N) {
-                rc_begin(&s->u.rc, 1u);
-                s->phase = (uint8_t)O3S_RC;
-            } else {
-                t->round++;
-                if (t->round >= AUTO3_THIN_ROUNDS) {
-                    fin = after_rounds(s);
-                } else {
-                    th_begin(&s->u.th, t->h);
-                }
-            }
-        }
-        break;
     case O3S_BAND:
         if (band_run(s, 0, rem) != 0) {
             if (t->m < AUTO3_MIN_BAND) {
                 s->status = (int32_t)MAGCAL_ERR_DEGENERATE;
                 fin = 1;
             } else {
-                CHARGE3(*rem, W3_PHASE);
-                order_begin(s);
+                s->c = NULL; /* the ordering's setup: the driver's (magcal_o3_auto_order_begin) */
+                s->phase = (uint8_t)O3S_ORDER;
             }
-        }
-        break;
-    case O3S_ORDER:
-        if (magcal_o3_ord_run(&s->u.ord, s->c, rem) != 0) {
-            s->au->neighbors = s->c->use_grid != 0 ? MAGCAL_NEIGHBORS_GRID : MAGCAL_NEIGHBORS_BRUTE;
-            s->au->eps = s->use.eps;
-            /* the representatives again (the run used this memory), counted in the band */
-            th_begin(&s->u.th, s->rad * AUTO3_THIN_REL * thin_scale3(n));
-            s->phase = (uint8_t)O3S_THIN2;
-        }
-        break;
-    case O3S_THIN2:
-        if (th_run(&s->u.th, s, &s->cen, rem) != 0) {
-            s->au->rep = rep_bits(s);
-            t->i = 0u;
-            t->m = 0u;
-            s->phase = (uint8_t)O3S_BANDREP;
         }
         break;
     case O3S_BANDREP:
@@ -473,7 +471,8 @@ int magcal_o3_auto_step(magcal_o3s_t *s, int32_t *rem)
     magcal_o3_tail_t *t = &s->t;
     float *a = (float *)(void *)s->w;
     int fin = 0;
-    while (*rem > 0 && fin == 0) {
+    /* the ordering (O3S_ORDER) is the driver's: back to it there */
+    while (*rem > 0 && fin == 0 && s->phase != (uint8_t)O3S_ORDER) {
         if (s->phase == O3S_PAIRS) {
             const size_t n = s->n;
             const size_t m = n < AUTO3_PAIRS ? n : AUTO3_PAIRS;
@@ -507,6 +506,22 @@ int magcal_o3_auto_step(magcal_o3s_t *s, int32_t *rem)
                     rc_begin(&s->u.rc, 0u);
                     s->phase = (uint8_t)O3S_RC0;
                 }
+            }
+        } else if (s->phase == O3S_RC0 || s->phase == O3S_RC) {
+            magcal_status_t st = MAGCAL_OK;
+            if (rc_run(&s->u.rc, s, &st, rem) != 0) {
+                fin = auto_centred(s, st);
+            }
+        } else if (s->phase == O3S_THIN) {
+            if (th_run(&s->u.th, s, &s->cen, rem) != 0) {
+                fin = auto_thinned(s);
+            }
+        } else if (s->phase == O3S_THIN2) {
+            if (th_run(&s->u.th, s, &s->cen, rem) != 0) {
+                s->au->rep = rep_bits(s);
+                t->i = 0u;
+                t->m = 0u;
+                s->phase = (uint8_t)O3S_BANDREP;
             }
         } else {
             fin = auto_pass(s, rem);

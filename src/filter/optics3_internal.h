@@ -132,7 +132,7 @@ typedef struct {
 #define O3_OR_P2 4u
 #define O3_OR_POP 5u
 #define O3_OR_DONE 6u
-#define O3_OR_AFTER 7u /* after a whole grid PROCESS: the seeds */
+#define O3_OR_GRIDP 7u /* the whole grid PROCESS of o->p, then the seeds */
 
 /* Start the ordering over the context (O(1)). */
 void magcal_o3_ord_begin(magcal_o3_ord_t *o);
@@ -222,8 +222,6 @@ typedef struct {
     float e;
     float h; /* thinning cell side */
     uint32_t rng;
-    uint32_t cur3[3]; /* shell selection: direction cells of the current cluster */
-    uint32_t best_ext;
     int32_t id; /* extraction: current cluster id; selection: the current cluster */
     int32_t best_id;
     uint16_t n_clusters;
@@ -240,6 +238,12 @@ typedef struct {
     uint8_t bis;     /* eps' probes done */
     uint8_t started; /* probe: a cluster has started */
 } magcal_o3_tail_t;
+
+/* The shell selection's direction cells of the current cluster, and the best cluster's count. */
+typedef struct {
+    uint32_t cur3[3];
+    uint32_t best_ext;
+} magcal_o3_wide_t;
 
 /* The time-sliced 3-D filter (optics3.c): lives in the caller's magcal_optics3_slice_t. */
 typedef struct {
@@ -258,6 +262,7 @@ typedef struct {
         magcal_o3_th_t th;
         magcal_o3_ord_t ord;
         magcal_o2_sel_t sel;
+        magcal_o3_wide_t wide;
     /* cppcheck-suppress misra-c2012-19.2 ; deviation D12: the slice state overlays the sub-machines that are never live together, so it fits the workspace budget */
     } u;
     magcal_o3_tail_t t;
@@ -280,6 +285,12 @@ magcal_o3_auto_t *magcal_o3_auto_record(uint8_t *w, size_t n);
  * s->status the error), 0 when
  * *rem ran out. */
 int magcal_o3_auto_step(magcal_o3s_t *s, int32_t *rem);
+/* The rule's ordering at eps = R: its context and state (phase O3S_ORDER with s->c NULL; called
+ * by the driver, outside the rule's frames: the stack) (optics3_auto.c). */
+void magcal_o3_auto_order_begin(magcal_o3s_t *s);
+/* After the rule's ordering (O3S_ORDER, run by the driver in its own frame: the stack): the
+ * thinning again, phase O3S_THIN2 (optics3_auto.c). */
+void magcal_o3_auto_ordered(magcal_o3s_t *s);
 
 /* Phases of the sliced filter (optics3.c drives; optics3_auto.c runs the rule's). */
 #define O3S_FIN 0u

@@ -13,8 +13,8 @@
 #include "optics3_internal.h"
 #include "optics_core_update.h"
 
-/* PROCESS(p) with the grid: both passes over the candidate buckets. */
-static void process3_grid(magcal_o3_ctx_t *c, size_t p, float core_p0)
+/* PROCESS(p) with the grid: both passes over the candidate buckets (one unit). */
+static MAGCAL_NOINLINE void process3_grid(magcal_o3_ctx_t *c, size_t p, float core_p0)
 {
     float *best = c->oc.best;
     uint16_t *bk = c->bk;
@@ -82,15 +82,14 @@ static MAGCAL_NOINLINE int is_core3(magcal_o3_ctx_t *c, size_t p)
     return cnt >= m ? 1 : 0;
 }
 
-/* Start of PROCESS(p): mark it; with the grid the whole PROCESS (one unit), else pass 1. */
+/* Start of PROCESS(p): mark it; then with the grid the whole PROCESS (one unit), else pass 1. */
 static void ord_process_begin(magcal_o3_ord_t *o, magcal_o3_ctx_t *c, size_t p, int32_t *rem)
 {
+    (void)rem;
     o->p = (uint16_t)p;
     magcal_ocore_mark(&c->oc, p);
     if (c->use_grid != 0) {
-        CHARGE3(*rem, W3_GRIDP);
-        process3_grid(c, p, INFINITY);
-        o->st = (uint8_t)O3_OR_AFTER; /* the seeds next */
+        o->st = (uint8_t)O3_OR_GRIDP; /* the whole PROCESS next, in ord_run's frame (stack) */
     } else {
         o->k = 0u;
         o->cnt = 0u;
@@ -324,8 +323,10 @@ int magcal_o3_ord_run(magcal_o3_ord_t *o, magcal_o3_ctx_t *c, int32_t *rem)
         case O3_OR_SCAN:
             ord_scan(o, c, rem);
             break;
-        case O3_OR_AFTER:
-            ord_after(o, c, rem); /* after a whole grid PROCESS */
+        case O3_OR_GRIDP:
+            CHARGE3(*rem, W3_GRIDP);
+            process3_grid(c, o->p, INFINITY);
+            ord_after(o, c, rem);
             break;
         case O3_OR_ISCORE:
             if (ord_iscore(o, c, rem) != 0) {
