@@ -73,7 +73,7 @@ static magcal_o3s_t *o3s_of(magcal_optics3_slice_t *sl)
     return (magcal_o3s_t *)(void *)sl;
 }
 
-static int16_t *labels_of(const magcal_o3s_t *s)
+static int16_t *labels_of(magcal_o3s_t *s)
 {
     uint8_t *w = s->w;
     return (int16_t *)(void *)(w + MAGCAL_OPTICS3_FILTER_RUN_OFFSET_(s->n));
@@ -299,7 +299,9 @@ static int o3s_run(magcal_o3s_t *s, int32_t *rem)
                 if (s->status == (int32_t)MAGCAL_IN_PROGRESS && s->params != 0u) {
                     s->status = (int32_t)MAGCAL_OK; /* magcal_optics_auto_params3: eps' found */
                 }
-                fin = (s->status != (int32_t)MAGCAL_IN_PROGRESS) ? 1 : 0;
+                if (s->status != (int32_t)MAGCAL_IN_PROGRESS) {
+                    fin = 1;
+                }
                 s->t.i = 0u;
                 s->t.id = -1;
                 s->t.n_noise = 0u;

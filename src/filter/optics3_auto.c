@@ -29,14 +29,14 @@ static unsigned rep_bit(const uint8_t *rep, size_t i)
     return ((unsigned)rep[i >> 3] >> (i & 7u)) & 1u;
 }
 
-static uint8_t *run_ws(const magcal_o3s_t *s)
+static uint8_t *run_ws(magcal_o3s_t *s)
 {
     uint8_t *w = s->w;
     return w + MAGCAL_OPTICS3_FILTER_RUN_OFFSET_(s->n);
 }
 
 /* The representatives' bits (thinning), behind its key float[n] and idx uint16[n] scratch. */
-static uint8_t *rep_bits(const magcal_o3s_t *s)
+static uint8_t *rep_bits(magcal_o3s_t *s)
 {
     return run_ws(s) + 6u * s->n;
 }
@@ -45,7 +45,7 @@ static uint8_t *rep_bits(const magcal_o3s_t *s)
  * Coordinate medians, R = median distance over the counted points (all, or the representatives);
  * passes after the first use only the points within AUTO3_TRIM R of the previous centre (a far
  * cluster cannot drag the centre). a = float[n] at the workspace's start. */
-static void rc_begin(magcal_o3_rc_t *q, uint8_t use_rep)
+static void rc3_begin(magcal_o3_rc_t *q, uint8_t use_rep)
 {
     (void)memset(q, 0, sizeof *q);
     q->rad = INFINITY;
@@ -54,7 +54,7 @@ static void rc_begin(magcal_o3_rc_t *q, uint8_t use_rep)
 }
 
 /* Returns 1 when done (*st MAGCAL_OK with q->cen, q->rad; or MAGCAL_ERR_DEGENERATE), 0 paused. */
-static MAGCAL_NOINLINE int rc_run(magcal_o3_rc_t *q, const magcal_o3s_t *s, magcal_status_t *st, int32_t *rem)
+static MAGCAL_NOINLINE int rc3_run(magcal_o3_rc_t *q, magcal_o3s_t *s, magcal_status_t *st, int32_t *rem)
 {
     float *a = (float *)(void *)s->w;
     const uint8_t *rep = rep_bits(s);
@@ -116,7 +116,9 @@ static MAGCAL_NOINLINE int rc_run(magcal_o3_rc_t *q, const magcal_o3s_t *s, magc
                     return 1;
                 }
                 q->pass++;
-                done = (q->pass > AUTO3_TRIM_PASSES) ? 1 : 0;
+                if (q->pass > AUTO3_TRIM_PASSES) {
+                    done = 1;
+                }
                 q->lim2 = (AUTO3_TRIM * q->rad) * (AUTO3_TRIM * q->rad);
             }
             q->axis = (uint8_t)((q->axis + 1u) & 3u);
@@ -156,7 +158,7 @@ static void th_begin(magcal_o3_th_t *q, float h)
     q->h = h;
 }
 
-static MAGCAL_NOINLINE int th_run(magcal_o3_th_t *q, const magcal_o3s_t *s, const magcal_vec3_t *c, int32_t *rem)
+static MAGCAL_NOINLINE int th_run(magcal_o3_th_t *q, magcal_o3s_t *s, const magcal_vec3_t *c, int32_t *rem)
 {
     const float side = 2.0f * (float)AUTO3_CELL_HALF;
     const magcal_vec3_t *pts = s->pts;
@@ -288,16 +290,20 @@ static int band_run(magcal_o3s_t *s, int use_rep, int32_t *rem)
 static int probe_next(magcal_o3s_t *s)
 {
     magcal_o3_tail_t *t = &s->t;
-    const int ok = (t->pbest >= t->target) ? 1 : 0;
+    const unsigned ok = (t->pbest >= t->target) ? 1u : 0u;
     int fin = 0;
     float e = t->hi;
     if (t->bis == 0u) {
-        fin = (ok == 0) ? 1 : 0; /* the bulk never connects within R: keep the largest cluster at R */
+        if (ok == 0u) {
+            fin = 1; /* the bulk never connects within R: keep the largest cluster at R */
+        }
     } else if (t->bis == 1u) {
-        fin = ok;
+        if (ok != 0u) {
+            fin = 1;
+        }
         e = t->lo;
     } else {
-        if (ok != 0) { /* invariant: lo fails, hi connects */
+        if (ok != 0u) { /* invariant: lo fails, hi connects */
             t->hi = t->e;
         } else {
             t->lo = t->e;
@@ -409,7 +415,7 @@ static MAGCAL_NOINLINE int auto_thinned(magcal_o3s_t *s)
     magcal_o3_tail_t *t = &s->t;
     int fin = 0;
     if (s->u.th.m >= AUTO3_MIN_N) {
-        rc_begin(&s->u.rc, 1u);
+        rc3_begin(&s->u.rc, 1u);
         s->phase = (uint8_t)O3S_RC;
     } else {
         t->round++;
@@ -477,6 +483,7 @@ int magcal_o3_auto_step(magcal_o3s_t *s, int32_t *rem)
             const size_t n = s->n;
             const size_t m = n < AUTO3_PAIRS ? n : AUTO3_PAIRS;
             size_t k = t->i;
+            /* cppcheck-suppress knownConditionTrueFalse ; false positive: k = t->i < m until the pairs are done (m = min(n, pairs) >= 16) */
             while (k < m && *rem > 0) {
                 const size_t i = (size_t)(magcal_ocore_rand(&t->rng) % (uint32_t)n);
                 const size_t j = (size_t)(magcal_ocore_rand(&t->rng) % (uint32_t)n);
@@ -485,6 +492,7 @@ int magcal_o3_auto_step(magcal_o3s_t *s, int32_t *rem)
                 ++k;
             }
             t->i = (uint16_t)k;
+            /* cppcheck-suppress knownConditionTrueFalse ; false positive: the loop above pauses with k < m when the budget runs out */
             if (k >= m) {
                 t->m = (uint16_t)m;
                 magcal_o2_sel_begin(&s->u.sel, m, m / 2u);
@@ -503,13 +511,13 @@ int magcal_o3_auto_step(magcal_o3s_t *s, int32_t *rem)
                     s->cen.y = 0.0f;
                     s->cen.z = 0.0f;
                     s->rad = INFINITY;
-                    rc_begin(&s->u.rc, 0u);
+                    rc3_begin(&s->u.rc, 0u);
                     s->phase = (uint8_t)O3S_RC0;
                 }
             }
         } else if (s->phase == O3S_RC0 || s->phase == O3S_RC) {
             magcal_status_t st = MAGCAL_OK;
-            if (rc_run(&s->u.rc, s, &st, rem) != 0) {
+            if (rc3_run(&s->u.rc, s, &st, rem) != 0) {
                 fin = auto_centred(s, st);
             }
         } else if (s->phase == O3S_THIN) {

@@ -83,9 +83,8 @@ static MAGCAL_NOINLINE int is_core3(magcal_o3_ctx_t *c, size_t p)
 }
 
 /* Start of PROCESS(p): mark it; then with the grid the whole PROCESS (one unit), else pass 1. */
-static void ord_process_begin(magcal_o3_ord_t *o, magcal_o3_ctx_t *c, size_t p, int32_t *rem)
+static void ord_process_begin(magcal_o3_ord_t *o, magcal_o3_ctx_t *c, size_t p)
 {
-    (void)rem;
     o->p = (uint16_t)p;
     magcal_ocore_mark(&c->oc, p);
     if (c->use_grid != 0) {
@@ -106,7 +105,7 @@ static void ord_after(magcal_o3_ord_t *o, magcal_o3_ctx_t *c, int32_t *rem)
         o->st = (uint8_t)O3_OR_SCAN;
     } else if (c->oc.mode != MAGCAL_OPTICS_IMPROVED) {
         CHARGE3(*rem, W3_UPD); /* a heap pop (CLASSIC) */
-        ord_process_begin(o, c, magcal_ocore_pop_min(&c->oc), rem);
+        ord_process_begin(o, c, magcal_ocore_pop_min(&c->oc));
     } else {
         o->k = 1u;
         o->pbest = 0u;
@@ -286,7 +285,7 @@ static void ord_scan(magcal_o3_ord_t *o, magcal_o3_ctx_t *c, int32_t *rem)
     } else if (o->pass == 0u && c->use_grid != 0) {
         CHARGE3(*rem, W3_GRIDP);
         if (is_core3(c, s) != 0) {
-            ord_process_begin(o, c, s, rem);
+            ord_process_begin(o, c, s);
         } else {
             o->s++;
         }
@@ -295,7 +294,7 @@ static void ord_scan(magcal_o3_ord_t *o, magcal_o3_ctx_t *c, int32_t *rem)
         o->cnt = 0u;
         o->st = (uint8_t)O3_OR_ISCORE;
     } else {
-        ord_process_begin(o, c, s, rem);
+        ord_process_begin(o, c, s);
     }
 }
 
@@ -331,7 +330,7 @@ int magcal_o3_ord_run(magcal_o3_ord_t *o, magcal_o3_ctx_t *c, int32_t *rem)
         case O3_OR_ISCORE:
             if (ord_iscore(o, c, rem) != 0) {
                 if (o->cnt >= c->oc.min_pts) {
-                    ord_process_begin(o, c, o->s, rem);
+                    ord_process_begin(o, c, o->s);
                 } else {
                     o->s++;
                     o->st = (uint8_t)O3_OR_SCAN;
@@ -348,7 +347,7 @@ int magcal_o3_ord_run(magcal_o3_ord_t *o, magcal_o3_ctx_t *c, int32_t *rem)
             break;
         default: /* O3_OR_POP */
             if (ord_pop(o, c, rem) != 0) {
-                ord_process_begin(o, c, o->pbq, rem);
+                ord_process_begin(o, c, o->pbq);
             }
             break;
         }
