@@ -291,6 +291,8 @@ static int o3s_run(magcal_o3s_t *s, int32_t *rem)
                 } else {
                     s->phase = (uint8_t)O3S_GOUT;
                 }
+            } else {
+                /* paused inside the ordering */
             }
         } else if (s->phase == O3S_FIN) {
             fin = fin_pass(s, rem);

@@ -290,9 +290,12 @@ static int band_run(magcal_o3s_t *s, int use_rep, int32_t *rem)
 static int probe_next(magcal_o3s_t *s)
 {
     magcal_o3_tail_t *t = &s->t;
-    const unsigned ok = (t->pbest >= t->target) ? 1u : 0u;
+    unsigned ok = 0u;
     int fin = 0;
     float e = t->hi;
+    if (t->pbest >= t->target) {
+        ok = 1u;
+    }
     if (t->bis == 0u) {
         if (ok == 0u) {
             fin = 1; /* the bulk never connects within R: keep the largest cluster at R */
