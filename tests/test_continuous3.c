@@ -486,13 +486,15 @@ static void test_cont3_ring_full_counted_and_failed_not_sticky(void)
     TEST_ASSERT_EQUAL_UINT32(5u, full);
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont3_progress(&g_c3[0], &p));
     TEST_ASSERT_EQUAL_UINT32(5u, p.dropped);
-    /* forced solve on one point: fails, collection continues, a tumble then adopts */
+    /* forced solve on one point: fails, collection continues, a tumble then adopts (the store
+     * still holds the parked clump, so the first solve runs the density stage, time-sliced at the
+     * default budget: about 4,500 steps of one per row; first adoption at row 5501) */
     TEST_ASSERT_EQUAL_INT(MAGCAL_CONT3_FAILED, magcal_cont3_solve_blocking(&g_c3[0], 1));
     TEST_ASSERT_TRUE(magcal_cont3_status(&g_c3[0]) != MAGCAL_OK);
     {
         uint32_t rng = 18u;
         feed_t f;
-        feed(0, MOTION_TUMBLE, 1000u, 4000u, &k_truth, &k_truth, 1u << 30, 0u, 0u, &rng, &f, NULL, NULL, NULL);
+        feed(0, MOTION_TUMBLE, 1000u, 7000u, &k_truth, &k_truth, 1u << 30, 0u, 0u, &rng, &f, NULL, NULL, NULL);
         TEST_ASSERT_TRUE(g_c3[0].generation >= 1u);
         TEST_ASSERT_TRUE(v_err_rel(&g_c3[0].cal, &k_truth) < 0.02);
     }

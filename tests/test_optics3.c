@@ -1041,6 +1041,127 @@ static void test_optics_filter3_and_auto_bad_input_returns_specific_status(void)
                           magcal_optics_filter3(&cfg, g_pts, n, g_work, wl, g_mask, &info));
 }
 
+/* ---- time-sliced filter (magcal_optics_filter3_begin / _step) ------------------------------ */
+
+/* The sliced filter gives the one-shot call's status, mask and info bit for bit at every budget;
+ * at budget 6000 a step charges at most one visit over it (the automatic path's largest visit is
+ * a heapsort sift, <= 500; the given-parameter path's grid build and output are one unit each,
+ * 60 n and 26 n), and the steps are within one of total / 6000 (every step but the last charges
+ * the whole budget). */
+static void assert_filter3_sliced_same(const magcal_optics_cfg_t *cfg, size_t n, const char *what)
+{
+    static const uint32_t budgets[5] = {1u, 97u, 1000u, 6000u, UINT32_MAX};
+    magcal_optics_result_t ia, ib;
+    magcal_status_t sa;
+    size_t j;
+    const uint32_t over = cfg->eps > 0.0f ? (uint32_t)(60u * n > 1500u ? 60u * n : 1500u) : 500u;
+    memset(g_mask, 0x77, n);
+    memset(&ia, 0x5A, sizeof ia);
+    sa = magcal_optics_filter3(cfg, g_pts, n, g_work, sizeof g_work, g_mask, &ia);
+    for (j = 0u; j < 5u; ++j) {
+        magcal_optics3_slice_t sl;
+        magcal_status_t sb;
+        uint32_t steps = 0u, mx = 0u, used = 0u;
+        uint64_t total = 0u;
+        memset(g_mask2, 0x77, n);
+        memset(&ib, 0x5A, sizeof ib);
+        TEST_ASSERT_EQUAL_INT_MESSAGE(MAGCAL_OK, magcal_optics_filter3_begin(&sl, cfg, g_pts, n, g_work, sizeof g_work,
+                                                                             g_mask2, &ib), what);
+        do {
+            sb = magcal_optics_filter3_step(&sl, budgets[j], &used);
+            total += used;
+            mx = used > mx ? used : mx;
+            TEST_ASSERT_TRUE(++steps < 50000000u);
+        } while (sb == MAGCAL_IN_PROGRESS);
+        TEST_ASSERT_EQUAL_INT_MESSAGE(sa, sb, what);
+        TEST_ASSERT_EQUAL_MEMORY_MESSAGE(g_mask, g_mask2, n, what);
+        TEST_ASSERT_EQUAL_MEMORY_MESSAGE(&ia, &ib, sizeof ia, what);
+        TEST_ASSERT_EQUAL_INT(sb, magcal_optics_filter3_step(&sl, budgets[j], &used)); /* final: again */
+        TEST_ASSERT_EQUAL_UINT32(0u, used);
+        if (budgets[j] == 6000u) {
+            printf("  sliced %s n=%u: %u steps at 6000, total %lu estimated, largest %u\n", what, (unsigned)n,
+                   (unsigned)steps, (unsigned long)total, (unsigned)mx);
+            TEST_ASSERT_TRUE(mx <= 6000u + over);
+            TEST_ASSERT_TRUE((uint64_t)steps <= total / 6000u + 1u);
+        }
+    }
+}
+
+static void test_optics_filter3_sliced_any_budget_matches_filter3(void)
+{
+    magcal_optics_cfg_t cfg = MAGCAL_OPTICS_CFG_DEFAULT;
+    make_shell(300u, 0.01, 11u); /* clean shell */
+    assert_filter3_sliced_same(&cfg, 300u, "clean shell");
+    make_e2e(3.0, 12u); /* far burst and spikes */
+    assert_filter3_sliced_same(&cfg, E2E_N, "far burst + spikes");
+    make_e2e(1.3, 13u); /* near burst */
+    assert_filter3_sliced_same(&cfg, E2E_N, "near burst + spikes");
+    make_rest_shell(400u, 0.45, 1, 0.01, 14u); /* two rest phases */
+    assert_filter3_sliced_same(&cfg, 400u, "rest phases");
+    cfg.start = MAGCAL_OPTICS_START_CORE;
+    assert_filter3_sliced_same(&cfg, 400u, "rest phases, START_CORE");
+    cfg.start = MAGCAL_OPTICS_START_INDEX;
+    cfg.order = MAGCAL_OPTICS_CLASSIC;
+    assert_filter3_sliced_same(&cfg, 400u, "rest phases, CLASSIC");
+    /* given parameters: grid and brute force, the on-the-fly extraction */
+    cfg = (magcal_optics_cfg_t)MAGCAL_OPTICS_CFG_DEFAULT;
+    make_e2e(3.0, 15u);
+    cfg.eps = 0.3f;
+    cfg.eps_prime = 0.2f;
+    cfg.min_pts = 5u;
+    cfg.neighbors = MAGCAL_NEIGHBORS_GRID;
+    assert_filter3_sliced_same(&cfg, E2E_N, "given eps, grid");
+    cfg.start = MAGCAL_OPTICS_START_CORE;
+    assert_filter3_sliced_same(&cfg, E2E_N, "given eps, grid, START_CORE");
+    cfg.neighbors = MAGCAL_NEIGHBORS_BRUTE;
+    assert_filter3_sliced_same(&cfg, E2E_N, "given eps, brute, START_CORE");
+    /* the largest store: 1024 samples with 10 % spikes */
+    cfg = (magcal_optics_cfg_t)MAGCAL_OPTICS_CFG_DEFAULT;
+    make_shell(NMAX, 0.01, 16u);
+    {
+        size_t k;
+        for (k = 7u; k < NMAX; k += 10u) {
+            g_pts[k].x *= 2.0f;
+            g_pts[k].z += 0.5f;
+        }
+    }
+    assert_filter3_sliced_same(&cfg, NMAX, "1024 with spikes");
+}
+
+/* The sliced filter's failures: the O(1) checks in begin, the rest (finiteness, workspace) in the
+ * first steps, as the one-shot call orders them; a slice not begun is refused. */
+static void test_optics_filter3_step_bad_input_returns_specific_status(void)
+{
+    const magcal_optics_cfg_t cfg = MAGCAL_OPTICS_CFG_DEFAULT;
+    magcal_optics3_slice_t sl;
+    uint32_t used = 7u;
+    make_shell(300u, 0.01, 17u);
+    memset(&sl, 0, sizeof sl);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_filter3_step(NULL, 100u, &used));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_filter3_step(&sl, 100u, &used)); /* not begun */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_filter3_begin(NULL, &cfg, g_pts, 300u, g_work, sizeof g_work, g_mask, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NULL, magcal_optics_filter3_begin(&sl, &cfg, g_pts, 300u, g_work, sizeof g_work, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_optics_filter3_step(&sl, 100u, &used)); /* failed begin */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_TOO_FEW_POINTS,
+                          magcal_optics_filter3_begin(&sl, &cfg, g_pts, 15u, g_work, sizeof g_work, g_mask, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ALIGNMENT, magcal_optics_filter3_begin(&sl, &cfg, g_pts, 300u, (uint8_t *)(void *)g_work + 2,
+                                                                            sizeof g_work - 2u, g_mask, NULL));
+    /* workspace one byte short: found by the first step, mask untouched */
+    memset(g_mask, 0x77, 300u);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_filter3_begin(&sl, &cfg, g_pts, 300u, g_work,
+                                                                 MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(300u) - 1u, g_mask, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_IN_PROGRESS, magcal_optics_filter3_step(&sl, 1u, &used));
+    TEST_ASSERT_EQUAL_UINT32(40u, used); /* one finiteness visit (W3_FIN) */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_WORKSPACE, magcal_optics_filter3_step(&sl, UINT32_MAX, &used));
+    TEST_ASSERT_EQUAL_HEX8(0x77, g_mask[0]);
+    /* a NaN at the end: the finiteness pass reaches it */
+    g_pts[299].y = NAN;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_optics_filter3_begin(&sl, &cfg, g_pts, 300u, g_work, sizeof g_work, g_mask, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_optics_filter3_step(&sl, UINT32_MAX, NULL));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_optics_filter3_step(&sl, UINT32_MAX, NULL));
+    TEST_ASSERT_EQUAL_HEX8(0x77, g_mask[0]);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -1057,5 +1178,7 @@ int main(void)
     RUN_TEST(test_optics_filter3_rest_phase_up_to_half_keeps_rotation);
     RUN_TEST(test_optics_run3_bad_input_returns_specific_status);
     RUN_TEST(test_optics_filter3_and_auto_bad_input_returns_specific_status);
+    RUN_TEST(test_optics_filter3_sliced_any_budget_matches_filter3);
+    RUN_TEST(test_optics_filter3_step_bad_input_returns_specific_status);
     return UNITY_END();
 }

@@ -25,8 +25,10 @@
  *    judgement (|B| spread of candidate and installed calibration on the snapshot), sample by
  *    sample. Returns MAGCAL_CONT3_IN_PROGRESS while a solve is under way. At the default budget no
  *    call exceeds 10,000 M4F instructions on the bench tumble (docs/calibration_3d.md "Work per
- *    call": the largest measured step, `m4f_max_call3_instr`); the solver's indivisible visits
- *    (a 9x9 LDL^T solve: 7,500 estimated) are the largest pieces.
+ *    call": the largest measured step, `m4f_max_call3_instr`; with glitch bursts and spikes, whose
+ *    solves run the time-sliced density stage, `m4f_max_call3_dirty_instr`); the solver's
+ *    indivisible visits (a 9x9 LDL^T solve: 7,500 estimated) are the largest pieces. In the density
+ *    stage (its visits are small) the solver keeps for the drain only its next piece's cost.
  *  - magcal_cont3_heading(): heading of a raw sample with the installed calibration, tilt
  *    compensated when the caller passes gravity, its trust and the generation.
  *

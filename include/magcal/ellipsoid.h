@@ -412,6 +412,7 @@ typedef struct {
     magcal_ellipsoid_result_t *out_;
     magcal_ellipsoid_calibrate_info_t *info_;
     magcal_ellipsoid_fit_slice_t fit_;
+    magcal_optics3_slice_t density_; /* the time-sliced density stage (magcal_optics_filter3_step) */
     size_t k_;
     size_t nk_;
     size_t fit_off_;
@@ -507,14 +508,21 @@ magcal_status_t magcal_ellipsoid_calibrate_begin(magcal_ellipsoid_calibrate_slic
 
 /**
  * @brief Do at most about `budget` estimated Cortex-M4F instructions of the calibration (at least
- *        one unit per call). The fits are sliced (magcal_ellipsoid_fit_step); the density stage
- *        (magcal_optics_filter3, only when the pre-test finds a gross outlier, or mode ALWAYS) is
- *        NOT sliced: it runs as one unit in a step of its own (millions of instructions).
+ *        one unit per call). The fits are sliced (magcal_ellipsoid_fit_step), and so is the
+ *        density stage (magcal_optics_filter3_step, only when the pre-test finds a gross outlier,
+ *        or mode ALWAYS), within the same budget.
  * @return MAGCAL_IN_PROGRESS while work remains; then exactly the status and outputs of
  *         magcal_ellipsoid_calibrate, returned again by any further call; MAGCAL_ERR_NULL (s NULL);
  *         MAGCAL_ERR_ARG (s not started by a successful begin).
  */
 magcal_status_t magcal_ellipsoid_calibrate_step(magcal_ellipsoid_calibrate_slice_t *s, uint32_t budget);
+
+/**
+ * @brief 1 while a time-sliced calibration is in its density stage (its steps are many small
+ *        visits, so a caller sharing a step's budget with other work can give it all but what
+ *        that work's next piece costs), else 0 (also for s NULL).
+ */
+uint32_t magcal_ellipsoid_calibrate_in_density(const magcal_ellipsoid_calibrate_slice_t *s);
 #endif /* MAGCAL_CFG_ENABLE_3D */
 
 #ifdef __cplusplus

@@ -558,6 +558,18 @@ magcal_status_t magcal_optics_thin_step(magcal_optics_thin_slice_t *s, uint32_t 
 #define MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n)                                                     \
     (MAGCAL_OPTICS3_FILTER_RUN_OFFSET_(n) + MAGCAL_OPTICS3_WORKSPACE_LEN(n) + MAGCAL_OPTICS3_AUTO_LEN_)
 
+/** @cond INTERNAL */
+/* 64-bit words of magcal_optics3_slice_t (src/filter/optics3_internal.h checks the size with a
+ * static assert): 8 pointers or sizes, the configuration copy and the sub-machines' state. */
+#define MAGCAL_OPTICS3_SLICE_WORDS_ ((8u * sizeof(void *) + 160u + 7u) / 8u)
+/** @endcond */
+
+/** State of a time-sliced magcal_optics_filter3() (magcal_optics_filter3_begin / _step), in the
+ *  caller's memory (the continuous 3-D calibrator keeps it in its solve state); contents private. */
+typedef struct {
+    uint64_t words_[MAGCAL_OPTICS3_SLICE_WORDS_];
+} magcal_optics3_slice_t;
+
 /** Declare `name` as a correctly aligned workspace of MAGCAL_OPTICS3_WORKSPACE_LEN(n) bytes (config.h). */
 #define MAGCAL_OPTICS3_WORKSPACE_DECLARE(name, n) MAGCAL_WORKSPACE_DECLARE(name, MAGCAL_OPTICS3_WORKSPACE_LEN(n))
 /** Declare `name` as a correctly aligned workspace of MAGCAL_OPTICS3_FILTER_WORKSPACE_LEN(n) bytes (config.h). */
@@ -628,6 +640,36 @@ magcal_status_t magcal_optics_auto_params3(const magcal_vec3_t *pts, size_t n, v
 magcal_status_t magcal_optics_filter3(const magcal_optics_cfg_t *cfg, const magcal_vec3_t *pts,
                                       size_t n, void *work, size_t work_len, uint8_t *inlier_mask,
                                       magcal_optics_result_t *info);
+
+/**
+ * @brief Start a time-sliced magcal_optics_filter3 (O(1): the checks that need no pass over the
+ *        points; the finiteness and workspace checks are the first step's, in the one-shot call's
+ *        order).
+ * @param[out] s the slice state (caller memory, kept until the filter has finished); the other
+ *               parameters as magcal_optics_filter3, and pts, work, inlier_mask, info must stay
+ *               valid (pts unchanged) until it has finished (cfg is copied).
+ * @return MAGCAL_OK (call magcal_optics_filter3_step); MAGCAL_ERR_NULL; MAGCAL_ERR_ALIGNMENT;
+ *         MAGCAL_ERR_ARG; MAGCAL_ERR_TOO_FEW_POINTS (as magcal_optics_filter3).
+ */
+magcal_status_t magcal_optics_filter3_begin(magcal_optics3_slice_t *s, const magcal_optics_cfg_t *cfg,
+                                            const magcal_vec3_t *pts, size_t n, void *work,
+                                            size_t work_len, uint8_t *inlier_mask,
+                                            magcal_optics_result_t *info);
+
+/**
+ * @brief Do about `budget` estimated Cortex-M4F instructions of the filter (at least one visit;
+ *        the overshoot is at most one visit, or one unit of the given-parameter path's grid build
+ *        and output, n x 60 / n x 16). The automatic path is resumable throughout: finiteness
+ *        pass, pair scale, robust centres and thinnings, band counts, the ordering at eps = R
+ *        (per candidate), the eps' probes, the extraction, the widest-shell selection and the mask.
+ * @param[in,out] s     started by magcal_optics_filter3_begin.
+ * @param[in]     budget estimated M4F instructions (0 counts as 1).
+ * @param[out]    used   NULL, or the instructions charged by this call.
+ * @return MAGCAL_IN_PROGRESS while work remains; then exactly the status (and outputs) of
+ *         magcal_optics_filter3, returned again by any further call; MAGCAL_ERR_NULL (s NULL);
+ *         MAGCAL_ERR_ARG (s not started by a successful begin).
+ */
+magcal_status_t magcal_optics_filter3_step(magcal_optics3_slice_t *s, uint32_t budget, uint32_t *used);
 #endif /* MAGCAL_CFG_ENABLE_3D */
 
 #ifdef __cplusplus

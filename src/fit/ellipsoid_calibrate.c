@@ -4,7 +4,8 @@
  * (the common case: a hand tumble) cost one fit and one residual pass, and every other case gives
  * exactly the result of the full composition (magcal_optics_filter3, then magcal_ellipsoid_fit on
  * its inliers). Time-sliced (magcal_ellipsoid_calibrate_begin/step): the fits are sliced
- * (magcal_ellipsoid_fit_step), the passes charge per sample; the density stage is one call.
+ * (magcal_ellipsoid_fit_step), the density stage too (magcal_optics_filter3_step, its state in
+ * the slice), the passes charge per sample.
  */
 #include <math.h>
 #include <string.h>
@@ -21,11 +22,11 @@
 #define CW_MAXRES 22u    /* one stored residual of the pre-test */
 #define CW_INLIER 6u     /* one inlier flag */
 #define CW_COPY 40u      /* one density verdict, one copy */
-#define CW_DENSITY 1000000u /* the density stage: one call, not sliced (runs alone in its step) */
+#define CW_DENSITY_CALLS 8u /* step calls of the density stage per calibration step, at most (2^31 each) */
 
 /* cppcheck-suppress misra-c2012-2.4 ; deviation D14 (false positive): no tag, so no unused tag; the constants are the phases of phase_ */
 enum { CAL_PH_PRE = 0, CAL_PH_PRE_STEP, CAL_PH_MAXRES, CAL_PH_DECIDE, CAL_PH_INLIER, CAL_PH_DENSITY,
-       CAL_PH_COPY, CAL_PH_FIT, CAL_PH_FIT_STEP, CAL_PH_DONE };
+       CAL_PH_DENSITY_STEP, CAL_PH_COPY, CAL_PH_FIT, CAL_PH_FIT_STEP, CAL_PH_DONE };
 
 #define CAL_CONT 100
 #define CAL_YIELD 101
@@ -100,7 +101,8 @@ static int cal_fit_phase(magcal_ellipsoid_calibrate_slice_t *s, const magcal_vec
     return (int)st;
 }
 
-/* The density stage (one unit, not sliced): in its own frame beside ecal_phase's, called straight
+/* The density stage, time-sliced (magcal_optics_filter3_begin / _step within the rest of the
+ * budget; its state in the slice, density_): in its own frame beside ecal_phase's, called straight
  * from the step (the stack of its deep path is the calibration's worst). */
 static MAGCAL_NOINLINE int cal_density(magcal_ellipsoid_calibrate_slice_t *s, uint32_t budget,
                                        uint32_t *used)
@@ -109,13 +111,35 @@ static MAGCAL_NOINLINE int cal_density(magcal_ellipsoid_calibrate_slice_t *s, ui
      * before copy j <= k is written, both run front to back */
     const size_t n = s->n_;
     uint8_t *rest = cal_rest(s);
-    magcal_status_t st;
-    if (cal_can(used, budget, CW_DENSITY) == 0) {
+    magcal_status_t st = MAGCAL_IN_PROGRESS;
+    unsigned guard;
+    if (s->phase_ == CAL_PH_DENSITY) {
+        if (cal_can(used, budget, CW_UNIT) == 0) {
+            return CAL_YIELD;
+        }
+        st = magcal_optics_filter3_begin(&s->density_, &s->cfg_->density, s->m_, n,
+                                         rest + n * sizeof(magcal_vec3_t),
+                                         s->work_len_ - MAGCAL_ELLIPSOID_CALIBRATE_SLOTS - n * sizeof(magcal_vec3_t),
+                                         rest + n * (sizeof(magcal_vec3_t) - 1u), &s->info_->density);
+        if (st != MAGCAL_OK) {
+            return (int)st;
+        }
+        s->phase_ = CAL_PH_DENSITY_STEP;
+        return CAL_CONT;
+    }
+    /* bounded: a step call does at least one visit, the budget holds at most 2^32 of them; an
+     * unlimited budget takes a few calls of 2^31 */
+    for (guard = 0u; guard < CW_DENSITY_CALLS && (*used == 0u || *used < budget); ++guard) {
+        uint32_t u = 0u;
+        st = magcal_optics_filter3_step(&s->density_, (*used < budget) ? (budget - *used) : 1u, &u);
+        *used += u;
+        if (st != MAGCAL_IN_PROGRESS) {
+            break;
+        }
+    }
+    if (st == MAGCAL_IN_PROGRESS) {
         return CAL_YIELD;
     }
-    st = magcal_optics_filter3(&s->cfg_->density, s->m_, n, rest + n * sizeof(magcal_vec3_t),
-                               s->work_len_ - MAGCAL_ELLIPSOID_CALIBRATE_SLOTS - n * sizeof(magcal_vec3_t),
-                               rest + n * (sizeof(magcal_vec3_t) - 1u), &s->info_->density);
     if (st != MAGCAL_OK) {
         return (int)st;
     }
@@ -312,9 +336,9 @@ magcal_status_t magcal_ellipsoid_calibrate_step(magcal_ellipsoid_calibrate_slice
     if (bud == 0u) {
         bud = 1u; /* a zero budget still makes progress: one visit */
     }
-    /* bounded: each CAL_CONT ends a phase (at most 10) or moves a pass */
+    /* bounded: each CAL_CONT ends a phase (at most 11) or moves a pass */
     while (rc == CAL_CONT) {
-        if (s->phase_ == CAL_PH_DENSITY) {
+        if (s->phase_ == CAL_PH_DENSITY || s->phase_ == CAL_PH_DENSITY_STEP) {
             rc = cal_density(s, bud, &used);
         } else if (s->phase_ == CAL_PH_PRE || s->phase_ == CAL_PH_PRE_STEP ||
                    s->phase_ == CAL_PH_FIT || s->phase_ == CAL_PH_FIT_STEP) {
@@ -333,6 +357,12 @@ magcal_status_t magcal_ellipsoid_calibrate_step(magcal_ellipsoid_calibrate_slice
     s->phase_ = CAL_PH_DONE;
     s->status_ = (int32_t)rc;
     return (magcal_status_t)rc;
+}
+
+uint32_t magcal_ellipsoid_calibrate_in_density(const magcal_ellipsoid_calibrate_slice_t *s)
+{
+    return (s != NULL && s->status_ == (int32_t)MAGCAL_IN_PROGRESS &&
+            (s->phase_ == (uint8_t)CAL_PH_DENSITY || s->phase_ == (uint8_t)CAL_PH_DENSITY_STEP)) ? 1u : 0u;
 }
 
 /* The one-shot call's begin, its slice in the workspace slot (off the stack: issue 13's 512 B),

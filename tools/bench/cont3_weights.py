@@ -17,6 +17,8 @@ per piece): the shipped figure is cont3.elf's (run_bench.py m4f_cont3, m4f_max_c
 Build first (run_bench.py configures the directory, or see docs/calibration_3d.md "Work per call"):
     cmake --build BUILD/m4f --target cont3_trace
     tools/bench/cont3_weights.py BUILD/m4f/cont3_trace.elf [--json OUT]
+With the dirty tumble (cont3_trace_dirty.elf: the solves run the density stage) it also fits the
+density stage's weights (src/filter/optics3_internal.h W3_*) to the measured steps (C3O3 lines).
 """
 import collections
 import json
@@ -31,12 +33,85 @@ F = ["row", "meas", "st_in", "st_out", "pushed", "sweep_ends", "charged", "solve
      "cells"]
 
 
+# The density stage's weights (src/filter/optics3_internal.h W3_*), in the order of its trace
+# counters (P3_*), then the total it charged (including the 2-D selection / heapsort primitives'
+# own charges, optics_slice.h W_SEL / W_HS / W_HSL).
+W3 = ["W3_FIN", "W3_PAIR", "W3_GATHER", "W3_RAD", "W3_KEY", "W3_MARK", "W3_BAND", "W3_INIT", "W3_SKIP", "W3_CAND",
+      "W3_REACH", "W3_UPD", "W3_POP", "W3_GRIDP", "W3_GRIDB", "W3_LABEL", "W3_WIDE", "W3_OUT", "W3_PHASE"]
+
+
+def w3_current():
+    import os
+    import re
+    hdr = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "src", "filter", "optics3_internal.h")
+    with open(hdr) as fh:
+        txt = fh.read()
+    return {m.group(1): int(m.group(2)) for m in re.finditer(r"#define (W3_\w+) (\d+)", txt)}
+
+
+def solve_ls(rows, ys, ridge=1e-6):
+    """Least squares by the normal equations (Gauss-Jordan with partial pivoting; no numpy)."""
+    k = len(rows[0])
+    ata = [[0.0] * k for _ in range(k)]
+    aty = [0.0] * k
+    for r, y in zip(rows, ys):
+        for i in range(k):
+            if r[i]:
+                aty[i] += r[i] * y
+                for j in range(k):
+                    ata[i][j] += r[i] * r[j]
+    for i in range(k):
+        ata[i][i] += ridge * (ata[i][i] + 1.0)
+    m = [ata[i] + [aty[i]] for i in range(k)]
+    for c in range(k):
+        piv = max(range(c, k), key=lambda i: abs(m[i][c]))
+        m[c], m[piv] = m[piv], m[c]
+        if abs(m[c][c]) < 1e-12:
+            continue
+        for i in range(k):
+            if i != c:
+                f = m[i][c] / m[c][c]
+                m[i] = [a - f * b for a, b in zip(m[i], m[c])]
+    return [m[i][k] / m[i][i] if abs(m[i][i]) > 1e-12 else 0.0 for i in range(k)]
+
+
+def density_fit(dsteps):
+    """Fit measured step instructions (minus the drain's) = c0 + sum w_k visits_k + b x (the
+    primitives' charge); print the fitted weights next to the ones in the header, and the largest
+    measured / charged step of the density stage."""
+    cur = w3_current()
+    used = [i for i in range(len(W3)) if any(d[3 + i] for d in dsteps)]
+    rows, ys = [], []
+    for d in dsteps:
+        v = d[3:3 + len(W3)]
+        other = d[3 + len(W3)] - sum(cur.get(W3[i], 0) * v[i] for i in range(len(W3)))
+        rows.append([1.0] + [float(v[i]) for i in used] + [float(max(other, 0))])
+        ys.append(float(d[1] - d[2]))
+    x = solve_ls(rows, ys)
+    print("\ndensity stage (C3O3: %d steps): fitted M4F instructions per visit (trace build)" % len(dsteps))
+    print("%-10s %10s %8s %8s" % ("weight", "visits", "fitted", "header"))
+    print("%-10s %10s %8.0f" % ("(step)", "-", x[0]))
+    fitted = {}
+    for j, i in enumerate(used):
+        fitted[W3[i]] = x[1 + j]
+        print("%-10s %10d %8.1f %8d" % (W3[i], sum(d[3 + i] for d in dsteps), x[1 + j], cur.get(W3[i], 0)))
+    print("%-10s %10s %8.2f %8s" % ("primitives", "-", x[-1], "x1"))
+    worst = max(dsteps, key=lambda d: d[1])
+    ratio = max((d[1] - d[2]) / d[3 + len(W3)] for d in dsteps if d[3 + len(W3)] >= 1000)
+    print("largest density step: %d measured (row %d, drain %d), %d charged; worst measured/charged %.2f"
+          % (worst[1], worst[0], worst[2], worst[3 + len(W3)], ratio))
+    return {"fitted": fitted, "step_const": x[0], "primitives_scale": x[-1], "largest": worst[1],
+            "worst_ratio": ratio}
+
+
 def main(argv):
     a, out = trace_run(argv, __doc__)
-    steps, pieces = [], []
+    steps, pieces, dsteps = [], [], []
     for ln in out.splitlines():
         f = ln.split()
-        if f and f[0] == "C3TR":
+        if f and f[0] == "C3O3":
+            dsteps.append([int(v) for v in f[1:]])
+        elif f and f[0] == "C3TR":
             steps.append(dict(zip(F, [int(v) for v in f[1:]])))
         elif f and f[0] == "C3PIECE":
             k, n, mx, mean, w = (int(v) for v in f[1:6])
@@ -63,9 +138,10 @@ def main(argv):
         print("  row %(row)5d  %(meas)6d insn  drain %(drain_insn)5d  pushed %(pushed)d  sweep ends %(sweep_ends)d  "
               "charged %(charged)5d  solver %(solver_used)5d  cells %(cells)3d" % s,
               "stage %s -> %s" % (STAGES[s["st_in"] & 0xFF], STAGES[s["st_out"] & 0xFF]))
+    dens = density_fit(dsteps) if dsteps else None
     if a.json:
         with open(a.json, "w") as fh:
-            json.dump({"pieces": pieces, "units": summary, "largest": top}, fh, indent=1)
+            json.dump({"pieces": pieces, "units": summary, "largest": top, "density": dens}, fh, indent=1)
 
 
 if __name__ == "__main__":

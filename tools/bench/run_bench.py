@@ -570,18 +570,19 @@ def m4f_cont(build_dir, tmp_root, python, real=True):
     return res
 
 
-def m4f_cont3(tmp_root):
+def m4f_cont3(tmp_root, target="cont3"):
     """Per-call M4F instruction counts of the continuous 3-D calibrator (cont3.elf,
     m4f_image/main_cont3.c: a generated tumble, fixed seed, on the target; QEMU -icount shift=0),
     built in the footprint image's build dir (configured by m4f_footprint). Returns the parsed
-    lines; m4f_max_call3_instr = the largest push / step / heading."""
+    lines; m4f_max_call3_instr = the largest push / step / heading. target "cont3_dirty": the same
+    tumble with glitch bursts and spikes, whose solves run the time-sliced density stage."""
     if shutil.which("qemu-system-arm") is None:
         return {"error": "qemu-system-arm not found"}
     bdir = os.path.join(tmp_root, "m4f")
-    p = run(["cmake", "--build", bdir, "-j2", "--target", "cont3"])
-    elf = os.path.join(bdir, "cont3.elf")
+    p = run(["cmake", "--build", bdir, "-j2", "--target", target])
+    elf = os.path.join(bdir, target + ".elf")
     if p.returncode != 0 or not os.path.exists(elf):
-        return {"error": "cont3.elf build failed (needs cmake/target/):\n" + p.stdout[-2000:] + p.stderr[-2000:]}
+        return {"error": target + ".elf build failed (needs cmake/target/):\n" + p.stdout[-2000:] + p.stderr[-2000:]}
     t0 = time.time()
     p = run(["timeout", "300", "qemu-system-arm", "-M", "mps2-an386", "-display", "none", "-monitor", "none",
              "-serial", "null", "-semihosting-config", "enable=on,target=native", "-icount", "shift=0",
@@ -612,7 +613,7 @@ def m4f_cont3(tmp_root):
         else:
             res.setdefault("problems", []).append(" ".join(f[2:]))
     if p.returncode != 0:
-        res["error"] = "cont3.elf exited with %d: %s" % (p.returncode, p.stdout[-500:])
+        res["error"] = "%s.elf exited with %d: %s" % (target, p.returncode, p.stdout[-500:])
     mx = [c["max"] for c in res["calls"].values()]
     if mx and "error" not in res:
         res["m4f_max_call3_instr"] = max(mx)
@@ -885,6 +886,9 @@ def main(argv):
         cont3 = m4f_cont3(out_dir)
         if "error" in cont3:
             log("   " + cont3["error"])
+        cont3["dirty"] = m4f_cont3(out_dir, "cont3_dirty")  # the density stage in the solves
+        if "error" in cont3["dirty"]:
+            log("   " + cont3["dirty"]["error"])
 
     # ------------------------------------------------------------------ assemble
     def series(k):
@@ -911,6 +915,7 @@ def main(argv):
         "m4f_max_call_instr": None,
         "m4f_cal2d_total_instr": None,
         "m4f_max_call3_instr": None,
+        "m4f_max_call3_dirty_instr": None,
         "m4f_cal2d_interleaved_instr": None,
     }
     extra = {k + "_instr": series(k) for k in EXTRA_KERNELS}
@@ -993,6 +998,7 @@ def main(argv):
     if cont3 is not None:  # issue 13, 3-D loop: the largest push / step / heading of cont3.elf
         extra["cont3"] = cont3
         res["m4f_max_call3_instr"] = cont3.get("m4f_max_call3_instr")
+        res["m4f_max_call3_dirty_instr"] = cont3["dirty"].get("m4f_max_call3_instr")  # cont3_dirty.elf
 
     i_ref = ns.index(N_REF) if N_REF in ns else None
     c_cl, c_im, c_ix = res["optics_classic_instr"], res["optics_improved_instr"], res["optics_indexed_instr"]

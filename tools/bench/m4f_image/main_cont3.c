@@ -40,6 +40,13 @@
 #define ROWS (TUMBLE_S * RATE_HZ)
 #define STEPS_PER_ROW 4u
 #define DEG_F 0.017453292f
+#ifndef CONT3_DIRTY
+#define CONT3_DIRTY 0 /* 1: cont3_dirty.elf, the tumble with glitch bursts and spikes */
+#endif
+#define GLITCH_FIRST 700u /* row of the first glitch burst (14 s) */
+#define GLITCH_EVERY 1000u /* a burst every 20 s */
+#define GLITCH_ROWS 12u   /* of 0.24 s */
+#define SPIKE_EVERY 173u  /* an isolated spike every 3.5 s */
 
 #define SLOTS3 MAGCAL_CONT3_SLOTS(10u, 4u) /* MAGCAL_CONT3_INTAKE_CFG_DEFAULT: 10 bands x 4 */
 
@@ -59,6 +66,9 @@ static uint32_t g_unit_n[5];
 /* src/loop3/c3_step.c's per-step record (cont3_trace.elf only: tools/bench/cont3_weights.py) */
 extern uint32_t magcal_bench_cont3_trace[9];
 extern uint32_t magcal_bench_cont3_piece[11][4];
+/* src/filter/optics3.c's visits per weight of the density stage and its total charge (19 + 1) */
+#define O3_VISITS 20u
+extern uint32_t magcal_bench_o3_visits[O3_VISITS];
 #endif
 
 static const float k_w[3][3] = {{1.08f, 0.05f, -0.03f}, {0.05f, 0.95f, 0.04f}, {-0.03f, 0.04f, 1.02f}};
@@ -128,6 +138,19 @@ static void tumble_row(uint32_t i, magcal_vec3_t *m, magcal_vec3_t *acc)
     for (k = 0u; k < 3u; ++k) {
         r[k] = k_w[k][0] * hb[0] + k_w[k][1] * hb[1] + k_w[k][2] * hb[2] + k_v[k] + 0.3f * nrand();
     }
+#if CONT3_DIRTY
+    /* the dirty tumble (cont3_dirty.elf): a driver glitch burst of GLITCH_ROWS rows (a fixed
+     * offset of about 1.2 F: the pre-test sees a gross outlier, the density stage runs) every
+     * GLITCH_EVERY rows from row GLITCH_FIRST, and an isolated spike of +-60 uT on one axis every
+     * SPIKE_EVERY rows; both far below the range limit, so the store keeps them */
+    if (i >= GLITCH_FIRST && (i - GLITCH_FIRST) % GLITCH_EVERY < GLITCH_ROWS) {
+        r[0] += 41.0f;
+        r[1] -= 33.0f;
+        r[2] += 27.0f;
+    } else if (i % SPIKE_EVERY == SPIKE_EVERY - 1u) {
+        r[(i / SPIKE_EVERY) % 3u] += ((i / SPIKE_EVERY) & 1u) != 0u ? 60.0f : -60.0f;
+    }
+#endif
     m->x = r[0];
     m->y = r[1];
     m->z = r[2];
@@ -171,7 +194,11 @@ static const char *outcome_name(magcal_cont3_outcome_t o)
 
 int main(void)
 {
+#if CONT3_DIRTY
+    static const char drive[] = "gen_tumble_dirty_s1";
+#else
     static const char drive[] = "gen_tumble_s1";
+#endif
     const magcal_cont3_cfg_t cfg = MAGCAL_CONT3_CFG_DEFAULT;
     uint32_t i, s = 0u;
     uint32_t adoptions = 0u, solves = 0u, changes = 0u, ok_head = 0u, trusted = 0u;
@@ -211,6 +238,15 @@ int main(void)
                        (unsigned long)tr[0], (unsigned long)tr[1], (unsigned long)tr[2], (unsigned long)tr[3],
                        (unsigned long)tr[4], (unsigned long)tr[5], (unsigned long)tr[6], (unsigned long)tr[7],
                        (unsigned long)tr[8]);
+                if (magcal_bench_o3_visits[O3_VISITS - 1u] != 0u) {
+                    unsigned v;
+                    printf("C3O3 %lu %lu %lu", (unsigned long)i, (unsigned long)c, (unsigned long)tr[6]);
+                    for (v = 0u; v < O3_VISITS; ++v) {
+                        printf(" %lu", (unsigned long)magcal_bench_o3_visits[v]);
+                        magcal_bench_o3_visits[v] = 0u;
+                    }
+                    printf("\n");
+                }
             }
 #endif
             g_unit_n[unit]++;
