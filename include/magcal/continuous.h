@@ -337,6 +337,17 @@ typedef struct {
     uint8_t cnt_src;               /* store centre source it started at */
     /* transient judge (cont_flags.c), issue 13's flags */
     uint32_t dist_age_ms;          /* ms of stamps since the transient judge was reset (baseline warm-up) */
+    /* the transient judge's bias regression (cont_flags.c): the stream's heading-dependent bias
+     * of the residual and of raw z, learnt on clean samples */
+    float dist_ue;                 /* smoothed raw z / R (the vertical channel) */
+    float dist_ub;                 /* its baseline */
+    float dist_uvar;               /* variance of the vertical channel's unexplained part, clean samples */
+    float dist_fe[4];              /* smoothed regressors: cos, sin, cos 2, sin 2 of the corrected heading */
+    float dist_fb[4];              /* their baselines */
+    float dist_mx[10];             /* moments of the regressors' deviations (packed lower) */
+    float dist_mr[4];              /* their moments with the residual's deviation */
+    float dist_mu[4];              /* their moments with the vertical channel's deviation */
+    float dist_th[8];              /* coefficients: residual 0..3, vertical 4..7 */
 } magcal_cont_t;
 
 /**

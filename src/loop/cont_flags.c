@@ -17,18 +17,116 @@
 #define CONT_DIST_VAR_MS 20000.0f /* variance time constant of the transient judge */
 #define CONT_DIST_STORE_K 1.0f    /* transient threshold >= this x the model's sigma on the store */
 #define CONT_DIST_VAR0 0.4f       /* initial RMS of the smoothed residual, x the store's sigma */
+#define CONT_DIST_NX 4u           /* heading regressors of the bias: cos, sin, cos 2, sin 2 */
+#define CONT_DIST_REG_MS 20000.0f /* time constant of the regression's moments (ms of turning) */
+#define CONT_DIST_EXC 0.0025f     /* |regressor deviation|^2 above which a sample informs it */
+#define CONT_DIST_RIDGE 0.001f    /* ridge of its moments */
+#define CONT_DIST_MIN_U 0.02f     /* floor of the vertical channel's threshold (raw z / R) */
+#define CONT_DIST_UNC_R 0.02f     /* residual threshold widening per unit of regressor deviation */
+#define CONT_DIST_UNC_U 0.05f     /* vertical threshold widening per unit (~3 deg of pitch x the field) */
+#define CONT_DIST_CLAMP_U 1.0f    /* raw z / R enters its smoothing clamped to the baseline +- this */
 
-/* Transient judge: one drained sample's rel after dt ms (file comment). */
-void magcal_cont_transient(magcal_cont_t *cc, float rel, uint32_t dt)
+/* Packed lower index of the regression's 4 x 4 moments. */
+#define CONT_DIST_P(i, j) ((i) * ((i) + 1u) / 2u + (j))
+
+/* Coefficients of both channels from the moments: (M + ridge I) th = m (LDL^T, 4 x 4). Leaves the
+ * coefficients as they were when the factor is not positive (it always is with the ridge). */
+static void cont_dist_solve(magcal_cont_t *cc)
+{
+    float l[10];
+    float dd[CONT_DIST_NX];
+    uint32_t i;
+    uint32_t k;
+    uint32_t c;
+    for (i = 0u; i < CONT_DIST_NX; ++i) {
+        uint32_t j;
+        for (j = 0u; j <= i; ++j) {
+            float v = cc->dist_mx[CONT_DIST_P(i, j)] + (i == j ? CONT_DIST_RIDGE : 0.0f);
+            for (k = 0u; k < j; ++k) {
+                v -= l[CONT_DIST_P(i, k)] * l[CONT_DIST_P(j, k)] * dd[k];
+            }
+            if (i == j) {
+                if (!(v > 0.0f)) {
+                    return;
+                }
+                dd[i] = v;
+                l[CONT_DIST_P(i, i)] = 1.0f;
+            } else {
+                l[CONT_DIST_P(i, j)] = v / dd[j];
+            }
+        }
+    }
+    for (c = 0u; c < 2u; ++c) {
+        const float *b = c == 0u ? cc->dist_mr : cc->dist_mu;
+        float y[CONT_DIST_NX];
+        for (i = 0u; i < CONT_DIST_NX; ++i) {
+            float v = b[i];
+            for (k = 0u; k < i; ++k) {
+                v -= l[CONT_DIST_P(i, k)] * y[k];
+            }
+            y[i] = v;
+        }
+        for (i = CONT_DIST_NX; i > 0u; --i) {
+            const uint32_t r = i - 1u;
+            float v = y[r] / dd[r];
+            for (k = r + 1u; k < CONT_DIST_NX; ++k) {
+                v -= l[CONT_DIST_P(k, r)] * cc->dist_th[c * CONT_DIST_NX + k];
+            }
+            cc->dist_th[c * CONT_DIST_NX + r] = v;
+        }
+    }
+}
+
+/* A clean sample's deviations (residual dr, vertical du, regressors dx from their baselines)
+ * into the moments, when the heading moved from its baseline (no information otherwise). */
+static void cont_dist_learn(magcal_cont_t *cc, float dr, float du, const float *dx, uint32_t dt)
+{
+    float q = 0.0f;
+    float w;
+    uint32_t i;
+    uint32_t k;
+    for (i = 0u; i < CONT_DIST_NX; ++i) {
+        q += dx[i] * dx[i];
+    }
+    if (!(q > CONT_DIST_EXC)) {
+        return;
+    }
+    w = (float)dt / (CONT_DIST_REG_MS + (float)dt);
+    for (i = 0u; i < CONT_DIST_NX; ++i) {
+        for (k = 0u; k <= i; ++k) {
+            cc->dist_mx[CONT_DIST_P(i, k)] += w * (dx[i] * dx[k] - cc->dist_mx[CONT_DIST_P(i, k)]);
+        }
+        cc->dist_mr[i] += w * (dx[i] * dr - cc->dist_mr[i]);
+        cc->dist_mu[i] += w * (dx[i] * du - cc->dist_mu[i]);
+    }
+    cont_dist_solve(cc);
+}
+
+/* Transient judge: one judged sample after dt ms (file comment). */
+void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint32_t dt)
 {
     const float hold = (float)cc->cfg.disturb_hold_ms;
+    const float rel = j->rel / sqrtf(1.0f + j->unc);
+    float f[CONT_DIST_NX];
+    float dx[CONT_DIST_NX];
+    float dr0;
+    float du0;
     float d;
+    float du;
     float thr;
     float x;
-    if (!magcal_isfinite_f(rel) || !(fabsf(rel) <= CONT_DIST_GROSS)) {
+    float ux;
+    float q;
+    uint32_t i;
+    int over;
+    if (!magcal_isfinite_f(rel) || !(fabsf(rel) <= CONT_DIST_GROSS) || !magcal_isfinite_f(j->u)) {
         return; /* a glitch: flagged by the per-sample judge, the smoothed state keeps its value */
     }
     x = fminf(fmaxf(rel, -CONT_DIST_CLAMP), CONT_DIST_CLAMP);
+    f[0] = j->cs[0];
+    f[1] = j->cs[1];
+    f[2] = j->cs[0] * j->cs[0] - j->cs[1] * j->cs[1];
+    f[3] = 2.0f * j->cs[0] * j->cs[1];
     if (cc->dist_age_ms <= UINT32_MAX - dt) {
         cc->dist_age_ms += dt;
     }
@@ -39,20 +137,49 @@ void magcal_cont_transient(magcal_cont_t *cc, float rel, uint32_t dt)
          * and more (seed 1: 400..800 rows after each adoption) */
         cc->dist_e = x;
         cc->dist_base = x;
+        cc->dist_ue = j->u;
+        cc->dist_ub = j->u;
+        for (i = 0u; i < CONT_DIST_NX; ++i) {
+            cc->dist_fe[i] = f[i];
+            cc->dist_fb[i] = f[i];
+        }
     } else {
-        /* towards the baseline 3 x faster: the flag ends within a fraction of tau of the cause */
+        /* towards the baseline 3 x faster: the flag ends within a fraction of tau of the cause;
+         * the vertical channel and the regressors are smoothed alike (their deviations line up) */
         const float tau = fabsf(x - cc->dist_base) < fabsf(cc->dist_e - cc->dist_base)
                               ? (float)cc->cfg.disturb_tau_ms / 3.0f
                               : (float)cc->cfg.disturb_tau_ms;
-        cc->dist_e += (float)dt / (tau + (float)dt) * (x - cc->dist_e);
+        const float a = (float)dt / (tau + (float)dt);
+        ux = cc->dist_ub + fminf(fmaxf(j->u - cc->dist_ub, -CONT_DIST_CLAMP_U), CONT_DIST_CLAMP_U);
+        cc->dist_e += a * (x - cc->dist_e);
+        cc->dist_ue += a * (ux - cc->dist_ue);
+        for (i = 0u; i < CONT_DIST_NX; ++i) {
+            cc->dist_fe[i] += a * (f[i] - cc->dist_fe[i]);
+        }
     }
     if (cc->dist_n < UINT32_MAX) {
         cc->dist_n++;
     }
-    d = cc->dist_e - cc->dist_base;
+    /* deviations from the baselines, less what the heading's move explains (the model's and
+     * the calibration's heading-dependent error at the current pitch, the soft-iron leak and
+     * the hill's share of raw z) */
+    dr0 = cc->dist_e - cc->dist_base;
+    du0 = cc->dist_ue - cc->dist_ub;
+    d = dr0;
+    du = du0;
+    for (i = 0u; i < CONT_DIST_NX; ++i) {
+        dx[i] = cc->dist_fe[i] - cc->dist_fb[i];
+        d -= cc->dist_th[i] * dx[i];
+        du -= cc->dist_th[CONT_DIST_NX + i] * dx[i];
+    }
+    /* the thresholds widen with the heading's move: the coefficients are learnt at other pitches */
+    q = sqrtf(dx[0] * dx[0] + dx[1] * dx[1] + dx[2] * dx[2] + dx[3] * dx[3]);
     thr = fmaxf(fmaxf(cc->cfg.disturb_k * sqrtf(cc->dist_var), CONT_DIST_STORE_K * cc->cal_sigma_rel),
-                CONT_DIST_MIN_REL);
-    if (!(fabsf(d) <= thr)) {
+                CONT_DIST_MIN_REL) +
+          CONT_DIST_UNC_R * q;
+    over = !(fabsf(d) <= thr) ||
+           !(fabsf(du) <= fmaxf(cc->cfg.disturb_k * sqrtf(cc->dist_uvar), CONT_DIST_MIN_U) + CONT_DIST_UNC_U * q);
+    if (over != 0) {
         /* flagged: the baseline holds for cfg.change_ms (a transient is shorter), then follows
          * (below), so a lasting offset below the per-sample threshold is absorbed instead of
          * blocking the store for ever */
@@ -67,7 +194,12 @@ void magcal_cont_transient(magcal_cont_t *cc, float rel, uint32_t dt)
              * the clean rate for tens of seconds more (seed 1: false flags 0.051 -> 0.043) */
             const float w = (float)dt / (CONT_DIST_VAR_MS + (float)dt);
             cc->dist_var += w * (d * d - cc->dist_var);
+            cc->dist_uvar += w * (du * du - cc->dist_uvar);
             cc->dist_base = cc->dist_e;
+            cc->dist_ub = cc->dist_ue;
+            for (i = 0u; i < CONT_DIST_NX; ++i) {
+                cc->dist_fb[i] = cc->dist_fe[i];
+            }
             cc->dist_flag_ms = 0u;
             cc->dist_quiet_ms = cc->cfg.disturb_hold_ms;
             cc->dist_flag = 0u;
@@ -80,15 +212,23 @@ void magcal_cont_transient(magcal_cont_t *cc, float rel, uint32_t dt)
             cc->dist_quiet_ms += dt;
         }
         if ((float)cc->dist_quiet_ms >= hold) {
-            /* clean: the baseline follows the model's slow bias, the variance its noise */
+            /* clean: the baselines follow the slow bias, the variances the noise, the
+             * regression what the heading explains */
             /* warm-up: the baseline's time constant grows with the time since the reset (a
              * running mean of the first samples, then the 4-s average) */
             const float w = (float)dt / (CONT_DIST_VAR_MS + (float)dt);
             const float tb = fminf(CONT_DIST_BASE_MS, (float)cc->dist_age_ms);
+            cont_dist_learn(cc, dr0, du0, dx, dt);
             if (tb + (float)dt > 0.0f) {
-                cc->dist_base += (float)dt / (tb + (float)dt) * d;
+                const float g = (float)dt / (tb + (float)dt);
+                cc->dist_base += g * dr0;
+                cc->dist_ub += g * du0;
+                for (i = 0u; i < CONT_DIST_NX; ++i) {
+                    cc->dist_fb[i] += g * dx[i];
+                }
             }
             cc->dist_var += w * (d * d - cc->dist_var);
+            cc->dist_uvar += w * (du * du - cc->dist_uvar);
         }
     }
     cc->dist_flag = (uint8_t)((float)cc->dist_quiet_ms < hold ? 1u : 0u);
@@ -106,6 +246,15 @@ void magcal_cont_transient_reset(magcal_cont_t *cc)
     cc->dist_e = 0.0f;
     cc->dist_base = 0.0f;
     cc->dist_age_ms = 0u;
+    /* the residual's regression is the model's error: relearnt; the vertical channel's (the
+     * soft-iron leak into z, the hill) is the vehicle's: kept */
+    {
+        uint32_t i;
+        for (i = 0u; i < CONT_DIST_NX; ++i) {
+            cc->dist_mr[i] = 0.0f;
+            cc->dist_th[i] = 0.0f;
+        }
+    }
     cc->fz_miss = 0.0f;
     cc->fz_unfit = 0u;
 }

@@ -69,8 +69,23 @@ int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_co
     j->mismatch = 0u;
     j->gross = 0u;
     j->over = 0u;
+    j->u = NAN;
+    j->cs[0] = 1.0f;
+    j->cs[1] = 0.0f;
     if (cont_corrected(cc, m, &h) == 0) {
         return 0;
+    }
+    {
+        /* the transient judge's inputs: raw z in radii, the heading's unit vector (heading.c:
+         * atan2(-x, y)) */
+        const float nh = sqrtf(h.x * h.x + h.y * h.y);
+        if (nh > 0.0f) {
+            j->cs[0] = h.y / nh;
+            j->cs[1] = -h.x / nh;
+        }
+        if (cc->cal_raw_radius > 0.0f) {
+            j->u = m->z / cc->cal_raw_radius;
+        }
     }
     if (cc->fz_on != 0u) {
         float v[3];
