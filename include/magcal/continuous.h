@@ -203,7 +203,7 @@ typedef struct {
 #define MAGCAL_CONT_CFG_DEFAULT                                                                    \
     {                                                                                              \
         MAGCAL_INTAKE_CFG_DEFAULT_2D, MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT, 280.0f, 24u, 2u,        \
-            600000.0f, 4.0f, 0.06f, 8000u, 3u, 4000u, 150u, 200u, 4.0f,                            \
+            600000.0f, 4.0f, 0.06f, 8000u, 3u, 4000u, 100u, 200u, 4.0f,                            \
             MAGCAL_SLICE_BUDGET_DEFAULT, 0.0f, 15.0f                                               \
     }
 

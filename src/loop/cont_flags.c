@@ -15,7 +15,7 @@
 #define CONT_DIST_GROSS 0.5f      /* |rel| above: a glitch, it does not feed the transient judge */
 #define CONT_DIST_BASE_MS 4000.0f /* baseline time constant (hills drift the model's bias) */
 #define CONT_DIST_VAR_MS 20000.0f /* variance time constant of the transient judge */
-#define CONT_DIST_STORE_K 1.0f    /* transient threshold >= this x the model's sigma on the store */
+#define CONT_DIST_STORE_K 0.5f    /* transient threshold >= this x the model's sigma on the store */
 #define CONT_DIST_VAR0 0.4f       /* initial RMS of the smoothed residual, x the store's sigma */
 #define CONT_DIST_NX 4u           /* heading regressors of the bias: cos, sin, cos 2, sin 2 */
 #define CONT_DIST_REG_MS 20000.0f /* time constant of the regression's moments (ms of turning) */
@@ -24,6 +24,9 @@
 #define CONT_DIST_MIN_U 0.02f     /* floor of the vertical channel's threshold (raw z / R) */
 #define CONT_DIST_UNC_R 0.02f     /* residual threshold widening per unit of regressor deviation */
 #define CONT_DIST_UNC_U 0.05f     /* vertical threshold widening per unit (~3 deg of pitch x the field) */
+#define CONT_DIST_LEARN 0.5f      /* the noise learns deviations clipped to this x the thresholds */
+#define CONT_DIST_LEARN_REG 0.75f /* the regression learns from samples within this x the thresholds */
+#define CONT_DIST_HYST 0.5f       /* a flag ends below this x the thresholds */
 #define CONT_DIST_CLAMP_U 1.0f    /* raw z / R enters its smoothing clamped to the baseline +- this */
 
 /* Packed lower index of the regression's 4 x 4 moments. */
@@ -106,7 +109,7 @@ static void cont_dist_learn(magcal_cont_t *cc, float dr, float du, const float *
 void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint32_t dt)
 {
     const float hold = (float)cc->cfg.disturb_hold_ms;
-    const float rel = j->rel / sqrtf(1.0f + j->unc);
+    const float rel = j->rel;
     float f[CONT_DIST_NX];
     float dx[CONT_DIST_NX];
     float dr0;
@@ -117,6 +120,7 @@ void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint
     float x;
     float ux;
     float q;
+    float thru;
     uint32_t i;
     int over;
     if (!magcal_isfinite_f(rel) || !(fabsf(rel) <= CONT_DIST_GROSS) || !magcal_isfinite_f(j->u)) {
@@ -177,8 +181,13 @@ void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint
     thr = fmaxf(fmaxf(cc->cfg.disturb_k * sqrtf(cc->dist_var), CONT_DIST_STORE_K * cc->cal_sigma_rel),
                 CONT_DIST_MIN_REL) +
           CONT_DIST_UNC_R * q;
-    over = !(fabsf(d) <= thr) ||
-           !(fabsf(du) <= fmaxf(cc->cfg.disturb_k * sqrtf(cc->dist_uvar), CONT_DIST_MIN_U) + CONT_DIST_UNC_U * q);
+    thru = fmaxf(cc->cfg.disturb_k * sqrtf(cc->dist_uvar), CONT_DIST_MIN_U) + CONT_DIST_UNC_U * q;
+    if (cc->dist_flag != 0u) {
+        /* hysteresis: a flag ends below a fraction of the thresholds (the transient's fall) */
+        thr *= CONT_DIST_HYST;
+        thru *= CONT_DIST_HYST;
+    }
+    over = !(fabsf(d) <= thr) || !(fabsf(du) <= thru);
     if (over != 0) {
         /* flagged: the baseline holds for cfg.change_ms (a transient is shorter), then follows
          * (below), so a lasting offset below the per-sample threshold is absorbed instead of
@@ -218,7 +227,6 @@ void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint
              * running mean of the first samples, then the 4-s average) */
             const float w = (float)dt / (CONT_DIST_VAR_MS + (float)dt);
             const float tb = fminf(CONT_DIST_BASE_MS, (float)cc->dist_age_ms);
-            cont_dist_learn(cc, dr0, du0, dx, dt);
             if (tb + (float)dt > 0.0f) {
                 const float g = (float)dt / (tb + (float)dt);
                 cc->dist_base += g * dr0;
@@ -227,8 +235,15 @@ void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint
                     cc->dist_fb[i] += g * dx[i];
                 }
             }
-            cc->dist_var += w * (d * d - cc->dist_var);
-            cc->dist_uvar += w * (du * du - cc->dist_uvar);
+            /* the noise learns clipped deviations: the rise of a transient would teach it
+             * itself (the flag came 5 rows later, seed 2) */
+            const float dc = fminf(fabsf(d), CONT_DIST_LEARN * thr);
+            const float duc = fminf(fabsf(du), CONT_DIST_LEARN * thru);
+            if (fabsf(d) <= CONT_DIST_LEARN_REG * thr && fabsf(du) <= CONT_DIST_LEARN_REG * thru) {
+                cont_dist_learn(cc, dr0, du0, dx, dt);
+            }
+            cc->dist_var += w * (dc * dc - cc->dist_var);
+            cc->dist_uvar += w * (duc * duc - cc->dist_uvar);
         }
     }
     cc->dist_flag = (uint8_t)((float)cc->dist_quiet_ms < hold ? 1u : 0u);
