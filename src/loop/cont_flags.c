@@ -26,6 +26,7 @@
 #define CONT_DIST_UNC_U 0.05f     /* vertical threshold widening per unit (~3 deg of pitch x the field) */
 #define CONT_DIST_LEARN 0.5f      /* the noise learns deviations clipped to this x the thresholds */
 #define CONT_DIST_LEARN_REG 0.75f /* the regression learns from samples within this x the thresholds */
+#define CONT_DIST_MAX_MS 6000u    /* a flag longer than this (or cfg.change_ms) is no transient (2..5 s) */
 #define CONT_DIST_HYST 0.5f       /* a flag ends below this x the thresholds */
 #define CONT_DIST_CLAMP_U 1.0f    /* raw z / R enters its smoothing clamped to the baseline +- this */
 
@@ -195,7 +196,7 @@ void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint
         if (cc->dist_flag_ms <= UINT32_MAX - dt) {
             cc->dist_flag_ms += dt;
         }
-        if (cc->dist_flag_ms > cc->cfg.change_ms) {
+        if (cc->dist_flag_ms > (cc->cfg.change_ms < CONT_DIST_MAX_MS ? cc->cfg.change_ms : CONT_DIST_MAX_MS)) {
             /* longer than any transient: what the judge sees is the model's own error (a
              * model that does not explain the hills, a baseline held while a turn on a hill
              * moved the model's bias): the baseline restarts at the smoothed residual and the
