@@ -27,7 +27,8 @@
 #define CONT_DIST_LEARN 0.5f      /* the noise learns deviations clipped to this x the thresholds */
 #define CONT_DIST_LEARN_REG 0.75f /* the regression learns from samples within this x the thresholds */
 #define CONT_DIST_MAX_MS 6000u    /* a flag longer than this (or cfg.change_ms) is no transient (2..5 s) */
-#define CONT_DIST_HYST 0.5f       /* a flag ends below this x the thresholds */
+#define CONT_DIST_HYST 0.5f       /* a flag ends below this x the residual's threshold */
+#define CONT_DIST_HYST_U 0.75f    /* ... and this x the vertical channel's */
 #define CONT_DIST_CLAMP_U 1.0f    /* raw z / R enters its smoothing clamped to the baseline +- this */
 
 /* Packed lower index of the regression's 4 x 4 moments. */
@@ -184,9 +185,12 @@ void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint
           CONT_DIST_UNC_R * q;
     thru = fmaxf(cc->cfg.disturb_k * sqrtf(cc->dist_uvar), CONT_DIST_MIN_U) + CONT_DIST_UNC_U * q;
     if (cc->dist_flag != 0u) {
-        /* hysteresis: a flag ends below a fraction of the thresholds (the transient's fall) */
+        /* hysteresis: a flag ends below a fraction of the residual's threshold (the
+         * transient's fall); not the vertical channel's: its baseline, held under the flag, lags
+         * a hill's pitch, and with it a flag outlived the transient to the 6-s restart
+         * (tests/test_cont_drive.c, straight over hills: 232 of 4000 clean rows flagged) */
         thr *= CONT_DIST_HYST;
-        thru *= CONT_DIST_HYST;
+        thru *= CONT_DIST_HYST_U;
     }
     over = !(fabsf(d) <= thr) || !(fabsf(du) <= thru);
     if (over != 0) {
