@@ -183,9 +183,10 @@ typedef struct {
     uint32_t change_ms;             /**< mismatch time of an open episode to declare a change (8000) */
     uint16_t change_bins;           /**< distinct 10-degree sectors an episode must span (default 3) */
     uint32_t clear_ms;              /**< consistent time that closes an episode (default 4000) */
-    uint32_t disturb_tau_ms;        /**< transient judge: time constant of the smoothed residual (150) */
+    uint32_t disturb_tau_ms;        /**< transient judge: time constant of the smoothed residual (100) */
     uint32_t disturb_hold_ms;       /**< transient judge: flag held after the residual returns (200) */
-    float disturb_k;                /**< transient judge: flag at |smoothed - baseline| > k sigma (4) */
+    float disturb_k;                /**< transient judge: flag at |smoothed - baseline| (less what the heading's
+                                         move explains) > k x its RMS on clean samples (4) */
     uint32_t step_budget;           /**< work per step(), estimated Cortex-M4F instructions, >= 1
                                          (default MAGCAL_SLICE_BUDGET_DEFAULT = 7500; UINT32_MAX:
                                          a whole solve per step): "Work per step" above */

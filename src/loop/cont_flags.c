@@ -1,12 +1,19 @@
 /*
  * Continuous calibrator, the transient judge (trust DISTURBED; docs/calibrator.md "Judge and
- * change detection"): rel smoothed over cfg.disturb_tau_ms (the noise of z, amplified by
- * 2 z / |h|, dominates one sample; 3 x faster back towards the baseline) minus a slow baseline
- * (4 s: the model's bias drifts with the hills) against cfg.disturb_k times the RMS of that
- * difference on clean samples (learnt on the stream, at least the store's sigma); the flag is
- * held cfg.disturb_hold_ms after it falls back. A flagged sample is DISTURBED and not stored, but
- * drops nothing and never adds up to a change. A flag longer than cfg.change_ms is the model's
- * own error: the baseline and the noise estimate then follow it.
+ * change detection"). Two channels, each a value smoothed over cfg.disturb_tau_ms (3 x faster
+ * back towards its baseline) minus a slow baseline (4 s: the model's bias drifts with the
+ * hills): the residual rel (the noise of z, amplified by 2 z / |h|, dominates one sample) and raw
+ * z / R (the vertical channel: a disturbance mostly along z moves rel little when the judge's
+ * model has no u terms, a store of level samples). Both deviations are reduced by what the
+ * heading's move explains (a regression on cos, sin, cos 2, sin 2 of the corrected heading,
+ * learnt on clean samples: the model's and the calibration's heading-dependent error at the
+ * current pitch, the soft-iron leak of x, y into z). The flag: either channel beyond
+ * cfg.disturb_k times its own unexplained RMS on clean samples (the residual's at least half the
+ * store's sigma and 0.004, the vertical at least 0.02 R), both widened with the heading's move;
+ * hysteresis at its end; held cfg.disturb_hold_ms after it falls back. A flagged sample is
+ * DISTURBED and not stored, but drops nothing and never adds up to a change. A flag longer than
+ * 6 s (or cfg.change_ms) is no transient (2..5 s) but the model's own error: the baselines then
+ * restart at the smoothed values and the noise estimates learn the offset.
  */
 #include "cont_judge_internal.h"
 
