@@ -41,51 +41,27 @@
 /* Packed lower index of the regression's 4 x 4 moments. */
 #define CONT_DIST_P(i, j) ((i) * ((i) + 1u) / 2u + (j))
 
-/* Coefficients of both channels from the moments: (M + ridge I) th = m (LDL^T, 4 x 4). Leaves the
- * coefficients as they were when the factor is not positive (it always is with the ridge). */
+/* Coefficients of both channels from the moments: one Gauss-Seidel sweep of (M + ridge I) th = m
+ * per informative sample (M + ridge I is positive definite, so the sweeps converge; the moments
+ * move with a 20-s time constant, so one sweep per sample tracks the solution; an exact solve per
+ * sample cost ~1,000 M4F instructions in one step). */
 static void cont_dist_solve(magcal_cont_t *cc)
 {
-    float l[10];
-    float dd[CONT_DIST_NX];
     uint32_t i;
     uint32_t k;
-    uint32_t c;
     for (i = 0u; i < CONT_DIST_NX; ++i) {
-        uint32_t j;
-        for (j = 0u; j <= i; ++j) {
-            float v = cc->dist_mx[CONT_DIST_P(i, j)] + (i == j ? CONT_DIST_RIDGE : 0.0f);
-            for (k = 0u; k < j; ++k) {
-                v -= l[CONT_DIST_P(i, k)] * l[CONT_DIST_P(j, k)] * dd[k];
-            }
-            if (i == j) {
-                if (!(v > 0.0f)) {
-                    return;
-                }
-                dd[i] = v;
-                l[CONT_DIST_P(i, i)] = 1.0f;
-            } else {
-                l[CONT_DIST_P(i, j)] = v / dd[j];
+        const float inv = 1.0f / (cc->dist_mx[CONT_DIST_P(i, i)] + CONT_DIST_RIDGE);
+        float vr = cc->dist_mr[i];
+        float vu = cc->dist_mu[i];
+        for (k = 0u; k < CONT_DIST_NX; ++k) {
+            if (k != i) {
+                const float m = k < i ? cc->dist_mx[CONT_DIST_P(i, k)] : cc->dist_mx[CONT_DIST_P(k, i)];
+                vr -= m * cc->dist_th[k];
+                vu -= m * cc->dist_th[CONT_DIST_NX + k];
             }
         }
-    }
-    for (c = 0u; c < 2u; ++c) {
-        const float *b = c == 0u ? cc->dist_mr : cc->dist_mu;
-        float y[CONT_DIST_NX];
-        for (i = 0u; i < CONT_DIST_NX; ++i) {
-            float v = b[i];
-            for (k = 0u; k < i; ++k) {
-                v -= l[CONT_DIST_P(i, k)] * y[k];
-            }
-            y[i] = v;
-        }
-        for (i = CONT_DIST_NX; i > 0u; --i) {
-            const uint32_t r = i - 1u;
-            float v = y[r] / dd[r];
-            for (k = r + 1u; k < CONT_DIST_NX; ++k) {
-                v -= l[CONT_DIST_P(k, r)] * cc->dist_th[c * CONT_DIST_NX + k];
-            }
-            cc->dist_th[c * CONT_DIST_NX + r] = v;
-        }
+        cc->dist_th[i] = vr * inv;
+        cc->dist_th[CONT_DIST_NX + i] = vu * inv;
     }
 }
 
