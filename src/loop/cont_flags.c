@@ -103,7 +103,6 @@ void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint
     float du;
     float thr;
     float x;
-    float ux;
     float q;
     float thru;
     uint32_t i;
@@ -139,7 +138,7 @@ void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint
                               ? (float)cc->cfg.disturb_tau_ms / 3.0f
                               : (float)cc->cfg.disturb_tau_ms;
         const float a = (float)dt / (tau + (float)dt);
-        ux = cc->dist_ub + fminf(fmaxf(j->u - cc->dist_ub, -CONT_DIST_CLAMP_U), CONT_DIST_CLAMP_U);
+        const float ux = cc->dist_ub + fminf(fmaxf(j->u - cc->dist_ub, -CONT_DIST_CLAMP_U), CONT_DIST_CLAMP_U);
         cc->dist_e += a * (x - cc->dist_e);
         cc->dist_ue += a * (ux - cc->dist_ue);
         for (i = 0u; i < CONT_DIST_NX; ++i) {
@@ -168,14 +167,14 @@ void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint
           CONT_DIST_UNC_R * q;
     thru = fmaxf(cc->cfg.disturb_k * sqrtf(cc->dist_uvar), CONT_DIST_MIN_U) + CONT_DIST_UNC_U * q;
     if (cc->dist_flag != 0u) {
-        /* hysteresis: a flag ends below a fraction of the residual's threshold (the
-         * transient's fall); not the vertical channel's: its baseline, held under the flag, lags
-         * a hill's pitch, and with it a flag outlived the transient to the 6-s restart
+        /* hysteresis: a flag ends below a fraction of the thresholds (the transient's fall);
+         * a milder one for the vertical channel: its baseline, held under the flag, lags a
+         * hill's pitch, and at 0.5 a flag outlived a z transient to the 6-s restart
          * (tests/test_cont_drive.c, straight over hills: 232 of 4000 clean rows flagged) */
         thr *= CONT_DIST_HYST;
         thru *= CONT_DIST_HYST_U;
     }
-    over = !(fabsf(d) <= thr) || !(fabsf(du) <= thru);
+    over = (!(fabsf(d) <= thr) || !(fabsf(du) <= thru)) ? 1 : 0;
     if (over != 0) {
         /* flagged: the baseline holds for cfg.change_ms (a transient is shorter), then follows
          * (below), so a lasting offset below the per-sample threshold is absorbed instead of
