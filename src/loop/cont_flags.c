@@ -106,7 +106,7 @@ void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint
     float q;
     float thru;
     uint32_t i;
-    int over;
+    uint8_t over;
     if (!magcal_isfinite_f(rel) || !(fabsf(rel) <= CONT_DIST_GROSS) || !magcal_isfinite_f(j->u)) {
         return; /* a glitch: flagged by the per-sample judge, the smoothed state keeps its value */
     }
@@ -174,8 +174,8 @@ void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint
         thr *= CONT_DIST_HYST;
         thru *= CONT_DIST_HYST_U;
     }
-    over = (!(fabsf(d) <= thr) || !(fabsf(du) <= thru)) ? 1 : 0;
-    if (over != 0) {
+    over = (uint8_t)((!(fabsf(d) <= thr) || !(fabsf(du) <= thru)) ? 1u : 0u);
+    if (over != 0u) {
         /* flagged: the baseline holds for cfg.change_ms (a transient is shorter), then follows
          * (below), so a lasting offset below the per-sample threshold is absorbed instead of
          * blocking the store for ever */
