@@ -209,9 +209,10 @@ typedef struct {
     uint32_t change_ms;             /**< mismatch time of an open episode to declare a change (8000) */
     uint16_t change_bins;           /**< distinct 10-degree sectors an episode must span (default 3) */
     uint32_t clear_ms;              /**< consistent time that closes an episode (default 4000) */
-    uint32_t disturb_tau_ms;        /**< transient judge: time constant of the smoothed residual (150) */
+    uint32_t disturb_tau_ms;        /**< transient judge: time constant of the smoothed residual (100) */
     uint32_t disturb_hold_ms;       /**< transient judge: flag held after the residual returns (200) */
-    float disturb_k;                /**< transient judge: flag at |smoothed - baseline| > k sigma (4) */
+    float disturb_k;                /**< transient judge: flag at |smoothed - baseline| (less what the heading's
+                                         move explains) > k x its RMS on clean samples (4) */
     uint32_t step_budget;           /**< work per step(), estimated Cortex-M4F instructions, >= 1
                                          (default MAGCAL_SLICE_BUDGET_DEFAULT = 7500; UINT32_MAX:
                                          a whole solve per step): "Work per step" above */
@@ -235,7 +236,7 @@ typedef struct {
 #define MAGCAL_CONT_CFG_DEFAULT                                                                    \
     {                                                                                              \
         MAGCAL_INTAKE_CFG_DEFAULT_2D, MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT, 280.0f, 24u, 2u,        \
-            600000.0f, 4.0f, 0.06f, 8000u, 3u, 4000u, 150u, 200u, 4.0f,                            \
+            600000.0f, 4.0f, 0.06f, 8000u, 3u, 4000u, 100u, 200u, 4.0f,                            \
             MAGCAL_SLICE_BUDGET_DEFAULT, 0.0f, 15.0f, 8.0f                                         \
     }
 
@@ -388,6 +389,17 @@ typedef struct {
                                       the stream it judges then agree) */
     volatile uint32_t tc_levelled; /* samples levelled (pushed as LEVEL after the compensation) */
     magcal_vec3_t tc_m;            /* the levelled sample being queued (here, not on push's stack) */
+    /* the transient judge's bias regression (cont_flags.c): the stream's heading-dependent bias
+     * of the residual and of raw z, learnt on clean samples */
+    float dist_ue;                 /* smoothed raw z / R (the vertical channel) */
+    float dist_ub;                 /* its baseline */
+    float dist_uvar;               /* variance of the vertical channel's unexplained part, clean samples */
+    float dist_fe[4];              /* smoothed regressors: cos, sin, cos 2, sin 2 of the corrected heading */
+    float dist_fb[4];              /* their baselines */
+    float dist_mx[10];             /* moments of the regressors' deviations (packed lower) */
+    float dist_mr[4];              /* their moments with the residual's deviation */
+    float dist_mu[4];              /* their moments with the vertical channel's deviation */
+    float dist_th[8];              /* coefficients: residual 0..3, vertical 4..7 */
 } magcal_cont_t;
 
 /**

@@ -50,7 +50,7 @@ int magcal_cont_episode(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint32_
     if (cc->solve_ms_acc <= UINT32_MAX - dt) {
         cc->solve_ms_acc += dt;
     }
-    magcal_cont_transient(cc, j->rel / sqrtf(1.0f + j->unc), dt);
+    magcal_cont_transient(cc, j, dt);
     if (cc->fz_on != 0u && j->gross == 0u && cc->dist_flag == 0u && cc->episode_open == 0u) {
         /* the model's health: the share of clean-looking samples over its per-sample threshold.
          * A model fitted on a poor calibration (or with the u terms of an earlier one) reads the

@@ -18,6 +18,7 @@
 #define CONT_CHANGE_X 2.0f        /* a change counts samples beyond this x the per-sample threshold */
 #define CONT_CHANGE_UNC 3.0f      /* the change threshold widens by at most sqrt(1 + this) */
 #define CONT_U_SD_K 3.0f          /* z within this x the store's spread of u ... */
+#define CONT_EPISODE_ON_MS 1000u  /* mismatch time of an episode that turns the per-sample test back on */
 #define CONT_U_PITCH 0.25f        /* ... plus this x R (a 6 deg hill moves z by ~0.11 R, 8.5 deg by 0.15 R) */
 
 /* Prediction variance of the model at a sample over its noise variance: |L^-1 f|^2 with f the
@@ -69,8 +70,23 @@ int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_co
     j->mismatch = 0u;
     j->gross = 0u;
     j->over = 0u;
+    j->u = NAN;
+    j->cs[0] = 1.0f;
+    j->cs[1] = 0.0f;
     if (cont_corrected(cc, m, &h) == 0) {
         return 0;
+    }
+    {
+        /* the transient judge's inputs: raw z in radii, the heading's unit vector (heading.c:
+         * atan2(-x, y)) */
+        const float nh = sqrtf(h.x * h.x + h.y * h.y);
+        if (nh > 0.0f) {
+            j->cs[0] = h.y / nh;
+            j->cs[1] = -h.x / nh;
+        }
+        if (cc->cal_raw_radius > 0.0f) {
+            j->u = m->z / cc->cal_raw_radius;
+        }
     }
     if (cc->fz_on != 0u) {
         float v[3];
@@ -102,8 +118,13 @@ int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_co
     }
     /* the transient judge's flag (state of the stream up to the last drained sample) counts too */
     j->over = (uint8_t)(!(fabsf(j->rel) <= thr) ? 1u : 0u);
-    /* an open episode (evidence of a change) keeps the per-sample test on whatever its health */
-    j->mismatch = (uint8_t)((j->gross != 0u || (j->over != 0u && (cc->fz_unfit == 0u || cc->episode_open != 0u)) ||
+    /* an open episode with more mismatch than a glitch burst (evidence of a change) keeps the
+     * per-sample test on whatever its health: a burst of 5..40 rail or garbage rows alone opened
+     * it and flagged the clean rows of a poorly fitted model for the clear_ms after (seeds 1, 3:
+     * 100..400 rows per burst) */
+    j->mismatch = (uint8_t)((j->gross != 0u ||
+                             (j->over != 0u && (cc->fz_unfit == 0u ||
+                                                (cc->episode_open != 0u && cc->mis_ms >= CONT_EPISODE_ON_MS))) ||
                              cc->dist_flag != 0u)
                                 ? 1u
                                 : 0u);

@@ -68,8 +68,8 @@ static inline float magcal_cont_fz_rel(const magcal_cont_t *cc, const magcal_vec
     return sqrtf(fmaxf(tt, 0.0f) / cc->fz_abc[0]) - 1.0f;
 }
 
-/* Transient judge (cont_flags.c): one drained sample's rel (widened by its uncertainty) after dt
- * ms; sets cc->dist_flag. */
-void magcal_cont_transient(magcal_cont_t *cc, float rel, uint32_t dt);
+/* Transient judge (cont_flags.c): one judged sample (its rel widened by its uncertainty, its raw
+ * z and heading) after dt ms; sets cc->dist_flag. */
+void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint32_t dt);
 
 #endif /* MAGCAL_CONT_JUDGE_INTERNAL_H */
