@@ -13,9 +13,13 @@
  * may fit the hard-iron circle on an arc (calibrator.h "Coarse stage") and a solve starts at
  * cfg.coarse_coverage_deg; once any calibration is installed, never again (a coarse one is
  * replaced by a full ellipse with margin 1, calibrator_judge.c magcal_ph_harm_c).
+ * A store of two installations (the solver's consistency gate, MAGCAL_ERR_INCONSISTENT): a cut at
+ * the middle of the solved samples' age span, applied by the next snapshot (cont_step.c), which
+ * starts at once (docs/calibrator.md "Consistency gate").
  */
 #include <math.h>
 
+#include "../intake/intake_internal.h"
 #include "cont_internal.h"
 #include "magcal_internal.h"
 
@@ -109,6 +113,19 @@ magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_
         cc->age_ms_acc = 0u;
         cc->state = (uint8_t)MAGCAL_CONT_COLLECTING;
         return MAGCAL_CONT_ADOPTED;
+    }
+    if (st == MAGCAL_ERR_INCONSISTENT && cc->snap_age_hi > cc->snap_age_lo) {
+        /* the store holds two installations (calibrator.h cfg.max_inconsistent_frac): the older
+         * one is the past, so the next snapshot drops the older half of the solved samples' age
+         * span (a store that spans a change at some time: the cut lands after its older part's
+         * youngest samples or the next INCONSISTENT solve cuts again, each time halving the span)
+         * and collection goes on; the calibration in force is untouched */
+        const uint32_t mid = cc->snap_age_lo + (cc->snap_age_hi - cc->snap_age_lo) / 2u;
+        cc->drop_seq = (cc->snap_seq - mid) & INTAKE_SEQ_MASK;
+        cc->drop_changes = cc->changes;
+        cc->drop_c = r->ellipse.center;
+        cc->drop_r = magcal_isfinite_f(r->radius) && r->radius > 0.0f ? r->radius : 0.0f;
+        cc->drop_on = 1u;
     }
     if (st == MAGCAL_ERR_NOT_BETTER) {
         /* fresh data confirm the installed calibration: a declared change is refuted */
