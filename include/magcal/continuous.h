@@ -311,16 +311,14 @@ typedef struct {
     uint32_t snap_bin;             /* snapshot: next store bin to copy */
     uint32_t snap_n;               /* snapshot: samples copied */
     uint32_t snap_stored;          /* store added + replaced at the snapshot */
-    uint32_t snap_seq;             /* store push counter at the snapshot */
-    uint32_t snap_age_lo;          /* snapshot: youngest and oldest sample copied, in pushes */
-    uint32_t snap_age_hi;
-    uint32_t drop_seq;             /* INCONSISTENT solve: the next snapshot drops samples older
-                                      than this push count (cont_adopt.c) */
-    uint32_t drop_changes;         /* changes declared when drop_seq was set (a change resets the
+    uint32_t drop_age;             /* cut: the oldest stored sample's age, in pushes (cont_step.c) */
+    uint32_t drop_seq;             /* cut: samples older than this push count are dropped */
+    uint32_t drop_changes;         /* changes declared when the cut was set (a change resets the
                                       store and its push counter: the cut is then void) */
     magcal_vec2_t drop_c;          /* the INCONSISTENT solve's ring (centre, radius): samples */
     float drop_r;                  /* off it by more than half the radius are dropped too */
-    uint8_t drop_on;               /* 1: drop_seq is pending */
+    uint8_t drop_on;               /* cut of an INCONSISTENT solve (cont_adopt.c): 0 none, 1 pending
+                                      (the next snapshot scans the ages), 2 set (it drops) */
     uint32_t worth_seen;           /* store added + replaced at the last coverage count (cont_step.c) */
     uint8_t worth_checked;         /* 1: worth_seen is valid */
     /* field-model fit at an adoption, time-sliced (cont_fzfit.c; the drain pauses meanwhile) */

@@ -14,12 +14,11 @@
  * cfg.coarse_coverage_deg; once any calibration is installed, never again (a coarse one is
  * replaced by a full ellipse with margin 1, calibrator_judge.c magcal_ph_harm_c).
  * A store of two installations (the solver's consistency gate, MAGCAL_ERR_INCONSISTENT): a cut at
- * the middle of the solved samples' age span, applied by the next snapshot (cont_step.c), which
- * starts at once (docs/calibrator.md "Consistency gate").
+ * half the oldest stored sample's age, applied by the next snapshot (cont_step.c), which starts at
+ * once (docs/calibrator.md "Consistency gate").
  */
 #include <math.h>
 
-#include "../intake/intake_internal.h"
 #include "cont_internal.h"
 #include "magcal_internal.h"
 
@@ -114,14 +113,13 @@ magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_
         cc->state = (uint8_t)MAGCAL_CONT_COLLECTING;
         return MAGCAL_CONT_ADOPTED;
     }
-    if (st == MAGCAL_ERR_INCONSISTENT && cc->snap_age_hi > cc->snap_age_lo) {
+    if (st == MAGCAL_ERR_INCONSISTENT) {
         /* the store holds two installations (calibrator.h cfg.max_inconsistent_frac): the older
-         * one is the past, so the next snapshot drops the older half of the solved samples' age
-         * span (a store that spans a change at some time: the cut lands after its older part's
-         * youngest samples or the next INCONSISTENT solve cuts again, each time halving the span)
-         * and collection goes on; the calibration in force is untouched */
-        const uint32_t mid = cc->snap_age_lo + (cc->snap_age_hi - cc->snap_age_lo) / 2u;
-        cc->drop_seq = (cc->snap_seq - mid) & INTAKE_SEQ_MASK;
+         * one is the past, so the next snapshot (started at once) cuts at half the oldest stored
+         * sample's age and drops what is older, and what lies off the refused fit's ring (a store
+         * that spans a change: the cut lands after the older part's youngest samples, or the next
+         * INCONSISTENT solve cuts again, each cut dropping at least the oldest sample); the
+         * calibration in force is untouched */
         cc->drop_changes = cc->changes;
         cc->drop_c = r->ellipse.center;
         cc->drop_r = magcal_isfinite_f(r->radius) && r->radius > 0.0f ? r->radius : 0.0f;

@@ -34,7 +34,8 @@ MAGCAL_STATIC_ASSERT(sizeof(float) == sizeof(uint32_t), cont_park_stamp_bits); /
 #define CONT_SOLVE_CAP 4u  /* the solver's share of a step: at most CAP / DIV of the budget */
 #define CONT_SOLVE_DIV 5u
 #define CONT_W_SNAP 21u    /* one sample of the snapshot (was 14: measured 1.42x) */
-#define CONT_W_CUT 90u     /* one sample's test of a pending cut (distance, sqrtf; estimate, as CAL_W_CO_RES) */
+#define CONT_W_CUT 90u     /* one sample's test of a cut (distance, sqrtf; estimate, as CAL_W_CO_RES) */
+#define CONT_W_AGE 12u     /* one sample of a cut's age scan (estimate) */
 #define CONT_W_BIN 30u     /* one bin of the snapshot (was 20) */
 #define CONT_W_SNAP_END 400u /* the snapshot's end: the solver's begin (small parts measured up to 2.7x before) */
 #define CONT_W_PARK 30u    /* one ring sample parked during the field-model fit */
@@ -394,9 +395,9 @@ static MAGCAL_NOINLINE int cont_count_part(magcal_cont_t *cc, magcal_cal_budget_
     return p.centre_source != MAGCAL_INTAKE_CENTRE_NONE && p.rebinning == 0u && p.coverage_deg >= magcal_cont_solve_cov(cc);
 }
 
-/* A pending cut (an INCONSISTENT solve, cont_adopt.c) keeps a sample when it is not older than
- * the cut and lies on the solve's ring within half its radius (the rest is neither installation:
- * a stored glitch burst would otherwise outweigh what is left of the store). */
+/* A cut (an INCONSISTENT solve, cont_adopt.c) keeps a sample when it is not older than the cut
+ * and lies on the solve's ring within half its radius (the rest is neither installation: a stored
+ * glitch burst would otherwise outweigh what is left of the store). */
 static int cont_cut_keeps(const magcal_cont_t *cc, const magcal_intake_slot_t *sl)
 {
     const float dx = sl->m.x - cc->drop_c.x;
@@ -408,10 +409,9 @@ static int cont_cut_keeps(const magcal_cont_t *cc, const magcal_intake_slot_t *s
                : 0;
 }
 
-/* One bin of the snapshot: its samples into the solver buffer (their age range kept for a cut),
- * and, while a cut is pending, the samples it drops removed from the store (the bin compacted in
- * place: the store is frozen meanwhile). */
-static void cont_snap_bin(magcal_cont_t *cc, uint32_t bin)
+/* One bin of a cutting snapshot: the samples the cut drops removed from the store (the bin
+ * compacted in place: the store is frozen meanwhile), the rest copied into the solver buffer. */
+static void cont_cut_bin(magcal_cont_t *cc, uint32_t bin)
 {
     magcal_intake_t *st = &cc->store;
     const uint32_t base = bin * st->cfg.per_bin;
@@ -420,16 +420,13 @@ static void cont_snap_bin(magcal_cont_t *cc, uint32_t bin)
     uint32_t k;
     for (k = 0u; k < cnt; ++k) {
         const magcal_intake_slot_t sl = st->slots[base + k];
-        if (cc->drop_on == 0u || cont_cut_keeps(cc, &sl) != 0) {
-            const uint32_t age = (cc->snap_seq - sl.seq) & INTAKE_SEQ_MASK;
+        if (cont_cut_keeps(cc, &sl) != 0) {
             st->slots[base + keep] = sl;
             keep++;
             if (cc->snap_n < cc->slots) {
                 cc->buf[cc->snap_n].x = sl.m.x;
                 cc->buf[cc->snap_n].y = sl.m.y;
                 cc->snap_n++;
-                cc->snap_age_lo = age < cc->snap_age_lo ? age : cc->snap_age_lo;
-                cc->snap_age_hi = age > cc->snap_age_hi ? age : cc->snap_age_hi;
             }
         }
     }
@@ -437,23 +434,64 @@ static void cont_snap_bin(magcal_cont_t *cc, uint32_t bin)
     st->ctr.stored -= cnt - keep;
 }
 
+/* The age scan of a pending cut (drop_on 1), within the step's budget: the oldest stored sample's
+ * age, then the cut at half of it (drop_on 2); the copy then starts at bin 0 in the next step. */
+static void cont_cut_scan(magcal_cont_t *cc, magcal_cal_budget_t *b)
+{
+    const magcal_intake_t *st = &cc->store;
+    const uint32_t per = st->cfg.per_bin;
+    if (cc->snap_bin == 0u) {
+        cc->drop_age = 0u;
+    }
+    while (cc->snap_bin < st->n_bins) {
+        const uint32_t base = cc->snap_bin * per;
+        const uint32_t cnt = st->count[cc->snap_bin];
+        uint32_t k;
+        for (k = 0u; k < cnt; ++k) {
+            const uint32_t age = (st->seq - st->slots[base + k].seq) & INTAKE_SEQ_MASK;
+            cc->drop_age = age > cc->drop_age ? age : cc->drop_age;
+        }
+        cc->snap_bin++;
+        if (magcal_cal_spend(b, CONT_W_BIN + cnt * CONT_W_AGE) != 0) {
+            return;
+        }
+    }
+    cc->drop_seq = (st->seq - cc->drop_age / 2u) & INTAKE_SEQ_MASK;
+    cc->drop_on = 2u;
+    cc->snap_bin = 0u;
+}
+
 /* Copy bins of the store, in bin order (as magcal_intake_snapshot2), into the solver buffer;
- * then load the solver. 1 when the solve is loaded. */
+ * then load the solver. 1 when the solve is loaded. A pending cut (an INCONSISTENT solve) first
+ * scans the store's ages, then drops what the cut drops while copying. */
 static int cont_snapshot(magcal_cont_t *cc, magcal_cal_budget_t *b)
 {
     const magcal_intake_t *st = &cc->store;
-    if (cc->snap_bin == 0u) {
-        /* a change since the cut reset the store (and its push counter): the cut is void */
-        cc->drop_on = (uint8_t)(cc->drop_on != 0u && cc->drop_changes == cc->changes ? 1u : 0u);
-        cc->snap_seq = st->seq & INTAKE_SEQ_MASK;
-        cc->snap_age_lo = INTAKE_SEQ_MASK;
-        cc->snap_age_hi = 0u;
+    const uint32_t per = st->cfg.per_bin;
+    if (cc->drop_on == 1u && cc->snap_bin == 0u && cc->drop_changes != cc->changes) {
+        cc->drop_on = 0u; /* a change reset the store (and its push counter) since: void */
+    }
+    if (cc->drop_on == 1u) {
+        cont_cut_scan(cc, b);
+        return 0;
     }
     while (cc->snap_bin < st->n_bins) {
+        const uint32_t base = cc->snap_bin * per;
         const uint32_t cnt = st->count[cc->snap_bin];
-        cont_snap_bin(cc, cc->snap_bin);
+        uint32_t w = CONT_W_SNAP;
+        if (cc->drop_on != 0u) {
+            cont_cut_bin(cc, cc->snap_bin);
+            w = CONT_W_SNAP + CONT_W_CUT;
+        } else {
+            uint32_t k;
+            for (k = 0u; k < cnt && cc->snap_n < cc->slots; ++k) {
+                cc->buf[cc->snap_n].x = st->slots[base + k].m.x;
+                cc->buf[cc->snap_n].y = st->slots[base + k].m.y;
+                cc->snap_n++;
+            }
+        }
         cc->snap_bin++;
-        if (magcal_cal_spend(b, CONT_W_BIN + cnt * (cc->drop_on != 0u ? CONT_W_SNAP + CONT_W_CUT : CONT_W_SNAP)) != 0) {
+        if (magcal_cal_spend(b, CONT_W_BIN + cnt * w) != 0) {
             return 0;
         }
     }
