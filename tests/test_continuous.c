@@ -1015,6 +1015,46 @@ static void test_cont_push_g_tilt_compensation_levels_the_store(void)
     TEST_ASSERT_TRUE(rms_g <= 0.5 * rms_n);
 }
 
+/* A hard-iron step before any calibration (issue 13, the 30-min drive seed 1 case): the first
+ * installation is seen over 250 deg (below the solve's coverage), the centre then moves by
+ * (12, -7) (46 % of the radius) and the vehicle turns back over the same headings and 60 deg
+ * beyond, so the store holds both. Every calibration adopted after the step is accurate on the
+ * current installation (< 1 deg RMS on the truth: the store's bins replace their oldest samples
+ * as headings are revisited, and the solver's consistency gate refuses a store where the two
+ * rings still compete: INCONSISTENT, the loop then drops the older half and solves again), and
+ * one is adopted within 720 deg of turning after the step. */
+void test_cont_store_of_two_installations_adopts_current(void)
+{
+    drive_t dr;
+    unsigned i;
+    double turn_at_step;
+    cont_init_default(NULL);
+    drive_init(&dr, &k_d, 21u);
+    for (i = 0u; i < 5u * 50u; ++i) { /* 5 s straight */
+        (void)drive_row(&dr, 0.0f, 0.0f);
+    }
+    drive_turn(&dr, 250.0, 15.0);
+    for (i = 0u; i < 20u * 50u; ++i) {
+        (void)drive_row(&dr, 0.0f, 0.0f);
+    }
+    TEST_ASSERT_EQUAL_UINT(0u, dr.adopted);
+    dr.d = &k_d_step; /* the magnet: the hard iron moves */
+    turn_at_step = dr.turn_deg;
+    for (i = 0u; i < 20u * 50u; ++i) {
+        (void)drive_row(&dr, 0.0f, 0.0f);
+    }
+    for (i = 0u; i < 310u + 720u && dr.adopted == 0u; ++i) { /* back over the same headings, on */
+        drive_turn(&dr, -1.0, 15.0);
+    }
+    TEST_ASSERT_TRUE(dr.adopted >= 1u);
+    printf("two installations in the store: first adoption %.0f deg of turning after the step, %u solves, "
+           "truth RMS %.3f deg (the first installation's truth: %.2f deg)\n",
+           dr.turn_at_first - turn_at_step, (unsigned)g_cc.solves, truth_rms(&g_cc.cal, &k_d_step),
+           truth_rms(&g_cc.cal, &k_d));
+    TEST_ASSERT_TRUE(truth_rms(&g_cc.cal, &k_d_step) < 1.0);
+    TEST_ASSERT_TRUE(dr.turn_at_first - turn_at_step <= 720.0);
+}
+
 int main(void)
 {
 #if defined(__arm__)
@@ -1035,6 +1075,7 @@ int main(void)
     RUN_TEST(test_cont_coarse_bound_covers_truth_on_arcs);
     RUN_TEST(test_cont_coarse_refused_when_soft_iron_exceeds_tolerance);
     RUN_TEST(test_cont_coarse_upgraded_by_full_ellipse);
+    RUN_TEST(test_cont_store_of_two_installations_adopts_current);
 #ifdef CONT_TEST_THREADS
     RUN_TEST(test_cont_isr_push_interleaved_with_task);
 #endif

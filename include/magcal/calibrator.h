@@ -23,8 +23,10 @@
  *  4. consensus (consensus.h): RANSAC/LMedS minimal ellipse sets, MAD-scaled residual threshold,
  *     refit; every sample is judged by its residual (cfg.use_consensus = 0: a plain
  *     least-squares fit of the filter inliers);
- *  5. gates, each with its own status: too many outliers, not an ellipse (hyperbola, parabola,
- *     imaginary), radius range, axis ratio, residual, coverage (around the fitted centre);
+ *  5. gates, each with its own status: consistency (cfg.max_inconsistent_frac: INCONSISTENT when
+ *     the residual stage rejects too large a share of the plausible samples, a store holding two
+ *     installations), too many outliers, not an ellipse (hyperbola, parabola, imaginary), radius
+ *     range, axis ratio, residual, coverage (around the fitted centre);
  *  6. correction (magcal_ellipse_to_cal), the heading-error estimate and the observability gate
  *     (UNOBSERVABLE, below), then the adoption rule (below).
  *
@@ -275,23 +277,35 @@ typedef struct {
                                   bursts and glitches are common: the pre-test would be paid on
                                   top); 1 in MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT (the continuous
                                   calibrator's informative store) */
+    float max_inconsistent_frac; /**< consistency gate (Pipeline step 5): more than this fraction
+                                      of the plausible samples (the density filter's inliers)
+                                      rejected by the residual stage gives INCONSISTENT: the data
+                                      hold more than one installation (a store that spans a change
+                                      of the hard iron; the fit is then a compromise between two
+                                      rings). 0..1, 0 = off (MAGCAL_CALIBRATOR_CFG_DEFAULT); 0.35 in
+                                      MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT (clean drives' stores:
+                                      at most 0.29, stores spanning a hard-iron step: 0.39, 0.43;
+                                      docs/calibrator.md "Consistency gate") */
 } magcal_calibrator_cfg_t;
 
-/** The defaults with cfg.pretest = pre (private: use the two defaults below). */
-#define MAGCAL_CALIBRATOR_CFG_DEFAULT_PRE_(pre)                                                    \
+/** The defaults with cfg.pretest = pre and cfg.max_inconsistent_frac = inc (private: use the two
+ *  defaults below). */
+#define MAGCAL_CALIBRATOR_CFG_DEFAULT_PRE_(pre, inc)                                               \
     {                                                                                              \
         MAGCAL_FILTER_OPTICS_GRID, 0.0f, 0u, 1u, MAGCAL_CONSENSUS_CFG_DEFAULT, 0.0f, 0u, 20u,      \
             270.0f, 0.5f, 0.5f, 0.0f, 0.0f, 0.1f, 0.2f, MAGCAL_CORR_SYMMETRIC, 0.0f, 0.6f, 8.0f,   \
-            (pre)                                                                                  \
+            (pre), (inc)                                                                           \
     }
 
 /** Defaults that work without tuning (automatic filter parameters, accept every sample; the full
- *  pipeline on every run: no pre-test). */
-#define MAGCAL_CALIBRATOR_CFG_DEFAULT MAGCAL_CALIBRATOR_CFG_DEFAULT_PRE_(0u)
+ *  pipeline on every run: no pre-test; no consistency gate: a raw buffer's glitch bursts can make
+ *  a large share of residual rejects). */
+#define MAGCAL_CALIBRATOR_CFG_DEFAULT MAGCAL_CALIBRATOR_CFG_DEFAULT_PRE_(0u, 0.0f)
 
 /** The defaults for a store that holds informative ring samples only (the continuous
- *  calibrator's, continuous.h): the pre-test on, so a clean store skips the density stage. */
-#define MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT MAGCAL_CALIBRATOR_CFG_DEFAULT_PRE_(1u)
+ *  calibrator's, continuous.h): the pre-test on, so a clean store skips the density stage; the
+ *  consistency gate on (a store can span a change of the installation). */
+#define MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT MAGCAL_CALIBRATOR_CFG_DEFAULT_PRE_(1u, 0.35f)
 
 /** Pre-test (cfg.pretest): the short path needs the consensus on every sample to reject at most
  *  n / this many samples (6.25 %; a clean drive's store: 0..5 %, a glitch or burst scenario more). */
@@ -478,7 +492,8 @@ magcal_status_t magcal_calibrator_poll_n(magcal_calibrator_t *cal, uint8_t senso
  *         about 1e-20: float32 distances lose their precision);
  *         MAGCAL_ERR_ALL_NOISE (the density filter found no cluster);
  *         MAGCAL_ERR_COVERAGE (arc below cfg.min_coverage_deg; see report->missing_*);
- *         MAGCAL_ERR_TOO_MANY_OUTLIERS; MAGCAL_ERR_HYPERBOLA; MAGCAL_ERR_PARABOLA;
+ *         MAGCAL_ERR_INCONSISTENT (cfg.max_inconsistent_frac: the samples hold more than one
+ *         installation); MAGCAL_ERR_TOO_MANY_OUTLIERS; MAGCAL_ERR_HYPERBOLA; MAGCAL_ERR_PARABOLA;
  *         MAGCAL_ERR_IMAGINARY; MAGCAL_ERR_ILL_CONDITIONED; MAGCAL_ERR_RADIUS_RANGE;
  *         MAGCAL_ERR_AXIS_RATIO; MAGCAL_ERR_RESIDUAL; MAGCAL_ERR_UNOBSERVABLE (the observability
  *         gate: clumped headings or a coarse lattice leave the calibration error above

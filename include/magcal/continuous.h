@@ -27,6 +27,11 @@
  *                          calibration has aged: the same data are judged with a lower margin);
  *  SOLVING -> COLLECTING   when the solve ends (adopted, refused or failed: collection never
  *                          stops; pushes continue during the solve);
+ *  SOLVING -> SOLVING      when the solve found the store INCONSISTENT (two installations: the
+ *                          solver's consistency gate, calibrator.h cfg.max_inconsistent_frac):
+ *                          the next solve starts at once on the store without its older half
+ *                          (docs/calibrator.md "Consistency gate"; the calibration in force and
+ *                          the state are untouched);
  *  any -> RELEARNING       when a change is declared (old samples dropped);
  *  (a solve starts at cfg.coarse_coverage_deg instead while no full calibration is installed)
  *  RELEARNING -> SOLVING   as COLLECTING; a solve that adopts, or that confirms the installed
@@ -45,7 +50,8 @@
  *    of a sweep (its fits, 5500) only as the sweep part's first and only step;
  *  - coverage count (whether a solve is worth it, O(slots)): resumable over bins within what
  *    the drain left, over a few steps (the drain keeps running meanwhile);
- *  - snapshot: the store copied into the solver buffer (whole bins, ~21 per sample); its first
+ *  - snapshot: the store copied into the solver buffer (whole bins, ~21 per sample; +90 per
+ *    sample while the cut of an INCONSISTENT solve is applied); its first
  *    step drains before it copies, then the drain pauses until it is complete so the solver sees
  *    one consistent store;
  *  - solve: the rest of the budget, at most 4/5 of it (its phase weights are estimates), at least
@@ -338,6 +344,14 @@ typedef struct {
     uint32_t snap_bin;             /* snapshot: next store bin to copy */
     uint32_t snap_n;               /* snapshot: samples copied */
     uint32_t snap_stored;          /* store added + replaced at the snapshot */
+    uint32_t drop_age;             /* cut: the oldest stored sample's age, in pushes (cont_step.c) */
+    uint32_t drop_seq;             /* cut: samples older than this push count are dropped */
+    uint32_t drop_changes;         /* changes declared when the cut was set (a change resets the
+                                      store and its push counter: the cut is then void) */
+    magcal_vec2_t drop_c;          /* the INCONSISTENT solve's ring (centre, radius): samples */
+    float drop_r;                  /* off it by more than half the radius are dropped too */
+    uint8_t drop_on;               /* cut of an INCONSISTENT solve (cont_adopt.c): 0 none, 1 pending
+                                      (the next snapshot scans the ages), 2 set (it drops) */
     uint32_t worth_seen;           /* store added + replaced at the last coverage count (cont_step.c) */
     uint8_t worth_checked;         /* 1: worth_seen is valid */
     /* field-model fit at an adoption, time-sliced (cont_fzfit.c; the drain pauses meanwhile) */

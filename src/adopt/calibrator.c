@@ -102,7 +102,7 @@ static magcal_status_t cal_check_cfg(const magcal_calibrator_cfg_t *c)
         !cal_finite_cfg_f(c->max_radius_change) || !cal_finite_cfg_f(c->output_radius) ||
         !cal_finite_cfg_f(c->max_param_err_ratio) || !cal_finite_cfg_f(c->max_design_factor) ||
         !cal_finite_cfg_f(c->consensus.k_sigma) || !cal_finite_cfg_f(c->consensus.min_thr_rel) ||
-        !cal_finite_cfg_f(c->consensus.max_thr_rel)) {
+        !cal_finite_cfg_f(c->consensus.max_thr_rel) || !cal_finite_cfg_f(c->max_inconsistent_frac)) {
         return MAGCAL_ERR_NONFINITE;
     }
     if ((unsigned)c->filter > (unsigned)MAGCAL_FILTER_NONE) { /* also catches negative values */
@@ -126,7 +126,8 @@ static magcal_status_t cal_check_cfg(const magcal_calibrator_cfg_t *c)
         c->min_radius < 0.0f || c->max_radius < 0.0f ||
         (c->max_radius > 0.0f && c->min_radius > c->max_radius) || !(c->max_residual_rel > 0.0f) ||
         c->max_radius_change < 0.0f || !(c->max_param_err_ratio > 0.0f) ||
-        !(c->max_design_factor >= 1.0f)) {
+        !(c->max_design_factor >= 1.0f) || c->max_inconsistent_frac < 0.0f ||
+        c->max_inconsistent_frac > 1.0f) {
         return MAGCAL_ERR_ARG;
     }
     if ((unsigned)c->form > (unsigned)MAGCAL_CORR_LAST) {

@@ -151,6 +151,12 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_co_fit(magcal_calibrator_t *cal, cal_r
     rep->ellipse.semi_minor = q->cr;
     rep->ellipse.semi_major = q->cr;
     rep->ellipse.residual_rms = rep->residual_rms;
+    /* the consistency gate as the full solve's (calibrator_fit.c): the circle's inliers are
+     * filter inliers, so the plausible samples it leaves out are the filter's inliers minus them */
+    if (rep->rejected_filter <= cal->n && r->m <= cal->n - rep->rejected_filter &&
+        magcal_cal_inconsistent(cal, cal->n - rep->rejected_filter, cal->n - rep->rejected_filter - r->m) != 0) {
+        return MAGCAL_ERR_INCONSISTENT;
+    }
     if ((float)rep->outliers > cal->cfg.max_outlier_frac * (float)cal->n) {
         return MAGCAL_ERR_TOO_MANY_OUTLIERS;
     }

@@ -145,6 +145,19 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_plain_mask(magcal_calibrator_t *cal, c
 
 /* ------------------------------------------------------------------ gates */
 
+/* Consistency gate (cfg.max_inconsistent_frac, 0 = off): 1 when the residual stage rejected more
+ * than that share of the plausible samples (the density filter's inliers). A store that spans a
+ * change of the hard iron holds two rings offset by the change; the consensus then keeps one ring
+ * and the arcs where both cross, or a compromise between them, and leaves a large share of
+ * samples that are neither glitches nor saturated out (30-min drive seed 1: 34 of 88, a
+ * calibration halfway between the two installations). One installation's store leaves its noise
+ * tail and the samples of transients out (the clean drives: at most 0.29). */
+int magcal_cal_inconsistent(const magcal_calibrator_t *cal, size_t plausible, size_t rejected)
+{
+    const float lim = cal->cfg.max_inconsistent_frac;
+    return lim > 0.0f && plausible > 0u && (float)rejected > lim * (float)plausible ? 1 : 0;
+}
+
 /* 4 (cont.) and 5: keep the fit, flags with residual bits, counts, the report, gates. */
 MAGCAL_NOINLINE magcal_status_t magcal_ph_gates(magcal_calibrator_t *cal, cal_run_t *r)
 {
@@ -202,6 +215,10 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_gates(magcal_calibrator_t *cal, cal_ru
     n_out = n - r->m;
     if (r->m < cal->cfg.min_samples) {
         return MAGCAL_ERR_TOO_FEW_POINTS;
+    }
+    if (magcal_cal_inconsistent(cal, (size_t)rep->rejected_consensus + r->m - rep->rescued_consensus,
+                                rep->rejected_consensus) != 0) {
+        return MAGCAL_ERR_INCONSISTENT;
     }
     if ((float)n_out > cal->cfg.max_outlier_frac * (float)n) {
         return MAGCAL_ERR_TOO_MANY_OUTLIERS;

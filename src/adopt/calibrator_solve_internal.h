@@ -248,7 +248,8 @@ magcal_status_t magcal_ph_circle(magcal_calibrator_t *cal, cal_run_t *r);
 magcal_status_t magcal_ph_cov_all(magcal_calibrator_t *cal, cal_run_t *r);
 magcal_status_t magcal_ph_cov_f(magcal_calibrator_t *cal, cal_run_t *r);
 
-/* calibrator_fit.c */
+/* calibrator_fit.c (magcal_cal_inconsistent: the consistency gate, shared with the coarse stage) */
+int magcal_cal_inconsistent(const magcal_calibrator_t *cal, size_t plausible, size_t rejected);
 magcal_status_t magcal_ph_thin(magcal_calibrator_t *cal, cal_run_t *r);
 magcal_status_t magcal_ph_cons(magcal_calibrator_t *cal, cal_run_t *r);
 magcal_status_t magcal_ph_flags0(magcal_calibrator_t *cal, cal_run_t *r);

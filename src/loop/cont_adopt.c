@@ -13,6 +13,9 @@
  * may fit the hard-iron circle on an arc (calibrator.h "Coarse stage") and a solve starts at
  * cfg.coarse_coverage_deg; once any calibration is installed, never again (a coarse one is
  * replaced by a full ellipse with margin 1, calibrator_judge.c magcal_ph_harm_c).
+ * A store of two installations (the solver's consistency gate, MAGCAL_ERR_INCONSISTENT): a cut at
+ * half the oldest stored sample's age, applied by the next snapshot (cont_step.c), which starts at
+ * once (docs/calibrator.md "Consistency gate").
  */
 #include <math.h>
 
@@ -109,6 +112,18 @@ magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_
         cc->age_ms_acc = 0u;
         cc->state = (uint8_t)MAGCAL_CONT_COLLECTING;
         return MAGCAL_CONT_ADOPTED;
+    }
+    if (st == MAGCAL_ERR_INCONSISTENT) {
+        /* the store holds two installations (calibrator.h cfg.max_inconsistent_frac): the older
+         * one is the past, so the next snapshot (started at once) cuts at half the oldest stored
+         * sample's age and drops what is older, and what lies off the refused fit's ring (a store
+         * that spans a change: the cut lands after the older part's youngest samples, or the next
+         * INCONSISTENT solve cuts again, each cut dropping at least the oldest sample); the
+         * calibration in force is untouched */
+        cc->drop_changes = cc->changes;
+        cc->drop_c = r->ellipse.center;
+        cc->drop_r = magcal_isfinite_f(r->radius) && r->radius > 0.0f ? r->radius : 0.0f;
+        cc->drop_on = 1u;
     }
     if (st == MAGCAL_ERR_NOT_BETTER) {
         /* fresh data confirm the installed calibration: a declared change is refuted */

@@ -34,6 +34,8 @@ MAGCAL_STATIC_ASSERT(sizeof(float) == sizeof(uint32_t), cont_park_stamp_bits); /
 #define CONT_SOLVE_CAP 4u  /* the solver's share of a step: at most CAP / DIV of the budget */
 #define CONT_SOLVE_DIV 5u
 #define CONT_W_SNAP 21u    /* one sample of the snapshot (was 14: measured 1.42x) */
+#define CONT_W_CUT 90u     /* one sample's test of a cut (distance, sqrtf; estimate, as CAL_W_CO_RES) */
+#define CONT_W_AGE 12u     /* one sample of a cut's age scan (estimate) */
 #define CONT_W_BIN 30u     /* one bin of the snapshot (was 20) */
 #define CONT_W_SNAP_END 400u /* the snapshot's end: the solver's begin (small parts measured up to 2.7x before) */
 #define CONT_W_PARK 30u    /* one ring sample parked during the field-model fit */
@@ -323,10 +325,12 @@ static int cont_worth_due(const magcal_cont_t *cc)
 {
     const uint32_t st = cc->store.ctr.added + cc->store.ctr.replaced;
     int due = 0;
-    if ((st - cc->stored_at_solve >= cc->cfg.min_new ||
+    /* a pending cut (an INCONSISTENT solve, cont_adopt.c) is new information: the store without
+     * its older samples is solved again at once (each cut drops at least the oldest sample) */
+    if ((st - cc->stored_at_solve >= cc->cfg.min_new || cc->drop_on != 0u ||
          (cc->last_status == MAGCAL_ERR_NOT_BETTER && (float)cc->solve_ms_acc >= 0.25f * cc->cfg.age_ms)) &&
         cc->park_n == cc->park_i && cc->store.ctr.stored >= cc->cfg.solver.min_samples &&
-        (cc->worth_checked == 0u || cc->worth_seen != st)) {
+        (cc->worth_checked == 0u || cc->worth_seen != st || cc->drop_on != 0u)) {
         due = 1;
     }
     return due;
@@ -391,25 +395,109 @@ static MAGCAL_NOINLINE int cont_count_part(magcal_cont_t *cc, magcal_cal_budget_
     return p.centre_source != MAGCAL_INTAKE_CENTRE_NONE && p.rebinning == 0u && p.coverage_deg >= magcal_cont_solve_cov(cc);
 }
 
-/* Copy bins of the store, in bin order (as magcal_intake_snapshot2), into the solver buffer;
- * then load the solver. 1 when the solve is loaded. */
-static int cont_snapshot(magcal_cont_t *cc, magcal_cal_budget_t *b)
+/* A cut (an INCONSISTENT solve, cont_adopt.c) keeps a sample when it is not older than the cut
+ * and lies on the solve's ring within half its radius (the rest is neither installation: a stored
+ * glitch burst would otherwise outweigh what is left of the store). */
+static int cont_cut_keeps(const magcal_cont_t *cc, const magcal_intake_slot_t *sl)
+{
+    const float dx = sl->m.x - cc->drop_c.x;
+    const float dy = sl->m.y - cc->drop_c.y;
+    const float dr = sqrtf(dx * dx + dy * dy) - cc->drop_r;
+    return ((sl->seq - cc->drop_seq) & INTAKE_SEQ_MASK) < 0x40000000u &&
+                   (!(cc->drop_r > 0.0f) || fabsf(dr) <= 0.5f * cc->drop_r)
+               ? 1
+               : 0;
+}
+
+/* One bin of a cutting snapshot: the samples the cut drops removed from the store (the bin
+ * compacted in place: the store is frozen meanwhile), the rest copied into the solver buffer. */
+static void cont_cut_bin(magcal_cont_t *cc, uint32_t bin)
+{
+    magcal_intake_t *st = &cc->store;
+    const uint32_t base = bin * st->cfg.per_bin;
+    const uint32_t cnt = st->count[bin];
+    uint32_t keep = 0u;
+    uint32_t k;
+    for (k = 0u; k < cnt; ++k) {
+        const magcal_intake_slot_t sl = st->slots[base + k];
+        if (cont_cut_keeps(cc, &sl) != 0) {
+            st->slots[base + keep] = sl;
+            keep++;
+            if (cc->snap_n < cc->slots) {
+                cc->buf[cc->snap_n].x = sl.m.x;
+                cc->buf[cc->snap_n].y = sl.m.y;
+                cc->snap_n++;
+            }
+        }
+    }
+    st->count[bin] = (uint8_t)keep;
+    st->ctr.stored -= cnt - keep;
+}
+
+/* The age scan of a pending cut (drop_on 1), within the step's budget: the oldest stored sample's
+ * age, then the cut at half of it (drop_on 2); the copy then starts at bin 0 in the next step. */
+static void cont_cut_scan(magcal_cont_t *cc, magcal_cal_budget_t *b)
 {
     const magcal_intake_t *st = &cc->store;
     const uint32_t per = st->cfg.per_bin;
+    if (cc->snap_bin == 0u) {
+        cc->drop_age = 0u;
+    }
     while (cc->snap_bin < st->n_bins) {
         const uint32_t base = cc->snap_bin * per;
         const uint32_t cnt = st->count[cc->snap_bin];
         uint32_t k;
-        for (k = 0u; k < cnt && cc->snap_n < cc->slots; ++k) {
-            cc->buf[cc->snap_n].x = st->slots[base + k].m.x;
-            cc->buf[cc->snap_n].y = st->slots[base + k].m.y;
-            cc->snap_n++;
+        for (k = 0u; k < cnt; ++k) {
+            const uint32_t age = (st->seq - st->slots[base + k].seq) & INTAKE_SEQ_MASK;
+            cc->drop_age = age > cc->drop_age ? age : cc->drop_age;
         }
         cc->snap_bin++;
-        if (magcal_cal_spend(b, CONT_W_BIN + cnt * CONT_W_SNAP) != 0) {
+        if (magcal_cal_spend(b, CONT_W_BIN + cnt * CONT_W_AGE) != 0) {
+            return;
+        }
+    }
+    cc->drop_seq = (st->seq - cc->drop_age / 2u) & INTAKE_SEQ_MASK;
+    cc->drop_on = 2u;
+    cc->snap_bin = 0u;
+}
+
+/* Copy bins of the store, in bin order (as magcal_intake_snapshot2), into the solver buffer;
+ * then load the solver. 1 when the solve is loaded. A pending cut (an INCONSISTENT solve) first
+ * scans the store's ages, then drops what the cut drops while copying. */
+static int cont_snapshot(magcal_cont_t *cc, magcal_cal_budget_t *b)
+{
+    const magcal_intake_t *st = &cc->store;
+    const uint32_t per = st->cfg.per_bin;
+    if (cc->drop_on == 1u && cc->snap_bin == 0u && cc->drop_changes != cc->changes) {
+        cc->drop_on = 0u; /* a change reset the store (and its push counter) since: void */
+    }
+    if (cc->drop_on == 1u) {
+        cont_cut_scan(cc, b);
+        return 0;
+    }
+    while (cc->snap_bin < st->n_bins) {
+        const uint32_t base = cc->snap_bin * per;
+        const uint32_t cnt = st->count[cc->snap_bin];
+        uint32_t w = CONT_W_SNAP;
+        if (cc->drop_on != 0u) {
+            cont_cut_bin(cc, cc->snap_bin);
+            w = CONT_W_SNAP + CONT_W_CUT;
+        } else {
+            uint32_t k;
+            for (k = 0u; k < cnt && cc->snap_n < cc->slots; ++k) {
+                cc->buf[cc->snap_n].x = st->slots[base + k].m.x;
+                cc->buf[cc->snap_n].y = st->slots[base + k].m.y;
+                cc->snap_n++;
+            }
+        }
+        cc->snap_bin++;
+        if (magcal_cal_spend(b, CONT_W_BIN + cnt * w) != 0) {
             return 0;
         }
+    }
+    if (cc->drop_on != 0u) {
+        cc->drop_on = 0u;
+        cc->worth_checked = 0u; /* the store lost samples: its coverage is counted again */
     }
     (void)magcal_calibrator_solve_begin(&cc->solver, cc->snap_n, 1);
     (void)magcal_cal_spend(b, CONT_W_SNAP_END);

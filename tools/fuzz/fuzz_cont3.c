@@ -31,7 +31,7 @@ static magcal_vec3_t fz3_buf[FZ3_SLOTS];
 static MAGCAL_CONT3_WORKSPACE_DECLARE(fz3_work, FZ3_SLOTS);
 static magcal_cont3_t fz3;
 
-static int fz3_status_ok(magcal_status_t st) { return st <= MAGCAL_IN_PROGRESS && st >= MAGCAL_ERR_SATURATED; }
+static int fz3_status_ok(magcal_status_t st) { return st <= MAGCAL_IN_PROGRESS && st >= MAGCAL_ERR_INCONSISTENT; }
 
 static void fz3_check_cal(const magcal_cont3_t *c)
 {
