@@ -26,7 +26,7 @@ MAGCAL_STATIC_ASSERT(sizeof(float) == sizeof(uint32_t), cont_park_stamp_bits); /
  * surveyed slots and judge on/off, so measured / charged <= ~1.0 (least squares: push ~600-990,
  * judge ~1140-1330, slot ~340-360, re-bin ~360; the values below cover the largest steps). */
 #define CONT_W_PUSH 1200u  /* the store push of one sample (no sweep step), ring read, bookkeeping */
-#define CONT_W_JUDGE 1100u /* its judge against the installed calibration (correction, heading, episode) */
+#define CONT_W_JUDGE 1800u /* its judge against the installed calibration (correction, heading, episode) */
 #define CONT_W_VISIT 480u  /* one sweep step that surveyed a slot */
 #define CONT_W_REBIN 500u  /* one sweep step that re-binned a sample (swap-remove + insert) */
 #define CONT_W_JUMP 100u   /* one sweep step that jumped the empty rest of a bin */
@@ -162,6 +162,13 @@ static int cont_may_end_sweep(const magcal_cont_t *cc)
     return st->cursor + (uint32_t)st->cfg.sweep_steps * (uint32_t)st->cfg.per_bin >= magcal_intake_nslots(st);
 }
 
+/* 1 when the sliced sweep part's first step ends the store's sweep (cont_sweep_part: its fits,
+ * CONT_W_SWEEP), so a drain that takes a second sample must leave that much of the budget. */
+static int cont_sweep_end_due(const magcal_cont_t *cc)
+{
+    return (cc->store.cursor >= magcal_intake_nslots(&cc->store)) ? 1 : 0;
+}
+
 /* 1 when no solve is under way and the drain is behind: the ring holds a quarter of its size
  * or more, or samples parked during the field-model fit are still queued (while they are, every
  * ring sample joins the queue behind them, and no solve starts until it is empty). The steps
@@ -205,8 +212,9 @@ static MAGCAL_NOINLINE uint32_t cont_drain(magcal_cont_t *cc, uint32_t max, magc
         if (cont_judge_on(cc) != 0) {
             w += CONT_W_JUDGE;
         }
-        if (k != max && b->unlimited == 0u && (cont_behind(cc) == 0 || w > b->left)) {
-            break;
+        if (k != max && b->unlimited == 0u &&
+            (cont_behind(cc) == 0 || w > b->left || (cont_sweep_end_due(cc) != 0 && w + CONT_W_SWEEP > b->left))) {
+            break; /* a second sample only when it fits, with the sweep end the sweep part then runs */
         }
         if (k != max && b->unlimited != 0u && cont_may_end_sweep(cc) != 0) {
             break; /* unlimited: a push that may end a sweep is only ever the drain's first sample */
