@@ -21,9 +21,13 @@ Stored samples are matched to their rows by their exact float32 values.
 import csv
 import json
 import math
+import os
 import sys
 
 import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+from gen_drive import dcm_ned_batch as dcm  # noqa: E402  (the generator's own attitude, body x right, y forward, z up)
 
 D2R = math.pi / 180.0
 
@@ -31,23 +35,6 @@ D2R = math.pi / 180.0
 def wrap(a):
     return (a + 180.0) % 360.0 - 180.0
 
-
-def dcm(roll, pitch, yaw):
-    """C_b^NED for body x right, y forward, z up (tools/gen_drive.py dcm_ned_batch)."""
-    cf, sf = np.cos(roll), np.sin(roll)
-    ct, st = np.cos(pitch), np.sin(pitch)
-    cp, sp = np.cos(yaw), np.sin(yaw)
-    c = np.empty((len(yaw), 3, 3))
-    c[:, 0, 0] = -sp * cf + cp * st * sf
-    c[:, 0, 1] = cp * ct
-    c[:, 0, 2] = -sp * sf - cp * st * cf
-    c[:, 1, 0] = cp * cf + sp * st * sf
-    c[:, 1, 1] = sp * ct
-    c[:, 1, 2] = cp * sf - sp * st * cf
-    c[:, 2, 0] = ct * sf
-    c[:, 2, 1] = -st
-    c[:, 2, 2] = -ct * cf
-    return c
 
 
 def heading(cal, raw):
