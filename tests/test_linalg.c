@@ -180,6 +180,14 @@ static void test_atan2_matches_libm_within_bound(void)
     TEST_ASSERT_EQUAL_UINT32(bits_of(1.5707963268f), bits_of(magcal_atan2f(5.0f, 0.0f)));
     TEST_ASSERT_EQUAL_UINT32(bits_of(-1.5707963268f), bits_of(magcal_atan2f(-5.0f, -0.0f)));
     TEST_ASSERT_TRUE(isnan(magcal_atan2f(NAN, 1.0f)));
+    /* infinities as atan2 (C99 F.9.1.4; fuzz_calibrator found inf / inf giving NaN) */
+    for (k = 0u; k < 4u; ++k) {
+        const float y = ((k & 1u) != 0u) ? -INFINITY : INFINITY;
+        const float x = ((k & 2u) != 0u) ? -INFINITY : INFINITY;
+        TEST_ASSERT_EQUAL_UINT32(bits_of((float)atan2((double)y, (double)x)), bits_of(magcal_atan2f(y, x)));
+        TEST_ASSERT_EQUAL_UINT32(bits_of((float)atan2((double)y, 3.0)), bits_of(magcal_atan2f(y, 3.0f)));
+        TEST_ASSERT_EQUAL_UINT32(bits_of((float)atan2(-2.0, (double)x)), bits_of(magcal_atan2f(-2.0f, x)));
+    }
 }
 
 static void test_prng_is_deterministic_and_bounded(void)

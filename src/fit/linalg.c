@@ -318,7 +318,7 @@ float magcal_atan2f(float y, float x)
     float r = 0.0f;
 
     if (mx > 0.0f) {
-        t = mn / mx;
+        t = (mn >= mx) ? 1.0f : mn / mx; /* mn <= mx: equal gives 1 (as the division), also for two infinities */
     } else {
         t = mn + mx; /* both zero: 0; NaN stays NaN */
     }
