@@ -414,6 +414,7 @@ typedef struct {
     float dist_mr[4];              /* their moments with the residual's deviation */
     float dist_mu[4];              /* their moments with the vertical channel's deviation */
     float dist_th[8];              /* coefficients: residual 0..3, vertical 4..7 */
+    float dist_ur;                 /* raw radius the vertical channel's state is scaled by (cont_flags.c) */
 } magcal_cont_t;
 
 /**

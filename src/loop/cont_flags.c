@@ -236,26 +236,46 @@ void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint
     cc->dist_flag = (uint8_t)((float)cc->dist_quiet_ms < hold ? 1u : 0u);
 }
 
-/* Reset the transient judge (a new calibration or model): no flag, noise from the store's sigma. */
+/* Reset the transient judge (a new calibration or model): noise from the store's sigma. The
+ * vertical channel's values (raw z / R) and its regression are the vehicle's: rescaled to the new
+ * raw radius and kept. A flag up at the reset (a transient in progress while a solve ends, the
+ * drain paused over the field-model fit) is kept with the vertical channel's baseline and the
+ * regressors'; the residual's baseline starts at the new model's expectation (0) instead of the
+ * stream's value: restarted mid-transient, the baselines took the disturbed values, the rest of
+ * the transient was trusted and its end flagged for the 6 s of a restart (60-min seed 2, row
+ * 88646: 33 rows trusted under it, 258 clean rows flagged after it). Otherwise no flag, and both
+ * baselines restart at the stream's values. */
 void magcal_cont_transient_reset(magcal_cont_t *cc)
 {
     const float s0 = CONT_DIST_VAR0 * cc->cal_sigma_rel;
-    cc->dist_n = 0u;
-    cc->dist_flag = 0u;
-    cc->dist_flag_ms = 0u;
-    cc->dist_quiet_ms = cc->cfg.disturb_hold_ms;
+    const uint8_t held = (uint8_t)(cc->dist_flag != 0u && cc->dist_n != 0u ? 1u : 0u);
+    uint32_t i;
+    if (cc->dist_ur > 0.0f && cc->cal_raw_radius > 0.0f) {
+        const float k = cc->dist_ur / cc->cal_raw_radius;
+        cc->dist_ue *= k;
+        cc->dist_ub *= k;
+        cc->dist_uvar *= k * k;
+        for (i = 0u; i < CONT_DIST_NX; ++i) {
+            cc->dist_mu[i] *= k;
+            cc->dist_th[CONT_DIST_NX + i] *= k;
+        }
+    }
+    cc->dist_ur = cc->cal_raw_radius;
     cc->dist_var = s0 * s0;
     cc->dist_e = 0.0f;
     cc->dist_base = 0.0f;
     cc->dist_age_ms = 0u;
+    if (held == 0u) {
+        cc->dist_n = 0u;
+        cc->dist_flag = 0u;
+        cc->dist_flag_ms = 0u;
+        cc->dist_quiet_ms = cc->cfg.disturb_hold_ms;
+    }
     /* the residual's regression is the model's error: relearnt; the vertical channel's (the
      * soft-iron leak into z, the hill) is the vehicle's: kept */
-    {
-        uint32_t i;
-        for (i = 0u; i < CONT_DIST_NX; ++i) {
-            cc->dist_mr[i] = 0.0f;
-            cc->dist_th[i] = 0.0f;
-        }
+    for (i = 0u; i < CONT_DIST_NX; ++i) {
+        cc->dist_mr[i] = 0.0f;
+        cc->dist_th[i] = 0.0f;
     }
     cc->fz_miss = 0.0f;
     cc->fz_unfit = 0u;

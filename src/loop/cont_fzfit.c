@@ -246,7 +246,6 @@ static int cont_fit_chol(magcal_cont_t *cc)
     for (k = 0u; k < 4u; ++k) {
         cc->fz_hxy[k] = b[nf - 4u + k];
     }
-    cc->dist_flag = 0u;
     cc->fz_cover[0] = 0u; /* set by the sigma pass */
     cc->fz_cover[1] = 0u;
     cont_fit_pass(cc, (uint8_t)CONT_FIT_SIGMA);

@@ -69,6 +69,8 @@ def main():
     ap.add_argument("--workdir", required=True)
     ap.add_argument("--tag", required=True, help="e.g. s3_m60 or s2_m60_nostep")
     ap.add_argument("--trace", default=None)
+    ap.add_argument("--headings", default=None,
+                    help="headings CSV of the replay (default: DIR/stream_TAG_headings.csv)")
     ap.add_argument("--json", action="store_true", help="print JSON instead of tables")
     a = ap.parse_args()
     dump = os.path.join(a.workdir, "drive_%s.csv" % a.tag)
@@ -78,7 +80,7 @@ def main():
         names = f.readline().strip().split(",")
     A = np.loadtxt(dump, delimiter=",", skiprows=2, ndmin=2)
     D = {k: A[:, i] for i, k in enumerate(names)}
-    H = list(csv.DictReader(open(os.path.join(a.workdir, "stream_%s_headings.csv" % a.tag))))
+    H = list(csv.DictReader(open(a.headings or os.path.join(a.workdir, "stream_%s_headings.csv" % a.tag))))
     n = A.shape[0]
     trust = np.array([h["trust"] for h in H])
     gen = np.array([int(h["generation"]) for h in H])
