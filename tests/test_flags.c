@@ -133,10 +133,46 @@ void test_cont_transient_reset_clean_restarts_at_stream(void)
     TEST_ASSERT_EQUAL_UINT32(0u, flagged);
 }
 
+/* The heading's peek (magcal_cont_transient_peek: the transient judge's test with the heading's
+ * sample, which the drain has not judged yet) agrees with the judge itself: before every sample
+ * of a transient and the clean samples around it, the peek says "over" exactly when the judge,
+ * given that sample next, is over its threshold (its flag then set, held or not), and a rising
+ * flag was always announced by the peek one sample earlier. */
+void test_cont_transient_peek_matches_next_sample(void)
+{
+    const uint32_t n = 200u; /* 4 s */
+    uint32_t k;
+    uint32_t rises = 0u;
+    judge_init(RAW_R);
+    for (k = 0u; k < 1500u + n + 500u; ++k) {
+        const float e = (k >= 1500u && k < 1500u + n) ? envelope(k - 1500u, n) : 0.0f;
+        magcal_cont_judge_t j;
+        uint8_t before;
+        uint8_t peek;
+        (void)memset(&j, 0, sizeof j);
+        j.rel = 0.002f - 0.10f * e + NOISE_REL * rnd();
+        j.u = (RAW_Z + 4.0f * e + NOISE_Z * rnd()) / g_cc.cal_raw_radius;
+        j.cs[0] = 0.8f;
+        j.cs[1] = 0.6f;
+        before = g_cc.dist_flag;
+        peek = magcal_cont_transient_peek(&g_cc, &j);
+        magcal_cont_transient(&g_cc, &j, DT_MS);
+        if (peek != 0u) {
+            TEST_ASSERT_EQUAL_UINT8(1u, g_cc.dist_flag); /* over: flagged (a 6-s restart cannot happen here) */
+        }
+        if (before == 0u && g_cc.dist_flag != 0u) {
+            TEST_ASSERT_EQUAL_UINT8(1u, peek);
+            rises++;
+        }
+    }
+    TEST_ASSERT_EQUAL_UINT32(1u, rises); /* one transient, one rise */
+}
+
 int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_cont_transient_reset_mid_transient_keeps_flag);
     RUN_TEST(test_cont_transient_reset_clean_restarts_at_stream);
+    RUN_TEST(test_cont_transient_peek_matches_next_sample);
     return UNITY_END();
 }

@@ -415,6 +415,7 @@ typedef struct {
     float dist_mu[4];              /* their moments with the vertical channel's deviation */
     float dist_th[8];              /* coefficients: residual 0..3, vertical 4..7 */
     float dist_ur;                 /* raw radius the vertical channel's state is scaled by (cont_flags.c) */
+    uint32_t dist_dt;              /* ms between the last two samples the transient judge took (its peek's step) */
 } magcal_cont_t;
 
 /**

@@ -90,6 +90,69 @@ static void cont_dist_learn(magcal_cont_t *cc, float dr, float du, const float *
     cont_dist_solve(cc);
 }
 
+/* The smoothed values after one more sample (x the clamped residual, u raw z / R, f its heading
+ * regressors) dt ms after the last: towards the baseline 3 x faster (the flag ends within a
+ * fraction of tau of the cause); the vertical channel and the regressors are smoothed alike
+ * (their deviations line up). Into e, ue, fe (cc is not written: the peek uses it too). */
+static void cont_dist_smooth(const magcal_cont_t *cc, float x, float u, const float *f, uint32_t dt, float *e,
+                             float *ue, float *fe)
+{
+    const float tau = fabsf(x - cc->dist_base) < fabsf(cc->dist_e - cc->dist_base) ? (float)cc->cfg.disturb_tau_ms / 3.0f
+                                                                                   : (float)cc->cfg.disturb_tau_ms;
+    const float a = (float)dt / (tau + (float)dt);
+    const float ux = cc->dist_ub + fminf(fmaxf(u - cc->dist_ub, -CONT_DIST_CLAMP_U), CONT_DIST_CLAMP_U);
+    uint32_t i;
+    *e = cc->dist_e + a * (x - cc->dist_e);
+    *ue = cc->dist_ue + a * (ux - cc->dist_ue);
+    for (i = 0u; i < CONT_DIST_NX; ++i) {
+        fe[i] = cc->dist_fe[i] + a * (f[i] - cc->dist_fe[i]);
+    }
+}
+
+/* Deviations of smoothed values (e, ue, fe) from the baselines, less what the heading's move
+ * explains (the model's and the calibration's heading-dependent error at the current pitch, the
+ * soft-iron leak and the hill's share of raw z), into v[0] (residual), v[1] (vertical), with the
+ * raw deviations v[2], v[3], the regressors' dx, and the thresholds v[4], v[5] (widened with the
+ * heading's move: the coefficients are learnt at other pitches; the hysteresis while flagged).
+ * Returns 1 when either channel is over its threshold. */
+static uint8_t cont_dist_dev(const magcal_cont_t *cc, float e, float ue, const float *fe, float *dx, float *v)
+{
+    float q;
+    uint32_t i;
+    v[2] = e - cc->dist_base;
+    v[3] = ue - cc->dist_ub;
+    v[0] = v[2];
+    v[1] = v[3];
+    for (i = 0u; i < CONT_DIST_NX; ++i) {
+        dx[i] = fe[i] - cc->dist_fb[i];
+        v[0] -= cc->dist_th[i] * dx[i];
+        v[1] -= cc->dist_th[CONT_DIST_NX + i] * dx[i];
+    }
+    q = sqrtf(dx[0] * dx[0] + dx[1] * dx[1] + dx[2] * dx[2] + dx[3] * dx[3]);
+    v[4] = fmaxf(fmaxf(cc->cfg.disturb_k * sqrtf(cc->dist_var), CONT_DIST_STORE_K * cc->cal_sigma_rel),
+                 CONT_DIST_MIN_REL) +
+           CONT_DIST_UNC_R * q;
+    v[5] = fmaxf(cc->cfg.disturb_k * sqrtf(cc->dist_uvar), CONT_DIST_MIN_U) + CONT_DIST_UNC_U * q;
+    if (cc->dist_flag != 0u) {
+        /* hysteresis: a flag ends below a fraction of the thresholds (the transient's fall);
+         * a milder one for the vertical channel: its baseline, held under the flag, lags a
+         * hill's pitch, and at 0.5 a flag outlived a z transient to the 6-s restart
+         * (tests/test_cont_drive.c, straight over hills: 232 of 4000 clean rows flagged) */
+        v[4] *= CONT_DIST_HYST;
+        v[5] *= CONT_DIST_HYST_U;
+    }
+    return (uint8_t)((!(fabsf(v[0]) <= v[4]) || !(fabsf(v[1]) <= v[5])) ? 1u : 0u);
+}
+
+/* The heading regressors of a judged sample: cos, sin, cos 2, sin 2 of its corrected heading. */
+static void cont_dist_feat(const magcal_cont_judge_t *j, float *f)
+{
+    f[0] = j->cs[0];
+    f[1] = j->cs[1];
+    f[2] = j->cs[0] * j->cs[0] - j->cs[1] * j->cs[1];
+    f[3] = 2.0f * j->cs[0] * j->cs[1];
+}
+
 /* Transient judge: one judged sample after dt ms (file comment). */
 void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint32_t dt)
 {
@@ -97,13 +160,13 @@ void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint
     const float rel = j->rel;
     float f[CONT_DIST_NX];
     float dx[CONT_DIST_NX];
+    float v[6];
     float dr0;
     float du0;
     float d;
     float du;
     float thr;
     float x;
-    float q;
     float thru;
     uint32_t i;
     uint8_t over;
@@ -111,13 +174,11 @@ void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint
         return; /* a glitch: flagged by the per-sample judge, the smoothed state keeps its value */
     }
     x = fminf(fmaxf(rel, -CONT_DIST_CLAMP), CONT_DIST_CLAMP);
-    f[0] = j->cs[0];
-    f[1] = j->cs[1];
-    f[2] = j->cs[0] * j->cs[0] - j->cs[1] * j->cs[1];
-    f[3] = 2.0f * j->cs[0] * j->cs[1];
+    cont_dist_feat(j, f);
     if (cc->dist_age_ms <= UINT32_MAX - dt) {
         cc->dist_age_ms += dt;
     }
+    cc->dist_dt = dt;
     if (cc->dist_n == 0u) {
         /* the baseline starts at the stream's value, not at the store's mean (0): where the
          * vehicle is when a fit ends (a hill, a heading the model explains worst) the model's
@@ -132,49 +193,26 @@ void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint
             cc->dist_fb[i] = f[i];
         }
     } else {
-        /* towards the baseline 3 x faster: the flag ends within a fraction of tau of the cause;
-         * the vertical channel and the regressors are smoothed alike (their deviations line up) */
-        const float tau = fabsf(x - cc->dist_base) < fabsf(cc->dist_e - cc->dist_base)
-                              ? (float)cc->cfg.disturb_tau_ms / 3.0f
-                              : (float)cc->cfg.disturb_tau_ms;
-        const float a = (float)dt / (tau + (float)dt);
-        const float ux = cc->dist_ub + fminf(fmaxf(j->u - cc->dist_ub, -CONT_DIST_CLAMP_U), CONT_DIST_CLAMP_U);
-        cc->dist_e += a * (x - cc->dist_e);
-        cc->dist_ue += a * (ux - cc->dist_ue);
+        float e;
+        float ue;
+        float fe[CONT_DIST_NX];
+        cont_dist_smooth(cc, x, j->u, f, dt, &e, &ue, fe);
+        cc->dist_e = e;
+        cc->dist_ue = ue;
         for (i = 0u; i < CONT_DIST_NX; ++i) {
-            cc->dist_fe[i] += a * (f[i] - cc->dist_fe[i]);
+            cc->dist_fe[i] = fe[i];
         }
     }
     if (cc->dist_n < UINT32_MAX) {
         cc->dist_n++;
     }
-    /* deviations from the baselines, less what the heading's move explains (the model's and
-     * the calibration's heading-dependent error at the current pitch, the soft-iron leak and
-     * the hill's share of raw z) */
-    dr0 = cc->dist_e - cc->dist_base;
-    du0 = cc->dist_ue - cc->dist_ub;
-    d = dr0;
-    du = du0;
-    for (i = 0u; i < CONT_DIST_NX; ++i) {
-        dx[i] = cc->dist_fe[i] - cc->dist_fb[i];
-        d -= cc->dist_th[i] * dx[i];
-        du -= cc->dist_th[CONT_DIST_NX + i] * dx[i];
-    }
-    /* the thresholds widen with the heading's move: the coefficients are learnt at other pitches */
-    q = sqrtf(dx[0] * dx[0] + dx[1] * dx[1] + dx[2] * dx[2] + dx[3] * dx[3]);
-    thr = fmaxf(fmaxf(cc->cfg.disturb_k * sqrtf(cc->dist_var), CONT_DIST_STORE_K * cc->cal_sigma_rel),
-                CONT_DIST_MIN_REL) +
-          CONT_DIST_UNC_R * q;
-    thru = fmaxf(cc->cfg.disturb_k * sqrtf(cc->dist_uvar), CONT_DIST_MIN_U) + CONT_DIST_UNC_U * q;
-    if (cc->dist_flag != 0u) {
-        /* hysteresis: a flag ends below a fraction of the thresholds (the transient's fall);
-         * a milder one for the vertical channel: its baseline, held under the flag, lags a
-         * hill's pitch, and at 0.5 a flag outlived a z transient to the 6-s restart
-         * (tests/test_cont_drive.c, straight over hills: 232 of 4000 clean rows flagged) */
-        thr *= CONT_DIST_HYST;
-        thru *= CONT_DIST_HYST_U;
-    }
-    over = (uint8_t)((!(fabsf(d) <= thr) || !(fabsf(du) <= thru)) ? 1u : 0u);
+    over = cont_dist_dev(cc, cc->dist_e, cc->dist_ue, cc->dist_fe, dx, v);
+    d = v[0];
+    du = v[1];
+    dr0 = v[2];
+    du0 = v[3];
+    thr = v[4];
+    thru = v[5];
     if (over != 0u) {
         /* flagged: the baseline holds for cfg.change_ms (a transient is shorter), then follows
          * (below), so a lasting offset below the per-sample threshold is absorbed instead of
@@ -234,6 +272,27 @@ void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint
         }
     }
     cc->dist_flag = (uint8_t)((float)cc->dist_quiet_ms < hold ? 1u : 0u);
+}
+
+/* Would the transient judge flag after one more sample j (the heading's, not yet drained: the
+ * drain judges the ring in order, at least one row behind the heading of the newest)? The
+ * smoothing and the test of magcal_cont_transient on the current state, dt the last drained
+ * sample's; nothing written. 0 for a glitch or before the judge has a baseline. */
+uint8_t magcal_cont_transient_peek(const magcal_cont_t *cc, const magcal_cont_judge_t *j)
+{
+    float f[CONT_DIST_NX];
+    float fe[CONT_DIST_NX];
+    float dx[CONT_DIST_NX];
+    float v[6];
+    float e;
+    float ue;
+    if (cc->dist_n == 0u || !magcal_isfinite_f(j->rel) || !(fabsf(j->rel) <= CONT_DIST_GROSS) ||
+        !magcal_isfinite_f(j->u)) {
+        return 0u;
+    }
+    cont_dist_feat(j, f);
+    cont_dist_smooth(cc, fminf(fmaxf(j->rel, -CONT_DIST_CLAMP), CONT_DIST_CLAMP), j->u, f, cc->dist_dt, &e, &ue, fe);
+    return cont_dist_dev(cc, e, ue, fe, dx, v);
 }
 
 /* Reset the transient judge (a new calibration or model): noise from the store's sigma. The

@@ -71,5 +71,8 @@ static inline float magcal_cont_fz_rel(const magcal_cont_t *cc, const magcal_vec
 /* Transient judge (cont_flags.c): one judged sample (its rel widened by its uncertainty, its raw
  * z and heading) after dt ms; sets cc->dist_flag. */
 void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint32_t dt);
+/* 1 when the transient judge would flag after one more sample j (not written: the heading's
+ * sample, which the drain has not judged yet). */
+uint8_t magcal_cont_transient_peek(const magcal_cont_t *cc, const magcal_cont_judge_t *j);
 
 #endif /* MAGCAL_CONT_JUDGE_INTERNAL_H */

@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "cont_internal.h"
+#include "cont_judge_internal.h"
 #include "magcal_internal.h"
 
 int magcal_cont_ok(const magcal_cont_t *cc) { return cc != NULL && cc->magic == MAGCAL_CONT_MAGIC; }
@@ -440,6 +441,10 @@ magcal_status_t magcal_cont_heading(const magcal_cont_t *cc, const magcal_vec3_t
         /* judged as the drain judged it: levelled under the last push_g's gravity */
         magcal_vec3_t lm;
         (void)magcal_cont_judge(cc, cont_tc_level(cc, m, &lm) != 0 ? &lm : m, &j);
+        /* and by the transient judge with this sample too (the drain is a row or more behind) */
+        if (magcal_cont_transient_peek(cc, &j) != 0u) {
+            j.mismatch = 1u;
+        }
     }
     out->radius_rel = j.rel;
     if (cc->state == (uint8_t)MAGCAL_CONT_RELEARNING) {
