@@ -25,6 +25,11 @@ void tearDown(void) {}
 static magcal_cont_t g_cc;
 static uint32_t g_rng = 12345u;
 
+#define SLOTS MAGCAL_CONT_SLOTS(36u, 8u)
+static magcal_intake_slot_t g_slots[SLOTS];
+static magcal_vec2_t g_buf[SLOTS];
+static MAGCAL_CALIBRATOR_WORKSPACE_DECLARE(g_work, SLOTS);
+
 /* uniform in [-1, 1), fixed seed (LCG) */
 static float rnd(void)
 {
@@ -133,17 +138,20 @@ void test_cont_transient_reset_clean_restarts_at_stream(void)
     TEST_ASSERT_EQUAL_UINT32(0u, flagged);
 }
 
-/* The heading's peek (magcal_cont_transient_peek: the transient judge's test with the heading's
- * sample, which the drain has not judged yet) agrees with the judge itself: before every sample
- * of a transient and the clean samples around it, the peek says "over" exactly when the judge,
- * given that sample next, is over its threshold (its flag then set, held or not), and a rising
- * flag was always announced by the peek one sample earlier. */
-void test_cont_transient_peek_matches_next_sample(void)
+/* One pass of test_cont_transient_peek_*: 30 s clean, a 4-s transient, 10 s clean, with the
+ * heading's onset fraction `onset`. Asserts (onset 1) that the peek says "over" exactly when the
+ * judge, given that sample next, is over its threshold, and that a rising flag was announced by
+ * the peek one sample earlier. Returns the sample of the judge's rise in *rise and the first
+ * sample the peek flagged in *first_peek (UINT32_MAX: none). */
+static void peek_pass(float onset, uint32_t *rise, uint32_t *first_peek)
 {
     const uint32_t n = 200u; /* 4 s */
     uint32_t k;
     uint32_t rises = 0u;
     judge_init(RAW_R);
+    g_cc.cfg.disturb_onset = onset;
+    *rise = UINT32_MAX;
+    *first_peek = UINT32_MAX;
     for (k = 0u; k < 1500u + n + 500u; ++k) {
         const float e = (k >= 1500u && k < 1500u + n) ? envelope(k - 1500u, n) : 0.0f;
         magcal_cont_judge_t j;
@@ -157,15 +165,61 @@ void test_cont_transient_peek_matches_next_sample(void)
         before = g_cc.dist_flag;
         peek = magcal_cont_transient_peek(&g_cc, &j);
         magcal_cont_transient(&g_cc, &j, DT_MS);
-        if (peek != 0u) {
+        if (peek != 0u && *first_peek == UINT32_MAX) {
+            *first_peek = k;
+        }
+        if (onset >= 1.0f && peek != 0u) {
             TEST_ASSERT_EQUAL_UINT8(1u, g_cc.dist_flag); /* over: flagged (a 6-s restart cannot happen here) */
         }
         if (before == 0u && g_cc.dist_flag != 0u) {
-            TEST_ASSERT_EQUAL_UINT8(1u, peek);
+            if (onset >= 1.0f) {
+                TEST_ASSERT_EQUAL_UINT8(1u, peek);
+            }
+            if (*rise == UINT32_MAX) {
+                *rise = k;
+            }
             rises++;
         }
     }
     TEST_ASSERT_EQUAL_UINT32(1u, rises); /* one transient, one rise */
+}
+
+/* The heading's peek (magcal_cont_transient_peek: the transient judge's test with the heading's
+ * sample, which the drain has not judged yet) with cfg.disturb_onset 1 agrees with the judge
+ * itself; at the default onset (0.7 of the thresholds) it flags the transient's rise earlier, and
+ * no clean sample before it. */
+void test_cont_transient_peek_matches_next_sample(void)
+{
+    uint32_t rise1;
+    uint32_t peek1;
+    uint32_t rise;
+    uint32_t peek;
+    const magcal_cont_cfg_t def = MAGCAL_CONT_CFG_DEFAULT;
+    peek_pass(1.0f, &rise1, &peek1);
+    TEST_ASSERT_EQUAL_UINT32(rise1, peek1);
+    peek_pass(def.disturb_onset, &rise, &peek);
+    printf("transient at sample 1500: judge's flag at %u, the heading's peek at %u (onset 1: %u)\n", (unsigned)rise,
+           (unsigned)peek, (unsigned)peek1);
+    TEST_ASSERT_EQUAL_UINT32(rise1, rise); /* the store's flag does not depend on the onset */
+    TEST_ASSERT_TRUE(peek >= 1500u);
+    TEST_ASSERT_TRUE(peek < rise);
+}
+
+/* cfg.disturb_onset is checked at init: (0, 1], finite. */
+void test_cont_init_disturb_onset_checked(void)
+{
+    magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
+    TEST_ASSERT_EQUAL_FLOAT(0.7f, cfg.disturb_onset);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    cfg.disturb_onset = 1.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    cfg.disturb_onset = 0.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    cfg.disturb_onset = 1.01f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    cfg.disturb_onset = NAN;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE,
+                          magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
 }
 
 int main(void)
@@ -174,5 +228,6 @@ int main(void)
     RUN_TEST(test_cont_transient_reset_mid_transient_keeps_flag);
     RUN_TEST(test_cont_transient_reset_clean_restarts_at_stream);
     RUN_TEST(test_cont_transient_peek_matches_next_sample);
+    RUN_TEST(test_cont_init_disturb_onset_checked);
     return UNITY_END();
 }

@@ -236,6 +236,12 @@ typedef struct {
                                          cfg.intake.tilt_limit_deg, |g| steady) is levelled before
                                          it is stored, once the vertical field is estimated;
                                          0..30, 0 = off (default 8: the road's 6 deg and margin) */
+    float disturb_onset;            /**< transient judge, heading trust only: magcal_cont_heading also
+                                         tests its own sample (the drain is a row or more behind) and
+                                         flags it DISTURBED from this fraction of the transient
+                                         judge's thresholds on (the store's decisions keep the full
+                                         thresholds); (0, 1], 1 = the same thresholds (default 0.7:
+                                         docs/calibrator.md "Judge and change detection") */
 } magcal_cont_cfg_t;
 
 /** Defaults: work untuned from 10 to 100 Hz (time constants are in ms of the push stamps). */
@@ -243,7 +249,7 @@ typedef struct {
     {                                                                                              \
         MAGCAL_INTAKE_CFG_DEFAULT_2D, MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT, 280.0f, 24u, 2u,        \
             600000.0f, 4.0f, 0.06f, 8000u, 3u, 4000u, 100u, 200u, 4.0f,                            \
-            MAGCAL_SLICE_BUDGET_DEFAULT, 0.0f, 15.0f, 8.0f                                         \
+            MAGCAL_SLICE_BUDGET_DEFAULT, 0.0f, 15.0f, 8.0f, 0.7f                                   \
     }
 
 /** A heading with its trust. */

@@ -277,7 +277,10 @@ void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint
 /* Would the transient judge flag after one more sample j (the heading's, not yet drained: the
  * drain judges the ring in order, at least one row behind the heading of the newest)? The
  * smoothing and the test of magcal_cont_transient on the current state, dt the last drained
- * sample's; nothing written. 0 for a glitch or before the judge has a baseline. */
+ * sample's, with the thresholds x cfg.disturb_onset while no flag is up (the onset of a trust
+ * flag: a transient's raised-cosine rise stays under the full thresholds for its first 10..15 %,
+ * and a heading flagged early costs its availability only, while the store's decisions keep the
+ * full thresholds); nothing written. 0 for a glitch or before the judge has a baseline. */
 uint8_t magcal_cont_transient_peek(const magcal_cont_t *cc, const magcal_cont_judge_t *j)
 {
     float f[CONT_DIST_NX];
@@ -292,7 +295,13 @@ uint8_t magcal_cont_transient_peek(const magcal_cont_t *cc, const magcal_cont_ju
     }
     cont_dist_feat(j, f);
     cont_dist_smooth(cc, fminf(fmaxf(j->rel, -CONT_DIST_CLAMP), CONT_DIST_CLAMP), j->u, f, cc->dist_dt, &e, &ue, fe);
-    return cont_dist_dev(cc, e, ue, fe, dx, v);
+    if (cont_dist_dev(cc, e, ue, fe, dx, v) != 0u) {
+        return 1u;
+    }
+    return (uint8_t)((cc->dist_flag == 0u && (!(fabsf(v[0]) <= cc->cfg.disturb_onset * v[4]) ||
+                                              !(fabsf(v[1]) <= cc->cfg.disturb_onset * v[5])))
+                         ? 1u
+                         : 0u);
 }
 
 /* Reset the transient judge (a new calibration or model): noise from the store's sigma. The

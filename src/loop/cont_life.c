@@ -24,7 +24,7 @@ static magcal_status_t cont_check_cfg(const magcal_cont_cfg_t *c)
     if (!magcal_isfinite_f(c->solve_coverage_deg) || !magcal_isfinite_f(c->age_ms) ||
         !magcal_isfinite_f(c->mismatch_k) || !magcal_isfinite_f(c->mismatch_min_rel) ||
         !magcal_isfinite_f(c->disturb_k) || !magcal_isfinite_f(c->coarse_coverage_deg) ||
-        !magcal_isfinite_f(c->coarse_max_err_deg)) {
+        !magcal_isfinite_f(c->coarse_max_err_deg) || !magcal_isfinite_f(c->disturb_onset)) {
         return MAGCAL_ERR_NONFINITE;
     }
     if (c->coarse_coverage_deg < 0.0f || c->coarse_coverage_deg > 360.0f ||
@@ -34,6 +34,7 @@ static magcal_status_t cont_check_cfg(const magcal_cont_cfg_t *c)
     }
     if (c->solve_coverage_deg < 0.0f || c->solve_coverage_deg > 360.0f || !(c->age_ms > 0.0f) ||
         !(c->mismatch_k > 0.0f) || !(c->mismatch_min_rel > 0.0f) || !(c->disturb_k > 0.0f) ||
+        !(c->disturb_onset > 0.0f && c->disturb_onset <= 1.0f) ||
         c->disturb_tau_ms < 1u) {
         return MAGCAL_ERR_ARG;
     }
