@@ -168,6 +168,17 @@
 #endif
 
 /**
+ * The calibrator's coarse stage (calibrator.h "Coarse stage": a hard-iron circle below the coverage
+ * gate, src/adopt/calibrator_coarse.c). At 0 no solve is coarse: a store below
+ * cfg.min_coverage_deg fails with MAGCAL_ERR_COVERAGE whatever magcal_calibrator_set_coarse() set
+ * (the continuous calibrator's cfg.coarse_coverage_deg then only starts its solves earlier; set it
+ * to 0 in such a build).
+ */
+#ifndef MAGCAL_CFG_ENABLE_COARSE
+#define MAGCAL_CFG_ENABLE_COARSE 1
+#endif
+
+/**
  * Internal invariant check. Defaults to nothing (stripped); define it (e.g. to a breakpoint or
  * a call into the firmware's fault handler) to enable. Bad caller input is never checked with
  * this macro: it always returns a status.
@@ -273,7 +284,8 @@ MAGCAL_STATIC_ASSERT((MAGCAL_CFG_ENABLE_DBSCAN == 0 || MAGCAL_CFG_ENABLE_DBSCAN 
                          (MAGCAL_CFG_ENABLE_3D == 0 || MAGCAL_CFG_ENABLE_3D == 1) &&
                          (MAGCAL_CFG_ENABLE_GEOMAG == 0 || MAGCAL_CFG_ENABLE_GEOMAG == 1) &&
                          (MAGCAL_CFG_ENABLE_AIDED == 0 || MAGCAL_CFG_ENABLE_AIDED == 1) &&
-                         (MAGCAL_CFG_ENABLE_SWING == 0 || MAGCAL_CFG_ENABLE_SWING == 1),
+                         (MAGCAL_CFG_ENABLE_SWING == 0 || MAGCAL_CFG_ENABLE_SWING == 1) &&
+                         (MAGCAL_CFG_ENABLE_COARSE == 0 || MAGCAL_CFG_ENABLE_COARSE == 1),
                      feature_switches_are_0_or_1);
 
 #endif /* MAGCAL_CONFIG_H */

@@ -7,6 +7,7 @@
 #include "magcal/calibrator.h"
 
 #include <math.h>
+#include <stdint.h>
 #include <string.h>
 
 #include "calibrator_internal.h"
@@ -91,43 +92,55 @@ float magcal_cal_coverage_of(const uint16_t *bins, float *miss_start, float *mis
     return 360.0f - (float)best_len * CAL_BIN_DEG;
 }
 
-static int cal_finite_cfg_f(float v) { return magcal_isfinite_f(v); }
+/* The configuration's float fields and their admitted ranges, as tables (one loop instead of a
+ * compare chain per field: flash). Every field is checked finite first (MAGCAL_ERR_NONFINITE),
+ * then its range (MAGCAL_ERR_ARG): lower bound CAL_LO_*, upper bound k_hi[]. */
+#define CAL_N_FIELDS 16u
+#define CAL_LO_GE0 0u /* >= 0 */
+#define CAL_LO_GT0 1u /* > 0 */
+#define CAL_LO_GE1 2u /* >= 1 */
+#define CAL_LO_ANY 3u
 
 static magcal_status_t cal_check_cfg(const magcal_calibrator_cfg_t *c)
 {
-    if (!cal_finite_cfg_f(c->eps) || !cal_finite_cfg_f(c->min_spacing_deg) ||
-        !cal_finite_cfg_f(c->min_coverage_deg) || !cal_finite_cfg_f(c->max_outlier_frac) ||
-        !cal_finite_cfg_f(c->min_axis_ratio) || !cal_finite_cfg_f(c->min_radius) ||
-        !cal_finite_cfg_f(c->max_radius) || !cal_finite_cfg_f(c->max_residual_rel) ||
-        !cal_finite_cfg_f(c->max_radius_change) || !cal_finite_cfg_f(c->output_radius) ||
-        !cal_finite_cfg_f(c->max_param_err_ratio) || !cal_finite_cfg_f(c->max_design_factor) ||
-        !cal_finite_cfg_f(c->consensus.k_sigma) || !cal_finite_cfg_f(c->consensus.min_thr_rel) ||
-        !cal_finite_cfg_f(c->consensus.max_thr_rel) || !cal_finite_cfg_f(c->max_inconsistent_frac)) {
-        return MAGCAL_ERR_NONFINITE;
+    /* f[k]'s lower bound kind and upper bound (index into k_hi) */
+    static const uint8_t k_lo[CAL_N_FIELDS] = {
+        CAL_LO_GE0, CAL_LO_GE0, CAL_LO_GE0, CAL_LO_GE0, CAL_LO_GE0, CAL_LO_GE0, CAL_LO_GE0, CAL_LO_GT0,
+        CAL_LO_GE0, CAL_LO_ANY, CAL_LO_GT0, CAL_LO_GE1, CAL_LO_GT0, CAL_LO_GE0, CAL_LO_ANY, CAL_LO_GE0};
+    static const uint8_t k_hi_of[CAL_N_FIELDS] = {0u, 2u, 3u, 1u, 1u, 0u, 0u, 0u,
+                                                  0u, 0u, 0u, 0u, 0u, 0u, 0u, 1u};
+    static const float k_hi[4] = {INFINITY, 1.0f, 90.0f, 360.0f};
+    const float f[CAL_N_FIELDS] = {c->eps, c->min_spacing_deg, c->min_coverage_deg,
+                                   c->max_outlier_frac, c->min_axis_ratio, c->min_radius,
+                                   c->max_radius, c->max_residual_rel, c->max_radius_change,
+                                   c->output_radius, c->max_param_err_ratio, c->max_design_factor,
+                                   c->consensus.k_sigma, c->consensus.min_thr_rel,
+                                   c->consensus.max_thr_rel, c->max_inconsistent_frac};
+    size_t k;
+    for (k = 0u; k < CAL_N_FIELDS; ++k) {
+        if (!magcal_isfinite_f(f[k])) {
+            return MAGCAL_ERR_NONFINITE;
+        }
+    }
+    for (k = 0u; k < CAL_N_FIELDS; ++k) {
+        const float v = f[k];
+        const uint8_t lo = k_lo[k];
+        if ((lo == CAL_LO_GE0 && v < 0.0f) || (lo == CAL_LO_GT0 && !(v > 0.0f)) ||
+            (lo == CAL_LO_GE1 && v < 1.0f) || v > k_hi[k_hi_of[k]]) {
+            return MAGCAL_ERR_ARG;
+        }
     }
     if ((unsigned)c->filter > (unsigned)MAGCAL_FILTER_NONE) { /* also catches negative values */
         return MAGCAL_ERR_ARG;
     }
-    if (c->eps < 0.0f || c->min_pts == 1u || c->min_pts > MAGCAL_MAX_MIN_PTS) {
-        return MAGCAL_ERR_ARG;
-    }
-    if (c->use_consensus > 1u || c->pretest > 1u) {
+    if (c->min_pts == 1u || c->min_pts > MAGCAL_MAX_MIN_PTS || c->use_consensus > 1u ||
+        c->pretest > 1u || c->min_samples < 5u) {
         return MAGCAL_ERR_ARG;
     }
     if (c->consensus.max_iter < 1u || c->consensus.max_iter > MAGCAL_CONSENSUS_MAX_ITER ||
         c->consensus.refine_iter < 1u || c->consensus.refine_iter > MAGCAL_CONSENSUS_MAX_REFINE ||
-        !(c->consensus.k_sigma > 0.0f) || c->consensus.min_thr_rel < 0.0f ||
-        !(c->consensus.max_thr_rel > c->consensus.min_thr_rel)) {
-        return MAGCAL_ERR_ARG;
-    }
-    if (c->min_spacing_deg < 0.0f || c->min_spacing_deg > 90.0f || c->min_samples < 5u ||
-        c->min_coverage_deg < 0.0f || c->min_coverage_deg > 360.0f || c->max_outlier_frac < 0.0f ||
-        c->max_outlier_frac > 1.0f || c->min_axis_ratio < 0.0f || c->min_axis_ratio > 1.0f ||
-        c->min_radius < 0.0f || c->max_radius < 0.0f ||
-        (c->max_radius > 0.0f && c->min_radius > c->max_radius) || !(c->max_residual_rel > 0.0f) ||
-        c->max_radius_change < 0.0f || !(c->max_param_err_ratio > 0.0f) ||
-        !(c->max_design_factor >= 1.0f) || c->max_inconsistent_frac < 0.0f ||
-        c->max_inconsistent_frac > 1.0f) {
+        !(c->consensus.max_thr_rel > c->consensus.min_thr_rel) ||
+        (c->max_radius > 0.0f && c->min_radius > c->max_radius)) {
         return MAGCAL_ERR_ARG;
     }
     if ((unsigned)c->form > (unsigned)MAGCAL_CORR_LAST) {

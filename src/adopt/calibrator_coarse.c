@@ -8,6 +8,8 @@
 
 #include "calibrator_solve_internal.h"
 
+#if MAGCAL_CFG_ENABLE_COARSE /* whole file: config.h feature switch */
+
 /* The circle's radius from its solved normal equations (b = C, D, E of the centred, scaled
  * inliers: r^2 = (C^2 + D^2) / 4 - E); 0 when it is not a circle. */
 int magcal_coarse_radius(cal_prep_t *q)
@@ -209,3 +211,5 @@ magcal_status_t magcal_coarse_bound(const magcal_calibrator_t *cal, cal_run_t *r
     cal_goto(r, PH_VALID);
     return MAGCAL_OK;
 }
+
+#endif /* MAGCAL_CFG_ENABLE_COARSE */

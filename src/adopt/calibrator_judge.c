@@ -107,9 +107,11 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_harm_n(magcal_calibrator_t *cal, cal_r
     if (hn->ok == 0u) {
         return MAGCAL_ERR_UNOBSERVABLE; /* headings too clumped to separate centre and soft iron */
     }
+#if MAGCAL_CFG_ENABLE_COARSE
     if (rep->coarse != 0u) {
         return magcal_coarse_bound(cal, r, d);
     }
+#endif
     /* per-sample heading noise of new data: the relative radial residual after the harmonics
      * (the fit's own residual, dof corrected); tangential and radial noise have the same RMS
      * over uniformly spread headings */

@@ -505,12 +505,14 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_cov_all(magcal_calibrator_t *cal, cal_
     r->rep.coverage_deg = cov;
     (void)magcal_cal_spend(&r->bud, CAL_W_COVFIN);
     if (cov < cal->cfg.min_coverage_deg) {
+#if MAGCAL_CFG_ENABLE_COARSE
         if (cal->coarse_min_cov > 0.0f && cov >= cal->coarse_min_cov && magcal_coarse_radius(q) != 0) {
             r->rep.coarse = 1u; /* hard iron only: the circle of the inliers ("Coarse stage") */
             cal_goto(r, PH_CO_RES);
             q->ss = 0.0f;
             return MAGCAL_OK;
         }
+#endif
         return MAGCAL_ERR_COVERAGE;
     }
     if (r->pre != 0u) {

@@ -69,9 +69,11 @@ static MAGCAL_NOINLINE magcal_status_t cal_phase(magcal_calibrator_t *cal, cal_r
     case PH_PLAIN: return magcal_ph_plain(cal, r);
     case PH_PLAIN_MASK: return magcal_ph_plain_mask(cal, r);
     case PH_GATES: return magcal_ph_gates(cal, r);
+#if MAGCAL_CFG_ENABLE_COARSE
     case PH_CO_RES: return magcal_ph_co_res(cal, r);
     case PH_CO_GATE: return magcal_ph_co_gate(cal, r);
     case PH_CO_FIT: return magcal_ph_co_fit(cal, r);
+#endif
     case PH_TOCAL: return magcal_ph_tocal(cal, r);
     case PH_COVC: return magcal_ph_covc(cal, r);
     case PH_DIST: return magcal_ph_dist(cal, r);

@@ -12,7 +12,8 @@ set(_absent
     magcal_optics_run3 magcal_optics_filter3 magcal_optics_auto_params3 # 3D
     magcal_geomag_eval magcal_geomag_wmm2025 magcal_geomag_igrf14 magcal_geomag_schmidt_a # GEOMAG
     magcal_aided_init_checked magcal_aided_update               # AIDED
-    magcal_swing_fit magcal_swing_cog_add)                      # SWING
+    magcal_swing_fit magcal_swing_cog_add                       # SWING
+    magcal_coarse_bound magcal_coarse_radius magcal_ph_co_fit)  # COARSE
 set(_present magcal_optics_filter magcal_consensus_run magcal_ellipse_fit magcal_ellipse_to_cal
              magcal_heading_compute magcal_calibrator_run)
 set(_bad "")

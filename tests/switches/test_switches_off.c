@@ -21,11 +21,12 @@
 #include "magcal/ellipse.h"
 #include "magcal/heading.h"
 #include "magcal/optics.h"
+#include "adopt/calibrator_internal.h" /* magcal_calibrator_set_coarse (the continuous calibrator's) */
 #include "unity.h"
 
 #if MAGCAL_CFG_ENABLE_DBSCAN || MAGCAL_CFG_ENABLE_OPTICS_CLASSIC || MAGCAL_CFG_ENABLE_PAPER ||       \
     MAGCAL_CFG_ENABLE_3D || MAGCAL_CFG_ENABLE_GEOMAG || MAGCAL_CFG_ENABLE_AIDED ||                  \
-    MAGCAL_CFG_ENABLE_SWING
+    MAGCAL_CFG_ENABLE_SWING || MAGCAL_CFG_ENABLE_COARSE
 #error "this test must be compiled with every MAGCAL_CFG_ENABLE_* at 0 (tests/switches/CMakeLists.txt)"
 #endif
 
@@ -200,11 +201,41 @@ static void test_calibrator_dbscan_is_refused(void)
     TEST_ASSERT_EQUAL_MEMORY(&id, &cur, sizeof cur);
 }
 
+/* The coarse stage is compiled out (MAGCAL_CFG_ENABLE_COARSE = 0): a 200-degree arc that a
+ * coarse-enabled solve (set_coarse: from 90 degrees, bound 30 degrees) would take to the coarse
+ * stage fails the coverage gate, calibration untouched, nothing reported coarse. */
+static void test_calibrator_coarse_is_absent(void)
+{
+    const magcal_cal2d_t id = MAGCAL_CAL2D_IDENTITY;
+    magcal_cal2d_t cur = MAGCAL_CAL2D_IDENTITY;
+    magcal_calibrator_cfg_t cfg = MAGCAL_CALIBRATOR_CFG_DEFAULT;
+    magcal_cal_report_t rep;
+    size_t i, pushed = 0u;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_cal, &cfg, g_cbuf, N, g_cwork, sizeof g_cwork));
+    for (i = 0u; i < N; ++i) {
+        if (g_kind[i] == 0u && g_psi[i] < 200.0 * TPI / 360.0) {
+            magcal_status_t st = magcal_calibrator_push(&g_cal, g_pts[i]);
+            TEST_ASSERT_TRUE(st == MAGCAL_OK || st == MAGCAL_ERR_GATED);
+            pushed += (st == MAGCAL_OK) ? 1u : 0u;
+        }
+    }
+    TEST_ASSERT_TRUE(pushed >= 150u);
+    magcal_calibrator_set_coarse(&g_cal, 90.0f, 30.0f, 0u);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_COVERAGE, magcal_calibrator_run(&g_cal, &cur, &rep));
+    printf("coarse stage absent: %u samples, coverage %.1f deg -> %s\n", (unsigned)pushed,
+           (double)rep.coverage_deg, magcal_status_str(rep.status));
+    /* the arc is inside the coarse stage's range: only its absence explains the refusal */
+    TEST_ASSERT_TRUE(rep.coverage_deg >= 90.0f && rep.coverage_deg < cfg.min_coverage_deg);
+    TEST_ASSERT_EQUAL_UINT8(0u, rep.coarse);
+    TEST_ASSERT_EQUAL_MEMORY(&id, &cur, sizeof cur);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_minimal_2d_pipeline_meets_truth);
     RUN_TEST(test_calibrator_default_meets_truth);
     RUN_TEST(test_calibrator_dbscan_is_refused);
+    RUN_TEST(test_calibrator_coarse_is_absent);
     return UNITY_END();
 }

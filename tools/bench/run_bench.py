@@ -1260,7 +1260,7 @@ def render_markdown(res, ns, i_ref, m4f, sk_info):
             L.append("")
         if mm.get("pipeline2d_min_flash") is not None:
             L.append("The calibrator image (`main.c`) linked against that switches-at-0 library (`pipeline2d_min.elf`; "
-                     "DBSCAN and the KPHI form are run-time choices there, so only the switches remove them): "
+                     "DBSCAN, the KPHI form and the coarse stage are run-time choices there, so only the switches remove them): "
                      "library + libm + libgcc %d B against %d B in the shipped configuration." % (
                          mm["pipeline2d_min_flash"], sum(mm["groups"].get(k, {}).get("flash", 0)
                                                          for k in ("magcal", "libm", "libgcc"))))
