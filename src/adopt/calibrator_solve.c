@@ -76,6 +76,7 @@ static MAGCAL_NOINLINE magcal_status_t cal_phase(magcal_calibrator_t *cal, cal_r
     case PH_COVC: return magcal_ph_covc(cal, r);
     case PH_DIST: return magcal_ph_dist(cal, r);
     case PH_HARM_N: return magcal_ph_harm_n(cal, r);
+    case PH_ARC: return magcal_ph_arc(cal, r);
     case PH_VALID: return magcal_ph_valid(cal, current, r);
     case PH_SHIFT: return magcal_ph_shift(cal, current, r);
     case PH_HARM_C: return magcal_ph_harm_c(current, cal, r);
@@ -146,6 +147,19 @@ void magcal_calibrator_set_coarse(magcal_calibrator_t *cal, float min_cov, float
         cal->coarse_min_cov = magcal_isfinite_f(min_cov) && min_cov > 0.0f ? min_cov : 0.0f;
         cal->coarse_max_err = magcal_isfinite_f(max_err_deg) ? max_err_deg : 0.0f;
         cal->current_coarse = current_coarse;
+    }
+}
+
+void magcal_calibrator_set_arc(magcal_calibrator_t *cal, float min_cov, float max_err_deg, float model_deg)
+{
+    if (cal != NULL && cal->magic == MAGCAL_CALIBRATOR_MAGIC) {
+        const int on = (magcal_isfinite_f(min_cov) && min_cov > 0.0f && magcal_isfinite_f(max_err_deg) &&
+                        max_err_deg > 0.0f && magcal_isfinite_f(model_deg) && model_deg >= 0.0f)
+                           ? 1
+                           : 0;
+        cal->arc_min_cov = on != 0 ? min_cov : 0.0f;
+        cal->arc_max_err = on != 0 ? max_err_deg : 0.0f;
+        cal->arc_model = on != 0 ? model_deg : 0.0f;
     }
 }
 
