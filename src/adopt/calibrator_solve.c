@@ -41,6 +41,9 @@ MAGCAL_STATIC_ASSERT(MAGCAL_CAL_HARM_SCRATCH_FLOATS * sizeof(float) + (size_t)2u
                          MAGCAL_CONSENSUS_WORKSPACE_LEN(16u),
                      adopt_fits_scratch);
 
+/* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
+MAGCAL_STATIC_ASSERT(CAL_HARM_INV4 + 16u == MAGCAL_CAL_HARM_SCRATCH_FLOATS, arc_reads_the_harmonics_inverse_block);
+
 /* ------------------------------------------------------------------ driver */
 
 /* One phase (each a separate function: only the deepest phase's frame sits under step()). */
