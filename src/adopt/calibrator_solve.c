@@ -153,13 +153,19 @@ void magcal_calibrator_set_coarse(magcal_calibrator_t *cal, float min_cov, float
     }
 }
 
+/* The arc stage's settings are in range (else the stage is off). */
+static int cal_arc_args_ok(float min_cov, float max_err_deg, float model_deg)
+{
+    return (magcal_isfinite_f(min_cov) && min_cov > 0.0f && magcal_isfinite_f(max_err_deg) && max_err_deg > 0.0f &&
+            magcal_isfinite_f(model_deg) && model_deg >= 0.0f)
+               ? 1
+               : 0;
+}
+
 void magcal_calibrator_set_arc(magcal_calibrator_t *cal, float min_cov, float max_err_deg, float model_deg)
 {
     if (cal != NULL && cal->magic == MAGCAL_CALIBRATOR_MAGIC) {
-        const int on = (magcal_isfinite_f(min_cov) && min_cov > 0.0f && magcal_isfinite_f(max_err_deg) &&
-                        max_err_deg > 0.0f && magcal_isfinite_f(model_deg) && model_deg >= 0.0f)
-                           ? 1
-                           : 0;
+        const int on = cal_arc_args_ok(min_cov, max_err_deg, model_deg);
         cal->arc_min_cov = on != 0 ? min_cov : 0.0f;
         cal->arc_max_err = on != 0 ? max_err_deg : 0.0f;
         cal->arc_model = on != 0 ? model_deg : 0.0f;
