@@ -1238,6 +1238,92 @@ static void test_sliced_solve_matches_run_bit_for_bit(void)
     }
 }
 
+/* Arc stage (calibrator.h "Arc stage", magcal_calibrator_set_arc): 120 samples spread over arcs of
+ * 190 / 220 / 250 deg, noise 1 % of R, hard and soft iron known, 12 seeds each. Off (the default
+ * after init): COVERAGE. On (180 deg, tolerance 5 deg, model term 0: the data have no model error):
+ * every OK is an arc (report arc 1, est_param_err_deg = est_param_err_deg) whose truth RMS over the
+ * WHOLE circle (360 noise-free headings) is <= its bound; a tolerance below every bound (0.02 deg):
+ * UNOBSERVABLE with the bound above it, `current` bit-identical; an arc never replaces a full
+ * `current` (NOT_BETTER). */
+static void test_run_arc_bound_covers_whole_circle(void)
+{
+    static const double arcs[3] = {190.0, 220.0, 250.0};
+    const test_distortion_t d = {40.0f, {{1.1f, 0.05f}, {0.05f, 0.9f}}, 12.0f, -7.0f};
+    const magcal_calibrator_cfg_t cfg = MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT;
+    unsigned ok = 0u, refused = 0u, cov = 0u, runs = 0u;
+    double worst = 1.0e9, ratio_max = 0.0;
+    size_t a;
+    unsigned seed;
+    for (a = 0u; a < 3u; ++a) {
+        for (seed = 1u; seed <= 12u; ++seed) {
+            int mode;
+            for (mode = 0; mode < 4; ++mode) {
+                uint32_t rng = seed * 2654435761u + (uint32_t)a;
+                magcal_cal2d_t c = MAGCAL_CAL2D_IDENTITY;
+                magcal_cal2d_t before;
+                magcal_cal_report_t rep;
+                magcal_status_t st;
+                size_t i;
+                const double start = 37.0 * (double)seed;
+                TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_init(&g_cal, &cfg, g_buf, CAP, g_work, sizeof g_work));
+                if (mode == 1) {
+                    magcal_calibrator_set_arc(&g_cal, 180.0f, 5.0f, 0.0f);
+                } else if (mode == 2) {
+                    magcal_calibrator_set_arc(&g_cal, 180.0f, 0.02f, 0.0f);
+                } else if (mode == 3) {
+                    magcal_calibrator_set_arc(&g_cal, 180.0f, 5.0f, 0.0f);
+                    c.offset.x = 12.0f; /* a full calibration installed (close to the truth) */
+                    c.offset.y = -7.0f;
+                    c.radius = 40.0f;
+                } else {
+                    /* off */
+                }
+                before = c;
+                for (i = 0u; i < 120u; ++i) {
+                    const double psi = start + arcs[a] * ((double)i + test_rand_uniform(&rng)) / 120.0;
+                    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_calibrator_push(&g_cal, test_distorted_sample(&d, psi, 0.4, &rng)));
+                }
+                st = magcal_calibrator_run(&g_cal, &c, &rep);
+                if (mode == 0) {
+                    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_COVERAGE, st);
+                    TEST_ASSERT_EQUAL_UINT8(0u, rep.arc);
+                    cov++;
+                } else if (mode == 1) {
+                    runs++;
+                    if (st == MAGCAL_OK) {
+                        const double tr = truth_rms_360(&c, &d);
+                        TEST_ASSERT_EQUAL_UINT8(1u, rep.arc);
+                        TEST_ASSERT_TRUE(rep.coverage_deg < 270.0f);
+                        TEST_ASSERT_TRUE(rep.est_param_err_deg <= 5.0f);
+                        TEST_ASSERT_TRUE(tr <= (double)rep.est_param_err_deg); /* the promise */
+                        worst = fmin(worst, (double)rep.est_param_err_deg - tr);
+                        ratio_max = fmax(ratio_max, tr / (double)rep.est_param_err_deg);
+                        ok++;
+                    } else {
+                        TEST_ASSERT_EQUAL_MEMORY(&before, &c, sizeof c);
+                    }
+                } else if (mode == 2) {
+                    TEST_ASSERT_EQUAL_MEMORY(&before, &c, sizeof c); /* untouched */
+                    if (rep.arc != 0u && st == MAGCAL_ERR_UNOBSERVABLE) {
+                        TEST_ASSERT_TRUE(rep.est_param_err_deg > 0.02f);
+                        refused++;
+                    } else {
+                        TEST_ASSERT_TRUE(st != MAGCAL_OK);
+                    }
+                } else {
+                    TEST_ASSERT_TRUE(st != MAGCAL_OK); /* never replaces a full calibration */
+                    TEST_ASSERT_EQUAL_MEMORY(&before, &c, sizeof c);
+                }
+            }
+        }
+    }
+    printf("arc stage, 36 arcs of 190..250 deg: off %u COVERAGE; on %u of %u OK (worst margin bound - truth %.3f deg, "
+           "truth / bound <= %.3f); tolerance 0.02 deg: %u refused UNOBSERVABLE\n",
+           cov, ok, runs, worst, ratio_max, refused);
+    TEST_ASSERT_TRUE(ok >= 30u);
+    TEST_ASSERT_TRUE(refused >= 30u);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -1272,5 +1358,6 @@ int main(void)
     RUN_TEST(test_pretest_parked_rings_full_path_or_within_floor);
     RUN_TEST(test_run_store_of_two_installations_inconsistent);
     RUN_TEST(test_init_inconsistent_frac_checked);
+    RUN_TEST(test_run_arc_bound_covers_whole_circle);
     return UNITY_END();
 }

@@ -1055,6 +1055,192 @@ void test_cont_store_of_two_installations_adopts_current(void)
     TEST_ASSERT_TRUE(dr.turn_at_first - turn_at_step <= 720.0);
 }
 
+/* ------------------------------------------------------------------ arc stage (an ellipse below 270 deg) */
+
+typedef struct {
+    unsigned adopted;     /* arc adoptions */
+    unsigned refused;     /* arc solves refused UNOBSERVABLE (the bound above tolerance) */
+    double worst_margin;  /* min over arc adoptions of bound - truth RMS, deg */
+    double bound;         /* bound of the first arc adoption (report est_param_err_deg) */
+    double truth;         /* its truth heading RMS over the whole circle */
+    double turn;          /* turning at the first arc adoption, deg */
+} arc_stats_t;
+
+static void arc_init(float cov_deg, float tol_deg, float model_deg)
+{
+    magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
+    cfg.arc_coverage_deg = cov_deg;
+    cfg.arc_max_err_deg = tol_deg;
+    cfg.arc_model_deg = model_deg;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+}
+
+/* Turn `deg` at 15 deg/s, then stay 40 s at the end heading (the solve under way ends); every arc
+ * adoption's bound is checked against the truth over the WHOLE circle. */
+static void arc_drive(drive_t *dr, double deg, arc_stats_t *as)
+{
+    const size_t rows = (size_t)(fabs(deg) / 15.0 * 50.0);
+    size_t i;
+    for (i = 0u; i < rows + 2000u; ++i) {
+        magcal_cont_outcome_t oc;
+        if (i < rows) {
+            dr->psi = fmod(dr->psi + deg / (double)rows + 360.0, 360.0);
+            dr->turn_deg += fabs(deg / (double)rows);
+        }
+        oc = drive_row(dr, 0.0f, 0.0f);
+        if (oc == MAGCAL_CONT_ADOPTED && g_cc.last.arc != 0u) {
+            const double tr = truth_rms(&g_cc.cal, dr->d);
+            const double bd = (double)g_cc.last.est_param_err_deg;
+            magcal_vec3_t m = {0.0f, 0.0f, 40.0f};
+            magcal_cont_heading_t hd;
+            const magcal_vec2_t p = test_distorted_sample(dr->d, dr->psi, 0.0, &dr->rng);
+            TEST_ASSERT_EQUAL_UINT8(2u, g_cc.cal_coarse);
+            TEST_ASSERT_TRUE(g_cc.last.coverage_deg < 270.0f);
+            m.x = p.x;
+            m.y = p.y;
+            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_heading(&g_cc, &m, 0.0f, &hd));
+            TEST_ASSERT_TRUE(hd.trust == MAGCAL_TRUST_COARSE || hd.trust == MAGCAL_TRUST_DISTURBED);
+            if (as->adopted == 0u) {
+                as->bound = bd;
+                as->truth = tr;
+                as->turn = dr->turn_deg;
+                as->worst_margin = bd - tr;
+            }
+            as->worst_margin = fmin(as->worst_margin, bd - tr);
+            as->adopted++;
+            if (!(tr <= bd)) {
+                printf("arc: bound %.2f deg < truth %.2f deg (coverage %.0f, used %u, noise %.3f deg)\n", bd, tr,
+                       (double)g_cc.last.coverage_deg, (unsigned)g_cc.last.used, (double)g_cc.last.est_noise_deg);
+            }
+            TEST_ASSERT_TRUE(tr <= bd); /* the promise: the bound covers the whole circle */
+            TEST_ASSERT_TRUE(bd <= (double)g_cc.cfg.arc_max_err_deg);
+        } else if ((oc == MAGCAL_CONT_FAILED || oc == MAGCAL_CONT_REFUSED) && g_cc.last.arc != 0u &&
+                   g_cc.last.status == MAGCAL_ERR_UNOBSERVABLE) {
+            as->refused++;
+            TEST_ASSERT_TRUE(g_cc.last.est_param_err_deg > g_cc.cfg.arc_max_err_deg);
+        } else {
+            /* nothing about the arc stage */
+        }
+    }
+}
+
+/* Known hard iron (12, -7), soft iron none / mild / strong, arcs of 200 / 230 / 260 deg x 8 seeds,
+ * noise 0.15 (0.5 % of R): no model error in these data, so the model term is 0 and the
+ * covariance part of the bound alone must cover the truth over the whole circle. */
+void test_cont_arc_bound_covers_truth_on_arcs(void)
+{
+    static const test_distortion_t ds[3] = {{30.0f, {{1.00f, 0.00f}, {0.00f, 1.00f}}, 12.0f, -7.0f},
+                                            {30.0f, {{1.03f, 0.02f}, {0.02f, 0.97f}}, 12.0f, -7.0f},
+                                            {30.0f, {{1.10f, 0.05f}, {0.05f, 0.90f}}, 12.0f, -7.0f}};
+    static const double arcs[3] = {200.0, 230.0, 260.0};
+    unsigned adopted = 0u;
+    double worst = 1.0e9;
+    size_t k;
+    size_t a;
+    uint32_t seed;
+    for (k = 0u; k < 3u; ++k) {
+        for (a = 0u; a < 3u; ++a) {
+            for (seed = 1u; seed <= 8u; ++seed) {
+                drive_t dr;
+                arc_stats_t as;
+                memset(&as, 0, sizeof as);
+                arc_init(180.0f, 4.0f, 0.0f);
+                drive_init(&dr, &ds[k], seed);
+                dr.psi = 47.0 * (double)seed;
+                arc_drive(&dr, arcs[a], &as);
+                printf("arc: soft iron %zu arc %3.0f seed %u: %u arc adoptions, %u refused; first after %.0f deg: "
+                       "bound %.3f deg, truth %.3f deg\n",
+                       k, arcs[a], (unsigned)seed, as.adopted, as.refused, as.turn, as.bound, as.truth);
+                adopted += as.adopted != 0u ? 1u : 0u;
+                if (as.adopted != 0u) {
+                    worst = fmin(worst, as.worst_margin);
+                    TEST_ASSERT_TRUE(as.turn <= arcs[a] + 1.0e-6); /* within the arc: before 270 deg were seen */
+                }
+                TEST_ASSERT_TRUE(as.adopted <= 1u); /* an arc never replaces an arc */
+            }
+        }
+    }
+    printf("arc: %u of 72 runs adopted an arc, worst margin bound - truth %.3f deg\n", adopted, worst);
+    TEST_ASSERT_TRUE(adopted >= 48u); /* the stage delivers, not refuses everything */
+}
+
+/* The same arcs against a tolerance the bound cannot meet (0.05 deg): every arc solve is refused
+ * UNOBSERVABLE with the bound reported above it, nothing installed, headings uncalibrated. */
+void test_cont_arc_refused_when_bound_too_wide(void)
+{
+    uint32_t seed;
+    unsigned refused = 0u;
+    for (seed = 1u; seed <= 3u; ++seed) {
+        drive_t dr;
+        arc_stats_t as;
+        magcal_cont_heading_t hd;
+        const magcal_cal2d_t id = MAGCAL_CAL2D_IDENTITY;
+        magcal_vec3_t m = {10.0f, 20.0f, 40.0f};
+        memset(&as, 0, sizeof as);
+        arc_init(180.0f, 0.05f, 0.0f);
+        drive_init(&dr, &k_d, seed);
+        dr.psi = 47.0 * (double)seed;
+        arc_drive(&dr, 230.0, &as);
+        printf("arc, tolerance 0.05 deg, seed %u: %u arc adoptions, %u refused (last bound %.3f deg)\n",
+               (unsigned)seed, as.adopted, as.refused, (double)g_cc.last.est_param_err_deg);
+        TEST_ASSERT_EQUAL_UINT(0u, as.adopted);
+        TEST_ASSERT_EQUAL_UINT32(0u, g_cc.generation);
+        TEST_ASSERT_EQUAL_MEMORY(&id, &g_cc.cal, sizeof id); /* untouched */
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_heading(&g_cc, &m, 0.0f, &hd));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_TRUST_UNCALIBRATED, hd.trust);
+        refused += as.refused;
+    }
+    TEST_ASSERT_TRUE(refused >= 3u); /* the stage ran and said why */
+}
+
+/* An arc calibration on 230 deg, then the rest of the circle: the full ellipse replaces it
+ * (never worse on the truth: drive_row checks every adoption), headings OK, the stage off. */
+void test_cont_arc_upgraded_by_full_ellipse(void)
+{
+    drive_t dr;
+    arc_stats_t as;
+    magcal_cont_heading_t hd;
+    magcal_vec3_t m = {0.0f, 0.0f, 40.0f};
+    magcal_vec2_t p;
+    memset(&as, 0, sizeof as);
+    arc_init(180.0f, 4.0f, 0.0f);
+    drive_init(&dr, &k_d, 5u);
+    arc_drive(&dr, 230.0, &as);
+    TEST_ASSERT_EQUAL_UINT(1u, as.adopted);
+    arc_drive(&dr, 360.0, &as);
+    printf("arc then full: arc bound %.3f truth %.3f deg after %.0f deg; full after %.0f deg, truth %.3f deg, "
+           "%u adoptions\n", as.bound, as.truth, as.turn, dr.turn_deg, truth_rms(&g_cc.cal, &k_d), dr.adopted);
+    TEST_ASSERT_EQUAL_UINT8(0u, g_cc.cal_coarse);
+    TEST_ASSERT_TRUE(dr.adopted >= 2u);
+    TEST_ASSERT_TRUE(truth_rms(&g_cc.cal, &k_d) <= 1.0);
+    p = test_distorted_sample(&k_d, dr.psi, 0.0, &dr.rng);
+    m.x = p.x;
+    m.y = p.y;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_heading(&g_cc, &m, 0.0f, &hd));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_TRUST_OK, hd.trust);
+    TEST_ASSERT_EQUAL_FLOAT(0.0f, g_cc.solver.arc_min_cov); /* a calibration installed: off */
+}
+
+void test_cont_arc_cfg_checked(void)
+{
+    magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
+    TEST_ASSERT_EQUAL_FLOAT(0.0f, cfg.arc_coverage_deg); /* opt-in (docs/calibrator.md "Arc stage") */
+    cfg.arc_coverage_deg = 180.0f;
+    cfg.arc_max_err_deg = 0.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    cfg.arc_max_err_deg = 10.0f;
+    cfg.arc_model_deg = -1.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    cfg.arc_model_deg = NAN;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    cfg.arc_model_deg = 7.0f;
+    cfg.arc_coverage_deg = 300.0f; /* above solve_coverage_deg (280) */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    cfg.arc_coverage_deg = 180.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    TEST_ASSERT_EQUAL_FLOAT(180.0f, g_cc.solver.arc_min_cov);
+}
+
 int main(void)
 {
 #if defined(__arm__)
@@ -1085,5 +1271,9 @@ int main(void)
 #endif
     RUN_TEST(test_cont_push_g_classifies_level_tilted_and_braking);
     RUN_TEST(test_cont_push_g_tilt_compensation_levels_the_store);
+    RUN_TEST(test_cont_arc_bound_covers_truth_on_arcs);
+    RUN_TEST(test_cont_arc_refused_when_bound_too_wide);
+    RUN_TEST(test_cont_arc_upgraded_by_full_ellipse);
+    RUN_TEST(test_cont_arc_cfg_checked);
     return UNITY_END();
 }

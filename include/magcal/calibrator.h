@@ -97,6 +97,23 @@
  * calibration replaces a coarse `current` by rule (b) with margin 1 (current_err_deg >=
  * est_param_err_deg: never worse), and a coarse one never replaces a full one.
  *
+ * Arc stage (the full ellipse below the coverage gate; off unless the continuous calibrator enables
+ * it, continuous.h cfg.arc_coverage_deg, and only while no calibration is installed): when the
+ * pre-gate coverage or the corrected coverage is below cfg.min_coverage_deg but at least the arc
+ * coverage, the 5-parameter ellipse is fitted and gated as usual (report arc = 1) and, instead of
+ * the observability gate, judged by a bound on its heading error over the WHOLE circle, the
+ * headings the arc never saw included: the harmonics' covariance C = s_p^2 dup (G^T G)^-1 (the
+ * fit's own, first order) gives the heading-error variance w^T C w at 36 headings, w = (-sin phi,
+ * cos phi, -sin 2phi, cos 2phi), and
+ *     bound (est_param_err_deg) = sqrt(1/2 |beta|^2) + 3 max_phi sqrt(w^T C w) + bias + model
+ * (model: the continuous calibrator's cfg.arc_model_deg, what an arc cannot see: a tilt or a
+ * vertical-field leak the fit absorbs; the sd part with repeated values times the full gate's
+ * upper confidence factor). It passes only when the share of plausible samples the residual stage
+ * rejected is <= MAGCAL_CALIBRATOR_ARC_INCONSISTENT (else MAGCAL_ERR_INCONSISTENT) and the bound
+ * is <= cfg.arc_max_err_deg (else MAGCAL_ERR_UNOBSERVABLE); est_param_err_deg = the bound (NaN
+ * when the solve ended before it). An arc
+ * calibration never replaces a full one; a full one replaces it by rule (b) with margin 1.
+ *
  * Time-sliced solve (src/adopt/calibrator_solve.c; the continuous calibrator, continuous.h, drives it):
  * run() is one call of the same resumable phases with an unlimited budget (one code path). Each
  * phase keeps its cursor and sums in the workspace (the run state, or the stage scratch when the
@@ -319,6 +336,12 @@ typedef struct {
 /** Rules (b) and (c) need a current error above this (degrees): float32 rounding, not data. */
 #define MAGCAL_CALIBRATOR_ADOPT_MIN_DEG 1.0e-3f
 
+/** Arc stage: the consistency gate of an arc (share of the plausible samples the residual stage
+ *  rejected, Pipeline step 5), whatever cfg.max_inconsistent_frac: clean arcs of the generated
+ *  drives 0..0.13, arcs of a store spanning a hard-iron step 0.20..0.22 (docs/calibrator.md
+ *  "Arc stage"). */
+#define MAGCAL_CALIBRATOR_ARC_INCONSISTENT 0.15f
+
 /** Which adoption rule installed the new calibration (report adopt_rule). */
 typedef enum {
     MAGCAL_ADOPT_NONE = 0,     /**< not adopted (failure, or NOT_BETTER) */
@@ -380,6 +403,12 @@ typedef struct {
                                      ("Coarse stage" above); est_param_err_deg is then an upper
                                      bound of its heading error over the whole circle, not an
                                      estimate. Only the continuous calibrator enables it. */
+    uint8_t arc;                /**< 1: a full ellipse fitted on an arc below cfg.min_coverage_deg
+                                     ("Arc stage" above); est_param_err_deg is then its
+                                     whole-circle bound (NaN when not reached), an upper bound of
+                                     its heading error over the whole circle, not an estimate.
+                                     Only the continuous calibrator enables it. (In the padding
+                                     behind `coarse`: the report does not grow.) */
 } magcal_cal_report_t;
 
 /** @brief Short constant name of an adoption rule ("unusable", "better", ...; "unknown"). */
@@ -415,6 +444,11 @@ typedef struct {
     float coarse_min_cov;         /* coverage that admits the circle fit, deg; 0 = off */
     float coarse_max_err;         /* tolerance of its bound (est_param_err_deg), deg */
     uint8_t current_coarse;       /* 1: `current` passed to the solve is a coarse calibration */
+    /* arc stage (set by the continuous calibrator, calibrator_internal.h
+     * magcal_calibrator_set_arc; 0 after init: off) */
+    float arc_min_cov;            /* coverage that admits an ellipse below cfg.min_coverage_deg, deg; 0 = off */
+    float arc_max_err;            /* tolerance of its whole-circle bound, deg */
+    float arc_model;              /* model-error term of the bound, deg */
 } magcal_calibrator_t;
 
 /**

@@ -77,6 +77,16 @@
  * good (a coarse one never replaces a full one). Save to flash only when cc.cal_coarse == 0: a
  * restored calibration is taken as full.
  *
+ * Arc calibration (cfg.arc_coverage_deg, opt-in, default 0 = off): until a calibration is
+ * installed, a solve already starts at the arc coverage and the solver may install the full
+ * ellipse fitted on an arc below its 270-deg gate when its whole-circle bound (calibrator.h "Arc
+ * stage": the fit's covariance at 36 headings of the whole circle plus cfg.arc_model_deg) is
+ * within cfg.arc_max_err_deg. Marked as a coarse one: `last.arc` = 1, cc.cal_coarse = 2, headings
+ * MAGCAL_TRUST_COARSE, the bound in `adopted_err`; a full ellipse over >= 270 deg replaces it with
+ * margin 1, an arc or a circle never. Off by default: on the generated drives the bound's model
+ * term has to be ~7 deg to cover the truth, and the loop after an arc adoption was worse
+ * (docs/calibrator.md "Arc stage").
+ *
  * Tilt compensation (magcal_cont_push_g, cfg.tilt_comp_deg; docs/calibrator.md "Tilt
  * compensation"). A pitch p (roll r) shifts the body's horizontal field by Z (sin r, sin p) to
  * first order (Z: the body's vertical field), i.e. the raw x, y by k t with t = (g_x, g_y) / g_z of
@@ -242,6 +252,16 @@ typedef struct {
                                          judge's thresholds on (the store's decisions keep the full
                                          thresholds); (0, 1], 1 = the same thresholds (default 0.7:
                                          docs/calibrator.md "Judge and change detection") */
+    float arc_coverage_deg;         /**< arc stage ("Arc calibration" above): while no calibration is
+                                         installed, a solve starts at this live coverage and may
+                                         install a full ellipse fitted on an arc below the solver's
+                                         270-deg gate when its whole-circle bound holds
+                                         (calibrator.h "Arc stage"); 0 = off, else <=
+                                         solve_coverage_deg */
+    float arc_max_err_deg;          /**< its tolerance: the ellipse's bound on its heading error over
+                                         the whole circle (report est_param_err_deg), > 0 */
+    float arc_model_deg;            /**< the bound's model-error term (what an arc cannot see:
+                                         a tilt or vertical-field leak the fit absorbs), >= 0 */
 } magcal_cont_cfg_t;
 
 /** Defaults: work untuned from 10 to 100 Hz (time constants are in ms of the push stamps). */
@@ -249,7 +269,7 @@ typedef struct {
     {                                                                                              \
         MAGCAL_INTAKE_CFG_DEFAULT_2D, MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT, 280.0f, 24u, 2u,        \
             600000.0f, 4.0f, 0.06f, 8000u, 3u, 4000u, 100u, 200u, 4.0f,                            \
-            MAGCAL_SLICE_BUDGET_DEFAULT, 0.0f, 15.0f, 8.0f, 0.7f                                   \
+            MAGCAL_SLICE_BUDGET_DEFAULT, 0.0f, 15.0f, 8.0f, 0.7f, 0.0f, 10.0f, 7.0f                \
     }
 
 /** A heading with its trust. */
@@ -378,8 +398,9 @@ typedef struct {
     float fz_miss;                 /* share of samples over the per-sample threshold, smoothed (cont_change.c) */
     uint8_t fz_unfit;              /* 1: the model does not explain the stream: its per-sample test does not flag */
     uint8_t cal_coarse;            /**< read-only: 1 = the installed calibration is coarse (hard
-                                        iron only; headings MAGCAL_TRUST_COARSE): do not store it
-                                        as a full calibration */
+                                        iron only), 2 = an arc ellipse ("Arc calibration"); either
+                                        way headings MAGCAL_TRUST_COARSE: do not store it as a full
+                                        calibration */
     /* the coverage count of the sliced step, resumable over bins (cont_step.c, intake progress.c) */
     uint32_t cnt_words[MAGCAL_INTAKE_MASK_WORDS(MAGCAL_INTAKE_MAX_BINS)]; /* filled-bin mask so far */
     uint32_t cnt_bin;              /* next bin to count */

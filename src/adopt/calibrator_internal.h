@@ -161,5 +161,10 @@ int magcal_calibrator_solving(const magcal_calibrator_t *cal);
  * with margin 1). min_cov 0: off (the default after init). Not during a solve. */
 void magcal_calibrator_set_coarse(magcal_calibrator_t *cal, float min_cov, float max_err_deg,
                                   uint8_t current_coarse);
+/* Arc stage (calibrator.h "Arc stage"): the full ellipse may be fitted on an arc of
+ * min_cov..cfg.min_coverage_deg whose whole-circle bound (with the model term model_deg) is <=
+ * max_err_deg; min_cov 0 or any argument out of range (non-finite, max_err <= 0, model < 0): off
+ * (the default after init). Not during a solve. */
+void magcal_calibrator_set_arc(magcal_calibrator_t *cal, float min_cov, float max_err_deg, float model_deg);
 
 #endif /* MAGCAL_CALIBRATOR_INTERNAL_H */

@@ -1,13 +1,15 @@
 /*
  * The solve's adopt phases (calibrator_solve_internal.h): the new calibration, its corrected
  * coverage, the distinct values, its harmonics (observability gate; a coarse solve's bound is
- * calibrator_coarse.c's), the heading shift, the installed calibration's harmonics and the
+ * calibrator_coarse.c's; an arc solve's whole-circle bound is ph_arc), the heading shift, the installed calibration's harmonics and the
  * adoption rule (calibrator.h file comment).
  */
 #include <math.h>
 #include <string.h>
 
 #include "calibrator_solve_internal.h"
+
+static void cal_sincos5(size_t k, float *sn, float *cs);
 
 /* 6. the correction of the new fit. */
 MAGCAL_NOINLINE magcal_status_t magcal_ph_tocal(magcal_calibrator_t *cal, cal_run_t *r)
@@ -54,7 +56,13 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_covc(magcal_calibrator_t *cal, cal_run
     cov = magcal_cal_coverage_of(d->bins, &rep->missing_start_deg, &rep->missing_width_deg);
     rep->coverage_deg = cov;
     (void)magcal_cal_spend(&r->bud, CAL_W_COVFIN);
-    if (cov < (rep->coarse != 0u ? cal->coarse_min_cov : cal->cfg.min_coverage_deg) || !(cov > 0.0f)) {
+    if (rep->coarse == 0u && cov < cal->cfg.min_coverage_deg && cal->arc_min_cov > 0.0f) {
+        rep->arc = 1u; /* the pre-gate passed around the circle centre, the corrected headings span
+                          less: an arc, judged by its whole-circle bound ("Arc stage") */
+    }
+    if (cov < (rep->coarse != 0u ? cal->coarse_min_cov
+                                 : (rep->arc != 0u ? cal->arc_min_cov : cal->cfg.min_coverage_deg)) ||
+        !(cov > 0.0f)) {
         return MAGCAL_ERR_COVERAGE;
     }
     cal_goto(r, PH_DIST);
@@ -127,9 +135,79 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_harm_n(magcal_calibrator_t *cal, cal_r
         float dof = distinct > 6u ? (float)distinct - 5.0f : 1.0f;
         par *= 1.0f + 1.0f / sqrtf(2.0f * dof);
     }
+    if (rep->arc != 0u) {
+        rep->est_param_err_deg = NAN; /* the bound replaces the estimate (ph_arc) */
+        rep->est_heading_err_deg = NAN;
+        cal_goto(r, PH_ARC); /* judged by its whole-circle bound instead (ph_arc) */
+        d->arc_v2 = 0.0f;
+        return MAGCAL_OK;
+    }
     if (!(par <= cal->cfg.max_param_err_ratio * noise) ||
         !(hn->design <= cal->cfg.max_design_factor)) {
         return MAGCAL_ERR_UNOBSERVABLE;
+    }
+    cal_goto(r, PH_VALID);
+    return MAGCAL_OK;
+}
+
+/* Arc stage (calibrator.h "Arc stage"): the new ellipse's heading-error variance at 36 headings
+ * of the WHOLE circle, one per visit, from the harmonics' covariance C = s_p^2 dup (G^T G)^-1
+ * (4x4 block over cos, sin, cos 2, sin 2 of the corrected direction phi: calibrator_adopt.c). A
+ * parameter error beta gives the heading error -b1 sin phi + b2 cos phi - b3 sin 2phi + b4 cos 2phi
+ * (docs/calibrator.md "Heading-error estimate"), so its variance at phi is w^T C w with
+ * w = (-sin phi, cos phi, -sin 2phi, cos 2phi); the headings the arc never saw are where it is
+ * largest. Then the bound and its gate. */
+MAGCAL_NOINLINE magcal_status_t magcal_ph_arc(magcal_calibrator_t *cal, cal_run_t *r)
+{
+    cal_adopt_t *d = cal_adopt(cal);
+    magcal_cal_report_t *rep = &r->rep;
+    const magcal_cal_harm_t *hn = &d->hn;
+    const float *inv4 = cal_est_scratch(cal) + CAL_HARM_INV4;
+    const float c = d->u.harm.s2p * d->u.harm.dup;
+    float npart;
+    float bound;
+    while (r->i < CAL_ARC_HEADINGS) {
+        const size_t k = r->i;
+        float w[4];
+        float v = 0.0f;
+        size_t a;
+        size_t b;
+        r->i++;
+        cal_sincos5(2u * k, &w[0], &w[1]);
+        cal_sincos5((4u * k) % CAL_SHIFT_STEPS, &w[2], &w[3]);
+        w[0] = -w[0];
+        w[2] = -w[2];
+        for (a = 0u; a < 4u; ++a) {
+            for (b = 0u; b < 4u; ++b) {
+                v += w[a] * inv4[a * 4u + b] * w[b];
+            }
+        }
+        d->arc_v2 = fmaxf(d->arc_v2, c * v);
+        if (magcal_cal_spend(&r->bud, CAL_W_ARC) != 0) {
+            return MAGCAL_IN_PROGRESS;
+        }
+    }
+    npart = sqrtf(d->arc_v2);
+    if (d->distinct < (size_t)rep->used) {
+        const float dof = d->distinct > 6u ? (float)d->distinct - 5.0f : 1.0f;
+        npart *= 1.0f + 1.0f / sqrtf(2.0f * dof); /* repeated values: upper confidence, as the full gate */
+    }
+    /* the bound, rad: what the fit's own harmonics still show, 3 x the largest sd over the whole
+     * circle, the O(sigma^2) bias and the model term (what a partial arc cannot see: a tilt or a
+     * vertical-field leak the fit absorbs; measured on the drives, docs/calibrator.md) */
+    bound = sqrtf(hn->err2) + 3.0f * npart + sqrtf(hn->bias2) + cal->arc_model / MAGCAL_DEG_PER_RAD_F;
+    rep->est_param_err_deg = MAGCAL_DEG_PER_RAD_F * bound;
+    rep->est_heading_err_deg = MAGCAL_DEG_PER_RAD_F * sqrtf(hn->sigma_rel * hn->sigma_rel + bound * bound);
+    (void)magcal_cal_spend(&r->bud, CAL_W_PHASE);
+    /* less coverage needs a stronger check: the consistency gate at MAGCAL_CALIBRATOR_ARC_INCONSISTENT
+     * (a store of two installations seen over arcs is fitted by a compromise the bound cannot see:
+     * 30-min drives s3, s4, 35 deg off at a share of 0.20..0.22) */
+    if ((float)rep->rejected_consensus >
+        MAGCAL_CALIBRATOR_ARC_INCONSISTENT * ((float)rep->rejected_consensus + (float)rep->used - (float)rep->rescued_consensus)) {
+        return MAGCAL_ERR_INCONSISTENT;
+    }
+    if (!(rep->est_param_err_deg <= cal->arc_max_err)) {
+        return MAGCAL_ERR_UNOBSERVABLE; /* the arc does not bound the whole circle well enough */
     }
     cal_goto(r, PH_VALID);
     return MAGCAL_OK;
@@ -291,10 +369,10 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_harm_c(magcal_cal2d_t *current, magcal
         rep->current_err_z =
             hc->noise2_sd > 0.0f ? ex / hc->noise2_sd : (ex > 0.0f ? INFINITY : 0.0f);
     }
-    if (rep->coarse != 0u && cal->current_coarse == 0u) {
-        return MAGCAL_ERR_NOT_BETTER; /* a coarse calibration never replaces a full one */
+    if ((rep->coarse != 0u || rep->arc != 0u) && cal->current_coarse == 0u) {
+        return MAGCAL_ERR_NOT_BETTER; /* a coarse or arc calibration never replaces a full one */
     }
-    if (rep->current_err_deg > fmaxf((cal->current_coarse != 0u && rep->coarse == 0u ? 1.0f
+    if (rep->current_err_deg > fmaxf((cal->current_coarse != 0u && rep->coarse == 0u && rep->arc == 0u ? 1.0f
                                                                                     : MAGCAL_CALIBRATOR_ADOPT_MARGIN) *
                                          rep->est_param_err_deg,
                                      MAGCAL_CALIBRATOR_ADOPT_MIN_DEG)) {

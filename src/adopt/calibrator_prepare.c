@@ -493,7 +493,8 @@ static int cal_cover_pass(magcal_calibrator_t *cal, cal_run_t *r, int with_mask)
 }
 
 /* 3. coverage pre-gate: every sample, around the hard-iron circle centre of the filter inliers
- * (a short arc is reported as COVERAGE, not as whatever conic it happens to fit). */
+ * (a short arc is reported as COVERAGE, not as whatever conic it happens to fit); below the gate
+ * the arc stage (an ellipse judged by its whole-circle bound) or the coarse stage when enabled. */
 MAGCAL_NOINLINE magcal_status_t magcal_ph_cov_all(magcal_calibrator_t *cal, cal_run_t *r)
 {
     cal_prep_t *q = cal_prep(cal);
@@ -505,15 +506,19 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_cov_all(magcal_calibrator_t *cal, cal_
     r->rep.coverage_deg = cov;
     (void)magcal_cal_spend(&r->bud, CAL_W_COVFIN);
     if (cov < cal->cfg.min_coverage_deg) {
+        if (cal->arc_min_cov > 0.0f && cov >= cal->arc_min_cov) {
+            r->rep.arc = 1u; /* the full ellipse on an arc, judged by its whole-circle bound ("Arc stage") */
+        } else {
 #if MAGCAL_CFG_ENABLE_COARSE
-        if (cal->coarse_min_cov > 0.0f && cov >= cal->coarse_min_cov && magcal_coarse_radius(q) != 0) {
-            r->rep.coarse = 1u; /* hard iron only: the circle of the inliers ("Coarse stage") */
-            cal_goto(r, PH_CO_RES);
-            q->ss = 0.0f;
-            return MAGCAL_OK;
-        }
+            if (cal->coarse_min_cov > 0.0f && cov >= cal->coarse_min_cov && magcal_coarse_radius(q) != 0) {
+                r->rep.coarse = 1u; /* hard iron only: the circle of the inliers ("Coarse stage") */
+                cal_goto(r, PH_CO_RES);
+                q->ss = 0.0f;
+                return MAGCAL_OK;
+            }
 #endif
-        return MAGCAL_ERR_COVERAGE;
+            return MAGCAL_ERR_COVERAGE;
+        }
     }
     if (r->pre != 0u) {
         /* clean pre-test: its consensus (on every sample) is the fit */
@@ -534,7 +539,7 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_cov_f(magcal_calibrator_t *cal, cal_ru
     if (cal_cover_pass(cal, r, 1) == 0) {
         return MAGCAL_IN_PROGRESS;
     }
-    if (magcal_cal_coverage_of(q->bins, NULL, NULL) < cal->cfg.min_coverage_deg) {
+    if (magcal_cal_coverage_of(q->bins, NULL, NULL) < (r->rep.arc != 0u ? cal->arc_min_cov : cal->cfg.min_coverage_deg)) {
         r->rep.filter_fragmented = 1u;
     }
     (void)magcal_cal_spend(&r->bud, CAL_W_COVFIN);

@@ -41,6 +41,9 @@ MAGCAL_STATIC_ASSERT(MAGCAL_CAL_HARM_SCRATCH_FLOATS * sizeof(float) + (size_t)2u
                          MAGCAL_CONSENSUS_WORKSPACE_LEN(16u),
                      adopt_fits_scratch);
 
+/* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
+MAGCAL_STATIC_ASSERT(CAL_HARM_INV4 + 16u == MAGCAL_CAL_HARM_SCRATCH_FLOATS, arc_reads_the_harmonics_inverse_block);
+
 /* ------------------------------------------------------------------ driver */
 
 /* One phase (each a separate function: only the deepest phase's frame sits under step()). */
@@ -78,6 +81,7 @@ static MAGCAL_NOINLINE magcal_status_t cal_phase(magcal_calibrator_t *cal, cal_r
     case PH_COVC: return magcal_ph_covc(cal, r);
     case PH_DIST: return magcal_ph_dist(cal, r);
     case PH_HARM_N: return magcal_ph_harm_n(cal, r);
+    case PH_ARC: return magcal_ph_arc(cal, r);
     case PH_VALID: return magcal_ph_valid(cal, current, r);
     case PH_SHIFT: return magcal_ph_shift(cal, current, r);
     case PH_HARM_C: return magcal_ph_harm_c(current, cal, r);
@@ -148,6 +152,25 @@ void magcal_calibrator_set_coarse(magcal_calibrator_t *cal, float min_cov, float
         cal->coarse_min_cov = magcal_isfinite_f(min_cov) && min_cov > 0.0f ? min_cov : 0.0f;
         cal->coarse_max_err = magcal_isfinite_f(max_err_deg) ? max_err_deg : 0.0f;
         cal->current_coarse = current_coarse;
+    }
+}
+
+/* The arc stage's settings are in range (else the stage is off). */
+static int cal_arc_args_ok(float min_cov, float max_err_deg, float model_deg)
+{
+    return (magcal_isfinite_f(min_cov) && min_cov > 0.0f && magcal_isfinite_f(max_err_deg) && max_err_deg > 0.0f &&
+            magcal_isfinite_f(model_deg) && model_deg >= 0.0f)
+               ? 1
+               : 0;
+}
+
+void magcal_calibrator_set_arc(magcal_calibrator_t *cal, float min_cov, float max_err_deg, float model_deg)
+{
+    if (cal != NULL && cal->magic == MAGCAL_CALIBRATOR_MAGIC) {
+        const int on = cal_arc_args_ok(min_cov, max_err_deg, model_deg);
+        cal->arc_min_cov = on != 0 ? min_cov : 0.0f;
+        cal->arc_max_err = on != 0 ? max_err_deg : 0.0f;
+        cal->arc_model = on != 0 ? model_deg : 0.0f;
     }
 }
 

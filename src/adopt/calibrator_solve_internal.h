@@ -10,7 +10,7 @@
  *   calibrator_coarse.c   the coarse stage (a hard-iron circle below the coverage gate, its own
  *                         whole-circle heading-error bound: calibrator.h "Coarse stage");
  *   calibrator_judge.c    the new calibration, its corrected coverage, distinct values, harmonics
- *                         (observability gate), the heading shift, the installed calibration's
+ *                         (observability gate; an arc's whole-circle bound), the heading shift, the installed calibration's
  *                         harmonics and the adoption rule.
  */
 #ifndef MAGCAL_CALIBRATOR_SOLVE_INTERNAL_H
@@ -59,6 +59,14 @@
 #define CAL_W_CO_RES 150u
 #define CAL_W_CO_GATE 330u
 #define CAL_W_CO_FIT 1200u
+/* arc stage: one of the 36 headings of the whole-circle bound (two table sines, a 4x4 quadratic
+ * form: ~40 multiply-adds, host estimate x 1.2) */
+#define CAL_W_ARC 160u
+#define CAL_ARC_HEADINGS 36u /* the bound's headings, every 10 degrees (cal_sincos5 index 2k) */
+/* Where the harmonic analysis (calibrator_adopt.c) leaves the 4x4 block of (G^T G)^-1 over the
+ * harmonics in its scratch once complete: behind the normal matrix, its work copy (5x5 each), the
+ * coefficients and the column (5 each); the block is the scratch's last 16 floats. */
+#define CAL_HARM_INV4 60u
 #define CAL_W_ONESHOT UINT32_MAX /* a one-shot call (exceptions): ends the step */
 
 typedef enum {
@@ -90,6 +98,7 @@ typedef enum {
     PH_COVC,
     PH_DIST,
     PH_HARM_N,
+    PH_ARC,
     PH_VALID,
     PH_SHIFT,
     PH_HARM_C,
@@ -161,6 +170,7 @@ typedef struct {
     float inv[2][2];      /* shift: inverse of the new matrix */
     uint16_t bins[MAGCAL_COVERAGE_BINS];
     uint8_t unusable;     /* installed calibration unusable: adopt after the shift */
+    float arc_v2;         /* arc stage: the largest heading-error variance over the headings */
 } cal_adopt_t;
 
 
@@ -270,6 +280,7 @@ magcal_status_t magcal_ph_tocal(magcal_calibrator_t *cal, cal_run_t *r);
 magcal_status_t magcal_ph_covc(magcal_calibrator_t *cal, cal_run_t *r);
 magcal_status_t magcal_ph_dist(magcal_calibrator_t *cal, cal_run_t *r);
 magcal_status_t magcal_ph_harm_n(magcal_calibrator_t *cal, cal_run_t *r);
+magcal_status_t magcal_ph_arc(magcal_calibrator_t *cal, cal_run_t *r);
 magcal_status_t magcal_ph_valid(const magcal_calibrator_t *cal, const magcal_cal2d_t *current, cal_run_t *r);
 magcal_status_t magcal_ph_shift(const magcal_calibrator_t *cal, const magcal_cal2d_t *current, cal_run_t *r);
 magcal_status_t magcal_ph_harm_c(magcal_cal2d_t *current, magcal_calibrator_t *cal, cal_run_t *r);

@@ -13,6 +13,9 @@
  * may fit the hard-iron circle on an arc (calibrator.h "Coarse stage") and a solve starts at
  * cfg.coarse_coverage_deg; once any calibration is installed, never again (a coarse one is
  * replaced by a full ellipse with margin 1, calibrator_judge.c magcal_ph_harm_c).
+ * Arc stage (continuous.h "Arc calibration", opt-in): likewise while no calibration is installed,
+ * a solve starts at cfg.arc_coverage_deg and the solver may install an ellipse fitted on an arc
+ * (calibrator.h "Arc stage"), marked cc->cal_coarse = 2 (headings MAGCAL_TRUST_COARSE).
  * A store of two installations (the solver's consistency gate, MAGCAL_ERR_INCONSISTENT): a cut at
  * half the oldest stored sample's age, applied by the next snapshot (cont_step.c), which starts at
  * once (docs/calibrator.md "Consistency gate").
@@ -27,16 +30,40 @@ void magcal_cont_coarse_mode(magcal_cont_t *cc)
     /* before the first calibration only: a coarse one is replaced by a full ellipse (>= 270 deg),
      * not by another circle (fewer, later solves: the loop after it runs as without the stage) */
     float co = 0.0f;
+    float arc = 0.0f;
     if (cc->has_cal == 0u) {
         co = cc->cfg.coarse_coverage_deg;
+        arc = cc->cfg.arc_coverage_deg;
     }
     magcal_calibrator_set_coarse(&cc->solver, co, cc->cfg.coarse_max_err_deg, cc->cal_coarse);
+    magcal_calibrator_set_arc(&cc->solver, arc, cc->cfg.arc_max_err_deg, cc->cfg.arc_model_deg);
+}
+
+magcal_status_t magcal_cont_arc_cfg_check(const magcal_cont_cfg_t *c)
+{
+    if (!magcal_isfinite_f(c->arc_coverage_deg) || !magcal_isfinite_f(c->arc_max_err_deg) ||
+        !magcal_isfinite_f(c->arc_model_deg)) {
+        return MAGCAL_ERR_NONFINITE;
+    }
+    if (c->arc_coverage_deg < 0.0f || c->arc_coverage_deg > c->solve_coverage_deg ||
+        !(c->arc_max_err_deg > 0.0f) || c->arc_model_deg < 0.0f) {
+        return MAGCAL_ERR_ARG;
+    }
+    return MAGCAL_OK;
 }
 
 float magcal_cont_solve_cov(const magcal_cont_t *cc)
 {
+    float cov = cc->cfg.solve_coverage_deg;
     const float co = cc->solver.coarse_min_cov;
-    return co > 0.0f && co < cc->cfg.solve_coverage_deg ? co : cc->cfg.solve_coverage_deg;
+    const float arc = cc->solver.arc_min_cov;
+    if (co > 0.0f && co < cov) {
+        cov = co;
+    }
+    if (arc > 0.0f && arc < cov) {
+        cov = arc;
+    }
+    return cov;
 }
 
 void magcal_cont_install(magcal_cont_t *cc, const magcal_cal2d_t *c, float r_raw, float sigma)
@@ -74,8 +101,8 @@ magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_
     cc->solves++;
     cc->stored_at_solve = (cc->store.ctr.added + cc->store.ctr.replaced);
     cc->solve_ms_acc = 0u;
-    /* (a circle never overturns the verdict against a full calibration: not even by ageing) */
-    if (st == MAGCAL_ERR_NOT_BETTER && cc->has_cal != 0u && (r->coarse == 0u || cc->cal_coarse != 0u) &&
+    /* (a circle or an arc never overturns the verdict against a full calibration: not even by ageing) */
+    if (st == MAGCAL_ERR_NOT_BETTER && cc->has_cal != 0u && ((r->coarse == 0u && r->arc == 0u) || cc->cal_coarse != 0u) &&
         magcal_isfinite_f(r->current_err_deg) &&
         magcal_isfinite_f(r->est_param_err_deg) &&
         r->current_err_deg > fmaxf(cont_margin(cc) * r->est_param_err_deg, MAGCAL_CALIBRATOR_ADOPT_MIN_DEG)) {
@@ -96,7 +123,7 @@ magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_
         const uint32_t ep_clean = cc->clean_ms;
         const uint32_t ep_b0 = cc->mis_bins[0];
         const uint32_t ep_b1 = cc->mis_bins[1];
-        cc->cal_coarse = r->coarse;
+        cc->cal_coarse = (uint8_t)(r->coarse != 0u ? 1u : (r->arc != 0u ? 2u : 0u));
         magcal_cont_install(cc, &cc->cand, r->radius, r->est_noise_deg / MAGCAL_DEG_PER_RAD_F);
         if (ep_open != 0u) {
             cc->episode_open = ep_open;

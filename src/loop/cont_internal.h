@@ -54,5 +54,7 @@ void magcal_cont_install(magcal_cont_t *cc, const magcal_cal2d_t *c, float r_raw
  * (cc->has_cal, cc->cal_coarse); the live coverage that starts a solve. */
 void magcal_cont_coarse_mode(magcal_cont_t *cc);
 float magcal_cont_solve_cov(const magcal_cont_t *cc);
+/* Arc stage settings of cfg (cont_adopt.c): MAGCAL_OK, MAGCAL_ERR_NONFINITE or MAGCAL_ERR_ARG. */
+magcal_status_t magcal_cont_arc_cfg_check(const magcal_cont_cfg_t *c);
 
 #endif /* MAGCAL_CONT_INTERNAL_H */

@@ -38,7 +38,7 @@ static magcal_status_t cont_check_cfg(const magcal_cont_cfg_t *c)
         c->disturb_tau_ms < 1u) {
         return MAGCAL_ERR_ARG;
     }
-    return MAGCAL_OK;
+    return magcal_cont_arc_cfg_check(c);
 }
 
 magcal_status_t magcal_cont_init(magcal_cont_t *cc, const magcal_cont_cfg_t *cfg,

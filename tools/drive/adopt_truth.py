@@ -2,6 +2,15 @@
 """Score the continuous 2-D calibrator's solves on a generated drive against its truth.
 
     /usr/bin/python3 tools/drive/adopt_truth.py DRIVE.csv DRIVE.json ADOPT.jsonl
+    /usr/bin/python3 tools/drive/adopt_truth.py --all DRIVE.csv DRIVE.json ADOPT.jsonl
+
+--all: one line per solve ATTEMPT (adopted or not): row, cumulative turning at that row, status,
+coverage, arc stage (1: an ellipse below the 270-deg gate), the arc bound, the noise estimate, and the candidate calibration's TRUE whole-circle heading error at level over 360
+headings (the truth's G and V of the regime in force at the row): trueR its RMS, trueS its RMS
+about its mean (the mean is a rotation of the whole sensor, which no level ring observes:
+docs/calibrator.md "Heading-error estimate"), trueX its largest; "cov" says whether the bound
+covers trueS (arc attempts only). With magcal_drive_adopt --arc-refit COV, the same for the
+batch solver with the arc stage on the snapshot's LEVEL samples only (nlv, lv ...).
 
 DRIVE.csv / .json: tools/gen_drive.py (dump and truth); ADOPT.jsonl: magcal_drive_adopt on that
 dump (tools/drive/drive_adopt.c: every solve's store and calibration, the batch refits of an
@@ -44,7 +53,67 @@ def heading(cal, raw):
     return np.degrees(np.arctan2(-h[:, 0], h[:, 1]))
 
 
+def level_grid(T, b_ned, step_on):
+    """Raw level samples of the regime (360 headings) and the true headings, deg."""
+    yaw = np.arange(360.0) * D2R
+    body = np.einsum("nji,j->ni", dcm(np.zeros(360), np.zeros(360), yaw), b_ned)
+    tc = T["cal_after"] if step_on else T["cal_before"]
+    return body @ np.linalg.inv(np.array(tc["g"])).T + np.array(tc["v"]), np.degrees(yaw)
+
+
+def all_attempts(argv):
+    """--all: every solve attempt against the truth (module docstring)."""
+    T = json.load(open(argv[2]))
+    decl = T["declination_deg"]
+    b_ned = np.array(T["b_ned_ut"])
+    step, yaw = [], []
+    with open(argv[1]) as f:
+        rd = csv.reader(line for line in f if not line.startswith("#"))
+        hdr = next(rd)
+        ix = {k: i for i, k in enumerate(hdr)}
+        for r in rd:
+            step.append(float(r[ix["step"]]) > 0)
+            yaw.append(float(r[ix["heading_ref_deg"]]))
+    turn = np.concatenate([[0.0], np.cumsum(np.abs(wrap(np.diff(np.array(yaw)))))])
+    grids = {False: level_grid(T, b_ned, False), True: level_grid(T, b_ned, True)}
+    print("%-6s %5s %-12s %4s %3s %6s %5s %4s | %5s %5s %5s %-3s | %3s %-12s %4s %6s %5s %5s %-3s" % (
+        "row", "turn", "status", "cov", "arc", "bound", "noise", "used", "trueR", "trueS", "trueX", "cov",
+        "nlv", "lv status", "cov", "bound", "trueR", "trueS", "cov"))
+
+    def truth(c, raw_lvl, true_h):
+        if c is None or not c["radius"] > 0:
+            return float("nan"), float("nan"), float("nan")
+        e = wrap(heading(c, raw_lvl) + decl - true_h)
+        return np.sqrt(np.mean(e * e)), np.std(e), np.max(np.abs(e))
+
+    f = lambda v, w=6: ("%" + str(w) + ".2f") % v if v is not None else " " * (w - 1) + "-"
+
+    def covered(arc, b, ts):
+        if not arc or b is None or not np.isfinite(ts):
+            return "-"
+        return "yes" if b >= ts else "NO"
+
+    for line in open(argv[3]):
+        if not line.startswith("{\"solve\""):
+            continue
+        s = json.loads(line)
+        row = s["solve"]
+        raw_lvl, true_h = grids[step[row]]
+        tr, ts, tx = truth(s.get("cand"), raw_lvl, true_h)
+        b = s.get("arc_bound")
+        lv = s.get("arc_level") or {}
+        lr, ls, _ = truth(lv.get("cand"), raw_lvl, true_h) if lv.get("status") not in (None,) else (float("nan"),) * 3
+        lb = lv.get("arc_bound")
+        print("%-6d %5.0f %-12s %4.0f %3d %s %s %4d | %5.2f %5.2f %5.2f %-3s | %3d %-12s %4.0f %s %5.2f %5.2f %-3s" % (
+            row, turn[row], s["status"][:12], s["coverage"], s.get("arc", 0), f(b), f(s.get("noise"), 5), s.get("used", 0), tr, ts, tx, covered(s.get("arc"), b, ts),
+            lv.get("n", 0), lv.get("status", "-")[:12], lv.get("coverage", 0), f(lb), lr, ls,
+            covered(lv.get("arc"), lb, ls)))
+    return 0
+
+
 def main(argv):
+    if len(argv) == 5 and argv[1] == "--all":
+        return all_attempts(argv[1:])
     if len(argv) != 4:
         print(__doc__)
         return 2

@@ -2,7 +2,8 @@
  * magcal_drive_adopt: diagnosis of the continuous 2-D calibrator's adoptions on a drive dump
  * (tools/gen_drive.py), for tools/drive/adopt_truth.py.
  *
- *   magcal_drive_adopt [--no-tilt] [--range R] [--trace N] DUMP.csv > OUT.jsonl
+ *   magcal_drive_adopt [--no-tilt] [--range R] [--trace N] [--arc COV [--arc-tol DEG]
+ *                      [--arc-model DEG]] [--arc-refit COV] DUMP.csv > OUT.jsonl
  *
  * Runs the loop of `magcal-replay --stream` (2-D, default configuration, one push and one step
  * per row; magcal_cont_push_g with the dump's ax, ay, az in g unless --no-tilt) and prints one JSON
@@ -13,6 +14,13 @@
  *    for an adopting solve also the calibrations the batch solver (magcal_calibrator_run, the
  *    same configuration, no installed calibration) fits on that snapshot (`refit_all`) and on
  *    its LEVEL samples only (`refit_level`);
+ *    every solve also reports the arc stage's fields (arc, arc_bound = its est_param_err_deg:
+ *    calibrator.h "Arc stage"), its estimates and counts, and `cand`, the calibration it fitted (adopted or not);
+ *    --arc COV / --arc-tol / --arc-model set the continuous calibrator's arc stage (cfg.arc_*:
+ *    --arc-tol 0.001 scores every arc solve and refuses it, so the loop keeps collecting);
+ *    --arc-refit COV: every solve's snapshot is also refitted by the batch solver with the arc
+ *    stage on (no tolerance, no model term) on all its samples (`arc_all`) and on its level
+ *    samples only (`arc_level`);
  *  - {"change": row}: a change declared;
  *  - {"trace": row, ...} every N rows (--trace N): live progress, the store's centre and radius.
  * The truth side (the true heading error of each calibration, the share of tilted samples) is
@@ -42,6 +50,7 @@ static size_t g_snap_n;
 static magcal_vec2_t g_rbuf[DA_SLOTS];
 static MAGCAL_CALIBRATOR_WORKSPACE_DECLARE(g_rwork, DA_SLOTS);
 static magcal_calibrator_t g_rcal;
+static float g_arc_refit; /* --arc-refit COV: every solve's snapshot refitted with the arc stage */
 
 static void capture_store(const magcal_intake_t *st)
 {
@@ -74,8 +83,10 @@ static void print_cal(const char *key, const magcal_cal2d_t *c)
            (double)c->m[1][1], (double)c->radius);
 }
 
-/* The batch solver on the captured snapshot (level_only: its level samples); prints the result. */
-static void refit(const char *key, int level_only)
+/* The batch solver on the captured snapshot (level_only: its level samples); prints the result.
+ * arc > 0: with the arc stage on at that coverage (no tolerance, no model term: the bound is only
+ * reported; the private fields magcal_calibrator_set_arc sets, calibrator_internal.h). */
+static void refit(const char *key, int level_only, float arc)
 {
     const magcal_calibrator_cfg_t cfg = MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT;
     magcal_cal2d_t cur = MAGCAL_CAL2D_IDENTITY;
@@ -85,6 +96,9 @@ static void refit(const char *key, int level_only)
     if (magcal_calibrator_init(&g_rcal, &cfg, g_rbuf, DA_SLOTS, g_rwork, sizeof g_rwork) != MAGCAL_OK) {
         return;
     }
+    g_rcal.arc_min_cov = arc;
+    g_rcal.arc_max_err = arc > 0.0f ? 1.0e9f : 0.0f;
+    g_rcal.arc_model = 0.0f;
     for (i = 0u; i < g_snap_n; ++i) {
         if (level_only == 0 || g_snap_lv[i] != 0) {
             magcal_vec2_t p;
@@ -97,9 +111,12 @@ static void refit(const char *key, int level_only)
     s = magcal_calibrator_run(&g_rcal, &cur, &rep);
     printf(",\"%s\":{\"n\":%zu,\"status\":\"%s\",\"est_err\":", key, n, magcal_status_str(s));
     print_num((double)rep.est_heading_err_deg);
+    printf(",\"coverage\":%.1f,\"arc\":%u,\"arc_bound\":", (double)rep.coverage_deg, (unsigned)rep.arc);
+    print_num(rep.arc != 0u ? (double)rep.est_param_err_deg : NAN);
     if (s == MAGCAL_OK) {
         print_cal("cal", &cur);
     }
+    print_cal("cand", &rep.cal);
     putchar('}');
 }
 
@@ -109,6 +126,18 @@ static void print_solve(size_t row, magcal_cont_outcome_t oc)
     printf("{\"solve\":%zu,\"outcome\":%d,\"status\":\"%s\",\"coarse\":%u,\"coverage\":%.1f,\"est_err\":",
            row, (int)oc, magcal_status_str(g_cc.last.status), (unsigned)g_cc.cal_coarse, (double)g_cc.last.coverage_deg);
     print_num((double)g_cc.last.est_heading_err_deg);
+    printf(",\"arc\":%u,\"arc_bound\":", (unsigned)g_cc.last.arc);
+    print_num(g_cc.last.arc != 0u ? (double)g_cc.last.est_param_err_deg : NAN);
+    fputs(",\"noise\":", stdout);
+    print_num((double)g_cc.last.est_noise_deg);
+    fputs(",\"param\":", stdout);
+    print_num((double)g_cc.last.est_param_err_deg);
+    fputs(",\"design\":", stdout);
+    print_num((double)g_cc.last.design_factor);
+    printf(",\"used\":%u,\"rej_cons\":%u,\"resc_cons\":%u,\"rej_filter\":%u", (unsigned)g_cc.last.used,
+           (unsigned)g_cc.last.rejected_consensus, (unsigned)g_cc.last.rescued_consensus,
+           (unsigned)g_cc.last.rejected_filter);
+    print_cal("cand", &g_cc.last.cal);
     print_cal("cal", &g_cc.cal);
     printf(",\"tilt_k\":%.5g,\"tilt_ok\":%u,\"tilt_pairs\":%u,\"tilt_s\":[%.5g,%.5g,%.5g],\"store_centre\":[%.4g,%.4g],\"store_radius\":%.4g,"
            "\"store_source\":%u",
@@ -126,8 +155,12 @@ static void print_solve(size_t row, magcal_cont_outcome_t oc)
     }
     putchar(']');
     if (oc == MAGCAL_CONT_ADOPTED) {
-        refit("refit_all", 0);
-        refit("refit_level", 1);
+        refit("refit_all", 0, 0.0f);
+        refit("refit_level", 1, 0.0f);
+    }
+    if (g_arc_refit > 0.0f) {
+        refit("arc_all", 0, g_arc_refit);
+        refit("arc_level", 1, g_arc_refit);
     }
     puts("}");
 }
@@ -147,6 +180,14 @@ int main(int argc, char **argv)
             no_tilt = 1;
         } else if (strcmp(argv[a], "--trace") == 0 && a + 1 < argc) {
             trace = strtoul(argv[++a], NULL, 10);
+        } else if (strcmp(argv[a], "--arc") == 0 && a + 1 < argc) {
+            cfg.arc_coverage_deg = strtof(argv[++a], NULL); /* arc stage on (continuous.h) */
+        } else if (strcmp(argv[a], "--arc-refit") == 0 && a + 1 < argc) {
+            g_arc_refit = strtof(argv[++a], NULL);
+        } else if (strcmp(argv[a], "--arc-tol") == 0 && a + 1 < argc) {
+            cfg.arc_max_err_deg = strtof(argv[++a], NULL);
+        } else if (strcmp(argv[a], "--arc-model") == 0 && a + 1 < argc) {
+            cfg.arc_model_deg = strtof(argv[++a], NULL);
         } else if (strcmp(argv[a], "--range") == 0 && a + 1 < argc) {
             cfg.intake.range_limit = strtof(argv[++a], NULL);
         } else {
@@ -154,7 +195,8 @@ int main(int argc, char **argv)
         }
     }
     if (path == NULL) {
-        fputs("usage: magcal_drive_adopt [--no-tilt] [--range R] [--trace N] DUMP.csv\n", stderr);
+        fputs("usage: magcal_drive_adopt [--no-tilt] [--range R] [--trace N] [--arc COV [--arc-tol DEG] [--arc-model DEG]] [--arc-refit COV] DUMP.csv\n",
+              stderr);
         return 1;
     }
     memset(&d, 0, sizeof d);
