@@ -264,7 +264,7 @@ static MAGCAL_NOINLINE void cont_sweep_part(magcal_cont_t *cc, magcal_cal_budget
         const uint32_t sv = st->sv_n;
         const uint32_t reb = st->ctr.rebinned;
         uint32_t w;
-        if (st->cursor >= magcal_intake_nslots(st) && s != 0u) {
+        if (cont_sweep_end_due(cc) != 0 && s != 0u) {
             break; /* the sweep's end: the next step's first */
         }
         magcal_intake_sweep(st, 1u);
