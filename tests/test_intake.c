@@ -9,6 +9,7 @@
 
 #include "magcal/calibrator.h"
 #include "magcal/intake.h"
+#include "intake/intake_internal.h" /* magcal_intake_drop_older: the continuous loop's cut */
 #include "test_util.h"
 #include "unity.h"
 
@@ -970,6 +971,91 @@ static void test_intake_garbage_burst_does_not_own_the_reference(void)
     TEST_ASSERT_TRUE(p.coverage_deg >= 350.0f);
 }
 
+/* The cut of an INCONSISTENT solve (magcal_intake_drop_older, bin by bin as the continuous
+ * calibrator's snapshot runs it): 36 samples on the ring (one per sector), then 36 newer ones 3 deg
+ * on, every second of them at 1.6 R (off the ring by more than half its radius). A cut at the
+ * first newer push keeps exactly the 18 newer samples on the ring, copies them in bin order (as
+ * the snapshot), and the stored count follows; a cap shorter than that copies only the cap, the
+ * store is compacted all the same; without a ring (radius 0) only the age cut applies. */
+static unsigned cut_fill(void)
+{
+    const magcal_intake_cfg_t cfg = MAGCAL_INTAKE_CFG_DEFAULT_2D;
+    const magcal_vec3_t c = {(float)CX, (float)CY, 0.0f};
+    unsigned i;
+    init2(&g_st, g_slots, &cfg);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_set_centre(&g_st, &c, (float)H));
+    for (i = 0u; i < 72u; ++i) {
+        const double psi = (5.0 + 10.0 * (double)(i % 36u) + (i >= 36u ? 3.0 : 0.0)) * D2R;
+        const double d = (i >= 36u && (i % 2u) != 0u) ? 1.6 * H : H;
+        magcal_intake_outcome_t oc;
+        magcal_vec3_t m;
+        m.x = (float)(CX - d * sin(psi));
+        m.y = (float)(CY + d * cos(psi));
+        m.z = (float)Z;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_push(&g_st, &m, &oc));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_INTAKE_STORED, oc);
+    }
+    TEST_ASSERT_EQUAL_UINT32(72u, g_st.ctr.stored);
+    return 37u; /* the push count of the first newer sample */
+}
+
+static uint32_t cut_all(uint32_t seq_limit, float ring_r, magcal_vec2_t *out, size_t cap)
+{
+    const magcal_vec2_t c = {(float)CX, (float)CY};
+    uint32_t n = 0u;
+    uint32_t b;
+    for (b = 0u; b < g_st.n_bins; ++b) {
+        magcal_intake_drop_older(&g_st, b, seq_limit, &c, ring_r, out, cap, &n);
+    }
+    return n;
+}
+
+void test_intake_drop_older_keeps_newer_samples_on_the_ring(void)
+{
+    static magcal_vec2_t out[80];
+    static magcal_vec2_t snap[80];
+    const uint32_t lim = cut_fill();
+    size_t ns = 0u;
+    uint32_t n;
+    uint32_t i;
+    n = cut_all(lim, (float)H, out, 80u);
+    TEST_ASSERT_EQUAL_UINT32(18u, n);
+    TEST_ASSERT_EQUAL_UINT32(18u, g_st.ctr.stored);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_snapshot2(&g_st, snap, 80u, &ns));
+    TEST_ASSERT_EQUAL_UINT32(18u, (uint32_t)ns);
+    for (i = 0u; i < n; ++i) {
+        const double dx = (double)out[i].x - CX;
+        const double dy = (double)out[i].y - CY;
+        double a = atan2(-dx, dy) / D2R;
+        a = a < 0.0 ? a + 360.0 : a;
+        TEST_ASSERT_FLOAT_WITHIN(1e-3f, (float)H, (float)sqrt(dx * dx + dy * dy)); /* on the ring */
+        TEST_ASSERT_FLOAT_WITHIN(1e-2f, 8.0f, (float)fmod(a, 10.0));               /* a newer sample (+3 deg) */
+        TEST_ASSERT_EQUAL_FLOAT(snap[i].x, out[i].x); /* the store's own order (bin order) */
+        TEST_ASSERT_EQUAL_FLOAT(snap[i].y, out[i].y);
+    }
+    /* a second cut at the same limit drops nothing more */
+    TEST_ASSERT_EQUAL_UINT32(18u, cut_all(lim, (float)H, out, 80u));
+    TEST_ASSERT_EQUAL_UINT32(18u, g_st.ctr.stored);
+}
+
+void test_intake_drop_older_short_cap_still_compacts(void)
+{
+    static magcal_vec2_t out[5];
+    const uint32_t lim = cut_fill();
+    TEST_ASSERT_EQUAL_UINT32(5u, cut_all(lim, (float)H, out, 5u));
+    TEST_ASSERT_EQUAL_UINT32(18u, g_st.ctr.stored);
+}
+
+void test_intake_drop_older_without_ring_cuts_by_age_only(void)
+{
+    static magcal_vec2_t out[80];
+    const uint32_t lim = cut_fill();
+    TEST_ASSERT_EQUAL_UINT32(36u, cut_all(lim, 0.0f, out, 80u));
+    TEST_ASSERT_EQUAL_UINT32(36u, g_st.ctr.stored);
+    /* a limit before every push keeps everything */
+    TEST_ASSERT_EQUAL_UINT32(36u, cut_all(1u, 0.0f, out, 80u));
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -990,5 +1076,8 @@ int main(void)
     RUN_TEST(test_intake_push_tilt_level_samples_preferred_in_full_bin);
     RUN_TEST(test_intake_push_tilt_hilly_drive_never_starves);
     RUN_TEST(test_intake_garbage_burst_does_not_own_the_reference);
+    RUN_TEST(test_intake_drop_older_keeps_newer_samples_on_the_ring);
+    RUN_TEST(test_intake_drop_older_short_cap_still_compacts);
+    RUN_TEST(test_intake_drop_older_without_ring_cuts_by_age_only);
     return UNITY_END();
 }

@@ -3,7 +3,7 @@
 (issue 13) and the intake store (include/magcal/intake.h).
 
     /usr/bin/python3 tools/gen_drive.py [--minutes 60] [--seed 1] [--rate 50] [--out FILE|-]
-                                        [--truth FILE.json] [--no-step]
+                                        [--truth FILE.json] [--no-step] [--dyn-accel]
 
 Writes the dump CSV to FILE (default: stdout, row by row, so hours never sit in memory) and the
 truth to FILE.json. Python 3 + numpy only; the same seed gives the same bytes. Nothing generated is
@@ -29,6 +29,16 @@ Disturbances (truth columns):
     random body direction (a passing truck, a bridge), raised-cosine envelope;
   - step: from the middle row on, the hard iron changes by V_step (a magnet attached near the
     sensor: |V_step| about 40 % of |B|); 0 before, 1 from then on (--no-step: never).
+Vehicle dynamics (--dyn-accel; off by default, so every drive is byte-identical to the generator
+without it): the accelerometer reads the car's own acceleration too, in body axes (the road
+plane; its pitch and roll are small): lateral v * yaw rate (centripetal, toward the turn's centre:
++x in a right turn) and longitudinal dv/dt (+y accelerating). The speed profile follows the
+segments: 0 parked; a cruise of 8 .. 25 m/s per straight; a turn at the speed its peak yaw rate
+allows at a lateral limit of 1.5 .. 3.5 m/s^2 (at most the cruise); between them the car brakes
+at up to 2.5 m/s^2 (before a park or a turn: the ramp lies in the segment before) and
+accelerates at up to 1.8 m/s^2 (after), rounded over 0.5 s (it stands 0.5 s either side of a park). Its random draws come from a
+generator of their own (seed + 104729): the magnetometer, attitude and truth columns stay the
+same bytes with and without it. Not modelled: body roll on the springs, road bumps.
 Columns: t, mx, my, mz, ax, ay, az (g, specific force: (0, 0, 1) level at rest), roll_deg,
 pitch_deg, yaw_deg (true attitude), lat_deg, lon_deg, height_km, decimal_year, dop (so
 `magcal-replay --mode aided` can read it), heading_ref_deg (TRUE heading = yaw), glitch,
@@ -107,6 +117,58 @@ def plan_segments(rng, n_total, rate, parked_min):
     return segs
 
 
+G0 = 9.80665  # m/s^2 per g
+DYN_CRUISE = (8.0, 25.0)   # m/s, per straight
+DYN_LAT_MAX = (1.5, 3.5)   # m/s^2, a turn's lateral limit at its peak yaw rate, per turn
+DYN_BRAKE = 2.5            # m/s^2, the largest deceleration
+DYN_ACCEL = 1.8            # m/s^2, the largest acceleration
+DYN_ROUND_S = 0.5          # s, the moving average that rounds the ramps' corners (jerk)
+
+
+def speed_profile(segs, n, rate, seed):
+    """Speed (m/s) per row for the segments: each row's target (parked 0, a straight's cruise, a
+    turn's speed: lateral limit / peak yaw rate, at most the cruise before it), then limited to
+    DYN_ACCEL forward in time and DYN_BRAKE backward (the car brakes before a stop or a turn and
+    accelerates after), rounded over DYN_ROUND_S; it stands still from DYN_ROUND_S before a park
+    to DYN_ROUND_S after it, so the rounding leaves it at 0 while parked."""
+    drng = np.random.default_rng(seed + 104729)
+    tgt = np.empty(n)
+    parked = np.zeros(n, dtype=bool)
+    k = 0
+    cruise = 0.5 * (DYN_CRUISE[0] + DYN_CRUISE[1])
+    for kind, rows, _, dps in segs:
+        e = min(n, k + rows)
+        if kind == "park":
+            tgt[k:e] = 0.0
+            parked[k:e] = True
+        elif kind == "straight":
+            cruise = drng.uniform(*DYN_CRUISE)
+            tgt[k:e] = cruise
+        else:
+            w_peak = 1.5 * dps * D2R  # the smoothstep's peak rate: 1.5 x its mean
+            tgt[k:e] = min(cruise, drng.uniform(*DYN_LAT_MAX) / w_peak)
+        k = e
+        if k >= n:
+            break
+    w = max(1, int(round(DYN_ROUND_S * rate)))
+    # the car stands for w rows either side of a park too, so the rounding keeps it at 0 there
+    hold = np.convolve(parked.astype(float), np.ones(2 * w + 1), mode="same") > 0.5
+    tgt[hold] = 0.0
+    dv_up = DYN_ACCEL / rate
+    dv_dn = DYN_BRAKE / rate
+    v = tgt.copy()
+    for i in range(1, n):  # accelerate at most DYN_ACCEL
+        if v[i] > v[i - 1] + dv_up:
+            v[i] = v[i - 1] + dv_up
+    for i in range(n - 2, -1, -1):  # brake at most DYN_BRAKE (ahead of a stop or a turn)
+        if v[i] > v[i + 1] + dv_dn:
+            v[i] = v[i + 1] + dv_dn
+    if w > 1 and n > w:
+        v = np.convolve(np.pad(v, (w // 2, w - 1 - w // 2), mode="edge"), np.ones(w) / w, mode="valid")
+    v[parked] = 0.0
+    return v
+
+
 def smooth_profile(rng, n, rate, bound_deg, period_s):
     """Random smooth profile (sum of 3 sinusoids of random phase), scaled to +-bound."""
     t = np.arange(n) / rate
@@ -127,6 +189,9 @@ def main(argv):
     ap.add_argument("--out", default="-")
     ap.add_argument("--truth", default=None)
     ap.add_argument("--no-step", action="store_true")
+    ap.add_argument("--dyn-accel", action="store_true",
+                    help="the accelerometer reads the car's lateral (v x yaw rate) and longitudinal "
+                         "(dv/dt) acceleration (file comment); off: gravity and noise only")
     a = ap.parse_args(argv)
     if not (a.minutes > 0 and 5.0 <= a.rate <= 400.0 and 0.0 <= a.parked_min < 0.9):
         ap.error("minutes > 0, rate 5..400 Hz, parked-min 0..0.9")
@@ -168,6 +233,15 @@ def main(argv):
     roll_m = smooth_profile(rng, n_move, rate, 1.5, 120.0)
     pitch_deg = pitch_m[moving_idx]
     roll_deg = roll_m[moving_idx]
+
+    # ---- vehicle dynamics (--dyn-accel): body-axis acceleration in g, lateral (x) and longitudinal (y)
+    dyn = None
+    if a.dyn_accel:
+        speed = speed_profile(segs, n, rate, a.seed)
+        yaw_rate = np.gradient(np.unwrap(yaw_deg * D2R)) * rate  # rad/s, + clockwise (a right turn)
+        dyn = np.zeros((n, 3))
+        dyn[:, 0] = speed * yaw_rate / G0  # centripetal, toward the turn's centre
+        dyn[:, 1] = np.gradient(speed) * rate / G0
 
     # ---- truth calibration and the step
     W = make_w()
@@ -232,6 +306,8 @@ def main(argv):
         m = h @ W.T + v0 + step[c0:c1, None] * v_step + dist_field[c0:c1] + SIGMA_M * noise_rng.standard_normal((c1 - c0, 3))
         # specific force (g): C^T (0, 0, -1)_NED, i.e. +1 g up when level
         acc = -C[:, 2, :] + 0.01 * noise_rng.standard_normal((c1 - c0, 3))
+        if dyn is not None:
+            acc = acc + dyn[c0:c1]
         lines = []
         for i in range(c1 - c0):
             k = c0 + i
@@ -270,6 +346,14 @@ def main(argv):
             "glitch_rows": int(np.sum(glitch)), "disturbed_rows": int(np.sum(disturbed)),
             "segments": {k: sum(1 for s in segs if s[0] == k) for k in ("park", "straight", "turn")},
         }
+        if dyn is not None:
+            lat = np.abs(dyn[:, 0])
+            truth["dyn_accel"] = {
+                "max_speed_mps": float(np.max(speed)), "mean_moving_speed_mps": float(np.mean(speed[parked == 0])),
+                "max_lateral_g": float(np.max(lat)), "max_longitudinal_g": float(np.max(np.abs(dyn[:, 1]))),
+                "rows_lateral_over_0.035g": int(np.sum(lat > 0.035)),  # 2 deg of apparent roll
+                "rows_longitudinal_over_0.035g": int(np.sum(np.abs(dyn[:, 1]) > 0.035)),
+            }
         with open(a.truth, "w") as f:
             json.dump(truth, f, indent=1)
             f.write("\n")

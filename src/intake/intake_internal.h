@@ -28,6 +28,14 @@ uint16_t magcal_intake_build_mask(magcal_intake_t *st, uint16_t bands);
  * into a bin full of level samples is dropped itself). Returns 1 when a sample was dropped. */
 int magcal_intake_insert(magcal_intake_t *st, uint16_t b, const magcal_vec3_t *m, uint32_t seq);
 
+/* The cut of an INCONSISTENT solve (the continuous calibrator's snapshot, src/loop/cont_step.c),
+ * one bin: the samples pushed before seq_limit (a push count, modulo 2^31 pushes) and, when
+ * ring_r > 0, those off the solve's ring (centre, ring_r) by more than half its radius are
+ * removed from bin `bin` (compacted in place, order kept; the stored count follows); the x, y of
+ * the kept ones are appended to out[*n..] while *n < cap. O(per_bin), no trigonometry. */
+void magcal_intake_drop_older(magcal_intake_t *st, uint32_t bin, uint32_t seq_limit, const magcal_vec2_t *centre,
+                              float ring_r, magcal_vec2_t *out, size_t cap, uint32_t *n);
+
 /* Survey / re-bin up to `steps` slots (sweep.c). */
 void magcal_intake_sweep(magcal_intake_t *st, uint32_t steps);
 

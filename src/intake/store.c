@@ -128,6 +128,42 @@ int magcal_intake_insert(magcal_intake_t *st, uint16_t b, const magcal_vec3_t *m
 }
 
 
+/* 1 when the cut keeps sl: pushed at or after seq_limit, and on the ring (centre, ring_r) within
+ * half its radius when ring_r > 0. */
+static int intake_cut_keeps(const magcal_intake_slot_t *sl, uint32_t seq_limit, const magcal_vec2_t *centre,
+                            float ring_r)
+{
+    const float dx = sl->m.x - centre->x;
+    const float dy = sl->m.y - centre->y;
+    const float dr = sqrtf(dx * dx + dy * dy) - ring_r;
+    return ((sl->seq - seq_limit) & INTAKE_SEQ_MASK) < 0x40000000u && (!(ring_r > 0.0f) || fabsf(dr) <= 0.5f * ring_r)
+               ? 1
+               : 0;
+}
+
+void magcal_intake_drop_older(magcal_intake_t *st, uint32_t bin, uint32_t seq_limit, const magcal_vec2_t *centre,
+                              float ring_r, magcal_vec2_t *out, size_t cap, uint32_t *n)
+{
+    const uint32_t base = bin * st->cfg.per_bin;
+    const uint32_t cnt = st->count[bin];
+    uint32_t keep = 0u;
+    uint32_t k;
+    for (k = 0u; k < cnt; ++k) {
+        const magcal_intake_slot_t sl = st->slots[base + k];
+        if (intake_cut_keeps(&sl, seq_limit, centre, ring_r) != 0) {
+            st->slots[base + keep] = sl; /* compacted in place: the bin's order is kept */
+            keep++;
+            if (*n < cap) {
+                out[*n].x = sl.m.x;
+                out[*n].y = sl.m.y;
+                (*n)++;
+            }
+        }
+    }
+    st->count[bin] = (uint8_t)keep;
+    st->ctr.stored -= cnt - keep;
+}
+
 /* ---- 2-D level band (intake.h): the level model z = a + b cos + c sin of the direction from the
  * centre, fitted over the bins' median z by a survey of one bin per push. */
 #define INTAKE_LV_MIN_BINS 8.0f  /* bins the level model needs */

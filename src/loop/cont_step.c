@@ -6,7 +6,6 @@
  * (magcal_calibrator_solve_step, calibrator_solve.c). The drain and the solve charge the same
  * budget (continuous.h "Work per step").
  */
-#include <math.h>
 #include <string.h>
 
 #include "../adopt/calibrator_internal.h"
@@ -264,7 +263,7 @@ static MAGCAL_NOINLINE void cont_sweep_part(magcal_cont_t *cc, magcal_cal_budget
         const uint32_t sv = st->sv_n;
         const uint32_t reb = st->ctr.rebinned;
         uint32_t w;
-        if (st->cursor >= magcal_intake_nslots(st) && s != 0u) {
+        if (cont_sweep_end_due(cc) != 0 && s != 0u) {
             break; /* the sweep's end: the next step's first */
         }
         magcal_intake_sweep(st, 1u);
@@ -403,45 +402,6 @@ static MAGCAL_NOINLINE int cont_count_part(magcal_cont_t *cc, magcal_cal_budget_
     return p.centre_source != MAGCAL_INTAKE_CENTRE_NONE && p.rebinning == 0u && p.coverage_deg >= magcal_cont_solve_cov(cc);
 }
 
-/* A cut (an INCONSISTENT solve, cont_adopt.c) keeps a sample when it is not older than the cut
- * and lies on the solve's ring within half its radius (the rest is neither installation: a stored
- * glitch burst would otherwise outweigh what is left of the store). */
-static int cont_cut_keeps(const magcal_cont_t *cc, const magcal_intake_slot_t *sl)
-{
-    const float dx = sl->m.x - cc->drop_c.x;
-    const float dy = sl->m.y - cc->drop_c.y;
-    const float dr = sqrtf(dx * dx + dy * dy) - cc->drop_r;
-    return ((sl->seq - cc->drop_seq) & INTAKE_SEQ_MASK) < 0x40000000u &&
-                   (!(cc->drop_r > 0.0f) || fabsf(dr) <= 0.5f * cc->drop_r)
-               ? 1
-               : 0;
-}
-
-/* One bin of a cutting snapshot: the samples the cut drops removed from the store (the bin
- * compacted in place: the store is frozen meanwhile), the rest copied into the solver buffer. */
-static void cont_cut_bin(magcal_cont_t *cc, uint32_t bin)
-{
-    magcal_intake_t *st = &cc->store;
-    const uint32_t base = bin * st->cfg.per_bin;
-    const uint32_t cnt = st->count[bin];
-    uint32_t keep = 0u;
-    uint32_t k;
-    for (k = 0u; k < cnt; ++k) {
-        const magcal_intake_slot_t sl = st->slots[base + k];
-        if (cont_cut_keeps(cc, &sl) != 0) {
-            st->slots[base + keep] = sl;
-            keep++;
-            if (cc->snap_n < cc->slots) {
-                cc->buf[cc->snap_n].x = sl.m.x;
-                cc->buf[cc->snap_n].y = sl.m.y;
-                cc->snap_n++;
-            }
-        }
-    }
-    st->count[bin] = (uint8_t)keep;
-    st->ctr.stored -= cnt - keep;
-}
-
 /* The age scan of a pending cut (drop_on 1), within the step's budget: the oldest stored sample's
  * age, then the cut at half of it (drop_on 2); the copy then starts at bin 0 in the next step. */
 static void cont_cut_scan(magcal_cont_t *cc, magcal_cal_budget_t *b)
@@ -488,7 +448,12 @@ static int cont_snapshot(magcal_cont_t *cc, magcal_cal_budget_t *b)
         const uint32_t cnt = st->count[cc->snap_bin];
         uint32_t w = CONT_W_SNAP;
         if (cc->drop_on != 0u) {
-            cont_cut_bin(cc, cc->snap_bin);
+            /* the cut (an INCONSISTENT solve, cont_adopt.c): the bin's samples older than the cut or
+             * off the solve's ring by more than half its radius (neither installation: a stored
+             * glitch burst would otherwise outweigh what is left) leave the store (the store is
+             * frozen meanwhile), the rest is copied */
+            magcal_intake_drop_older(&cc->store, cc->snap_bin, cc->drop_seq, &cc->drop_c, cc->drop_r, cc->buf,
+                                     cc->slots, &cc->snap_n);
             w = CONT_W_SNAP + CONT_W_CUT;
         } else {
             uint32_t k;

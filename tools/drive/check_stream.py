@@ -2,7 +2,8 @@
 """Stream-order long-drive check of the continuous 2-D calibrator (issue 13).
 
     check_stream.py --gen tools/gen_drive.py --replay magcal-replay --workdir DIR
-                    [--minutes 60] [--seed 1] [--no-step] [--report-only]
+                    [--minutes 60] [--seed 1] [--no-step] [--dyn-accel] [--replay-arg ARG]...
+                    [--report-only]
 
 Generates a drive (tools/gen_drive.py: known truth), runs `magcal-replay --stream --headings
 --json` on it (push + step per row, default budget, every row) and measures, against the truth:
@@ -19,6 +20,12 @@ object; exit 1 when a requirement of issue 13 fails (unless --report-only), 77 w
     --require KEY[,KEY...]   exit 1 only when one of these requirements fails (the others are
                              reported in "fails" / "not_met" but do not fail the run): the CTest
                              drive_stream_* asserts what is met today (tools/drive/CMakeLists.txt).
+    --dyn-accel              passed to the generator (its accelerometer reads the car's lateral
+                             and longitudinal acceleration: tools/gen_drive.py)
+    --replay-arg ARG         passed to magcal-replay (repeatable; e.g. --replay-arg=--no-tilt: no
+                             gravity fed)
+    --gravity-report         copy the replay's gravity counters (rows fed, LEVEL rows, levelled
+                             rows, the tilt compensation's k) into the report ("replay_gravity")
 Keys: first_adoption (<= 540 deg of turning), rms (trusted RMS <= 1.2 x floor), detected (the
 step detected), relearn (relearned within 720 deg, rows between untrusted), recall (>= 0.90),
 false_flags (<= 0.02), no_false_change (no change declared before the step, or at all without
@@ -71,6 +78,9 @@ def main():
     ap.add_argument("--report-only", action="store_true")
     ap.add_argument("--python", default=sys.executable)
     ap.add_argument("--require", default=None)
+    ap.add_argument("--dyn-accel", action="store_true")
+    ap.add_argument("--replay-arg", action="append", default=[])
+    ap.add_argument("--gravity-report", action="store_true")
     a = ap.parse_args()
     keys = ("first_adoption", "rms", "detected", "relearn", "recall", "false_flags", "no_false_change", "adopted")
     req = None
@@ -80,18 +90,20 @@ def main():
         if bad:
             ap.error("unknown --require key(s) %s (known: %s)" % (",".join(bad), ",".join(keys)))
     os.makedirs(a.workdir, exist_ok=True)
-    tag = "s%d_m%g%s" % (a.seed, a.minutes, "_nostep" if a.no_step else "")
+    tag = "s%d_m%g%s%s" % (a.seed, a.minutes, "_nostep" if a.no_step else "", "_dyn" if a.dyn_accel else "")
     dump = os.path.join(a.workdir, "drive_%s.csv" % tag)
     truth_p = os.path.join(a.workdir, "drive_%s.json" % tag)
     hd_p = os.path.join(a.workdir, "stream_%s_headings.csv" % tag)
     cmd = [a.python, a.gen, "--minutes", str(a.minutes), "--seed", str(a.seed), "--out", dump, "--truth", truth_p]
     if a.no_step:
         cmd.append("--no-step")
+    if a.dyn_accel:
+        cmd.append("--dyn-accel")
     subprocess.run(cmd, check=True)
     truth = json.load(open(truth_p))
     out = subprocess.run([a.replay, "--stream", "--declination", repr(truth["declination_deg"]),
                           "--range", repr(truth["sensor_range_ut"]), "--headings", hd_p,
-                          "--json", dump], capture_output=True, text=True)
+                          "--json"] + a.replay_arg + [dump], capture_output=True, text=True)
     if out.returncode not in (0, 3):
         print(out.stderr)
         return 1
@@ -125,6 +137,9 @@ def main():
     dist = D["disturbed"] > 0
     res = {"scenario": tag, "rows": n, "trusted_rows": int(np.sum(trust == "ok")),
            "json_rows": rep["rows"], "json_trusted_rows": rep["trusted_rows"]}
+    if a.gravity_report:
+        res["replay_gravity"] = {k: rep[k] for k in ("gravity_fed", "gravity_rows", "level_rows", "store_level",
+                                                     "tilt_comp_k", "tilt_comp_pairs", "levelled_rows") if k in rep}
     ev = rep["events"]
     adopt_rows = [e["row"] for e in ev if e["event"] == "adopted"]
     change_rows = [e["row"] for e in ev if e["event"] == "change"]

@@ -5,7 +5,9 @@
 
 Reads the GCC -fstack-usage (.su) and -fcallgraph-info=su (.ci) files that the Cortex-M4F
 toolchain file (cmake/toolchain-cortex-m4f.cmake) writes next to libmagcal's objects
-(BUILD_DIR/CMakeFiles/magcal.dir/**). The worst case of a function is its own frame plus the
+(BUILD_DIR/CMakeFiles/magcal.dir/**): only those of the objects the target links, as CMake lists
+them (the target's link.txt, else its DependInfo.cmake), so a .ci file left behind by a renamed
+or deleted source in an old build tree is never read (one gave a false 560-B worst case). The worst case of a function is its own frame plus the
 largest worst case among its callees; the library has no recursion, so this is exact for the
 library's own code (up to interrupts, which the caller's budget must add).
 
@@ -47,17 +49,78 @@ class Graph:
         self.external = set()
 
 
+OBJ_RE = re.compile(r"\.(?:c|cc|cpp|cxx|s|S)\.(?:obj|o)$")
+DEP_RE = re.compile(r'^\s*"[^"]+"\s+"([^"]+)"\s+"[^"]*"\s+"[^"]*"\s*$')
+
+
+def target_objects(target_dir):
+    """Object files (absolute) the CMake target whose CMakeFiles/<name>.dir is target_dir builds
+    and links, from its link.txt (Makefile generators: the archiver's or linker's command line),
+    else from its DependInfo.cmake (source, object, compiler, depfile quadruples); only the
+    objects inside target_dir (not another target's object library). None when the directory
+    has neither file (not a CMake target directory)."""
+    base = os.path.dirname(os.path.dirname(os.path.abspath(target_dir)))  # the target's binary dir
+    objs = []
+    link = os.path.join(target_dir, "link.txt")
+    dep = os.path.join(target_dir, "DependInfo.cmake")
+    if os.path.exists(link):
+        with open(link) as f:
+            for tok in f.read().split():
+                if OBJ_RE.search(tok):
+                    objs.append(tok)
+    elif os.path.exists(dep):
+        with open(dep) as f:
+            for line in f:
+                m = DEP_RE.match(line)
+                if m and OBJ_RE.search(m.group(1)):
+                    objs.append(m.group(1))
+    else:
+        return None
+    root = os.path.abspath(target_dir) + os.sep
+    out = []
+    for o in objs:
+        a = os.path.normpath(o if os.path.isabs(o) else os.path.join(base, o))
+        if a.startswith(root) and a not in out:
+            out.append(a)
+    return out
+
+
+def target_cis(target_dir, what):
+    """The .ci files of target_dir's objects (GCC writes <object minus its last suffix>.ci next
+    to each object); exits when an object has none. A directory that is not a CMake target
+    directory: every .ci below it (a warning)."""
+    objs = target_objects(target_dir)
+    if objs is None:
+        print("stack_usage: WARNING: %s has no link.txt / DependInfo.cmake: reading every .ci below it"
+              % target_dir, file=sys.stderr)
+        return sorted(glob.glob(os.path.join(target_dir, "**", "*.ci"), recursive=True))
+    if not objs:
+        sys.exit("stack_usage: %s lists no objects (%s)" % (target_dir, what))
+    cis = []
+    missing = []
+    for o in objs:
+        ci = os.path.splitext(o)[0] + ".ci"
+        (cis if os.path.exists(ci) else missing).append(ci)
+    if missing:
+        sys.exit("stack_usage: no .ci file for %d object(s) of %s, e.g. %s (build with "
+                 "cmake/toolchain-cortex-m4f.cmake)" % (len(missing), what, missing[0]))
+    return sorted(cis)
+
+
 def load_library(build_dir, extra_dirs=()):
     g = Graph()
     root = os.path.join(build_dir, "CMakeFiles", "magcal.dir")
-    cis = sorted(glob.glob(os.path.join(root, "**", "*.ci"), recursive=True))
+    if not os.path.isdir(root):
+        sys.exit("stack_usage: no %s (build with cmake/toolchain-cortex-m4f.cmake)" % root)
+    cis = target_cis(root, "the library")
     if not cis:
         sys.exit("stack_usage: no .ci files under %s (build with cmake/toolchain-cortex-m4f.cmake)" % root)
     g.library = set()
+    lib_root = os.path.abspath(root) + os.sep
     for d in extra_dirs:
-        cis += sorted(glob.glob(os.path.join(d, "**", "*.ci"), recursive=True))
+        cis += target_cis(d, d)
     for ci in cis:
-        in_lib = ci.startswith(root)
+        in_lib = os.path.abspath(ci).startswith(lib_root)
         local_defs = {}
         edges = []
         with open(ci) as f:
@@ -171,7 +234,8 @@ def main(argv):
     ap.add_argument("--src-root", default=os.path.join(os.path.dirname(__file__), "..", ".."))
     ap.add_argument("--assume", default=os.path.join(os.path.dirname(__file__), "assumptions.txt"))
     ap.add_argument("--ci-dir", action="append", default=[],
-                    help="also read .su/.ci below this directory (e.g. the stack_watermark target)")
+                    help="also read the .ci files of this CMake target directory's objects (e.g. "
+                         "CMakeFiles/stack_watermark.dir; a plain directory: every .ci below it)")
     ap.add_argument("--measured-run", nargs=argparse.REMAINDER,
                     help="run this command (last option); its `STACK fn bytes` lines must not exceed "
                          "the static worst case of fn")
