@@ -236,6 +236,17 @@ typedef struct {
                                          cfg.intake.tilt_limit_deg, |g| steady) is levelled before
                                          it is stored, once the vertical field is estimated;
                                          0..30, 0 = off (default 8: the road's 6 deg and margin) */
+    float offset_coverage_deg;      /**< offset-only relearn ("Offset-only relearn" below): while
+                                         RELEARNING with a full calibration installed, a solve
+                                         already starts at this live coverage and fits the hard
+                                         iron only under the installed soft-iron shape; 0 = off,
+                                         else 0..360 (default 150) */
+    float offset_max_err_deg;       /**< its tolerance: the fit's bound on its heading error over
+                                         the whole circle (report est_param_err_deg), > 0
+                                         (default 3) */
+    float offset_sigma_ratio;       /**< its shape test: the fresh samples' residual sigma around
+                                         the installed shape may be at most this multiple of the
+                                         installed calibration's, >= 1 (default 2) */
 } magcal_cont_cfg_t;
 
 /** Defaults: work untuned from 10 to 100 Hz (time constants are in ms of the push stamps). */
@@ -243,7 +254,7 @@ typedef struct {
     {                                                                                              \
         MAGCAL_INTAKE_CFG_DEFAULT_2D, MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT, 280.0f, 24u, 2u,        \
             600000.0f, 4.0f, 0.06f, 8000u, 3u, 4000u, 100u, 200u, 4.0f,                            \
-            MAGCAL_SLICE_BUDGET_DEFAULT, 0.0f, 15.0f, 8.0f                                         \
+            MAGCAL_SLICE_BUDGET_DEFAULT, 0.0f, 15.0f, 8.0f, 150.0f, 3.0f, 2.0f                     \
     }
 
 /** A heading with its trust. */
@@ -414,6 +425,25 @@ typedef struct {
     float dist_mr[4];              /* their moments with the residual's deviation */
     float dist_mu[4];              /* their moments with the vertical channel's deviation */
     float dist_th[8];              /* coefficients: residual 0..3, vertical 4..7 */
+    /* offset-only relearn (src/adopt/calibrator_offset.c): a circle fit on the snapshot, in the
+     * frame of the installed calibration (u = M (m - offset) / radius) */
+    uint8_t off_mode;              /* 1: the solve under way (or starting) is the offset-only fit */
+    uint8_t off_pass;              /* its pass: 1 fit, 2 residual RMS, 3 refit, 4 residual model, 5 end */
+    uint8_t cal_offset;            /**< read-only: 1 = the installed calibration is an offset-only
+                                        relearn (the previous soft iron, a refitted hard iron) */
+    uint32_t off_i;                /* position in the snapshot */
+    uint32_t off_block;            /* cc->changes + 1 after a SHAPE_CHANGED verdict: no offset fit
+                                      until the next change (0: none) */
+    uint32_t off_n;                /* samples in the pass sums */
+    float off_cov;                 /* live coverage that started the fit */
+    float off_a[25];               /* normal matrix (5 x 5 row-major; the circle's 3 x 3 in passes 1, 3) */
+    float off_b[5];                /* right-hand side */
+    float off_c[3];                /* circle: centre x, y, radius (unit frame) */
+    float off_ss;                  /* sum of squared residuals */
+    float off_thr;                 /* residual gate (unit frame) */
+    float off_lam;                 /* end: largest eigenvalue of the centre's covariance */
+    float off_s3;                  /* end: residual sigma of the 3-parameter circle */
+    float off_sr;                  /* end: the radius's standard error */
 } magcal_cont_t;
 
 /**
