@@ -228,6 +228,43 @@ static void hard_iron_step(double arc, uint32_t seed)
 void test_relearn_hard_iron_step_200_deg(void) { hard_iron_step(200.0, 31u); }
 void test_relearn_hard_iron_step_230_deg(void) { hard_iron_step(230.0, 32u); }
 
+/* The bound covers the truth: 12 seeds x arcs of 200 / 260 deg after the step; every adopted
+ * offset-only fit's largest noiseless heading error over the whole circle is within its bound,
+ * and most runs adopt one within the arc. */
+void test_relearn_bound_covers_truth_over_seeds(void)
+{
+    static const double arcs[2] = {200.0, 260.0};
+    unsigned runs = 0u;
+    unsigned adopted = 0u;
+    double worst = 0.0;
+    uint32_t seed;
+    size_t a;
+    for (a = 0u; a < 2u; ++a) {
+        for (seed = 40u; seed < 52u; ++seed) {
+            drive_t dr;
+            cont_init_default();
+            drive_init(&dr, &k_d, seed);
+            calibrate(&dr);
+            dr.d = &k_d_hard;
+            dr.turn_deg = 0.0;
+            drive_turn(&dr, arcs[a], 3.0);
+            drive_straight(&dr, 60.0);
+            runs++;
+            TEST_ASSERT_EQUAL_UINT(1u, dr.changes);
+            if (dr.offset_adopted > 0u) {
+                const double e = circle_max_err(&dr.offset_cal, &k_d_hard);
+                adopted++;
+                TEST_ASSERT_TRUE(e <= (double)dr.offset_bound);
+                TEST_ASSERT_TRUE(dr.worst_ratio <= 1.0);
+                worst = e / (double)dr.offset_bound > worst ? e / (double)dr.offset_bound : worst;
+            }
+        }
+    }
+    printf("bound over seeds: %u of %u runs adopted an offset-only fit, worst truth / bound %.2f\n", adopted, runs,
+           worst);
+    TEST_ASSERT_TRUE(adopted * 4u >= runs * 3u);
+}
+
 /* A soft-iron change: declared a change, then the offset-only fit is refused
  * (MAGCAL_ERR_SHAPE_CHANGED) and never adopted; the full solve relearns once it has its coverage. */
 void test_relearn_soft_iron_change_refused(void)
@@ -295,6 +332,7 @@ int main(void)
     RUN_TEST(test_relearn_never_on_first_calibration);
     RUN_TEST(test_relearn_hard_iron_step_200_deg);
     RUN_TEST(test_relearn_hard_iron_step_230_deg);
+    RUN_TEST(test_relearn_bound_covers_truth_over_seeds);
     RUN_TEST(test_relearn_soft_iron_change_refused);
     return UNITY_END();
 }

@@ -77,6 +77,18 @@
  * good (a coarse one never replaces a full one). Save to flash only when cc.cal_coarse == 0: a
  * restored calibration is taken as full.
  *
+ * Offset-only relearn (cfg.offset_coverage_deg, default 180; docs/calibrator.md "Offset-only
+ * relearn"): after a declared change, while RELEARNING with a full calibration installed (not a
+ * coarse one, not one restored from flash: its own error is unknown), a solve already starts at
+ * that live coverage and refits only the hard iron (centre and radius) under the installed
+ * soft-iron shape, time-sliced over the snapshot like the solver. It is installed (a generation,
+ * MAGCAL_CONT_ADOPTED, trust OK, cc.cal_offset = 1) when its bound on the heading error over the
+ * whole circle (the centre's covariance, the fresh samples' 2nd harmonic, the installed
+ * calibration's own estimate) is within cfg.offset_max_err_deg; MAGCAL_ERR_SHAPE_CHANGED when the
+ * installed shape no longer explains the fresh samples (residual sigma above cfg.offset_sigma_ratio
+ * x the installed one's, a significant 2nd harmonic, the radius moved): no further offset fit until
+ * the next change, the full solve relearns. The full solve replaces it later by the usual rules.
+ *
  * Tilt compensation (magcal_cont_push_g, cfg.tilt_comp_deg; docs/calibrator.md "Tilt
  * compensation"). A pitch p (roll r) shifts the body's horizontal field by Z (sin r, sin p) to
  * first order (Z: the body's vertical field), i.e. the raw x, y by k t with t = (g_x, g_y) / g_z of
@@ -240,7 +252,9 @@ typedef struct {
                                          RELEARNING with a full calibration installed, a solve
                                          already starts at this live coverage and fits the hard
                                          iron only under the installed soft-iron shape; 0 = off,
-                                         else 0..360 (default 150) */
+                                         else 0..360 (default 180: on the generated
+                                         drives 150 adopted on seed 30-5 but refused seed 60-1,
+                                         180 the reverse; 60-1's fit was the better one) */
     float offset_max_err_deg;       /**< its tolerance: the fit's bound on its heading error over
                                          the whole circle (report est_param_err_deg), > 0
                                          (default 3) */
@@ -254,7 +268,7 @@ typedef struct {
     {                                                                                              \
         MAGCAL_INTAKE_CFG_DEFAULT_2D, MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT, 280.0f, 24u, 2u,        \
             600000.0f, 4.0f, 0.06f, 8000u, 3u, 4000u, 100u, 200u, 4.0f,                            \
-            MAGCAL_SLICE_BUDGET_DEFAULT, 0.0f, 15.0f, 8.0f, 150.0f, 3.0f, 2.0f                     \
+            MAGCAL_SLICE_BUDGET_DEFAULT, 0.0f, 15.0f, 8.0f, 180.0f, 3.0f, 2.0f                     \
     }
 
 /** A heading with its trust. */
