@@ -230,13 +230,15 @@ void test_relearn_hard_iron_step_230_deg(void) { hard_iron_step(230.0, 32u); }
 
 /* The bound covers the truth: 12 seeds x arcs of 200 / 260 deg after the step; every adopted
  * offset-only fit's largest noiseless heading error over the whole circle is within its bound,
- * and most runs adopt one within the arc. */
+ * its offset within 0.3 (1 % of the field) of the truth, and most runs adopt one within the arc. */
+#if !defined(__arm__)
 void test_relearn_bound_covers_truth_over_seeds(void)
 {
     static const double arcs[2] = {200.0, 260.0};
     unsigned runs = 0u;
     unsigned adopted = 0u;
     double worst = 0.0;
+    double worst_off = 0.0;
     uint32_t seed;
     size_t a;
     for (a = 0u; a < 2u; ++a) {
@@ -253,17 +255,23 @@ void test_relearn_bound_covers_truth_over_seeds(void)
             TEST_ASSERT_EQUAL_UINT(1u, dr.changes);
             if (dr.offset_adopted > 0u) {
                 const double e = circle_max_err(&dr.offset_cal, &k_d_hard);
+                const double oe = hypot((double)dr.offset_cal.offset.x - k_d_hard.bx,
+                                        (double)dr.offset_cal.offset.y - k_d_hard.by);
                 adopted++;
+                worst_off = oe > worst_off ? oe : worst_off;
+                TEST_ASSERT_TRUE(oe <= 0.3);
                 TEST_ASSERT_TRUE(e <= (double)dr.offset_bound);
                 TEST_ASSERT_TRUE(dr.worst_ratio <= 1.0);
                 worst = e / (double)dr.offset_bound > worst ? e / (double)dr.offset_bound : worst;
             }
         }
     }
-    printf("bound over seeds: %u of %u runs adopted an offset-only fit, worst truth / bound %.2f\n", adopted, runs,
-           worst);
+    printf("bound over seeds: %u of %u runs adopted an offset-only fit, worst truth / bound %.2f, worst offset error "
+           "%.3f (tolerance 0.3)\n",
+           adopted, runs, worst, worst_off);
     TEST_ASSERT_TRUE(adopted * 4u >= runs * 3u);
 }
+#endif
 
 /* A soft-iron change: declared a change, then the offset-only fit is refused
  * (MAGCAL_ERR_SHAPE_CHANGED) and never adopted; the full solve relearns once it has its coverage. */
@@ -332,7 +340,9 @@ int main(void)
     RUN_TEST(test_relearn_never_on_first_calibration);
     RUN_TEST(test_relearn_hard_iron_step_200_deg);
     RUN_TEST(test_relearn_hard_iron_step_230_deg);
-    RUN_TEST(test_relearn_bound_covers_truth_over_seeds);
+#if !defined(__arm__)
+    RUN_TEST(test_relearn_bound_covers_truth_over_seeds); /* host: 24 drives (a measurement, not the target's) */
+#endif
     RUN_TEST(test_relearn_soft_iron_change_refused);
     return UNITY_END();
 }

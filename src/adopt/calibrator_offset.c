@@ -29,8 +29,9 @@
 #include "../loop/cont_internal.h"
 #include "magcal_internal.h"
 
-/* Weights per visit, estimated Cortex-M4F instructions (host callgrind of the loops x 1.2, the
- * CAL_W_* convention; docs/performance.md). */
+/* Weights per visit, estimated Cortex-M4F instructions (counted from the loops' float operations
+ * with margin, not fitted: the largest step while a fit runs is measured on the target by
+ * tests/test_relearn.c under QEMU, docs/calibrator.md "Offset-only relearn"). */
 #define OFF_W_FIT 80u    /* pass 1 / 3: one sample's frame map and 3 x 3 normal-equation update */
 #define OFF_W_RES 70u    /* pass 2: frame map, distance (sqrtf), residual square */
 #define OFF_W_GATE 110u  /* pass 3: as pass 2 plus the update */
