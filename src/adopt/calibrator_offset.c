@@ -55,9 +55,8 @@ int magcal_cont_offset_eligible(const magcal_cont_t *cc)
            magcal_isfinite_f(cc->adopted_err);
 }
 
-int magcal_cont_offset_pick(magcal_cont_t *cc, float coverage_deg)
+int magcal_cont_offset_pick(magcal_cont_t *cc, float coverage_deg, float full)
 {
-    const float full = magcal_cont_solve_cov(cc);
     cc->off_mode = 0u;
     if (coverage_deg >= full) {
         return 1;
@@ -161,7 +160,7 @@ static void off_model_add(magcal_cont_t *cc, float ux, float uy, float d, float 
 }
 
 /* One pass (1..4) over the snapshot within budget b: 1 when it ended. */
-static int off_pass(magcal_cont_t *cc, magcal_cal_budget_t *b)
+static int off_pass_run(magcal_cont_t *cc, magcal_cal_budget_t *b)
 {
     const uint32_t n = cc->snap_n;
     /* cppcheck-suppress misra-c2012-15.4 ; deviation D13: a resumable loop leaves at its pause point (budget) */
@@ -394,7 +393,7 @@ magcal_status_t magcal_cont_offset_step(magcal_cont_t *cc, uint32_t budget)
     }
     /* cppcheck-suppress misra-c2012-15.4 ; deviation D13: a resumable loop leaves at its pause point (budget) */
     while (st == MAGCAL_OK && cc->off_pass <= 4u) {
-        if (off_pass(cc, &b) == 0) {
+        if (off_pass_run(cc, &b) == 0) {
             return MAGCAL_IN_PROGRESS;
         }
         st = off_pass_end(cc, &b);

@@ -354,7 +354,7 @@ static int cont_worth(magcal_cont_t *cc)
     cc->worth_checked = 1u;
     (void)magcal_intake_progress(&cc->store, &p);
     return p.centre_source != MAGCAL_INTAKE_CENTRE_NONE && p.rebinning == 0u &&
-           magcal_cont_offset_pick(cc, p.coverage_deg) != 0; /* the full solve, or the offset-only fit */
+           magcal_cont_offset_pick(cc, p.coverage_deg, magcal_cont_solve_cov(cc)) != 0; /* full or offset-only */
 }
 
 /* Start a solve: the snapshot of the store (the drain pauses until it is complete, so the
@@ -402,7 +402,7 @@ static MAGCAL_NOINLINE int cont_count_part(magcal_cont_t *cc, magcal_cal_budget_
     cc->cnt_on = 0u;
     magcal_intake_progress_of(st, cc->cnt_words, cc->cnt_filled, cc->cnt_deep, &p);
     return p.centre_source != MAGCAL_INTAKE_CENTRE_NONE && p.rebinning == 0u &&
-           magcal_cont_offset_pick(cc, p.coverage_deg) != 0; /* the full solve, or the offset-only fit */
+           magcal_cont_offset_pick(cc, p.coverage_deg, magcal_cont_solve_cov(cc)) != 0; /* full or offset-only */
 }
 
 /* A cut (an INCONSISTENT solve, cont_adopt.c) keeps a sample when it is not older than the cut
