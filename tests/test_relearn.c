@@ -15,17 +15,6 @@
 #include "test_util.h"
 #include "unity.h"
 
-#if defined(__arm__)
-/* Target only: SysTick around each step (under `qemu-system-arm -icount shift=0` one tick = 40
- * instructions). Printed, never asserted: a measurement. */
-#define SYST_CVR (*(volatile uint32_t *)0xE000E018u)
-#define TICKS() SYST_CVR
-#define TICK_SPAN(t0) (((t0) - SYST_CVR) & 0xFFFFFFu)
-#else
-#define TICKS() 0u
-#define TICK_SPAN(t0) ((void)(t0), 0u)
-#endif
-
 void setUp(void) {}
 void tearDown(void) {}
 
@@ -62,7 +51,6 @@ typedef struct {
     unsigned trusted_after;      /* trusted rows under it */
     double worst_ratio;          /* max noiseless heading error / bound over those rows */
     double worst_err;
-    uint32_t max_step_ticks;     /* target: the largest step while an offset fit ran */
 } drive_t;
 
 static void drive_init(drive_t *dr, const test_distortion_t *d, uint32_t seed)
@@ -104,19 +92,13 @@ static void drive_row(drive_t *dr)
     magcal_vec3_t m;
     magcal_cont_outcome_t oc;
     magcal_cont_heading_t hd;
-    uint32_t t0;
     uint8_t off_run;
     m.x = p.x;
     m.y = p.y;
     m.z = 40.0f;
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_push(&g_cc, &m, dr->t_ms));
     off_run = g_cc.off_mode;
-    t0 = TICKS();
     oc = magcal_cont_step(&g_cc);
-    if (off_run != 0u) {
-        uint32_t d = TICK_SPAN(t0);
-        dr->max_step_ticks = d > dr->max_step_ticks ? d : dr->max_step_ticks;
-    }
     dr->t_ms += RATE_MS;
     if (oc == MAGCAL_CONT_CHANGE) {
         dr->changes++;
@@ -214,9 +196,9 @@ static void hard_iron_step(double arc, uint32_t seed)
     circ = circle_max_err(&dr.offset_cal, &k_d_hard);
     printf("hard iron, %.0f deg after the step (change at %.0f, offset fit adopted at %.0f deg): offset error %.3f "
            "(tolerance 0.3), whole-circle max error %.3f deg, bound %.3f deg, %u trusted rows, worst %.3f deg "
-           "(%.2f x bound), largest step %u M4F instr\n",
+           "(%.2f x bound)\n",
            arc, dr.turn_at_change, dr.turn_at_offset, off_err, circ, (double)dr.offset_bound, dr.trusted_after,
-           dr.worst_err, dr.worst_ratio, (unsigned)(dr.max_step_ticks * 40u));
+           dr.worst_err, dr.worst_ratio);
     TEST_ASSERT_TRUE(dr.turn_at_offset <= arc); /* relearned within the arc */
     TEST_ASSERT_TRUE(off_err <= 0.3);
     TEST_ASSERT_TRUE(circ <= (double)dr.offset_bound);
