@@ -48,6 +48,7 @@ const char *magcal_status_str(magcal_status_t status)
     case MAGCAL_ERR_VERSION: return "record version mismatch";
     case MAGCAL_ERR_SATURATED: return "sample at the sensor range limit";
     case MAGCAL_ERR_INCONSISTENT: return "samples of more than one installation";
+    case MAGCAL_ERR_SHAPE_CHANGED: return "soft-iron shape changed";
     case MAGCAL_IN_PROGRESS: return "in progress (call step again)";
     default: return "unknown";
     }

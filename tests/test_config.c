@@ -145,7 +145,7 @@ static void test_status_is_outcome_only_for_normal_outcomes(void)
 {
     int c;
     int n = 0;
-    for (c = 1; c >= (int)MAGCAL_ERR_INCONSISTENT; --c) {
+    for (c = 1; c >= (int)MAGCAL_ERR_SHAPE_CHANGED; --c) {
         n += magcal_status_is_outcome((magcal_status_t)c);
     }
     TEST_ASSERT_EQUAL_INT(6, n);

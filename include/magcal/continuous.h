@@ -86,6 +86,17 @@
  * margin 1, an arc or a circle never. Off by default: on the generated drives the bound's model
  * term has to be ~7 deg to cover the truth, and the loop after an arc adoption was worse
  * (docs/calibrator.md "Arc stage").
+ * Offset-only relearn (cfg.offset_coverage_deg, default 180; docs/calibrator.md "Offset-only
+ * relearn"): after a declared change, while RELEARNING with a full calibration installed (not a
+ * coarse one, not one restored from flash: its own error is unknown), a solve already starts at
+ * that live coverage and refits only the hard iron (centre and radius) under the installed
+ * soft-iron shape, time-sliced over the snapshot like the solver. It is installed (a generation,
+ * MAGCAL_CONT_ADOPTED, trust OK, cc.cal_offset = 1) when its bound on the heading error over the
+ * whole circle (the centre's covariance, the fresh samples' 2nd harmonic, the installed
+ * calibration's own estimate) is within cfg.offset_max_err_deg; MAGCAL_ERR_SHAPE_CHANGED when the
+ * installed shape no longer explains the fresh samples (residual sigma above cfg.offset_sigma_ratio
+ * x the installed one's, a significant 2nd harmonic, the radius moved): no further offset fit until
+ * the next change, the full solve relearns. The full solve replaces it later by the usual rules.
  *
  * Tilt compensation (magcal_cont_push_g, cfg.tilt_comp_deg; docs/calibrator.md "Tilt
  * compensation"). A pitch p (roll r) shifts the body's horizontal field by Z (sin r, sin p) to
@@ -262,6 +273,19 @@ typedef struct {
                                          the whole circle (report est_param_err_deg), > 0 */
     float arc_model_deg;            /**< the bound's model-error term (what an arc cannot see:
                                          a tilt or vertical-field leak the fit absorbs), >= 0 */
+    float offset_coverage_deg;      /**< offset-only relearn ("Offset-only relearn" below): while
+                                         RELEARNING with a full calibration installed, a solve
+                                         already starts at this live coverage and fits the hard
+                                         iron only under the installed soft-iron shape; 0 = off,
+                                         else 0..360 (default 180: on the generated
+                                         drives 150 adopted on seed 30-5 but refused seed 60-1,
+                                         180 the reverse; 60-1's fit was the better one) */
+    float offset_max_err_deg;       /**< its tolerance: the fit's bound on its heading error over
+                                         the whole circle (report est_param_err_deg), > 0
+                                         (default 3) */
+    float offset_sigma_ratio;       /**< its shape test: the fresh samples' residual sigma around
+                                         the installed shape may be at most this multiple of the
+                                         installed calibration's, >= 1 (default 2) */
 } magcal_cont_cfg_t;
 
 /** Defaults: work untuned from 10 to 100 Hz (time constants are in ms of the push stamps). */
@@ -269,7 +293,7 @@ typedef struct {
     {                                                                                              \
         MAGCAL_INTAKE_CFG_DEFAULT_2D, MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT, 280.0f, 24u, 2u,        \
             600000.0f, 4.0f, 0.06f, 8000u, 3u, 4000u, 100u, 200u, 4.0f,                            \
-            MAGCAL_SLICE_BUDGET_DEFAULT, 0.0f, 15.0f, 8.0f, 0.7f, 0.0f, 10.0f, 7.0f                \
+            MAGCAL_SLICE_BUDGET_DEFAULT, 0.0f, 15.0f, 8.0f, 0.7f, 0.0f, 10.0f, 7.0f, 180.0f, 3.0f, 2.0f \
     }
 
 /** A heading with its trust. */
@@ -443,6 +467,25 @@ typedef struct {
     float dist_th[8];              /* coefficients: residual 0..3, vertical 4..7 */
     float dist_ur;                 /* raw radius the vertical channel's state is scaled by (cont_flags.c) */
     uint32_t dist_dt;              /* ms between the last two samples the transient judge took (its peek's step) */
+    /* offset-only relearn (src/adopt/calibrator_offset.c): a circle fit on the snapshot, in the
+     * frame of the installed calibration (u = M (m - offset) / radius) */
+    uint8_t off_mode;              /* 1: the solve under way (or starting) is the offset-only fit */
+    uint8_t off_pass;              /* its pass: 1 fit, 2 residual RMS, 3 refit, 4 residual model, 5 end */
+    uint8_t cal_offset;            /**< read-only: 1 = the installed calibration is an offset-only
+                                        relearn (the previous soft iron, a refitted hard iron) */
+    uint32_t off_i;                /* position in the snapshot */
+    uint32_t off_block;            /* cc->changes + 1 after a SHAPE_CHANGED verdict: no offset fit
+                                      until the next change (0: none) */
+    uint32_t off_n;                /* samples in the pass sums */
+    float off_cov;                 /* live coverage that started the fit */
+    float off_a[25];               /* normal matrix (5 x 5 row-major; the circle's 3 x 3 in passes 1, 3) */
+    float off_b[5];                /* right-hand side */
+    float off_c[3];                /* circle: centre x, y, radius (unit frame) */
+    float off_ss;                  /* sum of squared residuals */
+    float off_thr;                 /* residual gate (unit frame) */
+    float off_lam;                 /* end: largest eigenvalue of the centre's covariance */
+    float off_s3;                  /* end: residual sigma of the 3-parameter circle */
+    float off_sr;                  /* end: the radius's standard error */
 } magcal_cont_t;
 
 /**

@@ -74,7 +74,8 @@ typedef enum {
     MAGCAL_ERR_CRC = -40,             /**< stored record fails its CRC (corrupted flash) */
     MAGCAL_ERR_VERSION = -41,         /**< stored record has another magic or layout version */
     MAGCAL_ERR_SATURATED = -42,       /**< sample at the sensor's declared range limit (a saturated axis): refused */
-    MAGCAL_ERR_INCONSISTENT = -43     /**< the samples do not describe one installation (a store mixing two): refused */
+    MAGCAL_ERR_INCONSISTENT = -43,    /**< the samples do not describe one installation (a store mixing two): refused */
+    MAGCAL_ERR_SHAPE_CHANGED = -44    /**< fresh samples do not fit the installed soft-iron shape (offset-only relearn refused) */
 } magcal_status_t;
 
 /**

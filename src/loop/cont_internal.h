@@ -56,5 +56,20 @@ void magcal_cont_coarse_mode(magcal_cont_t *cc);
 float magcal_cont_solve_cov(const magcal_cont_t *cc);
 /* Arc stage settings of cfg (cont_adopt.c): MAGCAL_OK, MAGCAL_ERR_NONFINITE or MAGCAL_ERR_ARG. */
 magcal_status_t magcal_cont_arc_cfg_check(const magcal_cont_cfg_t *c);
+/* Offset-only relearn (src/adopt/calibrator_offset.c, docs/calibrator.md "Offset-only relearn"). */
+/* 1 when a relearn may fit the offset only: RELEARNING, a full calibration installed, the stage on
+ * (cfg.offset_coverage_deg > 0) and no SHAPE_CHANGED verdict since the last change. */
+int magcal_cont_offset_eligible(const magcal_cont_t *cc);
+/* Whether the live coverage starts a solve (1) and which: cc->off_mode 0 the full solve (coverage_deg
+ * >= full, the full solve's start, magcal_cont_solve_cov), 1 the offset-only fit (eligible,
+ * coverage_deg >= cfg.offset_coverage_deg). src/adopt/ calls nothing of src/loop/ (the target
+ * cross-check's host twin links src/adopt/ without it). */
+int magcal_cont_offset_pick(magcal_cont_t *cc, float coverage_deg, float full);
+/* Start the fit on the snapshot cc->buf[0 .. cc->snap_n) (O(1)). */
+void magcal_cont_offset_begin(magcal_cont_t *cc);
+/* Fit work within `budget` estimated M4F instructions (UINT32_MAX: to its end), at least one
+ * visit: MAGCAL_IN_PROGRESS, or the verdict (cc->last filled; MAGCAL_OK: cc->cand is the new
+ * calibration, report radius / est_* as the solver's). */
+magcal_status_t magcal_cont_offset_step(magcal_cont_t *cc, uint32_t budget);
 
 #endif /* MAGCAL_CONT_INTERNAL_H */

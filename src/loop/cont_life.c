@@ -38,6 +38,14 @@ static magcal_status_t cont_check_cfg(const magcal_cont_cfg_t *c)
         c->disturb_tau_ms < 1u) {
         return MAGCAL_ERR_ARG;
     }
+    if (!magcal_isfinite_f(c->offset_coverage_deg) || !magcal_isfinite_f(c->offset_max_err_deg) ||
+        !magcal_isfinite_f(c->offset_sigma_ratio)) {
+        return MAGCAL_ERR_NONFINITE;
+    }
+    if (c->offset_coverage_deg < 0.0f || c->offset_coverage_deg > 360.0f || !(c->offset_max_err_deg > 0.0f) ||
+        !(c->offset_sigma_ratio >= 1.0f)) {
+        return MAGCAL_ERR_ARG;
+    }
     return magcal_cont_arc_cfg_check(c);
 }
 

@@ -352,7 +352,8 @@ static int cont_worth(magcal_cont_t *cc)
     cc->worth_seen = cc->store.ctr.added + cc->store.ctr.replaced;
     cc->worth_checked = 1u;
     (void)magcal_intake_progress(&cc->store, &p);
-    return p.centre_source != MAGCAL_INTAKE_CENTRE_NONE && p.rebinning == 0u && p.coverage_deg >= magcal_cont_solve_cov(cc);
+    return p.centre_source != MAGCAL_INTAKE_CENTRE_NONE && p.rebinning == 0u &&
+           magcal_cont_offset_pick(cc, p.coverage_deg, magcal_cont_solve_cov(cc)) != 0; /* full or offset-only */
 }
 
 /* Start a solve: the snapshot of the store (the drain pauses until it is complete, so the
@@ -399,7 +400,8 @@ static MAGCAL_NOINLINE int cont_count_part(magcal_cont_t *cc, magcal_cal_budget_
     }
     cc->cnt_on = 0u;
     magcal_intake_progress_of(st, cc->cnt_words, cc->cnt_filled, cc->cnt_deep, &p);
-    return p.centre_source != MAGCAL_INTAKE_CENTRE_NONE && p.rebinning == 0u && p.coverage_deg >= magcal_cont_solve_cov(cc);
+    return p.centre_source != MAGCAL_INTAKE_CENTRE_NONE && p.rebinning == 0u &&
+           magcal_cont_offset_pick(cc, p.coverage_deg, magcal_cont_solve_cov(cc)) != 0; /* full or offset-only */
 }
 
 /* The age scan of a pending cut (drop_on 1), within the step's budget: the oldest stored sample's
@@ -472,7 +474,12 @@ static int cont_snapshot(magcal_cont_t *cc, magcal_cal_budget_t *b)
         cc->drop_on = 0u;
         cc->worth_checked = 0u; /* the store lost samples: its coverage is counted again */
     }
-    (void)magcal_calibrator_solve_begin(&cc->solver, cc->snap_n, 1);
+    if (cc->off_mode != 0u && magcal_cont_offset_eligible(cc) != 0) {
+        magcal_cont_offset_begin(cc); /* the offset-only relearn (calibrator_offset.c) */
+    } else {
+        cc->off_mode = 0u;
+        (void)magcal_calibrator_solve_begin(&cc->solver, cc->snap_n, 1);
+    }
     (void)magcal_cal_spend(b, CONT_W_SNAP_END);
     cc->cand = cc->cal;
     cc->stage = (uint8_t)CONT_STAGE_SOLVE;
@@ -503,6 +510,10 @@ static MAGCAL_NOINLINE magcal_cont_outcome_t cont_end(magcal_cont_t *cc, magcal_
     cc->stage = (uint8_t)CONT_STAGE_NONE;
     cc->fit_phase = 0u;
     cc->last_outcome = magcal_cont_finish_solve(cc, st);
+    if (cc->last_outcome == MAGCAL_CONT_ADOPTED) {
+        cc->cal_offset = cc->off_mode; /* the mark of an offset-only relearn (calibrator_offset.c) */
+    }
+    cc->off_mode = 0u;
     /* new information counts from the store the solve saw (its snapshot), not from its end */
     cc->stored_at_solve = cc->snap_stored;
     if (cc->fit_phase != 0u) {
@@ -549,6 +560,18 @@ CONT_INLINE magcal_cont_outcome_t cont_solve(magcal_cont_t *cc, magcal_cal_budge
     }
     if (cont_snapshot_part(cc, b) != 0) {
         return MAGCAL_CONT_IN_PROGRESS;
+    }
+    if (cc->off_mode != 0u) {
+        /* the offset-only relearn instead of the solver (calibrator_offset.c), the solver's share */
+        st = magcal_cont_offset_step(cc, cont_solver_budget(cc, b));
+        if (st == MAGCAL_IN_PROGRESS) {
+            return MAGCAL_CONT_IN_PROGRESS;
+        }
+        oc = cont_end(cc, st);
+        if (cc->stage == (uint8_t)CONT_STAGE_FIT && b->unlimited != 0u) {
+            (void)cont_fit_part(cc, b);
+        }
+        return oc;
     }
     CONT_TRACE(magcal_bench_cont_trace[TR_SOLVE_BUDGET] = cont_solver_budget(cc, b);)
     CONT_TRACE(magcal_bench_cont_trace[TR_PHASE_IN] = magcal_bench_solve_phase(&cc->solver, &magcal_bench_cont_trace[TR_SOLVE_LEFT]);)
@@ -626,8 +649,12 @@ magcal_cont_outcome_t magcal_cont_step(magcal_cont_t *cc)
 static MAGCAL_NOINLINE int cont_begin(magcal_cont_t *cc)
 {
     if (cc->stage == (uint8_t)CONT_STAGE_NONE) {
-        if (cc->force == 0u && cont_worth(cc) == 0) {
+        if (cc->force != 0u) {
+            cc->off_mode = 0u; /* a forced solve is the full one */
+        } else if (cont_worth(cc) == 0) {
             return 0;
+        } else {
+            /* worth it: the solve cont_worth picked */
         }
         cont_start(cc);
     }

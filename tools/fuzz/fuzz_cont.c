@@ -67,7 +67,7 @@ typedef struct {
 
 static int fz_known(magcal_status_t st)
 {
-    return st <= MAGCAL_IN_PROGRESS && st >= MAGCAL_ERR_INCONSISTENT;
+    return st <= MAGCAL_IN_PROGRESS && st >= MAGCAL_ERR_SHAPE_CHANGED;
 }
 
 static magcal_vec3_t fz_sample(fuzz_in_t *in, int as_int16, float scale)

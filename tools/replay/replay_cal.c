@@ -59,6 +59,7 @@ const char *replay_status_id(magcal_status_t st)
     case MAGCAL_ERR_SINGLE_AXIS: return "single_axis";
     case MAGCAL_ERR_FIELD_MAGNITUDE: return "field_magnitude";
     case MAGCAL_ERR_INCONSISTENT: return "inconsistent";
+    case MAGCAL_ERR_SHAPE_CHANGED: return "shape_changed";
     default: return "error";
     }
 }
