@@ -32,6 +32,11 @@ MAGCAL_STATIC_ASSERT(sizeof(float) == sizeof(uint32_t), cont_park_stamp_bits); /
 #define CONT_W_SWEEP 5500u /* the end of a survey sweep (trimmed extremes, its fits; measured <= 5.1k alone) */
 #define CONT_SOLVE_CAP 4u  /* the solver's share of a step: at most CAP / DIV of the budget */
 #define CONT_SOLVE_DIV 5u
+#define CONT_SOLVE_MIN 2500u /* the least share of a step worth a solve call: a visit of the solver is
+                              * indivisible (a PRE_CONS visit measured 3,240 on a 660 share, the 30-min
+                              * seed-5 drive's step 10,160: tools/bench/cont_weights.py), so a
+                              * step leaves the solve to the next when less is left, and the sweep
+                              * part keeps this much for a solve under way */
 #define CONT_W_SNAP 21u    /* one sample of the snapshot (was 14: measured 1.42x) */
 #define CONT_W_CUT 90u     /* one sample's test of a cut (distance, sqrtf; estimate, as CAL_W_CO_RES) */
 #define CONT_W_AGE 12u     /* one sample of a cut's age scan (estimate) */
@@ -265,6 +270,9 @@ static MAGCAL_NOINLINE void cont_sweep_part(magcal_cont_t *cc, magcal_cal_budget
         uint32_t w;
         if (cont_sweep_end_due(cc) != 0 && s != 0u) {
             break; /* the sweep's end: the next step's first */
+        }
+        if (s != 0u && cc->stage != (uint8_t)CONT_STAGE_NONE && b->left < CONT_SOLVE_MIN + CONT_W_REBIN) {
+            break; /* a solve under way keeps its least share (one sweep step per stored sample) */
         }
         magcal_intake_sweep(st, 1u);
         if (st->sweeps != sweeps) {
@@ -622,8 +630,8 @@ static inline magcal_cont_outcome_t cont_step_in(magcal_cont_t *cc, magcal_cal_b
         }
         cont_start(cc);
     }
-    if (bp->unlimited == 0u && bp->left == 0u) {
-        return MAGCAL_CONT_IN_PROGRESS; /* the drain spent the budget (a sweep end): next step */
+    if (bp->unlimited == 0u && bp->left < CONT_SOLVE_MIN) {
+        return MAGCAL_CONT_IN_PROGRESS; /* the drain spent (nearly) the budget (a sweep end, a catch-up): next step */
     }
     return cont_solve(cc, bp);
 }
