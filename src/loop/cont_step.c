@@ -36,7 +36,8 @@ MAGCAL_STATIC_ASSERT(sizeof(float) == sizeof(uint32_t), cont_park_stamp_bits); /
                               * indivisible (a PRE_CONS visit measured 3,240 on a 660 share, the 30-min
                               * seed-5 drive's step 10,160: tools/bench/cont_weights.py), so a
                               * step leaves the solve to the next when less is left, and the sweep
-                              * part keeps this much for a solve under way */
+                              * part keeps this much for a solve under way (at most a third of
+                              * cfg.step_budget: a small budget still progresses, cont_solve_min) */
 #define CONT_W_SNAP 21u    /* one sample of the snapshot (was 14: measured 1.42x) */
 #define CONT_W_CUT 90u     /* one sample's test of a cut (distance, sqrtf; estimate, as CAL_W_CO_RES) */
 #define CONT_W_AGE 12u     /* one sample of a cut's age scan (estimate) */
@@ -254,6 +255,13 @@ static MAGCAL_NOINLINE uint32_t cont_drain(magcal_cont_t *cc, uint32_t max, magc
     return pushed; /* samples pushed into the store (judged consistent) */
 }
 
+/* The least share of a step worth a solve call: CONT_SOLVE_MIN, at most a third of the budget. */
+static uint32_t cont_solve_min(const magcal_cont_t *cc)
+{
+    const uint32_t third = cc->cfg.step_budget / 3u;
+    return third < CONT_SOLVE_MIN ? third : CONT_SOLVE_MIN;
+}
+
 /* The step's sweep steps (sliced; after a drain that pushed a sample into the store): up to cfg.sweep_steps, each
  * charged by what it did (a surveyed slot CONT_W_VISIT, a re-bin CONT_W_REBIN, a bin jump
  * CONT_W_JUMP), stopping when the budget is spent; the end of a sweep (its fits, CONT_W_SWEEP) is
@@ -271,7 +279,7 @@ static MAGCAL_NOINLINE void cont_sweep_part(magcal_cont_t *cc, magcal_cal_budget
         if (cont_sweep_end_due(cc) != 0 && s != 0u) {
             break; /* the sweep's end: the next step's first */
         }
-        if (s != 0u && cc->stage != (uint8_t)CONT_STAGE_NONE && b->left < CONT_SOLVE_MIN + CONT_W_REBIN) {
+        if (s != 0u && cc->stage != (uint8_t)CONT_STAGE_NONE && b->left < cont_solve_min(cc) + CONT_W_REBIN) {
             break; /* a solve under way keeps its least share (one sweep step per stored sample) */
         }
         magcal_intake_sweep(st, 1u);
@@ -630,7 +638,7 @@ static inline magcal_cont_outcome_t cont_step_in(magcal_cont_t *cc, magcal_cal_b
         }
         cont_start(cc);
     }
-    if (bp->unlimited == 0u && bp->left < CONT_SOLVE_MIN) {
+    if (bp->unlimited == 0u && (bp->left == 0u || bp->left < cont_solve_min(cc))) {
         return MAGCAL_CONT_IN_PROGRESS; /* the drain spent (nearly) the budget (a sweep end, a catch-up): next step */
     }
     return cont_solve(cc, bp);
