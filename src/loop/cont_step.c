@@ -359,6 +359,14 @@ static int cont_worth_due(const magcal_cont_t *cc)
     return due;
 }
 
+/* 1 when the store's progress p starts a solve (a centre, no re-binning under way, the coverage
+ * of the full solve or of the offset-only relearn: magcal_cont_offset_pick sets which). */
+static int cont_progress_starts(magcal_cont_t *cc, const magcal_intake_progress_t *p)
+{
+    return p->centre_source != MAGCAL_INTAKE_CENTRE_NONE && p->rebinning == 0u &&
+           magcal_cont_offset_pick(cc, p->coverage_deg, magcal_cont_solve_cov(cc)) != 0;
+}
+
 static int cont_worth(magcal_cont_t *cc)
 {
     magcal_intake_progress_t p;
@@ -368,8 +376,7 @@ static int cont_worth(magcal_cont_t *cc)
     cc->worth_seen = cc->store.ctr.added + cc->store.ctr.replaced;
     cc->worth_checked = 1u;
     (void)magcal_intake_progress(&cc->store, &p);
-    return p.centre_source != MAGCAL_INTAKE_CENTRE_NONE && p.rebinning == 0u &&
-           magcal_cont_offset_pick(cc, p.coverage_deg, magcal_cont_solve_cov(cc)) != 0; /* full or offset-only */
+    return cont_progress_starts(cc, &p);
 }
 
 /* Start a solve: the snapshot of the store (the drain pauses until it is complete, so the
@@ -416,8 +423,7 @@ static MAGCAL_NOINLINE int cont_count_part(magcal_cont_t *cc, magcal_cal_budget_
     }
     cc->cnt_on = 0u;
     magcal_intake_progress_of(st, cc->cnt_words, cc->cnt_filled, cc->cnt_deep, &p);
-    return p.centre_source != MAGCAL_INTAKE_CENTRE_NONE && p.rebinning == 0u &&
-           magcal_cont_offset_pick(cc, p.coverage_deg, magcal_cont_solve_cov(cc)) != 0; /* full or offset-only */
+    return cont_progress_starts(cc, &p);
 }
 
 /* The age scan of a pending cut (drop_on 1), within the step's budget: the oldest stored sample's
@@ -580,21 +586,14 @@ CONT_INLINE magcal_cont_outcome_t cont_solve(magcal_cont_t *cc, magcal_cal_budge
     if (cc->off_mode != 0u) {
         /* the offset-only relearn instead of the solver (calibrator_offset.c), the solver's share */
         st = magcal_cont_offset_step(cc, cont_solver_budget(cc, b));
-        if (st == MAGCAL_IN_PROGRESS) {
-            return MAGCAL_CONT_IN_PROGRESS;
-        }
-        oc = cont_end(cc, st);
-        if (cc->stage == (uint8_t)CONT_STAGE_FIT && b->unlimited != 0u) {
-            (void)cont_fit_part(cc, b);
-        }
-        return oc;
+    } else {
+        CONT_TRACE(magcal_bench_cont_trace[TR_SOLVE_BUDGET] = cont_solver_budget(cc, b);)
+        CONT_TRACE(magcal_bench_cont_trace[TR_PHASE_IN] = magcal_bench_solve_phase(&cc->solver, &magcal_bench_cont_trace[TR_SOLVE_LEFT]);)
+        CONT_TRACE(magcal_bench_cont_trace[TR_SOLVE_INSN] = cont_trace_ticks();)
+        st = magcal_calibrator_solve_step(&cc->solver, &cc->cand, cont_solver_budget(cc, b), &cc->last);
+        CONT_TRACE(magcal_bench_cont_trace[TR_SOLVE_INSN] = ((magcal_bench_cont_trace[TR_SOLVE_INSN] - cont_trace_ticks()) & 0xFFFFFFu) * 40u;)
+        CONT_TRACE(magcal_bench_cont_trace[TR_PHASE_OUT] = magcal_bench_solve_phase(&cc->solver, &magcal_bench_cont_trace[TR_SOLVE_LEFT]);)
     }
-    CONT_TRACE(magcal_bench_cont_trace[TR_SOLVE_BUDGET] = cont_solver_budget(cc, b);)
-    CONT_TRACE(magcal_bench_cont_trace[TR_PHASE_IN] = magcal_bench_solve_phase(&cc->solver, &magcal_bench_cont_trace[TR_SOLVE_LEFT]);)
-    CONT_TRACE(magcal_bench_cont_trace[TR_SOLVE_INSN] = cont_trace_ticks();)
-    st = magcal_calibrator_solve_step(&cc->solver, &cc->cand, cont_solver_budget(cc, b), &cc->last);
-    CONT_TRACE(magcal_bench_cont_trace[TR_SOLVE_INSN] = ((magcal_bench_cont_trace[TR_SOLVE_INSN] - cont_trace_ticks()) & 0xFFFFFFu) * 40u;)
-    CONT_TRACE(magcal_bench_cont_trace[TR_PHASE_OUT] = magcal_bench_solve_phase(&cc->solver, &magcal_bench_cont_trace[TR_SOLVE_LEFT]);)
     if (st == MAGCAL_IN_PROGRESS) {
         return MAGCAL_CONT_IN_PROGRESS;
     }
