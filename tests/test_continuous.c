@@ -1241,6 +1241,126 @@ void test_cont_arc_cfg_checked(void)
     TEST_ASSERT_EQUAL_FLOAT(180.0f, g_cc.solver.arc_min_cov);
 }
 
+/* ------------------------------------------------------------------ level shift (before any calibration) */
+
+/* The consistency gate's known gap in stream form (docs/calibrator.md "Consistency gate", "Level
+ * shift"): the first installation seen over 0..170 deg, then a magnet (the hard iron moves by 46 %
+ * of the radius) while driving straight, and the second installation over 150..300 deg and on round
+ * to 140 deg (350 deg of it). With the watch (default): exactly one shift, declared at the step's
+ * row + cfg.shift_hold_ms; nothing is adopted before it; every adoption is accurate on the second
+ * installation's truth (< 1 deg RMS) and one comes within 720 deg of turning after the step. With
+ * the watch off (cfg.shift_rel 0) the same stream is measured and printed, not asserted. */
+static void shift_gap_drive(float shift_rel, unsigned *shifts, unsigned *adopted, double *worst_d2, double *turn_after)
+{
+    drive_t dr;
+    unsigned i;
+    double turn_at_step;
+    magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
+    cfg.shift_rel = shift_rel;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    drive_init(&dr, &k_d, 23u);
+    *worst_d2 = 0.0;
+    for (i = 0u; i < 5u * 50u; ++i) {
+        (void)drive_row(&dr, 0.0f, 0.0f);
+    }
+    drive_turn(&dr, 170.0, 15.0);
+    for (i = 0u; i < 10u * 50u; ++i) {
+        (void)drive_row(&dr, 0.0f, 0.0f);
+    }
+    TEST_ASSERT_EQUAL_UINT(0u, dr.adopted);
+    dr.d = &k_d_step; /* the magnet */
+    turn_at_step = dr.turn_deg;
+    for (i = 0u; i < 10u * 50u; ++i) {
+        (void)drive_row(&dr, 0.0f, 0.0f);
+    }
+    drive_turn(&dr, -20.0, 15.0);
+    for (i = 0u; i < 150u + 200u; ++i) {
+        drive_turn(&dr, 1.0, 15.0);
+        if (dr.adopted != 0u) {
+            *worst_d2 = fmax(*worst_d2, truth_rms(&g_cc.cal, &k_d_step));
+        }
+    }
+    *shifts = (unsigned)g_cc.shifts;
+    *adopted = dr.adopted;
+    *turn_after = dr.turn_at_first >= 0.0 ? dr.turn_at_first - turn_at_step : -1.0;
+}
+
+void test_cont_shift_before_first_calibration_cuts_the_store(void)
+{
+    unsigned shifts, adopted, shifts_off, adopted_off;
+    double worst, worst_off, turn, turn_off;
+    shift_gap_drive(0.0f, &shifts_off, &adopted_off, &worst_off, &turn_off);
+    shift_gap_drive(0.25f, &shifts, &adopted, &worst, &turn);
+    printf("level shift before any calibration: watch on: %u shift, %u adoptions, first %.0f deg after the "
+           "step, worst truth RMS %.3f deg (refused for the shift: %u); watch off: %u adoptions, first %.0f deg "
+           "after, worst %.3f deg\n",
+           shifts, adopted, turn, worst, (unsigned)g_cc.shift_refused, adopted_off, turn_off, worst_off);
+    TEST_ASSERT_EQUAL_UINT(0u, shifts_off);
+    TEST_ASSERT_EQUAL_UINT(1u, shifts);
+    TEST_ASSERT_TRUE(adopted >= 1u);
+    TEST_ASSERT_TRUE(worst < 1.0);
+    TEST_ASSERT_TRUE(turn > 0.0 && turn <= 720.0);
+}
+
+/* What is not a shift: a stepped transient (+30 % of the field for 3 s: a jump out and one back),
+ * glitch bursts (the LSM9DS1 driver's: the y axis stuck far off for 12 samples while x moves; a
+ * single-sample spike; a garbage reading 30x the field) and a fast turn (90 deg/s: every increment
+ * large, none isolated). No shift is declared, no solve refused for one, and the first
+ * adoption is accurate (< 1 deg RMS on the truth). */
+void test_cont_shift_not_declared_for_glitches_transients_and_turns(void)
+{
+    drive_t dr;
+    unsigned i, k;
+    cont_init_default(NULL);
+    drive_init(&dr, &k_d, 29u);
+    drive_turn(&dr, 90.0, 15.0);
+    for (k = 0u; k < 3u; ++k) {
+        for (i = 0u; i < 3u * 50u; ++i) {
+            (void)drive_row(&dr, 0.0f, 9.0f); /* stepped transient */
+        }
+        for (i = 0u; i < 12u; ++i) {
+            dr.psi = fmod(dr.psi + 0.3, 360.0);
+            dr.turn_deg += 0.3;
+            (void)drive_row(&dr, 0.0f, -300.0f - (float)dr.psi + (float)i * 0.0f); /* y stuck far off */
+        }
+        (void)drive_row(&dr, 1000.0f, 0.0f); /* spike */
+        (void)drive_row(&dr, 0.0f, 0.0f);
+        drive_turn(&dr, 90.0, 90.0); /* fast */
+        drive_turn(&dr, 40.0, 15.0);
+    }
+    drive_turn(&dr, 360.0, 15.0);
+    printf("glitches, stepped transients and fast turns: %u shifts, %u refused for one, %u adoptions, truth RMS "
+           "%.3f deg\n",
+           (unsigned)g_cc.shifts, (unsigned)g_cc.shift_refused, dr.adopted, truth_rms(&g_cc.cal, &k_d));
+    TEST_ASSERT_EQUAL_UINT32(0u, g_cc.shifts);
+    TEST_ASSERT_EQUAL_UINT32(0u, g_cc.shift_refused);
+    TEST_ASSERT_TRUE(dr.adopted >= 1u);
+    TEST_ASSERT_TRUE(truth_rms(&g_cc.cal, &k_d) < 1.0);
+}
+
+/* The watch's configuration: shift_rel 0 (off) or 0.15..2, finite; shift_hold_ms >= 1. */
+void test_cont_shift_cfg_checked(void)
+{
+    magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
+    TEST_ASSERT_EQUAL_FLOAT(0.25f, cfg.shift_rel);
+    TEST_ASSERT_EQUAL_UINT32(6000u, cfg.shift_hold_ms);
+    cfg.shift_rel = NAN;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    cfg.shift_rel = 0.1f; /* below a single jump's threshold (0.15 R) */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    cfg.shift_rel = 2.5f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    cfg.shift_rel = -0.25f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    cfg.shift_rel = 0.25f;
+    cfg.shift_hold_ms = 0u;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    cfg.shift_hold_ms = 1u;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    cfg.shift_rel = 0.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+}
+
 int main(void)
 {
 #if defined(__arm__)
@@ -1275,5 +1395,8 @@ int main(void)
     RUN_TEST(test_cont_arc_refused_when_bound_too_wide);
     RUN_TEST(test_cont_arc_upgraded_by_full_ellipse);
     RUN_TEST(test_cont_arc_cfg_checked);
+    RUN_TEST(test_cont_shift_cfg_checked);
+    RUN_TEST(test_cont_shift_before_first_calibration_cuts_the_store);
+    RUN_TEST(test_cont_shift_not_declared_for_glitches_transients_and_turns);
     return UNITY_END();
 }

@@ -98,6 +98,20 @@
  * x the installed one's, a significant 2nd harmonic, the radius moved): no further offset fit until
  * the next change, the full solve relearns. The full solve replaces it later by the usual rules.
  *
+ * Level shift (cfg.shift_rel, default 0.25; docs/calibrator.md "Level shift"): while no
+ * calibration is installed nothing judges the stream, and a store that spans a change of the
+ * installation (a magnet attached before the first calibration) can hold two rings that a single
+ * ellipse bends to fit (the consistency gate's known gap). A vehicle turns its field smoothly (at
+ * 50 Hz under 0.03 R per sample); a hard-iron step moves it at once. The drain watches every
+ * sample: jumps of more than 0.15 R between samples at most 250 ms apart open an episode, their
+ * vectors are summed (a glitch or a stepped transient undoes its own jump), and when
+ * cfg.shift_hold_ms pass without a further jump a sum above cfg.shift_rel x R (R: the store's
+ * provisional radius) is a level shift: the next snapshot drops every stored sample older than
+ * the episode's first jump, a solve under way when it was declared is refused
+ * (MAGCAL_ERR_INCONSISTENT, the calibration untouched), and so is any solve that ends while an
+ * episode is open. Counted in cc.shifts. Not seen: a change slower than 0.15 R per sample (a
+ * magnet brought in over a second at 50 Hz); those fall back on the consistency gate.
+ *
  * Tilt compensation (magcal_cont_push_g, cfg.tilt_comp_deg; docs/calibrator.md "Tilt
  * compensation"). A pitch p (roll r) shifts the body's horizontal field by Z (sin r, sin p) to
  * first order (Z: the body's vertical field), i.e. the raw x, y by k t with t = (g_x, g_y) / g_z of
@@ -286,6 +300,14 @@ typedef struct {
     float offset_sigma_ratio;       /**< its shape test: the fresh samples' residual sigma around
                                          the installed shape may be at most this multiple of the
                                          installed calibration's, >= 1 (default 2) */
+    float shift_rel;                /**< level-shift watch ("Level shift" below): while no calibration
+                                         is installed, jumps of the raw field (each > 0.15 R between
+                                         samples <= 250 ms apart) that add up to more than this x R
+                                         and are not undone within shift_hold_ms mark a change of the
+                                         installation: the store's older samples are dropped; 0 =
+                                         off, else 0.15..2 (default 0.25) */
+    uint32_t shift_hold_ms;         /**< the hold: ms of stamps after the last jump before a shift
+                                         is declared (longer than a transient: default 6000), >= 1 */
 } magcal_cont_cfg_t;
 
 /** Defaults: work untuned from 10 to 100 Hz (time constants are in ms of the push stamps). */
@@ -293,7 +315,8 @@ typedef struct {
     {                                                                                              \
         MAGCAL_INTAKE_CFG_DEFAULT_2D, MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT, 280.0f, 24u, 2u,        \
             600000.0f, 4.0f, 0.06f, 8000u, 3u, 4000u, 100u, 200u, 4.0f,                            \
-            MAGCAL_SLICE_BUDGET_DEFAULT, 0.0f, 15.0f, 8.0f, 0.7f, 0.0f, 10.0f, 7.0f, 180.0f, 3.0f, 2.0f \
+            MAGCAL_SLICE_BUDGET_DEFAULT, 0.0f, 15.0f, 8.0f, 0.7f, 0.0f, 10.0f, 7.0f, 180.0f, 3.0f, 2.0f, \
+            0.25f, 6000u                                                                           \
     }
 
 /** A heading with its trust. */
@@ -402,6 +425,29 @@ typedef struct {
     float drop_r;                  /* off it by more than half the radius are dropped too */
     uint8_t drop_on;               /* cut of an INCONSISTENT solve (cont_adopt.c): 0 none, 1 pending
                                       (the next snapshot scans the ages), 2 set (it drops) */
+    /* level-shift watch (cont_shift.c; drain side, while no calibration is installed) */
+    magcal_vec2_t sh_prev;         /* the last drained sample (x, y), its stamp */
+    uint32_t sh_prev_t;
+    magcal_vec2_t sh_sum;          /* the open episode's jumps, summed */
+    float sh_max_n2;               /* its largest jump, squared */
+    uint32_t sh_jump_t;            /* stamp of its last jump */
+    uint32_t sh_seq;               /* store push count at its first jump: the cut */
+    uint32_t sh_changes;           /* cc->changes when it opened (a change resets the push count) */
+    uint32_t shifts;               /**< read-only: level shifts declared */
+    uint32_t shift_refused;        /**< read-only: solves refused for a level shift */
+    magcal_vec2_t sh_cand;         /* a candidate jump (confirmed by a small increment after it), */
+    float sh_cand_n2;              /* its squared length, stamp and the store push count of its sample */
+    uint32_t sh_cand_t;
+    uint32_t sh_cand_seq;
+    float sh_last_n2;              /* the last increment's squared length */
+    float sh_scale;                /* the distance scale (cont_shift.c), 0 = none yet */
+    uint32_t sh_far_t;             /* stamp of the first of the far samples in a row */
+    uint8_t sh_far;                /* 1: the last position test was far */
+    uint8_t sh_cand_on;            /* 1: sh_cand is pending */
+    uint8_t sh_have;               /* 0: no sh_prev; 1: sh_prev only; 2: and sh_last_n2 */
+    uint8_t sh_open;               /* 1: an episode is open (a solve ending meanwhile is refused) */
+    uint8_t sh_cut;                /* 1: a cut at sh_seq waits for the next snapshot */
+    uint8_t sh_stale;              /* 1: the solve under way saw the store before a shift: refused */
     uint32_t worth_seen;           /* store added + replaced at the last coverage count (cont_step.c) */
     uint8_t worth_checked;         /* 1: worth_seen is valid */
     /* field-model fit at an adoption, time-sliced (cont_fzfit.c; the drain pauses meanwhile) */

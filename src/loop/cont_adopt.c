@@ -86,6 +86,7 @@ void magcal_cont_install(magcal_cont_t *cc, const magcal_cal2d_t *c, float r_raw
     cc->mis_bins[0] = 0u;
     cc->mis_bins[1] = 0u;
     magcal_cont_transient_reset(cc);
+    magcal_cont_shift_clear(cc);
     magcal_cont_coarse_mode(cc);
 }
 
@@ -112,6 +113,16 @@ magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_
         r->status = MAGCAL_OK;
         st = MAGCAL_OK;
         cc->aged_adopts++;
+    }
+    if (st == MAGCAL_OK && magcal_cont_shift_refuses(cc) != 0) {
+        /* a level shift after the snapshot, or one under watch (cont_shift.c): the samples may be
+         * of two installations, or of the one just left; the calibration in force is untouched and
+         * the shift's own cut (not the consistency gate's) rebuilds the store */
+        r->adopted = 0u;
+        r->status = MAGCAL_ERR_INCONSISTENT;
+        cc->last_status = MAGCAL_ERR_INCONSISTENT;
+        cc->shift_refused++;
+        return MAGCAL_CONT_FAILED;
     }
     cc->last_status = st;
     if (st == MAGCAL_OK) {

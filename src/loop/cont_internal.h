@@ -50,6 +50,14 @@ int magcal_cont_episode_wide(const magcal_cont_t *cc);
 magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_t verdict);
 /* Install calibration c (raw radius r_raw, relative noise sigma) and index the store around it. */
 void magcal_cont_install(magcal_cont_t *cc, const magcal_cal2d_t *c, float r_raw, float sigma);
+/* Level-shift watch (cont_shift.c, continuous.h "Level shift"): watch one drained sample at t_ms
+ * (the drain, before its judge); clear the watch (init, reset, install); 1 when a solve ending now
+ * must be refused (a shift declared after its snapshot, or an episode open); at a snapshot's
+ * start, a pending shift becomes the snapshot's cut (drop_on 2 at the episode's first jump). */
+void magcal_cont_shift_watch(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms);
+void magcal_cont_shift_clear(magcal_cont_t *cc);
+int magcal_cont_shift_refuses(const magcal_cont_t *cc);
+void magcal_cont_shift_to_cut(magcal_cont_t *cc);
 /* Coarse stage (cont_adopt.c): hand the solver its coarse mode for the installed calibration
  * (cc->has_cal, cc->cal_coarse); the live coverage that starts a solve. */
 void magcal_cont_coarse_mode(magcal_cont_t *cc);

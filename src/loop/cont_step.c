@@ -111,6 +111,7 @@ static int cont_judge_on(const magcal_cont_t *cc)
 static MAGCAL_NOINLINE int cont_screen(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms)
 {
     magcal_cont_judge_t j;
+    magcal_cont_shift_watch(cc, m, t_ms); /* before any calibration: a jump that stays (cont_shift.c) */
     if (cc->state != (uint8_t)MAGCAL_CONT_RELEARNING && magcal_cont_judge(cc, m, &j) != 0) {
         if (magcal_cont_episode(cc, &j, t_ms) != 0) {
             magcal_cont_declare_change(cc); /* the store restarts with this sample */
@@ -348,12 +349,13 @@ static int cont_worth_due(const magcal_cont_t *cc)
 {
     const uint32_t st = cc->store.ctr.added + cc->store.ctr.replaced;
     int due = 0;
-    /* a pending cut (an INCONSISTENT solve, cont_adopt.c) is new information: the store without
-     * its older samples is solved again at once (each cut drops at least the oldest sample) */
-    if ((st - cc->stored_at_solve >= cc->cfg.min_new || cc->drop_on != 0u ||
+    /* a pending cut (an INCONSISTENT solve, cont_adopt.c, or a level shift, cont_shift.c) is new
+     * information: the store without its older samples is solved again at once (each cut drops at
+     * least the oldest sample) */
+    if ((st - cc->stored_at_solve >= cc->cfg.min_new || cc->drop_on != 0u || cc->sh_cut != 0u ||
          (cc->last_status == MAGCAL_ERR_NOT_BETTER && (float)cc->solve_ms_acc >= 0.25f * cc->cfg.age_ms)) &&
         cc->park_n == cc->park_i && cc->store.ctr.stored >= cc->cfg.solver.min_samples &&
-        (cc->worth_checked == 0u || cc->worth_seen != st || cc->drop_on != 0u)) {
+        (cc->worth_checked == 0u || cc->worth_seen != st || cc->drop_on != 0u || cc->sh_cut != 0u)) {
         due = 1;
     }
     return due;
@@ -383,6 +385,7 @@ static int cont_worth(magcal_cont_t *cc)
  * solver sees one consistent store; it takes ceil(stored x CONT_W_SNAP / budget) steps). */
 static void cont_start(magcal_cont_t *cc)
 {
+    magcal_cont_shift_to_cut(cc); /* a level shift since the last snapshot: cut at its first jump */
     cc->snap_bin = 0u;
     cc->snap_n = 0u;
     cc->snap_stored = cc->store.ctr.added + cc->store.ctr.replaced;

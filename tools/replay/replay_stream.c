@@ -756,6 +756,8 @@ int replay_stream_main(int argc, char **argv)
         cJSON_AddNumberToObject(root, "tilt_comp_pairs", (double)g_cc.tc_n);
         cJSON_AddNumberToObject(root, "levelled_rows", (double)g_cc.tc_levelled);
     }
+    cJSON_AddNumberToObject(root, "shifts", (double)g_cc.shifts); /* level shifts (continuous.h) */
+    cJSON_AddNumberToObject(root, "shift_refused", (double)g_cc.shift_refused);
     stream_report_tail(root, g_cc.solves, g_cc.changes, g_cc.dropped, ref_ss, ref_n, ev);
     if (json) {
         stream_print_json(root);

@@ -1,0 +1,185 @@
+/*
+ * Continuous calibrator, level-shift watch (continuous.h "Level shift", docs/calibrator.md
+ * "Level shift"): before any calibration is installed, a jump of the raw field that stays is a
+ * change of the installation, and the store's samples from before it are another installation's.
+ * Runs on the drain (task context), O(1) per sample, no trigonometry.
+ */
+#include <math.h>
+
+#include "../intake/intake_internal.h"
+#include "cont_internal.h"
+#include "magcal_internal.h"
+
+#define SH_JUMP_REL 0.15f  /* a jump: more than this x R between two samples (turning: < 0.03 R at 50 Hz) */
+#define SH_MAX_DT_MS 250u  /* ... at most this far apart (a longer gap: the vehicle may have turned) */
+#define SH_ISOLATED 16.0f  /* ... and 4 x the increments before and after it in length: a turn (however
+                              fast, at whatever rate) moves the field by similar increments, a glitch
+                              burst by large ones in a row; an exact repeat is not an increment */
+#define SH_FAR_REL 4.0f    /* a sample farther than this x the scale from the store's centre is not a
+                              position (a hard-iron step of up to 3 R stays within it) */
+#define SH_FAR_RESET_MS 5000u /* far samples only for this long restart the scale (a glitch burst is
+                                 shorter; a start on a reading near the centre is not locked out) */
+#define SH_SCALE_MS 20000u /* the scale's time constant */
+
+void magcal_cont_shift_clear(magcal_cont_t *cc)
+{
+    cc->sh_have = 0u;
+    cc->sh_cand_on = 0u;
+    cc->sh_open = 0u;
+    cc->sh_scale = 0.0f;
+    cc->sh_cut = 0u;
+    cc->sh_stale = 0u;
+}
+
+/* 1 when the open episode's jumps so far make a shift: their sum beyond cfg.shift_rel x R and at
+ * least half its largest jump (a glitch burst's jumps out and back cancel up to the motion during
+ * it: the LSM9DS1 driver's bursts jump 44 R and sum to up to 2 R). */
+static int shift_sum_is_shift(const magcal_cont_t *cc, float r)
+{
+    const float lim = cc->cfg.shift_rel * r;
+    const float s2 = cc->sh_sum.x * cc->sh_sum.x + cc->sh_sum.y * cc->sh_sum.y;
+    return s2 > lim * lim && s2 > 0.25f * cc->sh_max_n2 && cc->sh_changes == cc->changes;
+}
+
+/* The episode ended (no jump for cfg.shift_hold_ms): a shift when its jumps add up. */
+static void shift_close(magcal_cont_t *cc, float r)
+{
+    cc->sh_open = 0u;
+    if (shift_sum_is_shift(cc, r) != 0) {
+        cc->sh_cut = 1u;
+        cc->shifts++;
+        if (cc->stage != 0u) {
+            cc->sh_stale = 1u; /* the solve under way saw the store before it */
+        }
+    }
+}
+
+/* 1 when m is a position of the motion: within SH_FAR_REL x the scale of the distance from the
+ * store's centre (a garbage reading far off the ring is not; the store refuses it too). The scale
+ * is an exponential average of that distance over the positions (time constant SH_SCALE_MS), the
+ * length the thresholds are relative to: the field's radius where the centre is good, its order of
+ * magnitude where it is not (the store's own radius can be off by 10x before any calibration: the
+ * 30-min seed-10 drive's survey said 1.9 for a ring of 21). Far ones only, for SH_FAR_RESET_MS,
+ * start it again. */
+static int shift_position(magcal_cont_t *cc, const magcal_vec3_t *m, const magcal_vec3_t *c, uint32_t t_ms)
+{
+    const float dx = m->x - c->x;
+    const float dy = m->y - c->y;
+    const float d = sqrtf(dx * dx + dy * dy);
+    if (!(cc->sh_scale > 0.0f) || (d > SH_FAR_REL * cc->sh_scale && cc->sh_far != 0u &&
+                                   t_ms - cc->sh_far_t >= SH_FAR_RESET_MS)) {
+        cc->sh_scale = magcal_isfinite_f(d) ? d : 0.0f;
+        cc->sh_far = 0u;
+        cc->sh_have = 0u;
+        return cc->sh_scale > 0.0f ? 1 : 0;
+    }
+    if (!(d <= SH_FAR_REL * cc->sh_scale)) {
+        if (cc->sh_far == 0u) {
+            cc->sh_far = 1u;
+            cc->sh_far_t = t_ms;
+        }
+        return 0;
+    }
+    cc->sh_far = 0u;
+    {
+        uint32_t dt = t_ms - cc->sh_prev_t;
+        dt = dt > MAGCAL_CONT_MAX_DT_MS ? MAGCAL_CONT_MAX_DT_MS : dt;
+        cc->sh_scale += (d - cc->sh_scale) * ((float)dt / ((float)dt + (float)SH_SCALE_MS));
+    }
+    return 1;
+}
+
+/* A candidate jump confirmed (the increment after it is small too): into the episode. */
+static void shift_take(magcal_cont_t *cc)
+{
+    if (cc->sh_open == 0u) {
+        cc->sh_open = 1u;
+        cc->sh_sum.x = 0.0f;
+        cc->sh_sum.y = 0.0f;
+        cc->sh_max_n2 = 0.0f;
+        cc->sh_seq = cc->sh_cand_seq; /* the jump's sample and later are kept */
+        cc->sh_changes = cc->changes;
+    }
+    cc->sh_max_n2 = cc->sh_cand_n2 > cc->sh_max_n2 ? cc->sh_cand_n2 : cc->sh_max_n2;
+    cc->sh_sum.x += cc->sh_cand.x;
+    cc->sh_sum.y += cc->sh_cand.y;
+    cc->sh_jump_t = cc->sh_cand_t;
+}
+
+void magcal_cont_shift_watch(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms)
+{
+    const magcal_intake_t *st = &cc->store;
+    float r;
+    float dx;
+    float dy;
+    float n2;
+    if (cc->cfg.shift_rel <= 0.0f || cc->has_cal != 0u || st->centre_source == (uint8_t)MAGCAL_INTAKE_CENTRE_NONE) {
+        cc->sh_have = 0u;
+        cc->sh_cand_on = 0u;
+        cc->sh_open = 0u;
+        cc->sh_scale = 0.0f;
+        return;
+    }
+    if (cc->sh_have != 0u && m->x == cc->sh_prev.x && m->y == cc->sh_prev.y) {
+        return; /* the logger repeating a sample: not a sample of the motion */
+    }
+    if (!magcal_isfinite_f(m->x) || !magcal_isfinite_f(m->y) || shift_position(cc, m, &st->centre, t_ms) == 0) {
+        /* not a position: the chain of increments breaks, and an open episode is void (its jump
+         * back may be among these; a stepped transient followed by a glitch burst would otherwise
+         * read as a shift) */
+        cc->sh_have = 0u;
+        cc->sh_cand_on = 0u;
+        cc->sh_open = 0u;
+        return;
+    }
+    r = cc->sh_scale;
+    dx = m->x - cc->sh_prev.x;
+    dy = m->y - cc->sh_prev.y;
+    n2 = dx * dx + dy * dy;
+    if (cc->sh_have == 0u || t_ms - cc->sh_prev_t > SH_MAX_DT_MS) {
+        cc->sh_have = 1u;
+        cc->sh_cand_on = 0u; /* a gap (or a start): the vehicle may have turned; no increment yet, */
+        cc->sh_open = 0u;    /* and an open episode is void (as above) */
+    } else {
+        const float lim = SH_JUMP_REL * r;
+        if (cc->sh_cand_on != 0u && n2 * SH_ISOLATED < cc->sh_cand_n2) {
+            shift_take(cc); /* small before and after: a jump of the field, not of the motion */
+        }
+        cc->sh_cand_on = 0u;
+        if (cc->sh_have == 2u && n2 > lim * lim && n2 > SH_ISOLATED * cc->sh_last_n2 && magcal_isfinite_f(n2)) {
+            cc->sh_cand_on = 1u;
+            cc->sh_cand.x = dx;
+            cc->sh_cand.y = dy;
+            cc->sh_cand_n2 = n2;
+            cc->sh_cand_t = t_ms;
+            cc->sh_cand_seq = st->seq & INTAKE_SEQ_MASK;
+        }
+        cc->sh_last_n2 = n2;
+        cc->sh_have = 2u;
+    }
+    if (cc->sh_open != 0u && t_ms - cc->sh_jump_t >= cc->cfg.shift_hold_ms) {
+        shift_close(cc, r);
+    }
+    cc->sh_prev.x = m->x;
+    cc->sh_prev.y = m->y;
+    cc->sh_prev_t = t_ms;
+}
+
+int magcal_cont_shift_refuses(const magcal_cont_t *cc)
+{
+    return cc->sh_stale != 0u || (cc->sh_open != 0u && shift_sum_is_shift(cc, cc->sh_scale) != 0);
+}
+
+void magcal_cont_shift_to_cut(magcal_cont_t *cc)
+{
+    if (cc->sh_cut != 0u) {
+        cc->sh_cut = 0u;
+        cc->sh_stale = 0u;
+        if (cc->sh_changes == cc->changes) {
+            cc->drop_on = 2u; /* set: the copy drops what is older (no age scan, no ring test) */
+            cc->drop_seq = cc->sh_seq;
+            cc->drop_changes = cc->changes;
+            cc->drop_r = 0.0f;
+        }
+    }
+}
