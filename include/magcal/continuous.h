@@ -103,14 +103,19 @@
  * installation (a magnet attached before the first calibration) can hold two rings that a single
  * ellipse bends to fit (the consistency gate's known gap). A vehicle turns its field smoothly (at
  * 50 Hz under 0.03 R per sample); a hard-iron step moves it at once. The drain watches every
- * sample: jumps of more than 0.15 R between samples at most 250 ms apart open an episode, their
- * vectors are summed (a glitch or a stepped transient undoes its own jump), and when
- * cfg.shift_hold_ms pass without a further jump a sum above cfg.shift_rel x R (R: the store's
- * provisional radius) is a level shift: the next snapshot drops every stored sample older than
- * the episode's first jump, a solve under way when it was declared is refused
- * (MAGCAL_ERR_INCONSISTENT, the calibration untouched), and so is any solve that ends while an
- * episode is open. Counted in cc.shifts. Not seen: a change slower than 0.15 R per sample (a
- * magnet brought in over a second at 50 Hz); those fall back on the consistency gate.
+ * sample: an isolated jump (more than 0.15 R between samples at most 250 ms apart, and 4x the
+ * increments before and after it: a turn at any rate moves by similar increments) opens an
+ * episode; the jumps' vectors are summed (a glitch or a stepped transient undoes its own jump),
+ * and when cfg.shift_hold_ms pass without a further jump a sum above cfg.shift_rel x R and half
+ * the largest jump is a level shift: the next snapshot drops every stored sample older than the
+ * episode's first jump, a solve under way when it was declared is refused
+ * (MAGCAL_ERR_INCONSISTENT, the calibration untouched), and so is a solve that ends while the
+ * open episode's sum already reads as a shift. R is the watch's own scale: an average of the
+ * samples' distance from the store's centre (the store's radius can be far off before a
+ * calibration); samples beyond 4 R are no positions, and they, a gap in the stamps, or the end of
+ * the chain void an open episode. Counted in cc.shifts, cc.shift_refused. Not seen: a change
+ * slower than 0.15 R per sample (a magnet brought in over a second at 50 Hz), one inside a glitch
+ * burst or a gap; those fall back on the consistency gate.
  *
  * Tilt compensation (magcal_cont_push_g, cfg.tilt_comp_deg; docs/calibrator.md "Tilt
  * compensation"). A pitch p (roll r) shifts the body's horizontal field by Z (sin r, sin p) to
@@ -440,10 +445,12 @@ typedef struct {
     uint32_t sh_cand_t;
     uint32_t sh_cand_seq;
     float sh_last_n2;              /* the last increment's squared length */
+    float sh_inc2;                 /* the typical increment's (an average of squares), 0 = none yet */
     float sh_scale;                /* the distance scale (cont_shift.c), 0 = none yet */
     uint32_t sh_far_t;             /* stamp of the first of the far samples in a row */
     uint8_t sh_far;                /* 1: the last position test was far */
     uint8_t sh_cand_on;            /* 1: sh_cand is pending */
+    uint8_t sh_lev;                /* 1: sh_prev was levelled by push_g's tilt compensation */
     uint8_t sh_have;               /* 0: no sh_prev; 1: sh_prev only; 2: and sh_last_n2 */
     uint8_t sh_open;               /* 1: an episode is open (a solve ending meanwhile is refused) */
     uint8_t sh_cut;                /* 1: a cut at sh_seq waits for the next snapshot */

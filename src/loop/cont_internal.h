@@ -14,6 +14,8 @@
 #define MAGCAL_CONT_MAGIC 0x434F4E54u /* "CONT" */
 #define MAGCAL_CONT_SECTORS 36u       /* change-detection sectors of the corrected heading */
 #define MAGCAL_CONT_MAX_DT_MS 1000u   /* a gap in the stamps counts at most this much */
+#define MAGCAL_CONT_TILT_LEVELLED 3u  /* ring tilt code: LEVEL after push_g's tilt compensation (the
+                                         level-shift watch does not take the switch as a jump) */
 
 /* Verdict of one sample under the installed calibration. */
 typedef struct {
@@ -51,10 +53,10 @@ magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_
 /* Install calibration c (raw radius r_raw, relative noise sigma) and index the store around it. */
 void magcal_cont_install(magcal_cont_t *cc, const magcal_cal2d_t *c, float r_raw, float sigma);
 /* Level-shift watch (cont_shift.c, continuous.h "Level shift"): watch one drained sample at t_ms
- * (the drain, before its judge); clear the watch (init, reset, install); 1 when a solve ending now
+ * (the drain, before its judge; levelled: push_g's tilt compensation moved it); clear the watch (init, reset, install); 1 when a solve ending now
  * must be refused (a shift declared after its snapshot, or an episode open); at a snapshot's
  * start, a pending shift becomes the snapshot's cut (drop_on 2 at the episode's first jump). */
-void magcal_cont_shift_watch(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms);
+void magcal_cont_shift_watch(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms, int levelled);
 void magcal_cont_shift_clear(magcal_cont_t *cc);
 int magcal_cont_shift_refuses(const magcal_cont_t *cc);
 void magcal_cont_shift_to_cut(magcal_cont_t *cc);

@@ -376,7 +376,7 @@ magcal_status_t magcal_cont_push_g(magcal_cont_t *cc, const magcal_vec3_t *m, co
         }
         if (cont_tc_level(cc, m, &cc->tc_m) != 0) {
             cc->tc_levelled = cc->tc_levelled + 1u;
-            return cont_enqueue(cc, &cc->tc_m, t_ms, (uint8_t)MAGCAL_INTAKE_TILT_LEVEL);
+            return cont_enqueue(cc, &cc->tc_m, t_ms, MAGCAL_CONT_TILT_LEVELLED);
         }
     }
     return cont_enqueue(cc, m, t_ms, code);

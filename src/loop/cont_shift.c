@@ -15,6 +15,11 @@
 #define SH_ISOLATED 16.0f  /* ... and 4 x the increments before and after it in length: a turn (however
                               fast, at whatever rate) moves the field by similar increments, a glitch
                               burst by large ones in a row; an exact repeat is not an increment */
+#define SH_TYPICAL 36.0f   /* ... and 6 x the typical increment (an average of their squares, weight
+                              SH_TYPICAL_W per sample): sensor noise while parked has tails that
+                              beat a neighbour test (the 60-min seed-6 drive, parked at start over a
+                              centre on its samples: 6 isolated noise "jumps" in 70 s) */
+#define SH_TYPICAL_W (1.0f / 32.0f)
 #define SH_FAR_REL 4.0f    /* a sample farther than this x the scale from the store's centre is not a
                               position (a hard-iron step of up to 3 R stays within it) */
 #define SH_FAR_RESET_MS 5000u /* far samples only for this long restart the scale (a glitch burst is
@@ -27,6 +32,7 @@ void magcal_cont_shift_clear(magcal_cont_t *cc)
     cc->sh_cand_on = 0u;
     cc->sh_open = 0u;
     cc->sh_scale = 0.0f;
+    cc->sh_inc2 = 0.0f;
     cc->sh_cut = 0u;
     cc->sh_stale = 0u;
 }
@@ -106,7 +112,7 @@ static void shift_take(magcal_cont_t *cc)
     cc->sh_jump_t = cc->sh_cand_t;
 }
 
-void magcal_cont_shift_watch(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms)
+void magcal_cont_shift_watch(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms, int levelled)
 {
     const magcal_intake_t *st = &cc->store;
     float r;
@@ -136,7 +142,10 @@ void magcal_cont_shift_watch(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t
     dx = m->x - cc->sh_prev.x;
     dy = m->y - cc->sh_prev.y;
     n2 = dx * dx + dy * dy;
-    if (cc->sh_have == 0u || t_ms - cc->sh_prev_t > SH_MAX_DT_MS) {
+    if (cc->sh_have != 0u && (uint8_t)(levelled != 0 ? 1u : 0u) != cc->sh_lev) {
+        cc->sh_have = 1u; /* the tilt compensation switched on or off (a step of k t): no increment */
+        cc->sh_cand_on = 0u;
+    } else if (cc->sh_have == 0u || t_ms - cc->sh_prev_t > SH_MAX_DT_MS) {
         cc->sh_have = 1u;
         cc->sh_cand_on = 0u; /* a gap (or a start): the vehicle may have turned; no increment yet, */
         cc->sh_open = 0u;    /* and an open episode is void (as above) */
@@ -146,13 +155,18 @@ void magcal_cont_shift_watch(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t
             shift_take(cc); /* small before and after: a jump of the field, not of the motion */
         }
         cc->sh_cand_on = 0u;
-        if (cc->sh_have == 2u && n2 > lim * lim && n2 > SH_ISOLATED * cc->sh_last_n2 && magcal_isfinite_f(n2)) {
+        if (cc->sh_have == 2u && n2 > lim * lim && n2 > SH_ISOLATED * cc->sh_last_n2 &&
+            n2 > SH_TYPICAL * cc->sh_inc2 && magcal_isfinite_f(n2)) {
             cc->sh_cand_on = 1u;
             cc->sh_cand.x = dx;
             cc->sh_cand.y = dy;
             cc->sh_cand_n2 = n2;
             cc->sh_cand_t = t_ms;
             cc->sh_cand_seq = st->seq & INTAKE_SEQ_MASK;
+        }
+        if (cc->sh_cand_on == 0u && magcal_isfinite_f(n2)) {
+            /* the typical increment (squared), a candidate jump left out */
+            cc->sh_inc2 = cc->sh_inc2 > 0.0f ? cc->sh_inc2 + (n2 - cc->sh_inc2) * SH_TYPICAL_W : n2;
         }
         cc->sh_last_n2 = n2;
         cc->sh_have = 2u;
@@ -163,6 +177,7 @@ void magcal_cont_shift_watch(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t
     cc->sh_prev.x = m->x;
     cc->sh_prev.y = m->y;
     cc->sh_prev_t = t_ms;
+    cc->sh_lev = (uint8_t)(levelled != 0 ? 1u : 0u);
 }
 
 int magcal_cont_shift_refuses(const magcal_cont_t *cc)

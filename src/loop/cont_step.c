@@ -108,10 +108,10 @@ static int cont_judge_on(const magcal_cont_t *cc)
 }
 
 /* Judge one sample against the installed calibration (change detection): 1 = do not store it. */
-static MAGCAL_NOINLINE int cont_screen(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms)
+static MAGCAL_NOINLINE int cont_screen(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms, int levelled)
 {
     magcal_cont_judge_t j;
-    magcal_cont_shift_watch(cc, m, t_ms); /* before any calibration: a jump that stays (cont_shift.c) */
+    magcal_cont_shift_watch(cc, m, t_ms, levelled); /* before any calibration: a jump that stays (cont_shift.c) */
     if (cc->state != (uint8_t)MAGCAL_CONT_RELEARNING && magcal_cont_judge(cc, m, &j) != 0) {
         if (magcal_cont_episode(cc, &j, t_ms) != 0) {
             magcal_cont_declare_change(cc); /* the store restarts with this sample */
@@ -122,6 +122,12 @@ static MAGCAL_NOINLINE int cont_screen(magcal_cont_t *cc, const magcal_vec3_t *m
         }
     }
     return 0;
+}
+
+/* The store's tilt code of a ring code (push_g's levelled samples are LEVEL). */
+static magcal_intake_tilt_t cont_store_tilt(uint8_t code)
+{
+    return code == MAGCAL_CONT_TILT_LEVELLED ? MAGCAL_INTAKE_TILT_LEVEL : (magcal_intake_tilt_t)code;
 }
 
 /* Ring samples into the store, read in place (push does not reuse a slot before tail moves past
@@ -233,11 +239,12 @@ static MAGCAL_NOINLINE uint32_t cont_drain(magcal_cont_t *cc, uint32_t max, magc
             MAGCAL_CONT_BARRIER(); /* the slot was written before head */
             m = &cc->ring[t % MAGCAL_CONT_RING];
         }
-        if (cont_screen(cc, m, m == &cc->park_m ? cc->park_t : cc->ring_t[t % MAGCAL_CONT_RING]) == 0) {
+        if (cont_screen(cc, m, m == &cc->park_m ? cc->park_t : cc->ring_t[t % MAGCAL_CONT_RING],
+                        m != &cc->park_m && cc->ring_tilt[t % MAGCAL_CONT_RING] == MAGCAL_CONT_TILT_LEVELLED) == 0) {
             /* stored samples are counted by the store (added + replaced); with the tilt code of
              * push_g (the store's level preference) */
             const magcal_intake_tilt_t tilt =
-                (magcal_intake_tilt_t)(m == &cc->park_m ? cc->park_tilt : cc->ring_tilt[t % MAGCAL_CONT_RING]);
+                cont_store_tilt(m == &cc->park_m ? cc->park_tilt : cc->ring_tilt[t % MAGCAL_CONT_RING]);
             if (b->unlimited != 0u) {
                 (void)magcal_intake_push_tilt(&cc->store, m, tilt, NULL);
             } else {
@@ -328,7 +335,7 @@ static MAGCAL_NOINLINE void cont_park(magcal_cont_t *cc, magcal_cal_budget_t *b)
         {
             const uint32_t q = cc->park_n % cont_park_cap(cc);
             const uint32_t bit = (uint32_t)1u << (q % 32u);
-            cc->park_lv[q / 32u] = (cc->ring_tilt[t % MAGCAL_CONT_RING] == (uint8_t)MAGCAL_INTAKE_TILT_LEVEL)
+            cc->park_lv[q / 32u] = (cont_store_tilt(cc->ring_tilt[t % MAGCAL_CONT_RING]) == MAGCAL_INTAKE_TILT_LEVEL)
                                        ? (cc->park_lv[q / 32u] | bit)
                                        : (cc->park_lv[q / 32u] & ~bit);
         }

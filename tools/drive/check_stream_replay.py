@@ -72,7 +72,7 @@ def main():
         fail("trusted rows %d != JSON %d" % (trusted, rep["trusted_rows"]))
     for e in rep["events"]:
         if set(e) != {"row", "event", "status", "heading_err_deg"} or e["event"] not in (
-                "adopted", "refused", "change", "disturbance"):
+                "adopted", "refused", "change", "disturbance", "shift"):
             fail("event %s" % e)
     print("check_stream_replay: ok (%d rows, %d trusted, generation %d, offset error %.4f, trusted RMS %.3f deg, "
           "floor %.3f)" % (rep["rows"], trusted, rep["generation"], math.hypot(dx, dy),

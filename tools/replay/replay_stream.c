@@ -693,7 +693,11 @@ int replay_stream_main(int argc, char **argv)
             (void)magcal_cont_push(&g_cc, &m, t_ms);
         }
         for (k = 0u; k < steps_per_row; ++k) {
+            const uint32_t shifts = g_cc.shifts;
             stream_event(ev, i, magcal_cont_step(&g_cc));
+            if (g_cc.shifts != shifts) {
+                add_event(ev, i, "shift", "level shift", NAN); /* continuous.h "Level shift" */
+            }
         }
         if (magcal_cont_heading(&g_cc, &m, (float)decl, &hd) != MAGCAL_OK) {
             hd.trust = MAGCAL_TRUST_DISTURBED;
