@@ -117,6 +117,22 @@
  * slower than 0.15 R per sample (a magnet brought in over a second at 50 Hz), one inside a glitch
  * burst or a gap; those fall back on the consistency gate.
  *
+ * Continuity gate (cfg.continuity, opt-in, default 0 = off; docs/calibrator.md "Continuity
+ * gate"): before a calibration judges the stream, nothing tells a driver's garbage burst
+ * (readings anywhere in the sensor's range, 5..40 in a row) from data, and a store holding more
+ * garbage than field (a vehicle parked at start fills one bin) gives the survey a garbage centre
+ * and radius that then keep every new sample out (the 60-min seed-7 drive: centre (332, -55),
+ * radius 359 for a ring of 21 at (18, -11), no solve in 60 minutes). With the gate on, the drain
+ * stores a sample only when it lies within 6x the stream's typical increment per sample of the
+ * last stored one (the typical increment: an average of squared increments, each counted at most
+ * 4x the average: a burst cannot teach it, a turn starting from rest does within about 12
+ * samples); 8 refused samples in a row that move as a stream start it again (a lasting jump is
+ * not refused for ever); the first sample after a start is not stored, after a stamp gap
+ * (> 250 ms) not judged. cc.cg_refused counts the samples kept out. Off by default: on the
+ * generated drives it made 4 of 6 60-min drives that never adopted adopt, but moved the solves
+ * of the others onto stores whose tilt leak is larger (trusted RMS / floor 60-min s3 1.18 ->
+ * 1.31, 30-min s1 0.25 -> 2.09): docs/calibrator.md "Continuity gate".
+ *
  * Tilt compensation (magcal_cont_push_g, cfg.tilt_comp_deg; docs/calibrator.md "Tilt
  * compensation"). A pitch p (roll r) shifts the body's horizontal field by Z (sin r, sin p) to
  * first order (Z: the body's vertical field), i.e. the raw x, y by k t with t = (g_x, g_y) / g_z of
@@ -313,6 +329,11 @@ typedef struct {
                                          off, else 0.15..2 (default 0.25) */
     uint32_t shift_hold_ms;         /**< the hold: ms of stamps after the last jump before a shift
                                          is declared (longer than a transient: default 6000), >= 1 */
+    uint8_t continuity;             /**< continuity gate ("Continuity gate" below): 1 = while no
+                                         calibration judges the stream (none installed, or a
+                                         relearn), a sample that moved from the one before it by
+                                         more than 6x the stream's typical increment is not stored;
+                                         0 = off (default 0: "Continuity gate" below) */
 } magcal_cont_cfg_t;
 
 /** Defaults: work untuned from 10 to 100 Hz (time constants are in ms of the push stamps). */
@@ -321,7 +342,7 @@ typedef struct {
         MAGCAL_INTAKE_CFG_DEFAULT_2D, MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT, 280.0f, 24u, 2u,        \
             600000.0f, 4.0f, 0.06f, 8000u, 3u, 4000u, 100u, 200u, 4.0f,                            \
             MAGCAL_SLICE_BUDGET_DEFAULT, 0.0f, 15.0f, 8.0f, 0.7f, 0.0f, 10.0f, 7.0f, 180.0f, 3.0f, 2.0f, \
-            0.25f, 6000u                                                                           \
+            0.25f, 6000u, 0u                                                                       \
     }
 
 /** A heading with its trust. */
@@ -455,6 +476,15 @@ typedef struct {
     uint8_t sh_open;               /* 1: an episode is open (a solve ending meanwhile is refused) */
     uint8_t sh_cut;                /* 1: a cut at sh_seq waits for the next snapshot */
     uint8_t sh_stale;              /* 1: the solve under way saw the store before a shift: refused */
+    /* continuity gate (cont_shift.c; drain side) */
+    magcal_vec2_t cg_prev;         /* the last drained sample, its stamp */
+    uint32_t cg_prev_t;
+    float cg_inc2;                 /* the typical increment (an average of clipped squares), 0 = none */
+    magcal_vec2_t cg_keep;         /* the anchor: the last stored sample */
+    uint32_t cg_keep_n;            /* samples since it (>= 1) */
+    uint32_t cg_run;               /* refused samples in a row, each continuous with the one before */
+    uint8_t cg_have;               /* 1: cg_prev valid */
+    uint32_t cg_refused;           /**< read-only: samples the continuity gate kept out of the store */
     uint32_t worth_seen;           /* store added + replaced at the last coverage count (cont_step.c) */
     uint8_t worth_checked;         /* 1: worth_seen is valid */
     /* field-model fit at an adoption, time-sliced (cont_fzfit.c; the drain pauses meanwhile) */

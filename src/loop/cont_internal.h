@@ -60,6 +60,9 @@ void magcal_cont_shift_watch(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t
 void magcal_cont_shift_clear(magcal_cont_t *cc);
 int magcal_cont_shift_refuses(const magcal_cont_t *cc);
 void magcal_cont_shift_to_cut(magcal_cont_t *cc);
+/* Continuity gate (cont_shift.c, continuous.h "Continuity gate"): 1 when the drained sample m at
+ * t_ms may be stored (always once a calibration judges the stream, outside a relearn). */
+int magcal_cont_continuity(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms);
 /* Coarse stage (cont_adopt.c): hand the solver its coarse mode for the installed calibration
  * (cc->has_cal, cc->cal_coarse); the live coverage that starts a solve. */
 void magcal_cont_coarse_mode(magcal_cont_t *cc);

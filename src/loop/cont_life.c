@@ -49,7 +49,8 @@ static magcal_status_t cont_check_cfg(const magcal_cont_cfg_t *c)
     if (!magcal_isfinite_f(c->shift_rel)) {
         return MAGCAL_ERR_NONFINITE;
     }
-    if (!(c->shift_rel == 0.0f || (c->shift_rel >= 0.15f && c->shift_rel <= 2.0f)) || c->shift_hold_ms < 1u) {
+    if (!(c->shift_rel == 0.0f || (c->shift_rel >= 0.15f && c->shift_rel <= 2.0f)) || c->shift_hold_ms < 1u ||
+        c->continuity > 1u) {
         return MAGCAL_ERR_ARG;
     }
     return magcal_cont_arc_cfg_check(c);

@@ -1,8 +1,11 @@
 /*
- * Continuous calibrator, level-shift watch (continuous.h "Level shift", docs/calibrator.md
- * "Level shift"): before any calibration is installed, a jump of the raw field that stays is a
- * change of the installation, and the store's samples from before it are another installation's.
- * Runs on the drain (task context), O(1) per sample, no trigonometry.
+ * Continuous calibrator, the stream's continuity before a calibration (the drain, task context,
+ * O(1) per sample, no trigonometry; docs/calibrator.md "Level shift", "Continuity gate"):
+ *  - the level-shift watch (continuous.h "Level shift"): a jump of the raw field that stays is a
+ *    change of the installation, and the store's samples from before it are another's;
+ *  - the continuity gate (continuous.h "Continuity gate"): a sample that jumps from the one before
+ *    it by far more than the stream's typical increment is not stored (a garbage burst's samples
+ *    jump from each other; nothing else rejects them before a calibration judges the stream).
  */
 #include <math.h>
 
@@ -197,4 +200,85 @@ void magcal_cont_shift_to_cut(magcal_cont_t *cc)
             cc->drop_r = 0.0f;
         }
     }
+}
+
+/* ---- continuity gate */
+#define CG_K2 36.0f          /* a stored sample is within 6x the typical increment per sample since
+                                the last stored one */
+#define CG_GROW 4.0f         /* an increment counts into the typical one at most CG_GROW x it: a
+                                garbage burst (40 samples) cannot teach it, a turn that starts from
+                                rest does within about 12 samples */
+#define CG_W_UP (1.0f / 32.0f)  /* the typical increment's weight per sample, growing */
+#define CG_W_DOWN (1.0f / 8.0f) /* and shrinking (a start on a spike is forgotten in ~2 s) */
+#define CG_RUN 8u            /* refused samples in a row that move as a stream (each within the
+                                typical increment of the one before) start again from the last: a
+                                lasting jump (a hard-iron step) is not refused for ever */
+#define CG_MAX_N 1024u       /* samples since the last stored one: counted up to this */
+
+static void cg_typical(magcal_cont_t *cc, float n2)
+{
+    if (!(cc->cg_inc2 > 0.0f)) {
+        cc->cg_inc2 = n2;
+    } else if (n2 < cc->cg_inc2) {
+        cc->cg_inc2 += (n2 - cc->cg_inc2) * CG_W_DOWN;
+    } else {
+        cc->cg_inc2 += ((n2 < CG_GROW * cc->cg_inc2 ? n2 : CG_GROW * cc->cg_inc2) - cc->cg_inc2) * CG_W_UP;
+    }
+}
+
+/* The anchor: the last stored sample (or the start of a new run). */
+static void cg_anchor(magcal_cont_t *cc, const magcal_vec3_t *m)
+{
+    cc->cg_keep.x = m->x;
+    cc->cg_keep.y = m->y;
+    cc->cg_keep_n = 1u;
+    cc->cg_run = 0u;
+}
+
+int magcal_cont_continuity(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms)
+{
+    int keep = 1;
+    if (cc->cfg.continuity == 0u || (cc->has_cal != 0u && cc->state != (uint8_t)MAGCAL_CONT_RELEARNING)) {
+        cc->cg_have = 0u;
+        return 1; /* off, or a calibration judges the stream */
+    }
+    if (!magcal_isfinite_f(m->x) || !magcal_isfinite_f(m->y)) {
+        return 1; /* the store refuses it */
+    }
+    if (cc->cg_have == 0u || t_ms - cc->cg_prev_t > SH_MAX_DT_MS) {
+        /* a start or a gap: no increment; the sample is the anchor (not stored at a start: row 0's
+         * start-up spike of the generated drives would otherwise stay in the store) */
+        keep = cc->cg_have != 0u ? 1 : 0;
+        cc->cg_have = 1u;
+        cg_anchor(cc, m);
+    } else {
+        const float px = m->x - cc->cg_prev.x;
+        const float py = m->y - cc->cg_prev.y;
+        const float kx = m->x - cc->cg_keep.x;
+        const float ky = m->y - cc->cg_keep.y;
+        const float n2 = px * px + py * py;
+        const float k2 = kx * kx + ky * ky;
+        const float nk = (float)cc->cg_keep_n;
+        if (magcal_isfinite_f(n2) && n2 > 0.0f) {
+            cg_typical(cc, n2); /* an exact repeat is not an increment */
+        }
+        if (k2 <= CG_K2 * cc->cg_inc2 * nk * nk) {
+            cg_anchor(cc, m);
+        } else {
+            keep = 0;
+            cc->cg_run = (n2 <= CG_K2 * cc->cg_inc2) ? cc->cg_run + 1u : 0u;
+            cc->cg_keep_n = cc->cg_keep_n < CG_MAX_N ? cc->cg_keep_n + 1u : CG_MAX_N;
+            if (cc->cg_run >= CG_RUN) {
+                cg_anchor(cc, m); /* the stream moved on: stored from here */
+                keep = 1;
+            }
+        }
+    }
+    cc->cg_prev.x = m->x;
+    cc->cg_prev.y = m->y;
+    cc->cg_prev_t = t_ms;
+    if (keep == 0) {
+        cc->cg_refused++;
+    }
+    return keep;
 }

@@ -112,6 +112,9 @@ static MAGCAL_NOINLINE int cont_screen(magcal_cont_t *cc, const magcal_vec3_t *m
 {
     magcal_cont_judge_t j;
     magcal_cont_shift_watch(cc, m, t_ms, levelled); /* before any calibration: a jump that stays (cont_shift.c) */
+    if (magcal_cont_continuity(cc, m, t_ms) == 0) {
+        return 1; /* before a calibration judges the stream: a jump from the sample before, never stored */
+    }
     if (cc->state != (uint8_t)MAGCAL_CONT_RELEARNING && magcal_cont_judge(cc, m, &j) != 0) {
         if (magcal_cont_episode(cc, &j, t_ms) != 0) {
             magcal_cont_declare_change(cc); /* the store restarts with this sample */

@@ -762,6 +762,7 @@ int replay_stream_main(int argc, char **argv)
     }
     cJSON_AddNumberToObject(root, "shifts", (double)g_cc.shifts); /* level shifts (continuous.h) */
     cJSON_AddNumberToObject(root, "shift_refused", (double)g_cc.shift_refused);
+    cJSON_AddNumberToObject(root, "continuity_refused", (double)g_cc.cg_refused); /* continuity gate */
     stream_report_tail(root, g_cc.solves, g_cc.changes, g_cc.dropped, ref_ss, ref_n, ev);
     if (json) {
         stream_print_json(root);
