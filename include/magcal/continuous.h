@@ -451,6 +451,15 @@ typedef struct {
     float drop_r;                  /* off it by more than half the radius are dropped too */
     uint8_t drop_on;               /* cut of an INCONSISTENT solve (cont_adopt.c): 0 none, 1 pending
                                       (the next snapshot scans the ages), 2 set (it drops) */
+    /* flags of the level-shift watch and the continuity gate (cont_shift.c, below) */
+    uint8_t sh_far;                /* 1: the last position test was far */
+    uint8_t sh_cand_on;            /* 1: sh_cand is pending */
+    uint8_t sh_lev;                /* 1: sh_prev was levelled by push_g's tilt compensation */
+    uint8_t sh_have;               /* 0: no sh_prev; 1: sh_prev only; 2: and sh_last_n2 */
+    uint8_t sh_open;               /* 1: an episode is open (a solve ending meanwhile is refused) */
+    uint8_t sh_cut;                /* 1: a cut at sh_seq waits for the next snapshot */
+    uint8_t sh_stale;              /* 1: the solve under way saw the store before a shift: refused */
+    uint8_t cg_have;               /* 1: cg_prev valid */
     /* level-shift watch (cont_shift.c; drain side, while no calibration is installed) */
     magcal_vec2_t sh_prev;         /* the last drained sample (x, y), its stamp */
     uint32_t sh_prev_t;
@@ -469,13 +478,6 @@ typedef struct {
     float sh_inc2;                 /* the typical increment's (an average of squares), 0 = none yet */
     float sh_scale;                /* the distance scale (cont_shift.c), 0 = none yet */
     uint32_t sh_far_t;             /* stamp of the first of the far samples in a row */
-    uint8_t sh_far;                /* 1: the last position test was far */
-    uint8_t sh_cand_on;            /* 1: sh_cand is pending */
-    uint8_t sh_lev;                /* 1: sh_prev was levelled by push_g's tilt compensation */
-    uint8_t sh_have;               /* 0: no sh_prev; 1: sh_prev only; 2: and sh_last_n2 */
-    uint8_t sh_open;               /* 1: an episode is open (a solve ending meanwhile is refused) */
-    uint8_t sh_cut;                /* 1: a cut at sh_seq waits for the next snapshot */
-    uint8_t sh_stale;              /* 1: the solve under way saw the store before a shift: refused */
     /* continuity gate (cont_shift.c; drain side) */
     magcal_vec2_t cg_prev;         /* the last drained sample, its stamp */
     uint32_t cg_prev_t;
@@ -483,7 +485,6 @@ typedef struct {
     magcal_vec2_t cg_keep;         /* the anchor: the last stored sample */
     uint32_t cg_keep_n;            /* samples since it (>= 1) */
     uint32_t cg_run;               /* refused samples in a row, each continuous with the one before */
-    uint8_t cg_have;               /* 1: cg_prev valid */
     uint32_t cg_refused;           /**< read-only: samples the continuity gate kept out of the store */
     uint32_t worth_seen;           /* store added + replaced at the last coverage count (cont_step.c) */
     uint8_t worth_checked;         /* 1: worth_seen is valid */

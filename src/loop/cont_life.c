@@ -46,6 +46,11 @@ static magcal_status_t cont_check_cfg(const magcal_cont_cfg_t *c)
         !(c->offset_sigma_ratio >= 1.0f)) {
         return MAGCAL_ERR_ARG;
     }
+#if !MAGCAL_CFG_ENABLE_COARSE
+    if (c->coarse_coverage_deg > 0.0f) {
+        return MAGCAL_ERR_ARG; /* the coarse stage is compiled out (config.h): a solve at its coverage would fail */
+    }
+#endif
     if (!magcal_isfinite_f(c->shift_rel)) {
         return MAGCAL_ERR_NONFINITE;
     }

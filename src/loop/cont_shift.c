@@ -248,7 +248,9 @@ int magcal_cont_continuity(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t
     if (cc->cg_have == 0u || t_ms - cc->cg_prev_t > SH_MAX_DT_MS) {
         /* a start or a gap: no increment; the sample is the anchor (not stored at a start: row 0's
          * start-up spike of the generated drives would otherwise stay in the store) */
-        keep = cc->cg_have != 0u ? 1 : 0;
+        if (cc->cg_have == 0u) {
+            keep = 0;
+        }
         cc->cg_have = 1u;
         cg_anchor(cc, m);
     } else {

@@ -18,6 +18,7 @@
 
 #include "magcal/calibrator.h"
 #include "magcal/consensus.h"
+#include "magcal/continuous.h"
 #include "magcal/ellipse.h"
 #include "magcal/heading.h"
 #include "magcal/optics.h"
@@ -230,6 +231,26 @@ static void test_calibrator_coarse_is_absent(void)
     TEST_ASSERT_EQUAL_MEMORY(&id, &cur, sizeof cur);
 }
 
+/* The continuous calibrator with the coarse stage compiled out: a configuration that asks for it
+ * (cfg.coarse_coverage_deg > 0) is refused at init (it would start solves that fail their
+ * coverage gate), the default (0) is taken. */
+#define CONT_SLOTS MAGCAL_CONT_SLOTS(36u, 8u)
+static magcal_intake_slot_t g_cslots[CONT_SLOTS];
+static magcal_vec2_t g_cbuf2[CONT_SLOTS];
+static MAGCAL_CALIBRATOR_WORKSPACE_DECLARE(g_cwork2, CONT_SLOTS);
+static magcal_cont_t g_cc;
+
+static void test_cont_coarse_coverage_refused_when_absent(void)
+{
+    magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
+    TEST_ASSERT_EQUAL_FLOAT(0.0f, cfg.coarse_coverage_deg);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, NULL, g_cslots, CONT_SLOTS, g_cbuf2, g_cwork2,
+                                                      sizeof g_cwork2));
+    cfg.coarse_coverage_deg = 150.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_cont_init(&g_cc, &cfg, NULL, g_cslots, CONT_SLOTS, g_cbuf2, g_cwork2,
+                                                           sizeof g_cwork2));
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -237,5 +258,6 @@ int main(void)
     RUN_TEST(test_calibrator_default_meets_truth);
     RUN_TEST(test_calibrator_dbscan_is_refused);
     RUN_TEST(test_calibrator_coarse_is_absent);
+    RUN_TEST(test_cont_coarse_coverage_refused_when_absent);
     return UNITY_END();
 }

@@ -301,6 +301,11 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     cfg.change_ms = 4u * (uint32_t)fuzz_u16(&in);
     cfg.change_bins = (uint16_t)(1u + fuzz_u8(&in) % 36u);
     cfg.clear_ms = 4u * (uint32_t)fuzz_u16(&in);
+    /* the stream's continuity before a calibration (continuous.h "Level shift", "Continuity gate")
+     * from the flags' high bits (no byte of their own: the seeds keep their meaning) */
+    cfg.continuity = (uint8_t)((flags & 32u) != 0u ? 1u : 0u);
+    cfg.shift_rel = (flags & 64u) != 0u ? 0.0f : cfg.shift_rel;
+    cfg.shift_hold_ms = (flags & 128u) != 0u ? 1u : cfg.shift_hold_ms;
     scale = fuzz_f32(&in);
     if (cfg.solver.min_samples > MAGCAL_CONT_SLOTS(cfg.intake.bins, cfg.intake.per_bin)) {
         cfg.solver.min_samples = (uint16_t)MAGCAL_CONT_SLOTS(cfg.intake.bins, cfg.intake.per_bin);
