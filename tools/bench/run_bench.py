@@ -457,7 +457,12 @@ def m4f_footprint(build_dir, tmp_root):
 # The drives of cont.elf (m4f_image/main_cont.c): a generated drive (tools/gen_drive.py, fixed seed:
 # parking, turns, hills, a glitch in row 0, glitch bursts, transient disturbances, the hard-iron
 # step at mid-drive) and, when ../shared exists, the real vn100_car_circles_b repeated to >= 10 min.
-CONT_GEN = {"name": "gen_drive_s3", "minutes": 30.0, "seed": 3, "rate": 50.0, "range": 800.0}
+# Seed 5 (stop 25; seed 3 before): it adopts before its step, detects the change and relearns
+# (the full solve and the offset-only relearn run on it: its largest step had reached 10 160
+# outside the bench at stop 24); seed 3's step now comes before its first adoption (a level
+# shift, continuous.h) and it never relearns. One 30-min drive is the image's limit (a 60-min
+# one locks QEMU up: flash).
+CONT_GEN = {"name": "gen_drive_s5", "minutes": 30.0, "seed": 5, "rate": 50.0, "range": 800.0}
 CONT_REAL = {"name": "vn100_car_circles_b", "reps": 4, "range": 0.0}  # 150 s at 40 Hz, 4 x = 10 min
 GOALS_CONT = {"max_call": 10000, "cal2d_total": 2000000}
 
