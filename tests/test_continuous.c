@@ -1413,6 +1413,63 @@ void test_cont_continuity_gate_keeps_garbage_out(void)
     TEST_ASSERT_TRUE(rms_on < 1.0);
 }
 
+/* ------------------------------------------------------------------ tilt in the estimate */
+
+/* Circles on a constant 5-degree slope (the vertical field cannot be learnt from one tilt, so
+ * nothing is levelled and every stored sample is TILTED under push_g): the first adoption's
+ * est_param_err_deg carries cfg.tilt_model_deg x the snapshot's tilted share (about 1: >= 4.0 deg
+ * of the 4.5 default); fed without gravity (push: nothing known of the tilt) or with the term off
+ * (cfg.tilt_model_deg 0) the same drive's estimate stays the fit's own (< 1.5 deg). The truth at
+ * level is printed (the slope's leak is a constant body-frame offset the ellipse takes for hard
+ * iron), not asserted against the estimate. */
+/* cfg.tilt_model_deg: finite, >= 0 */
+static void cfg_tilt_model_checked(void)
+{
+    magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
+    TEST_ASSERT_EQUAL_FLOAT(4.5f, cfg.tilt_model_deg);
+    cfg.tilt_model_deg = -1.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    cfg.tilt_model_deg = INFINITY;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+}
+
+static double tilt_slope_est(int with_g, float model_deg, double *truth)
+{
+    magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
+    uint32_t rng = 91u;
+    uint32_t t = 0u;
+    unsigned i, k;
+    double est = NAN;
+    cfg.tilt_model_deg = model_deg;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    for (i = 0u; i < 3u * TC_ROWS_PER_CIRCLE && isnan(est); ++i, t += RATE_MS) {
+        magcal_vec3_t m, g;
+        tc_sample(360.0 * (double)i / (double)TC_ROWS_PER_CIRCLE, 5.0, 0.1, &rng, &m, &g);
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, with_g != 0 ? magcal_cont_push_g(&g_cc, &m, &g, t) : magcal_cont_push(&g_cc, &m, t));
+        for (k = 0u; k < STEPS_PER_ROW; ++k) {
+            if (magcal_cont_step(&g_cc) == MAGCAL_CONT_ADOPTED) {
+                est = (double)g_cc.last.est_param_err_deg;
+            }
+        }
+    }
+    *truth = isnan(est) ? NAN : tc_level_rms(&g_cc.cal);
+    return est;
+}
+
+static void test_cont_tilt_share_in_the_estimate(void)
+{
+    double t_g, t_n, t_off;
+    const double e_g = tilt_slope_est(1, 4.5f, &t_g);
+    const double e_n = tilt_slope_est(0, 4.5f, &t_n);
+    const double e_off = tilt_slope_est(1, 0.0f, &t_off);
+    printf("5-deg slope: estimate with gravity %.2f deg (true level error %.2f), without %.2f (%.2f), term off "
+           "%.2f (%.2f)\n", e_g, t_g, e_n, t_n, e_off, t_off);
+    TEST_ASSERT_TRUE(e_g >= 4.0);
+    TEST_ASSERT_TRUE(e_n < 1.5);
+    TEST_ASSERT_TRUE(e_off < 1.5);
+    cfg_tilt_model_checked();
+}
+
 int main(void)
 {
 #if defined(__arm__)
@@ -1451,5 +1508,6 @@ int main(void)
     RUN_TEST(test_cont_shift_before_first_calibration_cuts_the_store);
     RUN_TEST(test_cont_shift_not_declared_for_glitches_transients_and_turns);
     RUN_TEST(test_cont_continuity_gate_keeps_garbage_out);
+    RUN_TEST(test_cont_tilt_share_in_the_estimate);
     return UNITY_END();
 }

@@ -449,6 +449,9 @@ typedef struct {
     float arc_min_cov;            /* coverage that admits an ellipse below cfg.min_coverage_deg, deg; 0 = off */
     float arc_max_err;            /* tolerance of its whole-circle bound, deg */
     float arc_model;              /* model-error term of the bound, deg */
+    /* a model-error term of the estimate (set by the continuous calibrator from its store's tilt,
+     * calibrator_internal.h magcal_calibrator_set_model; 0 after init) */
+    float model_deg;              /* added in quadrature to est_param_err_deg, deg */
 } magcal_calibrator_t;
 
 /**

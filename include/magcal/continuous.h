@@ -117,6 +117,17 @@
  * slower than 0.15 R per sample (a magnet brought in over a second at 50 Hz), one inside a glitch
  * burst or a gap; those fall back on the consistency gate.
  *
+ * Tilt in the estimate (cfg.tilt_model_deg, default 4.5; docs/calibrator.md "Tilt in the
+ * estimate"): a store filled on hills and not levelled (push_g's vertical field not learnt, or
+ * learnt after the samples were stored) bends the ellipse by the tilt's leak, which the fit's own
+ * estimate cannot see (generated drives: 3.9..6.2 deg true error at level with estimates of
+ * 0.3..1.05 when all the inliers were tilted). With push_g's gravity, the full solve's
+ * est_param_err_deg (and est_heading_err_deg, the never-worse rule, `adopted_err`) takes
+ * cfg.tilt_model_deg x the share of the snapshot's samples that are not LEVEL, in quadrature;
+ * without gravity (magcal_cont_push) nothing is known of the tilt and no term is added. The term
+ * is an average: a store on one constant slope is off by more (7.4 deg on a 5-deg slope in the
+ * Unity test, estimate 4.5).
+ *
  * Continuity gate (cfg.continuity, opt-in, default 0 = off; docs/calibrator.md "Continuity
  * gate"): before a calibration judges the stream, nothing tells a driver's garbage burst
  * (readings anywhere in the sensor's range, 5..40 in a row) from data, and a store holding more
@@ -329,6 +340,11 @@ typedef struct {
                                          off, else 0.15..2 (default 0.25) */
     uint32_t shift_hold_ms;         /**< the hold: ms of stamps after the last jump before a shift
                                          is declared (longer than a transient: default 6000), >= 1 */
+    float tilt_model_deg;           /**< tilt in the estimate ("Tilt in the estimate" below): with
+                                         push_g's gravity, this x the share of the solve's samples
+                                         that are not level is added in quadrature to the full
+                                         solve's est_param_err_deg (and the never-worse rule);
+                                         >= 0, 0 = off (default 4.5) */
     uint8_t continuity;             /**< continuity gate ("Continuity gate" below): 1 = while no
                                          calibration judges the stream (none installed, or a
                                          relearn), a sample that moved from the one before it by
@@ -342,7 +358,7 @@ typedef struct {
         MAGCAL_INTAKE_CFG_DEFAULT_2D, MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT, 280.0f, 24u, 2u,        \
             600000.0f, 4.0f, 0.06f, 8000u, 3u, 4000u, 100u, 200u, 4.0f,                            \
             MAGCAL_SLICE_BUDGET_DEFAULT, 0.0f, 15.0f, 8.0f, 0.7f, 0.0f, 10.0f, 7.0f, 180.0f, 3.0f, 2.0f, \
-            0.25f, 6000u, 0u                                                                       \
+            0.25f, 6000u, 4.5f, 0u                                                                 \
     }
 
 /** A heading with its trust. */
@@ -442,6 +458,7 @@ typedef struct {
     uint8_t dist_flag;             /* 1: transient flagged (trust DISTURBED, not stored) */
     uint32_t snap_bin;             /* snapshot: next store bin to copy */
     uint32_t snap_n;               /* snapshot: samples copied */
+    uint32_t snap_lv;              /* snapshot: of them level (the tilt term of the estimate) */
     uint32_t snap_stored;          /* store added + replaced at the snapshot */
     uint32_t drop_age;             /* cut: the oldest stored sample's age, in pushes (cont_step.c) */
     uint32_t drop_seq;             /* cut: samples older than this push count are dropped */

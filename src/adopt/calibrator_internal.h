@@ -166,5 +166,10 @@ void magcal_calibrator_set_coarse(magcal_calibrator_t *cal, float min_cov, float
  * max_err_deg; min_cov 0 or any argument out of range (non-finite, max_err <= 0, model < 0): off
  * (the default after init). Not during a solve. */
 void magcal_calibrator_set_arc(magcal_calibrator_t *cal, float min_cov, float max_err_deg, float model_deg);
+/* A model-error term of the full solve's estimate (deg, finite, >= 0; else 0): added in quadrature
+ * to est_param_err_deg (and so to est_heading_err_deg and the never-worse rule), not to the
+ * observability gate. The continuous calibrator sets it from its store's tilt (continuous.h
+ * "Tilt in the estimate"). */
+void magcal_calibrator_set_model(magcal_calibrator_t *cal, float model_deg);
 
 #endif /* MAGCAL_CALIBRATOR_INTERNAL_H */

@@ -126,8 +126,12 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_harm_n(magcal_calibrator_t *cal, cal_r
     noise = hn->sigma_rel;
     rep->est_noise_deg = MAGCAL_DEG_PER_RAD_F * noise;
     rep->design_factor = hn->design;
-    rep->est_param_err_deg = MAGCAL_DEG_PER_RAD_F * sqrtf(hn->noise2 + hn->bias2);
-    rep->est_heading_err_deg = MAGCAL_DEG_PER_RAD_F * sqrtf(noise * noise + hn->noise2 + hn->bias2);
+    {
+        /* the caller's model-error term (magcal_calibrator_set_model: the continuous store's tilt) */
+        const float m = cal->model_deg / MAGCAL_DEG_PER_RAD_F;
+        rep->est_param_err_deg = MAGCAL_DEG_PER_RAD_F * sqrtf(hn->noise2 + hn->bias2 + m * m);
+        rep->est_heading_err_deg = MAGCAL_DEG_PER_RAD_F * sqrtf(noise * noise + hn->noise2 + hn->bias2 + m * m);
+    }
     /* repeated values (quantisation): the estimate rests on the distinct values only, so the
      * gate uses its upper confidence bound, (1 + 1 / sqrt(2 dof)) with dof = distinct - 5 */
     par = sqrtf(hn->noise2 + hn->bias2);

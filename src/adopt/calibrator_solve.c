@@ -174,6 +174,13 @@ void magcal_calibrator_set_arc(magcal_calibrator_t *cal, float min_cov, float ma
     }
 }
 
+void magcal_calibrator_set_model(magcal_calibrator_t *cal, float model_deg)
+{
+    if (cal != NULL && cal->magic == MAGCAL_CALIBRATOR_MAGIC) {
+        cal->model_deg = (magcal_isfinite_f(model_deg) && model_deg > 0.0f) ? model_deg : 0.0f;
+    }
+}
+
 int magcal_calibrator_solving(const magcal_calibrator_t *cal)
 {
     return cal != NULL && cal->magic == MAGCAL_CALIBRATOR_MAGIC && cal_run(cal)->active != 0u;

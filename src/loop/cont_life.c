@@ -51,11 +51,11 @@ static magcal_status_t cont_check_cfg(const magcal_cont_cfg_t *c)
         return MAGCAL_ERR_ARG; /* the coarse stage is compiled out (config.h): a solve at its coverage would fail */
     }
 #endif
-    if (!magcal_isfinite_f(c->shift_rel)) {
+    if (!magcal_isfinite_f(c->shift_rel) || !magcal_isfinite_f(c->tilt_model_deg)) {
         return MAGCAL_ERR_NONFINITE;
     }
     if (!(c->shift_rel == 0.0f || (c->shift_rel >= 0.15f && c->shift_rel <= 2.0f)) || c->shift_hold_ms < 1u ||
-        c->continuity > 1u) {
+        c->continuity > 1u || c->tilt_model_deg < 0.0f) {
         return MAGCAL_ERR_ARG;
     }
     return magcal_cont_arc_cfg_check(c);

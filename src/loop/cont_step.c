@@ -398,6 +398,7 @@ static void cont_start(magcal_cont_t *cc)
     magcal_cont_shift_to_cut(cc); /* a level shift since the last snapshot: cut at its first jump */
     cc->snap_bin = 0u;
     cc->snap_n = 0u;
+    cc->snap_lv = 0u;
     cc->snap_stored = cc->store.ctr.added + cc->store.ctr.replaced;
     cc->stage = (uint8_t)CONT_STAGE_SNAPSHOT;
 }
@@ -466,6 +467,17 @@ static void cont_cut_scan(magcal_cont_t *cc, magcal_cal_budget_t *b)
     cc->snap_bin = 0u;
 }
 
+/* The tilt term of the solve's estimate (continuous.h "Tilt in the estimate"): with push_g's
+ * gravity, CONT_TILT_MODEL_DEG x the share of the snapshot not level (tilted and not levelled, or
+ * accelerating); 0 without gravity (nothing is known of the tilt) or with the term off. */
+static float cont_tilt_model(const magcal_cont_t *cc)
+{
+    if (cc->g_pushed == 0u || cc->snap_n == 0u || cc->snap_lv > cc->snap_n) {
+        return 0.0f;
+    }
+    return cc->cfg.tilt_model_deg * (float)(cc->snap_n - cc->snap_lv) / (float)cc->snap_n;
+}
+
 /* Copy bins of the store, in bin order (as magcal_intake_snapshot2), into the solver buffer;
  * then load the solver. 1 when the solve is loaded. A pending cut (an INCONSISTENT solve) first
  * scans the store's ages, then drops what the cut drops while copying. */
@@ -489,14 +501,19 @@ static int cont_snapshot(magcal_cont_t *cc, magcal_cal_budget_t *b)
              * off the solve's ring by more than half its radius (neither installation: a stored
              * glitch burst would otherwise outweigh what is left) leave the store (the store is
              * frozen meanwhile), the rest is copied */
+            uint32_t k;
             magcal_intake_drop_older(&cc->store, cc->snap_bin, cc->drop_seq, &cc->drop_c, cc->drop_r, cc->buf,
                                      cc->slots, &cc->snap_n);
+            for (k = 0u; k < st->count[cc->snap_bin]; ++k) {
+                cc->snap_lv += (st->slots[base + k].seq & INTAKE_SEQ_LEVEL) != 0u ? 1u : 0u;
+            }
             w = CONT_W_SNAP + CONT_W_CUT;
         } else {
             uint32_t k;
             for (k = 0u; k < cnt && cc->snap_n < cc->slots; ++k) {
                 cc->buf[cc->snap_n].x = st->slots[base + k].m.x;
                 cc->buf[cc->snap_n].y = st->slots[base + k].m.y;
+                cc->snap_lv += (st->slots[base + k].seq & INTAKE_SEQ_LEVEL) != 0u ? 1u : 0u;
                 cc->snap_n++;
             }
         }
@@ -513,6 +530,7 @@ static int cont_snapshot(magcal_cont_t *cc, magcal_cal_budget_t *b)
         magcal_cont_offset_begin(cc); /* the offset-only relearn (calibrator_offset.c) */
     } else {
         cc->off_mode = 0u;
+        magcal_calibrator_set_model(&cc->solver, cont_tilt_model(cc));
         (void)magcal_calibrator_solve_begin(&cc->solver, cc->snap_n, 1);
     }
     (void)magcal_cal_spend(b, CONT_W_SNAP_END);
