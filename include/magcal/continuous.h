@@ -32,6 +32,10 @@
  *                          the next solve starts at once on the store without its older half
  *                          (docs/calibrator.md "Consistency gate"; the calibration in force and
  *                          the state are untouched);
+ *  COLLECTING -> SOLVING   at once, too, when a level shift was declared ("Level shift" below:
+ *                          the snapshot drops the samples from before it); a solve that saw the
+ *                          store before a shift, or that ends while one is under watch, ends
+ *                          SOLVING -> COLLECTING refused (INCONSISTENT, calibration untouched);
  *  any -> RELEARNING       when a change is declared (old samples dropped);
  *  (a solve starts at cfg.coarse_coverage_deg instead while no full calibration is installed)
  *  RELEARNING -> SOLVING   as COLLECTING; a solve that adopts, or that confirms the installed
