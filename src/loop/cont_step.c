@@ -468,14 +468,16 @@ static void cont_cut_scan(magcal_cont_t *cc, magcal_cal_budget_t *b)
 }
 
 /* The tilt term of the solve's estimate (continuous.h "Tilt in the estimate"): with push_g's
- * gravity, CONT_TILT_MODEL_DEG x the share of the snapshot not level (tilted and not levelled, or
+ * gravity, cfg.tilt_model_deg x the share of the snapshot not level (tilted and not levelled, or
  * accelerating); 0 without gravity (nothing is known of the tilt) or with the term off. */
 static float cont_tilt_model(const magcal_cont_t *cc)
 {
+    uint32_t tilted;
     if (cc->g_pushed == 0u || cc->snap_n == 0u || cc->snap_lv > cc->snap_n) {
         return 0.0f;
     }
-    return cc->cfg.tilt_model_deg * (float)(cc->snap_n - cc->snap_lv) / (float)cc->snap_n;
+    tilted = cc->snap_n - cc->snap_lv;
+    return cc->cfg.tilt_model_deg * (float)tilted / (float)cc->snap_n;
 }
 
 /* Copy bins of the store, in bin order (as magcal_intake_snapshot2), into the solver buffer;
