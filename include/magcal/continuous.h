@@ -488,7 +488,6 @@ typedef struct {
     float sh_max_n2;               /* its largest jump, squared */
     uint32_t sh_jump_t;            /* stamp of its last jump */
     uint32_t sh_seq;               /* store push count at its first jump: the cut */
-    uint32_t sh_changes;           /* cc->changes when it opened (a change resets the push count) */
     uint32_t shifts;               /**< read-only: level shifts declared */
     uint32_t shift_refused;        /**< read-only: solves refused for a level shift */
     magcal_vec2_t sh_cand;         /* a candidate jump (confirmed by a small increment after it), */

@@ -31,6 +31,9 @@ typedef struct {
 } magcal_cont_judge_t;
 
 int magcal_cont_ok(const magcal_cont_t *cc);
+/* Weight of an exponential average with time constant tau_ms for a step of dt_ms (dt counted at
+ * most tau_ms): dt / (dt + tau) (cont_life.c). */
+float magcal_cont_ema_w(uint32_t dt_ms, uint32_t tau_ms);
 /* Judge raw (x, y) under cc->cal: 0 when no calibration is installed (j->mismatch 0). */
 int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_cont_judge_t *j);
 /* Fit the judge's total-field model and noise on the store under cc->cal (at an adoption),

@@ -148,7 +148,7 @@ magcal_status_t magcal_cont_push(magcal_cont_t *cc, const magcal_vec3_t *m, uint
  * smoothed first (exponential, time constant MAGCAL_CONT_G_SMOOTH_MS of the stamps: vibration and
  * sensor noise), then the smoothed vector is tested; the running level of its |g|^2 is a slower
  * exponential average (MAGCAL_CONT_G_TAU_MS). A gap in the stamps counts at most one constant. */
-static float cont_ema_w(uint32_t dt_ms, uint32_t tau_ms)
+float magcal_cont_ema_w(uint32_t dt_ms, uint32_t tau_ms)
 {
     const uint32_t dt = (dt_ms > tau_ms) ? tau_ms : dt_ms;
     return (float)dt / ((float)dt + (float)tau_ms);
@@ -168,7 +168,7 @@ static uint8_t cont_tilt_of(magcal_cont_t *cc, const magcal_vec3_t *g, uint32_t 
     if (!(cc->g_level2 > 0.0f)) {
         cc->g_s = *g; /* seeded by the first sample */
     } else {
-        const float w = cont_ema_w(t_ms - cc->g_t, MAGCAL_CONT_G_SMOOTH_MS); /* wrapping stamps */
+        const float w = magcal_cont_ema_w(t_ms - cc->g_t, MAGCAL_CONT_G_SMOOTH_MS); /* wrapping stamps */
         cc->g_s.x += (g->x - cc->g_s.x) * w;
         cc->g_s.y += (g->y - cc->g_s.y) * w;
         cc->g_s.z += (g->z - cc->g_s.z) * w;
@@ -179,7 +179,7 @@ static uint8_t cont_tilt_of(magcal_cont_t *cc, const magcal_vec3_t *g, uint32_t 
     if (!(cc->g_level2 > 0.0f)) {
         cc->g_level2 = n2;
     } else {
-        cc->g_level2 += (n2 - cc->g_level2) * cont_ema_w(t_ms - cc->g_t, MAGCAL_CONT_G_TAU_MS);
+        cc->g_level2 += (n2 - cc->g_level2) * magcal_cont_ema_w(t_ms - cc->g_t, MAGCAL_CONT_G_TAU_MS);
     }
     cc->g_t = t_ms;
     if (!(cc->g_level2 > 0.0f) || !magcal_isfinite_f(cc->g_level2)) {

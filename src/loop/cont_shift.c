@@ -47,7 +47,7 @@ static int shift_sum_is_shift(const magcal_cont_t *cc, float r)
 {
     const float lim = cc->cfg.shift_rel * r;
     const float s2 = cc->sh_sum.x * cc->sh_sum.x + cc->sh_sum.y * cc->sh_sum.y;
-    return s2 > lim * lim && s2 > 0.25f * cc->sh_max_n2 && cc->sh_changes == cc->changes;
+    return s2 > lim * lim && s2 > 0.25f * cc->sh_max_n2;
 }
 
 /* The episode ended (no jump for cfg.shift_hold_ms): a shift when its jumps add up. */
@@ -91,9 +91,9 @@ static int shift_position(magcal_cont_t *cc, const magcal_vec3_t *m, const magca
     }
     cc->sh_far = 0u;
     {
-        uint32_t dt = t_ms - cc->sh_prev_t;
-        dt = dt > MAGCAL_CONT_MAX_DT_MS ? MAGCAL_CONT_MAX_DT_MS : dt;
-        cc->sh_scale += (d - cc->sh_scale) * ((float)dt / ((float)dt + (float)SH_SCALE_MS));
+        const uint32_t dt = t_ms - cc->sh_prev_t;
+        cc->sh_scale += (d - cc->sh_scale) * magcal_cont_ema_w(dt > MAGCAL_CONT_MAX_DT_MS ? MAGCAL_CONT_MAX_DT_MS : dt,
+                                                               SH_SCALE_MS);
     }
     return 1;
 }
@@ -107,7 +107,6 @@ static void shift_take(magcal_cont_t *cc)
         cc->sh_sum.y = 0.0f;
         cc->sh_max_n2 = 0.0f;
         cc->sh_seq = cc->sh_cand_seq; /* the jump's sample and later are kept */
-        cc->sh_changes = cc->changes;
     }
     cc->sh_max_n2 = cc->sh_cand_n2 > cc->sh_max_n2 ? cc->sh_cand_n2 : cc->sh_max_n2;
     cc->sh_sum.x += cc->sh_cand.x;
@@ -118,6 +117,7 @@ static void shift_take(magcal_cont_t *cc)
 void magcal_cont_shift_watch(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms, int levelled)
 {
     const magcal_intake_t *st = &cc->store;
+    const uint8_t lev = (uint8_t)(levelled != 0 ? 1u : 0u);
     float r;
     float dx;
     float dy;
@@ -145,7 +145,7 @@ void magcal_cont_shift_watch(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t
     dx = m->x - cc->sh_prev.x;
     dy = m->y - cc->sh_prev.y;
     n2 = dx * dx + dy * dy;
-    if (cc->sh_have != 0u && (uint8_t)(levelled != 0 ? 1u : 0u) != cc->sh_lev) {
+    if (cc->sh_have != 0u && lev != cc->sh_lev) {
         cc->sh_have = 1u; /* the tilt compensation switched on or off (a step of k t): no increment */
         cc->sh_cand_on = 0u;
     } else if (cc->sh_have == 0u || t_ms - cc->sh_prev_t > SH_MAX_DT_MS) {
@@ -180,7 +180,7 @@ void magcal_cont_shift_watch(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t
     cc->sh_prev.x = m->x;
     cc->sh_prev.y = m->y;
     cc->sh_prev_t = t_ms;
-    cc->sh_lev = (uint8_t)(levelled != 0 ? 1u : 0u);
+    cc->sh_lev = lev;
 }
 
 int magcal_cont_shift_refuses(const magcal_cont_t *cc)
@@ -193,12 +193,12 @@ void magcal_cont_shift_to_cut(magcal_cont_t *cc)
     if (cc->sh_cut != 0u) {
         cc->sh_cut = 0u;
         cc->sh_stale = 0u;
-        if (cc->sh_changes == cc->changes) {
-            cc->drop_on = 2u; /* set: the copy drops what is older (no age scan, no ring test) */
-            cc->drop_seq = cc->sh_seq;
-            cc->drop_changes = cc->changes;
-            cc->drop_r = 0.0f;
-        }
+        /* no change can come between (the watch runs with nothing installed, and an install clears
+         * it): the push count sh_seq belongs to this store */
+        cc->drop_on = 2u; /* set: the copy drops what is older (no age scan, no ring test) */
+        cc->drop_seq = cc->sh_seq;
+        cc->drop_changes = cc->changes;
+        cc->drop_r = 0.0f;
     }
 }
 

@@ -480,6 +480,16 @@ static float cont_tilt_model(const magcal_cont_t *cc)
     return cc->cfg.tilt_model_deg * (float)tilted / (float)cc->snap_n;
 }
 
+/* The snapshot's LEVEL samples: those of the bin just copied (what it holds after a cut). */
+static void cont_snap_level(magcal_cont_t *cc, uint32_t base)
+{
+    const magcal_intake_t *st = &cc->store;
+    uint32_t k;
+    for (k = 0u; k < st->count[cc->snap_bin]; ++k) {
+        cc->snap_lv += (st->slots[base + k].seq & INTAKE_SEQ_LEVEL) != 0u ? 1u : 0u;
+    }
+}
+
 /* Copy bins of the store, in bin order (as magcal_intake_snapshot2), into the solver buffer;
  * then load the solver. 1 when the solve is loaded. A pending cut (an INCONSISTENT solve) first
  * scans the store's ages, then drops what the cut drops while copying. */
@@ -503,22 +513,18 @@ static int cont_snapshot(magcal_cont_t *cc, magcal_cal_budget_t *b)
              * off the solve's ring by more than half its radius (neither installation: a stored
              * glitch burst would otherwise outweigh what is left) leave the store (the store is
              * frozen meanwhile), the rest is copied */
-            uint32_t k;
             magcal_intake_drop_older(&cc->store, cc->snap_bin, cc->drop_seq, &cc->drop_c, cc->drop_r, cc->buf,
                                      cc->slots, &cc->snap_n);
-            for (k = 0u; k < st->count[cc->snap_bin]; ++k) {
-                cc->snap_lv += (st->slots[base + k].seq & INTAKE_SEQ_LEVEL) != 0u ? 1u : 0u;
-            }
             w = CONT_W_SNAP + CONT_W_CUT;
         } else {
             uint32_t k;
             for (k = 0u; k < cnt && cc->snap_n < cc->slots; ++k) {
                 cc->buf[cc->snap_n].x = st->slots[base + k].m.x;
                 cc->buf[cc->snap_n].y = st->slots[base + k].m.y;
-                cc->snap_lv += (st->slots[base + k].seq & INTAKE_SEQ_LEVEL) != 0u ? 1u : 0u;
                 cc->snap_n++;
             }
         }
+        cont_snap_level(cc, base);
         cc->snap_bin++;
         if (magcal_cal_spend(b, CONT_W_BIN + cnt * w) != 0) {
             return 0;
