@@ -172,6 +172,15 @@ static void drive_turn(drive_t *dr, double deg, double dps)
     }
 }
 
+/* straight ahead (no turning) for `seconds` at 50 Hz */
+static void drive_straight(drive_t *dr, unsigned seconds)
+{
+    unsigned i;
+    for (i = 0u; i < seconds * 50u; ++i) {
+        (void)drive_row(dr, 0.0f, 0.0f);
+    }
+}
+
 static void cont_init_default(const magcal_cal2d_t *installed)
 {
     magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
@@ -1030,19 +1039,13 @@ void test_cont_store_of_two_installations_adopts_current(void)
     double turn_at_step;
     cont_init_default(NULL);
     drive_init(&dr, &k_d, 21u);
-    for (i = 0u; i < 5u * 50u; ++i) { /* 5 s straight */
-        (void)drive_row(&dr, 0.0f, 0.0f);
-    }
+    drive_straight(&dr, 5u); /* 5 s straight */
     drive_turn(&dr, 250.0, 15.0);
-    for (i = 0u; i < 20u * 50u; ++i) {
-        (void)drive_row(&dr, 0.0f, 0.0f);
-    }
+    drive_straight(&dr, 20u);
     TEST_ASSERT_EQUAL_UINT(0u, dr.adopted);
     dr.d = &k_d_step; /* the magnet: the hard iron moves */
     turn_at_step = dr.turn_deg;
-    for (i = 0u; i < 20u * 50u; ++i) {
-        (void)drive_row(&dr, 0.0f, 0.0f);
-    }
+    drive_straight(&dr, 20u);
     for (i = 0u; i < 310u + 720u && dr.adopted == 0u; ++i) { /* back over the same headings, on */
         drive_turn(&dr, -1.0, 15.0);
     }
@@ -1260,19 +1263,13 @@ static void shift_gap_drive(float shift_rel, unsigned *shifts, unsigned *adopted
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
     drive_init(&dr, &k_d, 23u);
     *worst_d2 = 0.0;
-    for (i = 0u; i < 5u * 50u; ++i) {
-        (void)drive_row(&dr, 0.0f, 0.0f);
-    }
+    drive_straight(&dr, 5u);
     drive_turn(&dr, 170.0, 15.0);
-    for (i = 0u; i < 10u * 50u; ++i) {
-        (void)drive_row(&dr, 0.0f, 0.0f);
-    }
+    drive_straight(&dr, 10u);
     TEST_ASSERT_EQUAL_UINT(0u, dr.adopted);
     dr.d = &k_d_step; /* the magnet */
     turn_at_step = dr.turn_deg;
-    for (i = 0u; i < 10u * 50u; ++i) {
-        (void)drive_row(&dr, 0.0f, 0.0f);
-    }
+    drive_straight(&dr, 10u);
     drive_turn(&dr, -20.0, 15.0);
     for (i = 0u; i < 150u + 200u; ++i) {
         drive_turn(&dr, 1.0, 15.0);
@@ -1378,17 +1375,13 @@ static void cg_drive(uint8_t on, unsigned *adopted, double *rms, uint32_t *refus
     cfg.continuity = on;
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
     drive_init(&dr, &k_d, 37u);
-    for (i = 0u; i < 60u * 50u; ++i) {
-        (void)drive_row(&dr, 0.0f, 0.0f);
-    }
+    drive_straight(&dr, 60u);
     for (i = 0u; i < 30u; ++i) {
         const float gx = (float)(1200.0 * test_rand_uniform(&g) - 600.0);
         const float gy = (float)(1200.0 * test_rand_uniform(&g) - 600.0);
         (void)drive_row(&dr, gx, gy); /* the garbage (the field is small beside it) */
     }
-    for (i = 0u; i < 60u * 50u; ++i) {
-        (void)drive_row(&dr, 0.0f, 0.0f);
-    }
+    drive_straight(&dr, 60u);
     drive_turn(&dr, 720.0, 15.0);
     *adopted = dr.adopted;
     *rms = dr.adopted != 0u ? truth_rms(&g_cc.cal, &k_d) : NAN;
