@@ -153,16 +153,21 @@
  * first order (Z: the body's vertical field), i.e. the raw x, y by k t with t = (g_x, g_y) / g_z of
  * the smoothed gravity and k = Z in raw units: at 6 deg about 12 deg of heading when heading
  * east or west, which a store filled on hills bakes into the calibration. push_g learns k from
- * the stream (pairs of samples in the same 10-degree heading sector around the store's centre at
- * different tilt along the field: the pair's change of distance from the centre is k times its
- * change of t . radial; a median start, then a gated least-squares fit; the references are
- * dropped at a change or a new centre). Once k is known (24 pairs, standard error <= 0.12 R) AND
+ * the stream by a within-sector regression: in each 10-degree heading sector around the store's
+ * centre the distance from the centre is a_sector + k q, q = t . radial (a tilt along the field
+ * changes the radius; across it, the heading: the error the store must not take); every sample
+ * whose q moved by 0.3 deg of tilt since its sector's last one counts (running means per sector,
+ * sums over all, each sample gated around the estimate; the sectors' means are dropped at a change
+ * or a new centre). Once k is known (24 samples, standard error <= 0.12 R) AND
  * no field model judges the stream (no calibration installed, or a relearn after a change:
  * switched on under an installed calibration the model fitted on unlevelled samples would read
  * the levelled stream as a mismatch), every sample with a steady |g|, its roll within
  * cfg.intake.tilt_limit_deg (a turn's centripetal acceleration reads as roll: not levelled) and
- * its pitch within cfg.tilt_comp_deg is queued levelled (m_xy - k t) and LEVEL; magcal_cont_heading
- * judges its sample levelled with the gravity of the last push_g (its heading is not levelled).
+ * its pitch within cfg.tilt_comp_deg is queued levelled (m_xy - k t, and m_z + t . (m_xy - centre):
+ * the tilt turns the horizontal field into z too, so the store's level model of z and the judge's
+ * z channel see a level sample) and LEVEL. magcal_cont_heading levels its sample with the gravity
+ * of the last push_g the same way, for its heading (hd.levelled = 1: tilt-compensated, fitted and
+ * applied on levelled samples alike) and its judge.
  * The model takes the specific force for gravity: a vehicle's longitudinal acceleration reads as
  * pitch (it is not levelled only when |g| leaves its g_band_rel band). Known limitation: a
  * calibration restored from flash, or one adopted before k is known, keeps the store unlevelled
@@ -225,8 +230,7 @@ extern "C" {
 #define MAGCAL_CONT_RING 32u /**< push ring: samples (power of two) */
 #endif
 
-#define MAGCAL_CONT_TC_BINS 36u  /**< magcal_cont_push_g tilt compensation: heading sectors of its pairs */
-#define MAGCAL_CONT_TC_FIRST 16u /**< its first pairs, whose median starts the estimate */
+#define MAGCAL_CONT_TC_BINS 36u  /**< magcal_cont_push_g tilt compensation: heading sectors of its regression */
 
 #ifndef MAGCAL_CONT_G_SMOOTH_MS
 #define MAGCAL_CONT_G_SMOOTH_MS 500u /**< magcal_cont_push_g: time constant of the gravity smoothing, ms */
@@ -372,6 +376,8 @@ typedef struct {
     magcal_trust_state_t trust;  /**< trust state (heading.h: the states magcal_heading_get_trusted() uses) */
     uint32_t generation;        /**< adoptions so far (0 = none) */
     float radius_rel;           /**< |h| / R - 1 under the installed calibration (NaN if none) */
+    uint8_t levelled;           /**< 1: heading_deg is tilt-compensated (the sample levelled under the
+                                     last magcal_cont_push_g's gravity, "Tilt compensation") */
 } magcal_cont_heading_t;
 
 /** Live progress. */
@@ -542,16 +548,15 @@ typedef struct {
     /* tilt compensation of push_g (cont_life.c; written by push only) */
     float tc_tan2;                 /* tan^2(cfg.tilt_comp_deg), set at init (0 = off) */
     float tc_k;                    /* raw shift per unit of tilt (the vertical field, raw units); valid when tc_ok */
-    float tc_s[3];                 /* its least-squares sums over sample pairs: dq dq, dd dq, dd dd */
-    uint32_t tc_n;                 /* pairs in the sums */
-    uint32_t tc_seen;              /* first pairs kept (up to MAGCAL_CONT_TC_FIRST) */
-    float tc_ref_d[MAGCAL_CONT_TC_BINS]; /* per heading sector (from the store's centre): the reference of its next
-                                            pair, distance from the centre */
-    float tc_ref_q[MAGCAL_CONT_TC_BINS]; /* and q (tilt along the radial direction) */
-    uint32_t tc_have[2];           /* bit per sector: it holds a reference */
-    uint32_t tc_changes;           /* cc->changes the references belong to */
+    float tc_s[3];                 /* its within-sector regression sums: q q, d q, d d (co-variations) */
+    uint32_t tc_n;                 /* samples in the sums (beyond each sector's first) */
+    float tc_mq[MAGCAL_CONT_TC_BINS]; /* per heading sector (from the store's centre): mean q (tilt along the
+                                         radial direction) of the samples it took */
+    float tc_md[MAGCAL_CONT_TC_BINS]; /* their mean distance from the centre */
+    float tc_lq[MAGCAL_CONT_TC_BINS]; /* q of its last sample taken */
+    uint16_t tc_nb[MAGCAL_CONT_TC_BINS]; /* samples it took (0: none since its means were dropped) */
+    uint32_t tc_changes;           /* cc->changes the sectors' means belong to */
     uint8_t tc_gen;                /* and the store's centre generation */
-    float tc_first[3][MAGCAL_CONT_TC_FIRST]; /* the first pairs (dq, dd, dd / dq): their median ratio gates the sums */
     volatile uint8_t tc_ok;        /* 1: tc_k is estimated well enough to level samples */
     volatile uint8_t tc_on;        /* 1: samples are levelled (latched once tc_ok while no calibration is
                                       installed or a relearn is under way: the judge's field model and

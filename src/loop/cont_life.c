@@ -196,18 +196,31 @@ static uint8_t cont_tilt_of(magcal_cont_t *cc, const magcal_vec3_t *g, uint32_t 
 /* ---- Tilt compensation (continuous.h "Tilt compensation"). A pitch p (roll r) moves the body's
  * horizontal field by Z (sin r, sin p) to first order (Z: the body's vertical field), i.e. by
  * Z g_xy / |g| with g the specific force in body axes: in raw units by k t, t = g_xy / g_z and
- * k = Z times the raw scale. k is learnt from pairs of samples at the same heading (the same
- * 10-degree sector around the store's centre) and different tilt: the pair's change of the
- * distance from the centre is k times its change of q = t . (radial direction) (a tilt along the
- * field changes the radius; across it, the heading: the error the store must not take). */
-#define TC_MIN_DQ 0.02f      /* the pair's change of q (about 1.1 deg of tilt along the field) */
-#define TC_MAX_K 3.0f        /* |k| <= 3 R (inclination < 72 deg); a pair beyond it is refused */
-#define TC_MIN_PAIRS 24u     /* pairs in the sums before k is used */
-#define TC_GATE_REL 0.2f     /* a pair's gate around the estimate: relative part */
+ * k = Z times the raw scale. A tilt along the field changes the sample's distance d from the
+ * store's centre by k q, q = t . (radial direction); across it, the heading (the error the store
+ * must not take). k is the within-sector regression of d on q: in each 10-degree heading sector
+ * around the store's centre d = a_sector + k q (the sector's own intercept takes the ellipse's
+ * radius there), so every sample of a hill driven at a steady heading counts, not only pairs:
+ * k = sum of the sectors' co-variations of (q, d) over the sum of their variations of q, kept as
+ * running (Welford) means per sector and sums over all. A sample enters only when its q moved by
+ * TC_STEP_Q since the last one its sector took (parked rows and a slow hill are not counted as
+ * independent samples); the sectors' means are dropped at a declared change (the hard iron
+ * moved) and when the store's centre moves (its distances move with it), the sums stay. */
+#ifndef TC_STEP_Q
+#define TC_STEP_Q 0.005f /* q a sector's next sample must have moved by (0.3 deg of tilt along the field) */
+#endif
+#define TC_MAX_K 3.0f        /* |k| <= 3 R (inclination < 72 deg); a sample beyond it is refused */
+#ifndef TC_MIN_PAIRS
+#define TC_MIN_PAIRS 24u /* samples in the sums (beyond each sector's first) before k is used */
+#endif
+#define TC_GATE_REL 0.2f     /* a sample's gate around the estimate: relative part */
 #define TC_GATE_ABS 0.05f    /* and absolute part, x R (noise, the ellipse within a sector) */
-#define TC_MAX_SE 0.12f      /* k's standard error must be <= this x R (0.7 deg of heading at 6 deg of pitch) */
-#define TC_RING_LO 0.7f      /* a pair's samples on the ring (intake progress.c) */
+#ifndef TC_MAX_SE
+#define TC_MAX_SE 0.12f /* k's standard error must be <= this x R (0.7 deg of heading at 6 deg of pitch) */
+#endif
+#define TC_RING_LO 0.7f      /* a sample on the ring (intake progress.c) */
 #define TC_RING_HI 1.4f
+#define TC_NB_MAX 4096u      /* a sector's count stops here: its means then follow the newest samples */
 
 /* 1 when the smoothed gravity of the last push_g is steady (|g|^2 within cfg.intake.g_band_rel of
  * its level), its roll within cfg.intake.tilt_limit_deg and its pitch within cfg.tilt_comp_deg:
@@ -228,36 +241,42 @@ static int cont_tc_tilt(const magcal_cont_t *cc, float *tx, float *ty)
     return 1;
 }
 
-/* Median of the first pairs' ratios (insertion sort of MAGCAL_CONT_TC_FIRST values, in place). */
-static float cont_tc_median(magcal_cont_t *cc)
+/* Sector b's next sample (q, d) into its means and the sums, when it agrees with the estimate:
+ * |e_d - k e_q| <= TC_GATE_REL |k e_q| + TC_GATE_ABS R around the sector's means (a transient or
+ * a glitch is refused); until the sums hold TC_MIN_PAIRS samples only |e_d| <= TC_MAX_K R |e_q| +
+ * TC_GATE_ABS R (no inclination beyond 72 deg). Then k and its validity. */
+static MAGCAL_NOINLINE void cont_tc_enter(magcal_cont_t *cc, uint32_t b, float q, float d, float r)
 {
-    float *v = cc->tc_first[2];
-    uint32_t i;
-    for (i = 1u; i < MAGCAL_CONT_TC_FIRST; ++i) {
-        const float x = v[i];
-        uint32_t j = i;
-        while (j > 0u && v[j - 1u] > x) { /* at most i steps */
-            v[j] = v[j - 1u];
-            j--;
-        }
-        v[j] = x;
-    }
-    return 0.5f * (v[MAGCAL_CONT_TC_FIRST / 2u - 1u] + v[MAGCAL_CONT_TC_FIRST / 2u]);
-}
-
-/* A pair into the sums when it agrees with the estimate (k: the first pairs' median until the
- * sums hold pairs): |dd - k dq| <= TC_GATE_REL |k dq| + TC_GATE_ABS R (a transient or a glitch on
- * either end of a pair is refused); then k and its validity. */
-static void cont_tc_add(magcal_cont_t *cc, float dq, float dd, float r, float k)
-{
+    const float eq = q - cc->tc_mq[b];
+    const float ed = d - cc->tc_md[b];
+    const uint32_t nb = cc->tc_nb[b];
+    float n;
+    float w;
     float kn;
     float var;
-    if (!(fabsf(dd - k * dq) <= TC_GATE_REL * fabsf(k * dq) + TC_GATE_ABS * r)) {
+    if (nb == 0u) {
+        cc->tc_mq[b] = q; /* the sector's first sample: its means */
+        cc->tc_md[b] = d;
+        cc->tc_lq[b] = q;
+        cc->tc_nb[b] = 1u;
         return;
     }
-    cc->tc_s[0] += dq * dq;
-    cc->tc_s[1] += dd * dq;
-    cc->tc_s[2] += dd * dd;
+    if (cc->tc_n >= TC_MIN_PAIRS) {
+        if (!(fabsf(ed - cc->tc_k * eq) <= TC_GATE_REL * fabsf(cc->tc_k * eq) + TC_GATE_ABS * r)) {
+            return;
+        }
+    } else if (!(fabsf(ed) <= TC_MAX_K * r * fabsf(eq) + TC_GATE_ABS * r)) {
+        return;
+    }
+    n = (float)nb + 1.0f;
+    w = (float)nb / n; /* Welford: the co-variation about the updated means */
+    cc->tc_mq[b] += eq / n;
+    cc->tc_md[b] += ed / n;
+    cc->tc_lq[b] = q;
+    cc->tc_nb[b] = (uint16_t)((nb < TC_NB_MAX) ? nb + 1u : nb);
+    cc->tc_s[0] += w * eq * eq;
+    cc->tc_s[1] += w * eq * ed;
+    cc->tc_s[2] += w * ed * ed;
     cc->tc_n++;
     kn = cc->tc_s[1] / cc->tc_s[0];
     var = (cc->tc_n > 1u) ? (cc->tc_s[2] - kn * cc->tc_s[1]) / ((float)cc->tc_n - 1.0f) : -1.0f;
@@ -268,32 +287,10 @@ static void cont_tc_add(magcal_cont_t *cc, float dq, float dd, float r, float k)
                     : 0u;
 }
 
-/* A pair (its change of q and of the distance): the first MAGCAL_CONT_TC_FIRST are kept until
- * their median ratio is known, then every pair is gated against the estimate. */
-static MAGCAL_NOINLINE void cont_tc_pair(magcal_cont_t *cc, float dq, float dd, float r)
-{
-    if (cc->tc_seen < MAGCAL_CONT_TC_FIRST) {
-        cc->tc_first[0][cc->tc_seen] = dq;
-        cc->tc_first[1][cc->tc_seen] = dd;
-        cc->tc_first[2][cc->tc_seen] = dd / dq;
-        cc->tc_seen++;
-        if (cc->tc_seen == MAGCAL_CONT_TC_FIRST) {
-            const float k0 = cont_tc_median(cc);
-            uint32_t i;
-            for (i = 0u; i < MAGCAL_CONT_TC_FIRST; ++i) {
-                cont_tc_add(cc, cc->tc_first[0][i], cc->tc_first[1][i], r, k0);
-            }
-        }
-        return;
-    }
-    cont_tc_add(cc, dq, dd, r, cc->tc_n > 0u ? cc->tc_k : cont_tc_median(cc));
-}
-
-/* One sample into k's pairs (raw m, tilt tx, ty): paired with the last sample of its heading
- * sector (36 sectors around the store's centre) whose q differs by TC_MIN_DQ or more; every
- * sector's reference is dropped at a declared change (the hard iron moved) and when the store's
- * centre moves (its distances change with it). The store's centre
- * and radius are read (a torn read while step recentres misplaces one pair). */
+/* One sample into k's regression (raw m, tilt tx, ty): its heading sector (36 around the store's
+ * centre) and, when its q moved by TC_STEP_Q since the sector's last sample, the sums. Every
+ * sector's means are dropped at a declared change and when the store's centre moves. The store's
+ * centre and radius are read (a torn read while step recentres misplaces one sample). */
 static MAGCAL_NOINLINE void cont_tc_learn(magcal_cont_t *cc, const magcal_vec3_t *m, float tx, float ty)
 {
     const float r = cc->store.radius;
@@ -303,14 +300,12 @@ static MAGCAL_NOINLINE void cont_tc_learn(magcal_cont_t *cc, const magcal_vec3_t
     float q;
     float a;
     uint32_t b;
-    uint32_t bit;
     if (cc->store.centre_source == (uint8_t)MAGCAL_INTAKE_CENTRE_NONE || !(r > 0.0f)) {
         return;
     }
     if (cc->tc_changes != cc->changes || cc->tc_gen != cc->store.gen) {
         /* a declared change (the hard iron moved) or a new centre (the distances moved) */
-        cc->tc_have[0] = 0u;
-        cc->tc_have[1] = 0u;
+        (void)memset(cc->tc_nb, 0, sizeof cc->tc_nb);
         cc->tc_changes = cc->changes;
         cc->tc_gen = cc->store.gen;
     }
@@ -327,20 +322,9 @@ static MAGCAL_NOINLINE void cont_tc_learn(magcal_cont_t *cc, const magcal_vec3_t
     }
     b = (uint32_t)(a * (float)MAGCAL_CONT_TC_BINS);
     b = (b >= MAGCAL_CONT_TC_BINS) ? MAGCAL_CONT_TC_BINS - 1u : b;
-    bit = (uint32_t)1u << (b % 32u);
-    if ((cc->tc_have[b / 32u] & bit) != 0u) {
-        const float dq = q - cc->tc_ref_q[b];
-        const float dd = d - cc->tc_ref_d[b];
-        if (fabsf(dq) < TC_MIN_DQ) {
-            return; /* too little tilt change yet: the reference stays */
-        }
-        if (fabsf(dd) <= TC_MAX_K * r * fabsf(dq)) {
-            cont_tc_pair(cc, dq, dd, r);
-        }
+    if (cc->tc_nb[b] == 0u || fabsf(q - cc->tc_lq[b]) >= TC_STEP_Q) {
+        cont_tc_enter(cc, b, q, d, r);
     }
-    cc->tc_have[b / 32u] |= bit;
-    cc->tc_ref_d[b] = d;
-    cc->tc_ref_q[b] = q;
 }
 
 /* The levelled sample of m under the last push_g's gravity (into *out), 1 when compensated. */
@@ -353,7 +337,10 @@ static int cont_tc_level(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal
     }
     out->x = m->x - cc->tc_k * tx;
     out->y = m->y - cc->tc_k * ty;
-    out->z = m->z;
+    /* the tilt turns the horizontal field h into z too: z = Z - t . h to first order (h from the
+     * store's centre, raw units); a levelled sample is level in z as well, so the store's level
+     * model of raw z and the judge's z channel see a level sample */
+    out->z = m->z + tx * (m->x - cc->store.centre.x) + ty * (m->y - cc->store.centre.y);
     return 1;
 }
 
@@ -449,19 +436,27 @@ magcal_status_t magcal_cont_heading(const magcal_cont_t *cc, const magcal_vec3_t
     }
     out->generation = cc->generation;
     out->radius_rel = NAN;
+    out->levelled = 0u;
     if (cc->has_cal == 0u) {
         out->heading_deg = out->raw_heading_deg;
         out->trust = MAGCAL_TRUST_UNCALIBRATED;
         return MAGCAL_OK;
     }
-    st = magcal_heading_compute(&cc->cal, raw, declination_deg, &mag_deg, &out->heading_deg);
-    if (st != MAGCAL_OK) {
-        return st;
-    }
     {
-        /* judged as the drain judged it: levelled under the last push_g's gravity */
+        /* levelled under the last push_g's gravity when the compensation is on (the installed
+         * calibration was then fitted on levelled samples): the heading and the judge's sample */
         magcal_vec3_t lm;
-        (void)magcal_cont_judge(cc, cont_tc_level(cc, m, &lm) != 0 ? &lm : m, &j);
+        const int lv = cont_tc_level(cc, m, &lm);
+        if (lv != 0) {
+            raw.x = lm.x;
+            raw.y = lm.y;
+        }
+        out->levelled = (uint8_t)lv;
+        st = magcal_heading_compute(&cc->cal, raw, declination_deg, &mag_deg, &out->heading_deg);
+        if (st != MAGCAL_OK) {
+            return st;
+        }
+        (void)magcal_cont_judge(cc, lv != 0 ? &lm : m, &j);
         /* and by the transient judge with this sample too (the drain is a row or more behind) */
         if (magcal_cont_transient_peek(cc, &j) != 0u) {
             j.mismatch = 1u;
