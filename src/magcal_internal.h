@@ -50,6 +50,24 @@ magcal_status_t magcal_ldlt_factor(float *a, size_t n, float tau, float *min_piv
 /** Solve with a matrix factored by magcal_ldlt_factor; MAGCAL_ERR_ILL_CONDITIONED on a non-finite x. */
 magcal_status_t magcal_ldlt_subst(const float *a, float *b, size_t n);
 
+/**
+ * One observation's rank-1 update of least-squares normal equations in the layout
+ * magcal_ldlt_solve reads: a[e*n + k] += w[e] w[k] for k <= e (the lower triangle of the n*n
+ * row-major matrix only), b[e] += w[e] y. Row by row, the rhs after each row (the order of the
+ * additions, hence the float sums, is that of the loops it replaced).
+ */
+static inline void magcal_normal_add(float *a, float *b, const float *w, size_t n, float y)
+{
+    size_t e;
+    size_t k;
+    for (e = 0u; e < n; ++e) {
+        for (k = 0u; k <= e; ++k) {
+            a[e * n + k] += w[e] * w[k];
+        }
+        b[e] += w[e] * y;
+    }
+}
+
 /** True when v is neither NaN nor +/-Inf (works with -ffast-math off, no libm needed). */
 static inline int magcal_isfinite_f(float v) { return (v == v) && (v - v == 0.0f); }
 

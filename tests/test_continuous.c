@@ -664,68 +664,87 @@ void test_cont_sliced_solve_matches_blocking(void)
 
 /* ------------------------------------------------------------------ coarse stage (hard iron only) */
 
+/* What one drive saw of a coarse stage (stage 1: the hard-iron circle, `last.coarse`; stage 2: the
+ * arc's ellipse, `last.arc`), for the drives of both stages (stage_drive). */
 typedef struct {
-    unsigned coarse_adopted;  /* coarse adoptions */
-    unsigned coarse_refused;  /* solves refused UNOBSERVABLE on an arc (the bound above tolerance) */
-    double worst_margin;      /* min over coarse adoptions of bound - truth RMS, deg */
-    double bound;             /* bound of the first coarse adoption (est_param_err_deg) */
-    double truth;             /* its truth heading RMS over the whole circle */
-    double turn_at_coarse;    /* turning at the first coarse adoption, deg */
-} coarse_stats_t;
+    unsigned adopted;     /* adoptions of the stage */
+    unsigned refused;     /* the stage's solves refused UNOBSERVABLE (the bound above tolerance) */
+    double worst_margin;  /* min over the stage's adoptions of bound - truth RMS, deg */
+    double bound;         /* bound of the first adoption (report est_param_err_deg) */
+    double truth;         /* its truth heading RMS over the whole circle */
+    double turn;          /* turning at the first adoption, deg */
+} stage_stats_t;
 
-static void coarse_init(float cov_deg, float tol_deg)
+/* The calibrator with stage 1 (the coarse circle) or 2 (the arc, no model term: these data have
+ * no model error) on at coverage `cov_deg` with tolerance `tol_deg`. */
+static void stage_init(uint8_t stage, float cov_deg, float tol_deg)
 {
     magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
-    cfg.coarse_coverage_deg = cov_deg;
-    cfg.coarse_max_err_deg = tol_deg;
+    if (stage == 2u) {
+        cfg.arc_coverage_deg = cov_deg;
+        cfg.arc_max_err_deg = tol_deg;
+        cfg.arc_model_deg = 0.0f;
+    } else {
+        cfg.coarse_coverage_deg = cov_deg;
+        cfg.coarse_max_err_deg = tol_deg;
+    }
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
 }
 
 /* Turn `deg` at 15 deg/s from the current heading, then stay 40 s at the end heading (the solve
- * under way ends); every coarse adoption's bound is checked against the truth. */
-static void coarse_drive(drive_t *dr, double deg, coarse_stats_t *cs)
+ * under way ends); every adoption the stage marks (stage 1: last.coarse, cal_coarse 1; stage 2:
+ * last.arc, cal_coarse 2, on less than 270 deg) has its bound checked against the truth over the
+ * WHOLE circle and against the stage's tolerance. */
+static void stage_drive(uint8_t stage, drive_t *dr, double deg, stage_stats_t *st)
 {
     const size_t rows = (size_t)(fabs(deg) / 15.0 * 50.0);
     size_t i;
     for (i = 0u; i < rows + 2000u; ++i) {
         magcal_cont_outcome_t oc;
+        uint8_t marked;
         if (i < rows) {
             dr->psi = fmod(dr->psi + deg / (double)rows + 360.0, 360.0);
             dr->turn_deg += fabs(deg / (double)rows);
         }
         oc = drive_row(dr, 0.0f, 0.0f);
-        if (oc == MAGCAL_CONT_ADOPTED && g_cc.last.coarse != 0u) {
+        marked = stage == 2u ? g_cc.last.arc : g_cc.last.coarse;
+        if (oc == MAGCAL_CONT_ADOPTED && marked != 0u) {
             const double tr = truth_rms(&g_cc.cal, dr->d);
             const double bd = (double)g_cc.last.est_param_err_deg;
             magcal_vec3_t m = {0.0f, 0.0f, 40.0f};
             magcal_cont_heading_t hd;
             const magcal_vec2_t p = test_distorted_sample(dr->d, dr->psi, 0.0, &dr->rng);
-            TEST_ASSERT_EQUAL_UINT8(1u, g_cc.cal_coarse);
+            TEST_ASSERT_EQUAL_UINT8(stage, g_cc.cal_coarse);
+            if (stage == 2u) {
+                TEST_ASSERT_TRUE(g_cc.last.coverage_deg < 270.0f);
+            }
             m.x = p.x;
             m.y = p.y;
             TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_heading(&g_cc, &m, 0.0f, &hd));
             TEST_ASSERT_TRUE(hd.trust == MAGCAL_TRUST_COARSE || hd.trust == MAGCAL_TRUST_DISTURBED);
-            if (cs->coarse_adopted == 0u) {
-                cs->bound = bd;
-                cs->truth = tr;
-                cs->turn_at_coarse = dr->turn_deg;
-                cs->worst_margin = bd - tr;
+            if (st->adopted == 0u) {
+                st->bound = bd;
+                st->truth = tr;
+                st->turn = dr->turn_deg;
+                st->worst_margin = bd - tr;
             }
-            cs->worst_margin = fmin(cs->worst_margin, bd - tr);
-            cs->coarse_adopted++;
-            /* the promise: the stated bound covers the truth over the WHOLE circle */
+            st->worst_margin = fmin(st->worst_margin, bd - tr);
+            st->adopted++;
             if (!(tr <= bd)) {
-                printf("coarse: bound %.2f deg < truth %.2f deg (coverage %.0f, used %u, noise %.2f deg, design %.1f)\n",
-                       bd, tr, (double)g_cc.last.coverage_deg, (unsigned)g_cc.last.used,
-                       (double)g_cc.last.est_noise_deg, (double)g_cc.last.design_factor);
+                printf("%s: bound %.2f deg < truth %.2f deg (coverage %.0f, used %u, noise %.3f deg, design %.1f)\n",
+                       stage == 2u ? "arc" : "coarse", bd, tr, (double)g_cc.last.coverage_deg,
+                       (unsigned)g_cc.last.used, (double)g_cc.last.est_noise_deg, (double)g_cc.last.design_factor);
             }
-            TEST_ASSERT_TRUE(tr <= bd);
-            TEST_ASSERT_TRUE(bd <= (double)g_cc.cfg.coarse_max_err_deg);
-        } else if ((oc == MAGCAL_CONT_FAILED || oc == MAGCAL_CONT_REFUSED) && g_cc.last.coarse != 0u &&
+            TEST_ASSERT_TRUE(tr <= bd); /* the promise: the bound covers the whole circle */
+            TEST_ASSERT_TRUE(bd <= (double)(stage == 2u ? g_cc.cfg.arc_max_err_deg : g_cc.cfg.coarse_max_err_deg));
+        } else if ((oc == MAGCAL_CONT_FAILED || oc == MAGCAL_CONT_REFUSED) && marked != 0u &&
                    g_cc.last.status == MAGCAL_ERR_UNOBSERVABLE) {
-            cs->coarse_refused++;
+            st->refused++;
+            if (stage == 2u) {
+                TEST_ASSERT_TRUE(g_cc.last.est_param_err_deg > g_cc.cfg.arc_max_err_deg);
+            }
         } else {
-            /* nothing about the coarse stage */
+            /* nothing about the stage */
         }
     }
 }
@@ -746,19 +765,19 @@ void test_cont_coarse_bound_covers_truth_on_arcs(void)
         for (a = 0u; a < 3u; ++a) {
             for (seed = 1u; seed <= 8u; ++seed) {
                 drive_t dr;
-                coarse_stats_t cs;
+                stage_stats_t cs;
                 memset(&cs, 0, sizeof cs);
-                coarse_init(150.0f, 12.0f);
+                stage_init(1u, 150.0f, 12.0f);
                 drive_init(&dr, &ds[k], seed);
                 dr.psi = 47.0 * (double)seed;
-                coarse_drive(&dr, arcs[a], &cs);
+                stage_drive(1u, &dr, arcs[a], &cs);
                 printf("coarse: soft iron %zu arc %3.0f seed %u: %u coarse adoptions, %u refused; first after %.0f deg: "
                        "bound %.2f deg, truth %.2f deg (worst margin %.2f)\n",
-                       k, arcs[a], (unsigned)seed, cs.coarse_adopted, cs.coarse_refused, cs.turn_at_coarse, cs.bound,
+                       k, arcs[a], (unsigned)seed, cs.adopted, cs.refused, cs.turn, cs.bound,
                        cs.truth, cs.worst_margin);
-                adopted[k] += cs.coarse_adopted != 0u ? 1u : 0u;
+                adopted[k] += cs.adopted != 0u ? 1u : 0u;
                 /* a coarse calibration is never replaced by another circle */
-                TEST_ASSERT_TRUE(cs.coarse_adopted <= 1u);
+                TEST_ASSERT_TRUE(cs.adopted <= 1u);
             }
         }
     }
@@ -776,23 +795,23 @@ void test_cont_coarse_refused_when_soft_iron_exceeds_tolerance(void)
     unsigned refused = 0u;
     for (seed = 1u; seed <= 3u; ++seed) {
         drive_t dr;
-        coarse_stats_t cs;
+        stage_stats_t cs;
         magcal_cont_heading_t hd;
         const magcal_cal2d_t id = MAGCAL_CAL2D_IDENTITY;
         magcal_vec3_t m = {10.0f, 20.0f, 40.0f};
         memset(&cs, 0, sizeof cs);
-        coarse_init(150.0f, 4.0f);
+        stage_init(1u, 150.0f, 4.0f);
         drive_init(&dr, &strong, seed);
         dr.psi = 47.0 * (double)seed;
-        coarse_drive(&dr, 220.0, &cs);
+        stage_drive(1u, &dr, 220.0, &cs);
         printf("coarse, strong soft iron, seed %u: %u coarse adoptions, %u refused (last estimate %.2f deg)\n",
-               (unsigned)seed, cs.coarse_adopted, cs.coarse_refused, (double)g_cc.last.est_param_err_deg);
-        TEST_ASSERT_EQUAL_UINT(0u, cs.coarse_adopted);
+               (unsigned)seed, cs.adopted, cs.refused, (double)g_cc.last.est_param_err_deg);
+        TEST_ASSERT_EQUAL_UINT(0u, cs.adopted);
         TEST_ASSERT_EQUAL_UINT32(0u, g_cc.generation);
         TEST_ASSERT_EQUAL_MEMORY(&id, &g_cc.cal, sizeof id); /* untouched */
         TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_heading(&g_cc, &m, 0.0f, &hd));
         TEST_ASSERT_EQUAL_INT(MAGCAL_TRUST_UNCALIBRATED, hd.trust);
-        refused += cs.coarse_refused;
+        refused += cs.refused;
     }
     TEST_ASSERT_TRUE(refused >= 3u); /* the stage ran and said why */
 }
@@ -802,17 +821,17 @@ void test_cont_coarse_upgraded_by_full_ellipse(void)
     /* a coarse calibration on a 200-deg arc, then the rest of the circle: the full ellipse
      * replaces it (never worse on the truth: drive_row checks every adoption), headings OK */
     drive_t dr;
-    coarse_stats_t cs;
+    stage_stats_t cs;
     magcal_cont_heading_t hd;
     magcal_vec3_t m = {0.0f, 0.0f, 40.0f};
     magcal_vec2_t p;
     memset(&cs, 0, sizeof cs);
-    coarse_init(150.0f, 12.0f);
+    stage_init(1u, 150.0f, 12.0f);
     drive_init(&dr, &k_d, 5u);
-    coarse_drive(&dr, 200.0, &cs);
-    TEST_ASSERT_EQUAL_UINT(1u, cs.coarse_adopted);
-    TEST_ASSERT_TRUE(cs.turn_at_coarse <= 200.0);
-    coarse_drive(&dr, 360.0, &cs);
+    stage_drive(1u, &dr, 200.0, &cs);
+    TEST_ASSERT_EQUAL_UINT(1u, cs.adopted);
+    TEST_ASSERT_TRUE(cs.turn <= 200.0);
+    stage_drive(1u, &dr, 360.0, &cs);
     printf("coarse then full: coarse bound %.2f truth %.2f deg; full after %.0f deg of turning, truth %.2f deg, "
            "estimate %.2f deg, %u adoptions\n", cs.bound, cs.truth, dr.turn_deg, truth_rms(&g_cc.cal, &k_d),
            (double)g_cc.adopted_err, dr.adopted);
@@ -1100,73 +1119,7 @@ void test_cont_store_of_two_installations_adopts_current(void)
 }
 
 /* ------------------------------------------------------------------ arc stage (an ellipse below 270 deg) */
-
-typedef struct {
-    unsigned adopted;     /* arc adoptions */
-    unsigned refused;     /* arc solves refused UNOBSERVABLE (the bound above tolerance) */
-    double worst_margin;  /* min over arc adoptions of bound - truth RMS, deg */
-    double bound;         /* bound of the first arc adoption (report est_param_err_deg) */
-    double truth;         /* its truth heading RMS over the whole circle */
-    double turn;          /* turning at the first arc adoption, deg */
-} arc_stats_t;
-
-static void arc_init(float cov_deg, float tol_deg, float model_deg)
-{
-    magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
-    cfg.arc_coverage_deg = cov_deg;
-    cfg.arc_max_err_deg = tol_deg;
-    cfg.arc_model_deg = model_deg;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
-}
-
-/* Turn `deg` at 15 deg/s, then stay 40 s at the end heading (the solve under way ends); every arc
- * adoption's bound is checked against the truth over the WHOLE circle. */
-static void arc_drive(drive_t *dr, double deg, arc_stats_t *as)
-{
-    const size_t rows = (size_t)(fabs(deg) / 15.0 * 50.0);
-    size_t i;
-    for (i = 0u; i < rows + 2000u; ++i) {
-        magcal_cont_outcome_t oc;
-        if (i < rows) {
-            dr->psi = fmod(dr->psi + deg / (double)rows + 360.0, 360.0);
-            dr->turn_deg += fabs(deg / (double)rows);
-        }
-        oc = drive_row(dr, 0.0f, 0.0f);
-        if (oc == MAGCAL_CONT_ADOPTED && g_cc.last.arc != 0u) {
-            const double tr = truth_rms(&g_cc.cal, dr->d);
-            const double bd = (double)g_cc.last.est_param_err_deg;
-            magcal_vec3_t m = {0.0f, 0.0f, 40.0f};
-            magcal_cont_heading_t hd;
-            const magcal_vec2_t p = test_distorted_sample(dr->d, dr->psi, 0.0, &dr->rng);
-            TEST_ASSERT_EQUAL_UINT8(2u, g_cc.cal_coarse);
-            TEST_ASSERT_TRUE(g_cc.last.coverage_deg < 270.0f);
-            m.x = p.x;
-            m.y = p.y;
-            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_heading(&g_cc, &m, 0.0f, &hd));
-            TEST_ASSERT_TRUE(hd.trust == MAGCAL_TRUST_COARSE || hd.trust == MAGCAL_TRUST_DISTURBED);
-            if (as->adopted == 0u) {
-                as->bound = bd;
-                as->truth = tr;
-                as->turn = dr->turn_deg;
-                as->worst_margin = bd - tr;
-            }
-            as->worst_margin = fmin(as->worst_margin, bd - tr);
-            as->adopted++;
-            if (!(tr <= bd)) {
-                printf("arc: bound %.2f deg < truth %.2f deg (coverage %.0f, used %u, noise %.3f deg)\n", bd, tr,
-                       (double)g_cc.last.coverage_deg, (unsigned)g_cc.last.used, (double)g_cc.last.est_noise_deg);
-            }
-            TEST_ASSERT_TRUE(tr <= bd); /* the promise: the bound covers the whole circle */
-            TEST_ASSERT_TRUE(bd <= (double)g_cc.cfg.arc_max_err_deg);
-        } else if ((oc == MAGCAL_CONT_FAILED || oc == MAGCAL_CONT_REFUSED) && g_cc.last.arc != 0u &&
-                   g_cc.last.status == MAGCAL_ERR_UNOBSERVABLE) {
-            as->refused++;
-            TEST_ASSERT_TRUE(g_cc.last.est_param_err_deg > g_cc.cfg.arc_max_err_deg);
-        } else {
-            /* nothing about the arc stage */
-        }
-    }
-}
+/* (the drive and its stats: stage_drive, stage 2, next to the coarse stage's above) */
 
 /* Known hard iron (12, -7), soft iron none / mild / strong, arcs of 200 / 230 / 260 deg x 8 seeds,
  * noise 0.15 (0.5 % of R): no model error in these data, so the model term is 0 and the
@@ -1186,12 +1139,12 @@ void test_cont_arc_bound_covers_truth_on_arcs(void)
         for (a = 0u; a < 3u; ++a) {
             for (seed = 1u; seed <= 8u; ++seed) {
                 drive_t dr;
-                arc_stats_t as;
+                stage_stats_t as;
                 memset(&as, 0, sizeof as);
-                arc_init(180.0f, 4.0f, 0.0f);
+                stage_init(2u, 180.0f, 4.0f);
                 drive_init(&dr, &ds[k], seed);
                 dr.psi = 47.0 * (double)seed;
-                arc_drive(&dr, arcs[a], &as);
+                stage_drive(2u, &dr, arcs[a], &as);
                 printf("arc: soft iron %zu arc %3.0f seed %u: %u arc adoptions, %u refused; first after %.0f deg: "
                        "bound %.3f deg, truth %.3f deg\n",
                        k, arcs[a], (unsigned)seed, as.adopted, as.refused, as.turn, as.bound, as.truth);
@@ -1216,15 +1169,15 @@ void test_cont_arc_refused_when_bound_too_wide(void)
     unsigned refused = 0u;
     for (seed = 1u; seed <= 3u; ++seed) {
         drive_t dr;
-        arc_stats_t as;
+        stage_stats_t as;
         magcal_cont_heading_t hd;
         const magcal_cal2d_t id = MAGCAL_CAL2D_IDENTITY;
         magcal_vec3_t m = {10.0f, 20.0f, 40.0f};
         memset(&as, 0, sizeof as);
-        arc_init(180.0f, 0.05f, 0.0f);
+        stage_init(2u, 180.0f, 0.05f);
         drive_init(&dr, &k_d, seed);
         dr.psi = 47.0 * (double)seed;
-        arc_drive(&dr, 230.0, &as);
+        stage_drive(2u, &dr, 230.0, &as);
         printf("arc, tolerance 0.05 deg, seed %u: %u arc adoptions, %u refused (last bound %.3f deg)\n",
                (unsigned)seed, as.adopted, as.refused, (double)g_cc.last.est_param_err_deg);
         TEST_ASSERT_EQUAL_UINT(0u, as.adopted);
@@ -1242,16 +1195,16 @@ void test_cont_arc_refused_when_bound_too_wide(void)
 void test_cont_arc_upgraded_by_full_ellipse(void)
 {
     drive_t dr;
-    arc_stats_t as;
+    stage_stats_t as;
     magcal_cont_heading_t hd;
     magcal_vec3_t m = {0.0f, 0.0f, 40.0f};
     magcal_vec2_t p;
     memset(&as, 0, sizeof as);
-    arc_init(180.0f, 4.0f, 0.0f);
+    stage_init(2u, 180.0f, 4.0f);
     drive_init(&dr, &k_d, 5u);
-    arc_drive(&dr, 230.0, &as);
+    stage_drive(2u, &dr, 230.0, &as);
     TEST_ASSERT_EQUAL_UINT(1u, as.adopted);
-    arc_drive(&dr, 360.0, &as);
+    stage_drive(2u, &dr, 360.0, &as);
     printf("arc then full: arc bound %.3f truth %.3f deg after %.0f deg; full after %.0f deg, truth %.3f deg, "
            "%u adoptions\n", as.bound, as.truth, as.turn, dr.turn_deg, truth_rms(&g_cc.cal, &k_d), dr.adopted);
     TEST_ASSERT_EQUAL_UINT8(0u, g_cc.cal_coarse);

@@ -88,14 +88,7 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_co_gate(magcal_calibrator_t *cal, cal_
             const float v = (cal->buf[i].y - q->my) / q->s;
             const float y = -(u * u + v * v);
             const float w[3] = {u, v, 1.0f};
-            size_t e;
-            size_t c;
-            for (e = 0u; e < 3u; ++e) {
-                for (c = 0u; c <= e; ++c) {
-                    q->a[e * 3u + c] += w[e] * w[c];
-                }
-                q->b[e] += w[e] * y;
-            }
+            magcal_normal_add(q->a, q->b, w, 3u, y);
             in = 1u;
             r->m++;
         }

@@ -106,14 +106,7 @@ static void off_circle_add(magcal_cont_t *cc, float ux, float uy)
 {
     const float w[3] = {ux, uy, 1.0f};
     const float y = -(ux * ux + uy * uy);
-    uint32_t e;
-    uint32_t k;
-    for (e = 0u; e < 3u; ++e) {
-        for (k = 0u; k <= e; ++k) {
-            cc->off_a[e * 3u + k] += w[e] * w[k];
-        }
-        cc->off_b[e] += w[e] * y;
-    }
+    magcal_normal_add(cc->off_a, cc->off_b, w, 3u, y);
     cc->off_n++;
 }
 
@@ -149,14 +142,7 @@ static void off_model_add(magcal_cont_t *cc, float ux, float uy, float d, float 
     const float cs = (ux - cc->off_c[0]) / d;
     const float sn = (uy - cc->off_c[1]) / d;
     const float w[5] = {cs, sn, 1.0f, cs * cs - sn * sn, 2.0f * cs * sn};
-    uint32_t r;
-    uint32_t k;
-    for (r = 0u; r < 5u; ++r) {
-        for (k = 0u; k <= r; ++k) {
-            cc->off_a[r * 5u + k] += w[r] * w[k];
-        }
-        cc->off_b[r] += w[r] * e;
-    }
+    magcal_normal_add(cc->off_a, cc->off_b, w, 5u, e);
     cc->off_ss += e * e;
     cc->off_n++;
 }

@@ -410,20 +410,13 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_moments(magcal_calibrator_t *cal, cal_
             const float v = (cal->buf[i].y - q->my) / q->s;
             const float y = -(u * u + v * v);
             float w[3];
-            size_t e;
-            size_t c;
             q->sxx += u * u;
             q->syy += v * v;
             q->sxy += u * v;
             w[0] = u;
             w[1] = v;
             w[2] = 1.0f;
-            for (e = 0u; e < 3u; ++e) {
-                for (c = 0u; c <= e; ++c) {
-                    q->a[e * 3u + c] += w[e] * w[c];
-                }
-                q->b[e] += w[e] * y;
-            }
+            magcal_normal_add(q->a, q->b, w, 3u, y);
         }
         r->i++;
         if (magcal_cal_spend(&r->bud, CAL_W_MOMENT) != 0) {
