@@ -250,6 +250,8 @@ static MAGCAL_NOINLINE void cont_tc_enter(magcal_cont_t *cc, uint32_t b, float q
     const float eq = q - cc->tc_mq[b];
     const float ed = d - cc->tc_md[b];
     const uint32_t nb = cc->tc_nb[b];
+    float res;
+    float band;
     float n;
     float w;
     float kn;
@@ -261,11 +263,13 @@ static MAGCAL_NOINLINE void cont_tc_enter(magcal_cont_t *cc, uint32_t b, float q
         cc->tc_nb[b] = 1u;
         return;
     }
+    res = ed; /* within |k| <= 3 R until the sums hold TC_MIN_PAIRS, then around k */
+    band = TC_MAX_K * r * fabsf(eq);
     if (cc->tc_n >= TC_MIN_PAIRS) {
-        if (!(fabsf(ed - cc->tc_k * eq) <= TC_GATE_REL * fabsf(cc->tc_k * eq) + TC_GATE_ABS * r)) {
-            return;
-        }
-    } else if (!(fabsf(ed) <= TC_MAX_K * r * fabsf(eq) + TC_GATE_ABS * r)) {
+        res = ed - cc->tc_k * eq;
+        band = TC_GATE_REL * fabsf(cc->tc_k * eq);
+    }
+    if (!(fabsf(res) <= band + TC_GATE_ABS * r)) {
         return;
     }
     n = (float)nb + 1.0f;
@@ -273,7 +277,9 @@ static MAGCAL_NOINLINE void cont_tc_enter(magcal_cont_t *cc, uint32_t b, float q
     cc->tc_mq[b] += eq / n;
     cc->tc_md[b] += ed / n;
     cc->tc_lq[b] = q;
-    cc->tc_nb[b] = (uint16_t)((nb < TC_NB_MAX) ? nb + 1u : nb);
+    if (nb < TC_NB_MAX) {
+        cc->tc_nb[b]++;
+    }
     cc->tc_s[0] += w * eq * eq;
     cc->tc_s[1] += w * eq * ed;
     cc->tc_s[2] += w * ed * ed;
