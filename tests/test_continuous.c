@@ -1030,17 +1030,56 @@ static void test_cont_push_g_tilt_compensation_levels_the_store(void)
     ad_g = tc_drive(1, 60u, 30u, &pre_g);
     TEST_ASSERT_TRUE(ad_g >= 1u);
     rms_g = tc_level_rms(&g_cc.cal);
-    printf("tilt compensation: k %.2f (truth %.2f) from %u pairs, ok %u on %u, %u rows levelled; level heading "
+    printf("tilt compensation: k %.2f (truth %.2f, rho %.3f) from %u samples, ok %u on %u, %u rows levelled; level heading "
            "RMS %.2f deg with gravity (%u adoptions, %u on the road), %.2f without (%u, %u)\n",
-           (double)g_cc.tc_k, k_true, (unsigned)g_cc.tc_n, (unsigned)g_cc.tc_ok, (unsigned)g_cc.tc_on,
+           (double)g_cc.tc_k, k_true, (double)g_cc.tc_rho, (unsigned)g_cc.tc_n, (unsigned)g_cc.tc_ok, (unsigned)g_cc.tc_on,
            (unsigned)g_cc.tc_levelled, rms_g, ad_g, pre_g, rms_n, ad_n, pre_n);
     TEST_ASSERT_EQUAL_UINT(0u, pre_g);
     TEST_ASSERT_EQUAL_UINT8(1u, g_cc.tc_ok);
     TEST_ASSERT_EQUAL_UINT8(1u, g_cc.tc_on);
     TEST_ASSERT_TRUE(fabs((double)g_cc.tc_k - k_true) <= 0.15 * fabs(k_true));
+    TEST_ASSERT_TRUE(g_cc.tc_rho >= 0.8f && g_cc.tc_rho <= 1.25f); /* raw z confirms the tilt */
     TEST_ASSERT_TRUE(g_cc.tc_levelled > 0u);
     TEST_ASSERT_TRUE(rms_g <= 1.0);
     TEST_ASSERT_TRUE(rms_g <= 0.5 * rms_n);
+}
+
+/* A vehicle's own acceleration reads as tilt in the accelerometer, not in the magnetometer: the
+ * winding road of tc_drive with the magnetometer level and only the gravity pitched (+-5 deg per
+ * arc, a braking / accelerating car) must not teach k nor level anything: raw z does not confirm
+ * the tilt (the share rho = -(z q) / (R q q) stays near 0, below its 0.5 floor). The same road
+ * with the tilt real gives rho within 0.8..1.25 and k (test above). */
+static void test_cont_push_g_acceleration_is_not_tilt(void)
+{
+    magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
+    uint32_t rng = 77u;
+    uint32_t grng = 78u;
+    uint32_t brng = 5u;
+    uint32_t t = 0u;
+    unsigned c, i, k;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    for (c = 0u; c < 60u; ++c) {
+        const double bc = 10.0 * test_rand_uniform(&brng) - 5.0;
+        const unsigned rows = TC_ROWS_PER_CIRCLE / 3u;
+        for (i = 0u; i < rows; ++i, t += RATE_MS) {
+            const double s = (double)i / (double)rows;
+            const double psi = (c % 2u) == 0u ? 100.0 * s - 50.0 : 50.0 - 100.0 * s;
+            magcal_vec3_t m, g, m_unused;
+            tc_sample(psi, 0.0, 0.1, &rng, &m, &g);      /* the field of a level vehicle */
+            tc_sample(psi, bc, 0.0, &grng, &m_unused, &g); /* the gravity of a pitched one */
+            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_push_g(&g_cc, &m, &g, t));
+            for (k = 0u; k < STEPS_PER_ROW; ++k) {
+                (void)magcal_cont_step(&g_cc);
+            }
+        }
+    }
+    printf("acceleration read as tilt: %u samples in the regression, k %.2f, rho %.3f, ok %u, %u levelled\n",
+           (unsigned)g_cc.tc_n, (double)g_cc.tc_k, (double)g_cc.tc_rho, (unsigned)g_cc.tc_ok,
+           (unsigned)g_cc.tc_levelled);
+    TEST_ASSERT_TRUE(g_cc.tc_n >= 24u); /* the regression had samples: the refusal is rho's */
+    TEST_ASSERT_TRUE(fabs((double)g_cc.tc_rho) < 0.2);
+    TEST_ASSERT_EQUAL_UINT8(0u, g_cc.tc_ok);
+    TEST_ASSERT_EQUAL_UINT32(0u, g_cc.tc_levelled);
 }
 
 /* The heading is tilt-compensated as well (continuous.h "Tilt compensation"): after the hilly
@@ -1488,6 +1527,7 @@ int main(void)
     RUN_TEST(test_cont_push_g_classifies_level_tilted_and_braking);
     RUN_TEST(test_cont_push_g_tilt_compensation_levels_the_store);
     RUN_TEST(test_cont_heading_levelled_on_hills);
+    RUN_TEST(test_cont_push_g_acceleration_is_not_tilt);
     RUN_TEST(test_cont_arc_bound_covers_truth_on_arcs);
     RUN_TEST(test_cont_arc_refused_when_bound_too_wide);
     RUN_TEST(test_cont_arc_upgraded_by_full_ellipse);

@@ -158,10 +158,13 @@
  * changes the radius; across it, the heading: the error the store must not take); every sample
  * whose q moved by 0.3 deg of tilt since its sector's last one counts (running means per sector,
  * sums over all, each sample gated around the estimate; the sectors' means are dropped at a change
- * or a new centre). Once k is known (24 samples, standard error <= 0.12 R) AND
+ * or a new centre). Raw z must confirm the tilt: a real tilt along the field moves it by -R q, a
+ * vehicle's acceleration read as tilt (braking, a hill start) moves nothing, so the slope of z on
+ * q over -R (tc_rho: 1 +- the z axis's scale on level-road data, about 0 when accelerations make
+ * the tilt) must be within 0.5..2. Once k is known (24 samples, standard error <= 0.12 R, rho) AND
  * no field model judges the stream (no calibration installed, or a relearn after a change:
  * switched on under an installed calibration the model fitted on unlevelled samples would read
- * the levelled stream as a mismatch), every sample with a steady |g|, its roll within
+ * the levelled stream as a mismatch), every sample (while k stays known) with a steady |g|, its roll within
  * cfg.intake.tilt_limit_deg (a turn's centripetal acceleration reads as roll: not levelled) and
  * its pitch within cfg.tilt_comp_deg is queued levelled (m_xy - k t, and m_z + t . (m_xy - centre):
  * the tilt turns the horizontal field into z too, so the store's level model of z and the judge's
@@ -548,11 +551,13 @@ typedef struct {
     /* tilt compensation of push_g (cont_life.c; written by push only) */
     float tc_tan2;                 /* tan^2(cfg.tilt_comp_deg), set at init (0 = off) */
     float tc_k;                    /* raw shift per unit of tilt (the vertical field, raw units); valid when tc_ok */
-    float tc_s[3];                 /* its within-sector regression sums: q q, d q, d d (co-variations) */
+    float tc_s[4];                 /* its within-sector regression sums: q q, d q, d d, z q (co-variations) */
+    float tc_rho;                  /* -(z q) / (R q q): the share of q that raw z confirms as tilt */
     uint32_t tc_n;                 /* samples in the sums (beyond each sector's first) */
     float tc_mq[MAGCAL_CONT_TC_BINS]; /* per heading sector (from the store's centre): mean q (tilt along the
                                          radial direction) of the samples it took */
     float tc_md[MAGCAL_CONT_TC_BINS]; /* their mean distance from the centre */
+    float tc_mz[MAGCAL_CONT_TC_BINS]; /* their mean raw z */
     float tc_lq[MAGCAL_CONT_TC_BINS]; /* q of its last sample taken */
     uint16_t tc_nb[MAGCAL_CONT_TC_BINS]; /* samples it took (0: none since its means were dropped) */
     uint32_t tc_changes;           /* cc->changes the sectors' means belong to */

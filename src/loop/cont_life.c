@@ -220,6 +220,8 @@ static uint8_t cont_tilt_of(magcal_cont_t *cc, const magcal_vec3_t *g, uint32_t 
 #endif
 #define TC_RING_LO 0.7f      /* a sample on the ring (intake progress.c) */
 #define TC_RING_HI 1.4f
+#define TC_RHO_LO 0.5f      /* the share of q that raw z confirms as tilt: at least this (vehicle */
+#define TC_RHO_HI 2.0f      /* accelerations read as tilt lower it) and at most this (z's scale) */
 #define TC_NB_MAX 4096u      /* a sector's count stops here: its means then follow the newest samples */
 
 /* 1 when the smoothed gravity of the last push_g is steady (|g|^2 within cfg.intake.g_band_rel of
@@ -245,10 +247,11 @@ static int cont_tc_tilt(const magcal_cont_t *cc, float *tx, float *ty)
  * |e_d - k e_q| <= TC_GATE_REL |k e_q| + TC_GATE_ABS R around the sector's means (a transient or
  * a glitch is refused); until the sums hold TC_MIN_PAIRS samples only |e_d| <= TC_MAX_K R |e_q| +
  * TC_GATE_ABS R (no inclination beyond 72 deg). Then k and its validity. */
-static MAGCAL_NOINLINE void cont_tc_enter(magcal_cont_t *cc, uint32_t b, float q, float d, float r)
+static MAGCAL_NOINLINE void cont_tc_enter(magcal_cont_t *cc, uint32_t b, float q, float d, float z, float r)
 {
     const float eq = q - cc->tc_mq[b];
     const float ed = d - cc->tc_md[b];
+    const float ez = z - cc->tc_mz[b];
     const uint32_t nb = cc->tc_nb[b];
     float res;
     float band;
@@ -256,9 +259,11 @@ static MAGCAL_NOINLINE void cont_tc_enter(magcal_cont_t *cc, uint32_t b, float q
     float w;
     float kn;
     float var;
+    float rho;
     if (nb == 0u) {
         cc->tc_mq[b] = q; /* the sector's first sample: its means */
         cc->tc_md[b] = d;
+        cc->tc_mz[b] = z;
         cc->tc_lq[b] = q;
         cc->tc_nb[b] = 1u;
         return;
@@ -276,6 +281,7 @@ static MAGCAL_NOINLINE void cont_tc_enter(magcal_cont_t *cc, uint32_t b, float q
     w = (float)nb / n; /* Welford: the co-variation about the updated means */
     cc->tc_mq[b] += eq / n;
     cc->tc_md[b] += ed / n;
+    cc->tc_mz[b] += ez / n;
     cc->tc_lq[b] = q;
     if (nb < TC_NB_MAX) {
         cc->tc_nb[b]++;
@@ -283,12 +289,18 @@ static MAGCAL_NOINLINE void cont_tc_enter(magcal_cont_t *cc, uint32_t b, float q
     cc->tc_s[0] += w * eq * eq;
     cc->tc_s[1] += w * eq * ed;
     cc->tc_s[2] += w * ed * ed;
+    cc->tc_s[3] += w * eq * ez;
     cc->tc_n++;
     kn = cc->tc_s[1] / cc->tc_s[0];
     var = (cc->tc_n > 1u) ? (cc->tc_s[2] - kn * cc->tc_s[1]) / ((float)cc->tc_n - 1.0f) : -1.0f;
     cc->tc_k = kn;
+    /* the tilt the accelerometer reports is the magnetometer's too: a real tilt along the field
+     * moves raw z by -R q (z = Z - t . h), an acceleration read as tilt moves nothing; the slope
+     * of z on q over -R is the share of q's variation that is real tilt (1 +- the z axis's scale) */
+    rho = -cc->tc_s[3] / (r * cc->tc_s[0]);
+    cc->tc_rho = rho;
     cc->tc_ok = (cc->tc_n >= TC_MIN_PAIRS && var >= 0.0f && var <= TC_MAX_SE * TC_MAX_SE * r * r * cc->tc_s[0] &&
-                 fabsf(kn) <= TC_MAX_K * r)
+                 fabsf(kn) <= TC_MAX_K * r && rho >= TC_RHO_LO && rho <= TC_RHO_HI)
                     ? 1u
                     : 0u;
 }
@@ -329,7 +341,7 @@ static MAGCAL_NOINLINE void cont_tc_learn(magcal_cont_t *cc, const magcal_vec3_t
     b = (uint32_t)(a * (float)MAGCAL_CONT_TC_BINS);
     b = (b >= MAGCAL_CONT_TC_BINS) ? MAGCAL_CONT_TC_BINS - 1u : b;
     if (cc->tc_nb[b] == 0u || fabsf(q - cc->tc_lq[b]) >= TC_STEP_Q) {
-        cont_tc_enter(cc, b, q, d, r);
+        cont_tc_enter(cc, b, q, d, m->z, r);
     }
 }
 
@@ -338,7 +350,7 @@ static int cont_tc_level(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal
 {
     float tx = 0.0f;
     float ty = 0.0f;
-    if (cc->tc_on == 0u || cont_tc_tilt(cc, &tx, &ty) == 0) {
+    if (cc->tc_on == 0u || cc->tc_ok == 0u || cont_tc_tilt(cc, &tx, &ty) == 0) {
         return 0;
     }
     out->x = m->x - cc->tc_k * tx;

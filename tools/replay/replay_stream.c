@@ -757,6 +757,7 @@ int replay_stream_main(int argc, char **argv)
         cJSON_AddNumberToObject(root, "store_level", (double)stream_store_level(&g_cc.store));
         /* tilt compensation (continuous.h): the estimated raw shift per unit tilt, rows levelled */
         cJSON_AddNumberToObject(root, "tilt_comp_k", g_cc.tc_ok != 0u ? (double)g_cc.tc_k : 0.0);
+        cJSON_AddNumberToObject(root, "tilt_comp_rho", (double)g_cc.tc_rho); /* the share of the tilt z confirms */
         cJSON_AddNumberToObject(root, "tilt_comp_pairs", (double)g_cc.tc_n);
         cJSON_AddNumberToObject(root, "levelled_rows", (double)g_cc.tc_levelled);
     }
