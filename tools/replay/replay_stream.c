@@ -17,6 +17,7 @@
 
 #include "magcal/continuous.h"
 #include "magcal/continuous3.h"
+#include "magcal/record.h"
 #include "replay_csv.h"
 
 #define RS_SECTORS 36u
@@ -37,7 +38,7 @@ static magcal_cont3_t g_c3;
 static const char k_stream_usage[] =
     "usage: magcal-replay --stream [--mode 2d|3d] [--headings OUT.csv] [--json] [--declination DEG]\n"
     "                        [--range R] [--steps-per-row K] [--coarse DEG[,TOL]] [--no-tilt]\n"
-    "                        [--level-tilt DEG] DUMP.csv\n"
+    "                        [--level-tilt DEG] [--install REC] [--save REC] DUMP.csv\n"
     "                        (R: the sensor's declared range)\n"
     "  --coarse: 2-D coarse stage on (cfg.coarse_coverage_deg DEG, cfg.coarse_max_err_deg TOL; off by\n"
     "  default): adoptions of a hard-iron circle carry status \"coarse\", its headings trust \"coarse\";\n"
@@ -51,7 +52,9 @@ static const char k_stream_usage[] =
     "  2-D gravity feed: when the dump has ax, ay, az in g, mg or m/s^2 (unit detected from the median\n"
     "  |a|), each row is pushed with magcal_cont_push_g (the store prefers level samples; JSON\n"
     "  \"gravity_fed\": true), else with magcal_cont_push; --no-tilt: never (magcal_cont_push, as\n"
-    "  without an accelerometer); --level-tilt DEG: cfg.intake.tilt_limit_deg (default 2; 0 = off)\n";
+    "  without an accelerometer); --level-tilt DEG: cfg.intake.tilt_limit_deg (default 2; 0 = off)\n"
+    "  --install REC: start from the 2-D flash record REC (magcal/record.h; a calibration restored at\n"
+    "  power-up); --save REC: write the full calibration in force at the end as such a record\n";
 
 /* Open the headings CSV (hpath NULL: none) and write its header; 0 when it cannot be written
  * (said on stderr). */
@@ -498,6 +501,57 @@ static uint32_t stream_store_level(const magcal_intake_t *st)
     return n;
 }
 
+/* --install REC: a 2-D flash record (magcal/record.h) read and checked; 0 ok, else said on stderr. */
+static int stream_record_read(const char *path, magcal_record_t *rec)
+{
+    uint8_t page[MAGCAL_RECORD_LEN];
+    FILE *f = fopen(path, "rb");
+    size_t n = 0u;
+    magcal_status_t st;
+    if (f != NULL) {
+        n = fread(page, 1u, sizeof page, f);
+        (void)fclose(f);
+    }
+    st = magcal_record_unpack(page, n, rec);
+    if (f == NULL || st != MAGCAL_OK || rec->kind != MAGCAL_RECORD_KIND_2D) {
+        fprintf(stderr, "magcal-replay: --install %s: %s\n", path,
+                f == NULL ? "cannot be read" : (st != MAGCAL_OK ? magcal_status_str(st) : "not a 2-D record"));
+        return 1;
+    }
+    return 0;
+}
+
+/* --save REC: the full calibration in force at the end as a 2-D record (the quality figures of its
+ * adoption); 0 ok (or nothing to save: said on stderr), 1 when it cannot be written. */
+static int stream_record_write(const char *path, const magcal_cont_t *cc)
+{
+    magcal_record_t rec;
+    uint8_t page[MAGCAL_RECORD_LEN];
+    FILE *f;
+    if (cc->has_cal == 0u || cc->cal_coarse != 0u) {
+        fprintf(stderr, "magcal-replay: --save %s: no full calibration in force, nothing written\n", path);
+        return 0;
+    }
+    (void)memset(&rec, 0, sizeof rec);
+    rec.kind = MAGCAL_RECORD_KIND_2D;
+    rec.unit = MAGCAL_RECORD_UNIT_RAW;
+    rec.n_used = cc->last.used;
+    rec.est_heading_err_deg = cc->adopted_err;
+    rec.radius = cc->cal_raw_radius;
+    rec.residual_rms = 0.0f;
+    rec.coverage = 360.0f;
+    rec.cal2d = cc->cal;
+    if (magcal_record_pack(&rec, page, sizeof page) != MAGCAL_OK || (f = fopen(path, "wb")) == NULL) {
+        fprintf(stderr, "magcal-replay: --save %s: cannot be written\n", path);
+        return 1;
+    }
+    if (fwrite(page, 1u, sizeof page, f) != sizeof page) {
+        (void)fclose(f);
+        return 1;
+    }
+    return fclose(f) != 0 ? 1 : 0;
+}
+
 /* One step's outcome as an event of the JSON report. */
 static void stream_event(cJSON *ev, size_t row, magcal_cont_outcome_t oc)
 {
@@ -524,6 +578,8 @@ int replay_stream_main(int argc, char **argv)
                                            {"coarse", required_argument, NULL, 'c'},
                                            {"no-tilt", no_argument, NULL, 'T'},
                                            {"level-tilt", required_argument, NULL, 'L'},
+                                           {"install", required_argument, NULL, 'I'},
+                                           {"save", required_argument, NULL, 'S'},
                                            {"help", no_argument, NULL, 'h'},
                                            {NULL, 0, NULL, 0}};
     const char *hpath = NULL;
@@ -548,6 +604,9 @@ int replay_stream_main(int argc, char **argv)
     size_t tail;
     int no_tilt = 0;
     double gscale = 0.0; /* 2-D gravity feed: accelerometer unit to g, 0 = not fed */
+    const char *install_path = NULL; /* --install REC: a calibration restored from flash at init */
+    const char *save_path = NULL;    /* --save REC: the calibration in force at the end, as a record */
+    magcal_record_t rec_in;
 
     optind = 1;
     while ((opt = getopt_long(argc, argv, "h", k_opts, NULL)) != -1) {
@@ -632,6 +691,12 @@ int replay_stream_main(int argc, char **argv)
             cfg.intake.tilt_limit_deg = (float)v;
             break;
         }
+        case 'I':
+            install_path = optarg;
+            break;
+        case 'S':
+            save_path = optarg;
+            break;
         case 'h':
             fputs(k_stream_usage, stdout);
             return 0;
@@ -654,7 +719,12 @@ int replay_stream_main(int argc, char **argv)
         fprintf(stderr, "magcal-replay: %s\n", err);
         return 2;
     }
-    if (magcal_cont_init(&g_cc, &cfg, NULL, g_slots, RS_SLOTS, g_buf, g_work, sizeof g_work) != MAGCAL_OK) {
+    if (install_path != NULL && stream_record_read(install_path, &rec_in) != 0) {
+        magcal_replay_csv_free(&d);
+        return 1;
+    }
+    if (magcal_cont_init(&g_cc, &cfg, install_path != NULL ? &rec_in.cal2d : NULL, g_slots, RS_SLOTS, g_buf, g_work,
+                         sizeof g_work) != MAGCAL_OK) {
         magcal_replay_csv_free(&d);
         return 5;
     }
@@ -776,5 +846,8 @@ int replay_stream_main(int argc, char **argv)
         return 4;
     }
     magcal_replay_csv_free(&d);
+    if (save_path != NULL && stream_record_write(save_path, &g_cc) != 0) {
+        return 4;
+    }
     return g_cc.has_cal != 0u ? 0 : 3;
 }

@@ -96,6 +96,38 @@ def main():
     check(close(c[12], rep["field"]) and close(r["radius"], rep["field"]), "3d field %r vs %r" % (c[12], rep["field"]))
     check(close(r["cov"], rep["coverage"]) and r["n"] == rep["n_used"], "3d coverage/n %r" % r)
 
+    # ---- stream mode: --save writes the calibration in force at the end, --install starts from it
+    flat = os.path.join(real, "lsm9ds1_pmodnav_flat_turns.csv")
+    saved = os.path.join(a.work_dir, "stream.rec")
+    p = run(a, ["--stream", "--json", "--save", saved, flat])
+    check(p.returncode == 0, "stream --save: exit %d: %s" % (p.returncode, p.stderr))
+    rep = json.loads(p.stdout)
+    r = decode(saved)
+    c = r["cal"]
+    check(r["kind"] == 2 and rep["generation"] >= 1, "stream record kind %r, generation %r" % (r["kind"], rep["generation"]))
+    check(close(c[0], rep["offset"][0]) and close(c[1], rep["offset"][1]) and close(c[6], rep["radius"]),
+          "stream record offset / radius %r vs %r %r" % (c[:2], rep["offset"], rep["radius"]))
+    m = rep["matrix"]
+    check(all(close(c[2 + 2 * i + j], m[i][j]) for i in range(2) for j in range(2)), "stream record M %r vs %r" % (c[2:6], m))
+    heads = os.path.join(a.work_dir, "stream_installed.csv")
+    p = run(a, ["--stream", "--json", "--install", saved, "--headings", heads, flat])
+    check(p.returncode == 0, "stream --install: exit %d: %s" % (p.returncode, p.stderr))
+    with open(heads) as f:
+        first = f.read().splitlines()[1].split(",")
+    # the restored calibration is in force from the first row (generation 0: no adoption yet)
+    check(first[3] != "uncalibrated" and first[4] == "0" and first[1] != first[2],
+          "first row under --install: %r" % (first,))
+    bad = os.path.join(a.work_dir, "stream_corrupt.rec")
+    with open(saved, "rb") as f:
+        b = bytearray(f.read())
+    b[50] ^= 1
+    with open(bad, "wb") as f:
+        f.write(b)
+    p = run(a, ["--stream", "--install", bad, flat])
+    check(p.returncode == 1 and "--install" in p.stderr, "corrupt --install: exit %d %r" % (p.returncode, p.stderr))
+    sys.stdout.write("stream record: generation %d, radius %.6g; --install: first row %s\n" % (
+        rep["generation"], r["radius"], first[3]))
+
     # ---- a failed calibration exports nothing; a bad sensor id is a usage error
     bad = os.path.join(a.work_dir, "failed.rec")
     if os.path.exists(bad):
