@@ -487,7 +487,7 @@ def write_drives_header(path, python, tmp_root, real=True):
         ix = [hdr.index(c) for c in cols]
         return [[float(r.split(",")[i]) for i in ix] for r in lines[1:]]
 
-    rows = load(csv, ["t", "mx", "my", "mz"])
+    rows = load(csv, ["t", "mx", "my", "mz", "ax", "ay", "az"])  # the generated drive's gravity: push_g
     drives.append((g["name"], rows, 1, g["range"]))
     d = shared_dir()
     fn = os.path.join(d, "data", "real", CONT_REAL["name"], "data.csv") if d and real else None
@@ -506,8 +506,14 @@ def write_drives_header(path, python, tmp_root, real=True):
         L.append("static const uint32_t g_drive_t%d[] = {" % k)
         L += ["    " + ", ".join("%du" % v for v in tms[i:i + 12]) + "," for i in range(0, len(tms), 12)]
         L.append("};")
-        tab.append('    {"%s", g_drive_m%d, g_drive_t%d, %du, %du, %du, %sf},' % (name, k, k, len(rows), reps, period,
-                                                                         repr(float(rng))))
+        gname = "NULL"
+        if len(rows[0]) >= 7:  # gravity in milli-g (int16: the image holds a 30-min drive)
+            gname = "g_drive_g%d" % k
+            L.append("static const int16_t g_drive_g%d[][3] = {" % k)
+            L += ["    {%d, %d, %d}," % tuple(int(round(v * 1000.0)) for v in r[4:7]) for r in rows]
+            L.append("};")
+        tab.append('    {"%s", g_drive_m%d, g_drive_t%d, %s, %du, %du, %du, %sf},' % (name, k, k, gname, len(rows), reps,
+                                                                             period, repr(float(rng))))
     L.append("static const bench_drive_t g_drives[] = {")
     L += tab
     L.append("};")
@@ -690,7 +696,7 @@ def cont_markdown(cont):
     g = CONT_GEN
     L.append("`cont.elf` (`tools/bench/m4f_image/main_cont.c`, QEMU mps2-an386 `-icount shift=0`, SysTick read "
              "around every call, 40 instructions per tick): `MAGCAL_CONT_CFG_DEFAULT` (36 x 8 = 288 slots), the "
-             "sensor's declared range the only setting; per row `magcal_cont_push`, `magcal_cont_step`, "
+             "sensor's declared range the only setting; per row `magcal_cont_push` (`magcal_cont_push_g` with the generated drive's gravity), `magcal_cont_step`, "
              "`magcal_cont_heading`. Drives: `%s` = `tools/gen_drive.py --minutes %g --seed %d --rate %g` (parking, "
              "turns, hills, glitches, transients, the mid-drive hard-iron step; range %g uT); `%s` = the shared real "
              "recording repeated %d times (when ../shared exists; full mode only). A solve = the step that starts it to the step "

@@ -10,7 +10,8 @@
  * repeated when ../shared exists; never committed). The one setting taken from the drive is the
  * sensor's declared range (cfg.intake.range_limit, as the port would declare it: 800 uT for the
  * generated drive, whose glitch bursts stick an axis at that rail; 0 = undeclared). Per row, exactly what a firmware does:
- * magcal_cont_push(), magcal_cont_step(), magcal_cont_heading(), SysTick read around each call.
+ * magcal_cont_push() (magcal_cont_push_g() with the drive's gravity when it has one: the generated
+ * drive), magcal_cont_step(), magcal_cont_heading(), SysTick read around each call.
  *
  * A solve runs from the step that starts it (the first IN_PROGRESS after a non-IN_PROGRESS) to the
  * step that ends it (ADOPTED, REFUSED or FAILED); its cost is the sum of those step calls,
@@ -46,6 +47,7 @@ typedef struct {
     const char *name;
     const magcal_vec3_t *m;
     const uint32_t *t_ms;
+    const int16_t (*g)[3]; /* gravity in milli-g (pushed with magcal_cont_push_g), NULL = none */
     uint32_t n;
     uint32_t reps;
     uint32_t period_ms;
@@ -125,6 +127,20 @@ static void report_call(const char *drive, unsigned which, uint32_t n)
     }
 }
 
+/* Row i's push: magcal_cont_push_g with the drive's gravity (its tilt compensation, continuous.h),
+ * else magcal_cont_push. */
+static magcal_status_t bench_push(const bench_drive_t *d, uint32_t i, uint32_t t_ms)
+{
+    if (d->g != NULL) {
+        magcal_vec3_t g;
+        g.x = (float)d->g[i][0] * 0.001f;
+        g.y = (float)d->g[i][1] * 0.001f;
+        g.z = (float)d->g[i][2] * 0.001f;
+        return magcal_cont_push_g(&g_cc, &d->m[i], &g, t_ms);
+    }
+    return magcal_cont_push(&g_cc, &d->m[i], t_ms);
+}
+
 static int run_drive(const bench_drive_t *d)
 {
     magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
@@ -154,7 +170,7 @@ static int run_drive(const bench_drive_t *d)
             uint32_t t0, c;
 
             t0 = ticks();
-            st = magcal_cont_push(&g_cc, m, t_ms);
+            st = bench_push(d, i, t_ms);
             g_call[0][row] = insn_since(t0);
             fails += st != MAGCAL_OK; /* one push per step at drain 2: the ring never fills */
 
@@ -270,7 +286,7 @@ static int run_isolated(const bench_drive_t *d)
         magcal_cont_heading_t hd;
         magcal_cont_outcome_t o;
         uint32_t t0, c;
-        (void)magcal_cont_push(&g_cc, m, t_ms);
+        (void)bench_push(d, row % d->n, t_ms);
         t0 = ticks();
         o = magcal_cont_step(&g_cc);
         c = insn_since(t0);
