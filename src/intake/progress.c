@@ -142,13 +142,16 @@ void magcal_intake_progress_of(const magcal_intake_t *st, const uint32_t *words,
     out->fill_fraction = (float)filled / (float)st->n_bins;
     out->completion_pct = 100.0f * (float)deep / ((float)st->n_bins * (float)depth);
     if (st->cfg.dims == 2u) {
-        const float w = 360.0f / (float)st->n_bins;
+        /* 360 x count / bins, not count x (360 / bins): at 85 bins the latter gives 360.00003 for
+         * a full circle (an empty store with an installed centre read as more than one turn
+         * missing: fuzz_cont); 360 x count is exact, so a full count gives exactly 360 */
+        const float nbf = (float)st->n_bins;
         uint32_t start = 0u;
         const uint32_t run = longest_empty_run(st, words, &start);
         const uint32_t covered = (uint32_t)st->n_bins - run;
-        out->coverage_deg = (float)covered * w;
-        out->missing_start_deg = (run > 0u) ? (float)start * w : 0.0f;
-        out->missing_width_deg = (float)run * w;
+        out->coverage_deg = 360.0f * (float)covered / nbf;
+        out->missing_start_deg = (run > 0u) ? 360.0f * (float)start / nbf : 0.0f;
+        out->missing_width_deg = 360.0f * (float)run / nbf;
     } else {
         out->coverage_deg = 360.0f * out->fill_fraction;
     }

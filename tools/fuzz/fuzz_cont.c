@@ -21,7 +21,9 @@
  *   u8  k (mismatch_k = 0.25 + v / 16), u8 rel (mismatch_min_rel = (1 + v) / 512),
  *   u16 change_ms (x 4), u8 change_bins (1 + v % 36), u16 clear_ms (x 4), f32 scale (int16 format)
  *   then ops, each one u8 (op % 12) and its operands:
- *     0..4 push: dt u16 (ms), sample (12 bytes float32 or 6 bytes int16);  5 step;
+ *     0..4 push: dt u16 (ms), sample (12 bytes float32 or 6 bytes int16); op 4 is push_g, with
+ *     u8 kind and a gravity (kind % 3 == 0: 12 bytes float32, else two int8 / 1000 of a 1 g tilt;
+ *     kind % 7 == 6: none);  5 step;
  *     6 heading: sample, f32 declination;  7 progress;  8 solve_blocking: u8 force;
  *     9 re-init (the reset: optionally with the current calibration installed);
  *     (steps that do solve work are capped at 24 and blocking solves at 4 per input, so one input
@@ -132,6 +134,7 @@ static void fz_check_heading(const magcal_cont_t *cc, const magcal_vec3_t *m, fl
                    hd.trust == MAGCAL_TRUST_DISTURBED || hd.trust == MAGCAL_TRUST_CHANGED,
                "trust state");
     FUZZ_CHECK(hd.generation == mono->generation, "heading generation differs from progress");
+    FUZZ_CHECK(hd.levelled <= 1u && (hd.levelled == 0u || cc->tc_ok != 0u), "levelled flag without a valid k");
     if (mono->generation == 0u && !mono->installed) {
         FUZZ_CHECK(hd.trust == MAGCAL_TRUST_UNCALIBRATED, "trusted heading without a calibration");
     }
@@ -353,7 +356,23 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             t_ms += fuzz_u16(&in);
             m = fz_sample(&in, as_int16, scale);
             (void)magcal_cont_progress(&fz_cc, &p0);
-            st = magcal_cont_push(&fz_cc, &m, t_ms);
+            if (op == 4u) {
+                /* push_g: its gravity level test, the tilt compensation's regression and levelling;
+                 * the gravity raw float32 bits (NaN, Inf, huge), or a small tilt of 1 g (int8 / 1000
+                 * per axis: the regression sees plausible hills), or none */
+                const uint8_t gk = fuzz_u8(&in);
+                magcal_vec3_t g;
+                if (gk % 3u == 0u) {
+                    g = fz_sample(&in, 0, 1.0f);
+                } else {
+                    g.x = (float)(int8_t)fuzz_u8(&in) * 0.001f;
+                    g.y = (float)(int8_t)fuzz_u8(&in) * 0.001f;
+                    g.z = 1.0f;
+                }
+                st = magcal_cont_push_g(&fz_cc, &m, gk % 7u == 6u ? NULL : &g, t_ms);
+            } else {
+                st = magcal_cont_push(&fz_cc, &m, t_ms);
+            }
             (void)magcal_cont_progress(&fz_cc, &p1);
             FUZZ_CHECK(st == MAGCAL_OK || st == MAGCAL_ERR_BUFFER_FULL, "push status");
             FUZZ_CHECK(p1.dropped == p0.dropped + (st == MAGCAL_ERR_BUFFER_FULL ? 1u : 0u), "dropped count");
