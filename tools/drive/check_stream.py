@@ -150,7 +150,7 @@ def main():
     if not adopt_rows:
         fails.append(("adopted", "no adoption"))
         return finish(res, fails, req, a.report_only)
-    first = adopt_rows[0]
+    first = min(adopt_rows[0], len(turn) - 1)  # an adoption in the steps after the last row: row = rows
     res["first_adoption_turn_deg"] = round(float(turn[first]), 1)
     if turn[first] > 540.0:
         fails.append(("first_adoption", "first adoption after %.0f deg of turning (> 540)" % turn[first]))
