@@ -977,15 +977,18 @@ static double tc_level_rms(const magcal_cal2d_t *c)
     return sqrt(ss / 72.0);
 }
 
-/* The hilly drive, with gravity (push_g) or without (push): first `sweeps` arcs of +-50 deg
- * around north (a winding road: a ring arc for the store's centre, too little coverage for a
- * solve), each at a pitch of its own in +-5 deg (what k is learnt from), then `circles` circles
- * (above). Returns the adoptions; *before* = adoptions during the arcs. */
+/* The hilly drive, with gravity (push_g, with_g 1) or without (push, 0): first `sweeps` arcs of
+ * +-50 deg around north (a winding road: a ring arc for the store's centre, too little coverage
+ * for a solve), each at a pitch of its own in +-5 deg (what k is learnt from), then `circles`
+ * circles (above); with_g 2: push_g with the field of a level vehicle and only the gravity
+ * pitched (the vehicle's own acceleration read as tilt). Returns the adoptions; *before* =
+ * adoptions during the arcs. */
 static unsigned tc_drive(int with_g, unsigned sweeps, unsigned circles, unsigned *before)
 {
     const double d2r = 3.14159265358979 / 180.0;
     magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
     uint32_t rng = 77u;
+    uint32_t grng = 78u;
     uint32_t brng = 5u;
     uint32_t t = 0u;
     unsigned adopted = 0u;
@@ -1002,8 +1005,11 @@ static unsigned tc_drive(int with_g, unsigned sweeps, unsigned circles, unsigned
             const double psi = c < sweeps ? ((c % 2u) == 0u ? 100.0 * s - 50.0 : 50.0 - 100.0 * s)
                                           : 360.0 * ((double)c + s);
             const double th = c < sweeps ? bc : 4.0 * sin(psi * d2r) + bc * cos(psi * d2r);
-            magcal_vec3_t m, g;
-            tc_sample(psi, th, 0.1, &rng, &m, &g);
+            magcal_vec3_t m, g, m_unused;
+            tc_sample(psi, with_g == 2 ? 0.0 : th, 0.1, &rng, &m, &g);
+            if (with_g == 2) {
+                tc_sample(psi, th, 0.0, &grng, &m_unused, &g); /* only the gravity pitched: an acceleration */
+            }
             TEST_ASSERT_EQUAL_INT(MAGCAL_OK, with_g != 0 ? magcal_cont_push_g(&g_cc, &m, &g, t) : magcal_cont_push(&g_cc, &m, t));
             for (k = 0u; k < STEPS_PER_ROW; ++k) {
                 adopted += (magcal_cont_step(&g_cc) == MAGCAL_CONT_ADOPTED) ? 1u : 0u;
@@ -1051,28 +1057,8 @@ static void test_cont_push_g_tilt_compensation_levels_the_store(void)
  * with the tilt real gives rho within 0.8..1.25 and k (test above). */
 static void test_cont_push_g_acceleration_is_not_tilt(void)
 {
-    magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
-    uint32_t rng = 77u;
-    uint32_t grng = 78u;
-    uint32_t brng = 5u;
-    uint32_t t = 0u;
-    unsigned c, i, k;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
-    for (c = 0u; c < 60u; ++c) {
-        const double bc = 10.0 * test_rand_uniform(&brng) - 5.0;
-        const unsigned rows = TC_ROWS_PER_CIRCLE / 3u;
-        for (i = 0u; i < rows; ++i, t += RATE_MS) {
-            const double s = (double)i / (double)rows;
-            const double psi = (c % 2u) == 0u ? 100.0 * s - 50.0 : 50.0 - 100.0 * s;
-            magcal_vec3_t m, g, m_unused;
-            tc_sample(psi, 0.0, 0.1, &rng, &m, &g);      /* the field of a level vehicle */
-            tc_sample(psi, bc, 0.0, &grng, &m_unused, &g); /* the gravity of a pitched one */
-            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_push_g(&g_cc, &m, &g, t));
-            for (k = 0u; k < STEPS_PER_ROW; ++k) {
-                (void)magcal_cont_step(&g_cc);
-            }
-        }
-    }
+    unsigned pre = 0u;
+    (void)tc_drive(2, 60u, 0u, &pre);
     printf("acceleration read as tilt: %u samples in the regression, k %.2f, rho %.3f, ok %u, %u levelled\n",
            (unsigned)g_cc.tc_n, (double)g_cc.tc_k, (double)g_cc.tc_rho, (unsigned)g_cc.tc_ok,
            (unsigned)g_cc.tc_levelled);
