@@ -206,22 +206,16 @@ static uint8_t cont_tilt_of(magcal_cont_t *cc, const magcal_vec3_t *g, uint32_t 
  * TC_STEP_Q since the last one its sector took (parked rows and a slow hill are not counted as
  * independent samples); the sectors' means are dropped at a declared change (the hard iron
  * moved) and when the store's centre moves (its distances move with it), the sums stay. */
-#ifndef TC_STEP_Q
-#define TC_STEP_Q 0.005f /* q a sector's next sample must have moved by (0.3 deg of tilt along the field) */
-#endif
+#define TC_STEP_Q 0.005f     /* q a sector's next sample must have moved by (0.3 deg of tilt along the field) */
 #define TC_MAX_K 3.0f        /* |k| <= 3 R (inclination < 72 deg); a sample beyond it is refused */
-#ifndef TC_MIN_PAIRS
-#define TC_MIN_PAIRS 24u /* samples in the sums (beyond each sector's first) before k is used */
-#endif
+#define TC_MIN_PAIRS 24u     /* samples in the sums (beyond each sector's first) before k is used */
 #define TC_GATE_REL 0.2f     /* a sample's gate around the estimate: relative part */
 #define TC_GATE_ABS 0.05f    /* and absolute part, x R (noise, the ellipse within a sector) */
-#ifndef TC_MAX_SE
-#define TC_MAX_SE 0.12f /* k's standard error must be <= this x R (0.7 deg of heading at 6 deg of pitch) */
-#endif
+#define TC_MAX_SE 0.12f      /* k's standard error must be <= this x R (0.7 deg of heading at 6 deg of pitch) */
 #define TC_RING_LO 0.7f      /* a sample on the ring (intake progress.c) */
 #define TC_RING_HI 1.4f
-#define TC_RHO_LO 0.5f      /* the share of q that raw z confirms as tilt: at least this (vehicle */
-#define TC_RHO_HI 2.0f      /* accelerations read as tilt lower it) and at most this (z's scale) */
+#define TC_RHO_LO 0.5f       /* the share of q that raw z confirms as tilt: at least this (a vehicle's */
+#define TC_RHO_HI 2.0f       /* accelerations read as tilt lower it) and at most this (z's own scale) */
 #define TC_NB_MAX 4096u      /* a sector's count stops here: its means then follow the newest samples */
 
 /* 1 when the smoothed gravity of the last push_g is steady (|g|^2 within cfg.intake.g_band_rel of
