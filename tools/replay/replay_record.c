@@ -1,4 +1,5 @@
-/* magcal-replay --export-record: the replay's calibration as the flash record (record.h). */
+/* magcal-replay --export-record (and --stream --save): the replay's calibration as the flash record
+ * (record.h). */
 #include "replay_record.h"
 
 #include <errno.h>
@@ -56,10 +57,6 @@ int replay_export_record(const char *path, const replay_report_t *r, const magca
                          const magcal_ellipsoid_cal_t *cal3, uint32_t sensor_id, char *err, size_t err_len)
 {
     magcal_record_t rec;
-    uint8_t bytes[MAGCAL_RECORD_LEN];
-    magcal_status_t st;
-    FILE *f;
-    int bad;
     if (r->status_code != (int)MAGCAL_OK) {
         (void)snprintf(err, err_len, "--export-record: the calibration status is %s, not ok: nothing exported",
                        r->status != NULL ? r->status : "unknown");
@@ -68,7 +65,6 @@ int replay_export_record(const char *path, const replay_report_t *r, const magca
     memset(&rec, 0, sizeof rec);
     rec.unit = unit_of(r);
     rec.sensor_id = sensor_id;
-    rec.created = record_stamp();
     rec.n_used = (uint32_t)r->n_used;
     if (strcmp(r->mode, "2d") == 0) {
         rec.kind = MAGCAL_RECORD_KIND_2D;
@@ -86,10 +82,19 @@ int replay_export_record(const char *path, const replay_report_t *r, const magca
         rec.coverage = aided ? 0.0f : (float)r->coverage3; /* 0: not measured */
         rec.cal3d = *cal3;
     }
-    st = magcal_record_pack(&rec, bytes, sizeof bytes);
+    return replay_record_write(path, "--export-record", &rec, err, err_len);
+}
+
+int replay_record_write(const char *path, const char *opt, magcal_record_t *rec, char *err, size_t err_len)
+{
+    uint8_t bytes[MAGCAL_RECORD_LEN];
+    magcal_status_t st;
+    FILE *f;
+    int bad;
+    rec->created = record_stamp();
+    st = magcal_record_pack(rec, bytes, sizeof bytes);
     if (st != MAGCAL_OK) {
-        (void)snprintf(err, err_len, "--export-record: magcal_record_pack refused the calibration: %s",
-                       magcal_status_str(st));
+        (void)snprintf(err, err_len, "%s: magcal_record_pack refused the calibration: %s", opt, magcal_status_str(st));
         return REPLAY_EXIT_OUTPUT;
     }
     f = fopen(path, "wb");
@@ -99,7 +104,7 @@ int replay_export_record(const char *path, const replay_report_t *r, const magca
         bad |= fclose(f) != 0;
     }
     if (bad) {
-        (void)snprintf(err, err_len, "--export-record: cannot write %s: %s", path, strerror(errno));
+        (void)snprintf(err, err_len, "%s: cannot write %s: %s", opt, path, strerror(errno));
         return REPLAY_EXIT_OUTPUT;
     }
     return REPLAY_EXIT_OK;

@@ -8,6 +8,7 @@
 
 #include "magcal/ellipsoid.h"
 #include "magcal/heading.h"
+#include "magcal/record.h"
 #include "replay_report.h"
 
 /** Parse a --sensor-id value (decimal or 0x hex, 0..0xFFFFFFFF). 0 ok, -1 bad. */
@@ -23,5 +24,12 @@ int replay_parse_sensor_id(const char *s, uint32_t *out);
  */
 int replay_export_record(const char *path, const replay_report_t *r, const magcal_cal2d_t *cal2d,
                          const magcal_ellipsoid_cal_t *cal3, uint32_t sensor_id, char *err, size_t err_len);
+
+/**
+ * Pack `rec` (its creation stamp set here, as replay_export_record sets it) and write its
+ * MAGCAL_RECORD_LEN bytes to `path`. REPLAY_EXIT_OK, or REPLAY_EXIT_OUTPUT (refused by
+ * magcal_record_pack, or the file cannot be written) with err saying why, prefixed by `opt`.
+ */
+int replay_record_write(const char *path, const char *opt, magcal_record_t *rec, char *err, size_t err_len);
 
 #endif

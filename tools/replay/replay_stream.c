@@ -18,6 +18,7 @@
 #include "magcal/continuous.h"
 #include "magcal/continuous3.h"
 #include "magcal/record.h"
+#include "replay_record.h"
 #include "replay_csv.h"
 
 #define RS_SECTORS 36u
@@ -522,12 +523,11 @@ static int stream_record_read(const char *path, magcal_record_t *rec)
 }
 
 /* --save REC: the full calibration in force at the end as a 2-D record (the quality figures of its
- * adoption); 0 ok (or nothing to save: said on stderr), 1 when it cannot be written. */
+ * adoption); 0 ok (or nothing to save: said on stderr), 1 when it cannot be written (said). */
 static int stream_record_write(const char *path, const magcal_cont_t *cc)
 {
     magcal_record_t rec;
-    uint8_t page[MAGCAL_RECORD_LEN];
-    FILE *f;
+    char err[256];
     if (cc->has_cal == 0u || cc->cal_coarse != 0u) {
         fprintf(stderr, "magcal-replay: --save %s: no full calibration in force, nothing written\n", path);
         return 0;
@@ -541,15 +541,11 @@ static int stream_record_write(const char *path, const magcal_cont_t *cc)
     rec.residual_rms = 0.0f;
     rec.coverage = 360.0f;
     rec.cal2d = cc->cal;
-    if (magcal_record_pack(&rec, page, sizeof page) != MAGCAL_OK || (f = fopen(path, "wb")) == NULL) {
-        fprintf(stderr, "magcal-replay: --save %s: cannot be written\n", path);
+    if (replay_record_write(path, "--save", &rec, err, sizeof err) != REPLAY_EXIT_OK) {
+        fprintf(stderr, "magcal-replay: %s\n", err);
         return 1;
     }
-    if (fwrite(page, 1u, sizeof page, f) != sizeof page) {
-        (void)fclose(f);
-        return 1;
-    }
-    return fclose(f) != 0 ? 1 : 0;
+    return 0;
 }
 
 /* One step's outcome as an event of the JSON report. */
