@@ -983,7 +983,8 @@ static double tc_level_rms(const magcal_cal2d_t *c)
  * circles (above); with_g 2: push_g with the field of a level vehicle and only the gravity
  * pitched (the vehicle's own acceleration read as tilt). Returns the adoptions; *before* =
  * adoptions during the arcs. */
-static unsigned tc_drive(int with_g, unsigned sweeps, unsigned circles, unsigned *before)
+static unsigned tc_drive_from(const magcal_cal2d_t *installed, int with_g, unsigned sweeps, unsigned circles,
+                              unsigned *before)
 {
     const double d2r = 3.14159265358979 / 180.0;
     magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
@@ -993,7 +994,7 @@ static unsigned tc_drive(int with_g, unsigned sweeps, unsigned circles, unsigned
     uint32_t t = 0u;
     unsigned adopted = 0u;
     unsigned c, i, k;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, installed, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
     for (c = 0u; c < sweeps + circles; ++c) {
         const double bc = (c < sweeps ? 10.0 : 6.0) * test_rand_uniform(&brng) - (c < sweeps ? 5.0 : 3.0);
         const unsigned rows = c < sweeps ? TC_ROWS_PER_CIRCLE / 3u : TC_ROWS_PER_CIRCLE; /* 100 or 360 deg */
@@ -1017,6 +1018,11 @@ static unsigned tc_drive(int with_g, unsigned sweeps, unsigned circles, unsigned
         }
     }
     return adopted;
+}
+
+static unsigned tc_drive(int with_g, unsigned sweeps, unsigned circles, unsigned *before)
+{
+    return tc_drive_from(NULL, with_g, sweeps, circles, before);
 }
 
 /* With gravity the vertical field is learnt on the winding road (k within 15 % of the truth:
@@ -1107,6 +1113,112 @@ static void test_cont_heading_levelled_on_hills(void)
            sqrt(ss_lv / 36.0), sqrt(ss_raw / 36.0), (double)g_cc.tc_k);
     TEST_ASSERT_TRUE(sqrt(ss_lv / 36.0) <= 1.5);
     TEST_ASSERT_TRUE(sqrt(ss_raw / 36.0) >= 4.0 * sqrt(ss_lv / 36.0));
+}
+
+/* An unlevelled calibration (continuous.h "Tilt in the trust", "Tilt compensation"): six circles
+ * on a constant 4-deg slope with gravity (every sector sees one pitch: nothing to learn k from)
+ * adopt a calibration fitted on pitched samples, with its fit's mean tilt known (tan 4 deg along
+ * y). Then the vehicle stands level at 36 headings, 3 s each. While k is unknown the heading is
+ * off by the slope's leak (about 8 deg at worst) and must not be OK: it is TILTED (predicted
+ * 1.5 R tan 4 deg / R = 6 deg > cfg.tilt_trust_deg 3). The level samples teach k (each sector
+ * now has two pitches); the calibration is then levelled by its fit tilt (cc.levels = 1), and
+ * every heading returned OK from then on is within 2 deg of the truth. The installed
+ * calibration's true level RMS falls to <= 1 deg and to <= half of what was adopted. */
+static void test_cont_unlevelled_calibration_tilted_then_levelled(void)
+{
+    const double d2r = 3.14159265358979 / 180.0;
+    magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
+    uint32_t rng = 91u;
+    uint32_t t = 0u;
+    unsigned adopted = 0u, n_tilted = 0u, n_ok = 0u, c, i, k;
+    double rms_adopted, rms_after, ss_tilted = 0.0, worst_ok = 0.0;
+    int h;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    for (c = 0u; c < 6u; ++c) {
+        for (i = 0u; i < TC_ROWS_PER_CIRCLE; ++i, t += RATE_MS) {
+            magcal_vec3_t m, g;
+            tc_sample(360.0 * ((double)c + (double)i / (double)TC_ROWS_PER_CIRCLE), 4.0, 0.1, &rng, &m, &g);
+            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_push_g(&g_cc, &m, &g, t));
+            for (k = 0u; k < STEPS_PER_ROW; ++k) {
+                adopted += (magcal_cont_step(&g_cc) == MAGCAL_CONT_ADOPTED) ? 1u : 0u;
+            }
+        }
+    }
+    TEST_ASSERT_TRUE(adopted >= 1u);
+    TEST_ASSERT_EQUAL_UINT8(0u, g_cc.tc_ok);
+    TEST_ASSERT_EQUAL_UINT8(0u, g_cc.cal_lv);
+    TEST_ASSERT_EQUAL_UINT8(1u, g_cc.cal_tk);
+    TEST_ASSERT_FLOAT_WITHIN(0.005f, 0.0f, g_cc.cal_tx);
+    TEST_ASSERT_FLOAT_WITHIN(0.005f, (float)tan(4.0 * d2r), g_cc.cal_ty);
+    rms_adopted = tc_level_rms(&g_cc.cal);
+    for (h = 0; h < 36; ++h) {
+        const double psi = 10.0 * h + 5.0;
+        magcal_vec3_t m, g;
+        magcal_cont_heading_t hd;
+        double e;
+        for (i = 0u; i < 150u; ++i, t += RATE_MS) {
+            tc_sample(psi, 0.0, 0.1, &rng, &m, &g);
+            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_push_g(&g_cc, &m, &g, t));
+            for (k = 0u; k < STEPS_PER_ROW; ++k) {
+                (void)magcal_cont_step(&g_cc);
+            }
+        }
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_heading(&g_cc, &m, 0.0f, &hd));
+        e = fabs(test_angle_diff_deg(hd.heading_deg, psi));
+        if (hd.trust == MAGCAL_TRUST_TILTED) {
+            TEST_ASSERT_EQUAL_UINT32(0u, g_cc.levels); /* only before the calibration is levelled */
+            n_tilted++;
+            ss_tilted += e * e;
+        } else if (hd.trust == MAGCAL_TRUST_OK) {
+            n_ok++;
+            worst_ok = fmax(worst_ok, e);
+        } else {
+            /* another state (DISTURBED): not used */
+        }
+    }
+    rms_after = tc_level_rms(&g_cc.cal);
+    printf("unlevelled calibration: fit tilt (%.4f, %.4f), level RMS %.2f deg as adopted; standing level: %u "
+           "headings TILTED (RMS %.2f deg), %u OK (worst %.2f deg); k %.2f ok %u, levelled %u x, level RMS %.2f deg\n",
+           (double)g_cc.cal_tx, (double)g_cc.cal_ty, rms_adopted, n_tilted,
+           n_tilted != 0u ? sqrt(ss_tilted / (double)n_tilted) : 0.0, n_ok, worst_ok, (double)g_cc.tc_k,
+           (unsigned)g_cc.tc_ok, (unsigned)g_cc.levels, rms_after);
+    TEST_ASSERT_TRUE(rms_adopted >= 3.0);
+    TEST_ASSERT_TRUE(n_tilted >= 1u);
+    TEST_ASSERT_TRUE(sqrt(ss_tilted / (double)n_tilted) >= 3.0); /* the flag was warranted */
+    TEST_ASSERT_EQUAL_UINT8(1u, g_cc.tc_ok);
+    TEST_ASSERT_EQUAL_UINT32(1u, g_cc.levels);
+    TEST_ASSERT_TRUE(n_ok >= 8u); /* measured 11: k needs 24 samples, about 23 headings */
+    TEST_ASSERT_TRUE(worst_ok <= 2.0); /* measured 1.47 */
+    TEST_ASSERT_TRUE(rms_after <= 1.0);
+    TEST_ASSERT_TRUE(rms_after <= 0.5 * rms_adopted);
+}
+
+/* A calibration restored from flash after a power cycle (its fit tilt unknown): the hilly drive
+ * of tc_drive with gravity from the restored calibration of an earlier one. When k is learnt the
+ * store is emptied and refills with levelled samples while the restored calibration stays in
+ * force, judged on un-levelled samples (cc.relevels = 1); a solve on the levelled store then
+ * adopts or confirms a levelled calibration (cc.cal_lv = 1), whose true level RMS is <= 1 deg.
+ * Not yet right: the restored calibration has no field model, so the hills' radius change reads
+ * as a lasting mismatch and one change is declared (measured 1; an open issue in the closing
+ * note), after which the relearn adopts. */
+static void test_cont_restored_calibration_relevelled(void)
+{
+    unsigned pre = 0u, ad;
+    magcal_cal2d_t saved;
+    double rms_saved, rms_end;
+    TEST_ASSERT_TRUE(tc_drive(1, 60u, 30u, &pre) >= 1u);
+    saved = g_cc.cal;
+    rms_saved = tc_level_rms(&saved);
+    ad = tc_drive_from(&saved, 1, 60u, 30u, &pre);
+    rms_end = tc_level_rms(&g_cc.cal);
+    printf("restored calibration (level RMS %.2f deg): %u relevels, %u changes, %u adoptions (%u on the road), "
+           "cal_lv %u, solves %u, level RMS at the end %.2f deg\n",
+           rms_saved, (unsigned)g_cc.relevels, (unsigned)g_cc.changes, ad, pre, (unsigned)g_cc.cal_lv,
+           (unsigned)g_cc.solves, rms_end);
+    TEST_ASSERT_EQUAL_UINT32(1u, g_cc.relevels);
+    TEST_ASSERT_TRUE(g_cc.changes <= 1u);
+    TEST_ASSERT_EQUAL_UINT8(1u, g_cc.cal_lv);
+    TEST_ASSERT_TRUE(rms_end <= 1.0);
 }
 
 /* A hard-iron step before any calibration (issue 13, the 30-min drive seed 1 case): the first
@@ -1514,6 +1626,8 @@ int main(void)
     RUN_TEST(test_cont_push_g_tilt_compensation_levels_the_store);
     RUN_TEST(test_cont_heading_levelled_on_hills);
     RUN_TEST(test_cont_push_g_acceleration_is_not_tilt);
+    RUN_TEST(test_cont_unlevelled_calibration_tilted_then_levelled);
+    RUN_TEST(test_cont_restored_calibration_relevelled);
     RUN_TEST(test_cont_arc_bound_covers_truth_on_arcs);
     RUN_TEST(test_cont_arc_refused_when_bound_too_wide);
     RUN_TEST(test_cont_arc_upgraded_by_full_ellipse);

@@ -156,33 +156,55 @@
  * the stream by a within-sector regression: in each 10-degree heading sector around the store's
  * centre the distance from the centre is a_sector + k q, q = t . radial (a tilt along the field
  * changes the radius; across it, the heading: the error the store must not take); every sample
- * whose q moved by 0.3 deg of tilt since its sector's last one counts (running means per sector,
- * sums over all, each sample gated around the estimate; the sectors' means are dropped at a change
- * or a new centre). Raw z must confirm the tilt: a real tilt along the field moves it by -R q, a
- * vehicle's acceleration read as tilt (braking, a hill start) moves nothing, so the slope of z on
- * q over -R (tc_rho: 1 +- the z axis's scale on level-road data, about 0 when accelerations make
- * the tilt) must be within 0.5..2. Once k is known (24 samples, standard error <= 0.12 R, rho) AND
- * no field model judges the stream (no calibration installed, or a relearn after a change:
- * switched on under an installed calibration the model fitted on unlevelled samples would read
- * the levelled stream as a mismatch), every sample (while k stays known) with a steady |g|, its roll within
- * cfg.intake.tilt_limit_deg (a turn's centripetal acceleration reads as roll: not levelled) and
- * its pitch within cfg.tilt_comp_deg is queued levelled (m_xy - k t, and m_z + t . (m_xy - centre):
- * the tilt turns the horizontal field into z too, so the store's level model of z and the judge's
- * z channel see a level sample) and LEVEL. magcal_cont_heading levels its sample with the gravity
- * of the last push_g the same way, for its heading (hd.levelled = 1: tilt-compensated, fitted and
- * applied on levelled samples alike) and its judge.
+ * whose tilt moved by 0.3 deg since its sector's last one counts (running means per sector, sums
+ * over all; circles on one slope teach nothing: their q moves with the heading only). A sample is
+ * refused while the transient judge flags the stream, when its raw z moved by more than 1.5 R |q|
+ * from its sector's mean (a disturbance arriving with a change of tilt), and, once k is valid,
+ * when it is off the estimate (before that only beyond |k| = 3 R: a wrong early estimate must not
+ * gate the truth out); the sectors' means are dropped at a change or a new centre. Raw z must
+ * confirm the tilt: a real tilt along the field moves it by -R q, a vehicle's acceleration read
+ * as tilt (braking, a hill start) moves nothing, so the slope of z on q over -R (tc_rho: 1 +- the
+ * z axis's scale on level-road data, about 0 when accelerations make the tilt) must be within
+ * 0.5..2. Once k is known (24 samples, standard error <= 0.12 R, rho), every sample (while k
+ * stays known) with a steady |g|, its roll within cfg.intake.tilt_limit_deg (a turn's
+ * centripetal acceleration reads as roll: not levelled) and its pitch within cfg.tilt_comp_deg is
+ * queued levelled and LEVEL: h' - k t + (h' . t) t / 2 for x, y (h' = m_xy - centre: the level
+ * horizontal field to third order) and (m_z + t . h') (1 - t^2 / 2) for z (the tilt turns the
+ * horizontal field into z too, so the store's level model of z and the judge's z channel see a
+ * level sample). The k samples are levelled with (tc_kl) follows the estimate until a calibration
+ * fitted on levelled samples is in force, then holds (the samples it judges and stores stay
+ * levelled as its own were). magcal_cont_heading levels its sample with the gravity of the last
+ * push_g the same way, for its heading (hd.levelled = 1: tilt-compensated, fitted and applied on
+ * levelled samples alike) and its judge.
+ * When k becomes known under a calibration fitted on unlevelled samples (adopted before, or
+ * restored at init), step empties the store between solves so that it refills levelled, and
+ * - if that calibration was adopted here on one slope (the mean tilt of its store's samples known
+ *   from >= 64 of them, cc.cal_tx / cal_ty, with a spread cc.cal_ts <= 1.1 deg), it is levelled at
+ *   once: its centre moves back by k times that tilt (cc.levels counts it), and its heading and
+ *   judge are levelled from then on (its field model is dropped until the next adoption);
+ * - otherwise (restored, or fitted over a spread of tilts that also bent the ellipse) it stays in
+ *   force, judged on the samples as they were pushed (un-levelled), its heading unlevelled, until
+ *   a solve on the levelled store adopts a levelled calibration or confirms it (cc.relevels).
  * The model takes the specific force for gravity: a vehicle's longitudinal acceleration reads as
- * pitch (it is not levelled only when |g| leaves its g_band_rel band). Known limitation: a
- * calibration restored from flash, or one adopted before k is known, keeps the store unlevelled
- * until the next change.
+ * pitch (it is not levelled only when |g| leaves its g_band_rel band).
+ *
+ * Tilt in the trust (cfg.tilt_trust_deg, default 3; 0 = off). A 2-D calibration is right only at
+ * the tilt it was fitted at. With push_g's gravity, magcal_cont_heading predicts the heading
+ * error of the current tilt t against the calibration's fit tilt t_cal (0 for one fitted on, or
+ * levelled to, levelled samples; a levelled heading's t is 0): |k| |t - t_cal| / R rad, with k the
+ * compensation's when valid, else 1.5 R (an inclination of 56 deg). Above cfg.tilt_trust_deg the
+ * heading is MAGCAL_TRUST_TILTED, not OK. Nothing is predicted (the trust is the judge's alone)
+ * without gravity, while |g| is unsteady or the roll beyond cfg.intake.tilt_limit_deg (a turn),
+ * the pitch beyond cfg.tilt_comp_deg, when the regression shows the accelerometer's tilt to be
+ * mostly acceleration (rho < 0.5), or under a restored calibration (its fit tilt is unknown).
  *
  * Concurrency contract. magcal_cont_push() may run in an interrupt (or another task) while ANY
  * other call on the same instance runs in one task: the ring is the only state push writes
  * (its head index, after the sample; step only writes the tail index; magcal_cont_push_g also
  * writes its gravity classifier's and tilt compensation's state, which nothing else writes, and
  * reads the store's centre, radius and centre generation and the instance's change count,
- * calibration flag and state, which step writes: a torn read misplaces one pair of k's fit or
- * delays the switch-on by one sample). Everything else (step,
+ * calibration flags (has_cal, cal_lv), transient flag and state, which step writes: a torn read
+ * misplaces one sample of k's fit or delays the switch-on by one sample). Everything else (step,
  * solve_blocking, heading, progress, status, reset) must run in ONE task context (not
  * concurrently with each other). Two push callers on one instance need the caller's own lock.
  * When the ring is full the sample is dropped and counted (MAGCAL_ERR_BUFFER_FULL). The index
@@ -361,6 +383,11 @@ typedef struct {
                                          relearn), a sample that moved from the one before it by
                                          more than 6x the stream's typical increment is not stored;
                                          0 = off (default 0: "Continuity gate" below) */
+    float tilt_trust_deg;           /**< tilt in the trust ("Tilt in the trust" below): with push_g's
+                                         gravity, a heading whose sample is tilted away from the
+                                         calibration's fit tilt by enough to move it by more than
+                                         this many degrees is MAGCAL_TRUST_TILTED; >= 0, 0 = off
+                                         (default 3) */
 } magcal_cont_cfg_t;
 
 /** Defaults: work untuned from 10 to 100 Hz (time constants are in ms of the push stamps). */
@@ -369,7 +396,7 @@ typedef struct {
         MAGCAL_INTAKE_CFG_DEFAULT_2D, MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT, 280.0f, 24u, 2u,        \
             600000.0f, 4.0f, 0.06f, 8000u, 3u, 4000u, 100u, 200u, 4.0f,                            \
             MAGCAL_SLICE_BUDGET_DEFAULT, 0.0f, 15.0f, 8.0f, 0.7f, 0.0f, 10.0f, 7.0f, 180.0f, 3.0f, 2.0f, \
-            0.25f, 6000u, 4.5f, 0u                                                                 \
+            0.25f, 6000u, 4.5f, 0u, 3.0f                                                           \
     }
 
 /** A heading with its trust. */
@@ -429,6 +456,8 @@ typedef struct {
     magcal_vec3_t ring[MAGCAL_CONT_RING];
     uint32_t ring_t[MAGCAL_CONT_RING];
     uint8_t ring_tilt[MAGCAL_CONT_RING]; /* magcal_intake_tilt_t of each ring sample (push_g) */
+    magcal_vec3_t ring_tl[MAGCAL_CONT_RING]; /* push_g: the tilt (x, y: g_x / g_z, g_y / g_z) of each ring
+                                                sample, z = 1 when known (0: unknown, push) */
     magcal_vec3_t g_s;             /* push_g (written by push only): smoothed gravity */
     float g_level2;                /* push_g: running level of |g_s|^2 (0: none yet) */
     uint32_t g_t;                  /* its last stamp */
@@ -551,6 +580,8 @@ typedef struct {
     /* tilt compensation of push_g (cont_life.c; written by push only) */
     float tc_tan2;                 /* tan^2(cfg.tilt_comp_deg), set at init (0 = off) */
     float tc_k;                    /* raw shift per unit of tilt (the vertical field, raw units); valid when tc_ok */
+    float tc_kl;                   /* the k samples are levelled with: tc_k, held while a calibration
+                                      fitted on (or levelled to) levelled samples is in force */
     float tc_s[4];                 /* its within-sector regression sums: q q, d q, d d, z q (co-variations) */
     float tc_rho;                  /* -(z q) / (R q q): the share of q that raw z confirms as tilt */
     uint32_t tc_n;                 /* samples in the sums (beyond each sector's first) */
@@ -558,7 +589,7 @@ typedef struct {
                                          radial direction) of the samples it took */
     float tc_md[MAGCAL_CONT_TC_BINS]; /* their mean distance from the centre */
     float tc_mz[MAGCAL_CONT_TC_BINS]; /* their mean raw z */
-    float tc_lq[MAGCAL_CONT_TC_BINS]; /* q of its last sample taken */
+    float tc_lt[MAGCAL_CONT_TC_BINS][2]; /* the tilt (x, y) of its last sample taken */
     uint16_t tc_nb[MAGCAL_CONT_TC_BINS]; /* samples it took (0: none since its means were dropped) */
     uint32_t tc_changes;           /* cc->changes the sectors' means belong to */
     uint8_t tc_gen;                /* and the store's centre generation */
@@ -568,6 +599,22 @@ typedef struct {
                                       the stream it judges then agree) */
     volatile uint32_t tc_levelled; /* samples levelled (pushed as LEVEL after the compensation) */
     magcal_vec3_t tc_m;            /* the levelled sample being queued (here, not on push's stack) */
+    magcal_vec3_t tc_t;            /* and its tilt (z = 1: known) */
+    float st_tx;                   /* the mean tilt of the samples the drain stored (levelled ones count */
+    float st_ty;                   /* as level; unknown tilts are left out): EMA over CONT_TF_N samples */
+    float st_t2;                   /* and of the squared tilt (its spread) */
+    uint32_t st_tn;                /* samples in that mean (saturates) */
+    float cal_tx;                  /* the installed calibration's: that mean when it was adopted (the tilt */
+    float cal_ty;                  /* its unlevelled fit saw; its centre is off by k times it) */
+    float cal_ts;                  /* the spread (RMS about the mean) of that tilt */
+    uint8_t cal_tk;                /* 1: cal_tx, cal_ty known (adopted here with enough known tilts) */
+    uint32_t levels;               /* unlevelled calibrations levelled by their fit's tilt (cont_step.c) */
+    uint8_t cal_lv;                /* 1: the installed calibration was fitted on levelled samples (or
+                                      confirmed on them): the heading and the judge level their sample */
+    uint8_t relevel;               /* 1: the compensation came on under an unlevelled calibration: the
+                                      store refills with levelled samples while the judge un-levels */
+    uint32_t relevels;             /* relevels started */
+    magcal_vec3_t jm;              /* the drained sample as the judge sees it (un-levelled: relevel) */
     /* the transient judge's bias regression (cont_flags.c): the stream's heading-dependent bias
      * of the residual and of raw z, learnt on clean samples */
     float dist_ue;                 /* smoothed raw z / R (the vertical channel) */

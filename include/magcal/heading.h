@@ -145,10 +145,14 @@ typedef enum {
     MAGCAL_TRUST_UNCALIBRATED = 1, /**< no fitted calibration: raw heading */
     MAGCAL_TRUST_DISTURBED = 2,    /**< field magnitude / inclination off: transient disturbance */
     MAGCAL_TRUST_CHANGED = 3,      /**< installation changed (context marked): relearning */
-    MAGCAL_TRUST_COARSE = 4        /**< continuous calibrator only: field consistent with a coarse
+    MAGCAL_TRUST_COARSE = 4,       /**< continuous calibrator only: field consistent with a coarse
                                         (hard-iron-only) calibration whose heading error is bounded
                                         by its adoption's est_param_err_deg, not by the full
                                         calibration's tolerance (continuous.h "Coarse calibration") */
+    MAGCAL_TRUST_TILTED = 5        /**< continuous calibrator only (magcal_cont_push_g's gravity):
+                                        the sample is tilted away from the tilt the calibration was
+                                        fitted at by enough to move the heading by more than
+                                        cfg.tilt_trust_deg (continuous.h "Tilt in the trust") */
 } magcal_trust_state_t;
 
 /** One heading with the facts a consumer needs to trust it. */

@@ -263,6 +263,8 @@ const char *magcal_trust_str(magcal_trust_state_t s)
         return "changed";
     case MAGCAL_TRUST_COARSE:
         return "coarse";
+    case MAGCAL_TRUST_TILTED:
+        return "tilted";
     default:
         return "unknown";
     }

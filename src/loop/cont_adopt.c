@@ -136,6 +136,12 @@ magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_
         const uint32_t ep_b1 = cc->mis_bins[1];
         cc->cal_coarse = (uint8_t)(r->coarse != 0u ? 1u : (r->arc != 0u ? 2u : 0u));
         magcal_cont_install(cc, &cc->cand, r->radius, r->est_noise_deg / MAGCAL_DEG_PER_RAD_F);
+        cc->cal_lv = cc->tc_on; /* fitted on levelled samples (a relevel's store holds only those) */
+        cc->cal_tx = cc->st_tx; /* the tilt its fit saw (cont_relevel levels it by k times that) */
+        cc->cal_ty = cc->st_ty;
+        cc->cal_ts = sqrtf(fmaxf(cc->st_t2 - cc->st_tx * cc->st_tx - cc->st_ty * cc->st_ty, 0.0f));
+        cc->cal_tk = (uint8_t)(cc->st_tn >= CONT_TF_MIN ? 1u : 0u);
+        cc->relevel = 0u;
         if (ep_open != 0u) {
             cc->episode_open = ep_open;
             cc->mis_ms = ep_mis;
@@ -164,7 +170,12 @@ magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_
         cc->drop_on = 1u;
     }
     if (st == MAGCAL_ERR_NOT_BETTER) {
-        /* fresh data confirm the installed calibration: a declared change is refuted */
+        /* fresh data confirm the installed calibration: a declared change is refuted; a relevel's
+         * levelled store confirms it as a levelled one */
+        if (cc->relevel != 0u) {
+            cc->cal_lv = 1u;
+            cc->relevel = 0u;
+        }
         cc->state = (uint8_t)MAGCAL_CONT_COLLECTING;
         return MAGCAL_CONT_REFUSED;
     }

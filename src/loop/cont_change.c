@@ -93,6 +93,8 @@ void magcal_cont_declare_change(magcal_cont_t *cc)
 {
     (void)magcal_intake_reset(&cc->store);
     cc->state = (uint8_t)MAGCAL_CONT_RELEARNING;
+    cc->relevel = 0u; /* the relearn's store is levelled from the start when the compensation is on */
+    cc->st_tn = 0u;   /* and its mean tilt starts again */
     cc->stage = 0u;
     cc->changes++;
     cc->episode_open = 0u;

@@ -16,6 +16,12 @@
 #define MAGCAL_CONT_MAX_DT_MS 1000u   /* a gap in the stamps counts at most this much */
 #define MAGCAL_CONT_TILT_LEVELLED 3u  /* ring tilt code: LEVEL after push_g's tilt compensation (the
                                          level-shift watch does not take the switch as a jump) */
+#define CONT_TF_N 256u    /* the store's mean tilt (cont_step.c): an EMA over this many stored samples */
+#define CONT_TF_MIN 64u   /* an adopted calibration's fit tilt is known from this many known tilts */
+#define CONT_TF_SPREAD 0.02f /* and is levelled by it when their spread is within this (1.1 deg): on
+                                one slope the fit's only error is the shift; a spread of tilts bent
+                                the ellipse too (tests/test_cont_drive.c, circles over hills: the
+                                shifted calibration read levelled samples 6.5 % inside its radius) */
 
 /* Verdict of one sample under the installed calibration. */
 typedef struct {

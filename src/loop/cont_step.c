@@ -115,7 +115,7 @@ static MAGCAL_NOINLINE int cont_screen(magcal_cont_t *cc, const magcal_vec3_t *m
     if (magcal_cont_continuity(cc, m, t_ms) == 0) {
         return 1; /* before a calibration judges the stream: a jump from the sample before, never stored */
     }
-    if (cc->state != (uint8_t)MAGCAL_CONT_RELEARNING && magcal_cont_judge(cc, m, &j) != 0) {
+    if (cc->state != (uint8_t)MAGCAL_CONT_RELEARNING && magcal_cont_judge(cc, levelled != 0 && cc->cal_lv == 0u ? &cc->jm : m, &j) != 0) {
         if (magcal_cont_episode(cc, &j, t_ms) != 0) {
             magcal_cont_declare_change(cc); /* the store restarts with this sample */
         } else if (j.mismatch != 0u) {
@@ -125,6 +125,41 @@ static MAGCAL_NOINLINE int cont_screen(magcal_cont_t *cc, const magcal_vec3_t *m
         }
     }
     return 0;
+}
+
+/* The drained levelled sample m as push_g received it (cc->jm: what a calibration fitted on
+ * unlevelled samples judges): x, y back by k t; z back by the tilt's share of the horizontal
+ * field (cont_tc_level, with the k and the centre of now: a change since the push moves it by
+ * the change times a tilt of a few degrees). */
+static void cont_unlevel(magcal_cont_t *cc, const magcal_vec3_t *m, const magcal_vec3_t *tl)
+{
+    /* cont_tc_level inverted to the same order: h' = h + k t - (h . t) t / 2, z' = z (1 + t^2 / 2) - t . h' */
+    const float t2 = tl->x * tl->x + tl->y * tl->y;
+    const float ht = tl->x * (m->x - cc->store.centre.x) + tl->y * (m->y - cc->store.centre.y);
+    cc->jm.x = m->x + cc->tc_kl * tl->x - 0.5f * ht * tl->x;
+    cc->jm.y = m->y + cc->tc_kl * tl->y - 0.5f * ht * tl->y;
+    cc->jm.z = m->z * (1.0f + 0.5f * t2) - tl->x * (cc->jm.x - cc->store.centre.x) - tl->y * (cc->jm.y - cc->store.centre.y);
+}
+
+/* A stored sample's tilt into the mean tilt of the store's samples (st_tx, st_ty: what an
+ * unlevelled fit of the store sees; cont_relevel): a levelled sample counts as level, a sample of
+ * unknown tilt (push, a turn, braking) is left out. An EMA over CONT_TF_N samples, about the
+ * store's turnover on the move (the store keeps the newest of each bin). */
+static void cont_fit_tilt(magcal_cont_t *cc, const magcal_vec3_t *tl, int lv)
+{
+    const float tx = (lv != 0) ? 0.0f : tl->x;
+    const float ty = (lv != 0) ? 0.0f : tl->y;
+    float w;
+    if (!(tl->z > 0.0f)) {
+        return;
+    }
+    if (cc->st_tn < CONT_TF_N) {
+        cc->st_tn++;
+    }
+    w = 1.0f / (float)cc->st_tn;
+    cc->st_tx += (tx - cc->st_tx) * w;
+    cc->st_ty += (ty - cc->st_ty) * w;
+    cc->st_t2 += (tx * tx + ty * ty - cc->st_t2) * w;
 }
 
 /* The store's tilt code of a ring code (push_g's levelled samples are LEVEL). */
@@ -224,6 +259,8 @@ static MAGCAL_NOINLINE uint32_t cont_drain(magcal_cont_t *cc, uint32_t max, magc
         const uint32_t t = cc->tail;
         uint32_t w = CONT_W_PUSH;
         const magcal_vec3_t *m;
+        const magcal_vec3_t *tl;
+        int lv;
         if (cont_judge_on(cc) != 0) {
             w += CONT_W_JUDGE;
         }
@@ -242,16 +279,25 @@ static MAGCAL_NOINLINE uint32_t cont_drain(magcal_cont_t *cc, uint32_t max, magc
             MAGCAL_CONT_BARRIER(); /* the slot was written before head */
             m = &cc->ring[t % MAGCAL_CONT_RING];
         }
-        if (cont_screen(cc, m, m == &cc->park_m ? cc->park_t : cc->ring_t[t % MAGCAL_CONT_RING],
-                        m != &cc->park_m && cc->ring_tilt[t % MAGCAL_CONT_RING] == MAGCAL_CONT_TILT_LEVELLED) == 0) {
+        tl = (m != &cc->park_m) ? &cc->ring_tl[t % MAGCAL_CONT_RING] : NULL;
+        lv = 0;
+        if (tl != NULL && cc->ring_tilt[t % MAGCAL_CONT_RING] == (uint8_t)MAGCAL_CONT_TILT_LEVELLED) {
+            lv = 1;
+            cont_unlevel(cc, m, tl);
+        }
+        if (cont_screen(cc, m, m == &cc->park_m ? cc->park_t : cc->ring_t[t % MAGCAL_CONT_RING], lv) == 0) {
             /* stored samples are counted by the store (added + replaced); with the tilt code of
              * push_g (the store's level preference) */
             const magcal_intake_tilt_t tilt =
                 cont_store_tilt(m == &cc->park_m ? cc->park_tilt : cc->ring_tilt[t % MAGCAL_CONT_RING]);
+            const uint32_t before = cc->store.ctr.added + cc->store.ctr.replaced;
             if (b->unlimited != 0u) {
                 (void)magcal_intake_push_tilt(&cc->store, m, tilt, NULL);
             } else {
                 cont_push_nosweep(cc, m, tilt);
+            }
+            if (tl != NULL && cc->store.ctr.added + cc->store.ctr.replaced != before) {
+                cont_fit_tilt(cc, tl, lv);
             }
             pushed++;
         }
@@ -643,10 +689,54 @@ CONT_INLINE magcal_cont_outcome_t cont_solve(magcal_cont_t *cc, magcal_cal_budge
     return oc;
 }
 
+/* The compensation came on under an installed calibration fitted on unlevelled samples (adopted
+ * before k was known, or restored at init): continuous.h "Tilt compensation". Between solves and
+ * fits, the store is emptied so that it refills with levelled samples only, and
+ * - when the calibration was adopted here with its fit's mean tilt known (cal_tk), it is levelled
+ *   at once: its centre was fitted k t_fit off the level one, so it moves back by that, and the
+ *   heading and the judge level their sample from now on (the field model, fitted on unlevelled
+ *   samples, is dropped until the next adoption);
+ * - otherwise (restored) it stays in force, judged on un-levelled samples (cont_screen,
+ *   magcal_cont_heading), until a solve on the levelled store adopts a new one or confirms it
+ *   (cont_adopt.c: then the heading is levelled too). */
+static MAGCAL_NOINLINE void cont_relevel(magcal_cont_t *cc)
+{
+    magcal_vec3_t centre;
+    magcal_cal2d_t c;
+    if (cc->tc_on == 0u || cc->has_cal == 0u || cc->cal_lv != 0u || cc->relevel != 0u ||
+        cc->state == (uint8_t)MAGCAL_CONT_RELEARNING || cc->stage != (uint8_t)CONT_STAGE_NONE ||
+        cc->park_n != cc->park_i) {
+        return;
+    }
+    (void)magcal_intake_reset(&cc->store);
+    cc->stored_at_solve = 0u;
+    cc->stored_at_adopt = 0u;
+    cc->cnt_on = 0u;
+    cc->st_tn = 0u;
+    if (cc->cal_tk != 0u && cc->cal_ts <= CONT_TF_SPREAD) {
+        c = cc->cal;
+        c.offset.x -= cc->tc_kl * cc->cal_tx;
+        c.offset.y -= cc->tc_kl * cc->cal_ty;
+        magcal_cont_install(cc, &c, cc->cal_raw_radius, cc->cal_sigma_rel); /* recentres the store */
+        cc->cal_lv = 1u;
+        cc->levels++;
+        return;
+    }
+    centre.x = cc->cal.offset.x;
+    centre.y = cc->cal.offset.y;
+    centre.z = 0.0f;
+    if (cc->cal_raw_radius > 0.0f) {
+        (void)magcal_intake_set_centre(&cc->store, &centre, cc->cal_raw_radius);
+    }
+    cc->relevel = 1u;
+    cc->relevels++;
+}
+
 /* The body of magcal_cont_step within the budget b (inlined: called once). */
 static inline magcal_cont_outcome_t cont_step_in(magcal_cont_t *cc, magcal_cal_budget_t *bp)
 {
     cc->change_flag = 0u;
+    cont_relevel(cc);
     if (cont_store_frozen(cc) == 0) {
         CONT_TRACE(magcal_bench_cont_trace[TR_DRAIN_INSN] = cont_trace_ticks();)
         /* the parked samples first; then, sliced, the step's sweep steps when a sample was stored */
@@ -722,6 +812,7 @@ magcal_cont_outcome_t magcal_cont_solve_blocking(magcal_cont_t *cc, int force)
         return MAGCAL_CONT_IDLE;
     }
     cc->force = (uint8_t)(force != 0 ? 1u : 0u); /* kept in cc: nothing but cc live across calls */
+    cont_relevel(cc);
     if (cont_store_frozen(cc) == 0) {
         (void)cont_drain(cc, MAGCAL_CONT_RING + (cc->park_n - cc->park_i), &b);
     }

@@ -139,7 +139,7 @@ def main():
            "json_rows": rep["rows"], "json_trusted_rows": rep["trusted_rows"]}
     if a.gravity_report:
         res["replay_gravity"] = {k: rep[k] for k in ("gravity_fed", "gravity_rows", "level_rows", "store_level",
-                                                     "tilt_comp_k", "tilt_comp_pairs", "tilt_comp_rho", "levelled_rows") if k in rep}
+                                                     "tilt_comp_k", "tilt_comp_pairs", "tilt_comp_rho", "levelled_rows", "relevels", "cal_levels") if k in rep}
     ev = rep["events"]
     adopt_rows = [e["row"] for e in ev if e["event"] == "adopted"]
     change_rows = [e["row"] for e in ev if e["event"] == "change"]

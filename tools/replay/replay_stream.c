@@ -452,7 +452,7 @@ static int replay_stream3(const char *path, const char *hpath, int json, double 
 
 /* The text report of a 2-D stream replay: events, the calibration in force, rows by trust. */
 static void print_stream_text(const char *file, const magcal_replay_csv_t *d, const cJSON *ev,
-                              const size_t by_trust[5], unsigned steps_per_row, size_t tail)
+                              const size_t by_trust[6], unsigned steps_per_row, size_t tail)
 {
     const cJSON *e;
     printf("magcal-replay --stream: %s\n", file);
@@ -483,10 +483,11 @@ static void print_stream_text(const char *file, const magcal_replay_csv_t *d, co
     } else {
         printf("  no calibration adopted (last solve: %s)\n", magcal_status_str(g_cc.last_status));
     }
-    printf("  headings: %zu ok, %zu uncalibrated, %zu disturbed, %zu changed, %zu coarse; %u solves, %u changes, "
+    printf("  headings: %zu ok, %zu uncalibrated, %zu disturbed, %zu changed, %zu coarse, %zu tilted; %u solves, %u changes, "
            "%u ring overflows\n",
            by_trust[MAGCAL_TRUST_OK], by_trust[MAGCAL_TRUST_UNCALIBRATED], by_trust[MAGCAL_TRUST_DISTURBED],
-           by_trust[MAGCAL_TRUST_CHANGED], by_trust[MAGCAL_TRUST_COARSE], (unsigned)g_cc.solves, (unsigned)g_cc.changes,
+           by_trust[MAGCAL_TRUST_CHANGED], by_trust[MAGCAL_TRUST_COARSE],
+           by_trust[MAGCAL_TRUST_TILTED], (unsigned)g_cc.solves, (unsigned)g_cc.changes,
            (unsigned)g_cc.dropped);
 }
 
@@ -595,7 +596,7 @@ int replay_stream_main(int argc, char **argv)
     const double *tc;
     int mode3 = 0;
     unsigned steps_per_row = 1u;
-    size_t by_trust[5] = {0u, 0u, 0u, 0u, 0u};
+    size_t by_trust[6] = {0u, 0u, 0u, 0u, 0u, 0u};
     unsigned k;
     size_t tail;
     int no_tilt = 0;
@@ -826,6 +827,8 @@ int replay_stream_main(int argc, char **argv)
         cJSON_AddNumberToObject(root, "tilt_comp_rho", (double)g_cc.tc_rho); /* the share of the tilt z confirms */
         cJSON_AddNumberToObject(root, "tilt_comp_pairs", (double)g_cc.tc_n);
         cJSON_AddNumberToObject(root, "levelled_rows", (double)g_cc.tc_levelled);
+        cJSON_AddNumberToObject(root, "relevels", (double)g_cc.relevels); /* compensation on under an unlevelled calibration */
+        cJSON_AddNumberToObject(root, "cal_levels", (double)g_cc.levels); /* such calibrations levelled by their fit tilt */
     }
     cJSON_AddNumberToObject(root, "shifts", (double)g_cc.shifts); /* level shifts (continuous.h) */
     cJSON_AddNumberToObject(root, "shift_refused", (double)g_cc.shift_refused);
