@@ -39,6 +39,13 @@ void magcal_intake_drop_older(magcal_intake_t *st, uint32_t bin, uint32_t seq_li
 /* Survey / re-bin up to `steps` slots (sweep.c). */
 void magcal_intake_sweep(magcal_intake_t *st, uint32_t steps);
 
+/* One sweep step (magcal_intake_sweep is `steps` of them); what it did: */
+#define INTAKE_SWEEP_JUMP 0u  /* jumped the empty rest of a bin */
+#define INTAKE_SWEEP_VISIT 1u /* surveyed a slot */
+#define INTAKE_SWEEP_REBIN 2u /* re-binned a sample (swap-remove + insert) */
+#define INTAKE_SWEEP_END 3u   /* ended the sweep (survey_finish: its fits) */
+uint32_t magcal_intake_sweep_step(magcal_intake_t *st);
+
 /* Live coverage, resumable (progress.c): the ring count of bins *bin.. within `budget` estimated
  * M4F instructions (at least one bin; returns what it charged; complete when *bin == n_bins, its
  * words / *filled / *deep cleared when *bin == 0), at the completion depth

@@ -279,36 +279,29 @@ static uint32_t cont_solve_min(const magcal_cont_t *cc)
  * only ever the part's first step and its only one (as a push's, sweep.c). */
 static MAGCAL_NOINLINE void cont_sweep_part(magcal_cont_t *cc, magcal_cal_budget_t *b)
 {
+    /* the charge of a step by what it did (intake_internal.h INTAKE_SWEEP_*; the end separately) */
+    static const uint16_t w_of[3] = {(uint16_t)CONT_W_JUMP, (uint16_t)CONT_W_VISIT, (uint16_t)CONT_W_REBIN};
     magcal_intake_t *st = &cc->store;
+    const uint32_t steps = (uint32_t)st->cfg.sweep_steps;
+    const uint32_t n = magcal_intake_nslots(st);
+    /* a solve under way keeps its least share (one sweep step per stored sample) */
+    const uint32_t keep = (cc->stage != (uint8_t)CONT_STAGE_NONE) ? cont_solve_min(cc) + CONT_W_REBIN : 0u;
     uint32_t s;
     /* cppcheck-suppress misra-c2012-15.4 ; deviation D13: a resumable loop leaves at its pause point (sweep end, budget) */
-    for (s = 0u; s < (uint32_t)st->cfg.sweep_steps; ++s) {
-        const uint32_t sweeps = st->sweeps;
-        const uint32_t sv = st->sv_n;
-        const uint32_t reb = st->ctr.rebinned;
-        uint32_t w;
-        if (cont_sweep_end_due(cc) != 0 && s != 0u) {
-            break; /* the sweep's end: the next step's first */
+    for (s = 0u; s < steps; ++s) {
+        uint32_t kind;
+        if (s != 0u && (st->cursor >= n || b->left < keep)) {
+            break; /* the sweep's end (the next step's first: cont_sweep_end_due), or the solve's share */
         }
-        if (s != 0u && cc->stage != (uint8_t)CONT_STAGE_NONE && b->left < cont_solve_min(cc) + CONT_W_REBIN) {
-            break; /* a solve under way keeps its least share (one sweep step per stored sample) */
-        }
-        magcal_intake_sweep(st, 1u);
-        if (st->sweeps != sweeps) {
+        kind = magcal_intake_sweep_step(st);
+        if (kind == INTAKE_SWEEP_END) {
             CONT_TRACE(magcal_bench_cont_trace[TR_SWEEPS]++;)
             (void)magcal_cal_spend(b, CONT_W_SWEEP);
             break;
         }
-        if (st->ctr.rebinned != reb) {
-            w = CONT_W_REBIN;
-            CONT_TRACE(magcal_bench_cont_trace[TR_REBINS]++;)
-        } else if (st->sv_n != sv) {
-            w = CONT_W_VISIT;
-            CONT_TRACE(magcal_bench_cont_trace[TR_VISITS]++;)
-        } else {
-            w = CONT_W_JUMP;
-        }
-        if (magcal_cal_spend(b, w) != 0) {
+        CONT_TRACE(magcal_bench_cont_trace[TR_REBINS] += (kind == INTAKE_SWEEP_REBIN) ? 1u : 0u;)
+        CONT_TRACE(magcal_bench_cont_trace[TR_VISITS] += (kind == INTAKE_SWEEP_VISIT) ? 1u : 0u;)
+        if (magcal_cal_spend(b, (uint32_t)w_of[kind]) != 0) {
             break;
         }
     }
