@@ -46,12 +46,12 @@ void magcal_intake_survey_clear(magcal_intake_t *st)
 {
     st->sv_n = 0u;
     st->fit_n = 0u;
-    st->fit_zz = 0.0f;
-    (void)memset(st->ell_a, 0, sizeof(st->ell_a));
-    (void)memset(st->ell_b, 0, sizeof(st->ell_b));
-    st->ell_tt = 0.0f;
-    (void)memset(st->fit_a, 0, sizeof(st->fit_a));
-    (void)memset(st->fit_b, 0, sizeof(st->fit_b));
+    st->sums.fit_zz = 0.0f;
+    (void)memset(st->sums.ell_a, 0, sizeof(st->sums.ell_a));
+    (void)memset(st->sums.ell_b, 0, sizeof(st->sums.ell_b));
+    st->sums.ell_tt = 0.0f;
+    (void)memset(st->sums.fit_a, 0, sizeof(st->sums.fit_a));
+    (void)memset(st->sums.fit_b, 0, sizeof(st->sums.fit_b));
     (void)memset(st->sv_in, 0, sizeof(st->sv_in));
 }
 
@@ -103,7 +103,7 @@ static void survey_add3(magcal_intake_t *st, const magcal_vec3_t *m)
         const float d2 = x * x + y * y + z * z;
         if (d2 >= lo2 && d2 <= hi2) {
             /* packed lower triangle of r r^T, written out (the sweep's hot loop) */
-            float *fa = st->fit_a;
+            float *fa = st->sums.fit_a;
             fa[0] += x * x;
             fa[1] += y * x;
             fa[2] += y * y;
@@ -114,24 +114,24 @@ static void survey_add3(magcal_intake_t *st, const magcal_vec3_t *m)
             fa[7] += y;
             fa[8] += z;
             fa[9] += 1.0f;
-            st->fit_b[2] -= z * d2;
-            st->fit_b[3] -= d2;
-            st->fit_b[0] -= x * d2;
-            st->fit_b[1] -= y * d2;
-            st->fit_zz += d2 * d2;
+            st->sums.fit_b[2] -= z * d2;
+            st->sums.fit_b[3] -= d2;
+            st->sums.fit_b[0] -= x * d2;
+            st->sums.fit_b[1] -= y * d2;
+            st->sums.fit_zz += d2 * d2;
             st->fit_n++;
         }
     }
 }
 
 /* The 2-D fit sums of one sample in the band (normalised x, y; d2 = x^2 + y^2): survey_add's,
- * without the repeated ones (survey_add2). */
-static void survey_acc2(magcal_intake_t *st, float x, float y, float d2)
+ * without the repeated ones (survey_add2). Not inlined: every sum within reach of the one base. */
+static MAGCAL_NOINLINE void survey_acc2(magcal_intake_sums_t *sm, float x, float y, float d2)
 {
-    float *fa = st->fit_a;
-    float *fb = st->fit_b;
-    float *ea = st->ell_a;
-    float *eb = st->ell_b;
+    float *fa = sm->fit_a;
+    float *fb = sm->fit_b;
+    float *ea = sm->ell_a;
+    float *eb = sm->ell_b;
     const float xy = x * y;
     const float yy = y * y;
     const float t = -x * x; /* conic x^2 + B xy + C y^2 + D x + E y + F = 0: e = (xy, yy, x, y, 1) */
@@ -143,7 +143,7 @@ static void survey_acc2(magcal_intake_t *st, float x, float y, float d2)
     fb[0] -= x * d2;
     fb[1] -= y * d2;
     fb[2] -= d2;
-    st->fit_zz += d2 * d2;
+    sm->fit_zz += d2 * d2;
     ea[0] += xy * xy;
     ea[1] += yy * xy;
     ea[2] += yy * yy;
@@ -157,8 +157,7 @@ static void survey_acc2(magcal_intake_t *st, float x, float y, float d2)
     eb[2] += x * t;
     eb[3] += y * t;
     eb[4] += t;
-    st->ell_tt += t * t;
-    st->fit_n++;
+    sm->ell_tt += t * t;
 }
 
 /* The survey of one slot in 2-D, the sweep's hot path (issue 14: a surveyed slot was ~420 M4F instructions,
@@ -171,8 +170,15 @@ static void survey_acc2(magcal_intake_t *st, float x, float y, float d2)
 static void survey_add2(magcal_intake_t *st, float vx, float vy)
 {
     const uint32_t fill = (st->sv_n < MAGCAL_INTAKE_TRIM) ? st->sv_n : MAGCAL_INTAKE_TRIM;
-    survey_trim(st->sv_hi[0], st->sv_lo[0], vx, fill);
-    survey_trim(st->sv_hi[1], st->sv_lo[1], vy, fill);
+    /* most values enter neither trimmed list: survey_trim's own test, without its call */
+    if (fill < MAGCAL_INTAKE_TRIM || vx > st->sv_hi[0][MAGCAL_INTAKE_TRIM - 1u] ||
+        vx < st->sv_lo[0][MAGCAL_INTAKE_TRIM - 1u]) {
+        survey_trim(st->sv_hi[0], st->sv_lo[0], vx, fill);
+    }
+    if (fill < MAGCAL_INTAKE_TRIM || vy > st->sv_hi[1][MAGCAL_INTAKE_TRIM - 1u] ||
+        vy < st->sv_lo[1][MAGCAL_INTAKE_TRIM - 1u]) {
+        survey_trim(st->sv_hi[1], st->sv_lo[1], vy, fill);
+    }
     st->sv_n++;
     if (st->ref_r > 0.0f) {
         const float inv = 1.0f / st->ref_r;
@@ -188,12 +194,14 @@ static void survey_add2(magcal_intake_t *st, float vx, float vy)
                 st->sv_in[2] += dx * dx + dy * dy;
                 st->sv_in[3] += 1.0f;
             } else if (d2 <= FIT_BAND_HI2) {
-                survey_acc2(st, x, y, d2);
+                survey_acc2(&st->sums, x, y, d2);
+                st->fit_n++;
             } else {
                 /* outside the band: not in the fit */
             }
         } else if (d2 >= FIT_TIGHT_LO2 && d2 <= FIT_TIGHT_HI2) {
-            survey_acc2(st, x, y, d2);
+            survey_acc2(&st->sums, x, y, d2);
+            st->fit_n++;
         } else {
             /* outside the tight band: not in the fit */
         }
@@ -203,14 +211,14 @@ static void survey_add2(magcal_intake_t *st, float vx, float vy)
 /* The sums survey_add2 leaves out: copies of the ones they repeat (survey_add2). */
 static void survey_dup2(magcal_intake_t *st)
 {
-    st->fit_a[5] = (float)st->fit_n;
-    st->ell_a[5] = st->fit_a[0];
-    st->ell_a[8] = st->fit_a[1];
-    st->ell_a[9] = st->fit_a[2];
-    st->ell_a[11] = st->fit_a[2];
-    st->ell_a[12] = st->fit_a[3];
-    st->ell_a[13] = st->fit_a[4];
-    st->ell_a[14] = st->fit_a[5];
+    st->sums.fit_a[5] = (float)st->fit_n;
+    st->sums.ell_a[5] = st->sums.fit_a[0];
+    st->sums.ell_a[8] = st->sums.fit_a[1];
+    st->sums.ell_a[9] = st->sums.fit_a[2];
+    st->sums.ell_a[11] = st->sums.fit_a[2];
+    st->sums.ell_a[12] = st->sums.fit_a[3];
+    st->sums.ell_a[13] = st->sums.fit_a[4];
+    st->sums.ell_a[14] = st->sums.fit_a[5];
 }
 
 /* Scatter of the fit's samples: the extreme eigenvalues of their covariance (normalised units);
@@ -225,13 +233,13 @@ static MAGCAL_NOINLINE int fit_scatter(const magcal_intake_t *st, float inv_n, f
     uint32_t i;
     uint32_t j;
     for (i = 0u; i < dims; ++i) {
-        mean[i] = st->fit_a[pk(dims, i)] * inv_n;
+        mean[i] = st->sums.fit_a[pk(dims, i)] * inv_n;
     }
     for (i = 0u; i < dims; ++i) {
         for (j = 0u; j < dims; ++j) {
             const uint32_t hi = (i > j) ? i : j;
             const uint32_t lo = (i > j) ? j : i;
-            cov[i * dims + j] = st->fit_a[pk(hi, lo)] * inv_n - mean[i] * mean[j];
+            cov[i * dims + j] = st->sums.fit_a[pk(hi, lo)] * inv_n - mean[i] * mean[j];
         }
     }
     if (magcal_jacobi_sym(cov, dims, w, e) != MAGCAL_OK) {
@@ -260,16 +268,16 @@ static MAGCAL_NOINLINE int fit_circle(const magcal_intake_t *st, float inv_n, fl
         for (j = 0u; j < q; ++j) {
             const uint32_t hi = (i > j) ? i : j;
             const uint32_t lo = (i > j) ? j : i;
-            a[i * q + j] = st->fit_a[pk(hi, lo)] * inv_n;
+            a[i * q + j] = st->sums.fit_a[pk(hi, lo)] * inv_n;
         }
-        b[i] = st->fit_b[i] * inv_n;
+        b[i] = st->sums.fit_b[i] * inv_n;
         bz[i] = b[i];
     }
     if (magcal_ldlt_solve(a, b, q, 1e-6f, NULL) != MAGCAL_OK) {
         return 0;
     }
     *r2 = -b[dims];
-    *res = st->fit_zz * inv_n;
+    *res = st->sums.fit_zz * inv_n;
     for (i = 0u; i < q; ++i) { /* algebraic residual at the solution: z.z - x.b (per sample) */
         *res -= b[i] * bz[i];
     }
@@ -288,16 +296,16 @@ static MAGCAL_NOINLINE int fit_conic(magcal_intake_t *st, float inv_n, float res
     float *ea = st->ell_scratch; /* in the state: the push path's stack stays <= 512 B */
     float eb[5];
     float eb0[5];
-    float eres = st->ell_tt * inv_n;
+    float eres = st->sums.ell_tt * inv_n;
     uint32_t i;
     uint32_t j;
     for (i = 0u; i < 5u; ++i) {
         for (j = 0u; j < 5u; ++j) {
             const uint32_t hi = (i > j) ? i : j;
             const uint32_t lo = (i > j) ? j : i;
-            ea[i * 5u + j] = st->ell_a[pk(hi, lo)] * inv_n;
+            ea[i * 5u + j] = st->sums.ell_a[pk(hi, lo)] * inv_n;
         }
-        eb[i] = st->ell_b[i] * inv_n;
+        eb[i] = st->sums.ell_b[i] * inv_n;
         eb0[i] = eb[i];
     }
     if (magcal_ldlt_solve(ea, eb, 5u, 1e-6f, NULL) != MAGCAL_OK) {
@@ -453,6 +461,26 @@ static MAGCAL_NOINLINE void survey_finish(magcal_intake_t *st)
     magcal_intake_survey_clear(st);
 }
 
+/* A slot of bin b not swept since the last centre change: its sample moves to its bin under the
+ * new centre when that is another one (swap-remove, insert keeping its age; 1), else 0 (not
+ * inlined: the per-slot path keeps a small frame). */
+static MAGCAL_NOINLINE int sweep_rebin(magcal_intake_t *st, uint32_t c, uint32_t b)
+{
+    const magcal_intake_slot_t cur = st->slots[c];
+    const uint16_t nb = magcal_intake_bin_of(st, &cur.m);
+    if (nb == (uint16_t)b) {
+        return 0;
+    }
+    st->slots[c] = st->slots[b * st->cfg.per_bin + (uint32_t)st->count[b] - 1u]; /* swap-remove; re-examine this slot */
+    st->count[b]--;
+    st->ctr.stored--;
+    st->ctr.rebinned++;
+    if (magcal_intake_insert(st, nb, &cur.m, cur.seq) != 0) {
+        st->ctr.rebin_dropped++;
+    }
+    return 1;
+}
+
 uint32_t magcal_intake_sweep_step(magcal_intake_t *st)
 {
     const uint32_t per = st->cfg.per_bin;
@@ -471,20 +499,8 @@ uint32_t magcal_intake_sweep_step(magcal_intake_t *st)
         st->cursor = (b + 1u) * per;
         return INTAKE_SWEEP_JUMP;
     }
-    if (st->bin_gen[b] != st->gen) {
-        const magcal_intake_slot_t cur = st->slots[c];
-        const uint16_t nb = magcal_intake_bin_of(st, &cur.m);
-        if (nb != (uint16_t)b) {
-            const uint32_t last = b * per + (uint32_t)st->count[b] - 1u;
-            st->slots[c] = st->slots[last]; /* swap-remove; re-examine this slot */
-            st->count[b]--;
-            st->ctr.stored--;
-            st->ctr.rebinned++;
-            if (magcal_intake_insert(st, nb, &cur.m, cur.seq) != 0) {
-                st->ctr.rebin_dropped++;
-            }
-            return INTAKE_SWEEP_REBIN;
-        }
+    if (st->bin_gen[b] != st->gen && sweep_rebin(st, c, b) != 0) {
+        return INTAKE_SWEEP_REBIN;
     }
     if (st->cfg.dims == 2u) {
         survey_add2(st, st->slots[c].m.x, st->slots[c].m.y);
