@@ -481,13 +481,17 @@ static MAGCAL_NOINLINE int sweep_rebin(magcal_intake_t *st, uint32_t c, uint32_t
     return 1;
 }
 
-uint32_t magcal_intake_sweep_step(magcal_intake_t *st)
+/* One sweep step (per = cfg.per_bin, n = the slots in use); what it did: INTAKE_SWEEP_*. Inlined
+ * into the two loops below (the per-slot path is the continuous step's hot loop, issue 14). */
+#if defined(__GNUC__) || defined(__clang__)
+__attribute__((always_inline))
+#endif
+static inline uint32_t sweep_one(magcal_intake_t *st, uint32_t per, uint32_t n)
 {
-    const uint32_t per = st->cfg.per_bin;
     const uint32_t c = st->cursor;
     uint32_t b;
     uint32_t k;
-    if (c >= magcal_intake_nslots(st)) {
+    if (c >= n) {
         survey_finish(st);
         st->cursor = 0u;
         return INTAKE_SWEEP_END;
@@ -516,8 +520,41 @@ uint32_t magcal_intake_sweep_step(magcal_intake_t *st)
 
 void magcal_intake_sweep(magcal_intake_t *st, uint32_t steps)
 {
+    const uint32_t per = st->cfg.per_bin;
+    const uint32_t n = magcal_intake_nslots(st);
     uint32_t s;
     for (s = 0u; s < steps; ++s) {
-        (void)magcal_intake_sweep_step(st);
+        (void)sweep_one(st, per, n);
     }
+}
+
+uint32_t magcal_intake_sweep_part(magcal_intake_t *st, const uint16_t w[4], uint32_t keep, uint32_t *left)
+{
+    const uint32_t per = st->cfg.per_bin;
+    const uint32_t n = magcal_intake_nslots(st);
+    const uint32_t steps = st->cfg.sweep_steps;
+    uint32_t l = *left;
+    uint32_t visits = 0u;
+    uint32_t s;
+    /* cppcheck-suppress misra-c2012-15.4 ; deviation D13: a resumable loop leaves at its pause point (sweep end, budget) */
+    for (s = 0u; s < steps; ++s) {
+        uint32_t kind;
+        uint32_t wk;
+        if (s != 0u && (st->cursor >= n || l < keep)) {
+            break; /* the sweep's end is the next part's first step; the caller's share kept */
+        }
+        kind = sweep_one(st, per, n);
+        wk = w[kind];
+        visits += (kind == INTAKE_SWEEP_VISIT) ? 1u : 0u;
+        if (wk >= l) {
+            l = 0u; /* spent (magcal_cal_spend) */
+            break;
+        }
+        l -= wk;
+        if (kind == INTAKE_SWEEP_END) {
+            break; /* the sweep's end is the part's only step */
+        }
+    }
+    *left = l;
+    return visits;
 }

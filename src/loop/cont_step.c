@@ -279,32 +279,18 @@ static uint32_t cont_solve_min(const magcal_cont_t *cc)
  * only ever the part's first step and its only one (as a push's, sweep.c). */
 static MAGCAL_NOINLINE void cont_sweep_part(magcal_cont_t *cc, magcal_cal_budget_t *b)
 {
-    /* the charge of a step by what it did (intake_internal.h INTAKE_SWEEP_*; the end separately) */
-    static const uint16_t w_of[3] = {(uint16_t)CONT_W_JUMP, (uint16_t)CONT_W_VISIT, (uint16_t)CONT_W_REBIN};
-    magcal_intake_t *st = &cc->store;
-    const uint32_t steps = (uint32_t)st->cfg.sweep_steps;
-    const uint32_t n = magcal_intake_nslots(st);
+    /* the charge of a sweep step by what it did (intake_internal.h INTAKE_SWEEP_*) */
+    static const uint16_t w_of[4] = {(uint16_t)CONT_W_JUMP, (uint16_t)CONT_W_VISIT, (uint16_t)CONT_W_REBIN,
+                                     (uint16_t)CONT_W_SWEEP};
     /* a solve under way keeps its least share (one sweep step per stored sample) */
     const uint32_t keep = (cc->stage != (uint8_t)CONT_STAGE_NONE) ? cont_solve_min(cc) + CONT_W_REBIN : 0u;
-    uint32_t s;
-    /* cppcheck-suppress misra-c2012-15.4 ; deviation D13: a resumable loop leaves at its pause point (sweep end, budget) */
-    for (s = 0u; s < steps; ++s) {
-        uint32_t kind;
-        if (s != 0u && (st->cursor >= n || b->left < keep)) {
-            break; /* the sweep's end (the next step's first: cont_sweep_end_due), or the solve's share */
-        }
-        kind = magcal_intake_sweep_step(st);
-        if (kind == INTAKE_SWEEP_END) {
-            CONT_TRACE(magcal_bench_cont_trace[TR_SWEEPS]++;)
-            (void)magcal_cal_spend(b, CONT_W_SWEEP);
-            break;
-        }
-        CONT_TRACE(magcal_bench_cont_trace[TR_REBINS] += (kind == INTAKE_SWEEP_REBIN) ? 1u : 0u;)
-        CONT_TRACE(magcal_bench_cont_trace[TR_VISITS] += (kind == INTAKE_SWEEP_VISIT) ? 1u : 0u;)
-        if (magcal_cal_spend(b, (uint32_t)w_of[kind]) != 0) {
-            break;
-        }
-    }
+    CONT_TRACE(const uint32_t sweeps0 = cc->store.sweeps;)
+    CONT_TRACE(const uint32_t reb0 = cc->store.ctr.rebinned;)
+    const uint32_t visits = magcal_intake_sweep_part(&cc->store, w_of, keep, &b->left);
+    CONT_TRACE(magcal_bench_cont_trace[TR_SWEEPS] += cc->store.sweeps - sweeps0;)
+    CONT_TRACE(magcal_bench_cont_trace[TR_REBINS] += cc->store.ctr.rebinned - reb0;)
+    CONT_TRACE(magcal_bench_cont_trace[TR_VISITS] += visits;)
+    (void)visits; /* the bench trace's count */
 }
 
 /* During the field-model fit the store must not change: ring samples are parked, in order, in
