@@ -61,26 +61,140 @@ static uint32_t pk(uint32_t i, uint32_t j)
     return (i * (i + 1u)) / 2u + j;
 }
 
-/* One axis of the trimmed extremes (survey_add's): keep the TRIM largest (descending) and
- * smallest (ascending) of the `fill` values seen so far. */
+/* The trimmed extremes of one axis: the TRIM largest values seen by the survey (descending) and
+ * the TRIM smallest (ascending). While fewer than TRIM were seen, a value always enters. */
+static MAGCAL_NOINLINE void trim_fill(float *hi, float *lo, float v, uint32_t fill)
+{
+    uint32_t k = fill;
+    while (k > 0u && hi[k - 1u] < v) {
+        hi[k] = hi[k - 1u];
+        k--;
+    }
+    hi[k] = v;
+    k = fill;
+    while (k > 0u && lo[k - 1u] > v) {
+        lo[k] = lo[k - 1u];
+        k--;
+    }
+    lo[k] = v;
+}
+
+/* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
+MAGCAL_STATIC_ASSERT(MAGCAL_INTAKE_TRIM == 8u, intake_trim_written_out);
+
+/* A full list of the TRIM largest values, v above its last (trim_hi_enters): the insertion
+ * written out (issue 14: ~4,100 insertions of ~4.6 moves each in the 471 steps of vn100's first
+ * solve, ~60 M4F instructions each as a loop), each kept value compared and moved once, as the
+ * loop does (after the values not below v; the last one drops). */
+static MAGCAL_NOINLINE void trim_put_hi(float *l, float v)
+{
+    float p = l[6];
+    if (!(p < v)) {
+        l[7] = v;
+        return;
+    }
+    l[7] = p;
+    p = l[5];
+    if (!(p < v)) {
+        l[6] = v;
+        return;
+    }
+    l[6] = p;
+    p = l[4];
+    if (!(p < v)) {
+        l[5] = v;
+        return;
+    }
+    l[5] = p;
+    p = l[3];
+    if (!(p < v)) {
+        l[4] = v;
+        return;
+    }
+    l[4] = p;
+    p = l[2];
+    if (!(p < v)) {
+        l[3] = v;
+        return;
+    }
+    l[3] = p;
+    p = l[1];
+    if (!(p < v)) {
+        l[2] = v;
+        return;
+    }
+    l[2] = p;
+    p = l[0];
+    if (!(p < v)) {
+        l[1] = v;
+        return;
+    }
+    l[1] = p;
+    l[0] = v;
+}
+
+/* The same for a full list of the TRIM smallest values (ascending), v below its last. */
+static MAGCAL_NOINLINE void trim_put_lo(float *l, float v)
+{
+    float p = l[6];
+    if (!(p > v)) {
+        l[7] = v;
+        return;
+    }
+    l[7] = p;
+    p = l[5];
+    if (!(p > v)) {
+        l[6] = v;
+        return;
+    }
+    l[6] = p;
+    p = l[4];
+    if (!(p > v)) {
+        l[5] = v;
+        return;
+    }
+    l[5] = p;
+    p = l[3];
+    if (!(p > v)) {
+        l[4] = v;
+        return;
+    }
+    l[4] = p;
+    p = l[2];
+    if (!(p > v)) {
+        l[3] = v;
+        return;
+    }
+    l[3] = p;
+    p = l[1];
+    if (!(p > v)) {
+        l[2] = v;
+        return;
+    }
+    l[2] = p;
+    p = l[0];
+    if (!(p > v)) {
+        l[1] = v;
+        return;
+    }
+    l[1] = p;
+    l[0] = v;
+}
+
+/* Axis value v into its trimmed extremes (fill: values the survey saw before it, at most TRIM):
+ * into the largest when fewer than TRIM were seen or v is above the last kept, the same for the
+ * smallest. */
 static inline void survey_trim(float *hi, float *lo, float v, uint32_t fill)
 {
-    uint32_t k;
-    if (fill < MAGCAL_INTAKE_TRIM || v > hi[MAGCAL_INTAKE_TRIM - 1u]) {
-        k = (fill < MAGCAL_INTAKE_TRIM) ? fill : MAGCAL_INTAKE_TRIM - 1u;
-        while (k > 0u && hi[k - 1u] < v) {
-            hi[k] = hi[k - 1u];
-            k--;
+    if (fill < MAGCAL_INTAKE_TRIM) {
+        trim_fill(hi, lo, v, fill);
+    } else {
+        if (v > hi[MAGCAL_INTAKE_TRIM - 1u]) {
+            trim_put_hi(hi, v);
         }
-        hi[k] = v;
-    }
-    if (fill < MAGCAL_INTAKE_TRIM || v < lo[MAGCAL_INTAKE_TRIM - 1u]) {
-        k = (fill < MAGCAL_INTAKE_TRIM) ? fill : MAGCAL_INTAKE_TRIM - 1u;
-        while (k > 0u && lo[k - 1u] > v) {
-            lo[k] = lo[k - 1u];
-            k--;
+        if (v < lo[MAGCAL_INTAKE_TRIM - 1u]) {
+            trim_put_lo(lo, v);
         }
-        lo[k] = v;
     }
 }
 
@@ -170,15 +284,8 @@ static MAGCAL_NOINLINE void survey_acc2(magcal_intake_sums_t *sm, float x, float
 static void survey_add2(magcal_intake_t *st, float vx, float vy)
 {
     const uint32_t fill = (st->sv_n < MAGCAL_INTAKE_TRIM) ? st->sv_n : MAGCAL_INTAKE_TRIM;
-    /* most values enter neither trimmed list: survey_trim's own test, without its call */
-    if (fill < MAGCAL_INTAKE_TRIM || vx > st->sv_hi[0][MAGCAL_INTAKE_TRIM - 1u] ||
-        vx < st->sv_lo[0][MAGCAL_INTAKE_TRIM - 1u]) {
-        survey_trim(st->sv_hi[0], st->sv_lo[0], vx, fill);
-    }
-    if (fill < MAGCAL_INTAKE_TRIM || vy > st->sv_hi[1][MAGCAL_INTAKE_TRIM - 1u] ||
-        vy < st->sv_lo[1][MAGCAL_INTAKE_TRIM - 1u]) {
-        survey_trim(st->sv_hi[1], st->sv_lo[1], vy, fill);
-    }
+    survey_trim(st->sv_hi[0], st->sv_lo[0], vx, fill);
+    survey_trim(st->sv_hi[1], st->sv_lo[1], vy, fill);
     st->sv_n++;
     if (st->ref_r > 0.0f) {
         const float inv = 1.0f / st->ref_r;
