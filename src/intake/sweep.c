@@ -184,6 +184,9 @@ static MAGCAL_NOINLINE void trim_put_lo(float *l, float v)
 /* Axis value v into its trimmed extremes (fill: values the survey saw before it, at most TRIM):
  * into the largest when fewer than TRIM were seen or v is above the last kept, the same for the
  * smallest. */
+#if defined(__GNUC__) || defined(__clang__)
+__attribute__((always_inline)) /* its test is the common case: no call for it (-Os would call) */
+#endif
 static inline void survey_trim(float *hi, float *lo, float v, uint32_t fill)
 {
     if (fill < MAGCAL_INTAKE_TRIM) {
