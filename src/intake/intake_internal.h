@@ -49,8 +49,8 @@ void magcal_intake_sweep(magcal_intake_t *st, uint32_t steps);
  * steps, each charged w[what it did] against *left (not unlimited) as magcal_cal_spend does,
  * stopping after a step whose charge reaches *left (*left = 0) or that ended the sweep (which is
  * then the part's only step: before any step but the first, the part stops when the cursor is at
- * the end, or when *left < keep). Returns the slots it surveyed. */
-uint32_t magcal_intake_sweep_part(magcal_intake_t *st, const uint16_t w[4], uint32_t keep, uint32_t *left);
+ * the end, or when *left < keep). */
+void magcal_intake_sweep_part(magcal_intake_t *st, const uint16_t w[4], uint32_t keep, uint32_t *left);
 
 /* Live coverage, resumable (progress.c): the ring count of bins *bin.. within `budget` estimated
  * M4F instructions (at least one bin; returns what it charged; complete when *bin == n_bins, its

@@ -268,22 +268,23 @@ static MAGCAL_NOINLINE void survey_acc2(magcal_intake_sums_t *sm, float x, float
     ea[4] += x * yy;
     ea[6] += y * xy;
     ea[7] += y * yy;
-    ea[10] += xy;
     eb[0] += xy * t;
     eb[1] += yy * t;
     eb[2] += x * t;
     eb[3] += y * t;
-    eb[4] += t;
     sm->ell_tt += t * t;
 }
 
-/* The survey of one slot in 2-D, the sweep's hot path (issue 14: a surveyed slot was ~420 M4F instructions,
- * most of a step's drain during a solve): the same sums in the same order, so bit for bit the
- * same values, without the sums that repeat another one exactly. The conic's normal matrix shares
- * x^2, xy, y^2 (twice), x, y and the count with the circle's (ell_a[5, 8, 9, 11, 12, 13, 14] =
- * fit_a[0, 1, 2, 2, 3, 4, 5]: the same products added in the same order), and the circle's count
- * fit_a[5] is fit_n (1.0f added fit_n < 2^24 times is exact): survey_dup2 copies them before the
- * fits read them, at the sweep's end. */
+/* The survey of one slot in 2-D, the sweep's hot path (issue 14: a surveyed slot was ~420 M4F
+ * instructions, most of a step's drain during a solve): the same sums in the same order, so bit
+ * for bit the same values, without the sums that repeat another one exactly. The conic's normal
+ * matrix shares x^2, xy (twice: ell_a[8] and [10], y x = x y), y^2 (twice), x, y and the count with
+ * the circle's (ell_a[5, 8, 9, 10, 11, 12, 13, 14] = fit_a[0, 1, 2, 1, 2, 3, 4, 5]: the same
+ * products added in the same order), the circle's count fit_a[5] is fit_n (1.0f added fit_n <
+ * 2^24 times is exact), and the conic's sum of its targets -x^2 is -fit_a[0] (negation commutes
+ * with rounding; the two differ only in the sign of a zero sum, which needs every x^2 zero: the
+ * scatter test refuses such a survey before the conic is fitted). survey_dup2 copies them before
+ * the fits read them, at the sweep's end. */
 static void survey_add2(magcal_intake_t *st, float vx, float vy)
 {
     const uint32_t fill = (st->sv_n < MAGCAL_INTAKE_TRIM) ? st->sv_n : MAGCAL_INTAKE_TRIM;
@@ -326,9 +327,11 @@ static void survey_dup2(magcal_intake_t *st)
     st->sums.ell_a[8] = st->sums.fit_a[1];
     st->sums.ell_a[9] = st->sums.fit_a[2];
     st->sums.ell_a[11] = st->sums.fit_a[2];
+    st->sums.ell_a[10] = st->sums.fit_a[1];
     st->sums.ell_a[12] = st->sums.fit_a[3];
     st->sums.ell_a[13] = st->sums.fit_a[4];
     st->sums.ell_a[14] = st->sums.fit_a[5];
+    st->sums.ell_b[4] = -st->sums.fit_a[0];
 }
 
 /* Scatter of the fit's samples: the extreme eigenvalues of their covariance (normalised units);
@@ -638,13 +641,12 @@ void magcal_intake_sweep(magcal_intake_t *st, uint32_t steps)
     }
 }
 
-uint32_t magcal_intake_sweep_part(magcal_intake_t *st, const uint16_t w[4], uint32_t keep, uint32_t *left)
+void magcal_intake_sweep_part(magcal_intake_t *st, const uint16_t w[4], uint32_t keep, uint32_t *left)
 {
     const uint32_t per = st->cfg.per_bin;
     const uint32_t n = magcal_intake_nslots(st);
     const uint32_t steps = st->cfg.sweep_steps;
     uint32_t l = *left;
-    uint32_t visits = 0u;
     uint32_t s;
     /* cppcheck-suppress misra-c2012-15.4 ; deviation D13: a resumable loop leaves at its pause point (sweep end, budget) */
     for (s = 0u; s < steps; ++s) {
@@ -655,7 +657,6 @@ uint32_t magcal_intake_sweep_part(magcal_intake_t *st, const uint16_t w[4], uint
         }
         kind = sweep_one(st, per, n);
         wk = w[kind];
-        visits += (kind == INTAKE_SWEEP_VISIT) ? 1u : 0u;
         if (wk >= l) {
             l = 0u; /* spent (magcal_cal_spend) */
             break;
@@ -666,5 +667,4 @@ uint32_t magcal_intake_sweep_part(magcal_intake_t *st, const uint16_t w[4], uint
         }
     }
     *left = l;
-    return visits;
 }

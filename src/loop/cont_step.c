@@ -286,11 +286,12 @@ static MAGCAL_NOINLINE void cont_sweep_part(magcal_cont_t *cc, magcal_cal_budget
     const uint32_t keep = (cc->stage != (uint8_t)CONT_STAGE_NONE) ? cont_solve_min(cc) + CONT_W_REBIN : 0u;
     CONT_TRACE(const uint32_t sweeps0 = cc->store.sweeps;)
     CONT_TRACE(const uint32_t reb0 = cc->store.ctr.rebinned;)
-    const uint32_t visits = magcal_intake_sweep_part(&cc->store, w_of, keep, &b->left);
+    CONT_TRACE(const uint32_t sv0 = cc->store.sv_n;)
+    magcal_intake_sweep_part(&cc->store, w_of, keep, &b->left);
     CONT_TRACE(magcal_bench_cont_trace[TR_SWEEPS] += cc->store.sweeps - sweeps0;)
     CONT_TRACE(magcal_bench_cont_trace[TR_REBINS] += cc->store.ctr.rebinned - reb0;)
-    CONT_TRACE(magcal_bench_cont_trace[TR_VISITS] += visits;)
-    (void)visits; /* the bench trace's count */
+    /* the slots surveyed (a part that ends the sweep surveys none) */
+    CONT_TRACE(magcal_bench_cont_trace[TR_VISITS] += (cc->store.sweeps == sweeps0) ? cc->store.sv_n - sv0 : 0u;)
 }
 
 /* During the field-model fit the store must not change: ring samples are parked, in order, in
