@@ -201,8 +201,9 @@ static inline void survey_trim(float *hi, float *lo, float v, uint32_t fill)
     }
 }
 
-/* survey_add in 3-D: the trimmed extremes of the three axes, then the sphere fit's sums of a
- * sample in the band (2-D: survey_add2). */
+/* The survey of one slot in 3-D: the trimmed extremes of the three axes, then the sphere fit's
+ * sums of a sample in the band (2-D: survey_add2; d2 summed from x^2 rather than from 0 + x^2, which
+ * is the same value, as survey_add2's). */
 static void survey_add3(magcal_intake_t *st, const magcal_vec3_t *m)
 {
     const uint32_t fill = (st->sv_n < MAGCAL_INTAKE_TRIM) ? st->sv_n : MAGCAL_INTAKE_TRIM;
@@ -241,8 +242,8 @@ static void survey_add3(magcal_intake_t *st, const magcal_vec3_t *m)
     }
 }
 
-/* The 2-D fit sums of one sample in the band (normalised x, y; d2 = x^2 + y^2): survey_add's,
- * without the repeated ones (survey_add2). Not inlined: every sum within reach of the one base. */
+/* The 2-D fit sums of one sample in the band (normalised x, y; d2 = x^2 + y^2), without the ones
+ * that repeat another (survey_add2). Not inlined: every sum within reach of the one base. */
 static MAGCAL_NOINLINE void survey_acc2(magcal_intake_sums_t *sm, float x, float y, float d2)
 {
     float *fa = sm->fit_a;

@@ -23,7 +23,10 @@ MAGCAL_STATIC_ASSERT(sizeof(float) == sizeof(uint32_t), cont_park_stamp_bits); /
  * a flat 4900 per sample, a catch-up step of two samples measured 12,080). Measured on the target
  * (cont_trace.elf, drain-only steps of both drives, 108k steps): the largest step per number of
  * surveyed slots and judge on/off, so measured / charged <= ~1.0 (least squares: push ~600-990,
- * judge ~1140-1330, slot ~340-360, re-bin ~360; the values below cover the largest steps). */
+ * judge ~1140-1330, slot ~340-360, re-bin ~360; the values below cover the largest steps). These
+ * charges set the slicing (how many steps a solve takes, so the row it ends at) and stay as
+ * measured then, though a surveyed slot now costs ~200 (issue 14, the interleaved solve:
+ * src/intake/sweep.c). */
 #define CONT_W_PUSH 1200u  /* the store push of one sample (no sweep step), ring read, bookkeeping */
 #define CONT_W_JUDGE 1800u /* its judge against the installed calibration (correction, heading, episode) */
 #define CONT_W_VISIT 480u  /* one sweep step that surveyed a slot */
