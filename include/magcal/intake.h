@@ -195,11 +195,32 @@ typedef struct {
                                     (the counts then mix bins of the old and the new centre) */
 } magcal_intake_progress_t;
 
+/** The survey's fit sums (private to the intake sweep; one block, so the per-slot update reaches
+ * every sum from one base address). */
+typedef struct {
+    float fit_a[10]; /**< private: circle / sphere fit normal matrix, packed lower triangle (<= 4 x 4) */
+    float fit_b[4];  /**< private: its right-hand side */
+    float fit_zz;    /**< private: sum of |u|^4 (fit residual) */
+    float ell_a[15]; /**< private: 2-D conic fit normal matrix, packed 5 x 5 */
+    float ell_b[5];  /**< private: its right-hand side */
+    float ell_tt;    /**< private: sum of its squared targets (residual) */
+} magcal_intake_sums_t;
+
 /** Instance. Allocate statically; all fields are private. */
 typedef struct {
     magcal_intake_cfg_t cfg;       /**< private */
     uint32_t magic;                /**< private */
     magcal_intake_slot_t *slots;   /**< private: caller storage */
+    /* the survey first: the sweep's per-slot path reaches these from the instance's address
+     * (VLDR offsets up to 1020 B) */
+    uint32_t sv_n;                 /**< private: samples seen by the current survey */
+    float sv_hi[3][MAGCAL_INTAKE_TRIM]; /**< private: survey, largest values per axis, descending */
+    float sv_lo[3][MAGCAL_INTAKE_TRIM]; /**< private: survey, smallest values per axis, ascending */
+    uint32_t fit_n;                /**< private: samples in the survey's circle / sphere fit sums */
+    magcal_intake_sums_t sums;     /**< private: the survey's fit sums */
+    magcal_vec3_t ref_c;           /**< private: reference centre of the fit's normalisation and trim */
+    float ref_r;                   /**< private: reference radius (0 = none yet) */
+    uint8_t ref_fit;               /**< private: 1 when the reference is a ring fit */
     uint16_t n_bins;               /**< private: bins of the mask */
     uint16_t n_bands;              /**< private: 3-D bands */
     uint16_t band_start[MAGCAL_INTAKE_MAX_BANDS + 1u]; /**< private: first cell of each band */
@@ -213,20 +234,7 @@ typedef struct {
     float radius;                  /**< private */
     uint32_t seq;                  /**< private: push counter */
     uint32_t cursor;               /**< private: sweep position (slot index) */
-    uint32_t sv_n;                 /**< private: samples seen by the current survey */
-    float sv_hi[3][MAGCAL_INTAKE_TRIM]; /**< private: survey, largest values per axis, descending */
-    float sv_lo[3][MAGCAL_INTAKE_TRIM]; /**< private: survey, smallest values per axis, ascending */
-    uint32_t fit_n;                /**< private: samples in the survey's circle / sphere fit sums */
-    float fit_a[10];               /**< private: its normal matrix, packed lower triangle (<= 4 x 4) */
-    float fit_b[4];                /**< private: its right-hand side */
-    float fit_zz;                  /**< private: sum of |u|^4 (fit residual) */
-    float ell_a[15];               /**< private: 2-D conic fit normal matrix, packed 5 x 5 */
-    float ell_b[5];                /**< private: its right-hand side */
-    float ell_tt;                  /**< private: sum of its squared targets (residual) */
     uint32_t sweeps;               /**< private: completed sweeps */
-    magcal_vec3_t ref_c;           /**< private: reference centre of the fit's normalisation and trim */
-    float ref_r;                   /**< private: reference radius (0 = none yet) */
-    uint8_t ref_fit;               /**< private: 1 when the reference is a ring fit */
     magcal_intake_counters_t ctr;  /**< private */
     float lv_s[9];                 /**< private: level survey sums (store.c) */
     float lv_abc[3];               /**< private: level model z = a + b cos + c sin of the direction */

@@ -39,6 +39,19 @@ void magcal_intake_drop_older(magcal_intake_t *st, uint32_t bin, uint32_t seq_li
 /* Survey / re-bin up to `steps` slots (sweep.c). */
 void magcal_intake_sweep(magcal_intake_t *st, uint32_t steps);
 
+/* What one sweep step did (the index of its charge in magcal_intake_sweep_part's w): */
+#define INTAKE_SWEEP_JUMP 0u  /* jumped the empty rest of a bin */
+#define INTAKE_SWEEP_VISIT 1u /* surveyed a slot */
+#define INTAKE_SWEEP_REBIN 2u /* re-binned a sample (swap-remove + insert) */
+#define INTAKE_SWEEP_END 3u   /* ended the sweep (survey_finish: its fits) */
+
+/* The sliced sweep part of a continuous step (src/loop/cont_step.c): up to cfg.sweep_steps sweep
+ * steps, each charged w[what it did] against *left (not unlimited) as magcal_cal_spend does,
+ * stopping after a step whose charge reaches *left (*left = 0) or that ended the sweep (which is
+ * then the part's only step: before any step but the first, the part stops when the cursor is at
+ * the end, or when *left < keep). */
+void magcal_intake_sweep_part(magcal_intake_t *st, const uint16_t w[4], uint32_t keep, uint32_t *left);
+
 /* Live coverage, resumable (progress.c): the ring count of bins *bin.. within `budget` estimated
  * M4F instructions (at least one bin; returns what it charged; complete when *bin == n_bins, its
  * words / *filled / *deep cleared when *bin == 0), at the completion depth

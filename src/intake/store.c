@@ -393,8 +393,12 @@ magcal_status_t magcal_intake_push_tilt(magcal_intake_t *st, const magcal_vec3_t
         for (k = base; k < base + st->count[b]; ++k) {
             const float dx = m->x - st->slots[k].m.x;
             const float dy = m->y - st->slots[k].m.y;
-            const float dz = (d3 != 0) ? (m->z - st->slots[k].m.z) : 0.0f;
-            if (dx * dx + dy * dy + dz * dz < dmin2) {
+            float d2 = dx * dx + dy * dy;
+            if (d3 != 0) {
+                const float dz = m->z - st->slots[k].m.z;
+                d2 += dz * dz; /* 2-D: no term (adding 0 * 0 to a sum of squares changes no bit) */
+            }
+            if (d2 < dmin2) {
                 oc = MAGCAL_INTAKE_REFUSED_SPACING;
                 break;
             }

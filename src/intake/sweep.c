@@ -46,12 +46,12 @@ void magcal_intake_survey_clear(magcal_intake_t *st)
 {
     st->sv_n = 0u;
     st->fit_n = 0u;
-    st->fit_zz = 0.0f;
-    (void)memset(st->ell_a, 0, sizeof(st->ell_a));
-    (void)memset(st->ell_b, 0, sizeof(st->ell_b));
-    st->ell_tt = 0.0f;
-    (void)memset(st->fit_a, 0, sizeof(st->fit_a));
-    (void)memset(st->fit_b, 0, sizeof(st->fit_b));
+    st->sums.fit_zz = 0.0f;
+    (void)memset(st->sums.ell_a, 0, sizeof(st->sums.ell_a));
+    (void)memset(st->sums.ell_b, 0, sizeof(st->sums.ell_b));
+    st->sums.ell_tt = 0.0f;
+    (void)memset(st->sums.fit_a, 0, sizeof(st->sums.fit_a));
+    (void)memset(st->sums.fit_b, 0, sizeof(st->sums.fit_b));
     (void)memset(st->sv_in, 0, sizeof(st->sv_in));
 }
 
@@ -61,109 +61,278 @@ static uint32_t pk(uint32_t i, uint32_t j)
     return (i * (i + 1u)) / 2u + j;
 }
 
-static void survey_add(magcal_intake_t *st, const magcal_vec3_t *m)
+/* The trimmed extremes of one axis: the TRIM largest values seen by the survey (descending) and
+ * the TRIM smallest (ascending). While fewer than TRIM were seen, a value always enters. */
+static MAGCAL_NOINLINE void trim_fill(float *hi, float *lo, float v, uint32_t fill)
 {
-    const float v3[3] = {m->x, m->y, m->z};
-    const float c3[3] = {st->ref_c.x, st->ref_c.y, st->ref_c.z};
-    const uint32_t dims = st->cfg.dims;
-    const uint32_t fill = (st->sv_n < MAGCAL_INTAKE_TRIM) ? st->sv_n : MAGCAL_INTAKE_TRIM;
-    uint32_t a;
-    for (a = 0u; (a < dims) && (a < 3u); ++a) { /* keep the TRIM largest (descending) and smallest (ascending) */
-        const float v = v3[a];
-        float *hi = st->sv_hi[a];
-        float *lo = st->sv_lo[a];
-        uint32_t k;
-        if (fill < MAGCAL_INTAKE_TRIM || v > hi[MAGCAL_INTAKE_TRIM - 1u]) {
-            k = (fill < MAGCAL_INTAKE_TRIM) ? fill : MAGCAL_INTAKE_TRIM - 1u;
-            while (k > 0u && hi[k - 1u] < v) {
-                hi[k] = hi[k - 1u];
-                k--;
-            }
-            hi[k] = v;
+    uint32_t k = fill;
+    while (k > 0u && hi[k - 1u] < v) {
+        hi[k] = hi[k - 1u];
+        k--;
+    }
+    hi[k] = v;
+    k = fill;
+    while (k > 0u && lo[k - 1u] > v) {
+        lo[k] = lo[k - 1u];
+        k--;
+    }
+    lo[k] = v;
+}
+
+/* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
+MAGCAL_STATIC_ASSERT(MAGCAL_INTAKE_TRIM == 8u, intake_trim_written_out);
+
+/* A full list of the TRIM largest values, v above its last (trim_hi_enters): the insertion
+ * written out (issue 14: ~4,100 insertions of ~4.6 moves each in the 471 steps of vn100's first
+ * solve, ~60 M4F instructions each as a loop), each kept value compared and moved once, as the
+ * loop does (after the values not below v; the last one drops). */
+static MAGCAL_NOINLINE void trim_put_hi(float *l, float v)
+{
+    float p = l[6];
+    if (!(p < v)) {
+        l[7] = v;
+        return;
+    }
+    l[7] = p;
+    p = l[5];
+    if (!(p < v)) {
+        l[6] = v;
+        return;
+    }
+    l[6] = p;
+    p = l[4];
+    if (!(p < v)) {
+        l[5] = v;
+        return;
+    }
+    l[5] = p;
+    p = l[3];
+    if (!(p < v)) {
+        l[4] = v;
+        return;
+    }
+    l[4] = p;
+    p = l[2];
+    if (!(p < v)) {
+        l[3] = v;
+        return;
+    }
+    l[3] = p;
+    p = l[1];
+    if (!(p < v)) {
+        l[2] = v;
+        return;
+    }
+    l[2] = p;
+    p = l[0];
+    if (!(p < v)) {
+        l[1] = v;
+        return;
+    }
+    l[1] = p;
+    l[0] = v;
+}
+
+/* The same for a full list of the TRIM smallest values (ascending), v below its last. */
+static MAGCAL_NOINLINE void trim_put_lo(float *l, float v)
+{
+    float p = l[6];
+    if (!(p > v)) {
+        l[7] = v;
+        return;
+    }
+    l[7] = p;
+    p = l[5];
+    if (!(p > v)) {
+        l[6] = v;
+        return;
+    }
+    l[6] = p;
+    p = l[4];
+    if (!(p > v)) {
+        l[5] = v;
+        return;
+    }
+    l[5] = p;
+    p = l[3];
+    if (!(p > v)) {
+        l[4] = v;
+        return;
+    }
+    l[4] = p;
+    p = l[2];
+    if (!(p > v)) {
+        l[3] = v;
+        return;
+    }
+    l[3] = p;
+    p = l[1];
+    if (!(p > v)) {
+        l[2] = v;
+        return;
+    }
+    l[2] = p;
+    p = l[0];
+    if (!(p > v)) {
+        l[1] = v;
+        return;
+    }
+    l[1] = p;
+    l[0] = v;
+}
+
+/* Axis value v into its trimmed extremes (fill: values the survey saw before it, at most TRIM):
+ * into the largest when fewer than TRIM were seen or v is above the last kept, the same for the
+ * smallest. */
+#if defined(__GNUC__) || defined(__clang__)
+__attribute__((always_inline)) /* its test is the common case: no call for it (-Os would call) */
+#endif
+static inline void survey_trim(float *hi, float *lo, float v, uint32_t fill)
+{
+    if (fill < MAGCAL_INTAKE_TRIM) {
+        trim_fill(hi, lo, v, fill);
+    } else {
+        if (v > hi[MAGCAL_INTAKE_TRIM - 1u]) {
+            trim_put_hi(hi, v);
         }
-        if (fill < MAGCAL_INTAKE_TRIM || v < lo[MAGCAL_INTAKE_TRIM - 1u]) {
-            k = (fill < MAGCAL_INTAKE_TRIM) ? fill : MAGCAL_INTAKE_TRIM - 1u;
-            while (k > 0u && lo[k - 1u] > v) {
-                lo[k] = lo[k - 1u];
-                k--;
-            }
-            lo[k] = v;
+        if (v < lo[MAGCAL_INTAKE_TRIM - 1u]) {
+            trim_put_lo(lo, v);
         }
     }
+}
+
+/* The survey of one slot in 3-D: the trimmed extremes of the three axes, then the sphere fit's
+ * sums of a sample in the band (2-D: survey_add2; d2 summed from x^2 rather than from 0 + x^2, which
+ * is the same value, as survey_add2's). */
+static void survey_add3(magcal_intake_t *st, const magcal_vec3_t *m)
+{
+    const uint32_t fill = (st->sv_n < MAGCAL_INTAKE_TRIM) ? st->sv_n : MAGCAL_INTAKE_TRIM;
+    survey_trim(st->sv_hi[0], st->sv_lo[0], m->x, fill);
+    survey_trim(st->sv_hi[1], st->sv_lo[1], m->y, fill);
+    survey_trim(st->sv_hi[2], st->sv_lo[2], m->z, fill);
     st->sv_n++;
     if (st->ref_r > 0.0f) {
         const float inv = 1.0f / st->ref_r;
         const float lo2 = (st->ref_fit != 0u) ? FIT_TIGHT_LO2 : FIT_BAND_LO2;
         const float hi2 = (st->ref_fit != 0u) ? FIT_TIGHT_HI2 : FIT_BAND_HI2;
-        float r[3] = {0.0f, 0.0f, 0.0f};
-        float d2 = 0.0f;
-        for (a = 0u; a < dims; ++a) {
-            r[a] = (v3[a] - c3[a]) * inv;
-            d2 += r[a] * r[a];
-        }
-        if (dims == 2u && st->ref_fit == 0u && d2 < FIT_BAND_LO2) {
-            st->sv_in[0] += v3[0] - c3[0]; /* inside a trimmed reference's band: the inner cluster (survey_finish) */
-            st->sv_in[1] += v3[1] - c3[1];
-            st->sv_in[2] += (v3[0] - c3[0]) * (v3[0] - c3[0]) + (v3[1] - c3[1]) * (v3[1] - c3[1]);
-            st->sv_in[3] += 1.0f;
-        }
+        const float x = (m->x - st->ref_c.x) * inv;
+        const float y = (m->y - st->ref_c.y) * inv;
+        const float z = (m->z - st->ref_c.z) * inv;
+        const float d2 = x * x + y * y + z * z;
         if (d2 >= lo2 && d2 <= hi2) {
             /* packed lower triangle of r r^T, written out (the sweep's hot loop) */
-            float *fa = st->fit_a;
-            const float x = r[0];
-            const float y = r[1];
+            float *fa = st->sums.fit_a;
             fa[0] += x * x;
             fa[1] += y * x;
             fa[2] += y * y;
-            if (dims == 3u) {
-                const float z = r[2];
-                fa[3] += z * x;
-                fa[4] += z * y;
-                fa[5] += z * z;
-                fa[6] += x;
-                fa[7] += y;
-                fa[8] += z;
-                fa[9] += 1.0f;
-                st->fit_b[2] -= z * d2;
-                st->fit_b[3] -= d2;
-            } else {
-                float *ea = st->ell_a;
-                float *eb = st->ell_b;
-                const float xy = x * y;
-                const float yy = y * y;
-                const float t = -x * x; /* conic x^2 + B xy + C y^2 + D x + E y + F = 0: e = (xy, yy, x, y, 1) */
-                fa[3] += x;
-                fa[4] += y;
-                fa[5] += 1.0f;
-                st->fit_b[2] -= d2;
-                ea[0] += xy * xy;
-                ea[1] += yy * xy;
-                ea[2] += yy * yy;
-                ea[3] += x * xy;
-                ea[4] += x * yy;
-                ea[5] += x * x;
-                ea[6] += y * xy;
-                ea[7] += y * yy;
-                ea[8] += y * x;
-                ea[9] += yy;
-                ea[10] += xy;
-                ea[11] += yy;
-                ea[12] += x;
-                ea[13] += y;
-                ea[14] += 1.0f;
-                eb[0] += xy * t;
-                eb[1] += yy * t;
-                eb[2] += x * t;
-                eb[3] += y * t;
-                eb[4] += t;
-                st->ell_tt += t * t;
-            }
-            st->fit_b[0] -= x * d2;
-            st->fit_b[1] -= y * d2;
-            st->fit_zz += d2 * d2;
+            fa[3] += z * x;
+            fa[4] += z * y;
+            fa[5] += z * z;
+            fa[6] += x;
+            fa[7] += y;
+            fa[8] += z;
+            fa[9] += 1.0f;
+            st->sums.fit_b[2] -= z * d2;
+            st->sums.fit_b[3] -= d2;
+            st->sums.fit_b[0] -= x * d2;
+            st->sums.fit_b[1] -= y * d2;
+            st->sums.fit_zz += d2 * d2;
             st->fit_n++;
         }
     }
+}
+
+/* The 2-D fit sums of one sample in the band (normalised x, y; d2 = x^2 + y^2), without the ones
+ * that repeat another (survey_add2). Not inlined: every sum within reach of the one base. */
+static MAGCAL_NOINLINE void survey_acc2(magcal_intake_sums_t *sm, float x, float y, float d2)
+{
+    float *fa = sm->fit_a;
+    float *fb = sm->fit_b;
+    float *ea = sm->ell_a;
+    float *eb = sm->ell_b;
+    const float xy = x * y;
+    const float yy = y * y;
+    const float t = -x * x; /* conic x^2 + B xy + C y^2 + D x + E y + F = 0: e = (xy, yy, x, y, 1) */
+    fa[0] += x * x;
+    fa[1] += y * x;
+    fa[2] += y * y;
+    fa[3] += x;
+    fa[4] += y;
+    fb[0] -= x * d2;
+    fb[1] -= y * d2;
+    fb[2] -= d2;
+    sm->fit_zz += d2 * d2;
+    ea[0] += xy * xy;
+    ea[1] += yy * xy;
+    ea[2] += yy * yy;
+    ea[3] += x * xy;
+    ea[4] += x * yy;
+    ea[6] += y * xy;
+    ea[7] += y * yy;
+    eb[0] += xy * t;
+    eb[1] += yy * t;
+    eb[2] += x * t;
+    eb[3] += y * t;
+    sm->ell_tt += t * t;
+}
+
+/* The survey of one slot in 2-D, the sweep's hot path (issue 14: a surveyed slot was ~420 M4F
+ * instructions, most of a step's drain during a solve): the same sums in the same order, so bit
+ * for bit the same values, without the sums that repeat another one exactly. The conic's normal
+ * matrix shares x^2, xy (twice: ell_a[8] and [10], y x = x y), y^2 (twice), x, y and the count with
+ * the circle's (ell_a[5, 8, 9, 10, 11, 12, 13, 14] = fit_a[0, 1, 2, 1, 2, 3, 4, 5]: the same
+ * products added in the same order), the circle's count fit_a[5] is fit_n (1.0f added fit_n <
+ * 2^24 times is exact), and the conic's sum of its targets -x^2 is -fit_a[0] (negation commutes
+ * with rounding; the two differ only in the sign of a zero sum, which needs every x^2 zero: the
+ * scatter test refuses such a survey before the conic is fitted). survey_dup2 copies them before
+ * the fits read them, at the sweep's end. */
+static void survey_add2(magcal_intake_t *st, float vx, float vy)
+{
+    const uint32_t fill = (st->sv_n < MAGCAL_INTAKE_TRIM) ? st->sv_n : MAGCAL_INTAKE_TRIM;
+    survey_trim(st->sv_hi[0], st->sv_lo[0], vx, fill);
+    survey_trim(st->sv_hi[1], st->sv_lo[1], vy, fill);
+    st->sv_n++;
+    if (st->ref_r > 0.0f) {
+        const float inv = 1.0f / st->ref_r;
+        const float dx = vx - st->ref_c.x;
+        const float dy = vy - st->ref_c.y;
+        const float x = dx * inv;
+        const float y = dy * inv;
+        const float d2 = x * x + y * y;
+        if (st->ref_fit == 0u) {
+            if (d2 < FIT_BAND_LO2) {
+                st->sv_in[0] += dx; /* inside a trimmed reference's band: the inner cluster (survey_finish) */
+                st->sv_in[1] += dy;
+                st->sv_in[2] += dx * dx + dy * dy;
+                st->sv_in[3] += 1.0f;
+            } else if (d2 <= FIT_BAND_HI2) {
+                survey_acc2(&st->sums, x, y, d2);
+                st->fit_n++;
+            } else {
+                /* outside the band: not in the fit */
+            }
+        } else if (d2 >= FIT_TIGHT_LO2 && d2 <= FIT_TIGHT_HI2) {
+            survey_acc2(&st->sums, x, y, d2);
+            st->fit_n++;
+        } else {
+            /* outside the tight band: not in the fit */
+        }
+    }
+}
+
+/* The sums survey_add2 leaves out: copies of the ones they repeat (survey_add2). */
+static void survey_dup2(magcal_intake_t *st)
+{
+    st->sums.fit_a[5] = (float)st->fit_n;
+    st->sums.ell_a[5] = st->sums.fit_a[0];
+    st->sums.ell_a[8] = st->sums.fit_a[1];
+    st->sums.ell_a[9] = st->sums.fit_a[2];
+    st->sums.ell_a[11] = st->sums.fit_a[2];
+    st->sums.ell_a[10] = st->sums.fit_a[1];
+    st->sums.ell_a[12] = st->sums.fit_a[3];
+    st->sums.ell_a[13] = st->sums.fit_a[4];
+    st->sums.ell_a[14] = st->sums.fit_a[5];
+    st->sums.ell_b[4] = -st->sums.fit_a[0];
 }
 
 /* Scatter of the fit's samples: the extreme eigenvalues of their covariance (normalised units);
@@ -178,13 +347,13 @@ static MAGCAL_NOINLINE int fit_scatter(const magcal_intake_t *st, float inv_n, f
     uint32_t i;
     uint32_t j;
     for (i = 0u; i < dims; ++i) {
-        mean[i] = st->fit_a[pk(dims, i)] * inv_n;
+        mean[i] = st->sums.fit_a[pk(dims, i)] * inv_n;
     }
     for (i = 0u; i < dims; ++i) {
         for (j = 0u; j < dims; ++j) {
             const uint32_t hi = (i > j) ? i : j;
             const uint32_t lo = (i > j) ? j : i;
-            cov[i * dims + j] = st->fit_a[pk(hi, lo)] * inv_n - mean[i] * mean[j];
+            cov[i * dims + j] = st->sums.fit_a[pk(hi, lo)] * inv_n - mean[i] * mean[j];
         }
     }
     if (magcal_jacobi_sym(cov, dims, w, e) != MAGCAL_OK) {
@@ -213,16 +382,16 @@ static MAGCAL_NOINLINE int fit_circle(const magcal_intake_t *st, float inv_n, fl
         for (j = 0u; j < q; ++j) {
             const uint32_t hi = (i > j) ? i : j;
             const uint32_t lo = (i > j) ? j : i;
-            a[i * q + j] = st->fit_a[pk(hi, lo)] * inv_n;
+            a[i * q + j] = st->sums.fit_a[pk(hi, lo)] * inv_n;
         }
-        b[i] = st->fit_b[i] * inv_n;
+        b[i] = st->sums.fit_b[i] * inv_n;
         bz[i] = b[i];
     }
     if (magcal_ldlt_solve(a, b, q, 1e-6f, NULL) != MAGCAL_OK) {
         return 0;
     }
     *r2 = -b[dims];
-    *res = st->fit_zz * inv_n;
+    *res = st->sums.fit_zz * inv_n;
     for (i = 0u; i < q; ++i) { /* algebraic residual at the solution: z.z - x.b (per sample) */
         *res -= b[i] * bz[i];
     }
@@ -241,16 +410,16 @@ static MAGCAL_NOINLINE int fit_conic(magcal_intake_t *st, float inv_n, float res
     float *ea = st->ell_scratch; /* in the state: the push path's stack stays <= 512 B */
     float eb[5];
     float eb0[5];
-    float eres = st->ell_tt * inv_n;
+    float eres = st->sums.ell_tt * inv_n;
     uint32_t i;
     uint32_t j;
     for (i = 0u; i < 5u; ++i) {
         for (j = 0u; j < 5u; ++j) {
             const uint32_t hi = (i > j) ? i : j;
             const uint32_t lo = (i > j) ? j : i;
-            ea[i * 5u + j] = st->ell_a[pk(hi, lo)] * inv_n;
+            ea[i * 5u + j] = st->sums.ell_a[pk(hi, lo)] * inv_n;
         }
-        eb[i] = st->ell_b[i] * inv_n;
+        eb[i] = st->sums.ell_b[i] * inv_n;
         eb0[i] = eb[i];
     }
     if (magcal_ldlt_solve(ea, eb, 5u, 1e-6f, NULL) != MAGCAL_OK) {
@@ -326,8 +495,9 @@ static int survey_fit(magcal_intake_t *st, magcal_vec3_t *c, float *r)
             magcal_isfinite_f(*r)) ? 1 : 0;
 }
 
-/* End of a sweep: next reference, and the provisional centre when the fit is usable. */
-static void survey_finish(magcal_intake_t *st)
+/* End of a sweep: next reference, and the provisional centre when the fit is usable (not inlined
+ * into the sweep step: the per-slot path keeps a small frame). */
+static MAGCAL_NOINLINE void survey_finish(magcal_intake_t *st)
 {
     magcal_vec3_t fc = {0.0f, 0.0f, 0.0f};
     float fr = 0.0f;
@@ -342,6 +512,9 @@ static void survey_finish(magcal_intake_t *st)
     }
     if (all_swept != 0) {
         st->rebin_pending = 0u;
+    }
+    if (st->cfg.dims == 2u) {
+        survey_dup2(st); /* the sums survey_add2 does not repeat */
     }
     fit_ok = survey_fit(st, &fc, &fr);
     if (fit_ok != 0) {
@@ -402,45 +575,97 @@ static void survey_finish(magcal_intake_t *st)
     magcal_intake_survey_clear(st);
 }
 
+/* A slot of bin b not swept since the last centre change: its sample moves to its bin under the
+ * new centre when that is another one (swap-remove, insert keeping its age; 1), else 0 (not
+ * inlined: the per-slot path keeps a small frame). */
+static MAGCAL_NOINLINE int sweep_rebin(magcal_intake_t *st, uint32_t c, uint32_t b)
+{
+    const magcal_intake_slot_t cur = st->slots[c];
+    const uint16_t nb = magcal_intake_bin_of(st, &cur.m);
+    if (nb == (uint16_t)b) {
+        return 0;
+    }
+    st->slots[c] = st->slots[b * st->cfg.per_bin + (uint32_t)st->count[b] - 1u]; /* swap-remove; re-examine this slot */
+    st->count[b]--;
+    st->ctr.stored--;
+    st->ctr.rebinned++;
+    if (magcal_intake_insert(st, nb, &cur.m, cur.seq) != 0) {
+        st->ctr.rebin_dropped++;
+    }
+    return 1;
+}
+
+/* One sweep step (per = cfg.per_bin, n = the slots in use); what it did: INTAKE_SWEEP_*. Inlined
+ * into the two loops below (the per-slot path is the continuous step's hot loop, issue 14). */
+#if defined(__GNUC__) || defined(__clang__)
+__attribute__((always_inline))
+#endif
+static inline uint32_t sweep_one(magcal_intake_t *st, uint32_t per, uint32_t n)
+{
+    const uint32_t c = st->cursor;
+    uint32_t b;
+    uint32_t k;
+    if (c >= n) {
+        survey_finish(st);
+        st->cursor = 0u;
+        return INTAKE_SWEEP_END;
+    }
+    b = c / per;
+    k = c - b * per;
+    if (k >= st->count[b]) { /* rest of this bin is empty: it is swept */
+        st->bin_gen[b] = st->gen;
+        st->cursor = (b + 1u) * per;
+        return INTAKE_SWEEP_JUMP;
+    }
+    if (st->bin_gen[b] != st->gen && sweep_rebin(st, c, b) != 0) {
+        return INTAKE_SWEEP_REBIN;
+    }
+    if (st->cfg.dims == 2u) {
+        survey_add2(st, st->slots[c].m.x, st->slots[c].m.y);
+    } else {
+        survey_add3(st, &st->slots[c].m);
+    }
+    st->cursor = c + 1u;
+    if (k + 1u == per) {
+        st->bin_gen[b] = st->gen;
+    }
+    return INTAKE_SWEEP_VISIT;
+}
+
 void magcal_intake_sweep(magcal_intake_t *st, uint32_t steps)
 {
     const uint32_t per = st->cfg.per_bin;
     const uint32_t n = magcal_intake_nslots(st);
     uint32_t s;
     for (s = 0u; s < steps; ++s) {
-        uint32_t b;
-        uint32_t k;
-        if (st->cursor >= n) {
-            survey_finish(st);
-            st->cursor = 0u;
-            continue;
+        (void)sweep_one(st, per, n);
+    }
+}
+
+void magcal_intake_sweep_part(magcal_intake_t *st, const uint16_t w[4], uint32_t keep, uint32_t *left)
+{
+    const uint32_t per = st->cfg.per_bin;
+    const uint32_t n = magcal_intake_nslots(st);
+    const uint32_t steps = st->cfg.sweep_steps;
+    uint32_t l = *left;
+    uint32_t s;
+    /* cppcheck-suppress misra-c2012-15.4 ; deviation D13: a resumable loop leaves at its pause point (sweep end, budget) */
+    for (s = 0u; s < steps; ++s) {
+        uint32_t kind;
+        uint32_t wk;
+        if (s != 0u && (st->cursor >= n || l < keep)) {
+            break; /* the sweep's end is the next part's first step; the caller's share kept */
         }
-        b = st->cursor / per;
-        k = st->cursor % per;
-        if (k >= st->count[b]) { /* rest of this bin is empty: it is swept */
-            st->bin_gen[b] = st->gen;
-            st->cursor = (b + 1u) * per;
-            continue;
+        kind = sweep_one(st, per, n);
+        wk = w[kind];
+        if (wk >= l) {
+            l = 0u; /* spent (magcal_cal_spend) */
+            break;
         }
-        if (st->bin_gen[b] != st->gen) {
-            const magcal_intake_slot_t cur = st->slots[st->cursor];
-            const uint16_t nb = magcal_intake_bin_of(st, &cur.m);
-            if (nb != (uint16_t)b) {
-                const uint32_t last = b * per + (uint32_t)st->count[b] - 1u;
-                st->slots[st->cursor] = st->slots[last]; /* swap-remove; re-examine this slot */
-                st->count[b]--;
-                st->ctr.stored--;
-                st->ctr.rebinned++;
-                if (magcal_intake_insert(st, nb, &cur.m, cur.seq) != 0) {
-                    st->ctr.rebin_dropped++;
-                }
-                continue;
-            }
-        }
-        survey_add(st, &st->slots[st->cursor].m);
-        st->cursor++;
-        if ((st->cursor % per) == 0u) {
-            st->bin_gen[b] = st->gen;
+        l -= wk;
+        if (kind == INTAKE_SWEEP_END) {
+            break; /* the sweep's end is the part's only step */
         }
     }
+    *left = l;
 }

@@ -23,7 +23,10 @@ MAGCAL_STATIC_ASSERT(sizeof(float) == sizeof(uint32_t), cont_park_stamp_bits); /
  * a flat 4900 per sample, a catch-up step of two samples measured 12,080). Measured on the target
  * (cont_trace.elf, drain-only steps of both drives, 108k steps): the largest step per number of
  * surveyed slots and judge on/off, so measured / charged <= ~1.0 (least squares: push ~600-990,
- * judge ~1140-1330, slot ~340-360, re-bin ~360; the values below cover the largest steps). */
+ * judge ~1140-1330, slot ~340-360, re-bin ~360; the values below cover the largest steps). These
+ * charges set the slicing (how many steps a solve takes, so the row it ends at) and stay as
+ * measured then, though a surveyed slot now costs ~200 (issue 14, the interleaved solve:
+ * src/intake/sweep.c). */
 #define CONT_W_PUSH 1200u  /* the store push of one sample (no sweep step), ring read, bookkeeping */
 #define CONT_W_JUDGE 1800u /* its judge against the installed calibration (correction, heading, episode) */
 #define CONT_W_VISIT 480u  /* one sweep step that surveyed a slot */
@@ -325,39 +328,19 @@ static uint32_t cont_solve_min(const magcal_cont_t *cc)
  * only ever the part's first step and its only one (as a push's, sweep.c). */
 static MAGCAL_NOINLINE void cont_sweep_part(magcal_cont_t *cc, magcal_cal_budget_t *b)
 {
-    magcal_intake_t *st = &cc->store;
-    uint32_t s;
-    /* cppcheck-suppress misra-c2012-15.4 ; deviation D13: a resumable loop leaves at its pause point (sweep end, budget) */
-    for (s = 0u; s < (uint32_t)st->cfg.sweep_steps; ++s) {
-        const uint32_t sweeps = st->sweeps;
-        const uint32_t sv = st->sv_n;
-        const uint32_t reb = st->ctr.rebinned;
-        uint32_t w;
-        if (cont_sweep_end_due(cc) != 0 && s != 0u) {
-            break; /* the sweep's end: the next step's first */
-        }
-        if (s != 0u && cc->stage != (uint8_t)CONT_STAGE_NONE && b->left < cont_solve_min(cc) + CONT_W_REBIN) {
-            break; /* a solve under way keeps its least share (one sweep step per stored sample) */
-        }
-        magcal_intake_sweep(st, 1u);
-        if (st->sweeps != sweeps) {
-            CONT_TRACE(magcal_bench_cont_trace[TR_SWEEPS]++;)
-            (void)magcal_cal_spend(b, CONT_W_SWEEP);
-            break;
-        }
-        if (st->ctr.rebinned != reb) {
-            w = CONT_W_REBIN;
-            CONT_TRACE(magcal_bench_cont_trace[TR_REBINS]++;)
-        } else if (st->sv_n != sv) {
-            w = CONT_W_VISIT;
-            CONT_TRACE(magcal_bench_cont_trace[TR_VISITS]++;)
-        } else {
-            w = CONT_W_JUMP;
-        }
-        if (magcal_cal_spend(b, w) != 0) {
-            break;
-        }
-    }
+    /* the charge of a sweep step by what it did (intake_internal.h INTAKE_SWEEP_*) */
+    static const uint16_t w_of[4] = {(uint16_t)CONT_W_JUMP, (uint16_t)CONT_W_VISIT, (uint16_t)CONT_W_REBIN,
+                                     (uint16_t)CONT_W_SWEEP};
+    /* a solve under way keeps its least share (one sweep step per stored sample) */
+    const uint32_t keep = (cc->stage != (uint8_t)CONT_STAGE_NONE) ? cont_solve_min(cc) + CONT_W_REBIN : 0u;
+    CONT_TRACE(const uint32_t sweeps0 = cc->store.sweeps;)
+    CONT_TRACE(const uint32_t reb0 = cc->store.ctr.rebinned;)
+    CONT_TRACE(const uint32_t sv0 = cc->store.sv_n;)
+    magcal_intake_sweep_part(&cc->store, w_of, keep, &b->left);
+    CONT_TRACE(magcal_bench_cont_trace[TR_SWEEPS] += cc->store.sweeps - sweeps0;)
+    CONT_TRACE(magcal_bench_cont_trace[TR_REBINS] += cc->store.ctr.rebinned - reb0;)
+    /* the slots surveyed (a part that ends the sweep surveys none) */
+    CONT_TRACE(magcal_bench_cont_trace[TR_VISITS] += (cc->store.sweeps == sweeps0) ? cc->store.sv_n - sv0 : 0u;)
 }
 
 /* During the field-model fit the store must not change: ring samples are parked, in order, in
