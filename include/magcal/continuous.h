@@ -594,6 +594,8 @@ typedef struct {
     uint32_t tc_changes;           /* cc->changes the sectors' means belong to */
     uint8_t tc_gen;                /* and the store's centre generation */
     volatile uint8_t tc_ok;        /* 1: tc_k is estimated well enough to level samples */
+    uint8_t tc_acc;                /* 1: k is determined but raw z does not confirm the tilt (rho < 0.5):
+                                      the accelerometer's tilt is mostly acceleration */
     volatile uint8_t tc_on;        /* 1: samples are levelled (latched once tc_ok while no calibration is
                                       installed or a relearn is under way: the judge's field model and
                                       the stream it judges then agree) */
@@ -608,6 +610,8 @@ typedef struct {
     float cal_ty;                  /* its unlevelled fit saw; its centre is off by k times it) */
     float cal_ts;                  /* the spread (RMS about the mean) of that tilt */
     uint8_t cal_tk;                /* 1: cal_tx, cal_ty known (adopted here with enough known tilts) */
+    uint8_t cal_conv;              /* 1: during a relevel, the heading levels its sample and moves it
+                                      by k t_cal (the unlevelled fit's centre: one slope) */
     uint32_t levels;               /* unlevelled calibrations levelled by their fit's tilt (cont_step.c) */
     uint8_t cal_lv;                /* 1: the installed calibration was fitted on levelled samples (or
                                       confirmed on them): the heading and the judge level their sample */

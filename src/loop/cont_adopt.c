@@ -136,6 +136,7 @@ magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_
         const uint32_t ep_b1 = cc->mis_bins[1];
         cc->cal_coarse = (uint8_t)(r->coarse != 0u ? 1u : (r->arc != 0u ? 2u : 0u));
         magcal_cont_install(cc, &cc->cand, r->radius, r->est_noise_deg / MAGCAL_DEG_PER_RAD_F);
+        cc->cal_conv = 0u;
         cc->cal_lv = cc->tc_on; /* fitted on levelled samples (a relevel's store holds only those) */
         cc->cal_tx = cc->st_tx; /* the tilt its fit saw (cont_relevel levels it by k times that) */
         cc->cal_ty = cc->st_ty;
@@ -173,6 +174,12 @@ magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_
         /* fresh data confirm the installed calibration: a declared change is refuted; a relevel's
          * levelled store confirms it as a levelled one */
         if (cc->relevel != 0u) {
+            if (cc->cal_conv != 0u) {
+                /* the levelled store confirms the calibration levelled by its fit tilt */
+                cc->cal.offset.x -= cc->tc_kl * cc->cal_tx;
+                cc->cal.offset.y -= cc->tc_kl * cc->cal_ty;
+                cc->cal_conv = 0u;
+            }
             cc->cal_lv = 1u;
             cc->relevel = 0u;
         }

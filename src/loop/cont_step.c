@@ -685,7 +685,6 @@ CONT_INLINE magcal_cont_outcome_t cont_solve(magcal_cont_t *cc, magcal_cal_budge
 static MAGCAL_NOINLINE void cont_relevel(magcal_cont_t *cc)
 {
     magcal_vec3_t centre;
-    magcal_cal2d_t c;
     if (cc->tc_on == 0u || cc->has_cal == 0u || cc->cal_lv != 0u || cc->relevel != 0u ||
         cc->state == (uint8_t)MAGCAL_CONT_RELEARNING || cc->stage != (uint8_t)CONT_STAGE_NONE ||
         cc->park_n != cc->park_i) {
@@ -697,13 +696,8 @@ static MAGCAL_NOINLINE void cont_relevel(magcal_cont_t *cc)
     cc->cnt_on = 0u;
     cc->st_tn = 0u;
     if (cc->cal_tk != 0u && cc->cal_ts <= CONT_TF_SPREAD) {
-        c = cc->cal;
-        c.offset.x -= cc->tc_kl * cc->cal_tx;
-        c.offset.y -= cc->tc_kl * cc->cal_ty;
-        magcal_cont_install(cc, &c, cc->cal_raw_radius, cc->cal_sigma_rel); /* recentres the store */
-        cc->cal_lv = 1u;
+        cc->cal_conv = 1u;
         cc->levels++;
-        return;
     }
     centre.x = cc->cal.offset.x;
     centre.y = cc->cal.offset.y;
