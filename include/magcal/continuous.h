@@ -171,20 +171,20 @@
  * queued levelled and LEVEL: h' - k t + (h' . t) t / 2 for x, y (h' = m_xy - centre: the level
  * horizontal field to third order) and (m_z + t . h') (1 - t^2 / 2) for z (the tilt turns the
  * horizontal field into z too, so the store's level model of z and the judge's z channel see a
- * level sample). The k samples are levelled with (tc_kl) follows the estimate until a calibration
- * fitted on levelled samples is in force, then holds (the samples it judges and stores stay
- * levelled as its own were). magcal_cont_heading levels its sample with the gravity of the last
+ * level sample). The k samples are levelled with (tc_kl) follows the estimate; under a
+ * calibration fitted on levelled samples only once the estimate moved by 5 % (the samples it
+ * judges and stores stay levelled as its own were). magcal_cont_heading levels its sample with the gravity of the last
  * push_g the same way, for its heading (hd.levelled = 1: tilt-compensated, fitted and applied on
  * levelled samples alike) and its judge.
  * When k becomes known under a calibration fitted on unlevelled samples (adopted before, or
- * restored at init), step empties the store between solves so that it refills levelled, and
- * - if that calibration was adopted here on one slope (the mean tilt of its store's samples known
- *   from >= 64 of them, cc.cal_tx / cal_ty, with a spread cc.cal_ts <= 1.1 deg), it is levelled at
- *   once: its centre moves back by k times that tilt (cc.levels counts it), and its heading and
- *   judge are levelled from then on (its field model is dropped until the next adoption);
- * - otherwise (restored, or fitted over a spread of tilts that also bent the ellipse) it stays in
- *   force, judged on the samples as they were pushed (un-levelled), its heading unlevelled, until
- *   a solve on the levelled store adopts a levelled calibration or confirms it (cc.relevels).
+ * restored at init), step empties the store between solves so that it refills levelled (a
+ * relevel, cc.relevels); the calibration stays in force, judged on the samples as they were
+ * pushed (un-levelled), until a solve on the levelled store adopts a levelled calibration or
+ * confirms it. Its heading stays unlevelled, except when it was adopted here on one slope (the
+ * mean tilt of its store's samples known from >= 64 of them, cc.cal_tx / cal_ty, with a spread
+ * cc.cal_ts <= 1.1 deg): its centre is then the level one moved by k t_cal, so the heading levels
+ * its sample and moves it by as much at once (cc.cal_conv, counted in cc.levels); a confirming
+ * solve moves the record's centre.
  * The model takes the specific force for gravity: a vehicle's longitudinal acceleration reads as
  * pitch (it is not levelled only when |g| leaves its g_band_rel band).
  *

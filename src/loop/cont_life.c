@@ -312,14 +312,14 @@ static MAGCAL_NOINLINE void cont_tc_enter(magcal_cont_t *cc, uint32_t b, float q
     rho = -cc->tc_s[3] / (r * cc->tc_s[0]);
     cc->tc_rho = rho;
     {
-        const int est = (cc->tc_n >= TC_MIN_PAIRS && var >= 0.0f && var <= TC_MAX_SE * TC_MAX_SE * r * r * cc->tc_s[0] &&
-                         fabsf(kn) <= TC_MAX_K * r)
-                            ? 1
-                            : 0;
-        cc->tc_ok = (est != 0 && rho >= TC_RHO_LO && rho <= TC_RHO_HI) ? 1u : 0u;
+        const uint8_t est = (cc->tc_n >= TC_MIN_PAIRS && var >= 0.0f &&
+                             var <= TC_MAX_SE * TC_MAX_SE * r * r * cc->tc_s[0] && fabsf(kn) <= TC_MAX_K * r)
+                                ? 1u
+                                : 0u;
+        cc->tc_ok = (est != 0u && rho >= TC_RHO_LO && rho <= TC_RHO_HI) ? 1u : 0u;
         /* a determined regression whose tilt raw z does not confirm: the accelerometer's tilt is
          * mostly the vehicle's acceleration (the tilt in the trust then predicts nothing) */
-        cc->tc_acc = (est != 0 && rho < TC_RHO_LO) ? 1u : 0u;
+        cc->tc_acc = (est != 0u && rho < TC_RHO_LO) ? 1u : 0u;
     }
 }
 

@@ -674,14 +674,10 @@ CONT_INLINE magcal_cont_outcome_t cont_solve(magcal_cont_t *cc, magcal_cal_budge
 
 /* The compensation came on under an installed calibration fitted on unlevelled samples (adopted
  * before k was known, or restored at init): continuous.h "Tilt compensation". Between solves and
- * fits, the store is emptied so that it refills with levelled samples only, and
- * - when the calibration was adopted here with its fit's mean tilt known (cal_tk), it is levelled
- *   at once: its centre was fitted k t_fit off the level one, so it moves back by that, and the
- *   heading and the judge level their sample from now on (the field model, fitted on unlevelled
- *   samples, is dropped until the next adoption);
- * - otherwise (restored) it stays in force, judged on un-levelled samples (cont_screen,
- *   magcal_cont_heading), until a solve on the levelled store adopts a new one or confirms it
- *   (cont_adopt.c: then the heading is levelled too). */
+ * fits, the store is emptied so that it refills with levelled samples only; the calibration stays
+ * in force, judged on un-levelled samples (cont_screen), until a solve on the levelled store adopts
+ * a new one or confirms it (cont_adopt.c). When it was adopted here on one slope (its fit's mean
+ * tilt known, its spread small), magcal_cont_heading levels at once: cal_conv. */
 static MAGCAL_NOINLINE void cont_relevel(magcal_cont_t *cc)
 {
     magcal_vec3_t centre;
