@@ -253,10 +253,9 @@ static int cont_tc_tilt(const magcal_cont_t *cc, float *tx, float *ty)
  * |e_d - k e_q| <= TC_GATE_REL |k e_q| + TC_GATE_ABS R around the sector's means (a transient or
  * a glitch is refused); until k is valid only |e_d| <= TC_MAX_K R |e_q| + TC_GATE_ABS R (no
  * inclination beyond 72 deg); raw z within TC_Z_REACH R |e_q| + TC_GATE_ABS R of the sector's
- * mean (a disturbance arriving with a change of tilt). Then k and its validity; (tx, ty) is the
- * sample's tilt, the sector's last. */
-static MAGCAL_NOINLINE void cont_tc_enter(magcal_cont_t *cc, uint32_t b, float q, float d, float z, float r,
-                                          float tx, float ty)
+ * mean (a disturbance arriving with a change of tilt). Then k and its validity; the sample's
+ * tilt (cc->tc_t) becomes the sector's last. */
+static MAGCAL_NOINLINE void cont_tc_enter(magcal_cont_t *cc, uint32_t b, float q, float d, float z, float r)
 {
     const float eq = q - cc->tc_mq[b];
     const float ed = d - cc->tc_md[b];
@@ -273,8 +272,8 @@ static MAGCAL_NOINLINE void cont_tc_enter(magcal_cont_t *cc, uint32_t b, float q
         cc->tc_mq[b] = q; /* the sector's first sample: its means */
         cc->tc_md[b] = d;
         cc->tc_mz[b] = z;
-        cc->tc_lt[b][0] = tx;
-        cc->tc_lt[b][1] = ty;
+        cc->tc_lt[b][0] = cc->tc_t.x;
+        cc->tc_lt[b][1] = cc->tc_t.y;
         cc->tc_nb[b] = 1u;
         return;
     }
@@ -293,8 +292,8 @@ static MAGCAL_NOINLINE void cont_tc_enter(magcal_cont_t *cc, uint32_t b, float q
     cc->tc_mq[b] += eq / n;
     cc->tc_md[b] += ed / n;
     cc->tc_mz[b] += ez / n;
-    cc->tc_lt[b][0] = tx;
-    cc->tc_lt[b][1] = ty;
+    cc->tc_lt[b][0] = cc->tc_t.x;
+    cc->tc_lt[b][1] = cc->tc_t.y;
     if (nb < TC_NB_MAX) {
         cc->tc_nb[b]++;
     }
@@ -365,10 +364,10 @@ static MAGCAL_NOINLINE void cont_tc_learn(magcal_cont_t *cc, const magcal_vec3_t
         /* the tilt moved, not only q: on one slope q also moves with the heading within the
          * sector, and circles on it (d moving with the ellipse, q with the heading) taught k
          * the ellipse's slope (-15 and -28 for -44 in tests/test_continuous.c) */
-        const float dtx = tx - cc->tc_lt[b][0];
-        const float dty = ty - cc->tc_lt[b][1];
+        const float dtx = cc->tc_t.x - cc->tc_lt[b][0]; /* the tilt from cc (push_g set it): */
+        const float dty = cc->tc_t.y - cc->tc_lt[b][1]; /* tx, ty need not live across atan2f */
         if (cc->tc_nb[b] == 0u || dtx * dtx + dty * dty >= TC_STEP_Q * TC_STEP_Q) {
-            cont_tc_enter(cc, b, q, d, m->z, r, tx, ty);
+            cont_tc_enter(cc, b, q, d, m->z, r);
         }
     }
 }
@@ -444,6 +443,9 @@ magcal_status_t magcal_cont_push_g(magcal_cont_t *cc, const magcal_vec3_t *m, co
     code = cont_tilt_of(cc, g, t_ms);
     if (code != (uint8_t)MAGCAL_INTAKE_TILT_UNKNOWN && magcal_isfinite_f(m->x) && magcal_isfinite_f(m->y) &&
         cont_tc_tilt(cc, &tx, &ty) != 0) {
+        cc->tc_t.x = tx;
+        cc->tc_t.y = ty;
+        cc->tc_t.z = 1.0f;
         cont_tc_learn(cc, m, tx, ty);
         if (cc->tc_ok != 0u && (cc->cal_lv == 0u || !(fabsf(cc->tc_k - cc->tc_kl) <= TC_KL_HOLD * fabsf(cc->tc_kl)))) {
             /* the levelling follows the estimate until a calibration fitted on levelled samples is
@@ -459,9 +461,6 @@ magcal_status_t magcal_cont_push_g(magcal_cont_t *cc, const magcal_vec3_t *m, co
              * or judges un-levelled samples while the store refills levelled (cont_step.c) */
             cc->tc_on = 1u;
         }
-        cc->tc_t.x = tx;
-        cc->tc_t.y = ty;
-        cc->tc_t.z = 1.0f;
         if (cont_tc_level(cc, m, &cc->tc_m) != 0) {
             cc->tc_levelled = cc->tc_levelled + 1u;
             return cont_enqueue(cc, &cc->tc_m, t_ms, MAGCAL_CONT_TILT_LEVELLED, &cc->tc_t);
