@@ -1120,7 +1120,7 @@ static void test_cont_heading_levelled_on_hills(void)
  * adopt a calibration fitted on pitched samples, with its fit's mean tilt known (tan 4 deg along
  * y). Then the vehicle stands level at 36 headings, 3 s each. While k is unknown the heading is
  * off by the slope's leak (about 8 deg at worst) and must not be OK: it is TILTED (predicted
- * 1.5 R tan 4 deg / R = 6 deg > cfg.tilt_trust_deg 3). The level samples teach k (each sector
+ * 2.5 R tan 4 deg / R = 10 deg > cfg.tilt_trust_deg 3). The level samples teach k (each sector
  * now has two pitches); the heading then applies the calibration levelled by its fit tilt
  * (cc.levels = 1, cc.cal_conv = 1: its centre moved back by k t_cal), and every heading returned
  * OK from then on is within 2 deg of the truth. That calibration's true level RMS is <= 1 deg

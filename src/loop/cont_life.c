@@ -400,13 +400,14 @@ static int cont_tc_level(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal
  * moved by k (t - t_cal) against the field's horizontal radius R), where t is the sample's tilt
  * (0 when levelled) and t_cal the calibration's fit tilt (0 when fitted on levelled samples or
  * levelled since, else the mean tilt of its store: cc->cal_tx, cal_ty). k is the compensation's
- * when valid, else TC_K_UNKNOWN R (an inclination of 56 deg: a bound for most of the
- * inhabited world). 0 when nothing is known: no gravity, gravity unsteady or turning (its tilt is
+ * when valid, else TC_K_UNKNOWN R (an inclination of 68 deg: most of Europe and North America
+ * lie below it; 1.5 R under-predicted the generated drives' 64 deg, k / R = 2.1, and left 4.9-deg
+ * errors OK on 30-min seed 7). 0 when nothing is known: no gravity, gravity unsteady or turning (its tilt is
  * not the road's), a determined regression showing that the accelerometer's tilt is mostly the
  * vehicle's acceleration (rho below TC_RHO_LO: tc_acc; rho alone, from 24 samples on, switched
  * it off on 30-min seed 7 while its early estimate was noisy, and 4.9-deg errors stayed OK), or a
  * restored calibration whose fit tilt is unknown. */
-#define TC_K_UNKNOWN 1.5f
+#define TC_K_UNKNOWN 2.5f
 static float cont_tilt_err_deg(const magcal_cont_t *cc, uint8_t levelled)
 {
     float tx = 0.0f;
