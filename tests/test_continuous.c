@@ -1059,8 +1059,10 @@ static void test_cont_push_g_tilt_compensation_levels_the_store(void)
 /* A vehicle's own acceleration reads as tilt in the accelerometer, not in the magnetometer: the
  * winding road of tc_drive with the magnetometer level and only the gravity pitched (+-5 deg per
  * arc, a braking / accelerating car) must not teach k nor level anything: raw z does not confirm
- * the tilt (the share rho = -(z q) / (R q q) stays near 0, below its 0.5 floor). The same road
- * with the tilt real gives rho within 0.8..1.25 and k (test above). */
+ * the tilt (the share rho = -(z q) / (R q q) stays near 0, below its 0.5 floor), and the
+ * determined regression marks the accelerometer's tilt as acceleration (tc_acc: the tilt in the
+ * trust predicts nothing from it). The same road with the tilt real gives rho within 0.8..1.25
+ * and k (test above). */
 static void test_cont_push_g_acceleration_is_not_tilt(void)
 {
     unsigned pre = 0u;
@@ -1072,6 +1074,7 @@ static void test_cont_push_g_acceleration_is_not_tilt(void)
     TEST_ASSERT_TRUE(fabs((double)g_cc.tc_rho) < 0.2);
     TEST_ASSERT_EQUAL_UINT8(0u, g_cc.tc_ok);
     TEST_ASSERT_EQUAL_UINT32(0u, g_cc.tc_levelled);
+    TEST_ASSERT_EQUAL_UINT8(1u, g_cc.tc_acc); /* determined, and not tilt: the tilt in the trust is off */
 }
 
 /* The heading is tilt-compensated as well (continuous.h "Tilt compensation"): after the hilly
