@@ -124,6 +124,11 @@ magcal_status_t magcal_record_check(const magcal_record_t *rec)
         !(rec->coverage > 0.0f || (rec->kind == MAGCAL_RECORD_KIND_3D && rec->coverage == 0.0f))) {
         return MAGCAL_ERR_ARG;
     }
+    if (!magcal_isfinite_f(rec->tilt_k) || rec->tilt_levelled > 1u ||
+        (rec->tilt_k == 0.0f && rec->tilt_levelled != 0u) ||
+        (rec->kind == MAGCAL_RECORD_KIND_3D && rec->tilt_k != 0.0f)) {
+        return MAGCAL_ERR_ARG; /* the tilt compensation is 2-D's, and levelled only with a k */
+    }
     if (rec->kind == MAGCAL_RECORD_KIND_2D) {
         magcal_status_t st = magcal_cal2d_validate(&rec->cal2d);
         if (st == MAGCAL_OK && !(rec->cal2d.radius > 0.0f)) {
@@ -172,6 +177,8 @@ magcal_status_t magcal_record_pack(const magcal_record_t *rec, uint8_t *out, siz
         cal[4] = rec->cal2d.m[1][0];
         cal[5] = rec->cal2d.m[1][1];
         cal[6] = rec->cal2d.radius;
+        cal[7] = rec->tilt_k;
+        cal[8] = (rec->tilt_levelled != 0u) ? 1.0f : 0.0f;
     } else {
         for (i = 0u; i < 9u; ++i) {
             cal[i] = rec->cal3d.g[i / 3u][i % 3u];
@@ -230,11 +237,16 @@ magcal_status_t magcal_record_unpack(const uint8_t *buf, size_t len, magcal_reco
         cal[i] = get_f32(buf + REC_OFF_CAL + 4u * i);
     }
     if (r.kind == MAGCAL_RECORD_KIND_2D) {
-        for (i = 7u; i < REC_CAL_FLOATS; ++i) {
+        for (i = 9u; i < REC_CAL_FLOATS; ++i) {
             if (get_u32(buf + REC_OFF_CAL + 4u * i) != 0u) {
                 return MAGCAL_ERR_ARG; /* the unused tail of a 2-D record is zero */
             }
         }
+        if (!(cal[8] == 0.0f || cal[8] == 1.0f)) {
+            return MAGCAL_ERR_ARG;
+        }
+        r.tilt_k = cal[7];
+        r.tilt_levelled = (cal[8] == 1.0f) ? 1u : 0u;
         r.cal2d.offset.x = cal[0];
         r.cal2d.offset.y = cal[1];
         r.cal2d.m[0][0] = cal[2];

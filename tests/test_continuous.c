@@ -983,6 +983,8 @@ static double tc_level_rms(const magcal_cal2d_t *c)
  * circles (above); with_g 2: push_g with the field of a level vehicle and only the gravity
  * pitched (the vehicle's own acceleration read as tilt). Returns the adoptions; *before* =
  * adoptions during the arcs. */
+static float g_tc_restore_k;          /* tc_drive_from: the tilt compensation restored with `installed` */
+static uint8_t g_tc_restore_levelled; /* (magcal_cont_restore_tilt; k 0: none) */
 static unsigned tc_drive_from(const magcal_cal2d_t *installed, int with_g, unsigned sweeps, unsigned circles,
                               unsigned *before)
 {
@@ -995,6 +997,9 @@ static unsigned tc_drive_from(const magcal_cal2d_t *installed, int with_g, unsig
     unsigned adopted = 0u;
     unsigned c, i, k;
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, installed, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    if (installed != NULL && g_tc_restore_k != 0.0f) {
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_restore_tilt(&g_cc, g_tc_restore_k, g_tc_restore_levelled));
+    }
     for (c = 0u; c < sweeps + circles; ++c) {
         const double bc = (c < sweeps ? 10.0 : 6.0) * test_rand_uniform(&brng) - (c < sweeps ? 5.0 : 3.0);
         const unsigned rows = c < sweeps ? TC_ROWS_PER_CIRCLE / 3u : TC_ROWS_PER_CIRCLE; /* 100 or 360 deg */
@@ -1229,6 +1234,85 @@ static void test_cont_restored_calibration_relevelled(void)
            (unsigned)g_cc.solves, rms_end);
     TEST_ASSERT_EQUAL_UINT32(1u, g_cc.relevels);
     TEST_ASSERT_TRUE(g_cc.changes <= 1u);
+    TEST_ASSERT_EQUAL_UINT8(1u, g_cc.cal_lv);
+    TEST_ASSERT_TRUE(rms_end <= 1.0);
+}
+
+/* The same power cycle with the tilt compensation kept in the record (magcal_cont_tilt_state at
+ * the end of the first drive, magcal_cont_restore_tilt after init): the samples are levelled from
+ * the first push_g on and the restored calibration counts as levelled, so the hills are not read
+ * as a change (0 changes, 0 relevels; restored without it: 1 change, above) and >= 90 % of the
+ * headings on the winding road, before any solve, are levelled and OK within 2.5 deg of the
+ * truth. Bad input
+ * to the restore is refused with its status. */
+static void test_cont_restored_tilt_compensation_no_false_change(void)
+{
+    unsigned pre = 0u;
+    magcal_cal2d_t saved;
+    float k = 0.0f;
+    uint8_t lv = 0u;
+    double rms_end;
+    TEST_ASSERT_TRUE(tc_drive(1, 60u, 30u, &pre) >= 1u);
+    saved = g_cc.cal;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_tilt_state(&g_cc, &k, &lv));
+    TEST_ASSERT_TRUE(k != 0.0f);
+    TEST_ASSERT_EQUAL_UINT8(1u, lv);
+    {
+        magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_STATE, magcal_cont_restore_tilt(&g_cc, k, 1u)); /* no calibration */
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, &saved, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_cont_restore_tilt(&g_cc, NAN, 1u));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_cont_restore_tilt(&g_cc, 0.0f, 1u));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_cont_restore_tilt(&g_cc, k, 2u));
+        TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_cont_restore_tilt(&g_cc, 1.0e6f, 1u));
+    }
+    g_tc_restore_k = k;
+    g_tc_restore_levelled = lv;
+    {
+        /* the first 10 arcs of the road only: before any solve, the restored calibration levelled */
+        unsigned ok = 0u, n = 0u;
+        double worst = 0.0;
+        uint32_t rng = 5u;
+        uint32_t t = 0u;
+        unsigned c, i;
+        (void)tc_drive_from(&saved, 1, 0u, 0u, &pre); /* init + restore only */
+        for (c = 0u; c < 10u; ++c) {
+            const double th = 10.0 * test_rand_uniform(&rng) - 5.0;
+            for (i = 0u; i < TC_ROWS_PER_CIRCLE / 3u; ++i, t += RATE_MS) {
+                const double s = (double)i / (double)(TC_ROWS_PER_CIRCLE / 3u);
+                const double psi = (c % 2u) == 0u ? 100.0 * s - 50.0 : 50.0 - 100.0 * s;
+                magcal_vec3_t m, g;
+                magcal_cont_heading_t hd;
+                tc_sample(psi, th, 0.1, &rng, &m, &g);
+                TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_push_g(&g_cc, &m, &g, t));
+                (void)magcal_cont_step(&g_cc);
+                TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_heading(&g_cc, &m, 0.0f, &hd));
+                if (i >= 25u) { /* the gravity smoothing settled at this arc's pitch */
+                    n++;
+                    if (hd.trust == MAGCAL_TRUST_OK) {
+                        ok++;
+                        TEST_ASSERT_EQUAL_UINT8(1u, hd.levelled);
+                        worst = fmax(worst, fabs(test_angle_diff_deg(hd.heading_deg, psi)));
+                    }
+                }
+            }
+        }
+        printf("restored with its tilt compensation (k %.2f, levelled %u): on the road %u of %u headings OK, "
+               "worst %.2f deg\n", (double)k, (unsigned)lv, ok, n, worst);
+        TEST_ASSERT_TRUE(ok >= (n * 9u) / 10u);
+        TEST_ASSERT_TRUE(worst <= 2.5); /* measured 1.96 (k -42.5 for -44.1, the soft iron's anisotropy) */
+        TEST_ASSERT_EQUAL_UINT32(0u, g_cc.changes);
+    }
+    (void)tc_drive_from(&saved, 1, 60u, 30u, &pre);
+    g_tc_restore_k = 0.0f;
+    g_tc_restore_levelled = 0u;
+    rms_end = tc_level_rms(&g_cc.cal);
+    printf("restored with its tilt compensation, the whole hilly drive: %u relevels, %u changes, cal_lv %u, "
+           "level RMS at the end %.2f deg\n", (unsigned)g_cc.relevels, (unsigned)g_cc.changes,
+           (unsigned)g_cc.cal_lv, rms_end);
+    TEST_ASSERT_EQUAL_UINT32(0u, g_cc.relevels);
+    TEST_ASSERT_EQUAL_UINT32(0u, g_cc.changes);
     TEST_ASSERT_EQUAL_UINT8(1u, g_cc.cal_lv);
     TEST_ASSERT_TRUE(rms_end <= 1.0);
 }
@@ -1640,6 +1724,7 @@ int main(void)
     RUN_TEST(test_cont_push_g_acceleration_is_not_tilt);
     RUN_TEST(test_cont_unlevelled_calibration_tilted_then_levelled);
     RUN_TEST(test_cont_restored_calibration_relevelled);
+    RUN_TEST(test_cont_restored_tilt_compensation_no_false_change);
     RUN_TEST(test_cont_arc_bound_covers_truth_on_arcs);
     RUN_TEST(test_cont_arc_refused_when_bound_too_wide);
     RUN_TEST(test_cont_arc_upgraded_by_full_ellipse);

@@ -231,6 +231,40 @@ static void test_record_valid_crc_bad_contents_refused(void)
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_NONFINITE, magcal_record_unpack(b, sizeof b, &r));
 }
 
+/* The 2-D record keeps the continuous calibrator's tilt compensation (record.h tilt_k,
+ * tilt_levelled: offsets 68 and 72, formerly zero, so a record written before reads k 0): a round
+ * trip is exact; a levelled flag without a k, a flag other than 0.0 / 1.0, a non-finite k and a
+ * 3-D record with a k are refused; the golden record (zeros there) reads k 0, not levelled. */
+static void test_record_2d_tilt_compensation_round_trip(void)
+{
+    uint8_t b[MAGCAL_RECORD_LEN];
+    magcal_record_t r = rec2d();
+    magcal_record_t back;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_record_unpack(k_record_golden_2d, sizeof k_record_golden_2d, &back));
+    TEST_ASSERT_EQUAL_FLOAT(0.0f, back.tilt_k);
+    TEST_ASSERT_EQUAL_UINT8(0u, back.tilt_levelled);
+    r.tilt_k = -41.26902770996094f;
+    r.tilt_levelled = 1u;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_record_pack(&r, b, sizeof b));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_record_unpack(b, sizeof b, &back));
+    TEST_ASSERT_EQUAL_UINT32(0u, memcmp(&r.tilt_k, &back.tilt_k, sizeof r.tilt_k)); /* bit-exact */
+    TEST_ASSERT_EQUAL_UINT8(1u, back.tilt_levelled);
+    TEST_ASSERT_EQUAL_UINT8(0x3Fu, b[75]); /* 1.0f, little-endian, at offset 72 */
+    TEST_ASSERT_EQUAL_UINT8(0x80u, b[74]);
+    b[74] = 0x00u; /* the flag 0.5f: neither 0 nor 1 */
+    b[75] = 0x3Fu;
+    reseal(b);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_record_unpack(b, sizeof b, &back));
+    r.tilt_k = 0.0f; /* levelled without a k */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_record_pack(&r, b, sizeof b));
+    r.tilt_k = INFINITY;
+    r.tilt_levelled = 0u;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_record_pack(&r, b, sizeof b));
+    r = rec3d();
+    r.tilt_k = -40.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, magcal_record_pack(&r, b, sizeof b));
+}
+
 static void test_record_pack_bad_input_returns_status(void)
 {
     uint8_t b[MAGCAL_RECORD_LEN];
@@ -352,6 +386,7 @@ int main(void)
     RUN_TEST(test_record_version_mismatch_refused);
     RUN_TEST(test_record_valid_crc_bad_contents_refused);
     RUN_TEST(test_record_pack_bad_input_returns_status);
+    RUN_TEST(test_record_2d_tilt_compensation_round_trip);
     RUN_TEST(test_record_from_report_restores_same_heading);
     RUN_TEST(test_record_from_ellipsoid_has_no_heading_estimate);
     return UNITY_END();

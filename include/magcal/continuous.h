@@ -185,6 +185,12 @@
  * cc.cal_ts <= 1.1 deg): its centre is then the level one moved by k t_cal, so the heading levels
  * its sample and moves it by as much at once (cc.cal_conv, counted in cc.levels); a confirming
  * solve moves the record's centre.
+ * Across a power cycle: magcal_cont_tilt_state gives k and whether the installed calibration is
+ * levelled, to keep in the flash record with it (record.h tilt_k, tilt_levelled);
+ * magcal_cont_restore_tilt after magcal_cont_init puts them back, so samples are levelled from
+ * the first push_g and a levelled calibration is judged on levelled samples at once (a calibration
+ * restored without them reads the hills of a road as a lasting mismatch and declares a change
+ * within minutes: docs/calibrator.md).
  * The model takes the specific force for gravity: a vehicle's longitudinal acceleration reads as
  * pitch (it is not levelled only when |g| leaves its g_band_rel band).
  *
@@ -196,7 +202,8 @@
  * heading is MAGCAL_TRUST_TILTED, not OK. Nothing is predicted (the trust is the judge's alone)
  * without gravity, while |g| is unsteady or the roll beyond cfg.intake.tilt_limit_deg (a turn),
  * the pitch beyond cfg.tilt_comp_deg, when the regression shows the accelerometer's tilt to be
- * mostly acceleration (rho < 0.5), or under a restored calibration (its fit tilt is unknown).
+ * mostly acceleration (rho < 0.5), or under a calibration restored without its tilt state (its
+ * fit tilt is unknown; restored levelled with magcal_cont_restore_tilt its t_cal is 0).
  *
  * Concurrency contract. magcal_cont_push() may run in an interrupt (or another task) while ANY
  * other call on the same instance runs in one task: the ring is the only state push writes
@@ -594,6 +601,8 @@ typedef struct {
     uint32_t tc_changes;           /* cc->changes the sectors' means belong to */
     uint8_t tc_gen;                /* and the store's centre generation */
     volatile uint8_t tc_ok;        /* 1: tc_k is estimated well enough to level samples */
+    uint8_t tc_rst;                /* 1: tc_k restored (magcal_cont_restore_tilt) and in force until the
+                                      regression is determined */
     uint8_t tc_acc;                /* 1: k is determined but raw z does not confirm the tilt (rho < 0.5):
                                       the accelerometer's tilt is mostly acceleration */
     volatile uint8_t tc_on;        /* 1: samples are levelled (latched once tc_ok while no calibration is
@@ -709,6 +718,32 @@ magcal_status_t magcal_cont_push(magcal_cont_t *cc, const magcal_vec3_t *m, uint
  */
 magcal_status_t magcal_cont_push_g(magcal_cont_t *cc, const magcal_vec3_t *m, const magcal_vec3_t *g,
                                    uint32_t t_ms);
+
+/**
+ * @brief The tilt compensation's state to keep with the calibration across a power cycle
+ *        (record.h tilt_k, tilt_levelled): *k = the vertical field the samples are levelled
+ *        with while it is valid (else 0), *levelled = 1 when the installed calibration was
+ *        fitted on (or confirmed on) levelled samples. Task context.
+ * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_NOT_INITIALISED.
+ */
+magcal_status_t magcal_cont_tilt_state(const magcal_cont_t *cc, float *k, uint8_t *levelled);
+
+/**
+ * @brief Restore the tilt compensation kept with the installed calibration (after
+ *        magcal_cont_init with that calibration, before the first push): samples are levelled
+ *        with k from the first push_g on, and the installed calibration counts as levelled when
+ *        `levelled` is 1 (its heading and judge level their sample; no relevel), so a vehicle
+ *        that powers up on a hill does not read the hill as a change. k stays in force until the
+ *        stream's own regression is determined (then that decides, as without a restore).
+ *        Task context, before any push.
+ * @param[in,out] cc       initialised instance with a calibration installed.
+ * @param[in]     k        vertical field in raw units, 0 < |k| <= 3 x the calibration's raw radius.
+ * @param[in]     levelled 0 or 1.
+ * @return MAGCAL_OK; MAGCAL_ERR_NULL; MAGCAL_ERR_NOT_INITIALISED; MAGCAL_ERR_STATE (no
+ *         calibration installed, or tilt compensation off: cfg.tilt_comp_deg 0);
+ *         MAGCAL_ERR_NONFINITE; MAGCAL_ERR_ARG (k out of range, levelled > 1).
+ */
+magcal_status_t magcal_cont_restore_tilt(magcal_cont_t *cc, float k, uint8_t levelled);
 
 /** @brief One bounded unit of work (file comment); MAGCAL_CONT_IDLE for NULL / uninitialised. */
 magcal_cont_outcome_t magcal_cont_step(magcal_cont_t *cc);

@@ -25,7 +25,7 @@
  * | 28 | 4 | float radius (2-D: sqrt(r1 r2), raw units; 3-D: field F, output units) |
  * | 32 | 4 | float residual_rms (the fit's RMS residual, same unit as radius) |
  * | 36 | 4 | float coverage (2-D: covered arc, degrees; 3-D: filled direction cells, 0..1, 0 = not measured) |
- * | 40 | 52 | calibration: 2-D offset.x, offset.y, m[0][0], m[0][1], m[1][0], m[1][1], radius, then 24 zero bytes; 3-D g[0][0]..g[2][2] row-major, v.x, v.y, v.z, field |
+ * | 40 | 52 | calibration: 2-D offset.x, offset.y, m[0][0], m[0][1], m[1][0], m[1][1], radius, tilt_k, tilt_levelled (as 0.0 or 1.0), then 16 zero bytes; 3-D g[0][0]..g[2][2] row-major, v.x, v.y, v.z, field |
  * | 92 | 4 | CRC-32 (IEEE 802.3: reflected 0xEDB88320, init and final XOR 0xFFFFFFFF) of bytes 0..91 |
  *
  * CRC-32 detects every error of up to 3 bits and every burst up to 32 bits in a 96-byte record,
@@ -111,6 +111,12 @@ typedef struct {
     float coverage;            /**< 2-D: covered arc in degrees (0..360]; 3-D: filled fraction of the
                                     direction cells [0..1], 0 = not measured (aided estimator) */
     magcal_cal2d_t cal2d;      /**< kind 2-D: the calibration (magic MAGCAL_CAL2D_MAGIC) */
+    float tilt_k;              /**< kind 2-D, the continuous calibrator's tilt compensation
+                                    (magcal_cont_tilt_state / magcal_cont_restore_tilt): the
+                                    vertical field in raw units, 0 = not known (a record written
+                                    before this field existed reads 0: its bytes were zero) */
+    uint8_t tilt_levelled;     /**< kind 2-D: 1 = the calibration was fitted on (or confirmed on)
+                                    tilt-levelled samples; 0 otherwise (and always when tilt_k is 0) */
     magcal_ellipsoid_cal_t cal3d; /**< kind 3-D: h = G (m - V), |h| = field */
 } magcal_record_t;
 

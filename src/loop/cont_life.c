@@ -304,7 +304,6 @@ static MAGCAL_NOINLINE void cont_tc_enter(magcal_cont_t *cc, uint32_t b, float q
     cc->tc_n++;
     kn = cc->tc_s[1] / cc->tc_s[0];
     var = (cc->tc_n > 1u) ? (cc->tc_s[2] - kn * cc->tc_s[1]) / ((float)cc->tc_n - 1.0f) : -1.0f;
-    cc->tc_k = kn;
     /* the tilt the accelerometer reports is the magnetometer's too: a real tilt along the field
      * moves raw z by -R q (z = Z - t . h), an acceleration read as tilt moves nothing; the slope
      * of z on q over -R is the share of q's variation that is real tilt (1 +- the z axis's scale) */
@@ -315,6 +314,13 @@ static MAGCAL_NOINLINE void cont_tc_enter(magcal_cont_t *cc, uint32_t b, float q
                              var <= TC_MAX_SE * TC_MAX_SE * r * r * cc->tc_s[0] && fabsf(kn) <= TC_MAX_K * r)
                                 ? 1u
                                 : 0u;
+        if (est != 0u) {
+            cc->tc_rst = 0u; /* the stream's own estimate decides from now on */
+        }
+        if (cc->tc_rst != 0u) {
+            return; /* the restored k stays in force (tc_ok, tc_k) until then */
+        }
+        cc->tc_k = kn;
         cc->tc_ok = (est != 0u && rho >= TC_RHO_LO && rho <= TC_RHO_HI) ? 1u : 0u;
         /* a determined regression whose tilt raw z does not confirm: the accelerometer's tilt is
          * mostly the vehicle's acceleration (the tilt in the trust then predicts nothing) */
@@ -469,6 +475,45 @@ magcal_status_t magcal_cont_push_g(magcal_cont_t *cc, const magcal_vec3_t *m, co
         return cont_enqueue(cc, m, t_ms, code, &cc->tc_t);
     }
     return cont_enqueue(cc, m, t_ms, code, NULL);
+}
+
+magcal_status_t magcal_cont_tilt_state(const magcal_cont_t *cc, float *k, uint8_t *levelled)
+{
+    if (cc == NULL || k == NULL || levelled == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (cc->magic != MAGCAL_CONT_MAGIC) {
+        return MAGCAL_ERR_NOT_INITIALISED;
+    }
+    *k = (cc->tc_ok != 0u) ? cc->tc_kl : 0.0f;
+    *levelled = (cc->tc_ok != 0u && cc->has_cal != 0u && cc->cal_lv != 0u) ? 1u : 0u;
+    return MAGCAL_OK;
+}
+
+magcal_status_t magcal_cont_restore_tilt(magcal_cont_t *cc, float k, uint8_t levelled)
+{
+    if (cc == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (cc->magic != MAGCAL_CONT_MAGIC) {
+        return MAGCAL_ERR_NOT_INITIALISED;
+    }
+    if (cc->has_cal == 0u || !(cc->cal_raw_radius > 0.0f) || !(cc->tc_tan2 > 0.0f)) {
+        return MAGCAL_ERR_STATE;
+    }
+    if (!magcal_isfinite_f(k)) {
+        return MAGCAL_ERR_NONFINITE;
+    }
+    if (!(fabsf(k) > 0.0f && fabsf(k) <= TC_MAX_K * cc->cal_raw_radius) || levelled > 1u) {
+        return MAGCAL_ERR_ARG;
+    }
+    cc->tc_k = k;
+    cc->tc_kl = k;
+    cc->tc_rst = 1u;
+    cc->tc_ok = 1u;
+    cc->tc_on = 1u;
+    cc->cal_lv = levelled;
+    return MAGCAL_OK;
 }
 
 magcal_status_t magcal_cont_progress(const magcal_cont_t *cc, magcal_cont_progress_t *out)

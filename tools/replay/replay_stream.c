@@ -542,6 +542,7 @@ static int stream_record_write(const char *path, const magcal_cont_t *cc)
     rec.residual_rms = 0.0f;
     rec.coverage = 360.0f;
     rec.cal2d = cc->cal;
+    (void)magcal_cont_tilt_state(cc, &rec.tilt_k, &rec.tilt_levelled); /* kept with it (record.h) */
     if (replay_record_write(path, "--save", &rec, err, sizeof err) != REPLAY_EXIT_OK) {
         fprintf(stderr, "magcal-replay: %s\n", err);
         return 1;
@@ -724,6 +725,16 @@ int replay_stream_main(int argc, char **argv)
                          sizeof g_work) != MAGCAL_OK) {
         magcal_replay_csv_free(&d);
         return 5;
+    }
+    if (install_path != NULL && rec_in.tilt_k != 0.0f && !no_tilt) {
+        /* the tilt compensation kept with the restored calibration (record.h tilt_k) */
+        const magcal_status_t rs = magcal_cont_restore_tilt(&g_cc, rec_in.tilt_k, rec_in.tilt_levelled);
+        if (rs != MAGCAL_OK) {
+            fprintf(stderr, "magcal-replay: --install %s: its tilt compensation is refused: %s\n", install_path,
+                    magcal_status_str(rs));
+            magcal_replay_csv_free(&d);
+            return 1;
+        }
     }
     ref = d.col[MAGCAL_REPLAY_COL_HEADING_REF];
     tc = d.col[MAGCAL_REPLAY_COL_T];
