@@ -618,15 +618,15 @@ typedef struct {
     float cal_tx;                  /* the installed calibration's: that mean when it was adopted (the tilt */
     float cal_ty;                  /* its unlevelled fit saw; its centre is off by k times it) */
     float cal_ts;                  /* the spread (RMS about the mean) of that tilt */
+    uint32_t levels;               /* unlevelled calibrations levelled by their fit's tilt (cont_step.c) */
+    uint32_t relevels;             /* relevels started */
     uint8_t cal_tk;                /* 1: cal_tx, cal_ty known (adopted here with enough known tilts) */
     uint8_t cal_conv;              /* 1: during a relevel, the heading levels its sample and moves it
                                       by k t_cal (the unlevelled fit's centre: one slope) */
-    uint32_t levels;               /* unlevelled calibrations levelled by their fit's tilt (cont_step.c) */
     uint8_t cal_lv;                /* 1: the installed calibration was fitted on levelled samples (or
                                       confirmed on them): the heading and the judge level their sample */
     uint8_t relevel;               /* 1: the compensation came on under an unlevelled calibration: the
                                       store refills with levelled samples while the judge un-levels */
-    uint32_t relevels;             /* relevels started */
     magcal_vec3_t jm;              /* the drained sample as the judge sees it (un-levelled: relevel) */
     /* the transient judge's bias regression (cont_flags.c): the stream's heading-dependent bias
      * of the residual and of raw z, learnt on clean samples */
