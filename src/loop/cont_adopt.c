@@ -66,19 +66,24 @@ float magcal_cont_solve_cov(const magcal_cont_t *cc)
     return cov;
 }
 
-void magcal_cont_install(magcal_cont_t *cc, const magcal_cal2d_t *c, float r_raw, float sigma)
+void magcal_cont_centre_store(magcal_cont_t *cc)
 {
     magcal_vec3_t centre;
+    centre.x = cc->cal.offset.x;
+    centre.y = cc->cal.offset.y;
+    centre.z = 0.0f;
+    if (cc->cal_raw_radius > 0.0f) {
+        (void)magcal_intake_set_centre(&cc->store, &centre, cc->cal_raw_radius);
+    }
+}
+
+void magcal_cont_install(magcal_cont_t *cc, const magcal_cal2d_t *c, float r_raw, float sigma)
+{
     cc->cal = *c;
     cc->has_cal = 1u;
     cc->cal_raw_radius = r_raw;
     cc->cal_sigma_rel = magcal_isfinite_f(sigma) && sigma > 0.0f ? sigma : 0.0f;
-    centre.x = c->offset.x;
-    centre.y = c->offset.y;
-    centre.z = 0.0f;
-    if (r_raw > 0.0f) {
-        (void)magcal_intake_set_centre(&cc->store, &centre, r_raw);
-    }
+    magcal_cont_centre_store(cc);
     cc->fz_on = 0u;
     cc->episode_open = 0u;
     cc->mis_ms = 0u;

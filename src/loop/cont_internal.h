@@ -59,6 +59,8 @@ void magcal_cont_declare_change(magcal_cont_t *cc);
 int magcal_cont_episode_wide(const magcal_cont_t *cc);
 /* Finish a solve: the batch verdict `st` with cc->last, ageing rule, install. Returns the outcome. */
 magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_t verdict);
+/* Index the store around the installed calibration (its centre, raw radius; none when that is 0). */
+void magcal_cont_centre_store(magcal_cont_t *cc);
 /* Install calibration c (raw radius r_raw, relative noise sigma) and index the store around it. */
 void magcal_cont_install(magcal_cont_t *cc, const magcal_cal2d_t *c, float r_raw, float sigma);
 /* Level-shift watch (cont_shift.c, continuous.h "Level shift"): watch one drained sample at t_ms

@@ -264,7 +264,8 @@ static MAGCAL_NOINLINE uint32_t cont_drain(magcal_cont_t *cc, uint32_t max, magc
         const magcal_vec3_t *m;
         const magcal_vec3_t *tl;
         int lv;
-        if (cont_judge_on(cc) != 0) {
+        const int judged = cont_judge_on(cc);
+        if (judged != 0) {
             w += CONT_W_JUDGE;
         }
         if (k != max && b->unlimited == 0u &&
@@ -286,7 +287,9 @@ static MAGCAL_NOINLINE uint32_t cont_drain(magcal_cont_t *cc, uint32_t max, magc
         lv = 0;
         if (tl != NULL && cc->ring_tilt[t % MAGCAL_CONT_RING] == (uint8_t)MAGCAL_CONT_TILT_LEVELLED) {
             lv = 1;
-            cont_unlevel(cc, m, tl);
+            if (judged != 0 && cc->cal_lv == 0u) {
+                cont_unlevel(cc, m, tl); /* cc->jm: read by cont_screen's judge only then */
+            }
         }
         if (cont_screen(cc, m, m == &cc->park_m ? cc->park_t : cc->ring_t[t % MAGCAL_CONT_RING], lv) == 0) {
             /* stored samples are counted by the store (added + replaced); with the tilt code of
@@ -680,7 +683,6 @@ CONT_INLINE magcal_cont_outcome_t cont_solve(magcal_cont_t *cc, magcal_cal_budge
  * tilt known, its spread small), magcal_cont_heading levels at once: cal_conv. */
 static MAGCAL_NOINLINE void cont_relevel(magcal_cont_t *cc)
 {
-    magcal_vec3_t centre;
     if (cc->tc_on == 0u || cc->has_cal == 0u || cc->cal_lv != 0u || cc->relevel != 0u ||
         cc->state == (uint8_t)MAGCAL_CONT_RELEARNING || cc->stage != (uint8_t)CONT_STAGE_NONE ||
         cc->park_n != cc->park_i) {
@@ -695,12 +697,7 @@ static MAGCAL_NOINLINE void cont_relevel(magcal_cont_t *cc)
         cc->cal_conv = 1u;
         cc->levels++;
     }
-    centre.x = cc->cal.offset.x;
-    centre.y = cc->cal.offset.y;
-    centre.z = 0.0f;
-    if (cc->cal_raw_radius > 0.0f) {
-        (void)magcal_intake_set_centre(&cc->store, &centre, cc->cal_raw_radius);
-    }
+    magcal_cont_centre_store(cc);
     cc->relevel = 1u;
     cc->relevels++;
 }
