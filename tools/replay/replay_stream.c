@@ -38,11 +38,14 @@ static magcal_cont3_t g_c3;
 
 static const char k_stream_usage[] =
     "usage: magcal-replay --stream [--mode 2d|3d] [--headings OUT.csv] [--json] [--declination DEG]\n"
-    "                        [--range R] [--steps-per-row K] [--coarse DEG[,TOL]] [--no-tilt]\n"
-    "                        [--level-tilt DEG] [--install REC] [--save REC] DUMP.csv\n"
+    "                        [--range R] [--steps-per-row K] [--coarse DEG[,TOL]] [--arc DEG[,TOL[,MODEL]]]\n"
+    "                        [--no-tilt] [--level-tilt DEG] [--install REC] [--save REC] DUMP.csv\n"
     "                        (R: the sensor's declared range)\n"
     "  --coarse: 2-D coarse stage on (cfg.coarse_coverage_deg DEG, cfg.coarse_max_err_deg TOL; off by\n"
     "  default): adoptions of a hard-iron circle carry status \"coarse\", its headings trust \"coarse\";\n"
+    "  --arc DEG[,TOL[,MODEL]]: 2-D arc stage on (cfg.arc_coverage_deg, arc_max_err_deg,\n"
+    "  arc_model_deg; off by default, continuous.h \"Arc calibration\"): an ellipse fitted on an arc\n"
+    "  below 270 deg is installed as a coarse one when its whole-circle bound holds;\n"
     "  every row in file order through magcal_cont_push + K x magcal_cont_step (default budget; K = 1:\n"
     "  a control loop at the sample rate) and magcal_cont_heading; after the last row, steps without\n"
     "  pushes until the solve under way ends (events at row = rows);\n"
@@ -574,6 +577,7 @@ int replay_stream_main(int argc, char **argv)
                                            {"range", required_argument, NULL, 'r'},
                                            {"steps-per-row", required_argument, NULL, 'k'},
                                            {"coarse", required_argument, NULL, 'c'},
+                                           {"arc", required_argument, NULL, 'a'},
                                            {"no-tilt", no_argument, NULL, 'T'},
                                            {"level-tilt", required_argument, NULL, 'L'},
                                            {"install", required_argument, NULL, 'I'},
@@ -674,6 +678,20 @@ int replay_stream_main(int argc, char **argv)
             }
             cfg.coarse_coverage_deg = (float)v;
             cfg.coarse_max_err_deg = (float)tol;
+            break;
+        }
+        case 'a': {
+            double v = 0.0, tol = (double)cfg.arc_max_err_deg, mod = (double)cfg.arc_model_deg;
+            char tail_c = '\0';
+            int got = sscanf(optarg, "%lf,%lf,%lf%c", &v, &tol, &mod, &tail_c);
+            if (got < 1 || got > 3 || !(v > 0.0 && v <= 360.0) || !(tol > 0.0) || !isfinite(tol) ||
+                !(mod >= 0.0) || !isfinite(mod)) {
+                fprintf(stderr, "magcal-replay: --arc needs DEG (0..360] [,TOL > 0 [,MODEL >= 0]], got \"%s\"\n", optarg);
+                return 1;
+            }
+            cfg.arc_coverage_deg = (float)v;
+            cfg.arc_max_err_deg = (float)tol;
+            cfg.arc_model_deg = (float)mod;
             break;
         }
         case 'T':
