@@ -405,7 +405,9 @@ static int cont_tc_level(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal
  * heading under the installed calibration, in degrees: |k| |t - t_cal| / R rad (the raw x, y
  * moved by k (t - t_cal) against the field's horizontal radius R), where t is the sample's tilt
  * (0 when levelled) and t_cal the calibration's fit tilt (0 when fitted on levelled samples or
- * levelled since, else the mean tilt of its store: cc->cal_tx, cal_ty). k is the compensation's
+ * levelled since, else the mean tilt of its store: cc->cal_tx, cal_ty; then the spread of that
+ * tilt, cc->cal_ts, adds in quadrature: a store filled at a different tilt per sector bends the
+ * ellipse, an error no current tilt undoes). k is the compensation's
  * when valid, else TC_K_UNKNOWN R (an inclination of 68 deg: most of Europe and North America
  * lie below it; 1.5 R under-predicted the generated drives' 64 deg, k / R = 2.1, and left 4.9-deg
  * errors OK on 30-min seed 7). 0 when nothing is known: no gravity, gravity unsteady or turning (its tilt is
@@ -421,6 +423,7 @@ static float cont_tilt_err_deg(const magcal_cont_t *cc, uint8_t levelled)
     float k;
     float dx;
     float dy;
+    float s2 = 0.0f;
     if (cc->has_cal == 0u || !(cc->cal_raw_radius > 0.0f) || (cc->cal_lv == 0u && cc->cal_tk == 0u && cc->cal_conv == 0u) ||
         cc->tc_acc != 0u || cont_tc_tilt(cc, &tx, &ty) == 0) {
         return 0.0f;
@@ -430,9 +433,10 @@ static float cont_tilt_err_deg(const magcal_cont_t *cc, uint8_t levelled)
     if (cc->cal_lv == 0u && cc->cal_conv == 0u) {
         dx -= cc->cal_tx;
         dy -= cc->cal_ty;
+        s2 = cc->cal_ts * cc->cal_ts;
     }
     k = (cc->tc_ok != 0u) ? fabsf(cc->tc_k) : TC_K_UNKNOWN * cc->cal_raw_radius;
-    return k * sqrtf(dx * dx + dy * dy) / cc->cal_raw_radius * MAGCAL_DEG_PER_RAD_F;
+    return k * sqrtf(dx * dx + dy * dy + s2) / cc->cal_raw_radius * MAGCAL_DEG_PER_RAD_F;
 }
 
 magcal_status_t magcal_cont_push_g(magcal_cont_t *cc, const magcal_vec3_t *m, const magcal_vec3_t *g,
