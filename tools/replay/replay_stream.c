@@ -39,13 +39,14 @@ static magcal_cont3_t g_c3;
 static const char k_stream_usage[] =
     "usage: magcal-replay --stream [--mode 2d|3d] [--headings OUT.csv] [--json] [--declination DEG]\n"
     "                        [--range R] [--steps-per-row K] [--coarse DEG[,TOL]] [--arc DEG[,TOL[,MODEL]]]\n"
-    "                        [--no-tilt] [--level-tilt DEG] [--install REC] [--save REC] DUMP.csv\n"
+    "                        [--continuity 0|1] [--no-tilt] [--level-tilt DEG] [--install REC] [--save REC] DUMP.csv\n"
     "                        (R: the sensor's declared range)\n"
     "  --coarse: 2-D coarse stage on (cfg.coarse_coverage_deg DEG, cfg.coarse_max_err_deg TOL; off by\n"
     "  default): adoptions of a hard-iron circle carry status \"coarse\", its headings trust \"coarse\";\n"
     "  --arc DEG[,TOL[,MODEL]]: 2-D arc stage on (cfg.arc_coverage_deg, arc_max_err_deg,\n"
     "  arc_model_deg; off by default, continuous.h \"Arc calibration\"): an ellipse fitted on an arc\n"
     "  below 270 deg is installed as a coarse one when its whole-circle bound holds;\n"
+    "  --continuity 0|1: cfg.continuity (the drain's continuity gate, continuous.h);\n"
     "  every row in file order through magcal_cont_push + K x magcal_cont_step (default budget; K = 1:\n"
     "  a control loop at the sample rate) and magcal_cont_heading; after the last row, steps without\n"
     "  pushes until the solve under way ends (events at row = rows);\n"
@@ -578,6 +579,7 @@ int replay_stream_main(int argc, char **argv)
                                            {"steps-per-row", required_argument, NULL, 'k'},
                                            {"coarse", required_argument, NULL, 'c'},
                                            {"arc", required_argument, NULL, 'a'},
+                                           {"continuity", required_argument, NULL, 'g'},
                                            {"no-tilt", no_argument, NULL, 'T'},
                                            {"level-tilt", required_argument, NULL, 'L'},
                                            {"install", required_argument, NULL, 'I'},
@@ -694,6 +696,13 @@ int replay_stream_main(int argc, char **argv)
             cfg.arc_model_deg = (float)mod;
             break;
         }
+        case 'g':
+            if (strcmp(optarg, "0") != 0 && strcmp(optarg, "1") != 0) {
+                fprintf(stderr, "magcal-replay: --continuity needs 0 or 1, got \"%s\"\n", optarg);
+                return 1;
+            }
+            cfg.continuity = (uint8_t)(optarg[0] - '0');
+            break;
         case 'T':
             no_tilt = 1;
             break;
