@@ -68,8 +68,13 @@ int magcal_cont_episode(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint32_
         }
     }
     /* the episode counts the per-sample judge only (a transient flag must never add up to a change),
-     * in covered sectors (the judge's mismatch is 0 elsewhere) */
-    if (j->gross != 0u) {
+     * in covered sectors (the judge's mismatch is 0 elsewhere); a tilted sample judged by the
+     * radius alone counts neither way (a hill moves the horizontal field by Z sin(pitch), up to
+     * 20 % of R at 6 deg: a calibration restored without its field model or tilt state read the
+     * first hills after a power cycle as a lasting change) */
+    if (j->tilted != 0u) {
+        /* neither evidence */
+    } else if (j->gross != 0u) {
         cc->episode_open = 1u;
         cc->mis_ms += dt;
         cc->clean_ms = 0u;

@@ -32,6 +32,8 @@ typedef struct {
     float unc;      /* model's prediction variance at this sample / its noise variance (0: none) */
     uint8_t gross;  /* 1: evidence of a change (beyond the change threshold, or z out of reach of pitch) */
     uint8_t over;   /* 1: |rel| above the per-sample threshold (whether or not it flags, cc->fz_unfit) */
+    uint8_t tilted; /* 1: judged unlevelled beyond the level limit by the radius alone (no field
+                       model): neither evidence of a change nor of consistency (cont_change.c) */
     float u;        /* raw z / the installed raw radius (the transient judge's vertical channel) */
     float cs[2];    /* cos, sin of the corrected heading (its bias regressors) */
 } magcal_cont_judge_t;

@@ -70,6 +70,7 @@ int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_co
     j->mismatch = 0u;
     j->gross = 0u;
     j->over = 0u;
+    j->tilted = 0u;
     j->u = NAN;
     j->cs[0] = 1.0f;
     j->cs[1] = 0.0f;
