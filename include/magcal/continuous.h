@@ -36,7 +36,10 @@
  *                          the snapshot drops the samples from before it); a solve that saw the
  *                          store before a shift, or that ends while one is under watch, ends
  *                          SOLVING -> COLLECTING refused (INCONSISTENT, calibration untouched);
- *  any -> RELEARNING       when a change is declared (old samples dropped);
+ *  any -> RELEARNING       when a change is declared (old samples dropped; with push_g, a sample
+ *                          tilted beyond the level limit is no evidence either way while the
+ *                          judge has no field model, e.g. under a calibration restored from
+ *                          flash: docs/calibrator.md "Stop 28");
  *  (a solve starts at cfg.coarse_coverage_deg instead while no full calibration is installed)
  *  RELEARNING -> SOLVING   as COLLECTING; a solve that adopts, or that confirms the installed
  *                          calibration on fresh data (NOT_BETTER), ends the relearning.
