@@ -72,14 +72,12 @@ int magcal_cont_episode(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint32_
      * radius alone counts neither way (a hill moves the horizontal field by Z sin(pitch), up to
      * 20 % of R at 6 deg: a calibration restored without its field model or tilt state read the
      * first hills after a power cycle as a lasting change) */
-    if (j->tilted != 0u) {
-        /* neither evidence */
-    } else if (j->gross != 0u) {
+    if (j->tilted == 0u && j->gross != 0u) {
         cc->episode_open = 1u;
         cc->mis_ms += dt;
         cc->clean_ms = 0u;
         cc->mis_bins[j->sector / 32u] |= 1u << (j->sector % 32u);
-    } else if (cc->episode_open != 0u) {
+    } else if (j->tilted == 0u && cc->episode_open != 0u) {
         cc->clean_ms += dt;
         if (cc->clean_ms >= cc->cfg.clear_ms) {
             cc->episode_open = 0u;
@@ -89,7 +87,7 @@ int magcal_cont_episode(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint32_
             cc->mis_bins[1] = 0u;
         }
     } else {
-        /* consistent, no episode */
+        /* consistent with no episode open, or tilted: neither evidence */
     }
     return cc->episode_open != 0u && cc->mis_ms >= cc->cfg.change_ms && magcal_cont_episode_wide(cc) != 0;
 }

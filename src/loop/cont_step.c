@@ -289,9 +289,11 @@ static MAGCAL_NOINLINE uint32_t cont_drain(magcal_cont_t *cc, uint32_t max, magc
         tl = (m != &cc->park_m) ? &cc->ring_tl[t % MAGCAL_CONT_RING] : NULL;
         lv = 0;
         tilted = 0;
-        if (judged != 0 && (m == &cc->park_m ? cc->park_tilt : cc->ring_tilt[t % MAGCAL_CONT_RING]) ==
-                               (uint8_t)MAGCAL_INTAKE_TILT_TILTED) {
-            tilted = 1; /* as push_g classified it (the judge's change evidence, cont_change.c) */
+        if (judged != 0) {
+            const uint8_t code = (m == &cc->park_m) ? cc->park_tilt : cc->ring_tilt[t % MAGCAL_CONT_RING];
+            if (code == (uint8_t)MAGCAL_INTAKE_TILT_TILTED) {
+                tilted = 1; /* as push_g classified it (the judge's change evidence, cont_change.c) */
+            }
         }
         if (tl != NULL && cc->ring_tilt[t % MAGCAL_CONT_RING] == (uint8_t)MAGCAL_CONT_TILT_LEVELLED) {
             lv = 1;
