@@ -479,6 +479,7 @@ typedef struct {
     volatile uint32_t g_level;     /* of those, classified LEVEL */
     uint32_t park_lv[(MAGCAL_MAX_SAMPLES / 2u + 31u) / 32u]; /* level bits of the parked FIFO (cont_step.c) */
     uint8_t park_tilt;             /* tilt code of park_m (cont_step.c) */
+    uint8_t j_tilted;              /* the drained sample as judged: tilted beyond the level limit (cont_step.c) */
     volatile uint32_t head;
     volatile uint32_t tail;
     volatile uint32_t dropped;

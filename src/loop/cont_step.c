@@ -111,8 +111,7 @@ static int cont_judge_on(const magcal_cont_t *cc)
 }
 
 /* Judge one sample against the installed calibration (change detection): 1 = do not store it. */
-static MAGCAL_NOINLINE int cont_screen(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms, int levelled,
-                                        int tilted)
+static MAGCAL_NOINLINE int cont_screen(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms, int levelled)
 {
     magcal_cont_judge_t j;
     magcal_cont_shift_watch(cc, m, t_ms, levelled); /* before any calibration: a jump that stays (cont_shift.c) */
@@ -120,7 +119,7 @@ static MAGCAL_NOINLINE int cont_screen(magcal_cont_t *cc, const magcal_vec3_t *m
         return 1; /* before a calibration judges the stream: a jump from the sample before, never stored */
     }
     if (cc->state != (uint8_t)MAGCAL_CONT_RELEARNING && magcal_cont_judge(cc, levelled != 0 && cc->cal_lv == 0u ? &cc->jm : m, &j) != 0) {
-        j.tilted = (uint8_t)((tilted != 0 && cc->fz_on == 0u) ? 1u : 0u);
+        j.tilted = (uint8_t)((cc->j_tilted != 0u && cc->fz_on == 0u) ? 1u : 0u); /* set by the drain */
         if (magcal_cont_episode(cc, &j, t_ms) != 0) {
             magcal_cont_declare_change(cc); /* the store restarts with this sample */
         } else if (j.mismatch != 0u) {
@@ -266,7 +265,6 @@ static MAGCAL_NOINLINE uint32_t cont_drain(magcal_cont_t *cc, uint32_t max, magc
         const magcal_vec3_t *m;
         const magcal_vec3_t *tl;
         int lv;
-        int tilted;
         const int judged = cont_judge_on(cc);
         if (judged != 0) {
             w += CONT_W_JUDGE;
@@ -288,23 +286,21 @@ static MAGCAL_NOINLINE uint32_t cont_drain(magcal_cont_t *cc, uint32_t max, magc
         }
         tl = (m != &cc->park_m) ? &cc->ring_tl[t % MAGCAL_CONT_RING] : NULL;
         lv = 0;
-        tilted = 0;
         if (judged != 0) {
+            /* as push_g classified it: the judge's change evidence (cont_change.c) */
             const uint8_t code = (m == &cc->park_m) ? cc->park_tilt : cc->ring_tilt[t % MAGCAL_CONT_RING];
-            if (code == (uint8_t)MAGCAL_INTAKE_TILT_TILTED) {
-                tilted = 1; /* as push_g classified it (the judge's change evidence, cont_change.c) */
-            }
+            cc->j_tilted = (uint8_t)((code == (uint8_t)MAGCAL_INTAKE_TILT_TILTED) ? 1u : 0u);
         }
         if (tl != NULL && cc->ring_tilt[t % MAGCAL_CONT_RING] == (uint8_t)MAGCAL_CONT_TILT_LEVELLED) {
             lv = 1;
             if (judged != 0 && cc->cal_lv == 0u) {
                 cont_unlevel(cc, m, tl); /* cc->jm: read by cont_screen's judge only then */
                 if (tl->x * tl->x + tl->y * tl->y > cc->store.tilt_tan2) {
-                    tilted = 1; /* judged as pushed: beyond the level limit */
+                    cc->j_tilted = 1u; /* judged as pushed: beyond the level limit */
                 }
             }
         }
-        if (cont_screen(cc, m, m == &cc->park_m ? cc->park_t : cc->ring_t[t % MAGCAL_CONT_RING], lv, tilted) == 0) {
+        if (cont_screen(cc, m, m == &cc->park_m ? cc->park_t : cc->ring_t[t % MAGCAL_CONT_RING], lv) == 0) {
             /* stored samples are counted by the store (added + replaced); with the tilt code of
              * push_g (the store's level preference) */
             const magcal_intake_tilt_t tilt =
