@@ -311,7 +311,6 @@ MAGCAL_NOINLINE int magcal_o2_ord_run(magcal_o2_ord_t *o, int32_t *rem)
     /* no ranges until the first query (rg_p matches no point before it); initialised so the
      * analysers see it */
     (void)memset(&rg, 0, sizeof rg);
-    int requeried = 0;
     int32_t r = *rem;
     while (r > 0 && o->st != (uint8_t)OR_DONE) {
         switch (o->st) {
@@ -361,58 +360,48 @@ MAGCAL_NOINLINE int magcal_o2_ord_run(magcal_o2_ord_t *o, int32_t *rem)
             ord_outer(o, &rg, &rg_p, &r);
             break;
         case OR_ISCORE:
-            if (rg_p != (size_t)o->u.sc.s + n) {
-                magcal_nbr_query(&o->nb, o->u.sc.s, &rg);
-                rg_p = (size_t)o->u.sc.s + n;
+        case OR_P1:
+        case OR_P2: {
+            /* the scanned point's ranges (rg_p: s + n for the start-core count, not a PROCESS; p
+             * for the two passes of a PROCESS), queried again when a step resumes inside a scan */
+            const size_t q = (o->st == (uint8_t)OR_ISCORE) ? (size_t)o->u.sc.s : (size_t)o->u.sc.p;
+            const size_t key = (o->st == (uint8_t)OR_ISCORE) ? q + n : q;
+            int requeried = 0;
+            if (rg_p != key) {
+                magcal_nbr_query(&o->nb, q, &rg);
+                rg_p = key;
                 requeried = 1;
             }
-            ord_scan_count(o, &rg, &r);
+            if (o->st == (uint8_t)OR_ISCORE) {
+                ord_scan_count(o, &rg, &r);
+            } else if (o->st == (uint8_t)OR_P1) {
+                ord_scan_core(o, &rg, &r);
+            } else {
+                ord_scan_reach(o, &rg, &r);
+            }
             if (requeried != 0) {
                 CHARGE(r, W_QUERY); /* after the scan: a resumed step still visits */
-                requeried = 0;
             }
-            if (o->u.sc.cnt < oc->min_pts && o->u.sc.ri < rg.n_ranges) {
-                break; /* budget ran out inside the count */
-            }
-            if (o->u.sc.cnt >= oc->min_pts) {
+            if (o->st != (uint8_t)OR_ISCORE) {
+                if (o->u.sc.ri >= rg.n_ranges) {
+                    if (o->st == (uint8_t)OR_P1) {
+                        ord_core_done(o, &rg);
+                    } else {
+                        o->st = (uint8_t)OR_SEEDS;
+                    }
+                }
+            } else if (o->u.sc.cnt >= oc->min_pts) {
                 ord_process(o, o->u.sc.s, &rg);
                 rg_p = o->u.sc.p;
                 CHARGE(r, W_PSTART);
-            } else {
+            } else if (o->u.sc.ri >= rg.n_ranges) {
                 o->u.sc.s++;
                 o->st = (uint8_t)OR_SCAN;
+            } else {
+                /* budget ran out inside the count */
             }
             break;
-        case OR_P1:
-            if (rg_p != o->u.sc.p) {
-                magcal_nbr_query(&o->nb, o->u.sc.p, &rg);
-                rg_p = o->u.sc.p;
-                requeried = 1;
-            }
-            ord_scan_core(o, &rg, &r);
-            if (requeried != 0) {
-                CHARGE(r, W_QUERY); /* after the scan: a resumed step still visits */
-                requeried = 0;
-            }
-            if (o->u.sc.ri >= rg.n_ranges) {
-                ord_core_done(o, &rg);
-            }
-            break;
-        case OR_P2:
-            if (rg_p != o->u.sc.p) {
-                magcal_nbr_query(&o->nb, o->u.sc.p, &rg);
-                rg_p = o->u.sc.p;
-                requeried = 1;
-            }
-            ord_scan_reach(o, &rg, &r);
-            if (requeried != 0) {
-                CHARGE(r, W_QUERY); /* after the scan: a resumed step still visits */
-                requeried = 0;
-            }
-            if (o->u.sc.ri >= rg.n_ranges) {
-                o->st = (uint8_t)OR_SEEDS;
-            }
-            break;
+        }
         case OR_PLIVE:
             ord_scan_live(o, &r);
             break;
