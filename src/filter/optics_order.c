@@ -62,12 +62,14 @@ static MAGCAL_NOINLINE void ord_core_done(magcal_o2_ord_t *o, const magcal_nbr_r
  * scan is complete. idx NULL: brute force, one range over every point.
  */
 
-/* Pass 1: core distance (MinPts smallest d^2 in the insertion buffer). */
+/* Pass 1 of PROCESS(p): core distance (MinPts smallest d^2 in the insertion buffer), lim = m + 1
+ * (the count saturates at m: every candidate). START_CORE (p = s): does s have MinPts points
+ * within eps? lim = m: the scan stops at the m-th (the buffer is rewritten by the PROCESS that
+ * follows; each candidate within eps is inserted while cnt < m, so cnt is the plain count). */
 static MAGCAL_NOINLINE void ord_scan_core(magcal_o2_ord_t *o, const magcal_nbr_ranges_t *rg,
-                                          int32_t *rem)
+                                          size_t p, size_t lim, int32_t *rem)
 {
     const magcal_vec2_t *pts = o->nb.pts;
-    const size_t p = o->u.sc.p;
     const float px = pts[p].x;
     const float py = pts[p].y;
     const float eps2 = o->eps2;
@@ -78,9 +80,9 @@ static MAGCAL_NOINLINE void ord_scan_core(magcal_o2_ord_t *o, const magcal_nbr_r
     size_t k = o->u.sc.k;
     size_t cnt = o->u.sc.cnt;
     int32_t r = *rem;
-    while (ri < rg->n_ranges) {
+    while (ri < rg->n_ranges && cnt < lim) {
         const size_t end = rg->end[ri];
-        for (; k < end && r > 0; ++k) {
+        for (; k < end && r > 0 && cnt < lim; ++k) {
             const size_t j = idx != NULL ? idx[k] : k;
             const float dx = pts[j].x - px;
             const float dy = pts[j].y - py;
@@ -88,44 +90,6 @@ static MAGCAL_NOINLINE void ord_scan_core(magcal_o2_ord_t *o, const magcal_nbr_r
             if (d2 <= eps2 && (cnt < m || d2 < best[m - 1u])) {
                 cnt = magcal_ocore_best_insert(best, cnt, m, d2);
             }
-            CHARGE(r, W_CAND);
-        }
-        if (k < end) {
-            break;
-        }
-        ++ri;
-        if (ri < rg->n_ranges) {
-            k = rg->begin[ri];
-        }
-    }
-    o->u.sc.ri = (uint8_t)ri;
-    o->u.sc.k = (uint16_t)k;
-    o->u.sc.cnt = (uint16_t)cnt;
-    *rem = r;
-}
-
-/* START_CORE: does s have MinPts points within eps? (counts until MinPts) */
-static MAGCAL_NOINLINE void ord_scan_count(magcal_o2_ord_t *o, const magcal_nbr_ranges_t *rg,
-                                           int32_t *rem)
-{
-    const magcal_vec2_t *pts = o->nb.pts;
-    const size_t p = o->u.sc.s;
-    const float px = pts[p].x;
-    const float py = pts[p].y;
-    const float eps2 = o->eps2;
-    const size_t m = o->oc.min_pts;
-    const uint16_t *idx = rg->idx;
-    size_t ri = o->u.sc.ri;
-    size_t k = o->u.sc.k;
-    size_t cnt = o->u.sc.cnt;
-    int32_t r = *rem;
-    while (ri < rg->n_ranges && cnt < m) {
-        const size_t end = rg->end[ri];
-        for (; k < end && r > 0 && cnt < m; ++k) {
-            const size_t j = idx != NULL ? idx[k] : k;
-            const float dx = pts[j].x - px;
-            const float dy = pts[j].y - py;
-            cnt += (dx * dx + dy * dy <= eps2) ? 1u : 0u;
             CHARGE(r, W_CAND);
         }
         if (k < end) {
@@ -372,10 +336,9 @@ MAGCAL_NOINLINE int magcal_o2_ord_run(magcal_o2_ord_t *o, int32_t *rem)
                 rg_p = key;
                 requeried = 1;
             }
-            if (o->st == (uint8_t)OR_ISCORE) {
-                ord_scan_count(o, &rg, &r);
-            } else if (o->st == (uint8_t)OR_P1) {
-                ord_scan_core(o, &rg, &r);
+            if (o->st != (uint8_t)OR_P2) {
+                const size_t m = oc->min_pts;
+                ord_scan_core(o, &rg, q, (o->st == (uint8_t)OR_ISCORE) ? m : m + 1u, &r);
             } else {
                 ord_scan_reach(o, &rg, &r);
             }
