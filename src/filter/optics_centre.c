@@ -189,69 +189,52 @@ MAGCAL_NOINLINE int magcal_o2_th_run(magcal_o2_th_t *t, const magcal_vec2_t *pts
             }
             i = 0u;
             t->st = (uint8_t)TH_CAP;
-        } else if (t->st == (uint8_t)TH_CAP) {
+        } else if (t->st <= (uint8_t)TH_MAXRUN) {
+            /* the passes over the sorted keys, run = rank of a point in its cell (0: the first):
+             * TH_CAP counts the candidates (m) and the occupied cells, TH_MARK flags the
+             * representatives (count m) and the first cap of each cell, TH_MAXRUN takes the
+             * largest number of candidates in one cell (best) */
+            const uint8_t st = t->st;
+            size_t run = t->run;
             size_t m = t->m;
             size_t cells = t->cells;
-            for (; i < n && r > 0; ++i) {
-                const float k = key[idx[i]];
-                if (k < THIN_INVALID) {
-                    ++m;
-                    if (i == 0u || k != key[idx[i - 1u]]) {
-                        ++cells;
-                    }
-                }
-                CHARGE(r, W_CAP);
-            }
-            t->m = (uint16_t)m;
-            t->cells = (uint16_t)cells;
-            if (i < n) {
-                break;
-            }
-            t->cap = (uint16_t)(cells == 0u ? 0u : (m + cells - 1u) / cells);
-            t->m = 0u;
-            i = 0u;
-            t->st = (uint8_t)TH_MARK;
-        } else if (t->st == (uint8_t)TH_MARK) {
-            size_t run = t->run;
-            size_t m = t->m;
-            for (; i < n && r > 0; ++i) {
-                run = (i == 0u || key[idx[i]] != key[idx[i - 1u]]) ? 0u : run + 1u;
-                if (key[idx[i]] < THIN_INVALID) {
-                    if (run == 0u) {
-                        rep[idx[i]] = AUTO_REP;
-                        ++m;
-                    }
-                    if (run < t->cap) {
-                        rep[idx[i]] = (uint8_t)(rep[idx[i]] | AUTO_CAPPED);
-                    }
-                }
-                CHARGE(r, W_CAP);
-            }
-            t->run = (uint16_t)run;
-            t->m = (uint16_t)m;
-            if (i < n) {
-                break;
-            }
-            i = 0u;
-            t->run = 0u;
-            t->st = (uint8_t)TH_MAXRUN;
-        } else if (t->st == (uint8_t)TH_MAXRUN) {
-            /* largest number of candidates in one cell */
-            size_t run = t->run;
             size_t best = t->best;
             for (; i < n && r > 0; ++i) {
-                run = (i == 0u || key[idx[i]] != key[idx[i - 1u]]) ? 1u : run + 1u;
-                if (key[idx[i]] < THIN_INVALID && run > best) {
-                    best = run;
+                const float k = key[idx[i]];
+                run = (i == 0u || k != key[idx[i - 1u]]) ? 0u : run + 1u;
+                if (k < THIN_INVALID) {
+                    if (st == (uint8_t)TH_CAP) {
+                        ++m;
+                        cells += (run == 0u) ? 1u : 0u;
+                    } else if (st == (uint8_t)TH_MARK) {
+                        if (run == 0u) {
+                            rep[idx[i]] = AUTO_REP;
+                            ++m;
+                        }
+                        if (run < t->cap) {
+                            rep[idx[i]] = (uint8_t)(rep[idx[i]] | AUTO_CAPPED);
+                        }
+                    } else if (run + 1u > best) {
+                        best = run + 1u;
+                    } else {
+                        /* TH_MAXRUN: not the largest so far */
+                    }
                 }
                 CHARGE(r, W_CAP);
             }
             t->run = (uint16_t)run;
+            t->m = (uint16_t)m;
+            t->cells = (uint16_t)cells;
             t->best = (uint16_t)best;
             if (i < n) {
                 break;
             }
-            t->st = (uint8_t)TH_DONE;
+            if (st == (uint8_t)TH_CAP) {
+                t->cap = (uint16_t)(cells == 0u ? 0u : (m + cells - 1u) / cells);
+                t->m = 0u;
+            }
+            i = 0u;
+            t->st++;
         } else {
             break;
         }
