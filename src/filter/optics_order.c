@@ -62,62 +62,35 @@ static MAGCAL_NOINLINE void ord_core_done(magcal_o2_ord_t *o, const magcal_nbr_r
  * scan is complete. idx NULL: brute force, one range over every point.
  */
 
-/*
- * One range scan of p's candidates (lim: what it does):
- * - lim = m + 1: pass 1 of PROCESS(p), the core distance (MinPts smallest d^2 in the insertion
- *   buffer; the count saturates at m, so every candidate is visited);
- * - lim = m: START_CORE (p = s), does s have MinPts points within eps? The scan stops at the m-th
- *   (each candidate within eps is inserted while cnt < m, so cnt is the plain count; the buffer is
- *   rewritten by the PROCESS that follows);
- * - lim = 0 (ORD_REACH): pass 2 (grid), reach updates of p's unprocessed neighbours.
- */
-#define ORD_REACH 0u
-static MAGCAL_NOINLINE void ord_scan(magcal_o2_ord_t *o, const magcal_nbr_ranges_t *rg,
-                                     size_t p, size_t lim, int32_t *rem)
+/* Pass 1 of PROCESS(p): core distance (MinPts smallest d^2 in the insertion buffer), lim = m + 1
+ * (the count saturates at m: every candidate). START_CORE (p = s): does s have MinPts points
+ * within eps? lim = m: the scan stops at the m-th (the buffer is rewritten by the PROCESS that
+ * follows; each candidate within eps is inserted while cnt < m, so cnt is the plain count). */
+static MAGCAL_NOINLINE void ord_scan_core(magcal_o2_ord_t *o, const magcal_nbr_ranges_t *rg,
+                                          size_t p, size_t lim, int32_t *rem)
 {
-    magcal_ocore_t *oc = &o->oc;
     const magcal_vec2_t *pts = o->nb.pts;
     const float px = pts[p].x;
     const float py = pts[p].y;
     const float eps2 = o->eps2;
-    const size_t m = oc->min_pts;
-    float *best = oc->best;
-    const int reach = (lim == ORD_REACH) ? 1 : 0;
-    const size_t lim_c = (reach != 0) ? m + 1u : lim; /* the reach pass never inserts: cnt < m + 1 */
-    const float core_p = o->u.sc.core_p;
-    const float core2 = best[m - 1u];
-    int heap = 0;
-    if (oc->mode != MAGCAL_OPTICS_IMPROVED) {
-        heap = 1;
-    }
+    const size_t m = o->oc.min_pts;
+    float *best = o->oc.best;
     const uint16_t *idx = rg->idx;
     size_t ri = o->u.sc.ri;
     size_t k = o->u.sc.k;
     size_t cnt = o->u.sc.cnt;
     int32_t r = *rem;
-    while (ri < rg->n_ranges && cnt < lim_c) {
+    while (ri < rg->n_ranges && cnt < lim) {
         const size_t end = rg->end[ri];
-        for (; k < end && r > 0 && cnt < lim_c; ++k) {
+        for (; k < end && r > 0 && cnt < lim; ++k) {
             const size_t j = idx != NULL ? idx[k] : k;
             const float dx = pts[j].x - px;
             const float dy = pts[j].y - py;
             const float d2 = dx * dx + dy * dy;
-            if (reach != 0) {
-                if (d2 <= eps2 && magcal_ocore_is_done(oc, j) == 0) {
-                    const float rr = magcal_ocore_reach_of(d2, core_p, core2);
-                    if (rr < oc->reach[j]) {
-                        magcal_ocore_update(oc, p, j, rr);
-                        CHARGE(r, W_UPD);
-                        CHARGE_K(r, W_HEAP, heap);
-                    }
-                }
-                CHARGE(r, W_REACH);
-            } else {
-                if (d2 <= eps2 && (cnt < m || d2 < best[m - 1u])) {
-                    cnt = magcal_ocore_best_insert(best, cnt, m, d2);
-                }
-                CHARGE(r, W_CAND);
+            if (d2 <= eps2 && (cnt < m || d2 < best[m - 1u])) {
+                cnt = magcal_ocore_best_insert(best, cnt, m, d2);
             }
+            CHARGE(r, W_CAND);
         }
         if (k < end) {
             break;
@@ -130,6 +103,56 @@ static MAGCAL_NOINLINE void ord_scan(magcal_o2_ord_t *o, const magcal_nbr_ranges
     o->u.sc.ri = (uint8_t)ri;
     o->u.sc.k = (uint16_t)k;
     o->u.sc.cnt = (uint16_t)cnt;
+    *rem = r;
+}
+
+/* Pass 2 (grid): reach updates of p's unprocessed neighbours. */
+static MAGCAL_NOINLINE void ord_scan_reach(magcal_o2_ord_t *o, const magcal_nbr_ranges_t *rg,
+                                           int32_t *rem)
+{
+    magcal_ocore_t *oc = &o->oc;
+    const magcal_vec2_t *pts = o->nb.pts;
+    const size_t p = o->u.sc.p;
+    const float px = pts[p].x;
+    const float py = pts[p].y;
+    const float eps2 = o->eps2;
+    const float core_p = o->u.sc.core_p;
+    const float core2 = oc->best[oc->min_pts - 1u];
+    int heap = 0;
+    if (oc->mode != MAGCAL_OPTICS_IMPROVED) {
+        heap = 1;
+    }
+    const uint16_t *idx = rg->idx;
+    size_t ri = o->u.sc.ri;
+    size_t k = o->u.sc.k;
+    int32_t r = *rem;
+    while (ri < rg->n_ranges) {
+        const size_t end = rg->end[ri];
+        for (; k < end && r > 0; ++k) {
+            const size_t j = idx[k];
+            const float dx = pts[j].x - px;
+            const float dy = pts[j].y - py;
+            const float d2 = dx * dx + dy * dy;
+            if (d2 <= eps2 && magcal_ocore_is_done(oc, j) == 0) {
+                const float rr = magcal_ocore_reach_of(d2, core_p, core2);
+                if (rr < oc->reach[j]) {
+                    magcal_ocore_update(oc, p, j, rr);
+                    CHARGE(r, W_UPD);
+                    CHARGE_K(r, W_HEAP, heap);
+                }
+            }
+            CHARGE(r, W_REACH);
+        }
+        if (k < end) {
+            break;
+        }
+        ++ri;
+        if (ri < rg->n_ranges) {
+            k = rg->begin[ri];
+        }
+    }
+    o->u.sc.ri = (uint8_t)ri;
+    o->u.sc.k = (uint16_t)k;
     *rem = r;
 }
 
@@ -313,11 +336,11 @@ MAGCAL_NOINLINE int magcal_o2_ord_run(magcal_o2_ord_t *o, int32_t *rem)
                 rg_p = key;
                 requeried = 1;
             }
-            if (o->st == (uint8_t)OR_P2) {
-                ord_scan(o, &rg, q, ORD_REACH, &r);
-            } else {
+            if (o->st != (uint8_t)OR_P2) {
                 const size_t m = oc->min_pts;
-                ord_scan(o, &rg, q, (o->st == (uint8_t)OR_ISCORE) ? m : m + 1u, &r);
+                ord_scan_core(o, &rg, q, (o->st == (uint8_t)OR_ISCORE) ? m : m + 1u, &r);
+            } else {
+                ord_scan_reach(o, &rg, &r);
             }
             if (requeried != 0) {
                 CHARGE(r, W_QUERY); /* after the scan: a resumed step still visits */
