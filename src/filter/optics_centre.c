@@ -333,28 +333,26 @@ MAGCAL_NOINLINE int magcal_o2_ce_run(magcal_o2_ce_t *c, const magcal_vec2_t *pts
             c->st = (uint8_t)CE_THIN;
             break;
         case CE_THIN:
-            if (magcal_o2_th_run(&c->u.th, pts, n, cr, w, NULL, (unsigned)TH_MARK, rem) == 0) {
-                return 0;
-            }
-            if (c->u.th.m >= AUTO_MIN_N) {
-                rc_begin(&c->u.rc);
-                c->st = (uint8_t)CE_RC;
-                break;
-            }
-            c->round++;
-            c->st = (uint8_t)CE_DONE;
-            if (c->round < AUTO_THIN_ROUNDS) {
-                magcal_o2_th_begin(&c->u.th, c->h);
-                c->st = (uint8_t)CE_THIN;
-            }
-            break;
         case CE_RC:
-            if (rc_run(&c->u.rc, pts, n, w + AUTO_REP_OFF(n), a, cr, &s2, rem) == 0) {
-                return 0;
-            }
-            if (s2 == MAGCAL_OK) {
-                c->have = 1u;
-                c->h = cr[2] * AUTO_THIN_REL * magcal_o2_thin_scale(n);
+            /* a round: the thinning, then the centre of its representatives (none when there are
+             * too few); the next round thins again with the new cell side */
+            if (c->st == (uint8_t)CE_THIN) {
+                if (magcal_o2_th_run(&c->u.th, pts, n, cr, w, NULL, (unsigned)TH_MARK, rem) == 0) {
+                    return 0;
+                }
+                if (c->u.th.m >= AUTO_MIN_N) {
+                    rc_begin(&c->u.rc);
+                    c->st = (uint8_t)CE_RC;
+                    break;
+                }
+            } else {
+                if (rc_run(&c->u.rc, pts, n, w + AUTO_REP_OFF(n), a, cr, &s2, rem) == 0) {
+                    return 0;
+                }
+                if (s2 == MAGCAL_OK) {
+                    c->have = 1u;
+                    c->h = cr[2] * AUTO_THIN_REL * magcal_o2_thin_scale(n);
+                }
             }
             c->round++;
             c->st = (uint8_t)CE_DONE;
