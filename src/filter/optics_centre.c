@@ -139,8 +139,8 @@ static float th_cell(float x, float lim)
 /* TH_KEYS from point i: each point's cell key (own frame: its floats stay off the sort's path).
  * Returns the next point. */
 static MAGCAL_NOINLINE size_t th_keys(magcal_o2_th_t *t, const magcal_vec2_t *pts, size_t n,
-                                      const float cr[3], uint8_t *w, const uint8_t *use,
-                                      size_t i0, int32_t *rem)
+                                      const float cr[3], uint8_t *w, const uint8_t *use, size_t i0,
+                                      int32_t *rem)
 {
     const float h = t->h;
     float *key = (float *)(void *)w;
@@ -219,7 +219,8 @@ static MAGCAL_NOINLINE size_t th_pass(magcal_o2_th_t *t, uint8_t *w, size_t n, s
             t->cap = (uint16_t)(cells == 0u ? 0u : (m + cells - 1u) / cells);
             t->m = 0u;
         }
-        t->st++;
+        /* the next stage */
+        t->st = (uint8_t)((st == (uint8_t)TH_MAXRUN) ? TH_DONE : (unsigned)st + 1u);
     }
     *rem = r;
     return i;
