@@ -64,8 +64,8 @@ static MAGCAL_NOINLINE void ord_core_done(magcal_o2_ord_t *o, const magcal_nbr_r
 
 /* Pass 1 of PROCESS(p): core distance (MinPts smallest d^2 in the insertion buffer), lim = m + 1
  * (the count saturates at m: every candidate). START_CORE (p = s): does s have MinPts points
- * within eps? lim = m: the scan stops at the m-th (the buffer is rewritten by the PROCESS that
- * follows; each candidate within eps is inserted while cnt < m, so cnt is the plain count). */
+ * within eps? lim = m: the candidates within eps are counted (the buffer is not touched) and the
+ * scan stops after the m-th. One range walk for both (issue 14: it was written twice). */
 static MAGCAL_NOINLINE void ord_scan_core(magcal_o2_ord_t *o, const magcal_nbr_ranges_t *rg,
                                           size_t p, size_t lim, int32_t *rem)
 {
@@ -80,19 +80,30 @@ static MAGCAL_NOINLINE void ord_scan_core(magcal_o2_ord_t *o, const magcal_nbr_r
     size_t k = o->u.sc.k;
     size_t cnt = o->u.sc.cnt;
     int32_t r = *rem;
-    while (ri < rg->n_ranges && cnt < lim) {
+    while (ri < rg->n_ranges) {
         const size_t end = rg->end[ri];
-        for (; k < end && r > 0 && cnt < lim; ++k) {
+        for (; k < end && r > 0; ++k) {
             const size_t j = idx != NULL ? idx[k] : k;
             const float dx = pts[j].x - px;
             const float dy = pts[j].y - py;
             const float d2 = dx * dx + dy * dy;
             if (d2 <= eps2 && (cnt < m || d2 < best[m - 1u])) {
-                cnt = magcal_ocore_best_insert(best, cnt, m, d2);
+                if (lim > m) {
+                    cnt = magcal_ocore_best_insert(best, cnt, m, d2);
+                } else {
+                    ++cnt; /* the start-core count: a count only, the buffer is not written */
+                    if (cnt >= lim) {
+                        break; /* its m-th (tested only where cnt grows) */
+                    }
+                }
             }
             CHARGE(r, W_CAND);
         }
         if (k < end) {
+            if (cnt >= lim) { /* the count's m-th candidate was visited; PROCESS(s) follows */
+                CHARGE(r, W_CAND);
+                ++k;
+            }
             break;
         }
         ++ri;
@@ -275,6 +286,7 @@ MAGCAL_NOINLINE int magcal_o2_ord_run(magcal_o2_ord_t *o, int32_t *rem)
     /* no ranges until the first query (rg_p matches no point before it); initialised so the
      * analysers see it */
     (void)memset(&rg, 0, sizeof rg);
+    int requeried = 0;
     int32_t r = *rem;
     while (r > 0 && o->st != (uint8_t)OR_DONE) {
         switch (o->st) {
@@ -324,47 +336,58 @@ MAGCAL_NOINLINE int magcal_o2_ord_run(magcal_o2_ord_t *o, int32_t *rem)
             ord_outer(o, &rg, &rg_p, &r);
             break;
         case OR_ISCORE:
-        case OR_P1:
-        case OR_P2: {
-            /* the scanned point's ranges (rg_p: s + n for the start-core count, not a PROCESS; p
-             * for the two passes of a PROCESS), queried again when a step resumes inside a scan */
-            const size_t q = (o->st == (uint8_t)OR_ISCORE) ? (size_t)o->u.sc.s : (size_t)o->u.sc.p;
-            const size_t key = (o->st == (uint8_t)OR_ISCORE) ? q + n : q;
-            int requeried = 0;
-            if (rg_p != key) {
-                magcal_nbr_query(&o->nb, q, &rg);
-                rg_p = key;
+            if (rg_p != (size_t)o->u.sc.s + n) {
+                magcal_nbr_query(&o->nb, o->u.sc.s, &rg);
+                rg_p = (size_t)o->u.sc.s + n;
                 requeried = 1;
             }
-            if (o->st != (uint8_t)OR_P2) {
-                const size_t m = oc->min_pts;
-                ord_scan_core(o, &rg, q, (o->st == (uint8_t)OR_ISCORE) ? m : m + 1u, &r);
-            } else {
-                ord_scan_reach(o, &rg, &r);
-            }
+            ord_scan_core(o, &rg, o->u.sc.s, oc->min_pts, &r);
             if (requeried != 0) {
                 CHARGE(r, W_QUERY); /* after the scan: a resumed step still visits */
+                requeried = 0;
             }
-            if (o->st != (uint8_t)OR_ISCORE) {
-                if (o->u.sc.ri >= rg.n_ranges) {
-                    if (o->st == (uint8_t)OR_P1) {
-                        ord_core_done(o, &rg);
-                    } else {
-                        o->st = (uint8_t)OR_SEEDS;
-                    }
-                }
-            } else if (o->u.sc.cnt >= oc->min_pts) {
+            if (o->u.sc.cnt < oc->min_pts && o->u.sc.ri < rg.n_ranges) {
+                break; /* budget ran out inside the count */
+            }
+            if (o->u.sc.cnt >= oc->min_pts) {
                 ord_process(o, o->u.sc.s, &rg);
                 rg_p = o->u.sc.p;
                 CHARGE(r, W_PSTART);
-            } else if (o->u.sc.ri >= rg.n_ranges) {
+            } else {
                 o->u.sc.s++;
                 o->st = (uint8_t)OR_SCAN;
-            } else {
-                /* budget ran out inside the count */
             }
             break;
-        }
+        case OR_P1:
+            if (rg_p != o->u.sc.p) {
+                magcal_nbr_query(&o->nb, o->u.sc.p, &rg);
+                rg_p = o->u.sc.p;
+                requeried = 1;
+            }
+            ord_scan_core(o, &rg, o->u.sc.p, (size_t)oc->min_pts + 1u, &r);
+            if (requeried != 0) {
+                CHARGE(r, W_QUERY); /* after the scan: a resumed step still visits */
+                requeried = 0;
+            }
+            if (o->u.sc.ri >= rg.n_ranges) {
+                ord_core_done(o, &rg);
+            }
+            break;
+        case OR_P2:
+            if (rg_p != o->u.sc.p) {
+                magcal_nbr_query(&o->nb, o->u.sc.p, &rg);
+                rg_p = o->u.sc.p;
+                requeried = 1;
+            }
+            ord_scan_reach(o, &rg, &r);
+            if (requeried != 0) {
+                CHARGE(r, W_QUERY); /* after the scan: a resumed step still visits */
+                requeried = 0;
+            }
+            if (o->u.sc.ri >= rg.n_ranges) {
+                o->st = (uint8_t)OR_SEEDS;
+            }
+            break;
         case OR_PLIVE:
             ord_scan_live(o, &r);
             break;
