@@ -75,10 +75,10 @@ static int harm_pass_sum(magcal_cal_harm_slice_t *h, magcal_cal_budget_t *b)
         if (h->mask[i] != 0u && magcal_correct_apply(&h->c, h->pts[i], &v) == MAGCAL_OK) {
             h->sum += sqrtf(v.x * v.x + v.y * v.y);
             h->k++;
-            if (magcal_cal_spend(b, HARM_W_SUM) != 0) {
+            if (magcal_cal_charge(b, HARM_W_SUM) != 0) {
                 return 0;
             }
-        } else if (magcal_cal_spend(b, HARM_W_SKIP) != 0) {
+        } else if (magcal_cal_charge(b, HARM_W_SKIP) != 0) {
             return 0;
         } else {
             /* not masked: next */
@@ -118,10 +118,10 @@ static int harm_pass_fit(magcal_cal_harm_slice_t *h, magcal_cal_budget_t *b, int
                     h->ss += d * d;
                 }
             }
-            if (magcal_cal_spend(b, with_res == 0 ? HARM_W_NORMAL : HARM_W_RESID) != 0) {
+            if (magcal_cal_charge(b, with_res == 0 ? HARM_W_NORMAL : HARM_W_RESID) != 0) {
                 return 0;
             }
-        } else if (magcal_cal_spend(b, HARM_W_SKIP) != 0) {
+        } else if (magcal_cal_charge(b, HARM_W_SKIP) != 0) {
             return 0;
         } else {
             /* not masked: next */
@@ -213,7 +213,7 @@ int magcal_cal_harm_step(magcal_cal_harm_slice_t *h, magcal_cal_budget_t *b)
         (void)memset(beta, 0, HARM_K * sizeof(float));
         h->i = 0u;
         h->pass = 1u;
-        if (magcal_cal_spend(b, HARM_W_SKIP) != 0) {
+        if (magcal_cal_charge(b, HARM_W_SKIP) != 0) {
             return 0;
         }
     }
@@ -228,7 +228,7 @@ int magcal_cal_harm_step(magcal_cal_harm_slice_t *h, magcal_cal_budget_t *b)
         /* residual variance after the harmonic fit, second pass (no cancellation of sums) */
         h->i = 0u;
         h->pass = 2u;
-        if (magcal_cal_spend(b, HARM_W_SOLVE1) != 0) {
+        if (magcal_cal_charge(b, HARM_W_SOLVE1) != 0) {
             return 0;
         }
     }
@@ -237,14 +237,14 @@ int magcal_cal_harm_step(magcal_cal_harm_slice_t *h, magcal_cal_budget_t *b)
             return 0;
         }
         h->pass = 3u;
-        if (magcal_cal_spend(b, HARM_W_SKIP) != 0) {
+        if (magcal_cal_charge(b, HARM_W_SKIP) != 0) {
             return 0;
         }
     }
     if (h->pass == 3u) {
         harm_noise(h);
         h->pass = 4u; /* passes 4..7: columns 1..4 of the inverse */
-        if (magcal_cal_spend(b, HARM_W_SKIP) != 0) {
+        if (magcal_cal_charge(b, HARM_W_SKIP) != 0) {
             return 0;
         }
     }
@@ -254,14 +254,14 @@ int magcal_cal_harm_step(magcal_cal_harm_slice_t *h, magcal_cal_budget_t *b)
             return 1; /* singular: out->ok 0 */
         }
         h->pass++;
-        if (magcal_cal_spend(b, HARM_W_SOLVE1) != 0) {
+        if (magcal_cal_charge(b, HARM_W_SOLVE1) != 0) {
             return 0;
         }
     }
     if (h->pass == 8u) {
         harm_estimates(h);
         h->pass = 9u;
-        (void)magcal_cal_spend(b, HARM_W_FINISH);
+        (void)magcal_cal_charge(b, HARM_W_FINISH);
     }
     return 1;
 }
@@ -315,7 +315,7 @@ static int dist_collect(magcal_cal_distinct_slice_t *d, magcal_cal_budget_t *b)
             d->idx[d->m] = (uint16_t)i;
             d->m++;
         }
-        if (magcal_cal_spend(b, DIST_W_COLLECT) != 0) {
+        if (magcal_cal_charge(b, DIST_W_COLLECT) != 0) {
             return 0;
         }
     }
@@ -348,7 +348,7 @@ static int dist_sort(magcal_cal_distinct_slice_t *d, magcal_cal_budget_t *b)
             d->inner = 0u;
             d->i++;
         }
-        if (magcal_cal_spend(b, DIST_W_SORT) != 0) {
+        if (magcal_cal_charge(b, DIST_W_SORT) != 0) {
             return 0;
         }
     }
@@ -370,7 +370,7 @@ static int dist_count(magcal_cal_distinct_slice_t *d, magcal_cal_budget_t *b)
                 d->step = s;
             }
         }
-        if (magcal_cal_spend(b, DIST_W_COUNT) != 0) {
+        if (magcal_cal_charge(b, DIST_W_COUNT) != 0) {
             return 0;
         }
     }

@@ -39,9 +39,9 @@ static int cal_coarse_res_pass(const magcal_calibrator_t *cal, cal_run_t *r, cal
             const float e = cal_coarse_res(q, cal->buf[i]);
             q->ss += e * e;
             r->m++;
-            paused = magcal_cal_spend(&r->bud, CAL_W_CO_RES);
+            paused = magcal_cal_charge(&r->bud, CAL_W_CO_RES);
         } else {
-            paused = magcal_cal_spend(&r->bud, CAL_W_FLAG); /* not an inlier */
+            paused = magcal_cal_charge(&r->bud, CAL_W_FLAG); /* not an inlier */
         }
     }
     return paused;
@@ -96,7 +96,7 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_co_gate(magcal_calibrator_t *cal, cal_
         cal->flags[i] = (uint8_t)(MAGCAL_CALIBRATOR_FLAG_JUDGED |
                                   (cal->mask_a[i] == 0u ? MAGCAL_CALIBRATOR_FLAG_FILTER : 0u) |
                                   (in == 0u ? MAGCAL_CALIBRATOR_FLAG_RESIDUAL : 0u));
-        if (magcal_cal_spend(&r->bud, CAL_W_CO_GATE) != 0) {
+        if (magcal_cal_charge(&r->bud, CAL_W_CO_GATE) != 0) {
             return MAGCAL_IN_PROGRESS;
         }
     }
@@ -118,7 +118,7 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_co_fit(magcal_calibrator_t *cal, cal_r
     float scale;
     if (r->sub == 0u) {
         magcal_status_t st = magcal_ldlt_solve(q->a, q->b, 3u, 1.0e-6f, NULL);
-        (void)magcal_cal_spend(&r->bud, CAL_W_CO_FIT);
+        (void)magcal_cal_charge(&r->bud, CAL_W_CO_FIT);
         if (st != MAGCAL_OK) {
             return st == MAGCAL_ERR_ILL_CONDITIONED ? MAGCAL_ERR_DEGENERATE : st;
         }

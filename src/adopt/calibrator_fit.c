@@ -78,7 +78,7 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_flags0(magcal_calibrator_t *cal, cal_r
                             ? (uint8_t)(MAGCAL_CALIBRATOR_FLAG_JUDGED | MAGCAL_CALIBRATOR_FLAG_FILTER)
                             : (uint8_t)MAGCAL_CALIBRATOR_FLAG_JUDGED;
         r->i++;
-        if (magcal_cal_spend(&r->bud, CAL_W_FLAG) != 0) {
+        if (magcal_cal_charge(&r->bud, CAL_W_FLAG) != 0) {
             return MAGCAL_IN_PROGRESS;
         }
     }
@@ -125,7 +125,7 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_plain_mask(magcal_calibrator_t *cal, c
             r->m++;
         }
         r->i++;
-        if (magcal_cal_spend(&r->bud, CAL_W_FLAG) != 0) {
+        if (magcal_cal_charge(&r->bud, CAL_W_FLAG) != 0) {
             return MAGCAL_IN_PROGRESS;
         }
     }
@@ -194,7 +194,7 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_gates(magcal_calibrator_t *cal, cal_ru
             /* rejected by the filter and by the consensus */
         }
         r->i++;
-        if (magcal_cal_spend(&r->bud, CAL_W_GATES) != 0) {
+        if (magcal_cal_charge(&r->bud, CAL_W_GATES) != 0) {
             return MAGCAL_IN_PROGRESS;
         }
     }

@@ -82,6 +82,11 @@ static inline int magcal_cal_spend(magcal_cal_budget_t *b, uint32_t w)
     return 0;
 }
 
+/* magcal_cal_spend as one out-of-line function for the solve's phase files (src/adopt): GCC
+ * emitted the static inline above as a 24-byte local copy in each of them and called that copy,
+ * never inlining it (issue 14: one copy saves the others' flash; the calls are the same). */
+int magcal_cal_charge(magcal_cal_budget_t *b, uint32_t w);
+
 /* Resumable harmonic analysis (magcal_cal_harmonics() = begin + step until done). All state here
  * (the calibration is copied); nm / beta / solver copies live in `scratch`
  * (MAGCAL_CAL_HARM_SCRATCH_FLOATS floats). */

@@ -17,7 +17,7 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_tocal(magcal_calibrator_t *cal, cal_ru
     cal_adopt_t *d = cal_adopt(cal);
     magcal_status_t st = magcal_ellipse_to_cal(&r->cres.fit, cal->cfg.form, cal->cfg.output_radius,
                                                &d->next);
-    (void)magcal_cal_spend(&r->bud, CAL_W_TOCAL);
+    (void)magcal_cal_charge(&r->bud, CAL_W_TOCAL);
     if (st != MAGCAL_OK) {
         return st;
     }
@@ -44,10 +44,10 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_covc(magcal_calibrator_t *cal, cal_run
             if (magcal_correct_apply(&d->next, cal->buf[i], &h) == MAGCAL_OK) {
                 d->bins[magcal_cal_bin_of(magcal_cal_angle_deg(h.x, h.y))] = 1u;
             }
-            if (magcal_cal_spend(&r->bud, CAL_W_COVCORR) != 0) {
+            if (magcal_cal_charge(&r->bud, CAL_W_COVCORR) != 0) {
                 return MAGCAL_IN_PROGRESS;
             }
-        } else if (magcal_cal_spend(&r->bud, CAL_W_FLAG) != 0) {
+        } else if (magcal_cal_charge(&r->bud, CAL_W_FLAG) != 0) {
             return MAGCAL_IN_PROGRESS;
         } else {
             /* not an inlier */
@@ -55,7 +55,7 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_covc(magcal_calibrator_t *cal, cal_run
     }
     cov = magcal_cal_coverage_of(d->bins, &rep->missing_start_deg, &rep->missing_width_deg);
     rep->coverage_deg = cov;
-    (void)magcal_cal_spend(&r->bud, CAL_W_COVFIN);
+    (void)magcal_cal_charge(&r->bud, CAL_W_COVFIN);
     if (rep->coarse == 0u && cov < cal->cfg.min_coverage_deg && cal->arc_min_cov > 0.0f) {
         rep->arc = 1u; /* the pre-gate passed around the circle centre, the corrected headings span
                           less: an arc, judged by its whole-circle bound ("Arc stage") */
@@ -187,7 +187,7 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_arc(magcal_calibrator_t *cal, cal_run_
             }
         }
         d->arc_v2 = fmaxf(d->arc_v2, c * v);
-        if (magcal_cal_spend(&r->bud, CAL_W_ARC) != 0) {
+        if (magcal_cal_charge(&r->bud, CAL_W_ARC) != 0) {
             return MAGCAL_IN_PROGRESS;
         }
     }
@@ -202,7 +202,7 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_arc(magcal_calibrator_t *cal, cal_run_
     bound = sqrtf(hn->err2) + 3.0f * npart + sqrtf(hn->bias2) + cal->arc_model / MAGCAL_DEG_PER_RAD_F;
     rep->est_param_err_deg = MAGCAL_DEG_PER_RAD_F * bound;
     rep->est_heading_err_deg = MAGCAL_DEG_PER_RAD_F * sqrtf(hn->sigma_rel * hn->sigma_rel + bound * bound);
-    (void)magcal_cal_spend(&r->bud, CAL_W_PHASE);
+    (void)magcal_cal_charge(&r->bud, CAL_W_PHASE);
     /* less coverage needs a stronger check: the consistency gate at MAGCAL_CALIBRATOR_ARC_INCONSISTENT
      * (a store of two installations seen over arcs is fitted by a compromise the bound cannot see:
      * 30-min drives s3, s4, 35 deg off at a share of 0.20..0.22) */
@@ -243,7 +243,7 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_valid(const magcal_calibrator_t *cal, 
     d->sh_mx = 0.0f;
     d->sh_ss = 0.0f;
     d->sh_cnt = 0u;
-    (void)magcal_cal_spend(&r->bud, CAL_W_PHASE);
+    (void)magcal_cal_charge(&r->bud, CAL_W_PHASE);
     return MAGCAL_OK;
 }
 
@@ -328,7 +328,7 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_shift(const magcal_calibrator_t *cal, 
             d->sh_ss += dd * dd;
             d->sh_cnt++;
         }
-        if (magcal_cal_spend(&r->bud, CAL_W_SHIFT) != 0) {
+        if (magcal_cal_charge(&r->bud, CAL_W_SHIFT) != 0) {
             return MAGCAL_IN_PROGRESS;
         }
     }

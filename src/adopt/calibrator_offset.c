@@ -179,7 +179,7 @@ static int off_pass_run(magcal_cont_t *cc, magcal_cal_budget_t *b)
                 }
             }
         }
-        if (magcal_cal_spend(b, w) != 0) {
+        if (magcal_cal_charge(b, w) != 0) {
             break;
         }
     }
@@ -192,7 +192,7 @@ static magcal_status_t off_pass_end(magcal_cont_t *cc, magcal_cal_budget_t *b)
     magcal_status_t st = MAGCAL_OK;
     if (cc->off_pass == 1u || cc->off_pass == 3u) {
         st = off_circle_solve(cc);
-        (void)magcal_cal_spend(b, OFF_W_SOLVE);
+        (void)magcal_cal_charge(b, OFF_W_SOLVE);
     } else if (cc->off_pass == 2u) {
         const magcal_consensus_cfg_t *k = &cc->cfg.solver.consensus;
         const float rms = sqrtf(cc->off_ss / (float)(cc->off_n > 0u ? cc->off_n : 1u));
@@ -401,7 +401,7 @@ magcal_status_t magcal_cont_offset_step(magcal_cont_t *cc, uint32_t budget)
             cc->last.threshold = cc->off_thr * cc->cal_raw_radius;
             st = off_end_centre(cc, &cc->off_lam, &cc->off_s3);
         }
-        (void)magcal_cal_spend(&b, OFF_W_END1);
+        (void)magcal_cal_charge(&b, OFF_W_END1);
         cc->off_pass = 6u;
         if (st == MAGCAL_OK && b.unlimited == 0u) {
             return MAGCAL_IN_PROGRESS; /* the verdict in the next step */
@@ -409,7 +409,7 @@ magcal_status_t magcal_cont_offset_step(magcal_cont_t *cc, uint32_t budget)
     }
     if (st == MAGCAL_OK && cc->off_pass == 6u) {
         st = off_verdict(cc, cc->off_lam, cc->off_s3);
-        (void)magcal_cal_spend(&b, OFF_W_END2);
+        (void)magcal_cal_charge(&b, OFF_W_END2);
         cc->off_pass = 7u;
     }
     cc->last.status = st;

@@ -26,7 +26,7 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_bbox(magcal_calibrator_t *cal, cal_run
             cal->bb_max.y = fmaxf(cal->bb_max.y, p.y);
         }
         r->i++;
-        if (magcal_cal_spend(&r->bud, CAL_W_BBOX) != 0) {
+        if (magcal_cal_charge(&r->bud, CAL_W_BBOX) != 0) {
             return MAGCAL_IN_PROGRESS;
         }
     }
@@ -56,7 +56,7 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_ident(magcal_calibrator_t *cal, cal_ru
             cal_goto(r, PH_EXTENT);
             return MAGCAL_OK;
         }
-        if (magcal_cal_spend(&r->bud, CAL_W_IDENT) != 0) {
+        if (magcal_cal_charge(&r->bud, CAL_W_IDENT) != 0) {
             return MAGCAL_IN_PROGRESS;
         }
     }
@@ -112,7 +112,7 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_pre_cons(magcal_calibrator_t *cal, cal
         st = magcal_consensus_begin(&r->u.cons, &cal->cfg.consensus, cal->buf, cal->n, NULL,
                                     cal->scratch, MAGCAL_CONSENSUS_WORKSPACE_LEN(cal->capacity),
                                     cal->mask_b, &r->cres);
-        (void)magcal_cal_spend(&r->bud, CAL_W_PHASE);
+        (void)magcal_cal_charge(&r->bud, CAL_W_PHASE);
         if (st == MAGCAL_OK) {
             /* a round that leaves twice the bound out: a dirty store, the full pipeline (an early
              * end only ever costs the short path, never a result: the full one is today's) */
@@ -155,7 +155,7 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_pre_mask(magcal_calibrator_t *cal, cal
             const float res = magcal_ellipse_residual(&r->cres.fit, cal->buf[i]);
             if (!(fabsf(res) <= far)) {
                 cal_goto(r, PH_FILTER); /* a singular point: the full pipeline */
-                (void)magcal_cal_spend(&r->bud, CAL_W_PRE_RES);
+                (void)magcal_cal_charge(&r->bud, CAL_W_PRE_RES);
                 return MAGCAL_OK;
             }
             w = CAL_W_PRE_RES;
@@ -164,7 +164,7 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_pre_mask(magcal_calibrator_t *cal, cal
         r->m += in != 0u ? 1u : 0u;
         cal->flags[i] = MAGCAL_CALIBRATOR_FLAG_JUDGED;
         r->i++;
-        if (magcal_cal_spend(&r->bud, w) != 0) {
+        if (magcal_cal_charge(&r->bud, w) != 0) {
             return MAGCAL_IN_PROGRESS;
         }
     }
@@ -257,7 +257,7 @@ static MAGCAL_NOINLINE magcal_status_t cal_filter_optics_cfg(magcal_calibrator_t
         oc->eps = e;
         oc->eps_prime = ep;
         oc->min_pts = c->min_pts;
-        (void)magcal_cal_spend(&r->bud, CAL_W_ONESHOT);
+        (void)magcal_cal_charge(&r->bud, CAL_W_ONESHOT);
     } else {
         /* fully automatic parameters: the OPTICS defaults */
     }
@@ -274,7 +274,7 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_filter(magcal_calibrator_t *cal, cal_r
         while (r->i < cal->n) {
             cal->flags[r->i] = 1u;
             r->i++;
-            if (magcal_cal_spend(&r->bud, CAL_W_FLAG) != 0) {
+            if (magcal_cal_charge(&r->bud, CAL_W_FLAG) != 0) {
                 return MAGCAL_IN_PROGRESS;
             }
         }
@@ -282,7 +282,7 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_filter(magcal_calibrator_t *cal, cal_r
         r->rep.filter_min_pts = 0u;
     } else if (c->filter == MAGCAL_FILTER_DBSCAN) {
         st = cal_filter_dbscan(cal, r);
-        (void)magcal_cal_spend(&r->bud, CAL_W_ONESHOT);
+        (void)magcal_cal_charge(&r->bud, CAL_W_ONESHOT);
         if (st != MAGCAL_OK) {
             return st;
         }
@@ -335,7 +335,7 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_masks(magcal_calibrator_t *cal, cal_ru
             cal->flags[i] = (uint8_t)(MAGCAL_CALIBRATOR_FLAG_JUDGED | MAGCAL_CALIBRATOR_FLAG_FILTER);
         }
         r->i++;
-        if (magcal_cal_spend(&r->bud, CAL_W_MASKS) != 0) {
+        if (magcal_cal_charge(&r->bud, CAL_W_MASKS) != 0) {
             return MAGCAL_IN_PROGRESS;
         }
     }
@@ -362,7 +362,7 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_mean(magcal_calibrator_t *cal, cal_run
             q->my += cal->buf[i].y / fm;
         }
         r->i++;
-        if (magcal_cal_spend(&r->bud, CAL_W_MEAN) != 0) {
+        if (magcal_cal_charge(&r->bud, CAL_W_MEAN) != 0) {
             return MAGCAL_IN_PROGRESS;
         }
     }
@@ -382,7 +382,7 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_scale(magcal_calibrator_t *cal, cal_ru
             q->s = fmaxf(q->s, fmaxf(fabsf(cal->buf[i].x - q->mx), fabsf(cal->buf[i].y - q->my)));
         }
         r->i++;
-        if (magcal_cal_spend(&r->bud, CAL_W_SCALE) != 0) {
+        if (magcal_cal_charge(&r->bud, CAL_W_SCALE) != 0) {
             return MAGCAL_IN_PROGRESS;
         }
     }
@@ -419,7 +419,7 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_moments(magcal_calibrator_t *cal, cal_
             magcal_normal_add(q->a, q->b, w, 3u, y);
         }
         r->i++;
-        if (magcal_cal_spend(&r->bud, CAL_W_MOMENT) != 0) {
+        if (magcal_cal_charge(&r->bud, CAL_W_MOMENT) != 0) {
             return MAGCAL_IN_PROGRESS;
         }
     }
@@ -453,7 +453,7 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_circle(magcal_calibrator_t *cal, cal_r
     }
     q->cc.x = q->mx - 0.5f * q->b[0] * q->s;
     q->cc.y = q->my - 0.5f * q->b[1] * q->s;
-    (void)magcal_cal_spend(&r->bud, CAL_W_CIRCLE);
+    (void)magcal_cal_charge(&r->bud, CAL_W_CIRCLE);
     cal_goto(r, PH_COV_ALL);
     return MAGCAL_OK;
 }
@@ -473,10 +473,10 @@ static int cal_cover_pass(magcal_calibrator_t *cal, cal_run_t *r, int with_mask)
         if (with_mask == 0 || cal->mask_a[i] != 0u) {
             q->bins[magcal_cal_bin_of(
                 magcal_cal_angle_deg(cal->buf[i].x - q->cc.x, cal->buf[i].y - q->cc.y))] = 1u;
-            if (magcal_cal_spend(&r->bud, CAL_W_COVER) != 0) {
+            if (magcal_cal_charge(&r->bud, CAL_W_COVER) != 0) {
                 return 0;
             }
-        } else if (magcal_cal_spend(&r->bud, CAL_W_FLAG) != 0) {
+        } else if (magcal_cal_charge(&r->bud, CAL_W_FLAG) != 0) {
             return 0;
         } else {
             /* not an inlier */
@@ -497,7 +497,7 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_cov_all(magcal_calibrator_t *cal, cal_
     }
     cov = magcal_cal_coverage_of(q->bins, &r->rep.missing_start_deg, &r->rep.missing_width_deg);
     r->rep.coverage_deg = cov;
-    (void)magcal_cal_spend(&r->bud, CAL_W_COVFIN);
+    (void)magcal_cal_charge(&r->bud, CAL_W_COVFIN);
     if (cov < cal->cfg.min_coverage_deg) {
         if (cal->arc_min_cov > 0.0f && cov >= cal->arc_min_cov) {
             r->rep.arc = 1u; /* the full ellipse on an arc, judged by its whole-circle bound ("Arc stage") */
@@ -535,7 +535,7 @@ MAGCAL_NOINLINE magcal_status_t magcal_ph_cov_f(magcal_calibrator_t *cal, cal_ru
     if (magcal_cal_coverage_of(q->bins, NULL, NULL) < (r->rep.arc != 0u ? cal->arc_min_cov : cal->cfg.min_coverage_deg)) {
         r->rep.filter_fragmented = 1u;
     }
-    (void)magcal_cal_spend(&r->bud, CAL_W_COVFIN);
+    (void)magcal_cal_charge(&r->bud, CAL_W_COVFIN);
     (void)memset(&r->cres, 0, sizeof r->cres);
     cal_goto(r, cal->cfg.use_consensus == 0u ? PH_PLAIN : PH_THIN);
     return MAGCAL_OK;

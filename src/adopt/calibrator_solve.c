@@ -30,6 +30,8 @@
 
 #include "calibrator_solve_internal.h"
 
+int magcal_cal_charge(magcal_cal_budget_t *b, uint32_t w) { return magcal_cal_spend(b, w); }
+
 /* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
 MAGCAL_STATIC_ASSERT(sizeof(cal_run_t) <= MAGCAL_CALIBRATOR_RUN_LEN, run_state_fits_workspace);
 /* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */

@@ -221,7 +221,7 @@ static inline uint32_t cal_left(const cal_run_t *r) { return r->bud.unlimited !=
  * `used` (UINT32_MAX when the module does not report it: the step ends there). */
 static inline magcal_status_t cal_module_done(cal_run_t *r, magcal_status_t st, uint32_t used)
 {
-    (void)magcal_cal_spend(&r->bud, st == MAGCAL_IN_PROGRESS ? CAL_W_ONESHOT : used);
+    (void)magcal_cal_charge(&r->bud, st == MAGCAL_IN_PROGRESS ? CAL_W_ONESHOT : used);
     return st;
 }
 

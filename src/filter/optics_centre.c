@@ -138,10 +138,11 @@ static float th_cell(float x, float lim)
 
 /* TH_KEYS from point i: each point's cell key (own frame: its floats stay off the sort's path).
  * Returns the next point. */
-static MAGCAL_NOINLINE size_t th_keys(const magcal_vec2_t *pts, size_t n, const float cr[3],
-                                      float h, uint8_t *w, const uint8_t *use, size_t i0,
+static MAGCAL_NOINLINE size_t th_keys(magcal_o2_th_t *t, const magcal_vec2_t *pts, size_t n,
+                                      const float cr[3], uint8_t *w, const uint8_t *use, size_t i0,
                                       int32_t *rem)
 {
+    const float h = t->h;
     float *key = (float *)(void *)w;
     uint16_t *idx = (uint16_t *)(void *)(w + 4u * n);
     uint8_t *rep = w + AUTO_REP_OFF(n);
@@ -160,6 +161,67 @@ static MAGCAL_NOINLINE size_t th_keys(const magcal_vec2_t *pts, size_t n, const 
         const float v = th_cell((pts[i].y - cr[1]) / h, lim);
         key[i] = (u + lim) * (2.0f * lim) + (v + lim);
     }
+    if (i >= n) { /* every key: the sort next */
+        magcal_o2_hsort_begin(&t->hs, n);
+        t->st = (uint8_t)TH_SORT;
+    }
+    *rem = r;
+    return i;
+}
+
+/* TH_CAP, TH_MARK, TH_MAXRUN from point i: the passes over the sorted keys, run = rank of a point
+ * in its cell (0: the first). TH_CAP counts the candidates (m) and the occupied cells, TH_MARK
+ * flags the representatives (count m) and the first cap of each cell, TH_MAXRUN takes the
+ * largest number of candidates in one cell (best); at the end of a stage, the next. Own frame:
+ * the heapsort's path stays as it was. Returns the next point. */
+static MAGCAL_NOINLINE size_t th_pass(magcal_o2_th_t *t, uint8_t *w, size_t n, size_t i0,
+                                      int32_t *rem)
+{
+    const float *key = (const float *)(void *)w;
+    const uint16_t *idx = (const uint16_t *)(void *)(w + 4u * n);
+    uint8_t *rep = w + AUTO_REP_OFF(n);
+    size_t i = i0;
+    int32_t r = *rem;
+    const uint8_t st = t->st;
+    size_t run = t->run;
+    size_t m = t->m;
+    size_t cells = t->cells;
+    size_t best = t->best;
+    for (; i < n && r > 0; ++i) {
+        const float k = key[idx[i]];
+        run = (i == 0u || k != key[idx[i - 1u]]) ? 0u : run + 1u;
+        if (k < THIN_INVALID) {
+            if (st == (uint8_t)TH_CAP) {
+                ++m;
+                cells += (run == 0u) ? 1u : 0u;
+            } else if (st == (uint8_t)TH_MARK) {
+                if (run == 0u) {
+                    rep[idx[i]] = AUTO_REP;
+                    ++m;
+                }
+                if (run < t->cap) {
+                    rep[idx[i]] = (uint8_t)(rep[idx[i]] | AUTO_CAPPED);
+                }
+            } else if (run + 1u > best) {
+                best = run + 1u;
+            } else {
+                /* TH_MAXRUN: not the largest so far */
+            }
+        }
+        CHARGE(r, W_CAP);
+    }
+    t->run = (uint16_t)run;
+    t->m = (uint16_t)m;
+    t->cells = (uint16_t)cells;
+    t->best = (uint16_t)best;
+    if (i >= n) { /* the stage is complete: the next one starts at point 0 */
+        if (st == (uint8_t)TH_CAP) {
+            t->cap = (uint16_t)(cells == 0u ? 0u : (m + cells - 1u) / cells);
+            t->m = 0u;
+        }
+        /* the next stage */
+        t->st = (uint8_t)((st == (uint8_t)TH_MAXRUN) ? TH_DONE : (unsigned)st + 1u);
+    }
     *rem = r;
     return i;
 }
@@ -171,87 +233,27 @@ MAGCAL_NOINLINE int magcal_o2_th_run(magcal_o2_th_t *t, const magcal_vec2_t *pts
 {
     float *key = (float *)(void *)w;
     uint16_t *idx = (uint16_t *)(void *)(w + 4u * n);
-    uint8_t *rep = w + AUTO_REP_OFF(n);
     size_t i = t->i;
     int32_t r = *rem;
     /* cppcheck-suppress misra-c2012-15.4 ; deviation D13: a resumable loop leaves at its pause point and at its phase end */
     while (t->st <= last) {
         if (t->st == (uint8_t)TH_KEYS) {
-            i = th_keys(pts, n, cr, t->h, w, use, i, &r);
+            i = th_keys(t, pts, n, cr, w, use, i, &r);
             if (i < n) {
                 break;
             }
-            magcal_o2_hsort_begin(&t->hs, n);
-            t->st = (uint8_t)TH_SORT;
         } else if (t->st == (uint8_t)TH_SORT) {
             if (r <= 0 || magcal_o2_hsort_run(&t->hs, idx, key, &r) == 0) {
                 break;
             }
             i = 0u;
             t->st = (uint8_t)TH_CAP;
-        } else if (t->st == (uint8_t)TH_CAP) {
-            size_t m = t->m;
-            size_t cells = t->cells;
-            for (; i < n && r > 0; ++i) {
-                const float k = key[idx[i]];
-                if (k < THIN_INVALID) {
-                    ++m;
-                    if (i == 0u || k != key[idx[i - 1u]]) {
-                        ++cells;
-                    }
-                }
-                CHARGE(r, W_CAP);
-            }
-            t->m = (uint16_t)m;
-            t->cells = (uint16_t)cells;
-            if (i < n) {
-                break;
-            }
-            t->cap = (uint16_t)(cells == 0u ? 0u : (m + cells - 1u) / cells);
-            t->m = 0u;
-            i = 0u;
-            t->st = (uint8_t)TH_MARK;
-        } else if (t->st == (uint8_t)TH_MARK) {
-            size_t run = t->run;
-            size_t m = t->m;
-            for (; i < n && r > 0; ++i) {
-                run = (i == 0u || key[idx[i]] != key[idx[i - 1u]]) ? 0u : run + 1u;
-                if (key[idx[i]] < THIN_INVALID) {
-                    if (run == 0u) {
-                        rep[idx[i]] = AUTO_REP;
-                        ++m;
-                    }
-                    if (run < t->cap) {
-                        rep[idx[i]] = (uint8_t)(rep[idx[i]] | AUTO_CAPPED);
-                    }
-                }
-                CHARGE(r, W_CAP);
-            }
-            t->run = (uint16_t)run;
-            t->m = (uint16_t)m;
+        } else if (t->st <= (uint8_t)TH_MAXRUN) {
+            i = th_pass(t, w, n, i, &r);
             if (i < n) {
                 break;
             }
             i = 0u;
-            t->run = 0u;
-            t->st = (uint8_t)TH_MAXRUN;
-        } else if (t->st == (uint8_t)TH_MAXRUN) {
-            /* largest number of candidates in one cell */
-            size_t run = t->run;
-            size_t best = t->best;
-            for (; i < n && r > 0; ++i) {
-                run = (i == 0u || key[idx[i]] != key[idx[i - 1u]]) ? 1u : run + 1u;
-                if (key[idx[i]] < THIN_INVALID && run > best) {
-                    best = run;
-                }
-                CHARGE(r, W_CAP);
-            }
-            t->run = (uint16_t)run;
-            t->best = (uint16_t)best;
-            if (i < n) {
-                break;
-            }
-            t->st = (uint8_t)TH_DONE;
         } else {
             break;
         }
@@ -332,28 +334,26 @@ MAGCAL_NOINLINE int magcal_o2_ce_run(magcal_o2_ce_t *c, const magcal_vec2_t *pts
             c->st = (uint8_t)CE_THIN;
             break;
         case CE_THIN:
-            if (magcal_o2_th_run(&c->u.th, pts, n, cr, w, NULL, (unsigned)TH_MARK, rem) == 0) {
-                return 0;
-            }
-            if (c->u.th.m >= AUTO_MIN_N) {
-                rc_begin(&c->u.rc);
-                c->st = (uint8_t)CE_RC;
-                break;
-            }
-            c->round++;
-            c->st = (uint8_t)CE_DONE;
-            if (c->round < AUTO_THIN_ROUNDS) {
-                magcal_o2_th_begin(&c->u.th, c->h);
-                c->st = (uint8_t)CE_THIN;
-            }
-            break;
         case CE_RC:
-            if (rc_run(&c->u.rc, pts, n, w + AUTO_REP_OFF(n), a, cr, &s2, rem) == 0) {
-                return 0;
-            }
-            if (s2 == MAGCAL_OK) {
-                c->have = 1u;
-                c->h = cr[2] * AUTO_THIN_REL * magcal_o2_thin_scale(n);
+            /* a round: the thinning, then the centre of its representatives (none when there are
+             * too few); the next round thins again with the new cell side */
+            if (c->st == (uint8_t)CE_THIN) {
+                if (magcal_o2_th_run(&c->u.th, pts, n, cr, w, NULL, (unsigned)TH_MARK, rem) == 0) {
+                    return 0;
+                }
+                if (c->u.th.m >= AUTO_MIN_N) {
+                    rc_begin(&c->u.rc);
+                    c->st = (uint8_t)CE_RC;
+                    break;
+                }
+            } else {
+                if (rc_run(&c->u.rc, pts, n, w + AUTO_REP_OFF(n), a, cr, &s2, rem) == 0) {
+                    return 0;
+                }
+                if (s2 == MAGCAL_OK) {
+                    c->have = 1u;
+                    c->h = cr[2] * AUTO_THIN_REL * magcal_o2_thin_scale(n);
+                }
             }
             c->round++;
             c->st = (uint8_t)CE_DONE;

@@ -62,12 +62,14 @@ static MAGCAL_NOINLINE void ord_core_done(magcal_o2_ord_t *o, const magcal_nbr_r
  * scan is complete. idx NULL: brute force, one range over every point.
  */
 
-/* Pass 1: core distance (MinPts smallest d^2 in the insertion buffer). */
+/* Pass 1 of PROCESS(p): core distance (MinPts smallest d^2 in the insertion buffer), lim = m + 1
+ * (the count saturates at m: every candidate). START_CORE (p = s): does s have MinPts points
+ * within eps? lim = m: the candidates within eps are counted (the buffer is not touched) and the
+ * scan stops after the m-th. One range walk for both (issue 14: it was written twice). */
 static MAGCAL_NOINLINE void ord_scan_core(magcal_o2_ord_t *o, const magcal_nbr_ranges_t *rg,
-                                          int32_t *rem)
+                                          size_t p, size_t lim, int32_t *rem)
 {
     const magcal_vec2_t *pts = o->nb.pts;
-    const size_t p = o->u.sc.p;
     const float px = pts[p].x;
     const float py = pts[p].y;
     const float eps2 = o->eps2;
@@ -86,49 +88,22 @@ static MAGCAL_NOINLINE void ord_scan_core(magcal_o2_ord_t *o, const magcal_nbr_r
             const float dy = pts[j].y - py;
             const float d2 = dx * dx + dy * dy;
             if (d2 <= eps2 && (cnt < m || d2 < best[m - 1u])) {
-                cnt = magcal_ocore_best_insert(best, cnt, m, d2);
+                if (lim > m) {
+                    cnt = magcal_ocore_best_insert(best, cnt, m, d2);
+                } else {
+                    ++cnt; /* the start-core count: a count only, the buffer is not written */
+                    if (cnt >= lim) {
+                        break; /* its m-th (tested only where cnt grows) */
+                    }
+                }
             }
             CHARGE(r, W_CAND);
         }
         if (k < end) {
-            break;
-        }
-        ++ri;
-        if (ri < rg->n_ranges) {
-            k = rg->begin[ri];
-        }
-    }
-    o->u.sc.ri = (uint8_t)ri;
-    o->u.sc.k = (uint16_t)k;
-    o->u.sc.cnt = (uint16_t)cnt;
-    *rem = r;
-}
-
-/* START_CORE: does s have MinPts points within eps? (counts until MinPts) */
-static MAGCAL_NOINLINE void ord_scan_count(magcal_o2_ord_t *o, const magcal_nbr_ranges_t *rg,
-                                           int32_t *rem)
-{
-    const magcal_vec2_t *pts = o->nb.pts;
-    const size_t p = o->u.sc.s;
-    const float px = pts[p].x;
-    const float py = pts[p].y;
-    const float eps2 = o->eps2;
-    const size_t m = o->oc.min_pts;
-    const uint16_t *idx = rg->idx;
-    size_t ri = o->u.sc.ri;
-    size_t k = o->u.sc.k;
-    size_t cnt = o->u.sc.cnt;
-    int32_t r = *rem;
-    while (ri < rg->n_ranges && cnt < m) {
-        const size_t end = rg->end[ri];
-        for (; k < end && r > 0 && cnt < m; ++k) {
-            const size_t j = idx != NULL ? idx[k] : k;
-            const float dx = pts[j].x - px;
-            const float dy = pts[j].y - py;
-            cnt += (dx * dx + dy * dy <= eps2) ? 1u : 0u;
-            CHARGE(r, W_CAND);
-        }
-        if (k < end) {
+            if (cnt >= lim) { /* the count's m-th candidate was visited; PROCESS(s) follows */
+                CHARGE(r, W_CAND);
+                ++k;
+            }
             break;
         }
         ++ri;
@@ -366,7 +341,7 @@ MAGCAL_NOINLINE int magcal_o2_ord_run(magcal_o2_ord_t *o, int32_t *rem)
                 rg_p = (size_t)o->u.sc.s + n;
                 requeried = 1;
             }
-            ord_scan_count(o, &rg, &r);
+            ord_scan_core(o, &rg, o->u.sc.s, oc->min_pts, &r);
             if (requeried != 0) {
                 CHARGE(r, W_QUERY); /* after the scan: a resumed step still visits */
                 requeried = 0;
@@ -389,7 +364,7 @@ MAGCAL_NOINLINE int magcal_o2_ord_run(magcal_o2_ord_t *o, int32_t *rem)
                 rg_p = o->u.sc.p;
                 requeried = 1;
             }
-            ord_scan_core(o, &rg, &r);
+            ord_scan_core(o, &rg, o->u.sc.p, (size_t)oc->min_pts + 1u, &r);
             if (requeried != 0) {
                 CHARGE(r, W_QUERY); /* after the scan: a resumed step still visits */
                 requeried = 0;
