@@ -1135,41 +1135,52 @@ static void test_cont_heading_levelled_on_hills(void)
  * (cc.levels = 1, cc.cal_conv = 1: its centre moved back by k t_cal), and every heading returned
  * OK from then on is within 2 deg of the truth. That calibration's true level RMS is <= 1 deg
  * and <= half of what was adopted. */
-static void test_cont_unlevelled_calibration_tilted_then_levelled(void)
+/* Six circles on a hill whose pitch is `slope` + `amp` sin(psi) deg, from a fresh instance, one
+ * push_g per row: the adoptions. */
+static unsigned tc_six_circles(double slope, double amp, uint32_t *rng, uint32_t *t)
 {
     const double d2r = 3.14159265358979 / 180.0;
     magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
-    uint32_t rng = 91u;
-    uint32_t t = 0u;
-    unsigned adopted = 0u, n_tilted = 0u, n_ok = 0u, c, i, k;
-    double rms_adopted, rms_after, ss_tilted = 0.0, worst_ok = 0.0;
-    int h;
+    unsigned adopted = 0u, c, i, k;
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
     for (c = 0u; c < 6u; ++c) {
-        for (i = 0u; i < TC_ROWS_PER_CIRCLE; ++i, t += RATE_MS) {
+        for (i = 0u; i < TC_ROWS_PER_CIRCLE; ++i, *t += RATE_MS) {
+            const double psi = 360.0 * ((double)c + (double)i / (double)TC_ROWS_PER_CIRCLE);
             magcal_vec3_t m, g;
-            tc_sample(360.0 * ((double)c + (double)i / (double)TC_ROWS_PER_CIRCLE), 4.0, 0.1, &rng, &m, &g);
-            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_push_g(&g_cc, &m, &g, t));
+            tc_sample(psi, slope + amp * sin(psi * d2r), 0.1, rng, &m, &g);
+            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_push_g(&g_cc, &m, &g, *t));
             for (k = 0u; k < STEPS_PER_ROW; ++k) {
                 adopted += (magcal_cont_step(&g_cc) == MAGCAL_CONT_ADOPTED) ? 1u : 0u;
             }
         }
     }
-    TEST_ASSERT_TRUE(adopted >= 1u);
-    TEST_ASSERT_EQUAL_UINT8(0u, g_cc.tc_ok);
-    TEST_ASSERT_EQUAL_UINT8(0u, g_cc.cal_lv);
-    TEST_ASSERT_EQUAL_UINT8(1u, g_cc.cal_tk);
-    TEST_ASSERT_FLOAT_WITHIN(0.005f, 0.0f, g_cc.cal_tx);
-    TEST_ASSERT_FLOAT_WITHIN(0.005f, (float)tan(4.0 * d2r), g_cc.cal_ty);
-    rms_adopted = tc_level_rms(&g_cc.cal);
+    return adopted;
+}
+
+/* Standing level at 36 headings (3 s each) after tc_six_circles: the heading's trust and true
+ * error at each. TILTED ones counted with their squared errors; OK ones with the worst error;
+ * levels_before_tilted: a TILTED heading only while the calibration is not yet levelled. */
+typedef struct {
+    unsigned n_tilted, n_ok;
+    double ss_tilted, worst_ok;
+} tc_level_stats_t;
+
+static void tc_stand_level(uint32_t *rng, uint32_t *t, int levels_before_tilted, tc_level_stats_t *st)
+{
+    unsigned i, k;
+    int h;
+    st->n_tilted = 0u;
+    st->n_ok = 0u;
+    st->ss_tilted = 0.0;
+    st->worst_ok = 0.0;
     for (h = 0; h < 36; ++h) {
         const double psi = 10.0 * h + 5.0;
         magcal_vec3_t m, g;
         magcal_cont_heading_t hd;
         double e;
-        for (i = 0u; i < 150u; ++i, t += RATE_MS) {
-            tc_sample(psi, 0.0, 0.1, &rng, &m, &g);
-            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_push_g(&g_cc, &m, &g, t));
+        for (i = 0u; i < 150u; ++i, *t += RATE_MS) {
+            tc_sample(psi, 0.0, 0.1, rng, &m, &g);
+            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_push_g(&g_cc, &m, &g, *t));
             for (k = 0u; k < STEPS_PER_ROW; ++k) {
                 (void)magcal_cont_step(&g_cc);
             }
@@ -1177,16 +1188,35 @@ static void test_cont_unlevelled_calibration_tilted_then_levelled(void)
         TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_heading(&g_cc, &m, 0.0f, &hd));
         e = fabs(test_angle_diff_deg(hd.heading_deg, psi));
         if (hd.trust == MAGCAL_TRUST_TILTED) {
-            TEST_ASSERT_EQUAL_UINT32(0u, g_cc.levels); /* only before the calibration is levelled */
-            n_tilted++;
-            ss_tilted += e * e;
+            if (levels_before_tilted != 0) {
+                TEST_ASSERT_EQUAL_UINT32(0u, g_cc.levels); /* only before the calibration is levelled */
+            }
+            st->n_tilted++;
+            st->ss_tilted += e * e;
         } else if (hd.trust == MAGCAL_TRUST_OK) {
-            n_ok++;
-            worst_ok = fmax(worst_ok, e);
+            st->n_ok++;
+            st->worst_ok = fmax(st->worst_ok, e);
         } else {
             /* another state (DISTURBED): not used */
         }
     }
+}
+
+static void test_cont_unlevelled_calibration_tilted_then_levelled(void)
+{
+    const double d2r = 3.14159265358979 / 180.0;
+    uint32_t rng = 91u;
+    uint32_t t = 0u;
+    double rms_adopted, rms_after;
+    tc_level_stats_t st;
+    TEST_ASSERT_TRUE(tc_six_circles(4.0, 0.0, &rng, &t) >= 1u);
+    TEST_ASSERT_EQUAL_UINT8(0u, g_cc.tc_ok);
+    TEST_ASSERT_EQUAL_UINT8(0u, g_cc.cal_lv);
+    TEST_ASSERT_EQUAL_UINT8(1u, g_cc.cal_tk);
+    TEST_ASSERT_FLOAT_WITHIN(0.005f, 0.0f, g_cc.cal_tx);
+    TEST_ASSERT_FLOAT_WITHIN(0.005f, (float)tan(4.0 * d2r), g_cc.cal_ty);
+    rms_adopted = tc_level_rms(&g_cc.cal);
+    tc_stand_level(&rng, &t, 1, &st);
     {
         /* the calibration the levelled heading applies: its centre moved back by k t_cal (the
          * installed record itself changes only when a solve on the levelled store confirms it) */
@@ -1198,16 +1228,16 @@ static void test_cont_unlevelled_calibration_tilted_then_levelled(void)
     }
     printf("unlevelled calibration: fit tilt (%.4f, %.4f), level RMS %.2f deg as adopted; standing level: %u "
            "headings TILTED (RMS %.2f deg), %u OK (worst %.2f deg); k %.2f ok %u, levelled %u x, level RMS %.2f deg\n",
-           (double)g_cc.cal_tx, (double)g_cc.cal_ty, rms_adopted, n_tilted,
-           n_tilted != 0u ? sqrt(ss_tilted / (double)n_tilted) : 0.0, n_ok, worst_ok, (double)g_cc.tc_k,
+           (double)g_cc.cal_tx, (double)g_cc.cal_ty, rms_adopted, st.n_tilted,
+           st.n_tilted != 0u ? sqrt(st.ss_tilted / (double)st.n_tilted) : 0.0, st.n_ok, st.worst_ok, (double)g_cc.tc_k,
            (unsigned)g_cc.tc_ok, (unsigned)g_cc.levels, rms_after);
     TEST_ASSERT_TRUE(rms_adopted >= 3.0);
-    TEST_ASSERT_TRUE(n_tilted >= 1u);
-    TEST_ASSERT_TRUE(sqrt(ss_tilted / (double)n_tilted) >= 3.0); /* the flag was warranted */
+    TEST_ASSERT_TRUE(st.n_tilted >= 1u);
+    TEST_ASSERT_TRUE(sqrt(st.ss_tilted / (double)st.n_tilted) >= 3.0); /* the flag was warranted */
     TEST_ASSERT_EQUAL_UINT8(1u, g_cc.tc_ok);
     TEST_ASSERT_EQUAL_UINT32(1u, g_cc.levels);
-    TEST_ASSERT_TRUE(n_ok >= 8u); /* measured 11: k needs 24 samples, about 23 headings */
-    TEST_ASSERT_TRUE(worst_ok <= 2.0); /* measured 1.47 */
+    TEST_ASSERT_TRUE(st.n_ok >= 8u); /* measured 11: k needs 24 samples, about 23 headings */
+    TEST_ASSERT_TRUE(st.worst_ok <= 2.0); /* measured 1.47 */
     TEST_ASSERT_TRUE(rms_after <= 1.0);
     TEST_ASSERT_TRUE(rms_after <= 0.5 * rms_adopted);
 }
@@ -1223,62 +1253,25 @@ static void test_cont_unlevelled_calibration_tilted_then_levelled(void)
  * 4.83 deg off. */
 static void test_cont_bent_store_calibration_not_trusted(void)
 {
-    magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
     uint32_t rng = 93u;
     uint32_t t = 0u;
-    unsigned adopted = 0u, n_tilted = 0u, n_ok = 0u, c, i, k;
-    double rms_adopted, ss_tilted = 0.0, worst_ok = 0.0;
-    int h;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
-    for (c = 0u; c < 6u; ++c) {
-        for (i = 0u; i < TC_ROWS_PER_CIRCLE; ++i, t += RATE_MS) {
-            const double psi = 360.0 * ((double)c + (double)i / (double)TC_ROWS_PER_CIRCLE);
-            magcal_vec3_t m, g;
-            tc_sample(psi, 4.0 * sin(psi * 3.14159265358979 / 180.0), 0.1, &rng, &m, &g);
-            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_push_g(&g_cc, &m, &g, t));
-            for (k = 0u; k < STEPS_PER_ROW; ++k) {
-                adopted += (magcal_cont_step(&g_cc) == MAGCAL_CONT_ADOPTED) ? 1u : 0u;
-            }
-        }
-    }
-    TEST_ASSERT_TRUE(adopted >= 1u);
+    double rms_adopted;
+    tc_level_stats_t st;
+    TEST_ASSERT_TRUE(tc_six_circles(0.0, 4.0, &rng, &t) >= 1u);
     TEST_ASSERT_EQUAL_UINT8(0u, g_cc.tc_ok);
     TEST_ASSERT_EQUAL_UINT8(0u, g_cc.cal_lv);
     TEST_ASSERT_EQUAL_UINT8(1u, g_cc.cal_tk);
     rms_adopted = tc_level_rms(&g_cc.cal);
-    for (h = 0; h < 36; ++h) {
-        const double psi = 10.0 * h + 5.0;
-        magcal_vec3_t m, g;
-        magcal_cont_heading_t hd;
-        double e;
-        for (i = 0u; i < 150u; ++i, t += RATE_MS) {
-            tc_sample(psi, 0.0, 0.1, &rng, &m, &g);
-            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_push_g(&g_cc, &m, &g, t));
-            for (k = 0u; k < STEPS_PER_ROW; ++k) {
-                (void)magcal_cont_step(&g_cc);
-            }
-        }
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_heading(&g_cc, &m, 0.0f, &hd));
-        e = fabs(test_angle_diff_deg(hd.heading_deg, psi));
-        if (hd.trust == MAGCAL_TRUST_TILTED) {
-            n_tilted++;
-            ss_tilted += e * e;
-        } else if (hd.trust == MAGCAL_TRUST_OK) {
-            n_ok++;
-            worst_ok = fmax(worst_ok, e);
-        } else {
-            /* another state (DISTURBED): not used */
-        }
-    }
+    tc_stand_level(&rng, &t, 0, &st);
     printf("bent store: fit tilt (%.4f, %.4f) spread %.4f, level RMS %.2f deg as adopted; standing level: %u "
            "headings TILTED (RMS %.2f deg), %u OK (worst %.2f deg); k ok %u, levelled %u x\n",
-           (double)g_cc.cal_tx, (double)g_cc.cal_ty, (double)g_cc.cal_ts, rms_adopted, n_tilted,
-           n_tilted != 0u ? sqrt(ss_tilted / (double)n_tilted) : 0.0, n_ok, worst_ok, (unsigned)g_cc.tc_ok,
-           (unsigned)g_cc.levels);
+           (double)g_cc.cal_tx, (double)g_cc.cal_ty, (double)g_cc.cal_ts, rms_adopted, st.n_tilted,
+           st.n_tilted != 0u ? sqrt(st.ss_tilted / (double)st.n_tilted) : 0.0, st.n_ok, st.worst_ok,
+           (unsigned)g_cc.tc_ok, (unsigned)g_cc.levels);
     TEST_ASSERT_TRUE(rms_adopted >= 2.5);  /* the store was bent: the fit is wrong at level */
-    TEST_ASSERT_TRUE(n_tilted >= 18u);
-    TEST_ASSERT_TRUE(sqrt(ss_tilted / (double)n_tilted) >= 2.5); /* the flag was warranted */
-    TEST_ASSERT_TRUE(worst_ok <= 2.0);     /* an OK is within the tolerance */
+    TEST_ASSERT_TRUE(st.n_tilted >= 18u);
+    TEST_ASSERT_TRUE(sqrt(st.ss_tilted / (double)st.n_tilted) >= 2.5); /* the flag was warranted */
+    TEST_ASSERT_TRUE(st.worst_ok <= 2.0);     /* an OK is within the tolerance */
 }
 
 /* A calibration restored from flash after a power cycle (its fit tilt unknown): the hilly drive
