@@ -265,6 +265,7 @@ static MAGCAL_NOINLINE uint32_t cont_drain(magcal_cont_t *cc, uint32_t max, magc
         const magcal_vec3_t *m;
         const magcal_vec3_t *tl;
         int lv;
+        uint8_t code;
         const int judged = cont_judge_on(cc);
         if (judged != 0) {
             w += CONT_W_JUDGE;
@@ -285,13 +286,14 @@ static MAGCAL_NOINLINE uint32_t cont_drain(magcal_cont_t *cc, uint32_t max, magc
             m = &cc->ring[t % MAGCAL_CONT_RING];
         }
         tl = (m != &cc->park_m) ? &cc->ring_tl[t % MAGCAL_CONT_RING] : NULL;
+        /* push_g's code of the sample (a parked one is LEVEL or UNKNOWN, never LEVELLED) */
+        code = (m == &cc->park_m) ? cc->park_tilt : cc->ring_tilt[t % MAGCAL_CONT_RING];
         lv = 0;
         if (judged != 0) {
             /* as push_g classified it: the judge's change evidence (cont_change.c) */
-            const uint8_t code = (m == &cc->park_m) ? cc->park_tilt : cc->ring_tilt[t % MAGCAL_CONT_RING];
             cc->j_tilted = (uint8_t)((code == (uint8_t)MAGCAL_INTAKE_TILT_TILTED) ? 1u : 0u);
         }
-        if (tl != NULL && cc->ring_tilt[t % MAGCAL_CONT_RING] == (uint8_t)MAGCAL_CONT_TILT_LEVELLED) {
+        if (tl != NULL && code == (uint8_t)MAGCAL_CONT_TILT_LEVELLED) {
             lv = 1;
             if (judged != 0 && cc->cal_lv == 0u) {
                 cont_unlevel(cc, m, tl); /* cc->jm: read by cont_screen's judge only then */
@@ -303,8 +305,7 @@ static MAGCAL_NOINLINE uint32_t cont_drain(magcal_cont_t *cc, uint32_t max, magc
         if (cont_screen(cc, m, m == &cc->park_m ? cc->park_t : cc->ring_t[t % MAGCAL_CONT_RING], lv) == 0) {
             /* stored samples are counted by the store (added + replaced); with the tilt code of
              * push_g (the store's level preference) */
-            const magcal_intake_tilt_t tilt =
-                cont_store_tilt(m == &cc->park_m ? cc->park_tilt : cc->ring_tilt[t % MAGCAL_CONT_RING]);
+            const magcal_intake_tilt_t tilt = cont_store_tilt(code);
             const uint32_t before = cc->store.ctr.added + cc->store.ctr.replaced;
             if (b->unlimited != 0u) {
                 (void)magcal_intake_push_tilt(&cc->store, m, tilt, NULL);
