@@ -568,6 +568,29 @@ static void stream_event(cJSON *ev, size_t row, magcal_cont_outcome_t oc)
     }
 }
 
+/* "A[,B[,...]]": up to max numbers separated by commas, nothing else (strtod each): how many
+ * were read, 0 when malformed (an empty field, a trailing comma or other characters). */
+static int parse_num_list(const char *s, double *v, int max)
+{
+    const char *p = s;
+    int n = 0;
+    for (;;) {
+        char *end = NULL;
+        v[n] = strtod(p, &end);
+        if (end == p) {
+            return 0;
+        }
+        n++;
+        if (*end == '\0') {
+            return n;
+        }
+        if (*end != ',' || n >= max) {
+            return 0;
+        }
+        p = end + 1;
+    }
+}
+
 int replay_stream_main(int argc, char **argv)
 {
     static const struct option k_opts[] = {{"stream", no_argument, NULL, 's'},
@@ -663,37 +686,27 @@ int replay_stream_main(int argc, char **argv)
             break;
         }
         case 'c': {
-            char *end = NULL;
-            double v = strtod(optarg, &end);
-            double tol = (double)cfg.coarse_max_err_deg;
-            if (end != optarg && *end == ',') {
-                const char *t = end + 1;
-                tol = strtod(t, &end);
-                if (end == t) {
-                    end = NULL;
-                }
-            }
-            if (end == NULL || end == optarg || *end != '\0' || !(v > 0.0 && v <= 360.0) || !(tol > 0.0) ||
-                !isfinite(tol)) {
+            double a[2] = {0.0, (double)cfg.coarse_max_err_deg};
+            const int n = parse_num_list(optarg, a, 2);
+            if (n < 1 || !(a[0] > 0.0 && a[0] <= 360.0) || !(a[1] > 0.0) || !isfinite(a[1])) {
                 fprintf(stderr, "magcal-replay: --coarse needs DEG (0..360] [,TOL > 0], got \"%s\"\n", optarg);
                 return 1;
             }
-            cfg.coarse_coverage_deg = (float)v;
-            cfg.coarse_max_err_deg = (float)tol;
+            cfg.coarse_coverage_deg = (float)a[0];
+            cfg.coarse_max_err_deg = (float)a[1];
             break;
         }
         case 'a': {
-            double v = 0.0, tol = (double)cfg.arc_max_err_deg, mod = (double)cfg.arc_model_deg;
-            char tail_c = '\0';
-            int got = sscanf(optarg, "%lf,%lf,%lf%c", &v, &tol, &mod, &tail_c);
-            if (got < 1 || got > 3 || !(v > 0.0 && v <= 360.0) || !(tol > 0.0) || !isfinite(tol) ||
-                !(mod >= 0.0) || !isfinite(mod)) {
+            double a[3] = {0.0, (double)cfg.arc_max_err_deg, (double)cfg.arc_model_deg};
+            const int n = parse_num_list(optarg, a, 3);
+            if (n < 1 || !(a[0] > 0.0 && a[0] <= 360.0) || !(a[1] > 0.0) || !isfinite(a[1]) || !(a[2] >= 0.0) ||
+                !isfinite(a[2])) {
                 fprintf(stderr, "magcal-replay: --arc needs DEG (0..360] [,TOL > 0 [,MODEL >= 0]], got \"%s\"\n", optarg);
                 return 1;
             }
-            cfg.arc_coverage_deg = (float)v;
-            cfg.arc_max_err_deg = (float)tol;
-            cfg.arc_model_deg = (float)mod;
+            cfg.arc_coverage_deg = (float)a[0];
+            cfg.arc_max_err_deg = (float)a[1];
+            cfg.arc_model_deg = (float)a[2];
             break;
         }
         case 'g':
