@@ -205,12 +205,16 @@
  * unlevelled samples the spread s of their tilts (RMS about t_cal) counts too, |k| sqrt(|t -
  * t_cal|^2 + s^2) / R: a store whose sectors were filled at different tilts bends the ellipse,
  * which no single tilt undoes (30-min seed 14: s 1.5 deg, 920 headings OK at 4.4 deg RMS before
- * the spread term). Above cfg.tilt_trust_deg the
- * heading is MAGCAL_TRUST_TILTED, not OK. Nothing is predicted (the trust is the judge's alone)
- * without gravity, while |g| is unsteady or the roll beyond cfg.intake.tilt_limit_deg (a turn),
- * the pitch beyond cfg.tilt_comp_deg, when the regression shows the accelerometer's tilt to be
- * mostly acceleration (rho < 0.5), or under a calibration restored without its tilt state (its
- * fit tilt is unknown; restored levelled with magcal_cont_restore_tilt its t_cal is 0).
+ * the spread term). A stored sample whose gravity gave no tilt (|g| unsteady, beyond the limits:
+ * a turn, braking) counts in t_cal and s with the last tilt known, so a store filled in turns
+ * under the car's own acceleration still has a known fit tilt. Above cfg.tilt_trust_deg the
+ * heading is MAGCAL_TRUST_TILTED, not OK. When the regression shows the accelerometer's tilt to
+ * be mostly acceleration (rho < 0.5) the tilt it reads still counts (it may be a road's), and
+ * while the gravity of now gives none, the last tilt known does. Nothing is predicted (the trust
+ * is the judge's alone) without gravity, while |g| is unsteady or the roll beyond
+ * cfg.intake.tilt_limit_deg (a turn) or the pitch beyond cfg.tilt_comp_deg before the regression
+ * has shown acceleration, or under a calibration restored without its tilt state (its fit tilt is
+ * unknown; restored levelled with magcal_cont_restore_tilt its t_cal is 0).
  *
  * Concurrency contract. magcal_cont_push() may run in an interrupt (or another task) while ANY
  * other call on the same instance runs in one task: the ring is the only state push writes

@@ -119,7 +119,8 @@ magcal_status_t magcal_cont_init(magcal_cont_t *cc, const magcal_cont_cfg_t *cfg
 }
 
 /* Queue one sample with its tilt code (magcal_intake_tilt_t) and push_g's tilt of it (x, y; z = 1:
- * known; NULL: unknown): the drain un-levels with it and keeps the store's mean tilt. */
+ * known, 0.5: the last one known, the gravity of now giving none; NULL: unknown): the drain
+ * un-levels with a known one and keeps the store's mean tilt. */
 static magcal_status_t cont_enqueue(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms, uint8_t tilt,
                                     const magcal_vec3_t *tl)
 {
@@ -410,11 +411,14 @@ static int cont_tc_level(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal
  * ellipse, an error no current tilt undoes). k is the compensation's
  * when valid, else TC_K_UNKNOWN R (an inclination of 68 deg: most of Europe and North America
  * lie below it; 1.5 R under-predicted the generated drives' 64 deg, k / R = 2.1, and left 4.9-deg
- * errors OK on 30-min seed 7). 0 when nothing is known: no gravity, gravity unsteady or turning (its tilt is
- * not the road's), a determined regression showing that the accelerometer's tilt is mostly the
- * vehicle's acceleration (rho below TC_RHO_LO: tc_acc; rho alone, from 24 samples on, switched
- * it off on 30-min seed 7 while its early estimate was noisy, and 4.9-deg errors stayed OK), or a
- * restored calibration whose fit tilt is unknown. */
+ * errors OK on 30-min seed 7). When the accelerometer's tilt is mostly the vehicle's
+ * acceleration (a determined regression with rho below TC_RHO_LO: tc_acc), its tilt still counts
+ * (the tilt a road and a car's braking show together: ignoring it left 30-min --dyn-accel drives
+ * OK 9 to 38 deg off) and, when the gravity of now gives none (unsteady, beyond the limits:
+ * hard braking, a turn), the last tilt known counts (cc->tc_t). 0 when nothing is known: no
+ * gravity yet, a restored calibration whose fit tilt is unknown, or the gravity of now unsteady
+ * or beyond the limits while the regression has not shown acceleration (a turn's centripetal
+ * roll: the last tilt known there took every OK of vn100_car_circles_a). */
 #define TC_K_UNKNOWN 2.5f
 static float cont_tilt_err_deg(const magcal_cont_t *cc, uint8_t levelled)
 {
@@ -424,9 +428,17 @@ static float cont_tilt_err_deg(const magcal_cont_t *cc, uint8_t levelled)
     float dx;
     float dy;
     float s2 = 0.0f;
-    if (cc->has_cal == 0u || !(cc->cal_raw_radius > 0.0f) || (cc->cal_lv == 0u && cc->cal_tk == 0u && cc->cal_conv == 0u) ||
-        cc->tc_acc != 0u || cont_tc_tilt(cc, &tx, &ty) == 0) {
+    if (cc->has_cal == 0u || !(cc->cal_raw_radius > 0.0f) || (cc->cal_lv == 0u && cc->cal_tk == 0u && cc->cal_conv == 0u)) {
         return 0.0f;
+    }
+    if (cont_tc_tilt(cc, &tx, &ty) == 0) {
+        if (cc->tc_acc != 0u && cc->tc_t.z > 0.0f) {
+            tx = cc->tc_t.x;
+            ty = cc->tc_t.y;
+        } else {
+            return 0.0f;
+        }
+        levelled = 0u;
     }
     dx = (levelled != 0u) ? 0.0f : tx;
     dy = (levelled != 0u) ? 0.0f : ty;
@@ -477,6 +489,11 @@ magcal_status_t magcal_cont_push_g(magcal_cont_t *cc, const magcal_vec3_t *m, co
             return cont_enqueue(cc, &cc->tc_m, t_ms, MAGCAL_CONT_TILT_LEVELLED, &cc->tc_t);
         }
         return cont_enqueue(cc, m, t_ms, code, &cc->tc_t);
+    }
+    if (code != (uint8_t)MAGCAL_INTAKE_TILT_UNKNOWN && cc->tc_t.z > 0.0f) {
+        magcal_vec3_t st = cc->tc_t;
+        st.z = 0.5f; /* the last tilt known (cont_fit_tilt counts it; nothing levels with it) */
+        return cont_enqueue(cc, m, t_ms, code, &st);
     }
     return cont_enqueue(cc, m, t_ms, code, NULL);
 }

@@ -146,8 +146,10 @@ static void cont_unlevel(magcal_cont_t *cc, const magcal_vec3_t *m, const magcal
 }
 
 /* A stored sample's tilt into the mean tilt of the store's samples (st_tx, st_ty: what an
- * unlevelled fit of the store sees; cont_relevel): a levelled sample counts as level, a sample of
- * unknown tilt (push, a turn, braking) is left out. An EMA over CONT_TF_N samples, about the
+ * unlevelled fit of the store sees; cont_relevel): a levelled sample counts as level, a sample
+ * whose gravity gave no tilt (a turn, braking) with push_g's last tilt known (tl->z 0.5: circles
+ * under 0.2 g of centripetal acceleration on a 4-deg hill otherwise left the fit tilt unknown and
+ * the trust's tilt off, headings 8.5 deg off OK), a sample of push (no gravity) is left out. An EMA over CONT_TF_N samples, about the
  * store's turnover on the move (the store keeps the newest of each bin). */
 static void cont_fit_tilt(magcal_cont_t *cc, const magcal_vec3_t *tl, int lv)
 {
