@@ -206,11 +206,12 @@
  * t_cal|^2 + s^2) / R: a store whose sectors were filled at different tilts bends the ellipse,
  * which no single tilt undoes (30-min seed 14: s 1.5 deg, 920 headings OK at 4.4 deg RMS before
  * the spread term). A stored sample whose gravity gave no tilt (|g| unsteady, beyond the limits:
- * a turn, braking) counts in t_cal and s with the last tilt known, so a store filled in turns
- * under the car's own acceleration still has a known fit tilt. Above cfg.tilt_trust_deg the
- * heading is MAGCAL_TRUST_TILTED, not OK. When the regression shows the accelerometer's tilt to
- * be mostly acceleration (rho < 0.5) the tilt it reads still counts (it may be a road's), and
- * while the gravity of now gives none, the last tilt known does. Nothing is predicted (the trust
+ * a turn, braking) counts in t_cal and s with the tilt known 1..2 s before the last one (not the
+ * acceleration ramping in), so a store filled in turns under the car's own acceleration still has
+ * a known fit tilt. Above cfg.tilt_trust_deg the heading is MAGCAL_TRUST_TILTED, not OK. When the
+ * regression shows the accelerometer's tilt to be mostly acceleration (rho < 0.5) the tilt it
+ * reads still counts (it may be a road's; while the gravity of now gives none, the last tilt
+ * known), and so does the one held from 1..2 s before, whichever predicts more. Nothing is predicted (the trust
  * is the judge's alone) without gravity, while |g| is unsteady or the roll beyond
  * cfg.intake.tilt_limit_deg (a turn) or the pitch beyond cfg.tilt_comp_deg before the regression
  * has shown acceleration, or under a calibration restored without its tilt state (its fit tilt is
@@ -623,6 +624,9 @@ typedef struct {
     volatile uint32_t tc_levelled; /* samples levelled (pushed as LEVEL after the compensation) */
     magcal_vec3_t tc_m;            /* the levelled sample being queued (here, not on push's stack) */
     magcal_vec3_t tc_t;            /* and its tilt (z = 1: known) */
+    magcal_vec3_t tc_h;            /* the tilt known 1..2 s before the last one (z = 0.5; 0: none yet) */
+    float tc_hp[2];                /* the snapshot it takes next */
+    uint32_t tc_h_ms;              /* the push stamp of that snapshot */
     float st_tx;                   /* the mean tilt of the samples the drain stored (levelled ones count */
     float st_ty;                   /* as level; unknown tilts are left out): EMA over CONT_TF_N samples */
     float st_t2;                   /* and of the squared tilt (its spread) */

@@ -119,7 +119,7 @@ magcal_status_t magcal_cont_init(magcal_cont_t *cc, const magcal_cont_cfg_t *cfg
 }
 
 /* Queue one sample with its tilt code (magcal_intake_tilt_t) and push_g's tilt of it (x, y; z = 1:
- * known, 0.5: the last one known, the gravity of now giving none; NULL: unknown): the drain
+ * known, 0.5: the one held from before, the gravity of now giving none; NULL: unknown): the drain
  * un-levels with a known one and keeps the store's mean tilt. */
 static magcal_status_t cont_enqueue(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms, uint8_t tilt,
                                     const magcal_vec3_t *tl)
@@ -229,6 +229,7 @@ static uint8_t cont_tilt_of(magcal_cont_t *cc, const magcal_vec3_t *g, uint32_t 
 #define TC_RHO_HI 2.0f       /* accelerations read as tilt lower it) and at most this (z's own scale) */
 #define TC_KL_HOLD 0.05f     /* the levelling's k follows the estimate when it moved by this share */
 #define TC_Z_REACH 1.5f      /* raw z moves by at most this x R |q| from the sector's mean (a real tilt: R |q|) */
+#define TC_HOLD_MS 1000u     /* the held tilt (cc->tc_h) is the one known 1..2 s before the last */
 #define TC_NB_MAX 4096u      /* a sector's count stops here: its means then follow the newest samples */
 
 /* 1 when the smoothed gravity of the last push_g is steady (|g|^2 within cfg.intake.g_band_rel of
@@ -414,8 +415,9 @@ static int cont_tc_level(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal
  * errors OK on 30-min seed 7). When the accelerometer's tilt is mostly the vehicle's
  * acceleration (a determined regression with rho below TC_RHO_LO: tc_acc), its tilt still counts
  * (the tilt a road and a car's braking show together: ignoring it left 30-min --dyn-accel drives
- * OK 9 to 38 deg off) and, when the gravity of now gives none (unsteady, beyond the limits:
- * hard braking, a turn), the last tilt known counts (cc->tc_t). 0 when nothing is known: no
+ * OK 9 to 38 deg off) or, when the gravity of now gives none (unsteady, beyond the limits:
+ * hard braking, a turn), the last tilt known (cc->tc_t); and the tilt held from 1..2 s before
+ * (cc->tc_h) when it is further from the calibration's. 0 when nothing is known: no
  * gravity yet, a restored calibration whose fit tilt is unknown, or the gravity of now unsteady
  * or beyond the limits while the regression has not shown acceleration (a turn's centripetal
  * roll: the last tilt known there took every OK of vn100_car_circles_a). */
@@ -432,12 +434,11 @@ static float cont_tilt_err_deg(const magcal_cont_t *cc, uint8_t levelled)
         return 0.0f;
     }
     if (cont_tc_tilt(cc, &tx, &ty) == 0) {
-        if (cc->tc_acc != 0u && cc->tc_t.z > 0.0f) {
-            tx = cc->tc_t.x;
-            ty = cc->tc_t.y;
-        } else {
+        if (cc->tc_acc == 0u || !(cc->tc_h.z > 0.0f)) {
             return 0.0f;
         }
+        tx = cc->tc_t.x; /* the last tilt known */
+        ty = cc->tc_t.y;
         levelled = 0u;
     }
     dx = (levelled != 0u) ? 0.0f : tx;
@@ -446,6 +447,18 @@ static float cont_tilt_err_deg(const magcal_cont_t *cc, uint8_t levelled)
         dx -= cc->cal_tx;
         dy -= cc->cal_ty;
         s2 = cc->cal_ts * cc->cal_ts;
+    }
+    if (cc->tc_acc != 0u && cc->tc_h.z > 0.0f) {
+        /* the accelerometer's tilt is mostly acceleration: the tilt held from 1..2 s before counts
+         * too, whichever is further from the calibration's (a road's tilt stays, a braking's
+         * does not; the tilt of now alone let one row of a braking on a hill OK 19 deg off on
+         * --dyn-accel seed 7) */
+        const float ex = dx - tx + cc->tc_h.x; /* dx's offset (the fit tilt or 0) from the held tilt */
+        const float ey = dy - ty + cc->tc_h.y;
+        if (levelled == 0u && ex * ex + ey * ey > dx * dx + dy * dy) {
+            dx = ex;
+            dy = ey;
+        }
     }
     k = (cc->tc_ok != 0u) ? fabsf(cc->tc_k) : TC_K_UNKNOWN * cc->cal_raw_radius;
     return k * sqrtf(dx * dx + dy * dy + s2) / cc->cal_raw_radius * MAGCAL_DEG_PER_RAD_F;
@@ -469,6 +482,14 @@ magcal_status_t magcal_cont_push_g(magcal_cont_t *cc, const magcal_vec3_t *m, co
         cc->tc_t.x = tx;
         cc->tc_t.y = ty;
         cc->tc_t.z = 1.0f;
+        if (!(cc->tc_h.z > 0.0f) || t_ms - cc->tc_h_ms >= TC_HOLD_MS) {
+            cc->tc_h.x = (cc->tc_h.z > 0.0f) ? cc->tc_hp[0] : tx;
+            cc->tc_h.y = (cc->tc_h.z > 0.0f) ? cc->tc_hp[1] : ty;
+            cc->tc_h.z = 0.5f;
+            cc->tc_hp[0] = tx;
+            cc->tc_hp[1] = ty;
+            cc->tc_h_ms = t_ms;
+        }
         cont_tc_learn(cc, m, tx, ty);
         if (cc->tc_ok != 0u && (cc->cal_lv == 0u || !(fabsf(cc->tc_k - cc->tc_kl) <= TC_KL_HOLD * fabsf(cc->tc_kl)))) {
             /* the levelling follows the estimate until a calibration fitted on levelled samples is
@@ -490,10 +511,8 @@ magcal_status_t magcal_cont_push_g(magcal_cont_t *cc, const magcal_vec3_t *m, co
         }
         return cont_enqueue(cc, m, t_ms, code, &cc->tc_t);
     }
-    if (code != (uint8_t)MAGCAL_INTAKE_TILT_UNKNOWN && cc->tc_t.z > 0.0f) {
-        magcal_vec3_t st = cc->tc_t;
-        st.z = 0.5f; /* the last tilt known (cont_fit_tilt counts it; nothing levels with it) */
-        return cont_enqueue(cc, m, t_ms, code, &st);
+    if (code != (uint8_t)MAGCAL_INTAKE_TILT_UNKNOWN && cc->tc_h.z > 0.0f) {
+        return cont_enqueue(cc, m, t_ms, code, &cc->tc_h); /* cont_fit_tilt counts it; nothing levels with it */
     }
     return cont_enqueue(cc, m, t_ms, code, NULL);
 }
