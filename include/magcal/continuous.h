@@ -120,9 +120,13 @@
  * open episode's sum already reads as a shift. R is the watch's own scale: an average of the
  * samples' distance from the store's centre (the store's radius can be far off before a
  * calibration); samples beyond 4 R are no positions, and they, a gap in the stamps, or the end of
- * the chain void an open episode. Counted in cc.shifts, cc.shift_refused. Not seen: a change
- * slower than 0.15 R per sample (a magnet brought in over a second at 50 Hz), one inside a glitch
- * burst or a gap; those fall back on the consistency gate.
+ * the chain void an open episode. With no episode open, a burst of non-positions up to 1 s long
+ * (a glitch burst, a sensor saturated while a magnet came near it) is bridged: the jump from the
+ * last position before it to the first after it is a candidate when it is more than 0.15 R and
+ * more than a turn at 30 deg/s (or a steady motion at the typical increment) moves the field in
+ * that time. Counted in cc.shifts, cc.shift_refused. Not seen: a change slower than 0.15 R per
+ * sample (a magnet brought in over a second at 50 Hz), one inside a longer burst or a gap, or
+ * inside a burst that follows an open episode; those fall back on the consistency gate.
  *
  * Tilt in the estimate (cfg.tilt_model_deg, default 4.5; docs/calibrator.md "Tilt in the
  * estimate"): a store filled on hills and not levelled (push_g's vertical field not learnt, or
@@ -532,6 +536,8 @@ typedef struct {
                                       (the next snapshot scans the ages), 2 set (it drops) */
     /* flags of the level-shift watch and the continuity gate (cont_shift.c, below) */
     uint8_t sh_far;                /* 1: the last position test was far */
+    uint8_t sh_br;                 /* 1: a burst of non-positions since sh_prev (bridged: cont_shift.c) */
+    uint16_t sh_br_n;              /* its samples */
     uint8_t sh_cand_on;            /* 1: sh_cand is pending */
     uint8_t sh_lev;                /* 1: sh_prev was levelled by push_g's tilt compensation */
     uint8_t sh_have;               /* 0: no sh_prev; 1: sh_prev only; 2: and sh_last_n2 */

@@ -28,6 +28,9 @@
 #define SH_FAR_RESET_MS 5000u /* far samples only for this long restart the scale (a glitch burst is
                                  shorter; a start on a reading near the centre is not locked out) */
 #define SH_SCALE_MS 20000u /* the scale's time constant */
+#define SH_BRIDGE_MS 1000u /* a burst of non-positions up to this long is bridged (a glitch burst: 5..40 rows at 50 Hz) */
+#define SH_BRIDGE_RATE 0.52f /* a jump across it beyond a turn at 30 deg/s (rad/s; the typical increment times
+                                the burst's samples bounds a steady motion, not a parked sensor's noise) */
 
 void magcal_cont_shift_clear(magcal_cont_t *cc)
 {
@@ -38,6 +41,8 @@ void magcal_cont_shift_clear(magcal_cont_t *cc)
     cc->sh_inc2 = 0.0f;
     cc->sh_cut = 0u;
     cc->sh_stale = 0u;
+    cc->sh_br = 0u;
+    cc->sh_br_n = 0u;
 }
 
 /* 1 when the open episode's jumps so far make a shift: their sum beyond cfg.shift_rel x R and at
@@ -122,30 +127,72 @@ void magcal_cont_shift_watch(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t
     float dx;
     float dy;
     float n2;
+    uint8_t br;
+    uint16_t brn;
     if (cc->cfg.shift_rel <= 0.0f || cc->has_cal != 0u || st->centre_source == (uint8_t)MAGCAL_INTAKE_CENTRE_NONE) {
         cc->sh_have = 0u;
         cc->sh_cand_on = 0u;
         cc->sh_open = 0u;
         cc->sh_scale = 0.0f;
+        cc->sh_br = 0u;
+        cc->sh_br_n = 0u;
         return;
     }
     if (cc->sh_have != 0u && m->x == cc->sh_prev.x && m->y == cc->sh_prev.y) {
         return; /* the logger repeating a sample: not a sample of the motion */
     }
     if (!magcal_isfinite_f(m->x) || !magcal_isfinite_f(m->y) || shift_position(cc, m, &st->centre, t_ms) == 0) {
-        /* not a position: the chain of increments breaks, and an open episode is void (its jump
-         * back may be among these; a stepped transient followed by a glitch burst would otherwise
-         * read as a shift) */
-        cc->sh_have = 0u;
+        /* not a position: with no episode open, the chain of increments is bridged to the next
+         * position when it comes soon (below); otherwise it breaks and an open episode is void
+         * (its jump back may be among these: a stepped transient followed by a glitch burst
+         * would read as a shift) */
+        if (cc->sh_have == 2u && cc->sh_cand_on == 0u && cc->sh_open == 0u && cc->sh_br_n < UINT16_MAX) {
+            cc->sh_br = 1u;
+            cc->sh_br_n++;
+        } else {
+            cc->sh_have = 0u;
+            cc->sh_br = 0u;
+            cc->sh_br_n = 0u;
+            cc->sh_open = 0u;
+        }
         cc->sh_cand_on = 0u;
-        cc->sh_open = 0u;
         return;
     }
+    br = cc->sh_br;
+    brn = cc->sh_br_n;
+    cc->sh_br = 0u;
+    cc->sh_br_n = 0u;
     r = cc->sh_scale;
     dx = m->x - cc->sh_prev.x;
     dy = m->y - cc->sh_prev.y;
     n2 = dx * dx + dy * dy;
-    if (cc->sh_have != 0u && lev != cc->sh_lev) {
+    if (br != 0u && cc->sh_have == 2u) {
+        /* the first position after a burst of non-positions (a glitch burst, a sensor saturated
+         * while a magnet was brought near it): a jump across it that the motion could not make
+         * in the burst's samples (SH_TYPICAL x the typical increment times their number,
+         * squared, or a turn at 30 deg/s, whichever is less) is a candidate as any other
+         * (30-min seed 10: its hard-iron step came inside a 33-row rail burst while parked; the
+         * chain broke there, the shift went unseen and a solve on both rings adopted a
+         * calibration 19 deg off) */
+        const float k = (float)brn + 1.0f;
+        const float lim = SH_JUMP_REL * r;
+        const uint32_t gap = t_ms - cc->sh_prev_t;
+        const float turn = SH_BRIDGE_RATE * 0.001f * (float)gap * r; /* what a turn moves the field by in it */
+        cc->sh_cand_on = 0u;
+        if (gap <= SH_BRIDGE_MS && lev == cc->sh_lev && n2 > lim * lim &&
+            n2 > fminf(SH_TYPICAL * cc->sh_inc2 * k * k, turn * turn) && magcal_isfinite_f(n2)) {
+            cc->sh_cand_on = 1u;
+            cc->sh_cand.x = dx;
+            cc->sh_cand.y = dy;
+            cc->sh_cand_n2 = n2;
+            cc->sh_cand_t = t_ms;
+            cc->sh_cand_seq = st->seq & INTAKE_SEQ_MASK;
+            cc->sh_last_n2 = n2;
+            cc->sh_have = 2u;
+        } else {
+            cc->sh_have = 1u; /* no increment across it */
+        }
+    } else if (cc->sh_have != 0u && lev != cc->sh_lev) {
         cc->sh_have = 1u; /* the tilt compensation switched on or off (a step of k t): no increment */
         cc->sh_cand_on = 0u;
     } else if (cc->sh_have == 0u || t_ms - cc->sh_prev_t > SH_MAX_DT_MS) {
