@@ -971,6 +971,48 @@ static void test_intake_garbage_burst_does_not_own_the_reference(void)
     TEST_ASSERT_TRUE(p.coverage_deg >= 350.0f);
 }
 
+/* A provisional centre locked on a small circle (30-min gen_drive seed 10: a clump of the ring
+ * fitted as a circle of r 1.9 for a ring of 21, kept for the whole drive): 3 turns on a circle
+ * of r 2 uT around a point of the ring (3 deg/s), then 1.5 turns of the ring at 15 deg/s. With
+ * ref_free (the continuous calibrator sets it before its first calibration) a ring fit whose tight
+ * band holds under half the samples surveyed is dropped, the trimmed extremes give the next
+ * reference, and the centre comes within 2 uT of the truth, R within 10 %. Without it (the
+ * store's default) the small circle keeps the centre: measured (8.93, -20.59) R 2.00, coverage
+ * 180; with it (29.88, -20.05) R 19.93, coverage 340. */
+static void lock_drive(uint8_t ref_free, magcal_intake_progress_t *p)
+{
+    magcal_intake_cfg_t cfg = MAGCAL_INTAKE_CFG_DEFAULT_2D;
+    uint32_t rng = 10u;
+    const magcal_vec3_t q = sample2(90.0, 0.0, 0.0, &rng);
+    unsigned k;
+    init2(&g_st, g_slots, &cfg);
+    g_st.ref_free = ref_free;
+    for (k = 0u; k < 3u * 120u * 50u / 3u; ++k) {
+        const double a = 3.0 * (double)k / 50.0 * D2R; /* 3 deg/s */
+        magcal_vec3_t m = q;
+        m.x += (float)(2.0 * cos(a) + 0.05 * test_rand_normal(&rng));
+        m.y += (float)(2.0 * sin(a) + 0.05 * test_rand_normal(&rng));
+        push_ok(&g_st, &m);
+    }
+    drive_arc(&g_st, 90.0, 540.0, 15.0, 50.0, &rng);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_settle(&g_st));
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_intake_progress(&g_st, p));
+    printf("small-circle lock, ref_free %u: centre source %d, centre (%.2f, %.2f) R %.2f, coverage %.0f\n",
+           (unsigned)ref_free, (int)p->centre_source, (double)p->centre.x, (double)p->centre.y, (double)p->radius,
+           (double)p->coverage_deg);
+}
+
+void test_intake_small_circle_lock_released(void)
+{
+    magcal_intake_progress_t p;
+    lock_drive(0u, &p);
+    TEST_ASSERT_TRUE((double)p.radius <= 0.5 * H); /* the scenario locks the default store */
+    lock_drive(1u, &p);
+    TEST_ASSERT_EQUAL_INT(MAGCAL_INTAKE_CENTRE_PROVISIONAL, p.centre_source);
+    TEST_ASSERT_TRUE(hypot((double)p.centre.x - CX, (double)p.centre.y - CY) <= 2.0);
+    TEST_ASSERT_TRUE(fabs((double)p.radius - H) <= 0.1 * H);
+}
+
 /* The cut of an INCONSISTENT solve (magcal_intake_drop_older, bin by bin as the continuous
  * calibrator's snapshot runs it): 36 samples on the ring (one per sector), then 36 newer ones 3 deg
  * on, every second of them at 1.6 R (off the ring by more than half its radius). A cut at the
@@ -1076,6 +1118,7 @@ int main(void)
     RUN_TEST(test_intake_push_tilt_level_samples_preferred_in_full_bin);
     RUN_TEST(test_intake_push_tilt_hilly_drive_never_starves);
     RUN_TEST(test_intake_garbage_burst_does_not_own_the_reference);
+    RUN_TEST(test_intake_small_circle_lock_released);
     RUN_TEST(test_intake_drop_older_keeps_newer_samples_on_the_ring);
     RUN_TEST(test_intake_drop_older_short_cap_still_compacts);
     RUN_TEST(test_intake_drop_older_without_ring_cuts_by_age_only);

@@ -221,6 +221,9 @@ typedef struct {
     magcal_vec3_t ref_c;           /**< private: reference centre of the fit's normalisation and trim */
     float ref_r;                   /**< private: reference radius (0 = none yet) */
     uint8_t ref_fit;               /**< private: 1 when the reference is a ring fit */
+    uint8_t ref_free;              /**< private: 1: a ring fit whose tight band holds under half the survey
+                                        is not kept (sweep.c; magcal_intake_init: 0, the 2-D continuous
+                                        calibrator sets 1, magcal_intake_reset keeps it) */
     uint16_t n_bins;               /**< private: bins of the mask */
     uint16_t n_bands;              /**< private: 3-D bands */
     uint16_t band_start[MAGCAL_INTAKE_MAX_BANDS + 1u]; /**< private: first cell of each band */

@@ -19,7 +19,10 @@
  *     enough (covariance ratio >= ELL_MIN_RATIO, about 200 degrees) the centre of a conic fit of
  *     the same samples replaces the circle's (soft iron moves a circle fit's centre towards the
  *     arc by up to the axis difference) when it fits at least twice as tightly (radial RMS) and is
- *     an ellipse near the circle; a ring thickened by hills keeps the circle's centre. A fit that moves the centre by more than
+ *     an ellipse near the circle; a ring thickened by hills keeps the circle's centre. With
+ *     ref_free (the 2-D continuous calibrator), a fit in a fitted reference's tight band that
+ *     holds under half the samples surveyed is not used: a lock on a small circle (a clump of the
+ *     ring) would otherwise keep itself for good. A fit that moves the centre by more than
  *     cfg.recentre_rel x R starts a re-bin. Until the first usable fit the bins stay around the
  *     origin (the raw sensor frame), where a straight drive fills one direction only.
  */
@@ -517,6 +520,12 @@ static MAGCAL_NOINLINE void survey_finish(magcal_intake_t *st)
         survey_dup2(st); /* the sums survey_add2 does not repeat */
     }
     fit_ok = survey_fit(st, &fc, &fr);
+    if (fit_ok != 0 && st->ref_free != 0u && st->ref_fit != 0u && 2u * st->fit_n < st->sv_n) {
+        /* a ring fit in the tight band of a fitted reference that holds under half the samples
+         * surveyed: a lock on a small circle (30-min seed 10: r 1.9 on a clump of the 21-uT ring,
+         * for the whole drive), not the ring; the trimmed extremes give the next reference */
+        fit_ok = 0;
+    }
     if (fit_ok != 0) {
         st->ref_c = fc;
         st->ref_r = fr;

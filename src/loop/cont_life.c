@@ -86,6 +86,7 @@ magcal_status_t magcal_cont_init(magcal_cont_t *cc, const magcal_cont_cfg_t *cfg
     (void)memset(cc, 0, sizeof *cc);
     cc->cfg = *cfg;
     st = magcal_intake_init(&cc->store, &cfg->intake, slots, n_slots);
+    cc->store.ref_free = 1u; /* the survey drops a ring fit locked on a small circle (sweep.c) */
     if (st == MAGCAL_OK) {
         st = magcal_calibrator_init(&cc->solver, &cfg->solver, buf, n_slots, work, work_len);
     }
