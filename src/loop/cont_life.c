@@ -431,6 +431,7 @@ static float cont_tilt_err_deg(const magcal_cont_t *cc, uint8_t levelled)
     float dx;
     float dy;
     float s2 = 0.0f;
+    uint8_t lv = levelled;
     if (cc->has_cal == 0u || !(cc->cal_raw_radius > 0.0f) || (cc->cal_lv == 0u && cc->cal_tk == 0u && cc->cal_conv == 0u)) {
         return 0.0f;
     }
@@ -440,10 +441,10 @@ static float cont_tilt_err_deg(const magcal_cont_t *cc, uint8_t levelled)
         }
         tx = cc->tc_t.x; /* the last tilt known */
         ty = cc->tc_t.y;
-        levelled = 0u;
+        lv = 0u;
     }
-    dx = (levelled != 0u) ? 0.0f : tx;
-    dy = (levelled != 0u) ? 0.0f : ty;
+    dx = (lv != 0u) ? 0.0f : tx;
+    dy = (lv != 0u) ? 0.0f : ty;
     if (cc->cal_lv == 0u && cc->cal_conv == 0u) {
         dx -= cc->cal_tx;
         dy -= cc->cal_ty;
@@ -456,7 +457,7 @@ static float cont_tilt_err_deg(const magcal_cont_t *cc, uint8_t levelled)
          * --dyn-accel seed 7) */
         const float ex = dx - tx + cc->tc_h.x; /* dx's offset (the fit tilt or 0) from the held tilt */
         const float ey = dy - ty + cc->tc_h.y;
-        if (levelled == 0u && ex * ex + ey * ey > dx * dx + dy * dy) {
+        if (lv == 0u && ex * ex + ey * ey > dx * dx + dy * dy) {
             dx = ex;
             dy = ey;
         }
