@@ -215,11 +215,12 @@
  * a known fit tilt. Above cfg.tilt_trust_deg the heading is MAGCAL_TRUST_TILTED, not OK. When the
  * regression shows the accelerometer's tilt to be mostly acceleration (rho < 0.5) the tilt it
  * reads still counts (it may be a road's; while the gravity of now gives none, the last tilt
- * known), and so does the one held from 1..2 s before, whichever predicts more. Nothing is predicted (the trust
- * is the judge's alone) without gravity, while |g| is unsteady or the roll beyond
- * cfg.intake.tilt_limit_deg (a turn) or the pitch beyond cfg.tilt_comp_deg before the regression
- * has shown acceleration, or under a calibration restored without its tilt state (its fit tilt is
- * unknown; restored levelled with magcal_cont_restore_tilt its t_cal is 0).
+ * known), and so does the one held from 1..2 s before, whichever predicts more. Nothing is
+ * predicted (the trust is the judge's alone) without gravity, while |g| is unsteady or the roll
+ * beyond cfg.intake.tilt_limit_deg (a turn) or the pitch beyond cfg.tilt_comp_deg before the
+ * regression has shown acceleration. A calibration restored without its tilt state (its fit tilt
+ * unknown) is taken as a level one (t_cal 0; restored levelled with magcal_cont_restore_tilt its
+ * headings are levelled too).
  *
  * Concurrency contract. magcal_cont_push() may run in an interrupt (or another task) while ANY
  * other call on the same instance runs in one task: the ring is the only state push writes

@@ -410,7 +410,10 @@ static int cont_tc_level(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal
  * (0 when levelled) and t_cal the calibration's fit tilt (0 when fitted on levelled samples or
  * levelled since, else the mean tilt of its store: cc->cal_tx, cal_ty; then the spread of that
  * tilt, cc->cal_ts, adds in quadrature: a store filled at a different tilt per sector bends the
- * ellipse, an error no current tilt undoes). k is the compensation's
+ * ellipse, an error no current tilt undoes; 0 too when unknown: a calibration restored without
+ * its tilt state is taken as a level one, whose unlevelled heading on a slope is off by the
+ * slope's leak: legacy-record restores kept up to 11,033 OK rows more than 5 deg off, 10.3 at
+ * worst, while it counted nothing). k is the compensation's
  * when valid, else TC_K_UNKNOWN R (an inclination of 68 deg: most of Europe and North America
  * lie below it; 1.5 R under-predicted the generated drives' 64 deg, k / R = 2.1, and left 4.9-deg
  * errors OK on 30-min seed 7). When the accelerometer's tilt is mostly the vehicle's
@@ -419,9 +422,9 @@ static int cont_tc_level(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal
  * OK 9 to 38 deg off) or, when the gravity of now gives none (unsteady, beyond the limits:
  * hard braking, a turn), the last tilt known (cc->tc_t); and the tilt held from 1..2 s before
  * (cc->tc_h) when it is further from the calibration's. 0 when nothing is known: no
- * gravity yet, a restored calibration whose fit tilt is unknown, or the gravity of now unsteady
- * or beyond the limits while the regression has not shown acceleration (a turn's centripetal
- * roll: the last tilt known there took every OK of vn100_car_circles_a). */
+ * gravity yet, or the gravity of now unsteady or beyond the limits while the regression has not
+ * shown acceleration (a turn's centripetal roll: the last tilt known there took every OK of
+ * vn100_car_circles_a). */
 #define TC_K_UNKNOWN 2.5f
 static float cont_tilt_err_deg(const magcal_cont_t *cc, uint8_t levelled)
 {
@@ -432,7 +435,7 @@ static float cont_tilt_err_deg(const magcal_cont_t *cc, uint8_t levelled)
     float dy;
     float s2 = 0.0f;
     uint8_t lv = levelled;
-    if (cc->has_cal == 0u || !(cc->cal_raw_radius > 0.0f) || (cc->cal_lv == 0u && cc->cal_tk == 0u && cc->cal_conv == 0u)) {
+    if (cc->has_cal == 0u || !(cc->cal_raw_radius > 0.0f)) {
         return 0.0f;
     }
     if (cont_tc_tilt(cc, &tx, &ty) == 0) {
@@ -445,7 +448,7 @@ static float cont_tilt_err_deg(const magcal_cont_t *cc, uint8_t levelled)
     }
     dx = (lv != 0u) ? 0.0f : tx;
     dy = (lv != 0u) ? 0.0f : ty;
-    if (cc->cal_lv == 0u && cc->cal_conv == 0u) {
+    if (cc->cal_lv == 0u && cc->cal_conv == 0u && cc->cal_tk != 0u) {
         dx -= cc->cal_tx;
         dy -= cc->cal_ty;
         s2 = cc->cal_ts * cc->cal_ts;
