@@ -658,6 +658,7 @@ typedef struct {
     float dist_uvar;               /* variance of the vertical channel's unexplained part, clean samples */
     float dist_fe[4];              /* smoothed regressors: cos, sin, cos 2, sin 2 of the corrected heading */
     float dist_fb[4];              /* their baselines */
+    float dist_fo[4];              /* and their values when the flag rose (held while it is up) */
     float dist_mx[10];             /* moments of the regressors' deviations (packed lower) */
     float dist_mr[4];              /* their moments with the residual's deviation */
     float dist_mu[4];              /* their moments with the vertical channel's deviation */

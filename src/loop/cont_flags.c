@@ -117,6 +117,11 @@ static void cont_dist_smooth(const magcal_cont_t *cc, float x, float u, const fl
  * Returns 1 when either channel is over its threshold. */
 static uint8_t cont_dist_dev(const magcal_cont_t *cc, float e, float ue, const float *fe, float *dx, float *v)
 {
+    /* while a flag is up, the heading's move is the one at its rise: the disturbance turns the
+     * heading as well, and its own move widened the thresholds and explained its deviation away
+     * (a 2-s transient of a moving car: the flag dropped for 17 rows at 45 deg of heading error,
+     * a biased record's restore on 30-min seed 2) */
+    const float *fm = (cc->dist_flag != 0u) ? cc->dist_fo : fe;
     float q;
     uint32_t i;
     v[2] = e - cc->dist_base;
@@ -124,7 +129,7 @@ static uint8_t cont_dist_dev(const magcal_cont_t *cc, float e, float ue, const f
     v[0] = v[2];
     v[1] = v[3];
     for (i = 0u; i < CONT_DIST_NX; ++i) {
-        dx[i] = fe[i] - cc->dist_fb[i];
+        dx[i] = fm[i] - cc->dist_fb[i];
         v[0] -= cc->dist_th[i] * dx[i];
         v[1] -= cc->dist_th[CONT_DIST_NX + i] * dx[i];
     }
@@ -271,7 +276,15 @@ void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint
             cc->dist_uvar += w * (duc * duc - cc->dist_uvar);
         }
     }
-    cc->dist_flag = (uint8_t)((float)cc->dist_quiet_ms < hold ? 1u : 0u);
+    {
+        const uint8_t was = cc->dist_flag;
+        cc->dist_flag = (uint8_t)((float)cc->dist_quiet_ms < hold ? 1u : 0u);
+        if (was == 0u && cc->dist_flag != 0u) {
+            for (i = 0u; i < CONT_DIST_NX; ++i) {
+                cc->dist_fo[i] = cc->dist_fe[i];
+            }
+        }
+    }
 }
 
 /* Would the transient judge flag after one more sample j (the heading's, not yet drained: the
