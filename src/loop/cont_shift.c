@@ -160,8 +160,10 @@ void magcal_cont_shift_watch(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t
     }
     br = cc->sh_br;
     brn = cc->sh_br_n;
-    cc->sh_br = 0u;
-    cc->sh_br_n = 0u;
+    if (br != 0u) {
+        cc->sh_br = 0u;
+        cc->sh_br_n = 0u;
+    }
     r = cc->sh_scale;
     dx = m->x - cc->sh_prev.x;
     dy = m->y - cc->sh_prev.y;
