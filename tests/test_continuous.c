@@ -1266,6 +1266,16 @@ static void tc_stand_level(uint32_t *rng, uint32_t *t, int levels_before_tilted,
     }
 }
 
+/* The fit tilt of the calibration in force, its level RMS as adopted and what standing level gave. */
+static void tc_fit_report(const char *what, double rms_adopted, const tc_level_stats_t *st)
+{
+    printf("%s: fit tilt (%.4f, %.4f) spread %.4f, level RMS %.2f deg as adopted; standing level: %u headings "
+           "TILTED (RMS %.2f deg), %u OK (worst %.2f deg); k ok %u, levelled %u x\n",
+           what, (double)g_cc.cal_tx, (double)g_cc.cal_ty, (double)g_cc.cal_ts, rms_adopted, st->n_tilted,
+           st->n_tilted != 0u ? sqrt(st->ss_tilted / (double)st->n_tilted) : 0.0, st->n_ok, st->worst_ok,
+           (unsigned)g_cc.tc_ok, (unsigned)g_cc.levels);
+}
+
 static void test_cont_unlevelled_calibration_tilted_then_levelled(void)
 {
     const double d2r = 3.14159265358979 / 180.0;
@@ -1327,11 +1337,7 @@ static void test_cont_bent_store_calibration_not_trusted(void)
     TEST_ASSERT_EQUAL_UINT8(1u, g_cc.cal_tk);
     rms_adopted = tc_level_rms(&g_cc.cal);
     tc_stand_level(&rng, &t, 0, &st);
-    printf("bent store: fit tilt (%.4f, %.4f) spread %.4f, level RMS %.2f deg as adopted; standing level: %u "
-           "headings TILTED (RMS %.2f deg), %u OK (worst %.2f deg); k ok %u, levelled %u x\n",
-           (double)g_cc.cal_tx, (double)g_cc.cal_ty, (double)g_cc.cal_ts, rms_adopted, st.n_tilted,
-           st.n_tilted != 0u ? sqrt(st.ss_tilted / (double)st.n_tilted) : 0.0, st.n_ok, st.worst_ok,
-           (unsigned)g_cc.tc_ok, (unsigned)g_cc.levels);
+    tc_fit_report("bent store", rms_adopted, &st);
     TEST_ASSERT_TRUE(rms_adopted >= 2.5);  /* the store was bent: the fit is wrong at level */
     TEST_ASSERT_TRUE(st.n_tilted >= 18u);
     TEST_ASSERT_TRUE(sqrt(st.ss_tilted / (double)st.n_tilted) >= 2.5); /* the flag was warranted */
@@ -1368,11 +1374,7 @@ static void test_cont_turns_under_acceleration_keep_the_fit_tilt(void)
     TEST_ASSERT_FLOAT_WITHIN(0.005f, (float)tan(4.0 * d2r), g_cc.cal_ty);
     rms_adopted = tc_level_rms(&g_cc.cal);
     tc_stand_level(&rng, &t, 1, &st);
-    printf("circles under 0.2 g: fit tilt (%.4f, %.4f) spread %.4f, level RMS %.2f deg as adopted; standing level: "
-           "%u headings TILTED (RMS %.2f deg), %u OK (worst %.2f deg); k ok %u, levelled %u x\n",
-           (double)g_cc.cal_tx, (double)g_cc.cal_ty, (double)g_cc.cal_ts, rms_adopted, st.n_tilted,
-           st.n_tilted != 0u ? sqrt(st.ss_tilted / (double)st.n_tilted) : 0.0, st.n_ok, st.worst_ok,
-           (unsigned)g_cc.tc_ok, (unsigned)g_cc.levels);
+    tc_fit_report("circles under 0.2 g", rms_adopted, &st);
     TEST_ASSERT_TRUE(rms_adopted >= 3.0); /* the fit saw the slope */
     TEST_ASSERT_TRUE(st.n_tilted >= 18u);
     TEST_ASSERT_TRUE(sqrt(st.ss_tilted / (double)st.n_tilted) >= 3.0); /* the flag was warranted */

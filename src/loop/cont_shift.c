@@ -103,6 +103,17 @@ static int shift_position(magcal_cont_t *cc, const magcal_vec3_t *m, const magca
     return 1;
 }
 
+/* A candidate jump (dx, dy), squared length n2, at t_ms: confirmed by a small increment after it. */
+static void shift_candidate(magcal_cont_t *cc, float dx, float dy, float n2, uint32_t t_ms)
+{
+    cc->sh_cand_on = 1u;
+    cc->sh_cand.x = dx;
+    cc->sh_cand.y = dy;
+    cc->sh_cand_n2 = n2;
+    cc->sh_cand_t = t_ms;
+    cc->sh_cand_seq = cc->store.seq & INTAKE_SEQ_MASK;
+}
+
 /* A candidate jump confirmed (the increment after it is small too): into the episode. */
 static void shift_take(magcal_cont_t *cc)
 {
@@ -183,12 +194,7 @@ void magcal_cont_shift_watch(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t
         cc->sh_cand_on = 0u;
         if (gap <= SH_BRIDGE_MS && lev == cc->sh_lev && n2 > lim * lim &&
             n2 > fminf(SH_TYPICAL * cc->sh_inc2 * k * k, turn * turn) && magcal_isfinite_f(n2)) {
-            cc->sh_cand_on = 1u;
-            cc->sh_cand.x = dx;
-            cc->sh_cand.y = dy;
-            cc->sh_cand_n2 = n2;
-            cc->sh_cand_t = t_ms;
-            cc->sh_cand_seq = st->seq & INTAKE_SEQ_MASK;
+            shift_candidate(cc, dx, dy, n2, t_ms);
             cc->sh_last_n2 = n2;
             cc->sh_have = 2u;
         } else {
@@ -209,12 +215,7 @@ void magcal_cont_shift_watch(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t
         cc->sh_cand_on = 0u;
         if (cc->sh_have == 2u && n2 > lim * lim && n2 > SH_ISOLATED * cc->sh_last_n2 &&
             n2 > SH_TYPICAL * cc->sh_inc2 && magcal_isfinite_f(n2)) {
-            cc->sh_cand_on = 1u;
-            cc->sh_cand.x = dx;
-            cc->sh_cand.y = dy;
-            cc->sh_cand_n2 = n2;
-            cc->sh_cand_t = t_ms;
-            cc->sh_cand_seq = st->seq & INTAKE_SEQ_MASK;
+            shift_candidate(cc, dx, dy, n2, t_ms);
         }
         if (cc->sh_cand_on == 0u && magcal_isfinite_f(n2)) {
             /* the typical increment (squared), a candidate jump left out */
