@@ -1221,20 +1221,22 @@ static unsigned tc_six_circles(double slope, double amp, uint32_t *rng, uint32_t
     return adopted;
 }
 
-/* Standing level at 36 headings (3 s each) after tc_six_circles: the heading's trust and true
- * error at each. TILTED ones counted with their squared errors; OK ones with the worst error;
- * levels_before_tilted: a TILTED heading only while the calibration is not yet levelled. */
+/* Standing at `pitch` deg (tc_stand_level: level) at 36 headings (3 s each): the heading's trust
+ * and true error at each. TILTED ones counted with their squared errors; OK ones with the worst
+ * error; the others (DISTURBED) counted; levels_before_tilted: a TILTED heading only while the
+ * calibration is not yet levelled. */
 typedef struct {
-    unsigned n_tilted, n_ok;
+    unsigned n_tilted, n_ok, n_other;
     double ss_tilted, worst_ok;
 } tc_level_stats_t;
 
-static void tc_stand_level(uint32_t *rng, uint32_t *t, int levels_before_tilted, tc_level_stats_t *st)
+static void tc_stand_at(double pitch, uint32_t *rng, uint32_t *t, int levels_before_tilted, tc_level_stats_t *st)
 {
     unsigned i, k;
     int h;
     st->n_tilted = 0u;
     st->n_ok = 0u;
+    st->n_other = 0u;
     st->ss_tilted = 0.0;
     st->worst_ok = 0.0;
     for (h = 0; h < 36; ++h) {
@@ -1243,7 +1245,7 @@ static void tc_stand_level(uint32_t *rng, uint32_t *t, int levels_before_tilted,
         magcal_cont_heading_t hd;
         double e;
         for (i = 0u; i < 150u; ++i, *t += RATE_MS) {
-            tc_sample(psi, 0.0, 0.1, rng, &m, &g);
+            tc_sample(psi, pitch, 0.1, rng, &m, &g);
             TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_push_g(&g_cc, &m, &g, *t));
             for (k = 0u; k < STEPS_PER_ROW; ++k) {
                 (void)magcal_cont_step(&g_cc);
@@ -1261,9 +1263,14 @@ static void tc_stand_level(uint32_t *rng, uint32_t *t, int levels_before_tilted,
             st->n_ok++;
             st->worst_ok = fmax(st->worst_ok, e);
         } else {
-            /* another state (DISTURBED): not used */
+            st->n_other++; /* another state (DISTURBED) */
         }
     }
+}
+
+static void tc_stand_level(uint32_t *rng, uint32_t *t, int levels_before_tilted, tc_level_stats_t *st)
+{
+    tc_stand_at(0.0, rng, t, levels_before_tilted, st);
 }
 
 /* The fit tilt of the calibration in force, its level RMS as adopted and what standing level gave. */
@@ -1420,44 +1427,20 @@ static void test_cont_restored_calibration_relevelled(void)
  * OK rows more than 5 deg off. */
 static void test_cont_restored_without_tilt_state_tilted_on_a_slope(void)
 {
-    unsigned pre = 0u, i, k, n_other = 0u;
+    unsigned pre = 0u;
     uint32_t rng = 17u;
     uint32_t t;
-    int h;
     magcal_cal2d_t saved;
-    tc_level_stats_t st = {0u, 0u, 0.0, 0.0};
+    tc_level_stats_t st;
     TEST_ASSERT_TRUE(tc_drive(1, 60u, 30u, &pre) >= 1u);
     saved = g_cc.cal;
     t = g_cc.last_t + RATE_MS;
     cont_init_default(&saved);
-    for (h = 0; h < 36; ++h) {
-        const double psi = 10.0 * h + 5.0;
-        magcal_vec3_t m, g;
-        magcal_cont_heading_t hd;
-        double e;
-        for (i = 0u; i < 150u; ++i, t += RATE_MS) {
-            tc_sample(psi, 5.0, 0.1, &rng, &m, &g);
-            TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_push_g(&g_cc, &m, &g, t));
-            for (k = 0u; k < STEPS_PER_ROW; ++k) {
-                (void)magcal_cont_step(&g_cc);
-            }
-        }
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_heading(&g_cc, &m, 0.0f, &hd));
-        e = fabs(test_angle_diff_deg(hd.heading_deg, psi));
-        if (hd.trust == MAGCAL_TRUST_TILTED) {
-            st.n_tilted++;
-            st.ss_tilted += e * e;
-        } else if (hd.trust == MAGCAL_TRUST_OK) {
-            st.n_ok++;
-            st.worst_ok = fmax(st.worst_ok, e);
-        } else {
-            n_other++; /* DISTURBED: the judge's radius sees the slope's leak too */
-        }
-    }
+    tc_stand_at(5.0, &rng, &t, 0, &st);
     printf("restored without tilt state, on a 5-deg slope: %u headings TILTED (RMS %.2f deg), %u OK (worst %.2f "
            "deg), %u other\n",
            st.n_tilted, st.n_tilted != 0u ? sqrt(st.ss_tilted / (double)st.n_tilted) : 0.0, st.n_ok, st.worst_ok,
-           n_other);
+           st.n_other);
     TEST_ASSERT_TRUE(st.n_tilted >= 5u);
     TEST_ASSERT_TRUE(sqrt(st.ss_tilted / (double)st.n_tilted) >= 3.0); /* the flag was warranted */
     TEST_ASSERT_TRUE(st.worst_ok <= 2.0);                              /* an OK is within the tolerance */
