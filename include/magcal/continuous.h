@@ -537,8 +537,7 @@ typedef struct {
                                       (the next snapshot scans the ages), 2 set (it drops) */
     /* flags of the level-shift watch and the continuity gate (cont_shift.c, below) */
     uint8_t sh_far;                /* 1: the last position test was far */
-    uint8_t sh_br;                 /* 1: a burst of non-positions since sh_prev (bridged: cont_shift.c) */
-    uint16_t sh_br_n;              /* its samples */
+    uint16_t sh_br_n;              /* non-positions since sh_prev, being bridged (cont_shift.c; 0: none) */
     uint8_t sh_cand_on;            /* 1: sh_cand is pending */
     uint8_t sh_lev;                /* 1: sh_prev was levelled by push_g's tilt compensation */
     uint8_t sh_have;               /* 0: no sh_prev; 1: sh_prev only; 2: and sh_last_n2 */

@@ -434,6 +434,8 @@ static float cont_tilt_err_deg(const magcal_cont_t *cc, uint8_t levelled)
     float dx;
     float dy;
     float s2 = 0.0f;
+    float ox = 0.0f;
+    float oy = 0.0f;
     uint8_t lv = levelled;
     if (cc->has_cal == 0u || !(cc->cal_raw_radius > 0.0f)) {
         return 0.0f;
@@ -446,20 +448,20 @@ static float cont_tilt_err_deg(const magcal_cont_t *cc, uint8_t levelled)
         ty = cc->tc_t.y;
         lv = 0u;
     }
-    dx = (lv != 0u) ? 0.0f : tx;
-    dy = (lv != 0u) ? 0.0f : ty;
     if (cc->cal_lv == 0u && cc->cal_conv == 0u && cc->cal_tk != 0u) {
-        dx -= cc->cal_tx;
-        dy -= cc->cal_ty;
+        ox = cc->cal_tx; /* the fit tilt, with its spread */
+        oy = cc->cal_ty;
         s2 = cc->cal_ts * cc->cal_ts;
     }
+    dx = ((lv != 0u) ? 0.0f : tx) - ox;
+    dy = ((lv != 0u) ? 0.0f : ty) - oy;
     if (cc->tc_acc != 0u && cc->tc_h.z > 0.0f) {
         /* the accelerometer's tilt is mostly acceleration: the tilt held from 1..2 s before counts
          * too, whichever is further from the calibration's (a road's tilt stays, a braking's
          * does not; the tilt of now alone let one row of a braking on a hill OK 19 deg off on
          * --dyn-accel seed 7) */
-        const float ex = dx - tx + cc->tc_h.x; /* dx's offset (the fit tilt or 0) from the held tilt */
-        const float ey = dy - ty + cc->tc_h.y;
+        const float ex = cc->tc_h.x - ox;
+        const float ey = cc->tc_h.y - oy;
         if (lv == 0u && ex * ex + ey * ey > dx * dx + dy * dy) {
             dx = ex;
             dy = ey;

@@ -41,7 +41,6 @@ void magcal_cont_shift_clear(magcal_cont_t *cc)
     cc->sh_inc2 = 0.0f;
     cc->sh_cut = 0u;
     cc->sh_stale = 0u;
-    cc->sh_br = 0u;
     cc->sh_br_n = 0u;
 }
 
@@ -138,14 +137,12 @@ void magcal_cont_shift_watch(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t
     float dx;
     float dy;
     float n2;
-    uint8_t br;
     uint16_t brn;
     if (cc->cfg.shift_rel <= 0.0f || cc->has_cal != 0u || st->centre_source == (uint8_t)MAGCAL_INTAKE_CENTRE_NONE) {
         cc->sh_have = 0u;
         cc->sh_cand_on = 0u;
         cc->sh_open = 0u;
         cc->sh_scale = 0.0f;
-        cc->sh_br = 0u;
         cc->sh_br_n = 0u;
         return;
     }
@@ -158,28 +155,24 @@ void magcal_cont_shift_watch(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t
          * (its jump back may be among these: a stepped transient followed by a glitch burst
          * would read as a shift) */
         if (cc->sh_have == 2u && cc->sh_cand_on == 0u && cc->sh_open == 0u && cc->sh_br_n < UINT16_MAX) {
-            cc->sh_br = 1u;
             cc->sh_br_n++;
         } else {
             cc->sh_have = 0u;
-            cc->sh_br = 0u;
             cc->sh_br_n = 0u;
             cc->sh_open = 0u;
         }
         cc->sh_cand_on = 0u;
         return;
     }
-    br = cc->sh_br;
     brn = cc->sh_br_n;
-    if (br != 0u) {
-        cc->sh_br = 0u;
+    if (brn != 0u) {
         cc->sh_br_n = 0u;
     }
     r = cc->sh_scale;
     dx = m->x - cc->sh_prev.x;
     dy = m->y - cc->sh_prev.y;
     n2 = dx * dx + dy * dy;
-    if (br != 0u && cc->sh_have == 2u) {
+    if (brn != 0u && cc->sh_have == 2u) {
         /* the first position after a burst of non-positions (a glitch burst, a sensor saturated
          * while a magnet was brought near it): a jump across it that the motion could not make
          * in the burst's samples (SH_TYPICAL x the typical increment times their number,

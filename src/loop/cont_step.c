@@ -148,10 +148,11 @@ static void cont_unlevel(magcal_cont_t *cc, const magcal_vec3_t *m, const magcal
 /* A stored sample's tilt into the mean tilt of the store's samples (st_tx, st_ty: what an
  * unlevelled fit of the store sees; cont_relevel): a levelled sample counts as level, a sample
  * whose gravity gave no tilt (a turn, braking) with the tilt push_g held (cc->tc_h, known 1..2 s
- * before the last one: not the acceleration ramping in; tl->z 0.5: circles
- * under 0.2 g of centripetal acceleration on a 4-deg hill otherwise left the fit tilt unknown and
- * the trust's tilt off, headings 8.5 deg off OK), a sample of push (no gravity) is left out. An EMA over CONT_TF_N samples, about the
- * store's turnover on the move (the store keeps the newest of each bin). */
+ * before the last one: not the acceleration ramping in; tl->z 0.5: circles under 0.2 g of
+ * centripetal acceleration on a 4-deg hill otherwise left the fit tilt unknown and the trust's
+ * tilt off, headings 8.5 deg off OK), a sample of push (no gravity) is left out. An EMA over
+ * CONT_TF_N samples, about the store's turnover on the move (the store keeps the newest of each
+ * bin). */
 static void cont_fit_tilt(magcal_cont_t *cc, const magcal_vec3_t *tl, int lv)
 {
     const float tx = (lv != 0) ? 0.0f : tl->x;
