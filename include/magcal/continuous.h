@@ -222,6 +222,26 @@
  * unknown) is taken as a level one (t_cal 0; restored levelled with magcal_cont_restore_tilt its
  * headings are levelled too).
  *
+ * Gyro heading check (cfg.rate_trust_deg, default 2.5; 0 = off; magcal_cont_push_imu). A magnetometer
+ * alone reads the onset of a disturbance across the field as a turn: the heading moves at first
+ * order, the field magnitude the judge watches at second. With the gyro's rates, each sample is
+ * queued with the rotation about the up axis (along push_g's smoothed gravity, else body z) since
+ * the sample before (trapezoid; unknown after a gap of MAGCAL_CONT_RATE_GAP_MS or a sample of push
+ * or push_g), and the drain carries a track of the corrected heading on it, pulled towards the
+ * magnetic heading by a proportional-integral loop (10-s natural frequency; its integral is the
+ * gyro's bias, so an uncalibrated gyro is fine). A heading that leaves the track by more than
+ * cfg.rate_trust_deg (or 4 x the track's RMS deviation on clean samples) is
+ * MAGCAL_TRUST_DISTURBED; meanwhile, and under a glitch or a transient flag, the track coasts on
+ * the gyro; a deviation that lasts 8 s is no transient and the track restarts at the magnetic
+ * heading (a lasting change is the change detection's). The track restarts at every new
+ * calibration, relearn and gap. The check starts after 60 s of judged samples (the bias
+ * settled). The sign between the gyro's rotation and the heading is the contract's (w in m's
+ * right-handed axes: a positive rotation about up turns the heading anticlockwise) and checked
+ * on every 180 deg of turning: a gyro frame mirrored against the magnetometer's is turned to
+ * (with a new warm-up). It affects the
+ * trust only: a flagged sample is still judged and stored by the magnitude judge's rules.
+ * docs/calibrator.md "Gyro heading check".
+ *
  * Concurrency contract. magcal_cont_push() may run in an interrupt (or another task) while ANY
  * other call on the same instance runs in one task: the ring is the only state push writes
  * (its head index, after the sample; step only writes the tail index; magcal_cont_push_g also
@@ -287,6 +307,10 @@ extern "C" {
 #ifndef MAGCAL_CONT_G_TAU_MS
 #define MAGCAL_CONT_G_TAU_MS 10000u /**< magcal_cont_push_g: time constant of the |g|^2 level, ms */
 #endif
+#define MAGCAL_CONT_RATE_GAP_MS 250u /**< magcal_cont_push_imu: a longer gap between rates leaves the
+                                          rotation since the sample before unknown */
+#define MAGCAL_CONT_RATE_MAX_DPS 4000.0f /**< magcal_cont_push_imu: a rate beyond this (deg/s) is no
+                                              reading: the rotation through it is unknown */
 
 #ifndef MAGCAL_CONT_BARRIER
 #if defined(__GNUC__) || defined(__clang__)
@@ -412,6 +436,11 @@ typedef struct {
                                          calibration's fit tilt by enough to move it by more than
                                          this many degrees is MAGCAL_TRUST_TILTED; >= 0, 0 = off
                                          (default 3) */
+    float rate_trust_deg;           /**< gyro heading check ("Gyro heading check" below): with
+                                         magcal_cont_push_imu's rates, a heading whose magnetic
+                                         move leaves the gyro's track by more than this many
+                                         degrees (or 4x the track's RMS deviation) is
+                                         MAGCAL_TRUST_DISTURBED; >= 0, 0 = off (default 2.5) */
 } magcal_cont_cfg_t;
 
 /** Defaults: work untuned from 10 to 100 Hz (time constants are in ms of the push stamps). */
@@ -420,7 +449,7 @@ typedef struct {
         MAGCAL_INTAKE_CFG_DEFAULT_2D, MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT, 280.0f, 24u, 2u,        \
             600000.0f, 4.0f, 0.06f, 8000u, 3u, 4000u, 100u, 200u, 4.0f,                            \
             MAGCAL_SLICE_BUDGET_DEFAULT, 0.0f, 15.0f, 8.0f, 0.7f, 0.0f, 10.0f, 7.0f, 180.0f, 3.0f, 2.0f, \
-            0.25f, 6000u, 4.5f, 0u, 3.0f                                                           \
+            0.25f, 6000u, 4.5f, 0u, 3.0f, 2.5f                                                     \
     }
 
 /** A heading with its trust. */
@@ -683,6 +712,30 @@ typedef struct {
     float off_lam;                 /* end: largest eigenvalue of the centre's covariance */
     float off_s3;                  /* end: residual sigma of the 3-parameter circle */
     float off_sr;                  /* end: the radius's standard error */
+    /* gyro heading check ("Gyro heading check"): push_imu writes gy_* and ring_dy, the drain rj_* */
+    float ring_dy[MAGCAL_CONT_RING]; /* rotation about the up axis since the sample queued before, deg
+                                      (NaN: unknown, a sample without a rate) */
+    float gy_acc;                  /* push_imu: rotation accumulated since the last sample queued, deg */
+    float gy_w;                    /* its last rate about the up axis, deg/s */
+    uint32_t gy_t;                 /* and its stamp */
+    uint8_t gy_on;                 /* 1: gy_w, gy_t valid */
+    uint8_t gy_pend;               /* 1: the sample being queued is push_imu's */
+    int8_t rj_sgn;                 /* heading move per gyro rotation about up: -1 (init), +1 (mirrored) */
+    uint8_t rj_on;                 /* 1: the track runs */
+    uint8_t rj_flag;               /* 1: the magnetic heading left the gyro's track (DISTURBED) */
+    float rj_psi;                  /* the track, deg */
+    float rj_prev;                 /* the last judged magnetic heading, deg */
+    float rj_b;                    /* the gyro's bias about the up axis, deg/s (the loop's integral) */
+    float rj_var;                  /* the deviation's mean square on clean samples, deg^2 */
+    float rj_dev;                  /* the last deviation, deg */
+    float rj_rot;                  /* the recent rotation (|rotation| decaying at the loop's rate), deg */
+    float rj_sx;                   /* sign evidence: sums of (heading move x rotation), */
+    float rj_sa;                   /* rotation^2 */
+    float rj_turn;                 /* and |rotation|, deg */
+    uint32_t rj_t;                 /* stamp of the last judged sample */
+    uint32_t rj_ms;                /* ms judged (the warm-up; again after a sign turn) */
+    uint32_t rj_coast_ms;          /* ms the track has coasted */
+    uint32_t rj_flags;             /* flags raised */
 } magcal_cont_t;
 
 /**
@@ -741,6 +794,21 @@ magcal_status_t magcal_cont_push(magcal_cont_t *cc, const magcal_vec3_t *m, uint
  */
 magcal_status_t magcal_cont_push_g(magcal_cont_t *cc, const magcal_vec3_t *m, const magcal_vec3_t *g,
                                    uint32_t t_ms);
+
+/**
+ * @brief As magcal_cont_push_g, with the gyro's rates at the same instant for the gyro heading
+ *        check ("Gyro heading check"). ISR-safe as magcal_cont_push (its rate state is written by
+ *        push only). O(1).
+ * @param[in,out] cc   initialised instance.
+ * @param[in]     m    raw magnetometer sample.
+ * @param[in]     g    specific force (accelerometer), or NULL (then the rate about body z counts).
+ * @param[in]     w    angular rate, rad/s, body axes as m (a mirrored frame is found on the
+ *                     turns), or NULL / non-finite: pushed as magcal_cont_push_g.
+ * @param[in]     t_ms time stamp, ms (wrapping).
+ * @return as magcal_cont_push.
+ */
+magcal_status_t magcal_cont_push_imu(magcal_cont_t *cc, const magcal_vec3_t *m, const magcal_vec3_t *g,
+                                     const magcal_vec3_t *w, uint32_t t_ms);
 
 /**
  * @brief The tilt compensation's state to keep with the calibration across a power cycle

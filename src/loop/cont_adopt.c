@@ -91,6 +91,7 @@ void magcal_cont_install(magcal_cont_t *cc, const magcal_cal2d_t *c, float r_raw
     cc->mis_bins[0] = 0u;
     cc->mis_bins[1] = 0u;
     magcal_cont_transient_reset(cc);
+    magcal_cont_rate_reset(cc); /* the heading jumps with the calibration: the gyro's track restarts */
     magcal_cont_shift_clear(cc);
     magcal_cont_coarse_mode(cc);
 }

@@ -55,6 +55,11 @@ int magcal_cont_fit_step(magcal_cont_t *cc, magcal_cal_budget_t *b);
 int magcal_cont_episode(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint32_t t_ms);
 /* Reset the transient-disturbance judge (cont_flags.c) after a new calibration or model. */
 void magcal_cont_transient_reset(magcal_cont_t *cc);
+/* Gyro heading check (cont_rate.c, continuous.h "Gyro heading check"): one judged sample j at
+ * t_ms with the gyro's rotation dy (deg, NaN: none) since the sample before; sets cc->rj_flag.
+ * The reset restarts the track (a new calibration, a sample not judged). */
+void magcal_cont_rate(magcal_cont_t *cc, const magcal_cont_judge_t *j, float dy, uint32_t t_ms);
+void magcal_cont_rate_reset(magcal_cont_t *cc);
 /* Declare a change: drop the store, relearn. */
 void magcal_cont_declare_change(magcal_cont_t *cc);
 /* 1 when an open episode spans at least cfg.change_bins sectors (every heading suspect). */

@@ -52,11 +52,11 @@ static magcal_status_t cont_check_cfg(const magcal_cont_cfg_t *c)
     }
 #endif
     if (!magcal_isfinite_f(c->shift_rel) || !magcal_isfinite_f(c->tilt_model_deg) ||
-        !magcal_isfinite_f(c->tilt_trust_deg)) {
+        !magcal_isfinite_f(c->tilt_trust_deg) || !magcal_isfinite_f(c->rate_trust_deg)) {
         return MAGCAL_ERR_NONFINITE;
     }
     if (!(c->shift_rel == 0.0f || (c->shift_rel >= 0.15f && c->shift_rel <= 2.0f)) || c->shift_hold_ms < 1u ||
-        c->continuity > 1u || c->tilt_model_deg < 0.0f || c->tilt_trust_deg < 0.0f) {
+        c->continuity > 1u || c->tilt_model_deg < 0.0f || c->tilt_trust_deg < 0.0f || c->rate_trust_deg < 0.0f) {
         return MAGCAL_ERR_ARG;
     }
     return magcal_cont_arc_cfg_check(c);
@@ -108,6 +108,7 @@ magcal_status_t magcal_cont_init(magcal_cont_t *cc, const magcal_cont_cfg_t *cfg
         const float t = tanf(cfg->tilt_comp_deg * (MAGCAL_PI_F / 180.0f));
         cc->tc_tan2 = t * t; /* push_g's compensation test needs no trigonometry */
     }
+    cc->rj_sgn = -1; /* the gyro heading check's sign in the contract's frame (cont_rate.c) */
     cc->magic = MAGCAL_CONT_MAGIC;
     magcal_cont_coarse_mode(cc);
     if (installed != NULL && installed->radius > 0.0f) {
@@ -140,6 +141,11 @@ static magcal_status_t cont_enqueue(magcal_cont_t *cc, const magcal_vec3_t *m, u
     }
     cc->ring_t[h % MAGCAL_CONT_RING] = t_ms;
     cc->ring_tilt[h % MAGCAL_CONT_RING] = tilt;
+    cc->ring_dy[h % MAGCAL_CONT_RING] = (cc->gy_pend != 0u) ? cc->gy_acc : NAN;
+    if (cc->gy_pend == 0u) {
+        cc->gy_on = 0u; /* a sample without a rate: the next push_imu starts the rotation again */
+    }
+    cc->gy_acc = 0.0f;
     MAGCAL_CONT_BARRIER();
     cc->head = h + 1u;
     return MAGCAL_OK;
@@ -524,6 +530,38 @@ magcal_status_t magcal_cont_push_g(magcal_cont_t *cc, const magcal_vec3_t *m, co
     return cont_enqueue(cc, m, t_ms, code, NULL);
 }
 
+magcal_status_t magcal_cont_push_imu(magcal_cont_t *cc, const magcal_vec3_t *m, const magcal_vec3_t *g,
+                                     const magcal_vec3_t *w, uint32_t t_ms)
+{
+    magcal_status_t st;
+    if (cc == NULL || m == NULL) {
+        return MAGCAL_ERR_NULL;
+    }
+    if (cc->magic != MAGCAL_CONT_MAGIC) {
+        return MAGCAL_ERR_NOT_INITIALISED;
+    }
+    if (w != NULL && magcal_isfinite_f(w->x) && magcal_isfinite_f(w->y) && magcal_isfinite_f(w->z)) {
+        /* the rate about the up axis: along the smoothed gravity of push_g (z without one) */
+        const float n2 = cc->g_s.x * cc->g_s.x + cc->g_s.y * cc->g_s.y + cc->g_s.z * cc->g_s.z;
+        const float wv = MAGCAL_DEG_PER_RAD_F *
+                         ((n2 > 0.0f) ? (w->x * cc->g_s.x + w->y * cc->g_s.y + w->z * cc->g_s.z) / sqrtf(n2) : w->z);
+        const uint32_t dt = t_ms - cc->gy_t; /* wrapping stamps */
+        const uint8_t valid = (uint8_t)((fabsf(wv) <= MAGCAL_CONT_RATE_MAX_DPS) ? 1u : 0u);
+        if (valid != 0u && cc->gy_on != 0u && dt <= MAGCAL_CONT_RATE_GAP_MS && magcal_isfinite_f(cc->gy_acc)) {
+            cc->gy_acc += 0.0005f * (wv + cc->gy_w) * (float)dt; /* trapezoid, deg */
+        } else {
+            cc->gy_acc = NAN; /* the rotation since the sample before is unknown */
+        }
+        cc->gy_w = wv;
+        cc->gy_t = t_ms;
+        cc->gy_on = valid; /* a rate beyond any gyro's range (or an overflow) is no rate */
+        cc->gy_pend = 1u;
+    }
+    st = magcal_cont_push_g(cc, m, g, t_ms);
+    cc->gy_pend = 0u;
+    return st;
+}
+
 magcal_status_t magcal_cont_tilt_state(const magcal_cont_t *cc, float *k, uint8_t *levelled)
 {
     if (cc == NULL || k == NULL || levelled == NULL) {
@@ -652,8 +690,8 @@ magcal_status_t magcal_cont_heading(const magcal_cont_t *cc, const magcal_vec3_t
         }
         (void)magcal_cont_judge(cc, (lv != 0 && cc->cal_lv != 0u) ? &lm : m, &j);
         /* and by the transient judge with this sample too (the drain is a row or more behind) */
-        if (magcal_cont_transient_peek(cc, &j) != 0u) {
-            j.mismatch = 1u;
+        if (magcal_cont_transient_peek(cc, &j) != 0u || cc->rj_flag != 0u) {
+            j.mismatch = 1u; /* or the gyro's check (cont_rate.c) */
         }
     }
     out->radius_rel = j.rel;

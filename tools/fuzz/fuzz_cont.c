@@ -23,7 +23,9 @@
  *   then ops, each one u8 (op % 12) and its operands:
  *     0..4 push: dt u16 (ms), sample (12 bytes float32 or 6 bytes int16); op 4 is push_g, with
  *     u8 kind and a gravity (kind % 3 == 0: 12 bytes float32, else two int8 / 1000 of a 1 g tilt;
- *     kind % 7 == 6: none);  5 step;
+ *     kind % 7 == 6: none); op 3 is push_imu: the gravity of op 4, then u8 kind and a rate
+ *     (kind % 3 == 0: 12 bytes float32, else int8 / 100 rad/s about z; kind % 5 == 4: none);
+ *     5 step;
  *     6 heading: sample, f32 declination;  7 progress;  8 solve_blocking: u8 force;
  *     9 re-init (the reset: optionally with the current calibration installed);
  *     (steps that do solve work are capped at 24 and blocking solves at 4 per input, so one input
@@ -358,7 +360,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             t_ms += fuzz_u16(&in);
             m = fz_sample(&in, as_int16, scale);
             (void)magcal_cont_progress(&fz_cc, &p0);
-            if (op == 4u) {
+            if (op == 3u || op == 4u) {
                 /* push_g: its gravity level test, the tilt compensation's regression and levelling;
                  * the gravity raw float32 bits (NaN, Inf, huge), or a small tilt of 1 g (int8 / 1000
                  * per axis: the regression sees plausible hills), or none */
@@ -371,7 +373,21 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
                     g.y = (float)(int8_t)fuzz_u8(&in) * 0.001f;
                     g.z = 1.0f;
                 }
-                st = magcal_cont_push_g(&fz_cc, &m, gk % 7u == 6u ? NULL : &g, t_ms);
+                if (op == 4u) {
+                    st = magcal_cont_push_g(&fz_cc, &m, gk % 7u == 6u ? NULL : &g, t_ms);
+                } else {
+                    /* push_imu: the gyro's rotation about up into the ring, the heading check */
+                    const uint8_t wk = fuzz_u8(&in);
+                    magcal_vec3_t w;
+                    if (wk % 3u == 0u) {
+                        w = fz_sample(&in, 0, 1.0f);
+                    } else {
+                        w.x = 0.0f;
+                        w.y = 0.0f;
+                        w.z = (float)(int8_t)fuzz_u8(&in) * 0.01f;
+                    }
+                    st = magcal_cont_push_imu(&fz_cc, &m, gk % 7u == 6u ? NULL : &g, wk % 5u == 4u ? NULL : &w, t_ms);
+                }
             } else {
                 st = magcal_cont_push(&fz_cc, &m, t_ms);
             }
