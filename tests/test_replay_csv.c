@@ -75,13 +75,20 @@ static void test_parse_aided_columns_are_recognised_and_required_ones_checked(vo
     TEST_ASSERT_TRUE(isnan(g_d.col[MAGCAL_REPLAY_COL_DOP][0])); /* optional: empty = missing */
     TEST_ASSERT_EQUAL_STRING("dop", magcal_replay_csv_col_name(MAGCAL_REPLAY_COL_DOP));
     magcal_replay_csv_free(&g_d);
+    /* the gyro's rates (the stream's gyro heading check), names case-insensitive */
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, parse("mx,my,gx,GY,gz\n1,2,0.5,-0.25,0.125\n", REQ_XY));
+    TEST_ASSERT_EQUAL_DOUBLE(0.5, g_d.col[MAGCAL_REPLAY_COL_GX][0]);
+    TEST_ASSERT_EQUAL_DOUBLE(-0.25, g_d.col[MAGCAL_REPLAY_COL_GY][0]);
+    TEST_ASSERT_EQUAL_DOUBLE(0.125, g_d.col[MAGCAL_REPLAY_COL_GZ][0]);
+    TEST_ASSERT_EQUAL_STRING("gz", magcal_replay_csv_col_name(MAGCAL_REPLAY_COL_GZ));
+    magcal_replay_csv_free(&g_d);
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, parse("mx,my,roll_deg,height_km\n1,2,nan,0.5\n", req));
     TEST_ASSERT_EQUAL_STRING("dump.csv:2:3: column \"roll_deg\" is required, got \"nan\"", g_err);
     TEST_ASSERT_EQUAL_INT(MAGCAL_ERR_ARG, parse("mx,my,roll_deg\n1,2,3\n", req));
     TEST_ASSERT_EQUAL_STRING("dump.csv:1: missing required column \"height_km\" in the header (read as "
                              "comma-separated; found: mx, my, roll_deg; accepted names: t, mx, my, mz, ax, ay, "
                              "az, heading_ref_deg, cog_deg, speed_mps, glitch, outlier, roll_deg, pitch_deg, "
-                             "yaw_deg, lat_deg, lon_deg, height_km, decimal_year, dop)",
+                             "yaw_deg, lat_deg, lon_deg, height_km, decimal_year, dop, gx, gy, gz)",
                              g_err);
 }
 
@@ -137,7 +144,7 @@ static void test_parse_missing_required_column_names_it(void)
     TEST_ASSERT_EQUAL_STRING("dump.csv:2: missing required column \"my\" in the header (read as "
                              "comma-separated; found: t, mx, mz; accepted names: t, mx, my, mz, ax, ay, az, "
                              "heading_ref_deg, cog_deg, speed_mps, glitch, outlier, roll_deg, pitch_deg, "
-                             "yaw_deg, lat_deg, lon_deg, height_km, decimal_year, dop)",
+                             "yaw_deg, lat_deg, lon_deg, height_km, decimal_year, dop, gx, gy, gz)",
                              g_err);
     TEST_ASSERT_EQUAL_STRING("", g_d.note);
 }
@@ -183,7 +190,7 @@ static void test_parse_unknown_columns_are_described_in_the_note(void)
     TEST_ASSERT_EQUAL_STRING(" \"heading_deg\", \"foo\"; did you mean \"heading_deg\" -> heading_ref_deg (unit "
                              "deg)? (rename the header; units are not read from it); accepted names: t, mx, my, "
                              "mz, ax, ay, az, heading_ref_deg, cog_deg, speed_mps, glitch, outlier, roll_deg, "
-                             "pitch_deg, yaw_deg, lat_deg, lon_deg, height_km, decimal_year, dop",
+                             "pitch_deg, yaw_deg, lat_deg, lon_deg, height_km, decimal_year, dop, gx, gy, gz",
                              g_d.note);
 }
 

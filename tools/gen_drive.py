@@ -39,6 +39,10 @@ at up to 2.5 m/s^2 (before a park or a turn: the ramp lies in the segment before
 accelerates at up to 1.8 m/s^2 (after), rounded over 0.5 s (it stands 0.5 s either side of a park). Its random draws come from a
 generator of their own (seed + 104729): the magnetometer, attitude and truth columns stay the
 same bytes with and without it. Not modelled: body roll on the springs, road bumps.
+Gyro (--gyro; off by default, the other columns are the same bytes with and without it): gx, gy,
+gz appended, the body rates (rad/s, body axes as m) from the attitude's derivative, with a constant
+bias of up to 0.5 deg/s and a scale error of up to 1 % per axis and 0.1 deg/s RMS of white noise
+per sample, drawn from a generator of their own (seed + 15485863).
 Columns: t, mx, my, mz, ax, ay, az (g, specific force: (0, 0, 1) level at rest), roll_deg,
 pitch_deg, yaw_deg (true attitude), lat_deg, lon_deg, height_km, decimal_year, dop (so
 `magcal-replay --mode aided` can read it), heading_ref_deg (TRUE heading = yaw), glitch,
@@ -60,6 +64,9 @@ SITE = (48.1, 11.6, 0.5, 2026.5)
 D2R = math.pi / 180.0
 SIGMA_M = 0.1
 SENSOR_RANGE = 800.0  # uT: the declared range of the simulated magnetometer
+GYRO_BIAS = 0.5    # deg/s: bound of the gyro's constant bias per axis (--gyro)
+GYRO_SCALE = 0.01  # bound of its scale error per axis
+GYRO_NOISE = 0.1   # deg/s RMS per sample
 HEADER = ("t,mx,my,mz,ax,ay,az,roll_deg,pitch_deg,yaw_deg,lat_deg,lon_deg,height_km,decimal_year,"
           "dop,heading_ref_deg,glitch,disturbed,step,parked")
 
@@ -189,6 +196,9 @@ def main(argv):
     ap.add_argument("--out", default="-")
     ap.add_argument("--truth", default=None)
     ap.add_argument("--no-step", action="store_true")
+    ap.add_argument("--gyro", action="store_true",
+                    help="append the gyro's body rates gx, gy, gz in rad/s (file comment); off: the "
+                         "columns are absent and every other byte is the same")
     ap.add_argument("--dyn-accel", action="store_true",
                     help="the accelerometer reads the car's lateral (v x yaw rate) and longitudinal "
                          "(dv/dt) acceleration (file comment); off: gravity and noise only")
@@ -292,9 +302,13 @@ def main(argv):
     # ---- stream the rows
     out = sys.stdout if a.out == "-" else open(a.out, "w", newline="\n")
     out.write("# scenario: gen_drive seed %d, %.1f min at %g Hz (tools/gen_drive.py)\n" % (a.seed, a.minutes, rate))
-    out.write(HEADER + "\n")
+    out.write(HEADER + (",gx,gy,gz" if a.gyro else "") + "\n")
     chunk = 20000
     noise_rng = np.random.default_rng(a.seed + 7919)
+    if a.gyro:
+        grng = np.random.default_rng(a.seed + 15485863)  # its own draws: the other columns stay the same
+        g_bias = grng.uniform(-GYRO_BIAS, GYRO_BIAS, 3) * D2R
+        g_scale = 1.0 + grng.uniform(-GYRO_SCALE, GYRO_SCALE, 3)
     lat, lon, hkm, dyear = SITE
     for c0 in range(0, n, chunk):
         c1 = min(n, c0 + chunk)
@@ -308,6 +322,15 @@ def main(argv):
         acc = -C[:, 2, :] + 0.01 * noise_rng.standard_normal((c1 - c0, 3))
         if dyn is not None:
             acc = acc + dyn[c0:c1]
+        if a.gyro:
+            # body rates from the attitude's derivative: C_b^NED' = C [w]x (central differences)
+            km = np.maximum(np.arange(c0, c1) - 1, 0)
+            kp = np.minimum(np.arange(c0, c1) + 1, n - 1)
+            cm = dcm_ned_batch(roll_deg[km] * D2R, pitch_deg[km] * D2R, yaw_deg[km] * D2R)
+            cp = dcm_ned_batch(roll_deg[kp] * D2R, pitch_deg[kp] * D2R, yaw_deg[kp] * D2R)
+            om = np.einsum("nji,njk->nik", C, (cp - cm) * (rate / (kp - km))[:, None, None])
+            wb = np.stack([om[:, 2, 1], om[:, 0, 2], om[:, 1, 0]], axis=1)
+            gyr = wb * g_scale + g_bias + GYRO_NOISE * D2R * grng.standard_normal((c1 - c0, 3))
         lines = []
         for i in range(c1 - c0):
             k = c0 + i
@@ -323,6 +346,8 @@ def main(argv):
                 k / rate, mm[0], mm[1], mm[2], acc[i, 0], acc[i, 1], acc[i, 2], roll_deg[k], pitch_deg[k],
                 yaw_deg[k] % 360.0, lat, lon, hkm, dyear, yaw_deg[k] % 360.0, glitch[k], disturbed[k], step[k],
                 parked[k]))
+            if a.gyro:
+                lines[-1] = lines[-1][:-1] + ",%.5f,%.5f,%.5f\n" % (gyr[i, 0], gyr[i, 1], gyr[i, 2])
         out.write("".join(lines))
     if out is not sys.stdout:
         out.close()

@@ -13,7 +13,7 @@
 static const char *const k_col_names[MAGCAL_REPLAY_COL_COUNT] = {
     "t", "mx", "my", "mz", "ax", "ay", "az", "heading_ref_deg", "cog_deg", "speed_mps", "glitch",
     "outlier", "roll_deg", "pitch_deg", "yaw_deg", "lat_deg", "lon_deg", "height_km",
-    "decimal_year", "dop"};
+    "decimal_year", "dop", "gx", "gy", "gz"};
 
 const char *magcal_replay_csv_col_name(magcal_replay_col_t c)
 {
@@ -281,7 +281,13 @@ static const alias_t k_aliases[] = {
     {"height", MAGCAL_REPLAY_COL_HEIGHT}, {"alt", MAGCAL_REPLAY_COL_HEIGHT},
     {"altitude", MAGCAL_REPLAY_COL_HEIGHT}, {"year", MAGCAL_REPLAY_COL_YEAR},
     {"decimalyear", MAGCAL_REPLAY_COL_YEAR}, {"hdop", MAGCAL_REPLAY_COL_DOP},
-    {"pdop", MAGCAL_REPLAY_COL_DOP}};
+    {"pdop", MAGCAL_REPLAY_COL_DOP},
+    {"gx", MAGCAL_REPLAY_COL_GX}, {"gyrox", MAGCAL_REPLAY_COL_GX}, {"gyrx", MAGCAL_REPLAY_COL_GX},
+    {"gyroscopex", MAGCAL_REPLAY_COL_GX},
+    {"gy", MAGCAL_REPLAY_COL_GY}, {"gyroy", MAGCAL_REPLAY_COL_GY}, {"gyry", MAGCAL_REPLAY_COL_GY},
+    {"gyroscopey", MAGCAL_REPLAY_COL_GY},
+    {"gz", MAGCAL_REPLAY_COL_GZ}, {"gyroz", MAGCAL_REPLAY_COL_GZ}, {"gyrz", MAGCAL_REPLAY_COL_GZ},
+    {"gyroscopez", MAGCAL_REPLAY_COL_GZ}};
 
 /* Unit words dropped from a header name ("mx (uT)", "mag_x_ut", "heading_deg"). */
 static const char *const k_units[] = {"ut", "nt", "gauss", "mgauss", "g", "mg", "lsb", "counts",

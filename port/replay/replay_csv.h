@@ -81,6 +81,9 @@ typedef enum {
     MAGCAL_REPLAY_COL_HEIGHT,      /**< height above the WGS 84 ellipsoid, km */
     MAGCAL_REPLAY_COL_YEAR,        /**< decimal year (e.g. 2026.5) */
     MAGCAL_REPLAY_COL_DOP,         /**< GNSS dilution of precision */
+    MAGCAL_REPLAY_COL_GX,          /**< gyro x (rate about body x; --gyro-unit) */
+    MAGCAL_REPLAY_COL_GY,          /**< gyro y */
+    MAGCAL_REPLAY_COL_GZ,          /**< gyro z */
     MAGCAL_REPLAY_COL_COUNT
 } magcal_replay_col_t;
 

@@ -2,7 +2,7 @@
 """Stream-order long-drive check of the continuous 2-D calibrator (issue 13).
 
     check_stream.py --gen tools/gen_drive.py --replay magcal-replay --workdir DIR
-                    [--minutes 60] [--seed 1] [--no-step] [--dyn-accel] [--replay-arg ARG]...
+                    [--minutes 60] [--seed 1] [--no-step] [--dyn-accel] [--gyro] [--replay-arg ARG]...
                     [--report-only]
 
 Generates a drive (tools/gen_drive.py: known truth), runs `magcal-replay --stream --headings
@@ -22,6 +22,8 @@ object; exit 1 when a requirement of issue 13 fails (unless --report-only), 77 w
                              drive_stream_* asserts what is met today (tools/drive/CMakeLists.txt).
     --dyn-accel              passed to the generator (its accelerometer reads the car's lateral
                              and longitudinal acceleration: tools/gen_drive.py)
+    --gyro                   passed to the generator (gx, gy, gz appended: the replay pushes
+                             with magcal_cont_push_imu, the gyro heading check)
     --replay-arg ARG         passed to magcal-replay (repeatable; e.g. --replay-arg=--no-tilt: no
                              gravity fed)
     --gravity-report         copy the replay's gravity counters (rows fed, LEVEL rows, levelled
@@ -79,6 +81,7 @@ def main():
     ap.add_argument("--python", default=sys.executable)
     ap.add_argument("--require", default=None)
     ap.add_argument("--dyn-accel", action="store_true")
+    ap.add_argument("--gyro", action="store_true")
     ap.add_argument("--replay-arg", action="append", default=[])
     ap.add_argument("--gravity-report", action="store_true")
     a = ap.parse_args()
@@ -90,7 +93,8 @@ def main():
         if bad:
             ap.error("unknown --require key(s) %s (known: %s)" % (",".join(bad), ",".join(keys)))
     os.makedirs(a.workdir, exist_ok=True)
-    tag = "s%d_m%g%s%s" % (a.seed, a.minutes, "_nostep" if a.no_step else "", "_dyn" if a.dyn_accel else "")
+    tag = "s%d_m%g%s%s%s" % (a.seed, a.minutes, "_nostep" if a.no_step else "", "_dyn" if a.dyn_accel else "",
+                             "_gyro" if a.gyro else "")
     dump = os.path.join(a.workdir, "drive_%s.csv" % tag)
     truth_p = os.path.join(a.workdir, "drive_%s.json" % tag)
     hd_p = os.path.join(a.workdir, "stream_%s_headings.csv" % tag)
@@ -99,6 +103,8 @@ def main():
         cmd.append("--no-step")
     if a.dyn_accel:
         cmd.append("--dyn-accel")
+    if a.gyro:
+        cmd.append("--gyro")
     subprocess.run(cmd, check=True)
     truth = json.load(open(truth_p))
     out = subprocess.run([a.replay, "--stream", "--declination", repr(truth["declination_deg"]),

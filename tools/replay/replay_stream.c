@@ -39,7 +39,8 @@ static magcal_cont3_t g_c3;
 static const char k_stream_usage[] =
     "usage: magcal-replay --stream [--mode 2d|3d] [--headings OUT.csv] [--json] [--declination DEG]\n"
     "                        [--range R] [--steps-per-row K] [--coarse DEG[,TOL]] [--arc DEG[,TOL[,MODEL]]]\n"
-    "                        [--continuity 0|1] [--no-tilt] [--level-tilt DEG] [--install REC] [--save REC] DUMP.csv\n"
+    "                        [--continuity 0|1] [--no-tilt] [--level-tilt DEG] [--install REC] [--save REC]\n"
+    "                        [--no-gyro] [--gyro-unit rads|dps] DUMP.csv\n"
     "                        (R: the sensor's declared range)\n"
     "  --coarse: 2-D coarse stage on (cfg.coarse_coverage_deg DEG, cfg.coarse_max_err_deg TOL; off by\n"
     "  default): adoptions of a hard-iron circle carry status \"coarse\", its headings trust \"coarse\";\n"
@@ -59,7 +60,10 @@ static const char k_stream_usage[] =
     "  \"gravity_fed\": true), else with magcal_cont_push; --no-tilt: never (magcal_cont_push, as\n"
     "  without an accelerometer); --level-tilt DEG: cfg.intake.tilt_limit_deg (default 2; 0 = off)\n"
     "  --install REC: start from the 2-D flash record REC (magcal/record.h; a calibration restored at\n"
-    "  power-up); --save REC: write the full calibration in force at the end as such a record\n";
+    "  power-up); --save REC: write the full calibration in force at the end as such a record\n"
+    "  gyro: when the dump has gx, gy, gz (--gyro-unit rads (default) | dps), each row is pushed with\n"
+    "  magcal_cont_push_imu (the gyro heading check, continuous.h; JSON \"gyro_fed\": true, rate_flags,\n"
+    "  rate_sign, rate_bias_dps); --no-gyro: never\n";
 
 /* Open the headings CSV (hpath NULL: none) and write its header; 0 when it cannot be written
  * (said on stderr). */
@@ -607,6 +611,8 @@ int replay_stream_main(int argc, char **argv)
                                            {"level-tilt", required_argument, NULL, 'L'},
                                            {"install", required_argument, NULL, 'I'},
                                            {"save", required_argument, NULL, 'S'},
+                                           {"no-gyro", no_argument, NULL, 'G'},
+                                           {"gyro-unit", required_argument, NULL, 'U'},
                                            {"help", no_argument, NULL, 'h'},
                                            {NULL, 0, NULL, 0}};
     const char *hpath = NULL;
@@ -634,6 +640,9 @@ int replay_stream_main(int argc, char **argv)
     const char *install_path = NULL; /* --install REC: a calibration restored from flash at init */
     const char *save_path = NULL;    /* --save REC: the calibration in force at the end, as a record */
     magcal_record_t rec_in;
+    int no_gyro = 0;
+    double wscale = 1.0; /* gyro unit to rad/s */
+    int gyro = 0;        /* 1: rows pushed with magcal_cont_push_imu */
 
     optind = 1;
     while ((opt = getopt_long(argc, argv, "h", k_opts, NULL)) != -1) {
@@ -735,6 +744,19 @@ int replay_stream_main(int argc, char **argv)
         case 'S':
             save_path = optarg;
             break;
+        case 'G':
+            no_gyro = 1;
+            break;
+        case 'U':
+            if (strcmp(optarg, "rads") == 0) {
+                wscale = 1.0;
+            } else if (strcmp(optarg, "dps") == 0) {
+                wscale = 3.14159265358979323846 / 180.0;
+            } else {
+                fprintf(stderr, "magcal-replay: --gyro-unit must be rads or dps, got \"%s\"\n", optarg);
+                return 1;
+            }
+            break;
         case 'h':
             fputs(k_stream_usage, stdout);
             return 0;
@@ -785,6 +807,8 @@ int replay_stream_main(int argc, char **argv)
                             "no gravity fed (--no-tilt to silence)\n", argv[optind]);
         }
     }
+    gyro = !no_gyro && d.col[MAGCAL_REPLAY_COL_GX] != NULL && d.col[MAGCAL_REPLAY_COL_GY] != NULL &&
+           d.col[MAGCAL_REPLAY_COL_GZ] != NULL;
     if (stream_headings_open(hpath, ref != NULL, &hf) == 0) {
         magcal_replay_csv_free(&d);
         return 4;
@@ -800,7 +824,20 @@ int replay_stream_main(int argc, char **argv)
         m.y = (float)d.col[MAGCAL_REPLAY_COL_MY][i];
         m.z = isfinite(mz) ? (float)mz : 0.0f;
         t_ms = stream_row_ms(tc, i);
-        if (gscale > 0.0) {
+        if (gyro) {
+            /* the gyro heading check (continuous.h): rates in rad/s, gravity when fed */
+            magcal_vec3_t g = {0.0f, 0.0f, 0.0f};
+            magcal_vec3_t w;
+            if (gscale > 0.0) {
+                g.x = (float)(d.col[MAGCAL_REPLAY_COL_AX][i] * gscale);
+                g.y = (float)(d.col[MAGCAL_REPLAY_COL_AY][i] * gscale);
+                g.z = (float)(d.col[MAGCAL_REPLAY_COL_AZ][i] * gscale);
+            }
+            w.x = (float)(d.col[MAGCAL_REPLAY_COL_GX][i] * wscale);
+            w.y = (float)(d.col[MAGCAL_REPLAY_COL_GY][i] * wscale);
+            w.z = (float)(d.col[MAGCAL_REPLAY_COL_GZ][i] * wscale);
+            (void)magcal_cont_push_imu(&g_cc, &m, gscale > 0.0 ? &g : NULL, &w, t_ms);
+        } else if (gscale > 0.0) {
             /* a non-finite row is pushed without a tilt code (push_g checks it) */
             magcal_vec3_t g;
             g.x = (float)(d.col[MAGCAL_REPLAY_COL_AX][i] * gscale);
@@ -880,6 +917,13 @@ int replay_stream_main(int argc, char **argv)
         cJSON_AddNumberToObject(root, "levelled_rows", (double)g_cc.tc_levelled);
         cJSON_AddNumberToObject(root, "relevels", (double)g_cc.relevels); /* compensation on under an unlevelled calibration */
         cJSON_AddNumberToObject(root, "cal_levels", (double)g_cc.levels); /* such calibrations levelled by their fit tilt */
+    }
+    cJSON_AddBoolToObject(root, "gyro_fed", gyro);
+    if (gyro) {
+        /* the gyro heading check (continuous.h): flags raised, the learnt sign and bias */
+        cJSON_AddNumberToObject(root, "rate_flags", (double)g_cc.rj_flags);
+        cJSON_AddNumberToObject(root, "rate_sign", (double)g_cc.rj_sgn);
+        cJSON_AddNumberToObject(root, "rate_bias_dps", (double)g_cc.rj_b);
     }
     cJSON_AddNumberToObject(root, "shifts", (double)g_cc.shifts); /* level shifts (continuous.h) */
     cJSON_AddNumberToObject(root, "shift_refused", (double)g_cc.shift_refused);
