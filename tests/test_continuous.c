@@ -85,7 +85,12 @@ typedef struct {
     float idle_cov;            /* the last such coverage before the first adoption: the store the
                                   adopting solve snapshotted (its snapshot starts after that row) */
     float first_cov;           /* the coverage the first adopted solve reported */
+    int gyro;                  /* 0: push; +-1: push_imu with the gyro's rate about z (-1: a frame
+                                  mirrored against the magnetometer's) */
+    double psi_prev;           /* heading of the row before (the gyro's rotation) */
 } drive_t;
+
+#define GYRO_BIAS_DPS 0.4 /* the test gyro's bias about z, deg/s */
 
 static void drive_init(drive_t *dr, const test_distortion_t *d, uint32_t seed)
 {
@@ -107,8 +112,12 @@ static magcal_cont_outcome_t drive_row(drive_t *dr, float ex, float ey)
     dr->before = g_cc.cal;
     {
         magcal_status_t st;
+        /* a right-handed rotation about up turns the heading anticlockwise: w_z = -dpsi/dt */
+        const double rate = -test_angle_diff_deg(dr->psi, dr->psi_prev) / (RATE_MS * 1e-3) + GYRO_BIAS_DPS;
+        magcal_vec3_t w = {0.0f, 0.0f, (float)((double)dr->gyro * rate * 3.14159265358979 / 180.0)};
+        dr->psi_prev = dr->psi;
         TICK_START();
-        st = magcal_cont_push(&g_cc, &m, dr->t_ms);
+        st = (dr->gyro != 0) ? magcal_cont_push_imu(&g_cc, &m, NULL, &w, dr->t_ms) : magcal_cont_push(&g_cc, &m, dr->t_ms);
         TICK_END(0);
         TEST_ASSERT_EQUAL_INT(MAGCAL_OK, st);
     }
@@ -443,6 +452,74 @@ void test_cont_transient_turning_the_heading_stays_flagged(void)
     TEST_ASSERT_EQUAL_UINT(0u, mid_ok);
     TEST_ASSERT_TRUE(onset_ok <= 15u);
     TEST_ASSERT_TRUE(clean_flag <= 15u); /* <= 2 % of 750 */
+}
+
+/* The gyro heading check (continuous.h "Gyro heading check"): the transient of the test above
+ * (across the field, 2 s while driving straight), with the gyro's rate about z (a 0.4 deg/s bias),
+ * in the contract's frame and in a mirrored one (its sign found on the turns). Every OK heading
+ * under the transient within 3 deg of the truth; the clean rows after it OK; without the gyro
+ * (the same stream) the onset's OK headings are off by more. */
+static void gyro_transient(int gyro, unsigned *onset_ok, double *worst, unsigned *clean_not_ok)
+{
+    drive_t dr;
+    magcal_cont_heading_t hd;
+    size_t i;
+    cont_init_default(NULL);
+    drive_init(&dr, &k_d, 37u);
+    dr.gyro = gyro;
+    drive_turn(&dr, 720.0, 15.0);
+    TEST_ASSERT_TRUE(dr.adopted >= 1u);
+    drive_turn(&dr, 360.0, 15.0); /* the sign checked on 180 deg of turning */
+    drive_straight(&dr, 70u);    /* the warm-up: 60 s of judged samples */
+    *onset_ok = 0u;
+    *worst = 0.0;
+    *clean_not_ok = 0u;
+    for (i = 0u; i < 50u * 20u; ++i) {
+        const int dist = i >= 150u && i < 250u;
+        const double env = dist ? 0.5 * (1.0 - cos(2.0 * 3.14159265358979 * (double)(i - 150u) / 100.0)) : 0.0;
+        const double a = dr.psi * 3.14159265358979 / 180.0;
+        /* 30 % of the field across it (perpendicular to the field's horizontal direction) */
+        const float ex = (float)(9.0 * env * cos(a));
+        const float ey = (float)(9.0 * env * sin(a));
+        magcal_vec2_t p;
+        magcal_vec3_t m;
+        (void)drive_row(&dr, ex, ey);
+        p = test_distorted_sample(dr.d, dr.psi, 0.0, &dr.rng);
+        m.x = p.x + ex;
+        m.y = p.y + ey;
+        m.z = 40.0f;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_heading(&g_cc, &m, 0.0f, &hd));
+        if (dist && hd.trust == MAGCAL_TRUST_OK) {
+            const double e = fabs(test_angle_diff_deg(hd.heading_deg, dr.psi));
+            *onset_ok += e > 3.0 ? 1u : 0u;
+            *worst = fmax(*worst, e);
+        } else if (i >= 250u) {
+            *clean_not_ok += hd.trust != MAGCAL_TRUST_OK ? 1u : 0u;
+        } else {
+            /* flagged under it, or before it */
+        }
+    }
+    printf("gyro %d: sign %d warm %u ms bias %.3f deg/s flags %u\n", gyro, g_cc.rj_sgn, (unsigned)g_cc.rj_ms, (double)g_cc.rj_b, (unsigned)g_cc.rj_flags);
+    if (gyro != 0) {
+        TEST_ASSERT_EQUAL_INT(gyro > 0 ? -1 : 1, g_cc.rj_sgn); /* the mirrored frame found */
+    }
+}
+
+void test_cont_gyro_flags_a_disturbance_across_the_field(void)
+{
+    unsigned onset[3], clean[3];
+    double worst[3];
+    gyro_transient(0, &onset[0], &worst[0], &clean[0]);
+    gyro_transient(1, &onset[1], &worst[1], &clean[1]);
+    gyro_transient(-1, &onset[2], &worst[2], &clean[2]);
+    printf("gyro heading check, 2-s transient of 0.3 |B| across the field: OK rows > 3 deg off under it "
+           "(worst OK) / clean rows after it not OK (of 750): no gyro %u (%.2f deg) / %u; gyro %u (%.2f) / %u; "
+           "mirrored gyro %u (%.2f) / %u\n",
+           onset[0], worst[0], clean[0], onset[1], worst[1], clean[1], onset[2], worst[2], clean[2]);
+    TEST_ASSERT_TRUE(onset[0] >= 3u && worst[0] > 5.0); /* the magnitude judge alone lets the onset through */
+    TEST_ASSERT_EQUAL_UINT(0u, onset[1]);
+    TEST_ASSERT_EQUAL_UINT(0u, onset[2]);
+    TEST_ASSERT_TRUE(clean[1] <= 15u && clean[2] <= 15u); /* <= 2 % */
 }
 
 #ifdef CONT_TEST_THREADS
@@ -2005,6 +2082,7 @@ int main(void)
     RUN_TEST(test_cont_hard_iron_step_relearned);
     RUN_TEST(test_cont_transient_flagged_not_discarded);
     RUN_TEST(test_cont_transient_turning_the_heading_stays_flagged);
+    RUN_TEST(test_cont_gyro_flags_a_disturbance_across_the_field);
     RUN_TEST(test_cont_sliced_solve_matches_blocking);
     RUN_TEST(test_cont_sliced_field_fit_matches_unlimited);
     RUN_TEST(test_cont_coarse_cfg_checked);
