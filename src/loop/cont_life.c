@@ -141,11 +141,13 @@ static magcal_status_t cont_enqueue(magcal_cont_t *cc, const magcal_vec3_t *m, u
     }
     cc->ring_t[h % MAGCAL_CONT_RING] = t_ms;
     cc->ring_tilt[h % MAGCAL_CONT_RING] = tilt;
-    cc->ring_dy[h % MAGCAL_CONT_RING] = (cc->gy_pend != 0u) ? cc->gy_acc : NAN;
-    if (cc->gy_pend == 0u) {
+    if (cc->gy_pend != 0u) {
+        cc->ring_dy[h % MAGCAL_CONT_RING] = cc->gy_acc;
+        cc->gy_acc = 0.0f;
+    } else {
+        cc->ring_dy[h % MAGCAL_CONT_RING] = NAN;
         cc->gy_on = 0u; /* a sample without a rate: the next push_imu starts the rotation again */
     }
-    cc->gy_acc = 0.0f;
     MAGCAL_CONT_BARRIER();
     cc->head = h + 1u;
     return MAGCAL_OK;

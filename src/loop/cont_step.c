@@ -112,8 +112,7 @@ static int cont_judge_on(const magcal_cont_t *cc)
 }
 
 /* Judge one sample against the installed calibration (change detection): 1 = do not store it. */
-static MAGCAL_NOINLINE int cont_screen(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms, int levelled,
-                                       float dy)
+static MAGCAL_NOINLINE int cont_screen(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms, int levelled)
 {
     magcal_cont_judge_t j;
     magcal_cont_shift_watch(cc, m, t_ms, levelled); /* before any calibration: a jump that stays (cont_shift.c) */
@@ -125,7 +124,8 @@ static MAGCAL_NOINLINE int cont_screen(magcal_cont_t *cc, const magcal_vec3_t *m
         magcal_cont_rate_reset(cc);
     } else if (magcal_cont_judge(cc, levelled != 0 && cc->cal_lv == 0u ? &cc->jm : m, &j) != 0) {
         j.tilted = (uint8_t)((cc->j_tilted != 0u && cc->fz_on == 0u) ? 1u : 0u); /* set by the drain */
-        magcal_cont_rate(cc, &j, dy, t_ms);
+        /* the gyro's rotation queued with a ring sample (the drain's, at cc->tail; a parked one has none) */
+        magcal_cont_rate(cc, &j, (m != &cc->park_m) ? cc->ring_dy[cc->tail % MAGCAL_CONT_RING] : NAN, t_ms);
         if (magcal_cont_episode(cc, &j, t_ms) != 0) {
             magcal_cont_declare_change(cc); /* the store restarts with this sample */
         } else if (j.mismatch != 0u) {
@@ -312,8 +312,7 @@ static MAGCAL_NOINLINE uint32_t cont_drain(magcal_cont_t *cc, uint32_t max, magc
                 }
             }
         }
-        if (cont_screen(cc, m, m == &cc->park_m ? cc->park_t : cc->ring_t[t % MAGCAL_CONT_RING], lv,
-                        m == &cc->park_m ? NAN : cc->ring_dy[t % MAGCAL_CONT_RING]) == 0) {
+        if (cont_screen(cc, m, m == &cc->park_m ? cc->park_t : cc->ring_t[t % MAGCAL_CONT_RING], lv) == 0) {
             /* stored samples are counted by the store (added + replaced); with the tilt code of
              * push_g (the store's level preference) */
             const magcal_intake_tilt_t tilt = cont_store_tilt(code);

@@ -474,7 +474,7 @@ def write_drives_header(path, python, tmp_root, real=True):
     csv = os.path.join(tmp_root, "cont_drive.csv")
     g = CONT_GEN
     p = run([python, os.path.join(ROOT, "tools", "gen_drive.py"), "--minutes", str(g["minutes"]), "--seed",
-             str(g["seed"]), "--rate", str(g["rate"]), "--out", csv])
+             str(g["seed"]), "--rate", str(g["rate"]), "--gyro", "--out", csv])
     if p.returncode != 0:
         log("   gen_drive.py failed: " + p.stderr.strip()[-300:])
         return None
@@ -487,7 +487,8 @@ def write_drives_header(path, python, tmp_root, real=True):
         ix = [hdr.index(c) for c in cols]
         return [[float(r.split(",")[i]) for i in ix] for r in lines[1:]]
 
-    rows = load(csv, ["t", "mx", "my", "mz", "ax", "ay", "az"])  # the generated drive's gravity: push_g
+    # the generated drive's gravity and gyro: push_imu (the gyro heading check in the drain)
+    rows = load(csv, ["t", "mx", "my", "mz", "ax", "ay", "az", "gx", "gy", "gz"])
     drives.append((g["name"], rows, 1, g["range"]))
     d = shared_dir()
     fn = os.path.join(d, "data", "real", CONT_REAL["name"], "data.csv") if d and real else None
@@ -512,8 +513,14 @@ def write_drives_header(path, python, tmp_root, real=True):
             L.append("static const int16_t g_drive_g%d[][3] = {" % k)
             L += ["    {%d, %d, %d}," % tuple(int(round(v * 1000.0)) for v in r[4:7]) for r in rows]
             L.append("};")
-        tab.append('    {"%s", g_drive_m%d, g_drive_t%d, %s, %du, %du, %du, %sf},' % (name, k, k, gname, len(rows), reps,
-                                                                             period, repr(float(rng))))
+        wname = "NULL"
+        if len(rows[0]) >= 10:  # gyro rates in 1e-4 rad/s (int16: +-3.2 rad/s)
+            wname = "g_drive_w%d" % k
+            L.append("static const int16_t g_drive_w%d[][3] = {" % k)
+            L += ["    {%d, %d, %d}," % tuple(int(round(v * 1e4)) for v in r[7:10]) for r in rows]
+            L.append("};")
+        tab.append('    {"%s", g_drive_m%d, g_drive_t%d, %s, %s, %du, %du, %du, %sf},' % (
+            name, k, k, gname, wname, len(rows), reps, period, repr(float(rng))))
     L.append("static const bench_drive_t g_drives[] = {")
     L += tab
     L.append("};")
@@ -696,8 +703,8 @@ def cont_markdown(cont):
     g = CONT_GEN
     L.append("`cont.elf` (`tools/bench/m4f_image/main_cont.c`, QEMU mps2-an386 `-icount shift=0`, SysTick read "
              "around every call, 40 instructions per tick): `MAGCAL_CONT_CFG_DEFAULT` (36 x 8 = 288 slots), the "
-             "sensor's declared range the only setting; per row `magcal_cont_push` (`magcal_cont_push_g` with the generated drive's gravity), `magcal_cont_step`, "
-             "`magcal_cont_heading`. Drives: `%s` = `tools/gen_drive.py --minutes %g --seed %d --rate %g` (parking, "
+             "sensor's declared range the only setting; per row `magcal_cont_push` (`magcal_cont_push_imu` with the generated drive's gravity and gyro, `--gyro`), `magcal_cont_step`, "
+             "`magcal_cont_heading`. Drives: `%s` = `tools/gen_drive.py --minutes %g --seed %d --rate %g --gyro` (parking, "
              "turns, hills, glitches, transients, the mid-drive hard-iron step; range %g uT); `%s` = the shared real "
              "recording repeated %d times (when ../shared exists; full mode only). A solve = the step that starts it to the step "
              "that ends it (adopted, refused or failed); its cost is the sum of those step calls." % (

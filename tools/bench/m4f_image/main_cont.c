@@ -10,8 +10,8 @@
  * repeated when ../shared exists; never committed). The one setting taken from the drive is the
  * sensor's declared range (cfg.intake.range_limit, as the port would declare it: 800 uT for the
  * generated drive, whose glitch bursts stick an axis at that rail; 0 = undeclared). Per row, exactly what a firmware does:
- * magcal_cont_push() (magcal_cont_push_g() with the drive's gravity when it has one: the generated
- * drive), magcal_cont_step(), magcal_cont_heading(), SysTick read around each call.
+ * magcal_cont_push() (magcal_cont_push_imu() with the drive's gravity and gyro when it has them:
+ * the generated drive), magcal_cont_step(), magcal_cont_heading(), SysTick read around each call.
  *
  * A solve runs from the step that starts it (the first IN_PROGRESS after a non-IN_PROGRESS) to the
  * step that ends it (ADOPTED, REFUSED or FAILED); its cost is the sum of those step calls,
@@ -48,6 +48,7 @@ typedef struct {
     const magcal_vec3_t *m;
     const uint32_t *t_ms;
     const int16_t (*g)[3]; /* gravity in milli-g (pushed with magcal_cont_push_g), NULL = none */
+    const int16_t (*w)[3]; /* gyro rates in 1e-4 rad/s (with g: magcal_cont_push_imu), NULL = none */
     uint32_t n;
     uint32_t reps;
     uint32_t period_ms;
@@ -127,8 +128,9 @@ static void report_call(const char *drive, unsigned which, uint32_t n)
     }
 }
 
-/* Row i's push: magcal_cont_push_g with the drive's gravity (its tilt compensation, continuous.h),
- * else magcal_cont_push. */
+/* Row i's push: magcal_cont_push_imu with the drive's gravity and gyro (the tilt compensation and
+ * the gyro heading check, continuous.h), magcal_cont_push_g with its gravity alone, else
+ * magcal_cont_push. */
 static magcal_status_t bench_push(const bench_drive_t *d, uint32_t i, uint32_t t_ms)
 {
     if (d->g != NULL) {
@@ -136,6 +138,13 @@ static magcal_status_t bench_push(const bench_drive_t *d, uint32_t i, uint32_t t
         g.x = (float)d->g[i][0] * 0.001f;
         g.y = (float)d->g[i][1] * 0.001f;
         g.z = (float)d->g[i][2] * 0.001f;
+        if (d->w != NULL) {
+            magcal_vec3_t w;
+            w.x = (float)d->w[i][0] * 1e-4f;
+            w.y = (float)d->w[i][1] * 1e-4f;
+            w.z = (float)d->w[i][2] * 1e-4f;
+            return magcal_cont_push_imu(&g_cc, &d->m[i], &g, &w, t_ms);
+        }
         return magcal_cont_push_g(&g_cc, &d->m[i], &g, t_ms);
     }
     return magcal_cont_push(&g_cc, &d->m[i], t_ms);
