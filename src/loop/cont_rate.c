@@ -56,9 +56,9 @@ void magcal_cont_rate_reset(magcal_cont_t *cc)
  * clean turning (dm the magnetic heading's move, dy the gyro's rotation): a regression slope of
  * the other sign (a gyro frame mirrored against the magnetometer's) turns it, and the track
  * starts again with a new warm-up. */
-static void rj_check_sign(magcal_cont_t *cc, float dm, float dy, int clean)
+static void rj_check_sign(magcal_cont_t *cc, float dm, float dy, uint8_t clean)
 {
-    if (clean != 0 && fabsf(dy) > RJ_TURN_DEG) {
+    if (clean != 0u && fabsf(dy) > RJ_TURN_DEG) {
         cc->rj_sx += dm * dy;
         cc->rj_sa += dy * dy;
         cc->rj_turn += fabsf(dy);
@@ -81,12 +81,12 @@ static void rj_check_sign(magcal_cont_t *cc, float dm, float dy, int clean)
 void magcal_cont_rate(magcal_cont_t *cc, const magcal_cont_judge_t *j, float dy, uint32_t t_ms)
 {
     const uint32_t dt = t_ms - cc->rj_t;
-    const int clean = (j->gross == 0u && cc->dist_flag == 0u && magcal_isfinite_f(j->rel) &&
-                       fabsf(j->rel) <= RJ_GROSS) ? 1 : 0;
+    const uint8_t clean = (uint8_t)((j->gross == 0u && cc->dist_flag == 0u && magcal_isfinite_f(j->rel) &&
+                                     fabsf(j->rel) <= RJ_GROSS) ? 1u : 0u);
     float d;
     float thr;
     float dts;
-    int warm;
+    uint8_t warm;
     uint8_t over;
     cc->rj_t = t_ms;
     if (!(cc->cfg.rate_trust_deg > 0.0f) || !magcal_isfinite_f(dy) || !magcal_isfinite_f(j->heading)) {
@@ -115,12 +115,12 @@ void magcal_cont_rate(magcal_cont_t *cc, const magcal_cont_judge_t *j, float dy,
     cc->rj_dev = d;
     thr = fmaxf(cc->cfg.rate_trust_deg, RJ_K * sqrtf(cc->rj_var)) + RJ_TURN_K * cc->rj_rot;
     over = (uint8_t)((fabsf(d) > ((cc->rj_flag != 0u) ? RJ_HYST * thr : thr)) ? 1u : 0u);
-    warm = (cc->rj_ms < RJ_WARM_MS) ? 1 : 0;
-    if (warm != 0) {
+    warm = (uint8_t)((cc->rj_ms < RJ_WARM_MS) ? 1u : 0u);
+    if (warm != 0u) {
         cc->rj_ms += dt;
         over = 0u;
     }
-    if (over != 0u || clean == 0) {
+    if (over != 0u || clean == 0u) {
         /* coast on the gyro: the track does not follow a disturbance */
         cc->rj_coast_ms += dt;
         if (cc->rj_coast_ms > RJ_COAST_MS) {
@@ -133,7 +133,7 @@ void magcal_cont_rate(magcal_cont_t *cc, const magcal_cont_judge_t *j, float dy,
         cc->rj_coast_ms = 0u;
         cc->rj_psi = rj_wrap180(cc->rj_psi + 2.0f * RJ_WN * d * dts);
         cc->rj_b -= RJ_WN * RJ_WN * d * dts;
-        if (warm == 0) {
+        if (warm == 0u) {
             cc->rj_var += w * (d * d - cc->rj_var); /* the bias settled: the deviation's noise */
         }
     }

@@ -133,6 +133,8 @@ static MAGCAL_NOINLINE int cont_screen(magcal_cont_t *cc, const magcal_vec3_t *m
         } else {
             /* consistent: stored */
         }
+    } else {
+        /* no calibration installed: nothing judges the sample (its gyro track starts at the next one) */
     }
     return 0;
 }
