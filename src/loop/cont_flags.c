@@ -37,6 +37,7 @@
 #define CONT_DIST_HYST 0.5f       /* a flag ends below this x the residual's threshold */
 #define CONT_DIST_HYST_U 0.75f    /* ... and this x the vertical channel's */
 #define CONT_DIST_CLAMP_U 1.0f    /* raw z / R enters its smoothing clamped to the baseline +- this */
+#define CONT_DIST_WARM_MS 1000u   /* no new flag this long after a reset: the baselines' running mean settles */
 
 /* Packed lower index of the regression's 4 x 4 moments. */
 #define CONT_DIST_P(i, j) ((i) * ((i) + 1u) / 2u + (j))
@@ -188,7 +189,9 @@ void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint
         /* the baseline starts at the stream's value, not at the store's mean (0): where the
          * vehicle is when a fit ends (a hill, a heading the model explains worst) the model's
          * bias is not 0, and a baseline at 0 flagged the clean rows for the 8 s of a held flag
-         * and more (seed 1: 400..800 rows after each adoption) */
+         * and more (seed 1: 400..800 rows after each adoption); its age counts from here (the
+         * first sample after a reset may come a pause later: the field-model fit) */
+        cc->dist_age_ms = 0u;
         cc->dist_e = x;
         cc->dist_base = x;
         cc->dist_ue = j->u;
@@ -212,6 +215,12 @@ void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint
         cc->dist_n++;
     }
     over = cont_dist_dev(cc, cc->dist_e, cc->dist_ue, cc->dist_fe, dx, v);
+    if (cc->dist_age_ms < CONT_DIST_WARM_MS && cc->dist_flag == 0u) {
+        /* the baselines started at one sample's value (its noise, up to the threshold): their
+         * running mean settles first (a start 0.009 off held a flickering flag, never 6 s long
+         * enough to restart, over 604 clean parked rows after 30-min seed 2's relearn) */
+        over = 0u;
+    }
     d = v[0];
     du = v[1];
     dr0 = v[2];
@@ -303,8 +312,8 @@ uint8_t magcal_cont_transient_peek(const magcal_cont_t *cc, const magcal_cont_ju
     float e;
     float ue;
     if (cc->dist_n == 0u || !magcal_isfinite_f(j->rel) || !(fabsf(j->rel) <= CONT_DIST_GROSS) ||
-        !magcal_isfinite_f(j->u)) {
-        return 0u;
+        !magcal_isfinite_f(j->u) || (cc->dist_age_ms < CONT_DIST_WARM_MS && cc->dist_flag == 0u)) {
+        return 0u; /* (no new flag while the baselines settle, as magcal_cont_transient) */
     }
     cont_dist_feat(j, f);
     cont_dist_smooth(cc, fminf(fmaxf(j->rel, -CONT_DIST_CLAMP), CONT_DIST_CLAMP), j->u, f, cc->dist_dt, &e, &ue, fe);
