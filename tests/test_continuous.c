@@ -523,9 +523,9 @@ void test_cont_gyro_flags_a_disturbance_across_the_field(void)
 }
 
 #ifdef CONT_TEST_THREADS
-/* Interrupt / task interleaving: a producer thread pushes (as an ISR would) while the task steps
- * and reads headings; every sample is either taken by step or counted as dropped, and the
- * calibrator calibrates. */
+/* Interrupt / task interleaving: a producer thread pushes (as an ISR would; push_imu, then push)
+ * while the task steps and reads headings; every sample is either taken by step or counted as
+ * dropped, and the calibrator calibrates. */
 typedef struct {
     uint32_t n;
     uint32_t ok;
@@ -544,7 +544,11 @@ static void *producer(void *arg)
         magcal_vec3_t m = {p.x, p.y, 40.0f};
         magcal_status_t st;
         do {
-            st = magcal_cont_push(&g_cc, &m, i * RATE_MS);
+            /* the first two thirds through push_imu (the rate of its 0.3 deg per sample, about z),
+             * the rest through push: both producers' state is the ISR's */
+            const magcal_vec3_t w = {0.0f, 0.0f, (float)(-0.3 / (RATE_MS * 1e-3) * 3.14159265358979 / 180.0)};
+            st = (i < 2u * pr->n / 3u) ? magcal_cont_push_imu(&g_cc, &m, NULL, &w, i * RATE_MS)
+                                       : magcal_cont_push(&g_cc, &m, i * RATE_MS);
             if (st == MAGCAL_OK) {
                 pr->ok++;
             } else {

@@ -248,7 +248,9 @@
  * writes its gravity classifier's and tilt compensation's state, which nothing else writes, and
  * reads the store's centre, radius and centre generation and the instance's change count,
  * calibration flags (has_cal, cal_lv), transient flag and state, which step writes: a torn read
- * misplaces one sample of k's fit or delays the switch-on by one sample). Everything else (step,
+ * misplaces one sample of k's fit or delays the switch-on by one sample; magcal_cont_push_imu
+ * writes its rate state (gy_*) and the ring's rotations, which nothing else writes, and is
+ * push_g otherwise: the three push calls are one producer). Everything else (step,
  * solve_blocking, heading, progress, status, reset) must run in ONE task context (not
  * concurrently with each other). Two push callers on one instance need the caller's own lock.
  * When the ring is full the sample is dropped and counted (MAGCAL_ERR_BUFFER_FULL). The index
