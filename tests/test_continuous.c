@@ -88,6 +88,7 @@ typedef struct {
     int gyro;                  /* 0: push; +-1: push_imu with the gyro's rate about z (-1: a frame
                                   mirrored against the magnetometer's) */
     double psi_prev;           /* heading of the row before (the gyro's rotation) */
+    double w_spike_dps;        /* added to the next row's gyro rate, then cleared (a gyro glitch) */
 } drive_t;
 
 #define GYRO_BIAS_DPS 0.4 /* the test gyro's bias about z, deg/s */
@@ -113,9 +114,11 @@ static magcal_cont_outcome_t drive_row(drive_t *dr, float ex, float ey)
     {
         magcal_status_t st;
         /* a right-handed rotation about up turns the heading anticlockwise: w_z = -dpsi/dt */
-        const double rate = -test_angle_diff_deg(dr->psi, dr->psi_prev) / (RATE_MS * 1e-3) + GYRO_BIAS_DPS;
+        const double rate = -test_angle_diff_deg(dr->psi, dr->psi_prev) / (RATE_MS * 1e-3) + GYRO_BIAS_DPS +
+                            dr->w_spike_dps;
         magcal_vec3_t w = {0.0f, 0.0f, (float)((double)dr->gyro * rate * 3.14159265358979 / 180.0)};
         dr->psi_prev = dr->psi;
+        dr->w_spike_dps = 0.0;
         TICK_START();
         st = (dr->gyro != 0) ? magcal_cont_push_imu(&g_cc, &m, NULL, &w, dr->t_ms) : magcal_cont_push(&g_cc, &m, dr->t_ms);
         TICK_END(0);
@@ -520,6 +523,50 @@ void test_cont_gyro_flags_a_disturbance_across_the_field(void)
     TEST_ASSERT_EQUAL_UINT(0u, onset[1]);
     TEST_ASSERT_EQUAL_UINT(0u, onset[2]);
     TEST_ASSERT_TRUE(clean[1] <= 15u && clean[2] <= 15u); /* <= 2 % */
+}
+
+/* A glitch of the gyro (one reading of 3000 deg/s, 60 deg in 20 ms) on a clean straight after the
+ * warm-up: the track restarts instead of holding a flag for the 8 s of a coast (before: 400 clean
+ * rows DISTURBED); a transient 20 s later is still caught (0 OK rows > 3 deg off). */
+void test_cont_gyro_glitch_is_no_disturbance(void)
+{
+    drive_t dr;
+    magcal_cont_heading_t hd;
+    size_t i;
+    unsigned not_ok = 0u, onset_ok = 0u;
+    magcal_vec3_t m;
+    cont_init_default(NULL);
+    drive_init(&dr, &k_d, 41u);
+    dr.gyro = 1;
+    drive_turn(&dr, 1080.0, 15.0);
+    drive_straight(&dr, 70u);
+    TEST_ASSERT_TRUE(dr.adopted >= 1u);
+    dr.w_spike_dps = 3000.0;
+    for (i = 0u; i < 50u * 30u; ++i) {
+        const int dist = i >= 1000u && i < 1100u;
+        const double env = dist ? 0.5 * (1.0 - cos(2.0 * 3.14159265358979 * (double)(i - 1000u) / 100.0)) : 0.0;
+        const double a = dr.psi * 3.14159265358979 / 180.0;
+        const float ex = (float)(9.0 * env * cos(a));
+        const float ey = (float)(9.0 * env * sin(a));
+        magcal_vec2_t p;
+        (void)drive_row(&dr, ex, ey);
+        p = test_distorted_sample(dr.d, dr.psi, 0.0, &dr.rng);
+        m.x = p.x + ex;
+        m.y = p.y + ey;
+        m.z = 40.0f;
+        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_heading(&g_cc, &m, 0.0f, &hd));
+        if (i < 1000u) {
+            not_ok += hd.trust != MAGCAL_TRUST_OK ? 1u : 0u;
+        } else if (dist && hd.trust == MAGCAL_TRUST_OK) {
+            onset_ok += fabs(test_angle_diff_deg(hd.heading_deg, dr.psi)) > 3.0 ? 1u : 0u;
+        } else {
+            /* flagged under the transient, or after it */
+        }
+    }
+    printf("gyro glitch of 3000 deg/s on a straight: %u of 1000 clean rows after it not OK; the transient after "
+           "it: %u OK rows > 3 deg off\n", not_ok, onset_ok);
+    TEST_ASSERT_EQUAL_UINT(0u, not_ok);
+    TEST_ASSERT_EQUAL_UINT(0u, onset_ok);
 }
 
 #ifdef CONT_TEST_THREADS
@@ -2087,6 +2134,7 @@ int main(void)
     RUN_TEST(test_cont_transient_flagged_not_discarded);
     RUN_TEST(test_cont_transient_turning_the_heading_stays_flagged);
     RUN_TEST(test_cont_gyro_flags_a_disturbance_across_the_field);
+    RUN_TEST(test_cont_gyro_glitch_is_no_disturbance);
     RUN_TEST(test_cont_sliced_solve_matches_blocking);
     RUN_TEST(test_cont_sliced_field_fit_matches_unlimited);
     RUN_TEST(test_cont_coarse_cfg_checked);

@@ -30,6 +30,7 @@
 #define RJ_VAR_MS 20000.0f   /* time constant of that RMS */
 #define RJ_HYST 0.6f         /* a flag ends below this x the threshold */
 #define RJ_GROSS 0.5f        /* |rel| above: a glitch, the track coasts */
+#define RJ_JUMP_DEG 5.0f     /* one sample's magnetic and gyro moves this far apart: a glitch, restart */
 #ifndef RJ_TURN_K
 #define RJ_TURN_K 0.015f     /* threshold widening per degree of recent rotation (the gyro's scale error,
                                 the calibration's heading-dependent error: both grow with the turn) */
@@ -107,6 +108,16 @@ void magcal_cont_rate(magcal_cont_t *cc, const magcal_cont_judge_t *j, float dy,
     rj_check_sign(cc, d, dy, clean);
     if (cc->rj_on == 0u) {
         return; /* the sign turned: the track starts again with the next sample */
+    }
+    if (clean != 0u && fabsf((float)cc->rj_sgn * dy - d) > RJ_JUMP_DEG) {
+        /* one sample's moves disagree by more than a disturbance's onset turns a heading (1 deg per
+         * 20 ms at the most): a glitch of the gyro (a spike read 60 deg off the track and held the
+         * flag for the 8 s of a coast) or of the magnetometer the magnitude judge missed: the
+         * track restarts at the magnetic heading, no flag */
+        cc->rj_psi = j->heading;
+        cc->rj_coast_ms = 0u;
+        cc->rj_flag = 0u;
+        return;
     }
     cc->rj_psi = rj_wrap180(cc->rj_psi + (float)cc->rj_sgn * dy - cc->rj_b * dts);
     /* the recent rotation: a sum that decays with the loop's time constant */
