@@ -234,7 +234,8 @@
  * MAGCAL_TRUST_DISTURBED; meanwhile, and under a glitch or a transient flag, the track coasts on
  * the gyro; a deviation that lasts 8 s is no transient and the track restarts at the magnetic
  * heading (a lasting change is the change detection's). The track restarts at every new
- * calibration, relearn and gap. The check starts after 60 s of judged samples (the bias
+ * calibration, relearn and gap, and at a sample whose magnetic and gyro moves disagree by more
+ * than 5 deg (a glitch of either sensor). The check starts after 60 s of judged samples (the bias
  * settled). The sign between the gyro's rotation and the heading is the contract's (w in m's
  * right-handed axes: a positive rotation about up turns the heading anticlockwise) and checked
  * on every 180 deg of turning: a gyro frame mirrored against the magnetometer's is turned to
