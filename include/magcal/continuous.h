@@ -222,26 +222,25 @@
  * unknown) is taken as a level one (t_cal 0; restored levelled with magcal_cont_restore_tilt its
  * headings are levelled too).
  *
- * Gyro heading check (cfg.rate_trust_deg, default 2.5; 0 = off; magcal_cont_push_imu). A magnetometer
- * alone reads the onset of a disturbance across the field as a turn: the heading moves at first
- * order, the field magnitude the judge watches at second. With the gyro's rates, each sample is
- * queued with the rotation about the up axis (along push_g's smoothed gravity, else body z) since
- * the sample before (trapezoid; unknown after a gap of MAGCAL_CONT_RATE_GAP_MS or a sample of push
- * or push_g), and the drain carries a track of the corrected heading on it, pulled towards the
- * magnetic heading by a proportional-integral loop (10-s natural frequency; its integral is the
- * gyro's bias, so an uncalibrated gyro is fine). A heading that leaves the track by more than
- * cfg.rate_trust_deg (or 4 x the track's RMS deviation on clean samples) is
+ * Gyro heading check (cfg.rate_trust_deg, default 2.5; 0 = off; magcal_cont_push_imu). A
+ * magnetometer alone reads the onset of a disturbance across the field as a turn: the heading
+ * moves at first order, the field magnitude the judge watches at second. With the gyro's rates,
+ * each sample is queued with the rotation about the up axis (along push_g's smoothed gravity, else
+ * body z) since the sample before (trapezoid; unknown after a gap of MAGCAL_CONT_RATE_GAP_MS or a
+ * sample of push or push_g), and the drain carries a track of the corrected heading on it, pulled
+ * towards the magnetic heading by a proportional-integral loop (10-s natural frequency; its
+ * integral is the gyro's bias, so an uncalibrated gyro is fine). A heading that leaves the track
+ * by more than cfg.rate_trust_deg (or 4 x the track's RMS deviation on clean samples) is
  * MAGCAL_TRUST_DISTURBED; meanwhile, and under a glitch or a transient flag, the track coasts on
  * the gyro; a deviation that lasts 8 s is no transient and the track restarts at the magnetic
  * heading (a lasting change is the change detection's). The track restarts at every new
  * calibration, relearn and gap, and at a sample whose magnetic and gyro moves disagree by more
  * than 5 deg (a glitch of either sensor). The check starts after 60 s of judged samples (the bias
  * settled). The sign between the gyro's rotation and the heading is the contract's (w in m's
- * right-handed axes: a positive rotation about up turns the heading anticlockwise) and checked
- * on every 180 deg of turning: a gyro frame mirrored against the magnetometer's is turned to
- * (with a new warm-up). It affects the
- * trust only: a flagged sample is still judged and stored by the magnitude judge's rules.
- * docs/calibrator.md "Gyro heading check".
+ * right-handed axes: a positive rotation about up turns the heading anticlockwise) and checked on
+ * every 180 deg of turning: a gyro frame mirrored against the magnetometer's is turned to (with a
+ * new warm-up). It affects the trust only: a flagged sample is still judged and stored by the
+ * magnitude judge's rules. docs/calibrator.md "Gyro heading check".
  *
  * Concurrency contract. magcal_cont_push() may run in an interrupt (or another task) while ANY
  * other call on the same instance runs in one task: the ring is the only state push writes
