@@ -824,28 +824,26 @@ int replay_stream_main(int argc, char **argv)
         m.y = (float)d.col[MAGCAL_REPLAY_COL_MY][i];
         m.z = isfinite(mz) ? (float)mz : 0.0f;
         t_ms = stream_row_ms(tc, i);
-        if (gyro) {
-            /* the gyro heading check (continuous.h): rates in rad/s, gravity when fed */
+        {
+            /* a non-finite gravity row is pushed without a tilt code (push_g checks it) */
             magcal_vec3_t g = {0.0f, 0.0f, 0.0f};
-            magcal_vec3_t w;
             if (gscale > 0.0) {
                 g.x = (float)(d.col[MAGCAL_REPLAY_COL_AX][i] * gscale);
                 g.y = (float)(d.col[MAGCAL_REPLAY_COL_AY][i] * gscale);
                 g.z = (float)(d.col[MAGCAL_REPLAY_COL_AZ][i] * gscale);
             }
-            w.x = (float)(d.col[MAGCAL_REPLAY_COL_GX][i] * wscale);
-            w.y = (float)(d.col[MAGCAL_REPLAY_COL_GY][i] * wscale);
-            w.z = (float)(d.col[MAGCAL_REPLAY_COL_GZ][i] * wscale);
-            (void)magcal_cont_push_imu(&g_cc, &m, gscale > 0.0 ? &g : NULL, &w, t_ms);
-        } else if (gscale > 0.0) {
-            /* a non-finite row is pushed without a tilt code (push_g checks it) */
-            magcal_vec3_t g;
-            g.x = (float)(d.col[MAGCAL_REPLAY_COL_AX][i] * gscale);
-            g.y = (float)(d.col[MAGCAL_REPLAY_COL_AY][i] * gscale);
-            g.z = (float)(d.col[MAGCAL_REPLAY_COL_AZ][i] * gscale);
-            (void)magcal_cont_push_g(&g_cc, &m, &g, t_ms);
-        } else {
-            (void)magcal_cont_push(&g_cc, &m, t_ms);
+            if (gyro) {
+                /* the gyro heading check (continuous.h): rates in rad/s, gravity when fed */
+                magcal_vec3_t w;
+                w.x = (float)(d.col[MAGCAL_REPLAY_COL_GX][i] * wscale);
+                w.y = (float)(d.col[MAGCAL_REPLAY_COL_GY][i] * wscale);
+                w.z = (float)(d.col[MAGCAL_REPLAY_COL_GZ][i] * wscale);
+                (void)magcal_cont_push_imu(&g_cc, &m, gscale > 0.0 ? &g : NULL, &w, t_ms);
+            } else if (gscale > 0.0) {
+                (void)magcal_cont_push_g(&g_cc, &m, &g, t_ms);
+            } else {
+                (void)magcal_cont_push(&g_cc, &m, t_ms);
+            }
         }
         for (k = 0u; k < steps_per_row; ++k) {
             const uint32_t shifts = g_cc.shifts;
@@ -920,7 +918,7 @@ int replay_stream_main(int argc, char **argv)
     }
     cJSON_AddBoolToObject(root, "gyro_fed", gyro);
     if (gyro) {
-        /* the gyro heading check (continuous.h): flags raised, the learnt sign and bias */
+        /* the gyro heading check (continuous.h): flags raised, the sign in force, the bias */
         cJSON_AddNumberToObject(root, "rate_flags", (double)g_cc.rj_flags);
         cJSON_AddNumberToObject(root, "rate_sign", (double)g_cc.rj_sgn);
         cJSON_AddNumberToObject(root, "rate_bias_dps", (double)g_cc.rj_b);
