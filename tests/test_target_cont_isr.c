@@ -3,8 +3,8 @@
  * with a REAL asynchronous producer: on the QEMU target (preset cortex-m4f-tests) the SysTick
  * exception pushes the samples while the task steps, reads headings and progress; on the host a
  * SIGALRM handler (setitimer) does the same. The producer is what a firmware ISR is: one
- * magcal_cont_push() of a precomputed sample per tick, retried on the next tick when the ring is
- * full. Checked against the truth: every sample is taken by step exactly once or counted as
+ * magcal_cont_push_imu() (two thirds of the samples, with the gyro's rate) or magcal_cont_push()
+ * of a precomputed sample per tick, retried on the next tick when the ring is full. Checked against the truth: every sample is taken by step exactly once or counted as
  * dropped, every OK heading the task read during the run is in [0, 360) with a generation that
  * never goes down, and the calibration adopted from the interleaved stream is accurate (heading
  * RMS over 72 true headings < 1 degree, the bar of tests/test_continuous.c).
@@ -50,7 +50,16 @@ static void producer_tick(void)
     if (i >= N_SAMPLES) {
         return;
     }
-    if (magcal_cont_push(&g_cc, &g_samples[i], i * RATE_MS) == MAGCAL_OK) {
+    /* the first two thirds with the gyro's rate of their 0.3 deg per sample (push_imu), the rest
+     * through push: both producers' state is the interrupt's */
+    static const magcal_vec3_t w = {0.0f, 0.0f, -0.3f / (RATE_MS * 1e-3f) * (3.14159265f / 180.0f)};
+    magcal_status_t st;
+    if (i < 2u * N_SAMPLES / 3u) {
+        st = magcal_cont_push_imu(&g_cc, &g_samples[i], NULL, &w, i * RATE_MS);
+    } else {
+        st = magcal_cont_push(&g_cc, &g_samples[i], i * RATE_MS);
+    }
+    if (st == MAGCAL_OK) {
         g_ok = g_ok + 1u;
         g_next = i + 1u;
     } else {
