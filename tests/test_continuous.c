@@ -462,6 +462,27 @@ void test_cont_transient_turning_the_heading_stays_flagged(void)
  * in the contract's frame and in a mirrored one (its sign found on the turns). Every OK heading
  * under the transient within 3 deg of the truth; the clean rows after it OK; without the gyro
  * (the same stream) the onset's OK headings are off by more. */
+/* One row of a straight under a 2-s transient of 0.3 |B| across the field (perpendicular to its
+ * horizontal direction) from row `start` of the sequence (k the row's index), raised-cosine
+ * envelope: drive the row, read its heading into *hd. Returns 1 under the transient. */
+static int across_row(drive_t *dr, size_t k, size_t start, magcal_cont_heading_t *hd)
+{
+    const int dist = k >= start && k < start + 100u;
+    const double env = dist ? 0.5 * (1.0 - cos(2.0 * 3.14159265358979 * (double)(k - start) / 100.0)) : 0.0;
+    const double a = dr->psi * 3.14159265358979 / 180.0;
+    const float ex = (float)(9.0 * env * cos(a));
+    const float ey = (float)(9.0 * env * sin(a));
+    magcal_vec2_t p;
+    magcal_vec3_t m;
+    (void)drive_row(dr, ex, ey);
+    p = test_distorted_sample(dr->d, dr->psi, 0.0, &dr->rng);
+    m.x = p.x + ex;
+    m.y = p.y + ey;
+    m.z = 40.0f;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_heading(&g_cc, &m, 0.0f, hd));
+    return dist;
+}
+
 static void gyro_transient(int gyro, unsigned *onset_ok, double *worst, unsigned *clean_not_ok)
 {
     drive_t dr;
@@ -478,20 +499,7 @@ static void gyro_transient(int gyro, unsigned *onset_ok, double *worst, unsigned
     *worst = 0.0;
     *clean_not_ok = 0u;
     for (i = 0u; i < 50u * 20u; ++i) {
-        const int dist = i >= 150u && i < 250u;
-        const double env = dist ? 0.5 * (1.0 - cos(2.0 * 3.14159265358979 * (double)(i - 150u) / 100.0)) : 0.0;
-        const double a = dr.psi * 3.14159265358979 / 180.0;
-        /* 30 % of the field across it (perpendicular to the field's horizontal direction) */
-        const float ex = (float)(9.0 * env * cos(a));
-        const float ey = (float)(9.0 * env * sin(a));
-        magcal_vec2_t p;
-        magcal_vec3_t m;
-        (void)drive_row(&dr, ex, ey);
-        p = test_distorted_sample(dr.d, dr.psi, 0.0, &dr.rng);
-        m.x = p.x + ex;
-        m.y = p.y + ey;
-        m.z = 40.0f;
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_heading(&g_cc, &m, 0.0f, &hd));
+        const int dist = across_row(&dr, i, 150u, &hd);
         if (dist && hd.trust == MAGCAL_TRUST_OK) {
             const double e = fabs(test_angle_diff_deg(hd.heading_deg, dr.psi));
             *onset_ok += e > 3.0 ? 1u : 0u;
@@ -534,7 +542,6 @@ void test_cont_gyro_glitch_is_no_disturbance(void)
     magcal_cont_heading_t hd;
     size_t i;
     unsigned not_ok = 0u, onset_ok = 0u;
-    magcal_vec3_t m;
     cont_init_default(NULL);
     drive_init(&dr, &k_d, 41u);
     dr.gyro = 1;
@@ -543,18 +550,7 @@ void test_cont_gyro_glitch_is_no_disturbance(void)
     TEST_ASSERT_TRUE(dr.adopted >= 1u);
     dr.w_spike_dps = 3000.0;
     for (i = 0u; i < 50u * 30u; ++i) {
-        const int dist = i >= 1000u && i < 1100u;
-        const double env = dist ? 0.5 * (1.0 - cos(2.0 * 3.14159265358979 * (double)(i - 1000u) / 100.0)) : 0.0;
-        const double a = dr.psi * 3.14159265358979 / 180.0;
-        const float ex = (float)(9.0 * env * cos(a));
-        const float ey = (float)(9.0 * env * sin(a));
-        magcal_vec2_t p;
-        (void)drive_row(&dr, ex, ey);
-        p = test_distorted_sample(dr.d, dr.psi, 0.0, &dr.rng);
-        m.x = p.x + ex;
-        m.y = p.y + ey;
-        m.z = 40.0f;
-        TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_heading(&g_cc, &m, 0.0f, &hd));
+        const int dist = across_row(&dr, i, 1000u, &hd);
         if (i < 1000u) {
             not_ok += hd.trust != MAGCAL_TRUST_OK ? 1u : 0u;
         } else if (dist && hd.trust == MAGCAL_TRUST_OK) {
