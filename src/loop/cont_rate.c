@@ -36,13 +36,12 @@
                                 the calibration's heading-dependent error: both grow with the turn) */
 #endif
 
-static float rj_wrap180(float a)
+/* The track restarts at the magnetic heading, unflagged. */
+static void rj_restart(magcal_cont_t *cc, float heading)
 {
-    float r = fmodf(a + 180.0f, 360.0f);
-    if (r < 0.0f) {
-        r += 360.0f;
-    }
-    return r - 180.0f;
+    cc->rj_psi = heading;
+    cc->rj_coast_ms = 0u;
+    cc->rj_flag = 0u;
 }
 
 void magcal_cont_rate_reset(magcal_cont_t *cc)
@@ -95,15 +94,13 @@ void magcal_cont_rate(magcal_cont_t *cc, const magcal_cont_judge_t *j, float dy,
         return;
     }
     if (cc->rj_on == 0u || dt > RJ_MAX_DT_MS) {
-        cc->rj_psi = j->heading; /* (re)start at the magnetic heading */
+        rj_restart(cc, j->heading);
         cc->rj_prev = j->heading;
         cc->rj_on = 1u;
-        cc->rj_flag = 0u;
-        cc->rj_coast_ms = 0u;
         return;
     }
     dts = (float)dt * 0.001f;
-    d = rj_wrap180(j->heading - cc->rj_prev);
+    d = magcal_wrap180_deg(j->heading - cc->rj_prev);
     cc->rj_prev = j->heading;
     rj_check_sign(cc, d, dy, clean);
     if (cc->rj_on == 0u) {
@@ -114,15 +111,13 @@ void magcal_cont_rate(magcal_cont_t *cc, const magcal_cont_judge_t *j, float dy,
          * 20 ms at the most): a glitch of the gyro (a spike read 60 deg off the track and held the
          * flag for the 8 s of a coast) or of the magnetometer the magnitude judge missed: the
          * track restarts at the magnetic heading, no flag */
-        cc->rj_psi = j->heading;
-        cc->rj_coast_ms = 0u;
-        cc->rj_flag = 0u;
+        rj_restart(cc, j->heading);
         return;
     }
-    cc->rj_psi = rj_wrap180(cc->rj_psi + (float)cc->rj_sgn * dy - cc->rj_b * dts);
+    cc->rj_psi = magcal_wrap180_deg(cc->rj_psi + (float)cc->rj_sgn * dy - cc->rj_b * dts);
     /* the recent rotation: a sum that decays with the loop's time constant */
     cc->rj_rot = cc->rj_rot * (1.0f - fminf(RJ_WN * dts, 1.0f)) + fabsf(dy);
-    d = rj_wrap180(j->heading - cc->rj_psi);
+    d = magcal_wrap180_deg(j->heading - cc->rj_psi);
     cc->rj_dev = d;
     thr = fmaxf(cc->cfg.rate_trust_deg, RJ_K * sqrtf(cc->rj_var)) + RJ_TURN_K * cc->rj_rot;
     over = (uint8_t)((fabsf(d) > ((cc->rj_flag != 0u) ? RJ_HYST * thr : thr)) ? 1u : 0u);
@@ -135,14 +130,13 @@ void magcal_cont_rate(magcal_cont_t *cc, const magcal_cont_judge_t *j, float dy,
         /* coast on the gyro: the track does not follow a disturbance */
         cc->rj_coast_ms += dt;
         if (cc->rj_coast_ms > RJ_COAST_MS) {
-            cc->rj_psi = j->heading; /* no transient: restart at the magnetic heading */
-            cc->rj_coast_ms = 0u;
+            rj_restart(cc, j->heading); /* no transient */
             over = 0u;
         }
     } else {
         const float w = (float)dt / (RJ_VAR_MS + (float)dt);
         cc->rj_coast_ms = 0u;
-        cc->rj_psi = rj_wrap180(cc->rj_psi + 2.0f * RJ_WN * d * dts);
+        cc->rj_psi = magcal_wrap180_deg(cc->rj_psi + 2.0f * RJ_WN * d * dts);
         cc->rj_b -= RJ_WN * RJ_WN * d * dts;
         if (warm == 0u) {
             cc->rj_var += w * (d * d - cc->rj_var); /* the bias settled: the deviation's noise */
