@@ -173,15 +173,6 @@ magcal_status_t magcal_cont3_status(const magcal_cont3_t *cc)
     return magcal_c3_ok(cc) ? cc->last_status : MAGCAL_ERR_NOT_INITIALISED;
 }
 
-static float c3_wrap360(float a)
-{
-    float w = fmodf(a, 360.0f);
-    if (w < 0.0f) {
-        w += 360.0f;
-    }
-    return w >= 360.0f ? 0.0f : w;
-}
-
 /* Heading of field f: tilt compensated with accel (inclination into *incl), else level. */
 static magcal_status_t c3_heading_of(const magcal_vec3_t *f, const magcal_vec3_t *accel, float *psi, float *incl)
 {
@@ -229,7 +220,7 @@ magcal_status_t magcal_cont3_heading(const magcal_cont3_t *cc, const magcal_vec3
     r.generation = cc->generation;
     st = c3_heading_of(m, accel_g, &r.raw_heading_deg, NULL);
     if (st == MAGCAL_OK) {
-        r.raw_heading_deg = c3_wrap360(r.raw_heading_deg + declination_deg);
+        r.raw_heading_deg = magcal_wrap360_deg(r.raw_heading_deg + declination_deg);
     } else if (cc->has_cal != 0u && st == MAGCAL_ERR_ZERO_FIELD) {
         r.raw_heading_deg = NAN; /* the raw field (hard iron included) may point straight up */
     } else {
@@ -248,7 +239,7 @@ magcal_status_t magcal_cont3_heading(const magcal_cont3_t *cc, const magcal_vec3
     if (st != MAGCAL_OK) {
         return st;
     }
-    r.heading_deg = c3_wrap360(r.heading_deg + declination_deg);
+    r.heading_deg = magcal_wrap360_deg(r.heading_deg + declination_deg);
     (void)magcal_c3_judge(cc, m, &j);
     r.field_rel = j.rel;
     if (cc->state == (uint8_t)MAGCAL_CONT3_RELEARNING) {
