@@ -60,6 +60,11 @@ void magcal_cont_transient_reset(magcal_cont_t *cc);
  * The reset restarts the track (a new calibration, a sample not judged). */
 void magcal_cont_rate(magcal_cont_t *cc, const magcal_cont_judge_t *j, float dy, uint32_t t_ms);
 void magcal_cont_rate_reset(magcal_cont_t *cc);
+/* Gyro-aided gravity (cont_grav.c, continuous.h "Gyro-aided gravity"): one accelerometer sample g
+ * (NULL: none) and rate w (rad/s, finite) at t_ms; the gravity push_g takes: the locked estimate
+ * (&cc->ga_g, g's units) where the accelerometer reads more than gravity, else g. */
+const magcal_vec3_t *magcal_cont_grav(magcal_cont_t *cc, const magcal_vec3_t *g, const magcal_vec3_t *w,
+                                      uint32_t t_ms);
 /* Declare a change: drop the store, relearn. */
 void magcal_cont_declare_change(magcal_cont_t *cc);
 /* 1 when an open episode spans at least cfg.change_bins sectors (every heading suspect). */

@@ -56,7 +56,7 @@ static magcal_status_t cont_check_cfg(const magcal_cont_cfg_t *c)
         return MAGCAL_ERR_NONFINITE;
     }
     if (!(c->shift_rel == 0.0f || (c->shift_rel >= 0.15f && c->shift_rel <= 2.0f)) || c->shift_hold_ms < 1u ||
-        c->continuity > 1u || c->tilt_model_deg < 0.0f || c->tilt_trust_deg < 0.0f || c->rate_trust_deg < 0.0f) {
+        c->continuity > 1u || c->gyro_gravity > 1u || c->tilt_model_deg < 0.0f || c->tilt_trust_deg < 0.0f || c->rate_trust_deg < 0.0f) {
         return MAGCAL_ERR_ARG;
     }
     return magcal_cont_arc_cfg_check(c);
@@ -536,6 +536,7 @@ magcal_status_t magcal_cont_push_imu(magcal_cont_t *cc, const magcal_vec3_t *m, 
                                      const magcal_vec3_t *w, uint32_t t_ms)
 {
     magcal_status_t st;
+    const magcal_vec3_t *gp = g;
     if (cc == NULL || m == NULL) {
         return MAGCAL_ERR_NULL;
     }
@@ -558,8 +559,11 @@ magcal_status_t magcal_cont_push_imu(magcal_cont_t *cc, const magcal_vec3_t *m, 
         cc->gy_t = t_ms;
         cc->gy_on = valid; /* a rate beyond any gyro's range (or an overflow) is no rate */
         cc->gy_pend = 1u;
+        if (cc->cfg.gyro_gravity != 0u && valid != 0u) {
+            gp = magcal_cont_grav(cc, g, w, t_ms); /* the gyro-carried gravity where needed (cont_grav.c) */
+        }
     }
-    st = magcal_cont_push_g(cc, m, g, t_ms);
+    st = magcal_cont_push_g(cc, m, gp, t_ms);
     cc->gy_pend = 0u;
     return st;
 }
