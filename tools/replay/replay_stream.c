@@ -40,7 +40,7 @@ static const char k_stream_usage[] =
     "usage: magcal-replay --stream [--mode 2d|3d] [--headings OUT.csv] [--json] [--declination DEG]\n"
     "                        [--range R] [--steps-per-row K] [--coarse DEG[,TOL]] [--arc DEG[,TOL[,MODEL]]]\n"
     "                        [--continuity 0|1] [--no-tilt] [--level-tilt DEG] [--install REC] [--save REC]\n"
-    "                        [--no-gyro] [--gyro-unit rads|dps] DUMP.csv\n"
+    "                        [--no-gyro] [--gyro-unit rads|dps] [--gyro-gravity] DUMP.csv\n"
     "                        (R: the sensor's declared range)\n"
     "  --coarse: 2-D coarse stage on (cfg.coarse_coverage_deg DEG, cfg.coarse_max_err_deg TOL; off by\n"
     "  default): adoptions of a hard-iron circle carry status \"coarse\", its headings trust \"coarse\";\n"
@@ -63,7 +63,9 @@ static const char k_stream_usage[] =
     "  power-up); --save REC: write the full calibration in force at the end as such a record\n"
     "  gyro: when the dump has gx, gy, gz (--gyro-unit rads (default) | dps), each row is pushed with\n"
     "  magcal_cont_push_imu (the gyro heading check, continuous.h; JSON \"gyro_fed\": true, rate_flags,\n"
-    "  rate_sign, rate_bias_dps); --no-gyro: never\n";
+    "  rate_sign, rate_bias_dps, gravity_locked, gravity_unlocks); --no-gyro: never;\n"
+    "  --gyro-gravity: cfg.gyro_gravity 1 (with the gyro, push_g levels with the gyro-carried gravity\n"
+    "  where the accelerometer reads the vehicle's acceleration; continuous.h \"Gyro-aided gravity\")\n";
 
 /* Open the headings CSV (hpath NULL: none) and write its header; 0 when it cannot be written
  * (said on stderr). */
@@ -613,6 +615,7 @@ int replay_stream_main(int argc, char **argv)
                                            {"save", required_argument, NULL, 'S'},
                                            {"no-gyro", no_argument, NULL, 'G'},
                                            {"gyro-unit", required_argument, NULL, 'U'},
+                                           {"gyro-gravity", no_argument, NULL, 'A'},
                                            {"help", no_argument, NULL, 'h'},
                                            {NULL, 0, NULL, 0}};
     const char *hpath = NULL;
@@ -746,6 +749,9 @@ int replay_stream_main(int argc, char **argv)
             break;
         case 'G':
             no_gyro = 1;
+            break;
+        case 'A':
+            cfg.gyro_gravity = 1u;
             break;
         case 'U':
             if (strcmp(optarg, "rads") == 0) {
@@ -922,6 +928,8 @@ int replay_stream_main(int argc, char **argv)
         cJSON_AddNumberToObject(root, "rate_flags", (double)g_cc.rj_flags);
         cJSON_AddNumberToObject(root, "rate_sign", (double)g_cc.rj_sgn);
         cJSON_AddNumberToObject(root, "rate_bias_dps", (double)g_cc.rj_b);
+        cJSON_AddBoolToObject(root, "gravity_locked", g_cc.ga_lock != 0u);
+        cJSON_AddNumberToObject(root, "gravity_unlocks", (double)g_cc.ga_unlocks);
     }
     cJSON_AddNumberToObject(root, "shifts", (double)g_cc.shifts); /* level shifts (continuous.h) */
     cJSON_AddNumberToObject(root, "shift_refused", (double)g_cc.shift_refused);
