@@ -72,7 +72,7 @@ static int ga_pull(magcal_cont_t *cc, const magcal_vec3_t *wc, float n, float dt
     const float yaw = (wc->x * u->x + wc->y * u->y + wc->z * u->z) * MAGCAL_DEG_PER_RAD_F;
     const float lim = GA_INNOV_DEG / MAGCAL_DEG_PER_RAD_F;
     magcal_vec3_t ah;
-    int big;
+    uint8_t big;
     const float band = (cc->ga_lock != 0u) ? GA_BAND : GA_BAND_ACQ;
     if (!(fabsf(n - cc->ga_lvl) <= band * cc->ga_lvl) || !(fabsf(yaw) < GA_YAW_DPS)) {
         return 0;
@@ -81,9 +81,9 @@ static int ga_pull(magcal_cont_t *cc, const magcal_vec3_t *wc, float n, float dt
     ah.y = cc->ga_as.y / n;
     ah.z = cc->ga_as.z / n;
     ga_cross(u, &ah, e);
-    big = (e->x * e->x + e->y * e->y + e->z * e->z > lim * lim) ? 1 : 0;
+    big = (uint8_t)((e->x * e->x + e->y * e->y + e->z * e->z > lim * lim) ? 1u : 0u);
     if (cc->ga_lock != 0u) {
-        if (big == 0) {
+        if (big == 0u) {
             cc->ga_tr = 0.0f;
             return 1;
         }
@@ -95,7 +95,7 @@ static int ga_pull(magcal_cont_t *cc, const magcal_vec3_t *wc, float n, float dt
         }
         return 0;
     }
-    if (big != 0) {
+    if (big != 0u) {
         cc->ga_tl = 0.0f;
     } else {
         cc->ga_tl += dt;
@@ -114,7 +114,6 @@ static int ga_update(magcal_cont_t *cc, const magcal_vec3_t *g, const magcal_vec
     float n;
     float dt;
     float wq;
-    float k;
     magcal_vec3_t wc;
     magcal_vec3_t e;
     magcal_vec3_t du;
@@ -158,7 +157,7 @@ static int ga_update(magcal_cont_t *cc, const magcal_vec3_t *g, const magcal_vec
         return 0;
     }
     if (ga_pull(cc, &wc, n, dt, &e) != 0) {
-        k = (cc->ga_lock != 0u) ? GA_KP : GA_KP_ACQ;
+        float k = (cc->ga_lock != 0u) ? GA_KP : GA_KP_ACQ;
         wc.x -= k * e.x;
         wc.y -= k * e.y;
         wc.z -= k * e.z;

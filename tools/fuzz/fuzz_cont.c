@@ -313,6 +313,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     cfg.continuity = (uint8_t)((flags & 32u) != 0u ? 1u : 0u);
     cfg.shift_rel = (flags & 64u) != 0u ? 0.0f : cfg.shift_rel;
     cfg.shift_hold_ms = (flags & 128u) != 0u ? 1u : cfg.shift_hold_ms;
+    /* the gyro-aided gravity of push_imu (op 3), on in half of the inputs (no byte of its own) */
+    cfg.gyro_gravity = (uint8_t)(((flags >> 1u) ^ (flags >> 6u)) & 1u);
     scale = fuzz_f32(&in);
     if (cfg.solver.min_samples > MAGCAL_CONT_SLOTS(cfg.intake.bins, cfg.intake.per_bin)) {
         cfg.solver.min_samples = (uint16_t)MAGCAL_CONT_SLOTS(cfg.intake.bins, cfg.intake.per_bin);
