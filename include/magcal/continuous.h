@@ -775,6 +775,7 @@ typedef struct {
     uint16_t ga_nl;                /* samples in the level (its mean until the average's weight) */
     uint8_t ga_on;                 /* 1: started */
     uint8_t ga_lock;               /* 1: locked (its gravity replaces the accelerometer's) */
+    uint8_t ga_quiet;              /* 1: locked and the last pull passed its gates (k may learn) */
 } magcal_cont_t;
 
 /**

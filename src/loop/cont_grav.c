@@ -32,6 +32,8 @@
 #define GA_USE_COS 0.99984770f /* cos 1 deg: a locked estimate is used where the smoothed
                                  accelerometer is further from it, */
 #define GA_USE_BAND 0.02f     /* or its magnitude is off its level by this share (0.2 g across) */
+#define GA_QUIET_RAD 0.005236f /* 0.3 deg: a pull this close is gravity alone (the tilt compensation's
+                                 k learns from it, cont_life.c) */
 #define GA_KP 0.05f           /* 1/s: locked pull (a 20-s time constant) */
 #define GA_KI 0.002f          /* 1/s^2: locked bias learning (damping 0.56) */
 #define GA_KP_ACQ 0.5f        /* 1/s: acquisition */
@@ -156,7 +158,10 @@ static int ga_update(magcal_cont_t *cc, const magcal_vec3_t *g, const magcal_vec
         ga_start(cc, g, sqrtf(g->x * g->x + g->y * g->y + g->z * g->z), t_ms);
         return 0;
     }
+    cc->ga_quiet = 0u;
     if (ga_pull(cc, &wc, n, dt, &e) != 0) {
+        /* locked and the accelerometer reads gravity alone, within GA_QUIET_RAD of the estimate */
+        cc->ga_quiet = (uint8_t)((cc->ga_lock != 0u && e.x * e.x + e.y * e.y + e.z * e.z <= GA_QUIET_RAD * GA_QUIET_RAD) ? 1u : 0u);
         float k = (cc->ga_lock != 0u) ? GA_KP : GA_KP_ACQ;
         wc.x -= k * e.x;
         wc.y -= k * e.y;

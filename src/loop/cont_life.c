@@ -505,7 +505,13 @@ magcal_status_t magcal_cont_push_g(magcal_cont_t *cc, const magcal_vec3_t *m, co
             cc->tc_hp[1] = ty;
             cc->tc_h_ms = t_ms;
         }
-        cont_tc_learn(cc, m, tx, ty);
+        if (cc->gy_pend == 0u || cc->cfg.gyro_gravity == 0u || cc->ga_lock == 0u || cc->ga_quiet != 0u) {
+            /* under a locked gyro-carried gravity, k learns from the samples whose accelerometer read
+             * gravity alone (cont_grav.c): a tilt error of a turn's or a braking's acceleration
+             * left within its 1-deg window biases k towards 0 (30-min s7 --dyn-accel: -32 for -41,
+             * a levelled heading 6.5 deg off on a 6-deg hill) */
+            cont_tc_learn(cc, m, tx, ty);
+        }
         if (cc->tc_ok != 0u && (cc->cal_lv == 0u || !(fabsf(cc->tc_k - cc->tc_kl) <= TC_KL_HOLD * fabsf(cc->tc_kl)))) {
             /* the levelling follows the estimate until a calibration fitted on levelled samples is
              * in force; then it moves only when the estimate left it by TC_KL_HOLD, so that the
