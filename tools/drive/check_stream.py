@@ -31,7 +31,8 @@ object; exit 1 when a requirement of issue 13 fails (unless --report-only), 77 w
 Keys: first_adoption (<= 540 deg of turning), rms (trusted RMS <= 1.2 x floor), detected (the
 step detected), relearn (relearned within 720 deg, rows between untrusted), recall (>= 0.90),
 false_flags (<= 0.02), no_false_change (no change declared before the step, or at all without
-one), adopted (at least one adoption).
+one), adopted (at least one adoption), worst_ok (at most 0.2 % of the OK rows after the first
+adoption more than 5 deg off the truth; the report's ok_rows_over_5_deg and worst_ok_deg).
 """
 import argparse
 import csv
@@ -85,7 +86,8 @@ def main():
     ap.add_argument("--replay-arg", action="append", default=[])
     ap.add_argument("--gravity-report", action="store_true")
     a = ap.parse_args()
-    keys = ("first_adoption", "rms", "detected", "relearn", "recall", "false_flags", "no_false_change", "adopted")
+    keys = ("first_adoption", "rms", "detected", "relearn", "recall", "false_flags", "no_false_change", "adopted",
+            "worst_ok")
     req = None
     if a.require is not None:
         req = [k for k in a.require.split(",") if k]
@@ -211,6 +213,15 @@ def main():
         res["rms_over_floor"] = round(rms / fl, 3) if fl > 0 else None
         if fl > 0 and rms > 1.2 * fl:
             fails.append(("rms", "trusted heading RMS %.2f > 1.2 x floor %.2f" % (rms, fl)))
+    # the worst OK: headings returned OK more than 5 deg off the truth, as a share of the OK rows
+    if sel.any():
+        aerr = np.abs(wrap180(err[sel]))
+        over = aerr > 5.0
+        res["ok_rows_over_5_deg"] = int(over.sum())
+        res["worst_ok_deg"] = round(float(np.max(aerr)), 2)
+        if float(np.mean(over)) > 0.002:
+            fails.append(("worst_ok", "%d OK rows over 5 deg (%.2f %% of the OK rows > 0.2 %%), worst %.2f deg" %
+                          (int(over.sum()), 100.0 * float(np.mean(over)), float(np.max(aerr)))))
     # disturbance recall / false flags, while a calibration is installed and outside the step episode
     cal_rows = (np.arange(n) >= first)
     excl = np.zeros(n, bool)
