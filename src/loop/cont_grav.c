@@ -32,8 +32,9 @@
 #define GA_USE_COS 0.99984770f /* cos 1 deg: a locked estimate is used where the smoothed
                                  accelerometer is further from it, */
 #define GA_USE_BAND 0.02f     /* or its magnitude is off its level by this share (0.2 g across) */
-#define GA_QUIET_RAD 0.005236f /* 0.3 deg: a pull this close is gravity alone (the tilt compensation's
-                                 k learns from it, cont_life.c) */
+#define GA_QUIET_COS 0.99998629f /* cos 0.3 deg: a locked estimate this close to the smoothed
+                                 accelerometer: gravity alone (the tilt compensation's k learns from
+                                 it, cont_life.c) */
 #define GA_KP 0.05f           /* 1/s: locked pull (a 20-s time constant) */
 #define GA_KI 0.002f          /* 1/s^2: locked bias learning (damping 0.56) */
 #define GA_KP_ACQ 0.5f        /* 1/s: acquisition */
@@ -160,8 +161,6 @@ static int ga_update(magcal_cont_t *cc, const magcal_vec3_t *g, const magcal_vec
     }
     cc->ga_quiet = 0u;
     if (ga_pull(cc, &wc, n, dt, &e) != 0) {
-        /* locked and the accelerometer reads gravity alone, within GA_QUIET_RAD of the estimate */
-        cc->ga_quiet = (uint8_t)((cc->ga_lock != 0u && e.x * e.x + e.y * e.y + e.z * e.z <= GA_QUIET_RAD * GA_QUIET_RAD) ? 1u : 0u);
         float k = (cc->ga_lock != 0u) ? GA_KP : GA_KP_ACQ;
         wc.x -= k * e.x;
         wc.y -= k * e.y;
@@ -191,7 +190,9 @@ static int ga_update(magcal_cont_t *cc, const magcal_vec3_t *g, const magcal_vec
         /* where the accelerometer agrees with the estimate, it is gravity alone and the better
          * of the two (no gyro noise, bias or scale error): push_g takes it */
         const float c = (cc->ga_u.x * cc->ga_as.x + cc->ga_u.y * cc->ga_as.y + cc->ga_u.z * cc->ga_as.z) / n;
-        if (fabsf(n - cc->ga_lvl) <= GA_USE_BAND * cc->ga_lvl && c >= GA_USE_COS) {
+        const uint8_t in_band = (uint8_t)((fabsf(n - cc->ga_lvl) <= GA_USE_BAND * cc->ga_lvl) ? 1u : 0u);
+        cc->ga_quiet = (uint8_t)((in_band != 0u && c >= GA_QUIET_COS) ? 1u : 0u);
+        if (in_band != 0u && c >= GA_USE_COS) {
             return 0;
         }
     }
