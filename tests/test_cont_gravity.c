@@ -39,6 +39,8 @@ typedef struct {
     double worst_est; /* worst angle of cc.ga_u from the truth over the phase, deg */
     double worst_gs;  /* the same for push_g's smoothed gravity cc.g_s */
     double worst_acc; /* and for the accelerometer */
+    unsigned rows;    /* rows of the phase */
+    unsigned quiet;   /* of them with cc.ga_quiet (the tilt compensation's k may learn) */
 } gv_t;
 
 static double gv_angle(double ux, double uy, double uz, double vx, double vy, double vz)
@@ -76,6 +78,8 @@ static void gv_row(gv_t *s, double dpitch, double dpsi, double lat, double lon, 
     s->worst_est = fmax(s->worst_est, gv_angle(g_cc.ga_u.x, g_cc.ga_u.y, g_cc.ga_u.z, up[0], up[1], up[2]));
     s->worst_gs = fmax(s->worst_gs, gv_angle(g_cc.g_s.x, g_cc.g_s.y, g_cc.g_s.z, up[0], up[1], up[2]));
     s->worst_acc = fmax(s->worst_acc, gv_angle(g.x, g.y, g.z, up[0], up[1], up[2]));
+    s->rows++;
+    s->quiet += (g_cc.ga_quiet != 0u) ? 1u : 0u;
 }
 
 static void gv_phase_start(gv_t *s)
@@ -83,6 +87,8 @@ static void gv_phase_start(gv_t *s)
     s->worst_est = 0.0;
     s->worst_gs = 0.0;
     s->worst_acc = 0.0;
+    s->rows = 0u;
+    s->quiet = 0u;
 }
 
 static void gv_init(gv_t *s, uint8_t gyro_gravity)
@@ -138,8 +144,9 @@ static void test_gravity_through_a_turn_and_braking(void)
     for (i = 0u; i < 3000u; ++i) {
         gv_row(&s, 0.0, 15.0, (i < 50u) ? 0.004 * (double)i : 0.2, 0.0, 0.0);
     }
-    printf("circle under 0.2 g: estimate worst %.2f deg, push_g's gravity %.2f, the accelerometer %.2f\n",
-           s.worst_est, s.worst_gs, s.worst_acc);
+    printf("circle under 0.2 g: estimate worst %.2f deg, push_g's gravity %.2f, the accelerometer %.2f; "
+           "%u of %u rows quiet\n", s.worst_est, s.worst_gs, s.worst_acc, s.quiet, s.rows);
+    TEST_ASSERT_TRUE(s.quiet <= 20u); /* k learns from none of the circle (the ramp's first 0.3 deg) */
     TEST_ASSERT_EQUAL_UINT8(1u, g_cc.ga_lock);
     TEST_ASSERT_TRUE(s.worst_acc >= 10.0);
     TEST_ASSERT_TRUE(s.worst_est <= 0.5);
@@ -163,8 +170,9 @@ static void test_gravity_through_a_turn_and_braking(void)
     for (i = 0u; i < 500u; ++i) {
         gv_row(&s, 0.0, 0.0, 0.0, 0.0, 0.0);
     }
-    printf("a 4-deg hill: estimate worst %.2f deg, push_g's gravity %.2f (0.5-s smoothing)\n", s.worst_est,
-           s.worst_gs);
+    printf("a 4-deg hill: estimate worst %.2f deg, push_g's gravity %.2f (0.5-s smoothing); %u of %u rows quiet\n",
+           s.worst_est, s.worst_gs, s.quiet, s.rows);
+    TEST_ASSERT_TRUE(s.quiet >= s.rows / 2u); /* the hill's tilt teaches k */
     TEST_ASSERT_TRUE(s.worst_est <= 0.5);
     TEST_ASSERT_EQUAL_UINT32(0u, g_cc.ga_unlocks);
 }
