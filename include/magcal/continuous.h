@@ -255,7 +255,9 @@
  * 1.5 deg, and restarts at a gap of 250 ms in the rates or a rate across up beyond 60 deg/s (a
  * gyro glitch). Locked, push_g takes the estimate wherever the smoothed accelerometer is more
  * than 1 deg from it or 2 % off its level (turns, braking); elsewhere the accelerometer (it is
- * then the better of the two); unlocked, always the accelerometer. A steady circle has no
+ * then the better of the two); unlocked, always the accelerometer. Locked, the tilt
+ * compensation's k learns only from samples whose accelerometer is within 0.3 deg of the
+ * estimate (an acceleration inside the 1-deg window biases k towards 0). A steady circle has no
  * straight to lock on: its centripetal acceleration stays what push_g's tests make of it.
  * docs/calibrator.md "Gyro-aided gravity".
  *
@@ -464,9 +466,10 @@ typedef struct {
                                          magcal_cont_push_imu's rates, the gravity push_g levels
                                          and judges with is carried by the gyro and pulled towards
                                          the accelerometer only where it reads gravity alone;
-                                         0 = the accelerometer's (default 0, opt-in: on one
-                                         of 16 generated drives with dynamics it returned 1,304
-                                         OK headings over 5 deg, docs/calibrator.md) */
+                                         0 = the accelerometer's (default 0, opt-in: on two of
+                                         the eight generated drives without vehicle dynamics it
+                                         cost every OK heading, docs/calibrator.md; on for a
+                                         road vehicle) */
 } magcal_cont_cfg_t;
 
 /** Defaults: work untuned from 10 to 100 Hz (time constants are in ms of the push stamps). */
