@@ -117,6 +117,14 @@ static void gv_park_and_level(gv_t *s)
     }
 }
 
+/* A fresh instance (cfg.gyro_gravity as given) through the park, a phase started after it. */
+static void gv_start_level(gv_t *s, uint8_t gyro_gravity)
+{
+    gv_init(s, gyro_gravity);
+    gv_park_and_level(s);
+    gv_phase_start(s);
+}
+
 static void test_gravity_locks_and_learns_the_bias_parked(void)
 {
     gv_t s;
@@ -138,9 +146,7 @@ static void test_gravity_through_a_turn_and_braking(void)
 {
     gv_t s;
     unsigned i;
-    gv_init(&s, 1u);
-    gv_park_and_level(&s);
-    gv_phase_start(&s);
+    gv_start_level(&s, 1u);
     for (i = 0u; i < 3000u; ++i) {
         gv_row(&s, 0.0, 15.0, (i < 50u) ? 0.004 * (double)i : 0.2, 0.0, 0.0);
     }
@@ -182,9 +188,7 @@ static void test_gravity_off_is_the_accelerometer(void)
 {
     gv_t s;
     unsigned i;
-    gv_init(&s, 0u);
-    gv_park_and_level(&s);
-    gv_phase_start(&s);
+    gv_start_level(&s, 0u);
     for (i = 0u; i < 1000u; ++i) {
         gv_row(&s, 0.0, 15.0, 0.2, 0.0, 0.0);
     }
