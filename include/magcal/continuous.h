@@ -752,6 +752,9 @@ typedef struct {
     int8_t rj_sgn;                 /* heading move per gyro rotation about up: -1 (init), +1 (mirrored) */
     uint8_t rj_on;                 /* 1: the track runs */
     uint8_t rj_flag;               /* 1: the magnetic heading left the gyro's track (DISTURBED) */
+    uint8_t ga_on;                 /* gyro-aided gravity ("Gyro-aided gravity", below): 1 started */
+    uint8_t ga_lock;               /* 1: locked (its gravity replaces the accelerometer's) */
+    uint8_t ga_quiet;              /* 1: locked and the accelerometer within 0.3 deg of it (k may learn) */
     float rj_psi;                  /* the track, deg */
     float rj_prev;                 /* the last judged magnetic heading, deg */
     float rj_b;                    /* the gyro's bias about the up axis, deg/s (the loop's integral) */
@@ -776,9 +779,6 @@ typedef struct {
     uint32_t ga_t;                 /* the last stamp */
     uint32_t ga_unlocks;           /* locks lost */
     uint16_t ga_nl;                /* samples in the level (its mean until the average's weight) */
-    uint8_t ga_on;                 /* 1: started */
-    uint8_t ga_lock;               /* 1: locked (its gravity replaces the accelerometer's) */
-    uint8_t ga_quiet;              /* 1: locked and the last pull passed its gates (k may learn) */
 } magcal_cont_t;
 
 /**
