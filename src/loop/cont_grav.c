@@ -16,7 +16,9 @@
  * the smoothed accelerometer is more than 1 deg from it or 2 % off its level (a turn, braking);
  * where they agree the accelerometer is gravity alone and the better of the two (no gyro noise,
  * bias or scale error). Unlocked, push_g sees the accelerometer as without a gyro. A gap in the
- * rates, or a rate across up no vehicle has (a gyro glitch), restarts it.
+ * rates, or a rate across up no vehicle has (a gyro glitch), restarts it. cc->ga_quiet marks the
+ * samples whose accelerometer is within 0.3 deg of the locked estimate: the tilt compensation's k
+ * learns only from those (cont_life.c).
  */
 #include <math.h>
 

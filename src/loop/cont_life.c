@@ -506,10 +506,11 @@ magcal_status_t magcal_cont_push_g(magcal_cont_t *cc, const magcal_vec3_t *m, co
             cc->tc_h_ms = t_ms;
         }
         if (cc->gy_pend == 0u || cc->cfg.gyro_gravity == 0u || cc->ga_lock == 0u || cc->ga_quiet != 0u) {
-            /* under a locked gyro-carried gravity, k learns from the samples whose accelerometer read
-             * gravity alone (cont_grav.c): a tilt error of a turn's or a braking's acceleration
-             * left within its 1-deg window biases k towards 0 (30-min s7 --dyn-accel: -32 for -41,
-             * a levelled heading 6.5 deg off on a 6-deg hill) */
+            /* under a locked gyro-carried gravity, k learns only from samples whose accelerometer is
+             * within 0.3 deg of the estimate (cont_grav.c ga_quiet): a turn's or a braking's
+             * acceleration left inside the 1-deg window is a tilt the magnetometer does not see and
+             * biases k towards 0 (30-min s7 --dyn-accel: -32 for -41, a levelled heading 6.5 deg
+             * off on a 6-deg hill) */
             cont_tc_learn(cc, m, tx, ty);
         }
         if (cc->tc_ok != 0u && (cc->cal_lv == 0u || !(fabsf(cc->tc_k - cc->tc_kl) <= TC_KL_HOLD * fabsf(cc->tc_kl)))) {
