@@ -116,7 +116,8 @@ static int ga_pull(magcal_cont_t *cc, const magcal_vec3_t *wc, float n, float dt
 static int ga_update(magcal_cont_t *cc, const magcal_vec3_t *g, const magcal_vec3_t *w, uint32_t t_ms)
 {
     const uint32_t dtm = t_ms - cc->ga_t; /* wrapping stamps */
-    float n;
+    float ng; /* |g| of this sample */
+    float n;  /* |the smoothed accelerometer| */
     float dt;
     float wq;
     magcal_vec3_t wc;
@@ -125,12 +126,12 @@ static int ga_update(magcal_cont_t *cc, const magcal_vec3_t *g, const magcal_vec
     if (g == NULL || !magcal_isfinite_f(g->x) || !magcal_isfinite_f(g->y) || !magcal_isfinite_f(g->z)) {
         return 0;
     }
-    n = sqrtf(g->x * g->x + g->y * g->y + g->z * g->z);
-    if (!(n > 0.0f) || !magcal_isfinite_f(n)) {
+    ng = sqrtf(g->x * g->x + g->y * g->y + g->z * g->z);
+    if (!(ng > 0.0f) || !magcal_isfinite_f(ng)) {
         return 0;
     }
     if (cc->ga_on == 0u || dtm > GA_MAX_DT_MS) {
-        ga_start(cc, g, n, t_ms);
+        ga_start(cc, g, ng, t_ms);
         return 0;
     }
     dt = 0.001f * (float)dtm;
@@ -158,7 +159,7 @@ static int ga_update(magcal_cont_t *cc, const magcal_vec3_t *g, const magcal_vec
     ga_cross(&cc->ga_u, &wc, &du);
     if (!(du.x * du.x + du.y * du.y + du.z * du.z <=
           (GA_TILT_DPS / MAGCAL_DEG_PER_RAD_F) * (GA_TILT_DPS / MAGCAL_DEG_PER_RAD_F))) {
-        ga_start(cc, g, sqrtf(g->x * g->x + g->y * g->y + g->z * g->z), t_ms);
+        ga_start(cc, g, ng, t_ms);
         return 0;
     }
     cc->ga_quiet = 0u;
