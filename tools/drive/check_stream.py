@@ -130,6 +130,11 @@ def main():
     ref = D["heading_ref_deg"]
     dturn = np.abs(wrap180(np.diff(ref)))
     turn = np.concatenate([[0.0], np.cumsum(dturn)])
+
+    def at(row):
+        """An event's row as an index: the replay reports what the steps after the last row did
+        at row == rows (docs/replay.md), which is the last row's turn and time."""
+        return min(int(row), len(turn) - 1)
     t = D["t"]
     # floor: the true calibration on the same samples (2-D heading from the corrected x, y)
     m = np.stack([D["mx"], D["my"], D["mz"]], axis=1)
@@ -159,9 +164,9 @@ def main():
         fails.append(("adopted", "no adoption"))
         return finish(res, fails, req, a.report_only)
     first = min(adopt_rows[0], len(turn) - 1)  # an adoption in the steps after the last row: row = rows
-    res["first_adoption_turn_deg"] = round(float(turn[first]), 1)
-    if turn[first] > 540.0:
-        fails.append(("first_adoption", "first adoption after %.0f deg of turning (> 540)" % turn[first]))
+    res["first_adoption_turn_deg"] = round(float(turn[at(first)]), 1)
+    if turn[at(first)] > 540.0:
+        fails.append(("first_adoption", "first adoption after %.0f deg of turning (> 540)" % turn[at(first)]))
     srow = int(np.argmax(step)) if step.any() else None
     false_changes = [r for r in change_rows if srow is None or r < srow]
     res["false_change_rows"] = false_changes
@@ -176,15 +181,16 @@ def main():
             res["step_note"] = "first adoption after the step: nothing installed to detect against"
         elif det:
             d0 = det[0]
-            res["change_delay_deg"] = round(float(turn[d0] - turn[srow]), 1)
-            res["change_delay_s"] = round(float(t[d0] - t[srow]), 1)
+            res["change_delay_deg"] = round(float(turn[at(d0)] - turn[srow]), 1)
+            res["change_delay_s"] = round(float(t[at(d0)] - t[srow]), 1)
             after = [r for r in adopt_rows if r > d0]
             if after:
                 relearn_row = after[0]
                 res["relearn_row"] = relearn_row
-                res["relearn_turn_deg"] = round(float(turn[relearn_row] - turn[srow]), 1)
-                if turn[relearn_row] - turn[srow] > 720.0:
-                    fails.append(("relearn", "relearned after %.0f deg of turning (> 720)" % (turn[relearn_row] - turn[srow])))
+                res["relearn_turn_deg"] = round(float(turn[at(relearn_row)] - turn[srow]), 1)
+                if turn[at(relearn_row)] - turn[srow] > 720.0:
+                    fails.append(("relearn", "relearned after %.0f deg of turning (> 720)" %
+                                  (turn[at(relearn_row)] - turn[srow])))
                 seg = slice(srow, relearn_row)
                 res["untrusted_share_step_to_relearn"] = round(float(np.mean(trust[seg] != "ok")), 4)
                 if res["untrusted_share_step_to_relearn"] < 0.9:
