@@ -19,6 +19,7 @@
 #define CONT_CHANGE_UNC 3.0f      /* the change threshold widens by at most sqrt(1 + this) */
 #define CONT_U_SD_K 3.0f          /* z within this x the store's spread of u ... */
 #define CONT_EPISODE_ON_MS 1000u  /* mismatch time of an episode that turns the per-sample test back on */
+#define CONT_GLITCH_REL 0.5f      /* |rel| beyond this is a glitch wherever the sample lies */
 #define CONT_U_PITCH 0.25f        /* ... plus this x R (a 6 deg hill moves z by ~0.11 R, 8.5 deg by 0.15 R) */
 
 /* Prediction variance of the model at a sample over its noise variance: |L^-1 f|^2 with f the
@@ -107,8 +108,10 @@ int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_co
         /* a sector the store did not cover: the calibration and the model are extrapolated
          * there; such samples are what the next solve needs, so the per-sample test does not
          * judge them (they are stored), but the transient judge's flag and a z out of reach of
-         * pitch still do (a 45 % disturbance of a parked car in such a sector was trusted) */
-        j->mismatch = (uint8_t)((j->gross != 0u || cc->dist_flag != 0u) ? 1u : 0u);
+         * pitch still do (a 45 % disturbance of a parked car in such a sector was trusted), and
+         * a field CONT_GLITCH_REL off R, which no extrapolation explains (a sensor rail there was
+         * OK at 109 deg: 30-min seed 34, tests/test_cont_trust_gaps.c) */
+        j->mismatch = (uint8_t)((j->gross != 0u || cc->dist_flag != 0u || !(fabsf(j->rel) <= CONT_GLITCH_REL)) ? 1u : 0u);
         return 1;
     }
     /* a change counts samples beyond twice the per-sample threshold, widened for the model's

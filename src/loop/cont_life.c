@@ -653,6 +653,14 @@ magcal_status_t magcal_cont_status(const magcal_cont_t *cc)
     return magcal_cont_ok(cc) ? cc->last_status : MAGCAL_ERR_NOT_INITIALISED;
 }
 
+/* 1 when an axis of the raw sample is at the declared range (cfg.intake.range_limit): a
+ * saturated axis is a fault, never a heading (the store refuses such samples too). */
+static int cont_saturated(const magcal_cont_t *cc, const magcal_vec3_t *m)
+{
+    const float lim = cc->cfg.intake.range_limit;
+    return (lim > 0.0f && (!(fabsf(m->x) < lim) || !(fabsf(m->y) < lim) || !(fabsf(m->z) < lim))) ? 1 : 0;
+}
+
 magcal_status_t magcal_cont_heading(const magcal_cont_t *cc, const magcal_vec3_t *m, float declination_deg,
                                     magcal_cont_heading_t *out)
 {
@@ -710,7 +718,7 @@ magcal_status_t magcal_cont_heading(const magcal_cont_t *cc, const magcal_vec3_t
     out->radius_rel = j.rel;
     if (cc->state == (uint8_t)MAGCAL_CONT_RELEARNING) {
         out->trust = MAGCAL_TRUST_CHANGED;
-    } else if (j.mismatch != 0u || magcal_cont_episode_wide(cc) != 0) {
+    } else if (j.mismatch != 0u || magcal_cont_episode_wide(cc) != 0 || cont_saturated(cc, m) != 0) {
         out->trust = MAGCAL_TRUST_DISTURBED;
     } else if (cont_tilt_err_deg(cc, out->levelled) > cc->cfg.tilt_trust_deg && cc->cfg.tilt_trust_deg > 0.0f) {
         out->trust = MAGCAL_TRUST_TILTED;
