@@ -77,7 +77,11 @@ int magcal_cont_episode(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint32_
         cc->mis_ms += dt;
         cc->clean_ms = 0u;
         cc->mis_bins[j->sector / 32u] |= 1u << (j->sector % 32u);
-    } else if (j->tilted == 0u && cc->episode_open != 0u) {
+    } else if (j->tilted == 0u && cc->episode_open != 0u && (j->over == 0u || cc->fz_unfit != 0u)) {
+        /* consistent: within the per-sample threshold (a sample over it but short of the change
+         * evidence is neither: 30-min seed 38's hard-iron step, parked at one heading, read 0.18 to
+         * 0.22 R off around twice the threshold; those samples closed the episode, then the model's
+         * health switched the per-sample test off and the heading was OK at 37 deg for 5 minutes) */
         cc->clean_ms += dt;
         if (cc->clean_ms >= cc->cfg.clear_ms) {
             cc->episode_open = 0u;
