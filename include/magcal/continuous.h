@@ -201,6 +201,19 @@
  * The model takes the specific force for gravity: a vehicle's longitudinal acceleration reads as
  * pitch (it is not levelled only when |g| leaves its g_band_rel band).
  *
+ * OK tolerance (cfg.ok_max_err_deg, default 3; 0 = off). A heading is OK only under a full
+ * calibration whose own error estimate is within the tolerance: `adopted_err`, the adopting
+ * solve's est_heading_err_deg (per-sample noise, parameter error and the tilt term of "Tilt in
+ * the estimate"), then after every later full solve that keeps it (NOT_BETTER) the error that
+ * solve measured for it on its fresh data combined with its own estimate (the measure is only
+ * as good as its reference), sqrt(current_err_deg^2 + est_heading_err_deg^2). Above the
+ * tolerance its headings are MAGCAL_TRUST_COARSE: installed and usable, not the OK promise. (48
+ * generated 30-min drives: every calibration adopted with an estimate over 3 deg had OK rows
+ * more than 5 deg off, 6,127 rows on seed 35 at an estimate of 4.4 deg; docs/calibrator.md.) A
+ * calibration restored from flash has no estimate (NaN) and is not held by the tolerance; one
+ * levelled at once by k times its fit tilt (a relevel, "Tilt compensation") drops the tilt term
+ * ("Tilt in the estimate") from its estimate: the levelling removes what the term stood for.
+ *
  * Tilt in the trust (cfg.tilt_trust_deg, default 3; 0 = off). A 2-D calibration is right only at
  * the tilt it was fitted at. With push_g's gravity, magcal_cont_heading predicts the heading
  * error of the current tilt t against the calibration's fit tilt t_cal (0 for one fitted on, or
@@ -462,6 +475,10 @@ typedef struct {
                                          move leaves the gyro's track by more than this many
                                          degrees (or 4x the track's RMS deviation) is
                                          MAGCAL_TRUST_DISTURBED; >= 0, 0 = off (default 2.5) */
+    float ok_max_err_deg;           /**< the OK tolerance ("OK tolerance" below): headings of a full
+                                         calibration whose error estimate (`adopted_err`) is above
+                                         this many degrees are MAGCAL_TRUST_COARSE, not OK; >= 0,
+                                         0 = off (default 3) */
     uint8_t gyro_gravity;           /**< gyro-aided gravity ("Gyro-aided gravity" below): 1 = with
                                          magcal_cont_push_imu's rates, the gravity push_g levels
                                          and judges with is carried by the gyro and pulled towards
@@ -478,7 +495,7 @@ typedef struct {
         MAGCAL_INTAKE_CFG_DEFAULT_2D, MAGCAL_CALIBRATOR_CFG_STORE_DEFAULT, 280.0f, 24u, 2u,        \
             600000.0f, 4.0f, 0.06f, 8000u, 3u, 4000u, 100u, 200u, 4.0f,                            \
             MAGCAL_SLICE_BUDGET_DEFAULT, 0.0f, 15.0f, 8.0f, 0.7f, 0.0f, 10.0f, 7.0f, 180.0f, 3.0f, 2.0f, \
-            0.25f, 6000u, 4.5f, 0u, 3.0f, 2.5f, 0u                                                 \
+            0.25f, 6000u, 4.5f, 0u, 3.0f, 2.5f, 3.0f, 0u                                           \
     }
 
 /** A heading with its trust. */
@@ -565,7 +582,9 @@ typedef struct {
     float fz_u0;                   /* mean raw z of the store at adoption */
     float fz_abc[3];               /* |h|^2 = a + b u + c u^2, u = z - fz_u0 (h corrected x, y) */
     uint32_t aged_adopts;          /* adoptions won by the ageing rule (cont_adopt.c) */
-    float adopted_err;             /**< read-only: est_heading_err_deg of the installed calibration (NaN: none / from flash) */
+    float adopted_err;             /**< read-only: error estimate of the installed calibration, deg ("OK tolerance";
+                                        NaN: none / from flash) */
+    float adopted_tilt;            /* the tilt term in it (the solve's "Tilt in the estimate"), deg */
     /* judge (cont_judge.c, cont_flags.c): linear terms of the total-field model, transient judge state */
     float fz_hxy[4];               /* |h|^2 model terms hx, hy, hx^2 - hy^2, hx hy (unit radius) */
     float dist_e;                  /* smoothed relative residual */

@@ -148,7 +148,9 @@ typedef enum {
     MAGCAL_TRUST_COARSE = 4,       /**< continuous calibrator only: field consistent with a coarse
                                         (hard-iron-only) calibration whose heading error is bounded
                                         by its adoption's est_param_err_deg, not by the full
-                                        calibration's tolerance (continuous.h "Coarse calibration") */
+                                        calibration's tolerance (continuous.h "Coarse calibration"),
+                                        or with a full one whose error estimate is above
+                                        cfg.ok_max_err_deg (continuous.h "OK tolerance") */
     MAGCAL_TRUST_TILTED = 5        /**< continuous calibrator only (magcal_cont_push_g's gravity):
                                         the sample is tilted away from the tilt the calibration was
                                         fitted at by enough to move the heading by more than

@@ -158,6 +158,7 @@ magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_
         }
         cc->generation++;
         cc->adopted_err = r->est_heading_err_deg;
+        cc->adopted_tilt = cc->solver.model_deg;
         magcal_cont_fit_begin(cc); /* the fit runs in step()'s slices (cont_step.c), the drain paused */
         cc->stored_at_adopt = (cc->store.ctr.added + cc->store.ctr.replaced);
         cc->age_ms_acc = 0u;
@@ -177,6 +178,14 @@ magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_
         cc->drop_on = 1u;
     }
     if (st == MAGCAL_ERR_NOT_BETTER) {
+        if (r->coarse == 0u && r->arc == 0u && cc->cal_coarse == 0u && magcal_isfinite_f(r->current_err_deg) &&
+            magcal_isfinite_f(r->est_heading_err_deg)) {
+            /* the installed calibration's error as this solve measured it on its fresh data, as
+             * good as its reference (continuous.h "OK tolerance") */
+            cc->adopted_err = sqrtf(r->current_err_deg * r->current_err_deg +
+                                    r->est_heading_err_deg * r->est_heading_err_deg);
+            cc->adopted_tilt = cc->solver.model_deg;
+        }
         /* fresh data confirm the installed calibration: a declared change is refuted; a relevel's
          * levelled store confirms it as a levelled one */
         if (cc->relevel != 0u) {

@@ -52,11 +52,13 @@ static magcal_status_t cont_check_cfg(const magcal_cont_cfg_t *c)
     }
 #endif
     if (!magcal_isfinite_f(c->shift_rel) || !magcal_isfinite_f(c->tilt_model_deg) ||
-        !magcal_isfinite_f(c->tilt_trust_deg) || !magcal_isfinite_f(c->rate_trust_deg)) {
+        !magcal_isfinite_f(c->tilt_trust_deg) || !magcal_isfinite_f(c->rate_trust_deg) ||
+        !magcal_isfinite_f(c->ok_max_err_deg)) {
         return MAGCAL_ERR_NONFINITE;
     }
     if (!(c->shift_rel == 0.0f || (c->shift_rel >= 0.15f && c->shift_rel <= 2.0f)) || c->shift_hold_ms < 1u ||
-        c->continuity > 1u || c->gyro_gravity > 1u || c->tilt_model_deg < 0.0f || c->tilt_trust_deg < 0.0f || c->rate_trust_deg < 0.0f) {
+        c->continuity > 1u || c->gyro_gravity > 1u || c->tilt_model_deg < 0.0f || c->tilt_trust_deg < 0.0f || c->rate_trust_deg < 0.0f ||
+        c->ok_max_err_deg < 0.0f) {
         return MAGCAL_ERR_ARG;
     }
     return magcal_cont_arc_cfg_check(c);
@@ -102,6 +104,7 @@ magcal_status_t magcal_cont_init(magcal_cont_t *cc, const magcal_cont_cfg_t *cfg
     cc->last.status = MAGCAL_OK;
     cc->last.est_heading_err_deg = NAN;
     cc->adopted_err = NAN;
+    cc->adopted_tilt = 0.0f;
     cc->last_status = MAGCAL_OK;
     cc->state = (uint8_t)MAGCAL_CONT_COLLECTING;
     if (cfg->tilt_comp_deg > 0.0f) {
@@ -723,7 +726,10 @@ magcal_status_t magcal_cont_heading(const magcal_cont_t *cc, const magcal_vec3_t
     } else if (cont_tilt_err_deg(cc, out->levelled) > cc->cfg.tilt_trust_deg && cc->cfg.tilt_trust_deg > 0.0f) {
         out->trust = MAGCAL_TRUST_TILTED;
     } else {
-        out->trust = cc->cal_coarse != 0u ? MAGCAL_TRUST_COARSE : MAGCAL_TRUST_OK;
+        /* a full calibration whose error estimate is above the OK tolerance ("OK tolerance"): a
+         * restored one has none (NaN) */
+        const int loose = (cc->cfg.ok_max_err_deg > 0.0f && cc->adopted_err > cc->cfg.ok_max_err_deg) ? 1 : 0;
+        out->trust = (cc->cal_coarse != 0u || loose != 0) ? MAGCAL_TRUST_COARSE : MAGCAL_TRUST_OK;
     }
     return MAGCAL_OK;
 }

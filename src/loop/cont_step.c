@@ -13,6 +13,7 @@
 #include "../intake/intake_internal.h"
 #include "magcal/config.h"
 #include "cont_internal.h"
+#include "magcal_internal.h"
 
 /* cppcheck-suppress misra-c2012-2.3 ; deviation D4: a static assert is an unused typedef */
 MAGCAL_STATIC_ASSERT(sizeof(float) == sizeof(uint32_t), cont_park_stamp_bits); /* deviation D15 */
@@ -718,6 +719,10 @@ static MAGCAL_NOINLINE void cont_relevel(magcal_cont_t *cc)
     if (cc->cal_tk != 0u && cc->cal_ts <= CONT_TF_SPREAD) {
         cc->cal_conv = 1u;
         cc->levels++;
+        /* levelled by k times its fit tilt: the tilt term leaves its estimate ("OK tolerance") */
+        if (magcal_isfinite_f(cc->adopted_err)) {
+            cc->adopted_err = sqrtf(fmaxf(cc->adopted_err * cc->adopted_err - cc->adopted_tilt * cc->adopted_tilt, 0.0f));
+        }
     }
     magcal_cont_centre_store(cc);
     cc->relevel = 1u;
