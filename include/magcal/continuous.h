@@ -489,6 +489,11 @@ typedef struct {
                                          road vehicle) */
 } magcal_cont_cfg_t;
 
+/** An open change episode with at least this much mismatch (ms) holds every heading DISTURBED,
+ *  also the samples consistent by chance (src/loop/cont_life.c): longer than a transient (2..5 s;
+ *  at 3000 a 3-s transient held the clean rows after it), shorter than cfg.change_ms. */
+#define MAGCAL_CONT_EPISODE_TRUST_MS 5000u
+
 /** Defaults: work untuned from 10 to 100 Hz (time constants are in ms of the push stamps). */
 #define MAGCAL_CONT_CFG_DEFAULT                                                                    \
     {                                                                                              \
