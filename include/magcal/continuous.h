@@ -915,6 +915,12 @@ magcal_cont_outcome_t magcal_cont_solve_blocking(magcal_cont_t *cc, int force);
 /**
  * @brief Heading of a raw sample (x, y give the heading; z feeds the total-field judge) with the
  *        installed calibration and its trust (the judge of step(), no state change). Task context.
+ *        Trust, first that applies: UNCALIBRATED (nothing installed); CHANGED (relearning);
+ *        DISTURBED (the sample mismatches the calibration, a transient or the gyro's check flags
+ *        it, an open change episode is wide or holds MAGCAL_CONT_EPISODE_TRUST_MS of mismatch,
+ *        or an axis is at cfg.intake.range_limit); TILTED ("Tilt in the trust"); COARSE (a coarse
+ *        or arc calibration, or one whose estimate is above cfg.ok_max_err_deg: "OK
+ *        tolerance"); else OK.
  * @return MAGCAL_OK, MAGCAL_ERR_NULL, MAGCAL_ERR_NOT_INITIALISED, MAGCAL_ERR_NONFINITE,
  *         MAGCAL_ERR_ZERO_FIELD (as magcal_heading_compute()).
  */

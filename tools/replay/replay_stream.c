@@ -40,7 +40,7 @@ static const char k_stream_usage[] =
     "usage: magcal-replay --stream [--mode 2d|3d] [--headings OUT.csv] [--json] [--declination DEG]\n"
     "                        [--range R] [--steps-per-row K] [--coarse DEG[,TOL]] [--arc DEG[,TOL[,MODEL]]]\n"
     "                        [--continuity 0|1] [--no-tilt] [--level-tilt DEG] [--install REC] [--save REC]\n"
-    "                        [--no-gyro] [--gyro-unit rads|dps] [--gyro-gravity] DUMP.csv\n"
+    "                        [--no-gyro] [--gyro-unit rads|dps] [--gyro-gravity] [--ok-max-err DEG] DUMP.csv\n"
     "                        (R: the sensor's declared range)\n"
     "  --coarse: 2-D coarse stage on (cfg.coarse_coverage_deg DEG, cfg.coarse_max_err_deg TOL; off by\n"
     "  default): adoptions of a hard-iron circle carry status \"coarse\", its headings trust \"coarse\";\n"
@@ -65,7 +65,9 @@ static const char k_stream_usage[] =
     "  magcal_cont_push_imu (the gyro heading check, continuous.h; JSON \"gyro_fed\": true, rate_flags,\n"
     "  rate_sign, rate_bias_dps, gravity_locked, gravity_unlocks); --no-gyro: never;\n"
     "  --gyro-gravity: cfg.gyro_gravity 1 (with the gyro, push_g levels with the gyro-carried gravity\n"
-    "  where the accelerometer reads the vehicle's acceleration; continuous.h \"Gyro-aided gravity\")\n";
+    "  where the accelerometer reads the vehicle's acceleration; continuous.h \"Gyro-aided gravity\")\n"
+    "  --ok-max-err DEG: cfg.ok_max_err_deg (default 3; 0 = off): a full calibration whose error\n"
+    "  estimate is above it gives COARSE headings (continuous.h \"OK tolerance\")\n";
 
 /* Open the headings CSV (hpath NULL: none) and write its header; 0 when it cannot be written
  * (said on stderr). */
@@ -616,6 +618,7 @@ int replay_stream_main(int argc, char **argv)
                                            {"no-gyro", no_argument, NULL, 'G'},
                                            {"gyro-unit", required_argument, NULL, 'U'},
                                            {"gyro-gravity", no_argument, NULL, 'A'},
+                                           {"ok-max-err", required_argument, NULL, 'O'},
                                            {"help", no_argument, NULL, 'h'},
                                            {NULL, 0, NULL, 0}};
     const char *hpath = NULL;
@@ -753,6 +756,16 @@ int replay_stream_main(int argc, char **argv)
         case 'A':
             cfg.gyro_gravity = 1u;
             break;
+        case 'O': {
+            char *end = NULL;
+            double v = strtod(optarg, &end);
+            if (end == optarg || *end != '\0' || !(v >= 0.0 && v <= 90.0)) {
+                fprintf(stderr, "magcal-replay: --ok-max-err needs degrees 0..90, got \"%s\"\n", optarg);
+                return 1;
+            }
+            cfg.ok_max_err_deg = (float)v;
+            break;
+        }
         case 'U':
             if (strcmp(optarg, "rads") == 0) {
                 wscale = 1.0;
