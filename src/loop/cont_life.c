@@ -732,8 +732,11 @@ magcal_status_t magcal_cont_heading(const magcal_cont_t *cc, const magcal_vec3_t
     } else {
         /* a full calibration whose error estimate is above the OK tolerance ("OK tolerance"): a
          * restored one has none (NaN) */
-        const int loose = (cc->cfg.ok_max_err_deg > 0.0f && cc->adopted_err > cc->cfg.ok_max_err_deg) ? 1 : 0;
-        out->trust = (cc->cal_coarse != 0u || loose != 0) ? MAGCAL_TRUST_COARSE : MAGCAL_TRUST_OK;
+        if (cc->cal_coarse != 0u || (cc->cfg.ok_max_err_deg > 0.0f && cc->adopted_err > cc->cfg.ok_max_err_deg)) {
+            out->trust = MAGCAL_TRUST_COARSE;
+        } else {
+            out->trust = MAGCAL_TRUST_OK;
+        }
     }
     return MAGCAL_OK;
 }

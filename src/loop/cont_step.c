@@ -720,7 +720,7 @@ static MAGCAL_NOINLINE void cont_relevel(magcal_cont_t *cc)
         cc->cal_conv = 1u;
         cc->levels++;
         /* levelled by k times its fit tilt: the tilt term leaves its estimate ("OK tolerance") */
-        if (magcal_isfinite_f(cc->adopted_err)) {
+        if (magcal_isfinite_f(cc->adopted_err) != 0) {
             cc->adopted_err = sqrtf(fmaxf(cc->adopted_err * cc->adopted_err - cc->adopted_tilt * cc->adopted_tilt, 0.0f));
         }
     }
