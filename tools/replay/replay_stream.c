@@ -576,6 +576,19 @@ static void stream_event(cJSON *ev, size_t row, magcal_cont_outcome_t oc)
     }
 }
 
+/* An option's degrees, 0..max (one number, nothing else): 1 and *out set, else 0 (said on stderr). */
+static int parse_deg_opt(const char *name, const char *arg, double max, float *out)
+{
+    char *end = NULL;
+    const double v = strtod(arg, &end);
+    if (end == arg || *end != '\0' || !(v >= 0.0 && v <= max)) {
+        fprintf(stderr, "magcal-replay: %s needs degrees 0..%g, got \"%s\"\n", name, max, arg);
+        return 0;
+    }
+    *out = (float)v;
+    return 1;
+}
+
 /* "A[,B[,...]]": up to max numbers separated by commas, nothing else (strtod each): how many
  * were read, 0 when malformed (an empty field, a trailing comma or other characters). */
 static int parse_num_list(const char *s, double *v, int max)
@@ -734,16 +747,11 @@ int replay_stream_main(int argc, char **argv)
         case 'T':
             no_tilt = 1;
             break;
-        case 'L': {
-            char *end = NULL;
-            double v = strtod(optarg, &end);
-            if (end == optarg || *end != '\0' || !(v >= 0.0 && v <= 30.0)) {
-                fprintf(stderr, "magcal-replay: --level-tilt needs degrees 0..30, got \"%s\"\n", optarg);
+        case 'L':
+            if (parse_deg_opt("--level-tilt", optarg, 30.0, &cfg.intake.tilt_limit_deg) == 0) {
                 return 1;
             }
-            cfg.intake.tilt_limit_deg = (float)v;
             break;
-        }
         case 'I':
             install_path = optarg;
             break;
@@ -756,16 +764,11 @@ int replay_stream_main(int argc, char **argv)
         case 'A':
             cfg.gyro_gravity = 1u;
             break;
-        case 'O': {
-            char *end = NULL;
-            double v = strtod(optarg, &end);
-            if (end == optarg || *end != '\0' || !(v >= 0.0 && v <= 90.0)) {
-                fprintf(stderr, "magcal-replay: --ok-max-err needs degrees 0..90, got \"%s\"\n", optarg);
+        case 'O':
+            if (parse_deg_opt("--ok-max-err", optarg, 90.0, &cfg.ok_max_err_deg) == 0) {
                 return 1;
             }
-            cfg.ok_max_err_deg = (float)v;
             break;
-        }
         case 'U':
             if (strcmp(optarg, "rads") == 0) {
                 wscale = 1.0;
