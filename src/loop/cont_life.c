@@ -723,9 +723,9 @@ magcal_status_t magcal_cont_heading(const magcal_cont_t *cc, const magcal_vec3_t
         out->trust = MAGCAL_TRUST_CHANGED;
     } else if (j.mismatch != 0u || magcal_cont_episode_wide(cc) != 0 || cont_saturated(cc, m) != 0 ||
                (cc->episode_open != 0u && cc->mis_ms >= MAGCAL_CONT_EPISODE_TRUST_MS)) {
-        /* an episode with more mismatch than a transient's gross part (evidence of a change under
-         * way) holds every heading, also the samples that cross the old ring by chance (30-min
-         * seed 24: OK rows up to 23.6 deg between a hard-iron step and its declaration) */
+        /* an episode with more mismatch than a transient lasts (evidence of a change under way)
+         * holds every heading, also the samples that cross the old ring by chance (30-min seed
+         * 24: OK rows up to 23.6 deg between a hard-iron step and its declaration) */
         out->trust = MAGCAL_TRUST_DISTURBED;
     } else if (cont_tilt_err_deg(cc, out->levelled) > cc->cfg.tilt_trust_deg && cc->cfg.tilt_trust_deg > 0.0f) {
         out->trust = MAGCAL_TRUST_TILTED;
