@@ -3,16 +3,27 @@
  *   bins.c     direction -> bin (2-D sectors, 3-D igloo cells) and the mask geometry;
  *   store.c    init, push (spacing, cap, newest-replaces-oldest), snapshot, counters;
  *   sweep.c    the bounded survey / re-bin sweep that keeps the provisional centre robust;
- *   progress.c live coverage, completion and the filled-bin mask.
+ *   progress.c live coverage, completion and the filled-bin mask;
+ * and the saturation test the continuous calibrator's heading trust shares with the store.
  */
 #ifndef MAGCAL_INTAKE_INTERNAL_H
 #define MAGCAL_INTAKE_INTERNAL_H
+
+#include <math.h>
 
 #include "magcal/intake.h"
 
 #define INTAKE_MAGIC 0x494e544bu /* "INTK" */
 #define INTAKE_SEQ_LEVEL 0x80000000u /* slot.seq bit 31: a LEVEL sample (magcal_intake_push_tilt) */
 #define INTAKE_SEQ_MASK 0x7fffffffu  /* slot.seq bits 0..30: push count (ages modulo 2^31 pushes) */
+
+/* 1 when an axis of the raw sample m is at the declared range (cfg->range_limit > 0; a
+ * non-finite axis counts too): a saturated axis is a fault, not data. */
+static inline int magcal_intake_saturated(const magcal_intake_cfg_t *cfg, const magcal_vec3_t *m)
+{
+    const float lim = cfg->range_limit;
+    return (lim > 0.0f && (!(fabsf(m->x) < lim) || !(fabsf(m->y) < lim) || !(fabsf(m->z) < lim))) ? 1 : 0;
+}
 
 /* Bin of a raw sample around the store's centre. */
 uint16_t magcal_intake_bin_of(const magcal_intake_t *st, const magcal_vec3_t *m);

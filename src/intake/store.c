@@ -359,9 +359,7 @@ magcal_status_t magcal_intake_push_tilt(magcal_intake_t *st, const magcal_vec3_t
         st->ctr.refused_nonfinite++;
         oc = MAGCAL_INTAKE_REFUSED_NONFINITE;
         ret = MAGCAL_ERR_NONFINITE;
-    } else if (st->cfg.range_limit > 0.0f &&
-               (fabsf(m->x) >= st->cfg.range_limit || fabsf(m->y) >= st->cfg.range_limit ||
-                fabsf(m->z) >= st->cfg.range_limit)) {
+    } else if (magcal_intake_saturated(&st->cfg, m) != 0) {
         st->ctr.refused_saturated++;
         oc = MAGCAL_INTAKE_REFUSED_SATURATED;
         ret = MAGCAL_ERR_SATURATED;

@@ -19,7 +19,6 @@
 
 #define CONT_DIST_MIN_REL 0.004f  /* floor of the transient threshold (relative) */
 #define CONT_DIST_CLAMP 0.15f     /* a sample enters the smoothed residual clamped to this */
-#define CONT_DIST_GROSS 0.5f      /* |rel| above: a glitch, it does not feed the transient judge */
 #define CONT_DIST_BASE_MS 4000.0f /* baseline time constant (hills drift the model's bias) */
 #define CONT_DIST_VAR_MS 20000.0f /* variance time constant of the transient judge */
 #define CONT_DIST_STORE_K 0.5f    /* transient threshold >= this x the model's sigma on the store */
@@ -176,7 +175,7 @@ void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint
     float thru;
     uint32_t i;
     uint8_t over;
-    if (!magcal_isfinite_f(rel) || !(fabsf(rel) <= CONT_DIST_GROSS) || !magcal_isfinite_f(j->u)) {
+    if (!magcal_isfinite_f(rel) || !(fabsf(rel) <= CONT_GLITCH_REL) || !magcal_isfinite_f(j->u)) {
         return; /* a glitch: flagged by the per-sample judge, the smoothed state keeps its value */
     }
     x = fminf(fmaxf(rel, -CONT_DIST_CLAMP), CONT_DIST_CLAMP);
@@ -311,7 +310,7 @@ uint8_t magcal_cont_transient_peek(const magcal_cont_t *cc, const magcal_cont_ju
     float v[6];
     float e;
     float ue;
-    if (cc->dist_n == 0u || !magcal_isfinite_f(j->rel) || !(fabsf(j->rel) <= CONT_DIST_GROSS) ||
+    if (cc->dist_n == 0u || !magcal_isfinite_f(j->rel) || !(fabsf(j->rel) <= CONT_GLITCH_REL) ||
         !magcal_isfinite_f(j->u) || (cc->dist_age_ms < CONT_DIST_WARM_MS && cc->dist_flag == 0u)) {
         return 0u; /* (no new flag while the baselines settle, as magcal_cont_transient) */
     }

@@ -135,12 +135,7 @@ static int ga_update(magcal_cont_t *cc, const magcal_vec3_t *g, const magcal_vec
         return 0;
     }
     dt = 0.001f * (float)dtm;
-    {
-        const float wa = magcal_cont_ema_w(dtm, GA_SMOOTH_MS);
-        cc->ga_as.x += (g->x - cc->ga_as.x) * wa;
-        cc->ga_as.y += (g->y - cc->ga_as.y) * wa;
-        cc->ga_as.z += (g->z - cc->ga_as.z) * wa;
-    }
+    magcal_cont_ema3(&cc->ga_as, g, magcal_cont_ema_w(dtm, GA_SMOOTH_MS));
     n = sqrtf(cc->ga_as.x * cc->ga_as.x + cc->ga_as.y * cc->ga_as.y + cc->ga_as.z * cc->ga_as.z);
     if (!(n > 0.0f) || !magcal_isfinite_f(n)) {
         cc->ga_on = 0u;

@@ -42,6 +42,13 @@ int magcal_cont_ok(const magcal_cont_t *cc);
 /* Weight of an exponential average with time constant tau_ms for a step of dt_ms (dt counted at
  * most tau_ms): dt / (dt + tau) (cont_life.c). */
 float magcal_cont_ema_w(uint32_t dt_ms, uint32_t tau_ms);
+/* One step of an exponential average of a vector: s += (x - s) w. */
+static inline void magcal_cont_ema3(magcal_vec3_t *s, const magcal_vec3_t *x, float w)
+{
+    s->x += (x->x - s->x) * w;
+    s->y += (x->y - s->y) * w;
+    s->z += (x->z - s->z) * w;
+}
 /* Judge raw (x, y) under cc->cal: 0 when no calibration is installed (j->mismatch 0). */
 int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_cont_judge_t *j);
 /* Fit the judge's total-field model and noise on the store under cc->cal (at an adoption),

@@ -19,7 +19,6 @@
 #define CONT_CHANGE_UNC 3.0f      /* the change threshold widens by at most sqrt(1 + this) */
 #define CONT_U_SD_K 3.0f          /* z within this x the store's spread of u ... */
 #define CONT_EPISODE_ON_MS 1000u  /* mismatch time of an episode that turns the per-sample test back on */
-#define CONT_GLITCH_REL 0.5f      /* |rel| beyond this is a glitch wherever the sample lies */
 #define CONT_U_PITCH 0.25f        /* ... plus this x R (a 6 deg hill moves z by ~0.11 R, 8.5 deg by 0.15 R) */
 
 /* Prediction variance of the model at a sample over its noise variance: |L^-1 f|^2 with f the

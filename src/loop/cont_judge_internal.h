@@ -12,6 +12,10 @@
 #include "cont_internal.h"
 #include "magcal_internal.h"
 
+/* |rel| beyond this is a glitch wherever the sample lies: it does not feed the transient judge
+ * (cont_flags.c), and it is a mismatch even in a sector the store did not cover (cont_judge.c) */
+#define CONT_GLITCH_REL 0.5f
+
 /* Features of the judge's model: 1, u, u^2, hx, hy, hx^2 - hy^2, hx hy (unit radius; the last
  * two absorb a residual shape error of the calibration). `skip` drops the leading u terms:
  * 0 keeps both, 1 drops u^2, 2 drops u and u^2. Returns the count written to f. */

@@ -9,6 +9,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "../intake/intake_internal.h"
 #include "cont_internal.h"
 #include "cont_judge_internal.h"
 #include "magcal_internal.h"
@@ -191,10 +192,7 @@ static uint8_t cont_tilt_of(magcal_cont_t *cc, const magcal_vec3_t *g, uint32_t 
     if (!(cc->g_level2 > 0.0f)) {
         cc->g_s = *g; /* seeded by the first sample */
     } else {
-        const float w = magcal_cont_ema_w(t_ms - cc->g_t, MAGCAL_CONT_G_SMOOTH_MS); /* wrapping stamps */
-        cc->g_s.x += (g->x - cc->g_s.x) * w;
-        cc->g_s.y += (g->y - cc->g_s.y) * w;
-        cc->g_s.z += (g->z - cc->g_s.z) * w;
+        magcal_cont_ema3(&cc->g_s, g, magcal_cont_ema_w(t_ms - cc->g_t, MAGCAL_CONT_G_SMOOTH_MS)); /* wrapping stamps */
     }
     h2 = cc->g_s.x * cc->g_s.x + cc->g_s.y * cc->g_s.y;
     v2 = cc->g_s.z * cc->g_s.z;
@@ -656,14 +654,6 @@ magcal_status_t magcal_cont_status(const magcal_cont_t *cc)
     return magcal_cont_ok(cc) ? cc->last_status : MAGCAL_ERR_NOT_INITIALISED;
 }
 
-/* 1 when an axis of the raw sample is at the declared range (cfg.intake.range_limit): a
- * saturated axis is a fault, never a heading (the store refuses such samples too). */
-static int cont_saturated(const magcal_cont_t *cc, const magcal_vec3_t *m)
-{
-    const float lim = cc->cfg.intake.range_limit;
-    return (lim > 0.0f && (!(fabsf(m->x) < lim) || !(fabsf(m->y) < lim) || !(fabsf(m->z) < lim))) ? 1 : 0;
-}
-
 magcal_status_t magcal_cont_heading(const magcal_cont_t *cc, const magcal_vec3_t *m, float declination_deg,
                                     magcal_cont_heading_t *out)
 {
@@ -721,7 +711,7 @@ magcal_status_t magcal_cont_heading(const magcal_cont_t *cc, const magcal_vec3_t
     out->radius_rel = j.rel;
     if (cc->state == (uint8_t)MAGCAL_CONT_RELEARNING) {
         out->trust = MAGCAL_TRUST_CHANGED;
-    } else if (j.mismatch != 0u || magcal_cont_episode_wide(cc) != 0 || cont_saturated(cc, m) != 0 ||
+    } else if (j.mismatch != 0u || magcal_cont_episode_wide(cc) != 0 || magcal_intake_saturated(&cc->cfg.intake, m) != 0 ||
                (cc->episode_open != 0u && cc->mis_ms >= MAGCAL_CONT_EPISODE_TRUST_MS)) {
         /* an episode with more mismatch than a transient lasts (evidence of a change under way)
          * holds every heading, also the samples that cross the old ring by chance (30-min seed
