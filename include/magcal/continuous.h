@@ -213,6 +213,9 @@
  * calibration restored from flash has no estimate (NaN) and is not held by the tolerance; one
  * levelled at once by k times its fit tilt (a relevel, "Tilt compensation") drops the tilt term
  * ("Tilt in the estimate") from its estimate: the levelling removes what the term stood for.
+ * For the first second after every install (and every field-model fit) the transient judge
+ * restarts its baselines and can raise no flag: its headings are COARSE then, not OK (30-min
+ * seed 34: a transient that began 0.3 s before a relearn's install was OK up to 14.2 deg off).
  *
  * Tilt in the trust (cfg.tilt_trust_deg, default 3; 0 = off). A 2-D calibration is right only at
  * the tilt it was fitted at. With push_g's gravity, magcal_cont_heading predicts the heading
@@ -920,7 +923,8 @@ magcal_cont_outcome_t magcal_cont_solve_blocking(magcal_cont_t *cc, int force);
  *        it, an open change episode is wide or holds MAGCAL_CONT_EPISODE_TRUST_MS of mismatch,
  *        or an axis is at cfg.intake.range_limit); TILTED ("Tilt in the trust"); COARSE (a coarse
  *        or arc calibration, or one whose estimate is above cfg.ok_max_err_deg: "OK
- *        tolerance"); else OK.
+ *        tolerance"; or the first second after an install or a field-model fit, while the
+ *        transient judge's baselines settle and it can raise no flag); else OK.
  * @return MAGCAL_OK, MAGCAL_ERR_NULL, MAGCAL_ERR_NOT_INITIALISED, MAGCAL_ERR_NONFINITE,
  *         MAGCAL_ERR_ZERO_FIELD (as magcal_heading_compute()).
  */

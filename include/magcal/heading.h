@@ -150,7 +150,9 @@ typedef enum {
                                         by its adoption's est_param_err_deg, not by the full
                                         calibration's tolerance (continuous.h "Coarse calibration"),
                                         or with a full one whose error estimate is above
-                                        cfg.ok_max_err_deg (continuous.h "OK tolerance") */
+                                        cfg.ok_max_err_deg (continuous.h "OK tolerance"), or in
+                                        the second after an install while the transient judge
+                                        settles */
     MAGCAL_TRUST_TILTED = 5        /**< continuous calibrator only (magcal_cont_push_g's gravity):
                                         the sample is tilted away from the tilt the calibration was
                                         fitted at by enough to move the heading by more than

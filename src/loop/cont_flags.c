@@ -325,6 +325,11 @@ uint8_t magcal_cont_transient_peek(const magcal_cont_t *cc, const magcal_cont_ju
                          : 0u);
 }
 
+int magcal_cont_transient_settling(const magcal_cont_t *cc)
+{
+    return cc->dist_flag == 0u && (cc->dist_n == 0u || cc->dist_age_ms < CONT_DIST_WARM_MS);
+}
+
 /* Reset the transient judge (a new calibration or model): noise from the store's sigma. The
  * vertical channel's values (raw z / R) and its regression are the vehicle's: rescaled to the new
  * raw radius and kept. A flag up at the reset (a transient in progress while a solve ends, the

@@ -78,5 +78,8 @@ void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint
 /* 1 when the transient judge would flag after one more sample j (not written: the heading's
  * sample, which the drain has not judged yet). */
 uint8_t magcal_cont_transient_peek(const magcal_cont_t *cc, const magcal_cont_judge_t *j);
+/* 1 while the transient judge cannot flag (its baselines settle after a reset, no flag up): it
+ * cannot vouch for a heading then. */
+int magcal_cont_transient_settling(const magcal_cont_t *cc);
 
 #endif /* MAGCAL_CONT_JUDGE_INTERNAL_H */

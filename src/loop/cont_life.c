@@ -722,7 +722,8 @@ magcal_status_t magcal_cont_heading(const magcal_cont_t *cc, const magcal_vec3_t
     } else {
         /* a full calibration whose error estimate is above the OK tolerance ("OK tolerance"): a
          * restored one has none (NaN) */
-        if (cc->cal_coarse != 0u || (cc->cfg.ok_max_err_deg > 0.0f && cc->adopted_err > cc->cfg.ok_max_err_deg)) {
+        if (cc->cal_coarse != 0u || (cc->cfg.ok_max_err_deg > 0.0f && cc->adopted_err > cc->cfg.ok_max_err_deg) ||
+            magcal_cont_transient_settling(cc) != 0) {
             out->trust = MAGCAL_TRUST_COARSE;
         } else {
             out->trust = MAGCAL_TRUST_OK;
