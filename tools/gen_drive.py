@@ -20,7 +20,8 @@ The drive is a sequence of segments:
   - turn: a random angle (mostly 15 .. 200 deg, either sense; 1 in 12 turns is a loop of 360 ..
     420 deg, so few full circles), 8 .. 25 deg/s;
   - hills: pitch follows a smooth random profile bounded to +-6 deg while moving (held while
-    parked), roll +-1.5 deg (camber).
+    parked), roll +-1.5 deg (camber); --hills DEG sets the pitch bound (the roll's is a quarter
+    of it; the same draws, so only the attitude columns and what they move differ).
 Disturbances (truth columns):
   - glitch: row 0 is a spike (a driver start-up glitch) and about one burst per 8 minutes of
     5 .. 40 rows is a driver glitch: one axis stuck at the sensor rail (+-sensor_range_ut: a
@@ -196,6 +197,8 @@ def main(argv):
     ap.add_argument("--out", default="-")
     ap.add_argument("--truth", default=None)
     ap.add_argument("--no-step", action="store_true")
+    ap.add_argument("--hills", type=float, default=6.0,
+                    help="bound of the pitch profile in degrees (roll: a quarter of it); 0 = a flat drive")
     ap.add_argument("--gyro", action="store_true",
                     help="append the gyro's body rates gx, gy, gz in rad/s (file comment); off: the "
                          "columns are absent and every other byte is the same")
@@ -239,8 +242,8 @@ def main(argv):
     moving_idx = np.cumsum(1 - parked) - 1
     moving_idx[moving_idx < 0] = 0
     n_move = int(max(1, np.sum(1 - parked)))
-    pitch_m = smooth_profile(rng, n_move, rate, 6.0, 240.0)
-    roll_m = smooth_profile(rng, n_move, rate, 1.5, 120.0)
+    pitch_m = smooth_profile(rng, n_move, rate, a.hills, 240.0)
+    roll_m = smooth_profile(rng, n_move, rate, a.hills / 4.0, 120.0)
     pitch_deg = pitch_m[moving_idx]
     roll_deg = roll_m[moving_idx]
 

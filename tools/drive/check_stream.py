@@ -2,7 +2,7 @@
 """Stream-order long-drive check of the continuous 2-D calibrator (issue 13).
 
     check_stream.py --gen tools/gen_drive.py --replay magcal-replay --workdir DIR
-                    [--minutes 60] [--seed 1] [--no-step] [--dyn-accel] [--gyro] [--replay-arg ARG]...
+                    [--minutes 60] [--seed 1] [--no-step] [--dyn-accel] [--gyro] [--hills DEG] [--replay-arg ARG]...
                     [--report-only]
 
 Generates a drive (tools/gen_drive.py: known truth), runs `magcal-replay --stream --headings
@@ -24,6 +24,8 @@ object; exit 1 when a requirement of issue 13 fails (unless --report-only), 77 w
                              and longitudinal acceleration: tools/gen_drive.py)
     --gyro                   passed to the generator (gx, gy, gz appended: the replay pushes
                              with magcal_cont_push_imu, the gyro heading check)
+    --hills DEG              passed to the generator (the bound of its pitch profile, default 6;
+                             0 = a flat drive)
     --replay-arg ARG         passed to magcal-replay (repeatable; e.g. --replay-arg=--no-tilt: no
                              gravity fed)
     --gravity-report         copy the replay's gravity counters (rows fed, LEVEL rows, levelled
@@ -83,6 +85,7 @@ def main():
     ap.add_argument("--require", default=None)
     ap.add_argument("--dyn-accel", action="store_true")
     ap.add_argument("--gyro", action="store_true")
+    ap.add_argument("--hills", type=float, default=None)
     ap.add_argument("--replay-arg", action="append", default=[])
     ap.add_argument("--gravity-report", action="store_true")
     a = ap.parse_args()
@@ -95,8 +98,8 @@ def main():
         if bad:
             ap.error("unknown --require key(s) %s (known: %s)" % (",".join(bad), ",".join(keys)))
     os.makedirs(a.workdir, exist_ok=True)
-    tag = "s%d_m%g%s%s%s" % (a.seed, a.minutes, "_nostep" if a.no_step else "", "_dyn" if a.dyn_accel else "",
-                             "_gyro" if a.gyro else "")
+    tag = "s%d_m%g%s%s%s%s" % (a.seed, a.minutes, "_nostep" if a.no_step else "", "_dyn" if a.dyn_accel else "",
+                               "_gyro" if a.gyro else "", "" if a.hills is None else "_hills%g" % a.hills)
     dump = os.path.join(a.workdir, "drive_%s.csv" % tag)
     truth_p = os.path.join(a.workdir, "drive_%s.json" % tag)
     hd_p = os.path.join(a.workdir, "stream_%s_headings.csv" % tag)
@@ -107,6 +110,8 @@ def main():
         cmd.append("--dyn-accel")
     if a.gyro:
         cmd.append("--gyro")
+    if a.hills is not None:
+        cmd += ["--hills", repr(a.hills)]
     subprocess.run(cmd, check=True)
     truth = json.load(open(truth_p))
     out = subprocess.run([a.replay, "--stream", "--declination", repr(truth["declination_deg"]),
