@@ -74,12 +74,30 @@ static void hdrive_init(hdrive_t *dr, uint32_t seed)
     dr->hill_rate = 1.0;
 }
 
-static void cont_init_default(void)
+/* The defaults (tilt_trust 1) or the tilt in the trust off (0). */
+static void cont_init_cfg(int tilt_trust)
 {
     magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
     cfg.intake.range_limit = 800.0f;
+    if (tilt_trust == 0) {
+        cfg.tilt_trust_deg = 0.0f;
+    }
     TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work,
                                                       sizeof g_work));
+}
+
+static void cont_init_default(void)
+{
+    cont_init_cfg(1);
+}
+
+/* The judge alone on the hills without gravity: the tilt in the trust off (cfg.tilt_trust_deg 0).
+ * With it on, a calibrator never given a gravity reads these hills in raw z and holds every
+ * heading TILTED ("Slopes without gravity"; tests/test_cont_slopes.c): right, since pitch moves
+ * this drive's headings by up to 12 deg, but then nothing here would test the judge. */
+static void cont_init_judge_only(void)
+{
+    cont_init_cfg(0);
 }
 
 /* One row at the current heading and the hills' pitch: body field, sensor, push, step, heading. */
@@ -195,8 +213,9 @@ static void hdrive_turn(hdrive_t *dr, double deg, double dps, hstats_t *st)
 /* Hills (+-6 deg of pitch while circling): the first adoption within 540 deg, no change is ever
  * declared, at most 2 % of the clean rows are flagged, >= 98 % judged consistent (OK, or COARSE:
  * the calibrations whose own error estimate is above the OK tolerance, continuous.h "OK
- * tolerance"; 4,521 of the 8,700 rows OK, the rest COARSE: pitch scatters this drive's headings,
- * 6.8 deg RMS on the OK rows against a floor of 5.0 for a level compass). Without the total-field
+ * tolerance"; 5,844 of the 8,700 rows OK, 2,723 COARSE: pitch scatters this drive's headings,
+ * 5.95 deg RMS on the OK rows against a floor of 4.86 for a level compass; the tilt in the trust
+ * is off here, cont_init_judge_only). Without the total-field
  * model the hills' radius change (~10 %) was a mismatch: false changes and 2.4..20 % false flags
  * on the generated drives. The heading RMS over the trusted rows is bounded at 1.5 x the floor
  * (measured 1.36 x): issue 13 asks 1.2 x, NOT met; the excess is the batch solver's calibration
@@ -208,7 +227,7 @@ void test_cont_drive_hills_trusted_no_change(void)
     double rms;
     double fl;
     memset(&st, 0, sizeof st);
-    cont_init_default();
+    cont_init_judge_only();
     hdrive_init(&dr, 5u);
     hdrive_turn(&dr, 720.0, 15.0, NULL);
     TEST_ASSERT_TRUE(dr.adopted >= 1u);
@@ -238,7 +257,7 @@ void test_cont_drive_transient_flagged_not_discarded(void)
     unsigned rows = 0u;
     unsigned late = 0u;
     int k;
-    cont_init_default();
+    cont_init_judge_only();
     hdrive_init(&dr, 7u);
     hdrive_turn(&dr, 1080.0, 15.0, NULL);
     TEST_ASSERT_TRUE(dr.adopted >= 1u);
@@ -312,7 +331,7 @@ void test_cont_drive_hard_iron_step_relearned(void)
     double relearn;
     size_t guard = 0u;
     memset(&st, 0, sizeof st);
-    cont_init_default();
+    cont_init_judge_only();
     hdrive_init(&dr, 9u);
     hdrive_turn(&dr, 1080.0, 15.0, NULL);
     TEST_ASSERT_TRUE(dr.adopted >= 1u);

@@ -905,7 +905,10 @@ static void stage_drive(uint8_t stage, drive_t *dr, double deg, stage_stats_t *s
             m.x = p.x;
             m.y = p.y;
             TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_heading(&g_cc, &m, 0.0f, &hd));
-            TEST_ASSERT_TRUE(hd.trust == MAGCAL_TRUST_COARSE || hd.trust == MAGCAL_TRUST_DISTURBED);
+            /* never OK; TILTED while the slopes are not yet measured (push alone: the field-model
+             * fit after the install measures them, continuous.h "Slopes without gravity") */
+            TEST_ASSERT_TRUE(hd.trust == MAGCAL_TRUST_COARSE || hd.trust == MAGCAL_TRUST_DISTURBED ||
+                             hd.trust == MAGCAL_TRUST_TILTED);
             if (st->adopted == 0u) {
                 st->bound = bd;
                 st->truth = tr;

@@ -153,10 +153,13 @@ typedef enum {
                                         cfg.ok_max_err_deg (continuous.h "OK tolerance"), or in
                                         the second after an install while the transient judge
                                         settles */
-    MAGCAL_TRUST_TILTED = 5        /**< continuous calibrator only (magcal_cont_push_g's gravity):
-                                        the sample is tilted away from the tilt the calibration was
-                                        fitted at by enough to move the heading by more than
-                                        cfg.tilt_trust_deg (continuous.h "Tilt in the trust") */
+    MAGCAL_TRUST_TILTED = 5        /**< continuous calibrator only: with magcal_cont_push_g's
+                                        gravity, the sample is tilted away from the tilt the
+                                        calibration was fitted at by enough to move the heading by
+                                        more than cfg.tilt_trust_deg (continuous.h "Tilt in the
+                                        trust"); never given a gravity, raw z shows slopes that can
+                                        (or has not yet been measured: continuous.h "Slopes
+                                        without gravity") */
 } magcal_trust_state_t;
 
 /** One heading with the facts a consumer needs to trust it. */

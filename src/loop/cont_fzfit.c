@@ -74,12 +74,14 @@ static int cont_fz_chol_solve(magcal_cont_t *cc, uint32_t nf, float *b)
 #define CONT_W_FIT_Z 240u     /* z mean / variance of one ring sample (its correction + ring test; was 400: measured on target, cont_trace.elf, <= 231 per sample) */
 #define CONT_W_FIT_SUM 720u   /* normal-equation sums: one sample (the full form; less without u; was 900: measured p99 705) */
 #define CONT_W_FIT_SIGMA 430u /* the model's residual and the sector covered: one sample (was 684: measured <= 415) */
+#define CONT_W_FIT_SLOPE 300u /* raw z about the level into the histogram: one sample (cont_slope.c; estimate: the z pass's and cont_sl_cs) */
+#define CONT_W_FIT_SL 80u     /* the slope sums' share of a z or sigma pass sample (cont_slope.c; estimate), without gravity only */
 #define CONT_W_FIT_BIN 13u    /* one bin advanced */
 #define CONT_W_FIT_CHOL 3840u /* Cholesky + solve of one model form (7 x 7 at most) */
 
 /* cppcheck-suppress misra-c2012-5.7 ; deviation D14 (false positive): the enum has no tag */
 /* cppcheck-suppress misra-c2012-2.4 ; deviation D14 (false positive): no tag, so no unused tag */
-enum { CONT_FIT_NONE = 0, CONT_FIT_Z = 1, CONT_FIT_SUMS = 2, CONT_FIT_CHOL = 3, CONT_FIT_SIGMA = 4 };
+enum { CONT_FIT_NONE = 0, CONT_FIT_Z = 1, CONT_FIT_SUMS = 2, CONT_FIT_CHOL = 3, CONT_FIT_SIGMA = 4, CONT_FIT_SLOPE = 5 };
 
 /* Start a pass (phase) over the store with its accumulators cleared. */
 static void cont_fit_pass(magcal_cont_t *cc, uint8_t phase)
@@ -168,6 +170,12 @@ static void cont_fit_sample(magcal_cont_t *cc, const magcal_vec3_t *m)
         cont_fz_add(cc, m);
         return;
     }
+    if (cc->fit_phase == (uint8_t)CONT_FIT_SLOPE) {
+        if (cont_fit_corrected(cc, m, &h) != 0 && fabsf(sqrtf(h.x * h.x + h.y * h.y) / cc->cal.radius - 1.0f) <= 0.35f) {
+            magcal_cont_slope_hist(cc, &h, m->z); /* raw z about the refitted level (cont_slope.c) */
+        }
+        return;
+    }
     if (cc->fit_phase == (uint8_t)CONT_FIT_Z) {
         /* the samples the sums use (on the ring): a stored spike's z must not move u0 or its spread */
         if (cont_fit_corrected(cc, m, &h) == 0 ||
@@ -177,6 +185,9 @@ static void cont_fit_sample(magcal_cont_t *cc, const magcal_vec3_t *m)
         cc->fit_acc[0] += m->z;
         cc->fit_acc[1] += m->z * m->z;
         cc->fit_acc[2] += 1.0f;
+        if (cc->sl_on != 0u) {
+            magcal_cont_slope_add(cc, &h, m->z); /* the level raw z (cont_slope.c) */
+        }
         return;
     }
     if (cont_fit_corrected(cc, m, &h) != 0) {
@@ -188,6 +199,9 @@ static void cont_fit_sample(magcal_cont_t *cc, const magcal_vec3_t *m)
         if (fabsf(rel) <= 0.1f) {
             cc->fit_acc[0] += rel * rel;
             cc->fit_acc[2] += 1.0f;
+            if (cc->sl_on != 0u) {
+                magcal_cont_slope_res(cc, &h, m->z);
+            }
         }
     }
 }
@@ -262,6 +276,9 @@ static int cont_fit_pass_end(magcal_cont_t *cc)
             cc->fit_phase = (uint8_t)CONT_FIT_NONE;
             return 1;
         }
+        if (cc->sl_on != 0u) {
+            magcal_cont_slope_solve(cc);
+        }
         cc->fz_u0 = cc->fit_acc[0] / n;
         var = cc->fit_acc[1] / n - cc->fz_u0 * cc->fz_u0;
         cc->fz_u_sd = sqrtf(fmaxf(var, 0.0f)) / cc->cal_raw_radius;
@@ -283,15 +300,22 @@ static int cont_fit_pass_end(magcal_cont_t *cc)
         }
         return cont_fit_next_form(cc);
     }
-    /* sigma pass: the judge's noise on the store; the model is on only with it */
-    cc->fit_phase = (uint8_t)CONT_FIT_NONE;
-    {
+    if (cc->fit_phase == (uint8_t)CONT_FIT_SIGMA) {
+        /* sigma pass: the judge's noise on the store; the model is on only with it */
         const float sg = n >= CONT_FZ_MIN_N ? sqrtf(cc->fit_acc[0] / n) : 0.0f;
         if (!(sg > 0.0f)) {
+            cc->fit_phase = (uint8_t)CONT_FIT_NONE;
             return 1;
         }
         cc->cal_sigma_rel = sg;
+        if (cc->sl_on != 0u && magcal_cont_slope_refit(cc) != 0) {
+            cont_fit_pass(cc, (uint8_t)CONT_FIT_SLOPE); /* the store's slopes (cont_slope.c) */
+            return 0;
+        }
+    } else {
+        magcal_cont_slope_end(cc); /* the slope pass ended */
     }
+    cc->fit_phase = (uint8_t)CONT_FIT_NONE;
     cc->fz_on = 1u;
     magcal_cont_transient_reset(cc);
     return 1;
@@ -306,7 +330,15 @@ static int cont_fit_pass_end(magcal_cont_t *cc)
  * sigma), in slices (cont_internal.h). */
 void magcal_cont_fit_begin(magcal_cont_t *cc)
 {
+    uint32_t k;
     cc->fz_on = 0u;
+    /* the slopes are measured only while no gravity ever came (cont_slope.c): with gravity the
+     * fit is what it was, pass for pass */
+    cc->sl_on = (uint8_t)(!(cc->tc_t.z > 0.0f) ? 1u : 0u);
+    cc->sl_ok = CONT_SL_NONE;
+    for (k = 0u; k < CONT_SL_ACC; ++k) {
+        cc->sl_acc[k] = 0.0f;
+    }
     /* the judge's condition on the calibration (cont_corrected), once for the whole fit */
     cc->fit_cal_ok = (uint8_t)(cc->has_cal != 0u && magcal_cal2d_validate(&cc->cal) == MAGCAL_OK && cc->cal.radius > 0.0f
                                    ? 1u
@@ -339,9 +371,11 @@ int magcal_cont_fit_step(magcal_cont_t *cc, magcal_cal_budget_t *b)
             const uint8_t ph = cc->fit_phase;
             cont_fit_sample(cc, &st->slots[cc->fit_bin * st->cfg.per_bin + cc->fit_k].m);
             cc->fit_k++;
-            spent = magcal_cal_spend(b, ph == (uint8_t)CONT_FIT_Z      ? CONT_W_FIT_Z
-                                        : ph == (uint8_t)CONT_FIT_SUMS ? CONT_W_FIT_SUM
-                                                                       : CONT_W_FIT_SIGMA);
+            const uint32_t sl = (cc->sl_on != 0u) ? CONT_W_FIT_SL : 0u;
+            spent = magcal_cal_spend(b, ph == (uint8_t)CONT_FIT_Z       ? CONT_W_FIT_Z + sl
+                                        : ph == (uint8_t)CONT_FIT_SUMS  ? CONT_W_FIT_SUM
+                                        : ph == (uint8_t)CONT_FIT_SLOPE ? CONT_W_FIT_SLOPE
+                                                                        : CONT_W_FIT_SIGMA + sl);
         }
     }
     return 1;

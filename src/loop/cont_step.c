@@ -117,6 +117,9 @@ static MAGCAL_NOINLINE int cont_screen(magcal_cont_t *cc, const magcal_vec3_t *m
 {
     magcal_cont_judge_t j;
     magcal_cont_shift_watch(cc, m, t_ms, levelled); /* before any calibration: a jump that stays (cont_shift.c) */
+    if (!(cc->tc_t.z > 0.0f)) {
+        magcal_cont_slope_noise(cc, m, t_ms); /* never a gravity: raw z's noise (cont_slope.c) */
+    }
     if (magcal_cont_continuity(cc, m, t_ms) == 0) {
         magcal_cont_rate_reset(cc); /* a sample the gyro's track does not take restarts it */
         return 1; /* before a calibration judges the stream: a jump from the sample before, never stored */
@@ -127,7 +130,14 @@ static MAGCAL_NOINLINE int cont_screen(magcal_cont_t *cc, const magcal_vec3_t *m
         j.tilted = (uint8_t)((cc->j_tilted != 0u && cc->fz_on == 0u) ? 1u : 0u); /* set by the drain */
         /* the gyro's rotation queued with a ring sample (the drain's, at cc->tail; a parked one has none) */
         magcal_cont_rate(cc, &j, (m != &cc->park_m) ? cc->ring_dy[cc->tail % MAGCAL_CONT_RING] : NAN, t_ms);
-        if (magcal_cont_episode(cc, &j, t_ms) != 0) {
+        const int changed = magcal_cont_episode(cc, &j, t_ms);
+        if (!(cc->tc_t.z > 0.0f) && changed == 0 && cc->dist_flag == 0u && j.gross == 0u) {
+            /* never a gravity: the slopes of now (cont_slope.c), from samples over the per-sample
+             * threshold too (an unlevelled hill is a mismatch of the radius), not from a flagged
+             * transient or change evidence (a truck or a step is no slope) */
+            magcal_cont_slope(cc, &j, cc->dist_dt);
+        }
+        if (changed != 0) {
             magcal_cont_declare_change(cc); /* the store restarts with this sample */
         } else if (j.mismatch != 0u) {
             return 1; /* inconsistent with the installed calibration: never stored */

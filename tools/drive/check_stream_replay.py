@@ -63,7 +63,7 @@ def main():
     trusted = 0
     for r in rows[1:]:
         i = int(r[0])
-        if r[3] not in ("ok", "uncalibrated", "disturbed", "changed", "coarse"):
+        if r[3] not in ("ok", "uncalibrated", "disturbed", "changed", "coarse", "tilted"):
             fail("row %d trust %s" % (i, r[3]))
         if int(r[4]) != sum(1 for x in adopted if x <= i):
             fail("row %d generation %s, adopted events %s" % (i, r[4], adopted))
