@@ -22,7 +22,8 @@
  * absolute value's mean over CONT_SL_MS_MS (x 1.25, a normal's RMS: the slopes of now), and the
  * largest mean square seen, decaying over CONT_SL_PK_MS (the slopes of the roads). magcal_cont_heading takes the largest of the four,
  * times k / R and CONT_SL_PEAK, as the heading error the slopes can cause (TILTED above
- * cfg.tilt_trust_deg); until the online mean has learnt for CONT_SL_MS_MS, the slopes are unknown.
+ * cfg.tilt_trust_deg); they are unknown for CONT_SL_WARM_MS after the first fit, and for
+ * CONT_SL_MS_MS (the online mean's time constant) when the store itself shows slopes.
  */
 #include "cont_judge_internal.h"
 
@@ -34,6 +35,7 @@
 #define CONT_SL_PK_MS 1800000u  /* the roads' slopes are forgotten over 30 min */
 #define CONT_SL_RP_MS 60000u    /* the slope seen last is forgotten over 1 min (a 10 x slope: in 4.6 min) */
 #define CONT_SL_WARM_MS 2000u   /* the slopes are unknown until the online measure has learnt this long */
+#define CONT_SL_FLAT 0.5f       /* ... or CONT_SL_MS_MS when the store's slopes exceed this x cfg.tilt_trust_deg */
 #define CONT_SL_NOISE_MS 30000u /* time constant of raw z's noise estimate */
 #define CONT_SL_PAIR_MS 200u    /* successive samples further apart than this are no pair */
 #define CONT_SL_JUMP 0.05f      /* ... and those whose z differs by more than this x |m| (L1) */
@@ -262,11 +264,9 @@ void magcal_cont_slope(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint32_t
 
 float magcal_cont_slope_err_deg(const magcal_cont_t *cc, float k_r)
 {
+    float e;
     if (cc->sl_ok != CONT_SL_DONE || cc->sl_life < CONT_SL_WARM_MS) {
-        /* nothing measured, or the online mean has not yet seen its time constant of driving (a
-         * store that looks level can be a slope's: 30-min seed 44's first calibration, OK 5..7 deg
-         * off on a 2..3 deg grade until the online measure rose 12 s later) */
-        return INFINITY;
+        return INFINITY; /* nothing measured yet */
     }
     /* sl_vs and sl_pk are mean squares, sl_v a mean absolute residual; and the slope of the last
      * minutes where raw z showed it (the smoothed residual's square, peak held: a hill after a flat
@@ -275,6 +275,15 @@ float magcal_cont_slope_err_deg(const magcal_cont_t *cc, float k_r)
     {
         const float v = CONT_SL_RMS * cc->sl_v;
         const float ms = fmaxf(fmaxf(cc->sl_vs, cc->sl_pk), fmaxf(v * v, cc->sl_rp));
-        return CONT_SL_PEAK * k_r * sqrtf(ms) * MAGCAL_DEG_PER_RAD_F;
+        e = CONT_SL_PEAK * k_r * sqrtf(ms) * MAGCAL_DEG_PER_RAD_F;
     }
+    if (cc->sl_life < CONT_SL_MS_MS && !(CONT_SL_PEAK * k_r * sqrtf(cc->sl_vs) * MAGCAL_DEG_PER_RAD_F <=
+                                          CONT_SL_FLAT * cc->cfg.tilt_trust_deg)) {
+        /* a store with slopes in it: the roads are not flat, and until the online mean has seen
+         * its time constant of driving the slope of now is unknown (a store that looked level
+         * enough was a slope's on 30-min seed 44: OK 5..7 deg off on a 2..3 deg grade until the
+         * online measure rose 12 s later; seed 1 without this hold, 2,962 OK rows 8 deg off) */
+        return INFINITY;
+    }
+    return e;
 }
