@@ -369,9 +369,12 @@ int magcal_cont_fit_step(magcal_cont_t *cc, magcal_cal_budget_t *b)
             spent = magcal_cal_spend(b, CONT_W_FIT_BIN);
         } else {
             const uint8_t ph = cc->fit_phase;
+            uint32_t sl = 0u;
+            if (cc->sl_on != 0u) {
+                sl = CONT_W_FIT_SL;
+            }
             cont_fit_sample(cc, &st->slots[cc->fit_bin * st->cfg.per_bin + cc->fit_k].m);
             cc->fit_k++;
-            const uint32_t sl = (cc->sl_on != 0u) ? CONT_W_FIT_SL : 0u;
             spent = magcal_cal_spend(b, ph == (uint8_t)CONT_FIT_Z       ? CONT_W_FIT_Z + sl
                                         : ph == (uint8_t)CONT_FIT_SUMS  ? CONT_W_FIT_SUM
                                         : ph == (uint8_t)CONT_FIT_SLOPE ? CONT_W_FIT_SLOPE

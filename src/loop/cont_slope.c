@@ -175,8 +175,9 @@ void magcal_cont_slope_hist(magcal_cont_t *cc, const magcal_vec2_t *h, float z)
         return;
     }
     {
-        const float b = fabsf(cont_sl_res(cc, u, c, s)) * ((float)MAGCAL_CONT_SL_BINS / CONT_SL_GATE);
-        const uint32_t k = b < (float)(MAGCAL_CONT_SL_BINS - 1u) ? (uint32_t)b : MAGCAL_CONT_SL_BINS - 1u;
+        const float nb = (float)MAGCAL_CONT_SL_BINS;
+        const float b = fabsf(cont_sl_res(cc, u, c, s)) * (nb / CONT_SL_GATE);
+        const uint32_t k = (b < nb - 1.0f) ? (uint32_t)b : (MAGCAL_CONT_SL_BINS - 1u);
         cc->sl_h[k]++;
     }
     cc->sl_acc[9] += 1.0f;
