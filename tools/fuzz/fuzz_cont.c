@@ -134,9 +134,12 @@ static void fz_check_heading(const magcal_cont_t *cc, const magcal_vec3_t *m, fl
                "OK raw heading outside [0, 360)");
     FUZZ_CHECK(hd.trust == MAGCAL_TRUST_OK || hd.trust == MAGCAL_TRUST_UNCALIBRATED ||
                    hd.trust == MAGCAL_TRUST_DISTURBED || hd.trust == MAGCAL_TRUST_CHANGED ||
-                   hd.trust == MAGCAL_TRUST_TILTED,
+                   hd.trust == MAGCAL_TRUST_TILTED || hd.trust == MAGCAL_TRUST_COARSE,
                "trust state");
-    FUZZ_CHECK(hd.trust != MAGCAL_TRUST_TILTED || (cc->has_cal != 0u && cc->g_pushed != 0u), "tilted without a calibration or gravity");
+    /* TILTED needs a calibration: with gravity its tilt, without any the slopes raw z shows
+     * (continuous.h "Slopes without gravity") */
+    FUZZ_CHECK(hd.trust != MAGCAL_TRUST_TILTED || cc->has_cal != 0u, "tilted without a calibration");
+    FUZZ_CHECK(hd.trust != MAGCAL_TRUST_COARSE || cc->has_cal != 0u, "coarse without a calibration");
     FUZZ_CHECK(hd.generation == mono->generation, "heading generation differs from progress");
     FUZZ_CHECK(hd.levelled <= 1u && (hd.levelled == 0u || cc->tc_ok != 0u), "levelled flag without a valid k");
     if (mono->generation == 0u && !mono->installed) {
