@@ -34,6 +34,7 @@
 #define CONT_SL_PEAK 2.0f       /* the heading error the trust compares: this x the RMS */
 #define CONT_SL_PK_MS 1800000u  /* the roads' slopes are forgotten over 30 min */
 #define CONT_SL_RP_MS 60000u    /* the slope seen last is forgotten over 1 min (a 10 x slope: in 4.6 min) */
+#define CONT_SL_TICK_MS 250u    /* the online mean, the peaks and the clocks move this often */
 #define CONT_SL_WARM_MS 2000u   /* the slopes are unknown until the online measure has learnt this long */
 #define CONT_SL_FLAT 0.5f       /* ... or CONT_SL_MS_MS when the store's slopes exceed this x cfg.tilt_trust_deg */
 #define CONT_SL_NOISE_MS 30000u /* time constant of raw z's noise estimate */
@@ -220,11 +221,14 @@ void magcal_cont_slope_end(magcal_cont_t *cc)
 
 void magcal_cont_slope_noise(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms)
 {
+    float d;
     if (!magcal_isfinite_f(m->z)) {
         return;
     }
-    const float d = m->z - cc->sl_zp;
-    if (cc->sl_zn != 0u && t_ms - cc->sl_tp <= CONT_SL_PAIR_MS &&
+    d = m->z - cc->sl_zp;
+    cc->sl_nk = (uint8_t)((cc->sl_nk & 0x80u) | ((cc->sl_nk + 1u) & 0x7Fu));
+    /* every 4th pair (the noise is stationary) */
+    if ((cc->sl_nk & 3u) == 0u && cc->sl_zn != 0u && t_ms - cc->sl_tp <= CONT_SL_PAIR_MS &&
         fabsf(d) <= CONT_SL_JUMP * (fabsf(m->x) + fabsf(m->y) + fabsf(m->z))) {
         /* half the mean square of successive differences: the noise (a slope or a turn moves raw z
          * by far less between two samples). No pair with a jump (a spike, garbage, a rail: the
@@ -248,18 +252,32 @@ void magcal_cont_slope(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint32_t
     if (cc->sl_ok != CONT_SL_DONE || !magcal_isfinite_f(j->u) || !(fabsf(j->rel) <= CONT_GLITCH_REL)) {
         return; /* (a glitch: no slope) */
     }
-    cc->sl_r += magcal_cont_ema_w(dt, CONT_SL_SMOOTH_MS) * (cont_sl_res(cc, j->u, j->cs[0], j->cs[1]) - cc->sl_r);
-    cc->sl_v += magcal_cont_ema_w(dt, CONT_SL_MS_MS) * (fminf(fabsf(cc->sl_r), CONT_SL_GATE) - cc->sl_v);
-    v = CONT_SL_RMS * cc->sl_v;
-    cc->sl_pk -= magcal_cont_ema_w(dt, CONT_SL_PK_MS) * cc->sl_pk;
-    cc->sl_pk = fmaxf(cc->sl_pk, v * v);
-    cc->sl_rp -= magcal_cont_ema_w(dt, CONT_SL_RP_MS) * cc->sl_rp;
-    cc->sl_rp = fmaxf(cc->sl_rp, cc->sl_r * cc->sl_r);
-    if (cc->sl_ms <= UINT32_MAX - dt) {
-        cc->sl_ms += dt;
+    if (cc->sl_tick <= UINT32_MAX - dt) {
+        cc->sl_tick += dt;
     }
-    if (cc->sl_life <= UINT32_MAX - dt) {
-        cc->sl_life += dt;
+    cc->sl_nk ^= 0x80u;
+    if ((cc->sl_nk & 0x80u) != 0u) {
+        return; /* every 2nd sample (the drain's cost while a solve runs; 1 s is 20..50 of them) */
+    }
+    cc->sl_r += magcal_cont_ema_w(2u * dt, CONT_SL_SMOOTH_MS) * (cont_sl_res(cc, j->u, j->cs[0], j->cs[1]) - cc->sl_r);
+    if (cc->sl_tick < CONT_SL_TICK_MS) {
+        return; /* the slow measures every CONT_SL_TICK_MS (the drain's cost while a solve runs) */
+    }
+    {
+        const uint32_t tk = cc->sl_tick;
+        cc->sl_tick = 0u;
+        cc->sl_v += magcal_cont_ema_w(tk, CONT_SL_MS_MS) * (fminf(fabsf(cc->sl_r), CONT_SL_GATE) - cc->sl_v);
+        v = CONT_SL_RMS * cc->sl_v;
+        cc->sl_pk -= magcal_cont_ema_w(tk, CONT_SL_PK_MS) * cc->sl_pk;
+        cc->sl_pk = fmaxf(cc->sl_pk, v * v);
+        cc->sl_rp -= magcal_cont_ema_w(tk, CONT_SL_RP_MS) * cc->sl_rp;
+        cc->sl_rp = fmaxf(cc->sl_rp, cc->sl_r * cc->sl_r);
+        if (cc->sl_ms <= UINT32_MAX - tk) {
+            cc->sl_ms += tk;
+        }
+        if (cc->sl_life <= UINT32_MAX - tk) {
+            cc->sl_life += tk;
+        }
     }
 }
 

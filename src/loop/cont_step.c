@@ -117,8 +117,10 @@ static MAGCAL_NOINLINE int cont_screen(magcal_cont_t *cc, const magcal_vec3_t *m
 {
     magcal_cont_judge_t j;
     magcal_cont_shift_watch(cc, m, t_ms, levelled); /* before any calibration: a jump that stays (cont_shift.c) */
-    if (!(cc->tc_t.z > 0.0f)) {
-        magcal_cont_slope_noise(cc, m, t_ms); /* never a gravity: raw z's noise (cont_slope.c) */
+    if (cc->stage == (uint8_t)CONT_STAGE_NONE && !(cc->tc_t.z > 0.0f)) {
+        /* never a gravity: raw z's noise (cont_slope.c), between solves (it is stationary, and the
+         * drain's cost while a solve runs counts in m4f_cal2d_interleaved_instr) */
+        magcal_cont_slope_noise(cc, m, t_ms);
     }
     if (magcal_cont_continuity(cc, m, t_ms) == 0) {
         magcal_cont_rate_reset(cc); /* a sample the gyro's track does not take restarts it */
