@@ -86,4 +86,23 @@ static inline uint32_t magcal_intake_nslots(const magcal_intake_t *st)
     return (uint32_t)st->n_bins * (uint32_t)st->cfg.per_bin;
 }
 
+/* A level model of raw z against the heading, z = a0 + a1 c + a2 s (c, s: the heading's cos and
+ * sin; the soft iron's leak of x, y into z): one sample into the sums q (1 c s cc cs ss z zc zs),
+ * and the 3 x 3 solve by Cramer's rule into a, 1 when q has at least min_n samples and the
+ * matrix is well conditioned (det > det_rel n^3: the headings spread round the ring). The
+ * store's level survey (store.c) and the continuous calibrator's slopes (loop/cont_slope.c). */
+static inline void magcal_lv_sums(float *q, float z, float c, float s)
+{
+    q[0] += 1.0f;
+    q[1] += c;
+    q[2] += s;
+    q[3] += c * c;
+    q[4] += c * s;
+    q[5] += s * s;
+    q[6] += z;
+    q[7] += z * c;
+    q[8] += z * s;
+}
+int magcal_lv_solve(const float *q, float min_n, float det_rel, float *a);
+
 #endif /* MAGCAL_INTAKE_INTERNAL_H */

@@ -188,12 +188,8 @@ static void intake_level_clear(magcal_intake_t *st)
     st->lv_gen = st->gen;
 }
 
-/* The survey's solve: the 3 x 3 normal equations of z = a + b c + c s over the bins' medians
- * (sums 1, c, s, cc, cs, ss, z, zc, zs), Cramer's rule; a model only when the bins spread round
- * the ring (a well-conditioned matrix). */
-static void intake_level_solve(magcal_intake_t *st)
+int magcal_lv_solve(const float *q, float min_n, float det_rel, float *a)
 {
-    const float *q = st->lv_s;
     const float n = q[0];
     const float m00 = q[0];
     const float m01 = q[1];
@@ -205,22 +201,36 @@ static void intake_level_solve(magcal_intake_t *st)
     const float c01 = m02 * m12 - m01 * m22;
     const float c02 = m01 * m12 - m02 * m11;
     const float det = m00 * c00 + m01 * c01 + m02 * c02;
-    if (!(n >= INTAKE_LV_MIN_BINS) || !(det > 0.02f * n * n * n)) {
-        return; /* keep the previous model of this centre, if any */
+    float r[3];
+    if (!(n >= min_n) || !(det > det_rel * n * n * n)) {
+        return 0;
     }
     {
         const float c11 = m00 * m22 - m02 * m02;
         const float c12 = m01 * m02 - m00 * m12;
         const float c22 = m00 * m11 - m01 * m01;
-        st->lv_abc[0] = (c00 * q[6] + c01 * q[7] + c02 * q[8]) / det;
-        st->lv_abc[1] = (c01 * q[6] + c11 * q[7] + c12 * q[8]) / det;
-        st->lv_abc[2] = (c02 * q[6] + c12 * q[7] + c22 * q[8]) / det;
+        r[0] = (c00 * q[6] + c01 * q[7] + c02 * q[8]) / det;
+        r[1] = (c01 * q[6] + c11 * q[7] + c12 * q[8]) / det;
+        r[2] = (c02 * q[6] + c12 * q[7] + c22 * q[8]) / det;
     }
-    st->lv_ok = magcal_isfinite_f(st->lv_abc[0]) && magcal_isfinite_f(st->lv_abc[1]) &&
-                        magcal_isfinite_f(st->lv_abc[2])
-                    ? 1u
-                    : 0u;
-    st->lv_ok_gen = st->lv_gen;
+    if (!(magcal_isfinite_f(r[0]) && magcal_isfinite_f(r[1]) && magcal_isfinite_f(r[2]))) {
+        return 0;
+    }
+    a[0] = r[0];
+    a[1] = r[1];
+    a[2] = r[2];
+    return 1;
+}
+
+/* The survey's solve: the 3 x 3 normal equations of z = a + b c + c s over the bins' medians
+ * (magcal_lv_solve); a model only when the bins spread round the ring (a well-conditioned
+ * matrix), else the previous model of this centre, if any, is kept. */
+static void intake_level_solve(magcal_intake_t *st)
+{
+    if (magcal_lv_solve(st->lv_s, INTAKE_LV_MIN_BINS, 0.02f, st->lv_abc) != 0) {
+        st->lv_ok = 1u;
+        st->lv_ok_gen = st->lv_gen;
+    }
 }
 
 /* Bit j of a bin's ring mask (j < per_bin <= 64). */
@@ -296,16 +306,7 @@ static MAGCAL_NOINLINE void intake_level_step(magcal_intake_t *st)
         if (nd > 0.0f) {
             const float c = dc / nd;
             const float s = ds / nd;
-            float *q = st->lv_s;
-            q[0] += 1.0f;
-            q[1] += c;
-            q[2] += s;
-            q[3] += c * c;
-            q[4] += c * s;
-            q[5] += s * s;
-            q[6] += zmed;
-            q[7] += zmed * c;
-            q[8] += zmed * s;
+            magcal_lv_sums(st->lv_s, zmed, c, s);
         }
     }
     st->lv_bin++;

@@ -25,6 +25,7 @@
  * cfg.tilt_trust_deg); they are unknown for CONT_SL_WARM_MS after the first fit, and for
  * CONT_SL_MS_MS (the online mean's time constant) when the store itself shows slopes.
  */
+#include "../intake/intake_internal.h"
 #include "cont_judge_internal.h"
 
 #define CONT_SL_SMOOTH_MS 1000u /* a residual's smoothing (noise 0.1 uT of 21 falls by ~10 x) */
@@ -41,82 +42,33 @@
 #define CONT_SL_PAIR_MS 200u    /* successive samples further apart than this are no pair */
 #define CONT_SL_JUMP 0.05f      /* ... and those whose z differs by more than this x |m| (L1) */
 
-static void cont_sl_sums(float *q, float u, float c, float s);
-
-/* cos and sin of the corrected heading h (heading.c: atan2(-x, y)); 0 when h is 0. */
-static int cont_sl_cs(const magcal_vec2_t *h, float *c, float *s)
+/* A fit pass's sample: cos and sin of the corrected heading h (heading.c: atan2(-x, y)) and
+ * u = raw z / raw radius; 0 when h is 0 or u not finite. */
+static int cont_sl_in(const magcal_cont_t *cc, const magcal_vec2_t *h, float z, float *q)
 {
     const float nh = sqrtf(h->x * h->x + h->y * h->y);
-    if (!(nh > 0.0f)) {
+    q[0] = z / cc->cal_raw_radius;
+    if (!(nh > 0.0f) || !magcal_isfinite_f(q[0])) {
         return 0;
     }
-    *c = h->y / nh;
-    *s = -h->x / nh;
+    q[1] = h->y / nh;
+    q[2] = -h->x / nh;
     return 1;
 }
 
 void magcal_cont_slope_add(magcal_cont_t *cc, const magcal_vec2_t *h, float z)
 {
-    float c;
-    float s;
-    const float u = z / cc->cal_raw_radius;
-    if (cont_sl_cs(h, &c, &s) == 0 || !magcal_isfinite_f(u)) {
-        return;
+    float q[3];
+    if (cont_sl_in(cc, h, z, q) != 0) {
+        magcal_lv_sums(cc->sl_acc, q[0], q[1], q[2]);
     }
-    cont_sl_sums(cc->sl_acc, u, c, s);
 }
 
-/* The 3 x 3 normal equations of u = a0 + a1 c + a2 s from the sums q (1 c s cc cs ss u uc us) by
- * Cramer's rule, each moment divided by n (the determinant of a store that covers the ring is
- * about 1/4; one heading gives 0), into cc->sl_a; 1 when solved. */
+/* The level from the sums q (magcal_lv_solve, intake_internal.h), into cc->sl_a; 1 when solved
+ * (the determinant of a store that covers the ring is about n^3 / 4; one heading gives 0). */
 static int cont_sl_solve(magcal_cont_t *cc, const float *q)
 {
-    const float n = q[0];
-    float a[3];
-    if (!(n >= 3.0f)) {
-        return 0;
-    }
-    {
-        const float m1 = q[1] / n;
-        const float m2 = q[2] / n;
-        const float m11 = q[3] / n;
-        const float m12 = q[4] / n;
-        const float m22 = q[5] / n;
-        const float b0 = q[6] / n;
-        const float b1 = q[7] / n;
-        const float b2 = q[8] / n;
-        const float c00 = m11 * m22 - m12 * m12;
-        const float c01 = m1 * m22 - m12 * m2;
-        const float c02 = m1 * m12 - m11 * m2;
-        const float det = c00 - m1 * c01 + m2 * c02;
-        if (!(det > 0.01f)) {
-            return 0; /* the store's headings cannot separate the leak from the level */
-        }
-        a[0] = (b0 * c00 - m1 * (b1 * m22 - m12 * b2) + m2 * (b1 * m12 - m11 * b2)) / det;
-        a[1] = ((b1 * m22 - m12 * b2) - b0 * c01 + m2 * (m1 * b2 - b1 * m2)) / det;
-        a[2] = ((m11 * b2 - b1 * m12) - m1 * (m1 * b2 - b1 * m2) + b0 * c02) / det;
-    }
-    if (!(magcal_isfinite_f(a[0]) && magcal_isfinite_f(a[1]) && magcal_isfinite_f(a[2]))) {
-        return 0;
-    }
-    cc->sl_a[0] = a[0];
-    cc->sl_a[1] = a[1];
-    cc->sl_a[2] = a[2];
-    return 1;
-}
-
-/* One sample (u at heading c, s) into the sums q (1 c s cc cs ss u uc us). */
-static void cont_sl_sums(float *q, float u, float c, float s)
-{
-    q[0] += 1.0f;
-    q[1] += c;
-    q[2] += s;
-    q[3] += c * c;
-    q[4] += c * s;
-    q[5] += s * s;
-    q[6] += u;
-    q[7] += u * c;
-    q[8] += u * s;
+    return magcal_lv_solve(q, 3.0f, 0.01f, cc->sl_a);
 }
 
 void magcal_cont_slope_solve(magcal_cont_t *cc)
@@ -139,14 +91,10 @@ static float cont_sl_res(const magcal_cont_t *cc, float u, float c, float s)
 
 void magcal_cont_slope_res(magcal_cont_t *cc, const magcal_vec2_t *h, float z)
 {
-    float c;
-    float s;
-    const float u = z / cc->cal_raw_radius;
-    if (cc->sl_ok != CONT_SL_SOLVED || cont_sl_cs(h, &c, &s) == 0 || !magcal_isfinite_f(u)) {
-        return;
-    }
-    if (fabsf(cont_sl_res(cc, u, c, s)) <= CONT_SL_GATE) {
-        cont_sl_sums(cc->sl_acc, u, c, s); /* the refit's */
+    float q[3];
+    if (cc->sl_ok == CONT_SL_SOLVED && cont_sl_in(cc, h, z, q) != 0 &&
+        fabsf(cont_sl_res(cc, q[0], q[1], q[2])) <= CONT_SL_GATE) {
+        magcal_lv_sums(cc->sl_acc, q[0], q[1], q[2]); /* the refit's */
     }
 }
 
@@ -169,15 +117,13 @@ int magcal_cont_slope_refit(magcal_cont_t *cc)
 
 void magcal_cont_slope_hist(magcal_cont_t *cc, const magcal_vec2_t *h, float z)
 {
-    float c;
-    float s;
-    const float u = z / cc->cal_raw_radius;
-    if (cont_sl_cs(h, &c, &s) == 0 || !magcal_isfinite_f(u)) {
+    float q[3];
+    if (cont_sl_in(cc, h, z, q) == 0) {
         return;
     }
     {
         const float nb = (float)MAGCAL_CONT_SL_BINS;
-        const float b = fabsf(cont_sl_res(cc, u, c, s)) * (nb / CONT_SL_GATE);
+        const float b = fabsf(cont_sl_res(cc, q[0], q[1], q[2])) * (nb / CONT_SL_GATE);
         const uint32_t k = (b < nb - 1.0f) ? (uint32_t)b : (MAGCAL_CONT_SL_BINS - 1u);
         cc->sl_h[k]++;
     }
