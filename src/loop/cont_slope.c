@@ -194,7 +194,6 @@ void magcal_cont_slope_noise(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t
 
 void magcal_cont_slope(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint32_t dt)
 {
-    float v;
     if (cc->sl_ok != CONT_SL_DONE || !magcal_isfinite_f(j->u) || !(fabsf(j->rel) <= CONT_GLITCH_REL)) {
         return; /* (a glitch: no slope) */
     }
@@ -211,6 +210,7 @@ void magcal_cont_slope(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint32_t
     }
     {
         const uint32_t tk = cc->sl_tick;
+        float v;
         cc->sl_tick = 0u;
         cc->sl_v += magcal_cont_ema_w(tk, CONT_SL_MS_MS) * (fminf(fabsf(cc->sl_r), CONT_SL_GATE) - cc->sl_v);
         v = CONT_SL_RMS * cc->sl_v;
