@@ -178,6 +178,12 @@ magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_
         cc->drop_on = 1u;
     }
     if (st == MAGCAL_ERR_NOT_BETTER) {
+        if (cc->fz_on == 0u && cc->fit_phase == 0u && !(cc->tc_t.z > 0.0f)) {
+            /* fresh data confirm a calibration without a field model (restored at init): fit it
+             * on this store, so that without gravity the slopes are measured (unmeasured, they
+             * hold every heading TILTED: continuous.h "Slopes without gravity") */
+            magcal_cont_fit_begin(cc);
+        }
         if (r->coarse == 0u && r->arc == 0u && cc->cal_coarse == 0u && magcal_isfinite_f(r->current_err_deg) &&
             magcal_isfinite_f(r->est_heading_err_deg)) {
             /* the installed calibration's error as this solve measured it on its fresh data, as

@@ -74,9 +74,9 @@ const magcal_vec3_t *magcal_cont_grav(magcal_cont_t *cc, const magcal_vec3_t *g,
                                       uint32_t t_ms);
 /* Slopes without gravity (cont_slope.c): the store's level raw z in the field-model fit (its z
  * pass: add each ring sample, then solve; its sigma pass: the refit's sums, then refit (1: a
- * slope pass follows); the slope pass: the histogram of each, then end), the
- * online mean square of each clean judged sample's residual, and the heading error the slopes
- * cause at k_r = k / R (degrees; INFINITY while the store's fit has not measured them). */
+ * slope pass follows); the slope pass: the histogram of each, then end), the online measures of
+ * each judged sample's residual (not a transient's, not change evidence), and the heading error
+ * the slopes cause at k_r = k / R (degrees; INFINITY while they are unmeasured). */
 #define CONT_SL_NONE 0u   /* sl_ok: nothing fitted */
 #define CONT_SL_SOLVED 1u /* the level fitted, its residual being summed */
 #define CONT_SL_DONE 2u   /* the store's slopes measured */
@@ -88,7 +88,8 @@ int magcal_cont_slope_refit(magcal_cont_t *cc);
 void magcal_cont_slope_hist(magcal_cont_t *cc, const magcal_vec2_t *h, float z);
 void magcal_cont_slope_end(magcal_cont_t *cc);
 void magcal_cont_slope(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint32_t dt);
-/* Raw z's noise from successive drained samples (every one, also before a calibration). */
+/* Raw z's noise from successive drained samples (also before a calibration; the caller skips it
+ * while a solve runs; every 4th pair counts). */
 void magcal_cont_slope_noise(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms);
 float magcal_cont_slope_err_deg(const magcal_cont_t *cc, float k_r);
 /* Declare a change: drop the store, relearn. */
