@@ -703,11 +703,10 @@ typedef struct {
     float sl_v;                    /* its clipped absolute value's mean over CONT_SL_MS_MS (the slopes of now) */
     float sl_pk;                   /* the largest mean square, decaying over CONT_SL_PK_MS (the slopes of the roads) */
     float sl_rp;                   /* the largest sl_r^2, decaying over CONT_SL_RP_MS (the slope seen last) */
-    uint32_t sl_ms;                /* ms the online mean square learnt since the fit */
-    uint32_t sl_life;              /* ms it learnt since init (saturating) */
+    uint32_t sl_life;              /* ms the online measures learnt since init (saturating) */
     uint32_t sl_tick;              /* ms since the slow measures last moved (CONT_SL_TICK_MS) */
-    uint8_t sl_nk;                 /* bit 7: the online residual's every-2nd-sample phase; bits 0..6: drained
-                                      samples mod 128 (the noise takes every 4th pair) */
+    uint8_t sl_nk;                 /* drained samples mod 256 (the noise takes every 4th pair) */
+    uint8_t sl_half;               /* 1: the online residual skips the next judged sample (every 2nd) */
     uint8_t sl_ok;                 /* CONT_SL_*: sl_a and sl_vs from the store's fit */
     uint8_t sl_on;                 /* 1: the current field-model fit measures them (no gravity ever) */
     uint8_t sl_zn;                 /* 1: sl_zp, sl_tp hold the sample before */

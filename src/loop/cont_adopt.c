@@ -178,7 +178,7 @@ magcal_cont_outcome_t magcal_cont_finish_solve(magcal_cont_t *cc, magcal_status_
         cc->drop_on = 1u;
     }
     if (st == MAGCAL_ERR_NOT_BETTER) {
-        if (cc->fz_on == 0u && cc->fit_phase == 0u && !(cc->tc_t.z > 0.0f)) {
+        if (cc->fz_on == 0u && cc->fit_phase == 0u && magcal_cont_no_gravity(cc) != 0) {
             /* fresh data confirm a calibration without a field model (restored at init): fit it
              * on this store, so that without gravity the slopes are measured (unmeasured, they
              * hold every heading TILTED: continuous.h "Slopes without gravity") */

@@ -12,6 +12,7 @@
 #include "cont_judge_internal.h"
 
 #define CONT_FZ_MIN_N 30.0f       /* store samples the total-field model needs */
+#define CONT_FIT_RING 0.35f      /* | |h| / R - 1 | of the samples the passes take (hills move the radius by up to ~20 %) */
 
 /* Cholesky in place of the nf x nf normal matrix held packed (lower) in cc->fz_l, scaled by its
  * diagonal (scales into cc->fz_s), then the solve of (F^T F) c = b in place. 0 when not
@@ -74,7 +75,7 @@ static int cont_fz_chol_solve(magcal_cont_t *cc, uint32_t nf, float *b)
 #define CONT_W_FIT_Z 240u     /* z mean / variance of one ring sample (its correction + ring test; was 400: measured on target, cont_trace.elf, <= 231 per sample) */
 #define CONT_W_FIT_SUM 720u   /* normal-equation sums: one sample (the full form; less without u; was 900: measured p99 705) */
 #define CONT_W_FIT_SIGMA 430u /* the model's residual and the sector covered: one sample (was 684: measured <= 415) */
-#define CONT_W_FIT_SLOPE 300u /* raw z about the level into the histogram: one sample (cont_slope.c; estimate: the z pass's and cont_sl_cs) */
+#define CONT_W_FIT_SLOPE 300u /* raw z about the level into the histogram: one sample (cont_slope.c; estimate: the z pass's and cont_sl_in) */
 #define CONT_W_FIT_SL 80u     /* the slope sums' share of a z or sigma pass sample (cont_slope.c; estimate), without gravity only */
 #define CONT_W_FIT_BIN 13u    /* one bin advanced */
 #define CONT_W_FIT_CHOL 3840u /* Cholesky + solve of one model form (7 x 7 at most) */
@@ -121,6 +122,16 @@ static int cont_fit_corrected(const magcal_cont_t *cc, const magcal_vec3_t *m, m
     return magcal_isfinite_f(h->x) && magcal_isfinite_f(h->y);
 }
 
+/* A store sample on the ring for the z and slope passes: corrected (into h) and within
+ * CONT_FIT_RING of the radius (a stored spike's z must not move u0, its spread or the level). */
+static int cont_fit_on_ring(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_vec2_t *h)
+{
+    return (cont_fit_corrected(cc, m, h) != 0 &&
+            fabsf(sqrtf(h->x * h->x + h->y * h->y) / cc->cal.radius - 1.0f) <= CONT_FIT_RING)
+               ? 1
+               : 0;
+}
+
 /* One sample of the sums pass: normal equations of |h|^2 = f . c over the samples with
  * | |h| / R - 1 | <= 0.35 (hills move the horizontal radius by up to ~20 %). Unit-radius
  * variables (file comment); fit_acc[2] counts the samples used. */
@@ -140,7 +151,7 @@ static void cont_fz_add(magcal_cont_t *cc, const magcal_vec3_t *m)
     h.x /= cc->cal.radius;
     h.y /= cc->cal.radius;
     y = h.x * h.x + h.y * h.y;
-    if (!(fabsf(sqrtf(y) - 1.0f) <= 0.35f)) {
+    if (!(fabsf(sqrtf(y) - 1.0f) <= CONT_FIT_RING)) {
         return;
     }
     {
@@ -171,16 +182,14 @@ static void cont_fit_sample(magcal_cont_t *cc, const magcal_vec3_t *m)
         return;
     }
     if (cc->fit_phase == (uint8_t)CONT_FIT_SLOPE) {
-        if (cont_fit_corrected(cc, m, &h) != 0 && fabsf(sqrtf(h.x * h.x + h.y * h.y) / cc->cal.radius - 1.0f) <= 0.35f) {
+        if (cont_fit_on_ring(cc, m, &h) != 0) {
             magcal_cont_slope_hist(cc, &h, m->z); /* raw z about the refitted level (cont_slope.c) */
         }
         return;
     }
     if (cc->fit_phase == (uint8_t)CONT_FIT_Z) {
-        /* the samples the sums use (on the ring): a stored spike's z must not move u0 or its spread */
-        if (cont_fit_corrected(cc, m, &h) == 0 ||
-            !(fabsf(sqrtf(h.x * h.x + h.y * h.y) / cc->cal.radius - 1.0f) <= 0.35f)) {
-            return;
+        if (cont_fit_on_ring(cc, m, &h) == 0) {
+            return; /* the samples the sums use (on the ring) */
         }
         cc->fit_acc[0] += m->z;
         cc->fit_acc[1] += m->z * m->z;
@@ -334,7 +343,7 @@ void magcal_cont_fit_begin(magcal_cont_t *cc)
     cc->fz_on = 0u;
     /* the slopes are measured only while no gravity ever came (cont_slope.c): with gravity the
      * fit is what it was, pass for pass */
-    cc->sl_on = (uint8_t)(!(cc->tc_t.z > 0.0f) ? 1u : 0u);
+    cc->sl_on = (uint8_t)magcal_cont_no_gravity(cc);
     cc->sl_ok = CONT_SL_NONE;
     for (k = 0u; k < CONT_SL_ACC; ++k) {
         cc->sl_acc[k] = 0.0f;

@@ -72,6 +72,12 @@ void magcal_cont_rate_reset(magcal_cont_t *cc);
  * (&cc->ga_g, g's units) where the accelerometer reads more than gravity, else g. */
 const magcal_vec3_t *magcal_cont_grav(magcal_cont_t *cc, const magcal_vec3_t *g, const magcal_vec3_t *w,
                                       uint32_t t_ms);
+/* 1 while no gravity ever came (push alone: no tilt was ever known, cc->tc_t): the slopes are
+ * then measured from raw z (cont_slope.c). */
+static inline int magcal_cont_no_gravity(const magcal_cont_t *cc)
+{
+    return (cc->tc_t.z > 0.0f) ? 0 : 1;
+}
 /* Slopes without gravity (cont_slope.c): the store's level raw z in the field-model fit (its z
  * pass: add each ring sample, then solve; its sigma pass: the refit's sums, then refit (1: a
  * slope pass follows); the slope pass: the histogram of each, then end), the online measures of

@@ -450,7 +450,7 @@ static float cont_tilt_err_deg(const magcal_cont_t *cc, uint8_t levelled)
         return 0.0f;
     }
     if (cont_tc_tilt(cc, &tx, &ty) == 0) {
-        if (!(cc->tc_t.z > 0.0f)) {
+        if (magcal_cont_no_gravity(cc) != 0) {
             /* never a gravity (push alone): the slopes raw z measured (cont_slope.c) */
             return magcal_cont_slope_err_deg(cc, TC_K_UNKNOWN);
         }

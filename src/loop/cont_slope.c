@@ -18,10 +18,10 @@
  * normal's RMS), less the sensor's noise (measured on successive samples: the store's are single
  * readings). Online, every clean judged sample's residual smoothed over CONT_SL_SMOOTH_MS (the
  * slope of now, where raw z shows it, from every judged sample but a glitch: an unlevelled hill
- * is a radius mismatch; its square peak-held over CONT_SL_RP_MS), its clipped
- * absolute value's mean over CONT_SL_MS_MS (x 1.25, a normal's RMS: the slopes of now), and the
- * largest mean square seen, decaying over CONT_SL_PK_MS (the slopes of the roads). magcal_cont_heading takes the largest of the four,
- * times k / R and CONT_SL_PEAK, as the heading error the slopes can cause (TILTED above
+ * is a radius mismatch; its square peak-held over CONT_SL_RP_MS), its clipped absolute value's
+ * mean over CONT_SL_MS_MS (x 1.25, a normal's RMS: the slopes of now), and the largest mean
+ * square seen, decaying over CONT_SL_PK_MS (the slopes of the roads). magcal_cont_heading takes
+ * the largest of the four, times k / R and CONT_SL_PEAK, as the heading error the slopes can cause (TILTED above
  * cfg.tilt_trust_deg); they are unknown for CONT_SL_WARM_MS after the first fit, and for
  * CONT_SL_MS_MS (the online mean's time constant) when the store itself shows slopes.
  */
@@ -162,7 +162,6 @@ void magcal_cont_slope_end(magcal_cont_t *cc)
     }
     cc->sl_r = 0.0f;
     cc->sl_v = cc->sl_ok == CONT_SL_DONE ? sqrtf(cc->sl_vs) / CONT_SL_RMS : 0.0f;
-    cc->sl_ms = 0u;
 }
 
 void magcal_cont_slope_noise(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t t_ms)
@@ -172,7 +171,7 @@ void magcal_cont_slope_noise(magcal_cont_t *cc, const magcal_vec3_t *m, uint32_t
         return;
     }
     d = m->z - cc->sl_zp;
-    cc->sl_nk = (uint8_t)((cc->sl_nk & 0x80u) | ((cc->sl_nk + 1u) & 0x7Fu));
+    cc->sl_nk++;
     /* every 4th pair (the noise is stationary) */
     if ((cc->sl_nk & 3u) == 0u && cc->sl_zn != 0u && t_ms - cc->sl_tp <= CONT_SL_PAIR_MS &&
         fabsf(d) <= CONT_SL_JUMP * (fabsf(m->x) + fabsf(m->y) + fabsf(m->z))) {
@@ -200,8 +199,8 @@ void magcal_cont_slope(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint32_t
     if (cc->sl_tick <= UINT32_MAX - dt) {
         cc->sl_tick += dt;
     }
-    cc->sl_nk ^= 0x80u;
-    if ((cc->sl_nk & 0x80u) != 0u) {
+    cc->sl_half = (uint8_t)((cc->sl_half == 0u) ? 1u : 0u);
+    if (cc->sl_half != 0u) {
         return; /* every 2nd sample (the drain's cost while a solve runs; 1 s is 20..50 of them) */
     }
     cc->sl_r += magcal_cont_ema_w(2u * dt, CONT_SL_SMOOTH_MS) * (cont_sl_res(cc, j->u, j->cs[0], j->cs[1]) - cc->sl_r);
@@ -218,9 +217,6 @@ void magcal_cont_slope(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint32_t
         cc->sl_pk = fmaxf(cc->sl_pk, v * v);
         cc->sl_rp -= magcal_cont_ema_w(tk, CONT_SL_RP_MS) * cc->sl_rp;
         cc->sl_rp = fmaxf(cc->sl_rp, cc->sl_r * cc->sl_r);
-        if (cc->sl_ms <= UINT32_MAX - tk) {
-            cc->sl_ms += tk;
-        }
         if (cc->sl_life <= UINT32_MAX - tk) {
             cc->sl_life += tk;
         }

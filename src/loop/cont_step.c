@@ -117,7 +117,7 @@ static MAGCAL_NOINLINE int cont_screen(magcal_cont_t *cc, const magcal_vec3_t *m
 {
     magcal_cont_judge_t j;
     magcal_cont_shift_watch(cc, m, t_ms, levelled); /* before any calibration: a jump that stays (cont_shift.c) */
-    if (cc->stage == (uint8_t)CONT_STAGE_NONE && !(cc->tc_t.z > 0.0f)) {
+    if (cc->stage == (uint8_t)CONT_STAGE_NONE && magcal_cont_no_gravity(cc) != 0) {
         /* never a gravity: raw z's noise (cont_slope.c), between solves (it is stationary, and the
          * drain's cost while a solve runs counts in m4f_cal2d_interleaved_instr) */
         magcal_cont_slope_noise(cc, m, t_ms);
@@ -133,7 +133,7 @@ static MAGCAL_NOINLINE int cont_screen(magcal_cont_t *cc, const magcal_vec3_t *m
         /* the gyro's rotation queued with a ring sample (the drain's, at cc->tail; a parked one has none) */
         magcal_cont_rate(cc, &j, (m != &cc->park_m) ? cc->ring_dy[cc->tail % MAGCAL_CONT_RING] : NAN, t_ms);
         const int changed = magcal_cont_episode(cc, &j, t_ms);
-        if (!(cc->tc_t.z > 0.0f) && changed == 0 && cc->dist_flag == 0u && j.gross == 0u) {
+        if (magcal_cont_no_gravity(cc) != 0 && changed == 0 && cc->dist_flag == 0u && j.gross == 0u) {
             /* never a gravity: the slopes of now (cont_slope.c), from samples over the per-sample
              * threshold too (an unlevelled hill is a mismatch of the radius), not from a flagged
              * transient or change evidence (a truck or a step is no slope) */
