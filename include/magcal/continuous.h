@@ -788,6 +788,11 @@ typedef struct {
     float dist_mr[4];              /* their moments with the residual's deviation */
     float dist_mu[4];              /* their moments with the vertical channel's deviation */
     float dist_th[8];              /* coefficients: residual 0..3, vertical 4..7 */
+    float dist_pm[18];             /* learning held back at a move's onset (cont_flags.c): the moments'
+                                      weighted sums (10 regressors', 4 residual's, 4 vertical's) */
+    float dist_pw;                 /* their sum of weights */
+    uint32_t dist_still_ms;        /* ms of judged samples the heading has not moved from its baseline */
+    uint32_t dist_on_ms;           /* ms since a move's onset after a still heading (0: none held back) */
     float dist_ur;                 /* raw radius the vertical channel's state is scaled by (cont_flags.c) */
     uint32_t dist_dt;              /* ms between the last two samples the transient judge took (its peek's step) */
     /* offset-only relearn (src/adopt/calibrator_offset.c): a circle fit on the snapshot, in the

@@ -7,7 +7,8 @@
  * model has no u terms, a store of level samples). Both deviations are reduced by what the
  * heading's move explains (a regression on cos, sin, cos 2, sin 2 of the corrected heading,
  * learnt on clean samples: the model's and the calibration's heading-dependent error at the
- * current pitch, the soft-iron leak of x, y into z). The flag: either channel beyond
+ * current pitch, the soft-iron leak of x, y into z; what the first seconds of a move after a still
+ * heading teach it is kept only if no flag rose after them: a transient turns the heading too). The flag: either channel beyond
  * cfg.disturb_k times its own unexplained RMS on clean samples (the residual's at least half the
  * store's sigma and 0.004, the vertical at least 0.02 R), both widened with the heading's move;
  * hysteresis at its end; held cfg.disturb_hold_ms after it falls back. A flagged sample is
@@ -38,8 +39,15 @@
 #define CONT_DIST_CLAMP_U 1.0f    /* raw z / R enters its smoothing clamped to the baseline +- this */
 #define CONT_DIST_WARM_MS 1000u   /* no new flag this long after a reset: the baselines' running mean settles */
 
-/* Packed lower index of the regression's 4 x 4 moments. */
+#define CONT_DIST_STILL_MS 5000u  /* a heading this long at its baseline: a move's onset is held back ... */
+#define CONT_DIST_ONSET_MS 3000u  /* ... its first 3 s of learning (a transient's rise is 1..2.5 s) ... */
+#define CONT_DIST_DELAY_MS 1000u  /* ... kept only if no flag rose by 1 s after */
+
+/* Packed lower index of the regression's 4 x 4 moments, their count, and with the residual's and
+ * the vertical channel's (the held-back sums, cc->dist_pm). */
 #define CONT_DIST_P(i, j) ((i) * ((i) + 1u) / 2u + (j))
+#define CONT_DIST_NM 10u
+#define CONT_DIST_NP 18u
 
 /* Coefficients of both channels from the moments: one Gauss-Seidel sweep of (M + ridge I) th = m
  * per informative sample (M + ridge I is positive definite, so the sweeps converge; the moments
@@ -65,21 +73,82 @@ static void cont_dist_solve(magcal_cont_t *cc)
     }
 }
 
-/* A clean sample's deviations (residual dr, vertical du, regressors dx from their baselines)
- * into the moments, when the heading moved from its baseline (no information otherwise). */
-static void cont_dist_learn(magcal_cont_t *cc, float dr, float du, const float *dx, uint32_t dt)
+/* Commit (keep != 0) or drop the learning held back since a move's onset. The moments move with a
+ * 20-s time constant: a block of samples at once (m <- m (1 - W) + S) is their sequential update
+ * to first order in W. */
+static void cont_dist_release(magcal_cont_t *cc, int keep)
 {
-    float q = 0.0f;
+    uint32_t i;
+    if (keep != 0) {
+        const float w = cc->dist_pw;
+        for (i = 0u; i < CONT_DIST_NM; ++i) {
+            cc->dist_mx[i] += cc->dist_pm[i] - w * cc->dist_mx[i];
+        }
+        for (i = 0u; i < CONT_DIST_NX; ++i) {
+            cc->dist_mr[i] += cc->dist_pm[CONT_DIST_NM + i] - w * cc->dist_mr[i];
+            cc->dist_mu[i] += cc->dist_pm[CONT_DIST_NM + CONT_DIST_NX + i] - w * cc->dist_mu[i];
+        }
+    }
+    for (i = 0u; i < CONT_DIST_NP; ++i) {
+        cc->dist_pm[i] = 0.0f;
+    }
+    cc->dist_pw = 0.0f;
+}
+
+/* The onset of a heading move after CONT_DIST_STILL_MS of a still heading (parked, a straight)
+ * is the start of a turn or a transient's rise (a disturbance turns the heading too): what the
+ * regression learns in its first CONT_DIST_ONSET_MS is held back and kept only if no flag rose
+ * by CONT_DIST_DELAY_MS later (a flag drops it). Learnt at once, the first 0.7 s of a transient's
+ * rise taught the regression to explain the rise away, and the flag came 15 deg late (60-min
+ * seed 2, parked, rows 34976..34992: 64 OK rows up to 15.9 deg off). Within a turn (no still
+ * heading before) the regression learns at once, as it must after every reset. q: |dx|^2 of
+ * this sample (the regressors' deviations); called for every judged sample. */
+static void cont_dist_onset(magcal_cont_t *cc, float q, uint32_t dt)
+{
+    if (cc->dist_on_ms != 0u) {
+        cc->dist_on_ms += dt;
+        if (cc->dist_on_ms >= CONT_DIST_ONSET_MS + CONT_DIST_DELAY_MS) {
+            cont_dist_release(cc, 1);
+            cc->dist_on_ms = 0u;
+        }
+    }
+    if (q > CONT_DIST_EXC) {
+        if (cc->dist_on_ms == 0u && cc->dist_still_ms >= CONT_DIST_STILL_MS) {
+            cont_dist_release(cc, 0);
+            cc->dist_on_ms = 1u;
+        }
+        cc->dist_still_ms = 0u;
+    } else if (cc->dist_still_ms <= UINT32_MAX - dt) {
+        cc->dist_still_ms += dt;
+    } else {
+        /* saturated */
+    }
+}
+
+/* A clean sample's deviations (residual dr, vertical du, regressors dx from their baselines)
+ * into the moments, when the heading moved from its baseline (q = |dx|^2; no information
+ * otherwise); into
+ * the held-back sums within a move's onset (cont_dist_onset). */
+static void cont_dist_learn(magcal_cont_t *cc, float dr, float du, const float *dx, float q, uint32_t dt)
+{
     float w;
     uint32_t i;
     uint32_t k;
-    for (i = 0u; i < CONT_DIST_NX; ++i) {
-        q += dx[i] * dx[i];
-    }
     if (!(q > CONT_DIST_EXC)) {
         return;
     }
     w = (float)dt / (CONT_DIST_REG_MS + (float)dt);
+    if (cc->dist_on_ms != 0u && cc->dist_on_ms < CONT_DIST_ONSET_MS) {
+        for (i = 0u; i < CONT_DIST_NX; ++i) {
+            for (k = 0u; k <= i; ++k) {
+                cc->dist_pm[CONT_DIST_P(i, k)] += w * dx[i] * dx[k];
+            }
+            cc->dist_pm[CONT_DIST_NM + i] += w * dx[i] * dr;
+            cc->dist_pm[CONT_DIST_NM + CONT_DIST_NX + i] += w * dx[i] * du;
+        }
+        cc->dist_pw += w;
+        return;
+    }
     for (i = 0u; i < CONT_DIST_NX; ++i) {
         for (k = 0u; k <= i; ++k) {
             cc->dist_mx[CONT_DIST_P(i, k)] += w * (dx[i] * dx[k] - cc->dist_mx[CONT_DIST_P(i, k)]);
@@ -113,7 +182,8 @@ static void cont_dist_smooth(const magcal_cont_t *cc, float x, float u, const fl
  * explains (the model's and the calibration's heading-dependent error at the current pitch, the
  * soft-iron leak and the hill's share of raw z), into v[0] (residual), v[1] (vertical), with the
  * raw deviations v[2], v[3], the regressors' dx, and the thresholds v[4], v[5] (widened with the
- * heading's move: the coefficients are learnt at other pitches; the hysteresis while flagged).
+ * heading's move: the coefficients are learnt at other pitches; the hysteresis while flagged);
+ * v[6] = |dx|^2.
  * Returns 1 when either channel is over its threshold. */
 static uint8_t cont_dist_dev(const magcal_cont_t *cc, float e, float ue, const float *fe, float *dx, float *v)
 {
@@ -133,7 +203,8 @@ static uint8_t cont_dist_dev(const magcal_cont_t *cc, float e, float ue, const f
         v[0] -= cc->dist_th[i] * dx[i];
         v[1] -= cc->dist_th[CONT_DIST_NX + i] * dx[i];
     }
-    q = sqrtf(dx[0] * dx[0] + dx[1] * dx[1] + dx[2] * dx[2] + dx[3] * dx[3]);
+    v[6] = dx[0] * dx[0] + dx[1] * dx[1] + dx[2] * dx[2] + dx[3] * dx[3];
+    q = sqrtf(v[6]);
     v[4] = fmaxf(fmaxf(cc->cfg.disturb_k * sqrtf(cc->dist_var), CONT_DIST_STORE_K * cc->cal_sigma_rel),
                  CONT_DIST_MIN_REL) +
            CONT_DIST_UNC_R * q;
@@ -165,7 +236,7 @@ void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint
     const float rel = j->rel;
     float f[CONT_DIST_NX];
     float dx[CONT_DIST_NX];
-    float v[6];
+    float v[7];
     float dr0;
     float du0;
     float d;
@@ -214,6 +285,7 @@ void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint
         cc->dist_n++;
     }
     over = cont_dist_dev(cc, cc->dist_e, cc->dist_ue, cc->dist_fe, dx, v);
+    cont_dist_onset(cc, v[6], dt);
     if (cc->dist_age_ms < CONT_DIST_WARM_MS && cc->dist_flag == 0u) {
         /* the baselines started at one sample's value (its noise, up to the threshold): their
          * running mean settles first (a start 0.009 off held a flickering flag, never 6 s long
@@ -278,7 +350,7 @@ void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint
             const float dc = fminf(fabsf(d), CONT_DIST_LEARN * thr);
             const float duc = fminf(fabsf(du), CONT_DIST_LEARN * thru);
             if (fabsf(d) <= CONT_DIST_LEARN_REG * thr && fabsf(du) <= CONT_DIST_LEARN_REG * thru) {
-                cont_dist_learn(cc, dr0, du0, dx, dt);
+                cont_dist_learn(cc, dr0, du0, dx, v[6], dt);
             }
             cc->dist_var += w * (dc * dc - cc->dist_var);
             cc->dist_uvar += w * (duc * duc - cc->dist_uvar);
@@ -291,6 +363,7 @@ void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint
             for (i = 0u; i < CONT_DIST_NX; ++i) {
                 cc->dist_fo[i] = cc->dist_fe[i];
             }
+            cont_dist_release(cc, 0); /* a flag rose after the onset: its learning is dropped */
         }
     }
 }
@@ -307,7 +380,7 @@ uint8_t magcal_cont_transient_peek(const magcal_cont_t *cc, const magcal_cont_ju
     float f[CONT_DIST_NX];
     float fe[CONT_DIST_NX];
     float dx[CONT_DIST_NX];
-    float v[6];
+    float v[7];
     float e;
     float ue;
     if (cc->dist_n == 0u || !magcal_isfinite_f(j->rel) || !(fabsf(j->rel) <= CONT_GLITCH_REL) ||
@@ -371,6 +444,9 @@ void magcal_cont_transient_reset(magcal_cont_t *cc)
         cc->dist_mr[i] = 0.0f;
         cc->dist_th[i] = 0.0f;
     }
+    cont_dist_release(cc, 0);
+    cc->dist_on_ms = 0u;
+    cc->dist_still_ms = 0u;
     cc->fz_miss = 0.0f;
     cc->fz_unfit = 0u;
 }
