@@ -162,7 +162,8 @@ static void cont_dist_learn(magcal_cont_t *cc, float dr, float du, const float *
 /* The smoothed values after one more sample (x the clamped residual, u raw z / R, f its heading
  * regressors) dt ms after the last: towards the baseline 3 x faster (the flag ends within a
  * fraction of tau of the cause); the vertical channel and the regressors are smoothed alike
- * (their deviations line up). Into e, ue, fe (cc is not written: the peek uses it too). */
+ * (their deviations line up). Into e, ue, fe (cc is not written: the peek uses it too; fe may
+ * be f: elementwise). */
 static void cont_dist_smooth(const magcal_cont_t *cc, float x, float u, const float *f, uint32_t dt, float *e,
                              float *ue, float *fe)
 {
@@ -377,8 +378,7 @@ void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint
  * full thresholds); nothing written. 0 for a glitch or before the judge has a baseline. */
 uint8_t magcal_cont_transient_peek(const magcal_cont_t *cc, const magcal_cont_judge_t *j)
 {
-    float f[CONT_DIST_NX];
-    float fe[CONT_DIST_NX];
+    float f[CONT_DIST_NX]; /* the regressors, smoothed in place (cont_dist_smooth is elementwise) */
     float dx[CONT_DIST_NX];
     float v[7];
     float e;
@@ -388,8 +388,8 @@ uint8_t magcal_cont_transient_peek(const magcal_cont_t *cc, const magcal_cont_ju
         return 0u; /* (no new flag while the baselines settle, as magcal_cont_transient) */
     }
     cont_dist_feat(j, f);
-    cont_dist_smooth(cc, fminf(fmaxf(j->rel, -CONT_DIST_CLAMP), CONT_DIST_CLAMP), j->u, f, cc->dist_dt, &e, &ue, fe);
-    if (cont_dist_dev(cc, e, ue, fe, dx, v) != 0u) {
+    cont_dist_smooth(cc, fminf(fmaxf(j->rel, -CONT_DIST_CLAMP), CONT_DIST_CLAMP), j->u, f, cc->dist_dt, &e, &ue, f);
+    if (cont_dist_dev(cc, e, ue, f, dx, v) != 0u) {
         return 1u;
     }
     return (uint8_t)((cc->dist_flag == 0u && (!(fabsf(v[0]) <= cc->cfg.disturb_onset * v[4]) ||
