@@ -214,10 +214,10 @@
  * levelled at once by k times its fit tilt (a relevel, "Tilt compensation") drops the tilt term
  * ("Tilt in the estimate") from its estimate: the levelling removes what the term stood for.
  * The estimate and the tilt's predicted error ("Tilt in the trust"; without gravity the slopes'
- * measure, "Slopes without gravity") add up: a
- * heading whose two sum to more than 1.2 x the tolerance is MAGCAL_TRUST_TILTED, though each is
- * within its own (an estimate of 2.9 deg and 2.9 deg of tilt left headings OK 7 deg off: 30-min
- * seed 20 in a variant of stop 34; docs/calibrator.md "Stop 34").
+ * measure, "Slopes without gravity") add up: a heading whose two sum to more than 1.2 x the
+ * tolerance is MAGCAL_TRUST_TILTED, though each is within its own (an estimate of 2.9 deg and
+ * 2.9 deg of tilt left headings OK 7 deg off: 30-min seed 20 in a variant of stop 34;
+ * docs/calibrator.md "Stop 34"). With cfg.tilt_trust_deg 0 this sum is off too.
  * For the first second after every install (and every field-model fit) the transient judge
  * restarts its baselines and can raise no flag: its headings are COARSE then, not OK (30-min
  * seed 34: a transient that began 0.3 s before a relearn's install was OK up to 14.2 deg off).

@@ -7,10 +7,11 @@
  * model has no u terms, a store of level samples). Both deviations are reduced by what the
  * heading's move explains (a regression on cos, sin, cos 2, sin 2 of the corrected heading,
  * learnt on clean samples: the model's and the calibration's heading-dependent error at the
- * current pitch, the soft-iron leak of x, y into z; what the first seconds of a move after a still
- * heading teach it is kept only if no flag rose after them: a transient turns the heading too). The flag: either channel beyond
- * cfg.disturb_k times its own unexplained RMS on clean samples (the residual's at least half the
- * store's sigma and 0.004, the vertical at least 0.02 R), both widened with the heading's move;
+ * current pitch, the soft-iron leak of x, y into z; what the first seconds of a move after a
+ * still heading teach it is kept only if no flag rose after them: a transient turns the heading
+ * too). The flag: either channel beyond cfg.disturb_k times its own unexplained RMS on clean
+ * samples (the residual's at least half the store's sigma and 0.004, the vertical at least
+ * 0.02 R), both widened with the heading's move;
  * hysteresis at its end; held cfg.disturb_hold_ms after it falls back. A flagged sample is
  * DISTURBED and not stored, but drops nothing and never adds up to a change. A flag longer than
  * 6 s (or cfg.change_ms) is no transient (2..5 s) but the model's own error: the baselines then
@@ -127,8 +128,7 @@ static void cont_dist_onset(magcal_cont_t *cc, float q, uint32_t dt)
 
 /* A clean sample's deviations (residual dr, vertical du, regressors dx from their baselines)
  * into the moments, when the heading moved from its baseline (q = |dx|^2; no information
- * otherwise); into
- * the held-back sums within a move's onset (cont_dist_onset). */
+ * otherwise); into the held-back sums within a move's onset (cont_dist_onset). */
 static void cont_dist_learn(magcal_cont_t *cc, float dr, float du, const float *dx, float q, uint32_t dt)
 {
     float w;

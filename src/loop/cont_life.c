@@ -488,10 +488,10 @@ static float cont_tilt_err_deg(const magcal_cont_t *cc, uint8_t levelled)
  * tilt's predicted heading error is over cfg.tilt_trust_deg, or, while the tolerance is on, when
  * it and the calibration's own estimate (adopted_err; none for a restored one) add up to more
  * than CONT_OK_SUM x cfg.ok_max_err_deg (an estimate over the tolerance is COARSE whatever the
- * tilt; NaN compares false). Each within its own 3 deg, the two together left
- * headings OK 7 deg off: 30-min seed 20, a calibration adopted at an estimate of 2.9 deg whose
- * OK rows were those where the tilt predicted just under 3 deg (39 of 150 beyond 5 deg, with the
- * sweep held to 2 steps per sample during solves; 2,178 of 3,661 in another variant). */
+ * tilt; NaN compares false). Each within its own 3 deg, the two together left headings OK
+ * 7 deg off: 30-min seed 20, a calibration adopted at an estimate of 2.9 deg whose OK rows were
+ * those where the tilt predicted just under 3 deg (39 of 150 beyond 5 deg, with the sweep held to
+ * 2 steps per sample during solves; 2,178 of 3,661 in another variant). */
 #define CONT_OK_SUM 1.2f
 static int cont_tilt_over(const magcal_cont_t *cc, uint8_t levelled)
 {
