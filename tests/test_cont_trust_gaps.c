@@ -34,6 +34,8 @@ static magcal_intake_slot_t g_slots[SLOTS];
 static magcal_vec2_t g_buf[SLOTS];
 static MAGCAL_CALIBRATOR_WORKSPACE_DECLARE(g_work, SLOTS);
 static magcal_cont_t g_cc;
+/* The ring of the file comment: radius 30, soft iron, hard iron (12, -7). */
+static const test_distortion_t k_ring = {30.0f, {{1.10f, 0.05f}, {0.05f, 0.90f}}, 12.0f, -7.0f};
 
 typedef struct {
     test_distortion_t d; /* truth in force */
@@ -104,15 +106,35 @@ static void counts_clear(row_t *r)
     r->coarse = 0u;
 }
 
+/* A fresh run on the ring of the file comment (noise seed `seed`) and g_cc initialised with cfg
+ * (NULL: the defaults). */
+static void ring_start(row_t *r, uint32_t seed, const magcal_cont_cfg_t *cfg)
+{
+    const magcal_cont_cfg_t def = MAGCAL_CONT_CFG_DEFAULT;
+    memset(r, 0, sizeof *r);
+    r->d = k_ring;
+    r->rng = seed;
+    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, cfg != NULL ? cfg : &def, NULL, g_slots, SLOTS, g_buf,
+                                                      g_work, sizeof g_work));
+}
+
+/* One row at r->psi under an external field that turns the true horizontal field
+ * (test_distorted_sample's) by env x rot_deg and scales it by 1 + env x rel (env: the transient's
+ * envelope, 0..1), in raw axes. */
+static void disturbed_row(row_t *r, double env, double rot_deg, double rel)
+{
+    const double dr = 3.14159265358979323846 / 180.0;
+    const double hx = -30.0 * sin(r->psi * dr);
+    const double hy = 30.0 * cos(r->psi * dr);
+    const double gx = -30.0 * (1.0 + env * rel) * sin((r->psi + env * rot_deg) * dr) - hx;
+    const double gy = 30.0 * (1.0 + env * rel) * cos((r->psi + env * rot_deg) * dr) - hy;
+    row(r, (float)(r->d.t[0][0] * gx + r->d.t[0][1] * gy), (float)(r->d.t[1][0] * gx + r->d.t[1][1] * gy));
+}
+
 /* Calibrated after two full turns at 15 deg/s (the OK headings checked meanwhile). */
 static void calibrated(row_t *r, uint32_t seed)
 {
-    const test_distortion_t d = {30.0f, {{1.10f, 0.05f}, {0.05f, 0.90f}}, 12.0f, -7.0f};
-    magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
-    memset(r, 0, sizeof *r);
-    r->d = d;
-    r->rng = seed;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    ring_start(r, seed, NULL);
     turn(r, 720.0, 15.0);
     TEST_ASSERT_TRUE(g_cc.generation >= 1u);
     TEST_ASSERT_EQUAL_UINT(0u, r->bad_ok);
@@ -153,11 +175,10 @@ void test_trust_parked_step_twice_the_threshold(void)
  * the per-sample test off and the heading is OK 5 to 7 deg off: known gap, continuous.h. */
 static void parked_step_45(double psi, double s, uint32_t seed)
 {
-    const test_distortion_t d = {30.0f, {{1.10f, 0.05f}, {0.05f, 0.90f}}, 12.0f, -7.0f};
     uint32_t rng = 1u;
-    const magcal_vec2_t p = test_distorted_sample(&d, psi, 0.0, &rng);
-    const double ux = (double)(p.x - d.bx);
-    const double uy = (double)(p.y - d.by);
+    const magcal_vec2_t p = test_distorted_sample(&k_ring, psi, 0.0, &rng);
+    const double ux = (double)(p.x - k_ring.bx);
+    const double uy = (double)(p.y - k_ring.by);
     const double n = sqrt(ux * ux + uy * uy);
     const double a = s * n / sqrt(2.0);
     parked_step(psi, (float)(a * (ux - uy) / n), (float)(a * (uy + ux) / n), 6.0, seed);
@@ -175,17 +196,13 @@ void test_trust_parked_step_around_the_change_evidence(void)
 #define RAIL_START_DEG 280.0
 void test_trust_rail_glitch_in_an_uncovered_sector(void)
 {
-    const test_distortion_t d = {30.0f, {{1.10f, 0.05f}, {0.05f, 0.90f}}, 12.0f, -7.0f};
     magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
     row_t r;
     unsigned i;
     unsigned rail_ok = 0u;
-    memset(&r, 0, sizeof r);
-    r.d = d;
-    r.rng = 42u;
-    r.psi = RAIL_START_DEG;
     cfg.intake.range_limit = 800.0f;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    ring_start(&r, 42u, &cfg);
+    r.psi = RAIL_START_DEG;
     for (i = 0u; i < 40u && g_cc.generation == 0u; ++i) {
         turn(&r, 10.0, 15.0); /* up to the first adoption: the headings it did not see stay uncovered */
     }
@@ -210,14 +227,10 @@ void test_trust_rail_glitch_in_an_uncovered_sector(void)
  * 0.15-noise ring of the tests above stays OK (its estimate is ~0.3 deg). */
 static void noisy_ring(float ok_max, row_t *r)
 {
-    const test_distortion_t d = {30.0f, {{1.10f, 0.05f}, {0.05f, 0.90f}}, 12.0f, -7.0f};
     magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
-    memset(r, 0, sizeof *r);
-    r->d = d;
-    r->rng = 77u;
-    r->sigma = 2.0;
     cfg.ok_max_err_deg = ok_max;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    ring_start(r, 77u, &cfg);
+    r->sigma = 2.0;
     turn(r, 1080.0, 15.0);
     printf("noise 2.0, ok_max_err_deg %.0f: %u adoptions (estimate %.2f deg), %u OK rows (%u beyond %.0f deg, "
            "worst %.2f), %u COARSE\n", (double)ok_max, (unsigned)g_cc.generation, (double)g_cc.adopted_err, r->ok_rows,
@@ -249,33 +262,18 @@ void test_trust_ok_tolerance_holds_a_loose_calibration(void)
  * the rows after it in r. */
 static uint32_t transient_run(uint32_t tr0, double rot_deg, double rel, row_t *r)
 {
-    const test_distortion_t d = {30.0f, {{1.10f, 0.05f}, {0.05f, 0.90f}}, 12.0f, -7.0f};
     const uint32_t dur = 200u;
-    const double dr = 3.14159265358979323846 / 180.0;
-    magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
     uint32_t adopted = UINT32_MAX;
     uint32_t i;
-    memset(r, 0, sizeof *r);
-    r->d = d;
-    r->rng = 5u;
+    ring_start(r, 5u, NULL);
     r->gravity = 1; /* (level: without gravity the slopes' measure holds the first 2 s after the install too) */
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
     for (i = 0u; i < 2400u; ++i) {
         double env = 0.0;
-        double hx;
-        double hy;
-        double gx;
-        double gy;
         if (tr0 != UINT32_MAX && i >= tr0 && i < tr0 + dur) {
             env = 0.5 - 0.5 * cos(2.0 * 3.14159265358979323846 * ((double)(i - tr0) + 0.5) / (double)dur);
         }
         r->psi = fmod(r->psi + 0.3, 360.0);
-        /* the true horizontal field (test_distorted_sample's) and the disturbed one, in raw axes */
-        hx = -30.0 * sin(r->psi * dr);
-        hy = 30.0 * cos(r->psi * dr);
-        gx = -30.0 * (1.0 + env * rel) * sin((r->psi + env * rot_deg) * dr) - hx;
-        gy = 30.0 * (1.0 + env * rel) * cos((r->psi + env * rot_deg) * dr) - hy;
-        row(r, (float)(d.t[0][0] * gx + d.t[0][1] * gy), (float)(d.t[1][0] * gx + d.t[1][1] * gy));
+        disturbed_row(r, env, rot_deg, rel);
         if (adopted == UINT32_MAX && g_cc.generation >= 1u) {
             adopted = i;
             counts_clear(r); /* (no OK before an adoption) */
@@ -315,14 +313,8 @@ void test_trust_transient_across_an_adoption(void)
  * rot_deg, scales it by 1 + rel and adds z to raw z at its peak (raised cosine), then 10 s. */
 static void parked_transient(double rot_deg, double rel, double z, uint32_t dur, row_t *r)
 {
-    const double dr = 3.14159265358979323846 / 180.0;
-    const test_distortion_t d = {30.0f, {{1.10f, 0.05f}, {0.05f, 0.90f}}, 12.0f, -7.0f};
-    magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
     uint32_t i;
-    memset(r, 0, sizeof *r);
-    r->d = d;
-    r->rng = 7u;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
+    ring_start(r, 7u, NULL);
     for (i = 0u; i < 5000u && g_cc.generation == 0u; ++i) {
         r->psi = fmod(r->psi + 0.3, 360.0);
         row(r, 0.0f, 0.0f);
@@ -334,15 +326,11 @@ static void parked_transient(double rot_deg, double rel, double z, uint32_t dur,
     counts_clear(r);
     for (i = 0u; i < dur + 500u; ++i) {
         double env = 0.0;
-        double gx;
-        double gy;
         if (i < dur) {
             env = 0.5 - 0.5 * cos(2.0 * 3.14159265358979323846 * ((double)i + 0.5) / (double)dur);
         }
-        gx = -30.0 * (1.0 + env * rel) * sin((r->psi + env * rot_deg) * dr) + 30.0 * sin(r->psi * dr);
-        gy = 30.0 * (1.0 + env * rel) * cos((r->psi + env * rot_deg) * dr) - 30.0 * cos(r->psi * dr);
         r->ez = (float)(env * z);
-        row(r, (float)(r->d.t[0][0] * gx + r->d.t[0][1] * gy), (float)(r->d.t[1][0] * gx + r->d.t[1][1] * gy));
+        disturbed_row(r, env, rot_deg, rel);
     }
 }
 
@@ -381,15 +369,10 @@ void test_trust_parked_transient_turns_the_heading(void)
  * The OK rows of each part (and their errors against the truth) into lvl and slope. */
 static void tilt_estimate_run(double sigma, double pitch, row_t *lvl, row_t *slope)
 {
-    const test_distortion_t d = {30.0f, {{1.10f, 0.05f}, {0.05f, 0.90f}}, 12.0f, -7.0f};
-    magcal_cont_cfg_t cfg = MAGCAL_CONT_CFG_DEFAULT;
     row_t r;
-    memset(&r, 0, sizeof r);
-    r.d = d;
-    r.rng = 91u;
+    ring_start(&r, 91u, NULL);
     r.sigma = sigma;
     r.gravity = 1;
-    TEST_ASSERT_EQUAL_INT(MAGCAL_OK, magcal_cont_init(&g_cc, &cfg, NULL, g_slots, SLOTS, g_buf, g_work, sizeof g_work));
     turn(&r, 1080.0, 15.0);
     TEST_ASSERT_TRUE(g_cc.generation >= 1u);
     *lvl = r;
