@@ -49,8 +49,10 @@ static inline void magcal_cont_ema3(magcal_vec3_t *s, const magcal_vec3_t *x, fl
     s->y += (x->y - s->y) * w;
     s->z += (x->z - s->z) * w;
 }
-/* Judge raw (x, y) under cc->cal: 0 when no calibration is installed (j->mismatch 0). */
-int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_cont_judge_t *j);
+/* Judge raw (x, y) under cc->cal: 0 when no calibration is installed (j->mismatch 0). `radius`
+ * 1: by |h| / R - 1 even when the field model is on (a levelled sample under a calibration fitted
+ * on unlevelled ones, whose model's u terms are the hills': cal_conv). */
+int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, int radius, magcal_cont_judge_t *j);
 /* Fit the judge's total-field model and noise on the store under cc->cal (at an adoption),
  * time-sliced: begin (O(1): the judge is radius-only, fz_on 0, until the fit ends), then steps
  * within budget b (at least one visit each; the store must not change meanwhile: the drain

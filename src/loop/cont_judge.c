@@ -59,7 +59,7 @@ static int cont_corrected(const magcal_cont_t *cc, const magcal_vec3_t *m, magca
     return cc->has_cal != 0u && magcal_correct_apply(&cc->cal, raw, h) == MAGCAL_OK && cc->cal.radius > 0.0f;
 }
 
-int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_cont_judge_t *j)
+int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, int radius, magcal_cont_judge_t *j)
 {
     magcal_vec2_t h;
     float thr;
@@ -89,7 +89,7 @@ int magcal_cont_judge(const magcal_cont_t *cc, const magcal_vec3_t *m, magcal_co
             j->u = m->z / cc->cal_raw_radius;
         }
     }
-    if (cc->fz_on != 0u) {
+    if (cc->fz_on != 0u && radius == 0) {
         float v[3];
         j->rel = magcal_cont_fz_rel(cc, &h, m->z, v);
         j->unc = cont_fz_unc(cc, v[2], v[0], v[1]);

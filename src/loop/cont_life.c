@@ -725,7 +725,13 @@ magcal_status_t magcal_cont_heading(const magcal_cont_t *cc, const magcal_vec3_t
         if (st != MAGCAL_OK) {
             return st;
         }
-        (void)magcal_cont_judge(cc, (lv != 0 && cc->cal_lv != 0u) ? &lm : m, &j);
+        if (lv != 0 && cc->cal_lv == 0u) {
+            /* a relevel's (cal_conv): judged as the heading sees it, by the radius (the judge's
+             * model is the unlevelled store's, its u terms the hills'); cont_step.c the same */
+            lm.x = raw.x;
+            lm.y = raw.y;
+        }
+        (void)magcal_cont_judge(cc, (lv != 0) ? &lm : m, (lv != 0 && cc->cal_lv == 0u) ? 1 : 0, &j);
         /* and by the transient judge with this sample too (the drain is a row or more behind) */
         if (magcal_cont_transient_peek(cc, &j) != 0u || cc->rj_flag != 0u) {
             j.mismatch = 1u; /* or the gyro's check (cont_rate.c) */

@@ -128,7 +128,8 @@ static MAGCAL_NOINLINE int cont_screen(magcal_cont_t *cc, const magcal_vec3_t *m
     }
     if (cc->state == (uint8_t)MAGCAL_CONT_RELEARNING) {
         magcal_cont_rate_reset(cc);
-    } else if (magcal_cont_judge(cc, levelled != 0 && cc->cal_lv == 0u ? &cc->jm : m, &j) != 0) {
+    } else if (magcal_cont_judge(cc, levelled != 0 && cc->cal_lv == 0u ? &cc->jm : m,
+                                 (levelled != 0 && cc->cal_lv == 0u && cc->cal_conv != 0u) ? 1 : 0, &j) != 0) {
         j.tilted = (uint8_t)((cc->j_tilted != 0u && cc->fz_on == 0u) ? 1u : 0u); /* set by the drain */
         /* the gyro's rotation queued with a ring sample (the drain's, at cc->tail; a parked one has none) */
         magcal_cont_rate(cc, &j, (m != &cc->park_m) ? cc->ring_dy[cc->tail % MAGCAL_CONT_RING] : NAN, t_ms);
@@ -320,11 +321,18 @@ static MAGCAL_NOINLINE uint32_t cont_drain(magcal_cont_t *cc, uint32_t max, magc
         }
         if (tl != NULL && code == (uint8_t)MAGCAL_CONT_TILT_LEVELLED) {
             lv = 1;
-            if (judged != 0 && cc->cal_lv == 0u) {
+            if (judged != 0 && cc->cal_conv != 0u) {
+                /* levelled as the heading levels it (magcal_cont_heading: the fit tilt's centre) */
+                cc->jm.x = m->x + cc->tc_kl * cc->cal_tx;
+                cc->jm.y = m->y + cc->tc_kl * cc->cal_ty;
+                cc->jm.z = m->z;
+            } else if (judged != 0 && cc->cal_lv == 0u) {
                 cont_unlevel(cc, m, tl); /* cc->jm: read by cont_screen's judge only then */
                 if (tl->x * tl->x + tl->y * tl->y > cc->store.tilt_tan2) {
                     cc->j_tilted = 1u; /* judged as pushed: beyond the level limit */
                 }
+            } else {
+                /* not judged, or under a levelled calibration: the levelled sample itself */
             }
         }
         if (cont_screen(cc, m, m == &cc->park_m ? cc->park_t : cc->ring_t[t % MAGCAL_CONT_RING], lv) == 0) {
@@ -731,6 +739,7 @@ static MAGCAL_NOINLINE void cont_relevel(magcal_cont_t *cc)
     if (cc->cal_tk != 0u && cc->cal_ts <= CONT_TF_SPREAD) {
         cc->cal_conv = 1u;
         cc->levels++;
+        magcal_cont_transient_reset(cc); /* its samples are judged levelled from now on */
         /* levelled by k times its fit tilt: the tilt term leaves its estimate ("OK tolerance") */
         if (magcal_isfinite_f(cc->adopted_err) != 0) {
             cc->adopted_err = sqrtf(fmaxf(cc->adopted_err * cc->adopted_err - cc->adopted_tilt * cc->adopted_tilt, 0.0f));
