@@ -129,7 +129,7 @@ static MAGCAL_NOINLINE int cont_screen(magcal_cont_t *cc, const magcal_vec3_t *m
     if (cc->state == (uint8_t)MAGCAL_CONT_RELEARNING) {
         magcal_cont_rate_reset(cc);
     } else if (magcal_cont_judge(cc, levelled != 0 && cc->cal_lv == 0u ? &cc->jm : m,
-                                 (levelled != 0 && cc->cal_lv == 0u && cc->cal_conv != 0u) ? 1 : 0, &j) != 0) {
+                                 (levelled != 0 && cc->cal_conv != 0u) ? 1 : 0, &j) != 0) {
         j.tilted = (uint8_t)((cc->j_tilted != 0u && cc->fz_on == 0u) ? 1u : 0u); /* set by the drain */
         /* the gyro's rotation queued with a ring sample (the drain's, at cc->tail; a parked one has none) */
         magcal_cont_rate(cc, &j, (m != &cc->park_m) ? cc->ring_dy[cc->tail % MAGCAL_CONT_RING] : NAN, t_ms);
