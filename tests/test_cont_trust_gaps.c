@@ -306,13 +306,13 @@ void test_trust_transient_across_an_adoption(void)
     TEST_ASSERT_EQUAL_UINT(0u, r.bad_ok);
     TEST_ASSERT_TRUE(r.ok_rows + 250u >= clean.ok_rows); /* the transient's 4 s and its hold at most */
     {
-        /* the same transient starting 0..80 rows before the adoption. Up to 10 rows before, the
-         * judge's regression learnt the rise during its settling second and explained it away
-         * (0 and 5 rows before: 22 and 18 OK rows beyond 5 deg, 12.1 at worst); it learns only
-         * after that second now. From 20 rows before on, the baselines restart on the risen
-         * values (the first samples judged are the ones parked during the field-model fit) and
-         * the rest is seen too little: up to 20 OK rows beyond 5 deg, 14.6 at worst, printed
-         * (continuous.h "Known gap" under the OK tolerance) */
+        /* the same transient starting 0..80 rows before the adoption: printed, not asserted (a
+         * known gap, continuous.h under the OK tolerance). At 0 and 5 rows before, the heading
+         * regression learns the rise during the judge's settling second and explains it away
+         * (22 and 18 OK rows beyond 5 deg, 11.8 at worst); from 20 rows on, the baselines restart
+         * on the risen values (the first samples judged are the ones parked during the
+         * field-model fit). Holding the regression's learning back for that second fixed 0..10
+         * but flagged 260 of test_cont_drive.c's 4,000 clean rows (docs/calibrator.md "Stop 35") */
         static const uint32_t before[] = {0u, 5u, 10u, 20u, 25u, 30u, 40u, 50u, 60u, 80u};
         unsigned q;
         for (q = 0u; q < sizeof before / sizeof before[0]; ++q) {
@@ -321,9 +321,6 @@ void test_trust_transient_across_an_adoption(void)
             printf("transient from %u rows before the adoption: adopted at row %u; %u OK rows after it (%u beyond "
                    "%.0f deg, worst %.2f)\n", (unsigned)before[q], (unsigned)rr, rq.ok_rows, rq.bad_ok, OK_TOL_DEG,
                    rq.worst_ok);
-            if (before[q] <= 10u) {
-                TEST_ASSERT_EQUAL_UINT(0u, rq.bad_ok);
-            }
         }
     }
 }

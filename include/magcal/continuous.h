@@ -220,11 +220,12 @@
  * docs/calibrator.md "Stop 34"). With cfg.tilt_trust_deg 0 this sum is off too.
  * For the first second after every install (and every field-model fit) the transient judge
  * restarts its baselines and can raise no flag: its headings are COARSE then, not OK (30-min
- * seed 34: a transient that began 0.3 s before a relearn's install was OK up to 14.2 deg off);
- * its heading regression learns only after that second (it learnt such a transient's rise and
- * explained it away). Known gap: a transient that began 0.4 s or more before the install has
- * risen into the restarted baselines, and its rest is seen too little (tests/test_cont_trust_gaps.c
- * prints up to 20 OK rows beyond 5 deg, 14.6 at worst, for a 15-deg, 8 % transient).
+ * seed 34: a transient that began 0.3 s before a relearn's install was OK up to 14.2 deg off).
+ * Known gap: a transient under way at an install can still be OK far off. Its rise is learnt by
+ * the heading regression in that second and explained away (0..0.1 s before), or has entered
+ * the restarted baselines (0.4 s or more before); tests/test_cont_trust_gaps.c prints up to
+ * 22 OK rows beyond 5 deg, 14.6 at worst, for a 15-deg, 8 % transient (docs/calibrator.md
+ * "Stop 35").
  *
  * Tilt in the trust (cfg.tilt_trust_deg, default 3; 0 = off). A 2-D calibration is right only at
  * the tilt it was fitted at. With push_g's gravity, magcal_cont_heading predicts the heading

@@ -350,8 +350,7 @@ void magcal_cont_transient(magcal_cont_t *cc, const magcal_cont_judge_t *j, uint
              * itself (the flag came 5 rows later, seed 2) */
             const float dc = fminf(fabsf(d), CONT_DIST_LEARN * thr);
             const float duc = fminf(fabsf(du), CONT_DIST_LEARN * thru);
-            if (fabsf(d) <= CONT_DIST_LEARN_REG * thr && fabsf(du) <= CONT_DIST_LEARN_REG * thru &&
-                cc->dist_age_ms >= CONT_DIST_WARM_MS) {
+            if (fabsf(d) <= CONT_DIST_LEARN_REG * thr && fabsf(du) <= CONT_DIST_LEARN_REG * thru) {
                 cont_dist_learn(cc, dr0, du0, dx, v[6], dt);
             }
             cc->dist_var += w * (dc * dc - cc->dist_var);
